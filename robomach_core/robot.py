@@ -1,0 +1,183 @@
+"""The robot arm: pinocchio kinematics of a UR arm from example-robot-data, with the tool's TCP.
+
+PROBLEM   The controller needs FK, the TCP Jacobian and an inverse kinematics that never leaves
+          the joint limits, and users need a clear word when a pose cannot be reached.
+STRATEGY  Build the pinocchio model once from the URDF, add the TCP as an operational frame,
+          reuse one ``Data`` buffer. IK is damped least squares (Levenberg-Marquardt) on the
+          6-D pose error in the base frame, clamped to the joint limits after every step.
+SOLUTION  ``Robot.fk``, ``Robot.fk_and_jacobian``, ``Robot.ik`` and ``Robot.ik_step`` (one
+          control-period step), errors from ``robomach_core.errors``.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import SingularConfigurationError, UnknownNameError, UnreachableTargetError
+from .transforms import pose_error
+
+ROBOT_URDFS: dict[str, str] = {
+    "ur10": "ur_description/urdf/ur10_robot.urdf",
+    "ur5": "ur_description/urdf/ur5_robot.urdf",
+    "ur3": "ur_description/urdf/ur3_robot.urdf",
+}
+FLANGE_FRAME = "tool0"
+# A home pose with the tool pointing down above the table in front of the robot.
+HOME_JOINTS_RAD = np.array([0.0, -1.7, 1.9, -1.77, -1.5708, 0.0])
+# Below this smallest singular value of the 6x6 TCP Jacobian the arm is called singular.
+SINGULAR_VALUE_MIN = 1e-3
+
+
+def robots_directory() -> Path:
+    """Folder of the URDFs that the ``example-robot-data`` wheel installs (it has no module)."""
+    dist = importlib.metadata.distribution("example-robot-data")
+    return Path(str(dist.locate_file("cmeel.prefix/share/example-robot-data/robots")))
+
+
+class Robot:
+    """A 6-axis arm with a TCP frame; holds one pinocchio Model and its Data buffers.
+
+    Args:
+        name: ``"ur10"`` (default), ``"ur5"`` or ``"ur3"``.
+        T_flange_tcp: 4x4 TCP pose in the flange frame (metres).
+    """
+
+    def __init__(self, name: str = "ur10", T_flange_tcp: np.ndarray | None = None) -> None:
+        key = name.lower()
+        if key not in ROBOT_URDFS:
+            raise UnknownNameError(
+                f"unknown robot {name!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
+            )
+        self.name = key
+        urdf = robots_directory() / ROBOT_URDFS[key]
+        self.model = pin.buildModelFromUrdf(str(urdf))
+        flange_id = self.model.getFrameId(FLANGE_FRAME)
+        flange = self.model.frames[flange_id]
+        T = np.eye(4) if T_flange_tcp is None else np.asarray(T_flange_tcp, dtype=float)
+        self.T_flange_tcp = T.copy()
+        placement = flange.placement * pin.SE3(T[:3, :3], T[:3, 3])
+        self.tcp_frame_id = self.model.addFrame(
+            pin.Frame("tcp", flange.parentJoint, flange_id, placement, pin.FrameType.OP_FRAME)
+        )
+        self.flange_frame_id = flange_id
+        self.data = self.model.createData()
+        self.lower_rad = self.model.lowerPositionLimit.copy()
+        self.upper_rad = self.model.upperPositionLimit.copy()
+        self.velocity_limit_rad_s = self.model.velocityLimit.copy()
+        pin.framesForwardKinematics(self.model, self.data, np.zeros(6))
+        shoulder = self.data.oMi[2].translation
+        self.base_to_shoulder_m = shoulder.copy()
+        # Upper bound of the reach: sum of link lengths from the shoulder to the TCP.
+        pin.framesForwardKinematics(self.model, self.data, np.zeros(6))
+        self.reach_m = float(
+            sum(
+                np.linalg.norm(self.data.oMi[i + 1].translation - self.data.oMi[i].translation)
+                for i in range(2, self.model.njoints - 1)
+            )
+            + np.linalg.norm(placement.translation)
+            + np.linalg.norm(self.model.frames[flange_id].placement.translation)
+        )
+
+    @property
+    def nq(self) -> int:
+        return self.model.nq
+
+    def within_limits(self, q: np.ndarray) -> bool:
+        """True when every joint is inside its limits."""
+        return bool(np.all(q >= self.lower_rad - 1e-9) and np.all(q <= self.upper_rad + 1e-9))
+
+    def fk(self, q: np.ndarray) -> np.ndarray:
+        """4x4 ``T_base_tcp`` at joints ``q`` (rad)."""
+        pin.framesForwardKinematics(self.model, self.data, q)
+        return self.data.oMf[self.tcp_frame_id].homogeneous
+
+    def flange_pose(self, q: np.ndarray) -> np.ndarray:
+        """4x4 ``T_base_flange`` at joints ``q`` (rad)."""
+        pin.framesForwardKinematics(self.model, self.data, q)
+        return self.data.oMf[self.flange_frame_id].homogeneous
+
+    def fk_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``T_base_tcp`` and the 6x6 TCP Jacobian [v; omega] in base-aligned axes."""
+        pin.computeJointJacobians(self.model, self.data, q)
+        pin.updateFramePlacements(self.model, self.data)
+        J = pin.getFrameJacobian(
+            self.model, self.data, self.tcp_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        )
+        return self.data.oMf[self.tcp_frame_id].homogeneous, J
+
+    def ik_step(
+        self, q: np.ndarray, T_base_target: np.ndarray, *, damping: float = 1e-4
+    ) -> np.ndarray:
+        """One damped-least-squares step towards ``T_base_target``, clamped to the joint limits.
+
+        dq = J^T (J J^T + lambda^2 I)^-1 e, with e the 6-D pose error. Used every control
+        period, where the target moves by micrometres so one step tracks it.
+        """
+        T, J = self.fk_and_jacobian(q)
+        e = pose_error(T, T_base_target)
+        dq = J.T @ np.linalg.solve(J @ J.T + damping**2 * np.eye(6), e)
+        return np.clip(q + dq, self.lower_rad, self.upper_rad)
+
+    def ik(
+        self,
+        T_base_target: np.ndarray,
+        q_init: np.ndarray | None = None,
+        *,
+        tolerance_m: float = 1e-6,
+        tolerance_rad: float = 1e-5,
+        max_iterations: int = 200,
+    ) -> np.ndarray:
+        """Joint angles reaching ``T_base_target`` inside the joint limits.
+
+        Raises:
+            UnreachableTargetError: the TCP position is beyond the arm's reach, or the solver
+                cannot reach the pose inside the joint limits.
+            SingularConfigurationError: the solution would be at a singularity.
+        """
+        target = np.asarray(T_base_target, dtype=float)
+        p = target[:3, 3]
+        distance = float(np.linalg.norm(p - self.base_to_shoulder_m))
+        if not np.all(np.isfinite(target)):
+            raise UnreachableTargetError("target pose has non-finite values")
+        if distance > self.reach_m:
+            raise UnreachableTargetError(
+                f"target at {np.round(p * 1e3, 1).tolist()} mm is {distance * 1e3:.0f} mm from "
+                f"the shoulder, beyond the {self.name} reach of {self.reach_m * 1e3:.0f} mm"
+            )
+        seeds = [HOME_JOINTS_RAD.copy() if q_init is None else np.asarray(q_init, float).copy()]
+        seeds += [HOME_JOINTS_RAD + d for d in (np.array([0.6, 0, 0, 0, 0, 0]),
+                                                 np.array([-0.6, 0, 0, 0, 0, 0]))]
+        best_error = np.inf
+        for seed in seeds:
+            q = np.clip(seed, self.lower_rad, self.upper_rad)
+            damping = 1e-3
+            for _ in range(max_iterations):
+                T, J = self.fk_and_jacobian(q)
+                e = pose_error(T, target)
+                if np.linalg.norm(e[:3]) < tolerance_m and np.linalg.norm(e[3:]) < tolerance_rad:
+                    sigma_min = np.linalg.svd(J, compute_uv=False)[-1]
+                    if sigma_min < SINGULAR_VALUE_MIN:
+                        raise SingularConfigurationError(
+                            f"target at {np.round(p * 1e3, 1).tolist()} mm is at a singular "
+                            f"configuration (smallest Jacobian singular value {sigma_min:.1e})"
+                        )
+                    return q
+                dq = J.T @ np.linalg.solve(J @ J.T + damping**2 * np.eye(6), e)
+                step = np.linalg.norm(dq)
+                if step > 0.5:
+                    dq *= 0.5 / step
+                q = np.clip(q + dq, self.lower_rad, self.upper_rad)
+            best_error = min(best_error, float(np.linalg.norm(e[:3])))
+        raise UnreachableTargetError(
+            f"cannot reach target at {np.round(p * 1e3, 1).tolist()} mm inside the joint limits "
+            f"(closest {best_error * 1e3:.2f} mm)"
+        )
+
+    def singular_value_min(self, q: np.ndarray) -> float:
+        """Smallest singular value of the TCP Jacobian (a distance to singularity)."""
+        _, J = self.fk_and_jacobian(q)
+        return float(np.linalg.svd(J, compute_uv=False)[-1])

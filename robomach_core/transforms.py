@@ -1,0 +1,122 @@
+"""Homogeneous transforms and scalar-first quaternions (wxyz), numpy only.
+
+Conventions (shared/DESIGN.md): ``T_a_b`` maps coordinates in frame b to frame a; quaternions
+are ``[w, x, y, z]`` with ``w >= 0`` after normalisation so that output is deterministic.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InvalidInputError
+
+
+def make_transform(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
+    """Build a 4x4 transform from a 3x3 rotation and a (3,) translation."""
+    T = np.eye(4)
+    T[:3, :3] = rotation
+    T[:3, 3] = translation
+    return T
+
+
+def inverse_transform(T: np.ndarray) -> np.ndarray:
+    """Inverse of a rigid 4x4 transform."""
+    R = T[:3, :3]
+    return make_transform(R.T, -R.T @ T[:3, 3])
+
+
+def rotation_about(axis: str | np.ndarray, angle_rad: float) -> np.ndarray:
+    """3x3 rotation by ``angle_rad`` about ``"x"``, ``"y"``, ``"z"`` or a (3,) unit axis."""
+    if isinstance(axis, str):
+        axis = {"x": np.array([1.0, 0, 0]), "y": np.array([0, 1.0, 0]), "z": np.array([0, 0, 1.0])}[
+            axis
+        ]
+    axis = np.asarray(axis, dtype=float)
+    axis = axis / np.linalg.norm(axis)
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + np.sin(angle_rad) * K + (1 - np.cos(angle_rad)) * (K @ K)
+
+
+def quaternion_from_matrix(R: np.ndarray) -> np.ndarray:
+    """Unit quaternion ``[w, x, y, z]`` (w >= 0) of a 3x3 rotation matrix (Shepperd's method)."""
+    m = np.asarray(R, dtype=float)
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    if tr > 0:
+        s = 2.0 * np.sqrt(tr + 1.0)
+        q = np.array(
+            [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
+        )
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = np.array(
+            [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
+        )
+    elif m[1, 1] > m[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = np.array(
+            [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
+        )
+    else:
+        s = 2.0 * np.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = np.array(
+            [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
+        )
+    q /= np.linalg.norm(q)
+    return q if q[0] >= 0 else -q
+
+
+def matrix_from_quaternion(q_wxyz: np.ndarray) -> np.ndarray:
+    """3x3 rotation matrix of a quaternion ``[w, x, y, z]`` (normalised here)."""
+    q = np.asarray(q_wxyz, dtype=float)
+    n = np.linalg.norm(q)
+    if not np.isfinite(n) or n < 1e-9:
+        raise InvalidInputError(f"quaternion {q.tolist()} has no direction")
+    w, x, y, z = q / n
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
+
+
+def rotation_log(R: np.ndarray) -> np.ndarray:
+    """Rotation vector (axis * angle, rad) of a 3x3 rotation matrix."""
+    cos_angle = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
+    angle = np.arccos(cos_angle)
+    if angle < 1e-9:
+        return 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    if np.pi - angle < 1e-6:
+        # Near pi: axis from the diagonal.
+        axis = np.sqrt(np.maximum((np.diag(R) + 1.0) / 2.0, 0.0))
+        i = int(np.argmax(axis))
+        axis[(i + 1) % 3] = np.copysign(axis[(i + 1) % 3], R[i, (i + 1) % 3] + R[(i + 1) % 3, i])
+        axis[(i + 2) % 3] = np.copysign(axis[(i + 2) % 3], R[i, (i + 2) % 3] + R[(i + 2) % 3, i])
+        return axis / np.linalg.norm(axis) * angle
+    return angle / (2 * np.sin(angle)) * np.array(
+        [R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]
+    )
+
+
+def slerp(q0_wxyz: np.ndarray, q1_wxyz: np.ndarray, fraction: float) -> np.ndarray:
+    """Spherical linear interpolation between two unit quaternions, ``fraction`` in [0, 1]."""
+    q0 = np.asarray(q0_wxyz, dtype=float)
+    q1 = np.asarray(q1_wxyz, dtype=float)
+    dot = float(q0 @ q1)
+    if dot < 0:
+        q1, dot = -q1, -dot
+    if dot > 0.9995:
+        q = q0 + fraction * (q1 - q0)
+    else:
+        theta = np.arccos(dot)
+        q = (np.sin((1 - fraction) * theta) * q0 + np.sin(fraction * theta) * q1) / np.sin(theta)
+    q /= np.linalg.norm(q)
+    return q if q[0] >= 0 else -q
+
+
+def pose_error(T_current: np.ndarray, T_target: np.ndarray) -> np.ndarray:
+    """6-vector error [dp (m), dtheta (rad)] from current to target, both in the base frame."""
+    dp = T_target[:3, 3] - T_current[:3, 3]
+    dtheta = rotation_log(T_target[:3, :3] @ T_current[:3, :3].T)
+    return np.concatenate([dp, dtheta])
