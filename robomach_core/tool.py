@@ -34,7 +34,7 @@ class Tool:
     tcp_offset_m: tuple[float, float, float] = (0.0, 0.0, 0.18)
     mass_kg: float = 2.5
     com_m: tuple[float, float, float] = (0.0, 0.0, 0.07)
-    shape: CutterShape = "cylinder"
+    shape: CutterShape = "ball"
     radius_m: float = 0.001
     flute_length_m: float = 0.010
     _checked: bool = field(default=False, repr=False, compare=False)

@@ -12,6 +12,10 @@ from .base import ControlOutput as ControlOutput
 from .base import Measurement as Measurement
 from .constant import ConstantController as ConstantController
 from .constant import ConstantSettings as ConstantSettings
+from .fuzzy import RULE_BASE as RULE_BASE
+from .fuzzy import FuzzyController as FuzzyController
+from .fuzzy import FuzzySettings as FuzzySettings
+from .fuzzy import TwoStageSettings as TwoStageSettings
 from .pi import DESIGN_LOOP_GAIN as DESIGN_LOOP_GAIN
 from .pi import PI_ZERO_RAD_S as PI_ZERO_RAD_S
 from .pi import AdaptivePiController as AdaptivePiController
@@ -23,7 +27,9 @@ from .rls import PowerLawEstimator as PowerLawEstimator
 from .rls import RlsState as RlsState
 from .rls import rls_update as rls_update
 
-ControllerSettings = Union[ConstantSettings, FixedPiSettings, AdaptivePiSettings]  # noqa: UP007
+ControllerSettings = Union[  # noqa: UP007 (a runtime alias; get_args reads it)
+    ConstantSettings, FixedPiSettings, AdaptivePiSettings, FuzzySettings, TwoStageSettings
+]
 
 SETTINGS_CLASSES: dict[str, type] = {
     cls.__dataclass_fields__["kind"].default: cls for cls in get_args(ControllerSettings)
@@ -32,6 +38,8 @@ CONTROLLER_CLASSES: dict[str, type] = {
     "constant": ConstantController,
     "fixed-pi": FixedPiController,
     "adaptive-pi": AdaptivePiController,
+    "fuzzy": FuzzyController,
+    "two-stage": FuzzyController,
 }
 CONTROLLER_NAMES: tuple[str, ...] = tuple(SETTINGS_CLASSES)
 

@@ -1,0 +1,119 @@
+"""``robomach demo``: the whole programming-by-demonstration pipeline, headless."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "demo",
+        help="run lead-through, path learning, post-processing and RAPID export headless",
+        description=(
+            "Lead the simulated robot to guide points around the workpiece by virtual pushes, "
+            "learn the contour at constant contact force, filter and reduce the recording, and "
+            "write program.mod, samples.csv, targets.csv, workpiece.stl, summary.json and "
+            "demo.png into --out."
+        ),
+    )
+    p.add_argument("--out", required=True, type=Path, help="output folder (created if missing)")
+    p.add_argument("--robot", default="ur10", help="ur10 (default), ur5 or ur3")
+    p.add_argument("--workpiece", default="water_pump",
+                   help="water_pump (default) or block")
+    p.add_argument("--force", type=float, default=10.0, metavar="N",
+                   help="contact force reference in N (1-50; the paper used 10-20)")
+    p.add_argument("--speed", type=float, default=5.0, metavar="MM_S",
+                   help="learning speed in mm/s (default 5)")
+    p.add_argument("--tolerance", type=float, default=0.2, metavar="MM",
+                   help="deviation-height tolerance in mm (default 0.2)")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random element")
+    p.add_argument("--no-plot", action="store_true", help="skip demo.png")
+    p.set_defaults(func=run)
+
+
+class _ProgressLine:
+    """One terminal line per stage, redrawn in place on a TTY, printed at 25 % steps otherwise."""
+
+    def __init__(self, stream=sys.stderr) -> None:
+        self.stream = stream
+        self.tty = stream.isatty()
+        self.stage = None
+        self.last_quarter = -1
+        self.started = time.perf_counter()
+
+    def __call__(self, stage: str, fraction: float) -> None:
+        if stage != self.stage:
+            if self.stage is not None and self.tty:
+                self.stream.write("\n")
+            self.stage = stage
+            self.last_quarter = -1
+            self.started = time.perf_counter()
+        if self.tty:
+            bar = "#" * int(fraction * 30)
+            self.stream.write(f"\r{stage:<16} [{bar:<30}] {fraction * 100:5.1f} %")
+            if fraction >= 1.0:
+                self.stream.write(f"  {time.perf_counter() - self.started:.1f} s")
+            self.stream.flush()
+        else:
+            quarter = int(fraction * 4)
+            if quarter > self.last_quarter:
+                self.last_quarter = quarter
+                self.stream.write(f"{stage}: {quarter * 25} %\n")
+                self.stream.flush()
+
+    def close(self) -> None:
+        if self.tty and self.stage is not None:
+            self.stream.write("\n")
+
+
+def run(args: argparse.Namespace) -> int:
+    from robomach_core.errors import InvalidInputError
+
+    if not (args.tolerance > 0):
+        raise InvalidInputError(f"--tolerance must be > 0 mm, got {args.tolerance:g}")
+    if not (1.0 <= args.force <= 50.0):
+        raise InvalidInputError(f"--force must be within 1-50 N, got {args.force:g}")
+    if not (0.5 <= args.speed <= 50.0):
+        raise InvalidInputError(f"--speed must be within 0.5-50 mm/s, got {args.speed:g}")
+    if args.out.exists() and not args.out.is_dir():
+        raise InvalidInputError(f"--out {args.out} exists and is not a folder")
+
+    from robomach_core.export.outputs import write_demo_outputs
+    from robomach_core.pipeline import DemoSettings, run_demo
+
+    settings = DemoSettings(
+        robot=args.robot,
+        workpiece=args.workpiece,
+        force_N=args.force,
+        speed_m_s=args.speed * 1e-3,
+        tolerance_m=args.tolerance * 1e-3,
+        seed=args.seed,
+    )
+    bar = _ProgressLine()
+    try:
+        result = run_demo(settings, progress=bar)
+    finally:
+        bar.close()
+    paths = write_demo_outputs(result, args.out)
+    if not args.no_plot:
+        from robomach_core.plots import demo_figure
+
+        paths.append(demo_figure(result, args.out / "demo.png"))
+    s = result.summary()
+    print(f"guide points      {s['guide_points']}")
+    print(f"samples           {s['samples_raw']} raw, {s['samples_filtered']} kept "
+          f"(force in [{s['force_min_N']:g}, {s['force_max_N']:g}] N)")
+    print(f"contact force     mean {s['force_mean_N']:.2f} N, |error| p95 "
+          f"{s['force_abs_error_p95_N']:.2f} N, within 2 N: {s['force_within_2N_fraction']:.1%}")
+    print(f"targets           {s['targets']} (tolerance {s['tolerance_mm']:g} mm)")
+    if s["max_deviation_mm"] is not None:
+        print(f"deviation         max {s['max_deviation_mm']:.3f} mm, RMS "
+              f"{s['rms_deviation_mm']:.3f} mm (path vs true wall - tool radius)")
+    print(f"reachable         {s['robtargets_reachable']}/{s['robtargets_total']} robtargets")
+    print(f"run               {s['stop_reason']}; {s['sim_time_s']:.1f} s simulated in "
+          f"{s['learning_wall_time_s']:.1f} s (x{s['realtime_factor']:.0f} real time)")
+    print(f"wrote             {', '.join(p.name for p in paths)} in {args.out}")
+    return 0 if result.recording.completed else 1

@@ -1,0 +1,146 @@
+"""A scripted operator who leads the robot through the guide points by pushing it.
+
+It stands in for the process engineer in ``robomach demo`` and the workbench's "load the
+example": a virtual hand applies a push proportional to the distance to where the operator
+wants the tool (capped like a real hand), through the admittance controller, so the robot
+travels there; nothing is teleported. The operator first jogs the orientation square to the
+part, then for each guide point: over the groove, down into it, a gentle push sideways until
+the wall pushes back, record, back out and up.
+
+The operator's eye is imperfect: each intended position is off by a seeded random amount.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .cell import CONTROL_PERIOD_S
+from .contour import Line
+from .errors import InvalidInputError
+from .leadthrough import ComplianceSelection, GuidePoint, LeadThrough, LeadThroughState
+from .transforms import rotation_log
+from .workpiece import Workpiece
+
+HAND_GAIN_N_M = 2000.0  # push per metre of distance to the goal
+HAND_MAX_N = 15.0  # a comfortable one-hand push
+WALL_PUSH_N = 6.0  # the gentle sideways push that finds the wall
+TOOL_DOWN = np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # x_tool = -y_base
+
+
+@dataclass(frozen=True)
+class GuideIntent:
+    """Where the operator means to put one guide point (base frame, metres)."""
+
+    position_m: np.ndarray
+    wall_normal: np.ndarray  # unit (3,), from the tool towards the wall
+
+
+def guide_plan(workpiece: Workpiece, tool_radius_m: float, rng: np.random.Generator) -> list[GuideIntent]:
+    """Gross guide points for a built-in workpiece: one in each long straight run of the wall.
+
+    Runs of 40 mm or more get two points (at 20 % and 80 %), so corners are bracketed.
+    """
+    if workpiece.wall is None:
+        raise InvalidInputError(
+            f"the example lead-through needs a built-in workpiece, not {workpiece.name!r}"
+        )
+    T = workpiece.T_base_wobj
+    z_lo, z_hi = workpiece.wall_z_m
+    z = max(z_lo + tool_radius_m + 0.0015, z_hi - 0.003)
+    intents = []
+    for piece in workpiece.wall.pieces:
+        if not isinstance(piece, Line) or piece.length < 0.012:
+            continue
+        fractions = (0.2, 0.8) if piece.length >= 0.040 else (0.5,)
+        a, b = np.asarray(piece.start), np.asarray(piece.end)
+        t = (b - a) / piece.length
+        right = np.array([t[1], -t[0]])  # the wall material is on the right of travel
+        for f in fractions:
+            p = a + (b - a) * f
+            p = p + t * rng.uniform(-0.0015, 0.0015)  # the operator's imprecision
+            p = p - right * (tool_radius_m + 0.001 + rng.uniform(0.0, 0.0005))
+            pos = T[:3, :3] @ np.array([p[0], p[1], z]) + T[:3, 3]
+            normal = T[:3, :3] @ np.array([right[0], right[1], 0.0])
+            intents.append(GuideIntent(pos, normal))
+    return intents
+
+
+def _hand(goal: np.ndarray, p: np.ndarray, limit: float = HAND_MAX_N) -> np.ndarray:
+    f = HAND_GAIN_N_M * (goal - p)
+    norm = float(np.linalg.norm(f))
+    return f if norm <= limit else f * (limit / norm)
+
+
+def push_to(
+    lt: LeadThrough,
+    state: LeadThroughState,
+    goal: np.ndarray,
+    selection: ComplianceSelection,
+    *,
+    tolerance_m: float = 0.0003,
+    timeout_s: float = 20.0,
+) -> LeadThroughState:
+    """Push the tool towards ``goal`` until it is within ``tolerance_m`` and nearly still."""
+    for _ in range(int(timeout_s / CONTROL_PERIOD_S)):
+        p = state.cell.T_base_tcp[:3, 3]
+        if np.linalg.norm(goal - p) < tolerance_m and np.linalg.norm(state.velocity[:3]) < 2e-3:
+            break
+        wrench = np.concatenate([_hand(goal, p), np.zeros(3)])
+        state = lt.step(state, wrench, selection)
+    return state
+
+
+def square_up(lt: LeadThrough, state: LeadThroughState, selection: ComplianceSelection,
+              *, step_deg: float = 0.5) -> LeadThroughState:
+    """Jog the orientation about the tool axes until it is square to the part (within a step)."""
+    for _ in range(3):
+        R = state.cell.T_base_tcp[:3, :3]
+        err_tool = R.T @ rotation_log(TOOL_DOWN @ R.T)  # rotation to do, in tool axes
+        moved = False
+        for i, axis in enumerate(("rx", "ry", "rz")):
+            steps = round(math.degrees(err_tool[i]) / step_deg)
+            if steps:
+                state = lt.jog(state, axis, math.radians(steps * step_deg), selection)
+                moved = True
+        if not moved:
+            break
+    return state
+
+
+def scripted_leadthrough(
+    lt: LeadThrough,
+    state: LeadThroughState,
+    workpiece: Workpiece,
+    rng: np.random.Generator,
+    *,
+    progress: Callable[[float], None] | None = None,
+) -> tuple[LeadThroughState, list[GuidePoint]]:
+    """Lead the robot to every planned guide point by pushes and record each one."""
+    free = ComplianceSelection(frozenset({"x", "y", "z"}), "base")
+    planar = ComplianceSelection(frozenset({"x", "y"}), "base")
+    state = square_up(lt, state, ComplianceSelection(frozenset(), "tool"))
+    intents = guide_plan(workpiece, lt.cell.tool.radius_m, rng)
+    surface_z = (workpiece.T_base_wobj @ np.array([0, 0, workpiece.surface_z_m, 1.0]))[2]
+    safe_z = surface_z + 0.008
+    guides: list[GuidePoint] = []
+    for k, intent in enumerate(intents):
+        over = intent.position_m.copy()
+        over[2] = safe_z
+        state = push_to(lt, state, over, free, tolerance_m=0.0005)
+        state = push_to(lt, state, intent.position_m, free)
+        # Sideways until the wall pushes back: the hand keeps pushing, the wall balances it.
+        wall_push = np.concatenate([intent.wall_normal * WALL_PUSH_N, np.zeros(3)])
+        for _ in range(int(1.5 / CONTROL_PERIOD_S)):
+            state = lt.step(state, wall_push, planar)
+        guides.append(lt.record(state))
+        state = push_to(lt, state, intent.position_m, planar)
+        up = state.cell.T_base_tcp[:3, 3].copy()
+        up[2] = safe_z
+        state = push_to(lt, state, up, free, tolerance_m=0.0005)
+        if progress is not None:
+            progress((k + 1) / len(intents))
+    return state, guides

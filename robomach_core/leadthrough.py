@@ -1,0 +1,244 @@
+"""Lead-through: admittance control driven by a push, and the force-control jogging mode.
+
+Chapter section 3.1: the robot is compliant in the directions the operator selects and stiff in
+the rest; the operator pushes the tool to where it should be, and sets the orientation with jog
+steps about the tool axes (the paper's force-control jogging mode). Because the motion answers
+to the measured force, contact with the workpiece pushes back and leading the tool into the part
+is safe: the tool stops where the wall's reaction balances the push.
+
+Admittance law per compliant axis i (selected frame): M_i dv_i/dt + D_i v_i = W_push,i + W_c,i,
+where W_c is the measured, gravity-compensated contact wrench. Stiff axes keep v_i = 0. The
+reference pose integrates v; the motor-side joints follow it by one IK step per period.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+import numpy as np
+
+from .cell import CONTROL_PERIOD_S, Cell, CellState
+from .errors import InvalidInputError
+from .sensor import ForceEstimator
+from .transforms import quaternion_from_matrix, rotation_about
+
+Axis = Literal["x", "y", "z", "rx", "ry", "rz"]
+AXES: tuple[Axis, ...] = ("x", "y", "z", "rx", "ry", "rz")
+ComplianceFrame = Literal["tool", "base"]
+
+
+@dataclass(frozen=True)
+class ComplianceSelection:
+    """Which axes are compliant, and in which frame."""
+
+    axes: frozenset[str] = frozenset({"x", "y", "z"})
+    frame: ComplianceFrame = "base"
+
+    def __post_init__(self) -> None:
+        unknown = set(self.axes) - set(AXES)
+        if unknown:
+            raise InvalidInputError(
+                f"unknown compliance axes {sorted(unknown)}; use any of {', '.join(AXES)}"
+            )
+        if self.frame not in ("tool", "base"):
+            raise InvalidInputError(f"compliance frame must be 'tool' or 'base', not {self.frame!r}")
+
+    @property
+    def mask(self) -> np.ndarray:
+        return np.array([a in self.axes for a in AXES], dtype=float)
+
+
+@dataclass(frozen=True)
+class AdmittanceParams:
+    """Virtual mass and damping of the admittance, and its speed limits.
+
+    Attributes:
+        mass_kg: Virtual mass per translational axis.
+        damping_N_s_m: Translational damping: a 10 N push moves the tool at 10 / D m/s.
+        inertia_kg_m2: Virtual inertia per rotational axis.
+        damping_rot_Nm_s_rad: Rotational damping.
+        max_speed_m_s: Translational speed limit.
+        max_rate_rad_s: Rotational speed limit.
+    """
+
+    mass_kg: float = 2.0
+    damping_N_s_m: float = 500.0
+    inertia_kg_m2: float = 0.05
+    damping_rot_Nm_s_rad: float = 10.0
+    max_speed_m_s: float = 0.05
+    max_rate_rad_s: float = 0.5
+
+
+@dataclass(frozen=True)
+class GuidePoint:
+    """A recorded guide point: measured pose, motor-side joints and the time.
+
+    Attributes:
+        T_base_tcp: 4x4 TCP pose (from the motor-side joints), metres.
+        joints_rad: (6,) motor-side joints.
+        time_s: Simulated time of recording.
+        force_N: (3,) compensated contact force at recording, base frame (zero when free).
+    """
+
+    T_base_tcp: np.ndarray
+    joints_rad: np.ndarray
+    time_s: float
+    force_N: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    @property
+    def position_m(self) -> np.ndarray:
+        return self.T_base_tcp[:3, 3]
+
+    @property
+    def quaternion_wxyz(self) -> np.ndarray:
+        return quaternion_from_matrix(self.T_base_tcp[:3, :3])
+
+
+@dataclass(frozen=True)
+class LeadThroughState:
+    """The cell plus the admittance's own state (reference pose and velocity)."""
+
+    cell: CellState
+    T_ref: np.ndarray
+    velocity: np.ndarray  # (6,) [v (m/s), omega (rad/s)] in the selection frame
+
+    @property
+    def contact_force_N(self) -> float:
+        return float(np.linalg.norm(self.cell.contact.wrench[:3]))
+
+
+class LeadThrough:
+    """Admittance controller over a cell; one instance per session (holds the force estimator).
+
+    Args:
+        cell: The simulated cell.
+        params: Admittance parameters.
+        estimator: The controller's gravity/bias compensation; tared on construction.
+    """
+
+    def __init__(
+        self,
+        cell: Cell,
+        params: AdmittanceParams | None = None,
+        estimator: ForceEstimator | None = None,
+    ) -> None:
+        self.cell = cell
+        self.params = params or AdmittanceParams()
+        self.estimator = estimator or cell.force_estimator()
+        p = self.params
+        self._mass = np.array([p.mass_kg] * 3 + [p.inertia_kg_m2] * 3)
+        self._damping = np.array([p.damping_N_s_m] * 3 + [p.damping_rot_Nm_s_rad] * 3)
+        self._limit = np.array([p.max_speed_m_s] * 3 + [p.max_rate_rad_s] * 3)
+
+    def start(self, cell_state: CellState, *, tare_samples: int = 50) -> LeadThroughState:
+        """Tare the sensor (tool free, robot still) and hold the current pose."""
+        readings, rotations = [], []
+        state = cell_state
+        for _ in range(tare_samples):
+            state = self.cell.step(state, state.q_motor)
+            readings.append(state.ft_reading)
+            rotations.append(self.cell.flange_rotation(state.T_base_tcp))
+        if not state.in_contact:
+            self.estimator.tare(np.array(readings), np.array(rotations))
+        return LeadThroughState(state, state.T_base_tcp.copy(), np.zeros(6))
+
+    def measured_wrench(self, state: CellState) -> np.ndarray:
+        """(6,) compensated contact wrench at the TCP, base axes (what the controller knows)."""
+        return self.estimator.contact_wrench_tcp_base(
+            state.ft_reading, self.cell.flange_rotation(state.T_base_tcp)
+        )
+
+    def step(
+        self,
+        state: LeadThroughState,
+        push_wrench: np.ndarray,
+        selection: ComplianceSelection,
+        dt: float = CONTROL_PERIOD_S,
+    ) -> LeadThroughState:
+        """One period of admittance control under the push wrench (6,) at the TCP, base axes."""
+        R = state.cell.T_base_tcp[:3, :3] if selection.frame == "tool" else np.eye(3)
+        w_total = np.asarray(push_wrench, dtype=float) + self.measured_wrench(state.cell)
+        w_sel = np.concatenate([R.T @ w_total[:3], R.T @ w_total[3:]])
+        # Damping taken implicitly: v+ = (M v + dt W) / (M + D dt), stable against a stiff wall
+        # (the contact loop gain k dt^2 / (M + D dt) stays well below 1 at 4 ms).
+        v = (self._mass * state.velocity + dt * w_sel) / (self._mass + self._damping * dt)
+        v = np.clip(v * selection.mask, -self._limit, self._limit)
+        twist_base = np.concatenate([R @ v[:3], R @ v[3:]])
+        T_ref = state.T_ref.copy()
+        T_ref[:3, 3] += twist_base[:3] * dt
+        angle = float(np.linalg.norm(twist_base[3:]) * dt)
+        if angle > 0:
+            T_ref[:3, :3] = rotation_about(twist_base[3:], angle) @ T_ref[:3, :3]
+        q_cmd = self.cell.robot.ik_step(state.cell.q_motor, T_ref)
+        cell_state = self.cell.step(state.cell, q_cmd, dt)
+        return LeadThroughState(cell_state, T_ref, v)
+
+    def hold(
+        self, state: LeadThroughState, selection: ComplianceSelection, duration_s: float
+    ) -> LeadThroughState:
+        """Let the robot settle with no push (contact still pushes back)."""
+        return self.push(state, np.zeros(6), selection, duration_s)
+
+    def push(
+        self,
+        state: LeadThroughState,
+        push_wrench: np.ndarray,
+        selection: ComplianceSelection,
+        duration_s: float,
+    ) -> LeadThroughState:
+        """Apply a constant push for ``duration_s`` seconds."""
+        if not (0 <= duration_s <= 60):
+            raise InvalidInputError(f"push duration {duration_s:g} s is outside 0-60 s")
+        w = np.asarray(push_wrench, dtype=float)
+        if w.shape != (6,) or not np.all(np.isfinite(w)):
+            raise InvalidInputError("push wrench must be 6 finite values [N, N*m]")
+        for _ in range(int(round(duration_s / CONTROL_PERIOD_S))):
+            state = self.step(state, w, selection)
+        return state
+
+    def jog(
+        self,
+        state: LeadThroughState,
+        axis: Axis,
+        step: float,
+        selection: ComplianceSelection,
+        *,
+        frame: ComplianceFrame = "tool",
+        rate: float | None = None,
+    ) -> LeadThroughState:
+        """Force-control jogging: move the reference by ``step`` (m, or rad for rx/ry/rz).
+
+        The motion runs at ``rate`` (m/s or rad/s; default 10 mm/s or 10 deg/s) while the
+        compliant axes keep answering to the measured force, so a jog into the part is safe.
+        """
+        if axis not in AXES:
+            raise InvalidInputError(f"jog axis must be one of {', '.join(AXES)}, not {axis!r}")
+        if not math.isfinite(step):
+            raise InvalidInputError("jog step must be finite")
+        rotational = axis.startswith("r")
+        if rotational and abs(step) > math.radians(45):
+            raise InvalidInputError("a rotational jog step is at most 45 degrees")
+        if not rotational and abs(step) > 0.2:
+            raise InvalidInputError("a translational jog step is at most 200 mm")
+        speed = rate or (math.radians(10.0) if rotational else 0.01)
+        n = max(1, int(math.ceil(abs(step) / speed / CONTROL_PERIOD_S)))
+        unit = {"x": 0, "y": 1, "z": 2}[axis[-1]]
+        R_frame = state.cell.T_base_tcp[:3, :3] if frame == "tool" else np.eye(3)
+        direction = R_frame[:, unit]
+        for _ in range(n):
+            T_ref = state.T_ref.copy()
+            if rotational:
+                T_ref[:3, :3] = rotation_about(direction, step / n) @ T_ref[:3, :3]
+            else:
+                T_ref[:3, 3] += direction * step / n
+            state = self.step(replace(state, T_ref=T_ref), np.zeros(6), selection)
+        return state
+
+    def record(self, state: LeadThroughState) -> GuidePoint:
+        """A guide point at the current measured pose."""
+        w = self.measured_wrench(state.cell)
+        return GuidePoint(
+            state.cell.T_base_tcp.copy(), state.cell.q_motor.copy(), state.cell.time_s, w[:3].copy()
+        )

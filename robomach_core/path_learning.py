@@ -1,0 +1,337 @@
+"""Automatic path learning (chapter section 3.2): follow the wall at constant contact force.
+
+PROBLEM   The test program (straight lines through the guide points) is far from the real
+          contour; the robot must find the contour itself and record it.
+STRATEGY  Path frame per segment: Xp along the segment, Zp the tool axis interpolated from the
+          guide orientations, Yp = side * (Zp x Xp) towards the wall. Position control along Xp
+          at the learning speed and along Zp; PI force control along Yp to the reference force:
+              v_y = Kp e + Ki integral(e),  e = F_ref - F_y,  F_y = -(F_contact . Yp),
+          i.e. the tool yields into or out of the program path until the wall pushes back with
+          F_ref (the chapter: "the tool tip will yield along the Y axis until it reaches the
+          equilibrium"). At a guide point the reference moves to the next segment's frame
+          without a jump. The controller sees only motor-side joints and the F/T reading.
+SOLUTION  ``learn_path(...) -> Recording``: every 4 ms the time, motor-side joints, measured TCP
+          pose, sensor and tool-frame wrenches, reference force and a contact flag; the run ends at
+          the last guide point, or on the protection rule (contact force above the limit).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from .cell import CONTROL_PERIOD_S, Cell, CellState
+from .errors import CancelledError, InvalidInputError, NotEnoughGuidePointsError
+from .leadthrough import GuidePoint
+from .sensor import ForceEstimator
+from .transforms import cross3, quaternion_from_matrix, slerp, matrix_from_quaternion
+
+FORCE_RANGE_N = (1.0, 50.0)
+SPEED_RANGE_M_S = (0.0005, 0.05)
+CONTACT_FLAG_N = 1.0  # a measured contact force above this counts as contact
+LOST_WALL_M = 0.03  # protection: the tool left the program path by more than this
+
+
+@dataclass(frozen=True)
+class PathLearningSettings:
+    """Settings of a path-learning run (SI units).
+
+    Attributes:
+        force_N: Contact force reference along Yp (the chapter: 10-20 N; 10 N on the pump).
+        speed_m_s: Learning speed along Xp (the chapter: 5 mm/s).
+        closed: The contour returns from the last guide point to the first.
+        wall_side: Side of the wall relative to the travel direction seen along -Zp; "auto"
+            reads it from the contact force recorded with the guide points.
+        force_limit_N: Protection rule: the run stops when the contact force exceeds this.
+        kp_m_s_N: Proportional gain of the Yp force loop.
+        ki_m_s2_N: Integral gain of the Yp force loop.
+        max_normal_speed_m_s: Speed limit along Yp.
+    """
+
+    force_N: float = 10.0
+    speed_m_s: float = 0.005
+    closed: bool = True
+    wall_side: Literal["auto", "left", "right"] = "auto"
+    force_limit_N: float = 60.0
+    kp_m_s_N: float = 1.5e-3
+    ki_m_s2_N: float = 0.03
+    max_normal_speed_m_s: float = 0.025
+
+    def __post_init__(self) -> None:
+        lo, hi = FORCE_RANGE_N
+        if not (lo <= self.force_N <= hi):
+            raise InvalidInputError(f"contact force {self.force_N:g} N is outside {lo:g}-{hi:g} N")
+        lo, hi = SPEED_RANGE_M_S
+        if not (lo <= self.speed_m_s <= hi):
+            raise InvalidInputError(
+                f"learning speed {self.speed_m_s * 1e3:g} mm/s is outside "
+                f"{lo * 1e3:g}-{hi * 1e3:g} mm/s"
+            )
+        if self.force_limit_N <= self.force_N:
+            raise InvalidInputError("the force limit must be above the force reference")
+        if self.wall_side not in ("auto", "left", "right"):
+            raise InvalidInputError("wall side must be 'auto', 'left' or 'right'")
+
+
+@dataclass(frozen=True)
+class Recording:
+    """Path-learning samples, one row per 4 ms (SI units, base frame unless said).
+
+    Attributes:
+        time_s: (n,)
+        joints_rad: (n, 6) motor-side joints.
+        position_m: (n, 3) measured TCP position.
+        quaternion_wxyz: (n, 4) measured TCP orientation.
+        wrench_sensor: (n, 6) raw F/T reading in the sensor frame [N, N*m].
+        wrench_tool: (n, 6) compensated contact wrench in the tool frame, about the TCP.
+        force_normal_N: (n,) measured contact force along Yp (what the loop regulates).
+        force_reference_N: (n,) the reference.
+        in_contact: (n,) contact flag (measured force above 1 N).
+        yp: (n, 3) the Yp direction in use (for post-processing).
+        segment: (n,) index of the program segment.
+        stop_reason: Why the run ended.
+        completed: True when the run reached its last guide point.
+    """
+
+    time_s: np.ndarray
+    joints_rad: np.ndarray
+    position_m: np.ndarray
+    quaternion_wxyz: np.ndarray
+    wrench_sensor: np.ndarray
+    wrench_tool: np.ndarray
+    force_normal_N: np.ndarray
+    force_reference_N: np.ndarray
+    in_contact: np.ndarray
+    yp: np.ndarray
+    segment: np.ndarray
+    stop_reason: str
+    completed: bool
+
+    def __len__(self) -> int:
+        return len(self.time_s)
+
+    @property
+    def contact_force_N(self) -> np.ndarray:
+        """(n,) magnitude of the measured contact force in the path's normal plane (Yp)."""
+        return self.force_normal_N
+
+
+@dataclass
+class _Segment:
+    a: np.ndarray
+    b: np.ndarray
+    qa: np.ndarray
+    qb: np.ndarray
+    length: float
+    xp: np.ndarray
+
+
+def _segments(guides: Sequence[GuidePoint], closed: bool) -> list[_Segment]:
+    points = list(guides) + ([guides[0]] if closed else [])
+    segs = []
+    for g0, g1 in zip(points[:-1], points[1:], strict=True):
+        a, b = g0.position_m.copy(), g1.position_m.copy()
+        d = b - a
+        length = float(np.linalg.norm(d))
+        if length < 1e-4:
+            continue  # coincident guide points: nothing to travel
+        segs.append(_Segment(a, b, g0.quaternion_wxyz, g1.quaternion_wxyz, length, d / length))
+    return segs
+
+
+def _wall_side(guides: Sequence[GuidePoint], segs: list[_Segment], setting: str) -> float:
+    """+1 when the wall is on the right of travel (Yp = Zp x Xp ... seen with Zp into the part)."""
+    if setting == "right":
+        return 1.0
+    if setting == "left":
+        return -1.0
+    votes = 0.0
+    for g, seg in zip(guides, segs, strict=False):
+        zp = matrix_from_quaternion(g.quaternion_wxyz)[:, 2]
+        yp_right = cross3(zp, seg.xp)
+        # The wall pushes the tool away from itself: force . Yp < 0 when Yp points at the wall.
+        votes += -float(g.force_N @ yp_right)
+    if abs(votes) < 1e-6:
+        raise InvalidInputError(
+            "cannot tell on which side the wall is: record guide points in contact with the wall "
+            "or set wall_side to 'left' or 'right'"
+        )
+    return 1.0 if votes > 0 else -1.0
+
+
+def move_linear(
+    cell: Cell, state: CellState, T_target: np.ndarray, speed_m_s: float = 0.05
+) -> CellState:
+    """Position-controlled straight move (MoveL) of the TCP to ``T_target``; no force control."""
+    T0 = state.T_base_tcp.copy()
+    q0 = quaternion_from_matrix(T0[:3, :3])
+    q1 = quaternion_from_matrix(T_target[:3, :3])
+    dist = float(np.linalg.norm(T_target[:3, 3] - T0[:3, 3]))
+    n = max(1, int(math.ceil(dist / speed_m_s / CONTROL_PERIOD_S)))
+    for k in range(1, n + 11):
+        f = min(1.0, k / n)
+        T = np.eye(4)
+        T[:3, :3] = matrix_from_quaternion(slerp(q0, q1, f))
+        T[:3, 3] = T0[:3, 3] + f * (T_target[:3, 3] - T0[:3, 3])
+        state = cell.step(state, cell.robot.ik_step(state.q_motor, T))
+    return state
+
+
+def learn_path(
+    cell: Cell,
+    state: CellState,
+    guides: Sequence[GuidePoint],
+    settings: PathLearningSettings,
+    estimator: ForceEstimator,
+    *,
+    progress: Callable[[float], None] | None = None,
+    cancelled: Callable[[], bool] | None = None,
+    approach_height_m: float = 0.010,
+) -> tuple[Recording, CellState]:
+    """Run the test program through ``guides`` under Yp force control and record it.
+
+    The robot first moves (position control) above the first guide point, down beside it, a
+    little away from the wall, then the force-controlled run starts and is recorded.
+
+    Returns:
+        The recording and the cell state at its end.
+
+    Raises:
+        NotEnoughGuidePointsError: fewer than two (distinct) guide points.
+        CancelledError: ``cancelled()`` returned True.
+    """
+    if len(guides) < 2:
+        raise NotEnoughGuidePointsError(
+            f"path learning needs at least 2 guide points, got {len(guides)}"
+        )
+    segs = _segments(guides, settings.closed)
+    if not segs:
+        raise NotEnoughGuidePointsError("the guide points coincide; record distinct points")
+    side = _wall_side(guides, segs, settings.wall_side)
+    robot = cell.robot
+    dt = CONTROL_PERIOD_S
+
+    def frame(seg: _Segment, fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        R = matrix_from_quaternion(slerp(seg.qa, seg.qb, min(max(fraction, 0.0), 1.0)))
+        yp = cross3(R[:, 2], seg.xp) * side
+        yp /= math.sqrt(yp @ yp)
+        return R, yp, cross3(seg.xp, yp)
+
+    # Approach: above the first guide point, then down to it, 1.5 mm away from the wall.
+    R0, yp0, _ = frame(segs[0], 0.0)
+    start = segs[0].a - 0.0015 * yp0
+    above = np.eye(4)
+    above[:3, :3] = R0
+    above[:3, 3] = start - R0[:, 2] * approach_height_m
+    state = move_linear(cell, state, above)
+    at_start = above.copy()
+    at_start[:3, 3] = start
+    state = move_linear(cell, state, at_start, 0.01)
+
+    n_max = int(sum(s.length for s in segs) / settings.speed_m_s / dt * 1.6) + 2000
+    cols = {
+        "time_s": np.empty(n_max),
+        "joints_rad": np.empty((n_max, 6)),
+        "position_m": np.empty((n_max, 3)),
+        "quaternion_wxyz": np.empty((n_max, 4)),
+        "wrench_sensor": np.empty((n_max, 6)),
+        "wrench_tool": np.empty((n_max, 6)),
+        "force_normal_N": np.empty(n_max),
+        "in_contact": np.empty(n_max, dtype=bool),
+        "yp": np.empty((n_max, 3)),
+        "segment": np.empty(n_max, dtype=np.int32),
+    }
+    seg_index = 0
+    seg = segs[0]
+    rel = state.T_base_tcp[:3, 3] - seg.a
+    s = float(rel @ seg.xp)
+    R, yp, zp = frame(seg, s / seg.length)
+    y = float(rel @ yp)
+    h = float(rel @ zp)
+    integral = 0.0
+    t0 = state.time_s
+    stop_reason = "reached the last guide point"
+    completed = False
+    n = 0
+    report_every = max(1, int(1.0 / dt))
+    total = len(segs)
+    vmax = settings.max_normal_speed_m_s
+    while True:
+        if n >= n_max:
+            stop_reason = "stopped: the run took far longer than the program predicts"
+            break
+        # --- measure (controller side) ---
+        R_flange = cell.flange_rotation(state.T_base_tcp)
+        w_base = estimator.contact_wrench_tcp_base(state.ft_reading, R_flange)
+        f_y = -float(w_base[:3] @ yp)
+        f_abs = math.sqrt(w_base[:3] @ w_base[:3])
+        # --- record ---
+        R_meas = state.T_base_tcp[:3, :3]
+        cols["time_s"][n] = state.time_s - t0
+        cols["joints_rad"][n] = state.q_motor
+        cols["position_m"][n] = state.T_base_tcp[:3, 3]
+        cols["quaternion_wxyz"][n] = quaternion_from_matrix(R_meas)
+        cols["wrench_sensor"][n] = state.ft_reading
+        cols["wrench_tool"][n, :3] = R_meas.T @ w_base[:3]
+        cols["wrench_tool"][n, 3:] = R_meas.T @ w_base[3:]
+        cols["force_normal_N"][n] = f_y
+        cols["in_contact"][n] = f_abs > CONTACT_FLAG_N
+        cols["yp"][n] = yp
+        cols["segment"][n] = seg_index
+        n += 1
+        if f_abs > settings.force_limit_N:
+            stop_reason = (
+                f"protection: contact force {f_abs:.1f} N exceeded the {settings.force_limit_N:g} N "
+                f"limit at t = {state.time_s - t0:.2f} s"
+            )
+            break
+        if abs(y) > LOST_WALL_M:
+            stop_reason = (
+                f"protection: the tool moved {abs(y) * 1e3:.0f} mm off the program path without "
+                "finding the wall"
+            )
+            break
+        # --- force control along Yp, position along Xp and Zp ---
+        e = settings.force_N - f_y
+        integral = min(max(integral + settings.ki_m_s2_N * e * dt, -vmax), vmax)
+        v_y = min(max(settings.kp_m_s_N * e + integral, -vmax), vmax)
+        y += v_y * dt
+        s += settings.speed_m_s * dt
+        h *= 0.99  # fade any height offset left by a segment change (~1 s)
+        if s >= seg.length:
+            if seg_index + 1 >= total:
+                completed = True
+                break
+            p_ref = seg.a + s * seg.xp + y * yp + h * zp
+            seg_index += 1
+            seg = segs[seg_index]
+            rel = p_ref - seg.a
+            s = float(rel @ seg.xp)
+            R, yp, zp = frame(seg, s / seg.length)
+            y = float(rel @ yp)
+            h = float(rel @ zp)
+        else:
+            R, yp, zp = frame(seg, s / seg.length)
+        T_ref = np.empty((4, 4))
+        T_ref[:3, :3] = R
+        T_ref[:3, 3] = seg.a + s * seg.xp + y * yp + h * zp
+        T_ref[3] = (0.0, 0.0, 0.0, 1.0)
+        state = cell.step(state, robot.ik_step(state.q_motor, T_ref))
+        if n % report_every == 0:
+            if cancelled is not None and cancelled():
+                raise CancelledError("path learning was cancelled")
+            if progress is not None:
+                progress(min(1.0, (seg_index + s / seg.length) / total))
+    if progress is not None:
+        progress(1.0)
+    rec = Recording(
+        **{k: v[:n].copy() for k, v in cols.items()},
+        force_reference_N=np.full(n, settings.force_N),
+        stop_reason=stop_reason,
+        completed=completed,
+    )
+    return rec, state

@@ -1,0 +1,207 @@
+"""The whole programming-by-demonstration pipeline on the simulated cell (chapter section 3).
+
+cell -> scripted lead-through (pushes) -> guide points -> path learning -> force-threshold
+filter -> deviation-height reduction -> targets -> RAPID program, scored against the truth.
+Each stage is a function of the previous stage's output plus its settings.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .cell import CONTROL_PERIOD_S, Cell, CellConfig
+from .demo_operator import scripted_leadthrough
+from .errors import InvalidInputError
+from .export.program import ReachabilityReport, check_reachability, rapid_program
+from .export.rapid import rapid_module
+from .leadthrough import GuidePoint, LeadThrough
+from .path_learning import PathLearningSettings, Recording, learn_path
+from .postprocess import PostprocessResult, PostprocessSettings, postprocess
+from .scoring import PathScore, score_path
+from .tool import Tool
+from .workpiece import Workpiece, builtin_workpiece, load_mesh_file
+
+# progress(stage, fraction in [0, 1])
+Progress = Callable[[str, float], None]
+STAGES = ("lead-through", "path learning", "post-processing", "export")
+
+
+@dataclass(frozen=True)
+class DemoSettings:
+    """Settings of ``robomach demo`` (SI units inside).
+
+    Attributes:
+        robot: Robot model name.
+        workpiece: Built-in name, or a path to an STL/OBJ/PLY file (mm).
+        force_N: Contact force reference of path learning.
+        speed_m_s: Learning speed.
+        tolerance_m: Deviation-height tolerance.
+        seed: Seed of every random element.
+        tool: The tool.
+        postprocess: Filter thresholds, speeds and contact compensation; its tolerance is
+            replaced by ``tolerance_m``.
+        force_control_variant: Also generate the FC (FCPressL) variant of the program.
+    """
+
+    robot: str = "ur10"
+    workpiece: str = "water_pump"
+    force_N: float = 10.0
+    speed_m_s: float = 0.005
+    tolerance_m: float = 0.0002
+    seed: int = 0
+    tool: Tool = field(default_factory=Tool)
+    postprocess: PostprocessSettings = field(default_factory=PostprocessSettings)
+    force_control_variant: bool = True
+
+
+@dataclass(frozen=True)
+class DemoResult:
+    """Everything the pipeline produced."""
+
+    settings: DemoSettings
+    workpiece: Workpiece
+    guides: list[GuidePoint]
+    recording: Recording
+    processed: PostprocessResult
+    score: PathScore | None
+    module_text: str
+    module_text_fc: str | None
+    reachability: ReachabilityReport
+    leadthrough_sim_s: float
+    learning_wall_s: float
+    wall_time_s: float
+
+    def summary(self) -> dict:
+        """The summary.json dictionary (units in key names)."""
+        rec = self.recording
+        kept = self.processed.keep_mask
+        f = rec.force_normal_N[kept]
+        setpoint = self.settings.force_N
+        sim_s = float(rec.time_s[-1]) if len(rec) else 0.0
+        out = {
+            "robot": self.settings.robot,
+            "workpiece": self.workpiece.name,
+            "seed": self.settings.seed,
+            "guide_points": len(self.guides),
+            "samples_raw": len(rec),
+            "samples_filtered": int(kept.sum()),
+            "targets": len(self.processed.targets),
+            "sample_period_s": CONTROL_PERIOD_S,
+            "force_setpoint_N": setpoint,
+            "force_min_N": self.settings.postprocess.force_min_N,
+            "force_max_N": self.settings.postprocess.force_max_N,
+            "force_mean_N": float(np.mean(f)),
+            "force_abs_error_p95_N": float(np.percentile(np.abs(f - setpoint), 95)),
+            "force_within_2N_fraction": float(np.mean(np.abs(f - setpoint) <= 2.0)),
+            "force_peak_raw_N": float(np.max(np.abs(rec.force_normal_N))),
+            "learning_speed_mm_s": self.settings.speed_m_s * 1e3,
+            "tolerance_mm": self.settings.tolerance_m * 1e3,
+            "tool_radius_mm": self.settings.tool.radius_m * 1e3,
+            "contact_stiffness_N_mm": self.workpiece.contact_stiffness_N_m * 1e-3,
+            "max_deviation_mm": None,
+            "rms_deviation_mm": None,
+            "targets_max_deviation_mm": None,
+            "targets_rms_deviation_mm": None,
+            "program_speed_mean_mm_s": float(np.mean(self.processed.targets.speed_m_s) * 1e3),
+            "program_speed_min_mm_s": float(np.min(self.processed.targets.speed_m_s) * 1e3),
+            "robtargets_reachable": self.reachability.reachable,
+            "robtargets_total": self.reachability.total,
+            "stop_reason": rec.stop_reason,
+            "completed": rec.completed,
+            "leadthrough_sim_time_s": self.leadthrough_sim_s,
+            "sim_time_s": sim_s,
+            "wall_time_s": self.wall_time_s,
+            "learning_wall_time_s": self.learning_wall_s,
+            "realtime_factor": sim_s / self.learning_wall_s if self.learning_wall_s > 0 else None,
+        }
+        if self.score is not None:
+            out["max_deviation_mm"] = self.score.max_m * 1e3
+            out["rms_deviation_mm"] = self.score.rms_m * 1e3
+            out["targets_max_deviation_mm"] = self.score.targets_max_m * 1e3
+            out["targets_rms_deviation_mm"] = self.score.targets_rms_m * 1e3
+        return out
+
+
+def load_workpiece(name_or_path: str) -> Workpiece:
+    """A built-in workpiece by name, or a mesh file by path."""
+    if Path(name_or_path).suffix:
+        return load_mesh_file(name_or_path)
+    return builtin_workpiece(name_or_path)
+
+
+def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> DemoResult:
+    """Run the whole pipeline headless; ``progress(stage, fraction)`` reports as it goes."""
+    started = time.perf_counter()
+    report = progress or (lambda stage, fraction: None)
+    learning = PathLearningSettings(force_N=settings.force_N, speed_m_s=settings.speed_m_s)
+    post = PostprocessSettings(
+        **{**settings.postprocess.__dict__, "tolerance_m": settings.tolerance_m}
+    )
+    workpiece = load_workpiece(settings.workpiece)
+    if workpiece.wall is None:
+        raise InvalidInputError(
+            f"{workpiece.name}: the headless demo leads the robot along a built-in workpiece's "
+            "known wall; use the workbench to lead it through a mesh of your own"
+        )
+    cell = Cell(CellConfig(robot=settings.robot, tool=settings.tool, workpiece=workpiece,
+                           seed=settings.seed))
+    lt = LeadThrough(cell)
+    state = lt.start(cell.initial_state())
+    state, guides = scripted_leadthrough(
+        lt, state, workpiece, np.random.default_rng(settings.seed),
+        progress=lambda f: report("lead-through", f),
+    )
+    t_learn = time.perf_counter()
+    recording, _ = learn_path(
+        cell, state.cell, guides, learning, lt.estimator,
+        progress=lambda f: report("path learning", f),
+    )
+    learning_wall = time.perf_counter() - t_learn
+    report("post-processing", 0.0)
+    processed = postprocess(
+        recording, np.array([g.quaternion_wxyz for g in guides]), post, closed=learning.closed
+    )
+    score = score_path(workpiece, settings.tool.radius_m, processed.targets.position_m)
+    report("post-processing", 1.0)
+    report("export", 0.0)
+    header = (
+        f"robomach demo: {settings.robot}, {workpiece.name}, force {settings.force_N:g} N, "
+        f"learning speed {settings.speed_m_s * 1e3:g} mm/s, tolerance "
+        f"{settings.tolerance_m * 1e3:g} mm, seed {settings.seed}",
+        f"{len(processed.targets)} targets from {len(recording)} samples "
+        f"({processed.samples_filtered} kept by the force filter)",
+    )
+    module_text = rapid_module(
+        rapid_program(processed.targets, settings.tool, workpiece, comment=header)
+    )
+    module_text_fc = None
+    if settings.force_control_variant:
+        module_text_fc = rapid_module(
+            rapid_program(
+                processed.targets, settings.tool, workpiece, module_name="LearnedPathFC",
+                force_control_N=settings.force_N, comment=header,
+            )
+        )
+    reach = check_reachability(
+        module_text, cell.robot, workpiece, processed.targets.joints_rad[0]
+    )
+    report("export", 1.0)
+    return DemoResult(
+        settings=settings,
+        workpiece=workpiece,
+        guides=guides,
+        recording=recording,
+        processed=processed,
+        score=score,
+        module_text=module_text,
+        module_text_fc=module_text_fc,
+        reachability=reach,
+        leadthrough_sim_s=float(state.cell.time_s),
+        learning_wall_s=learning_wall,
+        wall_time_s=time.perf_counter() - started,
+    )

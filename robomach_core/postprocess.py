@@ -1,0 +1,311 @@
+"""Post-processing of a path-learning recording (chapter section 3.3).
+
+Force-threshold filtering drops samples whose contact force is outside [Fmin, Fmax] (corner
+spikes, lost contact). Deviation-height reduction (the chapter's fig. 3) approximates the contour
+by straight segments: a chord runs from a start sample to the current sample; the deviation
+height of every intermediate sample is its perpendicular distance from the chord; the current
+sample moves along the contour until some deviation height exceeds the tolerance, and then the
+*previous* sample ends the segment and starts the next. Per-target speeds are slower where the
+local curvature is high (section 3.4: about 10 mm/s on average, slower at sharp corners).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InvalidInputError
+
+# Candidate chord ends examined at once in the vectorised scan (a block, not a limit).
+_BLOCK = 96
+
+
+@dataclass(frozen=True)
+class PostprocessSettings:
+    """User settings of post-processing (SI units).
+
+    Attributes:
+        force_min_N: Samples with a contact force below this are dropped.
+        force_max_N: Samples with a contact force above this are dropped.
+        tolerance_m: Deviation-height tolerance of the reduction.
+        speed_mean_m_s: Average machining feed over the targets.
+        speed_min_m_s: Slowest feed, used at the sharpest corners.
+        curvature_ref_1_m: Curvature at which the feed is halved.
+        contact_stiffness_N_m: Interaction stiffness used to move each sample back to the
+            unloaded surface (sample + F / k); 0 disables this compensation.
+    """
+
+    force_min_N: float = 5.0
+    force_max_N: float = 15.0
+    tolerance_m: float = 0.0002
+    speed_mean_m_s: float = 0.010
+    speed_min_m_s: float = 0.003
+    curvature_ref_1_m: float = 1.0 / 0.010
+    contact_stiffness_N_m: float = 100e3
+
+    def __post_init__(self) -> None:
+        if not (self.tolerance_m > 0 and np.isfinite(self.tolerance_m)):
+            raise InvalidInputError(
+                f"tolerance must be > 0 mm, got {self.tolerance_m * 1e3:g} mm"
+            )
+        if not (0 <= self.force_min_N < self.force_max_N):
+            raise InvalidInputError(
+                f"force thresholds need 0 <= Fmin < Fmax, got Fmin={self.force_min_N:g} N, "
+                f"Fmax={self.force_max_N:g} N"
+            )
+        if not (0 < self.speed_min_m_s <= self.speed_mean_m_s):
+            raise InvalidInputError("speeds need 0 < minimum speed <= mean speed")
+        if self.contact_stiffness_N_m < 0:
+            raise InvalidInputError("contact stiffness must be >= 0 N/mm")
+
+
+def force_threshold_mask(force_N: np.ndarray, force_min_N: float, force_max_N: float) -> np.ndarray:
+    """Boolean mask of the samples whose contact force lies in [force_min_N, force_max_N]."""
+    f = np.asarray(force_N, dtype=float)
+    return (f >= force_min_N) & (f <= force_max_N)
+
+
+def deviation_heights(points: np.ndarray, start: int, end: int) -> np.ndarray:
+    """Perpendicular distances of points[start+1:end] from the chord points[start] -> points[end]."""
+    a = points[start]
+    chord = points[end] - a
+    length = np.linalg.norm(chord)
+    rel = points[start + 1 : end] - a
+    if length < 1e-15:
+        return np.linalg.norm(rel, axis=1)
+    u = chord / length
+    along = rel @ u
+    return np.linalg.norm(rel - along[:, None] * u, axis=1)
+
+
+def reduce_deviation_height(points: np.ndarray, tolerance: float) -> np.ndarray:
+    """Indices of the samples kept by the deviation-height method (chapter fig. 3).
+
+    Args:
+        points: Shape (n, d) samples in order along the contour (any consistent unit).
+        tolerance: Largest allowed deviation height, same unit as ``points``.
+
+    Returns:
+        Increasing indices into ``points``; always includes the first and the last sample.
+        Every dropped sample lies within ``tolerance`` of the chord of its segment.
+    """
+    pts = np.asarray(points, dtype=float)
+    n = len(pts)
+    if tolerance <= 0:
+        raise InvalidInputError("tolerance must be positive")
+    if n <= 2:
+        return np.arange(n)
+    kept = [0]
+    start = 0
+    while start < n - 1:
+        end = _first_failing_end(pts, start, tolerance)
+        if end is None:
+            break
+        # The chord start->end fails; end-1 is the last good chord end.
+        start = end - 1
+        kept.append(start)
+    if kept[-1] != n - 1:
+        kept.append(n - 1)
+    return np.asarray(kept, dtype=np.int64)
+
+
+def _first_failing_end(pts: np.ndarray, start: int, tolerance: float) -> int | None:
+    """Smallest end > start+1 whose chord from ``start`` has a deviation height > tolerance.
+
+    Scans candidate ends in blocks: for a block of ends E and the intermediate samples I up to
+    the block's last end, it computes all heights |(p_i - a) x u_e| at once and masks i >= e.
+    """
+    n = len(pts)
+    a = pts[start]
+    lo = start + 2
+    while lo < n:
+        hi = min(n, lo + _BLOCK)
+        ends = np.arange(lo, hi)
+        chords = pts[ends] - a
+        lengths = np.linalg.norm(chords, axis=1)
+        lengths[lengths < 1e-15] = 1e-15
+        u = chords / lengths[:, None]
+        rel = pts[start + 1 : hi - 1] - a  # intermediates for every end in the block
+        along = rel @ u.T  # (m, k)
+        sq = np.einsum("ij,ij->i", rel, rel)[:, None] - along**2
+        idx = np.arange(start + 1, hi - 1)[:, None]
+        sq = np.where(idx < ends[None, :], sq, 0.0)
+        over = np.nonzero(sq.max(axis=0) > tolerance**2)[0]
+        if len(over):
+            return int(ends[over[0]])
+        lo = hi
+    return None
+
+
+def curvature_along(points: np.ndarray, *, window_m: float = 0.002) -> np.ndarray:
+    """Unsigned curvature [1/m] at each point from the circle through neighbours ~window apart."""
+    pts = np.asarray(points, dtype=float)
+    n = len(pts)
+    if n < 3:
+        return np.zeros(n)
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    prev_idx = np.clip(np.searchsorted(s, s - window_m), 0, n - 1)
+    next_idx = np.clip(np.searchsorted(s, s + window_m), 0, n - 1)
+    a, b, c = pts[prev_idx], pts, pts[next_idx]
+    ab = np.linalg.norm(b - a, axis=1)
+    bc = np.linalg.norm(c - b, axis=1)
+    ca = np.linalg.norm(a - c, axis=1)
+    cross = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    denom = ab * bc * ca
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k = np.where(denom > 1e-18, 2.0 * cross / denom, 0.0)
+    return k
+
+
+def speeds_by_curvature(
+    curvature_1_m: np.ndarray,
+    *,
+    speed_mean_m_s: float,
+    speed_min_m_s: float,
+    curvature_ref_1_m: float,
+) -> np.ndarray:
+    """Per-target feed, slower at sharp corners, scaled so the mean equals ``speed_mean_m_s``.
+
+    v_i = v_top / (1 + kappa_i / kappa_ref), clipped to [speed_min, v_top]; v_top is found by
+    bisection so that mean(v) = speed_mean (as in section 3.4: ~10 mm/s average).
+    """
+    k = np.asarray(curvature_1_m, dtype=float)
+    if len(k) == 0:
+        return k
+    shape = 1.0 / (1.0 + k / curvature_ref_1_m)
+    lo, hi = speed_mean_m_s, speed_mean_m_s * 20
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if np.mean(np.clip(mid * shape, speed_min_m_s, mid)) < speed_mean_m_s:
+            lo = mid
+        else:
+            hi = mid
+    return np.clip(hi * shape, speed_min_m_s, hi)
+
+
+def surface_positions(
+    position_m: np.ndarray,
+    force_tool_N: np.ndarray,
+    quaternion_wxyz: np.ndarray,
+    contact_stiffness_N_m: float,
+) -> np.ndarray:
+    """Samples moved back to where the unloaded surface is: p + F_planar / k.
+
+    During learning the cutter presses into the wall by F / k (the interaction stiffness the
+    papers measured), so the recorded TCP sits that far inside the surface. The measured contact
+    force, without its component along the tool axis, points from the wall to the tool; adding
+    F / k moves each sample out of the wall. k = 0 leaves the samples as recorded.
+    """
+    from .transforms import matrix_from_quaternion
+
+    p = np.asarray(position_m, dtype=float)
+    if contact_stiffness_N_m <= 0:
+        return p.copy()
+    f_planar = np.asarray(force_tool_N, dtype=float)[:, :3].copy()
+    f_planar[:, 2] = 0.0
+    out = p.copy()
+    for i in range(len(p)):
+        out[i] += matrix_from_quaternion(quaternion_wxyz[i]) @ f_planar[i] / contact_stiffness_N_m
+    return out
+
+
+@dataclass(frozen=True)
+class Targets:
+    """The reduced program: one row per target (SI units, base frame).
+
+    Attributes:
+        position_m: (m, 3) target positions.
+        quaternion_wxyz: (m, 4) target orientations (from the guide points).
+        joints_rad: (m, 6) joints recorded at the target's sample.
+        speed_m_s: (m,) feed for the move to each target.
+        curvature_1_m: (m,) local curvature of the learned path at each target.
+        sample_index: (m,) index of the target's sample in the recording.
+    """
+
+    position_m: np.ndarray
+    quaternion_wxyz: np.ndarray
+    joints_rad: np.ndarray
+    speed_m_s: np.ndarray
+    curvature_1_m: np.ndarray
+    sample_index: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.position_m)
+
+
+@dataclass(frozen=True)
+class PostprocessResult:
+    """Filtered samples and the reduced targets.
+
+    Attributes:
+        keep_mask: (n,) samples that passed the force-threshold filter.
+        surface_m: (n, 3) sample positions moved to the unloaded surface (all samples).
+        targets: The reduced program.
+    """
+
+    keep_mask: np.ndarray
+    surface_m: np.ndarray
+    targets: Targets
+
+    @property
+    def samples_filtered(self) -> int:
+        return int(self.keep_mask.sum())
+
+
+def postprocess(recording, guide_quaternions_wxyz: np.ndarray, settings: PostprocessSettings,
+                *, closed: bool = True) -> PostprocessResult:
+    """Filter, compensate, reduce and give speeds and orientations (chapter section 3.3).
+
+    Args:
+        recording: A ``path_learning.Recording``.
+        guide_quaternions_wxyz: (g, 4) orientations of the guide points, in order; target
+            orientations are interpolated from them along the program segments (the chapter: the
+            guide points' orientation "will be kept in the final program").
+        settings: Thresholds, tolerance and speeds.
+        closed: Whether the program's last segment returns to the first guide point.
+    """
+    from .transforms import slerp
+
+    rec = recording
+    mask = force_threshold_mask(rec.force_normal_N, settings.force_min_N, settings.force_max_N)
+    if mask.sum() < 2:
+        raise InvalidInputError(
+            f"only {int(mask.sum())} samples have a contact force in "
+            f"[{settings.force_min_N:g}, {settings.force_max_N:g}] N; widen the thresholds"
+        )
+    surface = surface_positions(
+        rec.position_m, rec.wrench_tool, rec.quaternion_wxyz, settings.contact_stiffness_N_m
+    )
+    kept = np.nonzero(mask)[0]
+    pts = surface[kept]
+    local = reduce_deviation_height(pts, settings.tolerance_m)
+    idx = kept[local]
+    curvature = curvature_along(pts)[local]
+    speeds = speeds_by_curvature(
+        curvature,
+        speed_mean_m_s=settings.speed_mean_m_s,
+        speed_min_m_s=settings.speed_min_m_s,
+        curvature_ref_1_m=settings.curvature_ref_1_m,
+    )
+    # Orientation: slerp between the segment's guide points by the fraction travelled.
+    gq = np.asarray(guide_quaternions_wxyz, dtype=float)
+    n_guides = len(gq)
+    quats = np.empty((len(idx), 4))
+    for k, i in enumerate(idx):
+        seg = int(rec.segment[i])
+        in_seg = np.nonzero(rec.segment == seg)[0]
+        span = max(1, in_seg[-1] - in_seg[0])
+        fraction = (i - in_seg[0]) / span
+        q0 = gq[seg % n_guides]
+        q1 = gq[(seg + 1) % n_guides] if (closed or seg + 1 < n_guides) else gq[seg % n_guides]
+        quats[k] = slerp(q0, q1, fraction)
+    targets = Targets(
+        position_m=surface[idx],
+        quaternion_wxyz=quats,
+        joints_rad=rec.joints_rad[idx],
+        speed_m_s=speeds,
+        curvature_1_m=curvature,
+        sample_index=idx,
+    )
+    return PostprocessResult(mask, surface, targets)

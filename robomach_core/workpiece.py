@@ -1,0 +1,262 @@
+"""Workpieces: the built-in water-pump groove and aluminium block, and user mesh files.
+
+A workpiece is a triangle mesh in its work-object frame, placed in the robot base frame by
+``T_base_wobj`` (the RAPID wobjdata uframe). Built-in ones also carry their true wall contour, so
+a learned path can be scored against the real geometry.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import shapely.geometry
+import trimesh
+
+from .contour import Contour, filleted_polygon
+from .errors import InvalidInputError, MeshFileError, UnknownNameError
+from .transforms import make_transform
+
+WORKPIECE_NAMES = ("water_pump", "block")
+MESH_SUFFIXES = (".stl", ".obj", ".ply")
+MAX_MESH_BYTES = 50 * 1024 * 1024
+MAX_MESH_TRIANGLES = 500_000
+# Contact stiffness measured in the papers (Cibatool 85 N/mm, aluminium 143 N/mm).
+CONTACT_STIFFNESS_N_M = {"cast_iron": 100e3, "aluminium": 143e3, "cibatool": 85e3}
+# The water-pump plate sits on the table in front of a UR10 (metres, base frame).
+DEFAULT_T_BASE_WOBJ = make_transform(np.eye(3), np.array([0.80, 0.16, 0.0]))
+
+# Water-pump geometry: plate, groove and the bolt-boss bumps of the groove's outer wall.
+PUMP_PLATE_SIZE_M = (0.250, 0.180, 0.020)
+PUMP_GROOVE_WIDTH_M = 0.005
+PUMP_GROOVE_DEPTH_M = 0.006
+PUMP_WALL_SPACING_M = 0.0004  # facet length of the wall in the mesh
+
+
+@dataclass(frozen=True)
+class Workpiece:
+    """A workpiece mesh placed in the cell.
+
+    Attributes:
+        name: Built-in name or the file stem.
+        mesh: Triangle mesh in the work-object frame, metres.
+        T_base_wobj: 4x4 pose of the work-object frame in the robot base frame.
+        material: Key of ``CONTACT_STIFFNESS_N_M``.
+        contact_stiffness_N_m: Penalty stiffness of tool/part contact.
+        friction_coefficient: Coulomb friction along the motion.
+        wall: True wall contour in the wobj x-y plane (built-ins only), travelled so that the
+            material of the wall is on the right.
+        wall_z_m: (low, high) z range of the wall in the wobj frame.
+        surface_z_m: z of the top surface (wobj frame).
+    """
+
+    name: str
+    mesh: trimesh.Trimesh
+    T_base_wobj: np.ndarray
+    material: str = "cast_iron"
+    contact_stiffness_N_m: float = 100e3
+    friction_coefficient: float = 0.15
+    wall: Contour | None = None
+    wall_z_m: tuple[float, float] = (0.0, 0.0)
+    surface_z_m: float = 0.0
+
+    def mesh_in_base(self) -> trimesh.Trimesh:
+        """A copy of the mesh in the robot base frame (metres)."""
+        mesh = self.mesh.copy()
+        mesh.apply_transform(self.T_base_wobj)
+        return mesh
+
+    def placed(self, T_base_wobj: np.ndarray) -> Workpiece:
+        """The same workpiece at another work-object pose."""
+        T = np.asarray(T_base_wobj, dtype=float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise InvalidInputError("work-object pose must be a finite 4x4 transform")
+        if not np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-6):
+            raise InvalidInputError("work-object rotation is not orthonormal")
+        return replace(self, T_base_wobj=T)
+
+
+def water_pump_wall() -> Contour:
+    """The outer wall of the water-pump groove: a 200 x 130 mm loop with 14 bolt-boss bumps.
+
+    A filleted polygon (lines + arcs, G1): 6 mm corners, 3 mm fillets at the bumps' feet and
+    heads (sharp curvature, where the force spikes) and long straight runs (gentle). Travelled
+    counter-clockwise; the wall material (outside of the loop) is on the right.
+    """
+    half_w, half_h = 0.100, 0.065
+    bump_width, bump_height, taper = 0.014, 0.008, 0.005
+    corner_r, foot_r, head_r = 0.006, 0.003, 0.003
+    corners: list[np.ndarray] = []
+    radii: list[float] = []
+    sides = [
+        ((-half_w, -half_h), (half_w, -half_h), 4),
+        ((half_w, -half_h), (half_w, half_h), 3),
+        ((half_w, half_h), (-half_w, half_h), 4),
+        ((-half_w, half_h), (-half_w, -half_h), 3),
+    ]
+    for a, b, bumps in sides:
+        a, b = np.asarray(a), np.asarray(b)
+        d = (b - a) / np.linalg.norm(b - a)
+        out = np.array([d[1], -d[0]])  # right of travel = outside of the loop
+        corners.append(a)
+        radii.append(corner_r)
+        for k in range(bumps):
+            c = a + (b - a) * (k + 1) / (bumps + 1)
+            corners += [
+                c - d * (bump_width / 2 + taper),
+                c - d * bump_width / 2 + out * bump_height,
+                c + d * bump_width / 2 + out * bump_height,
+                c + d * (bump_width / 2 + taper),
+            ]
+            radii += [foot_r, head_r, head_r, foot_r]
+    return filleted_polygon(np.array(corners), np.array(radii))
+
+
+def _extrude(polygon: shapely.geometry.Polygon, z0: float, height: float) -> trimesh.Trimesh:
+    mesh = trimesh.creation.extrude_polygon(polygon, height)
+    mesh.apply_translation([0.0, 0.0, z0])
+    return mesh
+
+
+def water_pump(T_base_wobj: np.ndarray | None = None) -> Workpiece:
+    """The water-pump housing: a plate with a 5 mm wide, 6 mm deep contoured groove."""
+    wall = water_pump_wall()
+    sx, sy, sz = PUMP_PLATE_SIZE_M
+    floor_z = sz - PUMP_GROOVE_DEPTH_M
+    outer = shapely.geometry.Polygon(wall.sample(PUMP_WALL_SPACING_M))
+    island = outer.buffer(-PUMP_GROOVE_WIDTH_M, join_style="round", quad_segs=16)
+    plate = shapely.geometry.box(-sx / 2, -sy / 2, sx / 2, sy / 2)
+    rim = plate.difference(outer)
+    mesh = trimesh.util.concatenate(
+        [
+            trimesh.creation.box(
+                extents=(sx, sy, floor_z),
+                transform=make_transform(np.eye(3), np.array([0.0, 0.0, floor_z / 2])),
+            ),
+            _extrude(rim, floor_z, PUMP_GROOVE_DEPTH_M),
+            _extrude(island, floor_z, PUMP_GROOVE_DEPTH_M),
+        ]
+    )
+    return Workpiece(
+        name="water_pump",
+        mesh=mesh,
+        T_base_wobj=DEFAULT_T_BASE_WOBJ.copy() if T_base_wobj is None else T_base_wobj,
+        material="cast_iron",
+        contact_stiffness_N_m=CONTACT_STIFFNESS_N_M["cast_iron"],
+        wall=wall,
+        wall_z_m=(floor_z, sz),
+        surface_z_m=sz,
+    )
+
+
+def block_wall() -> Contour:
+    """Outline of the 150 x 50 mm block (0.2 mm edge radius), anticlockwise seen from above.
+
+    Travelled clockwise the block's material is on the right; the contour is stored in that
+    direction so that, as for the pump, the wall is on the right of travel.
+    """
+    half_l, half_w = 0.075, 0.025
+    corners = np.array([[-half_l, -half_w], [-half_l, half_w], [half_l, half_w], [half_l, -half_w]])
+    return filleted_polygon(corners, np.full(4, 0.0002))
+
+
+def block(T_base_wobj: np.ndarray | None = None) -> Workpiece:
+    """A 150 x 50 x 40 mm 6063 aluminium block (the chapter's end-milling test piece)."""
+    height = 0.040
+    mesh = trimesh.creation.box(
+        extents=(0.150, 0.050, height),
+        transform=make_transform(np.eye(3), np.array([0.0, 0.0, height / 2])),
+    )
+    return Workpiece(
+        name="block",
+        mesh=mesh,
+        T_base_wobj=DEFAULT_T_BASE_WOBJ.copy() if T_base_wobj is None else T_base_wobj,
+        material="aluminium",
+        contact_stiffness_N_m=CONTACT_STIFFNESS_N_M["aluminium"],
+        wall=block_wall(),
+        wall_z_m=(0.0, height),
+        surface_z_m=height,
+    )
+
+
+def builtin_workpiece(name: str, T_base_wobj: np.ndarray | None = None) -> Workpiece:
+    """A built-in workpiece by name."""
+    makers = {"water_pump": water_pump, "block": block}
+    if name not in makers:
+        raise UnknownNameError(
+            f"unknown workpiece {name!r}; built-ins are {', '.join(WORKPIECE_NAMES)}, "
+            "or give a path to an STL/OBJ/PLY file"
+        )
+    return makers[name](T_base_wobj)
+
+
+def load_mesh_file(
+    path: str | Path,
+    *,
+    T_base_wobj: np.ndarray | None = None,
+    scale: float = 1e-3,
+    max_bytes: int = MAX_MESH_BYTES,
+    max_triangles: int = MAX_MESH_TRIANGLES,
+) -> Workpiece:
+    """A workpiece from an STL, OBJ or PLY file (coordinates in mm by default, ``scale`` to m).
+
+    Raises:
+        MeshFileError: missing file, wrong suffix, too large, unreadable, or no triangles.
+    """
+    p = Path(path)
+    if p.suffix.lower() not in MESH_SUFFIXES:
+        raise MeshFileError(f"{p.name}: not a mesh file (expected {', '.join(MESH_SUFFIXES)})")
+    if not p.is_file():
+        raise MeshFileError(f"{p}: no such file")
+    size = p.stat().st_size
+    if size > max_bytes:
+        raise MeshFileError(f"{p.name}: {size / 1e6:.1f} MB exceeds the {max_bytes / 1e6:.0f} MB limit")
+    return mesh_from_bytes(
+        p.read_bytes(), p.suffix.lower(), name=p.stem, T_base_wobj=T_base_wobj, scale=scale,
+        max_triangles=max_triangles,
+    )
+
+
+def mesh_from_bytes(
+    data: bytes,
+    suffix: str,
+    *,
+    name: str = "uploaded",
+    T_base_wobj: np.ndarray | None = None,
+    scale: float = 1e-3,
+    max_triangles: int = MAX_MESH_TRIANGLES,
+) -> Workpiece:
+    """A workpiece from the bytes of a mesh file (for uploads); see ``load_mesh_file``."""
+    import io
+
+    kind = suffix.lower().lstrip(".")
+    if f".{kind}" not in MESH_SUFFIXES:
+        raise MeshFileError(f"{name}: unsupported mesh type {suffix!r}")
+    try:
+        loaded = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=True)
+    except Exception as exc:  # trimesh raises many types for corrupt files
+        raise MeshFileError(f"{name}: cannot read as {kind.upper()} ({exc.__class__.__name__})") from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise MeshFileError(f"{name}: the file holds no triangles")
+    if len(loaded.faces) > max_triangles:
+        raise MeshFileError(
+            f"{name}: {len(loaded.faces)} triangles exceed the limit of {max_triangles}"
+        )
+    if not np.all(np.isfinite(loaded.vertices)):
+        raise MeshFileError(f"{name}: the mesh has non-finite vertices")
+    loaded.apply_scale(scale)
+    extent = float(np.max(loaded.extents))
+    if not (1e-3 <= extent <= 2.0):
+        raise MeshFileError(
+            f"{name}: mesh is {extent * 1e3:.1f} mm across after scaling; expected 1-2000 mm "
+            "(is the unit right?)"
+        )
+    z_top = float(loaded.bounds[1, 2])
+    return Workpiece(
+        name=name,
+        mesh=loaded,
+        T_base_wobj=DEFAULT_T_BASE_WOBJ.copy() if T_base_wobj is None else T_base_wobj,
+        surface_z_m=z_top,
+        wall_z_m=(float(loaded.bounds[0, 2]), z_top),
+    )
