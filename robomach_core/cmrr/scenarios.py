@@ -177,6 +177,7 @@ class Scenario:
             min_speed_ratio=self.min_speed_ratio,
             feed_dynamics=self.feed_dynamics,
             measurement_filter=self.sensor.make_filter(self.dt_s),
+            control_delay_steps=self.control_delay_steps,
             **kwargs,
         )
 

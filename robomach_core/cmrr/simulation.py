@@ -133,7 +133,7 @@ def run_study(
     force = 0.0
     filt_state = sensor_filter.initial_state()
     ctrl_state = ctrl.initial_state()
-    pending = [_initial_ratio(settings)] * scenario.control_delay_steps
+    pending = [ctrl.initial_speed_ratio] * scenario.control_delay_steps
     stop_time: float | None = None
     cycle_time: float | None = None
     last_progress = -1.0
@@ -205,11 +205,6 @@ def run_study(
         controller_params=ctrl.describe(),
     )
     return StudyResult(scenario, ctrl.name, settings, trace, summary)
-
-
-def _initial_ratio(settings: ControllerSettings) -> float:
-    """The speed ratio in effect before the first command (the controller's initial ratio)."""
-    return float(getattr(settings, "initial_speed_ratio", getattr(settings, "speed_ratio", 1.0)))
 
 
 def _cancel_predicate(cancel: CancelFlag | Callable[[], bool] | None) -> Callable[[], bool] | None:

@@ -6,6 +6,8 @@ from __future__ import annotations
 from typing import Union, get_args
 
 from ..errors import UnknownControllerError
+from .adaptive_lq import AdaptiveLqController as AdaptiveLqController
+from .adaptive_lq import AdaptiveLqSettings as AdaptiveLqSettings
 from .base import ControlDesign as ControlDesign
 from .base import Controller as Controller
 from .base import ControlOutput as ControlOutput
@@ -28,7 +30,12 @@ from .rls import RlsState as RlsState
 from .rls import rls_update as rls_update
 
 ControllerSettings = Union[  # noqa: UP007 (a runtime alias; get_args reads it)
-    ConstantSettings, FixedPiSettings, AdaptivePiSettings, FuzzySettings, TwoStageSettings
+    ConstantSettings,
+    FixedPiSettings,
+    AdaptivePiSettings,
+    FuzzySettings,
+    TwoStageSettings,
+    AdaptiveLqSettings,
 ]
 
 SETTINGS_CLASSES: dict[str, type] = {
@@ -40,6 +47,7 @@ CONTROLLER_CLASSES: dict[str, type] = {
     "adaptive-pi": AdaptivePiController,
     "fuzzy": FuzzyController,
     "two-stage": FuzzyController,
+    "adaptive-lq": AdaptiveLqController,
 }
 CONTROLLER_NAMES: tuple[str, ...] = tuple(SETTINGS_CLASSES)
 

@@ -34,6 +34,8 @@ class ControlDesign:
             controller can filter the feed the same way before estimating (None: unfiltered).
         interaction_stiffness_N_m: Kf of the Lund model (tool-workpiece-robot stiffness).
         initial_removal_N_s_m: the Lund model's initial guess of Df [N s/m].
+        control_delay_steps: samples between a measurement and the robot acting on the command
+            it produced (the controller's own latency; the LQ design models it).
     """
 
     dt_s: float
@@ -46,6 +48,7 @@ class ControlDesign:
     measurement_filter: LowPassFilter | None = None
     interaction_stiffness_N_m: float = 50.0e3
     initial_removal_N_s_m: float = 1.0e3
+    control_delay_steps: int = 1
 
     def __post_init__(self) -> None:
         if not self.dt_s > 0.0:
@@ -92,6 +95,11 @@ class Controller(Protocol):
 
     name: str
     estimate_names: tuple[str, ...]
+
+    @property
+    def initial_speed_ratio(self) -> float:
+        """The speed ratio in effect before the first command."""
+        ...
 
     def initial_state(self) -> Any:
         """State at the start of the cut."""

@@ -32,6 +32,10 @@ class ConstantController:
     name: str = "constant"
     estimate_names: tuple[str, ...] = ()
 
+    @property
+    def initial_speed_ratio(self) -> float:
+        return self.settings.speed_ratio
+
     def initial_state(self) -> None:
         return None
 

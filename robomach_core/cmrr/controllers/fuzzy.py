@@ -230,10 +230,15 @@ class FuzzyController:
             out.append((idx(ERROR_TERMS, e), idx(TREND_TERMS, de), idx(RATIO_TERMS, u), out_index))
         return out
 
+    @property
+    def initial_speed_ratio(self) -> float:
+        return self.fuzzy.initial_speed_ratio
+
     def initial_state(self) -> FuzzyState:
         f = self.fuzzy
         stage = f.stages.index(f.initial_speed_ratio)
-        return FuzzyState(f.initial_speed_ratio, stage, 0.0, -self.design.reference_force_N, 0.0, False)
+        fr = self.design.reference_force_N
+        return FuzzyState(f.initial_speed_ratio, stage, 0.0, -fr, 0.0, False)
 
     def infer(self, error_N: float, trend_N_s: float, previous_ratio: float) -> tuple[float, float]:
         """Mamdani inference: (change of speed ratio in [-1, 1], protection-rule strength)."""
@@ -300,7 +305,9 @@ class FuzzyController:
         }
 
 
-def _switch_level(stages: tuple[float, ...], stage: int, direction: int, hysteresis: float) -> float:
+def _switch_level(
+    stages: tuple[float, ...], stage: int, direction: int, hysteresis: float
+) -> float:
     """Internal ratio beyond which the output moves one stage up (+1) or down (-1)."""
     other = stage + direction
     mid = 0.5 * (stages[stage] + stages[other])

@@ -128,6 +128,10 @@ class FixedPiController:
             self.settings.loop_gain, self.design.command_speed_m_s, k, self.settings.pi_zero_rad_s
         )
 
+    @property
+    def initial_speed_ratio(self) -> float:
+        return self.settings.initial_speed_ratio
+
     def initial_state(self) -> PiState:
         return PiState(self.settings.initial_speed_ratio)
 
@@ -172,7 +176,7 @@ class AdaptivePiSettings:
     kind: Literal["adaptive-pi"] = field(default="adaptive-pi", init=False)
     loop_gain: float = DESIGN_LOOP_GAIN
     pi_zero_rad_s: float = PI_ZERO_RAD_S
-    forgetting_factor: float = 0.98
+    forgetting_factor: float = 0.95
     initial_force_gain_N: float | None = None
     initial_feed_exponent: float | None = None
     estimate_feed_exponent: bool = True
@@ -219,6 +223,10 @@ class AdaptivePiController:
             feed_exponent_bounds=s.feed_exponent_bounds,
             estimate_feed_exponent=s.estimate_feed_exponent,
         )
+
+    @property
+    def initial_speed_ratio(self) -> float:
+        return self.settings.initial_speed_ratio
 
     def initial_state(self) -> AdaptivePiState:
         filt = self.design.measurement_filter
