@@ -315,6 +315,9 @@ def learned_path(
     tool_axis: np.ndarray | Sequence[float] = (0.0, 0.0, 1.0),
     burr_count: int = 3,
     seed: int = 0,
+    command_speed_mm_s: float = 100.0,
+    reference_force_N: float = 200.0,
+    force_limit_N: float = 300.0,
     **overrides: Any,
 ) -> Scenario:
     """Deburring along a learned path, depth from the stock mesh against the nominal part.
@@ -332,12 +335,16 @@ def learned_path(
         )
         nominal_mesh, stock_mesh, path_points_m, tool_axis = synthetic_burr_block(burrs)
     profile = path_depth_profile(path_points_m, nominal_mesh, stock_mesh, tool_axis)
-    base = deburr_burrs()
+    base = deburr_burrs(
+        command_speed_mm_s=command_speed_mm_s,
+        reference_force_N=reference_force_N,
+        force_limit_N=force_limit_N,
+    )
     return replace(
         base,
         name="learned-path",
         description=f"deburring along a learned path ({profile.length_m * 1e3:.0f} mm) from meshes",
-        depth_profile=PathProfile(profile.positions_m - profile.positions_m[0], profile.values),
+        depth_profile=profile,
         segments=(),
         **overrides,
     )
