@@ -1,0 +1,409 @@
+// robomach teach pendant: a FlexPendant-like page over the REST API (mm, N, deg).
+// Plain JS, no build step. Every mutating call carries the bearer token from the token field
+// (kept in localStorage); every 4xx/5xx shows its "detail" in the message bar.
+"use strict";
+
+const API = "/api";
+const TOKEN_KEY = "robomach.token";
+const STATE_PERIOD_MS = 200;
+const JOB_PERIOD_MS = 250;
+const DEFAULT_VISER_PORT = 8080;
+const TERMINAL = new Set(["done", "succeeded", "success", "completed", "finished",
+  "failed", "error", "cancelled", "canceled"]);
+
+const $ = (id) => document.getElementById(id);
+let selectedGuide = null;
+let learnJob = null;
+let stateBusy = false;
+
+// ---------------------------------------------------------------- messages and requests
+
+function showMessage(text, kind = "error") {
+  const box = $("message");
+  $("message-text").textContent = text;
+  box.classList.toggle("info", kind === "info");
+  box.classList.remove("hidden");
+}
+
+function clearMessage() {
+  $("message").classList.add("hidden");
+}
+
+function headers(json) {
+  const h = {};
+  if (json) h["Content-Type"] = "application/json";
+  const token = $("token").value.trim();
+  if (token) h["Authorization"] = `Bearer ${token}`;
+  return h;
+}
+
+function detailOf(body, status) {
+  if (body && typeof body === "object" && "detail" in body) {
+    const d = body.detail;
+    if (typeof d === "string") return d;
+    // FastAPI validation errors: a list of {loc, msg}.
+    if (Array.isArray(d)) {
+      return d.map((e) => `${(e.loc || []).filter((p) => p !== "body").join(".")}: ${e.msg}`)
+        .join("; ");
+    }
+    return JSON.stringify(d);
+  }
+  return `HTTP ${status}`;
+}
+
+// fetch + JSON + error reporting; throws after showing the message.
+async function api(method, path, body, { text = false, quiet = false } = {}) {
+  let response;
+  try {
+    response = await fetch(API + path, {
+      method,
+      headers: headers(body !== undefined),
+      body: body === undefined ? undefined : JSON.stringify(body),
+    });
+  } catch (err) {
+    setConnected(false);
+    if (!quiet) showMessage(`cannot reach the server: ${err.message}`);
+    throw err;
+  }
+  if (!response.ok) {
+    let parsed = null;
+    try { parsed = await response.json(); } catch (_) { /* not JSON */ }
+    const message = detailOf(parsed, response.status);
+    if (!quiet) showMessage(`${method} ${path}: ${message}`);
+    const err = new Error(message);
+    err.status = response.status;
+    throw err;
+  }
+  if (text) return response.text();
+  if (response.status === 204) return null;
+  const type = response.headers.get("content-type") || "";
+  return type.includes("json") ? response.json() : response.text();
+}
+
+function setConnected(ok) {
+  const pill = $("connection");
+  pill.textContent = ok ? "online" : "offline";
+  pill.className = `pill ${ok ? "pill-on" : "pill-off"}`;
+}
+
+// ---------------------------------------------------------------- pose display
+
+function eulerZyxDeg([w, x, y, z]) {
+  // ABB's EulerZYX convention: R = Rz * Ry * Rx; returns [rx, ry, rz] in degrees.
+  const rx = Math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y));
+  const sinp = Math.max(-1, Math.min(1, 2 * (w * y - z * x)));
+  const ry = Math.asin(sinp);
+  const rz = Math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z));
+  return [rx, ry, rz].map((a) => (a * 180) / Math.PI);
+}
+
+const fmt = (v, digits = 2) => (Number.isFinite(v) ? v.toFixed(digits) : "-");
+
+function showState(state) {
+  if (!state || !state.tcp) return;
+  const p = state.tcp.position_mm;
+  const q = state.tcp.quaternion_wxyz;
+  const [rx, ry, rz] = eulerZyxDeg(q);
+  $("pose-x").textContent = fmt(p[0]);
+  $("pose-y").textContent = fmt(p[1]);
+  $("pose-z").textContent = fmt(p[2]);
+  $("pose-rx").textContent = fmt(rx);
+  $("pose-ry").textContent = fmt(ry);
+  $("pose-rz").textContent = fmt(rz);
+  $("pose-quat").textContent = q.map((v) => fmt(v, 5)).join(", ");
+  $("pose-joints").textContent = (state.joints_deg || []).map((v) => fmt(v, 1)).join(", ");
+  const f = (state.wrench && state.wrench.force_N) || [0, 0, 0];
+  $("pose-force").textContent =
+    `${f.map((v) => fmt(v, 1)).join(", ")} (|F| ${fmt(Math.hypot(...f), 1)})`;
+  const contact = $("contact");
+  contact.textContent = state.in_contact ? "contact" : "free";
+  contact.className = `pill ${state.in_contact ? "pill-warn" : "pill-off"}`;
+}
+
+async function pollState() {
+  if (stateBusy) return;
+  stateBusy = true;
+  try {
+    showState(await api("GET", "/state", undefined, { quiet: true }));
+    setConnected(true);
+  } catch (_) {
+    setConnected(false);
+  } finally {
+    stateBusy = false;
+  }
+}
+
+// ---------------------------------------------------------------- jog, push, compliance
+
+async function jog(axis, sign) {
+  const rotational = axis.startsWith("r");
+  const step = Number($(rotational ? "jog-step-deg" : "jog-step-mm").value) * sign;
+  showState(await api("POST", "/leadthrough/jog", { axis, step }));
+}
+
+async function push(dir, sign) {
+  const force = [0, 0, 0];
+  force[dir] = Number($("push-force").value) * sign;
+  const duration = Number($("push-duration").value);
+  showState(await api("POST", "/leadthrough/push", { force_N: force, duration_s: duration }));
+}
+
+// Hold-to-push: one push per press, repeated while the button stays pressed.
+function bindHold(button, action) {
+  let held = false;
+  const loop = async () => {
+    do {
+      try { await action(); } catch (_) { held = false; }
+    } while (held);
+  };
+  button.addEventListener("pointerdown", (ev) => {
+    if (ev.button !== 0 || held) return;
+    held = true;
+    loop();
+  });
+  for (const ev of ["pointerup", "pointerleave", "pointercancel"]) {
+    button.addEventListener(ev, () => { held = false; });
+  }
+  // Keyboard users: Enter/Space give one push.
+  button.addEventListener("keydown", (ev) => {
+    if (ev.key === "Enter" || ev.key === " ") { ev.preventDefault(); action().catch(() => {}); }
+  });
+}
+
+async function putCompliance() {
+  const axes = [...document.querySelectorAll(".comp:checked")].map((el) => el.value);
+  await api("PUT", "/leadthrough/compliance", { axes, frame: $("comp-frame").value });
+}
+
+// ---------------------------------------------------------------- guide points
+
+function guideRows(body) {
+  if (Array.isArray(body)) return body;
+  return (body && (body.guide_points || body.items)) || [];
+}
+
+function guideForce(g) {
+  if (Array.isArray(g.force_N)) return Math.hypot(...g.force_N);
+  if (typeof g.force_N === "number") return g.force_N;
+  return NaN;
+}
+
+function showGuides(body) {
+  const rows = guideRows(body);
+  const tbody = $("guide-list");
+  tbody.textContent = "";
+  rows.forEach((g, i) => {
+    const index = g.index ?? i;
+    const p = g.position_mm || (g.tcp && g.tcp.position_mm) || [NaN, NaN, NaN];
+    const tr = document.createElement("tr");
+    tr.dataset.index = index;
+    tr.className = index === selectedGuide ? "selected" : "";
+    for (const v of [String(index + 1), fmt(p[0], 1), fmt(p[1], 1), fmt(p[2], 1),
+      fmt(guideForce(g), 1)]) {
+      const td = document.createElement("td");
+      td.textContent = v;
+      tr.appendChild(td);
+    }
+    tr.addEventListener("click", () => {
+      selectedGuide = index;
+      for (const other of tbody.children) other.classList.toggle("selected", other === tr);
+    });
+    tbody.appendChild(tr);
+  });
+  if (!rows.some((g, i) => (g.index ?? i) === selectedGuide)) selectedGuide = null;
+  $("guide-count").textContent = rows.length;
+}
+
+const refreshGuides = async () => showGuides(await api("GET", "/guide-points"));
+
+async function recordGuide() {
+  await api("POST", "/guide-points", {});
+  await refreshGuides();
+}
+
+async function deleteGuide() {
+  if (selectedGuide === null) {
+    showMessage("select a guide point in the list first");
+    return;
+  }
+  await api("DELETE", `/guide-points/${selectedGuide}`);
+  selectedGuide = null;
+  await refreshGuides();
+}
+
+// ---------------------------------------------------------------- jobs
+
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+function fraction(progress) {
+  const p = Number(progress) || 0;
+  return p > 1 ? p / 100 : p;
+}
+
+// Polls a job to its end, reporting progress; resolves with the final job body.
+async function followJob(jobId, onProgress) {
+  for (;;) {
+    const job = await api("GET", `/jobs/${jobId}`, undefined, { quiet: true });
+    onProgress(job);
+    if (TERMINAL.has(String(job.status).toLowerCase())) return job;
+    await sleep(JOB_PERIOD_MS);
+  }
+}
+
+function jobFailed(job) {
+  const s = String(job.status).toLowerCase();
+  return s === "failed" || s === "error";
+}
+
+async function loadExample() {
+  const start = await api("POST", "/guide-points/example", {});
+  const jobId = start.job_id ?? start.id;
+  $("example-progress-row").classList.remove("hidden");
+  $("guide-example").disabled = true;
+  try {
+    const job = await followJob(jobId, (j) => {
+      $("example-progress").value = fraction(j.progress);
+      $("example-status").textContent = `${j.status} ${Math.round(fraction(j.progress) * 100)} %`;
+    });
+    if (jobFailed(job)) showMessage(`load the example: ${job.error || job.status}`);
+  } finally {
+    $("guide-example").disabled = false;
+    await refreshGuides();
+  }
+}
+
+async function startLearning() {
+  const body = {
+    force_N: Number($("learn-force").value),
+    speed_mm_s: Number($("learn-speed").value),
+  };
+  const start = await api("POST", "/path-learning", body);
+  learnJob = start.job_id ?? start.id;
+  $("learn-start").disabled = true;
+  $("learn-cancel").disabled = false;
+  try {
+    const job = await followJob(learnJob, (j) => {
+      $("learn-progress").value = fraction(j.progress);
+      $("learn-status").textContent = `${j.status} ${Math.round(fraction(j.progress) * 100)} %`;
+    });
+    if (jobFailed(job)) showMessage(`path learning: ${job.error || job.status}`);
+    $("learn-status").textContent = job.error ? `${job.status}: ${job.error}` : job.status;
+  } finally {
+    learnJob = null;
+    $("learn-start").disabled = false;
+    $("learn-cancel").disabled = true;
+  }
+}
+
+async function cancelLearning() {
+  if (learnJob !== null) await api("POST", `/jobs/${learnJob}/cancel`, {});
+}
+
+// ---------------------------------------------------------------- post-processing, export
+
+function pick(obj, ...keys) {
+  for (const k of keys) if (obj && obj[k] !== undefined && obj[k] !== null) return obj[k];
+  return undefined;
+}
+
+async function runPostprocess() {
+  const body = {
+    force_min_N: Number($("post-fmin").value),
+    force_max_N: Number($("post-fmax").value),
+    tolerance_mm: Number($("post-tol").value),
+  };
+  const r = await api("POST", "/postprocess", body);
+  const counts = r.counts || r;
+  const dev = r.deviation || r.deviations || r.score || r;
+  $("post-samples").textContent = pick(counts, "samples_raw", "samples") ?? "-";
+  $("post-filtered").textContent = pick(counts, "samples_filtered", "filtered") ?? "-";
+  $("post-targets").textContent = pick(counts, "targets", "targets_count", "reduced") ?? "-";
+  const max = pick(dev, "max_deviation_mm", "max_mm");
+  const rms = pick(dev, "rms_deviation_mm", "rms_mm");
+  $("post-max").textContent = max === undefined ? "n/a" : `${fmt(max, 3)} mm`;
+  $("post-rms").textContent = rms === undefined ? "n/a" : `${fmt(rms, 3)} mm`;
+}
+
+async function previewRapid() {
+  const text = await api("GET", "/export/rapid", undefined, { text: true });
+  const pre = $("rapid-preview");
+  pre.textContent = text;
+  pre.classList.remove("hidden");
+}
+
+async function downloadRapid() {
+  const text = await api("GET", "/export/rapid", undefined, { text: true });
+  const url = URL.createObjectURL(new Blob([text], { type: "text/plain" }));
+  const a = document.createElement("a");
+  a.href = url;
+  a.download = "program.mod";
+  document.body.appendChild(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 1000);
+}
+
+// ---------------------------------------------------------------- viser scene
+
+// The scene URL: ?viser=<url> wins; then the server's /api/health "viser_url" (or
+// "viser_port" on this page's host); else this host on port 8080.
+async function viserUrl() {
+  const fromQuery = new URLSearchParams(location.search).get("viser");
+  if (fromQuery) return fromQuery;
+  const host = location.hostname || "localhost";
+  try {
+    const health = await api("GET", "/health", undefined, { quiet: true });
+    setConnected(true);
+    if (health && health.viser_url) {
+      // A server bound to 0.0.0.0 does not know the name the browser used.
+      const u = new URL(health.viser_url, location.href);
+      if (["0.0.0.0", "::", "[::]"].includes(u.hostname)) u.hostname = host;
+      return u.toString();
+    }
+    if (health && health.viser_port) return `${location.protocol}//${host}:${health.viser_port}/`;
+  } catch (_) { /* fall through to the default */ }
+  return `${location.protocol}//${host}:${DEFAULT_VISER_PORT}/`;
+}
+
+// ---------------------------------------------------------------- wiring
+
+function safe(fn) {
+  // Errors were already shown by api(); keep them out of the console's uncaught list.
+  return (...args) => fn(...args).catch(() => {});
+}
+
+async function init() {
+  const token = $("token");
+  token.value = localStorage.getItem(TOKEN_KEY) || "";
+  token.addEventListener("change", () => localStorage.setItem(TOKEN_KEY, token.value.trim()));
+  $("message-close").addEventListener("click", clearMessage);
+
+  for (const b of document.querySelectorAll("button.jog")) {
+    b.addEventListener("click", safe(() => jog(b.dataset.axis, Number(b.dataset.sign))));
+  }
+  for (const b of document.querySelectorAll("button.push")) {
+    bindHold(b, () => push(Number(b.dataset.dir), Number(b.dataset.sign)));
+  }
+  for (const el of document.querySelectorAll(".comp, #comp-frame")) {
+    el.addEventListener("change", safe(putCompliance));
+  }
+  $("guide-record").addEventListener("click", safe(recordGuide));
+  $("guide-delete").addEventListener("click", safe(deleteGuide));
+  $("guide-example").addEventListener("click", safe(loadExample));
+  $("learn-start").addEventListener("click", safe(startLearning));
+  $("learn-cancel").addEventListener("click", safe(cancelLearning));
+  $("post-run").addEventListener("click", safe(runPostprocess));
+  $("export-preview").addEventListener("click", safe(previewRapid));
+  $("export-download").addEventListener("click", safe(downloadRapid));
+
+  const url = await viserUrl();
+  $("viser-frame").src = url;
+  $("viser-link").href = url;
+  $("viser-link").textContent = url;
+
+  await pollState();
+  safe(refreshGuides)();
+  setInterval(pollState, STATE_PERIOD_MS);
+}
+
+document.addEventListener("DOMContentLoaded", init);
