@@ -1,0 +1,160 @@
+"""The identified stiffness model and the compensation mode as JSON settings.
+
+The file is a boundary: stiffness in N*m/rad, lengths in mm, forces in N, every field named with
+its unit. It travels with the exported program, and the workbench and API read it back.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal, get_args
+
+from ..joint_compliance import JointCompliance
+from .errors import SettingsFileError
+from .gravity import ToolGravity
+
+SETTINGS_FORMAT = "robomach.compensation"
+SETTINGS_VERSION = 1
+CompensationSetting = Literal["off", "online", "offline_linear", "offline_nonlinear"]
+COMPENSATION_SETTINGS: tuple[str, ...] = get_args(CompensationSetting)
+
+
+@dataclass(frozen=True)
+class CompensationSettings:
+    """What the controller needs to compensate deflection.
+
+    Attributes:
+        robot: Robot model name.
+        joint_stiffness_Nm_rad: (6,) identified Kq.
+        mode: ``"off"``, ``"online"`` (chapter fig. 15), ``"offline_linear"`` or
+            ``"offline_nonlinear"`` (corrected robtargets, eq. 32).
+        joint_stiffness_std_Nm_rad: (6,) one-sigma uncertainty, if known.
+        tool_gravity: Identified tool weight and sensor bias (needed online).
+        force_filter_cutoff_hz: Low-pass on the measured wrench (online).
+    """
+
+    robot: str
+    joint_stiffness_Nm_rad: tuple[float, ...]
+    mode: CompensationSetting = "online"
+    joint_stiffness_std_Nm_rad: tuple[float, ...] | None = None
+    tool_gravity: ToolGravity | None = None
+    force_filter_cutoff_hz: float = 30.0
+
+    def __post_init__(self) -> None:
+        if self.mode not in COMPENSATION_SETTINGS:
+            raise SettingsFileError(
+                f"compensation mode {self.mode!r} is not one of {', '.join(COMPENSATION_SETTINGS)}"
+            )
+        JointCompliance(tuple(self.joint_stiffness_Nm_rad))  # validates the six values
+        if not (math.isfinite(self.force_filter_cutoff_hz) and self.force_filter_cutoff_hz > 0):
+            raise SettingsFileError("force_filter_cutoff_hz must be a positive number")
+        if self.mode == "online" and self.tool_gravity is None:
+            raise SettingsFileError("online compensation needs the identified tool gravity")
+
+    @property
+    def model(self) -> JointCompliance:
+        return JointCompliance(tuple(self.joint_stiffness_Nm_rad))
+
+
+def settings_to_dict(settings: CompensationSettings) -> dict[str, Any]:
+    """JSON-ready dict (units in the field names)."""
+    out: dict[str, Any] = {
+        "format": SETTINGS_FORMAT,
+        "version": SETTINGS_VERSION,
+        "robot": settings.robot,
+        "mode": settings.mode,
+        "joint_stiffness_Nm_rad": [float(k) for k in settings.joint_stiffness_Nm_rad],
+        "force_filter_cutoff_hz": settings.force_filter_cutoff_hz,
+    }
+    if settings.joint_stiffness_std_Nm_rad is not None:
+        out["joint_stiffness_std_Nm_rad"] = [float(s) for s in settings.joint_stiffness_std_Nm_rad]
+    if settings.tool_gravity is not None:
+        g = settings.tool_gravity
+        out["tool"] = {
+            "mass_kg": g.mass_kg,
+            "com_mm": [float(v) * 1e3 for v in g.com_m],
+            "force_bias_N": [float(v) for v in g.force_bias_N],
+            "torque_bias_Nm": [float(v) for v in g.torque_bias_Nm],
+        }
+    return out
+
+
+def _floats(data: dict, key: str, count: int) -> tuple[float, ...]:
+    value = data.get(key)
+    if not isinstance(value, list) or len(value) != count:
+        raise SettingsFileError(f"{key!r} must be a list of {count} numbers")
+    try:
+        numbers = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        raise SettingsFileError(f"{key!r} must be a list of {count} numbers") from None
+    if not all(math.isfinite(v) for v in numbers):
+        raise SettingsFileError(f"{key!r} must hold finite numbers")
+    return numbers
+
+
+def settings_from_dict(data: dict[str, Any]) -> CompensationSettings:
+    """Parse and validate a settings dict.
+
+    Raises:
+        SettingsFileError: wrong format or version, missing or malformed fields.
+    """
+    if not isinstance(data, dict) or data.get("format") != SETTINGS_FORMAT:
+        raise SettingsFileError(f"not a compensation settings file (format {SETTINGS_FORMAT!r})")
+    if data.get("version") != SETTINGS_VERSION:
+        raise SettingsFileError(f"settings version {data.get('version')!r} is not supported")
+    if not isinstance(data.get("robot"), str):
+        raise SettingsFileError("'robot' must be a robot name")
+    tool = None
+    if "tool" in data:
+        t = data["tool"]
+        if not isinstance(t, dict):
+            raise SettingsFileError("'tool' must be an object")
+        mass = _floats({"mass_kg": [t.get("mass_kg")]}, "mass_kg", 1)[0]
+        tool = ToolGravity(
+            mass_kg=mass,
+            com_m=tuple(v * 1e-3 for v in _floats(t, "com_mm", 3)),
+            force_bias_N=_floats(t, "force_bias_N", 3),
+            torque_bias_Nm=_floats(t, "torque_bias_Nm", 3),
+        )
+    std = None
+    if "joint_stiffness_std_Nm_rad" in data:
+        std = _floats(data, "joint_stiffness_std_Nm_rad", 6)
+    try:
+        cutoff = float(data.get("force_filter_cutoff_hz", 30.0))
+        return CompensationSettings(
+            robot=data["robot"],
+            joint_stiffness_Nm_rad=_floats(data, "joint_stiffness_Nm_rad", 6),
+            mode=data.get("mode", "online"),
+            joint_stiffness_std_Nm_rad=std,
+            tool_gravity=tool,
+            force_filter_cutoff_hz=cutoff,
+        )
+    except SettingsFileError:
+        raise
+    except (TypeError, ValueError) as exc:
+        raise SettingsFileError(f"invalid compensation settings: {exc}") from None
+
+
+def save_settings(settings: CompensationSettings, path: str | Path) -> Path:
+    """Write the settings as indented JSON; returns the path."""
+    target = Path(path)
+    target.write_text(json.dumps(settings_to_dict(settings), indent=2) + "\n", encoding="utf-8")
+    return target
+
+
+def load_settings(path: str | Path) -> CompensationSettings:
+    """Read settings written by ``save_settings``.
+
+    Raises:
+        SettingsFileError: the file is missing, not JSON, or not valid settings.
+    """
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise SettingsFileError(f"settings file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise SettingsFileError(f"cannot read settings file {path}: {exc}") from None
+    return settings_from_dict(data)
