@@ -6,7 +6,8 @@ while a stable loop may ring after a depth step but the ringing dies out. A reve
 when the ratio turns after moving more than ``REVERSAL_FRACTION`` of its range; reversals less
 than ``OSCILLATION_GAP_S`` apart form a burst; a burst of at least ``OSCILLATION_REVERSALS``
 reversals lasting ``OSCILLATION_MIN_S`` or longer is a sustained oscillation: not stable.
-The normal down-and-up at a burr is two reversals and never a sustained burst.
+The normal down-and-up at a burr is two reversals and never a sustained burst; an
+oscillation slower than 2 Hz is not detected (none of the simulated loops has one).
 """
 
 from __future__ import annotations
@@ -21,10 +22,11 @@ if TYPE_CHECKING:
 
 # A reversal is a turn after a move larger than this fraction of (1 - delta).
 REVERSAL_FRACTION = 0.25
-# Reversals closer than this belong to one burst [s].
-OSCILLATION_GAP_S = 0.6
+# Reversals closer than this belong to one burst [s]: an oscillation faster than 2 Hz (the
+# PI loop goes unstable at ~12-18 Hz; a burr passage is 0.1 s or longer between its two turns).
+OSCILLATION_GAP_S = 0.25
 # A burst this long [s] with this many reversals (three cycles) is a sustained oscillation.
-OSCILLATION_MIN_S = 1.5
+OSCILLATION_MIN_S = 1.0
 OSCILLATION_REVERSALS = 6
 
 

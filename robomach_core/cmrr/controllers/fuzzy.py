@@ -10,8 +10,10 @@ protection (at the lowest stage with the force still far too high: stop the robo
 AND, max for aggregation, centroid defuzzification give the change of speed ratio.
 SOLUTION: the change is integrated and the output is quantized to stages (five, 0.2 ... 1.0,
 by default) with hysteresis, so the feed does not change continuously (tool wear, surface) and
-never drops below the lowest stage (rubbing instead of cutting). Two-stage switching (0.5 /
-1.0) is the special case with two stages.
+never drops below the lowest stage (rubbing instead of cutting). A stage up is taken only if
+the force predicted there, F (u_next / u)^beta with the nominal beta, stays under the
+reference; without this guard a staged output hunts between two stages whenever the reference
+lies between their forces. Two-stage switching (0.5 / 1.0) is the special case with two stages.
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ STOP = "STOP"
 #
 #            de/dt:  N    Z    P
 #       e = NB      PB   PB   NS
-#           NS      PB   PS   NB
+#           NS      PS   PS   NB
 #           ZE      PS   ZE   NB
 #           PS      ZE   NS   NB
 #           PB      NS   NB   NB
@@ -58,7 +60,7 @@ FORCE_TREND_RULES: tuple[tuple[str | None, str | None, str | None, str], ...] = 
     ("PS", "P", None, "NB"),
     ("PB", "P", None, "NB"),
     ("NB", "N", None, "PB"),  # falling: leaving the burr, speed up
-    ("NS", "N", None, "PB"),
+    ("NS", "N", None, "PS"),  # falling but still near: our own slow-down also looks like this
     ("ZE", "N", None, "PS"),
     ("PS", "N", None, "ZE"),  # above but falling fast: do not slow down further
     ("PB", "N", None, "NS"),
@@ -287,7 +289,13 @@ class FuzzyController:
         internal = state.internal_ratio + change * f.max_rate_per_s * d.dt_s
         internal = min(max(internal, stages[0]), stages[-1])
         stage = state.stage
+        beta = d.nominal_feed_exponent
+        force_now = max(measurement.force_N, 0.0)
         while stage + 1 < len(stages) and internal > _switch_level(stages, stage, +1, f.hysteresis):
+            predicted = force_now * (stages[stage + 1] / stages[stage]) ** beta
+            if predicted >= d.reference_force_N:
+                internal = _switch_level(stages, stage, +1, f.hysteresis)
+                break
             stage += 1
         while stage > 0 and internal < _switch_level(stages, stage, -1, f.hysteresis):
             stage -= 1

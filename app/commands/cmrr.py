@@ -1,0 +1,137 @@
+"""``robomach cmrr``: simulate a CMRR feed controller on one of the papers' cuts."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+SCENARIOS = ("milling-steps", "deburr-burrs", "lund-df", "learned-path")
+CONTROLLERS = ("constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage", "adaptive-lq")
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "cmrr",
+        help="simulate controlled material removal rate (feed control at a force reference)",
+        description=(
+            "Simulate a cut of --scenario under --controller (or all of them) and write "
+            "cmrr.csv, cmrr_summary.json, cmrr.png and cmrr_settings.json into --out."
+        ),
+    )
+    p.add_argument("--scenario", required=True, choices=SCENARIOS, help="the cut to simulate")
+    p.add_argument(
+        "--controller",
+        choices=(*CONTROLLERS, "all"),
+        default=None,
+        help="feed controller, or all to compare them (default: the paper's for the scenario)",
+    )
+    p.add_argument("--out", type=Path, default=Path("cmrr-out"), help="output folder")
+    p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise")
+    p.add_argument(
+        "--reference-force-N",
+        dest="reference_force_N",
+        type=float,
+        metavar="N",
+        help="force reference (default: the scenario's)",
+    )
+    p.add_argument(
+        "--command-speed-mm-s",
+        dest="command_speed_mm_s",
+        type=float,
+        metavar="MM_S",
+        help="programmed (greatest) feed (default: the scenario's)",
+    )
+    p.add_argument(
+        "--feedback",
+        choices=("force", "spindle-current"),
+        default=None,
+        help="feedback signal (default: force)",
+    )
+    p.add_argument(
+        "--settings",
+        type=Path,
+        metavar="JSON",
+        help="controller settings file (as written to cmrr_settings.json) to run instead",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress or table on the terminal")
+    p.set_defaults(func=run)
+
+
+class _Progress:
+    """A progress line on stderr, redrawn in place on a terminal, silent otherwise."""
+
+    def __init__(self, label: str, enabled: bool) -> None:
+        self.label = label
+        self.enabled = enabled and sys.stderr.isatty()
+        self.started = time.perf_counter()
+
+    def __call__(self, fraction: float) -> None:
+        if not self.enabled:
+            return
+        bar = "#" * int(fraction * 30)
+        sys.stderr.write(f"\r{self.label:<28} [{bar:<30}] {fraction * 100:5.1f} %")
+        if fraction >= 1.0:
+            sys.stderr.write(f"  {time.perf_counter() - self.started:.1f} s\n")
+        sys.stderr.flush()
+
+
+def run(args: argparse.Namespace) -> int:
+    from robomach_core.cmrr import (
+        build_scenario,
+        compare_controllers,
+        comparison_table,
+        load_settings,
+        settings_for,
+        write_study_outputs,
+    )
+    from robomach_core.cmrr.errors import CmrrSettingsError
+
+    overrides: dict[str, object] = {}
+    controllers: list = []
+    if args.settings is not None:
+        if args.controller == "all":
+            raise CmrrSettingsError("--settings runs one controller; it cannot go with all")
+        loaded = load_settings(args.settings)
+        if args.controller is not None and args.controller != loaded.controller.kind:
+            raise CmrrSettingsError(
+                f"--controller {args.controller} but {args.settings} holds {loaded.controller.kind}"
+            )
+        controllers = [loaded.controller]
+        overrides.update(
+            reference_force_N=loaded.reference_force_N,
+            command_speed_mm_s=loaded.command_speed_m_s * 1e3,
+            min_speed_ratio=loaded.min_speed_ratio,
+            feedback=loaded.feedback,
+        )
+    if args.reference_force_N is not None:
+        overrides["reference_force_N"] = args.reference_force_N
+    if args.command_speed_mm_s is not None:
+        overrides["command_speed_mm_s"] = args.command_speed_mm_s
+    if args.feedback is not None:
+        overrides["feedback"] = args.feedback.replace("-", "_")
+    for key in ("reference_force_N", "command_speed_mm_s"):
+        value = overrides.get(key)
+        if value is not None and not float(value) > 0.0:
+            raise CmrrSettingsError(f"--{key.replace('_', '-')} must be positive")
+    scenario = build_scenario(args.scenario, **overrides)
+
+    if not controllers:
+        name = args.controller or scenario.default_controller
+        names = list(CONTROLLERS) if name == "all" else [name]
+        controllers = [settings_for(n) for n in names]
+
+    total = len(controllers)
+    label = f"{scenario.name}/" + ("all" if total > 1 else controllers[0].kind)
+    progress = _Progress(label, not args.quiet)
+    results = compare_controllers(scenario, controllers, seed=args.seed, progress=progress)
+    try:
+        paths = write_study_outputs(results, args.out)
+    except OSError as exc:
+        raise CmrrSettingsError(f"cannot write to {args.out}: {exc.strerror}") from None
+    if not args.quiet:
+        print(scenario.description)
+        print(comparison_table(results))
+        print("wrote " + ", ".join(str(p) for p in paths.values()))
+    return 0
