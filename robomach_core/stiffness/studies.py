@@ -210,9 +210,9 @@ def run_identification_study(
     """Simulated CMM campaign, Kq by eq. (23), prediction error over the workspace, and the
     non-linear model next to the linear one."""
     report = progress if isinstance(progress, _Progress) else _Progress(progress, cancel)
-    truth = true_joint_compliance(options.robot)
-    tip_robot = Robot(options.robot, sphere_tip_transform())
+    tip_robot = Robot(options.robot, sphere_tip_transform())  # unknown names fail here
     tool_robot = Robot(options.robot, Tool().T_flange_tcp)
+    truth = true_joint_compliance(options.robot)
     n_poses = (
         min(options.identification_poses, 12) if options.quick else options.identification_poses
     )

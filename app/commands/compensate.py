@@ -1,0 +1,175 @@
+"""``robomach compensate``: robot stiffness, deformation compensation and ILC studies."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+STUDY_CHOICES = ("identify", "gravity", "milling", "ilc", "all")
+MODE_CHOICES = ("off", "online", "offline_linear", "offline_nonlinear")
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "compensate",
+        help="identify the arm's stiffness and simulate deflection compensation and ILC",
+        description=(
+            "Simulate the stiffness identification (CMM under known loads), the F/T gravity "
+            "compensation, the chapter's end-milling block and the Lund face-milling pass with "
+            "and without deflection compensation, and iterative learning control. Writes CSVs, "
+            "PNG plots, compensation_summary.json and compensation_settings.json into --out."
+        ),
+    )
+    p.add_argument(
+        "--study", choices=STUDY_CHOICES, default="all", help="which study to run (default all)"
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=Path("compensation"),
+        help="output folder, created if missing (default ./compensation)",
+    )
+    p.add_argument("--robot", default="ur10", help="ur10 (default), ur5 or ur3")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random element")
+    p.add_argument(
+        "--cmm-noise",
+        type=float,
+        default=20.0,
+        metavar="UM",
+        help="CMM noise per axis in um (the chapter: 10-50; default 20)",
+    )
+    p.add_argument(
+        "--poses", type=int, default=30, help="poses of the identification campaign (default 30)"
+    )
+    p.add_argument("--iterations", type=int, default=6, help="ILC iterations (default 6)")
+    p.add_argument(
+        "--mode",
+        choices=MODE_CHOICES,
+        default="online",
+        help="compensation mode written to compensation_settings.json",
+    )
+    p.add_argument(
+        "--rapid",
+        action="store_true",
+        help="also write milling_compensated.mod with offline-compensated robtargets",
+    )
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="shorter cuts and fewer poses: a preview in a few seconds",
+    )
+    p.set_defaults(func=run)
+
+
+class _ProgressBar:
+    """One line redrawn in place on a terminal; 10 % steps otherwise."""
+
+    def __init__(self, label: str, stream=None) -> None:
+        self.label = label
+        self.stream = sys.stderr if stream is None else stream
+        self.tty = self.stream.isatty()
+        self.last_step = -1
+        self.started = time.perf_counter()
+
+    def __call__(self, fraction: float) -> None:
+        if self.tty:
+            bar = "#" * int(fraction * 30)
+            self.stream.write(f"\r{self.label} [{bar:<30}] {fraction * 100:5.1f} %")
+            self.stream.flush()
+            return
+        step = int(fraction * 10)
+        if step > self.last_step:
+            self.last_step = step
+            self.stream.write(f"{self.label}: {step * 10} %\n")
+            self.stream.flush()
+
+    def close(self) -> None:
+        elapsed = time.perf_counter() - self.started
+        if self.tty:
+            self.stream.write(f"  {elapsed:.1f} s\n")
+        else:
+            self.stream.write(f"{self.label}: done in {elapsed:.1f} s\n")
+        self.stream.flush()
+
+
+def _report(summary: dict) -> list[str]:
+    """The numbers next to the papers', one line each."""
+    lines = []
+    if "stiffness_rel_error_max" in summary:
+        lines.append(
+            f"stiffness: max relative error {summary['stiffness_rel_error_max'] * 100:.1f} % "
+            f"(joints 1-5: {summary['stiffness_rel_error_max_joints_1_to_5'] * 100:.1f} %); "
+            f"prediction error max {summary['prediction_error_max_mm']:.3f} mm "
+            "(chapter: < 0.04 mm)"
+        )
+    if "gravity_residual_max_N" in summary:
+        lines.append(
+            f"gravity: mass {summary['tool_mass_identified_kg']:.3f} kg "
+            f"(true {summary['tool_mass_true_kg']:.3f}); residual max "
+            f"{summary['gravity_residual_max_N']:.2f} N"
+        )
+    if "error_max_uncompensated_um" in summary:
+        lines.append(
+            f"end milling: max error {summary['error_max_uncompensated_um']:.0f} um -> "
+            f"{summary['error_max_compensated_online_um']:.0f} online, "
+            f"{summary['error_max_compensated_linear_um']:.0f} offline linear, "
+            f"{summary['error_max_compensated_nonlinear_um']:.0f} offline non-linear "
+            "(chapter: 400 -> < 100 um)"
+        )
+        lines.append(
+            f"face milling: max {summary['face_error_max_uncompensated_um']:.1f} -> "
+            f"{summary['face_error_max_compensated_um']:.1f} um, std "
+            f"{summary['face_error_std_uncompensated_um']:.1f} -> "
+            f"{summary['face_error_std_compensated_um']:.1f} um (Lund: 273.9 -> 51.4, "
+            "37.9 -> 18.6)"
+        )
+    if "ilc_arm_error_per_iteration" in summary:
+        arm = ", ".join(f"{e:.0f}" for e in summary["ilc_arm_error_per_iteration"])
+        force = ", ".join(f"{e:.0f}" for e in summary["ilc_force_error_per_iteration"])
+        lines.append(f"ILC arm-side mean error per iteration [um]: {arm}")
+        lines.append(
+            f"ILC force mean error per iteration [um]: {force} (around the offset: "
+            f"-{summary['ilc_force_deviation_reduction_percent']:.0f} %; paper: -85 % / -50 %)"
+        )
+    return lines
+
+
+def run(args: argparse.Namespace) -> int:
+    from robomach_core.errors import InvalidInputError
+
+    if not (0.0 <= args.cmm_noise <= 200.0):
+        raise InvalidInputError(f"--cmm-noise must be within 0-200 um, got {args.cmm_noise:g}")
+    if not (3 <= args.poses <= 500):
+        raise InvalidInputError(f"--poses must be within 3-500, got {args.poses}")
+    if not (0 <= args.iterations <= 50):
+        raise InvalidInputError(f"--iterations must be within 0-50, got {args.iterations}")
+    if args.out.exists() and not args.out.is_dir():
+        raise InvalidInputError(f"--out {args.out} exists and is not a folder")
+
+    from robomach_core.stiffness.studies import SUMMARY_FILE, StudyOptions, run_studies
+
+    options = StudyOptions(
+        robot=args.robot,
+        seed=args.seed,
+        cmm_noise_um=args.cmm_noise,
+        identification_poses=args.poses,
+        ilc_iterations=args.iterations,
+        mode=args.mode,
+        rapid=args.rapid,
+        quick=args.quick,
+    )
+    bar = _ProgressBar(f"compensate {args.study}")
+    try:
+        results = run_studies(args.study, args.out, options, progress=bar)
+    finally:
+        bar.close()
+    summary: dict = {}
+    for result in results.values():
+        summary.update(result.summary)
+    for line in _report(summary):
+        print(line)
+    files = sum(len(r.files) for r in results.values())
+    print(f"wrote {files} files and {SUMMARY_FILE} to {args.out}")
+    return 0
