@@ -253,7 +253,12 @@ def run_identification_study(
     k_id = np.asarray(ident.model.stiffness_Nm_rad)
     rel = k_id / k_true - 1.0
     chapter_load = float(np.linalg.norm(CHAPTER_END_MILLING.nominal_wrench()[:3]))
-    gap_at = np.interp(np.log([chapter_load, 10 * chapter_load]), np.log(loads), np.array(gap))
+    gap_at = []
+    for scale in (1.0, 10.0):
+        W = direction * chapter_load * scale
+        lin = loaded_equilibrium(tool_robot, q_work, W, truth, mode="linear").T_base_tcp
+        nl = loaded_equilibrium(tool_robot, q_work, W, truth).T_base_tcp
+        gap_at.append(float(np.linalg.norm(pose_error(lin, nl)[:3])))
     summary = {
         "robot": options.robot,
         "cmm_noise_um": options.cmm_noise_um,
