@@ -87,6 +87,8 @@ class Cell:
         self._compliance: JointCompliance = true_joint_compliance(self.robot.name)
         self._rng = np.random.default_rng(self.config.seed)
         self.sensor = ForceTorqueSensor(self.tool, self.config.sensor, self._rng)
+        self._R_tcp_flange = self.tool.T_flange_tcp[:3, :3].T.copy()
+        self._tcp_rotated = not np.allclose(self._R_tcp_flange, np.eye(3))
 
     def force_estimator(self) -> ForceEstimator:
         """A controller-side compensator with the nominal tool data (bias not yet tared)."""
@@ -101,15 +103,21 @@ class Cell:
         contact = self.contact_model.evaluate(T, np.zeros(3), 0.0, CONTROL_PERIOD_S)
         if contact.in_contact:
             raise InvalidInputError("the initial pose puts the tool inside the workpiece")
-        R_flange = T[:3, :3] @ self.tool.T_flange_tcp[:3, :3].T
         return CellState(
-            0.0, q, T, self.sensor.measure(R_flange, contact.wrench), T.copy(), NO_CONTACT,
+            0.0,
+            q,
+            T,
+            self.sensor.measure(self.flange_rotation(T), contact.wrench),
+            T.copy(),
+            NO_CONTACT,
             np.zeros(6),
         )
 
-    def step(self, state: CellState, q_motor_cmd: np.ndarray, dt: float = CONTROL_PERIOD_S) -> CellState:
+    def step(
+        self, state: CellState, q_motor_cmd: np.ndarray, dt: float = CONTROL_PERIOD_S
+    ) -> CellState:
         """Advance one control period with the motor-side joints at ``q_motor_cmd``."""
-        q = np.clip(q_motor_cmd, self.robot.lower_rad, self.robot.upper_rad)
+        q = np.minimum(np.maximum(q_motor_cmd, self.robot.lower_rad), self.robot.upper_rad)
         T_motor, J = self.robot.fk_and_jacobian(q)
         T_motor = T_motor.copy()
         # Arm-side pose: motor pose displaced by J dq, dq = Kq^-1 J^T W (previous period's W).
@@ -122,10 +130,11 @@ class Cell:
         T_true[:3, :3] = T_motor[:3, :3] + skew @ T_motor[:3, :3]
         velocity = (T_true[:3, 3] - state.T_base_tcp_true[:3, 3]) / dt
         contact = self.contact_model.evaluate(T_true, velocity, state.contact.depth_m, dt)
-        R_flange = T_true[:3, :3] @ self.tool.T_flange_tcp[:3, :3].T
-        reading = self.sensor.measure(R_flange, contact.wrench)
+        reading = self.sensor.measure(self.flange_rotation(T_true), contact.wrench)
         return CellState(state.time_s + dt, q, T_motor, reading, T_true, contact, dq)
 
     def flange_rotation(self, T_base_tcp: np.ndarray) -> np.ndarray:
         """Sensor orientation for a TCP orientation (the controller's frame bookkeeping)."""
-        return T_base_tcp[:3, :3] @ self.tool.T_flange_tcp[:3, :3].T
+        if self._tcp_rotated:
+            return T_base_tcp[:3, :3] @ self._R_tcp_flange
+        return T_base_tcp[:3, :3]

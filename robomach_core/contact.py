@@ -19,7 +19,6 @@ import coal
 import numpy as np
 
 from .tool import Tool
-from .transforms import cross3
 from .workpiece import Workpiece
 
 CONTACT_DAMPING_N_S_M = 100.0
@@ -137,15 +136,16 @@ class ContactModel:
         """
         R = T_base_tcp[:3, :3]
         p_tcp = T_base_tcp[:3, 3]
-        center = p_tcp + R[:, 2] * self._cutter_offset
+        center = p_tcp + R[:, 2] * self._cutter_offset if self._cutter_offset else p_tcp
         bvh = self._grid.bvh_at(self._R_wobj_base @ (center - self._T_base_wobj[:3, 3]))
         if bvh is None:
             return NO_CONTACT
         self._T_cutter.setRotation(R)
         self._T_cutter.setTranslation(center)
         self._result.clear()
-        if not coal.collide(bvh, self._T_part, self._cutter, self._T_cutter, self._request,
-                            self._result):
+        if not coal.collide(
+            bvh, self._T_part, self._cutter, self._T_cutter, self._request, self._result
+        ):
             return NO_CONTACT
         contacts = self._result.getContacts()
         deepest = contacts[0]
@@ -156,23 +156,27 @@ class ContactModel:
         if depth <= 0.0:
             return NO_CONTACT
         # coal: the contact normal points from o1 (the part) to o2 (the cutter).
-        normal = np.asarray(deepest.normal, dtype=float)
-        norm = math.sqrt(normal @ normal)
+        nx, ny, nz = deepest.normal.tolist()
+        px, py, pz = deepest.pos.tolist()
+        norm = math.sqrt(nx * nx + ny * ny + nz * nz)
         if not norm > 1e-12:  # degenerate contact: use the direction from the contact point
-            normal = center - np.asarray(deepest.pos, dtype=float)
-            norm = math.sqrt(normal @ normal)
+            cx, cy, cz = center.tolist()
+            nx, ny, nz = cx - px, cy - py, cz - pz
+            norm = math.sqrt(nx * nx + ny * ny + nz * nz)
             if not norm > 1e-12:
                 return NO_CONTACT
-        normal = normal / norm
+        nx, ny, nz = nx / norm, ny / norm, nz / norm
         depth_rate = (depth - previous_depth_m) / dt
         f_n = max(0.0, self.stiffness_N_m * depth + self.damping_N_s_m * depth_rate)
-        v_t = velocity_m_s - (velocity_m_s @ normal) * normal
-        speed_t = math.sqrt(v_t @ v_t)
-        force = f_n * normal
+        vx, vy, vz = velocity_m_s.tolist()
+        vn = vx * nx + vy * ny + vz * nz
+        tx, ty, tz = vx - vn * nx, vy - vn * ny, vz - vn * nz
+        speed_t = math.sqrt(tx * tx + ty * ty + tz * tz)
+        fx, fy, fz = f_n * nx, f_n * ny, f_n * nz
         if speed_t > 1e-12 and self.friction > 0.0:
-            force = force - self.friction * f_n * np.tanh(speed_t / FRICTION_VELOCITY_M_S) * (
-                v_t / speed_t
-            )
-        contact_point = np.asarray(deepest.pos, dtype=float)
-        torque = cross3(contact_point - p_tcp, force)
-        return ContactResult(True, -depth, depth, normal, np.concatenate([force, torque]))
+            k = self.friction * f_n * math.tanh(speed_t / FRICTION_VELOCITY_M_S) / speed_t
+            fx, fy, fz = fx - k * tx, fy - k * ty, fz - k * tz
+        ox, oy, oz = p_tcp.tolist()
+        rx, ry, rz = px - ox, py - oy, pz - oz
+        wrench = np.array([fx, fy, fz, ry * fz - rz * fy, rz * fx - rx * fz, rx * fy - ry * fx])
+        return ContactResult(True, -depth, depth, np.array([nx, ny, nz]), wrench)

@@ -76,9 +76,7 @@ class Arc:
         within = np.mod(ang - lo, 2 * np.pi) <= abs(self.sweep)
         d_arc = np.abs(np.linalg.norm(rel, axis=1) - self.radius)
         ends = self.point_at(np.array([0.0, self.length]))
-        d_end = np.minimum(
-            np.linalg.norm(p - ends[0], axis=1), np.linalg.norm(p - ends[1], axis=1)
-        )
+        d_end = np.minimum(np.linalg.norm(p - ends[0], axis=1), np.linalg.norm(p - ends[1], axis=1))
         return np.where(within, d_arc, d_end)
 
 
@@ -158,6 +156,8 @@ def filleted_polygon(corners: np.ndarray, radii: np.ndarray) -> Contour:
             seg = tangent_in[j] - tangent_out[i]
             d = (P[j] - P[i]) / np.linalg.norm(P[j] - P[i])
             if seg @ d < 0:
-                raise InvalidInputError(f"fillets at corners {i} and {j} overlap; use smaller radii")
+                raise InvalidInputError(
+                    f"fillets at corners {i} and {j} overlap; use smaller radii"
+                )
             pieces.append(Line(tuple(tangent_out[i]), tuple(tangent_in[j])))
     return Contour(tuple(pieces), closed=True)

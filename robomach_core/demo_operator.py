@@ -14,15 +14,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .cell import CONTROL_PERIOD_S
-from .contour import Line
-from .errors import InvalidInputError
+from .contour import Arc, Line
+from .errors import InvalidInputError, NotEnoughGuidePointsError, UnreachableTargetError
 from .leadthrough import ComplianceSelection, GuidePoint, LeadThrough, LeadThroughState
-from .transforms import rotation_log
+from .robot import Robot
+from .transforms import matrix_from_quaternion, rotation_log
 from .workpiece import Workpiece
 
 HAND_GAIN_N_M = 2000.0  # push per metre of distance to the goal
@@ -33,16 +34,82 @@ TOOL_DOWN = np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # 
 
 @dataclass(frozen=True)
 class GuideIntent:
-    """Where the operator means to put one guide point (base frame, metres)."""
+    """Where the operator means to put one guide point (base frame, metres).
+
+    Attributes:
+        position_m: (3,) intended TCP position.
+        wall_normal: (3,) unit vector from the tool towards the wall, or None to record the
+            point where it is without feeling for the wall.
+        rotation: 3x3 intended tool orientation (default: tool axis straight down).
+    """
 
     position_m: np.ndarray
-    wall_normal: np.ndarray  # unit (3,), from the tool towards the wall
+    wall_normal: np.ndarray | None
+    rotation: np.ndarray = field(default_factory=lambda: TOOL_DOWN.copy())
 
 
-def guide_plan(workpiece: Workpiece, tool_radius_m: float, rng: np.random.Generator) -> list[GuideIntent]:
+def intents_from_csv(text: str, robot: Robot | None = None) -> list[GuideIntent]:
+    """Guide intents from CSV text: x_mm,y_mm,z_mm[,qw,qx,qy,qz[,wall_nx,wall_ny,wall_nz]].
+
+    A header row is allowed. Positions are TCP positions in the robot base frame. With a
+    ``robot``, every point is checked for reachability first.
+
+    Raises:
+        InvalidInputError: malformed rows or fewer than two points.
+        UnreachableTargetError: a point the robot cannot reach (says which).
+    """
+    rows = []
+    for line_no, line in enumerate(text.splitlines(), start=1):
+        cells = [c.strip() for c in line.split(",")]
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        try:
+            values = [float(c) for c in cells]
+        except ValueError:
+            if not rows and line_no == 1:
+                continue  # header
+            raise InvalidInputError(f"guide points line {line_no}: not numbers: {line!r}") from None
+        if len(values) not in (3, 7, 10) or not all(math.isfinite(v) for v in values):
+            raise InvalidInputError(
+                f"guide points line {line_no}: expected 3, 7 or 10 finite numbers "
+                "(x,y,z mm [,qw,qx,qy,qz [,wall normal]]), got " + str(len(values))
+            )
+        rows.append((line_no, values))
+    if len(rows) < 2:
+        raise NotEnoughGuidePointsError(
+            f"path learning needs at least 2 guide points, the file has {len(rows)}"
+        )
+    intents = []
+    for k, (line_no, v) in enumerate(rows):
+        rotation = matrix_from_quaternion(np.array(v[3:7])) if len(v) >= 7 else TOOL_DOWN.copy()
+        normal = None
+        if len(v) == 10:
+            n = np.array(v[7:10])
+            if np.linalg.norm(n) < 1e-9:
+                raise InvalidInputError(f"guide points line {line_no}: the wall normal is zero")
+            normal = n / np.linalg.norm(n)
+        intent = GuideIntent(np.array(v[:3]) * 1e-3, normal, rotation)
+        if robot is not None:
+            T = np.eye(4)
+            T[:3, :3], T[:3, 3] = rotation, intent.position_m
+            try:
+                robot.ik(T)
+            except UnreachableTargetError as exc:
+                raise UnreachableTargetError(
+                    f"guide point {k + 1} (line {line_no}): {exc}"
+                ) from None
+        intents.append(intent)
+    return intents
+
+
+def guide_plan(
+    workpiece: Workpiece, tool_radius_m: float, rng: np.random.Generator
+) -> list[GuideIntent]:
     """Gross guide points for a built-in workpiece: one in each long straight run of the wall.
 
-    Runs of 40 mm or more get two points (at 20 % and 80 %), so corners are bracketed.
+    Runs of 40 mm or more get two points (at 20 % and 80 %), so corners are bracketed. Sharp
+    corners that bend around the material (an outside corner, where the chord between the runs'
+    points would cut through the part) get a point of their own, as an operator would place.
     """
     if workpiece.wall is None:
         raise InvalidInputError(
@@ -53,6 +120,15 @@ def guide_plan(workpiece: Workpiece, tool_radius_m: float, rng: np.random.Genera
     z = max(z_lo + tool_radius_m + 0.0015, z_hi - 0.003)
     intents = []
     for piece in workpiece.wall.pieces:
+        if isinstance(piece, Arc) and piece.sweep < -math.radians(80):
+            # Outside corner (turning towards the material): a point off the corner's middle.
+            mid = piece.start_angle + piece.sweep / 2
+            out = np.array([math.cos(mid), math.sin(mid)])  # from the arc centre, away from metal
+            p = np.asarray(piece.center) + out * (piece.radius + tool_radius_m + 0.001)
+            pos = T[:3, :3] @ np.array([p[0], p[1], z]) + T[:3, 3]
+            # No push towards a sharp corner: the tool would slide off along one face.
+            intents.append(GuideIntent(pos, None))
+            continue
         if not isinstance(piece, Line) or piece.length < 0.012:
             continue
         fractions = (0.2, 0.8) if piece.length >= 0.040 else (0.5,)
@@ -94,12 +170,22 @@ def push_to(
     return state
 
 
-def square_up(lt: LeadThrough, state: LeadThroughState, selection: ComplianceSelection,
-              *, step_deg: float = 0.5) -> LeadThroughState:
-    """Jog the orientation about the tool axes until it is square to the part (within a step)."""
+def square_up(
+    lt: LeadThrough,
+    state: LeadThroughState,
+    selection: ComplianceSelection,
+    *,
+    step_deg: float = 0.5,
+    rotation: np.ndarray | None = None,
+) -> LeadThroughState:
+    """Jog the orientation about the tool axes until it matches ``rotation`` (within a step).
+
+    The default ``rotation`` is square to the part: the tool axis straight down.
+    """
+    goal = TOOL_DOWN if rotation is None else rotation
     for _ in range(3):
         R = state.cell.T_base_tcp[:3, :3]
-        err_tool = R.T @ rotation_log(TOOL_DOWN @ R.T)  # rotation to do, in tool axes
+        err_tool = R.T @ rotation_log(goal @ R.T)  # rotation to do, in tool axes
         moved = False
         for i, axis in enumerate(("rx", "ry", "rz")):
             steps = round(math.degrees(err_tool[i]) / step_deg)
@@ -117,25 +203,35 @@ def scripted_leadthrough(
     workpiece: Workpiece,
     rng: np.random.Generator,
     *,
+    intents: list[GuideIntent] | None = None,
     progress: Callable[[float], None] | None = None,
 ) -> tuple[LeadThroughState, list[GuidePoint]]:
-    """Lead the robot to every planned guide point by pushes and record each one."""
+    """Lead the robot to every guide point by pushes and record each one.
+
+    Args:
+        intents: Where to put the guide points; default: ``guide_plan`` for the workpiece.
+    """
     free = ComplianceSelection(frozenset({"x", "y", "z"}), "base")
     planar = ComplianceSelection(frozenset({"x", "y"}), "base")
-    state = square_up(lt, state, ComplianceSelection(frozenset(), "tool"))
-    intents = guide_plan(workpiece, lt.cell.tool.radius_m, rng)
+    stiff = ComplianceSelection(frozenset(), "tool")
+    if intents is None:
+        intents = guide_plan(workpiece, lt.cell.tool.radius_m, rng)
+    state = square_up(lt, state, stiff, rotation=intents[0].rotation)
     surface_z = (workpiece.T_base_wobj @ np.array([0, 0, workpiece.surface_z_m, 1.0]))[2]
     safe_z = surface_z + 0.008
     guides: list[GuidePoint] = []
     for k, intent in enumerate(intents):
         over = intent.position_m.copy()
-        over[2] = safe_z
+        over[2] = max(safe_z, over[2])
         state = push_to(lt, state, over, free, tolerance_m=0.0005)
+        if not np.allclose(intent.rotation, state.cell.T_base_tcp[:3, :3], atol=0.01):
+            state = square_up(lt, state, stiff, rotation=intent.rotation)
         state = push_to(lt, state, intent.position_m, free)
-        # Sideways until the wall pushes back: the hand keeps pushing, the wall balances it.
-        wall_push = np.concatenate([intent.wall_normal * WALL_PUSH_N, np.zeros(3)])
-        for _ in range(int(1.5 / CONTROL_PERIOD_S)):
-            state = lt.step(state, wall_push, planar)
+        if intent.wall_normal is not None:
+            # Sideways until the wall pushes back: the hand keeps pushing, the wall balances it.
+            wall_push = np.concatenate([intent.wall_normal * WALL_PUSH_N, np.zeros(3)])
+            for _ in range(int(1.5 / CONTROL_PERIOD_S)):
+                state = lt.step(state, wall_push, planar)
         guides.append(lt.record(state))
         state = push_to(lt, state, intent.position_m, planar)
         up = state.cell.T_base_tcp[:3, 3].copy()

@@ -7,7 +7,8 @@ to the measured force, contact with the workpiece pushes back and leading the to
 is safe: the tool stops where the wall's reaction balances the push.
 
 Admittance law per compliant axis i (selected frame): M_i dv_i/dt + D_i v_i = W_push,i + W_c,i,
-where W_c is the measured, gravity-compensated contact wrench. Stiff axes keep v_i = 0. The
+where W_c is the measured, gravity-compensated contact wrench, both through a small deadband so
+sensor noise does not make the robot creep. Stiff axes keep v_i = 0. The
 reference pose integrates v; the motor-side joints follow it by one IK step per period.
 """
 
@@ -43,7 +44,9 @@ class ComplianceSelection:
                 f"unknown compliance axes {sorted(unknown)}; use any of {', '.join(AXES)}"
             )
         if self.frame not in ("tool", "base"):
-            raise InvalidInputError(f"compliance frame must be 'tool' or 'base', not {self.frame!r}")
+            raise InvalidInputError(
+                f"compliance frame must be 'tool' or 'base', not {self.frame!r}"
+            )
 
     @property
     def mask(self) -> np.ndarray:
@@ -61,6 +64,9 @@ class AdmittanceParams:
         damping_rot_Nm_s_rad: Rotational damping.
         max_speed_m_s: Translational speed limit.
         max_rate_rad_s: Rotational speed limit.
+        deadband_N: Forces below this (about 4 sigma of the sensor noise) do not move the robot,
+            so it stands still when nobody pushes; larger forces are reduced by it.
+        deadband_Nm: The same for torques.
     """
 
     mass_kg: float = 2.0
@@ -69,6 +75,8 @@ class AdmittanceParams:
     damping_rot_Nm_s_rad: float = 10.0
     max_speed_m_s: float = 0.05
     max_rate_rad_s: float = 0.5
+    deadband_N: float = 1.0
+    deadband_Nm: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -131,6 +139,7 @@ class LeadThrough:
         self._mass = np.array([p.mass_kg] * 3 + [p.inertia_kg_m2] * 3)
         self._damping = np.array([p.damping_N_s_m] * 3 + [p.damping_rot_Nm_s_rad] * 3)
         self._limit = np.array([p.max_speed_m_s] * 3 + [p.max_rate_rad_s] * 3)
+        self._deadband = np.array([p.deadband_N] * 3 + [p.deadband_Nm] * 3)
 
     def start(self, cell_state: CellState, *, tare_samples: int = 50) -> LeadThroughState:
         """Tare the sensor (tool free, robot still) and hold the current pose."""
@@ -161,6 +170,7 @@ class LeadThrough:
         R = state.cell.T_base_tcp[:3, :3] if selection.frame == "tool" else np.eye(3)
         w_total = np.asarray(push_wrench, dtype=float) + self.measured_wrench(state.cell)
         w_sel = np.concatenate([R.T @ w_total[:3], R.T @ w_total[3:]])
+        w_sel = np.sign(w_sel) * np.maximum(np.abs(w_sel) - self._deadband, 0.0)
         # Damping taken implicitly: v+ = (M v + dt W) / (M + D dt), stable against a stiff wall
         # (the contact loop gain k dt^2 / (M + D dt) stays well below 1 at 4 ms).
         v = (self._mass * state.velocity + dt * w_sel) / (self._mass + self._damping * dt)

@@ -23,12 +23,19 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+import pinocchio as pin
 
 from .cell import CONTROL_PERIOD_S, Cell, CellState
 from .errors import CancelledError, InvalidInputError, NotEnoughGuidePointsError
 from .leadthrough import GuidePoint
 from .sensor import ForceEstimator
-from .transforms import cross3, quaternion_from_matrix, slerp, matrix_from_quaternion
+from .transforms import (
+    cross3,
+    matrix_from_quaternion,
+    quaternion_from_matrix,
+    quaternions_from_matrices,
+    slerp,
+)
 
 FORCE_RANGE_N = (1.0, 50.0)
 SPEED_RANGE_M_S = (0.0005, 0.05)
@@ -128,6 +135,8 @@ class _Segment:
     qb: np.ndarray
     length: float
     xp: np.ndarray
+    Ra: np.ndarray  # orientation at a
+    omega: np.ndarray  # rotation vector from Ra to Rb, in the frame of Ra (slerp = Ra exp(f w))
 
 
 def _segments(guides: Sequence[GuidePoint], closed: bool) -> list[_Segment]:
@@ -139,7 +148,20 @@ def _segments(guides: Sequence[GuidePoint], closed: bool) -> list[_Segment]:
         length = float(np.linalg.norm(d))
         if length < 1e-4:
             continue  # coincident guide points: nothing to travel
-        segs.append(_Segment(a, b, g0.quaternion_wxyz, g1.quaternion_wxyz, length, d / length))
+        Ra = matrix_from_quaternion(g0.quaternion_wxyz)
+        Rb = matrix_from_quaternion(g1.quaternion_wxyz)
+        segs.append(
+            _Segment(
+                a,
+                b,
+                g0.quaternion_wxyz,
+                g1.quaternion_wxyz,
+                length,
+                d / length,
+                Ra,
+                pin.log3(Ra.T @ Rb),
+            )
+        )
     return segs
 
 
@@ -216,7 +238,8 @@ def learn_path(
     dt = CONTROL_PERIOD_S
 
     def frame(seg: _Segment, fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        R = matrix_from_quaternion(slerp(seg.qa, seg.qb, min(max(fraction, 0.0), 1.0)))
+        # Slerp between the guide orientations: R = Ra exp(f * omega).
+        R = seg.Ra @ pin.exp3(seg.omega * min(max(fraction, 0.0), 1.0))
         yp = cross3(R[:, 2], seg.xp) * side
         yp /= math.sqrt(yp @ yp)
         return R, yp, cross3(seg.xp, yp)
@@ -237,7 +260,7 @@ def learn_path(
         "time_s": np.empty(n_max),
         "joints_rad": np.empty((n_max, 6)),
         "position_m": np.empty((n_max, 3)),
-        "quaternion_wxyz": np.empty((n_max, 4)),
+        "rotation": np.empty((n_max, 3, 3)),
         "wrench_sensor": np.empty((n_max, 6)),
         "wrench_tool": np.empty((n_max, 6)),
         "force_normal_N": np.empty(n_max),
@@ -274,7 +297,7 @@ def learn_path(
         cols["time_s"][n] = state.time_s - t0
         cols["joints_rad"][n] = state.q_motor
         cols["position_m"][n] = state.T_base_tcp[:3, 3]
-        cols["quaternion_wxyz"][n] = quaternion_from_matrix(R_meas)
+        cols["rotation"][n] = R_meas
         cols["wrench_sensor"][n] = state.ft_reading
         cols["wrench_tool"][n, :3] = R_meas.T @ w_base[:3]
         cols["wrench_tool"][n, 3:] = R_meas.T @ w_base[3:]
@@ -285,7 +308,8 @@ def learn_path(
         n += 1
         if f_abs > settings.force_limit_N:
             stop_reason = (
-                f"protection: contact force {f_abs:.1f} N exceeded the {settings.force_limit_N:g} N "
+                f"protection: contact force {f_abs:.1f} N exceeded the "
+                f"{settings.force_limit_N:g} N "
                 f"limit at t = {state.time_s - t0:.2f} s"
             )
             break
@@ -328,8 +352,10 @@ def learn_path(
                 progress(min(1.0, (seg_index + s / seg.length) / total))
     if progress is not None:
         progress(1.0)
+    rotations = cols.pop("rotation")[:n]
     rec = Recording(
         **{k: v[:n].copy() for k, v in cols.items()},
+        quaternion_wxyz=quaternions_from_matrices(rotations),
         force_reference_N=np.full(n, settings.force_N),
         stop_reason=stop_reason,
         completed=completed,

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .cell import CONTROL_PERIOD_S, Cell, CellConfig
-from .demo_operator import scripted_leadthrough
+from .demo_operator import intents_from_csv, scripted_leadthrough
 from .errors import InvalidInputError
 from .export.program import ReachabilityReport, check_reachability, rapid_program
 from .export.rapid import rapid_module
@@ -46,6 +46,10 @@ class DemoSettings:
         postprocess: Filter thresholds, speeds and contact compensation; its tolerance is
             replaced by ``tolerance_m``.
         force_control_variant: Also generate the FC (FCPressL) variant of the program.
+        guide_points_csv: CSV text of guide points to lead the robot to (see
+            ``demo_operator.intents_from_csv``) instead of the built-in plan; needed for mesh
+            files, whose wall is unknown.
+        wall_side: Side of the wall for path learning ("auto" reads the guide forces).
     """
 
     robot: str = "ur10"
@@ -57,6 +61,8 @@ class DemoSettings:
     tool: Tool = field(default_factory=Tool)
     postprocess: PostprocessSettings = field(default_factory=PostprocessSettings)
     force_control_variant: bool = True
+    guide_points_csv: str | None = None
+    wall_side: str = "auto"
 
 
 @dataclass(frozen=True)
@@ -138,27 +144,43 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
     """Run the whole pipeline headless; ``progress(stage, fraction)`` reports as it goes."""
     started = time.perf_counter()
     report = progress or (lambda stage, fraction: None)
-    learning = PathLearningSettings(force_N=settings.force_N, speed_m_s=settings.speed_m_s)
+    learning = PathLearningSettings(
+        force_N=settings.force_N, speed_m_s=settings.speed_m_s, wall_side=settings.wall_side
+    )
     post = PostprocessSettings(
         **{**settings.postprocess.__dict__, "tolerance_m": settings.tolerance_m}
     )
     workpiece = load_workpiece(settings.workpiece)
-    if workpiece.wall is None:
+    if workpiece.wall is None and settings.guide_points_csv is None:
         raise InvalidInputError(
-            f"{workpiece.name}: the headless demo leads the robot along a built-in workpiece's "
-            "known wall; use the workbench to lead it through a mesh of your own"
+            f"{workpiece.name}: a mesh file has no known wall to plan guide points on; "
+            "give --guide-points FILE.csv"
         )
-    cell = Cell(CellConfig(robot=settings.robot, tool=settings.tool, workpiece=workpiece,
-                           seed=settings.seed))
+    cell = Cell(
+        CellConfig(
+            robot=settings.robot, tool=settings.tool, workpiece=workpiece, seed=settings.seed
+        )
+    )
+    intents = None
+    if settings.guide_points_csv is not None:
+        intents = intents_from_csv(settings.guide_points_csv, cell.robot)
     lt = LeadThrough(cell)
     state = lt.start(cell.initial_state())
     state, guides = scripted_leadthrough(
-        lt, state, workpiece, np.random.default_rng(settings.seed),
+        lt,
+        state,
+        workpiece,
+        np.random.default_rng(settings.seed),
+        intents=intents,
         progress=lambda f: report("lead-through", f),
     )
     t_learn = time.perf_counter()
     recording, _ = learn_path(
-        cell, state.cell, guides, learning, lt.estimator,
+        cell,
+        state.cell,
+        guides,
+        learning,
+        lt.estimator,
         progress=lambda f: report("path learning", f),
     )
     learning_wall = time.perf_counter() - t_learn
@@ -166,7 +188,9 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
     processed = postprocess(
         recording, np.array([g.quaternion_wxyz for g in guides]), post, closed=learning.closed
     )
-    score = score_path(workpiece, settings.tool.radius_m, processed.targets.position_m)
+    score = None
+    if workpiece.wall is not None:
+        score = score_path(workpiece, settings.tool.radius_m, processed.targets.position_m)
     report("post-processing", 1.0)
     report("export", 0.0)
     header = (
@@ -183,13 +207,15 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
     if settings.force_control_variant:
         module_text_fc = rapid_module(
             rapid_program(
-                processed.targets, settings.tool, workpiece, module_name="LearnedPathFC",
-                force_control_N=settings.force_N, comment=header,
+                processed.targets,
+                settings.tool,
+                workpiece,
+                module_name="LearnedPathFC",
+                force_control_N=settings.force_N,
+                comment=header,
             )
         )
-    reach = check_reachability(
-        module_text, cell.robot, workpiece, processed.targets.joints_rad[0]
-    )
+    reach = check_reachability(module_text, cell.robot, workpiece, processed.targets.joints_rad[0])
     report("export", 1.0)
     return DemoResult(
         settings=settings,

@@ -19,25 +19,44 @@ def demo_figure(result, path: str | Path) -> Path:
     kept = result.processed.keep_mask
     fig, (ax_f, ax_p) = plt.subplots(1, 2, figsize=(13, 5), gridspec_kw={"width_ratios": [1.2, 1]})
     ax_f.plot(rec.time_s, rec.force_normal_N, lw=0.6, color="0.3", label="measured (Yp)")
-    ax_f.plot(rec.time_s[~kept], rec.force_normal_N[~kept], ".", ms=2, color="tab:red",
-              label="dropped by the filter")
+    ax_f.plot(
+        rec.time_s[~kept],
+        rec.force_normal_N[~kept],
+        ".",
+        ms=2,
+        color="tab:red",
+        label="dropped by the filter",
+    )
     ax_f.axhline(result.settings.force_N, color="tab:green", lw=1.2, label="setpoint")
-    ax_f.axhspan(post.force_min_N, post.force_max_N, color="tab:green", alpha=0.08,
-                 label=f"filter [{post.force_min_N:g}, {post.force_max_N:g}] N")
+    ax_f.axhspan(
+        post.force_min_N,
+        post.force_max_N,
+        color="tab:green",
+        alpha=0.08,
+        label=f"filter [{post.force_min_N:g}, {post.force_max_N:g}] N",
+    )
     ax_f.set_xlabel("time [s]")
     ax_f.set_ylabel("contact force [N]")
     ax_f.set_title("Path learning: contact force")
     ax_f.legend(loc="upper right", fontsize=8)
     T = result.workpiece.T_base_wobj
+
     def to_wobj(p: np.ndarray) -> np.ndarray:
         return ((p - T[:3, 3]) @ T[:3, :3]) * 1e3
 
     wall = result.workpiece.wall
     if wall is not None:
         w = wall.sample(0.0005) * 1e3
-        ax_p.plot(np.append(w[:, 0], w[0, 0]), np.append(w[:, 1], w[0, 1]), color="0.6", lw=1,
-                  label="true wall")
+        ax_p.plot(
+            np.append(w[:, 0], w[0, 0]),
+            np.append(w[:, 1], w[0, 1]),
+            color="0.6",
+            lw=1,
+            label="true wall",
+        )
     guides = to_wobj(np.array([g.position_m for g in result.guides]))
+    if result.score is None:
+        ax_p.set_title(f"{len(result.processed.targets)} targets (no true geometry to score)")
     closed = np.vstack([guides, guides[:1]])
     ax_p.plot(closed[:, 0], closed[:, 1], "--", color="tab:orange", lw=0.8, label="test program")
     ax_p.plot(guides[:, 0], guides[:, 1], "o", color="tab:orange", ms=4)
@@ -45,8 +64,12 @@ def demo_figure(result, path: str | Path) -> Path:
     if result.score is not None:
         from .scoring import true_tool_path_distance
 
-        dev = true_tool_path_distance(result.workpiece, result.settings.tool.radius_m,
-                                      result.processed.targets.position_m) * 1e3
+        dev = (
+            true_tool_path_distance(
+                result.workpiece, result.settings.tool.radius_m, result.processed.targets.position_m
+            )
+            * 1e3
+        )
         sc = ax_p.scatter(tg[:, 0], tg[:, 1], c=dev, s=6, cmap="viridis", zorder=3)
         fig.colorbar(sc, ax=ax_p, label="target deviation [mm]")
         ax_p.set_title(

@@ -46,9 +46,7 @@ class PostprocessSettings:
 
     def __post_init__(self) -> None:
         if not (self.tolerance_m > 0 and np.isfinite(self.tolerance_m)):
-            raise InvalidInputError(
-                f"tolerance must be > 0 mm, got {self.tolerance_m * 1e3:g} mm"
-            )
+            raise InvalidInputError(f"tolerance must be > 0 mm, got {self.tolerance_m * 1e3:g} mm")
         if not (0 <= self.force_min_N < self.force_max_N):
             raise InvalidInputError(
                 f"force thresholds need 0 <= Fmin < Fmax, got Fmin={self.force_min_N:g} N, "
@@ -67,7 +65,7 @@ def force_threshold_mask(force_N: np.ndarray, force_min_N: float, force_max_N: f
 
 
 def deviation_heights(points: np.ndarray, start: int, end: int) -> np.ndarray:
-    """Perpendicular distances of points[start+1:end] from the chord points[start] -> points[end]."""
+    """Perpendicular distances of points[start+1:end] from the chord points[start]->points[end]."""
     a = points[start]
     chord = points[end] - a
     length = np.linalg.norm(chord)
@@ -253,8 +251,13 @@ class PostprocessResult:
         return int(self.keep_mask.sum())
 
 
-def postprocess(recording, guide_quaternions_wxyz: np.ndarray, settings: PostprocessSettings,
-                *, closed: bool = True) -> PostprocessResult:
+def postprocess(
+    recording,
+    guide_quaternions_wxyz: np.ndarray,
+    settings: PostprocessSettings,
+    *,
+    closed: bool = True,
+) -> PostprocessResult:
     """Filter, compensate, reduce and give speeds and orientations (chapter section 3.3).
 
     Args:

@@ -65,6 +65,9 @@ class Robot:
         )
         self.flange_frame_id = flange_id
         self.data = self.model.createData()
+        self._cache_key: bytes = b""
+        self._cache_T = np.eye(4)
+        self._cache_J = np.zeros((6, 6))
         self.lower_rad = self.model.lowerPositionLimit.copy()
         self.upper_rad = self.model.upperPositionLimit.copy()
         self.velocity_limit_rad_s = self.model.velocityLimit.copy()
@@ -92,22 +95,34 @@ class Robot:
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         """4x4 ``T_base_tcp`` at joints ``q`` (rad)."""
+        self._cache_key = b""  # the data buffer no longer holds the cached Jacobian's pose
         pin.framesForwardKinematics(self.model, self.data, q)
         return self.data.oMf[self.tcp_frame_id].homogeneous
 
     def flange_pose(self, q: np.ndarray) -> np.ndarray:
         """4x4 ``T_base_flange`` at joints ``q`` (rad)."""
+        self._cache_key = b""
         pin.framesForwardKinematics(self.model, self.data, q)
         return self.data.oMf[self.flange_frame_id].homogeneous
 
     def fk_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``T_base_tcp`` and the 6x6 TCP Jacobian [v; omega] in base-aligned axes."""
+        """``T_base_tcp`` and the 6x6 TCP Jacobian [v; omega] in base-aligned axes.
+
+        The last result is cached: a control loop asks for the same joints twice per period
+        (the simulator, then the controller's IK), and pinocchio's data buffer is reused.
+        Treat the returned arrays as read-only.
+        """
+        key = q.tobytes()
+        if key == self._cache_key:
+            return self._cache_T, self._cache_J
         pin.computeJointJacobians(self.model, self.data, q)
         pin.updateFramePlacements(self.model, self.data)
         J = pin.getFrameJacobian(
             self.model, self.data, self.tcp_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
         )
-        return self.data.oMf[self.tcp_frame_id].homogeneous, J
+        T = self.data.oMf[self.tcp_frame_id].homogeneous
+        self._cache_key, self._cache_T, self._cache_J = key, T, J
+        return T, J
 
     def ik_step(
         self, q: np.ndarray, T_base_target: np.ndarray, *, damping: float = 1e-4
@@ -118,9 +133,18 @@ class Robot:
         period, where the target moves by micrometres so one step tracks it.
         """
         T, J = self.fk_and_jacobian(q)
-        e = pose_error(T, T_base_target)
-        dq = J.T @ np.linalg.solve(J @ J.T + damping**2 * np.eye(6), e)
-        return np.clip(q + dq, self.lower_rad, self.upper_rad)
+        e = np.empty(6)
+        e[:3] = T_base_target[:3, 3] - T[:3, 3]
+        e[3:] = pin.log3(T_base_target[:3, :3] @ T[:3, :3].T)
+        try:
+            dq = np.linalg.solve(J, e)  # plain Newton step: exact away from singularities
+        except np.linalg.LinAlgError:
+            dq = None
+        if dq is None or float(dq @ dq) > 1e-4:  # near a singularity: damped least squares
+            A = J @ J.T
+            A.flat[::7] += damping**2
+            dq = J.T @ np.linalg.solve(A, e)
+        return np.minimum(np.maximum(q + dq, self.lower_rad), self.upper_rad)
 
     def ik(
         self,
@@ -149,8 +173,10 @@ class Robot:
                 f"the shoulder, beyond the {self.name} reach of {self.reach_m * 1e3:.0f} mm"
             )
         seeds = [HOME_JOINTS_RAD.copy() if q_init is None else np.asarray(q_init, float).copy()]
-        seeds += [HOME_JOINTS_RAD + d for d in (np.array([0.6, 0, 0, 0, 0, 0]),
-                                                 np.array([-0.6, 0, 0, 0, 0, 0]))]
+        seeds += [
+            HOME_JOINTS_RAD + d
+            for d in (np.array([0.6, 0, 0, 0, 0, 0]), np.array([-0.6, 0, 0, 0, 0, 0]))
+        ]
         best_error = np.inf
         for seed in seeds:
             q = np.clip(seed, self.lower_rad, self.upper_rad)

@@ -53,6 +53,7 @@ class ForceTorqueSensor:
         self._next = 0
         self._com = np.asarray(tool.com_m, dtype=float)
         self._tcp = np.asarray(tool.tcp_offset_m, dtype=float)
+        self._weight = tool.mass_kg * GRAVITY_M_S2
 
     def _draw_noise(self) -> np.ndarray:
         if self._next >= len(self._noise):
@@ -70,15 +71,23 @@ class ForceTorqueSensor:
             contact_wrench_tcp_base: (6,) contact wrench at the TCP, base-aligned axes.
         """
         Rt = R_base_flange.T
-        f_contact = Rt @ contact_wrench_tcp_base[:3]
-        tau_contact = Rt @ contact_wrench_tcp_base[3:]
-        # Moment of the contact force about the sensor origin: tau_s = tau_tcp + r_tcp x F.
-        tau_contact = tau_contact + cross3(self._tcp, f_contact)
-        f_gravity = Rt @ (self.tool.mass_kg * GRAVITY_M_S2)
-        tau_gravity = cross3(self._com, f_gravity)
+        # Contact force plus weight, both rotated into the sensor frame at once.
+        f = Rt @ (contact_wrench_tcp_base[:3] + self._weight)
+        f_contact = f - Rt @ self._weight if contact_wrench_tcp_base[3:].any() else None
         reading = np.empty(6)
-        reading[:3] = f_contact + f_gravity
-        reading[3:] = tau_contact + tau_gravity
+        reading[:3] = f
+        if f_contact is None:
+            # Weight only (torque of the contact about the TCP is zero for a point contact at
+            # the TCP): tau_s = com x F_g + r_tcp x F_c.
+            f_g = Rt @ self._weight
+            reading[3:] = cross3(self._com, f_g) + cross3(self._tcp, f - f_g)
+        else:
+            f_g = f - f_contact
+            reading[3:] = (
+                Rt @ contact_wrench_tcp_base[3:]
+                + cross3(self._tcp, f_contact)
+                + cross3(self._com, f_g)
+            )
         return reading + self.bias + self._draw_noise()
 
 

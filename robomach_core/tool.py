@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
@@ -46,7 +47,9 @@ class Tool:
                 f"tool radius {self.radius_m * 1e3:g} mm is outside {lo * 1e3:g}-{hi * 1e3:g} mm"
             )
         if self.shape not in ("ball", "cylinder"):
-            raise InvalidInputError(f"cutter shape must be 'ball' or 'cylinder', not {self.shape!r}")
+            raise InvalidInputError(
+                f"cutter shape must be 'ball' or 'cylinder', not {self.shape!r}"
+            )
         if not (0.0 < self.mass_kg < 50.0):
             raise InvalidInputError(f"tool mass {self.mass_kg} kg is outside (0, 50) kg")
         if not (0.0 < self.flute_length_m < 0.2):
@@ -54,7 +57,7 @@ class Tool:
         if not np.all(np.isfinite(self.tcp_offset_m)) or not np.all(np.isfinite(self.com_m)):
             raise InvalidInputError("tool TCP offset and centre of mass must be finite")
 
-    @property
+    @cached_property
     def T_flange_tcp(self) -> np.ndarray:
         """4x4 pose of the TCP in the flange frame (same orientation as the flange)."""
         return make_transform(np.eye(3), np.asarray(self.tcp_offset_m, dtype=float))

@@ -37,8 +37,16 @@ def rotation_about(axis: str | np.ndarray, angle_rad: float) -> np.ndarray:
     return np.eye(3) + np.sin(angle_rad) * K + (1 - np.cos(angle_rad)) * (K @ K)
 
 
+def canonical_quaternion(q: np.ndarray) -> np.ndarray:
+    """The sign of ``q`` with the first non-zero component (w first) positive."""
+    for c in q:
+        if abs(c) > 1e-12:
+            return q if c > 0 else -q
+    return q
+
+
 def quaternion_from_matrix(R: np.ndarray) -> np.ndarray:
-    """Unit quaternion ``[w, x, y, z]`` (w >= 0) of a 3x3 rotation matrix (Shepperd's method)."""
+    """Unit quaternion ``[w, x, y, z]`` of a 3x3 rotation (Shepperd's method), canonical sign."""
     m = np.asarray(R, dtype=float)
     tr = m[0, 0] + m[1, 1] + m[2, 2]
     if tr > 0:
@@ -62,7 +70,7 @@ def quaternion_from_matrix(R: np.ndarray) -> np.ndarray:
             [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
         )
     q /= np.linalg.norm(q)
-    return q if q[0] >= 0 else -q
+    return canonical_quaternion(q)
 
 
 def matrix_from_quaternion(q_wxyz: np.ndarray) -> np.ndarray:
@@ -94,8 +102,10 @@ def rotation_log(R: np.ndarray) -> np.ndarray:
         axis[(i + 1) % 3] = np.copysign(axis[(i + 1) % 3], R[i, (i + 1) % 3] + R[(i + 1) % 3, i])
         axis[(i + 2) % 3] = np.copysign(axis[(i + 2) % 3], R[i, (i + 2) % 3] + R[(i + 2) % 3, i])
         return axis / np.linalg.norm(axis) * angle
-    return angle / (2 * np.sin(angle)) * np.array(
-        [R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]
+    return (
+        angle
+        / (2 * np.sin(angle))
+        * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
     )
 
 
@@ -112,7 +122,7 @@ def slerp(q0_wxyz: np.ndarray, q1_wxyz: np.ndarray, fraction: float) -> np.ndarr
         theta = np.arccos(dot)
         q = (np.sin((1 - fraction) * theta) * q0 + np.sin(fraction * theta) * q1) / np.sin(theta)
     q /= np.linalg.norm(q)
-    return q if q[0] >= 0 else -q
+    return canonical_quaternion(q)
 
 
 def pose_error(T_current: np.ndarray, T_target: np.ndarray) -> np.ndarray:
@@ -127,3 +137,42 @@ def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.array(
         [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
     )
+
+
+def quaternions_from_matrices(Rs: np.ndarray) -> np.ndarray:
+    """Vectorised ``quaternion_from_matrix`` for a stack of rotations (n, 3, 3) -> (n, 4)."""
+    Rs = np.asarray(Rs, dtype=float)
+    m00, m11, m22 = Rs[:, 0, 0], Rs[:, 1, 1], Rs[:, 2, 2]
+    # |q| components from the diagonal, signs from the off-diagonal terms (w >= 0).
+    w = 0.5 * np.sqrt(np.maximum(0.0, 1.0 + m00 + m11 + m22))
+    x = 0.5 * np.sqrt(np.maximum(0.0, 1.0 + m00 - m11 - m22))
+    y = 0.5 * np.sqrt(np.maximum(0.0, 1.0 - m00 + m11 - m22))
+    z = 0.5 * np.sqrt(np.maximum(0.0, 1.0 - m00 - m11 + m22))
+    q = np.stack([w, x, y, z], axis=1)
+    # Fix the signs relative to the largest component, which is well conditioned.
+    big = np.argmax(q, axis=1)
+    s_x = Rs[:, 2, 1] - Rs[:, 1, 2]
+    s_y = Rs[:, 0, 2] - Rs[:, 2, 0]
+    s_z = Rs[:, 1, 0] - Rs[:, 0, 1]
+    p_xy = Rs[:, 0, 1] + Rs[:, 1, 0]
+    p_xz = Rs[:, 0, 2] + Rs[:, 2, 0]
+    p_yz = Rs[:, 1, 2] + Rs[:, 2, 1]
+    signs = np.ones_like(q)
+    # Relative signs: (w,x)~s_x, (w,y)~s_y, (w,z)~s_z, (x,y)~p_xy, (x,z)~p_xz, (y,z)~p_yz.
+    rel = {
+        0: (np.ones_like(w), np.sign(s_x), np.sign(s_y), np.sign(s_z)),
+        1: (np.sign(s_x), np.ones_like(w), np.sign(p_xy), np.sign(p_xz)),
+        2: (np.sign(s_y), np.sign(p_xy), np.ones_like(w), np.sign(p_yz)),
+        3: (np.sign(s_z), np.sign(p_xz), np.sign(p_yz), np.ones_like(w)),
+    }
+    for k, comps in rel.items():
+        sel = big == k
+        for j in range(4):
+            signs[sel, j] = comps[j][sel]
+    signs[signs == 0] = 1.0
+    q = q * signs
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    # Canonical sign: the first component that is not ~0 is positive.
+    first = np.argmax(np.abs(q) > 1e-12, axis=1)
+    q *= np.where(q[np.arange(len(q)), first] < 0, -1.0, 1.0)[:, None]
+    return q

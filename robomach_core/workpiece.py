@@ -211,9 +211,15 @@ def load_mesh_file(
         raise MeshFileError(f"{p}: no such file")
     size = p.stat().st_size
     if size > max_bytes:
-        raise MeshFileError(f"{p.name}: {size / 1e6:.1f} MB exceeds the {max_bytes / 1e6:.0f} MB limit")
+        raise MeshFileError(
+            f"{p.name}: {size / 1e6:.1f} MB exceeds the {max_bytes / 1e6:.0f} MB limit"
+        )
     return mesh_from_bytes(
-        p.read_bytes(), p.suffix.lower(), name=p.stem, T_base_wobj=T_base_wobj, scale=scale,
+        p.read_bytes(),
+        p.suffix.lower(),
+        name=p.stem,
+        T_base_wobj=T_base_wobj,
+        scale=scale,
         max_triangles=max_triangles,
     )
 
@@ -236,7 +242,9 @@ def mesh_from_bytes(
     try:
         loaded = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=True)
     except Exception as exc:  # trimesh raises many types for corrupt files
-        raise MeshFileError(f"{name}: cannot read as {kind.upper()} ({exc.__class__.__name__})") from None
+        raise MeshFileError(
+            f"{name}: cannot read as {kind.upper()} ({exc.__class__.__name__})"
+        ) from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise MeshFileError(f"{name}: the file holds no triangles")
     if len(loaded.faces) > max_triangles:

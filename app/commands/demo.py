@@ -21,15 +21,44 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--out", required=True, type=Path, help="output folder (created if missing)")
     p.add_argument("--robot", default="ur10", help="ur10 (default), ur5 or ur3")
-    p.add_argument("--workpiece", default="water_pump",
-                   help="water_pump (default) or block")
-    p.add_argument("--force", type=float, default=10.0, metavar="N",
-                   help="contact force reference in N (1-50; the paper used 10-20)")
-    p.add_argument("--speed", type=float, default=5.0, metavar="MM_S",
-                   help="learning speed in mm/s (default 5)")
-    p.add_argument("--tolerance", type=float, default=0.2, metavar="MM",
-                   help="deviation-height tolerance in mm (default 0.2)")
+    p.add_argument("--workpiece", default="water_pump", help="water_pump (default) or block")
+    p.add_argument(
+        "--force",
+        type=float,
+        default=10.0,
+        metavar="N",
+        help="contact force reference in N (1-50; the paper used 10-20)",
+    )
+    p.add_argument(
+        "--speed",
+        type=float,
+        default=5.0,
+        metavar="MM_S",
+        help="learning speed in mm/s (default 5)",
+    )
+    p.add_argument(
+        "--tolerance",
+        type=float,
+        default=0.2,
+        metavar="MM",
+        help="deviation-height tolerance in mm (default 0.2)",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of every random element")
+    p.add_argument(
+        "--guide-points",
+        type=Path,
+        metavar="CSV",
+        help="lead the robot to these guide points instead of the built-in plan: rows "
+        "x_mm,y_mm,z_mm[,qw,qx,qy,qz[,wall_nx,wall_ny,wall_nz]] in the robot base "
+        "frame (needed for a mesh file)",
+    )
+    p.add_argument(
+        "--wall-side",
+        choices=("auto", "left", "right"),
+        default="auto",
+        help="side of the wall relative to the travel direction (default: from the "
+        "contact force recorded at the guide points)",
+    )
     p.add_argument("--no-plot", action="store_true", help="skip demo.png")
     p.set_defaults(func=run)
 
@@ -81,6 +110,12 @@ def run(args: argparse.Namespace) -> int:
     if args.out.exists() and not args.out.is_dir():
         raise InvalidInputError(f"--out {args.out} exists and is not a folder")
 
+    guide_csv = None
+    if args.guide_points is not None:
+        if not args.guide_points.is_file():
+            raise InvalidInputError(f"--guide-points {args.guide_points}: no such file")
+        guide_csv = args.guide_points.read_text(errors="replace")
+
     from robomach_core.export.outputs import write_demo_outputs
     from robomach_core.pipeline import DemoSettings, run_demo
 
@@ -91,6 +126,8 @@ def run(args: argparse.Namespace) -> int:
         speed_m_s=args.speed * 1e-3,
         tolerance_m=args.tolerance * 1e-3,
         seed=args.seed,
+        guide_points_csv=guide_csv,
+        wall_side=args.wall_side,
     )
     bar = _ProgressLine()
     try:
@@ -104,16 +141,24 @@ def run(args: argparse.Namespace) -> int:
         paths.append(demo_figure(result, args.out / "demo.png"))
     s = result.summary()
     print(f"guide points      {s['guide_points']}")
-    print(f"samples           {s['samples_raw']} raw, {s['samples_filtered']} kept "
-          f"(force in [{s['force_min_N']:g}, {s['force_max_N']:g}] N)")
-    print(f"contact force     mean {s['force_mean_N']:.2f} N, |error| p95 "
-          f"{s['force_abs_error_p95_N']:.2f} N, within 2 N: {s['force_within_2N_fraction']:.1%}")
+    print(
+        f"samples           {s['samples_raw']} raw, {s['samples_filtered']} kept "
+        f"(force in [{s['force_min_N']:g}, {s['force_max_N']:g}] N)"
+    )
+    print(
+        f"contact force     mean {s['force_mean_N']:.2f} N, |error| p95 "
+        f"{s['force_abs_error_p95_N']:.2f} N, within 2 N: {s['force_within_2N_fraction']:.1%}"
+    )
     print(f"targets           {s['targets']} (tolerance {s['tolerance_mm']:g} mm)")
     if s["max_deviation_mm"] is not None:
-        print(f"deviation         max {s['max_deviation_mm']:.3f} mm, RMS "
-              f"{s['rms_deviation_mm']:.3f} mm (path vs true wall - tool radius)")
+        print(
+            f"deviation         max {s['max_deviation_mm']:.3f} mm, RMS "
+            f"{s['rms_deviation_mm']:.3f} mm (path vs true wall - tool radius)"
+        )
     print(f"reachable         {s['robtargets_reachable']}/{s['robtargets_total']} robtargets")
-    print(f"run               {s['stop_reason']}; {s['sim_time_s']:.1f} s simulated in "
-          f"{s['learning_wall_time_s']:.1f} s (x{s['realtime_factor']:.0f} real time)")
+    print(
+        f"run               {s['stop_reason']}; {s['sim_time_s']:.1f} s simulated in "
+        f"{s['learning_wall_time_s']:.1f} s (x{s['realtime_factor']:.0f} real time)"
+    )
     print(f"wrote             {', '.join(p.name for p in paths)} in {args.out}")
     return 0 if result.recording.completed else 1

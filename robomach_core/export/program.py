@@ -42,7 +42,10 @@ def rapid_program(
     T_wobj_base = inverse_transform(workpiece.T_base_wobj)
     rapid_targets = []
     for p, q, joints, v in zip(
-        targets.position_m, targets.quaternion_wxyz, targets.joints_rad, targets.speed_m_s,
+        targets.position_m,
+        targets.quaternion_wxyz,
+        targets.joints_rad,
+        targets.speed_m_s,
         strict=True,
     ):
         T_base_target = make_transform(matrix_from_quaternion(q), p)

@@ -1,0 +1,164 @@
+"""``robomach demo`` end to end, and its answers to bad input."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from robomach_core.export import check_rapid_module
+
+
+def robomach(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "app.cli", *args], capture_output=True, text=True, timeout=timeout
+    )
+
+
+def _assert_one_line_error(proc: subprocess.CompletedProcess, *words: str) -> None:
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr
+    lines = [line for line in proc.stderr.splitlines() if "error" in line]
+    assert len(lines) == 1, proc.stderr
+    for w in words:
+        assert w in lines[0], lines[0]
+
+
+@pytest.mark.parametrize(
+    ("args", "words"),
+    [
+        (["--tolerance", "0"], ["tolerance", "> 0"]),
+        (["--tolerance", "-0.1"], ["tolerance"]),
+        (["--force", "60"], ["--force", "1-50 N"]),
+        (["--force", "0.5"], ["--force"]),
+        (["--workpiece", "gearbox"], ["unknown workpiece", "water_pump"]),
+        (["--robot", "kuka"], ["unknown robot"]),
+    ],
+)
+def test_bad_arguments_give_one_line_and_exit_2(tmp_path, args, words):
+    _assert_one_line_error(robomach("demo", "--out", str(tmp_path / "o"), *args), *words)
+
+
+def test_a_file_that_is_not_a_mesh(tmp_path):
+    bad = tmp_path / "part.stl"
+    bad.write_bytes(b"\x00\x01 definitely not an STL")
+    _assert_one_line_error(
+        robomach("demo", "--out", str(tmp_path / "o"), "--workpiece", str(bad)), "part"
+    )
+
+
+def test_fewer_than_two_guide_points(tmp_path):
+    csv = tmp_path / "guides.csv"
+    csv.write_text("x_mm,y_mm,z_mm\n700,100,40\n")
+    _assert_one_line_error(
+        robomach("demo", "--out", str(tmp_path / "o"), "--guide-points", str(csv)),
+        "at least 2 guide points",
+    )
+
+
+def test_an_unreachable_guide_point(tmp_path):
+    csv = tmp_path / "guides.csv"
+    csv.write_text("x_mm,y_mm,z_mm\n700,100,40\n4000,0,40\n")
+    _assert_one_line_error(
+        robomach("demo", "--out", str(tmp_path / "o"), "--guide-points", str(csv)),
+        "guide point 2",
+        "reach",
+    )
+
+
+@pytest.fixture(scope="module")
+def pump_demo(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("pump")
+    proc = robomach("demo", "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+@pytest.mark.slow
+def test_demo_writes_every_file_with_the_summary_keys(pump_demo):
+    for name in (
+        "program.mod",
+        "samples.csv",
+        "targets.csv",
+        "workpiece.stl",
+        "summary.json",
+        "demo.png",
+    ):
+        assert (pump_demo / name).stat().st_size > 0, name
+    summary = json.loads((pump_demo / "summary.json").read_text())
+    for key in (
+        "guide_points",
+        "samples_raw",
+        "samples_filtered",
+        "targets",
+        "sample_period_s",
+        "force_setpoint_N",
+        "force_mean_N",
+        "force_abs_error_p95_N",
+        "tool_radius_mm",
+        "max_deviation_mm",
+        "rms_deviation_mm",
+        "sim_time_s",
+        "wall_time_s",
+        "realtime_factor",
+    ):
+        assert key in summary, key
+    assert summary["sample_period_s"] == 0.004
+
+
+@pytest.mark.slow
+def test_demo_meets_the_papers_figures(pump_demo):
+    """Thousands of 4 ms samples -> low hundreds of targets at 0.2 mm; force within 2 N."""
+    s = json.loads((pump_demo / "summary.json").read_text())
+    assert s["guide_points"] >= 6
+    assert s["completed"] is True
+    assert s["samples_raw"] >= 2000
+    assert 100 <= s["targets"] <= 400
+    assert s["force_within_2N_fraction"] >= 0.95
+    assert s["max_deviation_mm"] <= 0.3
+    # The deviation-height chords sit up to the tolerance off the samples; along a chord the
+    # error ramps from 0 to the tolerance, so the RMS is about tolerance / sqrt(3).
+    assert s["rms_deviation_mm"] <= s["tolerance_mm"] / math.sqrt(3) + 0.01
+    assert s["targets_max_deviation_mm"] <= 0.1
+
+
+@pytest.mark.slow
+def test_program_parses_and_every_robtarget_is_reachable(pump_demo):
+    s = json.loads((pump_demo / "summary.json").read_text())
+    info = check_rapid_module((pump_demo / "program.mod").read_text())
+    assert len(info.robtargets) == s["targets"] + 2  # plus approach and retract
+    assert s["robtargets_reachable"] == s["robtargets_total"] == len(info.robtargets)
+    check_rapid_module((pump_demo / "program_fc.mod").read_text())
+
+
+@pytest.mark.slow
+def test_csv_and_stl_are_in_the_documented_units_and_frame(pump_demo):
+    header = (pump_demo / "samples.csv").read_text().splitlines()[0].split(",")
+    assert header[0] == "time_s" and "x_mm" in header and "sensor_fx_N" in header
+    data = np.loadtxt(pump_demo / "samples.csv", delimiter=",", skiprows=1)
+    s = json.loads((pump_demo / "summary.json").read_text())
+    assert len(data) == s["samples_raw"]
+    np.testing.assert_allclose(np.diff(data[:, 0]), 0.004, atol=1e-3)
+    mesh = trimesh.load(pump_demo / "workpiece.stl")
+    # The pump plate sits 0.8 m in front of the base: metres, base frame.
+    assert 0.6 < mesh.bounds[0, 0] < 0.8 and mesh.bounds[1, 0] < 1.0
+    x_mm = data[:, header.index("x_mm")]
+    assert mesh.bounds[0, 0] * 1e3 < x_mm.min() and x_mm.max() < mesh.bounds[1, 0] * 1e3
+
+
+@pytest.mark.slow
+def test_same_seed_same_output(tmp_path):
+    outs = []
+    for k in range(2):
+        out = tmp_path / f"run{k}"
+        proc = robomach("demo", "--out", str(out), "--workpiece", "block", "--no-plot")
+        assert proc.returncode == 0, proc.stderr
+        outs.append(out)
+    for name in ("program.mod", "samples.csv", "targets.csv"):
+        assert (outs[0] / name).read_bytes() == (outs[1] / name).read_bytes(), name

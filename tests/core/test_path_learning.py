@@ -1,0 +1,95 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robomach_core.cell import CONTROL_PERIOD_S, Cell, CellConfig
+from robomach_core.demo_operator import TOOL_DOWN
+from robomach_core.errors import InvalidInputError, NotEnoughGuidePointsError
+from robomach_core.leadthrough import GuidePoint, LeadThrough
+from robomach_core.path_learning import PathLearningSettings, learn_path
+from robomach_core.scoring import true_tool_path_distance
+
+
+def _guides_on_bottom_run(cell: Cell) -> list[GuidePoint]:
+    """Two guide points 1.5 mm off the straight bottom run of the pump groove (x -95..-80 mm).
+
+    Built with IK here to test path learning alone; the demo records them by pushing.
+    """
+    wp = cell.workpiece
+    guides = []
+    for x in (-0.094, -0.078):
+        T = np.eye(4)
+        T[:3, :3] = TOOL_DOWN
+        T[:3, 3] = wp.T_base_wobj[:3, 3] + np.array([x, -0.065 + 0.0025, wp.surface_z_m - 0.003])
+        q = cell.robot.ik(T)
+        guides.append(GuidePoint(T, q, 0.0))
+    return guides
+
+
+def _learn(seed: int = 0, **kwargs):
+    cell = Cell(CellConfig(seed=seed))
+    lt = LeadThrough(cell)
+    state = lt.start(cell.initial_state())
+    settings = PathLearningSettings(closed=False, wall_side="right", **kwargs)
+    rec, _ = learn_path(cell, state.cell, _guides_on_bottom_run(cell), settings, lt.estimator)
+    return cell, rec
+
+
+@pytest.fixture(scope="module")
+def learned():
+    return _learn()
+
+
+def test_run_reaches_the_last_guide_point_with_4ms_samples(learned):
+    _, rec = learned
+    assert rec.completed, rec.stop_reason
+    np.testing.assert_allclose(np.diff(rec.time_s), CONTROL_PERIOD_S, atol=1e-9)
+    assert len(rec) > 0.016 / 0.005 / CONTROL_PERIOD_S * 0.9  # 16 mm at 5 mm/s
+    for name in ("joints_rad", "position_m", "quaternion_wxyz", "wrench_sensor", "wrench_tool"):
+        assert len(getattr(rec, name)) == len(rec)
+
+
+def test_contact_force_is_held_at_the_reference(learned):
+    _, rec = learned
+    settled = rec.time_s > 0.5  # after the tool has found the wall
+    f = rec.force_normal_N[settled]
+    assert np.mean(np.abs(f - 10.0) <= 2.0) >= 0.95
+    assert rec.in_contact[settled].all()
+
+
+def test_the_recording_follows_the_wall(learned):
+    cell, rec = learned
+    settled = rec.time_s > 0.5
+    d = true_tool_path_distance(cell.workpiece, cell.tool.radius_m, rec.position_m[settled])
+    # Inside the wall by the contact compliance F / k = 10 N / 100 N/mm = 0.1 mm, not more.
+    assert np.median(d) == pytest.approx(0.1e-3, abs=0.03e-3)
+
+
+def test_same_seed_same_recording(learned):
+    _, rec = learned
+    _, again = _learn()
+    np.testing.assert_array_equal(rec.position_m, again.position_m)
+    np.testing.assert_array_equal(rec.wrench_sensor, again.wrench_sensor)
+
+
+def test_protection_rule_stops_the_run_and_says_why():
+    _, rec = _learn(force_limit_N=11.0)
+    assert not rec.completed
+    assert rec.stop_reason.startswith("protection: contact force")
+
+
+def test_fewer_than_two_guide_points_is_refused():
+    cell = Cell()
+    lt = LeadThrough(cell)
+    state = lt.start(cell.initial_state())
+    with pytest.raises(NotEnoughGuidePointsError, match="at least 2 guide points"):
+        learn_path(
+            cell, state.cell, _guides_on_bottom_run(cell)[:1], PathLearningSettings(), lt.estimator
+        )
+
+
+@pytest.mark.parametrize("kwargs", [{"force_N": 0.5}, {"force_N": 60.0}, {"speed_m_s": 0.2}])
+def test_out_of_range_settings_are_refused(kwargs):
+    with pytest.raises(InvalidInputError):
+        PathLearningSettings(**kwargs)
