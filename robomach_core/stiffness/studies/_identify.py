@@ -1,0 +1,190 @@
+"""The identification study: CMM campaign, eq. (23), prediction error, non-linear model."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ...joint_compliance import true_joint_compliance
+from ...robot import Robot
+from ...tool import Tool
+from ...transforms import pose_error
+from .. import plots
+from ..compensation import compensate_targets_and_joints
+from ..identification import (
+    DEFAULT_LOADS_N,
+    identify_joint_stiffness,
+    prediction_errors,
+    sample_workspace_joints,
+    simulate_stiffness_measurements,
+    sphere_tip_transform,
+)
+from ..milling import (
+    CHAPTER_END_MILLING,
+)
+from ..model import cartesian_compliance, loaded_equilibrium
+from ._common import (
+    DEFAULT_OPTIONS,
+    Cancel,
+    Progress,
+    StudyOptions,
+    StudyResult,
+    _chapter_wrenches,
+    _Progress,
+    _work_joints,
+    _write_csv,
+)
+
+
+def run_identification_study(
+    options: StudyOptions = DEFAULT_OPTIONS,
+    out_dir: Path | None = None,
+    *,
+    progress: Progress | None = None,
+    cancel: Cancel | None = None,
+) -> StudyResult:
+    """Simulated CMM campaign, Kq by eq. (23), prediction error over the workspace, and the
+    non-linear model next to the linear one."""
+    report = progress if isinstance(progress, _Progress) else _Progress(progress, cancel)
+    tip_robot = Robot(options.robot, sphere_tip_transform())  # unknown names fail here
+    tool_robot = Robot(options.robot, Tool().T_flange_tcp)
+    truth = true_joint_compliance(options.robot)
+    n_poses = (
+        min(options.identification_poses, 12) if options.quick else options.identification_poses
+    )
+    n_test = min(options.test_poses, 10) if options.quick else options.test_poses
+    poses = sample_workspace_joints(tip_robot, n_poses, seed=options.seed)
+    report(0.2)
+    data = simulate_stiffness_measurements(
+        tip_robot, poses, truth, cmm_noise_m=options.cmm_noise_um * 1e-6, seed=options.seed
+    )
+    ident = identify_joint_stiffness(tip_robot, data)
+    report(0.5)
+    test_joints = sample_workspace_joints(tool_robot, n_test, seed=options.seed + 1)
+    wrenches = _chapter_wrenches(n_test, options.seed + 2)
+    errors = prediction_errors(tool_robot, test_joints, wrenches, ident.model, truth)
+    report(0.8)
+
+    # Linear vs non-linear at the work pose, growing load along the chapter's direction.
+    q_work = _work_joints(tool_robot)
+    T_work = tool_robot.fk(q_work).copy()
+    direction = CHAPTER_END_MILLING.nominal_wrench()
+    direction = direction / np.linalg.norm(direction[:3])
+    loads = np.logspace(1, 4, 7)
+    gap, landing_lin, landing_nl = [], [], []
+    for load in loads:
+        W = direction * load
+        lin = loaded_equilibrium(tool_robot, q_work, W, truth, mode="linear")
+        nl = loaded_equilibrium(tool_robot, q_work, W, truth)
+        gap.append(np.linalg.norm(pose_error(lin.T_base_tcp, nl.T_base_tcp)[:3]))
+        for mode, out in (("linear", landing_lin), ("nonlinear", landing_nl)):
+            _, q = compensate_targets_and_joints(
+                tool_robot, T_work[None], q_work[None], W[None], truth, mode
+            )
+            landed = loaded_equilibrium(tool_robot, q[0], W, truth).T_base_tcp
+            out.append(np.linalg.norm(pose_error(landed, T_work)[:3]))
+    report(0.95)
+
+    k_true = np.asarray(truth.stiffness_Nm_rad)
+    k_id = np.asarray(ident.model.stiffness_Nm_rad)
+    rel = k_id / k_true - 1.0
+    chapter_load = float(np.linalg.norm(CHAPTER_END_MILLING.nominal_wrench()[:3]))
+    gap_at = []
+    for scale in (1.0, 10.0):
+        W = direction * chapter_load * scale
+        lin = loaded_equilibrium(tool_robot, q_work, W, truth, mode="linear").T_base_tcp
+        nl = loaded_equilibrium(tool_robot, q_work, W, truth).T_base_tcp
+        gap_at.append(float(np.linalg.norm(pose_error(lin, nl)[:3])))
+    summary = {
+        "robot": options.robot,
+        "cmm_noise_um": options.cmm_noise_um,
+        "identification_poses": int(n_poses),
+        "identification_loads": len(DEFAULT_LOADS_N),
+        "stiffness_true_Nm_rad": k_true.tolist(),
+        "stiffness_identified_Nm_rad": k_id.tolist(),
+        "stiffness_std_Nm_rad": ident.standard_error_Nm_rad.tolist(),
+        "stiffness_rel_error_per_joint": rel.tolist(),
+        "stiffness_rel_error_max": float(np.max(np.abs(rel))),
+        "stiffness_rel_error_max_joints_1_to_5": float(np.max(np.abs(rel[:5]))),
+        "identification_residual_rms_um": ident.residual_rms_m * 1e6,
+        "prediction_error_max_mm": float(errors.max() * 1e3),
+        "prediction_error_mean_mm": float(errors.mean() * 1e3),
+        "prediction_test_poses": int(n_test),
+        "nonlinear_minus_linear_at_chapter_load_um": float(gap_at[0] * 1e6),
+        "nonlinear_minus_linear_at_10x_chapter_load_um": float(gap_at[1] * 1e6),
+        "deflection_at_chapter_load_um": float(
+            np.linalg.norm(
+                (
+                    cartesian_compliance(tool_robot, q_work, truth)
+                    @ CHAPTER_END_MILLING.nominal_wrench()
+                )[:3]
+            )
+            * 1e6
+        ),
+    }
+    arrays = {
+        "stiffness_true_Nm_rad": k_true,
+        "stiffness_identified_Nm_rad": k_id,
+        "stiffness_std_Nm_rad": ident.standard_error_Nm_rad,
+        "measurement_joints_rad": data.joints_rad,
+        "measurement_force_N": data.force_N,
+        "measurement_displacement_m": data.displacement_m,
+        "prediction_error_m": errors,
+        "load_N": loads,
+        "nonlinear_minus_linear_m": np.array(gap),
+        "landing_error_linear_m": np.array(landing_lin),
+        "landing_error_nonlinear_m": np.array(landing_nl),
+    }
+    files: list[Path] = []
+    if out_dir is not None:
+        out = Path(out_dir)
+        files += [
+            _write_csv(
+                out / "identification_stiffness.csv",
+                ["joint", "true_Nm_rad", "identified_Nm_rad", "std_Nm_rad", "rel_error"],
+                np.column_stack([np.arange(1, 7), k_true, k_id, ident.standard_error_Nm_rad, rel]),
+            ),
+            _write_csv(
+                out / "identification_measurements.csv",
+                [f"q{i}_deg" for i in range(1, 7)]
+                + ["fx_N", "fy_N", "fz_N", "dx_mm", "dy_mm", "dz_mm"],
+                np.column_stack(
+                    [np.degrees(data.joints_rad), data.force_N, data.displacement_m * 1e3]
+                ),
+            ),
+            _write_csv(
+                out / "identification_prediction_errors.csv",
+                [f"q{i}_deg" for i in range(1, 7)] + ["fx_N", "fy_N", "fz_N", "error_mm"],
+                np.column_stack([np.degrees(test_joints), wrenches[:, :3], errors * 1e3]),
+            ),
+            _write_csv(
+                out / "nonlinear_vs_linear.csv",
+                [
+                    "load_N",
+                    "nonlinear_minus_linear_um",
+                    "landing_linear_um",
+                    "landing_nonlinear_um",
+                ],
+                np.column_stack(
+                    [
+                        loads,
+                        np.array(gap) * 1e6,
+                        np.array(landing_lin) * 1e6,
+                        np.array(landing_nl) * 1e6,
+                    ]
+                ),
+            ),
+            plots.plot_identification(
+                out / "identification.png", k_true, k_id, ident.standard_error_Nm_rad, errors
+            ),
+            plots.plot_nonlinear(
+                out / "nonlinear_vs_linear.png",
+                loads,
+                np.array(gap),
+                np.array(landing_lin),
+                np.array(landing_nl),
+            ),
+        ]
+    report(1.0)
+    return StudyResult("identify", summary, arrays, tuple(files), {"identification": ident})

@@ -1,0 +1,281 @@
+"""The milling study: the chapter's block and the Lund face-milling pass, each compensation."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from ...export.rapid import write_rapid_module
+from ...joint_compliance import JointCompliance, true_joint_compliance
+from ...robot import Robot
+from ...tool import Tool
+from ...transforms import quaternion_from_matrix
+from .. import plots
+from ..compensation import compensate_targets_and_joints
+from ..export import compensated_rapid_program
+from ..gravity import (
+    ToolGravity,
+)
+from ..milling import (
+    CHAPTER_END_MILLING,
+    LUND_FACE_MILLING,
+    MillingRun,
+    MillingScenario,
+    predicted_wrenches,
+    program_poses,
+    simulate_milling,
+)
+from ._common import (
+    DEFAULT_OPTIONS,
+    RAPID_FILE,
+    SENSOR_FORCE_BIAS_N,
+    SENSOR_TORQUE_BIAS_NM,
+    Cancel,
+    Progress,
+    StudyOptions,
+    StudyResult,
+    _Progress,
+    _write_csv,
+)
+from ._gravity import run_gravity_study
+from ._identify import run_identification_study
+
+
+def _quick(scenario: MillingScenario) -> MillingScenario:
+    """A shorter block and a faster feed: the same physics in a fraction of the steps."""
+    return replace(
+        scenario,
+        block_length_m=min(scenario.block_length_m, 0.03),
+        feed_speed_m_s=scenario.feed_speed_m_s * 3,
+        cutter_radius_m=min(scenario.cutter_radius_m, 0.015),
+        block_width_m=min(scenario.block_width_m, 0.02),
+        oscillation_hz=scenario.oscillation_hz * 3,
+    )
+
+
+def _compensated_targets_table(
+    robot: Robot, scenario: MillingScenario, model: JointCompliance
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Program targets every 5 mm along the cut, their joints and predicted wrenches."""
+    R_cut = scenario.cutter_radius_m
+    u = np.arange(-R_cut, scenario.block_length_m + R_cut + 1e-9, 0.005)
+    Ts = program_poses(scenario, u)
+    q = robot.ik(Ts[0])
+    joints = []
+    for T in Ts:
+        q = robot.ik(T, q)
+        joints.append(q)
+    return u, Ts, np.array(joints), predicted_wrenches(scenario, u)
+
+
+def run_milling_study(
+    options: StudyOptions = DEFAULT_OPTIONS,
+    out_dir: Path | None = None,
+    *,
+    model: JointCompliance | None = None,
+    tool_gravity: ToolGravity | None = None,
+    true_tool_gravity: ToolGravity | None = None,
+    progress: Progress | None = None,
+    cancel: Cancel | None = None,
+) -> StudyResult:
+    """The chapter's end-milling block and the Lund face-milling pass, uncompensated and with
+    each compensation. Without ``model``/``tool_gravity`` it identifies them first."""
+    report = progress if isinstance(progress, _Progress) else _Progress(progress, cancel)
+    share = 0.0
+    if model is None:
+        model = (
+            run_identification_study(options, progress=report.slice(0.0, 0.1))
+            .objects["identification"]
+            .model
+        )
+        share = 0.1
+    if tool_gravity is None:
+        g = run_gravity_study(options, progress=report.slice(share, 0.02)).objects
+        tool_gravity, true_tool_gravity = g["tool_gravity"], g["true_tool_gravity"]
+        share += 0.02
+    if true_tool_gravity is None:
+        true_tool_gravity = ToolGravity.from_tool(
+            Tool(), force_bias_N=SENSOR_FORCE_BIAS_N, torque_bias_Nm=SENSOR_TORQUE_BIAS_NM
+        )
+    truth = true_joint_compliance(options.robot)
+    tool = Tool()
+    robot = Robot(options.robot, tool.T_flange_tcp)
+    chapter, lund = CHAPTER_END_MILLING, LUND_FACE_MILLING
+    if options.quick:
+        chapter, lund = _quick(chapter), _quick(lund)
+    jobs = [(chapter, m) for m in ("none", "online", "offline_linear", "offline_nonlinear")]
+    jobs += [(lund, m) for m in ("none", "online", "offline_linear")]
+    runs: dict[str, dict[str, MillingRun]] = {"chapter": {}, "lund": {}}
+    width = (1.0 - share) / len(jobs)
+    for i, (scenario, mode) in enumerate(jobs):
+        key = "chapter" if scenario.error_measure == "surface_depth" else "lund"
+        runs[key][mode] = simulate_milling(
+            robot,
+            scenario,
+            truth,
+            compensation=mode,
+            model=model,
+            tool_gravity=tool_gravity,
+            true_tool_gravity=true_tool_gravity,
+            seed=options.seed,
+            progress=report.slice(share + i * width, width),
+            cancel=report.cancelled,
+        )
+    ch, lu = runs["chapter"], runs["lund"]
+
+    def um(x: float) -> float:
+        return float(x * 1e6)
+
+    def reduction(before: MillingRun, after: MillingRun) -> float:
+        return float(100.0 * (1.0 - after.error_max_m / before.error_max_m))
+
+    summary = {
+        "chapter_scenario": chapter.name,
+        "error_max_uncompensated_um": um(ch["none"].error_max_m),
+        "error_mean_uncompensated_um": um(ch["none"].error_mean_m),
+        "error_std_uncompensated_um": um(ch["none"].error_std_m),
+        "error_max_compensated_linear_um": um(ch["offline_linear"].error_max_m),
+        "error_max_compensated_nonlinear_um": um(ch["offline_nonlinear"].error_max_m),
+        "error_max_compensated_online_um": um(ch["online"].error_max_m),
+        "error_mean_compensated_online_um": um(ch["online"].error_mean_m),
+        "error_std_compensated_um": um(ch["offline_linear"].error_std_m),
+        "error_std_compensated_nonlinear_um": um(ch["offline_nonlinear"].error_std_m),
+        "error_std_compensated_online_um": um(ch["online"].error_std_m),
+        "error_max_reduction_linear_percent": reduction(ch["none"], ch["offline_linear"]),
+        "error_max_reduction_nonlinear_percent": reduction(ch["none"], ch["offline_nonlinear"]),
+        "error_max_reduction_online_percent": reduction(ch["none"], ch["online"]),
+        "face_scenario": lund.name,
+        "face_error_max_uncompensated_um": um(lu["none"].error_max_m),
+        "face_error_std_uncompensated_um": um(lu["none"].error_std_m),
+        "face_error_max_compensated_um": um(lu["online"].error_max_m),
+        "face_error_std_compensated_um": um(lu["online"].error_std_m),
+        "face_error_max_compensated_offline_um": um(lu["offline_linear"].error_max_m),
+        "face_error_std_compensated_offline_um": um(lu["offline_linear"].error_std_m),
+        "quick": options.quick,
+    }
+    arrays: dict[str, np.ndarray] = {}
+    for key, group in runs.items():
+        for mode, run in group.items():
+            arrays[f"{key}_{mode}_error_u_m"] = run.error_u_m
+            arrays[f"{key}_{mode}_error_m"] = run.error_m
+    files: list[Path] = []
+    if out_dir is not None:
+        out = Path(out_dir)
+        modes = list(ch)
+        files.append(
+            _write_csv(
+                out / "milling_chapter_surface.csv",
+                ["u_mm"] + [f"{m}_overcut_um" for m in modes],
+                np.column_stack(
+                    [ch["none"].error_u_m * 1e3] + [ch[m].error_m * 1e6 for m in modes]
+                ),
+            )
+        )
+        for mode, run in lu.items():
+            files.append(
+                _write_csv(
+                    out / f"milling_face_{mode}.csv",
+                    ["u_mm", "lateral_error_um"],
+                    np.column_stack([run.error_u_m * 1e3, run.error_m * 1e6]),
+                )
+            )
+        for mode, run in ch.items():
+            files.append(
+                _write_csv(
+                    out / f"milling_chapter_{mode}_timeseries.csv",
+                    [
+                        "t_s",
+                        "x_nominal_mm",
+                        "y_nominal_mm",
+                        "z_nominal_mm",
+                        "x_mm",
+                        "y_mm",
+                        "z_mm",
+                        "fx_N",
+                        "fy_N",
+                        "fz_N",
+                        "engagement",
+                    ],
+                    np.column_stack(
+                        [
+                            run.time_s,
+                            run.position_nominal_m * 1e3,
+                            run.position_actual_m * 1e3,
+                            run.wrench[:, :3],
+                            run.engagement,
+                        ]
+                    ),
+                )
+            )
+        files.append(
+            plots.plot_milling(
+                out / "milling_chapter.png",
+                ch,
+                title=chapter.name,
+                error_label="over-cut depth [µm] (+ = too deep)",
+            )
+        )
+        files.append(
+            plots.plot_milling(
+                out / "milling_face.png",
+                lu,
+                title=lund.name,
+                error_label="path error across the feed [µm]",
+            )
+        )
+        u, Ts, joints, wrenches = _compensated_targets_table(robot, chapter, model)
+        T_lin, _ = compensate_targets_and_joints(robot, Ts, joints, wrenches, model, "linear")
+        T_nl, _ = compensate_targets_and_joints(robot, Ts, joints, wrenches, model, "nonlinear")
+        rows = []
+        for ui, T0, T1, T2 in zip(u, Ts, T_lin, T_nl, strict=True):
+            rows.append(
+                np.concatenate(
+                    [
+                        [ui * 1e3],
+                        T0[:3, 3] * 1e3,
+                        T1[:3, 3] * 1e3,
+                        T2[:3, 3] * 1e3,
+                        quaternion_from_matrix(T2[:3, :3]),
+                    ]
+                )
+            )
+        files.append(
+            _write_csv(
+                out / "milling_targets_compensated.csv",
+                [
+                    "u_mm",
+                    "x_mm",
+                    "y_mm",
+                    "z_mm",
+                    "x_linear_mm",
+                    "y_linear_mm",
+                    "z_linear_mm",
+                    "x_nonlinear_mm",
+                    "y_nonlinear_mm",
+                    "z_nonlinear_mm",
+                    "qw",
+                    "qx",
+                    "qy",
+                    "qz",
+                ],
+                np.array(rows),
+            )
+        )
+        if options.rapid:
+            mode = "nonlinear" if options.mode == "offline_nonlinear" else "linear"
+            program = compensated_rapid_program(
+                robot,
+                tool,
+                Ts,
+                joints,
+                wrenches,
+                model,
+                mode,
+                speed_mm_s=chapter.feed_speed_m_s * 1e3,
+                module_name="CompensatedMilling",
+            )
+            files.append(write_rapid_module(program, out / RAPID_FILE))
+    report(1.0)
+    return StudyResult("milling", summary, arrays, tuple(files), {"runs": runs})
