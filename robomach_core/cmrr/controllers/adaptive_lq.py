@@ -47,8 +47,8 @@ class AdaptiveLqSettings:
         activation_rel_std: the LQ law starts when the estimated relative standard deviation
             of Df falls below this.
         forgetting_factor: RLS forgetting factor for Df.
-        resolve_tolerance: relative change of the Df estimate that triggers a new Riccati
-            solution.
+        resolve_tolerance: step of the geometric grid of Df values the LQ gain is designed
+            for; a new Riccati solution when the estimate moves to another grid point.
         adapt: False freezes Df at its initial value (the Lund paper's Fig. 7 comparison).
         initial_removal_N_s_mm: the initial Df [N s/mm]; None takes the scenario's value.
         stiffness_N_mm: interaction stiffness Kf [N/mm]; None takes the scenario's value.
@@ -208,6 +208,20 @@ class AdaptiveLqController:
     def initial_speed_ratio(self) -> float:
         return self.settings.startup_speed_ratio
 
+    def _grid(self, df_hat: float) -> float | None:
+        """Df on a geometric grid of step ``resolve_tolerance`` around Df0 (None if invalid).
+
+        Re-designing only when the grid point changes bounds the number of Riccati solutions
+        and lets the cache serve a Df that comes back.
+        """
+        if not df_hat > 0.0 or not math.isfinite(df_hat):
+            return None
+        tol = self.settings.resolve_tolerance
+        if tol <= 0.0:
+            return df_hat
+        step = math.log1p(tol)
+        return self.df0 * math.exp(step * round(math.log(df_hat / self.df0) / step))
+
     def initial_state(self) -> AdaptiveLqState:
         n = self.robot[0].shape[0]
         filt = self.design.measurement_filter
@@ -267,10 +281,10 @@ class AdaptiveLqController:
         integral = state.integral_N_s
         delayed = np.array(state.commands_mm_s)
         last_command = state.commands_mm_s[-1] if state.commands_mm_s else None
-        moved = abs(df_hat - lq.removal_N_s_mm) > s.resolve_tolerance * lq.removal_N_s_mm
-        if s.adapt and df_hat > 0.0 and moved:
+        grid_df = self._grid(df_hat)
+        if s.adapt and grid_df is not None and grid_df != lq.removal_N_s_mm:
             old = lq
-            lq = self.solve(df_hat)
+            lq = self.solve(grid_df)
             if active:
                 # Bumpless re-design: the integral absorbs the change of the other terms.
                 before = _lq_command(old, x_hat, delayed, force, integral, fr)
