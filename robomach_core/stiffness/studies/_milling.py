@@ -47,11 +47,11 @@ def _quick(scenario: MillingScenario) -> MillingScenario:
     """A shorter block and a faster feed: the same physics in a fraction of the steps."""
     return replace(
         scenario,
-        block_length_m=min(scenario.block_length_m, 0.03),
-        feed_speed_m_s=scenario.feed_speed_m_s * 3,
-        cutter_radius_m=min(scenario.cutter_radius_m, 0.015),
-        block_width_m=min(scenario.block_width_m, 0.02),
-        oscillation_hz=scenario.oscillation_hz * 3,
+        block_length_m=min(scenario.block_length_m, 0.02),
+        feed_speed_m_s=scenario.feed_speed_m_s * 4,
+        cutter_radius_m=min(scenario.cutter_radius_m, 0.01),
+        block_width_m=min(scenario.block_width_m, 0.015),
+        oscillation_hz=scenario.oscillation_hz * 4,
     )
 
 
