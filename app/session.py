@@ -554,6 +554,7 @@ class Session:
         self._live_t0 = 0.0
         self._last_live_notify = 0.0
         self._project_id = 0
+        self._closed = False
         self._open_initial_project()
 
     # --- listeners ---------------------------------------------------------------------------
@@ -1206,7 +1207,11 @@ class Session:
     # --- lifecycle ---------------------------------------------------------------------------
 
     def close(self) -> None:
-        """Cancel jobs, stop the worker and close the store."""
+        """Cancel jobs, stop the worker and close the store (a second call does nothing)."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
         self.jobs.close()
         with self._lock:
             self.store.close()

@@ -1,0 +1,70 @@
+"""The cell: robot, tool radius, workpiece (built-in or an uploaded mesh)."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, HTTPException, UploadFile, status
+from starlette.concurrency import run_in_threadpool
+
+from app.api.routes import ERRORS, SessionDep, SettingsDep
+from app.api.schemas import CellPublic, CellUpdate
+from robomach_core.robot import ROBOT_URDFS
+from robomach_core.workpiece import MAX_MESH_BYTES, WORKPIECE_NAMES
+
+router = APIRouter(prefix="/api/cell", tags=["cell"], responses=ERRORS)
+
+UPLOAD_CHUNK_BYTES = 1024 * 1024
+# The body may hold the largest mesh plus the multipart headers; the handler applies the
+# server's own (smaller or equal) limit to the file itself.
+UPLOAD_BODY_LIMIT_BYTES = MAX_MESH_BYTES + 1024 * 1024
+
+
+def _public(session: SessionDep) -> CellPublic:
+    return CellPublic.from_settings(
+        session.cell_settings(), sorted(ROBOT_URDFS), list(WORKPIECE_NAMES)
+    )
+
+
+@router.get("")
+def get_cell(session: SessionDep) -> CellPublic:
+    """The cell settings and the choices."""
+    return _public(session)
+
+
+@router.put("")
+def put_cell(body: CellUpdate, session: SessionDep) -> CellPublic:
+    """Change robot, tool radius or workpiece (omitted ones stay). The robot goes home and the
+    guide points, recording and post-processing result are cleared."""
+    session.set_cell(
+        robot=body.robot,
+        tool_radius_m=None if body.tool_radius_mm is None else body.tool_radius_mm * 1e-3,
+        workpiece=body.workpiece,
+    )
+    return _public(session)
+
+
+@router.post(
+    "/workpiece",
+    max_body_size=UPLOAD_BODY_LIMIT_BYTES,
+    responses={413: {"description": "the file is larger than the upload limit"}},
+)
+async def upload_workpiece(
+    file: UploadFile, session: SessionDep, settings: SettingsDep
+) -> CellPublic:
+    """Upload a workpiece mesh (STL, OBJ or PLY, in mm; multipart field ``file``) within the
+    upload limit (50 MB by default, else 413) and 500 000 triangles (else 422). Clears the
+    guide points, recording and result like PUT /api/cell."""
+    limit = settings.max_upload_bytes
+    chunks, size = [], 0
+    while chunk := await file.read(UPLOAD_CHUNK_BYTES):
+        size += len(chunk)
+        if size > limit:
+            raise HTTPException(
+                status.HTTP_413_REQUEST_ENTITY_TOO_LARGE,
+                f"{file.filename}: the upload exceeds the {limit / 1e6:.0f} MB limit",
+            )
+        chunks.append(chunk)
+    data = b"".join(chunks)
+    if not data:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_ENTITY, "the uploaded file is empty")
+    await run_in_threadpool(session.upload_workpiece, data, file.filename or "uploaded.stl")
+    return _public(session)

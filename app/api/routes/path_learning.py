@@ -1,0 +1,34 @@
+"""Automatic path learning (a job) and its force recording."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, Query, status
+
+from app.api.routes import ERRORS, SessionDep
+from app.api.schemas import ForceTracePublic, JobCreated, PathLearningCreate
+
+router = APIRouter(prefix="/api/path-learning", tags=["path learning"], responses=ERRORS)
+
+
+@router.post("", status_code=status.HTTP_202_ACCEPTED)
+def start_path_learning(body: PathLearningCreate, session: SessionDep) -> JobCreated:
+    """Job: follow the wall through the guide points at constant contact force and record it.
+    Follow it at /api/jobs/{job_id}; the recording replaces the last one when it is done."""
+    job_id = session.start_path_learning(body.force_N, body.speed_mm_s * 1e-3, closed=body.closed)
+    return JobCreated(job_id=job_id)
+
+
+@router.get("/recording")
+def get_recording(
+    session: SessionDep,
+    max_points: Annotated[int, Query(ge=2, le=100_000, description="decimate to this")] = 2000,
+) -> ForceTracePublic:
+    """Force against time for plots: live while a job runs, else the last recording."""
+    rec = session.recording()
+    return ForceTracePublic.from_trace(
+        session.force_trace(max_points),
+        rec.stop_reason if rec is not None else None,
+        rec.completed if rec is not None else None,
+    )

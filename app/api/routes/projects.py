@@ -1,0 +1,47 @@
+"""Projects: list, create, open, rename, delete (each holds a cell and its work)."""
+
+from __future__ import annotations
+
+from fastapi import APIRouter, Response, status
+
+from app.api.routes import ERRORS, SessionDep
+from app.api.schemas import ProjectCreate, ProjectPublic, ProjectUpdate
+
+router = APIRouter(prefix="/api/projects", tags=["projects"], responses=ERRORS)
+
+
+@router.get("")
+def list_projects(session: SessionDep) -> list[ProjectPublic]:
+    """Every project, most recently changed first."""
+    return [ProjectPublic.from_info(p) for p in session.projects()]
+
+
+@router.get("/current")
+def current_project(session: SessionDep) -> ProjectPublic:
+    """The open project."""
+    return ProjectPublic.from_info(session.current_project())
+
+
+@router.post("", status_code=status.HTTP_201_CREATED)
+def create_project(body: ProjectCreate, session: SessionDep) -> ProjectPublic:
+    """A new project with the default cell; it is opened at once."""
+    return ProjectPublic.from_info(session.create_project(body.name))
+
+
+@router.post("/{project_id}/open")
+def open_project(project_id: int, session: SessionDep) -> ProjectPublic:
+    """Open a project: its cell, robot pose, guide points, recording and results."""
+    return ProjectPublic.from_info(session.open_project(project_id))
+
+
+@router.patch("/{project_id}")
+def rename_project(project_id: int, body: ProjectUpdate, session: SessionDep) -> ProjectPublic:
+    """Rename a project."""
+    return ProjectPublic.from_info(session.rename_project(project_id, body.name))
+
+
+@router.delete("/{project_id}", status_code=status.HTTP_204_NO_CONTENT)
+def delete_project(project_id: int, session: SessionDep) -> Response:
+    """Delete a project and its saved exports; deleting the open one opens another."""
+    session.delete_project(project_id)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)

@@ -1,0 +1,361 @@
+"""Request and response bodies of the REST API, in families per resource.
+
+Units at this boundary: mm, N, N*m, s, degrees; quaternions wxyz. Every field name or
+description says its unit. ``...Create``/``...Update`` are request bodies, ``...Public`` are
+responses; ``from_*`` class methods convert the session's SI dataclasses.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from app.session import (
+    CellSettings,
+    ExportInfo,
+    ForceTrace,
+    GuidePointEntry,
+    JobInfo,
+    PostprocessOutcome,
+    ProjectInfo,
+    RobotSnapshot,
+)
+from robomach_core.leadthrough import ComplianceSelection
+from robomach_core.postprocess import PostprocessSettings
+
+Axis = Literal["x", "y", "z", "rx", "ry", "rz"]
+Finite = Annotated[float, Field(allow_inf_nan=False)]
+Vector3 = Annotated[list[Finite], Field(min_length=3, max_length=3)]
+AXIS_ORDER = ("x", "y", "z", "rx", "ry", "rz")
+
+
+class _Request(BaseModel):
+    """Request bodies reject unknown fields, so a misspelt field is an error, not ignored."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+def _floats(a: np.ndarray, scale: float = 1.0, digits: int = 6) -> list[float]:
+    return [round(float(x) * scale, digits) for x in np.asarray(a).ravel()]
+
+
+# --- health and state --------------------------------------------------------------------
+
+
+class HealthPublic(BaseModel):
+    status: Literal["ok"] = "ok"
+
+
+class TcpPublic(BaseModel):
+    position_mm: list[float] = Field(description="TCP position in the robot base frame [mm]")
+    quaternion_wxyz: list[float] = Field(description="TCP orientation, unit quaternion w, x, y, z")
+
+
+class WrenchPublic(BaseModel):
+    force_N: list[float] = Field(description="measured contact force at the TCP, base axes [N]")
+    torque_Nm: list[float] = Field(description="measured contact torque, base axes [N*m]")
+
+
+class StatePublic(BaseModel):
+    joints_deg: list[float] = Field(description="motor-side joint angles [deg]")
+    tcp: TcpPublic
+    wrench: WrenchPublic
+    in_contact: bool = Field(description="the tool touches the workpiece")
+    time_s: float = Field(description="simulated time [s]")
+    busy: bool = Field(description="a job moves the robot; pushes and jogs are refused")
+
+    @classmethod
+    def from_snapshot(cls, s: RobotSnapshot) -> StatePublic:
+        return cls(
+            joints_deg=_floats(np.degrees(s.joints_rad), digits=5),
+            tcp=TcpPublic(
+                position_mm=_floats(s.position_m, 1e3, 4),
+                quaternion_wxyz=_floats(s.quaternion_wxyz, digits=7),
+            ),
+            wrench=WrenchPublic(
+                force_N=_floats(s.wrench[:3], digits=4), torque_Nm=_floats(s.wrench[3:], digits=5)
+            ),
+            in_contact=s.in_contact,
+            time_s=round(s.time_s, 4),
+            busy=s.busy,
+        )
+
+
+# --- lead-through ------------------------------------------------------------------------
+
+
+class ComplianceUpdate(_Request):
+    axes: list[Axis] = Field(
+        description="compliant axes, any subset of x, y, z, rx, ry, rz (the rest are stiff)"
+    )
+    frame: Literal["tool", "base"] = Field(description="frame of the axes")
+
+
+class CompliancePublic(BaseModel):
+    axes: list[Axis]
+    frame: Literal["tool", "base"]
+
+    @classmethod
+    def from_selection(cls, s: ComplianceSelection) -> CompliancePublic:
+        return cls(axes=[a for a in AXIS_ORDER if a in s.axes], frame=s.frame)
+
+
+class PushCreate(_Request):
+    force_N: Vector3 = Field(description="push force at the TCP, base axes [N]")
+    torque_Nm: Vector3 = Field(
+        default_factory=lambda: [0.0, 0.0, 0.0],
+        description="push torque about the TCP, base axes [N*m]",
+    )
+    duration_s: Finite = Field(ge=0.0, le=60.0, description="how long the push lasts [s], 0-60")
+
+
+class JogCreate(_Request):
+    axis: Axis = Field(description="tool axis to move along (x, y, z) or about (rx, ry, rz)")
+    step: Finite = Field(
+        description="step [mm] along x/y/z (at most 200) or [deg] about rx/ry/rz (at most 45)"
+    )
+
+
+# --- guide points ------------------------------------------------------------------------
+
+
+class GuidePointPublic(BaseModel):
+    index: int = Field(description="position in the list, from 0")
+    position_mm: list[float] = Field(description="TCP position, base frame [mm]")
+    quaternion_wxyz: list[float]
+    joints_deg: list[float]
+    time_s: float = Field(description="simulated time of recording [s]")
+    force_N: list[float] = Field(description="measured contact force at recording, base axes [N]")
+
+    @classmethod
+    def from_entry(cls, e: GuidePointEntry) -> GuidePointPublic:
+        p = e.point
+        return cls(
+            index=e.index,
+            position_mm=_floats(p.position_m, 1e3, 4),
+            quaternion_wxyz=_floats(p.quaternion_wxyz, digits=7),
+            joints_deg=_floats(np.degrees(p.joints_rad), digits=5),
+            time_s=round(float(p.time_s), 4),
+            force_N=_floats(p.force_N, digits=4),
+        )
+
+
+# --- jobs --------------------------------------------------------------------------------
+
+
+class JobCreated(BaseModel):
+    job_id: str
+
+
+class JobPublic(BaseModel):
+    job_id: str
+    kind: str = Field(description="example, path_learning, ...")
+    status: Literal["queued", "running", "done", "failed", "cancelled"]
+    progress: float = Field(ge=0.0, le=1.0)
+    error: str | None = Field(description="why the job failed or was cancelled")
+    created_s: float = Field(description="Unix time")
+    started_s: float | None
+    finished_s: float | None
+
+    @classmethod
+    def from_info(cls, j: JobInfo) -> JobPublic:
+        return cls(
+            job_id=j.id,
+            kind=j.kind,
+            status=j.status,
+            progress=round(j.progress, 4),
+            error=j.error,
+            created_s=j.created_s,
+            started_s=j.started_s,
+            finished_s=j.finished_s,
+        )
+
+
+# --- path learning -----------------------------------------------------------------------
+
+
+class PathLearningCreate(_Request):
+    force_N: Finite = Field(ge=1.0, le=50.0, description="contact force reference [N], 1-50")
+    speed_mm_s: Finite = Field(ge=0.5, le=50.0, description="learning speed [mm/s], 0.5-50")
+    closed: bool = Field(True, description="the path returns from the last guide point to the 1st")
+
+
+class ForceTracePublic(BaseModel):
+    source: Literal["live", "recording", "none"] = Field(
+        description="live: a job runs (|F| every 20 ms, time since the job started); "
+        "recording: the last recording (force along the path normal); none: nothing yet"
+    )
+    time_s: list[float]
+    force_N: list[float]
+    force_reference_N: list[float] | None = Field(description="null while live")
+    samples_total: int = Field(description="samples before decimation")
+    stop_reason: str | None = Field(description="why the last recording ended")
+    completed: bool | None = Field(description="the last recording reached its last guide point")
+
+    @classmethod
+    def from_trace(
+        cls, t: ForceTrace, stop_reason: str | None, completed: bool | None
+    ) -> ForceTracePublic:
+        ref = None
+        if t.source == "recording":
+            ref = _floats(t.force_reference_N, digits=3)
+        return cls(
+            source=t.source,
+            time_s=_floats(t.time_s, digits=3),
+            force_N=_floats(t.force_N, digits=3),
+            force_reference_N=ref,
+            samples_total=t.samples_total,
+            stop_reason=stop_reason,
+            completed=completed,
+        )
+
+
+# --- post-processing ---------------------------------------------------------------------
+
+
+class PostprocessUpdate(_Request):
+    force_min_N: Finite | None = Field(None, ge=0.0, description="drop samples below [N]")
+    force_max_N: Finite | None = Field(None, gt=0.0, description="drop samples above [N]")
+    tolerance_mm: Finite | None = Field(
+        None, gt=0.0, le=10.0, description="deviation-height tolerance [mm]"
+    )
+
+
+class PostprocessSettingsPublic(BaseModel):
+    force_min_N: float
+    force_max_N: float
+    tolerance_mm: float
+    speed_mean_mm_s: float
+    speed_min_mm_s: float
+
+    @classmethod
+    def from_settings(cls, s: PostprocessSettings) -> PostprocessSettingsPublic:
+        return cls(
+            force_min_N=s.force_min_N,
+            force_max_N=s.force_max_N,
+            tolerance_mm=round(s.tolerance_m * 1e3, 9),
+            speed_mean_mm_s=round(s.speed_mean_m_s * 1e3, 9),
+            speed_min_mm_s=round(s.speed_min_m_s * 1e3, 9),
+        )
+
+
+def _mm_or_none(x: float | None) -> float | None:
+    return None if x is None or not math.isfinite(x) else round(x * 1e3, 5)
+
+
+class PostprocessPublic(BaseModel):
+    samples_raw: int = Field(description="samples recorded")
+    samples_filtered: int = Field(description="samples kept by the force-threshold filter")
+    targets: int = Field(description="targets after deviation-height reduction")
+    max_deviation_mm: float | None = Field(
+        description="largest deviation of the target path from the true tool path [mm]; "
+        "null for an uploaded mesh (no known truth)"
+    )
+    rms_deviation_mm: float | None = Field(description="RMS deviation along the path [mm]")
+    settings: PostprocessSettingsPublic
+
+    @classmethod
+    def from_outcome(cls, o: PostprocessOutcome) -> PostprocessPublic:
+        return cls(
+            samples_raw=o.samples_raw,
+            samples_filtered=o.result.samples_filtered,
+            targets=len(o.result.targets),
+            max_deviation_mm=_mm_or_none(o.score.max_m if o.score else None),
+            rms_deviation_mm=_mm_or_none(o.score.rms_m if o.score else None),
+            settings=PostprocessSettingsPublic.from_settings(o.settings),
+        )
+
+
+class PostprocessStatePublic(BaseModel):
+    settings: PostprocessSettingsPublic = Field(description="the settings the next run uses")
+    result: PostprocessPublic | None = Field(description="the last result; null before any")
+
+
+# --- exports -----------------------------------------------------------------------------
+
+
+class ExportCreate(_Request):
+    name: str = Field(
+        description="1-64 letters, digits, '_', '.', '-'; starts with a letter or digit",
+        examples=["pump_v1"],
+    )
+
+
+class ExportPublic(BaseModel):
+    name: str
+    created_s: float = Field(description="Unix time")
+    files: list[str]
+    folder: str | None = Field(description="where the files are, relative to the data folder")
+
+    @classmethod
+    def from_info(cls, e: ExportInfo, data_dir: object | None) -> ExportPublic:
+        folder = None
+        if e.folder is not None and data_dir is not None:
+            folder = str(e.folder.relative_to(data_dir))
+        return cls(name=e.name, created_s=e.created_s, files=e.files, folder=folder)
+
+
+# --- projects ----------------------------------------------------------------------------
+
+
+class ProjectCreate(_Request):
+    name: str = Field(min_length=1, max_length=80)
+
+
+class ProjectUpdate(_Request):
+    name: str = Field(min_length=1, max_length=80)
+
+
+class ProjectPublic(BaseModel):
+    id: int
+    name: str
+    created_s: float = Field(description="Unix time")
+    updated_s: float = Field(description="Unix time of the last change")
+    is_open: bool
+
+    @classmethod
+    def from_info(cls, p: ProjectInfo) -> ProjectPublic:
+        return cls(
+            id=p.id, name=p.name, created_s=p.created_s, updated_s=p.updated_s, is_open=p.is_open
+        )
+
+
+# --- cell --------------------------------------------------------------------------------
+
+
+class CellUpdate(_Request):
+    robot: str | None = Field(None, description="ur10, ur5 or ur3")
+    tool_radius_mm: Finite | None = Field(None, description="ball cutter radius [mm], 0.5-5")
+    workpiece: str | None = Field(None, description="water_pump, block, or the uploaded mesh")
+
+
+class CellPublic(BaseModel):
+    robot: str
+    tool_radius_mm: float
+    workpiece: str
+    workpiece_builtin: bool
+    seed: int
+    robots: list[str] = Field(description="robots to choose from")
+    workpieces: list[str] = Field(description="built-in workpieces")
+
+    @classmethod
+    def from_settings(cls, s: CellSettings, robots: list[str], workpieces: list[str]) -> CellPublic:
+        return cls(
+            robot=s.robot,
+            tool_radius_mm=round(s.tool_radius_m * 1e3, 9),
+            workpiece=s.workpiece,
+            workpiece_builtin=s.workpiece_builtin,
+            seed=s.seed,
+            robots=robots,
+            workpieces=workpieces,
+        )
+
+
+class ErrorPublic(BaseModel):
+    """Every 4xx and 503 answer."""
+
+    detail: str = Field(description="what is wrong, in one or a few sentences")
+    errors: list[dict] | None = Field(None, description="per-field problems of a request body")

@@ -1,0 +1,56 @@
+"""``robomach serve``: the browser workbench (viser 3D scene, REST API, teach pendant page)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "serve",
+        help="serve the workbench: viser 3D scene, REST API (/docs) and pendant page (/pendant/)",
+        description=(
+            "Start the viser 3D workbench, the REST API (OpenAPI docs at /docs) and the teach "
+            "pendant page (/pendant/) in one process, on the last opened project of --data. "
+            "Binding to anything but 127.0.0.1/localhost needs the ROBOMACH_TOKEN environment "
+            "variable; mutating REST calls must then send it as 'Authorization: Bearer TOKEN'. "
+            "Ctrl-C stops it."
+        ),
+    )
+    p.add_argument(
+        "--host", default=None, help="interface to bind (default 127.0.0.1, or $ROBOMACH_HOST)"
+    )
+    p.add_argument(
+        "--port",
+        type=int,
+        default=None,
+        help="REST API and pendant port (default 8000, or $ROBOMACH_PORT)",
+    )
+    p.add_argument(
+        "--viser-port",
+        type=int,
+        default=None,
+        help="viser 3D workbench port (default 8080, or $ROBOMACH_VISER_PORT)",
+    )
+    p.add_argument(
+        "--data",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="project database and exports (default ./robomach-data, or $ROBOMACH_DATA)",
+    )
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import logging
+
+    from app.server import serve
+    from app.settings import ServerSettings
+
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s:     %(name)s: %(message)s")
+    settings = ServerSettings.from_env(
+        host=args.host, port=args.port, viser_port=args.viser_port, data_dir=args.data
+    )
+    return serve(settings)

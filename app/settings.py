@@ -1,0 +1,105 @@
+"""Settings of ``robomach serve``: command-line flags over environment variables over defaults.
+
+pydantic-settings is not a dependency, so this is a frozen dataclass with a ``from_env``
+constructor. Environment variables: ``ROBOMACH_HOST``, ``ROBOMACH_PORT``,
+``ROBOMACH_VISER_PORT``, ``ROBOMACH_DATA``, ``ROBOMACH_TOKEN``.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import os
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from robomach_core.errors import InvalidInputError
+from robomach_core.workpiece import MAX_MESH_BYTES
+
+DEFAULT_HOST = "127.0.0.1"
+DEFAULT_PORT = 8000
+DEFAULT_VISER_PORT = 8080
+DEFAULT_DATA_DIR = Path("robomach-data")
+TOKEN_MIN_LENGTH = 16
+MAX_JSON_BODY_BYTES = 1024 * 1024  # every JSON body the API takes is far smaller
+STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
+
+
+@dataclass(frozen=True)
+class ServerSettings:
+    """How the workbench serves.
+
+    Attributes:
+        host: Interface of the REST API and the viser scene. Anything but a loopback address
+            needs ``token``.
+        port: REST API and pendant page port.
+        viser_port: viser 3D workbench port; None runs no viser server (tests).
+        data_dir: Folder of the project database and saved exports.
+        token: When set, every mutating REST call must send it (``Authorization: Bearer ...``
+            or ``X-Robomach-Token``).
+        max_upload_bytes: Largest mesh upload.
+        static_dir: Folder served at ``/pendant/`` when it exists.
+    """
+
+    host: str = DEFAULT_HOST
+    port: int = DEFAULT_PORT
+    viser_port: int | None = DEFAULT_VISER_PORT
+    data_dir: Path = DEFAULT_DATA_DIR
+    token: str | None = None
+    max_upload_bytes: int = MAX_MESH_BYTES
+    static_dir: Path = field(default=STATIC_DIR)
+
+    @classmethod
+    def from_env(cls, env: dict[str, str] | None = None, **overrides: Any) -> ServerSettings:
+        """Defaults, then ``ROBOMACH_*`` variables, then the non-None ``overrides``."""
+        env = os.environ if env is None else env
+        values: dict[str, Any] = {}
+        if env.get("ROBOMACH_HOST"):
+            values["host"] = env["ROBOMACH_HOST"]
+        for key, name in (("port", "ROBOMACH_PORT"), ("viser_port", "ROBOMACH_VISER_PORT")):
+            if env.get(name):
+                try:
+                    values[key] = int(env[name])
+                except ValueError:
+                    raise InvalidInputError(
+                        f"{name} must be a port number, not {env[name]!r}"
+                    ) from None
+        if env.get("ROBOMACH_DATA"):
+            values["data_dir"] = Path(env["ROBOMACH_DATA"])
+        if env.get("ROBOMACH_TOKEN"):
+            values["token"] = env["ROBOMACH_TOKEN"]
+        values.update({k: v for k, v in overrides.items() if v is not None})
+        settings = replace(cls(), **values)
+        settings.validate()
+        return settings
+
+    @property
+    def loopback(self) -> bool:
+        """True when only this machine can reach the server."""
+        if self.host == "localhost":
+            return True
+        try:
+            return ipaddress.ip_address(self.host).is_loopback
+        except ValueError:
+            return False
+
+    def validate(self) -> None:
+        """Raise ``InvalidInputError`` for settings that must not serve."""
+        for name, port in (("port", self.port), ("viser port", self.viser_port)):
+            if port is not None and not (1 <= port <= 65535):
+                raise InvalidInputError(f"the {name} must be within 1-65535, got {port}")
+        if self.viser_port is not None and self.viser_port == self.port:
+            raise InvalidInputError("the REST port and the viser port must differ")
+        if not self.loopback and not self.token:
+            raise InvalidInputError(
+                f"binding to {self.host} makes the workbench reachable from other machines: "
+                "set ROBOMACH_TOKEN (at least 16 characters) so mutating calls need it"
+            )
+        if self.token is not None and len(self.token) < TOKEN_MIN_LENGTH:
+            raise InvalidInputError(
+                f"ROBOMACH_TOKEN must be at least {TOKEN_MIN_LENGTH} characters"
+            )
+        if not (0 < self.max_upload_bytes <= MAX_MESH_BYTES):
+            raise InvalidInputError(
+                f"the upload limit must be within 1-{MAX_MESH_BYTES} bytes (the mesh reader's)"
+            )
