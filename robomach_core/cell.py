@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import _kernels
 from .contact import NO_CONTACT, ContactModel, ContactResult
 from .errors import InvalidInputError
 from .joint_compliance import JointCompliance, true_joint_compliance
@@ -85,6 +86,7 @@ class Cell:
         self.workpiece: Workpiece = builtin_workpiece(wp) if isinstance(wp, str) else wp
         self.contact_model = ContactModel(self.tool, self.workpiece)
         self._compliance: JointCompliance = true_joint_compliance(self.robot.name)
+        self._compliance_vec = self._compliance.compliance_rad_Nm
         self._rng = np.random.default_rng(self.config.seed)
         self.sensor = ForceTorqueSensor(self.tool, self.config.sensor, self._rng)
         self._R_tcp_flange = self.tool.T_flange_tcp[:3, :3].T.copy()
@@ -121,13 +123,7 @@ class Cell:
         T_motor, J = self.robot.fk_and_jacobian(q)
         T_motor = T_motor.copy()
         # Arm-side pose: motor pose displaced by J dq, dq = Kq^-1 J^T W (previous period's W).
-        dq = self._compliance.joint_deflection(J, state.contact.wrench)
-        dx = J @ dq
-        T_true = T_motor.copy()
-        T_true[:3, 3] += dx[:3]
-        w = dx[3:]
-        skew = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-        T_true[:3, :3] = T_motor[:3, :3] + skew @ T_motor[:3, :3]
+        T_true, dq = _kernels.arm_side_pose(T_motor, J, state.contact.wrench, self._compliance_vec)
         velocity = (T_true[:3, 3] - state.T_base_tcp_true[:3, 3]) / dt
         contact = self.contact_model.evaluate(T_true, velocity, state.contact.depth_m, dt)
         reading = self.sensor.measure(self.flange_rotation(T_true), contact.wrench)

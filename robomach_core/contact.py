@@ -13,7 +13,7 @@ SOLUTION  F_n = k_c * depth + c_c * d(depth)/dt (>= 0), F_t = -mu * F_n * v_t / 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import coal
 import numpy as np
@@ -25,8 +25,7 @@ CONTACT_DAMPING_N_S_M = 100.0
 FRICTION_VELOCITY_M_S = 0.0005  # below this the friction force is scaled down (tanh)
 
 
-@dataclass(frozen=True)
-class ContactResult:
+class ContactResult(NamedTuple):
     """Contact of the cutter with the part at one instant.
 
     Attributes:
@@ -64,7 +63,14 @@ class _CellGrid:
     within ``margin`` of the cell, so the narrow phase sees tens of triangles, not thousands.
     """
 
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray, cell_m: float, margin_m: float):
+    def __init__(
+        self,
+        vertices: np.ndarray,
+        faces: np.ndarray,
+        cell_m: float,
+        margin_m: float,
+        T_base_wobj: np.ndarray,
+    ) -> None:
         self.vertices = np.asarray(vertices, dtype=float)
         self.faces = np.asarray(faces, dtype=np.int64)
         tri = self.vertices[self.faces]
@@ -73,12 +79,21 @@ class _CellGrid:
         self.cell_m = cell_m
         self.margin_m = margin_m
         self._cells: dict[tuple[int, int, int], coal.BVHModelOBBRSS | None] = {}
+        # p_wobj = R^T (p_base - t), as plain floats (this runs every control period).
+        self._rows = T_base_wobj[:3, :3].T.tolist()
+        self._origin = T_base_wobj[:3, 3].tolist()
 
-    def bvh_at(self, p_wobj: np.ndarray) -> coal.BVHModelOBBRSS | None:
+    def bvh_at(self, p_base: np.ndarray) -> coal.BVHModelOBBRSS | None:
+        """The BVH of the cell holding ``p_base`` (base frame), built on first visit."""
+        x, y, z = p_base.tolist()
+        ox, oy, oz = self._origin
+        x, y, z = x - ox, y - oy, z - oz
+        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = self._rows
+        c = self.cell_m
         key = (
-            math.floor(p_wobj[0] / self.cell_m),
-            math.floor(p_wobj[1] / self.cell_m),
-            math.floor(p_wobj[2] / self.cell_m),
+            math.floor((r00 * x + r01 * y + r02 * z) / c),
+            math.floor((r10 * x + r11 * y + r12 * z) / c),
+            math.floor((r20 * x + r21 * y + r22 * z) / c),
         )
         if key not in self._cells:
             cmin = np.asarray(key, dtype=float) * self.cell_m - self.margin_m
@@ -96,8 +111,6 @@ class ContactModel:
         self.stiffness_N_m = float(workpiece.contact_stiffness_N_m)
         self.damping_N_s_m = CONTACT_DAMPING_N_S_M
         self.friction = float(workpiece.friction_coefficient)
-        self._T_base_wobj = workpiece.T_base_wobj.copy()
-        self._R_wobj_base = workpiece.T_base_wobj[:3, :3].T.copy()
         self._T_part = coal.Transform3s(
             workpiece.T_base_wobj[:3, :3].copy(), workpiece.T_base_wobj[:3, 3].copy()
         )
@@ -117,6 +130,7 @@ class ContactModel:
             workpiece.mesh.faces,
             cell_m,
             margin_m=bounding_radius + tool.radius_m,
+            T_base_wobj=workpiece.T_base_wobj,
         )
         self._request = coal.CollisionRequest(coal.CollisionRequestFlag.CONTACT, 8)
         self._result = coal.CollisionResult()
@@ -137,7 +151,7 @@ class ContactModel:
         R = T_base_tcp[:3, :3]
         p_tcp = T_base_tcp[:3, 3]
         center = p_tcp + R[:, 2] * self._cutter_offset if self._cutter_offset else p_tcp
-        bvh = self._grid.bvh_at(self._R_wobj_base @ (center - self._T_base_wobj[:3, 3]))
+        bvh = self._grid.bvh_at(center)
         if bvh is None:
             return NO_CONTACT
         self._T_cutter.setRotation(R)
@@ -147,9 +161,10 @@ class ContactModel:
             bvh, self._T_part, self._cutter, self._T_cutter, self._request, self._result
         ):
             return NO_CONTACT
-        contacts = self._result.getContacts()
-        deepest = contacts[0]
-        for contact in contacts[1:]:
+        result = self._result
+        deepest = result.getContact(0)
+        for i in range(1, result.numContacts()):
+            contact = result.getContact(i)
             if contact.penetration_depth < deepest.penetration_depth:
                 deepest = contact
         depth = -float(deepest.penetration_depth)

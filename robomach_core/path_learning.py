@@ -25,10 +25,11 @@ from typing import Literal
 import numpy as np
 import pinocchio as pin
 
+from . import _kernels
 from .cell import CONTROL_PERIOD_S, Cell, CellState
 from .errors import CancelledError, InvalidInputError, NotEnoughGuidePointsError
 from .leadthrough import GuidePoint
-from .sensor import ForceEstimator
+from .sensor import GRAVITY_M_S2, ForceEstimator
 from .transforms import (
     cross3,
     matrix_from_quaternion,
@@ -238,11 +239,11 @@ def learn_path(
     dt = CONTROL_PERIOD_S
 
     def frame(seg: _Segment, fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        # Slerp between the guide orientations: R = Ra exp(f * omega).
-        R = seg.Ra @ pin.exp3(seg.omega * min(max(fraction, 0.0), 1.0))
-        yp = cross3(R[:, 2], seg.xp) * side
-        yp /= math.sqrt(yp @ yp)
-        return R, yp, cross3(seg.xp, yp)
+        """(R, Yp, Zp) of the path frame at ``fraction`` of a segment."""
+        T, yp, zp = _kernels.path_reference(
+            seg.Ra, seg.omega, fraction, seg.a, seg.xp, side, 0.0, 0.0, 0.0
+        )
+        return T[:3, :3], yp, zp
 
     # Approach: above the first guide point, then down to it, 1.5 mm away from the wall.
     R0, yp0, _ = frame(segs[0], 0.0)
@@ -283,34 +284,53 @@ def learn_path(
     report_every = max(1, int(1.0 / dt))
     total = len(segs)
     vmax = settings.max_normal_speed_m_s
+    weight = estimator.mass_kg * GRAVITY_M_S2
+    com, tcp, bias = estimator.com_m, estimator.tcp_m, estimator.bias
+    lower, upper = robot.lower_rad, robot.upper_rad
+    times, joints, positions = cols["time_s"], cols["joints_rad"], cols["position_m"]
+    rotations, sensor, tool = cols["rotation"], cols["wrench_sensor"], cols["wrench_tool"]
+    normal, contact, yps, segment = (
+        cols["force_normal_N"],
+        cols["in_contact"],
+        cols["yp"],
+        cols["segment"],
+    )
+    kp, ki, speed, f_ref = (
+        settings.kp_m_s_N,
+        settings.ki_m_s2_N,
+        settings.speed_m_s,
+        settings.force_N,
+    )
     while True:
         if n >= n_max:
             stop_reason = "stopped: the run took far longer than the program predicts"
             break
-        # --- measure (controller side) ---
-        R_flange = cell.flange_rotation(state.T_base_tcp)
-        w_base = estimator.contact_wrench_tcp_base(state.ft_reading, R_flange)
-        f_y = -float(w_base[:3] @ yp)
-        f_abs = math.sqrt(w_base[:3] @ w_base[:3])
+        # --- measure (controller side: motor-side pose and the F/T reading) ---
+        T_meas = state.T_base_tcp
+        R_meas = T_meas[:3, :3]
+        w_base = _kernels.contact_wrench_tcp_base(
+            state.ft_reading, cell.flange_rotation(T_meas), weight, com, tcp, bias
+        )
+        fx, fy, fz = w_base[0], w_base[1], w_base[2]
+        f_y = -(fx * yp[0] + fy * yp[1] + fz * yp[2])
+        f_abs = math.sqrt(fx * fx + fy * fy + fz * fz)
         # --- record ---
-        R_meas = state.T_base_tcp[:3, :3]
-        cols["time_s"][n] = state.time_s - t0
-        cols["joints_rad"][n] = state.q_motor
-        cols["position_m"][n] = state.T_base_tcp[:3, 3]
-        cols["rotation"][n] = R_meas
-        cols["wrench_sensor"][n] = state.ft_reading
-        cols["wrench_tool"][n, :3] = R_meas.T @ w_base[:3]
-        cols["wrench_tool"][n, 3:] = R_meas.T @ w_base[3:]
-        cols["force_normal_N"][n] = f_y
-        cols["in_contact"][n] = f_abs > CONTACT_FLAG_N
-        cols["yp"][n] = yp
-        cols["segment"][n] = seg_index
+        times[n] = state.time_s - t0
+        joints[n] = state.q_motor
+        positions[n] = T_meas[:3, 3]
+        rotations[n] = R_meas
+        sensor[n] = state.ft_reading
+        tool[n, :3] = R_meas.T @ w_base[:3]
+        tool[n, 3:] = R_meas.T @ w_base[3:]
+        normal[n] = f_y
+        contact[n] = f_abs > CONTACT_FLAG_N
+        yps[n] = yp
+        segment[n] = seg_index
         n += 1
         if f_abs > settings.force_limit_N:
             stop_reason = (
                 f"protection: contact force {f_abs:.1f} N exceeded the "
-                f"{settings.force_limit_N:g} N "
-                f"limit at t = {state.time_s - t0:.2f} s"
+                f"{settings.force_limit_N:g} N limit at t = {state.time_s - t0:.2f} s"
             )
             break
         if abs(y) > LOST_WALL_M:
@@ -320,11 +340,11 @@ def learn_path(
             )
             break
         # --- force control along Yp, position along Xp and Zp ---
-        e = settings.force_N - f_y
-        integral = min(max(integral + settings.ki_m_s2_N * e * dt, -vmax), vmax)
-        v_y = min(max(settings.kp_m_s_N * e + integral, -vmax), vmax)
+        e = f_ref - f_y
+        integral = min(max(integral + ki * e * dt, -vmax), vmax)
+        v_y = min(max(kp * e + integral, -vmax), vmax)
         y += v_y * dt
-        s += settings.speed_m_s * dt
+        s += speed * dt
         h *= 0.99  # fade any height offset left by a segment change (~1 s)
         if s >= seg.length:
             if seg_index + 1 >= total:
@@ -335,16 +355,15 @@ def learn_path(
             seg = segs[seg_index]
             rel = p_ref - seg.a
             s = float(rel @ seg.xp)
-            R, yp, zp = frame(seg, s / seg.length)
+            _, yp, zp = frame(seg, s / seg.length)
             y = float(rel @ yp)
             h = float(rel @ zp)
-        else:
-            R, yp, zp = frame(seg, s / seg.length)
-        T_ref = np.empty((4, 4))
-        T_ref[:3, :3] = R
-        T_ref[:3, 3] = seg.a + s * seg.xp + y * yp + h * zp
-        T_ref[3] = (0.0, 0.0, 0.0, 1.0)
-        state = cell.step(state, robot.ik_step(state.q_motor, T_ref))
+        T_ref, yp, zp = _kernels.path_reference(
+            seg.Ra, seg.omega, s / seg.length, seg.a, seg.xp, side, s, y, h
+        )
+        T_now, J = robot.fk_and_jacobian(state.q_motor)
+        q_cmd = _kernels.ik_newton_step(state.q_motor, T_now, J, T_ref, lower, upper, 1e-4)
+        state = cell.step(state, q_cmd)
         if n % report_every == 0:
             if cancelled is not None and cancelled():
                 raise CancelledError("path learning was cancelled")

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from . import _kernels
 from .errors import SingularConfigurationError, UnknownNameError, UnreachableTargetError
 from .transforms import pose_error
 
@@ -133,18 +134,16 @@ class Robot:
         period, where the target moves by micrometres so one step tracks it.
         """
         T, J = self.fk_and_jacobian(q)
-        e = np.empty(6)
-        e[:3] = T_base_target[:3, 3] - T[:3, 3]
-        e[3:] = pin.log3(T_base_target[:3, :3] @ T[:3, :3].T)
-        try:
-            dq = np.linalg.solve(J, e)  # plain Newton step: exact away from singularities
-        except np.linalg.LinAlgError:
-            dq = None
-        if dq is None or float(dq @ dq) > 1e-4:  # near a singularity: damped least squares
-            A = J @ J.T
-            A.flat[::7] += damping**2
-            dq = J.T @ np.linalg.solve(A, e)
-        return np.minimum(np.maximum(q + dq, self.lower_rad), self.upper_rad)
+        # Plain Newton step, exact away from singularities; damped least squares near them.
+        return _kernels.ik_newton_step(
+            np.asarray(q, dtype=float),
+            T,
+            J,
+            np.asarray(T_base_target, dtype=float),
+            self.lower_rad,
+            self.upper_rad,
+            damping,
+        )
 
     def ik(
         self,

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import _kernels
 from .tool import Tool
 from .transforms import cross3
 
@@ -70,25 +71,15 @@ class ForceTorqueSensor:
             R_base_flange: 3x3 orientation of the sensor (arm side, the true one).
             contact_wrench_tcp_base: (6,) contact wrench at the TCP, base-aligned axes.
         """
-        Rt = R_base_flange.T
-        # Contact force plus weight, both rotated into the sensor frame at once.
-        f = Rt @ (contact_wrench_tcp_base[:3] + self._weight)
-        f_contact = f - Rt @ self._weight if contact_wrench_tcp_base[3:].any() else None
-        reading = np.empty(6)
-        reading[:3] = f
-        if f_contact is None:
-            # Weight only (torque of the contact about the TCP is zero for a point contact at
-            # the TCP): tau_s = com x F_g + r_tcp x F_c.
-            f_g = Rt @ self._weight
-            reading[3:] = cross3(self._com, f_g) + cross3(self._tcp, f - f_g)
-        else:
-            f_g = f - f_contact
-            reading[3:] = (
-                Rt @ contact_wrench_tcp_base[3:]
-                + cross3(self._tcp, f_contact)
-                + cross3(self._com, f_g)
-            )
-        return reading + self.bias + self._draw_noise()
+        return _kernels.sensor_reading(
+            R_base_flange,
+            contact_wrench_tcp_base,
+            self._weight,
+            self._com,
+            self._tcp,
+            self.bias,
+            self._draw_noise(),
+        )
 
 
 @dataclass
@@ -132,10 +123,11 @@ class ForceEstimator:
 
     def contact_wrench_tcp_base(self, reading: np.ndarray, R_base_flange: np.ndarray) -> np.ndarray:
         """(6,) compensated contact wrench at the TCP in base-aligned axes."""
-        w = self.contact_wrench_sensor(reading, R_base_flange)
-        f_s = w[:3]
-        tau_tcp_s = w[3:] - cross3(self.tcp_m, f_s)
-        out = np.empty(6)
-        out[:3] = R_base_flange @ f_s
-        out[3:] = R_base_flange @ tau_tcp_s
-        return out
+        return _kernels.contact_wrench_tcp_base(
+            reading,
+            np.ascontiguousarray(R_base_flange),
+            self.mass_kg * GRAVITY_M_S2,
+            self.com_m,
+            self.tcp_m,
+            self.bias,
+        )

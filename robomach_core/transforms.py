@@ -93,20 +93,19 @@ def rotation_log(R: np.ndarray) -> np.ndarray:
     """Rotation vector (axis * angle, rad) of a 3x3 rotation matrix."""
     cos_angle = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
     angle = np.arccos(cos_angle)
+    skew = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])  # 2 sin(t) a
     if angle < 1e-9:
-        return 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    if np.pi - angle < 1e-6:
-        # Near pi: axis from the diagonal.
-        axis = np.sqrt(np.maximum((np.diag(R) + 1.0) / 2.0, 0.0))
-        i = int(np.argmax(axis))
-        axis[(i + 1) % 3] = np.copysign(axis[(i + 1) % 3], R[i, (i + 1) % 3] + R[(i + 1) % 3, i])
-        axis[(i + 2) % 3] = np.copysign(axis[(i + 2) % 3], R[i, (i + 2) % 3] + R[(i + 2) % 3, i])
-        return axis / np.linalg.norm(axis) * angle
-    return (
-        angle
-        / (2 * np.sin(angle))
-        * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    )
+        return 0.5 * skew
+    if np.pi - angle < 1e-2:
+        # Near pi the sine is tiny: the axis comes from the symmetric part,
+        # (R + R^T) / 2 - cos(t) I = (1 - cos(t)) a a^T, and its sign from the skew part.
+        B = 0.5 * (R + R.T) - cos_angle * np.eye(3)
+        i = int(np.argmax(np.diag(B)))
+        axis = B[:, i] / np.linalg.norm(B[:, i])
+        if axis @ skew < 0:
+            axis = -axis
+        return axis * angle
+    return angle / (2 * np.sin(angle)) * skew
 
 
 def slerp(q0_wxyz: np.ndarray, q1_wxyz: np.ndarray, fraction: float) -> np.ndarray:
