@@ -111,7 +111,12 @@ def serve(settings: ServerSettings) -> int:
     settings.validate()
     data_dir = settings.data_dir.resolve()
     with data_dir_lock(data_dir):
-        session = Session(Store.in_data_dir(data_dir), data_dir=data_dir)
+        session = Session(
+            Store.in_data_dir(data_dir),
+            data_dir=data_dir,
+            max_upload_bytes=settings.max_upload_bytes,
+            max_triangles=settings.max_triangles,
+        )
         try:
             app = build_app(settings, session)
             host = _display_host(settings)

@@ -539,9 +539,20 @@ class Session:
         store: The project database; a throwaway in-memory one when None.
         data_dir: Folder that saved exports are written under (``<data_dir>/exports``); exports
             are kept only in the store when None.
+        max_upload_bytes: Largest mesh file ``upload_workpiece`` takes.
+        max_triangles: Most triangles of an uploaded mesh.
     """
 
-    def __init__(self, store: Store | None = None, *, data_dir: str | Path | None = None) -> None:
+    def __init__(
+        self,
+        store: Store | None = None,
+        *,
+        data_dir: str | Path | None = None,
+        max_upload_bytes: int = MAX_MESH_BYTES,
+        max_triangles: int = MAX_MESH_TRIANGLES,
+    ) -> None:
+        self.max_upload_bytes = min(max_upload_bytes, MAX_MESH_BYTES)
+        self.max_triangles = min(max_triangles, MAX_MESH_TRIANGLES)
         self._lock = threading.RLock()
         self._listeners: list[Callable[[Topic], None]] = []
         self._listeners_lock = threading.Lock()
@@ -704,21 +715,21 @@ class Session:
         return new
 
     def upload_workpiece(self, data: bytes, filename: str) -> CellSettings:
-        """Use a mesh file (STL/OBJ/PLY, mm) as the workpiece; limits ``MAX_MESH_BYTES`` and
-        ``MAX_MESH_TRIANGLES``. Clears downstream data like ``set_cell``."""
+        """Use a mesh file (STL/OBJ/PLY, mm) as the workpiece, within ``max_upload_bytes`` and
+        ``max_triangles``. Clears downstream data like ``set_cell``."""
         suffix = Path(filename).suffix.lower()
         if suffix not in MESH_SUFFIXES:
             raise InvalidInputError(
                 f"{filename!r}: unsupported mesh type; upload one of {', '.join(MESH_SUFFIXES)}"
             )
-        if len(data) > MAX_MESH_BYTES:
+        if len(data) > self.max_upload_bytes:
             raise InvalidInputError(
                 f"{filename}: {len(data) / 1e6:.1f} MB exceeds the "
-                f"{MAX_MESH_BYTES / 1e6:.0f} MB limit"
+                f"{self.max_upload_bytes / 1e6:g} MB limit"
             )
         stem = re.sub(r"[^A-Za-z0-9_-]", "_", Path(filename).stem)[:40] or "uploaded"
         # Parse outside the lock: a big mesh takes a while and must not stall the robot.
-        parsed = mesh_from_bytes(data, suffix, name=stem, max_triangles=MAX_MESH_TRIANGLES)
+        parsed = mesh_from_bytes(data, suffix, name=stem, max_triangles=self.max_triangles)
         with self._lock:
             self._require_idle()
             new = replace(self._cell_settings, workpiece=stem, workpiece_builtin=False)

@@ -2,7 +2,8 @@
 
 pydantic-settings is not a dependency, so this is a frozen dataclass with a ``from_env``
 constructor. Environment variables: ``ROBOMACH_HOST``, ``ROBOMACH_PORT``,
-``ROBOMACH_VISER_PORT``, ``ROBOMACH_DATA``, ``ROBOMACH_TOKEN``.
+``ROBOMACH_VISER_PORT``, ``ROBOMACH_DATA``, ``ROBOMACH_TOKEN``, and the upload limits
+``ROBOMACH_MAX_UPLOAD_BYTES`` and ``ROBOMACH_MAX_TRIANGLES`` (at most the mesh reader's).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from robomach_core.errors import InvalidInputError
-from robomach_core.workpiece import MAX_MESH_BYTES
+from robomach_core.workpiece import MAX_MESH_BYTES, MAX_MESH_TRIANGLES
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8000
@@ -37,7 +38,8 @@ class ServerSettings:
         data_dir: Folder of the project database and saved exports.
         token: When set, every mutating REST call must send it (``Authorization: Bearer ...``
             or ``X-Robomach-Token``).
-        max_upload_bytes: Largest mesh upload.
+        max_upload_bytes: Largest mesh upload [bytes].
+        max_triangles: Most triangles of an uploaded mesh.
         static_dir: Folder served at ``/pendant/`` when it exists.
     """
 
@@ -47,6 +49,7 @@ class ServerSettings:
     data_dir: Path = DEFAULT_DATA_DIR
     token: str | None = None
     max_upload_bytes: int = MAX_MESH_BYTES
+    max_triangles: int = MAX_MESH_TRIANGLES
     static_dir: Path = field(default=STATIC_DIR)
 
     @classmethod
@@ -56,13 +59,18 @@ class ServerSettings:
         values: dict[str, Any] = {}
         if env.get("ROBOMACH_HOST"):
             values["host"] = env["ROBOMACH_HOST"]
-        for key, name in (("port", "ROBOMACH_PORT"), ("viser_port", "ROBOMACH_VISER_PORT")):
+        for key, name in (
+            ("port", "ROBOMACH_PORT"),
+            ("viser_port", "ROBOMACH_VISER_PORT"),
+            ("max_upload_bytes", "ROBOMACH_MAX_UPLOAD_BYTES"),
+            ("max_triangles", "ROBOMACH_MAX_TRIANGLES"),
+        ):
             if env.get(name):
                 try:
                     values[key] = int(env[name])
                 except ValueError:
                     raise InvalidInputError(
-                        f"{name} must be a port number, not {env[name]!r}"
+                        f"{name} must be an integer, not {env[name]!r}"
                     ) from None
         if env.get("ROBOMACH_DATA"):
             values["data_dir"] = Path(env["ROBOMACH_DATA"])
@@ -103,3 +111,5 @@ class ServerSettings:
             raise InvalidInputError(
                 f"the upload limit must be within 1-{MAX_MESH_BYTES} bytes (the mesh reader's)"
             )
+        if not (0 < self.max_triangles <= MAX_MESH_TRIANGLES):
+            raise InvalidInputError(f"the triangle limit must be within 1-{MAX_MESH_TRIANGLES}")

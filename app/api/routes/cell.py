@@ -60,7 +60,7 @@ async def upload_workpiece(
         if size > limit:
             raise HTTPException(
                 status.HTTP_413_REQUEST_ENTITY_TOO_LARGE,
-                f"{file.filename}: the upload exceeds the {limit / 1e6:.0f} MB limit",
+                f"{file.filename}: the upload exceeds the {limit / 1e6:g} MB limit",
             )
         chunks.append(chunk)
     data = b"".join(chunks)

@@ -1,0 +1,73 @@
+"""Path-learning jobs, the job resource, and the recording for plots."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.api.server_process import Api
+
+PL = "/api/path-learning"
+
+
+def test_needs_two_guide_points(api: Api) -> None:
+    r = api.post(PL, json={"force_N": 10, "speed_mm_s": 5})
+    assert r.status_code == 409 and "at least 2 guide points" in r.json()["detail"]
+    api.ok("POST", "/api/guide-points", 201)
+    assert api.post(PL, json={"force_N": 10, "speed_mm_s": 5}).status_code == 409
+
+
+@pytest.mark.parametrize(
+    ("body", "needle"),
+    [
+        ({"force_N": 0.5, "speed_mm_s": 5}, "force_N"),
+        ({"force_N": 80, "speed_mm_s": 5}, "force_N"),
+        ({"force_N": 10, "speed_mm_s": 0}, "speed_mm_s"),
+        ({"force_N": 10, "speed_mm_s": 500}, "speed_mm_s"),
+        ({"force_N": 10}, "speed_mm_s"),
+        ({"force_N": "ten", "speed_mm_s": 5}, "force_N"),
+        ({"force_N": 10, "speed_mm_s": 5, "closed": "maybe"}, "closed"),
+    ],
+)
+def test_rejects_bad_settings(api: Api, body: dict, needle: str) -> None:
+    r = api.post(PL, json=body)
+    assert r.status_code == 422 and needle in r.json()["detail"], r.text
+
+
+def test_learns_the_block_wall(api: Api) -> None:
+    trace = api.ok("GET", f"{PL}/recording")
+    assert trace["source"] == "none" and trace["time_s"] == []
+    points = api.block_guide_points()
+    assert len(points) == 2
+    # Pressed against the front wall (y = 135 mm minus the 1 mm tool radius): force along -y.
+    for p in points:
+        assert 133.0 < p["position_mm"][1] < 135.0
+        assert p["force_N"][1] < -4.0
+    job_id = api.ok("POST", PL, 202, json={"force_N": 10, "speed_mm_s": 20, "closed": False})[
+        "job_id"
+    ]
+    job = api.wait_job(job_id)
+    assert job["status"] == "done" and job["progress"] == 1.0 and job["error"] is None
+    assert job["kind"] == "path_learning" and job["finished_s"] >= job["started_s"]
+
+    trace = api.ok("GET", f"{PL}/recording", params={"max_points": 100})
+    assert trace["source"] == "recording" and trace["completed"] is True
+    assert 50 <= len(trace["time_s"]) <= 101 and trace["samples_total"] > 500
+    f = np.array(trace["force_N"])
+    assert abs(np.median(f) - 10.0) < 1.5  # the force loop holds the reference
+    assert trace["force_reference_N"][0] == 10.0
+    assert np.all(np.diff(trace["time_s"]) > 0)
+    assert api.ok("GET", "/api/state")["busy"] is False
+
+
+@pytest.mark.parametrize("max_points", ["1", "0", "x", "1000000"])
+def test_recording_rejects_bad_max_points(api: Api, max_points: str) -> None:
+    r = api.get(f"{PL}/recording", params={"max_points": max_points})
+    assert r.status_code == 422 and "max_points" in r.json()["detail"]
+
+
+def test_unknown_jobs_are_404(api: Api) -> None:
+    for method, path in (("GET", "/api/jobs/nope"), ("POST", "/api/jobs/nope/cancel")):
+        r = api.http.request(method, path)
+        assert r.status_code == 404 and "no job" in r.json()["detail"]
+    assert isinstance(api.ok("GET", "/api/jobs"), list)
