@@ -170,9 +170,15 @@ function bindHold(button, action) {
   });
 }
 
+function showCompliance(c) {
+  if (!c || !Array.isArray(c.axes)) return;
+  for (const el of document.querySelectorAll(".comp")) el.checked = c.axes.includes(el.value);
+  if (c.frame) $("comp-frame").value = c.frame;
+}
+
 async function putCompliance() {
   const axes = [...document.querySelectorAll(".comp:checked")].map((el) => el.value);
-  await api("PUT", "/leadthrough/compliance", { axes, frame: $("comp-frame").value });
+  showCompliance(await api("PUT", "/leadthrough/compliance", { axes, frame: $("comp-frame").value }));
 }
 
 // ---------------------------------------------------------------- guide points
@@ -276,6 +282,7 @@ async function startLearning() {
   const body = {
     force_N: Number($("learn-force").value),
     speed_mm_s: Number($("learn-speed").value),
+    closed: $("learn-closed").checked,
   };
   const start = await api("POST", "/path-learning", body);
   learnJob = start.job_id ?? start.id;
@@ -312,7 +319,18 @@ async function runPostprocess() {
     force_max_N: Number($("post-fmax").value),
     tolerance_mm: Number($("post-tol").value),
   };
-  const r = await api("POST", "/postprocess", body);
+  showPostprocess(await api("POST", "/postprocess", body));
+}
+
+function showPostprocessSettings(s) {
+  if (!s) return;
+  if (s.force_min_N !== undefined) $("post-fmin").value = s.force_min_N;
+  if (s.force_max_N !== undefined) $("post-fmax").value = s.force_max_N;
+  if (s.tolerance_mm !== undefined) $("post-tol").value = s.tolerance_mm;
+}
+
+function showPostprocess(r) {
+  if (!r) return;
   const counts = r.counts || r;
   const dev = r.deviation || r.deviations || r.score || r;
   $("post-samples").textContent = pick(counts, "samples_raw", "samples") ?? "-";
@@ -367,6 +385,16 @@ async function viserUrl() {
 
 // ---------------------------------------------------------------- wiring
 
+// What the server already holds: compliance, post-processing settings and the last result.
+async function loadSettings() {
+  showCompliance(await api("GET", "/leadthrough/compliance", undefined, { quiet: true }));
+  const post = await api("GET", "/postprocess", undefined, { quiet: true });
+  if (post) {
+    showPostprocessSettings(post.settings);
+    showPostprocess(post.result);
+  }
+}
+
 function safe(fn) {
   // Errors were already shown by api(); keep them out of the console's uncaught list.
   return (...args) => fn(...args).catch(() => {});
@@ -403,6 +431,7 @@ async function init() {
 
   await pollState();
   safe(refreshGuides)();
+  safe(loadSettings)();
   setInterval(pollState, STATE_PERIOD_MS);
 }
 

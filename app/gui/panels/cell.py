@@ -1,0 +1,96 @@
+"""Cell panel: robot, tool radius, workpiece choice and mesh upload."""
+
+from __future__ import annotations
+
+import viser
+
+from robomach_core.robot import ROBOT_URDFS
+from robomach_core.tool import TOOL_RADIUS_RANGE_M
+from robomach_core.workpiece import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, WORKPIECE_NAMES
+
+from .feedback import guarded
+
+MESH_MIME_TYPES = ".stl,.obj,.ply,model/stl,model/obj,application/octet-stream"
+
+
+class CellPanel:
+    """Choose the robot, the ball-cutter radius and the workpiece (built-in or uploaded).
+
+    "Apply" rebuilds the cell: the robot goes home and the guide points and results are
+    cleared, because they belong to the old cell. An upload applies at once.
+    """
+
+    def __init__(self, server: viser.ViserServer, session) -> None:
+        self.session = session
+        s = session.cell_settings()
+        lo, hi = (r * 1e3 for r in TOOL_RADIUS_RANGE_M)
+        max_mb = getattr(session, "max_upload_bytes", MAX_MESH_BYTES) / 1e6
+        max_triangles = getattr(session, "max_triangles", MAX_MESH_TRIANGLES)
+        with server.gui.add_folder("Cell"):
+            self.robot = server.gui.add_dropdown(
+                "Robot", tuple(sorted(ROBOT_URDFS)), initial_value=s.robot
+            )
+            self.tool_radius = server.gui.add_slider(
+                "Tool radius (mm)",
+                lo,
+                hi,
+                0.1,
+                s.tool_radius_m * 1e3,
+                hint="Ball cutter radius",
+            )
+            self.workpiece = server.gui.add_dropdown(
+                "Workpiece", self._workpiece_options(s), initial_value=s.workpiece
+            )
+            self.apply = server.gui.add_button(
+                "Apply cell",
+                icon=viser.Icon.CHECK,
+                hint="Rebuild the cell: the robot goes home; guide points and results are cleared",
+            )
+            self.upload = server.gui.add_upload_button(
+                "Upload mesh (STL/OBJ/PLY, mm)",
+                icon=viser.Icon.UPLOAD,
+                mime_type=MESH_MIME_TYPES,
+                hint=f"At most {max_mb:g} MB and {max_triangles:,} triangles, in mm; "
+                "placed on the table in front of the robot",
+            )
+            self.info = server.gui.add_markdown("")
+        self.apply.on_click(
+            guarded(
+                "Cell",
+                lambda e: self.session.set_cell(
+                    robot=self.robot.value,
+                    tool_radius_m=self.tool_radius.value * 1e-3,
+                    workpiece=self.workpiece.value,
+                ),
+            )
+        )
+        self.upload.on_upload(
+            guarded(
+                "Mesh upload",
+                lambda e: self.session.upload_workpiece(
+                    e.target.value.content, e.target.value.name
+                ),
+            )
+        )
+        self.refresh()
+
+    @staticmethod
+    def _workpiece_options(settings) -> tuple[str, ...]:
+        names = tuple(WORKPIECE_NAMES)
+        return names if settings.workpiece_builtin else (*names, settings.workpiece)
+
+    def refresh(self) -> None:
+        """Mirror the session's cell (after a change from here, the API or a project load)."""
+        s = self.session.cell_settings()
+        wp = self.session.workpiece
+        self.robot.value = s.robot
+        self.tool_radius.value = round(s.tool_radius_m * 1e3, 3)
+        self.workpiece.options = self._workpiece_options(s)
+        self.workpiece.value = s.workpiece
+        extents = wp.mesh.extents * 1e3
+        kind = "built-in" if s.workpiece_builtin else "uploaded mesh"
+        truth = "scored against its true wall" if wp.wall is not None else "no ground truth"
+        self.info.content = (
+            f"**{wp.name}** ({kind}): {len(wp.mesh.faces):,} triangles, "
+            f"{extents[0]:.0f} x {extents[1]:.0f} x {extents[2]:.0f} mm; {truth}."
+        )

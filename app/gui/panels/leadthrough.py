@@ -1,0 +1,202 @@
+"""Lead-through panel: compliance, the spring handle, push and orientation-jog buttons, pose.
+
+The handle on the tool is a virtual spring: once the user drags it, its offset from the TCP
+pushes the tool with ``F = k * offset`` (capped), on the compliant axes, until the tool reaches
+the handle or the wall pushes back as hard. Any move the spring did not make (a jog, a push
+button, the API, a job) snaps the handle back onto the tool, so a stale offset never pulls.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import viser
+
+from robomach_core.leadthrough import AXES
+
+from ..scene import CellScene
+from .feedback import guarded
+
+PUSH_DIRECTIONS = ("-X", "+X", "-Y", "+Y", "-Z", "+Z")
+JOG_DIRECTIONS = ("-Rx", "+Rx", "-Ry", "+Ry", "-Rz", "+Rz")
+SPRING_DEADBAND_M = 0.0005  # offsets below this push nothing (the handle sits on the tool)
+SPRING_MAX_N = 40.0
+SPRING_MAX_STEP_S = 0.1  # a late tick never integrates more than this at once
+AXIS_LABELS = {"x": "X", "y": "Y", "z": "Z", "rx": "Rx", "ry": "Ry", "rz": "Rz"}
+
+
+def euler_zyx_deg(T: np.ndarray) -> np.ndarray:
+    """ABB EulerZYX angles [rx, ry, rz] in degrees of a rotation (R = Rz Ry Rx)."""
+    R = T[:3, :3]
+    ry = math.asin(max(-1.0, min(1.0, -R[2, 0])))
+    rx = math.atan2(R[2, 1], R[2, 2])
+    rz = math.atan2(R[1, 0], R[0, 0])
+    return np.degrees([rx, ry, rz])
+
+
+def pose_markdown(snapshot, push_N: np.ndarray | None) -> str:
+    """The live pose readout: position in mm, orientation in degrees, forces in N."""
+    p = snapshot.T_base_tcp[:3, 3] * 1e3
+    r = euler_zyx_deg(snapshot.T_base_tcp)
+    f = snapshot.wrench[:3]
+    push = 0.0 if push_N is None else float(np.linalg.norm(push_N))
+    contact = "**in contact**" if snapshot.in_contact else "free"
+    busy = " - *a job moves the robot*" if snapshot.busy else ""
+    return (
+        "| | X | Y | Z |\n|---|---:|---:|---:|\n"
+        f"| mm | {p[0]:.2f} | {p[1]:.2f} | {p[2]:.2f} |\n"
+        f"| deg | {r[0]:.2f} | {r[1]:.2f} | {r[2]:.2f} |\n"
+        f"| F (N) | {f[0]:.1f} | {f[1]:.1f} | {f[2]:.1f} |\n\n"
+        f"Contact {np.linalg.norm(f):.1f} N, {contact}; push {push:.1f} N{busy}"
+    )
+
+
+class LeadThroughPanel:
+    """Compliance toggles, the spring handle, push buttons, orientation jogs, the live pose."""
+
+    def __init__(self, server: viser.ViserServer, session, scene: CellScene) -> None:
+        self.session = session
+        self.scene = scene
+        sel = session.compliance
+        with server.gui.add_folder("Lead-through"):
+            self.axes = {
+                a: server.gui.add_checkbox(
+                    f"Compliant {AXIS_LABELS[a]}",
+                    a in sel.axes,
+                    hint="Compliant axes follow the push; the others stay stiff",
+                )
+                for a in AXES
+            }
+            self.frame = server.gui.add_dropdown(
+                "Compliance frame", ("base", "tool"), initial_value=sel.frame
+            )
+            self.spring = server.gui.add_slider(
+                "Handle spring (N/mm)",
+                0.1,
+                5.0,
+                0.1,
+                0.5,
+                hint="Drag the handle on the tool: its offset from the TCP times this pushes",
+            )
+            self.release = server.gui.add_button(
+                "Release handle", icon=viser.Icon.HAND_STOP, hint="Put the handle back on the tool"
+            )
+            self.push_force = server.gui.add_number("Push force (N)", 10.0, min=0.5, max=50.0)
+            self.push_time = server.gui.add_number("Push time (s)", 0.5, min=0.05, max=10.0)
+            self.push = server.gui.add_button_group("Push", PUSH_DIRECTIONS)
+            self.jog_step = server.gui.add_number("Jog step (deg)", 2.0, min=0.1, max=45.0)
+            self.jog = server.gui.add_button_group("Jog tool", JOG_DIRECTIONS)
+            self.home = server.gui.add_button("Home", icon=viser.Icon.HOME)
+            self.pose = server.gui.add_markdown("")
+        for box in (*self.axes.values(), self.frame):
+            box.on_update(
+                guarded(
+                    "Compliance",
+                    lambda e: self.session.set_compliance(
+                        [a for a, b in self.axes.items() if b.value], self.frame.value
+                    ),
+                )
+            )
+        self.push.on_click(
+            guarded(
+                "Push",
+                lambda e: self.session.push(
+                    self._push_wrench(e.target.value), float(self.push_time.value)
+                ),
+            )
+        )
+        self.jog.on_click(
+            guarded(
+                "Jog",
+                lambda e: self.session.jog(
+                    e.target.value[1:].lower(),
+                    math.radians(self.jog_step.value) * _sign(e.target.value),
+                ),
+            )
+        )
+        self.home.on_click(guarded("Home", lambda e: self.session.go_home()))
+        self.release.on_click(lambda e: self.disarm())
+        scene.handle.on_update(lambda e: self.arm())
+        self._armed = False
+        self._last_tick = time.monotonic()
+        self._spring_time_s: float | None = None  # sim time after the spring's last push
+        self.push_N: np.ndarray | None = None
+
+    def _push_wrench(self, direction: str) -> np.ndarray:
+        w = np.zeros(6)
+        w["XYZ".index(direction[1])] = _sign(direction) * float(self.push_force.value)
+        return w
+
+    # ---------------------------------------------------------------- the spring handle
+
+    def arm(self) -> None:
+        """The user dragged the handle: its offset now pushes."""
+        self._armed = True
+        self._last_tick = time.monotonic()
+
+    def disarm(self) -> None:
+        """Stop pushing and put the handle back on the tool."""
+        self._armed = False
+        self.push_N = None
+        self.scene.handle_to(self.session.snapshot().T_base_tcp[:3, 3])
+
+    def spring_force(self, snapshot) -> np.ndarray | None:
+        """(3,) push force of the handle's offset from the TCP [N], or None when disarmed."""
+        if not self._armed:
+            return None
+        offset = np.asarray(self.scene.handle.position, dtype=float) - snapshot.T_base_tcp[:3, 3]
+        distance = float(np.linalg.norm(offset))
+        if distance < SPRING_DEADBAND_M:
+            return np.zeros(3)
+        force = offset * float(self.spring.value) * 1e3  # N/mm -> N/m
+        norm = float(np.linalg.norm(force))
+        return force if norm <= SPRING_MAX_N else force * (SPRING_MAX_N / norm)
+
+    def tick(self, snapshot):
+        """One scene tick: push by the spring for the real time elapsed; returns the snapshot
+        after the push (or the given one). Called by the workbench's updater thread."""
+        now = time.monotonic()
+        elapsed = min(now - self._last_tick, SPRING_MAX_STEP_S)
+        self._last_tick = now
+        if snapshot.busy:
+            self._armed, self.push_N = False, None
+            self.scene.handle_to(snapshot.T_base_tcp[:3, 3])
+            return snapshot
+        if (
+            self._armed
+            and self._spring_time_s is not None
+            and not math.isclose(snapshot.time_s, self._spring_time_s, abs_tol=1e-9)
+        ):
+            self._armed = False  # someone else moved the robot since the spring's last push
+        force = self.spring_force(snapshot)
+        self.push_N = force
+        if force is None:
+            self._spring_time_s = None
+            self.scene.handle_to(snapshot.T_base_tcp[:3, 3])
+            return snapshot
+        if not np.any(force) or elapsed <= 0:
+            self._spring_time_s = snapshot.time_s
+            return snapshot
+        try:
+            snapshot = self.session.push(np.concatenate([force, np.zeros(3)]), elapsed)
+        except Exception:  # busy or out of reach: stop pushing, keep the GUI alive
+            self.disarm()
+            raise
+        self._spring_time_s = snapshot.time_s
+        return snapshot
+
+    def refresh_compliance(self) -> None:
+        """Mirror the session's compliance selection (after an API change)."""
+        sel = self.session.compliance
+        for a, box in self.axes.items():
+            box.value = a in sel.axes
+        self.frame.value = sel.frame
+
+    def show_pose(self, snapshot) -> None:
+        self.pose.content = pose_markdown(snapshot, self.push_N)
+
+
+def _sign(direction: str) -> float:
+    return -1.0 if direction.startswith("-") else 1.0

@@ -1,0 +1,124 @@
+"""Path-learning panel: force and speed, run with progress and cancel, live force plot."""
+
+from __future__ import annotations
+
+import numpy as np
+import viser
+import viser.uplot
+
+from .feedback import guarded
+
+FORCE_RANGE_N = (10.0, 20.0)  # the chapter's 10-20 N contact force
+SPEED_RANGE_MM_S = (1.0, 20.0)
+PLOT_POINTS = 600
+
+
+class PathLearningPanel:
+    """Run the straight-line program through the guide points under Yp force control.
+
+    The plot shows the contact force against the setpoint: live (|F| every 20 ms of simulated
+    time) while a run goes on, then the recorded force along Yp.
+    """
+
+    def __init__(self, server: viser.ViserServer, session) -> None:
+        self.session = session
+        last = session.learning_settings()
+        with server.gui.add_folder("Path learning"):
+            self.force = server.gui.add_slider(
+                "Force (N)",
+                *FORCE_RANGE_N,
+                0.5,
+                last.force_N if last else 10.0,
+                hint="Contact force reference along Yp, towards the wall",
+            )
+            self.speed = server.gui.add_slider(
+                "Speed (mm/s)",
+                *SPEED_RANGE_MM_S,
+                0.5,
+                last.speed_m_s * 1e3 if last else 5.0,
+                hint="Learning speed along the path",
+            )
+            self.closed = server.gui.add_checkbox(
+                "Closed contour",
+                last.closed if last else True,
+                hint="Return from the last guide point to the first",
+            )
+            self.run = server.gui.add_button(
+                "Run path learning", icon=viser.Icon.PLAYER_PLAY, color="green"
+            )
+            self.cancel = server.gui.add_button(
+                "Cancel", icon=viser.Icon.PLAYER_STOP, color="red", disabled=True
+            )
+            self.progress = server.gui.add_progress_bar(0.0)
+            self.status = server.gui.add_markdown("")
+            self.plot = server.gui.add_uplot(
+                (np.zeros(2), np.zeros(2), np.full(2, self.force.value)),
+                (
+                    viser.uplot.Series(label="t (s)"),
+                    viser.uplot.Series(label="contact force (N)", stroke="#d62728", width=1.5),
+                    viser.uplot.Series(
+                        label="setpoint (N)", stroke="#1f77b4", width=1.5, dash=[6, 4]
+                    ),
+                ),
+                title="Contact force",
+                scales={
+                    "x": viser.uplot.Scale(time=False, auto=True),
+                    "y": viser.uplot.Scale(auto=True),
+                },
+                legend=viser.uplot.Legend(show=True),
+                aspect=1.6,
+            )
+        self.run.on_click(
+            guarded(
+                "Path learning",
+                lambda e: self.session.start_path_learning(
+                    self.force.value, self.speed.value * 1e-3, closed=self.closed.value
+                ),
+            )
+        )
+        self.cancel.on_click(guarded("Cancel", lambda e: self.session.cancel_job(self.job_id)))
+        self.job_id: str | None = None
+        self.refresh_plot()
+
+    def show_job(self, job) -> None:
+        """Reflect a path-learning job (running or just ended) in the buttons and the status."""
+        if job is None:
+            self.status.content = self._recording_summary()
+            return
+        running = job.status in ("queued", "running")
+        self.job_id = job.id if running else None
+        self.run.disabled = running
+        self.cancel.disabled = not running
+        self.progress.value = round(job.progress * 100.0, 1)
+        self.progress.animated = running
+        if running:
+            self.status.content = f"Running: {job.progress:.0%}"
+        elif job.status == "done":
+            self.status.content = self._recording_summary()
+        else:
+            self.status.content = f"**{job.status}**: {job.error or ''}"
+
+    def _recording_summary(self) -> str:
+        rec = self.session.recording()
+        if rec is None:
+            return "*No recording yet.*"
+        duration = float(rec.time_s[-1]) if len(rec) else 0.0
+        return f"{len(rec):,} samples over {duration:.1f} s; {rec.stop_reason}" + (
+            "" if rec.completed else " (**incomplete**)"
+        )
+
+    def refresh_plot(self) -> None:
+        """Redraw the force plot from the session's force trace."""
+        trace = self.session.force_trace(PLOT_POINTS)
+        if trace.source == "none" or len(trace.time_s) < 2:
+            t = np.zeros(2)
+            self.plot.data = (t, np.zeros(2), np.full(2, float(self.force.value)))
+            return
+        ref = trace.force_reference_N
+        if np.all(np.isnan(ref)):  # live: the reference of the run in progress
+            ref = np.full(len(trace.time_s), float(self.force.value))
+        self.plot.data = (
+            np.asarray(trace.time_s, dtype=float),
+            np.asarray(trace.force_N, dtype=float),
+            np.asarray(ref, dtype=float),
+        )

@@ -1,0 +1,141 @@
+"""Post-processing panel: force thresholds and tolerance that re-run at once, and the result.
+
+The scene shows the raw samples (grey), the samples kept by the force filter and the reduced
+targets; "Colour by deviation" paints the last two by their distance from the true tool path
+(built-in workpieces), green at 0 to red at the colour scale.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import viser
+
+from robomach_core.errors import RobomachError
+from robomach_core.scoring import true_tool_path_distance
+
+from ..scene import CellScene
+from .feedback import guarded
+
+
+class PostprocessPanel:
+    """Fmin/Fmax and tolerance; every change re-runs the filter and the reduction."""
+
+    def __init__(self, server: viser.ViserServer, session, scene: CellScene) -> None:
+        self.session = session
+        self.scene = scene
+        s = session.postprocess_settings()
+        with server.gui.add_folder("Post-processing"):
+            self.force_min = server.gui.add_slider(
+                "Fmin (N)",
+                0.0,
+                30.0,
+                0.5,
+                s.force_min_N,
+                hint="Samples with less contact force are dropped (lost contact)",
+            )
+            self.force_max = server.gui.add_slider(
+                "Fmax (N)",
+                1.0,
+                60.0,
+                0.5,
+                s.force_max_N,
+                hint="Samples with more contact force are dropped (corner spikes)",
+            )
+            self.tolerance = server.gui.add_slider(
+                "Tolerance (mm)",
+                0.02,
+                2.0,
+                0.01,
+                s.tolerance_m * 1e3,
+                hint="Deviation height of the reduction (the chapter: 0.2 mm, ~300 targets)",
+            )
+            self.colour = server.gui.add_checkbox("Colour by deviation", True)
+            self.scale = server.gui.add_slider("Colour scale (mm)", 0.05, 2.0, 0.05, 0.5)
+            self.summary = server.gui.add_markdown("")
+        for slider in (self.force_min, self.force_max, self.tolerance):
+            slider.on_update(guarded("Post-processing", lambda e: self.rerun()))
+        for control in (self.colour, self.scale):
+            control.on_update(lambda e: self.show_in_scene())
+        # A slider drag sends many values: one re-run at a time, the last value wins.
+        self._rerun_lock = threading.Lock()
+        self._rerun_pending = False
+        self.refresh()
+
+    def rerun(self) -> None:
+        """Post-process with the panel's values (coalescing updates that arrive meanwhile)."""
+        self._rerun_pending = True
+        if not self._rerun_lock.acquire(blocking=False):
+            return
+        try:
+            while self._rerun_pending:
+                self._rerun_pending = False
+                self.session.run_postprocess(
+                    force_min_N=self.force_min.value,
+                    force_max_N=self.force_max.value,
+                    tolerance_m=self.tolerance.value * 1e-3,
+                )
+        finally:
+            self._rerun_lock.release()
+
+    def refresh(self) -> None:
+        """Mirror the session's settings and outcome in the sliders, the summary and the scene."""
+        s = self.session.postprocess_settings()
+        self.force_min.value = s.force_min_N
+        self.force_max.value = s.force_max_N
+        self.tolerance.value = round(s.tolerance_m * 1e3, 3)
+        self.summary.content = self._summary()
+        self.show_in_scene()
+
+    def _summary(self) -> str:
+        outcome = self.session.postprocess_outcome()
+        if outcome is None:
+            if self.session.recording() is None:
+                return "*No recording yet.*"
+            return "*Not post-processed yet: move a slider.*"
+        r = outcome.result
+        lines = [
+            "| | |",
+            "|---|---:|",
+            f"| raw samples | {outcome.samples_raw:,} |",
+            f"| kept by the force filter | {r.samples_filtered:,} |",
+            f"| targets | {len(r.targets):,} |",
+        ]
+        if outcome.score is not None:
+            lines += [
+                f"| max deviation | {outcome.score.max_m * 1e3:.3f} mm |",
+                f"| RMS deviation | {outcome.score.rms_m * 1e3:.3f} mm |",
+            ]
+        else:
+            lines.append("| deviation | no ground truth |")
+        return "\n".join(lines)
+
+    def show_in_scene(self) -> None:
+        """Draw raw, filtered and reduced points (coloured by deviation when asked)."""
+        rec = self.session.recording()
+        outcome = self.session.postprocess_outcome()
+        if rec is None:
+            self.scene.set_samples(None)
+            return
+        if outcome is None:
+            self.scene.set_samples(rec.position_m)
+            return
+        r = outcome.result
+        filtered = r.surface_m[r.keep_mask]
+        targets = r.targets.position_m
+        dev_f = dev_t = None
+        if self.colour.value:
+            wp, radius = self.session.workpiece, self.session.cell.tool.radius_m
+            try:
+                dev_f = true_tool_path_distance(wp, radius, filtered)
+                dev_t = true_tool_path_distance(wp, radius, targets)
+            except RobomachError:  # an uploaded mesh has no true wall
+                dev_f = dev_t = None
+        self.scene.set_samples(
+            rec.position_m,
+            filtered,
+            targets,
+            filtered_deviation_m=dev_f,
+            targets_deviation_m=dev_t,
+            deviation_scale_m=self.scale.value * 1e-3,
+        )

@@ -1,0 +1,430 @@
+"""The workbench's 3D scene: robot, tool, workpiece, TCP frame, force arrows, guide points, paths.
+
+Scene paths follow the cell: ``/robot/...`` (URDF meshes, ``tcp`` carrying ``tcp/tool``,
+``force``, ``push``, ``handle``), ``/workpiece``, ``/path/guide_points``, ``/path/samples``
+(``raw``, ``filtered``) and ``/path/targets``. Everything is in the robot base frame, metres.
+The robot is drawn at the motor-side joints (what the controller knows); the tool hangs on the
+TCP frame.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import threading
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import trimesh
+import viser
+from viser.extras import ViserUrdf
+
+from robomach_core.robot import ROBOT_URDFS, robots_directory
+from robomach_core.tool import Tool
+from robomach_core.transforms import quaternion_from_matrix
+from robomach_core.workpiece import Workpiece
+
+# The example-robot-data URDFs name their meshes package://example-robot-data/robots/...
+_PACKAGE_PREFIXES = ("package://example-robot-data/robots/", "package://")
+FORCE_ARROW_M_PER_N = 0.005  # 10 N draws a 50 mm arrow
+ARROW_MIN_N = 1.0  # weaker forces draw no arrow (noise; path learning's contact flag is 1 N)
+WORKPIECE_COLOR = (150, 160, 175)
+TOOL_COLOR = (70, 70, 80)
+CUTTER_COLOR = (230, 180, 40)
+CONTACT_COLOR = (220, 40, 40)
+PUSH_COLOR = (40, 120, 230)
+RAW_COLOR = (150, 150, 150)
+FILTERED_COLOR = (40, 110, 220)
+TARGET_COLOR = (240, 120, 20)
+GUIDE_COLOR = (20, 160, 90)
+SELECTED_GUIDE_COLOR = (230, 40, 160)
+
+
+def _mesh_filename(fname: str) -> str:
+    """yourdfpy filename handler: resolve ``package://`` mesh names in example-robot-data."""
+    root = robots_directory()
+    for prefix in _PACKAGE_PREFIXES:
+        if fname.startswith(prefix):
+            rest = fname[len(prefix) :]
+            candidate = root / rest
+            return str(candidate if candidate.exists() else root.parent / rest)
+    return fname
+
+
+@functools.lru_cache(maxsize=4)
+def _load_urdf_bytes(robot: str) -> tuple[Path, bytes]:
+    path = robots_directory() / ROBOT_URDFS[robot]
+    return path, path.read_bytes()
+
+
+def load_urdf(robot: str):  # -> yourdfpy.URDF
+    """A fresh yourdfpy URDF of ``robot`` with its visual meshes (each ViserUrdf owns one)."""
+    import yourdfpy
+
+    path, _ = _load_urdf_bytes(robot)
+    return yourdfpy.URDF.load(
+        str(path),
+        filename_handler=_mesh_filename,
+        build_collision_scene_graph=False,
+        load_collision_meshes=False,
+    )
+
+
+def deviation_colors(deviation_m: np.ndarray, scale_m: float) -> np.ndarray:
+    """(n, 3) uint8 colours: green at 0, yellow at scale/2, red at and above ``scale_m``."""
+    t = np.clip(np.asarray(deviation_m, dtype=float) / max(scale_m, 1e-9), 0.0, 1.0)
+    stops = np.array([[30, 170, 70], [240, 200, 30], [220, 40, 40]], dtype=float)
+    lo = np.where(t < 0.5, stops[0][:, None], stops[1][:, None]).T
+    hi = np.where(t < 0.5, stops[1][:, None], stops[2][:, None]).T
+    f = np.where(t < 0.5, t * 2, (t - 0.5) * 2)[:, None]
+    return (lo + (hi - lo) * f).astype(np.uint8)
+
+
+def tool_mesh(tool: Tool) -> trimesh.Trimesh:
+    """Spindle body and cutter in the TCP frame (tool axis +Z, the body towards -Z)."""
+    length = float(tool.tcp_offset_m[2])
+    cutter_len = tool.flute_length_m
+    parts = []
+    body_len = max(length - cutter_len - 0.01, 0.01)
+    body = trimesh.creation.cylinder(radius=0.03, height=body_len, sections=32)
+    body.apply_translation([0.0, 0.0, -length + body_len / 2])
+    parts.append(body)
+    shank_len = max(length - body_len - cutter_len, 0.002)
+    shank = trimesh.creation.cylinder(radius=tool.radius_m * 0.8, height=shank_len, sections=16)
+    shank.apply_translation([0.0, 0.0, -cutter_len - shank_len / 2])
+    parts.append(shank)
+    return trimesh.util.concatenate(parts)
+
+
+def cutter_mesh(tool: Tool) -> trimesh.Trimesh:
+    """The cutting part in the TCP frame: a ball at the TCP or a cylinder ending at it."""
+    if tool.shape == "ball":
+        ball = trimesh.creation.icosphere(subdivisions=3, radius=tool.radius_m)
+        stem = trimesh.creation.cylinder(radius=tool.radius_m, height=tool.flute_length_m)
+        stem.apply_translation([0.0, 0.0, -tool.flute_length_m / 2])
+        return trimesh.util.concatenate([ball, stem])
+    mesh = trimesh.creation.cylinder(radius=tool.radius_m, height=tool.flute_length_m, sections=24)
+    mesh.apply_translation([0.0, 0.0, -tool.flute_length_m / 2])
+    return mesh
+
+
+def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """3x3 rotation about a unit axis (Rodrigues)."""
+    x, y, z = axis
+    c, s, t = math.cos(angle), math.sin(angle), 1.0 - math.cos(angle)
+    return np.array(
+        [
+            [t * x * x + c, t * x * y - s * z, t * x * z + s * y],
+            [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
+            [t * x * z - s * y, t * y * z + s * x, t * z * z + c],
+        ]
+    )
+
+
+class _RobotPose:
+    """Moves a ViserUrdf's joint frames fast: only the revolute joints' orientations.
+
+    ``ViserUrdf.update_cfg`` recomputes every joint through the trimesh scene graph and sets
+    position and orientation of every frame (~5 ms for a UR arm); a revolute joint's child
+    frame only turns about its axis, at a fixed origin, so six orientation updates suffice
+    (~1 ms), which keeps the 30+ Hz redraw cheap next to a running simulation. Relies on
+    ViserUrdf's joint-frame list (one frame per ``urdf.joint_map`` entry, in order); without it
+    falls back to ``update_cfg``.
+    """
+
+    def __init__(self, viser_urdf: ViserUrdf, urdf) -> None:  # urdf: yourdfpy.URDF
+        self._viser_urdf = viser_urdf
+        joints = list(urdf.joint_map.values())
+        frames = getattr(viser_urdf, "_joint_frames", None)
+        names = list(urdf.actuated_joint_names)
+        self._moving = []
+        if frames is not None and len(frames) == len(joints):
+            for frame, joint in zip(frames, joints, strict=True):
+                if joint.name in names and joint.type in ("revolute", "continuous"):
+                    axis = np.asarray(joint.axis, dtype=float)
+                    self._moving.append(
+                        (
+                            frame,
+                            names.index(joint.name),
+                            joint.origin[:3, :3].copy(),
+                            axis / np.linalg.norm(axis),
+                        )
+                    )
+        self._fast = len(self._moving) == len(names)
+        self._q: np.ndarray | None = None
+
+    def update(self, q: np.ndarray) -> None:
+        if not self._fast or self._q is None:
+            self._viser_urdf.update_cfg(q)  # the first call places every frame
+            self._q = q.copy()
+            return
+        for frame, i, R_origin, axis in self._moving:
+            if q[i] != self._q[i]:
+                frame.wxyz = quaternion_from_matrix(R_origin @ _axis_rotation(axis, q[i]))
+        self._q = q.copy()
+
+
+class CellScene:
+    """Scene nodes of the cell, updated from the session's state.
+
+    Args:
+        server: The viser server.
+    """
+
+    def __init__(self, server: viser.ViserServer) -> None:
+        self.server = server
+        self._lock = threading.Lock()
+        self._urdf: ViserUrdf | None = None
+        self._pose: _RobotPose | None = None
+        self._robot_name = ""
+        self._last_joints = np.full(6, np.nan)
+        self.guide_labels: list[viser.LabelHandle] = []
+        scene = server.scene
+        scene.set_up_direction("+z")
+        scene.add_grid("/grid", width=2.0, height=2.0, cell_size=0.1, section_size=0.5)
+        self.robot_root = scene.add_frame("/robot", show_axes=False)
+        self.tcp = scene.add_frame("/robot/tcp", axes_length=0.03, axes_radius=0.0015)
+        self.tool = scene.add_frame("/robot/tcp/tool", show_axes=False)
+        self.force = scene.add_arrows(
+            "/robot/force",
+            np.zeros((1, 2, 3)),
+            CONTACT_COLOR,
+            shaft_radius=0.002,
+            head_radius=0.005,
+            head_length=0.01,
+            visible=False,
+        )
+        self.force_label = scene.add_label(
+            "/robot/force/label", "", anchor="bottom-left", visible=False
+        )
+        self.push = scene.add_arrows(
+            "/robot/push",
+            np.zeros((1, 2, 3)),
+            PUSH_COLOR,
+            shaft_radius=0.002,
+            head_radius=0.005,
+            head_length=0.01,
+            visible=False,
+        )
+        self.push_label = scene.add_label("/robot/push/label", "", anchor="top-left", visible=False)
+        self.handle = scene.add_transform_controls(
+            "/robot/handle",
+            scale=0.12,
+            disable_rotations=True,
+            depth_test=False,
+        )
+        self.workpiece_node: viser.SceneNodeHandle | None = None
+        self._guides_node: viser.SceneNodeHandle | None = None
+
+    # ----------------------------------------------------------------- cell set-up
+
+    def set_robot(self, robot: str) -> None:
+        """Load and show the URDF of ``robot`` (``"ur10"``, ``"ur5"``, ``"ur3"``)."""
+        if robot == self._robot_name and self._urdf is not None:
+            return
+        urdf = load_urdf(robot)
+        with self._lock:
+            if self._urdf is not None:
+                self._urdf.remove()
+            self._urdf = ViserUrdf(self.server, urdf, root_node_name="/robot")
+            self._pose = _RobotPose(self._urdf, urdf)
+            self._robot_name = robot
+            self._last_joints = np.full(6, np.nan)
+
+    def set_tool(self, tool: Tool) -> None:
+        """Draw the spindle and cutter of ``tool`` on the TCP."""
+        body = tool_mesh(tool)
+        cutter = cutter_mesh(tool)
+        with self.server.atomic():
+            self.server.scene.add_mesh_simple(
+                "/robot/tcp/tool/body", body.vertices, body.faces, color=TOOL_COLOR
+            )
+            self.server.scene.add_mesh_simple(
+                "/robot/tcp/tool/cutter", cutter.vertices, cutter.faces, color=CUTTER_COLOR
+            )
+
+    def set_workpiece(self, workpiece: Workpiece) -> None:
+        """Show the workpiece mesh at its place in the base frame."""
+        mesh = workpiece.mesh_in_base()
+        self.workpiece_node = self.server.scene.add_mesh_simple(
+            "/workpiece",
+            mesh.vertices,
+            mesh.faces,
+            color=WORKPIECE_COLOR,
+            flat_shading=True,
+            side="double",
+        )
+
+    # ----------------------------------------------------------------- live state
+
+    def update_robot(
+        self,
+        joints_rad: np.ndarray,
+        T_base_tcp: np.ndarray,
+        force_N: np.ndarray,
+        push_N: np.ndarray | None = None,
+    ) -> None:
+        """Move the robot, the tool and the TCP frame; redraw the contact and push arrows.
+
+        Args:
+            joints_rad: (6,) motor-side joints.
+            T_base_tcp: 4x4 TCP pose.
+            force_N: (3,) measured contact force on the tool, base axes.
+            push_N: (3,) virtual push force, base axes (None hides the arrow).
+        """
+        p = T_base_tcp[:3, 3]
+        wxyz = quaternion_from_matrix(T_base_tcp[:3, :3])
+        with self.server.atomic():
+            if self._pose is not None and not np.array_equal(joints_rad, self._last_joints):
+                with self._lock:
+                    self._pose.update(np.asarray(joints_rad, dtype=float))
+                self._last_joints = np.array(joints_rad, dtype=float)
+            self.tcp.position = p
+            self.tcp.wxyz = wxyz
+            self._arrow(self.force, self.force_label, p, force_N, "contact")
+            self._arrow(self.push, self.push_label, p, push_N, "push")
+
+    @staticmethod
+    def _arrow(
+        arrow: viser.ArrowsHandle,
+        label: viser.LabelHandle,
+        origin: np.ndarray,
+        force_N: np.ndarray | None,
+        what: str,
+    ) -> None:
+        magnitude = 0.0 if force_N is None else float(np.linalg.norm(force_N))
+        if magnitude < ARROW_MIN_N:
+            if arrow.visible:
+                arrow.visible = False
+                label.visible = False
+            return
+        tip = origin + np.asarray(force_N) * FORCE_ARROW_M_PER_N
+        arrow.points = np.array([[origin, tip]], dtype=np.float32)
+        label.position = tip
+        label.text = f"{what} {magnitude:.1f} N"
+        if not arrow.visible:
+            arrow.visible = True
+            label.visible = True
+
+    def handle_to(self, position_m: np.ndarray) -> None:
+        """Put the push handle at ``position_m`` (no message when it is already there)."""
+        p = np.asarray(position_m, dtype=float)
+        if not np.allclose(self.handle.position, p, rtol=0.0, atol=1e-6):
+            self.handle.position = p
+
+    # ----------------------------------------------------------------- paths
+
+    def set_guide_points(
+        self,
+        Ts_base_guide: Sequence[np.ndarray],
+        *,
+        selected: int | None = None,
+    ) -> None:
+        """Show guide points as small axes with "G1", "G2", ... labels; ``selected`` highlighted."""
+        scene = self.server.scene
+        with self.server.atomic():
+            # Rebuild the subtree: removing the parent removes its axes and labels.
+            if self._guides_node is not None:
+                self._guides_node.remove()
+            self.guide_labels = []
+            self._guides_node = scene.add_frame("/path/guide_points", show_axes=False)
+            if not len(Ts_base_guide):
+                return
+            Ts = np.asarray(Ts_base_guide, dtype=float)
+            positions = Ts[:, :3, 3]
+            colors = np.tile(np.array(GUIDE_COLOR, dtype=np.uint8), (len(Ts), 1))
+            if selected is not None and 0 <= selected < len(Ts):
+                colors[selected] = SELECTED_GUIDE_COLOR
+            scene.add_point_cloud(
+                "/path/guide_points/points",
+                positions,
+                colors,
+                point_size=0.006,
+                point_shape="circle",
+                precision="float32",
+            )
+            scene.add_batched_axes(
+                "/path/guide_points/axes",
+                np.array([quaternion_from_matrix(T[:3, :3]) for T in Ts]),
+                positions,
+                axes_length=0.02,
+                axes_radius=0.001,
+            )
+            for k, p in enumerate(positions):
+                self.guide_labels.append(
+                    scene.add_label(
+                        f"/path/guide_points/labels/G{k + 1}",
+                        f"G{k + 1}",
+                        position=p + np.array([0.0, 0.0, 0.012]),
+                        anchor="bottom-center",
+                    )
+                )
+
+    def set_samples(
+        self,
+        raw_m: np.ndarray | None,
+        filtered_m: np.ndarray | None = None,
+        targets_m: np.ndarray | None = None,
+        *,
+        filtered_deviation_m: np.ndarray | None = None,
+        targets_deviation_m: np.ndarray | None = None,
+        deviation_scale_m: float = 0.5e-3,
+    ) -> None:
+        """Show raw samples (grey), filtered samples (blue, or coloured by deviation) and the
+        reduced targets (orange points joined by segments, or coloured by deviation)."""
+        scene = self.server.scene
+        empty = np.zeros((0, 3))
+        with self.server.atomic():
+            raw = empty if raw_m is None else np.asarray(raw_m)
+            scene.add_point_cloud(
+                "/path/samples/raw",
+                raw,
+                RAW_COLOR,
+                point_size=0.0008,
+                precision="float32",
+                visible=len(raw) > 0,
+            )
+            filt = empty if filtered_m is None else np.asarray(filtered_m)
+            colors = (
+                FILTERED_COLOR
+                if filtered_deviation_m is None
+                else deviation_colors(filtered_deviation_m, deviation_scale_m)
+            )
+            scene.add_point_cloud(
+                "/path/samples/filtered",
+                filt,
+                colors,
+                point_size=0.0012,
+                precision="float32",
+                visible=len(filt) > 0,
+            )
+            tg = empty if targets_m is None else np.asarray(targets_m)
+            tcolors = (
+                np.tile(np.array(TARGET_COLOR, dtype=np.uint8), (len(tg), 1))
+                if targets_deviation_m is None
+                else deviation_colors(targets_deviation_m, deviation_scale_m)
+            )
+            scene.add_point_cloud(
+                "/path/targets",
+                tg,
+                tcolors if len(tg) else TARGET_COLOR,
+                point_size=0.003,
+                point_shape="diamond",
+                precision="float32",
+                visible=len(tg) > 0,
+            )
+            if len(tg) >= 2:
+                segments = np.stack([tg[:-1], tg[1:]], axis=1)
+                seg_colors = np.stack([tcolors[:-1], tcolors[1:]], axis=1)
+                scene.add_line_segments(
+                    "/path/targets/segments",
+                    segments,
+                    seg_colors,
+                    thickness=2.0,
+                    thickness_units="screen",
+                )
+            else:
+                scene.add_line_segments(
+                    "/path/targets/segments", np.zeros((1, 2, 3)), TARGET_COLOR, visible=False
+                )

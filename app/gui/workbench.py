@@ -1,0 +1,186 @@
+"""The viser workbench: the cell's 3D scene and one panel per pipeline stage, over a Session.
+
+PROBLEM   The robot must move on screen at 30 Hz or more while it is pushed (by the spring
+          handle, the push buttons, the REST API or a job), and the panels must follow changes
+          made through the REST API, without the GUI thread pool blocking on long work.
+STRATEGY  One updater thread ticks at ``RATE_HZ``: it lets the spring handle push for the real
+          time elapsed, reads the session's snapshot, and redraws the robot when the simulated
+          time moved. Session change notifications only mark topics dirty; the same thread
+          refreshes the panels for them, so the session's threads never wait on the GUI.
+SOLUTION  ``Workbench(server, session)``; ``close()`` stops the thread and unsubscribes.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+
+import numpy as np
+import viser
+
+from robomach_core.errors import RobomachError
+
+from .panels import (
+    CellPanel,
+    ExportPanel,
+    GuidePointsPanel,
+    LeadThroughPanel,
+    PathLearningPanel,
+    PostprocessPanel,
+)
+from .panels.feedback import notify_error
+from .scene import CellScene
+
+log = logging.getLogger(__name__)
+
+RATE_HZ = 60.0
+JOB_DRAW_PERIOD_S = 0.03  # while a job runs, ~30 redraws a second leave it the CPU
+POSE_TEXT_PERIOD_S = 0.1  # the pose readout is text: 10 Hz is plenty to read
+PLOT_PERIOD_S = 0.25  # live force plot while a job runs
+BRAND_COLOR = (29, 53, 87)
+
+
+class Workbench:
+    """Builds the scene and the panels on ``server`` and keeps them in step with ``session``.
+
+    Args:
+        server: The viser server.
+        session: The ``app.session.Session`` shared with the REST API.
+        rate_hz: Updater rate (the robot is redrawn at most this often, only when it moved).
+    """
+
+    def __init__(self, server: viser.ViserServer, session, *, rate_hz: float = RATE_HZ) -> None:
+        self.server = server
+        self.session = session
+        self.period_s = 1.0 / rate_hz
+        server.gui.configure_theme(
+            control_layout="fixed",
+            control_width="large",
+            brand_color=BRAND_COLOR,
+            show_share_button=False,
+        )
+        server.initial_camera.position = (1.25, -0.35, 0.55)
+        server.initial_camera.look_at = (0.72, 0.14, 0.12)
+        server.initial_camera.up = (0.0, 0.0, 1.0)
+        self.scene = CellScene(server)
+        self._show_cell()
+        self.cell = CellPanel(server, session)
+        self.leadthrough = LeadThroughPanel(server, session, self.scene)
+        self.guide_points = GuidePointsPanel(server, session, self.scene)
+        self.path_learning = PathLearningPanel(server, session)
+        self.postprocess = PostprocessPanel(server, session, self.scene)
+        self.export = ExportPanel(server, session)
+        self._dirty: set[str] = {"job"}
+        self._dirty_lock = threading.Lock()
+        self._jobs_shown: dict[str, str] = {}  # job kind -> id of the job the panel shows
+        self._last_time_s = float("nan")
+        self._last_push: np.ndarray | None = None
+        self._next_text = 0.0
+        self._next_draw = 0.0
+        self._next_plot = 0.0
+        self.frames_drawn = 0  # robot redraws (benchmarks read it)
+        self._stop = threading.Event()
+        self._unsubscribe = session.subscribe(self._on_change)
+        self._thread = threading.Thread(target=self._run, name="robomach-scene", daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        """Stop the updater thread and stop listening to the session."""
+        self._stop.set()
+        self._unsubscribe()
+        self._thread.join(timeout=2.0)
+
+    # ---------------------------------------------------------------- change notifications
+
+    def _on_change(self, topic: str) -> None:
+        with self._dirty_lock:
+            self._dirty.add(topic)
+
+    def _take_dirty(self) -> set[str]:
+        with self._dirty_lock:
+            topics, self._dirty = self._dirty, set()
+        if "project" in topics:
+            topics |= {"cell", "compliance", "guide_points", "recording", "postprocess", "job"}
+        return topics
+
+    # ---------------------------------------------------------------- the updater thread
+
+    def _run(self) -> None:
+        next_tick = time.monotonic()
+        while not self._stop.is_set():
+            try:
+                self._tick()
+            except RobomachError as exc:  # e.g. the spring pushed out of reach
+                for client in self.server.get_clients().values():
+                    notify_error(client, "Lead-through", str(exc))
+            except Exception:
+                log.exception("workbench update failed")
+            next_tick = max(next_tick + self.period_s, time.monotonic())
+            self._stop.wait(max(0.0, next_tick - time.monotonic()))
+
+    def _tick(self) -> None:
+        topics = self._take_dirty()
+        if "cell" in topics:
+            self._show_cell()
+            self.cell.refresh()
+        if "compliance" in topics:
+            self.leadthrough.refresh_compliance()
+        if "guide_points" in topics or "cell" in topics:
+            self.guide_points.refresh()
+        if topics & {"job", "recording"}:
+            self._show_jobs()
+        if topics & {"recording", "postprocess", "cell"}:
+            self.postprocess.refresh()
+            self.export.refresh()
+        snapshot = self.leadthrough.tick(self.session.snapshot())
+        self._draw_robot(snapshot)
+        now = time.monotonic()
+        if snapshot.busy and now >= self._next_plot:
+            self._next_plot = now + PLOT_PERIOD_S
+            self.path_learning.refresh_plot()
+        elif "recording" in topics:
+            self.path_learning.refresh_plot()
+
+    def _draw_robot(self, snapshot) -> None:
+        push = self.leadthrough.push_N
+        moved = snapshot.time_s != self._last_time_s
+        pushed = not _same(push, self._last_push)
+        now = time.monotonic()
+        if not (moved or pushed) or (snapshot.busy and now < self._next_draw):
+            return
+        self._next_draw = now + JOB_DRAW_PERIOD_S
+        self._last_time_s, self._last_push = snapshot.time_s, None if push is None else push.copy()
+        self.scene.update_robot(snapshot.joints_rad, snapshot.T_base_tcp, snapshot.wrench[:3], push)
+        self.frames_drawn += 1
+        if now >= self._next_text:
+            self._next_text = now + POSE_TEXT_PERIOD_S
+            self.leadthrough.show_pose(snapshot)
+
+    def _show_cell(self) -> None:
+        cell = self.session.cell
+        self.scene.set_robot(cell.robot.name)
+        self.scene.set_tool(cell.tool)
+        self.scene.set_workpiece(cell.workpiece)
+        self._last_time_s = float("nan")  # redraw the new robot at once
+
+    def _show_jobs(self) -> None:
+        """Progress of the example and path-learning jobs, whoever started them."""
+        active = {j.kind: j for j in self.session.jobs.active(("example", "path_learning"))}
+        panels = {"example": self.guide_points, "path_learning": self.path_learning}
+        for kind, panel in panels.items():
+            job = active.get(kind)
+            if job is not None:
+                self._jobs_shown[kind] = job.id
+                panel.show_job(job)
+            elif kind in self._jobs_shown:
+                finished = self.session.job(self._jobs_shown.pop(kind))
+                panel.show_job(finished if kind == "path_learning" else None)
+            else:
+                panel.show_job(None)
+
+
+def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return bool(np.array_equal(a, b))
