@@ -208,3 +208,45 @@ def path_reference(
     T[:3, :3] = R
     T[:3, 3] = a + s * xp + y * yp + h * zp
     return T, yp, zp
+
+
+@_jit
+def admittance_reference(
+    T_ref: np.ndarray,
+    R_frame: np.ndarray,
+    velocity: np.ndarray,
+    wrench_base: np.ndarray,
+    mask: np.ndarray,
+    mass: np.ndarray,
+    damping: np.ndarray,
+    deadband: np.ndarray,
+    limit: np.ndarray,
+    dt: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """One admittance period: M dv/dt + D v = W in the selection frame, integrated into T_ref.
+
+    W (base axes) is rotated into the selection frame, shrunk by the deadband, and the damping is
+    taken implicitly: v+ = (M v + dt W) / (M + D dt); stiff axes (mask 0) keep v = 0.
+    Returns (new T_ref, new v).
+    """
+    Rt = R_frame.T
+    w = np.empty(6)
+    w[:3] = Rt @ wrench_base[:3]
+    w[3:] = Rt @ wrench_base[3:]
+    v = np.empty(6)
+    for i in range(6):
+        wi = w[i]
+        mag = abs(wi) - deadband[i]
+        wi = math.copysign(mag, wi) if mag > 0.0 else 0.0
+        vi = (mass[i] * velocity[i] + dt * wi) / (mass[i] + damping[i] * dt)
+        vi *= mask[i]
+        v[i] = min(max(vi, -limit[i]), limit[i])
+    lin = R_frame @ v[:3]
+    ang = R_frame @ v[3:]
+    T = T_ref.copy()
+    T[0, 3] += lin[0] * dt
+    T[1, 3] += lin[1] * dt
+    T[2, 3] += lin[2] * dt
+    if ang[0] != 0.0 or ang[1] != 0.0 or ang[2] != 0.0:
+        T[:3, :3] = exp3(ang * dt) @ T_ref[:3, :3]
+    return T, v

@@ -28,6 +28,7 @@ from .workpiece import Workpiece
 
 HAND_GAIN_N_M = 2000.0  # push per metre of distance to the goal
 HAND_MAX_N = 15.0  # a comfortable one-hand push
+HAND_MIN_N = 1.5  # a hand pushes firmly enough to get past the admittance's 1 N deadband
 WALL_PUSH_N = 6.0  # the gentle sideways push that finds the wall
 TOOL_DOWN = np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # x_tool = -y_base
 
@@ -146,9 +147,12 @@ def guide_plan(
 
 
 def _hand(goal: np.ndarray, p: np.ndarray, limit: float = HAND_MAX_N) -> np.ndarray:
-    f = HAND_GAIN_N_M * (goal - p)
-    norm = float(np.linalg.norm(f))
-    return f if norm <= limit else f * (limit / norm)
+    """Push towards ``goal``: HAND_MIN_N + gain * distance, capped at ``limit``."""
+    d = goal - p
+    dist = float(np.linalg.norm(d))
+    if dist < 1e-9:
+        return np.zeros(3)
+    return d / dist * min(limit, HAND_MIN_N + HAND_GAIN_N_M * dist)
 
 
 def push_to(
@@ -163,7 +167,7 @@ def push_to(
     """Push the tool towards ``goal`` until it is within ``tolerance_m`` and nearly still."""
     for _ in range(int(timeout_s / CONTROL_PERIOD_S)):
         p = state.cell.T_base_tcp[:3, 3]
-        if np.linalg.norm(goal - p) < tolerance_m and np.linalg.norm(state.velocity[:3]) < 2e-3:
+        if np.linalg.norm(goal - p) < tolerance_m:
             break
         wrench = np.concatenate([_hand(goal, p), np.zeros(3)])
         state = lt.step(state, wrench, selection)

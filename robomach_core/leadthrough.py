@@ -14,12 +14,14 @@ reference pose integrates v; the motor-side joints follow it by one IK step per 
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
 
+from . import _kernels
 from .cell import CONTROL_PERIOD_S, Cell, CellState
 from .errors import InvalidInputError
 from .sensor import ForceEstimator
@@ -27,7 +29,15 @@ from .transforms import quaternion_from_matrix, rotation_about
 
 Axis = Literal["x", "y", "z", "rx", "ry", "rz"]
 AXES: tuple[Axis, ...] = ("x", "y", "z", "rx", "ry", "rz")
+_IDENTITY = np.eye(3)
 ComplianceFrame = Literal["tool", "base"]
+
+
+@functools.lru_cache(maxsize=64)
+def _mask(axes: frozenset[str]) -> np.ndarray:
+    mask = np.array([a in axes for a in AXES], dtype=float)
+    mask.flags.writeable = False
+    return mask
 
 
 @dataclass(frozen=True)
@@ -50,7 +60,8 @@ class ComplianceSelection:
 
     @property
     def mask(self) -> np.ndarray:
-        return np.array([a in self.axes for a in AXES], dtype=float)
+        """(6,) 1.0 for compliant axes, 0.0 for stiff ones, in AXES order."""
+        return _mask(self.axes)
 
 
 @dataclass(frozen=True)
@@ -167,20 +178,22 @@ class LeadThrough:
         dt: float = CONTROL_PERIOD_S,
     ) -> LeadThroughState:
         """One period of admittance control under the push wrench (6,) at the TCP, base axes."""
-        R = state.cell.T_base_tcp[:3, :3] if selection.frame == "tool" else np.eye(3)
+        R = state.cell.T_base_tcp[:3, :3] if selection.frame == "tool" else _IDENTITY
         w_total = np.asarray(push_wrench, dtype=float) + self.measured_wrench(state.cell)
-        w_sel = np.concatenate([R.T @ w_total[:3], R.T @ w_total[3:]])
-        w_sel = np.sign(w_sel) * np.maximum(np.abs(w_sel) - self._deadband, 0.0)
-        # Damping taken implicitly: v+ = (M v + dt W) / (M + D dt), stable against a stiff wall
+        # Damping taken implicitly, v+ = (M v + dt W) / (M + D dt): stable against a stiff wall
         # (the contact loop gain k dt^2 / (M + D dt) stays well below 1 at 4 ms).
-        v = (self._mass * state.velocity + dt * w_sel) / (self._mass + self._damping * dt)
-        v = np.clip(v * selection.mask, -self._limit, self._limit)
-        twist_base = np.concatenate([R @ v[:3], R @ v[3:]])
-        T_ref = state.T_ref.copy()
-        T_ref[:3, 3] += twist_base[:3] * dt
-        angle = float(np.linalg.norm(twist_base[3:]) * dt)
-        if angle > 0:
-            T_ref[:3, :3] = rotation_about(twist_base[3:], angle) @ T_ref[:3, :3]
+        T_ref, v = _kernels.admittance_reference(
+            state.T_ref,
+            np.ascontiguousarray(R),
+            state.velocity,
+            w_total,
+            selection.mask,
+            self._mass,
+            self._damping,
+            self._deadband,
+            self._limit,
+            dt,
+        )
         q_cmd = self.cell.robot.ik_step(state.cell.q_motor, T_ref)
         cell_state = self.cell.step(state.cell, q_cmd, dt)
         return LeadThroughState(cell_state, T_ref, v)
