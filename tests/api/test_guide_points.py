@@ -34,7 +34,9 @@ def test_record_list_delete(api: Api) -> None:
     assert api.ok("GET", GP) == []
 
 
-@pytest.mark.parametrize(("index", "status"), [("5", 404), ("-1", 404), ("abc", 422)])
+@pytest.mark.parametrize(
+    ("index", "status"), [("5", 404), ("-1", 404), (str(10**30), 404), ("abc", 422), ("1.5", 422)]
+)
 def test_delete_missing_guide_point(api: Api, index: str, status: int) -> None:
     api.ok("POST", GP, 201)
     r = api.delete(f"{GP}/{index}")

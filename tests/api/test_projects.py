@@ -62,6 +62,8 @@ def test_duplicate_names_conflict(api: Api) -> None:
         ("POST", P, {}, 422),
         ("POST", f"{P}/999999/open", None, 404),
         ("POST", f"{P}/abc/open", None, 422),
+        ("POST", f"{P}/{10**30}/open", None, 422),
+        ("POST", f"{P}/0/open", None, 422),
         ("PATCH", f"{P}/999999", {"name": "x"}, 404),
         ("DELETE", f"{P}/999999", None, 404),
     ],

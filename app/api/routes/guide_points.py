@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Response, status
+from typing import Annotated
+
+from fastapi import APIRouter, Path, Response, status
 
 from app.api.routes import ERRORS, SessionDep
 from app.api.schemas import GuidePointPublic, JobCreated
@@ -27,7 +29,9 @@ def record_guide_point(session: SessionDep) -> GuidePointPublic:
 
 
 @router.delete("/{index}", status_code=status.HTTP_204_NO_CONTENT)
-def delete_guide_point(index: int, session: SessionDep) -> Response:
+def delete_guide_point(
+    index: Annotated[int, Path(description="from 0")], session: SessionDep
+) -> Response:
     """Delete one guide point; the later ones move down by one."""
     session.delete_guide_point(index)
     return Response(status_code=status.HTTP_204_NO_CONTENT)

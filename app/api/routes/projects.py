@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, Response, status
+from typing import Annotated
+
+from fastapi import APIRouter, Path, Response, status
 
 from app.api.routes import ERRORS, SessionDep
 from app.api.schemas import ProjectCreate, ProjectPublic, ProjectUpdate
 
 router = APIRouter(prefix="/api/projects", tags=["projects"], responses=ERRORS)
+
+ProjectId = Annotated[int, Path(ge=1, le=2**63 - 1, description="the project's id")]
 
 
 @router.get("")
@@ -29,19 +33,21 @@ def create_project(body: ProjectCreate, session: SessionDep) -> ProjectPublic:
 
 
 @router.post("/{project_id}/open")
-def open_project(project_id: int, session: SessionDep) -> ProjectPublic:
+def open_project(project_id: ProjectId, session: SessionDep) -> ProjectPublic:
     """Open a project: its cell, robot pose, guide points, recording and results."""
     return ProjectPublic.from_info(session.open_project(project_id))
 
 
 @router.patch("/{project_id}")
-def rename_project(project_id: int, body: ProjectUpdate, session: SessionDep) -> ProjectPublic:
+def rename_project(
+    project_id: ProjectId, body: ProjectUpdate, session: SessionDep
+) -> ProjectPublic:
     """Rename a project."""
     return ProjectPublic.from_info(session.rename_project(project_id, body.name))
 
 
 @router.delete("/{project_id}", status_code=status.HTTP_204_NO_CONTENT)
-def delete_project(project_id: int, session: SessionDep) -> Response:
+def delete_project(project_id: ProjectId, session: SessionDep) -> Response:
     """Delete a project and its saved exports; deleting the open one opens another."""
     session.delete_project(project_id)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
