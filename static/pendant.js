@@ -15,6 +15,7 @@ const $ = (id) => document.getElementById(id);
 let selectedGuide = null;
 let learnJob = null;
 let stateBusy = false;
+let moves = 0; // robot-moving calls answered; a poll that overlaps one is stale
 
 // ---------------------------------------------------------------- messages and requests
 
@@ -123,8 +124,11 @@ function showState(state) {
 async function pollState() {
   if (stateBusy) return;
   stateBusy = true;
+  const movesBefore = moves;
   try {
-    showState(await api("GET", "/state", undefined, { quiet: true }));
+    const state = await api("GET", "/state", undefined, { quiet: true });
+    // A push or jog answered meanwhile shows a newer pose than this poll may have read.
+    if (moves === movesBefore) showState(state);
     setConnected(true);
   } catch (_) {
     setConnected(false);
@@ -135,17 +139,22 @@ async function pollState() {
 
 // ---------------------------------------------------------------- jog, push, compliance
 
+function showMove(state) {
+  moves += 1;
+  showState(state);
+}
+
 async function jog(axis, sign) {
   const rotational = axis.startsWith("r");
   const step = Number($(rotational ? "jog-step-deg" : "jog-step-mm").value) * sign;
-  showState(await api("POST", "/leadthrough/jog", { axis, step }));
+  showMove(await api("POST", "/leadthrough/jog", { axis, step }));
 }
 
 async function push(dir, sign) {
   const force = [0, 0, 0];
   force[dir] = Number($("push-force").value) * sign;
   const duration = Number($("push-duration").value);
-  showState(await api("POST", "/leadthrough/push", { force_N: force, duration_s: duration }));
+  showMove(await api("POST", "/leadthrough/push", { force_N: force, duration_s: duration }));
 }
 
 // Hold-to-push: one push per press, repeated while the button stays pressed.
