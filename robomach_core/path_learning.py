@@ -58,6 +58,8 @@ class PathLearningSettings:
         kp_m_s_N: Proportional gain of the Yp force loop.
         ki_m_s2_N: Integral gain of the Yp force loop.
         max_normal_speed_m_s: Speed limit along Yp.
+        search_speed_m_s: Speed limit along Yp while out of contact (searching for the wall),
+            so the tool meets it gently instead of at the full speed limit.
     """
 
     force_N: float = 10.0
@@ -68,6 +70,7 @@ class PathLearningSettings:
     kp_m_s_N: float = 1.5e-3
     ki_m_s2_N: float = 0.03
     max_normal_speed_m_s: float = 0.025
+    search_speed_m_s: float = 0.005
 
     def __post_init__(self) -> None:
         lo, hi = FORCE_RANGE_N
@@ -301,6 +304,7 @@ def learn_path(
         settings.speed_m_s,
         settings.force_N,
     )
+    search = settings.search_speed_m_s
     while True:
         if n >= n_max:
             stop_reason = "stopped: the run took far longer than the program predicts"
@@ -341,8 +345,9 @@ def learn_path(
             break
         # --- force control along Yp, position along Xp and Zp ---
         e = f_ref - f_y
-        integral = min(max(integral + ki * e * dt, -vmax), vmax)
-        v_y = min(max(kp * e + integral, -vmax), vmax)
+        limit = vmax if f_abs > CONTACT_FLAG_N else search
+        integral = min(max(integral + ki * e * dt, -limit), limit)
+        v_y = min(max(kp * e + integral, -vmax), limit)
         y += v_y * dt
         s += speed * dt
         h *= 0.99  # fade any height offset left by a segment change (~1 s)

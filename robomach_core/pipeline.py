@@ -9,8 +9,9 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -21,7 +22,7 @@ from .export.program import ReachabilityReport, check_reachability, rapid_progra
 from .export.rapid import rapid_module
 from .leadthrough import GuidePoint, LeadThrough
 from .path_learning import PathLearningSettings, Recording, learn_path
-from .postprocess import PostprocessResult, PostprocessSettings, postprocess
+from .postprocess import PostprocessResult, PostprocessSettings, Targets, postprocess
 from .scoring import PathScore, score_path
 from .tool import Tool
 from .workpiece import Workpiece, builtin_workpiece, load_mesh_file
@@ -50,6 +51,10 @@ class DemoSettings:
             ``demo_operator.intents_from_csv``) instead of the built-in plan; needed for mesh
             files, whose wall is unknown.
         wall_side: Side of the wall for path learning ("auto" reads the guide forces).
+        cmrr: Feed-rate control settings (``robomach cmrr``); the program's machining moves
+            are wrapped in an FC SpeedChange block.
+        compensation: Identified stiffness and mode (``robomach compensate``); in the offline
+            modes each target is corrected for the contact wrench learned at it.
     """
 
     robot: str = "ur10"
@@ -63,6 +68,8 @@ class DemoSettings:
     force_control_variant: bool = True
     guide_points_csv: str | None = None
     wall_side: str = "auto"
+    cmrr: Any = None  # robomach_core.cmrr.CmrrSettings
+    compensation: Any = None  # robomach_core.stiffness.CompensationSettings
 
 
 @dataclass(frozen=True)
@@ -124,6 +131,12 @@ class DemoResult:
             "wall_time_s": self.wall_time_s,
             "learning_wall_time_s": self.learning_wall_s,
             "realtime_factor": sim_s / self.learning_wall_s if self.learning_wall_s > 0 else None,
+            "cmrr_controller": None
+            if self.settings.cmrr is None
+            else self.settings.cmrr.controller.kind,
+            "compensation_mode": None
+            if self.settings.compensation is None
+            else self.settings.compensation.mode,
         }
         if self.score is not None:
             out["max_deviation_mm"] = self.score.max_m * 1e3
@@ -200,14 +213,27 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         f"{len(processed.targets)} targets from {len(recording)} samples "
         f"({processed.samples_filtered} kept by the force filter)",
     )
+    targets = processed.targets
+    speed_change = None
+    if settings.cmrr is not None:
+        from .cmrr import to_speed_change_settings
+
+        speed_change = to_speed_change_settings(settings.cmrr)
+        header += (
+            f"CMRR: {settings.cmrr.controller.kind}, reference "
+            f"{settings.cmrr.reference_force_N:g} N",
+        )
+    if settings.compensation is not None:
+        targets, note = compensate_program_targets(cell, recording, targets, settings.compensation)
+        header += (note,)
     module_text = rapid_module(
-        rapid_program(processed.targets, settings.tool, workpiece, comment=header)
+        rapid_program(targets, settings.tool, workpiece, comment=header, speed_change=speed_change)
     )
     module_text_fc = None
     if settings.force_control_variant:
         module_text_fc = rapid_module(
             rapid_program(
-                processed.targets,
+                targets,
                 settings.tool,
                 workpiece,
                 module_name="LearnedPathFC",
@@ -215,7 +241,7 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
                 comment=header,
             )
         )
-    reach = check_reachability(module_text, cell.robot, workpiece, processed.targets.joints_rad[0])
+    reach = check_reachability(module_text, cell.robot, workpiece, targets.joints_rad[0])
     report("export", 1.0)
     return DemoResult(
         settings=settings,
@@ -230,4 +256,52 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         leadthrough_sim_s=float(state.cell.time_s),
         learning_wall_s=learning_wall,
         wall_time_s=time.perf_counter() - started,
+    )
+
+
+def compensate_program_targets(
+    cell: Cell, recording: Recording, targets: Targets, compensation: Any
+) -> tuple[Targets, str]:
+    """Targets corrected for the contact wrench learned at each one (offline modes), and a note.
+
+    The process wrench the program will meet is the one measured while learning it (the
+    compensated tool-frame wrench at each target's sample, turned into base axes). Online
+    compensation happens in the controller at run time, so it leaves the targets as they are.
+    """
+    from .errors import InvalidInputError
+    from .stiffness import compensate_targets_and_joints
+    from .transforms import make_transform, matrix_from_quaternion, quaternions_from_matrices
+
+    if compensation.robot != cell.robot.name:
+        raise InvalidInputError(
+            f"the compensation settings were identified on {compensation.robot}, "
+            f"the cell has {cell.robot.name}"
+        )
+    if compensation.mode in ("off", "online"):
+        return targets, f"deflection compensation: {compensation.mode} (targets as learned)"
+    mode = "linear" if compensation.mode == "offline_linear" else "nonlinear"
+    Ts = np.array(
+        [
+            make_transform(matrix_from_quaternion(q), p)
+            for p, q in zip(targets.position_m, targets.quaternion_wxyz, strict=True)
+        ]
+    )
+    wrenches = np.empty((len(targets), 6))
+    for k, i in enumerate(targets.sample_index):
+        R = matrix_from_quaternion(recording.quaternion_wxyz[i])
+        wrenches[k, :3] = R @ recording.wrench_tool[i, :3]
+        wrenches[k, 3:] = R @ recording.wrench_tool[i, 3:]
+    Ts_c, q_c = compensate_targets_and_joints(
+        cell.robot, Ts, targets.joints_rad, wrenches, compensation.model, mode
+    )
+    corrected = replace(
+        targets,
+        position_m=Ts_c[:, :3, 3].copy(),
+        quaternion_wxyz=quaternions_from_matrices(Ts_c[:, :3, :3]),
+        joints_rad=np.asarray(q_c),
+    )
+    shift = np.linalg.norm(corrected.position_m - targets.position_m, axis=1).max()
+    return corrected, (
+        f"deflection compensation: {compensation.mode}, largest target correction "
+        f"{shift * 1e3:.4f} mm"
     )

@@ -59,6 +59,20 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="side of the wall relative to the travel direction (default: from the "
         "contact force recorded at the guide points)",
     )
+    p.add_argument(
+        "--cmrr-settings",
+        type=Path,
+        metavar="JSON",
+        help="cmrr_settings.json from `robomach cmrr`: wrap the machining moves in an "
+        "FC SpeedChange block with that controller's reference and speed stages",
+    )
+    p.add_argument(
+        "--compensation-settings",
+        type=Path,
+        metavar="JSON",
+        help="compensation_settings.json from `robomach compensate`: in the offline "
+        "modes, correct every target for the contact wrench learned at it",
+    )
     p.add_argument("--no-plot", action="store_true", help="skip demo.png")
     p.set_defaults(func=run)
 
@@ -116,6 +130,16 @@ def run(args: argparse.Namespace) -> int:
             raise InvalidInputError(f"--guide-points {args.guide_points}: no such file")
         guide_csv = args.guide_points.read_text(errors="replace")
 
+    cmrr = compensation = None
+    if args.cmrr_settings is not None:
+        from robomach_core.cmrr import load_settings as load_cmrr
+
+        cmrr = load_cmrr(args.cmrr_settings)
+    if args.compensation_settings is not None:
+        from robomach_core.stiffness import load_settings as load_compensation
+
+        compensation = load_compensation(args.compensation_settings)
+
     from robomach_core.export.outputs import write_demo_outputs
     from robomach_core.pipeline import DemoSettings, run_demo
 
@@ -128,6 +152,8 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         guide_points_csv=guide_csv,
         wall_side=args.wall_side,
+        cmrr=cmrr,
+        compensation=compensation,
     )
     bar = _ProgressLine()
     try:

@@ -162,3 +162,60 @@ def test_same_seed_same_output(tmp_path):
         outs.append(out)
     for name in ("program.mod", "samples.csv", "targets.csv"):
         assert (outs[0] / name).read_bytes() == (outs[1] / name).read_bytes(), name
+
+
+@pytest.mark.slow
+def test_demo_exports_cmrr_speed_change_and_compensated_targets(tmp_path):
+    from robomach_core.cmrr import build_scenario, cmrr_settings_for, save_settings, settings_for
+    from robomach_core.joint_compliance import TRUE_JOINT_STIFFNESS_NM_RAD
+    from robomach_core.stiffness import CompensationSettings
+    from robomach_core.stiffness import save_settings as save_compensation
+
+    cmrr_json = save_settings(
+        cmrr_settings_for(build_scenario("deburr-burrs"), settings_for("two-stage")),
+        tmp_path / "cmrr.json",
+    )
+    comp_json = save_compensation(
+        CompensationSettings("ur10", TRUE_JOINT_STIFFNESS_NM_RAD["ur10"], mode="offline_linear"),
+        tmp_path / "comp.json",
+    )
+    out = tmp_path / "out"
+    proc = robomach(
+        "demo",
+        "--out",
+        str(out),
+        "--workpiece",
+        "block",
+        "--no-plot",
+        "--cmrr-settings",
+        str(cmrr_json),
+        "--compensation-settings",
+        str(comp_json),
+    )
+    assert proc.returncode == 0, proc.stderr
+    text = (out / "program.mod").read_text()
+    check_rapid_module(text)
+    assert "FCSpdChgAct" in text and "FCSpdChgDeact" in text
+    correction = float(text.split("largest target correction ")[1].split(" mm")[0])
+    assert 0.0 < correction < 0.1  # a 10 N contact on a ~1 N/um arm: micrometres
+    settings = json.loads((out / "settings.json").read_text())
+    assert settings["cmrr"]["controller"] == "two-stage"
+    assert settings["compensation"]["mode"] == "offline_linear"
+
+
+def test_settings_files_are_validated(tmp_path):
+    bad = tmp_path / "cmrr.json"
+    bad.write_text("[1, 2]")
+    _assert_one_line_error(
+        robomach("demo", "--out", str(tmp_path / "o"), "--cmrr-settings", str(bad)), "CMRR"
+    )
+    _assert_one_line_error(
+        robomach(
+            "demo",
+            "--out",
+            str(tmp_path / "o"),
+            "--compensation-settings",
+            str(tmp_path / "missing.json"),
+        ),
+        "does not exist",
+    )
