@@ -9,62 +9,83 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from fastapi.testclient import TestClient
 
-from tests.api.server_process import ROOT, Api, ServerProcess, free_port, start_server
+from app.api import create_app
+from app.server import data_dir_lock
+from app.session import Session
+from app.settings import ServerSettings
+from robomach_core.errors import InvalidInputError
+from tests.api.server_process import ROOT, free_port
 
 TOKEN = "test-token-0123456789abcdef"
 
 
 @pytest.fixture(scope="module")
-def guarded(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServerProcess]:
-    proc = start_server(tmp_path_factory.mktemp("token") / "data", env={"ROBOMACH_TOKEN": TOKEN})
-    yield proc
-    proc.stop()
+def guarded() -> Iterator[TestClient]:
+    """The app with a token, in process (the middleware is the same as over the network)."""
+    settings = ServerSettings(viser_port=None, token=TOKEN)
+    with TestClient(create_app(Session(), settings), raise_server_exceptions=False) as client:
+        yield client
 
 
-def test_mutating_calls_need_the_token(guarded: ServerProcess) -> None:
-    anonymous = Api(guarded.base_url)
-    assert anonymous.get("/api/state").status_code == 200  # reading is open
-    for method, path, body in (
+@pytest.mark.parametrize(
+    ("method", "path", "body"),
+    [
         ("POST", "/api/leadthrough/push", {"force_N": [1, 0, 0], "duration_s": 0.1}),
         ("POST", "/api/guide-points", None),
         ("PUT", "/api/cell", {"robot": "ur5"}),
         ("DELETE", "/api/guide-points/0", None),
         ("POST", "/api/projects", {"name": "intruder"}),
-    ):
-        r = anonymous.http.request(method, path, json=body)
-        assert r.status_code == 401 and "token" in r.json()["detail"], (path, r.text)
-    wrong = Api(guarded.base_url, headers={"Authorization": "Bearer not-the-token"})
-    assert wrong.post("/api/guide-points").status_code == 401
-    bearer = Api(guarded.base_url, headers={"Authorization": f"Bearer {TOKEN}"})
-    assert bearer.post("/api/guide-points").status_code == 201
-    header = Api(guarded.base_url, headers={"X-Robomach-Token": TOKEN})
-    assert header.post("/api/guide-points").status_code == 201
-    assert len(anonymous.ok("GET", "/api/guide-points")) == 2
+        ("PATCH", "/api/projects/1", {"name": "intruder"}),
+    ],
+)
+def test_mutating_calls_need_the_token(
+    guarded: TestClient, method: str, path: str, body: dict | None
+) -> None:
+    r = guarded.request(method, path, json=body)
+    assert r.status_code == 401 and "token" in r.json()["detail"], r.text
+    assert r.headers["www-authenticate"] == "Bearer"
+    r = guarded.request(method, path, json=body, headers={"Authorization": "Bearer wrong"})
+    assert r.status_code == 401 and r.json()["detail"] == "wrong token"
 
 
-def _serve(args: list[str], env: dict[str, str], tmp: Path) -> subprocess.CompletedProcess:
-    full_env = {**os.environ, **env}
-    if "ROBOMACH_TOKEN" not in env:
-        full_env.pop("ROBOMACH_TOKEN", None)
-    return subprocess.run(
-        [sys.executable, "-m", "app.cli", "serve", "--data", str(tmp / "data"), *args],
-        cwd=ROOT, env=full_env, capture_output=True, text=True, timeout=60,
-    )  # fmt: skip
+def test_the_token_opens_them_and_reads_stay_open(guarded: TestClient) -> None:
+    assert guarded.get("/api/state").status_code == 200
+    before = len(guarded.get("/api/guide-points").json())
+    r = guarded.post("/api/guide-points", headers={"Authorization": f"Bearer {TOKEN}"})
+    assert r.status_code == 201
+    r = guarded.post("/api/guide-points", headers={"X-Robomach-Token": TOKEN})
+    assert r.status_code == 201
+    assert len(guarded.get("/api/guide-points").json()) == before + 2
 
 
-def test_binding_beyond_loopback_needs_a_token(tmp_path: Path) -> None:
-    port = str(free_port())
-    r = _serve(["--host", "0.0.0.0", "--port", port], {}, tmp_path)
-    assert r.returncode == 2 and "ROBOMACH_TOKEN" in r.stderr
-    r = _serve(["--host", "0.0.0.0", "--port", port], {"ROBOMACH_TOKEN": "short"}, tmp_path)
-    assert r.returncode == 2 and "at least 16 characters" in r.stderr
+def test_settings_refuse_an_open_bind_without_a_token() -> None:
+    with pytest.raises(InvalidInputError, match="ROBOMACH_TOKEN"):
+        ServerSettings.from_env({}, host="0.0.0.0")
+    with pytest.raises(InvalidInputError, match="at least 16"):
+        ServerSettings.from_env({"ROBOMACH_TOKEN": "short"}, host="0.0.0.0")
+    with pytest.raises(InvalidInputError, match="must differ"):
+        ServerSettings.from_env({}, port=8000, viser_port=8000)
+    settings = ServerSettings.from_env({"ROBOMACH_TOKEN": TOKEN, "ROBOMACH_HOST": "0.0.0.0"})
+    assert settings.token == TOKEN and not settings.loopback
+    assert ServerSettings.from_env({}).loopback
 
 
-def test_one_server_per_data_folder(guarded: ServerProcess) -> None:
+def test_cli_refuses_an_open_bind_without_a_token(tmp_path: Path) -> None:
+    env = {k: v for k, v in os.environ.items() if k != "ROBOMACH_TOKEN"}
     r = subprocess.run(
-        [sys.executable, "-m", "app.cli", "serve", "--data", str(guarded.data_dir),
-         "--port", str(free_port()), "--viser-port", str(free_port())],
-        cwd=ROOT, capture_output=True, text=True, timeout=60,
+        [sys.executable, "-m", "app.cli", "serve", "--host", "0.0.0.0", "--port",
+         str(free_port()), "--data", str(tmp_path / "data")],
+        cwd=ROOT, env=env, capture_output=True, text=True, timeout=60,
     )  # fmt: skip
-    assert r.returncode == 2 and "another robomach serve" in r.stderr
+    assert r.returncode == 2 and "ROBOMACH_TOKEN" in r.stderr
+
+
+def test_one_server_per_data_folder(tmp_path: Path) -> None:
+    with data_dir_lock(tmp_path / "data"):
+        with pytest.raises(InvalidInputError, match="another robomach serve"):
+            with data_dir_lock(tmp_path / "data"):
+                pass
+    with data_dir_lock(tmp_path / "data"):  # released on exit
+        pass
