@@ -308,7 +308,7 @@ class JobContext:
     def check_cancelled(self) -> None:
         """Raise ``CancelledError`` when the user asked to cancel."""
         if self._job.cancel.is_set():
-            raise CancelledError(f"{self._job.kind} was cancelled")
+            raise CancelledError(f"{self._job.kind.replace('_', ' ')} was cancelled")
 
 
 @dataclass(eq=False)
@@ -422,7 +422,7 @@ class JobRunner:
             if queued:
                 self._queue.remove(job)
                 job.status = "cancelled"
-                job.error = f"{job.kind} was cancelled"
+                job.error = f"{job.kind.replace('_', ' ')} was cancelled"
                 job.finished_s = time.time()
         if queued:
             self._finish(job)

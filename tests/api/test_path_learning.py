@@ -71,3 +71,25 @@ def test_unknown_jobs_are_404(api: Api) -> None:
         r = api.http.request(method, path)
         assert r.status_code == 404 and "no job" in r.json()["detail"]
     assert isinstance(api.ok("GET", "/api/jobs"), list)
+
+
+def test_cancel_while_learning_keeps_the_last_recording(api: Api) -> None:
+    api.block_guide_points()
+    # 80 mm at 0.5 mm/s: minutes of simulated time, long enough to cancel mid-run.
+    body = {"force_N": 10, "speed_mm_s": 0.5, "closed": False}
+    job_id = api.ok("POST", PL, 202, json=body)["job_id"]
+    t0 = api.ok("GET", "/api/state")["time_s"]
+    while api.ok("GET", "/api/state")["time_s"] < t0 + 2.0:
+        assert api.ok("GET", f"/api/jobs/{job_id}")["status"] in ("queued", "running")
+    state = api.ok("GET", "/api/state")
+    assert state["busy"] is True
+    live = api.ok("GET", f"{PL}/recording")
+    assert live["source"] == "live" and live["force_reference_N"] is None
+    assert api.ok("POST", f"/api/jobs/{job_id}/cancel")["job_id"] == job_id
+    job = api.wait_job(job_id, timeout_s=10)
+    assert job["status"] == "cancelled" and job["error"] == "path learning was cancelled"
+    assert api.ok("GET", f"{PL}/recording")["source"] == "none"
+    after = api.ok("GET", "/api/state")
+    assert after["busy"] is False and after["time_s"] >= state["time_s"]
+    r = api.post("/api/postprocess", json={})
+    assert r.status_code == 409
