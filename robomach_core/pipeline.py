@@ -51,6 +51,8 @@ class DemoSettings:
             ``demo_operator.intents_from_csv``) instead of the built-in plan; needed for mesh
             files, whose wall is unknown.
         wall_side: Side of the wall for path learning ("auto" reads the guide forces).
+        wobj_mm_deg: Work-object frame (x, y, z [mm], rotation about base z [deg]) placing the
+            workpiece; default: the built-in placement in front of the robot.
         cmrr: Feed-rate control settings (``robomach cmrr``); the program's machining moves
             are wrapped in an FC SpeedChange block.
         compensation: Identified stiffness and mode (``robomach compensate``); in the offline
@@ -68,6 +70,7 @@ class DemoSettings:
     force_control_variant: bool = True
     guide_points_csv: str | None = None
     wall_side: str = "auto"
+    wobj_mm_deg: tuple[float, ...] | None = None
     cmrr: Any = None  # robomach_core.cmrr.CmrrSettings
     compensation: Any = None  # robomach_core.stiffness.CompensationSettings
 
@@ -146,6 +149,17 @@ class DemoResult:
         return out
 
 
+def wobj_transform(values: tuple[float, ...]) -> np.ndarray:
+    """4x4 work-object frame from (x, y, z [mm]) or (x, y, z [mm], rz [deg])."""
+    from .transforms import make_transform, rotation_about
+
+    v = [float(x) for x in values]
+    if len(v) not in (3, 4) or not all(np.isfinite(v)):
+        raise InvalidInputError("the work object is x,y,z in mm with an optional rz in degrees")
+    rz = np.radians(v[3]) if len(v) == 4 else 0.0
+    return make_transform(rotation_about("z", rz), np.array(v[:3]) * 1e-3)
+
+
 def load_workpiece(name_or_path: str) -> Workpiece:
     """A built-in workpiece by name, or a mesh file by path."""
     if Path(name_or_path).suffix:
@@ -164,6 +178,8 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         **{**settings.postprocess.__dict__, "tolerance_m": settings.tolerance_m}
     )
     workpiece = load_workpiece(settings.workpiece)
+    if settings.wobj_mm_deg is not None:
+        workpiece = workpiece.placed(wobj_transform(settings.wobj_mm_deg))
     if workpiece.wall is None and settings.guide_points_csv is None:
         raise InvalidInputError(
             f"{workpiece.name}: a mesh file has no known wall to plan guide points on; "

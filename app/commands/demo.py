@@ -23,6 +23,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--robot", default="ur10", help="ur10 (default), ur5 or ur3")
     p.add_argument("--workpiece", default="water_pump", help="water_pump (default) or block")
     p.add_argument(
+        "--wobj",
+        metavar="X,Y,Z[,RZ]",
+        help="work-object frame placing the workpiece: x,y,z in mm (robot base frame) and an "
+        "optional rotation about z in degrees (default 800,160,0)",
+    )
+    p.add_argument(
         "--force",
         type=float,
         default=10.0,
@@ -124,6 +130,12 @@ def run(args: argparse.Namespace) -> int:
     if args.out.exists() and not args.out.is_dir():
         raise InvalidInputError(f"--out {args.out} exists and is not a folder")
 
+    wobj = None
+    if args.wobj is not None:
+        try:
+            wobj = tuple(float(v) for v in args.wobj.split(","))
+        except ValueError:
+            raise InvalidInputError(f"--wobj {args.wobj!r}: expected numbers x,y,z[,rz]") from None
     guide_csv = None
     if args.guide_points is not None:
         if not args.guide_points.is_file():
@@ -154,6 +166,7 @@ def run(args: argparse.Namespace) -> int:
         wall_side=args.wall_side,
         cmrr=cmrr,
         compensation=compensation,
+        wobj_mm_deg=wobj,
     )
     bar = _ProgressLine()
     try:

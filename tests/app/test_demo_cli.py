@@ -219,3 +219,12 @@ def test_settings_files_are_validated(tmp_path):
         ),
         "does not exist",
     )
+
+
+def test_bad_or_unreachable_work_object(tmp_path):
+    _assert_one_line_error(
+        robomach("demo", "--out", str(tmp_path / "o"), "--wobj", "800,abc,0"), "--wobj"
+    )
+    _assert_one_line_error(
+        robomach("demo", "--out", str(tmp_path / "o"), "--wobj", "800,160"), "x,y,z"
+    )
