@@ -1,0 +1,193 @@
+"""Compensation panel: run the stiffness identification, gravity, milling or ILC study (or all)
+with progress and cancel, read its figures next to the papers', page through its plots and
+download the compensation settings.
+
+The study runs as a job of the session (``app.studies.StudyService``), which saves it to the
+open project (export ``compensation-study``) when it is done.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import viser
+
+from app.studies import (
+    COMPENSATION_JOB_KIND,
+    COMPENSATION_STUDIES,
+    CompensationOutcome,
+    StudyService,
+)
+from robomach_core.stiffness.settings import COMPENSATION_SETTINGS
+
+from .cmrr import StudyJobFollower, fmt, png_to_image
+from .feedback import guarded
+
+STUDY_HINTS = {
+    "identify": "Joint stiffness from CMM measurements under known loads (chapter 5.2)",
+    "gravity": "Tool mass, centre of mass and sensor bias from 15 poses (chapter 5.3)",
+    "milling": "Block and face milling with and without deflection compensation",
+    "ilc": "Iterative learning control on a milled square (Lund ILC paper)",
+    "all": "Every study in turn; the milling and ILC use the identified model",
+}
+NO_PLOT = "(none)"
+_NOTHING_SHOWN = object()  # the panel has shown no study, not even "none yet"
+
+
+class CompensationPanel:
+    """Study, quick preview, compensation mode; run, cancel, progress; figures, plots, settings.
+
+    Args:
+        server: The viser server.
+        session: The workbench session (its job runner shows the progress).
+        service: The study service that runs and keeps the studies.
+    """
+
+    def __init__(self, server: viser.ViserServer, session, service: StudyService) -> None:
+        self.session = session
+        self.service = service
+        last = service.compensation_result()
+        with server.gui.add_folder("Compensation study", expand_by_default=False):
+            self.study = server.gui.add_dropdown(
+                "Study", COMPENSATION_STUDIES, initial_value=last.study if last else "identify"
+            )
+            self.quick = server.gui.add_checkbox(
+                "Quick preview",
+                last.quick if last else True,
+                hint="Shorter cuts and fewer poses: seconds instead of about a minute",
+            )
+            self.mode = server.gui.add_dropdown(
+                "Mode",
+                COMPENSATION_SETTINGS,
+                initial_value="online",
+                hint="Compensation mode written to the settings (online needs the gravity study)",
+            )
+            self.run = server.gui.add_button(
+                "Run compensation study", icon=viser.Icon.PLAYER_PLAY, color="green"
+            )
+            self.cancel = server.gui.add_button(
+                "Cancel", icon=viser.Icon.PLAYER_STOP, color="red", disabled=True
+            )
+            self.progress = server.gui.add_progress_bar(0.0)
+            self.status = server.gui.add_markdown("")
+            self.figures = server.gui.add_markdown("")
+            self.plot_name = server.gui.add_dropdown("Plot", (NO_PLOT,), initial_value=NO_PLOT)
+            self.plot = server.gui.add_image(np.full((2, 2, 3), 255, np.uint8), format="png")
+            self.download = server.gui.add_button(
+                "Download settings JSON", icon=viser.Icon.DOWNLOAD, disabled=True
+            )
+        self.study.on_update(lambda e: self._show_hint())
+        self.plot_name.on_update(lambda e: self._show_plot())
+        self.run.on_click(guarded("Compensation study", lambda e: self.start()))
+        self.cancel.on_click(guarded("Cancel", lambda e: self._cancel()))
+        self.download.on_click(
+            guarded(
+                "Compensation settings",
+                lambda e: e.client.send_file_download(
+                    "compensation_settings.json",
+                    self.service.compensation_settings_json().encode("utf-8"),
+                    save_immediately=True,
+                ),
+            )
+        )
+        self._shown: CompensationOutcome | None | object = _NOTHING_SHOWN
+        self._show_hint()
+        self.follower = StudyJobFollower(session, service, COMPENSATION_JOB_KIND, self.refresh)
+
+    def start(self) -> str:
+        """Run the study the panel's controls describe; returns the job id."""
+        job_id = self.service.start_compensation(
+            self.study.value, quick=bool(self.quick.value), mode=self.mode.value
+        )
+        self.follower.follow(job_id)
+        return job_id
+
+    def close(self) -> None:
+        """Stop following the session and the service."""
+        self.follower.close()
+
+    def _cancel(self) -> None:
+        if self.follower.job_id is not None:
+            self.session.cancel_job(self.follower.job_id)
+
+    def _show_hint(self) -> None:
+        self.run.hint = STUDY_HINTS.get(self.study.value)
+
+    def refresh(self, job) -> None:
+        """Show the job's progress (or how it ended) and the project's last study."""
+        running = job is not None and job.status in ("queued", "running")
+        self.run.disabled = running
+        self.cancel.disabled = not running
+        self.progress.animated = running
+        if running:
+            self.progress.value = round(job.progress * 100.0, 1)
+            state = "Queued" if job.status == "queued" else "Running"
+            self.status.content = f"{state}: {job.progress:.0%}"
+        elif job is not None:  # just ended; the message stays until the next job
+            self.status.content = "" if job.status == "done" else f"**{job.status}**: {job.error}"
+        outcome = self.service.compensation_result()
+        if outcome is self._shown:
+            return
+        self._shown = outcome
+        self.download.disabled = outcome is None or outcome.settings is None
+        if outcome is None:
+            self.progress.value = 0.0
+            self.figures.content = "*No compensation study in this project yet.*"
+            self.plot_name.options = (NO_PLOT,)
+            self.plot_name.value = NO_PLOT
+            self._show_plot()
+            return
+        self.progress.value = 100.0
+        self.figures.content = compensation_figures(outcome)
+        names = tuple(sorted(outcome.plots)) or (NO_PLOT,)
+        keep = self.plot_name.value if self.plot_name.value in names else names[0]
+        self.plot_name.options = names
+        self.plot_name.value = keep
+        self._show_plot()
+
+    def _show_plot(self) -> None:
+        outcome = self._shown
+        png = None
+        if isinstance(outcome, CompensationOutcome):
+            png = outcome.plots.get(self.plot_name.value)
+        self.plot.image = png_to_image(png) if png else np.full((2, 2, 3), 255, np.uint8)
+
+
+def compensation_figures(outcome: CompensationOutcome) -> str:
+    """Markdown: the study's main numbers, each next to the paper's."""
+    s = outcome.summary
+    lines = [
+        f"**{outcome.study}**{' (quick)' if outcome.quick else ''}, seed {outcome.seed}; saved "
+        "to the project (export `compensation-study`)",
+        "",
+    ]
+    if "stiffness_rel_error_max" in s:
+        rel = s["stiffness_rel_error_max"]
+        lines.append(
+            f"- Stiffness: max relative error {fmt(None if rel is None else rel * 100)} %; "
+            f"deflection prediction error max {fmt(s.get('prediction_error_max_mm'), '.3f')} mm "
+            "(chapter: < 0.04 mm)"
+        )
+    if "gravity_residual_max_N" in s:
+        lines.append(
+            f"- Gravity: tool mass {fmt(s.get('tool_mass_identified_kg'), '.3f')} kg (true "
+            f"{fmt(s.get('tool_mass_true_kg'), '.3f')}); residual max "
+            f"{fmt(s['gravity_residual_max_N'], '.2f')} N"
+        )
+    if "error_max_uncompensated_um" in s:
+        lines.append(
+            f"- Block milling: max error {fmt(s['error_max_uncompensated_um'], '.0f')} um -> "
+            f"{fmt(s.get('error_max_compensated_online_um'), '.0f')} online, "
+            f"{fmt(s.get('error_max_compensated_linear_um'), '.0f')} offline "
+            "(chapter: 400 -> < 100 um)"
+        )
+    if "face_error_max_uncompensated_um" in s:
+        lines.append(
+            f"- Face milling: max {fmt(s['face_error_max_uncompensated_um'])} -> "
+            f"{fmt(s.get('face_error_max_compensated_um'))} um (Lund: 273.9 -> 51.4)"
+        )
+    if "ilc_arm_error_per_iteration" in s:
+        arm = ", ".join(fmt(e, ".0f") for e in s["ilc_arm_error_per_iteration"])
+        lines.append(f"- ILC arm-side mean error per iteration: {arm} um (paper: about -85 %)")
+    if outcome.settings is None:
+        lines += ["", "*No settings yet: the identify study (or all) makes them.*"]
+    return "\n".join(lines)
