@@ -194,4 +194,6 @@ def test_saved_to_project(client: Api, server: StudyServer) -> None:
     client.ok("POST", f"/api/projects/{project['id']}/open")  # loaded back on open
     study = client.ok("GET", "/api/cmrr/studies/last")
     assert study["controller"] == "two-stage" and study["seed"] == 7
+    assert study["folder"] == f"studies/{project['id']}/cmrr"
+    assert (server.data_dir / study["folder"] / "cmrr.csv").is_file()
     assert client.get(study["plot_url"]).content.startswith(PNG_SIGNATURE)

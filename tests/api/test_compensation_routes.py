@@ -66,6 +66,7 @@ def test_identification(client: Api, identified: int) -> None:
     client.ok("POST", f"/api/projects/{identified}/open")
     study = client.ok("GET", "/api/compensation/studies/last")
     assert study["study"] == "identify" and study["quick"] is True
+    assert study["folder"] == f"studies/{identified}/compensation"
     summary = study["summary"]
     assert 0.0 <= summary["stiffness_rel_error_max"] < 0.5  # a relative error, not a percentage
     assert 0.0 < summary["prediction_error_max_mm"] < 0.04  # the chapter: < 0.04 mm

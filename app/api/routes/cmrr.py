@@ -4,6 +4,7 @@ last study's summary, plot and controller settings, and the scenario and control
 from __future__ import annotations
 
 import functools
+from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Depends, Query, Request, Response, status
@@ -37,6 +38,13 @@ def get_studies(request: Request) -> StudyService:
 
 
 StudiesDep = Annotated[StudyService, Depends(get_studies)]
+
+
+def _relative(folder: Path | None, data_dir: Path | None) -> str | None:
+    """A study folder relative to the data folder (None without one: nothing to show)."""
+    if folder is None or data_dir is None or not folder.is_relative_to(data_dir):
+        return None
+    return str(folder.relative_to(data_dir))
 
 
 # --- schemas ---------------------------------------------------------------------------------
@@ -75,10 +83,12 @@ class CmrrStudyPublic(BaseModel):
     )
     plot_url: str | None = Field(description="the figure (PNG), when it is on disk")
     settings_url: str = Field(description="the controller settings (JSON download)")
-    folder: str | None = Field(description="server folder with cmrr.csv and the other files")
+    folder: str | None = Field(
+        description="where cmrr.csv and the other files are, relative to the data folder"
+    )
 
     @classmethod
-    def from_outcome(cls, o: CmrrOutcome) -> CmrrStudyPublic:
+    def from_outcome(cls, o: CmrrOutcome, data_dir: Path | None) -> CmrrStudyPublic:
         return cls(
             scenario=o.scenario,
             controller=o.controller,
@@ -88,7 +98,7 @@ class CmrrStudyPublic(BaseModel):
             summary=o.summary,
             plot_url=f"{router.prefix}/studies/last/plot.png" if o.plot_png else None,
             settings_url=f"{router.prefix}/settings",
-            folder=None if o.folder is None else str(o.folder),
+            folder=_relative(o.folder, data_dir),
         )
 
 
@@ -138,7 +148,7 @@ def start_study(body: CmrrStudyCreate, studies: StudiesDep) -> JobCreated:
 @router.get("/studies/last")
 def get_last_study(studies: StudiesDep) -> CmrrStudyPublic:
     """The open project's last CMRR study: its summary figures (units in the key names)."""
-    return CmrrStudyPublic.from_outcome(studies.require_cmrr())
+    return CmrrStudyPublic.from_outcome(studies.require_cmrr(), studies.session.data_dir)
 
 
 @router.get("/studies/last/plot.png", response_class=Response, responses=PNG)

@@ -3,6 +3,7 @@ compensation and ILC (a job); the last study's summary, plots and compensation s
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, Request, Response, status
@@ -24,6 +25,13 @@ def get_studies(request: Request) -> StudyService:
 
 
 StudiesDep = Annotated[StudyService, Depends(get_studies)]
+
+
+def _relative(folder: Path | None, data_dir: Path | None) -> str | None:
+    """A study folder relative to the data folder (None without one: nothing to show)."""
+    if folder is None or data_dir is None or not folder.is_relative_to(data_dir):
+        return None
+    return str(folder.relative_to(data_dir))
 
 
 # --- schemas ---------------------------------------------------------------------------------
@@ -62,10 +70,12 @@ class CompensationStudyPublic(BaseModel):
     settings_available: bool = Field(
         description="compensation settings exist (an identify or all study has run)"
     )
-    folder: str | None = Field(description="server folder with the study's CSV and PNG files")
+    folder: str | None = Field(
+        description="where the study's CSV and PNG files are, relative to the data folder"
+    )
 
     @classmethod
-    def from_outcome(cls, o: CompensationOutcome) -> CompensationStudyPublic:
+    def from_outcome(cls, o: CompensationOutcome, data_dir: Path | None) -> CompensationStudyPublic:
         return cls(
             study=o.study,
             quick=o.quick,
@@ -74,7 +84,7 @@ class CompensationStudyPublic(BaseModel):
             summary=o.summary,
             plots=sorted(o.plots),
             settings_available=o.settings is not None,
-            folder=None if o.folder is None else str(o.folder),
+            folder=_relative(o.folder, data_dir),
         )
 
 
@@ -94,7 +104,9 @@ def start_study(body: CompensationStudyCreate, studies: StudiesDep) -> JobCreate
 @router.get("/studies/last")
 def get_last_study(studies: StudiesDep) -> CompensationStudyPublic:
     """The open project's last compensation study: its figures next to the papers'."""
-    return CompensationStudyPublic.from_outcome(studies.require_compensation())
+    return CompensationStudyPublic.from_outcome(
+        studies.require_compensation(), studies.session.data_dir
+    )
 
 
 @router.get("/studies/last/plots")
