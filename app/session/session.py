@@ -55,7 +55,6 @@ While a job moves the robot, pushes, jogs, recording and cell or project changes
 from __future__ import annotations
 
 import json
-import logging
 import math
 import os
 import re
@@ -63,18 +62,15 @@ import shutil
 import tempfile
 import threading
 import time
-import uuid
-from collections import deque
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, replace
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
 from robomach_core.cell import CONTROL_PERIOD_S, Cell, CellConfig, CellState
 from robomach_core.errors import (
-    CancelledError,
     InvalidInputError,
     NotEnoughGuidePointsError,
     RobomachError,
@@ -87,12 +83,10 @@ from robomach_core.leadthrough import (
     LeadThroughState,
 )
 from robomach_core.path_learning import PathLearningSettings, Recording
-from robomach_core.postprocess import PostprocessResult, PostprocessSettings
+from robomach_core.postprocess import PostprocessSettings
 from robomach_core.robot import ROBOT_URDFS
-from robomach_core.scoring import PathScore
 from robomach_core.sensor import ForceEstimator
 from robomach_core.tool import Tool
-from robomach_core.transforms import quaternion_from_matrix
 from robomach_core.workpiece import (
     MAX_MESH_BYTES,
     MAX_MESH_TRIANGLES,
@@ -102,406 +96,34 @@ from robomach_core.workpiece import (
     mesh_from_bytes,
 )
 
-from .store import GuidePointRow, ProjectData, Store
-
-log = logging.getLogger(__name__)
-
-Topic = Literal[
-    "robot",
-    "compliance",
-    "cell",
-    "guide_points",
-    "recording",
-    "postprocess",
-    "job",
-    "project",
-    "exports",
-]
-JobStatus = Literal["queued", "running", "done", "failed", "cancelled"]
-
-DEFAULT_PROJECT_NAME = "default"
-PROJECT_NAME_MAX = 80
-EXPORT_NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
-LIVE_TRACE_EVERY = 5  # live force sample every 5 periods (20 ms simulated)
-LIVE_TRACE_MAX = 20_000
-LIVE_NOTIFY_S = 0.05  # robot-pose notifications during a job: at most 20 per second
-MAX_GUIDE_POINTS = 200
-RECORDING_ARRAYS = (
-    "time_s",
-    "joints_rad",
-    "position_m",
-    "quaternion_wxyz",
-    "wrench_sensor",
-    "wrench_tool",
-    "force_normal_N",
-    "force_reference_N",
-    "in_contact",
-    "yp",
-    "segment",
+from ..store import GuidePointRow, ProjectData, Store
+from .jobs import (
+    JobContext,
+    JobRunner,
 )
-
-
-# --- errors of the session (the API maps them by their builtin base) -------------------------
-
-
-class NotFoundError(RobomachError, KeyError):
-    """A job, guide point, project or export with that id does not exist."""
-
-    def __str__(self) -> str:
-        return str(self.args[0]) if self.args else "not found"
-
-
-class ConflictError(RobomachError, RuntimeError):
-    """The action does not fit the current state (e.g. post-processing before a recording)."""
-
-
-class BusyError(ConflictError):
-    """A job is moving the robot; wait for it or cancel it first."""
-
-
-# --- values the session returns (SI units) ---------------------------------------------------
-
-
-@dataclass(frozen=True)
-class CellSettings:
-    """The user's cell settings.
-
-    Attributes:
-        robot: ``"ur10"``, ``"ur5"`` or ``"ur3"``.
-        tool_radius_m: Ball cutter radius.
-        workpiece: Built-in name, or the stem of the uploaded mesh file.
-        workpiece_builtin: False for an uploaded mesh.
-        seed: Seed of the sensor noise and the example operator.
-    """
-
-    robot: str = "ur10"
-    tool_radius_m: float = 0.001
-    workpiece: str = "water_pump"
-    workpiece_builtin: bool = True
-    seed: int = 0
-
-
-@dataclass(frozen=True)
-class RobotSnapshot:
-    """The robot as the controller sees it.
-
-    Attributes:
-        time_s: Simulated time.
-        joints_rad: (6,) motor-side joints.
-        T_base_tcp: 4x4 TCP pose (metres).
-        wrench: (6,) measured, gravity-compensated contact wrench at the TCP, base axes
-            [N, N*m].
-        in_contact: The tool touches the workpiece.
-        busy: A job is moving the robot (pushes and jogs are refused).
-    """
-
-    time_s: float
-    joints_rad: np.ndarray
-    T_base_tcp: np.ndarray
-    wrench: np.ndarray
-    in_contact: bool
-    busy: bool
-
-    @property
-    def position_m(self) -> np.ndarray:
-        return self.T_base_tcp[:3, 3]
-
-    @property
-    def quaternion_wxyz(self) -> np.ndarray:
-        return quaternion_from_matrix(self.T_base_tcp[:3, :3])
-
-
-@dataclass(frozen=True)
-class GuidePointEntry:
-    """A guide point and its (0-based) index in the list."""
-
-    index: int
-    point: GuidePoint
-
-
-@dataclass(frozen=True)
-class ForceTrace:
-    """Force against time for plots, decimated.
-
-    Attributes:
-        source: ``"live"`` (a job is running: |F| measured every 20 ms, time since the job
-            started), ``"recording"`` (the last recording's force along Yp) or ``"none"``.
-        time_s: (k,)
-        force_N: (k,)
-        force_reference_N: (k,) the reference (NaN when live).
-        samples_total: Samples before decimation.
-    """
-
-    source: Literal["live", "recording", "none"]
-    time_s: np.ndarray
-    force_N: np.ndarray
-    force_reference_N: np.ndarray
-    samples_total: int
-
-
-@dataclass(frozen=True)
-class PostprocessOutcome:
-    """The last post-processing: its settings, result, and score against the true wall."""
-
-    settings: PostprocessSettings
-    result: PostprocessResult
-    samples_raw: int
-    score: PathScore | None
-
-
-@dataclass(frozen=True)
-class JobInfo:
-    """A background job's public state."""
-
-    id: str
-    kind: str
-    status: JobStatus
-    progress: float
-    error: str | None
-    created_s: float
-    started_s: float | None
-    finished_s: float | None
-
-
-@dataclass(frozen=True)
-class ProjectInfo:
-    """A stored project."""
-
-    id: int
-    name: str
-    created_s: float
-    updated_s: float
-    is_open: bool
-
-
-@dataclass(frozen=True)
-class ExportInfo:
-    """A saved export: its files in the store and, when the session has a data folder, on disk."""
-
-    name: str
-    created_s: float
-    files: list[str]
-    folder: Path | None
-
-
-# --- the job runner ----------------------------------------------------------------------
-
-
-class JobContext:
-    """What a job's work function sees: report progress, check for cancel."""
-
-    def __init__(self, job: _Job) -> None:
-        self._job = job
-
-    @property
-    def job_id(self) -> str:
-        return self._job.id
-
-    def progress(self, fraction: float) -> None:
-        """Report progress in [0, 1] (clipped)."""
-        self._job.progress = min(1.0, max(0.0, float(fraction)))
-        self._job.runner._changed(self._job)
-
-    def cancelled(self) -> bool:
-        return self._job.cancel.is_set()
-
-    def check_cancelled(self) -> None:
-        """Raise ``CancelledError`` when the user asked to cancel."""
-        if self._job.cancel.is_set():
-            raise CancelledError(f"{self._job.kind.replace('_', ' ')} was cancelled")
-
-
-@dataclass(eq=False)
-class _Job:
-    runner: JobRunner
-    id: str
-    kind: str
-    work: Callable[[JobContext], Any]
-    on_done: Callable[[Any], None] | None
-    on_end: Callable[[JobInfo], None] | None
-    status: JobStatus = "queued"
-    progress: float = 0.0
-    error: str | None = None
-    result: Any = None
-    created_s: float = field(default_factory=time.time)
-    started_s: float | None = None
-    finished_s: float | None = None
-    cancel: threading.Event = field(default_factory=threading.Event)
-
-    def info(self) -> JobInfo:
-        return JobInfo(
-            self.id,
-            self.kind,
-            self.status,
-            self.progress,
-            self.error,
-            self.created_s,
-            self.started_s,
-            self.finished_s,
-        )
-
-
-class JobRunner:
-    """One worker thread running jobs in order; progress, cancel, bounded history.
-
-    ``submit(kind, work)`` queues ``work(ctx)``; its return value becomes the job's result and
-    is handed to ``on_done`` (still in the worker) before the job reads as done. A
-    ``CancelledError`` makes it cancelled, a ``RobomachError`` failed with its message, any
-    other exception failed with "internal error" (logged with its traceback). ``on_end`` runs
-    after every outcome. The CMRR and stiffness studies plug in here the same way.
-
-    Args:
-        on_change: Called with the ``JobInfo`` after every status or progress change.
-        keep_finished: Finished jobs remembered for ``get``.
-    """
-
-    def __init__(
-        self,
-        *,
-        on_change: Callable[[JobInfo], None] | None = None,
-        keep_finished: int = 200,
-    ) -> None:
-        self._on_change = on_change
-        self._keep = keep_finished
-        self._jobs: dict[str, _Job] = {}
-        self._queue: deque[_Job] = deque()
-        self._cv = threading.Condition()
-        self._closed = False
-        self._thread = threading.Thread(target=self._loop, name="robomach-jobs", daemon=True)
-        self._thread.start()
-
-    def submit(
-        self,
-        kind: str,
-        work: Callable[[JobContext], Any],
-        *,
-        on_done: Callable[[Any], None] | None = None,
-        on_end: Callable[[JobInfo], None] | None = None,
-    ) -> str:
-        """Queue a job; returns its id."""
-        with self._cv:
-            if self._closed:
-                raise ConflictError("the server is shutting down")
-            job = _Job(self, uuid.uuid4().hex[:12], kind, work, on_done, on_end)
-            self._jobs[job.id] = job
-            self._queue.append(job)
-            self._forget_old()
-            self._cv.notify()
-        self._changed(job)
-        return job.id
-
-    def get(self, job_id: str) -> JobInfo:
-        return self._job(job_id).info()
-
-    def result(self, job_id: str) -> Any:
-        """The return value of a done job (None otherwise)."""
-        return self._job(job_id).result
-
-    def list(self) -> list[JobInfo]:
-        with self._cv:
-            return [j.info() for j in self._jobs.values()]
-
-    def active(self, kinds: Iterable[str] | None = None) -> list[JobInfo]:
-        """Queued and running jobs, optionally of some kinds only."""
-        wanted = None if kinds is None else set(kinds)
-        with self._cv:
-            return [
-                j.info()
-                for j in self._jobs.values()
-                if j.status in ("queued", "running") and (wanted is None or j.kind in wanted)
-            ]
-
-    def cancel(self, job_id: str) -> JobInfo:
-        """Cancel a queued job now, or ask a running one to stop at its next check."""
-        job = self._job(job_id)
-        with self._cv:
-            if job.status in ("done", "failed", "cancelled"):
-                raise ConflictError(f"job {job_id} has already ended ({job.status})")
-            job.cancel.set()
-            queued = job.status == "queued"
-            if queued:
-                self._queue.remove(job)
-                job.status = "cancelled"
-                job.error = f"{job.kind.replace('_', ' ')} was cancelled"
-                job.finished_s = time.time()
-        if queued:
-            self._finish(job)
-        return job.info()
-
-    def close(self, timeout_s: float = 10.0) -> None:
-        """Cancel every job and stop the worker."""
-        with self._cv:
-            self._closed = True
-            pending = list(self._queue)
-            self._queue.clear()
-            for job in self._jobs.values():
-                job.cancel.set()
-            for job in pending:
-                job.status = "cancelled"
-                job.error = "the server stopped"
-                job.finished_s = time.time()
-            self._cv.notify_all()
-        for job in pending:
-            self._finish(job)
-        self._thread.join(timeout_s)
-
-    def _job(self, job_id: str) -> _Job:
-        with self._cv:
-            job = self._jobs.get(job_id)
-        if job is None:
-            raise NotFoundError(f"no job with id {job_id!r}")
-        return job
-
-    def _forget_old(self) -> None:
-        ended = [j for j in self._jobs.values() if j.status in ("done", "failed", "cancelled")]
-        for job in ended[: max(0, len(ended) - self._keep)]:
-            del self._jobs[job.id]
-
-    def _changed(self, job: _Job) -> None:
-        if self._on_change is not None:
-            try:
-                self._on_change(job.info())
-            except Exception:  # a listener must not break a job
-                log.exception("job listener failed")
-
-    def _finish(self, job: _Job) -> None:
-        if job.on_end is not None:
-            try:
-                job.on_end(job.info())
-            except Exception:
-                log.exception("on_end of job %s failed", job.id)
-        self._changed(job)
-
-    def _loop(self) -> None:
-        while True:
-            with self._cv:
-                while not self._queue and not self._closed:
-                    self._cv.wait()
-                if self._closed and not self._queue:
-                    return
-                job = self._queue.popleft()
-                job.status = "running"
-                job.started_s = time.time()
-            self._changed(job)
-            try:
-                result = job.work(JobContext(job))
-                if job.on_done is not None:
-                    job.on_done(result)
-            except CancelledError as exc:
-                job.status, job.error = "cancelled", str(exc)
-            except RobomachError as exc:
-                job.status, job.error = "failed", str(exc)
-            except Exception as exc:
-                log.exception("job %s (%s) failed", job.id, job.kind)
-                job.status = "failed"
-                job.error = f"internal error: {exc.__class__.__name__}: {exc}"
-            else:
-                job.status, job.result, job.progress = "done", result, 1.0
-            job.finished_s = time.time()
-            self._finish(job)
-
-
-# --- the tapped cell: live pose and cancel during a job ----------------------------------
+from .records import (
+    DEFAULT_PROJECT_NAME,
+    EXPORT_NAME_RE,
+    LIVE_NOTIFY_S,
+    LIVE_TRACE_EVERY,
+    LIVE_TRACE_MAX,
+    MAX_GUIDE_POINTS,
+    PROJECT_NAME_MAX,
+    RECORDING_ARRAYS,
+    BusyError,
+    CellSettings,
+    ConflictError,
+    ExportInfo,
+    ForceTrace,
+    GuidePointEntry,
+    JobInfo,
+    NotFoundError,
+    PostprocessOutcome,
+    ProjectInfo,
+    RobotSnapshot,
+    Topic,
+    log,
+)
 
 
 class _TappedCell:
@@ -701,7 +323,10 @@ class Session:
             )
             mesh = self._mesh
             if workpiece in WORKPIECE_NAMES:
-                new, mesh = replace(new, workpiece=workpiece, workpiece_builtin=True), None
+                new, mesh = (
+                    replace(new, workpiece=workpiece, workpiece_builtin=True),
+                    None,
+                )
             elif workpiece is not None and not (mesh is not None and workpiece == cur.workpiece):
                 uploaded = f", or {cur.workpiece!r} (uploaded)" if mesh is not None else ""
                 raise InvalidInputError(
@@ -839,7 +464,11 @@ class Session:
             def work(ctx: JobContext) -> tuple[LeadThroughState, list[GuidePoint]]:
                 lt = LeadThrough(self._tapped(cell, estimator, ctx), estimator=estimator)
                 return scripted_leadthrough(
-                    lt, start, cell.workpiece, np.random.default_rng(seed), progress=ctx.progress
+                    lt,
+                    start,
+                    cell.workpiece,
+                    np.random.default_rng(seed),
+                    progress=ctx.progress,
                 )
 
             def done(result: tuple[LeadThroughState, list[GuidePoint]]) -> None:
@@ -988,7 +617,9 @@ class Session:
         score = None
         if self._cell.workpiece.wall is not None and len(result.targets) >= 2:
             score = score_path(
-                self._cell.workpiece, self._cell.tool.radius_m, result.targets.position_m
+                self._cell.workpiece,
+                self._cell.tool.radius_m,
+                result.targets.position_m,
             )
         return PostprocessOutcome(settings, result, len(rec), score)
 
@@ -1309,7 +940,10 @@ class Session:
 
     def _robot_doc_default(self) -> dict[str, Any]:
         sel = ComplianceSelection()
-        return {"joints_rad": None, "compliance": {"axes": sorted(sel.axes), "frame": sel.frame}}
+        return {
+            "joints_rad": None,
+            "compliance": {"axes": sorted(sel.axes), "frame": sel.frame},
+        }
 
     def _open_initial_project(self, prefer: int | None = -1) -> None:
         """Open the last project (or the newest, or a new default one)."""
@@ -1367,8 +1001,16 @@ class Session:
                 )
                 self._recording_guides_q = arrays["guide_quaternions_wxyz"]
                 self._learning = PathLearningSettings(**info["learning"])
-            except (KeyError, TypeError, ValueError) as exc:  # written by another version
-                log.error("project %s: cannot read its recording (%s); dropped", project_id, exc)
+            except (
+                KeyError,
+                TypeError,
+                ValueError,
+            ) as exc:  # written by another version
+                log.error(
+                    "project %s: cannot read its recording (%s); dropped",
+                    project_id,
+                    exc,
+                )
                 self._recording, self._learning = None, None
         post = data.post or {}
         try:
@@ -1387,11 +1029,17 @@ class Session:
     def _robot_doc(self) -> dict[str, Any]:
         return {
             "joints_rad": self._lt_state.cell.q_motor.tolist(),
-            "compliance": {"axes": sorted(self._selection.axes), "frame": self._selection.frame},
+            "compliance": {
+                "axes": sorted(self._selection.axes),
+                "frame": self._selection.frame,
+            },
         }
 
     def _post_doc(self) -> dict[str, Any]:
-        return {"settings": asdict(self._post_settings), "applied": self._post is not None}
+        return {
+            "settings": asdict(self._post_settings),
+            "applied": self._post is not None,
+        }
 
     def _guide_rows(self) -> list[GuidePointRow]:
         return [
@@ -1428,7 +1076,9 @@ class Session:
     def _save_guides(self, *, with_robot: bool = False) -> None:
         if with_robot:
             self.store.save(
-                self._project_id, guide_points=self._guide_rows(), robot=self._robot_doc()
+                self._project_id,
+                guide_points=self._guide_rows(),
+                robot=self._robot_doc(),
             )
         else:
             self.store.save(self._project_id, guide_points=self._guide_rows())

@@ -1,0 +1,241 @@
+"""The session's background jobs: one worker thread, progress, cancel, a bounded history."""
+
+from __future__ import annotations
+
+import threading
+import time
+import uuid
+from collections import deque
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+from robomach_core.errors import (
+    CancelledError,
+    RobomachError,
+)
+
+from .records import (
+    ConflictError,
+    JobInfo,
+    JobStatus,
+    NotFoundError,
+    log,
+)
+
+
+class JobContext:
+    """What a job's work function sees: report progress, check for cancel."""
+
+    def __init__(self, job: _Job) -> None:
+        self._job = job
+
+    @property
+    def job_id(self) -> str:
+        return self._job.id
+
+    def progress(self, fraction: float) -> None:
+        """Report progress in [0, 1] (clipped)."""
+        self._job.progress = min(1.0, max(0.0, float(fraction)))
+        self._job.runner._changed(self._job)
+
+    def cancelled(self) -> bool:
+        return self._job.cancel.is_set()
+
+    def check_cancelled(self) -> None:
+        """Raise ``CancelledError`` when the user asked to cancel."""
+        if self._job.cancel.is_set():
+            raise CancelledError(f"{self._job.kind.replace('_', ' ')} was cancelled")
+
+
+@dataclass(eq=False)
+class _Job:
+    runner: JobRunner
+    id: str
+    kind: str
+    work: Callable[[JobContext], Any]
+    on_done: Callable[[Any], None] | None
+    on_end: Callable[[JobInfo], None] | None
+    status: JobStatus = "queued"
+    progress: float = 0.0
+    error: str | None = None
+    result: Any = None
+    created_s: float = field(default_factory=time.time)
+    started_s: float | None = None
+    finished_s: float | None = None
+    cancel: threading.Event = field(default_factory=threading.Event)
+
+    def info(self) -> JobInfo:
+        return JobInfo(
+            self.id,
+            self.kind,
+            self.status,
+            self.progress,
+            self.error,
+            self.created_s,
+            self.started_s,
+            self.finished_s,
+        )
+
+
+class JobRunner:
+    """One worker thread running jobs in order; progress, cancel, bounded history.
+
+    ``submit(kind, work)`` queues ``work(ctx)``; its return value becomes the job's result and
+    is handed to ``on_done`` (still in the worker) before the job reads as done. A
+    ``CancelledError`` makes it cancelled, a ``RobomachError`` failed with its message, any
+    other exception failed with "internal error" (logged with its traceback). ``on_end`` runs
+    after every outcome. The CMRR and stiffness studies plug in here the same way.
+
+    Args:
+        on_change: Called with the ``JobInfo`` after every status or progress change.
+        keep_finished: Finished jobs remembered for ``get``.
+    """
+
+    def __init__(
+        self,
+        *,
+        on_change: Callable[[JobInfo], None] | None = None,
+        keep_finished: int = 200,
+    ) -> None:
+        self._on_change = on_change
+        self._keep = keep_finished
+        self._jobs: dict[str, _Job] = {}
+        self._queue: deque[_Job] = deque()
+        self._cv = threading.Condition()
+        self._closed = False
+        self._thread = threading.Thread(target=self._loop, name="robomach-jobs", daemon=True)
+        self._thread.start()
+
+    def submit(
+        self,
+        kind: str,
+        work: Callable[[JobContext], Any],
+        *,
+        on_done: Callable[[Any], None] | None = None,
+        on_end: Callable[[JobInfo], None] | None = None,
+    ) -> str:
+        """Queue a job; returns its id."""
+        with self._cv:
+            if self._closed:
+                raise ConflictError("the server is shutting down")
+            job = _Job(self, uuid.uuid4().hex[:12], kind, work, on_done, on_end)
+            self._jobs[job.id] = job
+            self._queue.append(job)
+            self._forget_old()
+            self._cv.notify()
+        self._changed(job)
+        return job.id
+
+    def get(self, job_id: str) -> JobInfo:
+        return self._job(job_id).info()
+
+    def result(self, job_id: str) -> Any:
+        """The return value of a done job (None otherwise)."""
+        return self._job(job_id).result
+
+    def list(self) -> list[JobInfo]:
+        with self._cv:
+            return [j.info() for j in self._jobs.values()]
+
+    def active(self, kinds: Iterable[str] | None = None) -> list[JobInfo]:
+        """Queued and running jobs, optionally of some kinds only."""
+        wanted = None if kinds is None else set(kinds)
+        with self._cv:
+            return [
+                j.info()
+                for j in self._jobs.values()
+                if j.status in ("queued", "running") and (wanted is None or j.kind in wanted)
+            ]
+
+    def cancel(self, job_id: str) -> JobInfo:
+        """Cancel a queued job now, or ask a running one to stop at its next check."""
+        job = self._job(job_id)
+        with self._cv:
+            if job.status in ("done", "failed", "cancelled"):
+                raise ConflictError(f"job {job_id} has already ended ({job.status})")
+            job.cancel.set()
+            queued = job.status == "queued"
+            if queued:
+                self._queue.remove(job)
+                job.status = "cancelled"
+                job.error = f"{job.kind.replace('_', ' ')} was cancelled"
+                job.finished_s = time.time()
+        if queued:
+            self._finish(job)
+        return job.info()
+
+    def close(self, timeout_s: float = 10.0) -> None:
+        """Cancel every job and stop the worker."""
+        with self._cv:
+            self._closed = True
+            pending = list(self._queue)
+            self._queue.clear()
+            for job in self._jobs.values():
+                job.cancel.set()
+            for job in pending:
+                job.status = "cancelled"
+                job.error = "the server stopped"
+                job.finished_s = time.time()
+            self._cv.notify_all()
+        for job in pending:
+            self._finish(job)
+        self._thread.join(timeout_s)
+
+    def _job(self, job_id: str) -> _Job:
+        with self._cv:
+            job = self._jobs.get(job_id)
+        if job is None:
+            raise NotFoundError(f"no job with id {job_id!r}")
+        return job
+
+    def _forget_old(self) -> None:
+        ended = [j for j in self._jobs.values() if j.status in ("done", "failed", "cancelled")]
+        for job in ended[: max(0, len(ended) - self._keep)]:
+            del self._jobs[job.id]
+
+    def _changed(self, job: _Job) -> None:
+        if self._on_change is not None:
+            try:
+                self._on_change(job.info())
+            except Exception:  # a listener must not break a job
+                log.exception("job listener failed")
+
+    def _finish(self, job: _Job) -> None:
+        if job.on_end is not None:
+            try:
+                job.on_end(job.info())
+            except Exception:
+                log.exception("on_end of job %s failed", job.id)
+        self._changed(job)
+
+    def _loop(self) -> None:
+        while True:
+            with self._cv:
+                while not self._queue and not self._closed:
+                    self._cv.wait()
+                if self._closed and not self._queue:
+                    return
+                job = self._queue.popleft()
+                job.status = "running"
+                job.started_s = time.time()
+            self._changed(job)
+            try:
+                result = job.work(JobContext(job))
+                if job.on_done is not None:
+                    job.on_done(result)
+            except CancelledError as exc:
+                job.status, job.error = "cancelled", str(exc)
+            except RobomachError as exc:
+                job.status, job.error = "failed", str(exc)
+            except Exception as exc:
+                log.exception("job %s (%s) failed", job.id, job.kind)
+                job.status = "failed"
+                job.error = f"internal error: {exc.__class__.__name__}: {exc}"
+            else:
+                job.status, job.result, job.progress = "done", result, 1.0
+            job.finished_s = time.time()
+            self._finish(job)
+
+
+# --- the tapped cell: live pose and cancel during a job ----------------------------------

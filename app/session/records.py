@@ -1,0 +1,203 @@
+"""Constants, errors and the plain records the session hands out (SI units)."""
+
+from __future__ import annotations
+
+import logging
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from robomach_core.errors import (
+    RobomachError,
+)
+from robomach_core.leadthrough import (
+    GuidePoint,
+)
+from robomach_core.postprocess import PostprocessResult, PostprocessSettings
+from robomach_core.scoring import PathScore
+from robomach_core.transforms import quaternion_from_matrix
+
+log = logging.getLogger(__name__)
+
+Topic = Literal[
+    "robot",
+    "compliance",
+    "cell",
+    "guide_points",
+    "recording",
+    "postprocess",
+    "job",
+    "project",
+    "exports",
+]
+JobStatus = Literal["queued", "running", "done", "failed", "cancelled"]
+
+DEFAULT_PROJECT_NAME = "default"
+PROJECT_NAME_MAX = 80
+EXPORT_NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
+LIVE_TRACE_EVERY = 5  # live force sample every 5 periods (20 ms simulated)
+LIVE_TRACE_MAX = 20_000
+LIVE_NOTIFY_S = 0.05  # robot-pose notifications during a job: at most 20 per second
+MAX_GUIDE_POINTS = 200
+RECORDING_ARRAYS = (
+    "time_s",
+    "joints_rad",
+    "position_m",
+    "quaternion_wxyz",
+    "wrench_sensor",
+    "wrench_tool",
+    "force_normal_N",
+    "force_reference_N",
+    "in_contact",
+    "yp",
+    "segment",
+)
+
+
+# --- errors of the session (the API maps them by their builtin base) -------------------------
+
+
+class NotFoundError(RobomachError, KeyError):
+    """A job, guide point, project or export with that id does not exist."""
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else "not found"
+
+
+class ConflictError(RobomachError, RuntimeError):
+    """The action does not fit the current state (e.g. post-processing before a recording)."""
+
+
+class BusyError(ConflictError):
+    """A job is moving the robot; wait for it or cancel it first."""
+
+
+# --- values the session returns (SI units) ---------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CellSettings:
+    """The user's cell settings.
+
+    Attributes:
+        robot: ``"ur10"``, ``"ur5"`` or ``"ur3"``.
+        tool_radius_m: Ball cutter radius.
+        workpiece: Built-in name, or the stem of the uploaded mesh file.
+        workpiece_builtin: False for an uploaded mesh.
+        seed: Seed of the sensor noise and the example operator.
+    """
+
+    robot: str = "ur10"
+    tool_radius_m: float = 0.001
+    workpiece: str = "water_pump"
+    workpiece_builtin: bool = True
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class RobotSnapshot:
+    """The robot as the controller sees it.
+
+    Attributes:
+        time_s: Simulated time.
+        joints_rad: (6,) motor-side joints.
+        T_base_tcp: 4x4 TCP pose (metres).
+        wrench: (6,) measured, gravity-compensated contact wrench at the TCP, base axes
+            [N, N*m].
+        in_contact: The tool touches the workpiece.
+        busy: A job is moving the robot (pushes and jogs are refused).
+    """
+
+    time_s: float
+    joints_rad: np.ndarray
+    T_base_tcp: np.ndarray
+    wrench: np.ndarray
+    in_contact: bool
+    busy: bool
+
+    @property
+    def position_m(self) -> np.ndarray:
+        return self.T_base_tcp[:3, 3]
+
+    @property
+    def quaternion_wxyz(self) -> np.ndarray:
+        return quaternion_from_matrix(self.T_base_tcp[:3, :3])
+
+
+@dataclass(frozen=True)
+class GuidePointEntry:
+    """A guide point and its (0-based) index in the list."""
+
+    index: int
+    point: GuidePoint
+
+
+@dataclass(frozen=True)
+class ForceTrace:
+    """Force against time for plots, decimated.
+
+    Attributes:
+        source: ``"live"`` (a job is running: |F| measured every 20 ms, time since the job
+            started), ``"recording"`` (the last recording's force along Yp) or ``"none"``.
+        time_s: (k,)
+        force_N: (k,)
+        force_reference_N: (k,) the reference (NaN when live).
+        samples_total: Samples before decimation.
+    """
+
+    source: Literal["live", "recording", "none"]
+    time_s: np.ndarray
+    force_N: np.ndarray
+    force_reference_N: np.ndarray
+    samples_total: int
+
+
+@dataclass(frozen=True)
+class PostprocessOutcome:
+    """The last post-processing: its settings, result, and score against the true wall."""
+
+    settings: PostprocessSettings
+    result: PostprocessResult
+    samples_raw: int
+    score: PathScore | None
+
+
+@dataclass(frozen=True)
+class JobInfo:
+    """A background job's public state."""
+
+    id: str
+    kind: str
+    status: JobStatus
+    progress: float
+    error: str | None
+    created_s: float
+    started_s: float | None
+    finished_s: float | None
+
+
+@dataclass(frozen=True)
+class ProjectInfo:
+    """A stored project."""
+
+    id: int
+    name: str
+    created_s: float
+    updated_s: float
+    is_open: bool
+
+
+@dataclass(frozen=True)
+class ExportInfo:
+    """A saved export: its files in the store and, when the session has a data folder, on disk."""
+
+    name: str
+    created_s: float
+    files: list[str]
+    folder: Path | None
+
+
+# --- the job runner ----------------------------------------------------------------------
