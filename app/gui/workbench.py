@@ -55,11 +55,11 @@ class Workbench:
         self.session = session
         self.period_s = 1.0 / rate_hz
         server.gui.configure_theme(
-            control_layout="fixed",
             control_width="large",
             brand_color=BRAND_COLOR,
             show_share_button=False,
         )
+        server.gui.main_panel.dock_right()
         server.initial_camera.position = (1.25, -0.35, 0.55)
         server.initial_camera.look_at = (0.72, 0.14, 0.12)
         server.initial_camera.up = (0.0, 0.0, 1.0)
@@ -71,6 +71,7 @@ class Workbench:
         self.path_learning = PathLearningPanel(server, session)
         self.postprocess = PostprocessPanel(server, session, self.scene)
         self.export = ExportPanel(server, session)
+        self.studies = self._study_panels(server, session)
         self._dirty: set[str] = {"job"}
         self._dirty_lock = threading.Lock()
         self._jobs_shown: dict[str, str] = {}  # job kind -> id of the job the panel shows
@@ -86,10 +87,30 @@ class Workbench:
         self._thread.start()
 
     def close(self) -> None:
-        """Stop the updater thread and stop listening to the session."""
+        """Stop the updater thread and the study panels, and stop listening to the session."""
         self._stop.set()
         self._unsubscribe()
         self._thread.join(timeout=2.0)
+        for panel in self.studies:
+            panel.close()
+
+    @staticmethod
+    def _study_panels(server: viser.ViserServer, session) -> list:
+        """The CMRR and compensation study panels (collapsed, below the pipeline's)."""
+        try:
+            from app.studies import studies_for
+
+            from .panels.cmrr import CmrrPanel
+            from .panels.compensation import CompensationPanel
+
+            service = studies_for(session)
+            return [
+                CmrrPanel(server, session, service),
+                CompensationPanel(server, session, service),
+            ]
+        except Exception:  # the PbD pipeline's panels stay usable without the studies
+            log.exception("the study panels failed to build")
+            return []
 
     # ---------------------------------------------------------------- change notifications
 

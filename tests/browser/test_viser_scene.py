@@ -1,0 +1,135 @@
+"""The viser workbench: the browser draws the robot and follows it; the spring handle pushes;
+the panels follow changes made through the session (as the REST API makes them)."""
+
+from __future__ import annotations
+
+import io
+import time
+from collections.abc import Callable, Iterator
+
+import httpx
+import numpy as np
+import pytest
+from PIL import Image
+from playwright.sync_api import Page, expect
+
+from tests.browser.conftest import Served, free_port
+
+pytestmark = pytest.mark.slow
+
+SETTLE_TIMEOUT_S = 60.0  # the scene fades in over a few seconds under SwiftShader
+SCENE_VIEWPORT = {"width": 960, "height": 640}  # software rendering: fewer pixels, faster
+
+
+def canvas_pixels(page: Page) -> np.ndarray:
+    """(h, w, 3) int pixels of the 3D canvas (a page screenshot clipped to it: an element
+    screenshot waits for the always-animating canvas to be "stable")."""
+    box = page.locator("canvas").first.bounding_box()
+    assert box is not None, "no canvas on the page"
+    png = page.screenshot(clip=box)
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=int)
+
+
+def changed_fraction(a: np.ndarray, b: np.ndarray, threshold: int = 40) -> float:
+    return float((np.abs(a - b).sum(axis=-1) > threshold).mean())
+
+
+def settled_canvas(page: Page) -> np.ndarray:
+    """The canvas once two screenshots a second apart (nearly) agree."""
+    deadline = time.monotonic() + SETTLE_TIMEOUT_S
+    last = canvas_pixels(page)
+    while time.monotonic() < deadline:
+        page.wait_for_timeout(1000)
+        now = canvas_pixels(page)
+        if changed_fraction(last, now) < 0.002:
+            return now
+        last = now
+    return last
+
+
+def test_viser_page_draws_the_robot(served: Served, api: httpx.Client, browser) -> None:
+    context = browser.new_context(viewport=SCENE_VIEWPORT)
+    context.set_default_timeout(60_000)
+    page = context.new_page()
+    page.goto(served.viser_url)
+    expect(page.get_by_text("Connected")).to_be_visible()
+    expect(page.get_by_text("Lead-through")).to_be_visible()  # the workbench's panels
+    before = settled_canvas(page)
+    background = np.array([255, 255, 255])
+    drawn = float((np.abs(before - background).sum(axis=-1) > 30).mean())
+    assert drawn > 0.05, f"the scene is blank ({drawn:.1%} of the canvas drawn)"
+
+    # Raise the tool by ~10 cm: the arm must move on screen.
+    r = api.post("/api/leadthrough/push", json={"force_N": [0, 0, 25], "duration_s": 2.0})
+    assert r.status_code == 200, r.text
+    after = settled_canvas(page)
+    moved = changed_fraction(before, after)
+    assert moved > 0.005, f"the robot did not move on screen ({moved:.2%} of the pixels changed)"
+    context.close()
+
+
+# --- the workbench in-process: spring handle and panels, no browser needed ------------------
+
+
+@pytest.fixture
+def workbench() -> Iterator:
+    import viser
+
+    from app.gui import Workbench
+    from app.session import Session
+
+    session = Session()
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    wb = Workbench(server, session)
+    yield wb
+    wb.close()
+    server.stop()
+    session.close()
+
+
+def wait_for(condition: Callable[[], bool], timeout_s: float = 20.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError("condition not met in time")
+        time.sleep(0.02)
+
+
+def test_spring_handle_pushes_the_robot(workbench) -> None:
+    session, lead = workbench.session, workbench.leadthrough
+    p0 = session.snapshot().position_m.copy()
+    lead.spring.value = 2.0  # N/mm: 20 mm of offset push 40 N, the robot follows in ~1 s
+    frames = workbench.frames_drawn
+    workbench.scene.handle.position = p0 + np.array([0.0, 0.0, 0.020])
+    lead.arm()
+    wait_for(lambda: session.snapshot().position_m[2] - p0[2] > 0.005)
+    assert workbench.frames_drawn > frames
+    assert lead.push_N is not None and lead.push_N[2] > 0
+    # The robot stops at the handle (within the admittance's 1 N deadband: 0.5 mm at 2 N/mm).
+    wait_for(lambda: abs(session.snapshot().position_m[2] - (p0[2] + 0.020)) < 0.002)
+    np.testing.assert_allclose(session.snapshot().position_m[:2], p0[:2], atol=5e-4)
+
+    # A move the spring did not make (a jog, an API push) releases the handle onto the tool.
+    session.jog("z", 0.005)
+    wait_for(lambda: lead.push_N is None)
+    wait_for(
+        lambda: np.allclose(
+            workbench.scene.handle.position, session.snapshot().position_m, atol=1e-6
+        )
+    )
+
+
+def test_panels_follow_session_changes(workbench) -> None:
+    session = workbench.session
+    session.record_guide_point()
+    wait_for(lambda: "G1" in workbench.guide_points.selected.options)
+    assert "G1" in workbench.guide_points.table.content
+    session.set_compliance(["z", "rx"], "tool")
+    wait_for(lambda: workbench.leadthrough.axes["rx"].value)
+    assert not workbench.leadthrough.axes["x"].value
+    assert workbench.leadthrough.frame.value == "tool"
+    session.clear_guide_points()
+    wait_for(lambda: workbench.guide_points.selected.options == ("none",))
+    session.set_cell(workpiece="block")
+    wait_for(lambda: "block" in workbench.cell.info.content)
+    assert workbench.cell.workpiece.value == "block"
