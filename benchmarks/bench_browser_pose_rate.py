@@ -1,0 +1,197 @@
+"""Pose updates per second that a browser showing the viser workbench receives while the robot
+is pushed.
+
+Run: ``python benchmarks/bench_browser_pose_rate.py`` (needs Debian's chromium). Two ways of
+pushing, each measured for ``--seconds``:
+
+- ``handle``: the workbench's spring handle, in-process (Session + Workbench on a free port):
+  the handle circles around the tool and the spring pushes the robot after it, in real time.
+- ``rest``: a real ``robomach serve``; a client holds a push as the pendant's push button does,
+  as back-to-back ``POST /api/leadthrough/push`` of 20 ms each, paced to real time.
+
+The browser's websocket frames are decoded (viser's wire format: zstd-compressed msgpack) and a
+frame that moves ``/robot/tcp`` counts as one pose update seen. The page's own draw rate
+(requestAnimationFrame, software WebGL here) is printed for information.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import msgspec
+import numpy as np
+import zstandard
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from tests.browser.conftest import CHROMIUM_ARGS, free_port, start_serve  # noqa: E402
+
+TCP_NODE = "/robot/tcp"
+LOAD_TIMEOUT_S = 90.0
+REST_PUSH_S = 0.02
+HANDLE_RADIUS_M = 0.04
+HANDLE_PERIOD_S = 4.0
+
+
+class PoseCounter:
+    """Counts websocket frames that move the TCP node, with their arrival times."""
+
+    def __init__(self) -> None:
+        self.times: list[float] = []
+        self._zstd = zstandard.ZstdDecompressor()
+
+    def on_websocket(self, ws) -> None:
+        ws.on("framereceived", self.on_frame)
+
+    def on_frame(self, payload: bytes | str) -> None:
+        if isinstance(payload, str) or len(payload) < 16:
+            return
+        size = int.from_bytes(payload[0:8], "little")
+        compressed = int.from_bytes(payload[8:16], "little")
+        try:
+            inner = self._zstd.decompress(payload[16 : 16 + compressed], max_output_size=size)
+            messages = msgspec.msgpack.decode(inner)["messages"]
+        except Exception:
+            return
+        if any(
+            m.get("type") == "SetPositionMessage" and m.get("name") == TCP_NODE for m in messages
+        ):
+            self.times.append(time.monotonic())
+
+    def rate(self, start: float, end: float) -> tuple[int, float, float, float]:
+        """Updates, rate [Hz], median and 95th-percentile interval [ms] within [start, end]."""
+        t = np.array([x for x in self.times if start <= x <= end])
+        if len(t) < 2:
+            return len(t), 0.0, math.nan, math.nan
+        gaps = np.diff(t) * 1e3
+        return (
+            len(t),
+            len(t) / (end - start),
+            float(np.median(gaps)),
+            float(np.percentile(gaps, 95)),
+        )
+
+
+def open_viewer(playwright, url: str):
+    """A headless chromium page on the viser URL; returns (browser, page, counter)."""
+    browser = playwright.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)
+    page = browser.new_page(viewport={"width": 960, "height": 640})
+    counter = PoseCounter()
+    page.on("websocket", counter.on_websocket)
+    page.add_init_script(
+        "window.__frames = 0;"
+        "(function tick() { window.__frames++; requestAnimationFrame(tick); })();"
+    )
+    page.goto(url)
+    page.get_by_text("Connected").wait_for(timeout=LOAD_TIMEOUT_S * 1e3)
+    page.get_by_text("Lead-through").first.wait_for(timeout=LOAD_TIMEOUT_S * 1e3)
+    page.wait_for_timeout(3000)  # the initial scene (meshes) arrives and is parsed
+    return browser, page, counter
+
+
+def measure(page, counter: PoseCounter, seconds: float, mode: str) -> dict:
+    raf0 = page.evaluate("window.__frames")
+    start = time.monotonic()
+    page.wait_for_timeout(seconds * 1e3)  # Playwright delivers the frame events meanwhile
+    end = time.monotonic()
+    raf = (page.evaluate("window.__frames") - raf0) / (end - start)
+    n, hz, median_ms, p95_ms = counter.rate(start, end)
+    print(
+        f"{mode:7s} {n:5d} pose updates in {end - start:.1f} s: {hz:5.1f} Hz "
+        f"(interval median {median_ms:.1f} ms, p95 {p95_ms:.1f} ms); page draws {raf:.1f} fps"
+    )
+    return {"mode": mode, "updates": n, "rate_hz": hz, "median_ms": median_ms, "p95_ms": p95_ms}
+
+
+def bench_handle(playwright, seconds: float) -> dict:
+    import viser
+
+    from app.gui import Workbench
+    from app.session import Session
+
+    session = Session()
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    wb = Workbench(server, session)
+    stop = threading.Event()
+
+    def circle() -> None:
+        centre = session.snapshot().position_m.copy()
+        wb.leadthrough.spring.value = 1.0
+        t0 = time.monotonic()
+        while not stop.is_set():
+            a = 2 * math.pi * (time.monotonic() - t0) / HANDLE_PERIOD_S
+            offset = HANDLE_RADIUS_M * np.array([math.cos(a) - 1.0, math.sin(a), 0.0])
+            wb.scene.handle.position = centre + offset
+            wb.leadthrough.arm()
+            stop.wait(0.02)
+
+    try:
+        browser, page, counter = open_viewer(playwright, f"http://127.0.0.1:{server.get_port()}/")
+        mover = threading.Thread(target=circle, daemon=True)
+        mover.start()
+        page.wait_for_timeout(1000)
+        result = measure(page, counter, seconds, "handle")
+        browser.close()
+    finally:
+        stop.set()
+        wb.close()
+        server.stop()
+        session.close()
+    return result
+
+
+def bench_rest(playwright, seconds: float) -> dict:
+    import httpx
+
+    with tempfile.TemporaryDirectory() as tmp:
+        served = start_serve(Path(tmp) / "data")
+        stop = threading.Event()
+
+        def hold_push() -> None:
+            with httpx.Client(base_url=served.base_url, timeout=30.0) as client:
+                t_next, direction, flipped = time.monotonic(), 1.0, time.monotonic()
+                while not stop.is_set():
+                    if time.monotonic() - flipped > 2.0:  # back and forth, 2 s each way
+                        direction, flipped = -direction, time.monotonic()
+                    body = {"force_N": [10.0 * direction, 0, 0], "duration_s": REST_PUSH_S}
+                    client.post("/api/leadthrough/push", json=body)
+                    t_next += REST_PUSH_S
+                    stop.wait(max(0.0, t_next - time.monotonic()))
+
+        try:
+            browser, page, counter = open_viewer(playwright, served.viser_url)
+            pusher = threading.Thread(target=hold_push, daemon=True)
+            pusher.start()
+            page.wait_for_timeout(1000)
+            result = measure(page, counter, seconds, "rest")
+            browser.close()
+        finally:
+            stop.set()
+            served.stop()
+    return result
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=10.0, help="measuring window per mode")
+    parser.add_argument("--mode", choices=("handle", "rest", "both"), default="both")
+    args = parser.parse_args()
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        if args.mode in ("handle", "both"):
+            bench_handle(p, args.seconds)
+        if args.mode in ("rest", "both"):
+            bench_rest(p, args.seconds)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
