@@ -397,6 +397,12 @@ async function viserUrl() {
 // What the server already holds: compliance, post-processing settings and the last result.
 async function loadSettings() {
   showCompliance(await api("GET", "/leadthrough/compliance", undefined, { quiet: true }));
+  const trace = await api("GET", "/path-learning/recording?max_points=2", undefined,
+    { quiet: true }).catch(() => null);
+  if (trace && trace.source === "recording") {
+    $("learn-progress").value = 1;
+    $("learn-status").textContent = `recorded ${trace.samples_total} samples: ${trace.stop_reason}`;
+  }
   const post = await api("GET", "/postprocess", undefined, { quiet: true });
   if (post) {
     showPostprocessSettings(post.settings);

@@ -60,8 +60,8 @@ class Workbench:
             show_share_button=False,
         )
         server.gui.main_panel.dock_right()
-        server.initial_camera.position = (1.25, -0.35, 0.55)
-        server.initial_camera.look_at = (0.72, 0.14, 0.12)
+        server.initial_camera.position = (1.16, -0.26, 0.46)
+        server.initial_camera.look_at = (0.78, 0.15, 0.05)
         server.initial_camera.up = (0.0, 0.0, 1.0)
         self.scene = CellScene(server)
         self._show_cell()

@@ -19,8 +19,9 @@ from robomach_core.leadthrough import AXES
 from ..scene import CellScene
 from .feedback import guarded
 
-PUSH_DIRECTIONS = ("-X", "+X", "-Y", "+Y", "-Z", "+Z")
-JOG_DIRECTIONS = ("-Rx", "+Rx", "-Ry", "+Ry", "-Rz", "+Rz")
+# Three buttons a row: six do not fit the sidebar.
+PUSH_ROWS = (("Push +", ("+X", "+Y", "+Z")), ("Push -", ("-X", "-Y", "-Z")))
+JOG_ROWS = (("Jog tool +", ("+Rx", "+Ry", "+Rz")), ("Jog tool -", ("-Rx", "-Ry", "-Rz")))
 SPRING_DEADBAND_M = 0.0005  # offsets below this push nothing (the handle sits on the tool)
 SPRING_MAX_N = 40.0
 SPRING_MAX_STEP_S = 0.1  # a late tick never integrates more than this at once
@@ -72,6 +73,11 @@ class LeadThroughPanel:
             self.frame = server.gui.add_dropdown(
                 "Compliance frame", ("base", "tool"), initial_value=sel.frame
             )
+            self.show_handle = server.gui.add_checkbox(
+                "Show push handle",
+                True,
+                hint="The handle is heavy to draw without a GPU: hide it on slow machines",
+            )
             self.spring = server.gui.add_slider(
                 "Handle spring (N/mm)",
                 0.1,
@@ -85,9 +91,9 @@ class LeadThroughPanel:
             )
             self.push_force = server.gui.add_number("Push force (N)", 10.0, min=0.5, max=50.0)
             self.push_time = server.gui.add_number("Push time (s)", 0.5, min=0.05, max=10.0)
-            self.push = server.gui.add_button_group("Push", PUSH_DIRECTIONS)
+            self.push = [server.gui.add_button_group(label, d) for label, d in PUSH_ROWS]
             self.jog_step = server.gui.add_number("Jog step (deg)", 2.0, min=0.1, max=45.0)
-            self.jog = server.gui.add_button_group("Jog tool", JOG_DIRECTIONS)
+            self.jog = [server.gui.add_button_group(label, d) for label, d in JOG_ROWS]
             self.home = server.gui.add_button("Home", icon=viser.Icon.HOME)
             self.pose = server.gui.add_markdown("")
         for box in (*self.axes.values(), self.frame):
@@ -99,25 +105,28 @@ class LeadThroughPanel:
                     ),
                 )
             )
-        self.push.on_click(
-            guarded(
-                "Push",
-                lambda e: self.session.push(
-                    self._push_wrench(e.target.value), float(self.push_time.value)
-                ),
+        for group in self.push:
+            group.on_click(
+                guarded(
+                    "Push",
+                    lambda e: self.session.push(
+                        self._push_wrench(e.target.value), float(self.push_time.value)
+                    ),
+                )
             )
-        )
-        self.jog.on_click(
-            guarded(
-                "Jog",
-                lambda e: self.session.jog(
-                    e.target.value[1:].lower(),
-                    math.radians(self.jog_step.value) * _sign(e.target.value),
-                ),
+        for group in self.jog:
+            group.on_click(
+                guarded(
+                    "Jog",
+                    lambda e: self.session.jog(
+                        e.target.value[1:].lower(),
+                        math.radians(self.jog_step.value) * _sign(e.target.value),
+                    ),
+                )
             )
-        )
         self.home.on_click(guarded("Home", lambda e: self.session.go_home()))
         self.release.on_click(lambda e: self.disarm())
+        self.show_handle.on_update(lambda e: self.set_handle_visible(self.show_handle.value))
         scene.handle.on_update(lambda e: self.arm())
         self._armed = False
         self._last_tick = time.monotonic()
@@ -141,6 +150,11 @@ class LeadThroughPanel:
         self._armed = False
         self.push_N = None
         self.scene.handle_to(self.session.snapshot().T_base_tcp[:3, 3])
+
+    def set_handle_visible(self, visible: bool) -> None:
+        """Show or hide the handle (a hidden handle does not push)."""
+        self.disarm()
+        self.scene.handle.visible = visible
 
     def spring_force(self, snapshot) -> np.ndarray | None:
         """(3,) push force of the handle's offset from the TCP [N], or None when disarmed."""

@@ -55,9 +55,9 @@ class PathLearningPanel:
                 (np.zeros(2), np.zeros(2), np.full(2, self.force.value)),
                 (
                     viser.uplot.Series(label="t (s)"),
-                    viser.uplot.Series(label="contact force (N)", stroke="#d62728", width=1.5),
+                    viser.uplot.Series(label="contact force (N)", stroke="#d62728", width=1.0),
                     viser.uplot.Series(
-                        label="setpoint (N)", stroke="#1f77b4", width=1.5, dash=[6, 4]
+                        label="setpoint (N)", stroke="#1d3557", width=2.5, dash=[8, 4]
                     ),
                 ),
                 title="Contact force",
