@@ -136,3 +136,12 @@ def test_panels_follow_session_changes(workbench) -> None:
     session.set_cell(workpiece="block")
     wait_for(lambda: "block" in workbench.cell.info.content)
     assert workbench.cell.workpiece.value == "block"
+
+    # An uploaded mesh (mm) joins the workpiece choices; it has no true wall to score against.
+    import trimesh
+
+    stl = trimesh.creation.box(extents=(120.0, 80.0, 30.0)).export(file_type="stl")
+    session.upload_workpiece(stl, "bracket.stl")
+    wait_for(lambda: "bracket" in workbench.cell.workpiece.options)
+    assert workbench.cell.workpiece.value == "bracket"
+    assert "no ground truth" in workbench.cell.info.content
