@@ -168,3 +168,17 @@ def test_pendant_keeps_the_token_and_finds_the_scene(served: Served, page: Page)
     expect(page.locator("#token")).to_have_value("not-needed-here-0123456789")
     expect(page.locator("#viser-frame")).to_have_attribute("src", served.viser_url)
     expect(page.locator("#viser-link")).to_have_text(served.viser_url)
+
+
+def test_pendant_loads_the_example(served: Served, api: httpx.Client, page: Page) -> None:
+    # The default cell: the water pump, whose scripted operator pushes the robot to a guide
+    # point in each straight run of the groove's wall (a job of a few seconds).
+    open_pendant(page, served)
+    page.click("#guide-example")
+    expect(page.locator("#example-progress-row")).to_be_visible()
+    expect(page.locator("#example-status")).to_have_text(
+        re.compile(r"^(done|failed|cancelled)"), timeout=120_000
+    )
+    assert page.locator("#example-status").inner_text().startswith("done")
+    expect(page.locator("#guide-example")).to_be_enabled()
+    assert int(page.locator("#guide-count").inner_text()) >= 8
