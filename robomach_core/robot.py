@@ -12,6 +12,7 @@ SOLUTION  ``Robot.fk``, ``Robot.fk_and_jacobian``, ``Robot.ik`` and ``Robot.ik_s
 from __future__ import annotations
 
 import importlib.metadata
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -66,6 +67,9 @@ class Robot:
         )
         self.flange_frame_id = flange_id
         self.data = self.model.createData()
+        # One Data buffer (and the FK cache) per robot: the workbench's threads (a running job,
+        # an export's reachability check) must not interleave inside pinocchio's buffers.
+        self._lock = threading.RLock()
         self._cache_key: bytes = b""
         self._cache_T = np.eye(4)
         self._cache_J = np.zeros((6, 6))
@@ -96,15 +100,17 @@ class Robot:
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         """4x4 ``T_base_tcp`` at joints ``q`` (rad)."""
-        self._cache_key = b""  # the data buffer no longer holds the cached Jacobian's pose
-        pin.framesForwardKinematics(self.model, self.data, q)
-        return self.data.oMf[self.tcp_frame_id].homogeneous
+        with self._lock:
+            self._cache_key = b""  # the data buffer no longer holds the cached Jacobian's pose
+            pin.framesForwardKinematics(self.model, self.data, q)
+            return self.data.oMf[self.tcp_frame_id].homogeneous
 
     def flange_pose(self, q: np.ndarray) -> np.ndarray:
         """4x4 ``T_base_flange`` at joints ``q`` (rad)."""
-        self._cache_key = b""
-        pin.framesForwardKinematics(self.model, self.data, q)
-        return self.data.oMf[self.flange_frame_id].homogeneous
+        with self._lock:
+            self._cache_key = b""
+            pin.framesForwardKinematics(self.model, self.data, q)
+            return self.data.oMf[self.flange_frame_id].homogeneous
 
     def fk_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``T_base_tcp`` and the 6x6 TCP Jacobian [v; omega] in base-aligned axes.
@@ -114,16 +120,17 @@ class Robot:
         Treat the returned arrays as read-only.
         """
         key = q.tobytes()
-        if key == self._cache_key:
-            return self._cache_T, self._cache_J
-        pin.computeJointJacobians(self.model, self.data, q)
-        pin.updateFramePlacements(self.model, self.data)
-        J = pin.getFrameJacobian(
-            self.model, self.data, self.tcp_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        )
-        T = self.data.oMf[self.tcp_frame_id].homogeneous
-        self._cache_key, self._cache_T, self._cache_J = key, T, J
-        return T, J
+        with self._lock:
+            if key == self._cache_key:
+                return self._cache_T, self._cache_J
+            pin.computeJointJacobians(self.model, self.data, q)
+            pin.updateFramePlacements(self.model, self.data)
+            J = pin.getFrameJacobian(
+                self.model, self.data, self.tcp_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+            )
+            T = self.data.oMf[self.tcp_frame_id].homogeneous
+            self._cache_key, self._cache_T, self._cache_J = key, T, J
+            return T, J
 
     def ik_step(
         self, q: np.ndarray, T_base_target: np.ndarray, *, damping: float = 1e-4

@@ -73,3 +73,30 @@ def test_ik_step_tracks_a_small_motion(ur10):
     T[:3, 3] += [0.0, 0.00002, 0.0]  # 20 um: one 4 ms step at 5 mm/s
     q1 = ur10.ik_step(q, T)
     np.testing.assert_allclose(ur10.fk(q1)[:3, 3], T[:3, 3], atol=1e-9)
+
+
+def test_kinematics_is_safe_from_several_threads(ur10):
+    """The workbench steps the cell in a job while an export checks reachability."""
+    import threading
+
+    rng = np.random.default_rng(0)
+    qs = [HOME_JOINTS_RAD + rng.uniform(-0.3, 0.3, 6) for _ in range(200)]
+    expected = [ur10.fk(q).copy() for q in qs]
+    errors = []
+
+    def worker(offset: int) -> None:
+        for k in range(600):
+            i = (k + offset) % len(qs)
+            T, _ = ur10.fk_and_jacobian(qs[i])
+            if not np.allclose(T, expected[i], atol=1e-12):
+                errors.append(i)
+            T2 = ur10.fk(qs[(i + 7) % len(qs)])
+            if not np.allclose(T2, expected[(i + 7) % len(qs)], atol=1e-12):
+                errors.append(-i)
+
+    threads = [threading.Thread(target=worker, args=(o,)) for o in (0, 50, 100)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors
