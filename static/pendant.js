@@ -373,7 +373,7 @@ async function downloadRapid() {
 // ---------------------------------------------------------------- viser scene
 
 // The scene URL: ?viser=<url> wins; then the server's /api/health "viser_url" (or
-// "viser_port" on this page's host); else this host on port 8080.
+// "viser_port" on this page's host), or /api/workbench "viser_port"; else port 8080.
 async function viserUrl() {
   const fromQuery = new URLSearchParams(location.search).get("viser");
   if (fromQuery) return fromQuery;
@@ -388,6 +388,8 @@ async function viserUrl() {
       return u.toString();
     }
     if (health && health.viser_port) return `${location.protocol}//${host}:${health.viser_port}/`;
+    const wb = await api("GET", "/workbench", undefined, { quiet: true });
+    if (wb && wb.viser_port) return `${location.protocol}//${host}:${wb.viser_port}/`;
   } catch (_) { /* fall through to the default */ }
   return `${location.protocol}//${host}:${DEFAULT_VISER_PORT}/`;
 }

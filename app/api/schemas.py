@@ -49,6 +49,12 @@ class HealthPublic(BaseModel):
     status: Literal["ok"] = "ok"
 
 
+class WorkbenchPublic(BaseModel):
+    viser_port: int | None = Field(
+        description="Port of the viser 3D workbench on this host (null: not running)"
+    )
+
+
 class TcpPublic(BaseModel):
     position_mm: list[float] = Field(description="TCP position in the robot base frame [mm]")
     quaternion_wxyz: list[float] = Field(description="TCP orientation, unit quaternion w, x, y, z")

@@ -51,3 +51,13 @@ def test_unknown_route_and_method_are_4xx_with_a_message(api: Api) -> None:
 def test_root_redirects(api: Api) -> None:
     r = api.get("/", follow_redirects=False)
     assert r.status_code in (302, 307) and r.headers["location"] in ("/docs", "/pendant/")
+
+
+def test_workbench_tells_the_pendant_where_viser_listens(api: Api) -> None:
+    import httpx
+
+    port = api.ok("GET", "/api/workbench")["viser_port"]
+    assert isinstance(port, int)
+    # The viser server of the same process serves its page there.
+    page = httpx.get(f"http://127.0.0.1:{port}/", timeout=10.0)
+    assert page.status_code == 200 and "<html" in page.text.lower()

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Request
 
 from app.api.routes import SessionDep
-from app.api.schemas import HealthPublic, StatePublic
+from app.api.schemas import HealthPublic, StatePublic, WorkbenchPublic
 
 router = APIRouter(prefix="/api", tags=["state"])
 
@@ -14,6 +14,12 @@ router = APIRouter(prefix="/api", tags=["state"])
 def health() -> HealthPublic:
     """Liveness: answers as soon as the server accepts requests."""
     return HealthPublic()
+
+
+@router.get("/workbench")
+def get_workbench(request: Request) -> WorkbenchPublic:
+    """Where the viser 3D workbench listens, so the pendant page can embed it."""
+    return WorkbenchPublic(viser_port=request.app.state.settings.viser_port)
 
 
 @router.get("/state")
