@@ -54,6 +54,26 @@ def fmt(value: object, spec: str = ".1f", unit: str = "") -> str:
     return f"{value:{spec}}{unit}"
 
 
+def show_job_progress(
+    job, *, run: object, cancel: object, progress: object, status: object
+) -> None:
+    """A study panel's controls for ``job``: run/cancel enabled, progress bar, status line.
+
+    While the job runs the run button is disabled and the bar shows its progress; when it has
+    just ended the status line keeps its outcome until the next job.
+    """
+    running = job is not None and job.status in ("queued", "running")
+    run.disabled = running
+    cancel.disabled = not running
+    progress.animated = running
+    if running:
+        progress.value = round(job.progress * 100.0, 1)
+        state = "Queued" if job.status == "queued" else "Running"
+        status.content = f"{state}: {job.progress:.0%}"
+    elif job is not None:
+        status.content = "" if job.status == "done" else f"**{job.status}**: {job.error}"
+
+
 class StudyJobFollower:
     """Follows the study jobs of one kind and calls ``refresh(job)`` from its own thread when
     a session or study event arrived (``job`` is the running job, or the one that just ended,
@@ -80,6 +100,11 @@ class StudyJobFollower:
         """Show this job (just submitted) at the next refresh."""
         self.job_id = job_id
         self._dirty.set()
+
+    def cancel(self) -> None:
+        """Cancel the job being shown, if any."""
+        if self.job_id is not None:
+            self.session.cancel_job(self.job_id)
 
     def close(self) -> None:
         self._stop.set()
@@ -191,24 +216,16 @@ class CmrrPanel:
         self.follower.close()
 
     def _cancel(self) -> None:
-        if self.follower.job_id is not None:
-            self.session.cancel_job(self.follower.job_id)
+        self.follower.cancel()
 
     def _show_hint(self) -> None:
         self.run.hint = SCENARIO_HINTS.get(self.scenario.value)
 
     def refresh(self, job) -> None:
         """Show the job's progress (or how it ended) and the project's last study."""
-        running = job is not None and job.status in ("queued", "running")
-        self.run.disabled = running
-        self.cancel.disabled = not running
-        self.progress.animated = running
-        if running:
-            self.progress.value = round(job.progress * 100.0, 1)
-            state = "Queued" if job.status == "queued" else "Running"
-            self.status.content = f"{state}: {job.progress:.0%}"
-        elif job is not None:  # just ended; the message stays until the next job
-            self.status.content = "" if job.status == "done" else f"**{job.status}**: {job.error}"
+        show_job_progress(
+            job, run=self.run, cancel=self.cancel, progress=self.progress, status=self.status
+        )
         outcome = self.service.cmrr_result()
         if outcome is self._shown:
             return

@@ -19,7 +19,7 @@ from app.studies import (
 )
 from robomach_core.stiffness.settings import COMPENSATION_SETTINGS
 
-from .cmrr import StudyJobFollower, fmt, png_to_image
+from .cmrr import StudyJobFollower, fmt, png_to_image, show_job_progress
 from .feedback import guarded
 
 STUDY_HINTS = {
@@ -106,24 +106,16 @@ class CompensationPanel:
         self.follower.close()
 
     def _cancel(self) -> None:
-        if self.follower.job_id is not None:
-            self.session.cancel_job(self.follower.job_id)
+        self.follower.cancel()
 
     def _show_hint(self) -> None:
         self.run.hint = STUDY_HINTS.get(self.study.value)
 
     def refresh(self, job) -> None:
         """Show the job's progress (or how it ended) and the project's last study."""
-        running = job is not None and job.status in ("queued", "running")
-        self.run.disabled = running
-        self.cancel.disabled = not running
-        self.progress.animated = running
-        if running:
-            self.progress.value = round(job.progress * 100.0, 1)
-            state = "Queued" if job.status == "queued" else "Running"
-            self.status.content = f"{state}: {job.progress:.0%}"
-        elif job is not None:  # just ended; the message stays until the next job
-            self.status.content = "" if job.status == "done" else f"**{job.status}**: {job.error}"
+        show_job_progress(
+            job, run=self.run, cancel=self.cancel, progress=self.progress, status=self.status
+        )
         outcome = self.service.compensation_result()
         if outcome is self._shown:
             return
