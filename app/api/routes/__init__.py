@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Annotated
 
 from fastapi import Depends, Request
@@ -9,6 +10,7 @@ from fastapi import Depends, Request
 from app.api.schemas import ErrorPublic
 from app.session import Session
 from app.settings import ServerSettings
+from app.studies import StudyService, studies_for
 
 
 def get_session(request: Request) -> Session:
@@ -19,8 +21,13 @@ def get_settings(request: Request) -> ServerSettings:
     return request.app.state.settings
 
 
+def get_studies(request: Request) -> StudyService:
+    return studies_for(request.app.state.session)
+
+
 SessionDep = Annotated[Session, Depends(get_session)]
 SettingsDep = Annotated[ServerSettings, Depends(get_settings)]
+StudiesDep = Annotated[StudyService, Depends(get_studies)]
 
 # Documented error answers of every route (the handlers in app.api.app produce them).
 ERRORS: dict[int | str, dict] = {
@@ -29,3 +36,14 @@ ERRORS: dict[int | str, dict] = {
     409: {"model": ErrorPublic, "description": "not possible now (robot busy, nothing to process)"},
     422: {"model": ErrorPublic, "description": "invalid input; the message says what is wrong"},
 }
+
+# File answers of the study routes.
+PNG = {200: {"content": {"image/png": {}}, "description": "the figure (PNG)"}}
+JSON_FILE = {200: {"content": {"application/json": {}}, "description": "a JSON file"}}
+
+
+def relative_folder(folder: Path | None, data_dir: Path | None) -> str | None:
+    """A study folder relative to the data folder (None without one: nothing to show)."""
+    if folder is None or data_dir is None or not folder.is_relative_to(data_dir):
+        return None
+    return str(folder.relative_to(data_dir))

@@ -7,18 +7,16 @@ import functools
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Depends, Query, Request, Response, status
+from fastapi import APIRouter, Query, Response, status
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.api.routes import ERRORS
+from app.api.routes import ERRORS, JSON_FILE, PNG, StudiesDep, relative_folder
 from app.api.schemas import JobCreated
 from app.session import NotFoundError
 from app.studies import (
     CMRR_CONTROLLER_CHOICES,
     SEED_MAX,
     CmrrOutcome,
-    StudyService,
-    studies_for,
 )
 from robomach_core.cmrr import SCENARIO_NAMES
 from robomach_core.cmrr.scenarios import ScenarioName
@@ -29,22 +27,6 @@ ControllerChoice = Literal[
     "constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage", "adaptive-lq", "all", "default"
 ]
 PositiveFinite = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
-PNG = {200: {"content": {"image/png": {}}, "description": "the figure (PNG)"}}
-JSON_FILE = {200: {"content": {"application/json": {}}, "description": "a JSON file"}}
-
-
-def get_studies(request: Request) -> StudyService:
-    return studies_for(request.app.state.session)
-
-
-StudiesDep = Annotated[StudyService, Depends(get_studies)]
-
-
-def _relative(folder: Path | None, data_dir: Path | None) -> str | None:
-    """A study folder relative to the data folder (None without one: nothing to show)."""
-    if folder is None or data_dir is None or not folder.is_relative_to(data_dir):
-        return None
-    return str(folder.relative_to(data_dir))
 
 
 # --- schemas ---------------------------------------------------------------------------------
@@ -98,7 +80,7 @@ class CmrrStudyPublic(BaseModel):
             summary=o.summary,
             plot_url=f"{router.prefix}/studies/last/plot.png" if o.plot_png else None,
             settings_url=f"{router.prefix}/settings",
-            folder=_relative(o.folder, data_dir),
+            folder=relative_folder(o.folder, data_dir),
         )
 
 

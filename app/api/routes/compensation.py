@@ -4,34 +4,17 @@ compensation and ILC (a job); the last study's summary, plots and compensation s
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Any
 
-from fastapi import APIRouter, Depends, Request, Response, status
+from fastapi import APIRouter, Response, status
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.api.routes import ERRORS
+from app.api.routes import ERRORS, JSON_FILE, PNG, StudiesDep, relative_folder
 from app.api.schemas import JobCreated
-from app.studies import SEED_MAX, CompensationOutcome, CompensationStudy, StudyService, studies_for
+from app.studies import SEED_MAX, CompensationOutcome, CompensationStudy
 from robomach_core.stiffness.settings import CompensationSetting
 
 router = APIRouter(prefix="/api/compensation", tags=["compensation"], responses=ERRORS)
-
-PNG = {200: {"content": {"image/png": {}}, "description": "the plot (PNG)"}}
-JSON_FILE = {200: {"content": {"application/json": {}}, "description": "a JSON file"}}
-
-
-def get_studies(request: Request) -> StudyService:
-    return studies_for(request.app.state.session)
-
-
-StudiesDep = Annotated[StudyService, Depends(get_studies)]
-
-
-def _relative(folder: Path | None, data_dir: Path | None) -> str | None:
-    """A study folder relative to the data folder (None without one: nothing to show)."""
-    if folder is None or data_dir is None or not folder.is_relative_to(data_dir):
-        return None
-    return str(folder.relative_to(data_dir))
 
 
 # --- schemas ---------------------------------------------------------------------------------
@@ -84,7 +67,7 @@ class CompensationStudyPublic(BaseModel):
             summary=o.summary,
             plots=sorted(o.plots),
             settings_available=o.settings is not None,
-            folder=_relative(o.folder, data_dir),
+            folder=relative_folder(o.folder, data_dir),
         )
 
 
