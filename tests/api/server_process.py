@@ -27,21 +27,28 @@ def free_port() -> int:
 
 @dataclass
 class ServerProcess:
-    """A running ``robomach serve``."""
+    """A running ``robomach serve``: its REST base URL, viser URL, data folder and log."""
 
     proc: subprocess.Popen
     base_url: str
     data_dir: Path
     log_path: Path
+    viser_url: str = ""
 
     def log(self) -> str:
         return self.log_path.read_text(errors="replace")
 
-    def stop(self, timeout_s: float = 20.0) -> int:
-        """Ctrl-C and wait; returns the exit code."""
+    def stop(self, timeout_s: float = 20.0, *, kill_on_timeout: bool = False) -> int:
+        """Ctrl-C and wait; returns the exit code (SIGKILL after the wait if asked)."""
         if self.proc.poll() is None:
             self.proc.send_signal(signal.SIGINT)
-        return self.proc.wait(timeout_s)
+        try:
+            return self.proc.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            if not kill_on_timeout:
+                raise
+            self.proc.kill()
+            return self.proc.wait(10)
 
     def kill(self) -> None:
         """SIGKILL: no shutdown code runs."""
@@ -55,6 +62,7 @@ def start_server(
     env: dict[str, str] | None = None,
     args: tuple[str, ...] = (),
     log_name: str = "server.log",
+    start_timeout_s: float = START_TIMEOUT_S,
 ) -> ServerProcess:
     """``robomach serve`` on free ports with ``data_dir``; returns once /api/health answers."""
     port, viser_port = free_port(), free_port()
@@ -68,8 +76,10 @@ def start_server(
              str(viser_port), "--data", str(data_dir), *args],
             cwd=ROOT, env=full_env, stdout=log, stderr=subprocess.STDOUT,
         )  # fmt: skip
-    server = ServerProcess(proc, f"http://127.0.0.1:{port}", data_dir, log_path)
-    deadline = time.monotonic() + START_TIMEOUT_S
+    server = ServerProcess(
+        proc, f"http://127.0.0.1:{port}", data_dir, log_path, f"http://127.0.0.1:{viser_port}/"
+    )
+    deadline = time.monotonic() + start_timeout_s
     while time.monotonic() < deadline:
         if proc.poll() is not None:
             raise RuntimeError(f"robomach serve exited with {proc.returncode}:\n{server.log()}")
@@ -80,7 +90,7 @@ def start_server(
             pass
         time.sleep(0.1)
     server.kill()
-    raise RuntimeError(f"robomach serve did not answer within {START_TIMEOUT_S} s:\n{server.log()}")
+    raise RuntimeError(f"robomach serve did not answer within {start_timeout_s} s:\n{server.log()}")
 
 
 class Api:

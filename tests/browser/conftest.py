@@ -9,20 +9,17 @@ from __future__ import annotations
 
 import os
 import shutil
-import signal
-import socket
-import subprocess
-import sys
-import time
 import uuid
 from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import httpx
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+from tests.api.server_process import ServerProcess, start_server
+
+Served = ServerProcess  # the browser tests' name for a running ``robomach serve``
+
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = [
     "--headless=new",
@@ -38,69 +35,16 @@ START_TIMEOUT_S = 90.0
 VIEWPORT = {"width": 1400, "height": 900}
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-@dataclass
-class Served:
-    """A running ``robomach serve``: its REST base URL, viser URL and log."""
-
-    proc: subprocess.Popen
-    base_url: str
-    viser_url: str
-    log_path: Path
-
-    def log(self) -> str:
-        return self.log_path.read_text(errors="replace")
-
-    def stop(self, timeout_s: float = 20.0) -> int:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-        try:
-            return self.proc.wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            return self.proc.wait(10)
-
-
-def start_serve(data_dir: Path, *, env: dict[str, str] | None = None) -> Served:
-    """``robomach serve`` on free ports with ``data_dir``; returns once /api/health answers
-    (the viser workbench starts in the app's lifespan, before the API answers)."""
-    port, viser_port = free_port(), free_port()
-    log_path = data_dir.parent / f"{data_dir.name}-serve.log"
-    full_env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
-    if "ROBOMACH_TOKEN" not in (env or {}):
-        full_env.pop("ROBOMACH_TOKEN", None)
-    with open(log_path, "ab") as log:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "app.cli", "serve", "--port", str(port), "--viser-port",
-             str(viser_port), "--data", str(data_dir)],
-            cwd=ROOT, env=full_env, stdout=log, stderr=subprocess.STDOUT,
-        )  # fmt: skip
-    served = Served(proc, f"http://127.0.0.1:{port}", f"http://127.0.0.1:{viser_port}/", log_path)
-    deadline = time.monotonic() + START_TIMEOUT_S
-    while time.monotonic() < deadline:
-        if proc.poll() is not None:
-            raise RuntimeError(f"robomach serve exited with {proc.returncode}:\n{served.log()}")
-        try:
-            if httpx.get(served.base_url + "/api/health", timeout=1.0).status_code == 200:
-                return served
-        except httpx.TransportError:
-            pass
-        time.sleep(0.2)
-    served.stop()
-    raise RuntimeError(f"robomach serve did not answer within {START_TIMEOUT_S} s:\n{served.log()}")
-
-
 @pytest.fixture(scope="session")
 def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Served]:
     """One server for the browser tests (each test opens its own project)."""
-    server = start_serve(tmp_path_factory.mktemp("browser") / "data")
+    server = start_server(
+        tmp_path_factory.mktemp("browser") / "data",
+        log_name="serve.log",
+        start_timeout_s=START_TIMEOUT_S,
+    )
     yield server
-    code = server.stop()
+    code = server.stop(kill_on_timeout=True)
     assert code in (0, 130), server.log()
     assert "Traceback" not in server.log(), server.log()
 

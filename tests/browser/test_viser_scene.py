@@ -13,7 +13,8 @@ import pytest
 from PIL import Image
 from playwright.sync_api import Page, expect
 
-from tests.browser.conftest import Served, free_port
+from tests.api.server_process import free_port
+from tests.browser.conftest import Served
 
 pytestmark = pytest.mark.slow
 
