@@ -5,36 +5,18 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Iterator
 
 import pytest
 
 from app.session import Session
 from app.store import Store
 from app.studies import studies_for
-from tests.api.server_process import Api
-from tests.api.test_cmrr_routes import PNG_SIGNATURE, StudyServer
+from tests.api.server_process import Api, ServerProcess
+from tests.api.test_cmrr_routes import PNG_SIGNATURE
 
 
 @pytest.fixture(scope="module")
-def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[StudyServer]:
-    srv = StudyServer(tmp_path_factory.mktemp("compensation-api") / "data")
-    yield srv
-    srv.stop()
-
-
-@pytest.fixture
-def client(server: StudyServer) -> Iterator[Api]:
-    """A client on a new, open project (so: no study yet)."""
-    api = Api(server.base_url)
-    api.new_project()
-    yield api
-    api.cancel_all()
-    api.http.close()
-
-
-@pytest.fixture(scope="module")
-def identified(server: StudyServer) -> int:
+def identified(server: ServerProcess) -> int:
     """A project whose last study is a quick identification; returns its id."""
     api = Api(server.base_url)
     project = api.new_project()
@@ -51,20 +33,20 @@ def run_study(api: Api, body: dict) -> dict:
     return api.ok("GET", "/api/compensation/studies/last")
 
 
-def test_no_study_yet(client: Api) -> None:
+def test_no_study_yet(api: Api) -> None:
     for path in (
         "/api/compensation/studies/last",
         "/api/compensation/studies/last/plots",
         "/api/compensation/studies/last/plots/identification.png",
         "/api/compensation/settings",
     ):
-        r = client.get(path)
+        r = api.get(path)
         assert r.status_code == 409 and "no compensation study" in r.json()["detail"], path
 
 
-def test_identification(client: Api, identified: int) -> None:
-    client.ok("POST", f"/api/projects/{identified}/open")
-    study = client.ok("GET", "/api/compensation/studies/last")
+def test_identification(api: Api, identified: int) -> None:
+    api.ok("POST", f"/api/projects/{identified}/open")
+    study = api.ok("GET", "/api/compensation/studies/last")
     assert study["study"] == "identify" and study["quick"] is True
     assert study["folder"] == f"studies/{identified}/compensation"
     summary = study["summary"]
@@ -72,14 +54,14 @@ def test_identification(client: Api, identified: int) -> None:
     assert 0.0 < summary["prediction_error_max_mm"] < 0.04  # the chapter: < 0.04 mm
     assert summary["paper_references"]["chapter_prediction_error_max_mm"] == 0.04
     assert study["settings_available"] is True
-    plots = client.ok("GET", "/api/compensation/studies/last/plots")
+    plots = api.ok("GET", "/api/compensation/studies/last/plots")
     assert "identification" in plots and plots == study["plots"]
-    r = client.get("/api/compensation/studies/last/plots/identification.png")
+    r = api.get("/api/compensation/studies/last/plots/identification.png")
     assert r.status_code == 200 and r.headers["content-type"] == "image/png"
     assert r.content.startswith(PNG_SIGNATURE)
-    r = client.get("/api/compensation/studies/last/plots/gravity.png")
+    r = api.get("/api/compensation/studies/last/plots/gravity.png")
     assert r.status_code == 404 and "identification" in r.json()["detail"]
-    r = client.get("/api/compensation/settings")
+    r = api.get("/api/compensation/settings")
     assert r.status_code == 200 and r.headers["content-type"] == "application/json"
     assert 'filename="compensation_settings.json"' in r.headers["content-disposition"]
     settings = json.loads(r.text)
@@ -87,16 +69,16 @@ def test_identification(client: Api, identified: int) -> None:
     assert settings["mode"] == "offline_linear"  # online needs the gravity study's tool model
 
 
-def test_gravity_keeps_the_identified_settings(client: Api) -> None:
-    assert client.get("/api/compensation/settings").status_code == 409
-    study = run_study(client, {"study": "gravity", "quick": True, "seed": 2})
+def test_gravity_keeps_the_identified_settings(api: Api) -> None:
+    assert api.get("/api/compensation/settings").status_code == 409
+    study = run_study(api, {"study": "gravity", "quick": True, "seed": 2})
     assert study["summary"]["gravity_residual_max_N"] < 5.0 and study["seed"] == 2
     assert study["plots"] == ["gravity"] and study["settings_available"] is False
-    r = client.get("/api/compensation/settings")
+    r = api.get("/api/compensation/settings")
     assert r.status_code == 409 and "identify" in r.json()["detail"]
-    run_study(client, {"study": "identify", "quick": True, "mode": "off"})
-    run_study(client, {"study": "gravity", "quick": True})
-    assert client.ok("GET", "/api/compensation/settings")["mode"] == "off"  # kept
+    run_study(api, {"study": "identify", "quick": True, "mode": "off"})
+    run_study(api, {"study": "gravity", "quick": True})
+    assert api.ok("GET", "/api/compensation/settings")["mode"] == "off"  # kept
 
 
 @pytest.mark.parametrize(
@@ -109,28 +91,28 @@ def test_gravity_keeps_the_identified_settings(client: Api) -> None:
         ({"study": "identify", "poses": 3}, "poses"),
     ],
 )
-def test_bad_input(client: Api, body: dict, field: str) -> None:
-    r = client.post("/api/compensation/studies", json=body)
+def test_bad_input(api: Api, body: dict, field: str) -> None:
+    r = api.post("/api/compensation/studies", json=body)
     assert r.status_code == 422 and field in r.json()["detail"], r.text
 
 
-def test_cancel(client: Api, server: StudyServer) -> None:
-    job_id = client.ok("POST", "/api/compensation/studies", 202, json={"quick": True})["job_id"]
+def test_cancel(api: Api, server: ServerProcess) -> None:
+    job_id = api.ok("POST", "/api/compensation/studies", 202, json={"quick": True})["job_id"]
     deadline = time.monotonic() + 30.0
-    while (job := client.ok("GET", f"/api/jobs/{job_id}"))["progress"] == 0.0:
+    while (job := api.ok("GET", f"/api/jobs/{job_id}"))["progress"] == 0.0:
         assert job["status"] in ("queued", "running") and time.monotonic() < deadline, job
         time.sleep(0.02)
-    client.ok("POST", f"/api/jobs/{job_id}/cancel")
-    job = client.wait_job(job_id, timeout_s=20.0)
+    api.ok("POST", f"/api/jobs/{job_id}/cancel")
+    job = api.wait_job(job_id, timeout_s=20.0)
     assert job["status"] == "cancelled" and "cancelled" in job["error"]
-    assert client.get("/api/compensation/studies/last").status_code == 409
-    r = client.post(f"/api/jobs/{job_id}/cancel")
+    assert api.get("/api/compensation/studies/last").status_code == 409
+    r = api.post(f"/api/jobs/{job_id}/cancel")
     assert r.status_code == 409 and "already ended" in r.json()["detail"]
     tmp = server.data_dir / "studies" / ".tmp"
     assert not any(tmp.iterdir()), list(tmp.iterdir())
 
 
-def test_saved_and_loaded_after_restart(client: Api, server: StudyServer, identified: int) -> None:
+def test_saved_and_loaded_after_restart(api: Api, server: ServerProcess, identified: int) -> None:
     store = Store.in_data_dir(server.data_dir)
     try:
         files = store.get_export(identified, "compensation-study")
@@ -141,7 +123,7 @@ def test_saved_and_loaded_after_restart(client: Api, server: StudyServer, identi
     assert len(json.loads(files["compensation_settings.json"])["joint_stiffness_Nm_rad"]) == 6
 
     # A second session on the same data folder, as after a restart, opened on that project.
-    client.ok("POST", f"/api/projects/{identified}/open")
+    api.ok("POST", f"/api/projects/{identified}/open")
     session = Session(Store.in_data_dir(server.data_dir), data_dir=server.data_dir)
     try:
         assert session.current_project().id == identified
