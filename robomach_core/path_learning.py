@@ -125,11 +125,6 @@ class Recording:
     def __len__(self) -> int:
         return len(self.time_s)
 
-    @property
-    def contact_force_N(self) -> np.ndarray:
-        """(n,) magnitude of the measured contact force in the path's normal plane (Yp)."""
-        return self.force_normal_N
-
 
 @dataclass
 class _Segment:

@@ -117,10 +117,6 @@ class ForceEstimator:
         predicted = np.array([self.gravity_reading(R) for R in Rs_base_flange])
         self.bias = np.mean(np.asarray(readings) - predicted, axis=0)
 
-    def contact_wrench_sensor(self, reading: np.ndarray, R_base_flange: np.ndarray) -> np.ndarray:
-        """(6,) compensated contact wrench in the sensor frame (torque about the sensor)."""
-        return reading - self.bias - self.gravity_reading(R_base_flange)
-
     def contact_wrench_tcp_base(self, reading: np.ndarray, R_base_flange: np.ndarray) -> np.ndarray:
         """(6,) compensated contact wrench at the TCP in base-aligned axes."""
         return _kernels.contact_wrench_tcp_base(
