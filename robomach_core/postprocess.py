@@ -195,17 +195,15 @@ def surface_positions(
     force, without its component along the tool axis, points from the wall to the tool; adding
     F / k moves each sample out of the wall. k = 0 leaves the samples as recorded.
     """
-    from .transforms import matrix_from_quaternion
+    from .transforms import matrices_from_quaternions
 
     p = np.asarray(position_m, dtype=float)
     if contact_stiffness_N_m <= 0:
         return p.copy()
     f_planar = np.asarray(force_tool_N, dtype=float)[:, :3].copy()
     f_planar[:, 2] = 0.0
-    out = p.copy()
-    for i in range(len(p)):
-        out[i] += matrix_from_quaternion(quaternion_wxyz[i]) @ f_planar[i] / contact_stiffness_N_m
-    return out
+    Rs = matrices_from_quaternions(quaternion_wxyz)
+    return p + np.einsum("nij,nj->ni", Rs, f_planar) / contact_stiffness_N_m
 
 
 @dataclass(frozen=True)
@@ -294,12 +292,21 @@ def postprocess(
     # Orientation: slerp between the segment's guide points by the fraction travelled.
     gq = np.asarray(guide_quaternions_wxyz, dtype=float)
     n_guides = len(gq)
+    # First and last sample of every segment (the recording visits segments in order).
+    segments = np.asarray(rec.segment)
+    seg_first = {
+        int(v): int(i) for v, i in zip(*np.unique(segments, return_index=True), strict=True)
+    }
+    seg_last = {
+        int(v): len(segments) - 1 - int(i)
+        for v, i in zip(*np.unique(segments[::-1], return_index=True), strict=True)
+    }
     quats = np.empty((len(idx), 4))
     for k, i in enumerate(idx):
-        seg = int(rec.segment[i])
-        in_seg = np.nonzero(rec.segment == seg)[0]
-        span = max(1, in_seg[-1] - in_seg[0])
-        fraction = (i - in_seg[0]) / span
+        seg = int(segments[i])
+        first, last = seg_first[seg], seg_last[seg]
+        span = max(1, last - first)
+        fraction = (i - first) / span
         q0 = gq[seg % n_guides]
         q1 = gq[(seg + 1) % n_guides] if (closed or seg + 1 < n_guides) else gq[seg % n_guides]
         quats[k] = slerp(q0, q1, fraction)

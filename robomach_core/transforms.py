@@ -89,6 +89,24 @@ def matrix_from_quaternion(q_wxyz: np.ndarray) -> np.ndarray:
     )
 
 
+def matrices_from_quaternions(qs_wxyz: np.ndarray) -> np.ndarray:
+    """Vectorised ``matrix_from_quaternion`` for (n, 4) quaternions -> (n, 3, 3)."""
+    q = np.asarray(qs_wxyz, dtype=float)
+    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    R = np.empty((len(q), 3, 3))
+    R[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    R[:, 0, 1] = 2 * (x * y - w * z)
+    R[:, 0, 2] = 2 * (x * z + w * y)
+    R[:, 1, 0] = 2 * (x * y + w * z)
+    R[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    R[:, 1, 2] = 2 * (y * z - w * x)
+    R[:, 2, 0] = 2 * (x * z - w * y)
+    R[:, 2, 1] = 2 * (y * z + w * x)
+    R[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return R
+
+
 def rotation_log(R: np.ndarray) -> np.ndarray:
     """Rotation vector (axis * angle, rad) of a 3x3 rotation matrix."""
     cos_angle = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
