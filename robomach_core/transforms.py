@@ -79,14 +79,7 @@ def matrix_from_quaternion(q_wxyz: np.ndarray) -> np.ndarray:
     n = np.linalg.norm(q)
     if not np.isfinite(n) or n < 1e-9:
         raise InvalidInputError(f"quaternion {q.tolist()} has no direction")
-    w, x, y, z = q / n
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
+    return matrices_from_quaternions((q / n)[None])[0]
 
 
 def matrices_from_quaternions(qs_wxyz: np.ndarray) -> np.ndarray:
