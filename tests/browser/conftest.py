@@ -20,6 +20,10 @@ from tests.api.server_process import ServerProcess, start_server
 
 Served = ServerProcess  # the browser tests' name for a running ``robomach serve``
 
+# Playwright's expect() waits 5 s by default (the context timeout does not apply to it); on the
+# loaded 2-core machine viser's page takes longer than that to connect.
+EXPECT_TIMEOUT_MS = 60_000
+
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = [
     "--headless=new",
@@ -70,7 +74,9 @@ def browser():
         if os.environ.get("CI"):
             pytest.fail(message)
         pytest.skip(message)
-    from playwright.sync_api import sync_playwright
+    from playwright.sync_api import expect, sync_playwright
+
+    expect.set_options(timeout=EXPECT_TIMEOUT_MS)
 
     with sync_playwright() as p:
         executable = str(CHROMIUM) if CHROMIUM.exists() else shutil.which("chromium")
