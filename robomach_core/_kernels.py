@@ -7,6 +7,10 @@ STRATEGY  Fuse them into four numba kernels (arm-side pose, sensor reading, forc
           reference pose + IK step). Each equals a documented numpy reference (tests check it).
 SOLUTION  ``arm_side_pose``, ``sensor_reading``, ``contact_wrench_tcp_base``, ``path_reference``,
           ``ik_newton_step``; compiled on first use and cached on disk.
+
+The deviation-height reduction of post-processing (``deviation_height_kept``) lives here too: the
+same chord-by-chord scan as ``postprocess.reduce_deviation_height_reference``, with a certificate
+that skips most of the per-end rescans (see its docstring).
 """
 
 from __future__ import annotations
@@ -250,3 +254,104 @@ def admittance_reference(
     if ang[0] != 0.0 or ang[1] != 0.0 or ang[2] != 0.0:
         T[:3, :3] = exp3(ang * dt) @ T_ref[:3, :3]
     return T, v
+
+
+# Relative safety margin of the certificate, so that a chord end it accepts also passes the exact
+# test despite rounding (the exact test decides every case within this margin of the tolerance).
+_CERTIFICATE_MARGIN = 1e-9
+# Absolute safety on the direction bound [rad]: covers the rounding of unit vectors.
+_DIRECTION_EPS = 1e-12
+
+
+@_jit
+def deviation_height_kept(points: np.ndarray, tolerance: float) -> np.ndarray:
+    """Indices kept by the deviation-height method (chapter fig. 3) on (n, 3) points.
+
+    Same decisions as the literal scan (``postprocess.reduce_deviation_height_reference``): from
+    the segment's start ``a`` every end ``e = a+2, a+3, ...`` is tried in turn, the first end
+    whose chord leaves some intermediate sample farther than ``tolerance`` fails, and ``e - 1``
+    becomes the next start. The literal scan rescans all intermediates for every end (cost grows
+    with the samples per chord squared); this one mostly checks a certificate in O(1):
+
+    For a unit chord direction u and a reference direction u0 (an end fully checked before),
+    a sample at r = p - a has  |r x u| <= |r x u0| + |r| |u - u0|  (triangle inequality), so a
+    sample with height d0 about u0 stays within the tolerance while |u - u0| <= (tol - d0) / |r|.
+    The minimum of these margins over the intermediates, delta*, certifies a new end when
+    |u - u0| <= delta*. A sample that becomes an intermediate later is measured about the then
+    current direction u1 and enters with margin (tol - d1) / |r| - |u1 - u0| (same inequality
+    through u1). When the certificate does not hold, the end is checked exactly (exit at the
+    first failing sample) and becomes the new reference. Near a segment's end the margin
+    roughly halves at each exact check, so exact checks per segment grow like the log of its
+    samples, and the cost stays near-linear in the samples.
+    """
+    n = points.shape[0]
+    kept = np.empty(max(n, 1), dtype=np.int64)
+    if n == 0:
+        return kept[:0]
+    kept[0] = 0
+    m = 1
+    start = 0
+    while start < n - 1:
+        end = _first_failing_end(points, start, tolerance)
+        if end < 0:
+            break
+        start = end - 1
+        kept[m] = start
+        m += 1
+    if kept[m - 1] != n - 1:
+        kept[m] = n - 1
+        m += 1
+    return kept[:m].copy()
+
+
+@_jit
+def _first_failing_end(points: np.ndarray, start: int, tolerance: float) -> int:
+    """Smallest end >= start + 2 whose chord from ``start`` fails the tolerance, or -1."""
+    n = points.shape[0]
+    tol_cert = tolerance * (1.0 - _CERTIFICATE_MARGIN)
+    ax, ay, az = points[start, 0], points[start, 1], points[start, 2]
+    # Reference direction and the certified radius around it (< 0: no certificate).
+    u0x, u0y, u0z = 0.0, 0.0, 0.0
+    delta_star = -1.0
+    for end in range(start + 2, n):
+        cx, cy, cz = points[end, 0] - ax, points[end, 1] - ay, points[end, 2] - az
+        length = math.sqrt(cx * cx + cy * cy + cz * cz)
+        if length < 1e-15:
+            # Degenerate chord: heights are distances from the start (as deviation_heights).
+            for i in range(start + 1, end):
+                rx, ry, rz = points[i, 0] - ax, points[i, 1] - ay, points[i, 2] - az
+                if math.sqrt(rx * rx + ry * ry + rz * rz) > tolerance:
+                    return end
+            delta_star = -1.0
+            continue
+        ux, uy, uz = cx / length, cy / length, cz / length
+        if delta_star >= 0.0:
+            dx, dy, dz = ux - u0x, uy - u0y, uz - u0z
+            shift = math.sqrt(dx * dx + dy * dy + dz * dz)
+            # The sample end - 1 has just become an intermediate: its margin through u.
+            i = end - 1
+            rx, ry, rz = points[i, 0] - ax, points[i, 1] - ay, points[i, 2] - az
+            r = math.sqrt(rx * rx + ry * ry + rz * rz)
+            if r > 0.0:
+                along = rx * ux + ry * uy + rz * uz
+                hx, hy, hz = rx - along * ux, ry - along * uy, rz - along * uz
+                height = math.sqrt(hx * hx + hy * hy + hz * hz)
+                margin = (tol_cert - height) / r - shift - _DIRECTION_EPS
+                delta_star = min(delta_star, margin)
+            if shift <= delta_star:
+                continue
+        # Exact check of this end; it becomes the reference.
+        best = np.inf
+        for i in range(start + 1, end):
+            rx, ry, rz = points[i, 0] - ax, points[i, 1] - ay, points[i, 2] - az
+            along = rx * ux + ry * uy + rz * uz
+            hx, hy, hz = rx - along * ux, ry - along * uy, rz - along * uz
+            height = math.sqrt(hx * hx + hy * hy + hz * hz)
+            if height > tolerance:
+                return end
+            r = math.sqrt(rx * rx + ry * ry + rz * rz)
+            if r > 0.0:
+                best = min(best, (tol_cert - height) / r - _DIRECTION_EPS)
+        u0x, u0y, u0z = ux, uy, uz
+        delta_star = best
+    return -1

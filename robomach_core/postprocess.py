@@ -15,10 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import _kernels
 from .errors import InvalidInputError
-
-# Candidate chord ends examined at once in the vectorised scan (a block, not a limit).
-_BLOCK = 96
 
 
 @dataclass(frozen=True)
@@ -80,72 +78,90 @@ def deviation_heights(points: np.ndarray, start: int, end: int) -> np.ndarray:
 def reduce_deviation_height(points: np.ndarray, tolerance: float) -> np.ndarray:
     """Indices of the samples kept by the deviation-height method (chapter fig. 3).
 
+    A chord runs from the segment's start to the current sample; the current sample moves along
+    until some intermediate sample's deviation height (``deviation_heights``) exceeds
+    ``tolerance``; the previous sample then ends the segment and starts the next. The compiled
+    kernel ``_kernels.deviation_height_kept`` makes the same decisions as the literal scan
+    ``reduce_deviation_height_reference`` at near-linear cost.
+
     Args:
         points: Shape (n, d) samples in order along the contour (any consistent unit).
         tolerance: Largest allowed deviation height, same unit as ``points``.
 
     Returns:
         Increasing indices into ``points``; always includes the first and the last sample.
-        Every dropped sample lies within ``tolerance`` of the chord of its segment.
+        Every dropped sample lies within ``tolerance`` of the chord of its segment, and each
+        segment is the longest from its start that does (one more sample would exceed it).
     """
-    pts = np.asarray(points, dtype=float)
+    pts = _as_points(points, tolerance)
+    if len(pts) <= 2:
+        return np.arange(len(pts), dtype=np.int64)
+    if pts.shape[1] > 3:
+        return reduce_deviation_height_reference(pts, tolerance)
+    if pts.shape[1] < 3:  # zeros in the missing axes change no distance
+        pts = np.pad(pts, ((0, 0), (0, 3 - pts.shape[1])))
+    return _kernels.deviation_height_kept(np.ascontiguousarray(pts), float(tolerance))
+
+
+def reduce_deviation_height_reference(points: np.ndarray, tolerance: float) -> np.ndarray:
+    """The literal scan of fig. 3, for any dimension: ``reduce_deviation_height``'s oracle.
+
+    Every end after a start is tried in turn with ``deviation_heights``, so a segment of L
+    samples costs O(L^2); use ``reduce_deviation_height`` on real recordings.
+    """
+    pts = _as_points(points, tolerance)
     n = len(pts)
-    if tolerance <= 0:
-        raise InvalidInputError("tolerance must be positive")
-    if n <= 2:
-        return np.arange(n)
-    kept = [0]
+    kept = [0] if n else []
     start = 0
     while start < n - 1:
-        end = _first_failing_end(pts, start, tolerance)
+        end = next(
+            (e for e in range(start + 2, n) if deviation_heights(pts, start, e).max() > tolerance),
+            None,
+        )
         if end is None:
             break
-        # The chord start->end fails; end-1 is the last good chord end.
-        start = end - 1
+        start = end - 1  # the chord start->end fails; end-1 is the last good chord end
         kept.append(start)
-    if kept[-1] != n - 1:
+    if n and kept[-1] != n - 1:
         kept.append(n - 1)
     return np.asarray(kept, dtype=np.int64)
 
 
-def _first_failing_end(pts: np.ndarray, start: int, tolerance: float) -> int | None:
-    """Smallest end > start+1 whose chord from ``start`` has a deviation height > tolerance.
+def _as_points(points: np.ndarray, tolerance: float) -> np.ndarray:
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2:
+        raise InvalidInputError(f"points must have shape (n, d), got {pts.shape}")
+    if not (tolerance > 0 and np.isfinite(tolerance)):
+        raise InvalidInputError(f"tolerance must be positive and finite, got {tolerance}")
+    if not np.isfinite(pts).all():
+        raise InvalidInputError("points must be finite")
+    return pts
 
-    Scans candidate ends in blocks: for a block of ends E and the intermediate samples I up to
-    the block's last end, it computes all heights |(p_i - a) x u_e| at once and masks i >= e.
+
+def curvature_along(
+    points: np.ndarray, *, window_m: float = 0.002, at: np.ndarray | None = None
+) -> np.ndarray:
+    """Unsigned curvature [1/m] from the circle through neighbours ~window apart.
+
+    Args:
+        points: (n, 3) samples in order along the path [m].
+        window_m: Arc length to the neighbours on each side.
+        at: Indices to evaluate at (default: every point); the arc length still runs over all.
+
+    Returns:
+        (len(at),) or (n,) curvatures: 2 |AB x AC| / (|AB| |BC| |CA|) for the neighbours A, C.
     """
-    n = len(pts)
-    a = pts[start]
-    lo = start + 2
-    while lo < n:
-        hi = min(n, lo + _BLOCK)
-        ends = np.arange(lo, hi)
-        chords = pts[ends] - a
-        lengths = np.linalg.norm(chords, axis=1)
-        lengths[lengths < 1e-15] = 1e-15
-        u = chords / lengths[:, None]
-        rel = pts[start + 1 : hi - 1] - a  # intermediates for every end in the block
-        along = rel @ u.T  # (m, k)
-        sq = np.einsum("ij,ij->i", rel, rel)[:, None] - along**2
-        idx = np.arange(start + 1, hi - 1)[:, None]
-        sq = np.where(idx < ends[None, :], sq, 0.0)
-        over = np.nonzero(sq.max(axis=0) > tolerance**2)[0]
-        if len(over):
-            return int(ends[over[0]])
-        lo = hi
-    return None
-
-
-def curvature_along(points: np.ndarray, *, window_m: float = 0.002) -> np.ndarray:
-    """Unsigned curvature [1/m] at each point from the circle through neighbours ~window apart."""
     pts = np.asarray(points, dtype=float)
     n = len(pts)
+    where = np.arange(n) if at is None else np.asarray(at, dtype=np.int64)
     if n < 3:
-        return np.zeros(n)
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
-    prev_idx = np.clip(np.searchsorted(s, s - window_m), 0, n - 1)
-    next_idx = np.clip(np.searchsorted(s, s + window_m), 0, n - 1)
-    a, b, c = pts[prev_idx], pts, pts[next_idx]
+        return np.zeros(len(where))
+    steps = np.diff(pts, axis=0)
+    s = np.concatenate([[0.0], np.cumsum(np.sqrt(np.einsum("ij,ij->i", steps, steps)))])
+    s_at = s[where]
+    prev_idx = np.clip(np.searchsorted(s, s_at - window_m), 0, n - 1)
+    next_idx = np.clip(np.searchsorted(s, s_at + window_m), 0, n - 1)
+    a, b, c = pts[prev_idx], pts[where], pts[next_idx]
     ab = np.linalg.norm(b - a, axis=1)
     bc = np.linalg.norm(c - b, axis=1)
     ca = np.linalg.norm(a - c, axis=1)
@@ -282,7 +298,7 @@ def postprocess(
     pts = surface[kept]
     local = reduce_deviation_height(pts, settings.tolerance_m)
     idx = kept[local]
-    curvature = curvature_along(pts)[local]
+    curvature = curvature_along(pts, at=local)
     speeds = speeds_by_curvature(
         curvature,
         speed_mean_m_s=settings.speed_mean_m_s,

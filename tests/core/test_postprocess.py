@@ -13,6 +13,7 @@ from robomach_core.postprocess import (
     deviation_heights,
     force_threshold_mask,
     reduce_deviation_height,
+    reduce_deviation_height_reference,
     speeds_by_curvature,
 )
 
@@ -21,18 +22,112 @@ walks = arrays(
 ).map(lambda steps: np.cumsum(steps, axis=0))
 
 
-@given(walks, st.floats(1e-5, 5e-3))
-@settings(max_examples=150, deadline=None)
-def test_reduction_keeps_endpoints_and_bounds_every_dropped_sample(points, tolerance):
-    kept = reduce_deviation_height(points, tolerance)
+@st.composite
+def dense_curves(draw: st.DrawFn) -> np.ndarray:
+    """Recordings as the reduction meets them: a 3-D helix arc sampled densely, with noise, and
+    a few repeated samples (the robot standing still)."""
+    n = draw(st.integers(3, 1500))
+    radius = draw(st.floats(2e-3, 0.2))
+    length = draw(st.floats(1e-3, 0.3))
+    pitch = draw(st.floats(-0.2, 0.2))
+    noise = draw(st.sampled_from([0.0, 1e-7, 1e-6, 1e-5, 5e-5]))
+    seed = draw(st.integers(0, 2**32 - 1))
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.uniform(0.0, length / radius, n))
+    pts = np.stack([radius * np.cos(t), radius * np.sin(t), pitch * radius * t], axis=1)
+    pts += rng.normal(0.0, noise, pts.shape)
+    stills = rng.integers(1, n, draw(st.integers(0, 5)))
+    pts[stills] = pts[stills - 1]
+    return pts
+
+
+@st.composite
+def polylines(draw: st.DrawFn) -> np.ndarray:
+    """Straight runs joined at corners of any angle, densely sampled (the groove's corners)."""
+    corners = draw(
+        arrays(
+            np.float64, st.tuples(st.integers(2, 6), st.just(3)), elements=st.floats(-0.02, 0.02)
+        )
+    )
+    per_run = draw(st.integers(2, 300))
+    noise = draw(st.sampled_from([0.0, 1e-6, 2e-5]))
+    f = np.linspace(0.0, 1.0, per_run, endpoint=False)[:, None]
+    pts = np.vstack([a + f * (b - a) for a, b in zip(corners[:-1], corners[1:], strict=True)])
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    return pts + rng.normal(0.0, noise, pts.shape)
+
+
+@st.composite
+def spiky_lines(draw: st.DrawFn) -> np.ndarray:
+    """A straight pass with sparse spikes across it of about the tolerance (5e-5..5e-3 m)."""
+    n = draw(st.integers(5, 120))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    spikes = rng.normal(0.0, draw(st.floats(5e-5, 5e-3)), (n, 2))
+    spikes *= rng.random((n, 2)) < draw(st.floats(0.05, 0.5))
+    return np.column_stack([np.linspace(0.0, 0.1, n), spikes])
+
+
+def assert_fig3_guarantee(points: np.ndarray, kept: np.ndarray, tolerance: float) -> None:
+    """Endpoints kept, indices increasing, every dropped sample within tolerance of its chord."""
     assert kept[0] == 0 and kept[-1] == len(points) - 1
     assert np.all(np.diff(kept) > 0)
     for a, b in zip(kept[:-1], kept[1:], strict=True):
         if b - a > 1:
-            assert deviation_heights(points, a, b).max() <= tolerance + 1e-12
+            assert deviation_heights(points, a, b).max() <= tolerance * (1 + 1e-9)
+
+
+@given(st.one_of(walks, dense_curves(), polylines(), spiky_lines()), st.floats(1e-5, 5e-3))
+@settings(max_examples=400, deadline=None)
+def test_compiled_reduction_equals_the_literal_fig3_scan(points, tolerance):
+    """The kernel behind reduce_deviation_height makes the literal scan's decisions."""
+    np.testing.assert_array_equal(
+        reduce_deviation_height(points, tolerance),
+        reduce_deviation_height_reference(points, tolerance),
+    )
+
+
+@given(dense_curves(), st.floats(1e-5, 1e-3))
+@settings(max_examples=150, deadline=None)
+def test_reduction_of_dense_3d_recordings_keeps_the_guarantee(points, tolerance):
+    assert_fig3_guarantee(points, reduce_deviation_height(points, tolerance), tolerance)
+
+
+@pytest.mark.parametrize("dims", [1, 2, 4])
+def test_reduction_in_other_dimensions_equals_the_literal_scan(dims):
+    rng = np.random.default_rng(dims)
+    points = np.cumsum(rng.normal(0.0, 1e-3, (400, dims)), axis=0)
+    np.testing.assert_array_equal(
+        reduce_deviation_height(points, 2e-3), reduce_deviation_height_reference(points, 2e-3)
+    )
+
+
+def test_reduction_of_a_still_robot_keeps_only_the_ends():
+    points = np.tile([0.1, 0.2, 0.3], (50, 1))
+    np.testing.assert_array_equal(reduce_deviation_height(points, 1e-4), [0, 49])
+
+
+@pytest.mark.parametrize(
+    ("points", "tolerance"),
+    [
+        (np.zeros((5, 3)), 0.0),
+        (np.zeros((5, 3)), -1e-4),
+        (np.zeros((5, 3)), np.nan),
+        (np.array([[0, 0, 0], [np.nan, 0, 0], [1, 0, 0]]), 1e-4),
+        (np.zeros(5), 1e-4),
+    ],
+)
+def test_reduction_refuses_bad_input(points, tolerance):
+    with pytest.raises(InvalidInputError):
+        reduce_deviation_height(points, tolerance)
 
 
 @given(walks, st.floats(1e-5, 5e-3))
+@settings(max_examples=150, deadline=None)
+def test_reduction_keeps_endpoints_and_bounds_every_dropped_sample(points, tolerance):
+    assert_fig3_guarantee(points, reduce_deviation_height(points, tolerance), tolerance)
+
+
+@given(st.one_of(walks, dense_curves()), st.floats(1e-5, 5e-3))
 @settings(max_examples=100, deadline=None)
 def test_each_segment_is_the_longest_that_fits(points, tolerance):
     """Fig. 3: the chord grows until a deviation height exceeds the tolerance."""
@@ -75,6 +170,12 @@ def test_curvature_of_a_circle():
     t = np.linspace(0, 2 * np.pi, 2000)
     circle = np.stack([0.01 * np.cos(t), 0.01 * np.sin(t), 0 * t], 1)
     assert np.median(curvature_along(circle)) == pytest.approx(100.0, rel=1e-2)
+
+
+def test_curvature_at_some_points_equals_the_full_evaluation():
+    points = np.cumsum(np.random.default_rng(3).normal(0.0, 1e-4, (3000, 3)), axis=0)
+    at = np.array([0, 1, 17, 1500, 2998, 2999])
+    np.testing.assert_array_equal(curvature_along(points, at=at), curvature_along(points)[at])
 
 
 @pytest.mark.parametrize(
