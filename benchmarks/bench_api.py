@@ -4,7 +4,8 @@ Run: ``python benchmarks/bench_api.py`` (starts a server on free ports with a th
 folder, viser workbench included) or ``python benchmarks/bench_api.py --url
 http://127.0.0.1:8000`` for a running one. One keep-alive client, sequential requests, three
 conditions: idle; while the example lead-through job computes in the background (the job
-thread competes for the interpreter); and with 4 clients reading at once.
+thread competes for the interpreter); and with 4 clients reading at once. ``--quick`` sends 40
+requests per condition (a smoke test, not a measurement).
 """
 
 from __future__ import annotations
@@ -72,7 +73,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--url", help="a running server (default: start one)")
     parser.add_argument("-n", type=int, default=2000, help="requests per condition")
+    parser.add_argument("--quick", action="store_true", help="40 requests per condition")
     args = parser.parse_args()
+    if args.quick:
+        args.n = 40
     proc = None
     if args.url:
         url = args.url
@@ -80,7 +84,7 @@ def main() -> None:
         proc, url = start_server(Path(tempfile.mkdtemp(prefix="robomach-bench-")) / "data")
     try:
         with httpx.Client(base_url=url, timeout=30) as client:
-            latencies_ms(client, 200)  # warm up
+            latencies_ms(client, min(200, args.n))  # warm up
             print(f"{'GET /api/state':<34} {'n':>6} {'p50 ms':>8} {'p99 ms':>8} {'max ms':>8}")
             report("idle", latencies_ms(client, args.n))
 

@@ -11,7 +11,8 @@ pushing, each measured for ``--seconds``:
 
 The browser's websocket frames are decoded (viser's wire format: zstd-compressed msgpack) and a
 frame that moves ``/robot/tcp`` counts as one pose update seen. The page's own draw rate
-(requestAnimationFrame, software WebGL here) is printed for information.
+(requestAnimationFrame, software WebGL here) is printed for information. ``--quick`` measures
+each mode for 1 s (a smoke test, not a measurement).
 """
 
 from __future__ import annotations
@@ -31,7 +32,8 @@ import zstandard
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.browser.conftest import CHROMIUM_ARGS, free_port, start_serve  # noqa: E402
+from tests.api.server_process import free_port, start_server  # noqa: E402
+from tests.browser.conftest import CHROMIUM_ARGS, START_TIMEOUT_S  # noqa: E402
 
 TCP_NODE = "/robot/tcp"
 LOAD_TIMEOUT_S = 90.0
@@ -151,7 +153,7 @@ def bench_rest(playwright, seconds: float) -> dict:
     import httpx
 
     with tempfile.TemporaryDirectory() as tmp:
-        served = start_serve(Path(tmp) / "data")
+        served = start_server(Path(tmp) / "data", start_timeout_s=START_TIMEOUT_S)
         stop = threading.Event()
 
         def hold_push() -> None:
@@ -182,7 +184,10 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=10.0, help="measuring window per mode")
     parser.add_argument("--mode", choices=("handle", "rest", "both"), default="both")
+    parser.add_argument("--quick", action="store_true", help="1 s per mode")
     args = parser.parse_args()
+    if args.quick:
+        args.seconds = 1.0
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as p:

@@ -2,11 +2,13 @@
 
 Prints the time per call of the Cartesian compliance, the linear and non-linear loaded
 equilibrium, one online compensation step (against the 4 ms control period) and offline
-target correction per target, linear and by eq. (32).
+target correction per target, linear and by eq. (32). ``--quick`` makes 1/100 of the calls (a
+smoke test, not a measurement).
 """
 
 from __future__ import annotations
 
+import argparse
 import time
 from collections.abc import Callable
 
@@ -41,6 +43,14 @@ def per_call_us(fn: Callable[[], object], *, repeat: int) -> float:
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="1/100 of the calls")
+    args = parser.parse_args()
+    scale = 0.01 if args.quick else 1.0
+
+    def calls(n: int) -> int:
+        return max(1, int(n * scale))
+
     tool = Tool()
     robot = Robot("ur10", tool.T_flange_tcp)
     model = true_joint_compliance("ur10")
@@ -58,31 +68,37 @@ def main() -> None:
     rows = [
         (
             "Cartesian compliance C = J Kq^-1 J^T",
-            per_call_us(lambda: cartesian_compliance(robot, q, model), repeat=2000),
+            per_call_us(lambda: cartesian_compliance(robot, q, model), repeat=calls(2000)),
         ),
         (
             "loaded equilibrium, linear",
-            per_call_us(lambda: loaded_equilibrium(robot, q, W, model, mode="linear"), repeat=2000),
+            per_call_us(
+                lambda: loaded_equilibrium(robot, q, W, model, mode="linear"), repeat=calls(2000)
+            ),
         ),
         (
             "loaded equilibrium, non-linear",
-            per_call_us(lambda: loaded_equilibrium(robot, q, W, model), repeat=1000),
+            per_call_us(lambda: loaded_equilibrium(robot, q, W, model), repeat=calls(1000)),
         ),
         (
             "online compensation step (fig. 15)",
             per_call_us(
                 lambda: online_compensation_step(robot, state, q, reading, params, 0.004),
-                repeat=2000,
+                repeat=calls(2000),
             ),
         ),
         (
             "offline correction per target, linear",
-            per_call_us(lambda: compensate_targets(robot, Ts, qs, Ws, model, "linear"), repeat=5)
+            per_call_us(
+                lambda: compensate_targets(robot, Ts, qs, Ws, model, "linear"), repeat=calls(5)
+            )
             / 100,
         ),
         (
             "offline correction per target, eq. (32)",
-            per_call_us(lambda: compensate_targets(robot, Ts, qs, Ws, model, "nonlinear"), repeat=3)
+            per_call_us(
+                lambda: compensate_targets(robot, Ts, qs, Ws, model, "nonlinear"), repeat=calls(3)
+            )
             / 100,
         ),
     ]
