@@ -1,0 +1,100 @@
+"""Every script in benchmarks/ still runs: each in its ``--quick`` mode, as a subprocess.
+
+A refactor that breaks a benchmark (an import, a renamed function, a changed signature) fails
+here. The figures printed in quick mode are not measurements: only that they are printed is
+checked (timing belongs in benchmarks/, not in asserts).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+TIMEOUT_S = 600
+NUMBER = r"[-+]?\d+(?:\.\d+)?"
+
+# Script -> patterns its output must contain (each with the figure it prints).
+EXPECTED: dict[str, list[str]] = {
+    "bench_reduction.py": [
+        rf"deviation height .*-> \d+ targets, median {NUMBER} ms",
+        rf"RDP reference .*median {NUMBER} ms",
+        rf"ratio ours / RDP: {NUMBER} of the time",
+        rf"learned at 5 mm/s: \d+ samples -> \d+ targets in {NUMBER} ms, \d+ ns per sample",
+        rf"learned at 0.5 mm/s: \d+ samples -> \d+ targets in {NUMBER} ms, \d+ ns per sample",
+        r"postprocess\(\) on a synthetic \d+-sample recording: .* in \d+ ms",
+    ],
+    "bench_api.py": [
+        rf"idle\s+\d+\s+{NUMBER}\s+{NUMBER}",
+        rf"during the example job\s+\d+\s+{NUMBER}\s+{NUMBER}",
+        rf"4 clients at once \(per request\)\s+\d+\s+{NUMBER}\s+{NUMBER}",
+    ],
+    "bench_cmrr.py": [
+        rf"{name}\s+{NUMBER}\s+{NUMBER}\s+{NUMBER}"
+        for name in ("constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage", "adaptive-lq")
+    ],
+    "bench_path_learning.py": [
+        rf"lead-through: {NUMBER} s simulated",
+        rf"path learning: \d+ samples, .*real-time factor median x{NUMBER}",
+        rf"whole cell step\s+{NUMBER}",
+    ],
+    "bench_stiffness.py": [
+        rf"online compensation step \(fig. 15\)\s+{NUMBER}\s+{NUMBER} %",
+        rf"offline correction per target, eq. \(32\)\s+{NUMBER}",
+    ],
+    "bench_browser_pose_rate.py": [
+        rf"handle\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
+        rf"rest\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
+    ],
+}
+
+
+def run_quick(script: str) -> str:
+    """Run ``benchmarks/<script> --quick`` from the repository root; return its stdout."""
+    env = {k: v for k, v in os.environ.items() if k != "ROBOMACH_TOKEN"}
+    # The scripts import this checkout's packages, not an installed copy from elsewhere.
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), *filter(None, [env.get("PYTHONPATH")])])
+    done = subprocess.run(
+        [sys.executable, f"benchmarks/{script}", "--quick"],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=TIMEOUT_S,
+    )
+    assert done.returncode == 0, f"{script} exited {done.returncode}:\n{done.stdout}\n{done.stderr}"
+    return done.stdout
+
+
+def assert_figures(script: str, out: str) -> None:
+    for pattern in EXPECTED[script]:
+        assert re.search(pattern, out), f"{script} did not print /{pattern}/:\n{out}"
+
+
+def test_every_benchmark_has_a_quick_test():
+    scripts = {p.name for p in (ROOT / "benchmarks").glob("bench_*.py")}
+    assert scripts <= set(EXPECTED), f"no quick test for {sorted(scripts - set(EXPECTED))}"
+
+
+@pytest.mark.parametrize(
+    "script", sorted(name for name in EXPECTED if name != "bench_browser_pose_rate.py")
+)
+def test_benchmark_runs_in_quick_mode(script):
+    assert_figures(script, run_quick(script))
+
+
+@pytest.mark.slow
+def test_browser_benchmark_runs_in_quick_mode():
+    if not Path("/usr/bin/chromium").exists() and shutil.which("chromium") is None:
+        message = "chromium is not installed (apt-get install chromium chromium-driver)"
+        if os.environ.get("CI"):
+            pytest.fail(message)
+        pytest.skip(message)
+    script = "bench_browser_pose_rate.py"
+    assert_figures(script, run_quick(script))
