@@ -13,6 +13,7 @@ from .errors import MachiningSettingsError as MachiningSettingsError
 from .errors import SampleLimitError as SampleLimitError
 from .errors import StockError as StockError
 from .path import targets_along_wall as targets_along_wall
+from .path import wall_normals_for_workpiece as wall_normals_for_workpiece
 from .path import wall_normals_from_path as wall_normals_from_path
 from .plots import plot_runs as plot_runs
 from .run import FinishedWall as FinishedWall

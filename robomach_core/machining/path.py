@@ -74,6 +74,27 @@ def wall_normals_from_path(
     return n / norm
 
 
+def wall_normals_for_workpiece(workpiece: Workpiece, path_points_m: np.ndarray) -> np.ndarray:
+    """(n, 3) wall normals of a path along a built-in workpiece's known wall.
+
+    The side is read from the geometry, not assumed: the normal is the one along which the
+    path points move away from the true wall (the tool is on the free side).
+    """
+    if workpiece.wall is None:
+        raise StockError(f"workpiece {workpiece.name!r} has no known wall; give the normals")
+    p = check_path(path_points_m)
+    T = workpiece.T_base_wobj
+    up = tuple(T[:3, 2])
+    n = wall_normals_from_path(p, wall_side="right", up=up)
+
+    def distance(points: np.ndarray) -> np.ndarray:
+        return workpiece.wall.distance(((points - T[:3, 3]) @ T[:3, :3])[:, :2])
+
+    step = 0.2e-3
+    away = distance(p + step * n) > distance(p)
+    return n if np.mean(away) >= 0.5 else -n
+
+
 def check_normals(wall_normals_m: np.ndarray, count: int) -> np.ndarray:
     """(count, 3) unit normals, or ``StockError``."""
     n = np.asarray(wall_normals_m, dtype=float)

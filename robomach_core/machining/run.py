@@ -63,6 +63,8 @@ MM = 1e-3
 CANCEL_CHECK_EVERY = 64
 # Simulated time after a controller's protection stop before the run ends [s].
 STOP_TAIL_S = 0.3
+# The controllers are designed for the deepest cut, and no shallower than this [m].
+DESIGN_DEPTH_MIN_M = 0.1 * MM
 # The stock's path and the program's may differ in length by this much [m].
 PATH_LENGTH_TOLERANCE_M = 1.0 * MM
 
@@ -405,7 +407,7 @@ def run_machining(
         command_speed_m_s=v_top,
         reference_force_N=settings.reference_N,
         min_speed_ratio=settings.min_speed_ratio,
-        nominal_force_gain_N=process.force_gain_N(d_max),
+        nominal_force_gain_N=process.force_gain_N(max(d_max, DESIGN_DEPTH_MIN_M)),
         nominal_feed_exponent=process.feed_exponent,
         feed_dynamics=FeedDynamics(),
         measurement_filter=sensor_filter,
@@ -551,7 +553,7 @@ def run_machining(
     wall = finished_wall(
         s_st, allowance, arrays["path_m"], arrays["tool_normal_m"], stock.tool_radius_m
     )
-    station = np.clip((arrays["path_m"] * inv_ds).astype(np.int64), 0, last)
+    station = np.clip(np.rint(arrays["path_m"] * inv_ds).astype(np.int64), 0, last)
     n = len(arrays["time_s"])
     trace = MachiningTrace(
         reference_N=np.full(n, fr),
