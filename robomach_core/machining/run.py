@@ -23,6 +23,14 @@ STRATEGY  One 4 ms control period at a time along the program's MoveL path:
 SOLUTION  ``run_machining`` returns a ``MachiningRun`` (trace, finished wall at stations,
           summary). The arm's Jacobians are evaluated once per target, so the 4 ms loop is
           scalar arithmetic: C varies over centimetres of path, the allowance over millimetres.
+
+Modelling choices, stated: the TCP runs the MoveL chain through the targets at the move's
+programmed speed (capped), with speed changes between moves ramped at the path acceleration;
+zone blending at corners (a few tenths of a millimetre) is not modelled. The offline
+compensation densifies the program to a target every ``offline_target_spacing_m`` (the
+corrected program is ``MachiningRun.program``). The wall error is measured against the
+program's own path (the nominal wall is that path moved back by the tool radius), so it shows
+what the cut adds to the learning error, not the learning error itself.
 """
 
 from __future__ import annotations
@@ -52,7 +60,7 @@ from ..stiffness import (
     simulate_stiffness_measurements,
     sphere_tip_transform,
 )
-from ..transforms import make_transform, matrices_from_quaternions
+from ..transforms import make_transform, matrices_from_quaternions, quaternions_from_matrices
 from .errors import CancelledError, MachiningSettingsError, SampleLimitError, StockError
 from .path import arc_length_m, check_normals, check_path, path_tangents, wall_normals_from_path
 from .settings import CONTROL_PERIOD_S, MachiningSettings
@@ -384,8 +392,6 @@ def run_machining(
         Ts_c, q_c = compensate_targets_and_joints(
             robot, Ts, dense.joints_rad, wrenches, model, "linear"
         )
-        from ..transforms import quaternions_from_matrices
-
         program = replace(
             dense,
             position_m=Ts_c[:, :3, 3].copy(),
@@ -702,8 +708,8 @@ def summarize(
         "wall_error_max_mm": float(abs(e[i_max])) / MM,
         "wall_error_max_at_path_mm": float(wall.s_m[i_max]) / MM,
         "wall_error_rms_mm": float(np.sqrt(np.mean(e**2))) / MM,
-        "material_left_max_mm": float(max(e.max(), 0.0)) / MM,
-        "overcut_max_mm": float(max(-e.min(), 0.0)) / MM,
+        "material_left_max_mm": max(0.0, float(e.max())) / MM,
+        "overcut_max_mm": max(0.0, float(-e.min())) / MM,
         "deflection_max_mm": float(np.max(trace.deflection_m)) / MM,
         "depth_max_mm": max_depth_m / MM,
         "feed_mean_mm_s": float(np.mean(trace.feed_m_s)) / MM,
