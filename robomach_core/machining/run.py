@@ -69,6 +69,8 @@ from .stock import Stock
 MM = 1e-3
 # Samples between two checks of the cancel flag.
 CANCEL_CHECK_EVERY = 64
+# Sensor noise is drawn this many samples at a time.
+NOISE_BLOCK = 65_536
 # Simulated time after a controller's protection stop before the run ends [s].
 STOP_TAIL_S = 0.3
 # The controllers are designed for the deepest cut, and no shallower than this [m].
@@ -442,7 +444,8 @@ def run_machining(
     robot_model = FeedDynamics().discretize(dt)
     if robot_model.a.shape != (4, 4) or len(sensor_filter.sos) != 1:
         raise MachiningSettingsError("the machining loop expects eq. (1) and a 2nd-order filter")
-    noise = np.random.default_rng(settings.seed).standard_normal(n_max).tolist()
+    rng = np.random.default_rng(settings.seed)
+    noise: list[float] = []  # drawn in blocks as the cut goes (a stalled run may be long)
 
     # Hot-loop constants as plain floats and lists (scalar Python beats numpy at this size).
     inv_ds = 1.0 / ds
@@ -504,7 +507,9 @@ def run_machining(
         depth = a_l[j] - h
         if depth < 0.0:
             depth = 0.0
-        raw = force + sigma * noise[k]
+        if k % NOISE_BLOCK == 0:
+            noise = rng.standard_normal(NOISE_BLOCK).tolist()
+        raw = force + sigma * noise[k % NOISE_BLOCK]
         measured = filt.step(raw)
         if ctrl is not None:
             ctrl_state, out = ctrl.step(ctrl_state, Measurement(measured, feed))

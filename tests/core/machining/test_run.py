@@ -167,3 +167,35 @@ def test_summary_and_trace_carry_units_and_the_same_samples(robot, short_program
         assert getattr(run.trace, name).shape == (n,)
     assert run.summary["cycle_time_s"] == pytest.approx(run.trace.time_s[-1])
     assert run.trace.path_m[-1] >= run.wall.s_m[-1] - 0.1 * MM - 1e-9 or run.summary["completed"]
+
+
+def test_offline_program_moves_the_targets_against_the_predicted_force(
+    robot, short_program, short_stock
+):
+    """The corrected targets sit -n^T C_hat u F_pred from the nominal path, inside the wall."""
+    from robomach_core.machining.path import wall_normals_from_path
+    from robomach_core.stiffness import CompensationSettings
+
+    ident = identify_stiffness(robot.name, seed=0)
+    settings = CompensationSettings(robot.name, ident.model.stiffness_Nm_rad, mode="offline_linear")
+    run = run_machining(
+        robot,
+        short_program,
+        None,
+        short_stock,
+        MachiningSettings(compensation="offline", controller="constant"),
+        compensation_model=settings,
+    )
+    assert run.stiffness_model == ident.model
+    program = run.program
+    assert len(program) > len(short_program)  # a target every millimetre
+    from robomach_core.machining.run import arc_length_m, densify_targets
+
+    nominal = densify_targets(short_program, MachiningSettings().offline_target_spacing_m)
+    n = wall_normals_from_path(nominal.position_m)
+    shift = np.einsum("ij,ij->i", program.position_m - nominal.position_m, n)
+    s = arc_length_m(nominal.position_m)
+    deep = short_stock.allowance_m(s) > 1.0 * MM
+    assert np.all(shift[deep] < -5e-6)  # into the wall, micrometres to a tenth of a mm
+    assert np.all(shift > -0.3 * MM)
+    assert np.max(np.abs(program.joints_rad - nominal.joints_rad)) < 1e-3
