@@ -48,7 +48,10 @@ def main() -> None:
         targets = targets_along_wall(robot, pump, tool_radius_m=tool.radius_m)
         source = "program along the true wall (--quick)"
     else:
-        from robomach_core.pipeline import DemoSettings, run_demo
+        try:
+            from robomach_core.pipeline import DemoSettings, run_demo
+        except ImportError:  # the pipeline is moving into robomach_core.project
+            from robomach_core.project import DemoSettings, run_demo
 
         t0 = time.perf_counter()
         targets = run_demo(DemoSettings()).processed.targets

@@ -24,6 +24,7 @@ from .run import run_machining as run_machining
 from .settings import COMPENSATION_NAMES as COMPENSATION_NAMES
 from .settings import MACHINING_CONTROLLERS as MACHINING_CONTROLLERS
 from .settings import MachiningSettings as MachiningSettings
+from .settings import settings_to_dict as settings_to_dict
 from .stock import Burr as Burr
 from .stock import Stock as Stock
 from .stock import builtin_stock as builtin_stock

@@ -46,3 +46,13 @@ def test_safe_constant_feed_is_the_inverse_of_the_lab_fit_at_the_deepest_cut():
 def test_reference_defaults_below_the_limit():
     assert MachiningSettings(force_limit_N=200.0).reference_N == pytest.approx(140.0)
     assert MachiningSettings(reference_force_N=90.0).reference_N == 90.0
+
+
+def test_settings_dict_is_json_ready_with_units_in_the_keys():
+    import json
+
+    from robomach_core.machining import settings_to_dict
+
+    data = json.loads(json.dumps(settings_to_dict(MachiningSettings(controller="fuzzy"))))
+    assert data["controller"] == "fuzzy" and data["force_limit_N"] == 150.0
+    assert data["command_speed_cap_m_s"] == 0.01 and data["controller_settings"] is None
