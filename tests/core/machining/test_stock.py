@@ -37,6 +37,8 @@ def test_builtin_stock_spans_the_allowance_range_with_burrs_of_the_stated_size(w
     assert a[body].min() >= 0.3 * MM - 1e-12 and a[body].max() <= 3.0 * MM + 1e-12
     assert a[body].max() - a[body].min() > 2.0 * MM  # it does vary along the path
     assert len(stock.burrs) == round(10.0 * stock.path_length_m)
+    for a_burr, b_burr in zip(stock.burrs[:-1], stock.burrs[1:], strict=True):
+        assert b_burr.center_m - a_burr.center_m > 0.5 * (a_burr.length_m + b_burr.length_m)
     assert stock.max_allowance_m <= 5.0 * MM
     assert a[0] == 0.0  # the lead-in
     # Smooth away from the burrs: no jump larger than a slope of 0.1 mm/mm allows.
