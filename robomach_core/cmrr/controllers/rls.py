@@ -41,6 +41,8 @@ def rls_update(
     pass its cap are scaled down together (P stays positive semi-definite). A small cap also
     sets how fast a parameter may move, e.g. a process exponent that should drift slowly.
     """
+    if len(state.theta) == 2:
+        return _rls_update_2(state, x, y, forgetting, max_variances)
     p = state.covariance
     px = p @ x
     gain = px / (forgetting + float(x @ px))
@@ -53,6 +55,33 @@ def rls_update(
             scale = np.sqrt(np.minimum(1.0, max_variances / np.maximum(diag, 1e-300)))
             p_new = p_new * np.outer(scale, scale)
     return RlsState(theta, p_new)
+
+
+def _rls_update_2(
+    state: RlsState, x: np.ndarray, y: float, forgetting: float, max_variances: np.ndarray | None
+) -> RlsState:
+    """``rls_update`` for two parameters in scalar arithmetic: the same formulas, ~5x faster
+    than 2x2 numpy in the 4 ms loop of a machining run (numpy's per-call overhead dominates)."""
+    (p00, p01), (p10, p11) = state.covariance.tolist()
+    x0, x1 = float(x[0]), float(x[1])
+    t0, t1 = state.theta.tolist()
+    px0 = p00 * x0 + p01 * x1
+    px1 = p10 * x0 + p11 * x1
+    denom = forgetting + (x0 * px0 + x1 * px1)
+    g0, g1 = px0 / denom, px1 / denom
+    err = y - (t0 * x0 + t1 * x1)
+    n00 = (p00 - g0 * px0) / forgetting
+    n01 = (p01 - g0 * px1) / forgetting
+    n10 = (p10 - g1 * px0) / forgetting
+    n11 = (p11 - g1 * px1) / forgetting
+    n01 = n10 = 0.5 * (n01 + n10)
+    if max_variances is not None:
+        cap0, cap1 = float(max_variances[0]), float(max_variances[1])
+        if n00 > cap0 or n11 > cap1:
+            s0 = math.sqrt(min(1.0, cap0 / max(n00, 1e-300)))
+            s1 = math.sqrt(min(1.0, cap1 / max(n11, 1e-300)))
+            n00, n01, n10, n11 = n00 * s0 * s0, n01 * s0 * s1, n10 * s1 * s0, n11 * s1 * s1
+    return RlsState(np.array([t0 + g0 * err, t1 + g1 * err]), np.array([[n00, n01], [n10, n11]]))
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,180 @@
+"""Compare before choosing: the greatest safe constant feed and each CMRR controller, with
+compensation off, offline and online, on the same program, stock and noise.
+
+The constant feed is the greatest that keeps the force limit at the deepest cut of the stock,
+f = (F_lim / (K d_max^alpha))^(1/beta) (inverse of eq. 5); every CMRR controller gets the same
+limit and the same reference. One stiffness identification serves every compensated run.
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..postprocess import Targets
+from ..robot import Robot
+from .run import (
+    CancelFlag,
+    CompensationModel,
+    MachiningRun,
+    ProgressCallback,
+    identify_stiffness,
+    run_machining,
+)
+from .settings import COMPENSATION_NAMES, MACHINING_CONTROLLERS, MachiningSettings
+from .stock import Stock
+
+MM = 1e-3
+# Columns of the side-by-side table: (key of the row, header, format).
+TABLE_COLUMNS: tuple[tuple[str, str, str], ...] = (
+    ("controller", "controller", "{}"),
+    ("compensation", "comp.", "{}"),
+    ("cycle_time_s", "cycle [s]", "{:.1f}"),
+    ("faster_than_constant_pct", "vs const [%]", "{:+.0f}"),
+    ("force_peak_N", "F peak [N]", "{:.1f}"),
+    ("force_limit_N", "F lim [N]", "{:.0f}"),
+    ("force_rms_error_N", "F rms err [N]", "{:.1f}"),
+    ("wall_error_max_mm", "wall max [mm]", "{:.3f}"),
+    ("wall_error_max_at_path_mm", "at [mm]", "{:.0f}"),
+    ("wall_error_rms_mm", "wall rms [mm]", "{:.3f}"),
+    ("material_left_max_mm", "left [mm]", "{:.3f}"),
+    ("overcut_max_mm", "overcut [mm]", "{:.3f}"),
+    ("mrr_mean_mm3_s", "MRR [mm3/s]", "{:.1f}"),
+    ("realtime_factor", "x real time", "{:.0f}"),
+)
+# Per-sample CSV columns: (header, trace attribute, scale to the header's unit).
+CSV_COLUMNS: tuple[tuple[str, str, float], ...] = (
+    ("time_s", "time_s", 1.0),
+    ("path_mm", "path_m", 1 / MM),
+    ("feed_mm_s", "feed_m_s", 1 / MM),
+    ("commanded_feed_mm_s", "commanded_feed_m_s", 1 / MM),
+    ("speed_ratio", "speed_ratio", 1.0),
+    ("depth_mm", "depth_m", 1 / MM),
+    ("force_N", "force_N", 1.0),
+    ("measured_force_N", "measured_force_N", 1.0),
+    ("reference_N", "reference_N", 1.0),
+    ("limit_N", "limit_N", 1.0),
+    ("deflection_mm", "deflection_m", 1 / MM),
+    ("tool_normal_mm", "tool_normal_m", 1 / MM),
+    ("wall_error_mm", "wall_error_m", 1 / MM),
+)
+
+
+@dataclass(frozen=True, eq=False)
+class Comparison:
+    """The runs of the matrix in order, one row per run, and the text table."""
+
+    runs: list[MachiningRun]
+    rows: list[dict[str, Any]]
+    table_text: str
+
+
+def comparison_rows(runs: Sequence[MachiningRun]) -> list[dict[str, Any]]:
+    """One dict per run with the table's keys; ``faster_than_constant_pct`` compares the cycle
+    time with the constant-feed run of the same compensation (None without one)."""
+    constant = {
+        r.compensation: r.summary["cycle_time_s"] for r in runs if r.controller == "constant"
+    }
+    rows = []
+    for r in runs:
+        row = {key: r.summary.get(key) for key, _, _ in TABLE_COLUMNS}
+        base, own = constant.get(r.compensation), r.summary["cycle_time_s"]
+        row["faster_than_constant_pct"] = (
+            100.0 * (1.0 - own / base) if base and own is not None else None
+        )
+        row["completed"] = r.summary["completed"]
+        rows.append(row)
+    return rows
+
+
+def format_table(rows: Sequence[dict[str, Any]]) -> str:
+    """The rows as a fixed-width text table ("stopped" for a cut that did not finish)."""
+    header = [h for _, h, _ in TABLE_COLUMNS]
+    body = []
+    for row in rows:
+        cells = []
+        for key, _, fmt in TABLE_COLUMNS:
+            value = row.get(key)
+            if value is None:
+                cells.append("stopped" if key == "cycle_time_s" else "-")
+            else:
+                cells.append(fmt.format(value))
+        body.append(cells)
+    widths = [max(len(h), *(len(c[i]) for c in body)) for i, h in enumerate(header)]
+    lines = ["  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True))]
+    lines += ["  ".join(c.rjust(w) for c, w in zip(cells, widths, strict=True)) for cells in body]
+    return "\n".join(lines)
+
+
+def compare_configurations(
+    robot: Robot,
+    targets: Targets,
+    wall_normals_m: np.ndarray | None,
+    stock: Stock,
+    settings: MachiningSettings,
+    *,
+    controllers: Sequence[str] = MACHINING_CONTROLLERS,
+    compensations: Sequence[str] = COMPENSATION_NAMES,
+    compensation_model: CompensationModel | None = None,
+    progress: ProgressCallback | None = None,
+    cancel: CancelFlag | Callable[[], bool] | None = None,
+) -> Comparison:
+    """Run every (controller, compensation) pair with otherwise equal ``settings``.
+
+    The constant feed (when ``settings.constant_feed_m_s`` is None) is the greatest safe one
+    for the stock; ``controller_settings`` of ``settings`` apply only to its own controller.
+    ``progress`` spans the whole matrix; ``cancel`` stops it with ``CancelledError``.
+    """
+    pairs = [(c, m) for c in controllers for m in compensations]
+    model = compensation_model
+    if model is None and any(m != "off" for _, m in pairs):
+        model = identify_stiffness(
+            robot.name,
+            seed=settings.seed,
+            poses=settings.identification_poses,
+            cmm_noise_m=settings.cmm_noise_m,
+        ).model
+    runs = []
+    for i, (controller, compensation) in enumerate(pairs):
+        own = settings.controller_settings
+        run_settings = replace(
+            settings,
+            controller=controller,
+            compensation=compensation,
+            controller_settings=own if own is not None and own.kind == controller else None,
+        )
+
+        def sub_progress(fraction: float, i: int = i) -> None:
+            if progress is not None:
+                progress((i + fraction) / len(pairs))
+
+        runs.append(
+            run_machining(
+                robot,
+                targets,
+                wall_normals_m,
+                stock,
+                run_settings,
+                compensation_model=model,
+                progress=sub_progress,
+                cancel=cancel,
+            )
+        )
+    rows = comparison_rows(runs)
+    return Comparison(runs, rows, format_table(rows))
+
+
+def write_run_csv(run: MachiningRun, path: str | Path) -> Path:
+    """The run's trace as CSV, one row per 4 ms sample, units in the headers."""
+    out = Path(path)
+    columns = [getattr(run.trace, attr) * scale for _, attr, scale in CSV_COLUMNS]
+    with out.open("w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow([h for h, _, _ in CSV_COLUMNS])
+        writer.writerows(np.column_stack(columns).tolist())
+    return out

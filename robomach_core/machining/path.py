@@ -1,0 +1,152 @@
+"""The learned path as the machining run sees it: arc length, wall normals, and a test program.
+
+The program's TCP path is the chain of straight moves (MoveL) through the targets. Along it the
+wall normal ``n`` points from the wall's material towards the tool (into free space): the depth
+of cut, the deflection and the wall error are all measured along ``n``. Built-in walls are
+travelled with their material on the right, so by default ``n = up x t`` (left of travel).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+from ..postprocess import Targets, curvature_along, speeds_by_curvature
+from ..robot import Robot
+from ..transforms import make_transform, quaternions_from_matrices
+from ..workpiece import Workpiece
+from .errors import StockError
+
+WallSide = Literal["left", "right"]
+# Speeds of ``targets_along_wall`` follow postprocess defaults: ~10 mm/s, slower at corners.
+WALL_PROGRAM_SPEED_MEAN_M_S = 0.010
+WALL_PROGRAM_SPEED_MIN_M_S = 0.003
+WALL_PROGRAM_CURVATURE_REF_1_M = 1.0 / 0.010
+
+
+def check_path(path_points_m: np.ndarray) -> np.ndarray:
+    """(n, 3) finite float array of at least two distinct points, or ``StockError``."""
+    p = np.asarray(path_points_m, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 3 or len(p) < 2:
+        raise StockError(f"the path must be (n, 3) points with n >= 2, got shape {p.shape}")
+    if not np.all(np.isfinite(p)):
+        raise StockError("the path has non-finite points")
+    if arc_length_m(p)[-1] <= 0.0:
+        raise StockError("the path has zero length")
+    return p
+
+
+def arc_length_m(path_points_m: np.ndarray) -> np.ndarray:
+    """(n,) cumulative arc length [m] of the polyline through the points."""
+    p = np.asarray(path_points_m, dtype=float)
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+
+
+def path_tangents(path_points_m: np.ndarray) -> np.ndarray:
+    """(n, 3) unit tangents by central differences (one-sided at the ends)."""
+    p = np.asarray(path_points_m, dtype=float)
+    t = np.gradient(p, axis=0)
+    norm = np.linalg.norm(t, axis=1, keepdims=True)
+    return t / np.where(norm > 0.0, norm, 1.0)
+
+
+def wall_normals_from_path(
+    path_points_m: np.ndarray,
+    *,
+    wall_side: WallSide = "right",
+    up: tuple[float, float, float] = (0.0, 0.0, 1.0),
+) -> np.ndarray:
+    """(n, 3) unit wall normals, perpendicular to the path and to ``up``, pointing at the tool.
+
+    ``wall_side`` is where the wall's material lies, seen along the direction of travel.
+    """
+    p = check_path(path_points_m)
+    u = np.asarray(up, dtype=float)
+    n = np.cross(u, path_tangents(p))
+    if wall_side == "left":
+        n = -n
+    elif wall_side != "right":
+        raise StockError(f"wall side must be 'left' or 'right', got {wall_side!r}")
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    if np.any(norm < 1e-9):
+        raise StockError("the path runs along the 'up' axis somewhere; give the wall normals")
+    return n / norm
+
+
+def wall_normals_for_workpiece(workpiece: Workpiece, path_points_m: np.ndarray) -> np.ndarray:
+    """(n, 3) wall normals of a path along a built-in workpiece's known wall.
+
+    The side is read from the geometry, not assumed: the normal is the one along which the
+    path points move away from the true wall (the tool is on the free side).
+    """
+    if workpiece.wall is None:
+        raise StockError(f"workpiece {workpiece.name!r} has no known wall; give the normals")
+    p = check_path(path_points_m)
+    T = workpiece.T_base_wobj
+    up = tuple(T[:3, 2])
+    n = wall_normals_from_path(p, wall_side="right", up=up)
+
+    def distance(points: np.ndarray) -> np.ndarray:
+        return workpiece.wall.distance(((points - T[:3, 3]) @ T[:3, :3])[:, :2])
+
+    step = 0.2e-3
+    away = distance(p + step * n) > distance(p)
+    return n if np.mean(away) >= 0.5 else -n
+
+
+def check_normals(wall_normals_m: np.ndarray, count: int) -> np.ndarray:
+    """(count, 3) unit normals, or ``StockError``."""
+    n = np.asarray(wall_normals_m, dtype=float)
+    if n.shape != (count, 3) or not np.all(np.isfinite(n)):
+        raise StockError(f"wall normals must be ({count}, 3) finite vectors, got shape {n.shape}")
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    if np.any(norm < 1e-9):
+        raise StockError("a wall normal has zero length")
+    return n / norm
+
+
+def targets_along_wall(
+    robot: Robot,
+    workpiece: Workpiece,
+    *,
+    tool_radius_m: float,
+    spacing_m: float = 0.002,
+    height_m: float | None = None,
+) -> Targets:
+    """A program that follows a built-in workpiece's true wall, tool pointing down.
+
+    The TCP runs on the wall contour offset by the tool radius (the cutter touches the wall), at
+    mid-height of the wall unless ``height_m`` (wobj z) is given; speeds slow at corners as the
+    post-processor's do. Joints by IK, each seeded with the previous target's.
+    Stands in for a learned program in unit tests and benchmarks.
+    """
+    if workpiece.wall is None:
+        raise StockError(f"workpiece {workpiece.name!r} has no known wall to follow")
+    xy = workpiece.wall.offset(tool_radius_m).sample(spacing_m)
+    z = 0.5 * sum(workpiece.wall_z_m) if height_m is None else height_m
+    T = workpiece.T_base_wobj
+    p = np.column_stack([xy, np.full(len(xy), z)]) @ T[:3, :3].T + T[:3, 3]
+    p = np.vstack([p, p[:1]])  # a closed loop ends where it starts
+    R = T[:3, :3] @ np.diag([1.0, -1.0, -1.0])
+    q = robot.ik(make_transform(R, p[0]))
+    joints = []
+    for point in p:
+        q = robot.ik(make_transform(R, point), q)
+        joints.append(q)
+    curvature = curvature_along(p)
+    speeds = speeds_by_curvature(
+        curvature,
+        speed_mean_m_s=WALL_PROGRAM_SPEED_MEAN_M_S,
+        speed_min_m_s=WALL_PROGRAM_SPEED_MIN_M_S,
+        curvature_ref_1_m=WALL_PROGRAM_CURVATURE_REF_1_M,
+    )
+    quats = quaternions_from_matrices(np.repeat(R[None], len(p), axis=0))
+    return Targets(
+        position_m=p,
+        quaternion_wxyz=quats,
+        joints_rad=np.array(joints),
+        speed_m_s=speeds,
+        curvature_1_m=curvature,
+        sample_index=np.arange(len(p)),
+    )

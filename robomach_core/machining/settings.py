@@ -1,0 +1,193 @@
+"""Settings of a machining run: the process, the force limit, the feed control, compensation.
+
+Every field is SI with its unit in the name; ``__post_init__`` checks the physical range and
+names it in the message. The process defaults are the chapter's lab fit F = 23 d^0.9 f^0.5
+(eq. 6, d in mm, f in mm/s) with the spindle lag tau_m of eq. (3).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any, Literal, get_args
+
+from ..cmrr.controllers import CONTROLLER_NAMES, ControllerSettings
+from ..cmrr.process import DEFAULT_TAU_M_S, PowerLawForceModel
+from .errors import MachiningSettingsError
+
+MM = 1e-3
+CONTROL_PERIOD_S = 0.004
+# Fr as a share of the force limit when not given: room for the overshoot on a burr's flank.
+DEFAULT_REFERENCE_FRACTION = 0.7
+CompensationName = Literal["off", "offline", "online"]
+COMPENSATION_NAMES: tuple[str, ...] = get_args(CompensationName)
+ControllerName = Literal["constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage", "adaptive-lq"]
+MACHINING_CONTROLLERS: tuple[str, ...] = get_args(ControllerName)
+assert set(MACHINING_CONTROLLERS) == set(CONTROLLER_NAMES)
+
+# (field, low, high, low inclusive, unit) of the scalar settings.
+_RANGES: dict[str, tuple[float, float, bool, str]] = {
+    "process_gain_N": (0.0, 1.0e4, False, "N"),
+    "depth_exponent": (0.0, 3.0, True, ""),
+    "feed_exponent": (0.0, 2.0, False, ""),
+    "process_time_constant_s": (0.0, 1.0, True, "s"),
+    "force_limit_N": (0.0, 5.0e3, False, "N"),
+    "command_speed_cap_m_s": (0.0, 0.5, False, "m/s"),
+    "path_acceleration_m_s2": (0.0, 10.0, False, "m/s^2"),
+    "min_speed_ratio": (0.0, 1.0, False, ""),
+    "feed_force_ratio": (0.0, 2.0, True, ""),
+    "axial_engagement_m": (0.0, 0.05, False, "m"),
+    "sensor_noise_N": (0.0, 50.0, True, "N"),
+    "sensor_filter_cutoff_hz": (0.0, 100.0, False, "Hz"),
+    "online_filter_cutoff_hz": (0.0, 100.0, False, "Hz"),
+    "station_spacing_m": (1e-6, 1e-3, True, "m"),
+    "offline_target_spacing_m": (1e-4, 0.05, True, "m"),
+    "cmm_noise_m": (0.0, 2e-4, True, "m"),
+}
+
+
+@dataclass(frozen=True)
+class MachiningSettings:
+    """One machining run's settings (SI units).
+
+    Attributes:
+        process_gain_N: K of eq. (5): the force at 1 mm depth and 1 mm/s [N].
+        depth_exponent: alpha of eq. (5).
+        feed_exponent: beta of eq. (5).
+        process_time_constant_s: tau_m of eq. (3), the first-order lag of the force.
+        force_limit_N: The force the cut must not exceed (spindle, tool); the deepest cut of
+            the stock is the binding case of a constant feed.
+        reference_force_N: Fr the CMRR controllers hold; None takes 0.7 of the limit, the
+            margin a PI needs for its overshoot on a burr's flank (the feed cannot drop
+            faster than eq. (1) lets it).
+        command_speed_cap_m_s: Vr: no programmed speed is executed faster than this (the
+            chapter's ~10 mm/s machining feed, section 3.4).
+        path_acceleration_m_s2: The path planner's limit on speed changes between moves
+            (the programmed speeds step from move to move; the robot ramps between them).
+        controller: ``"constant"`` or a CMRR controller of ``robomach_core.cmrr``.
+        controller_settings: Overrides of the controller's defaults (its ``kind`` must match).
+        constant_feed_m_s: Feed of the ``constant`` controller; None takes the greatest
+            constant feed that keeps the force limit at the deepest cut.
+        min_speed_ratio: delta of eq. (13), the lowest speed ratio CMRR may command.
+        compensation: ``"off"``, ``"offline"`` (targets corrected before the run) or
+            ``"online"`` (joint reference corrected from the measured force).
+        feed_force_ratio: Feed (tangential) over normal component of the process force; the
+            power law gives the magnitude, the normal component pushes the tool off the wall.
+        axial_engagement_m: Height of the cut along the tool axis (for the MRR only).
+        sensor_noise_N: White noise of the force sensor, one sigma.
+        sensor_filter_cutoff_hz: Low-pass of the CMRR feedback (2nd-order Butterworth).
+        online_filter_cutoff_hz: First-order low-pass of the online compensation's wrench.
+        station_spacing_m: Spacing of the stations where the finished wall is evaluated.
+        offline_target_spacing_m: Spacing of the corrected targets of offline compensation.
+        identification_poses: Poses of the CMM campaign that identifies the stiffness.
+        cmm_noise_m: CMM noise per axis and reading of that campaign.
+        max_samples: A run that would record more samples than this is refused.
+        seed: Seeds the sensor noise and the identification campaign.
+    """
+
+    process_gain_N: float = 23.0
+    depth_exponent: float = 0.9
+    feed_exponent: float = 0.5
+    process_time_constant_s: float = DEFAULT_TAU_M_S
+    force_limit_N: float = 150.0
+    reference_force_N: float | None = None
+    command_speed_cap_m_s: float = 0.010
+    path_acceleration_m_s2: float = 0.05
+    controller: ControllerName = "adaptive-pi"
+    controller_settings: ControllerSettings | None = None
+    constant_feed_m_s: float | None = None
+    min_speed_ratio: float = 0.1
+    compensation: CompensationName = "off"
+    feed_force_ratio: float = 0.5
+    axial_engagement_m: float = 0.005
+    sensor_noise_N: float = 2.0
+    sensor_filter_cutoff_hz: float = 20.0
+    online_filter_cutoff_hz: float = 30.0
+    station_spacing_m: float = 0.1 * MM
+    offline_target_spacing_m: float = 1.0 * MM
+    identification_poses: int = 30
+    cmm_noise_m: float = 20e-6
+    max_samples: int = 2_000_000
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name, (lo, hi, closed, unit) in _RANGES.items():
+            value = getattr(self, name)
+            ok = isinstance(value, (int, float)) and math.isfinite(value)
+            ok = ok and (lo <= value if closed else lo < value) and value <= hi
+            if not ok:
+                bracket = "[" if closed else "("
+                raise MachiningSettingsError(
+                    f"{name} must be in {bracket}{lo:g}, {hi:g}] {unit}".rstrip()
+                    + f", got {value!r}"
+                )
+        if self.controller not in MACHINING_CONTROLLERS:
+            raise MachiningSettingsError(
+                f"unknown controller {self.controller!r}; choose one of "
+                f"{', '.join(MACHINING_CONTROLLERS)}"
+            )
+        if self.compensation not in COMPENSATION_NAMES:
+            raise MachiningSettingsError(
+                f"unknown compensation {self.compensation!r}; choose one of "
+                f"{', '.join(COMPENSATION_NAMES)}"
+            )
+        if self.controller_settings is not None and self.controller_settings.kind != (
+            self.controller
+        ):
+            raise MachiningSettingsError(
+                f"controller settings are for {self.controller_settings.kind!r}, "
+                f"the controller is {self.controller!r}"
+            )
+        ref = self.reference_force_N
+        if ref is not None and not (math.isfinite(ref) and 0.0 < ref <= self.force_limit_N):
+            raise MachiningSettingsError(
+                f"reference_force_N must be in (0, {self.force_limit_N:g}] N (the force limit), "
+                f"got {ref!r}"
+            )
+        cf = self.constant_feed_m_s
+        if cf is not None and not (math.isfinite(cf) and 0.0 < cf <= self.command_speed_cap_m_s):
+            raise MachiningSettingsError(
+                f"constant_feed_m_s must be in (0, {self.command_speed_cap_m_s:g}] m/s "
+                f"(the speed cap), got {cf!r}"
+            )
+        if not (isinstance(self.identification_poses, int) and 8 <= self.identification_poses):
+            raise MachiningSettingsError(
+                f"identification_poses must be an integer >= 8, got {self.identification_poses!r}"
+            )
+        if not (isinstance(self.max_samples, int) and 1000 <= self.max_samples <= 50_000_000):
+            raise MachiningSettingsError(
+                f"max_samples must be an integer in [1000, 50000000], got {self.max_samples!r}"
+            )
+
+    @property
+    def process(self) -> PowerLawForceModel:
+        """The cutting process, eqs. (3)-(6)."""
+        return PowerLawForceModel(
+            gain_N=self.process_gain_N,
+            depth_exponent=self.depth_exponent,
+            feed_exponent=self.feed_exponent,
+            time_constant_s=self.process_time_constant_s,
+        )
+
+    @property
+    def reference_N(self) -> float:
+        """Fr [N]: the given reference, else ``DEFAULT_REFERENCE_FRACTION`` of the limit."""
+        if self.reference_force_N is not None:
+            return self.reference_force_N
+        return DEFAULT_REFERENCE_FRACTION * self.force_limit_N
+
+    def safe_constant_feed_m_s(self, max_depth_m: float) -> float:
+        """Greatest constant feed keeping the limit at the deepest cut, capped:
+        f = (F_lim / (K d_max^alpha))^(1/beta), the inverse of eq. (5)."""
+        return min(
+            self.command_speed_cap_m_s, self.process.feed_for_force(self.force_limit_N, max_depth_m)
+        )
+
+
+def settings_to_dict(settings: MachiningSettings) -> dict[str, Any]:
+    """JSON-ready dict of the scalar settings (controller settings by kind only)."""
+    out: dict[str, Any] = {}
+    for f in fields(settings):
+        value = getattr(settings, f.name)
+        out[f.name] = value.kind if f.name == "controller_settings" and value else value
+    return out

@@ -1,0 +1,43 @@
+"""Programs to cut: the learned water-pump program (the headless pipeline, once per session)
+and a program along the pump's true wall (fast, for unit tests)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robomach_core.machining import targets_along_wall
+from robomach_core.postprocess import Targets
+from robomach_core.robot import Robot
+from robomach_core.tool import Tool
+from robomach_core.workpiece import builtin_workpiece
+
+
+@pytest.fixture(scope="session")
+def robot() -> Robot:
+    return Robot("ur10", Tool().T_flange_tcp)
+
+
+@pytest.fixture(scope="session")
+def wall_program(robot: Robot) -> Targets:
+    """Every 2 mm along the water pump's true wall, tool down, ~10 mm/s."""
+    return targets_along_wall(robot, builtin_workpiece("water_pump"), tool_radius_m=0.001)
+
+
+@pytest.fixture(scope="session")
+def short_program(wall_program: Targets) -> Targets:
+    """The first ~120 mm of the wall program."""
+    keep = slice(0, 61)
+    return Targets(
+        **{k: np.asarray(getattr(wall_program, k))[keep] for k in wall_program.__dataclass_fields__}
+    )
+
+
+@pytest.fixture(scope="session")
+def learned_program() -> Targets:
+    """The water pump's learned program: `robomach demo` with its defaults, seed 0."""
+    try:
+        from robomach_core.pipeline import DemoSettings, run_demo
+    except ImportError:  # the pipeline is moving into robomach_core.project (issue 8, part 1)
+        from robomach_core.project import DemoSettings, run_demo  # type: ignore[no-redef]
+    return run_demo(DemoSettings()).processed.targets

@@ -1,0 +1,201 @@
+"""The machining run on a program along the water pump's true wall: physics invariants,
+compensation, the finished wall, errors, progress and cancel."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from robomach_core.errors import CancelledError
+from robomach_core.joint_compliance import true_joint_compliance
+from robomach_core.machining import (
+    MachiningSettings,
+    SampleLimitError,
+    StockError,
+    builtin_stock,
+    identify_stiffness,
+    run_machining,
+    stock_from_profile,
+)
+from robomach_core.machining.run import finished_wall
+
+MM = 1e-3
+
+
+@pytest.fixture(scope="module")
+def short_stock(short_program):
+    return builtin_stock(short_program.position_m, seed=0)
+
+
+def test_no_stock_means_no_force_no_deflection_and_a_perfect_wall(robot, short_program):
+    # A noise-free sensor: online compensation would otherwise follow the noise (micrometres).
+    stock = stock_from_profile(short_program.position_m, [(0.0, 0.0)])
+    for mode in ("off", "offline", "online"):
+        run = run_machining(
+            robot,
+            short_program,
+            None,
+            stock,
+            MachiningSettings(compensation=mode, sensor_noise_N=0.0),
+        )
+        assert np.all(run.trace.force_N == 0.0)
+        assert np.all(run.trace.deflection_m == 0.0)
+        # Compensation is zero at zero load: the tool runs on the nominal wall.
+        assert np.max(np.abs(run.trace.tool_normal_m)) == 0.0
+        assert run.summary["wall_error_max_mm"] == 0.0
+
+
+def test_constant_feed_keeps_the_force_limit_and_bends_the_arm_off_the_wall(
+    robot, short_program, short_stock
+):
+    run = run_machining(
+        robot, short_program, None, short_stock, MachiningSettings(controller="constant")
+    )
+    s = run.summary
+    assert s["completed"]
+    feed = s["constant_feed_mm_s"]
+    expected = MachiningSettings().safe_constant_feed_m_s(short_stock.max_allowance_m) / MM
+    assert feed == pytest.approx(expected)
+    # The deflection only makes the cut shallower: the limit holds (up to the lag's ripple).
+    assert s["force_peak_N"] <= 1.01 * s["force_limit_N"]
+    # The force pushes the tool off the wall: material is left, never overcut.
+    assert s["material_left_max_mm"] > 0.01 and s["overcut_max_mm"] == 0.0
+    # Deflection follows the true compliance: about 1 um per newton at this pose.
+    loaded = run.trace.force_N > 50
+    ratio = run.trace.deflection_m[loaded] / run.trace.force_N[loaded]
+    assert 1e-7 < ratio.min() and ratio.max() < 3e-6
+    # Where the stock was thicker than the deflection, the tool's own pass bounds the wall:
+    # never above where its edge was, never below the nominal wall (the force pushes off it).
+    deep = run.trace.depth_m > 0.5 * MM
+    left = run.trace.wall_error_m[deep]
+    # (Within one 0.1 mm station the deflection varies by less than a micrometre.)
+    assert np.all(left <= run.trace.deflection_m[deep] + 1e-6) and np.all(left >= 0.0)
+    assert s["wall_error_max_mm"] == pytest.approx(s["deflection_max_mm"], rel=0.1)
+
+
+@pytest.mark.parametrize("mode", ["offline", "online"])
+def test_compensation_removes_most_of_the_deflection_error(robot, short_program, short_stock, mode):
+    model = identify_stiffness(robot.name, seed=0).model
+    off = run_machining(robot, short_program, None, short_stock, MachiningSettings())
+    on = run_machining(
+        robot,
+        short_program,
+        None,
+        short_stock,
+        MachiningSettings(compensation=mode),
+        compensation_model=model,
+    )
+    assert on.summary["wall_error_max_mm"] < 0.3 * off.summary["wall_error_max_mm"]
+    assert on.stiffness_model is model
+
+
+def test_the_identified_stiffness_is_close_to_but_not_the_truth(robot):
+    ident = identify_stiffness(robot.name, seed=0)
+    k = np.asarray(ident.model.stiffness_Nm_rad)
+    truth = np.asarray(true_joint_compliance(robot.name).stiffness_Nm_rad)
+    assert not np.array_equal(k, truth)
+    assert np.max(np.abs(k[:5] / truth[:5] - 1.0)) < 0.3
+
+
+def test_finished_wall_is_the_ball_envelope_clipped_by_the_stock():
+    ds, r = 0.1 * MM, 1.0 * MM
+    s_st = np.arange(101) * ds
+    allowance = np.full(101, 0.5 * MM)
+    # The tool sits 0.2 mm off the wall everywhere except one sample 0.1 mm into it at 5 mm.
+    path = np.arange(0, 101) * ds
+    h = np.full(101, 0.2 * MM)
+    h[50] = -0.1 * MM
+    wall = finished_wall(s_st, allowance, path, h, r)
+    assert wall.finished_m[50] == pytest.approx(-0.1 * MM)
+    # One station further the ball's surface is r - sqrt(r^2 - ds^2) higher.
+    assert wall.finished_m[51] == pytest.approx(-0.1 * MM + r - np.sqrt(r**2 - ds**2))
+    assert wall.finished_m[0] == pytest.approx(0.2 * MM)
+    # Where the tool stayed above the stock, the stock remains.
+    wall = finished_wall(s_st, allowance, path, np.full(101, 0.8 * MM), r)
+    assert wall.finished_m == pytest.approx(allowance)
+
+
+def test_a_stock_on_another_path_is_refused(robot, short_program, wall_program):
+    stock = builtin_stock(wall_program.position_m, seed=0)
+    with pytest.raises(StockError, match="build the stock on the program's path"):
+        run_machining(robot, short_program, None, stock, MachiningSettings())
+
+
+def test_a_run_over_the_sample_cap_is_refused_before_it_starts(robot, short_program, short_stock):
+    settings = MachiningSettings(controller="constant", constant_feed_m_s=1e-4, max_samples=1000)
+    with pytest.raises(SampleLimitError, match="more than the cap of 1000"):
+        run_machining(robot, short_program, None, short_stock, settings)
+
+
+def test_progress_rises_to_one_and_cancel_stops_the_run(robot, short_program, short_stock):
+    seen: list[float] = []
+    run_machining(
+        robot, short_program, None, short_stock, MachiningSettings(), progress=seen.append
+    )
+    assert seen[-1] == 1.0 and np.all(np.diff(seen) >= 0.0) and len(seen) > 20
+    flag = threading.Event()
+
+    def stop_halfway(fraction: float) -> None:
+        if fraction > 0.5:
+            flag.set()
+
+    with pytest.raises(CancelledError):
+        run_machining(
+            robot,
+            short_program,
+            None,
+            short_stock,
+            MachiningSettings(),
+            progress=stop_halfway,
+            cancel=flag,
+        )
+
+
+def test_summary_and_trace_carry_units_and_the_same_samples(robot, short_program, short_stock):
+    run = run_machining(robot, short_program, None, short_stock, MachiningSettings())
+    keys = {
+        "controller", "compensation", "cycle_time_s", "force_peak_N", "force_limit_N",
+        "force_rms_error_N", "wall_error_max_mm", "wall_error_rms_mm",
+        "wall_error_max_at_path_mm", "material_left_max_mm", "overcut_max_mm",
+        "mrr_mean_mm3_s", "realtime_factor",
+    }  # fmt: skip
+    assert keys <= set(run.summary)
+    n = len(run.trace)
+    for name in run.trace.__dataclass_fields__:
+        assert getattr(run.trace, name).shape == (n,)
+    assert run.summary["cycle_time_s"] == pytest.approx(run.trace.time_s[-1])
+    assert run.trace.path_m[-1] >= run.wall.s_m[-1] - 0.1 * MM - 1e-9 or run.summary["completed"]
+
+
+def test_offline_program_moves_the_targets_against_the_predicted_force(
+    robot, short_program, short_stock
+):
+    """The corrected targets sit -n^T C_hat u F_pred from the nominal path, inside the wall."""
+    from robomach_core.machining.path import wall_normals_from_path
+    from robomach_core.stiffness import CompensationSettings
+
+    ident = identify_stiffness(robot.name, seed=0)
+    settings = CompensationSettings(robot.name, ident.model.stiffness_Nm_rad, mode="offline_linear")
+    run = run_machining(
+        robot,
+        short_program,
+        None,
+        short_stock,
+        MachiningSettings(compensation="offline", controller="constant"),
+        compensation_model=settings,
+    )
+    assert run.stiffness_model == ident.model
+    program = run.program
+    assert len(program) > len(short_program)  # a target every millimetre
+    from robomach_core.machining.run import arc_length_m, densify_targets
+
+    nominal = densify_targets(short_program, MachiningSettings().offline_target_spacing_m)
+    n = wall_normals_from_path(nominal.position_m)
+    shift = np.einsum("ij,ij->i", program.position_m - nominal.position_m, n)
+    s = arc_length_m(nominal.position_m)
+    deep = short_stock.allowance_m(s) > 1.0 * MM
+    assert np.all(shift[deep] < -5e-6)  # into the wall, micrometres to a tenth of a mm
+    assert np.all(shift > -0.3 * MM)
+    assert np.max(np.abs(program.joints_rad - nominal.joints_rad)) < 1e-3
