@@ -19,7 +19,7 @@ from robomach_core.arcs import (
 )
 from robomach_core.errors import InvalidInputError
 from robomach_core.postprocess import Targets, reduce_deviation_height
-from robomach_core.workpiece import water_pump_wall
+from robomach_core.workpiece import builtin_workpiece, water_pump_wall
 
 
 def line_arc_line(spacing: float = 2e-5, radius: float = 0.005) -> np.ndarray:
@@ -162,3 +162,19 @@ def test_bad_input_is_a_clear_error():
         fit_arcs(np.zeros((4, 3)), 0.0)
     with pytest.raises(InvalidInputError, match="shape"):
         fit_arcs(np.zeros((4, 2)), 1e-4)
+
+
+def test_score_moves_of_the_straight_program_is_score_path():
+    from robomach_core.arcs import score_moves
+    from robomach_core.scoring import score_path
+
+    pump = builtin_workpiece("water_pump")
+    xy = pump.wall.offset(0.001).sample(0.004)[:40]
+    T = pump.T_base_wobj
+    pts = (T[:3, :3] @ np.column_stack([xy, np.full(len(xy), 0.017)]).T).T + T[:3, 3]
+    pts[::3] += np.array([0.0001, 0.0, 0.0])
+    expected = score_path(pump, 0.001, pts)
+    got = score_moves(pump, 0.001, pts, linear_moves(len(pts)))
+    assert got.max_m == pytest.approx(expected.max_m, rel=1e-6)
+    assert got.rms_m == pytest.approx(expected.rms_m, rel=1e-3)
+    assert got.targets_max_m == pytest.approx(expected.targets_max_m, rel=1e-9)
