@@ -24,6 +24,7 @@ from robomach_core.robot import (
 )
 from robomach_core.robots import ABB_ARMS, IRB4400, IRB6640, controller_axes_deg, urdf_text
 from robomach_core.tool import Tool
+from robomach_core.transforms import rotation_about
 from robomach_core.workpiece import builtin_workpiece, default_T_base_wobj
 
 ABB = sorted(ABB_ARMS)
@@ -189,3 +190,19 @@ def test_cfx_geometry_matches_the_urdf_model(name, unit):
     b = wrist @ heading < 0
     e = side < 0  # the wrist on the other side of the lower arm than the front at q2 = 0
     assert abb_cfx(q, spec) == 4 * b + 2 * e + (q[4] < 0)
+
+
+@given(
+    st.sampled_from(ABB),
+    st.tuples(st.floats(-0.2, 0.2), st.floats(-0.2, 0.2), st.floats(-0.1, 0.2)),
+    st.floats(-0.3, 0.3),
+)
+@settings(max_examples=25, deadline=None)
+def test_fk_of_ik_is_the_target_around_the_work_pose(name, offset, tilt):
+    robot = Robot(name, Tool().T_flange_tcp)
+    T = np.eye(4)
+    T[:3, :3] = rotation_about("y", tilt) @ TOOL_DOWN
+    T[:3, 3] = default_T_base_wobj(name)[:3, 3] + np.array([0.0, 0.0, 0.05]) + offset
+    q = robot.ik(T)
+    assert robot.within_limits(q)
+    np.testing.assert_allclose(robot.fk(q), T, atol=1e-5)
