@@ -49,6 +49,9 @@ class _RobotUrdfs(Mapping):
             return str(abb.urdf_path(name))
         raise KeyError(name)
 
+    def __contains__(self, name: object) -> bool:  # no file is written to answer this
+        return name in _UR_URDFS or name in abb.ABB_ARMS
+
     def __iter__(self) -> Iterator[str]:
         return iter([*_UR_URDFS, *abb.ABB_ARMS])
 
