@@ -252,6 +252,14 @@ class RapidProgram:
         n = self.max_moves_per_proc
         if isinstance(n, bool) or not isinstance(n, int) or n < 1:
             raise InvalidInputError(f"max_moves_per_proc must be an integer >= 1, got {n!r}")
+        if self.arm is not None:
+            from robomach_core.robot import ROBOT_URDFS
+
+            if self.arm.lower() not in ROBOT_URDFS:
+                raise InvalidInputError(
+                    f"unknown arm {self.arm!r} for confdata; choose one of "
+                    f"{', '.join(sorted(ROBOT_URDFS))}"
+                )
         moves = linear_moves(len(targets)) if self.moves is None else self.moves
         _set(self, "moves", validate_moves(moves, len(targets)))
         if isinstance(self.comment, str):

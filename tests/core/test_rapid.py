@@ -647,3 +647,13 @@ def test_move_needs_a_via_exactly_when_circular() -> None:
         Move("circular", 2)
     with pytest.raises(InvalidInputError, match="via"):
         Move("linear", 2, 1)
+
+
+def test_confdata_follows_the_arm_and_unknown_arms_are_refused() -> None:
+    """On an ABB arm the wrist geometry gives cfx: IRB 4400 calibration pose -> [0,0,0,0]."""
+    target = RapidTarget(make_targets(1)[0].T_wobj_target, np.zeros(6), 5.0)
+    info = check_rapid_module(rapid_module(make_program(targets=[target], arm="irb4400")))
+    assert tuple(info.robtargets["p1"][2]) == (0, 0, 0, 0)
+    assert confdata_from_joints(np.zeros(6))[3] == 4  # the UR rule calls the same joints 4
+    with pytest.raises(InvalidInputError, match="unknown arm 'kuka'"):
+        make_program(arm="kuka")
