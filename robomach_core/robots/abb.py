@@ -16,10 +16,10 @@ STRATEGY  Every ABB 6-axis arm here has the same serial structure (ABB's axis ze
           packages (github.com/ros-industrial/abb: ``abb_irb4400_support/urdf/
           irb4400_macro.xacro`` and ``abb_irb6640_support/urdf/irb6640_185_280_macro.xacro``),
           whose joint zeros and positive directions are the controller's (its abb_driver passes
-          joint angles through unchanged), and the ABB product specifications' axis working
-          ranges (IRB 4400: axis 1 +-165, 2 -70/+95, 3 -60/+65, 4 +-200, 5 +-120, 6 +-400 deg;
-          IRB 6640: 1 +-170, 2 -65/+85, 3 -180/+70, 4 +-300, 5 +-120, 6 +-360 deg). Their meshes
-          are not used: the links are drawn as boxes and cylinders.
+          joint angles through unchanged, but for the coupled axis 3 below), and whose limits
+          follow ABB's product specifications (IRB 4400: axis 1 +-165, 2 -70/+96, 3 -60/+65,
+          4 +-200, 5 +-120, 6 +-400 deg; IRB 6640: 1 +-170, 2 -65/+85, 3 -180/+70, 4 +-300,
+          5 +-120, 6 +-360 deg). Their meshes are not used: boxes and cylinders draw the links.
 SOLUTION  ``ABB_ARMS`` (name -> ``ArmSpec``), ``urdf_text(spec)`` (a URDF that pinocchio and
           yourdfpy load), ``urdf_path(name)`` (that URDF written once into a cache folder) and
           ``controller_axes_deg`` (the joint values the ABB controller shows).
