@@ -21,7 +21,7 @@ from . import _kernels
 from .contact import NO_CONTACT, ContactModel, ContactResult
 from .errors import InvalidInputError
 from .joint_compliance import JointCompliance, true_joint_compliance
-from .robot import HOME_JOINTS_RAD, Robot
+from .robot import Robot
 from .sensor import ForceEstimator, ForceTorqueSensor, SensorParams
 from .tool import Tool
 from .workpiece import Workpiece, builtin_workpiece
@@ -34,9 +34,10 @@ class CellConfig:
     """Everything that defines a cell.
 
     Attributes:
-        robot: ``"ur10"``, ``"ur5"`` or ``"ur3"``.
+        robot: ``"ur10"``, ``"ur5"``, ``"ur3"`` or an ABB arm (``"irb4400"``, ``"irb6640"``).
         tool: The tool.
-        workpiece: Built-in name (``"water_pump"``, ``"block"``) or a ``Workpiece``.
+        workpiece: Built-in name (``"water_pump"``, ``"block"``), placed where the robot reaches
+            it (``workpiece.default_T_base_wobj``), or a ``Workpiece``.
         sensor: Sensor noise and bias.
         seed: Seed of every random element (sensor bias and noise).
     """
@@ -83,7 +84,9 @@ class Cell:
         self.robot = Robot(self.config.robot, self.config.tool.T_flange_tcp)
         self.tool = self.config.tool
         wp = self.config.workpiece
-        self.workpiece: Workpiece = builtin_workpiece(wp) if isinstance(wp, str) else wp
+        self.workpiece: Workpiece = (
+            builtin_workpiece(wp, robot=self.config.robot) if isinstance(wp, str) else wp
+        )
         self.contact_model = ContactModel(self.tool, self.workpiece)
         self._compliance: JointCompliance = true_joint_compliance(self.robot.name)
         self._compliance_vec = self._compliance.compliance_rad_Nm
@@ -97,8 +100,12 @@ class Cell:
         return ForceEstimator.from_tool(self.tool)
 
     def initial_state(self, q_motor: np.ndarray | None = None) -> CellState:
-        """The cell at rest at ``q_motor`` (default: the home pose), t = 0."""
-        q = HOME_JOINTS_RAD.copy() if q_motor is None else np.asarray(q_motor, dtype=float).copy()
+        """The cell at rest at ``q_motor`` (default: the robot's home pose), t = 0."""
+        q = (
+            self.robot.home_rad.copy()
+            if q_motor is None
+            else np.asarray(q_motor, dtype=float).copy()
+        )
         if q.shape != (6,) or not self.robot.within_limits(q):
             raise InvalidInputError("initial joints must be 6 values inside the joint limits")
         T = self.robot.fk(q).copy()

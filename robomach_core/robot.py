@@ -1,4 +1,4 @@
-"""The robot arm: pinocchio kinematics of a UR arm from example-robot-data, with the tool's TCP.
+"""The robot arm: pinocchio kinematics of a UR arm (example-robot-data) or an ABB arm, with a TCP.
 
 PROBLEM   The controller needs FK, the TCP Jacobian and an inverse kinematics that never leaves
           the joint limits, and users need a clear word when a pose cannot be reached.
@@ -13,23 +13,68 @@ from __future__ import annotations
 
 import importlib.metadata
 import threading
+from collections.abc import Iterator, Mapping
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import pinocchio as pin
 
 from . import _kernels
 from .errors import SingularConfigurationError, UnknownNameError, UnreachableTargetError
+from .robots import abb
 from .transforms import pose_error
 
-ROBOT_URDFS: dict[str, str] = {
+ProgramLanguage = Literal["rapid", "urscript"]
+
+_UR_URDFS: dict[str, str] = {
     "ur10": "ur_description/urdf/ur10_robot.urdf",
     "ur5": "ur_description/urdf/ur5_robot.urdf",
     "ur3": "ur_description/urdf/ur3_robot.urdf",
 }
+
+
+class _RobotUrdfs(Mapping):
+    """Robot name -> URDF path, relative to ``robots_directory()`` for example-robot-data's arms.
+
+    The ABB arms' URDFs are generated from ``robots.abb`` and written into a cache folder when
+    first looked up; their value is that absolute path, so ``robots_directory() / value`` is
+    the file for every arm.
+    """
+
+    def __getitem__(self, name: str) -> str:
+        if name in _UR_URDFS:
+            return _UR_URDFS[name]
+        if name in abb.ABB_ARMS:
+            return str(abb.urdf_path(name))
+        raise KeyError(name)
+
+    def __contains__(self, name: object) -> bool:  # no file is written to answer this
+        return name in _UR_URDFS or name in abb.ABB_ARMS
+
+    def __iter__(self) -> Iterator[str]:
+        return iter([*_UR_URDFS, *abb.ABB_ARMS])
+
+    def __len__(self) -> int:
+        return len(_UR_URDFS) + len(abb.ABB_ARMS)
+
+
+ROBOT_URDFS: Mapping[str, str] = _RobotUrdfs()
+# The language of the programs each arm's controller runs.
+ROBOT_PROGRAM_LANGUAGE: dict[str, ProgramLanguage] = {
+    **dict.fromkeys(_UR_URDFS, "urscript"),
+    **dict.fromkeys(abb.ABB_ARMS, "rapid"),
+}
 FLANGE_FRAME = "tool0"
-# A home pose with the tool pointing down above the table in front of the robot.
+# A home pose with the tool pointing down above the table in front of the robot (UR arms).
 HOME_JOINTS_RAD = np.array([0.0, -1.7, 1.9, -1.77, -1.5708, 0.0])
+# Home poses per arm: tool pointing down, above the built-in workpiece's placement
+# (``workpiece.default_T_base_wobj``). The ABB ones are in ABB's axis zeros and directions.
+ROBOT_HOME_JOINTS_RAD: dict[str, np.ndarray] = {
+    **dict.fromkeys(_UR_URDFS, HOME_JOINTS_RAD),
+    "irb4400": np.radians([0.0, 22.0, 19.0, 0.0, 49.0, -90.0]),
+    "irb6640": np.radians([0.0, 0.0, 41.0, 0.0, 49.0, -90.0]),
+}
 # Below this smallest singular value of the 6x6 TCP Jacobian the arm is called singular.
 SINGULAR_VALUE_MIN = 1e-3
 
@@ -40,11 +85,32 @@ def robots_directory() -> Path:
     return Path(str(dist.locate_file("cmeel.prefix/share/example-robot-data/robots")))
 
 
+def robot_urdf_path(name: str) -> Path:
+    """The URDF file of a robot by name (ABB arms: generated at first use)."""
+    key = name.lower()
+    if key not in ROBOT_URDFS:
+        raise UnknownNameError(
+            f"unknown robot {name!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
+        )
+    return robots_directory() / ROBOT_URDFS[key]
+
+
+def program_language(name: str) -> ProgramLanguage:
+    """``"rapid"`` for an ABB arm, ``"urscript"`` for a UR arm."""
+    try:
+        return ROBOT_PROGRAM_LANGUAGE[name.lower()]
+    except KeyError:
+        raise UnknownNameError(
+            f"unknown robot {name!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
+        ) from None
+
+
 class Robot:
     """A 6-axis arm with a TCP frame; holds one pinocchio Model and its Data buffers.
 
     Args:
-        name: ``"ur10"`` (default), ``"ur5"`` or ``"ur3"``.
+        name: ``"ur10"`` (default), ``"ur5"``, ``"ur3"`` (example-robot-data) or an ABB arm
+            (``"irb4400"``, ``"irb6640"``, built by ``robots.abb``).
         T_flange_tcp: 4x4 TCP pose in the flange frame (metres).
     """
 
@@ -55,8 +121,12 @@ class Robot:
                 f"unknown robot {name!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
             )
         self.name = key
-        urdf = robots_directory() / ROBOT_URDFS[key]
-        self.model = pin.buildModelFromUrdf(str(urdf))
+        if key in abb.ABB_ARMS:
+            self.model = pin.buildModelFromXML(abb.urdf_text(abb.ABB_ARMS[key]))
+        else:
+            self.model = pin.buildModelFromUrdf(str(robots_directory() / ROBOT_URDFS[key]))
+        self.home_rad = ROBOT_HOME_JOINTS_RAD[key].copy()
+        self.program_language: ProgramLanguage = ROBOT_PROGRAM_LANGUAGE[key]
         flange_id = self.model.getFrameId(FLANGE_FRAME)
         flange = self.model.frames[flange_id]
         T = np.eye(4) if T_flange_tcp is None else np.asarray(T_flange_tcp, dtype=float)
@@ -178,9 +248,9 @@ class Robot:
                 f"target at {np.round(p * 1e3, 1).tolist()} mm is {distance * 1e3:.0f} mm from "
                 f"the shoulder, beyond the {self.name} reach of {self.reach_m * 1e3:.0f} mm"
             )
-        seeds = [HOME_JOINTS_RAD.copy() if q_init is None else np.asarray(q_init, float).copy()]
+        seeds = [self.home_rad.copy() if q_init is None else np.asarray(q_init, float).copy()]
         seeds += [
-            HOME_JOINTS_RAD + d
+            self.home_rad + d
             for d in (np.array([0.6, 0, 0, 0, 0, 0]), np.array([-0.6, 0, 0, 0, 0, 0]))
         ]
         best_error = np.inf

@@ -26,6 +26,12 @@ MAX_MESH_TRIANGLES = 500_000
 CONTACT_STIFFNESS_N_M = {"cast_iron": 100e3, "aluminium": 143e3, "cibatool": 85e3}
 # The water-pump plate sits on the table in front of a UR10 (metres, base frame).
 DEFAULT_T_BASE_WOBJ = make_transform(np.eye(3), np.array([0.80, 0.16, 0.0]))
+# The big ABB arms stand on the floor: the part sits on a 0.6 m table further out, where the
+# tool-down work pose keeps every axis >= 20 deg inside its range (tests/core/test_abb.py).
+ROBOT_WOBJ_POSITION_M: dict[str, tuple[float, float, float]] = {
+    "irb4400": (1.30, 0.0, 0.60),
+    "irb6640": (1.50, 0.0, 0.60),
+}
 
 # Water-pump geometry: plate, groove and the bolt-boss bumps of the groove's outer wall.
 PUMP_PLATE_SIZE_M = (0.250, 0.180, 0.020)
@@ -180,8 +186,20 @@ def block(T_base_wobj: np.ndarray | None = None) -> Workpiece:
     )
 
 
-def builtin_workpiece(name: str, T_base_wobj: np.ndarray | None = None) -> Workpiece:
-    """A built-in workpiece by name."""
+def default_T_base_wobj(robot: str | None = None) -> np.ndarray:
+    """The built-in placement of a part in front of ``robot`` (the UR10's when None or a UR)."""
+    position = ROBOT_WOBJ_POSITION_M.get((robot or "").lower())
+    if position is None:
+        return DEFAULT_T_BASE_WOBJ.copy()
+    return make_transform(np.eye(3), np.array(position))
+
+
+def builtin_workpiece(
+    name: str, T_base_wobj: np.ndarray | None = None, *, robot: str | None = None
+) -> Workpiece:
+    """A built-in workpiece by name, at ``T_base_wobj`` or the built-in placement for ``robot``."""
+    if T_base_wobj is None and robot is not None:
+        T_base_wobj = default_T_base_wobj(robot)
     makers = {"water_pump": water_pump, "block": block}
     if name not in makers:
         raise UnknownNameError(

@@ -30,7 +30,9 @@ from typing import Literal
 
 import numpy as np
 
+from robomach_core.arcs import Move, linear_moves, validate_moves
 from robomach_core.errors import InvalidInputError
+from robomach_core.robots.abb import ABB_ARMS, ArmSpec
 from robomach_core.transforms import quaternion_from_matrix
 
 MAX_IDENTIFIER_LEN = 32
@@ -210,6 +212,11 @@ class RapidProgram:
         monitor_config: False emits ``ConfL \\Off;`` so the controller does not stop on confdata
             mismatches (our confdata comes from the simulated arm); True keeps the ABB default.
         comment: header comment lines (generator, settings, ...).
+        arm: the ABB arm whose geometry gives cfx (``confdata_from_joints``); None keeps the
+            UR-branch rule.
+        moves: optional motion sequence over the targets (``robomach_core.arcs.Move``): a
+            circular move to target k through via target j emits ``MoveC pj, pk``; None moves
+            linearly to every target in order.
     """
 
     module_name: str
@@ -224,6 +231,8 @@ class RapidProgram:
     speed_change: SpeedChangeSettings | None = None
     monitor_config: bool = False
     comment: Sequence[str] = ()
+    arm: str | None = None
+    moves: Sequence[Move] | None = None
 
     def __post_init__(self) -> None:
         targets = tuple(self.targets)
@@ -243,6 +252,16 @@ class RapidProgram:
         n = self.max_moves_per_proc
         if isinstance(n, bool) or not isinstance(n, int) or n < 1:
             raise InvalidInputError(f"max_moves_per_proc must be an integer >= 1, got {n!r}")
+        if self.arm is not None:
+            from robomach_core.robot import ROBOT_URDFS
+
+            if self.arm.lower() not in ROBOT_URDFS:
+                raise InvalidInputError(
+                    f"unknown arm {self.arm!r} for confdata; choose one of "
+                    f"{', '.join(sorted(ROBOT_URDFS))}"
+                )
+        moves = linear_moves(len(targets)) if self.moves is None else self.moves
+        _set(self, "moves", validate_moves(moves, len(targets)))
         if isinstance(self.comment, str):
             _set(self, "comment", (self.comment,))
         else:
@@ -299,15 +318,19 @@ def rapid_quaternion(R: np.ndarray) -> np.ndarray:
     return quat  # unreachable for a unit quaternion
 
 
-def confdata_from_joints(joints_rad: np.ndarray, *, cfx: int | None = None) -> tuple[int, ...]:
+def confdata_from_joints(
+    joints_rad: np.ndarray, *, cfx: int | None = None, arm: str | None = None
+) -> tuple[int, ...]:
     """ABB confdata [cf1, cf4, cf6, cfx] from a joint solution.
 
-    cf1, cf4, cf6 are the quadrants of joints 1, 4 and 6 as ABB defines them:
-    ``floor(angle_deg / 90)``, so 0..90 deg -> 0, -90..0 deg -> -1, 180..270 deg -> 2.
+    cf1, cf4, cf6 are the quadrants of axes 1, 4 and 6 as ABB defines them (RAPID reference,
+    confdata): ``floor(angle_deg / 90)``, so 0..90 deg -> 0, 90..180 -> 1, -90..0 -> -1,
+    -180..-90 -> -2 and 180..270 -> 2.
 
-    cfx is ABB's configuration case 0..7 = 4*b + 2*e + w with b = wrist centre behind axis 1,
-    e = wrist centre behind the lower arm, w = axis 5 negative. For a UR-type arm (UR3/5/10,
-    DH a2, a3 < 0) we take:
+    cfx is ABB's configuration case 0..7 = 4*b + 2*e + w (``abb_cfx``): b = wrist centre behind
+    axis 1, e = wrist centre behind the lower arm, w = axis 5 negative. With ``arm`` the name
+    of an ABB arm (``"irb4400"``), they come from that arm's geometry. Without it (the UR arms,
+    DH a2, a3 < 0), the UR analytic-IK branch is written in ABB's numbering:
 
     - b = 1 when ``cos(q2) + cos(q2 + q3) > 0``: the wrist centre's radial coordinate in the
       axis-1 frame, a2*cos(q2) + a3*cos(q2+q3), is negative (equal-link approximation of
@@ -315,24 +338,69 @@ def confdata_from_joints(joints_rad: np.ndarray, *, cfx: int | None = None) -> t
     - e = 1 when ``sin(q3) < 0`` (elbow angle in (-180, 0) deg: UR's "elbow down" branch);
     - w = 1 when ``sin(q5) < 0`` (wrist flip).
 
-    This is the UR analytic-IK branch (shoulder, elbow, wrist) written in ABB's numbering; it is
-    deterministic but not an ABB arm's own geometry, so pass ``cfx`` when the real one is known.
-
     Args:
-        joints_rad: shape (6,), joint angles [rad].
+        joints_rad: shape (6,), joint angles [rad] in the arm's own zeros and directions.
         cfx: optional override of the configuration case.
+        arm: an ABB arm name of ``robomach_core.robots.ABB_ARMS``; a UR arm or None keeps the
+            UR rule above.
 
     Returns:
         (cf1, cf4, cf6, cfx) as ints.
     """
     q = _vector(joints_rad, 6, "joints_rad")
     cf1, cf4, cf6 = (int(math.floor(math.degrees(q[i]) / 90.0)) for i in (0, 3, 5))
+    if cfx is None and arm is not None and arm.lower() in ABB_ARMS:
+        cfx = abb_cfx(q, ABB_ARMS[arm.lower()])
     if cfx is None:
         behind = math.cos(q[1]) + math.cos(q[1] + q[2]) > 0.0
         elbow = math.sin(q[2]) < 0.0
         wrist = math.sin(q[4]) < 0.0
         cfx = 4 * int(behind) + 2 * int(elbow) + int(wrist)
     return (cf1, cf4, cf6, int(cfx))
+
+
+def abb_wrist_centre_in_arm_plane(joints_rad: np.ndarray, arm: ArmSpec) -> np.ndarray:
+    """(x, z) [m] of the wrist centre (axis 5) in the plane of the arm, x along axis 1's heading.
+
+    Axis 2 sits at (sx, base_height + sz); the lower arm points along u = (sin q2, cos q2); the
+    forearm, at angle q2 + q3, adds R_y(q2 + q3) (forearm, 0, elbow_offset) (module
+    ``robots.abb`` gives the chain).
+    """
+    q = np.asarray(joints_rad, dtype=float)
+    sx, sz = arm.shoulder_m
+    t2, t23 = q[1], q[1] + q[2]
+    return np.array(
+        [
+            sx
+            + arm.upper_arm_m * math.sin(t2)
+            + arm.elbow_offset_m * math.sin(t23)
+            + arm.forearm_m * math.cos(t23),
+            arm.base_height_m
+            + sz
+            + arm.upper_arm_m * math.cos(t2)
+            + arm.elbow_offset_m * math.cos(t23)
+            - arm.forearm_m * math.sin(t23),
+        ]
+    )
+
+
+def abb_cfx(joints_rad: np.ndarray, arm: ArmSpec) -> int:
+    """ABB's configuration case 0..7 of a joint solution on an ABB arm (RAPID confdata cfx).
+
+    cfx = 4*b + 2*e + w, ABB's table: 0 = wrist centre in front of axis 1, in front of the lower
+    arm, axis 5 positive; 1 = same with axis 5 negative; 2, 3 = behind the lower arm; 4..7 =
+    behind axis 1. With w the wrist centre in the arm plane (``abb_wrist_centre_in_arm_plane``):
+    b = 1 when w_x < 0; e = 1 when w lies behind the line of the lower arm (axis 2 -> axis 3),
+    (w - p2) . n < 0 with the forward normal n = (cos q2, -sin q2); w = 1 when q5 < 0.
+    """
+    q = np.asarray(joints_rad, dtype=float)
+    wrist = abb_wrist_centre_in_arm_plane(q, arm)
+    shoulder = np.array([arm.shoulder_m[0], arm.base_height_m + arm.shoulder_m[1]])
+    normal = np.array([math.cos(q[1]), -math.sin(q[1])])
+    behind_axis1 = wrist[0] < 0.0
+    behind_lower_arm = float((wrist - shoulder) @ normal) < 0.0
+    axis5_negative = q[4] < 0.0
+    return 4 * int(behind_axis1) + 2 * int(behind_lower_arm) + int(axis5_negative)
 
 
 def _fixed(x: float, decimals: int) -> str:
@@ -432,9 +500,10 @@ def rapid_module(program: RapidProgram) -> str:
 
     targets = program.targets
     n = len(targets)
+    n_moves = len(program.moves)
     chunks = [
-        range(i, min(i + program.max_moves_per_proc, n))
-        for i in range(0, n, program.max_moves_per_proc)
+        range(i, min(i + program.max_moves_per_proc, n_moves))
+        for i in range(0, n_moves, program.max_moves_per_proc)
     ]
     speed_keys = sorted({_speed_key(t.speed_mm_s) for t in targets})
     air_key = _speed_key(program.approach_speed_mm_s)
@@ -453,7 +522,7 @@ def rapid_module(program: RapidProgram) -> str:
     lines += _header_lines(program, tool, wobj)
     lines += _data_lines(program, tool, wobj, load, air_key, speed_keys, zone)
     tool_arg = f"{tool}\\WObj:={wobj}"
-    moves = [_move_line(i, targets[i], zone, tool_arg, fc) for i in range(n)]
+    moves = [_move_line(move, targets, zone, tool_arg, fc) for move in program.moves]
     lines.append("")
     lines += _proc("main", _main_body(program, tool_arg, load, moves, len(chunks)))
     if len(chunks) > 1:
@@ -467,7 +536,10 @@ def rapid_module(program: RapidProgram) -> str:
 def _header_lines(program: RapidProgram, tool: str, wobj: str) -> list[str]:
     fc, sc = program.force_control, program.speed_change
     n = len(program.targets)
+    n_arcs = sum(move.via is not None for move in program.moves)
     lines = [f"  ! Generated by robomach: {n} targets, tool {tool}, work object {wobj}."]
+    if n_arcs:
+        lines.append(f"  ! {len(program.moves)} moves, {n_arcs} of them circular (MoveC).")
     lines += [f"  ! {_comment(c)}".rstrip() for c in program.comment]
     if fc is not None:
         lines.append(
@@ -513,7 +585,7 @@ def _data_lines(
     named += [(f"p{i + 1}", t.T_wobj_target, t) for i, t in enumerate(targets)]
     named.append((RETRACT_NAME, _backed_off(last.T_wobj_target, offset), last))
     for name, T, target in named:
-        conf = confdata_from_joints(target.joints_rad, cfx=target.cfx)
+        conf = confdata_from_joints(target.joints_rad, cfx=target.cfx, arm=program.arm)
         lines.append(f"  CONST robtarget {name} := {_robtarget_literal(T, conf)};")
     return lines
 
@@ -542,13 +614,27 @@ def _main_body(
 
 
 def _move_line(
-    i: int, target: RapidTarget, zone: str, tool_arg: str, fc: ForceControlSettings | None
+    move: Move,
+    targets: Sequence[RapidTarget],
+    zone: str,
+    tool_arg: str,
+    fc: ForceControlSettings | None,
 ) -> str:
-    """The instruction that moves to target i (0-based)."""
-    name, speed = f"p{i + 1}", _speed_name(_speed_key(target.speed_mm_s))
+    """The instruction of one move: MoveL / MoveC, or FCPressL / FCPressC when pressing.
+
+    ``MoveC CirPoint, ToPoint, ...`` moves on the circle through the current position, the
+    circle point and the end point (RAPID reference, MoveC); ``FCPressC`` is its pressing form.
+    """
+    i = move.to
+    name, speed = f"p{i + 1}", _speed_name(_speed_key(targets[i].speed_mm_s))
+    via = None if move.via is None else f"p{move.via + 1}"
     if fc is None:
+        if via is not None:
+            return f"MoveC {via}, {name}, {speed}, {zone}, {tool_arg};"
         return f"MoveL {name}, {speed}, {zone}, {tool_arg};"
     force = _short(fc.force_N)
+    if via is not None:
+        return f"FCPressC {via}, {name}, {speed}, {force}, {zone}, {tool_arg};"
     if i > 0:
         return f"FCPressL {name}, {speed}, {force}, {zone}, {tool_arg};"
     options = ""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections.abc import Callable
 from pathlib import Path
 
@@ -11,7 +12,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from rapidchecker.check import check_format
+from rapidchecker.whitespace_checks import check_whitespace
 
+from robomach_core.arcs import Move
 from robomach_core.errors import InvalidInputError
 from robomach_core.export import (
     ForceControlSettings,
@@ -28,6 +32,7 @@ from robomach_core.export import (
     rapid_quaternion,
     write_rapid_module,
 )
+from robomach_core.export import rapid as rapid_export
 from robomach_core.transforms import matrix_from_quaternion
 
 GOLDEN_DIR = Path(__file__).parent / "golden"
@@ -94,6 +99,39 @@ def assert_round_trip(program: RapidProgram) -> None:
         first_nonzero = quat[np.flatnonzero(quat)[0]]
         assert first_nonzero > 0.0
         assert tuple(conf) == confdata_from_joints(target.joints_rad, cfx=target.cfx)
+
+
+# rapidchecker's pyparsing grammar takes ~50 ms per line: check each distinct text once.
+_RAPIDCHECKER_PASSED: set[str] = set()
+
+
+def rapidchecker_errors(text: str) -> list[str]:
+    """The third-party checker's grammar and format errors (rapidchecker on PyPI)."""
+    if text in _RAPIDCHECKER_PASSED:
+        return []
+    errors = [str(e) for e in check_format(text)] + [str(e) for e in check_whitespace(text)]
+    if not errors:
+        _RAPIDCHECKER_PASSED.add(text)
+    return errors
+
+
+@pytest.fixture(autouse=True)
+def _rapidchecker_on_every_generated_module(monkeypatch: pytest.MonkeyPatch):
+    """Every module a test generates (``rapid_module``, ``write_rapid_module``) also passes
+    rapidchecker, besides the project's own checker."""
+    generated: list[str] = []
+    original = rapid_export.rapid_module
+
+    def recording(program: RapidProgram) -> str:
+        text = original(program)
+        generated.append(text)
+        return text
+
+    monkeypatch.setitem(globals(), "rapid_module", recording)
+    monkeypatch.setattr(rapid_export, "rapid_module", recording)
+    yield
+    for text in generated:
+        assert rapidchecker_errors(text) == [], text
 
 
 # -------------------------------------------------------------------------------------------------
@@ -535,3 +573,87 @@ def test_property_random_targets_pass_and_round_trip(
         speed_change=SpeedChangeSettings(40.0) if with_sc else None,
     )
     assert_round_trip(program)
+
+
+# -------------------------------------------------------------------------------------------------
+# Circular moves and the third-party checker
+
+
+def test_rapidchecker_sees_a_broken_module() -> None:
+    """The independent checker is not a rubber stamp: a missing ENDPROC fails it."""
+    text = original_text = rapid_export.rapid_module(make_program())
+    assert rapidchecker_errors(original_text) == []
+    broken = text.replace("  ENDPROC\n", "", 1)
+    assert rapidchecker_errors(broken)
+
+
+def make_arc_targets(n: int = 5) -> list[RapidTarget]:
+    """Targets on a 20 mm circle in the wobj x-y plane, tool down."""
+    down = rot((1, 0, 0), math.pi)
+    return [
+        RapidTarget(
+            pose(down, (0.02 * math.cos(a), 0.02 * math.sin(a), 0.0)), JOINTS + 0.01 * k, 5.0
+        )
+        for k, a in enumerate(np.linspace(0.0, math.pi, n))
+    ]
+
+
+@pytest.mark.parametrize("force", [None, ForceControlSettings(force_N=12.0)])
+def test_circular_moves_emit_movec_and_pass_both_checkers(force) -> None:
+    moves = (Move("linear", 0), Move("circular", 2, 1), Move("circular", 4, 3))
+    program = make_program(targets=make_arc_targets(), moves=moves, force_control=force)
+    text = rapid_module(program)
+    info = check_rapid_module(text)
+    assert len(info.robtargets) == 5 + 2
+    word = "MoveC" if force is None else "FCPressC"
+    circular = [line.strip() for line in text.splitlines() if line.strip().startswith(word)]
+    assert circular[0].startswith(f"{word} p2, p3, vp5, ")
+    assert circular[1].startswith(f"{word} p4, p5, vp5, ")
+    assert len(circular) == 2
+    if force is not None:
+        assert ", 12, z_path," in circular[0]
+    assert "7 moves" not in text and "3 moves, 2 of them circular" in text
+
+
+def test_circular_moves_split_over_procs_in_order() -> None:
+    moves = (Move("linear", 0), Move("circular", 2, 1), Move("linear", 3), Move("linear", 4))
+    text = rapid_module(make_program(targets=make_arc_targets(), moves=moves, max_moves_per_proc=2))
+    check_rapid_module(text)
+    motion = [
+        line.split()[1].rstrip(",") + ("C" if "MoveC" in line else "")
+        for line in text.splitlines()
+        if re.match(r"\s*(MoveL|MoveC) p\d", line)
+    ]
+    assert motion == ["p1", "p2C", "p4", "p5"]
+    assert "PROC path_2()" in text
+
+
+@pytest.mark.parametrize(
+    ("moves", "match"),
+    [
+        ((Move("linear", 1),), "first move must be a linear move to target 0"),
+        ((Move("linear", 0), Move("linear", 3), Move("linear", 2)), "targets must advance"),
+        ((Move("linear", 0), Move("circular", 2, 2)), "not between"),
+        ((Move("linear", 0), Move("linear", 9)), "targets must advance"),
+    ],
+)
+def test_bad_move_sequence_is_a_clear_error(moves: tuple, match: str) -> None:
+    with pytest.raises(InvalidInputError, match=match):
+        make_program(targets=make_arc_targets(), moves=moves)
+
+
+def test_move_needs_a_via_exactly_when_circular() -> None:
+    with pytest.raises(InvalidInputError, match="via"):
+        Move("circular", 2)
+    with pytest.raises(InvalidInputError, match="via"):
+        Move("linear", 2, 1)
+
+
+def test_confdata_follows_the_arm_and_unknown_arms_are_refused() -> None:
+    """On an ABB arm the wrist geometry gives cfx: IRB 4400 calibration pose -> [0,0,0,0]."""
+    target = RapidTarget(make_targets(1)[0].T_wobj_target, np.zeros(6), 5.0)
+    info = check_rapid_module(rapid_module(make_program(targets=[target], arm="irb4400")))
+    assert tuple(info.robtargets["p1"][2]) == (0, 0, 0, 0)
+    assert confdata_from_joints(np.zeros(6))[3] == 4  # the UR rule calls the same joints 4
+    with pytest.raises(InvalidInputError, match="unknown arm 'kuka'"):
+        make_program(arm="kuka")

@@ -24,7 +24,7 @@ def test_robots_load_with_six_joints(name):
 
 
 def test_unknown_robot_is_a_clear_error():
-    with pytest.raises(UnknownNameError, match="choose one of ur10, ur3, ur5"):
+    with pytest.raises(UnknownNameError, match="choose one of irb4400, irb6640, ur10, ur3, ur5"):
         Robot("kuka")
 
 
