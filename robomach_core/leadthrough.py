@@ -10,6 +10,12 @@ Admittance law per compliant axis i (selected frame): M_i dv_i/dt + D_i v_i = W_
 where W_c is the measured, gravity-compensated contact wrench, both through a small deadband so
 sensor noise does not make the robot creep. Stiff axes keep v_i = 0. The
 reference pose integrates v; the motor-side joints follow it by one IK step per period.
+
+Every period is supervised (``supervision.Supervisor``): near a joint limit, a singularity, the
+edge of reach or an obstacle the motion slows down; a step that would cross one, or that would
+make a joint jump (leave the IK's branch), raises ``SupervisionError`` carrying the last safe
+state, from which a push or jog the other way moves again. ``touch_off`` is the guarded move
+that finds a wall at a set force.
 """
 
 from __future__ import annotations
@@ -257,7 +263,7 @@ class LeadThrough:
         selection: ComplianceSelection,
         duration_s: float,
     ) -> LeadThroughState:
-        """Apply a constant push for ``duration_s`` seconds."""
+        """Apply a constant push for ``duration_s`` seconds (supervised like ``step``)."""
         if not (0 <= duration_s <= 60):
             raise InvalidInputError(f"push duration {duration_s:g} s is outside 0-60 s")
         w = np.asarray(push_wrench, dtype=float)
@@ -281,6 +287,8 @@ class LeadThrough:
 
         The motion runs at ``rate`` (m/s or rad/s; default 10 mm/s or 10 deg/s) while the
         compliant axes keep answering to the measured force, so a jog into the part is safe.
+        Near a limit supervision slows it (it still completes the step) and refuses to cross
+        it with ``SupervisionError`` (``error.state``: the last safe state).
         """
         if axis not in AXES:
             raise InvalidInputError(f"jog axis must be one of {', '.join(AXES)}, not {axis!r}")
@@ -323,15 +331,17 @@ class LeadThrough:
     ) -> LeadThroughState:
         """Guarded move: push along ``axis`` of the selection's frame until contact at ``force_N``.
 
-        The push ``force_N * direction * axis`` drives the admittance (the axis is made
-        compliant besides the selection's), so the tool travels at F / D until the wall pushes
-        back and settles where the contact balances the push (the chapter's "the tool tip will
-        yield ... until it reaches the equilibrium"); it then stops there, in contact, still
-        pushing: record the guide point next. One action per guide point.
+        The push ``force_N * direction * axis`` drives the admittance, compliant along that
+        axis only (of ``selection.frame``; the other axes are held, so the move stays on its
+        line whatever friction does), so the tool travels at (F - deadband) / D until the wall
+        pushes back and settles where the contact balances the push (the chapter's "the tool
+        tip will yield ... until it reaches the equilibrium"); it then stops there, in
+        contact, still pushing: record the guide point next. One action per guide point.
 
         Raises:
             InvalidInputError: a bad axis, direction, force or travel.
             NoContactError: nothing touched within ``max_travel_m`` (``error.state``: there).
+                The other timeout: in contact but still creeping after 2 s returns the state.
             SupervisionError: a limit or an obstacle on the way (``error.state``: before it).
         """
         if axis not in ("x", "y", "z"):
@@ -346,7 +356,7 @@ class LeadThrough:
         index = {"x": 0, "y": 1, "z": 2}[axis]
         R_frame = state.cell.T_base_tcp[:3, :3] if selection.frame == "tool" else _IDENTITY
         u = direction * R_frame[:, index]
-        moving = ComplianceSelection(selection.axes | {axis}, selection.frame)
+        moving = ComplianceSelection(frozenset({axis}), selection.frame)
         push = np.concatenate([force_N * u, np.zeros(3)])
         start = state.cell.T_base_tcp[:3, 3].copy()
         speed = max(force_N - self.params.deadband_N, 0.1) / self.params.damping_N_s_m

@@ -498,12 +498,13 @@ class Supervisor:
             shape = coal.Cylinder if body.flat else coal.Capsule
             self._shapes.append(shape(body.radius, max(length, 1e-6)))
             self._body_frames.append((_frame_of(axis), 0.5 * (body.a + body.b)))
-        if table_z_m is None:
-            table_z_m = float(workpiece.mesh_in_base().bounds[0, 2]) if workpiece else 0.0
+        mesh = workpiece.mesh_in_base() if workpiece is not None else None
+        if table_z_m is None:  # the part sits on the table
+            table_z_m = float(mesh.bounds[0, 2]) if mesh is not None else 0.0
         self._table_z = float(table_z_m)
         self._obstacles: list[tuple[str, Any, coal.Transform3s, np.ndarray]] = []
-        if workpiece is not None:
-            hull_mesh = workpiece.mesh_in_base().convex_hull
+        if mesh is not None:
+            hull_mesh = mesh.convex_hull
             points = coal.StdVec_Vec3s()
             for p in np.asarray(hull_mesh.vertices, dtype=float):
                 points.append(p)
