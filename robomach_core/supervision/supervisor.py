@@ -37,15 +37,15 @@ from dataclasses import dataclass, field
 from typing import Any, Literal, NamedTuple
 
 import coal
-import numba
 import numpy as np
 import pinocchio as pin
 
-from .cell import CONTROL_PERIOD_S
-from .errors import InvalidInputError, SupervisionError
-from .robot import Robot
-from .tool import Tool
-from .workpiece import Workpiece
+from ..cell import CONTROL_PERIOD_S
+from ..errors import InvalidInputError, SupervisionError
+from ..robot import Robot
+from ..tool import Tool
+from ..workpiece import Workpiece
+from ._kernels import chain_placements, decide, geometry_margins
 
 SupervisionCause = Literal[
     "joint limit",
@@ -69,8 +69,6 @@ SHANK_LENGTH_M = 0.01  # between the cutter's flutes and the spindle body
 SHANK_RADIUS_FRACTION = 0.8  # of the cutter radius
 _NO_REFERENCE = np.eye(4)
 _NO_TRACKING = np.array([np.inf, np.inf])
-
-_jit = numba.njit(cache=True, fastmath=False, nogil=True)
 
 
 @dataclass(frozen=True)
@@ -217,7 +215,6 @@ class _Margin:
 class _Evaluation:
     margins: np.ndarray
     T_tcp: np.ndarray
-    q: np.ndarray
 
 
 def _frame_of(axis: np.ndarray) -> np.ndarray:
@@ -235,202 +232,6 @@ def _joint_axis_local(data: pin.Data, joint: int) -> np.ndarray:
     if np.linalg.norm(w) < 0.5:
         raise InvalidInputError(f"axis {joint} of the robot is not revolute; cannot supervise it")
     return w / np.linalg.norm(w)
-
-
-@_jit
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    out = np.empty(3)
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
-    return out
-
-
-@_jit
-def _chain_placements(q: np.ndarray, placements: np.ndarray, axes: np.ndarray) -> np.ndarray:
-    """Forward kinematics of a serial chain of revolute joints: (6, 4, 4) joint placements.
-
-    oMi_j = oMi_{j-1} jointPlacement_j Rot(axis_j, q_j) (pinocchio's ``forwardKinematics``
-    for a chain whose joint j's parent is j - 1; a test checks that the two agree).
-    """
-    Ts = np.empty((6, 4, 4))
-    parent = np.eye(4)
-    for j in range(6):
-        kx, ky, kz = axes[j, 0], axes[j, 1], axes[j, 2]
-        s, c = math.sin(q[j]), math.cos(q[j])
-        v = 1.0 - c
-        rot = np.eye(4)
-        rot[0, 0] = c + kx * kx * v
-        rot[0, 1] = kx * ky * v - kz * s
-        rot[0, 2] = kx * kz * v + ky * s
-        rot[1, 0] = ky * kx * v + kz * s
-        rot[1, 1] = c + ky * ky * v
-        rot[1, 2] = ky * kz * v - kx * s
-        rot[2, 0] = kz * kx * v - ky * s
-        rot[2, 1] = kz * ky * v + kx * s
-        rot[2, 2] = c + kz * kz * v
-        parent = parent @ placements[j] @ rot
-        Ts[j] = parent
-    return Ts
-
-
-@_jit
-def _geometry_margins(
-    q: np.ndarray,
-    placements: np.ndarray,
-    axes: np.ndarray,
-    limits: np.ndarray,
-    bodies: np.ndarray,
-    pairs: np.ndarray,
-    obstacles: np.ndarray,
-    elbow_to_axis4: bool,
-    table_z: float,
-) -> tuple[np.ndarray, np.ndarray, int]:
-    """The margins at joints ``q`` (see the module docstring) and the joint placements.
-
-    Args:
-        q: (6,) joints. placements: (6, 4, 4) joint placements in their parents. axes: (6, 3)
-        joint axes in their own frames. limits: (2, 6) lower, upper. bodies: (K, 9) per
-        capsule: joint index (0-based), end a (3), end b (3) in the joint frame, radius,
-        1.0 for a flat-ended cylinder. pairs: (P, 3) body index, obstacle index (-1 the
-        table), slow value. obstacles: (O, 6) bounding box lo (3), hi (3) of each obstacle.
-
-    Returns:
-        margins (9 + P,): joint limits (6), wrist, elbow, shoulder, one clearance per pair
-        (NaN where an obstacle's bounding box is nearer than the slow value, so coal must
-        measure it); the joint placements (6, 4, 4); and how many margins are NaN.
-    """
-    Ts = _chain_placements(q, placements, axes)
-    n_pairs = pairs.shape[0]
-    margins = np.empty(9 + n_pairs)
-    z = np.empty((6, 3))
-    o = np.empty((6, 3))
-    for j in range(6):
-        margins[j] = min(q[j] - limits[0, j], limits[1, j] - q[j])
-        for r in range(3):
-            z[j, r] = Ts[j, r, 0] * axes[j, 0] + Ts[j, r, 1] * axes[j, 1] + Ts[j, r, 2] * axes[j, 2]
-            o[j, r] = Ts[j, r, 3]
-    # Wrist: angle between axes 4 and 6, folded to [0, 90] deg (0 when axis 5 is at 0).
-    c = _cross(z[3], z[5])
-    margins[6] = math.atan2(math.sqrt(c @ c), abs(z[3] @ z[5]))
-    # Wrist centre: the point of axis 6 closest to axis 5.
-    w = o[5] - o[4]
-    b = z[4] @ z[5]
-    denom = 1.0 - b * b
-    wrist_centre = o[5].copy()
-    if denom > 1e-9:
-        wrist_centre = o[5] + (b * (z[4] @ w) - (z[5] @ w)) / denom * z[5]
-    # Elbow: angle between upper arm and forearm in the plane normal to axis 2.
-    n = z[1]
-    x_point = o[3] if elbow_to_axis4 else wrist_centre
-    u = o[2] - o[1]
-    v = x_point - o[2]
-    u = u - (u @ n) * n
-    v = v - (v @ n) * n
-    c = _cross(u, v)
-    margins[7] = math.atan2(math.sqrt(c @ c), u @ v)
-    # Shoulder: the wrist centre's distance from the axis-1 line, in the arm plane.
-    across = _cross(z[0], z[1])
-    norm = math.sqrt(across @ across)
-    margins[8] = abs((wrist_centre - o[0]) @ across) / norm if norm > 1e-9 else np.inf
-    # Collisions: the table plane exactly; boxes and hull by their bounding box, from below.
-    a = np.empty(3)
-    e = np.empty(3)
-    n_near = 0
-    for i in range(n_pairs):
-        k = int(pairs[i, 0])
-        obstacle = int(pairs[i, 1])
-        j = int(bodies[k, 0])
-        for r in range(3):
-            a[r] = Ts[j, r, 3]
-            e[r] = Ts[j, r, 3]
-            for col in range(3):
-                a[r] += Ts[j, r, col] * bodies[k, 1 + col]
-                e[r] += Ts[j, r, col] * bodies[k, 4 + col]
-        radius = bodies[k, 7]
-        if obstacle < 0:
-            reach_down = radius
-            if bodies[k, 8] > 0.5:  # flat end: the rim's lowest point, r sin(tilt)
-                d = e - a
-                dz2 = d[2] * d[2] / max(d @ d, 1e-300)
-                reach_down = radius * math.sqrt(max(0.0, 1.0 - dz2))
-            margins[9 + i] = min(a[2], e[2]) - reach_down - table_z
-            continue
-        gap2 = 0.0
-        for d in range(3):
-            g = max(
-                0.0,
-                obstacles[obstacle, d] - (max(a[d], e[d]) + radius),
-                (min(a[d], e[d]) - radius) - obstacles[obstacle, 3 + d],
-            )
-            gap2 += g * g
-        bound = math.sqrt(gap2)
-        if bound >= pairs[i, 2]:
-            margins[9 + i] = bound
-        else:
-            margins[9 + i] = np.nan
-            n_near += 1
-    return margins, Ts, n_near
-
-
-@_jit
-def _decide(
-    m0: np.ndarray,
-    m1: np.ndarray,
-    thresholds: np.ndarray,
-    min_scale: float,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    step_bound: np.ndarray,
-    T_ref: np.ndarray,
-    T_tcp: np.ndarray,
-    tracking: np.ndarray,
-) -> tuple[float, int, int, float]:
-    """The speed scale of a step and its verdict, from the margins before (m0) and after (m1).
-
-    scale = min over approached limits (m1 < m0) of clip((m0 - stop) / (slow - stop),
-    min_scale, 1), and 0.95 / max_i(|dq_i| / bound_i) when a joint would move too far.
-    Verdict (code, index, value): 0 allowed; 1 joint ``index`` steps ``value`` rad, over its
-    bound; 2 margin ``index`` ends at ``value``, past its stop while shrinking (the worst);
-    3 the TCP misses the reference by ``value`` (index 0: metres, 1: radians).
-
-    Args:
-        thresholds: (2, K) stop and slow values of the K margins.
-        tracking: (2,) largest reference error in metres and radians.
-    """
-    scale = 1.0
-    worst_i, worst = -1, np.inf
-    for i in range(m0.shape[0]):
-        if m1[i] < m0[i]:
-            stop, slow = thresholds[0, i], thresholds[1, i]
-            scale = min(scale, max(min_scale, (m0[i] - stop) / (slow - stop)))
-            if m1[i] < stop:
-                badness = (m1[i] - stop) / (slow - stop)
-                if badness < worst:
-                    worst_i, worst = i, badness
-    worst_j, worst_ratio = -1, 1.0 + 1e-9
-    for j in range(q0.shape[0]):
-        ratio = abs(q1[j] - q0[j]) / step_bound[j]
-        if ratio > worst_ratio:
-            worst_j, worst_ratio = j, ratio
-    if worst_j >= 0:
-        return min(scale, 0.95 / worst_ratio), 1, worst_j, abs(q1[worst_j] - q0[worst_j])
-    if worst_i >= 0:
-        return scale, 2, worst_i, m1[worst_i]
-    dx = T_ref[0, 3] - T_tcp[0, 3]
-    dy = T_ref[1, 3] - T_tcp[1, 3]
-    dz = T_ref[2, 3] - T_tcp[2, 3]
-    error_m = math.sqrt(dx * dx + dy * dy + dz * dz)
-    if error_m > tracking[0]:
-        return scale, 3, 0, error_m
-    trace = 0.0
-    for r in range(3):
-        for c in range(3):
-            trace += T_ref[r, c] * T_tcp[r, c]
-    error_rad = math.acos(min(1.0, max(-1.0, (trace - 1.0) / 2.0)))
-    if error_rad > tracking[1]:
-        return scale, 3, 1, error_rad
-    return scale, 0, -1, 0.0
 
 
 class Supervisor:
@@ -640,7 +441,7 @@ class Supervisor:
             return evaluation
 
     def _compute(self, q: np.ndarray) -> _Evaluation:
-        margins, Ts, n_near = _geometry_margins(
+        margins, Ts, n_near = geometry_margins(
             q,
             self._placements,
             self._axes,
@@ -669,11 +470,11 @@ class Supervisor:
                 self._request,
                 self._result,
             )
-        return _Evaluation(margins, Ts[5] @ self._M_tcp, q.copy())
+        return _Evaluation(margins, Ts[5] @ self._M_tcp)
 
     def joint_placements(self, q: np.ndarray) -> np.ndarray:
         """(6, 4, 4) placements of the joint frames in the base frame at ``q`` (rad)."""
-        return _chain_placements(np.asarray(q, dtype=float), self._placements, self._axes)
+        return chain_placements(np.asarray(q, dtype=float), self._placements, self._axes)
 
     def margins(self, q: np.ndarray) -> np.ndarray:
         """All margins at joints ``q`` (rad): joints (6), wrist, elbow, shoulder, clearances.
@@ -699,7 +500,7 @@ class Supervisor:
 
     # --- the decision --------------------------------------------------------------------
 
-    def _decide(
+    def _judge(
         self, q0: np.ndarray, q1: np.ndarray, T_ref: np.ndarray | None
     ) -> tuple[float, SupervisionStop | None]:
         if q1.shape != (6,) or not math.isfinite(float(q1 @ q1)):
@@ -707,7 +508,7 @@ class Supervisor:
                 "edge of reach", "edge of reach: the inverse kinematics found no finite solution"
             )
         e1 = self._evaluate(q1)
-        scale, code, index, value = _decide(
+        scale, code, index, value = decide(
             self._evaluate(q0).margins,
             e1.margins,
             self._thresholds,
@@ -728,7 +529,7 @@ class Supervisor:
         margin of every limit the step approaches; and the joint-speed bound: a step that moves
         a joint further than its velocity limit in one period is scaled to fit it.
         """
-        return self._decide(np.asarray(q_now, float), np.asarray(q_next, float), None)[0]
+        return self._judge(np.asarray(q_now, float), np.asarray(q_next, float), None)[0]
 
     def check(
         self, q_now: np.ndarray, q_next: np.ndarray, T_ref: np.ndarray | None = None
@@ -740,7 +541,7 @@ class Supervisor:
         arm at ``q_next`` does not follow (the edge of reach).
         """
         T = None if T_ref is None else np.asarray(T_ref, dtype=float)
-        return self._decide(np.asarray(q_now, float), np.asarray(q_next, float), T)[1]
+        return self._judge(np.asarray(q_now, float), np.asarray(q_next, float), T)[1]
 
     def supervise(
         self,
@@ -760,14 +561,14 @@ class Supervisor:
         """
         q0 = np.asarray(q_now, dtype=float)
         T_ref, q_next = propose(1.0)
-        scale, stop = self._decide(q0, q_next, T_ref)
+        scale, stop = self._judge(q0, q_next, T_ref)
         if scale < 1.0:
             T_ref, q_next = propose(scale)
-            stop = self._decide(q0, q_next, T_ref)[1]
+            stop = self._judge(q0, q_next, T_ref)[1]
         return Supervised(scale, T_ref, q_next, stop)
 
     def _stop_for(self, code: int, i: int, value: float, q: np.ndarray) -> SupervisionStop:
-        """The stop of a ``_decide`` verdict ``code`` (1 joint speed, 2 margin, 3 tracking)."""
+        """The stop of a ``decide`` verdict ``code`` (1 joint speed, 2 margin, 3 tracking)."""
         if code == 1:
             return SupervisionStop(
                 "joint speed",
