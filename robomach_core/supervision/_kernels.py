@@ -116,6 +116,7 @@ def geometry_margins(
     # Collisions: the table plane exactly; boxes and hull by their bounding box, from below.
     a = np.empty(3)
     e = np.empty(3)
+    reach = np.empty(3)
     n_near = 0
     for i in range(n_pairs):
         k = int(pairs[i, 0])
@@ -127,21 +128,26 @@ def geometry_margins(
             for col in range(3):
                 a[r] += Ts[j, r, col] * bodies[k, 1 + col]
                 e[r] += Ts[j, r, col] * bodies[k, 4 + col]
+        # How far the body reaches beyond its end points along each base axis: r for a
+        # capsule; r sqrt(1 - u_k^2) for a flat-ended cylinder of unit axis u (its rim).
         radius = bodies[k, 7]
+        length2 = 0.0
+        for r in range(3):
+            length2 += (e[r] - a[r]) * (e[r] - a[r])
+        for r in range(3):
+            reach[r] = radius
+            if bodies[k, 8] > 0.5:
+                u2 = (e[r] - a[r]) * (e[r] - a[r]) / max(length2, 1e-300)
+                reach[r] = radius * math.sqrt(max(0.0, 1.0 - u2))
         if obstacle < 0:
-            reach_down = radius
-            if bodies[k, 8] > 0.5:  # flat end: the rim's lowest point, r sin(tilt)
-                d = e - a
-                dz2 = d[2] * d[2] / max(d @ d, 1e-300)
-                reach_down = radius * math.sqrt(max(0.0, 1.0 - dz2))
-            margins[9 + i] = min(a[2], e[2]) - reach_down - table_z
+            margins[9 + i] = min(a[2], e[2]) - reach[2] - table_z
             continue
         gap2 = 0.0
         for d in range(3):
             g = max(
                 0.0,
-                obstacles[obstacle, d] - (max(a[d], e[d]) + radius),
-                (min(a[d], e[d]) - radius) - obstacles[obstacle, 3 + d],
+                obstacles[obstacle, d] - (max(a[d], e[d]) + reach[d]),
+                (min(a[d], e[d]) - reach[d]) - obstacles[obstacle, 3 + d],
             )
             gap2 += g * g
         bound = math.sqrt(gap2)
