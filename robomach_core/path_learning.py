@@ -215,7 +215,9 @@ def move_linear(
         step = min(1.0, n - progress) if progress < n else 0.0
         q = state.q_motor
 
-        def propose(scale: float, base: float = base, step: float = step, q=q) -> tuple:
+        def propose(
+            scale: float, base: float = base, step: float = step, q: np.ndarray = q
+        ) -> tuple[np.ndarray, np.ndarray]:
             f = min(1.0, (base + scale * step) / n)
             T = np.eye(4)
             T[:3, :3] = matrix_from_quaternion(slerp(q0, q1, f))
