@@ -15,6 +15,9 @@ import numba
 import numpy as np
 
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
+# A margin shrinking by less than this (m or rad) in one period is not approaching its limit:
+# the IK's rounding when sliding along a limit, 100 times below the slowest real approach.
+APPROACH_TOLERANCE = 1e-8
 
 
 @_jit
@@ -174,8 +177,9 @@ def decide(
 ) -> tuple[float, int, int, float]:
     """The speed scale of a step and its verdict, from the margins before (m0) and after (m1).
 
-    scale = min over approached limits (m1 < m0) of clip((m0 - stop) / (slow - stop),
-    min_scale, 1), and 0.95 / max_i(|dq_i| / bound_i) when a joint would move too far.
+    scale = min over approached limits (m1 < m0 - APPROACH_TOLERANCE) of
+    clip((m0 - stop) / (slow - stop), min_scale, 1), and 0.95 / max_i(|dq_i| / bound_i) when a
+    joint would move too far.
     Verdict (code, index, value): 0 allowed; 1 joint ``index`` steps ``value`` rad, over its
     bound; 2 margin ``index`` ends at ``value``, past its stop while shrinking (the worst);
     3 the TCP misses the reference by ``value`` (index 0: metres, 1: radians).
@@ -187,7 +191,7 @@ def decide(
     scale = 1.0
     worst_i, worst = -1, np.inf
     for i in range(m0.shape[0]):
-        if m1[i] < m0[i]:
+        if m1[i] < m0[i] - APPROACH_TOLERANCE:
             stop, slow = thresholds[0, i], thresholds[1, i]
             scale = min(scale, max(min_scale, (m0[i] - stop) / (slow - stop)))
             if m1[i] < stop:

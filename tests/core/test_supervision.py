@@ -137,6 +137,10 @@ def test_pushing_down_beside_the_part_stops_the_tool_at_the_table(cell, supervis
         pytest.fail("the tool was never stopped above the table")
     gap = state.cell.T_base_tcp_true[2, 3] - r - table
     assert 0.0 <= gap <= 0.001  # at the table, never below it
+    # Sliding along the table is not approaching it: full speed (9 N / 500 N s/m * 0.3 s).
+    p = state.cell.T_base_tcp[:3, 3].copy()
+    state = lt.push(state, np.array([0.0, 10.0, 0.0, 0, 0, 0]), XYZ, 0.3)
+    assert state.cell.T_base_tcp[1, 3] - p[1] > 0.005
     state = lt.push(state, -down, XYZ, 0.3)  # and up again
     assert state.cell.T_base_tcp[2, 3] - r - table > 0.005
 
