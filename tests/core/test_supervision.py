@@ -195,6 +195,24 @@ def test_a_step_past_a_limit_is_refused_and_a_step_back_is_not(
     assert supervisor.speed_scale(q1, q0) > 0.5  # and not, or less, on the way out
 
 
+@settings(max_examples=60, deadline=None)
+@given(
+    st.lists(st.floats(-1.2, 1.2), min_size=6, max_size=6),
+    st.lists(st.floats(-1.0, 1.0), min_size=6, max_size=6),
+)
+def test_from_a_safe_state_the_way_back_is_never_refused(supervisor, offset, direction):
+    """Whatever a step runs into, stepping back to where it came from is allowed."""
+    q0 = HOME_JOINTS_RAD + np.array(offset)
+    margins = supervisor.margins(q0)
+    stops = np.array([m.stop for m in supervisor._margin_defs])
+    if np.any(margins < stops):
+        return  # not a safe state to start from
+    q1 = q0 + np.array(direction) * supervisor._step_bound  # within the joint-speed bound
+    supervisor.check(q0, q1)  # refused or not, ...
+    assert supervisor.check(q1, q0) is None  # ... the way back is open
+    assert 0.0 < supervisor.speed_scale(q0, q1) <= 1.0
+
+
 def test_a_joint_step_beyond_the_velocity_limit_is_refused(supervisor):
     q0 = HOME_JOINTS_RAD.copy()
     q1 = q0 + np.array([0.0, 0.0, 0.0, 0.1, 0.0, 0.0])  # 5.7 deg in 4 ms
