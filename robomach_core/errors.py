@@ -45,3 +45,41 @@ class ForceLimitError(RobomachError, RuntimeError):
 
 class CancelledError(RobomachError, RuntimeError):
     """A long-running job was cancelled by the user."""
+
+
+class SupervisionError(RobomachError, RuntimeError):
+    """Supervision refused a motion: a joint limit, a singularity, the edge of reach or a collision.
+
+    Attributes:
+        cause: The kind of limit (``"wrist singularity"``, ``"collision"``, ...).
+        axis: The axis concerned, 1-based, or None.
+        stop: The ``supervision.SupervisionStop`` with the details.
+        state: The last safe state (the caller's state type), to continue from.
+    """
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        cause: str = "supervision",
+        axis: int | None = None,
+        stop: object | None = None,
+        state: object | None = None,
+    ) -> None:
+        super().__init__(message)
+        self.cause = cause
+        self.axis = axis
+        self.stop = stop
+        self.state = state
+
+
+class NoContactError(RobomachError, RuntimeError):
+    """A guarded move travelled its whole distance without touching anything.
+
+    Attributes:
+        state: Where the move ended, to continue from.
+    """
+
+    def __init__(self, message: str, *, state: object | None = None) -> None:
+        super().__init__(message)
+        self.state = state

@@ -10,27 +10,41 @@ Admittance law per compliant axis i (selected frame): M_i dv_i/dt + D_i v_i = W_
 where W_c is the measured, gravity-compensated contact wrench, both through a small deadband so
 sensor noise does not make the robot creep. Stiff axes keep v_i = 0. The
 reference pose integrates v; the motor-side joints follow it by one IK step per period.
+
+Every period is supervised (``supervision.Supervisor``): near a joint limit, a singularity, the
+edge of reach or an obstacle the motion slows down; a step that would cross one, or that would
+make a joint jump (leave the IK's branch), raises ``SupervisionError`` carrying the last safe
+state, from which a push or jog the other way moves again. ``touch_off`` is the guarded move
+that finds a wall at a set force.
 """
 
 from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 
 from . import _kernels
 from .cell import CONTROL_PERIOD_S, Cell, CellState
-from .errors import InvalidInputError
+from .errors import InvalidInputError, NoContactError
 from .sensor import ForceEstimator
+from .supervision import Supervisor, cell_supervisor, interpolate_pose
 from .transforms import quaternion_from_matrix, rotation_about
 
 Axis = Literal["x", "y", "z", "rx", "ry", "rz"]
 AXES: tuple[Axis, ...] = ("x", "y", "z", "rx", "ry", "rz")
 _IDENTITY = np.eye(3)
 ComplianceFrame = Literal["tool", "base"]
+# A jog slowed by supervision may take this many times its nominal periods to complete.
+JOG_MAX_PERIODS_FACTOR = 20
+TOUCH_OFF_FORCE_RANGE_N = (2.0, 50.0)
+TOUCH_OFF_DETECT_FRACTION = 0.5  # contact: the wall pushes back with half the set force
+TOUCH_OFF_STILL_M_S = 0.0005  # settled: slower than this ...
+TOUCH_OFF_STILL_PERIODS = 25  # ... for 0.1 s
+TOUCH_OFF_SETTLE_MAX_S = 2.0
 
 
 @functools.lru_cache(maxsize=64)
@@ -128,6 +142,11 @@ class LeadThroughState:
         return float(np.linalg.norm(self.cell.contact.wrench[:3]))
 
 
+def halted(state: LeadThroughState) -> LeadThroughState:
+    """The state held still where it is: reference at the measured pose, no velocity."""
+    return LeadThroughState(state.cell, state.cell.T_base_tcp.copy(), np.zeros(6))
+
+
 class LeadThrough:
     """Admittance controller over a cell; one instance per session (holds the force estimator).
 
@@ -135,6 +154,7 @@ class LeadThrough:
         cell: The simulated cell.
         params: Admittance parameters.
         estimator: The controller's gravity/bias compensation; tared on construction.
+        supervisor: Joint limits, singularities, reach and collisions (default: the cell's).
     """
 
     def __init__(
@@ -142,8 +162,11 @@ class LeadThrough:
         cell: Cell,
         params: AdmittanceParams | None = None,
         estimator: ForceEstimator | None = None,
+        *,
+        supervisor: Supervisor | None = None,
     ) -> None:
         self.cell = cell
+        self.supervisor = supervisor or cell_supervisor(cell)
         self.params = params or AdmittanceParams()
         self.estimator = estimator or cell.force_estimator()
         p = self.params
@@ -177,13 +200,31 @@ class LeadThrough:
         selection: ComplianceSelection,
         dt: float = CONTROL_PERIOD_S,
     ) -> LeadThroughState:
-        """One period of admittance control under the push wrench (6,) at the TCP, base axes."""
+        """One period of admittance control under the push wrench (6,) at the TCP, base axes.
+
+        Supervised: near a limit the motion slows down; a step that would cross one raises
+        ``SupervisionError`` carrying the last safe state (``error.state``, held still).
+        """
+        return self._advance(state, state.T_ref, push_wrench, selection, dt)[0]
+
+    def _advance(
+        self,
+        state: LeadThroughState,
+        T_ref_in: np.ndarray,
+        push_wrench: np.ndarray,
+        selection: ComplianceSelection,
+        dt: float,
+    ) -> tuple[LeadThroughState, float]:
+        """One supervised period from reference ``T_ref_in`` (``state.T_ref`` moved by a jog).
+
+        Returns the next state and the speed scale supervision applied (1.0: none).
+        """
         R = state.cell.T_base_tcp[:3, :3] if selection.frame == "tool" else _IDENTITY
         w_total = np.asarray(push_wrench, dtype=float) + self.measured_wrench(state.cell)
         # Damping taken implicitly, v+ = (M v + dt W) / (M + D dt): stable against a stiff wall
         # (the contact loop gain k dt^2 / (M + D dt) stays well below 1 at 4 ms).
         T_ref, v = _kernels.admittance_reference(
-            state.T_ref,
+            T_ref_in,
             np.ascontiguousarray(R),
             state.velocity,
             w_total,
@@ -194,9 +235,20 @@ class LeadThrough:
             self._limit,
             dt,
         )
-        q_cmd = self.cell.robot.ik_step(state.cell.q_motor, T_ref)
-        cell_state = self.cell.step(state.cell, q_cmd, dt)
-        return LeadThroughState(cell_state, T_ref, v)
+        q = state.cell.q_motor
+        robot = self.cell.robot
+
+        def propose(scale: float) -> tuple[np.ndarray, np.ndarray]:
+            T = T_ref if scale >= 1.0 else interpolate_pose(state.T_ref, T_ref, scale)
+            return T, robot.ik_step(q, T)
+
+        step = self.supervisor.supervise(q, propose)
+        if step.stop is not None:
+            raise step.stop.error(state=halted(state))
+        if step.scale < 1.0:
+            v = v * step.scale
+        cell_state = self.cell.step(state.cell, step.q_next, dt)
+        return LeadThroughState(cell_state, step.T_ref, v), step.scale
 
     def hold(
         self, state: LeadThroughState, selection: ComplianceSelection, duration_s: float
@@ -211,7 +263,7 @@ class LeadThrough:
         selection: ComplianceSelection,
         duration_s: float,
     ) -> LeadThroughState:
-        """Apply a constant push for ``duration_s`` seconds."""
+        """Apply a constant push for ``duration_s`` seconds (supervised like ``step``)."""
         if not (0 <= duration_s <= 60):
             raise InvalidInputError(f"push duration {duration_s:g} s is outside 0-60 s")
         w = np.asarray(push_wrench, dtype=float)
@@ -235,6 +287,8 @@ class LeadThrough:
 
         The motion runs at ``rate`` (m/s or rad/s; default 10 mm/s or 10 deg/s) while the
         compliant axes keep answering to the measured force, so a jog into the part is safe.
+        Near a limit supervision slows it (it still completes the step) and refuses to cross
+        it with ``SupervisionError`` (``error.state``: the last safe state).
         """
         if axis not in AXES:
             raise InvalidInputError(f"jog axis must be one of {', '.join(AXES)}, not {axis!r}")
@@ -250,14 +304,90 @@ class LeadThrough:
         unit = {"x": 0, "y": 1, "z": 2}[axis[-1]]
         R_frame = state.cell.T_base_tcp[:3, :3] if frame == "tool" else np.eye(3)
         direction = R_frame[:, unit]
-        for _ in range(n):
+        # Near a limit supervision scales each period's increment down; the jog goes on until
+        # the whole step is done (progress counts increments), or the motion is refused.
+        progress = 0.0
+        for _ in range(JOG_MAX_PERIODS_FACTOR * n):
+            if progress >= n - 1e-9:
+                break
+            fraction = min(1.0, n - progress)
             T_ref = state.T_ref.copy()
             if rotational:
-                T_ref[:3, :3] = rotation_about(direction, step / n) @ T_ref[:3, :3]
+                T_ref[:3, :3] = rotation_about(direction, step / n * fraction) @ T_ref[:3, :3]
             else:
-                T_ref[:3, 3] += direction * step / n
-            state = self.step(replace(state, T_ref=T_ref), np.zeros(6), selection)
+                T_ref[:3, 3] += direction * step / n * fraction
+            state, scale = self._advance(state, T_ref, np.zeros(6), selection, CONTROL_PERIOD_S)
+            progress += fraction * scale
         return state
+
+    def touch_off(
+        self,
+        state: LeadThroughState,
+        axis: Literal["x", "y", "z"],
+        direction: Literal[1, -1],
+        force_N: float,
+        selection: ComplianceSelection,
+        max_travel_m: float,
+    ) -> LeadThroughState:
+        """Guarded move: push along ``axis`` of the selection's frame until contact at ``force_N``.
+
+        The push ``force_N * direction * axis`` drives the admittance, compliant along that
+        axis only (of ``selection.frame``; the other axes are held, so the move stays on its
+        line whatever friction does), so the tool travels at (F - deadband) / D until the wall
+        pushes back and settles where the contact balances the push (the chapter's "the tool
+        tip will yield ... until it reaches the equilibrium"); it then stops there, in
+        contact, still pushing: record the guide point next. One action per guide point.
+
+        Raises:
+            InvalidInputError: a bad axis, direction, force or travel.
+            NoContactError: nothing touched within ``max_travel_m`` (``error.state``: there).
+                The other timeout: in contact but still creeping after 2 s returns the state.
+            SupervisionError: a limit or an obstacle on the way (``error.state``: before it).
+        """
+        if axis not in ("x", "y", "z"):
+            raise InvalidInputError(f"touch-off axis must be x, y or z, not {axis!r}")
+        if direction not in (1, -1):
+            raise InvalidInputError("touch-off direction must be +1 or -1")
+        lo, hi = TOUCH_OFF_FORCE_RANGE_N
+        if not (math.isfinite(force_N) and lo <= force_N <= hi):
+            raise InvalidInputError(f"touch-off force {force_N:g} N is outside {lo:g}-{hi:g} N")
+        if not (math.isfinite(max_travel_m) and 0.0 < max_travel_m <= 0.2):
+            raise InvalidInputError("touch-off travel must be in (0, 200] mm")
+        index = {"x": 0, "y": 1, "z": 2}[axis]
+        R_frame = state.cell.T_base_tcp[:3, :3] if selection.frame == "tool" else _IDENTITY
+        u = direction * R_frame[:, index]
+        moving = ComplianceSelection(frozenset({axis}), selection.frame)
+        push = np.concatenate([force_N * u, np.zeros(3)])
+        start = state.cell.T_base_tcp[:3, 3].copy()
+        speed = max(force_N - self.params.deadband_N, 0.1) / self.params.damping_N_s_m
+        speed = min(speed, self.params.max_speed_m_s)
+        periods = int(math.ceil(1.5 * max_travel_m / speed / CONTROL_PERIOD_S))
+        periods += int(TOUCH_OFF_SETTLE_MAX_S / CONTROL_PERIOD_S)
+        touched = False
+        still = 0
+        for _ in range(periods):
+            state = self.step(state, push, moving)
+            f_along = -float(self.measured_wrench(state.cell)[:3] @ u)  # the wall pushes back
+            touched = touched or f_along > TOUCH_OFF_DETECT_FRACTION * force_N
+            if not touched:
+                if float((state.cell.T_base_tcp[:3, 3] - start) @ u) > max_travel_m:
+                    raise NoContactError(
+                        f"touch-off: no contact within {max_travel_m * 1e3:.1f} mm along "
+                        f"{'+' if direction > 0 else '-'}{axis} ({selection.frame} frame)",
+                        state=halted(state),
+                    )
+                continue
+            speed_now = float(np.linalg.norm(state.velocity[:3]))
+            still = still + 1 if speed_now < TOUCH_OFF_STILL_M_S else 0
+            if still >= TOUCH_OFF_STILL_PERIODS:
+                return state
+        if touched:
+            return state  # in contact; still settling after TOUCH_OFF_SETTLE_MAX_S
+        raise NoContactError(
+            f"touch-off: no contact within {max_travel_m * 1e3:.1f} mm along "
+            f"{'+' if direction > 0 else '-'}{axis} ({selection.frame} frame)",
+            state=halted(state),
+        )
 
     def record(self, state: LeadThroughState) -> GuidePoint:
         """A guide point at the current measured pose."""

@@ -30,6 +30,7 @@ from .cell import CONTROL_PERIOD_S, Cell, CellState
 from .errors import CancelledError, InvalidInputError, NotEnoughGuidePointsError
 from .leadthrough import GuidePoint
 from .sensor import GRAVITY_M_S2, ForceEstimator
+from .supervision import Supervisor, cell_supervisor
 from .transforms import (
     cross3,
     matrix_from_quaternion,
@@ -42,6 +43,7 @@ FORCE_RANGE_N = (1.0, 50.0)
 SPEED_RANGE_M_S = (0.0005, 0.05)
 CONTACT_FLAG_N = 1.0  # a measured contact force above this counts as contact
 LOST_WALL_M = 0.03  # protection: the tool left the program path by more than this
+MOVE_MAX_PERIODS_FACTOR = 20  # a MoveL slowed by supervision may take this many times longer
 
 
 @dataclass(frozen=True)
@@ -185,20 +187,50 @@ def _wall_side(guides: Sequence[GuidePoint], segs: list[_Segment], setting: str)
 
 
 def move_linear(
-    cell: Cell, state: CellState, T_target: np.ndarray, speed_m_s: float = 0.05
+    cell: Cell,
+    state: CellState,
+    T_target: np.ndarray,
+    speed_m_s: float = 0.05,
+    *,
+    supervisor: Supervisor | None = None,
 ) -> CellState:
-    """Position-controlled straight move (MoveL) of the TCP to ``T_target``; no force control."""
+    """Position-controlled straight move (MoveL) of the TCP to ``T_target``; no force control.
+
+    Supervised: the move slows near a limit and raises ``SupervisionError`` (carrying the last
+    safe cell state) before crossing one.
+    """
+    supervisor = supervisor or cell_supervisor(cell)
     T0 = state.T_base_tcp.copy()
     q0 = quaternion_from_matrix(T0[:3, :3])
     q1 = quaternion_from_matrix(T_target[:3, :3])
     dist = float(np.linalg.norm(T_target[:3, 3] - T0[:3, 3]))
     n = max(1, int(math.ceil(dist / speed_m_s / CONTROL_PERIOD_S)))
-    for k in range(1, n + 11):
-        f = min(1.0, k / n)
-        T = np.eye(4)
-        T[:3, :3] = matrix_from_quaternion(slerp(q0, q1, f))
-        T[:3, 3] = T0[:3, 3] + f * (T_target[:3, 3] - T0[:3, 3])
-        state = cell.step(state, cell.robot.ik_step(state.q_motor, T))
+    robot = cell.robot
+    progress = 0.0  # periods' worth of motion done (a slowed period counts its scale)
+    settle = 0
+    for _ in range(MOVE_MAX_PERIODS_FACTOR * n + 10):
+        if progress >= n and settle >= 10:
+            break
+        base = progress
+        step = min(1.0, n - progress) if progress < n else 0.0
+        q = state.q_motor
+
+        def propose(
+            scale: float, base: float = base, step: float = step, q: np.ndarray = q
+        ) -> tuple[np.ndarray, np.ndarray]:
+            f = min(1.0, (base + scale * step) / n)
+            T = np.eye(4)
+            T[:3, :3] = matrix_from_quaternion(slerp(q0, q1, f))
+            T[:3, 3] = T0[:3, 3] + f * (T_target[:3, 3] - T0[:3, 3])
+            return T, robot.ik_step(q, T)
+
+        supervised = supervisor.supervise(q, propose)
+        if supervised.stop is not None:
+            raise supervised.stop.error(state=state)
+        state = cell.step(state, supervised.q_next)
+        progress += supervised.scale * step
+        if step == 0.0:  # at the target: settling periods
+            settle += 1
     return state
 
 
@@ -212,11 +244,16 @@ def learn_path(
     progress: Callable[[float], None] | None = None,
     cancelled: Callable[[], bool] | None = None,
     approach_height_m: float = 0.010,
+    supervisor: Supervisor | None = None,
 ) -> tuple[Recording, CellState]:
     """Run the test program through ``guides`` under Yp force control and record it.
 
     The robot first moves (position control) above the first guide point, down beside it, a
     little away from the wall, then the force-controlled run starts and is recorded.
+
+    Supervision (joint limits, singularities, reach, collisions) slows the run near a limit;
+    a step that would cross one ends the run there, like the protection rule, with the cause
+    in ``stop_reason``.
 
     Returns:
         The recording and the cell state at its end.
@@ -224,6 +261,7 @@ def learn_path(
     Raises:
         NotEnoughGuidePointsError: fewer than two (distinct) guide points.
         CancelledError: ``cancelled()`` returned True.
+        SupervisionError: the approach to the first guide point crosses a limit.
     """
     if len(guides) < 2:
         raise NotEnoughGuidePointsError(
@@ -235,6 +273,7 @@ def learn_path(
     side = _wall_side(guides, segs, settings.wall_side)
     robot = cell.robot
     dt = CONTROL_PERIOD_S
+    supervisor = supervisor or cell_supervisor(cell)
 
     def frame(seg: _Segment, fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(R, Yp, Zp) of the path frame at ``fraction`` of a segment."""
@@ -249,10 +288,10 @@ def learn_path(
     above = np.eye(4)
     above[:3, :3] = R0
     above[:3, 3] = start - R0[:, 2] * approach_height_m
-    state = move_linear(cell, state, above)
+    state = move_linear(cell, state, above, supervisor=supervisor)
     at_start = above.copy()
     at_start[:3, 3] = start
-    state = move_linear(cell, state, at_start, 0.01)
+    state = move_linear(cell, state, at_start, 0.01, supervisor=supervisor)
 
     n_max = int(sum(s.length for s in segs) / settings.speed_m_s / dt * 1.6) + 2000
     cols = {
@@ -343,6 +382,7 @@ def learn_path(
         limit = vmax if f_abs > CONTACT_FLAG_N else search
         integral = min(max(integral + ki * e * dt, -limit), limit)
         v_y = min(max(kp * e + integral, -vmax), limit)
+        s_base, y_base, h_base = s, y, h
         y += v_y * dt
         s += speed * dt
         h *= 0.99  # fade any height offset left by a segment change (~1 s)
@@ -358,12 +398,44 @@ def learn_path(
             _, yp, zp = frame(seg, s / seg.length)
             y = float(rel @ yp)
             h = float(rel @ zp)
-        T_ref, yp, zp = _kernels.path_reference(
+            s_base, y_base, h_base = s, y, h  # a new segment's first period is not scaled
+        # --- supervision: slow near a limit (scale this period's motion), stop before it ---
+        q_now = state.q_motor
+
+        def propose(
+            scale: float,
+            seg: _Segment = seg,
+            sb: float = s_base,
+            yb: float = y_base,
+            hb: float = h_base,
+            s1: float = s,
+            y1: float = y,
+            h1: float = h,
+            q_now: np.ndarray = q_now,
+        ) -> tuple[np.ndarray, np.ndarray]:
+            ss, yy, hh = (
+                (s1, y1, h1)
+                if scale >= 1.0
+                else (sb + scale * (s1 - sb), yb + scale * (y1 - yb), hb + scale * (h1 - hb))
+            )
+            T_ref, _, _ = _kernels.path_reference(
+                seg.Ra, seg.omega, ss / seg.length, seg.a, seg.xp, side, ss, yy, hh
+            )
+            T_now, J = robot.fk_and_jacobian(q_now)
+            return T_ref, _kernels.ik_newton_step(q_now, T_now, J, T_ref, lower, upper, 1e-4)
+
+        supervised = supervisor.supervise(q_now, propose)
+        if supervised.stop is not None:
+            stop_reason = f"supervision: {supervised.stop.message}"
+            break
+        if supervised.scale < 1.0:
+            s = s_base + supervised.scale * (s - s_base)
+            y = y_base + supervised.scale * (y - y_base)
+            h = h_base + supervised.scale * (h - h_base)
+        _, yp, zp = _kernels.path_reference(
             seg.Ra, seg.omega, s / seg.length, seg.a, seg.xp, side, s, y, h
         )
-        T_now, J = robot.fk_and_jacobian(state.q_motor)
-        q_cmd = _kernels.ik_newton_step(state.q_motor, T_now, J, T_ref, lower, upper, 1e-4)
-        state = cell.step(state, q_cmd)
+        state = cell.step(state, supervised.q_next)
         if n % report_every == 0:
             if cancelled is not None and cancelled():
                 raise CancelledError("path learning was cancelled")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from robomach_core.cell import Cell
-from robomach_core.errors import InvalidInputError
+from robomach_core.errors import InvalidInputError, NoContactError
 from robomach_core.leadthrough import ComplianceSelection, LeadThrough
 from robomach_core.transforms import rotation_log
 
@@ -82,3 +82,35 @@ def test_bad_axes_and_jogs_are_refused(started):
         ComplianceSelection(frozenset({"q"}), "base")
     with pytest.raises(InvalidInputError):
         lt.jog(state, "rx", math.radians(90), XYZ)
+
+
+def test_touch_off_stops_in_contact_at_the_set_force(cell):
+    """One action per guide point: from the middle of the groove, -y until the wall pushes back."""
+    from robomach_core.demo_operator import push_to
+
+    lt = LeadThrough(cell)
+    wp = cell.workpiece
+    state = lt.start(cell.initial_state())
+    over = wp.T_base_wobj[:3, 3] + np.array([0.0, -0.0625, wp.surface_z_m + 0.005])
+    state = push_to(lt, state, over, XYZ)
+    state = push_to(lt, state, over - np.array([0, 0, 0.008]), XYZ)
+    y0 = state.cell.T_base_tcp[1, 3]
+    state = lt.touch_off(state, "y", -1, 10.0, XYZ, 0.01)
+    f = lt.measured_wrench(state.cell)[:3]
+    assert state.cell.in_contact
+    assert f[1] == pytest.approx(10.0, abs=1.5)  # the wall pushes back with the set force
+    assert np.linalg.norm(state.velocity[:3]) < 0.0005  # and the tool has stopped there
+    assert 0.0005 < y0 - state.cell.T_base_tcp[1, 3] < 0.003  # it travelled to the wall
+
+
+def test_touch_off_in_free_air_says_so(started):
+    lt, state = started
+    y0 = state.cell.T_base_tcp[1, 3]
+    with pytest.raises(NoContactError, match="no contact within 5.0 mm") as info:
+        lt.touch_off(state, "y", 1, 10.0, XYZ, 0.005)
+    travelled = info.value.state.cell.T_base_tcp[1, 3] - y0
+    assert 0.005 < travelled < 0.006
+    with pytest.raises(InvalidInputError):
+        lt.touch_off(state, "q", 1, 10.0, XYZ, 0.005)
+    with pytest.raises(InvalidInputError):
+        lt.touch_off(state, "x", 1, 500.0, XYZ, 0.005)
