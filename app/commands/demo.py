@@ -119,16 +119,15 @@ class _ProgressLine:
 
 
 def run(args: argparse.Namespace) -> int:
+    from app.cli import writable_folder
+    from robomach_core import limits
     from robomach_core.errors import InvalidInputError
 
-    if not (args.tolerance > 0):
-        raise InvalidInputError(f"--tolerance must be > 0 mm, got {args.tolerance:g}")
-    if not (1.0 <= args.force <= 50.0):
-        raise InvalidInputError(f"--force must be within 1-50 N, got {args.force:g}")
-    if not (0.5 <= args.speed <= 50.0):
-        raise InvalidInputError(f"--speed must be within 0.5-50 mm/s, got {args.speed:g}")
-    if args.out.exists() and not args.out.is_dir():
-        raise InvalidInputError(f"--out {args.out} exists and is not a folder")
+    limits.TOLERANCE_MM.check(args.tolerance, "--tolerance")
+    limits.LEARNING_FORCE_N.check(args.force, "--force")
+    limits.LEARNING_SPEED_MM_S.check(args.speed, "--speed")
+    limits.SEED.check(args.seed, "--seed")
+    writable_folder(args.out)
 
     wobj = None
     if args.wobj is not None:
