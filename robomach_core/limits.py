@@ -83,9 +83,11 @@ TOLERANCE_MM = Range("deviation-height tolerance", 0.01, 5.0, "mm")
 CMRR_REFERENCE_FORCE_N = Range("reference force", 1.0, 1000.0, "N")
 CMRR_COMMAND_SPEED_MM_S = Range("command speed", 1.0, 500.0, "mm/s")
 CMRR_MIN_SPEED_RATIO = Range("minimum speed ratio", 0.01, 0.99)
-# Simulated control samples of one study, all controllers together: about 150 bytes each, so
-# the cap keeps a study's arrays near 300 MB (the papers' cuts need 25k-65k per controller).
-CMRR_MAX_STUDY_SAMPLES = 2_000_000
+# Simulated control samples of one study, all controllers together. The simulation allocates
+# ~105 bytes per sample up front (8 records, noise, estimates), so the cap keeps a study near
+# 300 MB; the papers' cuts need 23k-63k per controller, and one controller at the slowest
+# allowed command speed on any built-in cut (1 mm/s, 2.5 M) still fits.
+CMRR_MAX_STUDY_SAMPLES = 3_000_000
 
 # --- compensation (chapter sec. 5: CMM noise 10-50 um, ~30 poses) -------------------------
 CMM_NOISE_UM = Range("CMM noise", 0.0, 200.0, "um")

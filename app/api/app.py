@@ -37,6 +37,7 @@ from app.api.routes import (
 )
 from app.session import ConflictError, NotFoundError, Session
 from app.settings import MAX_JSON_BODY_BYTES, ServerSettings
+from app.studies import StudyQueueFullError
 from robomach_core.errors import (
     CancelledError,
     ForceLimitError,
@@ -58,6 +59,8 @@ def status_for(exc: RobomachError) -> int:
     """The HTTP status of a user-caused error, by what kind of error it is."""
     if isinstance(exc, NotFoundError):
         return 404
+    if isinstance(exc, StudyQueueFullError):
+        return 429
     if isinstance(exc, (ConflictError, CancelledError, ForceLimitError, NotEnoughGuidePointsError)):
         return 409
     if isinstance(exc, (ValueError, KeyError)):

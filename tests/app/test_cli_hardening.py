@@ -136,7 +136,7 @@ def test_cmrr_study_too_long_to_simulate_is_refused_before_it_runs(tmp_path, cap
         ["cmrr", "--scenario", "lund-df", "--controller", "all", "--command-speed-mm-s", "1",
          "--out", str(tmp_path / "o")]
     )  # fmt: skip
-    _one_line_error(capsys, code, "cmrr", "control samples", "2,000,000")
+    _one_line_error(capsys, code, "cmrr", "control samples", "3,000,000")
     assert not (tmp_path / "o").exists()
 
 
