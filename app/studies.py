@@ -8,8 +8,13 @@ STRATEGY  One ``StudyService`` per session (``studies_for(session)``) submits ea
           session's ``JobRunner``, so it shows in ``/api/jobs`` and cancels like any job. A run
           writes the core's files into a fresh folder under ``<data>/studies/.tmp``; when it is
           done, the folder replaces ``<data>/studies/<project id>/<kind>/`` and the summary and
-          settings JSON are saved in the project's store as the exports ``cmrr-study`` and
-          ``compensation-study``. Opening a project loads them back (plots from the folder).
+          settings JSON are saved in the project's store as the exports ``_study-cmrr`` and
+          ``_study-compensation`` (names no export may take; the old ``cmrr-study`` and
+          ``compensation-study`` are read once and moved). Opening a project loads them back
+          (plots from the folder). Before a study is queued its numbers are checked against
+          ``robomach_core.limits``, a CMRR study's samples against the cap, and the queue
+          against ``MAX_ACTIVE_STUDIES`` (``StudyQueueFullError``, 429); a study that fails
+          anyway ends as a failed job with a one-line message (``StudyFailedError``).
           Every folder name is made here from fixed names and integer ids, never from input.
 SOLUTION  Public API (thread-safe):
 
