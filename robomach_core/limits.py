@@ -44,11 +44,14 @@ class Range:
         return self.min <= value <= self.max  # int against float compares exactly
 
     def text(self) -> str:
-        """The range as people write it: ``"1-50 N"``, ``"0-4294967295"``."""
+        """The range as people write it: ``"1-50 N"``, ``"0-4294967295"``, ``"-360 to 360
+        deg"``."""
         unit = f" {self.unit}" if self.unit else ""
         if self.integer:
-            return f"{int(self.min)}-{int(self.max)}{unit}"
-        return f"{self.min:g}-{self.max:g}{unit}"
+            low, high = str(int(self.min)), str(int(self.max))
+        else:
+            low, high = f"{self.min:g}", f"{self.max:g}"
+        return f"{low} to {high}{unit}" if self.min < 0 else f"{low}-{high}{unit}"
 
     def check(
         self,
@@ -101,3 +104,6 @@ TOOL_COM_MM = Range("tool centre of mass coordinate", -1000.0, 1000.0, "mm")
 SENSOR_FORCE_BIAS_N = Range("force sensor bias", -1000.0, 1000.0, "N")
 SENSOR_TORQUE_BIAS_NM = Range("torque sensor bias", -100.0, 100.0, "N*m")
 JOINT_STIFFNESS_STD_NM_RAD = Range("joint stiffness uncertainty", 0.0, 1.0e9, "N*m/rad")
+# Work-object frame of the demo (robot base frame): the largest arms reach ~3 m.
+WOBJ_POSITION_MM = Range("work-object position", -3000.0, 3000.0, "mm")
+WOBJ_ROTATION_DEG = Range("work-object rotation", -360.0, 360.0, "deg")

@@ -135,6 +135,9 @@ def run(args: argparse.Namespace) -> int:
             wobj = tuple(float(v) for v in args.wobj.split(","))
         except ValueError:
             raise InvalidInputError(f"--wobj {args.wobj!r}: expected numbers x,y,z[,rz]") from None
+        ranges = (limits.WOBJ_POSITION_MM,) * 3 + (limits.WOBJ_ROTATION_DEG,)
+        for value, rng in zip(wobj, ranges, strict=False):
+            rng.check(value, "--wobj")
     guide_csv = None
     if args.guide_points is not None:
         if not args.guide_points.is_file():

@@ -35,6 +35,9 @@ NUMERIC_ARGUMENTS = (
     ("compensate", "--cmm-noise", limits.CMM_NOISE_UM, ("--quick",)),
     ("compensate", "--poses", limits.IDENTIFICATION_POSES, ("--quick",)),
     ("compensate", "--iterations", limits.ILC_ITERATIONS, ("--quick",)),
+    ("serve", "--port", limits.PORT, ()),
+    ("serve", "--viser-port", limits.PORT, ()),
+    ("demo", "--wobj", limits.WOBJ_POSITION_MM, ()),  # x of x,y,z
 )
 FAST = settings(
     max_examples=80,
@@ -92,10 +95,12 @@ def test_every_numeric_argument_outside_its_range_is_one_line(data, tmp_path, ca
         ]  # fmt: skip
     else:
         command, flag, rng, fixed = data.draw(st.sampled_from(NUMERIC_ARGUMENTS))
-        cases = [(command, flag, rng, fixed, data.draw(outside(rng)))]
+        value = data.draw(outside(rng))
+        cases = [(command, flag, rng, fixed, f"{value},160,0" if flag == "--wobj" else value)]
     out = tmp_path / "out"
     for command, flag, rng, fixed, value in cases:
-        code = main([command, *fixed, "--out", str(out), f"{flag}={value}"])
+        where = [] if command == "serve" else ["--out", str(out)]
+        code = main([command, *fixed, *where, f"{flag}={value}"])
         _one_line_error(capsys, code, command, flag, rng.text())
         assert not (out / "summary.json").exists() and not (out / "cmrr.csv").exists()
 
