@@ -12,7 +12,7 @@ import pytest
 from app.api.routes import cmrr
 from app.session import Session
 from app.store import Store
-from app.studies import CMRR_EXPORT, MAX_ACTIVE_STUDIES, studies_for
+from app.studies import CMRR_EXPORT, MAX_ACTIVE_STUDIES, _clean_failures, studies_for
 from robomach_core.cmrr import CONTROLLER_NAMES, SCENARIO_NAMES
 from tests.api.server_process import Api, ServerProcess
 
@@ -222,5 +222,22 @@ def test_a_study_saved_under_the_old_name_is_read_and_moved(tmp_path) -> None:
         # An export of the program that took the old name is not a study.
         session.store.save_export(pid, "compensation-study", {"program.mod": "MODULE x"})
         assert studies_for(session).compensation_result() is None
+    finally:
+        session.close()
+
+
+def test_an_unforeseen_failure_ends_the_job_with_one_line(tmp_path) -> None:
+    """Inputs passed validation, yet the simulation raised: a failed job with the cause, not
+    an "internal error" with a traceback in the log."""
+    session = Session(Store.in_data_dir(tmp_path), data_dir=tmp_path)
+    try:
+        work = _clean_failures("CMRR", lambda ctx: 1 / 0)
+        job_id = session.jobs.submit("cmrr_study", work)
+        deadline = time.monotonic() + 10.0
+        while (job := session.jobs.get(job_id)).status in ("queued", "running"):
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        assert job.status == "failed"
+        assert job.error == "the CMRR study failed: ZeroDivisionError: division by zero"
     finally:
         session.close()
