@@ -10,6 +10,7 @@ anything unforeseen -> 503 with its message (and a logged traceback), never a ba
 from __future__ import annotations
 
 import hmac
+import ipaddress
 import logging
 import sqlite3
 from collections.abc import AsyncIterator, Callable, Sequence
@@ -147,6 +148,15 @@ def _host_port(netloc: str, scheme: str) -> tuple[str, int] | None:
     return parts.hostname.lower(), port or DEFAULT_PORTS.get(scheme, 0)
 
 
+def _is_loopback(host: str) -> bool:
+    if host == "localhost" or host.endswith(".localhost"):
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
 class SameOriginMiddleware:
     """Mutating calls (POST, PUT, PATCH, DELETE: uploads too) from a page of another origin
     get 403: the ``Origin`` header (or, without one, the ``Referer``) must name this server as
@@ -155,8 +165,9 @@ class SameOriginMiddleware:
     cross-origin POST and every ``fetch`` that is not a GET or HEAD, and a script that can
     forge headers is not a web page riding on the user's browser."""
 
-    def __init__(self, app: ASGIApp) -> None:
+    def __init__(self, app: ASGIApp, *, loopback_only: bool = False) -> None:
         self.app = app
+        self.loopback_only = loopback_only
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] == "http" and scope["method"] not in SAFE_METHODS:
@@ -175,8 +186,7 @@ class SameOriginMiddleware:
                 return
         await self.app(scope, receive, send)
 
-    @staticmethod
-    def _same_origin(source: str, headers: Headers, scope: Scope) -> bool:
+    def _same_origin(self, source: str, headers: Headers, scope: Scope) -> bool:
         try:
             parts = urlsplit(source)
         except ValueError:
@@ -187,6 +197,10 @@ class SameOriginMiddleware:
         given = _host_port(parts.netloc, parts.scheme)
         own = _host_port(headers.get("host", ""), scheme)
         if given is None or own is None:
+            return False
+        if self.loopback_only and not _is_loopback(own[0]):
+            # A page whose name was rebound to 127.0.0.1 (DNS rebinding) is "same origin"
+            # with its own name: a server on loopback is only ever called by a loopback name.
             return False
         if given == own:
             return True
@@ -278,7 +292,8 @@ def create_app(
     if settings.token:
         app.add_middleware(TokenMiddleware, token=settings.token)
     app.add_middleware(UploadSizeMiddleware, limit_bytes=settings.max_upload_bytes)
-    app.add_middleware(SameOriginMiddleware)  # outermost: a foreign page learns nothing more
+    # outermost: a foreign page learns nothing more
+    app.add_middleware(SameOriginMiddleware, loopback_only=settings.loopback)
     app.state.viser_port = None  # the port viser bound, set by the workbench service
     _mount_pendant(app, settings)
     return app

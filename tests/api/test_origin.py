@@ -67,6 +67,17 @@ def test_a_multipart_upload_from_another_origin_is_refused(api: Api, server: Ser
     assert _guide_point_count(api) == 1
 
 
+def test_a_rebound_name_is_not_this_loopback_server(api: Api, server: ServerProcess) -> None:
+    """DNS rebinding: evil.example now resolves to 127.0.0.1, so its page is "same origin"
+    with the Host it sends; a server on loopback takes browser writes from loopback names only."""
+    port = urlsplit(server.base_url).port
+    before = _guide_point_count(api)
+    rebound = {"Origin": f"http://evil.example:{port}", "Host": f"evil.example:{port}"}
+    r = api.post("/api/guide-points", headers=rebound)
+    assert r.status_code == 403, r.text
+    assert _guide_point_count(api) == before
+
+
 def test_same_origin_and_scripts_may_write(api: Api, server: ServerProcess) -> None:
     before = _guide_point_count(api)
     api.ok("POST", "/api/guide-points", 201, headers={"Origin": server.base_url})
