@@ -11,6 +11,7 @@ years.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
 
 from .errors import InvalidInputError
@@ -35,12 +36,12 @@ class Range:
     integer: bool = False
 
     def __contains__(self, value: object) -> bool:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
             return False
-        if isinstance(value, float) and not (
-            math.isfinite(value) and (value.is_integer() or not self.integer)
-        ):
-            return False
+        if not isinstance(value, numbers.Integral):  # floats, numpy floats
+            value = float(value)
+            if not math.isfinite(value) or (self.integer and not value.is_integer()):
+                return False
         return self.min <= value <= self.max  # int against float compares exactly
 
     def text(self) -> str:
