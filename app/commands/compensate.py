@@ -85,6 +85,12 @@ class _ProgressBar:
             self.stream.write(f"{self.label}: {step * 10} %\n")
             self.stream.flush()
 
+    def abort(self) -> None:
+        """End the bar's line on a terminal, so that an error message gets a line of its own."""
+        if self.tty:
+            self.stream.write("\n")
+            self.stream.flush()
+
     def close(self) -> None:
         elapsed = time.perf_counter() - self.started
         if self.tty:
@@ -161,8 +167,10 @@ def run(args: argparse.Namespace) -> int:
     bar = _ProgressBar(f"compensate {args.study}")
     try:
         results = run_studies(args.study, args.out, options, progress=bar)
-    finally:
-        bar.close()
+    except BaseException:
+        bar.abort()
+        raise
+    bar.close()
     summary: dict = {}
     for result in results.values():
         summary.update(result.summary)

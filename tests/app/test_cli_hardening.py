@@ -166,3 +166,8 @@ def test_out_that_cannot_be_written_is_refused_before_any_work(
     }[where]
     code = main([command, *fixed, "--out", str(out)])
     _one_line_error(capsys, code, command, "--out", str(out))
+
+
+def test_compensate_unknown_robot_is_one_line(tmp_path, capsys):
+    code = main(["compensate", "--quick", "--robot", "kuka", "--out", str(tmp_path / "o")])
+    _one_line_error(capsys, code, "compensate", "unknown robot", "ur10")
