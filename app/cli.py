@@ -9,10 +9,33 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
+import tempfile
+from pathlib import Path
 
 # The command modules in app/commands, in the order `robomach --help` lists them.
 COMMANDS: tuple[str, ...] = ("demo", "serve", "cmrr", "compensate")
+
+
+def writable_folder(path: Path, option: str = "--out") -> Path:
+    """Create ``path`` if missing and prove it takes a file, before any work is done.
+
+    Raises:
+        InvalidInputError: ``path`` is under a file, in a read-only or virtual file system
+            (``/proc``), or not writable; the message names ``option``.
+    """
+    from robomach_core.errors import InvalidInputError
+
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        handle, probe = tempfile.mkstemp(dir=path, prefix=".robomach-write-check-")
+        os.close(handle)
+        os.unlink(probe)
+    except OSError as exc:
+        reason = exc.strerror or exc.__class__.__name__
+        raise InvalidInputError(f"{option} {path}: cannot write files there ({reason})") from None
+    return path
 
 
 def build_parser() -> argparse.ArgumentParser:

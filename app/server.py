@@ -1,19 +1,23 @@
 """``robomach serve`` in one process: the REST API (uvicorn), the pendant page and the viser
 workbench, over one ``Session`` that the GUI and the API share.
 
-Startup: lock the data folder (one server per folder), open the store and the last project,
-build the app; uvicorn's lifespan starts the viser server and stops it, the job worker and the
-store on Ctrl-C or SIGTERM.
+Startup: check the viser port is free, lock the data folder (one server per folder), open the
+store and the last project, build the app; uvicorn's lifespan starts the viser server and stops
+it, the job worker and the store on Ctrl-C or SIGTERM. viser binds loopback only when the API
+is served beyond it (``viser_host``), and refuses websockets from other origins.
 """
 
 from __future__ import annotations
 
 import logging
 import os
-from collections.abc import Iterator
+import socket
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 from typing import IO
+from urllib.parse import urlsplit
 
 from fastapi import FastAPI
 
@@ -25,15 +29,63 @@ from robomach_core.errors import InvalidInputError
 log = logging.getLogger("robomach.server")
 
 LOCK_FILENAME = "robomach.lock"
+LOOPBACK_HOST = "127.0.0.1"
+
+
+def viser_host(settings: ServerSettings) -> str:
+    """The interface viser binds: the server's when that is loopback, else 127.0.0.1.
+
+    viser has no authentication, so a scene open beyond loopback would let anyone who reaches
+    the port press the workbench's buttons while the REST API asks for the token (issue 10,
+    7). Beyond loopback the scene stays on this machine; reach it through an SSH tunnel
+    (``ssh -L 8080:127.0.0.1:8080 host``).
+    """
+    return settings.host if settings.loopback else LOOPBACK_HOST
+
+
+def check_port_free(host: str, port: int, what: str = "viser port") -> None:
+    """``InvalidInputError`` when ``port`` on ``host`` is taken (viser would quietly take the
+    next one, and the pendant and ``/api/workbench`` would point at another server)."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as probe:
+        # asyncio's servers set SO_REUSEADDR too: a port in TIME_WAIT is free for viser.
+        probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            probe.bind((host, port))
+        except OSError as exc:
+            raise InvalidInputError(
+                f"the {what} {port} on {host} is not free ({exc.strerror}): stop the program "
+                "using it or pass another --viser-port"
+            ) from None
 
 
 @contextmanager
-def viser_workbench(session: Session, settings: ServerSettings) -> Iterator[object]:
+def viser_workbench(
+    session: Session,
+    settings: ServerSettings,
+    *,
+    on_port: Callable[[int], None] | None = None,
+) -> Iterator[object]:
     """The viser server with the workbench GUI (``app.gui.workbench``) when it is installed,
-    else an empty scene; stopped on exit."""
+    else an empty scene; stopped on exit. ``on_port`` gets the port viser actually bound."""
     import viser
 
-    server = viser.ViserServer(host=settings.host, port=settings.viser_port, verbose=False)
+    host = viser_host(settings)
+    if host != settings.host:
+        log.info(
+            "the viser scene listens on %s only (viser has no token check); from other "
+            "machines reach it through an SSH tunnel: ssh -L %d:127.0.0.1:%d <this host>",
+            host,
+            settings.viser_port,
+            settings.viser_port,
+        )
+    server = viser.ViserServer(host=host, port=settings.viser_port, verbose=False)
+    refuse_foreign_websockets(server)
+    port = server.get_port()
+    if port != settings.viser_port:
+        log.warning("viser port %d was taken: the scene is on %d", settings.viser_port, port)
+    if on_port is not None:
+        on_port(port)
     workbench = None
     try:
         try:
@@ -47,7 +99,8 @@ def viser_workbench(session: Session, settings: ServerSettings) -> Iterator[obje
                 workbench = Workbench(server, session)
             except Exception:  # the REST API stays useful without the GUI
                 log.exception("the viser workbench failed to build; serving an empty scene")
-        log.info("viser workbench at http://%s:%d", _display_host(settings), server.get_port())
+        shown = _display_host(settings) if host == settings.host else host
+        log.info("viser workbench at http://%s:%d", shown, port)
         yield server
     finally:
         close = getattr(workbench, "close", None)
@@ -57,6 +110,59 @@ def viser_workbench(session: Session, settings: ServerSettings) -> Iterator[obje
             except Exception:
                 log.exception("closing the workbench failed")
         server.stop()
+
+
+def refuse_foreign_websockets(server: object) -> bool:
+    """Close viser websockets opened by a page of another origin, and drop their messages.
+
+    A browser lets any page open a websocket to any port, sending its own ``Origin``; without
+    this, a page on another site could click the workbench's buttons through viser. viser
+    1.1 has no public hook, so this wraps two of its internals (checked here: when they are
+    missing, it logs a warning and returns False). A connection passes when it sends no
+    ``Origin`` (not a browser) or one equal to the ``Host`` it connected to (the viser page,
+    also inside the pendant's frame).
+    """
+    infra = getattr(server, "_websock_server", None)
+    live = getattr(infra, "_live_connections", None)
+    dispatch = getattr(infra, "_handle_incoming_message", None)
+    if infra is None or not isinstance(live, dict) or dispatch is None:
+        log.warning("this viser version offers no websocket hook: origins are not checked")
+        return False
+    refused: set[object] = set()
+
+    async def dispatch_known(client_id: object, message: object) -> None:
+        if client_id not in refused:
+            await dispatch(client_id, message)
+
+    async def check_origin(connection: object) -> None:
+        client_id = getattr(connection, "client_id", None)
+        request = getattr(live.get(client_id), "request", None)
+        if request is None:
+            return
+        origin = request.headers.get("Origin")
+        if origin is None or _same_origin(origin, request.headers.get("Host", "")):
+            return
+        refused.add(client_id)  # before the first message is read: the consumer starts later
+        log.warning("viser: refused a websocket from origin %r", origin[:200])
+        await live[client_id].close(1008, "cross-origin connection refused")
+
+    infra._handle_incoming_message = dispatch_known
+    infra.on_client_connect(check_origin)
+    return True
+
+
+def _same_origin(origin: str, host: str) -> bool:
+    """True when ``origin`` (``http://host:port``) names ``host`` (a ``Host`` header)."""
+    try:
+        given, own = urlsplit(origin), urlsplit(f"//{host}")
+        default = {"http": 80, "https": 443}.get(given.scheme, 0)
+        return (
+            given.scheme in ("http", "https")
+            and given.hostname is not None
+            and (given.hostname, given.port or default) == (own.hostname, own.port or default)
+        )
+    except ValueError:
+        return False
 
 
 def _display_host(settings: ServerSettings) -> str:
@@ -98,10 +204,17 @@ def build_app(settings: ServerSettings, session: Session) -> FastAPI:
     workbench as a lifespan service."""
     from app.api.app import create_app
 
+    def bound(port: int) -> None:
+        # The routes read the port from the settings: make them say the one viser bound.
+        app.state.viser_port = port
+        if port != app.state.settings.viser_port:
+            app.state.settings = replace(app.state.settings, viser_port=port)
+
     services = []
     if settings.viser_port is not None:
-        services.append(lambda: viser_workbench(session, settings))
-    return create_app(session, settings, services=services)
+        services.append(lambda: viser_workbench(session, settings, on_port=bound))
+    app = create_app(session, settings, services=services)
+    return app
 
 
 def serve(settings: ServerSettings) -> int:
@@ -109,6 +222,8 @@ def serve(settings: ServerSettings) -> int:
     import uvicorn
 
     settings.validate()
+    if settings.viser_port is not None:
+        check_port_free(viser_host(settings), settings.viser_port)
     data_dir = settings.data_dir.resolve()
     with data_dir_lock(data_dir):
         session = Session(

@@ -8,8 +8,13 @@ STRATEGY  One ``StudyService`` per session (``studies_for(session)``) submits ea
           session's ``JobRunner``, so it shows in ``/api/jobs`` and cancels like any job. A run
           writes the core's files into a fresh folder under ``<data>/studies/.tmp``; when it is
           done, the folder replaces ``<data>/studies/<project id>/<kind>/`` and the summary and
-          settings JSON are saved in the project's store as the exports ``cmrr-study`` and
-          ``compensation-study``. Opening a project loads them back (plots from the folder).
+          settings JSON are saved in the project's store as the exports ``_study-cmrr`` and
+          ``_study-compensation`` (names no export may take; the old ``cmrr-study`` and
+          ``compensation-study`` are read once and moved). Opening a project loads them back
+          (plots from the folder). Before a study is queued its numbers are checked against
+          ``robomach_core.limits``, a CMRR study's samples against the cap, and the queue
+          against ``MAX_ACTIVE_STUDIES`` (``StudyQueueFullError``, 429); a study that fails
+          anyway ends as a failed job with a one-line message (``StudyFailedError``).
           Every folder name is made here from fixed names and integer ids, never from input.
 SOLUTION  Public API (thread-safe):
 
@@ -24,6 +29,7 @@ SOLUTION  Public API (thread-safe):
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import math
@@ -37,19 +43,23 @@ import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal, get_args
+from typing import TYPE_CHECKING, Any, Literal, get_args
 
 from robomach_core.cmrr import CONTROLLER_NAMES, SCENARIO_NAMES
 from robomach_core.cmrr.errors import (
-    CmrrSettingsError,
     UnknownControllerError,
     UnknownScenarioError,
 )
-from robomach_core.errors import InvalidInputError
+from robomach_core.cmrr.settings import check_cmrr_numbers, check_study_size
+from robomach_core.errors import InvalidInputError, RobomachError
+from robomach_core.limits import SEED
 from robomach_core.stiffness.errors import UnknownStudyError
 from robomach_core.stiffness.settings import COMPENSATION_SETTINGS
 
 from .session import ConflictError, JobContext, JobInfo, NotFoundError, Session
+
+if TYPE_CHECKING:
+    from robomach_core.cmrr.scenarios import Scenario
 
 log = logging.getLogger(__name__)
 
@@ -60,9 +70,14 @@ CMRR_CONTROLLER_CHOICES: tuple[str, ...] = (*CONTROLLER_NAMES, "all")
 
 CMRR_JOB_KIND = "cmrr_study"
 COMPENSATION_JOB_KIND = "compensation_study"
-# The names the studies are saved under in the project's exports.
-CMRR_EXPORT = "cmrr-study"
-COMPENSATION_EXPORT = "compensation-study"
+# The names the studies are saved under in the project's exports. They start with "_", which
+# no export name may (``EXPORT_NAME_RE``), so no export can replace a study; the old names are
+# read once, when a project saved before them has no study under the new ones.
+CMRR_EXPORT = "_study-cmrr"
+COMPENSATION_EXPORT = "_study-compensation"
+LEGACY_EXPORTS = {CMRR_EXPORT: "cmrr-study", COMPENSATION_EXPORT: "compensation-study"}
+# Queued and running studies at once, of both kinds: each holds its arrays in memory.
+MAX_ACTIVE_STUDIES = 2
 STUDY_META_FILE = "study.json"
 CMRR_SUMMARY_FILE = "cmrr_summary.json"
 CMRR_SETTINGS_FILE = "cmrr_settings.json"
@@ -71,9 +86,17 @@ COMPENSATION_SUMMARY_FILE = "compensation_summary.json"
 COMPENSATION_SETTINGS_FILE = "compensation_settings.json"
 STUDIES_FOLDER = "studies"
 TMP_FOLDER = ".tmp"
-SEED_MAX = 2**32 - 1
+SEED_MAX = int(SEED.max)
 # Share of a CMRR job's progress bar for the simulation; the rest is writing CSV and plot.
 CMRR_SIMULATION_SHARE = 0.9
+
+
+class StudyQueueFullError(RobomachError, RuntimeError):
+    """Too many studies are queued or running: wait for one to end or cancel one."""
+
+
+class StudyFailedError(RobomachError, RuntimeError):
+    """A study stopped on a numerical or internal failure; its message says which."""
 
 
 # --- the last results -----------------------------------------------------------------------
@@ -301,15 +324,25 @@ class StudyService:
                 f"{', '.join(CMRR_CONTROLLER_CHOICES)}"
             )
         seed = _seed(seed)
+        check_cmrr_numbers(
+            reference_force_N=reference_force_N, command_speed_mm_s=command_speed_mm_s
+        )
         overrides: dict[str, float] = {}
-        for key, value in (
-            ("reference_force_N", reference_force_N),
-            ("command_speed_mm_s", command_speed_mm_s),
-        ):
-            if value is not None:
-                if not (math.isfinite(value) and value > 0.0):
-                    raise CmrrSettingsError(f"{key} must be a positive number, got {value!r}")
-                overrides[key] = float(value)
+        if reference_force_N is not None:
+            overrides["reference_force_N"] = float(reference_force_N)
+        if command_speed_mm_s is not None:
+            overrides["command_speed_mm_s"] = float(command_speed_mm_s)
+        # Refuse a study too long to simulate before it allocates its arrays (issue 10, 3).
+        base = _default_scenario(scenario)
+        estimate = replace(
+            base,
+            reference_force_N=overrides.get("reference_force_N", base.reference_force_N),
+            command_speed_m_s=overrides.get("command_speed_mm_s", base.command_speed_m_s * 1e3)
+            * 1e-3,
+        )
+        count = len(CONTROLLER_NAMES) if controller == "all" else 1
+        check_study_size(estimate, count)
+        self._check_queue()
         project_id = self.session.current_project().id
 
         def work(ctx: JobContext) -> CmrrOutcome:
@@ -319,6 +352,7 @@ class StudyService:
             built = build_scenario(scenario, **overrides)
             name = built.default_controller if controller == "default" else controller
             names = list(CONTROLLER_NAMES) if name == "all" else [name]
+            check_study_size(built, len(names))
             folder = self._new_run_folder()
             try:
                 results = compare_controllers(
@@ -349,7 +383,7 @@ class StudyService:
             self._keep("cmrr", project_id, outcome)
 
         return self.session.jobs.submit(
-            CMRR_JOB_KIND, work, on_done=done, on_end=self._ended("cmrr")
+            CMRR_JOB_KIND, _clean_failures("CMRR", work), on_done=done, on_end=self._ended("cmrr")
         )
 
     def start_compensation(
@@ -380,6 +414,7 @@ class StudyService:
                 f"{', '.join(COMPENSATION_SETTINGS)}"
             )
         seed = _seed(seed)
+        self._check_queue()
         project_id = self.session.current_project().id
 
         def work(ctx: JobContext) -> CompensationOutcome:
@@ -417,8 +452,20 @@ class StudyService:
             self._keep("compensation", project_id, outcome)
 
         return self.session.jobs.submit(
-            COMPENSATION_JOB_KIND, work, on_done=done, on_end=self._ended("compensation")
+            COMPENSATION_JOB_KIND,
+            _clean_failures("compensation", work),
+            on_done=done,
+            on_end=self._ended("compensation"),
         )
+
+    def _check_queue(self) -> None:
+        """``StudyQueueFullError`` when ``MAX_ACTIVE_STUDIES`` studies are queued or running."""
+        active = self.session.jobs.active((CMRR_JOB_KIND, COMPENSATION_JOB_KIND))
+        if len(active) >= MAX_ACTIVE_STUDIES:
+            raise StudyQueueFullError(
+                f"{len(active)} studies are already queued or running (at most "
+                f"{MAX_ACTIVE_STUDIES}): wait for one to end or cancel one at /api/jobs"
+            )
 
     def _ended(self, kind: StudyKind) -> Callable[[JobInfo], None]:
         def end(info: JobInfo) -> None:
@@ -497,7 +544,26 @@ class StudyService:
         return final
 
     def _stored_files(self, project_id: int, export: str) -> dict[str, str]:
-        return self.session.store.get_export(project_id, export) or {}
+        """The files of a saved study; a study saved under its old export name (before the
+        reserved names) is copied to the new name the first time it is read."""
+        store = self.session.store
+        files = store.get_export(project_id, export)
+        if files is not None:
+            return files
+        legacy = store.get_export(project_id, LEGACY_EXPORTS.get(export, ""))
+        kind = "cmrr" if export == CMRR_EXPORT else "compensation"
+        try:
+            is_study = legacy is not None and _loads(legacy[STUDY_META_FILE])["kind"] == kind
+        except (KeyError, TypeError, ValueError):
+            is_study = False  # an export of the PbD program that took the old name
+        if not is_study:
+            return {}
+        with self._lock:
+            if store.get_export(project_id, export) is None:
+                store.save_export(project_id, export, legacy)
+                log.info("project %d: study moved from export %r to %r", project_id,
+                         LEGACY_EXPORTS[export], export)  # fmt: skip
+        return legacy
 
     def _load_project(self) -> bool:
         """Load the open project's saved studies when the project changed; True if it did."""
@@ -574,9 +640,37 @@ class StudyService:
 
 
 def _seed(seed: object) -> int:
-    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= SEED_MAX:
-        raise InvalidInputError(f"seed must be an integer within 0-{SEED_MAX}, got {seed!r}")
-    return seed
+    if isinstance(seed, float):  # 3.0 is a float but not a seed a user meant
+        raise InvalidInputError(f"seed must be an integer within {SEED.text()}, got {seed!r}")
+    return int(SEED.check(seed))
+
+
+@functools.cache
+def _default_scenario(name: str) -> Scenario:
+    """The named CMRR scenario without overrides (built once: learned-path takes ~1.5 s)."""
+    from robomach_core.cmrr import build_scenario
+
+    return build_scenario(name)
+
+
+def _clean_failures(label: str, work: Callable[[JobContext], Any]) -> Callable[[JobContext], Any]:
+    """``work`` whose unforeseen exceptions end the job as a failure with a one-line message
+    (``StudyFailedError``) instead of an internal error: every input passed validation, so a
+    failure here is the simulation's, and the user needs to know which, not a traceback."""
+
+    def run(ctx: JobContext) -> Any:
+        try:
+            return work(ctx)
+        except RobomachError:  # cancelled, or a clear user error already
+            raise
+        except Exception as exc:
+            log.warning("%s study failed: %s: %s", label, exc.__class__.__name__, exc)
+            log.debug("%s study failure", label, exc_info=True)
+            raise StudyFailedError(
+                f"the {label} study failed: {exc.__class__.__name__}: {exc}"
+            ) from None
+
+    return run
 
 
 def _jsonable(value: Any) -> Any:

@@ -1,4 +1,5 @@
-"""The FastAPI application: routers, error mapping, token check, body limits, lifespan.
+"""The FastAPI application: routers, error mapping, token and same-origin checks, body and
+upload limits, lifespan.
 
 Errors: ``RobomachError`` subclasses map to 4xx by their builtin base (ValueError/KeyError ->
 422, not found -> 404, state conflicts and RuntimeError -> 409); request validation (malformed
@@ -9,10 +10,12 @@ anything unforeseen -> 503 with its message (and a logged traceback), never a ba
 from __future__ import annotations
 
 import hmac
+import ipaddress
 import logging
 import sqlite3
 from collections.abc import AsyncIterator, Callable, Sequence
 from contextlib import AbstractContextManager, ExitStack, asynccontextmanager
+from urllib.parse import urlsplit
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
@@ -37,6 +40,7 @@ from app.api.routes import (
 )
 from app.session import ConflictError, NotFoundError, Session
 from app.settings import MAX_JSON_BODY_BYTES, ServerSettings
+from app.studies import StudyQueueFullError
 from robomach_core.errors import (
     CancelledError,
     ForceLimitError,
@@ -47,6 +51,10 @@ from robomach_core.errors import (
 log = logging.getLogger(__name__)
 
 SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
+DEFAULT_PORTS = {"http": 80, "https": 443}
+UPLOAD_PATHS = frozenset({"/api/cell/workpiece"})
+# Multipart boundaries and part headers around the file: a few hundred bytes in practice.
+MULTIPART_OVERHEAD_BYTES = 64 * 1024
 ROUTERS = (state, leadthrough, guide_points, path_learning, jobs, postprocess, export, projects,
            cell, cmrr, compensation)  # fmt: skip
 
@@ -58,6 +66,8 @@ def status_for(exc: RobomachError) -> int:
     """The HTTP status of a user-caused error, by what kind of error it is."""
     if isinstance(exc, NotFoundError):
         return 404
+    if isinstance(exc, StudyQueueFullError):
+        return 429
     if isinstance(exc, (ConflictError, CancelledError, ForceLimitError, NotEnoughGuidePointsError)):
         return 409
     if isinstance(exc, (ValueError, KeyError)):
@@ -126,6 +136,115 @@ class TokenMiddleware:
         await self.app(scope, receive, send)
 
 
+def _host_port(netloc: str, scheme: str) -> tuple[str, int] | None:
+    """(lower-case host, port) of ``netloc``, the scheme's default port when it has none."""
+    try:
+        parts = urlsplit(f"//{netloc}")
+        port = parts.port
+    except ValueError:
+        return None
+    if not parts.hostname:
+        return None
+    return parts.hostname.lower(), port or DEFAULT_PORTS.get(scheme, 0)
+
+
+def _is_loopback(host: str) -> bool:
+    if host == "localhost" or host.endswith(".localhost"):
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+class SameOriginMiddleware:
+    """Mutating calls (POST, PUT, PATCH, DELETE: uploads too) from a page of another origin
+    get 403: the ``Origin`` header (or, without one, the ``Referer``) must name this server as
+    the browser reached it (its ``Host``), or the viser scene on the same host. Calls with
+    neither header (curl, scripts, the Python client) pass: browsers send ``Origin`` on every
+    cross-origin POST and every ``fetch`` that is not a GET or HEAD, and a script that can
+    forge headers is not a web page riding on the user's browser."""
+
+    def __init__(self, app: ASGIApp, *, loopback_only: bool = False) -> None:
+        self.app = app
+        self.loopback_only = loopback_only
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] == "http" and scope["method"] not in SAFE_METHODS:
+            headers = Headers(scope=scope)
+            source, header = headers.get("origin"), "Origin"
+            if source is None and headers.get("referer"):
+                source, header = headers["referer"], "Referer"
+            if source is not None and not self._same_origin(source, headers, scope):
+                host = headers.get("host", "this server")
+                detail = (
+                    f"cross-site request refused: the {header} {source[:200]!r} is not this "
+                    f"server ({scope.get('scheme', 'http')}://{host}); change the workbench "
+                    "from its own pages (/pendant/, the viser scene) or from a script"
+                )
+                await JSONResponse({"detail": detail}, status_code=403)(scope, receive, send)
+                return
+        await self.app(scope, receive, send)
+
+    def _same_origin(self, source: str, headers: Headers, scope: Scope) -> bool:
+        try:
+            parts = urlsplit(source)
+        except ValueError:
+            return False
+        scheme = scope.get("scheme", "http")
+        if parts.scheme != scheme or not parts.netloc:
+            return False  # "null" (sandboxed frames, file://) and other schemes
+        given = _host_port(parts.netloc, parts.scheme)
+        own = _host_port(headers.get("host", ""), scheme)
+        if given is None or own is None:
+            return False
+        if self.loopback_only and not _is_loopback(own[0]):
+            # A page whose name was rebound to 127.0.0.1 (DNS rebinding) is "same origin"
+            # with its own name: a server on loopback is only ever called by a loopback name.
+            return False
+        if given == own:
+            return True
+        app = scope.get("app")
+        viser_port = getattr(getattr(app, "state", None), "viser_port", None)
+        return viser_port is not None and given == (own[0], viser_port)
+
+
+class UploadSizeMiddleware:
+    """413 for a mesh upload whose declared size (``Content-Length``) is over the server's
+    limit, before a byte of it is read; the route still counts the bytes of an upload that
+    declares none (chunked)."""
+
+    def __init__(self, app: ASGIApp, limit_bytes: int) -> None:
+        self.app = app
+        self.limit_bytes = limit_bytes
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if (
+            scope["type"] == "http"
+            and scope["method"] == "POST"
+            and (scope["path"].rstrip("/") in UPLOAD_PATHS)
+        ):
+            declared = Headers(scope=scope).get("content-length")
+            detail = None
+            if declared is not None:
+                try:
+                    size = int(declared)
+                except ValueError:
+                    size, detail = -1, f"Content-Length {declared[:40]!r} is not a byte count"
+                if size > self.limit_bytes + MULTIPART_OVERHEAD_BYTES:
+                    detail = (
+                        f"the upload is {size / 1e6:.1f} MB, more than the "
+                        f"{self.limit_bytes / 1e6:g} MB limit of this server"
+                    )
+            if detail is not None:
+                status = 400 if detail.startswith("Content-Length") else 413
+                response = JSONResponse({"detail": detail}, status_code=status)
+                response.headers["Connection"] = "close"
+                await response(scope, receive, send)
+                return
+        await self.app(scope, receive, send)
+
+
 def create_app(
     session: Session,
     settings: ServerSettings | None = None,
@@ -172,6 +291,10 @@ def create_app(
     _add_error_handlers(app)
     if settings.token:
         app.add_middleware(TokenMiddleware, token=settings.token)
+    app.add_middleware(UploadSizeMiddleware, limit_bytes=settings.max_upload_bytes)
+    # outermost: a foreign page learns nothing more
+    app.add_middleware(SameOriginMiddleware, loopback_only=settings.loopback)
+    app.state.viser_port = None  # the port viser bound, set by the workbench service
     _mount_pendant(app, settings)
     return app
 

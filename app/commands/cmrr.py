@@ -78,6 +78,7 @@ class _Progress:
 
 
 def run(args: argparse.Namespace) -> int:
+    from app.cli import writable_folder
     from robomach_core.cmrr import (
         build_scenario,
         compare_controllers,
@@ -87,7 +88,16 @@ def run(args: argparse.Namespace) -> int:
         write_study_outputs,
     )
     from robomach_core.cmrr.errors import CmrrSettingsError
+    from robomach_core.cmrr.settings import check_study_size
+    from robomach_core.limits import CMRR_COMMAND_SPEED_MM_S, CMRR_REFERENCE_FORCE_N, SEED
 
+    SEED.check(args.seed, "--seed")
+    for value, rng, flag in (
+        (args.reference_force_N, CMRR_REFERENCE_FORCE_N, "--reference-force-N"),
+        (args.command_speed_mm_s, CMRR_COMMAND_SPEED_MM_S, "--command-speed-mm-s"),
+    ):
+        if value is not None:
+            rng.check(value, flag, error=CmrrSettingsError)
     overrides: dict[str, object] = {}
     controllers: list = []
     if args.settings is not None:
@@ -111,21 +121,27 @@ def run(args: argparse.Namespace) -> int:
         overrides["command_speed_mm_s"] = args.command_speed_mm_s
     if args.feedback is not None:
         overrides["feedback"] = args.feedback.replace("-", "_")
-    for key in ("reference_force_N", "command_speed_mm_s"):
-        value = overrides.get(key)
-        if value is not None and not float(value) > 0.0:
-            raise CmrrSettingsError(f"--{key.replace('_', '-')} must be positive")
     scenario = build_scenario(args.scenario, **overrides)
 
     if not controllers:
         name = args.controller or scenario.default_controller
         names = list(CONTROLLERS) if name == "all" else [name]
         controllers = [settings_for(n) for n in names]
+    check_study_size(scenario, len(controllers))
+    writable_folder(args.out)
 
     total = len(controllers)
     label = f"{scenario.name}/" + ("all" if total > 1 else controllers[0].kind)
     progress = _Progress(label, not args.quiet)
-    results = compare_controllers(scenario, controllers, seed=args.seed, progress=progress)
+    try:
+        results = compare_controllers(scenario, controllers, seed=args.seed, progress=progress)
+    except (ArithmeticError, ValueError, MemoryError) as exc:
+        if isinstance(exc, CmrrSettingsError):
+            raise
+        # Settings inside the ranges can still drive a controller's arithmetic out of bounds.
+        raise CmrrSettingsError(
+            f"the simulation failed with these settings ({exc.__class__.__name__}: {exc})"
+        ) from None
     try:
         paths = write_study_outputs(results, args.out)
     except OSError as exc:

@@ -85,6 +85,12 @@ class _ProgressBar:
             self.stream.write(f"{self.label}: {step * 10} %\n")
             self.stream.flush()
 
+    def abort(self) -> None:
+        """End the bar's line on a terminal, so that an error message gets a line of its own."""
+        if self.tty:
+            self.stream.write("\n")
+            self.stream.flush()
+
     def close(self) -> None:
         elapsed = time.perf_counter() - self.started
         if self.tty:
@@ -137,16 +143,14 @@ def _report(summary: dict) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from robomach_core.errors import InvalidInputError
+    from app.cli import writable_folder
+    from robomach_core.limits import CMM_NOISE_UM, IDENTIFICATION_POSES, ILC_ITERATIONS, SEED
 
-    if not (0.0 <= args.cmm_noise <= 200.0):
-        raise InvalidInputError(f"--cmm-noise must be within 0-200 um, got {args.cmm_noise:g}")
-    if not (3 <= args.poses <= 500):
-        raise InvalidInputError(f"--poses must be within 3-500, got {args.poses}")
-    if not (0 <= args.iterations <= 50):
-        raise InvalidInputError(f"--iterations must be within 0-50, got {args.iterations}")
-    if args.out.exists() and not args.out.is_dir():
-        raise InvalidInputError(f"--out {args.out} exists and is not a folder")
+    SEED.check(args.seed, "--seed")
+    CMM_NOISE_UM.check(args.cmm_noise, "--cmm-noise")
+    IDENTIFICATION_POSES.check(args.poses, "--poses")
+    ILC_ITERATIONS.check(args.iterations, "--iterations")
+    writable_folder(args.out)
 
     from robomach_core.stiffness.studies import SUMMARY_FILE, StudyOptions, run_studies
 
@@ -163,8 +167,10 @@ def run(args: argparse.Namespace) -> int:
     bar = _ProgressBar(f"compensate {args.study}")
     try:
         results = run_studies(args.study, args.out, options, progress=bar)
-    finally:
-        bar.close()
+    except BaseException:
+        bar.abort()
+        raise
+    bar.close()
     summary: dict = {}
     for result in results.values():
         summary.update(result.summary)

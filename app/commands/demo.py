@@ -119,16 +119,15 @@ class _ProgressLine:
 
 
 def run(args: argparse.Namespace) -> int:
+    from app.cli import writable_folder
+    from robomach_core import limits
     from robomach_core.errors import InvalidInputError
 
-    if not (args.tolerance > 0):
-        raise InvalidInputError(f"--tolerance must be > 0 mm, got {args.tolerance:g}")
-    if not (1.0 <= args.force <= 50.0):
-        raise InvalidInputError(f"--force must be within 1-50 N, got {args.force:g}")
-    if not (0.5 <= args.speed <= 50.0):
-        raise InvalidInputError(f"--speed must be within 0.5-50 mm/s, got {args.speed:g}")
-    if args.out.exists() and not args.out.is_dir():
-        raise InvalidInputError(f"--out {args.out} exists and is not a folder")
+    limits.TOLERANCE_MM.check(args.tolerance, "--tolerance")
+    limits.LEARNING_FORCE_N.check(args.force, "--force")
+    limits.LEARNING_SPEED_MM_S.check(args.speed, "--speed")
+    limits.SEED.check(args.seed, "--seed")
+    writable_folder(args.out)
 
     wobj = None
     if args.wobj is not None:
@@ -136,6 +135,9 @@ def run(args: argparse.Namespace) -> int:
             wobj = tuple(float(v) for v in args.wobj.split(","))
         except ValueError:
             raise InvalidInputError(f"--wobj {args.wobj!r}: expected numbers x,y,z[,rz]") from None
+        ranges = (limits.WOBJ_POSITION_MM,) * 3 + (limits.WOBJ_ROTATION_DEG,)
+        for value, rng in zip(wobj, ranges, strict=False):
+            rng.check(value, "--wobj")
     guide_csv = None
     if args.guide_points is not None:
         if not args.guide_points.is_file():

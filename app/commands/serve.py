@@ -48,7 +48,11 @@ def run(args: argparse.Namespace) -> int:
 
     from app.server import serve
     from app.settings import ServerSettings
+    from robomach_core.limits import PORT
 
+    for flag, value in (("--port", args.port), ("--viser-port", args.viser_port)):
+        if value is not None:
+            PORT.check(value, flag)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s:     %(name)s: %(message)s")
     settings = ServerSettings.from_env(
         host=args.host, port=args.port, viser_port=args.viser_port, data_dir=args.data

@@ -16,6 +16,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..limits import (
+    CMRR_COMMAND_SPEED_MM_S,
+    CMRR_MAX_STUDY_SAMPLES,
+    CMRR_MIN_SPEED_RATIO,
+    CMRR_REFERENCE_FORCE_N,
+)
 from .controllers import SETTINGS_CLASSES, ControllerSettings, settings_for
 from .controllers.fuzzy import FuzzySettings, TwoStageSettings
 from .errors import CmrrSettingsError, UnknownControllerError
@@ -44,14 +50,52 @@ class CmrrSettings:
     feedback: FeedbackSignal = "force"
 
     def __post_init__(self) -> None:
-        if not (self.reference_force_N > 0.0 and math.isfinite(self.reference_force_N)):
-            raise CmrrSettingsError("reference force must be a positive number of newtons")
-        if not (self.command_speed_m_s > 0.0 and math.isfinite(self.command_speed_m_s)):
-            raise CmrrSettingsError("command speed must be positive")
-        if not 0.0 < self.min_speed_ratio < 1.0:
-            raise CmrrSettingsError("minimum speed ratio must be in (0, 1)")
+        check_cmrr_numbers(
+            reference_force_N=self.reference_force_N,
+            command_speed_mm_s=self.command_speed_m_s / MM,
+            min_speed_ratio=self.min_speed_ratio,
+        )
         if self.feedback not in ("force", "spindle_current"):
             raise CmrrSettingsError(f"feedback must be force or spindle_current: {self.feedback}")
+
+
+def check_cmrr_numbers(
+    *,
+    reference_force_N: object = None,
+    command_speed_mm_s: object = None,
+    min_speed_ratio: object = None,
+) -> None:
+    """Raise ``CmrrSettingsError`` naming the range when a given (non-None) number is outside
+    ``robomach_core.limits``' CMRR ranges."""
+    for value, rng, name in (
+        (reference_force_N, CMRR_REFERENCE_FORCE_N, "reference_force_N"),
+        (command_speed_mm_s, CMRR_COMMAND_SPEED_MM_S, "command_speed_mm_s"),
+        (min_speed_ratio, CMRR_MIN_SPEED_RATIO, "min_speed_ratio"),
+    ):
+        if value is not None:
+            rng.check(value, name, error=CmrrSettingsError)
+
+
+def study_samples(scenario: Scenario, controllers: int = 1) -> int:
+    """Control samples a study of ``controllers`` controllers on ``scenario`` may simulate:
+    each runs at most ``time_limit_s / dt_s`` steps, whose arrays are allocated up front."""
+    per_controller = math.ceil(scenario.time_limit_s / scenario.dt_s) + 1
+    return int(controllers) * per_controller
+
+
+def check_study_size(scenario: Scenario, controllers: int = 1) -> int:
+    """The study's sample count (``study_samples``); ``CmrrSettingsError`` above
+    ``CMRR_MAX_STUDY_SAMPLES``, before any memory is allocated."""
+    total = study_samples(scenario, controllers)
+    if total > CMRR_MAX_STUDY_SAMPLES:
+        raise CmrrSettingsError(
+            f"this study would simulate up to {total:,} control samples ({controllers} "
+            f"controller(s) on {scenario.path_length_m * 1e3:.0f} mm at "
+            f"{scenario.command_speed_m_s / MM:g} mm/s), more than the "
+            f"{CMRR_MAX_STUDY_SAMPLES:,} allowed: raise the command speed or the minimum speed "
+            "ratio, or run fewer controllers"
+        )
+    return total
 
 
 def cmrr_settings_for(scenario: Scenario, controller: ControllerSettings) -> CmrrSettings:
@@ -88,7 +132,7 @@ def controller_settings_from_dict(kind: str, data: dict[str, Any]) -> Controller
     kwargs = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
     try:
         return cls(**kwargs)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         if isinstance(exc, CmrrSettingsError):
             raise
         raise CmrrSettingsError(f"{kind}: {exc}") from None
@@ -130,6 +174,11 @@ def settings_from_dict(data: Any) -> CmrrSettings:
         controller = controller_settings_from_dict(str(data["controller"]), inner)
     except UnknownControllerError as exc:
         raise CmrrSettingsError(str(exc)) from None
+    check_cmrr_numbers(
+        reference_force_N=data["reference_force_N"],
+        command_speed_mm_s=data["command_speed_mm_s"],
+        min_speed_ratio=data["min_speed_ratio"],
+    )
     try:
         return CmrrSettings(
             controller=controller,
@@ -138,7 +187,7 @@ def settings_from_dict(data: Any) -> CmrrSettings:
             min_speed_ratio=float(data["min_speed_ratio"]),
             feedback=data.get("feedback", "force"),
         )
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         if isinstance(exc, CmrrSettingsError):
             raise
         raise CmrrSettingsError(f"CMRR settings: {exc}") from None

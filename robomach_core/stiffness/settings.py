@@ -13,6 +13,16 @@ from pathlib import Path
 from typing import Any, Literal, get_args
 
 from ..joint_compliance import JointCompliance
+from ..limits import (
+    FORCE_FILTER_CUTOFF_HZ,
+    JOINT_STIFFNESS_NM_RAD,
+    JOINT_STIFFNESS_STD_NM_RAD,
+    SENSOR_FORCE_BIAS_N,
+    SENSOR_TORQUE_BIAS_NM,
+    TOOL_COM_MM,
+    TOOL_MASS_KG,
+    Range,
+)
 from .errors import SettingsFileError
 from .gravity import ToolGravity
 
@@ -49,8 +59,9 @@ class CompensationSettings:
                 f"compensation mode {self.mode!r} is not one of {', '.join(COMPENSATION_SETTINGS)}"
             )
         JointCompliance(tuple(self.joint_stiffness_Nm_rad))  # validates the six values
-        if not (math.isfinite(self.force_filter_cutoff_hz) and self.force_filter_cutoff_hz > 0):
-            raise SettingsFileError("force_filter_cutoff_hz must be a positive number")
+        FORCE_FILTER_CUTOFF_HZ.check(
+            self.force_filter_cutoff_hz, "force_filter_cutoff_hz", error=SettingsFileError
+        )
         if self.mode == "online" and self.tool_gravity is None:
             raise SettingsFileError("online compensation needs the identified tool gravity")
 
@@ -82,16 +93,19 @@ def settings_to_dict(settings: CompensationSettings) -> dict[str, Any]:
     return out
 
 
-def _floats(data: dict, key: str, count: int) -> tuple[float, ...]:
+def _floats(data: dict, key: str, count: int, rng: Range) -> tuple[float, ...]:
+    """``count`` numbers under ``key``, each within ``rng`` (the message names the range)."""
     value = data.get(key)
     if not isinstance(value, list) or len(value) != count:
         raise SettingsFileError(f"{key!r} must be a list of {count} numbers")
     try:
         numbers = tuple(float(v) for v in value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise SettingsFileError(f"{key!r} must be a list of {count} numbers") from None
     if not all(math.isfinite(v) for v in numbers):
         raise SettingsFileError(f"{key!r} must hold finite numbers")
+    for v in numbers:
+        rng.check(v, key, error=SettingsFileError)
     return numbers
 
 
@@ -112,21 +126,23 @@ def settings_from_dict(data: dict[str, Any]) -> CompensationSettings:
         t = data["tool"]
         if not isinstance(t, dict):
             raise SettingsFileError("'tool' must be an object")
-        mass = _floats({"mass_kg": [t.get("mass_kg")]}, "mass_kg", 1)[0]
+        mass = _floats({"mass_kg": [t.get("mass_kg")]}, "mass_kg", 1, TOOL_MASS_KG)[0]
         tool = ToolGravity(
             mass_kg=mass,
-            com_m=tuple(v * 1e-3 for v in _floats(t, "com_mm", 3)),
-            force_bias_N=_floats(t, "force_bias_N", 3),
-            torque_bias_Nm=_floats(t, "torque_bias_Nm", 3),
+            com_m=tuple(v * 1e-3 for v in _floats(t, "com_mm", 3, TOOL_COM_MM)),
+            force_bias_N=_floats(t, "force_bias_N", 3, SENSOR_FORCE_BIAS_N),
+            torque_bias_Nm=_floats(t, "torque_bias_Nm", 3, SENSOR_TORQUE_BIAS_NM),
         )
     std = None
     if "joint_stiffness_std_Nm_rad" in data:
-        std = _floats(data, "joint_stiffness_std_Nm_rad", 6)
+        std = _floats(data, "joint_stiffness_std_Nm_rad", 6, JOINT_STIFFNESS_STD_NM_RAD)
     try:
         cutoff = float(data.get("force_filter_cutoff_hz", 30.0))
         return CompensationSettings(
             robot=data["robot"],
-            joint_stiffness_Nm_rad=_floats(data, "joint_stiffness_Nm_rad", 6),
+            joint_stiffness_Nm_rad=_floats(
+                data, "joint_stiffness_Nm_rad", 6, JOINT_STIFFNESS_NM_RAD
+            ),
             mode=data.get("mode", "online"),
             joint_stiffness_std_Nm_rad=std,
             tool_gravity=tool,
@@ -134,7 +150,7 @@ def settings_from_dict(data: dict[str, Any]) -> CompensationSettings:
         )
     except SettingsFileError:
         raise
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise SettingsFileError(f"invalid compensation settings: {exc}") from None
 
 

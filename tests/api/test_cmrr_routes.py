@@ -10,7 +10,9 @@ from typing import get_args
 import pytest
 
 from app.api.routes import cmrr
+from app.session import Session
 from app.store import Store
+from app.studies import CMRR_EXPORT, MAX_ACTIVE_STUDIES, _clean_failures, studies_for
 from robomach_core.cmrr import CONTROLLER_NAMES, SCENARIO_NAMES
 from tests.api.server_process import Api, ServerProcess
 
@@ -127,7 +129,7 @@ def test_saved_to_project(api: Api, server: ServerProcess) -> None:
     run_study(api, {"scenario": "deburr-burrs", "controller": "two-stage", "seed": 7})
     store = Store.in_data_dir(server.data_dir)  # a second connection, as after a restart
     try:
-        files = store.get_export(project["id"], "cmrr-study")
+        files = store.get_export(project["id"], CMRR_EXPORT)
     finally:
         store.close()
     assert files is not None
@@ -135,7 +137,7 @@ def test_saved_to_project(api: Api, server: ServerProcess) -> None:
     assert json.loads(files["cmrr_summary.json"])["scenario"] == "deburr-burrs"
     assert json.loads(files["study.json"])["seed"] == 7
     names = [e["name"] for e in api.ok("GET", "/api/exports")]
-    assert "cmrr-study" in names
+    assert CMRR_EXPORT in names
 
     api.new_project()  # another project: its own (no) study
     assert api.get("/api/cmrr/studies/last").status_code == 409
@@ -145,3 +147,97 @@ def test_saved_to_project(api: Api, server: ServerProcess) -> None:
     assert study["folder"] == f"studies/{project['id']}/cmrr"
     assert (server.data_dir / study["folder"] / "cmrr.csv").is_file()
     assert api.get(study["plot_url"]).content.startswith(PNG_SIGNATURE)
+
+
+# --- issue 10: extreme numbers, memory, queue, export names ----------------------------------
+
+
+@pytest.mark.parametrize("value", [1e308, 1e-300, 1e-6, 1.4e-45, 0.5, 5000.0])
+@pytest.mark.parametrize(
+    ("field", "range_text"),
+    [("reference_force_N", "1-1000 N"), ("command_speed_mm_s", "1-500 mm/s")],
+)
+def test_extreme_numbers_refused_with_their_range(
+    api: Api, field: str, range_text: str, value: float
+) -> None:
+    r = api.post("/api/cmrr/studies", json={"scenario": "lund-df", field: value})
+    assert r.status_code == 422, r.text
+    assert field in r.json()["detail"] and range_text in r.json()["detail"], r.text
+
+
+def test_a_study_too_long_to_simulate_is_refused_up_front(api: Api) -> None:
+    # 1 mm/s is a valid feed, but all six controllers at 5 % of it on the 330 mm Lund cut
+    # would allocate ~15 M samples (the issue's 0.01 mm/s took 6.9 GB).
+    body = {"scenario": "lund-df", "controller": "all", "command_speed_mm_s": 1.0}
+    r = api.post("/api/cmrr/studies", json=body)
+    assert r.status_code == 422, r.text
+    assert "control samples" in r.json()["detail"] and "3,000,000" in r.json()["detail"]
+    one = api.ok("POST", "/api/cmrr/studies", 202, json={**body, "controller": "fixed-pi"})
+    api.ok("POST", f"/api/jobs/{one['job_id']}/cancel")
+
+
+def test_the_study_queue_has_a_limit(api: Api) -> None:
+    body = {"scenario": "lund-df", "controller": "all"}
+    for _ in range(MAX_ACTIVE_STUDIES):
+        api.ok("POST", "/api/cmrr/studies", 202, json=body)
+    r = api.post("/api/cmrr/studies", json=body)
+    assert r.status_code == 429, r.text
+    assert "already queued or running" in r.json()["detail"]
+    r = api.post("/api/compensation/studies", json={"quick": True})
+    assert r.status_code == 429, r.text
+    api.cancel_all()
+    api.ok("POST", "/api/compensation/studies", 202, json={"quick": True})
+
+
+def test_an_export_cannot_replace_the_study(api: Api) -> None:
+    """Issue 10, 8: an export named cmrr-study overwrote the saved study."""
+    project = api.ok("GET", "/api/projects/current")
+    api.learn()
+    api.ok("POST", "/api/postprocess", json={"tolerance_mm": 0.2})
+    run_study(api, {"scenario": "milling-steps", "controller": "constant", "seed": 5})
+    for name in ("cmrr-study", "compensation-study"):
+        api.ok("POST", "/api/exports", 201, json={"name": name})
+    r = api.post("/api/exports", json={"name": CMRR_EXPORT})
+    assert r.status_code == 422, r.text
+    api.new_project()
+    api.ok("POST", f"/api/projects/{project['id']}/open")  # loaded from the store, as on restart
+    study = api.ok("GET", "/api/cmrr/studies/last")
+    assert study["controller"] == "constant" and study["seed"] == 5
+
+
+def test_a_study_saved_under_the_old_name_is_read_and_moved(tmp_path) -> None:
+    session = Session(Store.in_data_dir(tmp_path), data_dir=tmp_path)
+    try:
+        pid = session.current_project().id
+        meta = {"kind": "cmrr", "scenario": "lund-df", "controller": "adaptive-lq", "seed": 4,
+                "finished_s": 1.0}  # fmt: skip
+        session.store.save_export(pid, "cmrr-study", {
+            "study.json": json.dumps(meta),
+            "cmrr_summary.json": json.dumps({"scenario": "lund-df"}),
+            "cmrr_settings.json": json.dumps({"controller": "adaptive-lq"}),
+        })  # fmt: skip
+        outcome = studies_for(session).cmrr_result()
+        assert outcome is not None and outcome.seed == 4
+        assert session.store.get_export(pid, CMRR_EXPORT)["study.json"] == json.dumps(meta)
+        # An export of the program that took the old name is not a study.
+        session.store.save_export(pid, "compensation-study", {"program.mod": "MODULE x"})
+        assert studies_for(session).compensation_result() is None
+    finally:
+        session.close()
+
+
+def test_an_unforeseen_failure_ends_the_job_with_one_line(tmp_path) -> None:
+    """Inputs passed validation, yet the simulation raised: a failed job with the cause, not
+    an "internal error" with a traceback in the log."""
+    session = Session(Store.in_data_dir(tmp_path), data_dir=tmp_path)
+    try:
+        work = _clean_failures("CMRR", lambda ctx: 1 / 0)
+        job_id = session.jobs.submit("cmrr_study", work)
+        deadline = time.monotonic() + 10.0
+        while (job := session.jobs.get(job_id)).status in ("queued", "running"):
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        assert job.status == "failed"
+        assert job.error == "the CMRR study failed: ZeroDivisionError: division by zero"
+    finally:
+        session.close()

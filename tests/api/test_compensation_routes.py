@@ -10,7 +10,7 @@ import pytest
 
 from app.session import Session
 from app.store import Store
-from app.studies import studies_for
+from app.studies import COMPENSATION_EXPORT, studies_for
 from tests.api.server_process import Api, ServerProcess
 from tests.api.test_cmrr_routes import PNG_SIGNATURE
 
@@ -115,7 +115,7 @@ def test_cancel(api: Api, server: ServerProcess) -> None:
 def test_saved_and_loaded_after_restart(api: Api, server: ServerProcess, identified: int) -> None:
     store = Store.in_data_dir(server.data_dir)
     try:
-        files = store.get_export(identified, "compensation-study")
+        files = store.get_export(identified, COMPENSATION_EXPORT)
     finally:
         store.close()
     assert files is not None

@@ -3,20 +3,22 @@
 from __future__ import annotations
 
 import os
+import socket
 import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
+from urllib.parse import urlsplit
 
 import pytest
 from fastapi.testclient import TestClient
 
 from app.api import create_app
-from app.server import data_dir_lock
+from app.server import build_app, data_dir_lock
 from app.session import Session
 from app.settings import ServerSettings
 from robomach_core.errors import InvalidInputError
-from tests.api.server_process import ROOT, free_port
+from tests.api.server_process import ROOT, free_port, start_server
 
 TOKEN = "test-token-0123456789abcdef"
 
@@ -89,3 +91,76 @@ def test_one_server_per_data_folder(tmp_path: Path) -> None:
                 pass
     with data_dir_lock(tmp_path / "data"):  # released on exit
         pass
+
+
+# --- issue 10: the viser port must not get round the token, and must be the one reported ----
+
+
+def _outward_address() -> str | None:
+    """This machine's address on its main interface (no packet is sent), None without one."""
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            probe.connect(("10.255.255.255", 1))
+            address = probe.getsockname()[0]
+    except OSError:
+        return None
+    return None if address.startswith("127.") or address == "0.0.0.0" else address
+
+
+def _reachable(host: str, port: int) -> bool:
+    try:
+        with socket.create_connection((host, port), timeout=2.0):
+            return True
+    except OSError:
+        return False
+
+
+def test_with_the_token_beyond_loopback_viser_stays_on_loopback(tmp_path: Path) -> None:
+    outward = _outward_address()
+    if outward is None:
+        pytest.skip("this machine has no non-loopback interface to test from")
+    server = start_server(
+        tmp_path / "data", env={"ROBOMACH_TOKEN": TOKEN}, args=("--host", "0.0.0.0")
+    )
+    try:
+        rest_port = urlsplit(server.base_url).port
+        viser_port = urlsplit(server.viser_url).port
+        assert _reachable(outward, rest_port)  # the API is served beyond loopback, with a token
+        assert not _reachable(outward, viser_port)  # the scene is not: it has no token check
+        assert _reachable("127.0.0.1", viser_port)
+        assert "127.0.0.1 only" in server.log()
+    finally:
+        assert server.stop() in (0, 130)
+
+
+def test_serve_stops_with_one_line_when_the_viser_port_is_taken(tmp_path: Path) -> None:
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        env = {k: v for k, v in os.environ.items() if k != "ROBOMACH_TOKEN"}
+        r = subprocess.run(
+            [sys.executable, "-m", "app.cli", "serve", "--port", str(free_port()),
+             "--viser-port", str(port), "--data", str(tmp_path / "data")],
+            cwd=ROOT, env=env, capture_output=True, text=True, timeout=60,
+        )  # fmt: skip
+    assert r.returncode == 2, r.stderr
+    lines = [line for line in r.stderr.splitlines() if "error" in line]
+    assert len(lines) == 1 and f"viser port {port}" in lines[0], r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_the_workbench_reports_the_port_viser_bound(tmp_path: Path) -> None:
+    """viser moves to the next port when its own is taken after serve's check: the app
+    reports the port viser bound, not the one asked for."""
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        asked = taken.getsockname()[1]
+        settings = ServerSettings(viser_port=asked, data_dir=tmp_path / "data")
+        session = Session()
+        app = build_app(settings, session)
+        with TestClient(app) as client:
+            reported = client.get("/api/workbench").json()["viser_port"]
+            assert reported != asked and _reachable("127.0.0.1", reported)
+            assert app.state.viser_port == reported

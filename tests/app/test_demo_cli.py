@@ -33,7 +33,7 @@ def _assert_one_line_error(proc: subprocess.CompletedProcess, *words: str) -> No
 @pytest.mark.parametrize(
     ("args", "words"),
     [
-        (["--tolerance", "0"], ["tolerance", "> 0"]),
+        (["--tolerance", "0"], ["tolerance", "0.01-5 mm"]),
         (["--tolerance", "-0.1"], ["tolerance"]),
         (["--force", "60"], ["--force", "1-50 N"]),
         (["--force", "0.5"], ["--force"]),

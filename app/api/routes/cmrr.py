@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Response, status
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
 from app.api.routes import ERRORS, JSON_FILE, PNG, StudiesDep, relative_folder
 from app.api.schemas import JobCreated
@@ -20,13 +20,29 @@ from app.studies import (
 )
 from robomach_core.cmrr import SCENARIO_NAMES
 from robomach_core.cmrr.scenarios import ScenarioName
+from robomach_core.limits import CMRR_COMMAND_SPEED_MM_S, CMRR_REFERENCE_FORCE_N, Range
 
 router = APIRouter(prefix="/api/cmrr", tags=["cmrr"], responses=ERRORS)
 
 ControllerChoice = Literal[
     "constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage", "adaptive-lq", "all", "default"
 ]
-PositiveFinite = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
+RANGES = {
+    "reference_force_N": CMRR_REFERENCE_FORCE_N,
+    "command_speed_mm_s": CMRR_COMMAND_SPEED_MM_S,
+}
+
+
+def within(rng: Range, description: str) -> Any:
+    """A pydantic field bounded by ``rng`` (None: the scenario's value), its range in the
+    description and the schema."""
+    return Field(
+        None,
+        ge=rng.min,
+        le=rng.max,
+        allow_inf_nan=False,
+        description=f"{description}, {rng.text()}",
+    )
 
 
 # --- schemas ---------------------------------------------------------------------------------
@@ -43,12 +59,23 @@ class CmrrStudyCreate(BaseModel):
         description="feed controller, all to compare them, or default for the scenario's own",
     )
     seed: int = Field(0, ge=0, le=SEED_MAX, description="seed of the sensor noise")
-    reference_force_N: PositiveFinite | None = Field(
-        None, description="force reference [N]; the scenario's when left out"
+    reference_force_N: float | None = within(
+        CMRR_REFERENCE_FORCE_N, "force reference [N]; the scenario's when left out"
     )
-    command_speed_mm_s: PositiveFinite | None = Field(
-        None, description="programmed (greatest) feed [mm/s]; the scenario's when left out"
+    command_speed_mm_s: float | None = within(
+        CMRR_COMMAND_SPEED_MM_S,
+        "programmed (greatest) feed [mm/s]; the scenario's when left out. A study simulates "
+        "at most 3,000,000 control samples (all controllers together), else 422",
     )
+
+    @field_validator("reference_force_N", "command_speed_mm_s", mode="before")
+    @classmethod
+    def _in_range(cls, value: Any, info: ValidationInfo) -> Any:
+        """The message names the whole range (``ge``/``le`` alone name one end)."""
+        rng = RANGES[info.field_name]
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            rng.check(value, info.field_name)
+        return value
 
 
 class CmrrStudyPublic(BaseModel):
@@ -112,11 +139,16 @@ def _options() -> CmrrOptionsPublic:
     )
 
 
-@router.post("/studies", status_code=status.HTTP_202_ACCEPTED)
+@router.post(
+    "/studies",
+    status_code=status.HTTP_202_ACCEPTED,
+    responses={429: {"description": "too many studies queued or running"}},
+)
 def start_study(body: CmrrStudyCreate, studies: StudiesDep) -> JobCreated:
     """Job: simulate the cut under the controller (or all of them). Follow it at
-    /api/jobs/{job_id}; when done it is the last study and is saved to the project (export
-    cmrr-study)."""
+    /api/jobs/{job_id}; when done it is the last study and is saved to the project. 422 when
+    the study would simulate too many samples, 429 when two studies are already queued or
+    running."""
     job_id = studies.start_cmrr(
         body.scenario,
         body.controller,

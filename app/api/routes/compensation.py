@@ -74,10 +74,14 @@ class CompensationStudyPublic(BaseModel):
 # --- routes ----------------------------------------------------------------------------------
 
 
-@router.post("/studies", status_code=status.HTTP_202_ACCEPTED)
+@router.post(
+    "/studies",
+    status_code=status.HTTP_202_ACCEPTED,
+    responses={429: {"description": "too many studies queued or running"}},
+)
 def start_study(body: CompensationStudyCreate, studies: StudiesDep) -> JobCreated:
     """Job: run the study. Follow it at /api/jobs/{job_id}; when done it is the last study and
-    is saved to the project (export compensation-study)."""
+    is saved to the project. 429 when two studies are already queued or running."""
     job_id = studies.start_compensation(
         body.study, quick=body.quick, seed=body.seed, mode=body.mode
     )

@@ -2,7 +2,8 @@
 read its figures, see its plot and download the controller settings.
 
 The study runs as a job of the session (``app.studies.StudyService``); when it is done it is
-saved to the open project (export ``cmrr-study``) by the service, so there is no save button.
+saved to the open project (as the reserved export ``_study-cmrr``) by the service, so there
+is no save button.
 ``StudyJobFollower`` is shared with the compensation panel: session and service events only
 set a flag, and its thread refreshes the panel at most ``REFRESH_HZ`` times a second.
 """
@@ -20,6 +21,7 @@ import viser
 
 from app.studies import CMRR_CONTROLLER_CHOICES, CMRR_JOB_KIND, CmrrOutcome, StudyService
 from robomach_core.cmrr import SCENARIO_NAMES
+from robomach_core.limits import SEED
 
 from .feedback import guarded
 
@@ -171,7 +173,7 @@ class CmrrPanel:
                 hint="Feed controller; default: the paper's for the scenario; all: compare",
             )
             self.seed = server.gui.add_number(
-                "Seed", last.seed if last else 0, min=0, max=2**31 - 1, step=1
+                "Seed", last.seed if last else 0, min=0, max=int(SEED.max), step=1
             )
             self.run = server.gui.add_button(
                 "Run CMRR study", icon=viser.Icon.PLAYER_PLAY, color="green"
@@ -248,7 +250,7 @@ def cmrr_figures(outcome: CmrrOutcome) -> str:
     rows = summary.get("results", [summary])
     lines = [
         f"**{summary.get('scenario', outcome.scenario)}**, seed {outcome.seed}; saved to the "
-        "project (export `cmrr-study`)",
+        "project",
         "",
         "| controller | stable | peak F (N) | rms err (N) | cycle (s) | gain |",
         "| --- | --- | --- | --- | --- | --- |",

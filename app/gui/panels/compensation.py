@@ -3,7 +3,7 @@ with progress and cancel, read its figures next to the papers', page through its
 download the compensation settings.
 
 The study runs as a job of the session (``app.studies.StudyService``), which saves it to the
-open project (export ``compensation-study``) when it is done.
+open project (as the reserved export ``_study-compensation``) when it is done.
 """
 
 from __future__ import annotations
@@ -149,7 +149,7 @@ def compensation_figures(outcome: CompensationOutcome) -> str:
     s = outcome.summary
     lines = [
         f"**{outcome.study}**{' (quick)' if outcome.quick else ''}, seed {outcome.seed}; saved "
-        "to the project (export `compensation-study`)",
+        "to the project",
         "",
     ]
     if "stiffness_rel_error_max" in s:

@@ -1,0 +1,110 @@
+"""The physical range of every number a user gives: one place for the API, CLI and GUIs.
+
+Each range is a ``Range(label, min, max, unit)`` value, closed at both ends. The API schemas use
+``min`` and ``max`` as ``ge``/``le``, the CLI and settings files call ``check``, the GUI sliders
+take them as their bounds; every message names the range (``"seed must be within
+0-4294967295, got -1"``). The ranges are what the simulated cell and the papers make sense of,
+not what the arithmetic survives: a command speed of 1e-6 mm/s is finite but would simulate for
+years.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+
+from .errors import InvalidInputError
+
+
+@dataclass(frozen=True)
+class Range:
+    """A closed range [min, max] of a number given in ``unit``.
+
+    Attributes:
+        label: What the number is, for messages ("contact force").
+        min: Smallest allowed value, in ``unit``.
+        max: Largest allowed value, in ``unit``.
+        unit: Unit of the boundary (mm, N, mm/s, s, um), "" for counts and ratios.
+        integer: Only whole numbers (seeds, counts).
+    """
+
+    label: str
+    min: float
+    max: float
+    unit: str = ""
+    integer: bool = False
+
+    def __contains__(self, value: object) -> bool:
+        if isinstance(value, bool) or not isinstance(value, numbers.Real):
+            return False
+        if not isinstance(value, numbers.Integral):  # floats, numpy floats
+            value = float(value)
+            if not math.isfinite(value) or (self.integer and not value.is_integer()):
+                return False
+        return self.min <= value <= self.max  # int against float compares exactly
+
+    def text(self) -> str:
+        """The range as people write it: ``"1-50 N"``, ``"0-4294967295"``, ``"-360 to 360
+        deg"``."""
+        unit = f" {self.unit}" if self.unit else ""
+        if self.integer:
+            low, high = str(int(self.min)), str(int(self.max))
+        else:
+            low, high = f"{self.min:g}", f"{self.max:g}"
+        return f"{low} to {high}{unit}" if self.min < 0 else f"{low}-{high}{unit}"
+
+    def check(
+        self,
+        value: object,
+        name: str | None = None,
+        *,
+        error: type[InvalidInputError] = InvalidInputError,
+    ) -> float | int:
+        """``value`` when it is inside the range (an int for integer ranges), else ``error``
+        naming ``name`` (default the label) and the range."""
+        if value not in self:
+            kind = "an integer" if self.integer else "a number"
+            shown = f"{value:g}" if isinstance(value, float) else repr(value)
+            raise error(f"{name or self.label} must be {kind} within {self.text()}, got {shown}")
+        return int(value) if self.integer else float(value)
+
+
+# --- every run ----------------------------------------------------------------------------
+SEED = Range("seed", 0, 2**32 - 1, integer=True)
+PORT = Range("port", 1, 65535, integer=True)
+
+# --- lead-through and path learning (chapter sec. 3: 10-20 N contact, a few mm/s) ---------
+LEARNING_FORCE_N = Range("contact force", 1.0, 50.0, "N")
+LEARNING_SPEED_MM_S = Range("learning speed", 0.5, 50.0, "mm/s")
+PUSH_FORCE_N = Range("push force", 0.0, 200.0, "N")
+PUSH_DURATION_S = Range("push duration", 0.0, 10.0, "s")
+
+# --- post-processing (chapter fig. 3: 0.2 mm gave ~300 targets) -----------------------------
+TOLERANCE_MM = Range("deviation-height tolerance", 0.01, 5.0, "mm")
+
+# --- CMRR (papers: Fr 20-250 N, spindle limit 300 N, Vr 6-100 mm/s, delta 0.05-0.1) --------
+CMRR_REFERENCE_FORCE_N = Range("reference force", 1.0, 1000.0, "N")
+CMRR_COMMAND_SPEED_MM_S = Range("command speed", 1.0, 500.0, "mm/s")
+CMRR_MIN_SPEED_RATIO = Range("minimum speed ratio", 0.01, 0.99)
+# Simulated control samples of one study, all controllers together. The simulation allocates
+# ~105 bytes per sample up front (8 records, noise, estimates), so the cap keeps a study near
+# 300 MB; the papers' cuts need 23k-63k per controller, and one controller at the slowest
+# allowed command speed on any built-in cut (1 mm/s, 2.5 M) still fits.
+CMRR_MAX_STUDY_SAMPLES = 3_000_000
+
+# --- compensation (chapter sec. 5: CMM noise 10-50 um, ~30 poses) -------------------------
+CMM_NOISE_UM = Range("CMM noise", 0.0, 200.0, "um")
+IDENTIFICATION_POSES = Range("identification poses", 3, 500, integer=True)
+ILC_ITERATIONS = Range("ILC iterations", 0, 50, integer=True)
+FORCE_FILTER_CUTOFF_HZ = Range("force filter cut-off", 0.1, 125.0, "Hz")
+# Settings files of the compensation (UR and IRB joints: 1e4-1e6 N*m/rad).
+JOINT_STIFFNESS_NM_RAD = Range("joint stiffness", 1.0e2, 1.0e9, "N*m/rad")
+TOOL_MASS_KG = Range("tool mass", 0.0, 50.0, "kg")
+TOOL_COM_MM = Range("tool centre of mass coordinate", -1000.0, 1000.0, "mm")
+SENSOR_FORCE_BIAS_N = Range("force sensor bias", -1000.0, 1000.0, "N")
+SENSOR_TORQUE_BIAS_NM = Range("torque sensor bias", -100.0, 100.0, "N*m")
+JOINT_STIFFNESS_STD_NM_RAD = Range("joint stiffness uncertainty", 0.0, 1.0e9, "N*m/rad")
+# Work-object frame of the demo (robot base frame): the largest arms reach ~3 m.
+WOBJ_POSITION_MM = Range("work-object position", -3000.0, 3000.0, "mm")
+WOBJ_ROTATION_DEG = Range("work-object rotation", -360.0, 360.0, "deg")
