@@ -425,14 +425,13 @@ def program_files(
     from .export.tables import samples_csv, targets_csv
 
     processed = require_processed(project)
-    targets, _ = program_targets(project, robot)
     doc = settings_document(project, workpiece, project_name=project_name, compliance=compliance)
     return {
         "program.mod": rapid_text(project, workpiece, robot, module_name=module_name),
         "program_fc.mod": rapid_text(
             project, workpiece, robot, module_name=fc_module_name(module_name), force_control=True
         ),
-        "targets.csv": targets_csv(targets),
+        "targets.csv": targets_csv(processed.result.targets),
         "samples.csv": samples_csv(project.learned.recording, processed.result.keep_mask),
         "settings.json": json.dumps(doc, indent=2) + "\n",
     }

@@ -16,8 +16,8 @@ from robomach_core.errors import (
 from robomach_core.leadthrough import (
     GuidePoint,
 )
-from robomach_core.postprocess import PostprocessResult, PostprocessSettings
-from robomach_core.scoring import PathScore
+from robomach_core.project import CellSettings as CellSettings
+from robomach_core.project import ProcessedPath
 from robomach_core.transforms import quaternion_from_matrix
 
 log = logging.getLogger(__name__)
@@ -79,25 +79,6 @@ class BusyError(ConflictError):
 
 
 @dataclass(frozen=True)
-class CellSettings:
-    """The user's cell settings.
-
-    Attributes:
-        robot: ``"ur10"``, ``"ur5"`` or ``"ur3"``.
-        tool_radius_m: Ball cutter radius.
-        workpiece: Built-in name, or the stem of the uploaded mesh file.
-        workpiece_builtin: False for an uploaded mesh.
-        seed: Seed of the sensor noise and the example operator.
-    """
-
-    robot: str = "ur10"
-    tool_radius_m: float = 0.001
-    workpiece: str = "water_pump"
-    workpiece_builtin: bool = True
-    seed: int = 0
-
-
-@dataclass(frozen=True)
 class RobotSnapshot:
     """The robot as the controller sees it.
 
@@ -155,14 +136,8 @@ class ForceTrace:
     samples_total: int
 
 
-@dataclass(frozen=True)
-class PostprocessOutcome:
-    """The last post-processing: its settings, result, and score against the true wall."""
-
-    settings: PostprocessSettings
-    result: PostprocessResult
-    samples_raw: int
-    score: PathScore | None
+# The last post-processing: its settings, result, and score (the core stage's value).
+PostprocessOutcome = ProcessedPath
 
 
 @dataclass(frozen=True)
