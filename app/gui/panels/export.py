@@ -5,8 +5,10 @@ from __future__ import annotations
 import viser
 
 from robomach_core.errors import RobomachError
+from robomach_core.project import StaleResultError
 
 from .feedback import guarded
+from .postprocess import OUT_OF_DATE
 
 PREVIEW_LINES = 60
 FILES = ("program.mod", "program_fc.mod", "samples.csv", "targets.csv", "settings.json")
@@ -49,6 +51,9 @@ class ExportPanel:
         """Show the first lines of the RAPID module (or why there is none yet)."""
         try:
             text = self.session.rapid_module()
+        except StaleResultError as exc:
+            self.preview.content = f"**{OUT_OF_DATE}**: {exc}"
+            return
         except RobomachError as exc:
             self.preview.content = f"*{exc}*"
             return
