@@ -63,12 +63,9 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import re
 import shutil
-import tempfile
 import threading
-import time
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -77,7 +74,7 @@ from typing import Any
 import numpy as np
 
 from robomach_core import project as core
-from robomach_core.cell import CONTROL_PERIOD_S, Cell, CellConfig, CellState
+from robomach_core.cell import Cell, CellConfig, CellState
 from robomach_core.errors import (
     InvalidInputError,
     NotEnoughGuidePointsError,
@@ -94,7 +91,6 @@ from robomach_core.path_learning import PathLearningSettings, Recording
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import CellSettings, ProcessedPath, Project, StageStatus
 from robomach_core.robot import ROBOT_URDFS
-from robomach_core.sensor import ForceEstimator
 from robomach_core.workpiece import (
     MAX_MESH_BYTES,
     MAX_MESH_TRIANGLES,
@@ -105,18 +101,17 @@ from robomach_core.workpiece import (
 )
 
 from ..store import Store
+from . import exports
+from .exports import check_export_name, rapid_identifier_or
 from .jobs import (
     JobContext,
     JobRunner,
 )
+from .live import LiveFeed
 from .persistence import Part, project_from_data, save_kwargs
 from .persistence import cell_from_doc as persistence_cell
 from .records import (
     DEFAULT_PROJECT_NAME,
-    EXPORT_NAME_RE,
-    LIVE_NOTIFY_S,
-    LIVE_TRACE_EVERY,
-    LIVE_TRACE_MAX,
     MAX_GUIDE_POINTS,
     PROJECT_NAME_MAX,
     BusyError,
@@ -131,30 +126,6 @@ from .records import (
     Topic,
     log,
 )
-
-
-class _TappedCell:
-    """A ``Cell`` whose ``step`` also calls ``tap(state)``; every other attribute is the cell's.
-
-    Jobs drive core functions (``learn_path``, ``scripted_leadthrough``) that own their loop;
-    stepping through this proxy lets the session show the robot moving, plot the live force
-    and stop the loop on cancel (``tap`` raises ``CancelledError``) without changing the core.
-    """
-
-    def __init__(self, cell: Cell, tap: Callable[[CellState], None]) -> None:
-        self._cell = cell
-        self._tap = tap
-
-    def step(
-        self, state: CellState, q_motor_cmd: np.ndarray, dt: float = CONTROL_PERIOD_S
-    ) -> CellState:
-        new = self._cell.step(state, q_motor_cmd, dt)
-        self._tap(new)
-        return new
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._cell, name)
-
 
 # --- the session ---------------------------------------------------------------------------
 
@@ -192,10 +163,7 @@ class Session:
         self.jobs = JobRunner(on_change=lambda info: self._notify("job"))
         self._project = Project()
         self._epoch = 0  # bumped when the cell or project changes; stale job results are dropped
-        self._live_cell: CellState | None = None
-        self._live_trace: list[tuple[float, float]] = []
-        self._live_t0 = 0.0
-        self._last_live_notify = 0.0
+        self._live = LiveFeed(on_move=lambda: self._notify("robot"))
         self._project_id = 0
         self._closed = False
         self._open_initial_project()
@@ -265,7 +233,8 @@ class Session:
         """The robot now (live during a job)."""
         with self._lock:
             busy = self.busy()
-            cs = self._live_cell if (busy and self._live_cell is not None) else self._lt_state.cell
+            live = self._live.cell_state
+            cs = live if (busy and live is not None) else self._lt_state.cell
             wrench = self._lt.measured_wrench(cs)
         return RobotSnapshot(
             float(cs.time_s),
@@ -305,7 +274,7 @@ class Session:
         if max_points < 2:
             raise InvalidInputError("max_points must be at least 2")
         with self._lock:
-            live = list(self._live_trace)
+            live = list(self._live.trace)
             rec = self.recording()
             if self.busy() and live:
                 data = np.array(live)
@@ -507,7 +476,7 @@ class Session:
             start, seed = self._lt_state, self._project.cell.seed
 
             def work(ctx: JobContext) -> tuple[LeadThroughState, list[GuidePoint]]:
-                lt = LeadThrough(self._tapped(cell, estimator, ctx), estimator=estimator)
+                lt = LeadThrough(self._live.tapped(cell, estimator, ctx), estimator=estimator)
                 return scripted_leadthrough(
                     lt,
                     start,
@@ -547,7 +516,7 @@ class Session:
             def work(ctx: JobContext) -> tuple[core.LearnedPath, CellState]:
                 return core.learn(
                     project,
-                    self._tapped(cell, estimator, ctx),
+                    self._live.tapped(cell, estimator, ctx),
                     start,
                     settings,
                     estimator,
@@ -571,30 +540,6 @@ class Session:
         """Cancel a job (a running one stops within a few milliseconds of compute)."""
         return self.jobs.cancel(job_id)
 
-    def _tapped(self, cell: Cell, estimator: ForceEstimator, ctx: JobContext) -> _TappedCell:
-        count = 0
-
-        def tap(state: CellState) -> None:
-            nonlocal count
-            count += 1
-            if count % LIVE_TRACE_EVERY:
-                return
-            ctx.check_cancelled()
-            self._live_cell = state
-            if len(self._live_trace) < LIVE_TRACE_MAX:
-                force = estimator.contact_wrench_tcp_base(
-                    state.ft_reading, cell.flange_rotation(state.T_base_tcp)
-                )[:3]
-                self._live_trace.append(
-                    (state.time_s - self._live_t0, float(np.sqrt(force @ force)))
-                )
-            now = time.monotonic()
-            if now - self._last_live_notify >= LIVE_NOTIFY_S:
-                self._last_live_notify = now
-                self._notify("robot")
-
-        return _TappedCell(cell, tap)
-
     def _submit_robot_job(
         self,
         kind: str,
@@ -602,15 +547,12 @@ class Session:
         done: Callable[[Any], None],
         epoch: int,
     ) -> str:
-        self._live_cell = self._lt_state.cell
-        self._live_t0 = float(self._lt_state.cell.time_s)
-        self._live_trace = []
+        self._live.start(self._lt_state.cell)
 
         def end(info: JobInfo) -> None:
             # Cancelled or failed: the robot stays where the job left it (nothing teleports).
             with self._lock:
-                live = self._live_cell
-                self._live_cell = None
+                live = self._live.stop()
                 if info.status != "done" and live is not None and epoch == self._epoch:
                     self._lt_state = LeadThroughState(live, live.T_base_tcp.copy(), np.zeros(6))
                     self._save_robot()
@@ -707,11 +649,7 @@ class Session:
         targets.csv, settings.json) under ``name`` (letters, digits, ``_ . -``; 1-64
         characters) in the store and in ``<data_dir>/exports/<project id>/<name>/``; the same
         name replaces the files. A stale post-processing is refused."""
-        if not isinstance(name, str) or not EXPORT_NAME_RE.match(name) or ".." in name:
-            raise InvalidInputError(
-                "an export name is 1-64 letters, digits, '_', '.' or '-', starting with a letter "
-                f"or digit and without '..'; got {name!r}"
-            )
+        check_export_name(name)
         with self._lock:
             files = core.program_files(
                 self._project,
@@ -721,45 +659,19 @@ class Session:
                 project_name=self.current_project().name,
                 compliance=self._compliance_doc(),
             )
-            pid = self._project_id
-            created = self.store.save_export(pid, name, files)
-            folder = None
-            if self.data_dir is not None:
-                folder = self._export_folder(pid, name)
-                for filename, text in files.items():
-                    _write_atomic(folder / filename, text)
+            info = exports.save_export(self.store, self.data_dir, self._project_id, name, files)
         self._notify("exports")
-        return ExportInfo(name, created, sorted(files), folder)
+        return info
 
     def exports(self) -> list[ExportInfo]:
         """The current project's saved exports, newest first."""
         with self._lock:
-            pid = self._project_id
-            return [
-                ExportInfo(n, t, files, self._export_folder(pid, n, create=False))
-                for n, t, files in self.store.list_exports(pid)
-            ]
+            return exports.list_exports(self.store, self.data_dir, self._project_id)
 
     def export_file(self, name: str, filename: str) -> str:
         """The text of one file of a saved export."""
         with self._lock:
-            files = self.store.get_export(self._project_id, name)
-        if files is None:
-            raise NotFoundError(f"no export named {name!r} in this project")
-        if filename not in files:
-            raise NotFoundError(f"export {name!r} has no file {filename!r}; it has {sorted(files)}")
-        return files[filename]
-
-    def _export_folder(self, project_id: int, name: str, *, create: bool = True) -> Path | None:
-        if self.data_dir is None:
-            return None
-        root = (self.data_dir / "exports").resolve()
-        folder = (root / str(project_id) / name).resolve()
-        if not folder.is_relative_to(root) or folder == root:  # belt and braces after the regex
-            raise InvalidInputError(f"export name {name!r} would leave the data folder")
-        if create:
-            folder.mkdir(parents=True, exist_ok=True)
-        return folder
+            return exports.export_file(self.store, self._project_id, name, filename)
 
     # --- projects ----------------------------------------------------------------------------
 
@@ -982,27 +894,3 @@ def _project_name(name: str) -> str:
     if any(ord(ch) < 32 for ch in name):
         raise InvalidInputError("a project name must not contain control characters")
     return name
-
-
-def rapid_identifier_or(name: str) -> str:
-    """A RAPID module name from an export name (``LearnedPath`` when it has no letter)."""
-    from robomach_core.export.rapid import rapid_identifier
-
-    try:
-        return rapid_identifier(name, prefix="m")
-    except InvalidInputError:
-        return "LearnedPath"
-
-
-def _write_atomic(path: Path, text: str) -> None:
-    """Write a file so that a crash leaves either the old or the new content."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
