@@ -96,6 +96,18 @@ class ProcessSettingsUpdate(_Request):
     )
 
 
+class ProcessSettingsFromStudies(_Request):
+    controller: str | None = Field(
+        default=None,
+        max_length=40,
+        description="after a CMRR study that compared controllers, the one to use",
+    )
+    cmrr: bool = Field(default=True, description="take the last CMRR study's controller")
+    compensation: bool = Field(
+        default=True, description="take the last identification's compensation settings"
+    )
+
+
 class ProcessSettingsPublic(BaseModel):
     cmrr: dict[str, Any] | None
     compensation: dict[str, Any] | None

@@ -125,3 +125,21 @@ def test_rest_export_and_core_writer_give_the_same_bytes(api: Api, server: Serve
 def test_bad_process_settings_are_422(api: Api, body: dict) -> None:
     r = api.put("/api/projects/current/process-settings", json=body)
     assert r.status_code == 422 and r.json()["detail"], r.text
+
+
+def test_process_settings_from_the_last_studies(api: Api) -> None:
+    path = "/api/projects/current/process-settings/from-studies"
+    r = api.post(path, json={"compensation": False})
+    assert r.status_code == 409 and "no CMRR study" in r.json()["detail"]
+    body = {"scenario": "deburr-burrs", "controller": "two-stage"}
+    job = api.wait_job(api.ok("POST", "/api/cmrr/studies", 202, json=body)["job_id"], 300)
+    assert job["status"] == "done", job
+    r = api.post(path, json={"compensation": False, "controller": "fuzzy"})
+    assert r.status_code == 404 and "two-stage" in r.json()["detail"]
+    chosen = api.ok("POST", path, json={"compensation": False})
+    assert chosen["cmrr"]["controller"] == "two-stage" and chosen["compensation"] is None
+    _processed(api)
+    text = api.get("/api/export/rapid").text
+    assert "FCSpdChgAct" in text and "CMRR: two-stage" in text
+    api.ok("PUT", "/api/projects/current/process-settings", json={})
+    assert "FCSpdChgAct" not in api.get("/api/export/rapid").text

@@ -106,6 +106,28 @@ def test_changing_guide_points_marks_results_out_of_date_in_the_gui(session: Ses
         server.stop()
 
 
+def test_the_export_panel_shows_what_the_program_carries(session: Session) -> None:
+    import viser
+
+    from app.gui.panels.export import ExportPanel
+    from robomach_core.cmrr import build_scenario, cmrr_settings_for, settings_for
+
+    server = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
+    try:
+        export = ExportPanel(server, session)
+        assert "CMRR **none**" in export.process.content
+        cmrr = cmrr_settings_for(build_scenario("deburr-burrs"), settings_for("two-stage"))
+        session.set_process_settings(cmrr=cmrr)
+        export.refresh()
+        assert "CMRR **two-stage**" in export.process.content
+        assert "CMRR: two-stage" in export.preview.content
+        assert "FCSpdChgAct" in export.file_text("program.mod")
+        assert "FCSpdChgAct" not in export.file_text("program_fc.mod")
+    finally:
+        session.set_process_settings()
+        server.stop()
+
+
 @pytest.fixture
 def gated_process(monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[threading.Event, ...]]:
     """``project.process`` (the real one) held until the test opens the gate."""

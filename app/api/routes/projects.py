@@ -6,8 +6,9 @@ from typing import Annotated
 
 from fastapi import APIRouter, Path, Response, status
 
-from app.api.routes import ERRORS, SessionDep
+from app.api.routes import ERRORS, SessionDep, StudiesDep
 from app.api.schemas import (
+    ProcessSettingsFromStudies,
     ProcessSettingsPublic,
     ProcessSettingsUpdate,
     ProjectCreate,
@@ -60,6 +61,27 @@ def put_process_settings(body: ProcessSettingsUpdate, session: SessionDep) -> Pr
     cmrr = None if body.cmrr is None else cmrr_from_dict(body.cmrr)
     compensation = None if body.compensation is None else compensation_from_dict(body.compensation)
     project = session.set_process_settings(cmrr=cmrr, compensation=compensation)
+    return ProcessSettingsPublic(
+        cmrr=core.cmrr_document(project), compensation=core.compensation_document(project)
+    )
+
+
+@router.post("/current/process-settings/from-studies")
+def process_settings_from_studies(
+    body: ProcessSettingsFromStudies, session: SessionDep, studies: StudiesDep
+) -> ProcessSettingsPublic:
+    """Adopt the open project's last CMRR study (its controller, or ``controller`` after a
+    comparison) and compensation identification as the settings RAPID exports carry."""
+    from app.session.process_settings import settings_from_studies
+
+    project = session.project()
+    cmrr, compensation = settings_from_studies(
+        studies, controller=body.controller, cmrr=body.cmrr, compensation=body.compensation
+    )
+    project = session.set_process_settings(
+        cmrr=cmrr if body.cmrr else project.cmrr,
+        compensation=compensation if body.compensation else project.compensation,
+    )
     return ProcessSettingsPublic(
         cmrr=core.cmrr_document(project), compensation=core.compensation_document(project)
     )
