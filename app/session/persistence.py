@@ -14,6 +14,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from robomach_core import project as core
 from robomach_core.errors import RobomachError
 from robomach_core.leadthrough import GuidePoint
 from robomach_core.path_learning import PathLearningSettings, Recording
@@ -24,7 +25,6 @@ from robomach_core.project import (
     Project,
     cmrr_document,
     compensation_document,
-    process,
     recording_inputs_key,
 )
 from robomach_core.workpiece import Workpiece
@@ -104,7 +104,7 @@ def project_from_data(data: ProjectData, workpiece: Workpiece) -> Project:
     if post.get("applied") and project.learned is not None:
         try:
             applied = PostprocessSettings(**(post.get("applied_settings") or post["settings"]))
-            processed = process(project.learned, applied, workpiece, cell.tool_radius_m)
+            processed = core.process(project.learned, applied, workpiece, cell.tool_radius_m)
         except (RobomachError, TypeError, ValueError, KeyError) as exc:
             log.warning("project %s: stored post-processing no longer applies: %s", pid, exc)
         else:

@@ -67,7 +67,7 @@ import re
 import shutil
 import threading
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -706,7 +706,13 @@ class Session:
             self._require_idle()
             if self.store.get_project(project_id) is None:
                 raise NotFoundError(f"no project with id {project_id}")
-            self._load(project_id)
+            epoch = self._epoch
+        loaded = self._read(project_id)  # outside the lock: reads never wait for it
+        with self._lock:
+            self._require_idle()
+            if epoch != self._epoch:
+                raise ConflictError("the cell or project changed while opening; open it again")
+            self._apply(loaded)
             self.store.set_last_project(project_id)
         self._notify_all()
         return self.current_project()
@@ -790,30 +796,7 @@ class Session:
         parsed: Workpiece | None = None,
     ) -> None:
         """Build the cell and put the robot at ``joints`` (home when None or not usable)."""
-        if settings.robot not in ROBOT_URDFS:
-            raise InvalidInputError(
-                f"unknown robot {settings.robot!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
-            )
-        workpiece = parsed if parsed is not None else core.build_workpiece(settings, mesh)
-        cell = Cell(
-            CellConfig(
-                robot=settings.robot,
-                tool=core.Project(cell=settings).tool(),
-                workpiece=workpiece,
-                seed=settings.seed,
-            )
-        )
-        initial = None
-        if joints is not None:
-            try:
-                initial = cell.initial_state(np.asarray(joints, dtype=float))
-            except RobomachError:
-                log.info("stored joints not usable (limits or contact): starting at home")
-        if initial is None:
-            initial = cell.initial_state()
-        lt = LeadThrough(cell)
-        self._cell, self._lt = cell, lt
-        self._lt_state = lt.start(initial)
+        self._cell, self._lt, self._lt_state = _build_cell(settings, mesh, joints, parsed)
         self._epoch += 1
 
     def _robot_doc_default(self) -> dict[str, Any]:
@@ -850,19 +833,32 @@ class Session:
         self._load(row.id)
 
     def _load(self, project_id: int) -> None:
+        self._apply(self._read(project_id))
+
+    def _read(self, project_id: int) -> _Loaded:
+        """A stored project and its live cell, built without touching the session (the slow
+        part of opening: the mesh, the robot model, the post-processing)."""
         data = self.store.load_project(project_id)
+        if data is None:
+            raise NotFoundError(f"no project with id {project_id}")
         cell = persistence_cell(data.cell)
         mesh = data.mesh if not cell.workpiece_builtin else None
-        self._install_cell(cell, mesh, data.robot.get("joints_rad"))
+        built = _build_cell(cell, mesh, data.robot.get("joints_rad"))
         comp = data.robot.get("compliance") or {}
         try:
-            self._selection = ComplianceSelection(
+            selection = ComplianceSelection(
                 frozenset(comp.get("axes", ("x", "y", "z"))), comp.get("frame", "base")
             )
         except RobomachError:
-            self._selection = ComplianceSelection()
-        self._project_id = project_id
-        self._project = project_from_data(data, self._cell.workpiece)
+            selection = ComplianceSelection()
+        return _Loaded(project_id, built, selection, project_from_data(data, built[0].workpiece))
+
+    def _apply(self, loaded: _Loaded) -> None:
+        self._cell, self._lt, self._lt_state = loaded.built
+        self._epoch += 1
+        self._selection = loaded.selection
+        self._project_id = loaded.project_id
+        self._project = loaded.project
 
     # Each save is one store transaction.
 
@@ -894,3 +890,46 @@ def _project_name(name: str) -> str:
     if any(ord(ch) < 32 for ch in name):
         raise InvalidInputError("a project name must not contain control characters")
     return name
+
+
+@dataclass(frozen=True)
+class _Loaded:
+    """A project read from the store with its live cell, ready to be installed."""
+
+    project_id: int
+    built: tuple[Cell, LeadThrough, LeadThroughState]
+    selection: ComplianceSelection
+    project: Project
+
+
+def _build_cell(
+    settings: CellSettings,
+    mesh: tuple[str, bytes] | None,
+    joints: Any,
+    parsed: Workpiece | None = None,
+) -> tuple[Cell, LeadThrough, LeadThroughState]:
+    """The cell of ``settings`` and its lead-through, the robot at ``joints`` (home when None or
+    not usable)."""
+    if settings.robot not in ROBOT_URDFS:
+        raise InvalidInputError(
+            f"unknown robot {settings.robot!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
+        )
+    workpiece = parsed if parsed is not None else core.build_workpiece(settings, mesh)
+    cell = Cell(
+        CellConfig(
+            robot=settings.robot,
+            tool=core.Project(cell=settings).tool(),
+            workpiece=workpiece,
+            seed=settings.seed,
+        )
+    )
+    initial = None
+    if joints is not None:
+        try:
+            initial = cell.initial_state(np.asarray(joints, dtype=float))
+        except RobomachError:
+            log.info("stored joints not usable (limits or contact): starting at home")
+    if initial is None:
+        initial = cell.initial_state()
+    lt = LeadThrough(cell)
+    return cell, lt, lt.start(initial)

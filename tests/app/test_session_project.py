@@ -164,6 +164,25 @@ def test_post_processing_runs_outside_the_session_lock(session: Session, gated_p
     session.run_postprocess(tolerance_m=5e-5)
 
 
+def test_opening_a_project_post_processes_outside_the_lock(session: Session, gated_process) -> None:
+    entered, gate = gated_process
+    original = session.current_project().id
+    targets = len(session.postprocess_outcome().result.targets)
+    session.create_project(f"other-{time.monotonic_ns()}")
+    assert session.recording() is None
+    worker = threading.Thread(target=session.open_project, args=(original,))
+    worker.start()
+    assert entered.wait(30)  # re-running the stored post-processing
+    assert session._lock.acquire(timeout=2.0)
+    session._lock.release()
+    assert session.recording() is None  # still the other project until it is ready
+    gate.set()
+    worker.join(60)
+    assert session.current_project().id == original
+    assert len(session.postprocess_outcome().result.targets) == targets
+    assert session.status()["postprocess"] == "current"
+
+
 def test_post_processing_result_is_dropped_when_its_inputs_changed(
     session: Session, gated_process
 ) -> None:
