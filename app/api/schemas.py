@@ -25,6 +25,7 @@ from app.session import (
 )
 from robomach_core.leadthrough import ComplianceSelection
 from robomach_core.postprocess import PostprocessSettings
+from robomach_core.project import StageStatus
 
 Axis = Literal["x", "y", "z", "rx", "ry", "rz"]
 Finite = Annotated[float, Field(allow_inf_nan=False)]
@@ -63,9 +64,6 @@ class TcpPublic(BaseModel):
 class WrenchPublic(BaseModel):
     force_N: list[float] = Field(description="measured contact force at the TCP, base axes [N]")
     torque_Nm: list[float] = Field(description="measured contact torque, base axes [N*m]")
-
-
-StageStatus = Literal["none", "current", "stale"]
 
 
 class ProjectStatusPublic(BaseModel):
@@ -332,6 +330,11 @@ class PostprocessPublic(BaseModel):
 class PostprocessStatePublic(BaseModel):
     settings: PostprocessSettingsPublic = Field(description="the settings the next run uses")
     result: PostprocessPublic | None = Field(description="the last result; null before any")
+    status: StageStatus = Field(
+        default="none",
+        description="the result is current, or stale (computed from a recording or guide "
+        "points that changed since: out of date, exports refuse it), or none",
+    )
 
 
 # --- exports -----------------------------------------------------------------------------
