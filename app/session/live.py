@@ -7,6 +7,7 @@ and stop the loop on cancel (the tap raises ``CancelledError``) without changing
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from typing import Any
@@ -14,10 +15,12 @@ from typing import Any
 import numpy as np
 
 from robomach_core.cell import CONTROL_PERIOD_S, Cell, CellState
+from robomach_core.errors import InvalidInputError
+from robomach_core.path_learning import Recording
 from robomach_core.sensor import ForceEstimator
 
 from .jobs import JobContext
-from .records import LIVE_NOTIFY_S, LIVE_TRACE_EVERY, LIVE_TRACE_MAX
+from .records import LIVE_NOTIFY_S, LIVE_TRACE_EVERY, LIVE_TRACE_MAX, ForceTrace
 
 
 class TappedCell:
@@ -62,6 +65,32 @@ class LiveFeed:
         """The job ended: the last state it reached (None when it never started)."""
         last, self.cell_state = self.cell_state, None
         return last
+
+    def force_trace(
+        self, recording: Recording | None, busy: bool, max_points: int = 2000
+    ) -> ForceTrace:
+        """Force vs time, at most ``max_points`` (>= 2) by stride: the live |F| while a job
+        runs, else the recording's force along Yp."""
+        if max_points < 2:
+            raise InvalidInputError("max_points must be at least 2")
+        live = list(self.trace)
+        if busy and live:
+            data = np.array(live)
+            t, f = data[:, 0], data[:, 1]
+            ref = np.full(len(t), np.nan)
+            source = "live"
+        elif recording is not None:
+            t, f = recording.time_s, recording.force_normal_N
+            ref, source = recording.force_reference_N, "recording"
+        else:
+            empty = np.zeros(0)
+            return ForceTrace("none", empty, empty, empty, 0)
+        n = len(t)
+        stride = max(1, math.ceil(n / max_points))
+        idx = np.arange(0, n, stride)
+        if n and idx[-1] != n - 1:
+            idx = np.append(idx, n - 1)
+        return ForceTrace(source, t[idx], f[idx], ref[idx], n)
 
     def tapped(self, cell: Cell, estimator: ForceEstimator, ctx: JobContext) -> TappedCell:
         """``cell`` seen through a tap that feeds this and checks the job's cancel."""

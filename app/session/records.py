@@ -11,6 +11,7 @@ from typing import Literal
 import numpy as np
 
 from robomach_core.errors import (
+    InvalidInputError,
     RobomachError,
 )
 from robomach_core.leadthrough import (
@@ -176,3 +177,16 @@ class ExportInfo:
 
 
 # --- the job runner ----------------------------------------------------------------------
+
+
+def check_project_name(name: str) -> str:
+    """``name`` stripped, when it is a valid project name (1-80 characters, no control
+    characters)."""
+    if not isinstance(name, str) or not name.strip():
+        raise InvalidInputError("a project name must not be empty")
+    name = name.strip()
+    if len(name) > PROJECT_NAME_MAX:
+        raise InvalidInputError(f"a project name is at most {PROJECT_NAME_MAX} characters")
+    if any(ord(ch) < 32 for ch in name):
+        raise InvalidInputError("a project name must not contain control characters")
+    return name

@@ -113,7 +113,6 @@ from .persistence import cell_from_doc as persistence_cell
 from .records import (
     DEFAULT_PROJECT_NAME,
     MAX_GUIDE_POINTS,
-    PROJECT_NAME_MAX,
     BusyError,
     ConflictError,
     ExportInfo,
@@ -124,6 +123,7 @@ from .records import (
     ProjectInfo,
     RobotSnapshot,
     Topic,
+    check_project_name,
     log,
 )
 
@@ -271,28 +271,8 @@ class Session:
 
     def force_trace(self, max_points: int = 2000) -> ForceTrace:
         """Force vs time, at most ``max_points`` (>= 2) by stride: live during a job."""
-        if max_points < 2:
-            raise InvalidInputError("max_points must be at least 2")
         with self._lock:
-            live = list(self._live.trace)
-            rec = self.recording()
-            if self.busy() and live:
-                data = np.array(live)
-                t, f = data[:, 0], data[:, 1]
-                ref = np.full(len(t), np.nan)
-                source = "live"
-            elif rec is not None:
-                t, f, ref = rec.time_s, rec.force_normal_N, rec.force_reference_N
-                source = "recording"
-            else:
-                empty = np.zeros(0)
-                return ForceTrace("none", empty, empty, empty, 0)
-        n = len(t)
-        stride = max(1, math.ceil(n / max_points))
-        idx = np.arange(0, n, stride)
-        if n and idx[-1] != n - 1:
-            idx = np.append(idx, n - 1)
-        return ForceTrace(source, t[idx], f[idx], ref[idx], n)
+            return self._live.force_trace(self.recording(), self.busy(), max_points)
 
     # --- cell --------------------------------------------------------------------------------
 
@@ -690,7 +670,7 @@ class Session:
 
     def create_project(self, name: str) -> ProjectInfo:
         """A new project with the default cell, opened at once."""
-        name = _project_name(name)
+        name = check_project_name(name)
         with self._lock:
             self._require_idle()
             if self.store.find_project(name) is not None:
@@ -718,7 +698,7 @@ class Session:
         return self.current_project()
 
     def rename_project(self, project_id: int, name: str) -> ProjectInfo:
-        name = _project_name(name)
+        name = check_project_name(name)
         with self._lock:
             row = self.store.get_project(project_id)
             if row is None:
@@ -824,11 +804,9 @@ class Session:
                 continue
             self.store.set_last_project(project_id)
             return
-        name = DEFAULT_PROJECT_NAME
-        k = 1
+        name, k = DEFAULT_PROJECT_NAME, 1
         while self.store.find_project(name) is not None:
-            k += 1
-            name = f"{DEFAULT_PROJECT_NAME} {k}"
+            k, name = k + 1, f"{DEFAULT_PROJECT_NAME} {k + 1}"
         row = self.store.create_project(name, asdict(CellSettings()), self._robot_doc_default())
         self._load(row.id)
 
@@ -879,17 +857,6 @@ class Session:
         if with_robot:
             kwargs["robot"] = self._robot_doc()
         self.store.save(self._project_id, **kwargs)
-
-
-def _project_name(name: str) -> str:
-    if not isinstance(name, str) or not name.strip():
-        raise InvalidInputError("a project name must not be empty")
-    name = name.strip()
-    if len(name) > PROJECT_NAME_MAX:
-        raise InvalidInputError(f"a project name is at most {PROJECT_NAME_MAX} characters")
-    if any(ord(ch) < 32 for ch in name):
-        raise InvalidInputError("a project name must not contain control characters")
-    return name
 
 
 @dataclass(frozen=True)
