@@ -8,6 +8,7 @@ import threading
 import time
 from collections.abc import Iterator
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -181,6 +182,32 @@ def test_opening_a_project_post_processes_outside_the_lock(session: Session, gat
     assert session.current_project().id == original
     assert len(session.postprocess_outcome().result.targets) == targets
     assert session.status()["postprocess"] == "current"
+
+
+def test_a_project_saved_before_fingerprints_opens_as_current(
+    session: Session, tmp_path: Path
+) -> None:
+    from app.session.persistence import save_kwargs
+    from app.store import Store
+
+    project = session.project()
+    store = Store(tmp_path / "old.sqlite")
+    kwargs = save_kwargs(project, "cell", "guides", "recording", "post")
+    # The previous version's documents: no fingerprints, no process settings, no wobj.
+    info, arrays = kwargs["recording"]
+    kwargs["recording"] = ({k: v for k, v in info.items() if k != "inputs"}, arrays)
+    kwargs["post"] = {"settings": kwargs["post"]["settings"], "applied": True}
+    kwargs["cell"] = {k: v for k, v in kwargs["cell"].items() if k != "wobj_mm_deg"}
+    row = store.create_project("old", kwargs["cell"])
+    store.save(row.id, **kwargs)
+    store.close()
+    reopened = Session(Store(tmp_path / "old.sqlite"))
+    try:
+        assert reopened.status() == project.status()
+        assert reopened.status()["postprocess"] == "current"
+        assert reopened.rapid_module() == session.rapid_module()
+    finally:
+        reopened.close()
 
 
 def test_post_processing_result_is_dropped_when_its_inputs_changed(
