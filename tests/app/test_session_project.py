@@ -77,6 +77,7 @@ def test_changing_guide_points_marks_results_out_of_date_in_the_gui(session: Ses
         assert OUT_OF_DATE not in post.summary.content
         assert export.preview.content.startswith("**RAPID preview**")
         assert OUT_OF_DATE not in learning.status.content
+        assert scene.stale_label is not None and not scene.stale_label.visible
 
         # The machining slot follows the same rule (the lead wires its results).
         project = session.project()
@@ -98,11 +99,13 @@ def test_changing_guide_points_marks_results_out_of_date_in_the_gui(session: Ses
             assert OUT_OF_DATE in post.summary.content
             assert OUT_OF_DATE in export.preview.content
             assert OUT_OF_DATE in learning.status.content
+            assert scene.stale_label.visible  # the scene's path says so too
         finally:  # put the point back: the results are current again (same fingerprint)
             session._set_guides(tuple(guides))
         assert session.status()["postprocess"] == "current"
         post.refresh()
         assert OUT_OF_DATE not in post.summary.content
+        assert not scene.stale_label.visible
     finally:
         server.stop()
 

@@ -144,4 +144,5 @@ class PostprocessPanel:
             filtered_deviation_m=dev_f,
             targets_deviation_m=dev_t,
             deviation_scale_m=self.scale.value * 1e-3,
+            stale=self.session.status()["postprocess"] == "stale",
         )
