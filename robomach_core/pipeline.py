@@ -17,15 +17,25 @@ import numpy as np
 
 from .cell import CONTROL_PERIOD_S, Cell, CellConfig
 from .demo_operator import intents_from_csv, scripted_leadthrough
-from .errors import InvalidInputError
-from .export.program import ReachabilityReport, check_reachability, rapid_program
-from .export.rapid import rapid_module
+from .errors import InvalidInputError, MeshFileError
+from .export.program import ReachabilityReport, check_reachability
 from .leadthrough import GuidePoint, LeadThrough
-from .path_learning import PathLearningSettings, Recording, learn_path
-from .postprocess import PostprocessResult, PostprocessSettings, Targets, postprocess
-from .scoring import PathScore, score_path
+from .path_learning import PathLearningSettings, Recording
+from .postprocess import PostprocessResult, PostprocessSettings, Targets
+from .project import (
+    CellSettings,
+    Project,
+    build_workpiece,
+    learn,
+    process,
+    program_files,
+    program_targets,
+)
+from .project import compensate_program_targets as _compensate
+from .project import wobj_transform as wobj_transform
+from .scoring import PathScore
 from .tool import Tool
-from .workpiece import Workpiece, builtin_workpiece, load_mesh_file
+from .workpiece import MAX_MESH_BYTES, MESH_SUFFIXES, Workpiece
 
 # progress(stage, fraction in [0, 1])
 Progress = Callable[[str, float], None]
@@ -91,6 +101,8 @@ class DemoResult:
     leadthrough_sim_s: float
     learning_wall_s: float
     wall_time_s: float
+    project: Project | None = None
+    files: dict[str, str] = field(default_factory=dict)
 
     def summary(self) -> dict:
         """The summary.json dictionary (units in key names)."""
@@ -149,37 +161,52 @@ class DemoResult:
         return out
 
 
-def wobj_transform(values: tuple[float, ...]) -> np.ndarray:
-    """4x4 work-object frame from (x, y, z [mm]) or (x, y, z [mm], rz [deg])."""
-    from .transforms import make_transform, rotation_about
+def load_workpiece(name_or_path: str) -> tuple[CellSettings, tuple[str, bytes] | None]:
+    """Cell settings naming a built-in workpiece, or a mesh file's (filename, bytes)."""
+    path = Path(name_or_path)
+    if not path.suffix:
+        return CellSettings(workpiece=name_or_path), None
+    if path.suffix.lower() not in MESH_SUFFIXES:
+        raise MeshFileError(f"{path.name}: not a mesh file (expected {', '.join(MESH_SUFFIXES)})")
+    if not path.is_file():
+        raise MeshFileError(f"{path}: no such file")
+    size = path.stat().st_size
+    if size > MAX_MESH_BYTES:
+        raise MeshFileError(
+            f"{path.name}: {size / 1e6:.1f} MB exceeds the {MAX_MESH_BYTES / 1e6:.0f} MB limit"
+        )
+    return CellSettings(workpiece=path.stem, workpiece_builtin=False), (
+        path.name,
+        path.read_bytes(),
+    )
 
-    v = [float(x) for x in values]
-    if len(v) not in (3, 4) or not all(np.isfinite(v)):
-        raise InvalidInputError("the work object is x,y,z in mm with an optional rz in degrees")
-    rz = np.radians(v[3]) if len(v) == 4 else 0.0
-    return make_transform(rotation_about("z", rz), np.array(v[:3]) * 1e-3)
 
-
-def load_workpiece(name_or_path: str) -> Workpiece:
-    """A built-in workpiece by name, or a mesh file by path."""
-    if Path(name_or_path).suffix:
-        return load_mesh_file(name_or_path)
-    return builtin_workpiece(name_or_path)
+def demo_project(settings: DemoSettings) -> Project:
+    """The project ``run_demo`` starts from: the cell, post-processing and process settings."""
+    cell, mesh = load_workpiece(settings.workpiece)
+    cell = replace(
+        cell,
+        robot=settings.robot,
+        tool_radius_m=settings.tool.radius_m,
+        seed=settings.seed,
+        wobj_mm_deg=None if settings.wobj_mm_deg is None else tuple(settings.wobj_mm_deg),
+    )
+    post = replace(settings.postprocess, tolerance_m=settings.tolerance_m)
+    return Project(
+        cell=cell,
+        mesh=mesh,
+        post_settings=post,
+        cmrr=settings.cmrr,
+        compensation=settings.compensation,
+    )
 
 
 def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> DemoResult:
     """Run the whole pipeline headless; ``progress(stage, fraction)`` reports as it goes."""
     started = time.perf_counter()
     report = progress or (lambda stage, fraction: None)
-    learning = PathLearningSettings(
-        force_N=settings.force_N, speed_m_s=settings.speed_m_s, wall_side=settings.wall_side
-    )
-    post = PostprocessSettings(
-        **{**settings.postprocess.__dict__, "tolerance_m": settings.tolerance_m}
-    )
-    workpiece = load_workpiece(settings.workpiece)
-    if settings.wobj_mm_deg is not None:
-        workpiece = workpiece.placed(wobj_transform(settings.wobj_mm_deg))
+    project = demo_project(settings)
+    workpiece = build_workpiece(project.cell, project.mesh)
     if workpiece.wall is None and settings.guide_points_csv is None:
         raise InvalidInputError(
             f"{workpiece.name}: a mesh file has no known wall to plan guide points on; "
@@ -187,7 +214,7 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         )
     cell = Cell(
         CellConfig(
-            robot=settings.robot, tool=settings.tool, workpiece=workpiece, seed=settings.seed
+            robot=settings.robot, tool=project.tool(), workpiece=workpiece, seed=settings.seed
         )
     )
     intents = None
@@ -203,121 +230,49 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         intents=intents,
         progress=lambda f: report("lead-through", f),
     )
+    project = replace(project, guide_points=tuple(guides))
     t_learn = time.perf_counter()
-    recording, _ = learn_path(
+    learning = PathLearningSettings(
+        force_N=settings.force_N, speed_m_s=settings.speed_m_s, wall_side=settings.wall_side
+    )
+    learned, _ = learn(
+        project,
         cell,
         state.cell,
-        guides,
         learning,
         lt.estimator,
         progress=lambda f: report("path learning", f),
     )
     learning_wall = time.perf_counter() - t_learn
     report("post-processing", 0.0)
-    processed = postprocess(
-        recording, np.array([g.quaternion_wxyz for g in guides]), post, closed=learning.closed
-    )
-    score = None
-    if workpiece.wall is not None:
-        score = score_path(workpiece, settings.tool.radius_m, processed.targets.position_m)
+    processed = process(learned, project.post_settings, workpiece, project.cell.tool_radius_m)
+    project = replace(project, learned=learned, processed=processed)
     report("post-processing", 1.0)
     report("export", 0.0)
-    header = (
-        f"robomach demo: {settings.robot}, {workpiece.name}, force {settings.force_N:g} N, "
-        f"learning speed {settings.speed_m_s * 1e3:g} mm/s, tolerance "
-        f"{settings.tolerance_m * 1e3:g} mm, seed {settings.seed}",
-        f"{len(processed.targets)} targets from {len(recording)} samples "
-        f"({processed.samples_filtered} kept by the force filter)",
-    )
-    targets = processed.targets
-    speed_change = None
-    if settings.cmrr is not None:
-        from .cmrr import to_speed_change_settings
-
-        speed_change = to_speed_change_settings(settings.cmrr)
-        header += (
-            f"CMRR: {settings.cmrr.controller.kind}, reference "
-            f"{settings.cmrr.reference_force_N:g} N",
-        )
-    if settings.compensation is not None:
-        targets, note = compensate_program_targets(cell, recording, targets, settings.compensation)
-        header += (note,)
-    module_text = rapid_module(
-        rapid_program(targets, settings.tool, workpiece, comment=header, speed_change=speed_change)
-    )
-    module_text_fc = None
-    if settings.force_control_variant:
-        module_text_fc = rapid_module(
-            rapid_program(
-                targets,
-                settings.tool,
-                workpiece,
-                module_name="LearnedPathFC",
-                force_control_N=settings.force_N,
-                comment=header,
-            )
-        )
-    reach = check_reachability(module_text, cell.robot, workpiece, targets.joints_rad[0])
+    files = program_files(project, workpiece, cell.robot)
+    targets, _ = program_targets(project, cell.robot)
+    reach = check_reachability(files["program.mod"], cell.robot, workpiece, targets.joints_rad[0])
     report("export", 1.0)
     return DemoResult(
         settings=settings,
         workpiece=workpiece,
         guides=guides,
-        recording=recording,
-        processed=processed,
-        score=score,
-        module_text=module_text,
-        module_text_fc=module_text_fc,
+        recording=learned.recording,
+        processed=processed.result,
+        score=processed.score,
+        module_text=files["program.mod"],
+        module_text_fc=files["program_fc.mod"] if settings.force_control_variant else None,
         reachability=reach,
         leadthrough_sim_s=float(state.cell.time_s),
         learning_wall_s=learning_wall,
         wall_time_s=time.perf_counter() - started,
+        project=project,
+        files=files,
     )
 
 
 def compensate_program_targets(
     cell: Cell, recording: Recording, targets: Targets, compensation: Any
 ) -> tuple[Targets, str]:
-    """Targets corrected for the contact wrench learned at each one (offline modes), and a note.
-
-    The process wrench the program will meet is the one measured while learning it (the
-    compensated tool-frame wrench at each target's sample, turned into base axes). Online
-    compensation happens in the controller at run time, so it leaves the targets as they are.
-    """
-    from .errors import InvalidInputError
-    from .stiffness import compensate_targets_and_joints
-    from .transforms import make_transform, matrix_from_quaternion, quaternions_from_matrices
-
-    if compensation.robot != cell.robot.name:
-        raise InvalidInputError(
-            f"the compensation settings were identified on {compensation.robot}, "
-            f"the cell has {cell.robot.name}"
-        )
-    if compensation.mode in ("off", "online"):
-        return targets, f"deflection compensation: {compensation.mode} (targets as learned)"
-    mode = "linear" if compensation.mode == "offline_linear" else "nonlinear"
-    Ts = np.array(
-        [
-            make_transform(matrix_from_quaternion(q), p)
-            for p, q in zip(targets.position_m, targets.quaternion_wxyz, strict=True)
-        ]
-    )
-    wrenches = np.empty((len(targets), 6))
-    for k, i in enumerate(targets.sample_index):
-        R = matrix_from_quaternion(recording.quaternion_wxyz[i])
-        wrenches[k, :3] = R @ recording.wrench_tool[i, :3]
-        wrenches[k, 3:] = R @ recording.wrench_tool[i, 3:]
-    Ts_c, q_c = compensate_targets_and_joints(
-        cell.robot, Ts, targets.joints_rad, wrenches, compensation.model, mode
-    )
-    corrected = replace(
-        targets,
-        position_m=Ts_c[:, :3, 3].copy(),
-        quaternion_wxyz=quaternions_from_matrices(Ts_c[:, :3, :3]),
-        joints_rad=np.asarray(q_c),
-    )
-    shift = np.linalg.norm(corrected.position_m - targets.position_m, axis=1).max()
-    return corrected, (
-        f"deflection compensation: {compensation.mode}, largest target correction "
-        f"{shift * 1e3:.4f} mm"
-    )
+    """``project.compensate_program_targets`` on the cell's robot (kept for callers)."""
+    return _compensate(cell.robot, recording, targets, compensation)

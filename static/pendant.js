@@ -119,6 +119,18 @@ function showState(state) {
   const contact = $("contact");
   contact.textContent = state.in_contact ? "contact" : "free";
   contact.className = `pill ${state.in_contact ? "pill-warn" : "pill-off"}`;
+  showStatus(state.project_status);
+}
+
+// Results computed from inputs that changed since are kept but marked "out of date".
+function showStatus(status) {
+  if (!status) return;
+  const reasons = status.reasons || {};
+  for (const [id, stage] of [["learn-stale", "recording"], ["post-stale", "postprocess"]]) {
+    const stale = status[stage] === "stale";
+    $(id).classList.toggle("hidden", !stale);
+    if (stale && reasons[stage]) $(id).title = reasons[stage];
+  }
 }
 
 async function pollState() {

@@ -8,7 +8,7 @@ responses; ``from_*`` class methods convert the session's SI dataclasses.
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -25,6 +25,7 @@ from app.session import (
 )
 from robomach_core.leadthrough import ComplianceSelection
 from robomach_core.postprocess import PostprocessSettings
+from robomach_core.project import StageStatus
 
 Axis = Literal["x", "y", "z", "rx", "ry", "rz"]
 Finite = Annotated[float, Field(allow_inf_nan=False)]
@@ -65,6 +66,51 @@ class WrenchPublic(BaseModel):
     torque_Nm: list[float] = Field(description="measured contact torque, base axes [N*m]")
 
 
+class ProjectStatusPublic(BaseModel):
+    """Per stage of the project: ``none`` (not run), ``current``, or ``stale`` (kept, but
+    computed from inputs that have changed since: out of date; exports refuse it)."""
+
+    guide_points: StageStatus
+    recording: StageStatus
+    postprocess: StageStatus
+    machining: StageStatus
+    reasons: dict[str, str] = Field(description="why each stale stage is out of date")
+
+    @classmethod
+    def from_project(cls, project: Any) -> ProjectStatusPublic:
+        return cls(**project.status(), reasons=project.stale_reasons())
+
+
+class ProcessSettingsUpdate(_Request):
+    cmrr: dict[str, Any] | None = Field(
+        default=None,
+        description="a cmrr_settings.json object (one controller): the program's machining "
+        "moves get an FC SpeedChange block; null removes it",
+    )
+    compensation: dict[str, Any] | None = Field(
+        default=None,
+        description="a compensation_settings.json object: the offline modes correct the "
+        "targets for the learned contact wrench; null removes it",
+    )
+
+
+class ProcessSettingsFromStudies(_Request):
+    controller: str | None = Field(
+        default=None,
+        max_length=40,
+        description="after a CMRR study that compared controllers, the one to use",
+    )
+    cmrr: bool = Field(default=True, description="take the last CMRR study's controller")
+    compensation: bool = Field(
+        default=True, description="take the last identification's compensation settings"
+    )
+
+
+class ProcessSettingsPublic(BaseModel):
+    cmrr: dict[str, Any] | None
+    compensation: dict[str, Any] | None
+
+
 class StatePublic(BaseModel):
     joints_deg: list[float] = Field(description="motor-side joint angles [deg]")
     tcp: TcpPublic
@@ -72,9 +118,14 @@ class StatePublic(BaseModel):
     in_contact: bool = Field(description="the tool touches the workpiece")
     time_s: float = Field(description="simulated time [s]")
     busy: bool = Field(description="a job moves the robot; pushes and jogs are refused")
+    project_status: ProjectStatusPublic | None = Field(
+        default=None, description="which results of the open project are out of date"
+    )
 
     @classmethod
-    def from_snapshot(cls, s: RobotSnapshot) -> StatePublic:
+    def from_snapshot(
+        cls, s: RobotSnapshot, *, project_status: ProjectStatusPublic | None = None
+    ) -> StatePublic:
         return cls(
             joints_deg=_floats(np.degrees(s.joints_rad), digits=5),
             tcp=TcpPublic(
@@ -87,6 +138,7 @@ class StatePublic(BaseModel):
             in_contact=s.in_contact,
             time_s=round(s.time_s, 4),
             busy=s.busy,
+            project_status=project_status,
         )
 
 
@@ -278,6 +330,11 @@ class PostprocessPublic(BaseModel):
 class PostprocessStatePublic(BaseModel):
     settings: PostprocessSettingsPublic = Field(description="the settings the next run uses")
     result: PostprocessPublic | None = Field(description="the last result; null before any")
+    status: StageStatus = Field(
+        default="none",
+        description="the result is current, or stale (computed from a recording or guide "
+        "points that changed since: out of date, exports refuse it), or none",
+    )
 
 
 # --- exports -----------------------------------------------------------------------------

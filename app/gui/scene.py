@@ -37,6 +37,7 @@ PUSH_COLOR = (40, 120, 230)
 RAW_COLOR = (150, 150, 150)
 FILTERED_COLOR = (40, 110, 220)
 TARGET_COLOR = (240, 120, 20)
+STALE_COLOR = (110, 110, 120)  # a path computed from inputs that changed since
 GUIDE_COLOR = (20, 160, 90)
 SELECTED_GUIDE_COLOR = (230, 40, 160)
 
@@ -174,6 +175,7 @@ class CellScene:
 
     def __init__(self, server: viser.ViserServer) -> None:
         self.server = server
+        self.stale_label: viser.LabelHandle | None = None  # "out of date" at the targets
         self._lock = threading.Lock()
         self._urdf: ViserUrdf | None = None
         self._pose: _RobotPose | None = None
@@ -370,9 +372,14 @@ class CellScene:
         filtered_deviation_m: np.ndarray | None = None,
         targets_deviation_m: np.ndarray | None = None,
         deviation_scale_m: float = 0.5e-3,
+        stale: bool = False,
     ) -> None:
         """Show raw samples (grey), filtered samples (blue, or coloured by deviation) and the
-        reduced targets (orange points joined by segments, or coloured by deviation)."""
+        reduced targets (orange points joined by segments, or coloured by deviation). A
+        ``stale`` path (out of date with the project's inputs) is drawn dark grey with an
+        "out of date" label at its first target."""
+        if stale:
+            filtered_deviation_m = targets_deviation_m = None
         scene = self.server.scene
         empty = np.zeros((0, 3))
         with self.server.atomic():
@@ -387,7 +394,7 @@ class CellScene:
             )
             filt = empty if filtered_m is None else np.asarray(filtered_m)
             colors = (
-                FILTERED_COLOR
+                (STALE_COLOR if stale else FILTERED_COLOR)
                 if filtered_deviation_m is None
                 else deviation_colors(filtered_deviation_m, deviation_scale_m)
             )
@@ -400,19 +407,26 @@ class CellScene:
                 visible=len(filt) > 0,
             )
             tg = empty if targets_m is None else np.asarray(targets_m)
+            tcolor = STALE_COLOR if stale else TARGET_COLOR
             tcolors = (
-                np.tile(np.array(TARGET_COLOR, dtype=np.uint8), (len(tg), 1))
+                np.tile(np.array(tcolor, dtype=np.uint8), (len(tg), 1))
                 if targets_deviation_m is None
                 else deviation_colors(targets_deviation_m, deviation_scale_m)
             )
             scene.add_point_cloud(
                 "/path/targets",
                 tg,
-                tcolors if len(tg) else TARGET_COLOR,
+                tcolors if len(tg) else tcolor,
                 point_size=0.003,
                 point_shape="diamond",
                 precision="float32",
                 visible=len(tg) > 0,
+            )
+            self.stale_label = scene.add_label(
+                "/path/targets/out_of_date",
+                "out of date",
+                position=tuple(tg[0]) if len(tg) else (0.0, 0.0, 0.0),
+                visible=bool(stale and len(tg)),
             )
             if len(tg) >= 2:
                 segments = np.stack([tg[:-1], tg[1:]], axis=1)

@@ -1,6 +1,7 @@
 """The workbench session (see ``session.py`` for its public API): state shared by the viser GUI
 and the REST API, its background jobs, and the records it hands out."""
 
+from .exports import rapid_identifier_or as rapid_identifier_or
 from .jobs import JobContext as JobContext
 from .jobs import JobRunner as JobRunner
 from .records import DEFAULT_PROJECT_NAME as DEFAULT_PROJECT_NAME
@@ -26,4 +27,3 @@ from .records import RobotSnapshot as RobotSnapshot
 from .records import Topic as Topic
 from .session import ROBOT_JOB_KINDS as ROBOT_JOB_KINDS
 from .session import Session as Session
-from .session import rapid_identifier_or as rapid_identifier_or

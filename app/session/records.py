@@ -11,13 +11,14 @@ from typing import Literal
 import numpy as np
 
 from robomach_core.errors import (
+    InvalidInputError,
     RobomachError,
 )
 from robomach_core.leadthrough import (
     GuidePoint,
 )
-from robomach_core.postprocess import PostprocessResult, PostprocessSettings
-from robomach_core.scoring import PathScore
+from robomach_core.project import CellSettings as CellSettings
+from robomach_core.project import ProcessedPath
 from robomach_core.transforms import quaternion_from_matrix
 
 log = logging.getLogger(__name__)
@@ -79,25 +80,6 @@ class BusyError(ConflictError):
 
 
 @dataclass(frozen=True)
-class CellSettings:
-    """The user's cell settings.
-
-    Attributes:
-        robot: ``"ur10"``, ``"ur5"`` or ``"ur3"``.
-        tool_radius_m: Ball cutter radius.
-        workpiece: Built-in name, or the stem of the uploaded mesh file.
-        workpiece_builtin: False for an uploaded mesh.
-        seed: Seed of the sensor noise and the example operator.
-    """
-
-    robot: str = "ur10"
-    tool_radius_m: float = 0.001
-    workpiece: str = "water_pump"
-    workpiece_builtin: bool = True
-    seed: int = 0
-
-
-@dataclass(frozen=True)
 class RobotSnapshot:
     """The robot as the controller sees it.
 
@@ -155,14 +137,8 @@ class ForceTrace:
     samples_total: int
 
 
-@dataclass(frozen=True)
-class PostprocessOutcome:
-    """The last post-processing: its settings, result, and score against the true wall."""
-
-    settings: PostprocessSettings
-    result: PostprocessResult
-    samples_raw: int
-    score: PathScore | None
+# The last post-processing: its settings, result, and score (the core stage's value).
+PostprocessOutcome = ProcessedPath
 
 
 @dataclass(frozen=True)
@@ -201,3 +177,16 @@ class ExportInfo:
 
 
 # --- the job runner ----------------------------------------------------------------------
+
+
+def check_project_name(name: str) -> str:
+    """``name`` stripped, when it is a valid project name (1-80 characters, no control
+    characters)."""
+    if not isinstance(name, str) or not name.strip():
+        raise InvalidInputError("a project name must not be empty")
+    name = name.strip()
+    if len(name) > PROJECT_NAME_MAX:
+        raise InvalidInputError(f"a project name is at most {PROJECT_NAME_MAX} characters")
+    if any(ord(ch) < 32 for ch in name):
+        raise InvalidInputError("a project name must not contain control characters")
+    return name

@@ -3,16 +3,20 @@
 PROBLEM   The viser GUI and the REST API act on the same simulated cell, from different
           threads, while long jobs (the example lead-through, path learning) run in the
           background; every change must be saved at once.
-STRATEGY  One ``Session`` per process owns the cell, the lead-through state, the compliance
-          selection, the guide points, the last recording and the post-processing result,
-          behind one ``threading.RLock``. Public methods take and return SI units and plain
-          dataclasses; they validate and raise ``RobomachError`` subclasses (the API maps them
-          to 4xx). Long work runs on the ``JobRunner``'s worker thread, outside the lock, on
-          the cell seen through a tap that publishes the live robot pose and checks for cancel.
-          Listeners registered with ``subscribe`` hear a topic name after each change.
+STRATEGY  The job itself is one frozen ``robomach_core.project.Project`` value (cell, guide
+          points, recording, post-processing, CMRR and compensation settings, machining slot),
+          replaced atomically under one ``threading.RLock``; its stages and writers are the
+          core's (``learn``, ``process``, ``program_files``), the same the CLI calls. The
+          session holds beside it only what is live: the cell and lead-through state, the
+          compliance selection, jobs, listeners and the store. Long work (jobs, and
+          post-processing) computes from a snapshot of the value outside the lock and swaps its
+          result in only if its inputs did not change meanwhile. Listeners registered with
+          ``subscribe`` hear a topic name after each change.
 SOLUTION  Public API (all thread-safe):
 
   Reading
+    project() -> Project                    the job, as one value (with ``status()``)
+    status() -> dict[stage, none|current|stale], stale_reasons() -> dict[stage, str]
     snapshot() -> RobotSnapshot             joints, TCP pose, measured wrench, contact, busy
     cell_settings() -> CellSettings         robot, tool radius, workpiece, seed
     cell / workpiece                        the Cell and its Workpiece (read only: never step)
@@ -21,13 +25,16 @@ SOLUTION  Public API (all thread-safe):
     recording() -> Recording | None         the last path-learning recording
     force_trace(max_points) -> ForceTrace   decimated force vs time: live while learning
     postprocess_settings() -> PostprocessSettings
-    postprocess_outcome() -> PostprocessOutcome | None
+    postprocess_outcome() -> ProcessedPath | None
     learning_settings() -> PathLearningSettings | None   of the last recording
     job(job_id) / jobs() -> JobInfo         status and progress of background jobs
     current_project() / projects() -> ProjectInfo
   Acting (each saves before returning)
-    set_cell(robot=, tool_radius_m=, workpiece=) -> CellSettings   resets robot and downstream
+    set_cell(robot=, tool_radius_m=, workpiece=) -> CellSettings   a change clears the guide
+                                            points and leaves the results stale; no change
+                                            keeps everything
     upload_workpiece(data, filename) -> CellSettings
+    set_process_settings(cmrr=, compensation=) -> Project   what the exported program carries
     set_compliance(axes, frame) -> ComplianceSelection
     push(wrench6, duration_s) -> RobotSnapshot        wrench [N, N*m] at the TCP, base axes
     jog(axis, step) -> RobotSnapshot                   step [m] or [rad], tool frame
@@ -37,9 +44,9 @@ SOLUTION  Public API (all thread-safe):
     start_example() -> job_id               scripted lead-through (replaces guide points)
     start_path_learning(force_N, speed_m_s, closed=True) -> job_id
     cancel_job(job_id) -> JobInfo
-    run_postprocess(force_min_N=, force_max_N=, tolerance_m=) -> PostprocessOutcome
+    run_postprocess(force_min_N=, force_max_N=, tolerance_m=) -> ProcessedPath
     rapid_module(module_name=, force_control=) / samples_csv() / targets_csv() /
-    settings_json() -> str
+    settings_json() -> str                  the core's writers; stale results are refused
     save_export(name) -> ExportInfo         all files into the store and <data>/exports/
     create_project(name) / open_project(id) / rename_project(id, name) / delete_project(id)
   Listening
@@ -56,20 +63,18 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import re
 import shutil
-import tempfile
 import threading
-import time
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from robomach_core.cell import CONTROL_PERIOD_S, Cell, CellConfig, CellState
+from robomach_core import project as core
+from robomach_core.cell import Cell, CellConfig, CellState
 from robomach_core.errors import (
     InvalidInputError,
     NotEnoughGuidePointsError,
@@ -84,9 +89,8 @@ from robomach_core.leadthrough import (
 )
 from robomach_core.path_learning import PathLearningSettings, Recording
 from robomach_core.postprocess import PostprocessSettings
+from robomach_core.project import CellSettings, ProcessedPath, Project, StageStatus
 from robomach_core.robot import ROBOT_URDFS
-from robomach_core.sensor import ForceEstimator
-from robomach_core.tool import Tool
 from robomach_core.workpiece import (
     MAX_MESH_BYTES,
     MAX_MESH_TRIANGLES,
@@ -96,62 +100,38 @@ from robomach_core.workpiece import (
     mesh_from_bytes,
 )
 
-from ..store import GuidePointRow, ProjectData, Store
+from ..store import Store
+from . import exports
+from .exports import check_export_name, rapid_identifier_or
 from .jobs import (
     JobContext,
     JobRunner,
 )
+from .live import LiveFeed
+from .persistence import Part, project_from_data, save_kwargs
+from .persistence import cell_from_doc as persistence_cell
 from .records import (
     DEFAULT_PROJECT_NAME,
-    EXPORT_NAME_RE,
-    LIVE_NOTIFY_S,
-    LIVE_TRACE_EVERY,
-    LIVE_TRACE_MAX,
     MAX_GUIDE_POINTS,
-    PROJECT_NAME_MAX,
-    RECORDING_ARRAYS,
     BusyError,
-    CellSettings,
     ConflictError,
     ExportInfo,
     ForceTrace,
     GuidePointEntry,
     JobInfo,
     NotFoundError,
-    PostprocessOutcome,
     ProjectInfo,
     RobotSnapshot,
     Topic,
+    check_project_name,
     log,
 )
-
-
-class _TappedCell:
-    """A ``Cell`` whose ``step`` also calls ``tap(state)``; every other attribute is the cell's.
-
-    Jobs drive core functions (``learn_path``, ``scripted_leadthrough``) that own their loop;
-    stepping through this proxy lets the session show the robot moving, plot the live force
-    and stop the loop on cancel (``tap`` raises ``CancelledError``) without changing the core.
-    """
-
-    def __init__(self, cell: Cell, tap: Callable[[CellState], None]) -> None:
-        self._cell = cell
-        self._tap = tap
-
-    def step(
-        self, state: CellState, q_motor_cmd: np.ndarray, dt: float = CONTROL_PERIOD_S
-    ) -> CellState:
-        new = self._cell.step(state, q_motor_cmd, dt)
-        self._tap(new)
-        return new
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._cell, name)
-
 
 # --- the session ---------------------------------------------------------------------------
 
 ROBOT_JOB_KINDS = ("example", "path_learning")
+# What a change of the project's inputs makes stale, for the listeners to redraw.
+DOWNSTREAM_TOPICS: tuple[Topic, ...] = ("recording", "postprocess")
 
 
 class Session:
@@ -181,11 +161,9 @@ class Session:
         self.store = store or Store(":memory:")
         self.data_dir = Path(data_dir).resolve() if data_dir is not None else None
         self.jobs = JobRunner(on_change=lambda info: self._notify("job"))
+        self._project = Project()
         self._epoch = 0  # bumped when the cell or project changes; stale job results are dropped
-        self._live_cell: CellState | None = None
-        self._live_trace: list[tuple[float, float]] = []
-        self._live_t0 = 0.0
-        self._last_live_notify = 0.0
+        self._live = LiveFeed(on_move=lambda: self._notify("robot"))
         self._project_id = 0
         self._closed = False
         self._open_initial_project()
@@ -222,6 +200,18 @@ class Session:
 
     # --- reading -----------------------------------------------------------------------------
 
+    def project(self) -> Project:
+        """The open project's job as one value (a snapshot: later changes replace it)."""
+        return self._project
+
+    def status(self) -> dict[str, StageStatus]:
+        """Per stage (guide_points, recording, postprocess, machining): none, current, stale."""
+        return self._project.status()
+
+    def stale_reasons(self) -> dict[str, str]:
+        """Why each stale stage is out of date."""
+        return self._project.stale_reasons()
+
     @property
     def cell(self) -> Cell:
         """The simulated cell (read its robot, tool and workpiece; never step it)."""
@@ -243,7 +233,8 @@ class Session:
         """The robot now (live during a job)."""
         with self._lock:
             busy = self.busy()
-            cs = self._live_cell if (busy and self._live_cell is not None) else self._lt_state.cell
+            live = self._live.cell_state
+            cs = live if (busy and live is not None) else self._lt_state.cell
             wrench = self._lt.measured_wrench(cs)
         return RobotSnapshot(
             float(cs.time_s),
@@ -255,52 +246,33 @@ class Session:
         )
 
     def cell_settings(self) -> CellSettings:
-        return self._cell_settings
+        return self._project.cell
 
     def guide_points(self) -> list[GuidePoint]:
-        with self._lock:
-            return list(self._guides)
+        return list(self._project.guide_points)
 
     def recording(self) -> Recording | None:
-        return self._recording
+        learned = self._project.learned
+        return None if learned is None else learned.recording
 
     def learning_settings(self) -> PathLearningSettings | None:
         """The settings of the last recording."""
-        return self._learning
+        learned = self._project.learned
+        return None if learned is None else learned.settings
 
     def postprocess_settings(self) -> PostprocessSettings:
-        return self._post_settings
+        return self._project.post_settings
 
-    def postprocess_outcome(self) -> PostprocessOutcome | None:
-        return self._post
+    def postprocess_outcome(self) -> ProcessedPath | None:
+        return self._project.processed
 
     def job(self, job_id: str) -> JobInfo:
         return self.jobs.get(job_id)
 
     def force_trace(self, max_points: int = 2000) -> ForceTrace:
         """Force vs time, at most ``max_points`` (>= 2) by stride: live during a job."""
-        if max_points < 2:
-            raise InvalidInputError("max_points must be at least 2")
         with self._lock:
-            live = list(self._live_trace)
-            if self.busy() and live:
-                data = np.array(live)
-                t, f = data[:, 0], data[:, 1]
-                ref = np.full(len(t), np.nan)
-                source = "live"
-            elif self._recording is not None:
-                rec = self._recording
-                t, f, ref = rec.time_s, rec.force_normal_N, rec.force_reference_N
-                source = "recording"
-            else:
-                empty = np.zeros(0)
-                return ForceTrace("none", empty, empty, empty, 0)
-        n = len(t)
-        stride = max(1, math.ceil(n / max_points))
-        idx = np.arange(0, n, stride)
-        if n and idx[-1] != n - 1:
-            idx = np.append(idx, n - 1)
-        return ForceTrace(source, t[idx], f[idx], ref[idx], n)
+            return self._live.force_trace(self.recording(), self.busy(), max_points)
 
     # --- cell --------------------------------------------------------------------------------
 
@@ -311,37 +283,34 @@ class Session:
         tool_radius_m: float | None = None,
         workpiece: str | None = None,
     ) -> CellSettings:
-        """Change the cell; None keeps a setting. The robot goes home and the guide points,
-        recording and post-processing result are cleared (they belong to the old cell)."""
+        """Change the cell; None keeps a setting. A request that changes nothing keeps all
+        work (the robot stays where it is). A change puts the robot home and clears the guide
+        points (poses of the old cell); the recording and results stay, marked stale."""
         with self._lock:
             self._require_idle()
-            cur = self._cell_settings
+            cur, mesh = self._project.cell, self._project.mesh
             new = replace(
                 cur,
                 robot=cur.robot if robot is None else robot.lower(),
                 tool_radius_m=cur.tool_radius_m if tool_radius_m is None else float(tool_radius_m),
             )
-            mesh = self._mesh
             if workpiece in WORKPIECE_NAMES:
-                new, mesh = (
-                    replace(new, workpiece=workpiece, workpiece_builtin=True),
-                    None,
-                )
+                new, mesh = replace(new, workpiece=workpiece, workpiece_builtin=True), None
             elif workpiece is not None and not (mesh is not None and workpiece == cur.workpiece):
                 uploaded = f", or {cur.workpiece!r} (uploaded)" if mesh is not None else ""
                 raise InvalidInputError(
                     f"unknown workpiece {workpiece!r}; use one of {', '.join(WORKPIECE_NAMES)}"
                     f"{uploaded}, or upload a mesh file"
                 )
-            self._install_cell(new, mesh, joints=None)
-            self._clear_downstream()
-            self._save_cell()
-        self._notify("cell", "robot", "guide_points", "recording", "postprocess")
+            if new == cur and mesh == self._project.mesh:
+                return cur
+            self._change_cell(new, mesh)
+        self._notify("cell", "robot", "guide_points", *DOWNSTREAM_TOPICS)
         return new
 
     def upload_workpiece(self, data: bytes, filename: str) -> CellSettings:
         """Use a mesh file (STL/OBJ/PLY, mm) as the workpiece, within ``max_upload_bytes`` and
-        ``max_triangles``. Clears downstream data like ``set_cell``."""
+        ``max_triangles``. Clears the guide points like a ``set_cell`` change."""
         suffix = Path(filename).suffix.lower()
         if suffix not in MESH_SUFFIXES:
             raise InvalidInputError(
@@ -357,12 +326,33 @@ class Session:
         parsed = mesh_from_bytes(data, suffix, name=stem, max_triangles=self.max_triangles)
         with self._lock:
             self._require_idle()
-            new = replace(self._cell_settings, workpiece=stem, workpiece_builtin=False)
-            self._install_cell(new, (stem + suffix, data), joints=None, parsed=parsed)
-            self._clear_downstream()
-            self._save_cell()
-        self._notify("cell", "robot", "guide_points", "recording", "postprocess")
+            new = replace(self._project.cell, workpiece=stem, workpiece_builtin=False)
+            self._change_cell(new, (stem + suffix, data), parsed=parsed)
+        self._notify("cell", "robot", "guide_points", *DOWNSTREAM_TOPICS)
         return new
+
+    def _change_cell(
+        self, settings: CellSettings, mesh: tuple[str, bytes] | None, *, parsed: Any = None
+    ) -> None:
+        self._install_cell(settings, mesh, joints=None, parsed=parsed)
+        self._project = replace(self._project, cell=settings, mesh=mesh, guide_points=())
+        self._save("cell", "guides", with_robot=True)
+
+    def set_process_settings(self, *, cmrr: Any = None, compensation: Any = None) -> Project:
+        """Choose the CMRR controller settings (``cmrr.CmrrSettings``) and the compensation
+        settings (``stiffness.CompensationSettings``) the exported program carries; None
+        removes one. Compensation identified on another robot is refused."""
+        with self._lock:
+            if compensation is not None and compensation.robot != self._project.cell.robot:
+                raise InvalidInputError(
+                    f"the compensation settings were identified on {compensation.robot}, "
+                    f"the cell has {self._project.cell.robot}"
+                )
+            self._project = replace(self._project, cmrr=cmrr, compensation=compensation)
+            self._save("post")
+            project = self._project
+        self._notify("postprocess")
+        return project
 
     # --- lead-through ------------------------------------------------------------------------
 
@@ -407,7 +397,7 @@ class Session:
         """Put the robot back at its home pose (a reset of the simulation, not a move)."""
         with self._lock:
             self._require_idle()
-            self._install_cell(self._cell_settings, self._mesh, joints=None)
+            self._install_cell(self._project.cell, self._project.mesh, joints=None)
             self._save_robot()
         self._notify("robot")
         return self.snapshot()
@@ -418,31 +408,35 @@ class Session:
         """Record the current pose as the next guide point."""
         with self._lock:
             self._require_idle()
-            if len(self._guides) >= MAX_GUIDE_POINTS:
+            guides = self._project.guide_points
+            if len(guides) >= MAX_GUIDE_POINTS:
                 raise ConflictError(f"a project holds at most {MAX_GUIDE_POINTS} guide points")
             point = self._lt.record(self._lt_state)
-            self._guides.append(point)
-            entry = GuidePointEntry(len(self._guides) - 1, point)
-            self._save_guides()
-        self._notify("guide_points")
+            self._set_guides((*guides, point))
+            entry = GuidePointEntry(len(guides), point)
+        self._notify("guide_points", *DOWNSTREAM_TOPICS)
         return entry
 
     def delete_guide_point(self, index: int) -> None:
         """Delete the guide point at ``index``; later points move down by one."""
         with self._lock:
-            if not (0 <= index < len(self._guides)):
+            guides = self._project.guide_points
+            if not (0 <= index < len(guides)):
                 raise NotFoundError(
-                    f"no guide point {index}; there are {len(self._guides)} (indexes from 0)"
+                    f"no guide point {index}; there are {len(guides)} (indexes from 0)"
                 )
-            del self._guides[index]
-            self._save_guides()
-        self._notify("guide_points")
+            self._set_guides(guides[:index] + guides[index + 1 :])
+        self._notify("guide_points", *DOWNSTREAM_TOPICS)
 
     def clear_guide_points(self) -> None:
         with self._lock:
-            self._guides.clear()
-            self._save_guides()
-        self._notify("guide_points")
+            self._set_guides(())
+        self._notify("guide_points", *DOWNSTREAM_TOPICS)
+
+    def _set_guides(self, guides: tuple[GuidePoint, ...], *, with_robot: bool = False) -> None:
+        """New guide points; the recording and its results become stale (by fingerprint)."""
+        self._project = replace(self._project, guide_points=tuple(guides))
+        self._save("guides", with_robot=with_robot)
 
     # --- jobs --------------------------------------------------------------------------------
 
@@ -459,10 +453,10 @@ class Session:
                     f"{self._cell.workpiece.name!r}; lead the robot by pushes instead"
                 )
             epoch, cell, estimator = self._epoch, self._cell, self._lt.estimator
-            start, seed = self._lt_state, self._cell_settings.seed
+            start, seed = self._lt_state, self._project.cell.seed
 
             def work(ctx: JobContext) -> tuple[LeadThroughState, list[GuidePoint]]:
-                lt = LeadThrough(self._tapped(cell, estimator, ctx), estimator=estimator)
+                lt = LeadThrough(self._live.tapped(cell, estimator, ctx), estimator=estimator)
                 return scripted_leadthrough(
                     lt,
                     start,
@@ -477,82 +471,54 @@ class Session:
                     if epoch != self._epoch:
                         raise ConflictError("the cell changed while the example ran")
                     self._lt_state = replace(state, velocity=np.zeros(6))
-                    self._guides = list(guides)
-                    self._save_guides(with_robot=True)
-                self._notify("robot", "guide_points")
+                    self._set_guides(tuple(guides), with_robot=True)
+                self._notify("robot", "guide_points", *DOWNSTREAM_TOPICS)
 
             return self._submit_robot_job("example", work, done, epoch)
 
     def start_path_learning(self, force_N: float, speed_m_s: float, *, closed: bool = True) -> str:
-        """Job: learn the path through the guide points at ``force_N`` and ``speed_m_s``;
-        on success the recording replaces the last one. Returns the job id."""
-        from robomach_core.path_learning import learn_path
-
+        """Job: learn the path through the guide points at ``force_N`` and ``speed_m_s``
+        (``project.learn``); on success the recording replaces the last one, and the last
+        post-processing stays, marked stale. Returns the job id."""
         settings = PathLearningSettings(
             force_N=float(force_N), speed_m_s=float(speed_m_s), closed=bool(closed)
         )
         with self._lock:
             self._require_idle()
-            if len(self._guides) < 2:
+            project = self._project
+            if len(project.guide_points) < 2:
                 raise NotEnoughGuidePointsError(
-                    f"path learning needs at least 2 guide points, got {len(self._guides)}"
+                    f"path learning needs at least 2 guide points, got {len(project.guide_points)}"
                 )
             epoch, cell, estimator = self._epoch, self._cell, self._lt.estimator
-            start, guides = self._lt_state.cell, list(self._guides)
+            start = self._lt_state.cell
 
-            def work(ctx: JobContext) -> tuple[Recording, CellState]:
-                return learn_path(
-                    self._tapped(cell, estimator, ctx),
+            def work(ctx: JobContext) -> tuple[core.LearnedPath, CellState]:
+                return core.learn(
+                    project,
+                    self._live.tapped(cell, estimator, ctx),
                     start,
-                    guides,
                     settings,
                     estimator,
                     progress=ctx.progress,
                     cancelled=ctx.cancelled,
                 )
 
-            def done(result: tuple[Recording, CellState]) -> None:
-                recording, end = result
+            def done(result: tuple[core.LearnedPath, CellState]) -> None:
+                learned, end = result
                 with self._lock:
                     if epoch != self._epoch:
                         raise ConflictError("the cell changed while path learning ran")
                     self._lt_state = LeadThroughState(end, end.T_base_tcp.copy(), np.zeros(6))
-                    self._recording = recording
-                    self._recording_guides_q = np.array([g.quaternion_wxyz for g in guides])
-                    self._learning = settings
-                    self._post = None
-                    self._save_recording()
-                self._notify("robot", "recording", "postprocess")
+                    self._project = replace(self._project, learned=learned)
+                    self._save("recording", "post", with_robot=True)
+                self._notify("robot", *DOWNSTREAM_TOPICS)
 
             return self._submit_robot_job("path_learning", work, done, epoch)
 
     def cancel_job(self, job_id: str) -> JobInfo:
         """Cancel a job (a running one stops within a few milliseconds of compute)."""
         return self.jobs.cancel(job_id)
-
-    def _tapped(self, cell: Cell, estimator: ForceEstimator, ctx: JobContext) -> _TappedCell:
-        count = 0
-
-        def tap(state: CellState) -> None:
-            nonlocal count
-            count += 1
-            if count % LIVE_TRACE_EVERY:
-                return
-            ctx.check_cancelled()
-            self._live_cell = state
-            if len(self._live_trace) < LIVE_TRACE_MAX:
-                force = estimator.contact_wrench_tcp_base(
-                    state.ft_reading, cell.flange_rotation(state.T_base_tcp)
-                )[:3]
-                self._live_trace.append(
-                    (state.time_s - self._live_t0, float(np.sqrt(force @ force)))
-                )
-            now = time.monotonic()
-            if now - self._last_live_notify >= LIVE_NOTIFY_S:
-                self._last_live_notify = now
-                self._notify("robot")
-
-        return _TappedCell(cell, tap)
 
     def _submit_robot_job(
         self,
@@ -561,15 +527,12 @@ class Session:
         done: Callable[[Any], None],
         epoch: int,
     ) -> str:
-        self._live_cell = self._lt_state.cell
-        self._live_t0 = float(self._lt_state.cell.time_s)
-        self._live_trace = []
+        self._live.start(self._lt_state.cell)
 
         def end(info: JobInfo) -> None:
             # Cancelled or failed: the robot stays where the job left it (nothing teleports).
             with self._lock:
-                live = self._live_cell
-                self._live_cell = None
+                live = self._live.stop()
                 if info.status != "done" and live is not None and epoch == self._epoch:
                     self._lt_state = LeadThroughState(live, live.T_base_tcp.copy(), np.zeros(6))
                     self._save_robot()
@@ -585,193 +548,110 @@ class Session:
         force_min_N: float | None = None,
         force_max_N: float | None = None,
         tolerance_m: float | None = None,
-    ) -> PostprocessOutcome:
-        """Filter and reduce the last recording; None keeps a setting. Saves the settings."""
+    ) -> ProcessedPath:
+        """Filter, reduce and score the last recording (``project.process``); None keeps a
+        setting. It computes outside the lock from a snapshot of the project, so reads never
+        wait for it, and swaps the result in only if the recording and cell did not change."""
         with self._lock:
-            cur = self._post_settings
-            settings = replace(
-                cur,
-                force_min_N=cur.force_min_N if force_min_N is None else float(force_min_N),
-                force_max_N=cur.force_max_N if force_max_N is None else float(force_max_N),
-                tolerance_m=cur.tolerance_m if tolerance_m is None else float(tolerance_m),
-            )
-            if self._recording is None:
-                raise ConflictError("nothing to post-process yet: run path learning first")
-            outcome = self._postprocess(settings)
-            self._post_settings, self._post = settings, outcome
-            self._save_post()
+            project, epoch, workpiece = self._project, self._epoch, self._cell.workpiece
+        cur = project.post_settings
+        settings = replace(
+            cur,
+            force_min_N=cur.force_min_N if force_min_N is None else float(force_min_N),
+            force_max_N=cur.force_max_N if force_max_N is None else float(force_max_N),
+            tolerance_m=cur.tolerance_m if tolerance_m is None else float(tolerance_m),
+        )
+        if project.learned is None:
+            raise ConflictError("nothing to post-process yet: run path learning first")
+        outcome = core.process(project.learned, settings, workpiece, project.cell.tool_radius_m)
+        with self._lock:
+            if self._project.learned is not project.learned or epoch != self._epoch:
+                raise ConflictError(
+                    "the recording or the cell changed while post-processing ran; run it again"
+                )
+            self._project = replace(self._project, post_settings=settings, processed=outcome)
+            self._save("post")
         self._notify("postprocess")
         return outcome
 
-    def _postprocess(self, settings: PostprocessSettings) -> PostprocessOutcome:
-        from robomach_core.postprocess import postprocess
-        from robomach_core.scoring import score_path
-
-        rec = self._recording
-        result = postprocess(
-            rec,
-            self._recording_guides_q,
-            settings,
-            closed=self._learning.closed if self._learning else True,
-        )
-        score = None
-        if self._cell.workpiece.wall is not None and len(result.targets) >= 2:
-            score = score_path(
-                self._cell.workpiece,
-                self._cell.tool.radius_m,
-                result.targets.position_m,
-            )
-        return PostprocessOutcome(settings, result, len(rec), score)
-
-    def rapid_module(self, *, module_name: str = "LearnedPath", force_control: bool = False) -> str:
-        """The RAPID module of the post-processed targets (optionally the FC pressure variant)."""
-        from robomach_core.export.program import rapid_program
-        from robomach_core.export.rapid import rapid_module
-
+    def rapid_module(
+        self, *, module_name: str = core.DEFAULT_MODULE_NAME, force_control: bool = False
+    ) -> str:
+        """The RAPID module of the project (``project.rapid_text``): the FC SpeedChange block
+        with a CMRR controller, compensated targets in the offline compensation modes, or the
+        FC pressure variant."""
         with self._lock:
-            post = self._require_post()
-            s = self._cell_settings
-            learn = self._learning
-            header = (
-                f"robomach workbench: {s.robot}, {self._cell.workpiece.name}, tool radius "
-                f"{s.tool_radius_m * 1e3:g} mm",
-                f"{len(post.result.targets)} targets from {post.samples_raw} samples "
-                f"({post.result.samples_filtered} kept by the force filter), tolerance "
-                f"{post.settings.tolerance_m * 1e3:g} mm",
-            )
-            program = rapid_program(
-                post.result.targets,
-                self._cell.tool,
-                self._cell.workpiece,
-                module_name=module_name,
-                force_control_N=(learn.force_N if (force_control and learn) else None),
-                comment=header,
-            )
-        return rapid_module(program)
+            project, workpiece, robot = self._project, self._cell.workpiece, self._cell.robot
+        return core.rapid_text(
+            project, workpiece, robot, module_name=module_name, force_control=force_control
+        )
 
     def samples_csv(self) -> str:
-        """Every recorded sample with the force filter's verdict (mm, N, degrees)."""
+        """Every recorded sample with the force filter's verdict (mm, N, degrees); the
+        recording is the raw data, so it is given even when it is stale."""
         from robomach_core.export.tables import samples_csv
 
-        with self._lock:
-            if self._recording is None:
-                raise ConflictError("no recording yet: run path learning first")
-            keep = self._post.result.keep_mask if self._post is not None else None
-            return samples_csv(self._recording, keep)
+        project = self._project
+        if project.learned is None:
+            raise ConflictError("no recording yet: run path learning first")
+        processed, keep = project.processed, None
+        if processed is not None and processed.inputs == core.processed_inputs_key(
+            project.learned, processed.settings
+        ):
+            keep = processed.result.keep_mask
+        return samples_csv(project.learned.recording, keep)
 
     def targets_csv(self) -> str:
         """The post-processed targets (mm, degrees, mm/s)."""
         from robomach_core.export.tables import targets_csv
 
-        with self._lock:
-            return targets_csv(self._require_post().result.targets)
+        return targets_csv(core.require_processed(self._project).result.targets)
 
     def settings_json(self) -> str:
-        """Cell, compliance, learning and post-processing settings (mm, N, s, degrees)."""
+        """``project.settings_document`` with the project name and compliance selection."""
         with self._lock:
-            s, p, learn = self._cell_settings, self._post_settings, self._learning
-            doc = {
-                "project": self.current_project().name,
-                "cell": {
-                    "robot": s.robot,
-                    "tool_radius_mm": s.tool_radius_m * 1e3,
-                    "workpiece": s.workpiece,
-                    "workpiece_builtin": s.workpiece_builtin,
-                    "seed": s.seed,
-                },
-                "compliance": {
-                    "axes": [a for a in AXES if a in self._selection.axes],
-                    "frame": self._selection.frame,
-                },
-                "guide_points": len(self._guides),
-                "path_learning": None
-                if learn is None
-                else {
-                    "force_N": learn.force_N,
-                    "speed_mm_s": learn.speed_m_s * 1e3,
-                    "closed": learn.closed,
-                    "force_limit_N": learn.force_limit_N,
-                },
-                "postprocess": {
-                    "force_min_N": p.force_min_N,
-                    "force_max_N": p.force_max_N,
-                    "tolerance_mm": p.tolerance_m * 1e3,
-                    "speed_mean_mm_s": p.speed_mean_m_s * 1e3,
-                    "speed_min_mm_s": p.speed_min_m_s * 1e3,
-                    "contact_stiffness_N_mm": p.contact_stiffness_N_m * 1e-3,
-                },
-            }
-            post = self._post
-            if post is not None:
-                doc["result"] = {
-                    "samples_raw": post.samples_raw,
-                    "samples_filtered": post.result.samples_filtered,
-                    "targets": len(post.result.targets),
-                    "max_deviation_mm": None if post.score is None else post.score.max_m * 1e3,
-                    "rms_deviation_mm": None if post.score is None else post.score.rms_m * 1e3,
-                }
+            doc = core.settings_document(
+                self._project,
+                self._cell.workpiece,
+                project_name=self.current_project().name,
+                compliance=self._compliance_doc(),
+            )
         return json.dumps(doc, indent=2) + "\n"
 
+    def _compliance_doc(self) -> dict[str, Any]:
+        return {
+            "axes": [a for a in AXES if a in self._selection.axes],
+            "frame": self._selection.frame,
+        }
+
     def save_export(self, name: str) -> ExportInfo:
-        """Save program.mod, program_fc.mod, samples.csv, targets.csv and settings.json under
-        ``name`` (letters, digits, ``_ . -``; 1-64 characters) in the store and in
-        ``<data_dir>/exports/<project id>/<name>/``; the same name replaces the files."""
-        if not isinstance(name, str) or not EXPORT_NAME_RE.match(name) or ".." in name:
-            raise InvalidInputError(
-                "an export name is 1-64 letters, digits, '_', '.' or '-', starting with a letter "
-                f"or digit and without '..'; got {name!r}"
-            )
+        """Save ``project.program_files`` (program.mod, program_fc.mod, samples.csv,
+        targets.csv, settings.json) under ``name`` (letters, digits, ``_ . -``; 1-64
+        characters) in the store and in ``<data_dir>/exports/<project id>/<name>/``; the same
+        name replaces the files. A stale post-processing is refused."""
+        check_export_name(name)
         with self._lock:
-            module = rapid_identifier_or(name)
-            files = {
-                "program.mod": self.rapid_module(module_name=module),
-                "samples.csv": self.samples_csv(),
-                "targets.csv": self.targets_csv(),
-                "settings.json": self.settings_json(),
-            }
-            if self._learning is not None:
-                files["program_fc.mod"] = self.rapid_module(
-                    module_name=module[:29] + "_FC", force_control=True
-                )
-            pid = self._project_id
-            created = self.store.save_export(pid, name, files)
-            folder = None
-            if self.data_dir is not None:
-                folder = self._export_folder(pid, name)
-                for filename, text in files.items():
-                    _write_atomic(folder / filename, text)
+            files = core.program_files(
+                self._project,
+                self._cell.workpiece,
+                self._cell.robot,
+                module_name=rapid_identifier_or(name),
+                project_name=self.current_project().name,
+                compliance=self._compliance_doc(),
+            )
+            info = exports.save_export(self.store, self.data_dir, self._project_id, name, files)
         self._notify("exports")
-        return ExportInfo(name, created, sorted(files), folder)
+        return info
 
     def exports(self) -> list[ExportInfo]:
         """The current project's saved exports, newest first."""
         with self._lock:
-            pid = self._project_id
-            return [
-                ExportInfo(n, t, files, self._export_folder(pid, n, create=False))
-                for n, t, files in self.store.list_exports(pid)
-            ]
+            return exports.list_exports(self.store, self.data_dir, self._project_id)
 
     def export_file(self, name: str, filename: str) -> str:
         """The text of one file of a saved export."""
         with self._lock:
-            files = self.store.get_export(self._project_id, name)
-        if files is None:
-            raise NotFoundError(f"no export named {name!r} in this project")
-        if filename not in files:
-            raise NotFoundError(f"export {name!r} has no file {filename!r}; it has {sorted(files)}")
-        return files[filename]
-
-    def _export_folder(self, project_id: int, name: str, *, create: bool = True) -> Path | None:
-        if self.data_dir is None:
-            return None
-        root = (self.data_dir / "exports").resolve()
-        folder = (root / str(project_id) / name).resolve()
-        if not folder.is_relative_to(root) or folder == root:  # belt and braces after the regex
-            raise InvalidInputError(f"export name {name!r} would leave the data folder")
-        if create:
-            folder.mkdir(parents=True, exist_ok=True)
-        return folder
+            return exports.export_file(self.store, self._project_id, name, filename)
 
     # --- projects ----------------------------------------------------------------------------
 
@@ -790,7 +670,7 @@ class Session:
 
     def create_project(self, name: str) -> ProjectInfo:
         """A new project with the default cell, opened at once."""
-        name = _project_name(name)
+        name = check_project_name(name)
         with self._lock:
             self._require_idle()
             if self.store.find_project(name) is not None:
@@ -806,13 +686,19 @@ class Session:
             self._require_idle()
             if self.store.get_project(project_id) is None:
                 raise NotFoundError(f"no project with id {project_id}")
-            self._load(project_id)
+            epoch = self._epoch
+        loaded = self._read(project_id)  # outside the lock: reads never wait for it
+        with self._lock:
+            self._require_idle()
+            if epoch != self._epoch:
+                raise ConflictError("the cell or project changed while opening; open it again")
+            self._apply(loaded)
             self.store.set_last_project(project_id)
         self._notify_all()
         return self.current_project()
 
     def rename_project(self, project_id: int, name: str) -> ProjectInfo:
-        name = _project_name(name)
+        name = check_project_name(name)
         with self._lock:
             row = self.store.get_project(project_id)
             if row is None:
@@ -869,13 +755,6 @@ class Session:
                 f"({job.progress:.0%}); wait for it or cancel it first"
             )
 
-    def _require_post(self) -> PostprocessOutcome:
-        if self._recording is None:
-            raise ConflictError("no recording yet: run path learning, then post-processing")
-        if self._post is None:
-            raise ConflictError("the recording is not post-processed yet: run post-processing")
-        return self._post
-
     def _notify_all(self) -> None:
         self._notify(
             "project",
@@ -897,46 +776,8 @@ class Session:
         parsed: Workpiece | None = None,
     ) -> None:
         """Build the cell and put the robot at ``joints`` (home when None or not usable)."""
-        if settings.robot not in ROBOT_URDFS:
-            raise InvalidInputError(
-                f"unknown robot {settings.robot!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
-            )
-        tool = Tool(radius_m=settings.tool_radius_m)
-        if parsed is not None:
-            workpiece: str | Workpiece = parsed
-        elif mesh is not None:
-            filename, data = mesh
-            workpiece = mesh_from_bytes(
-                data,
-                Path(filename).suffix,
-                name=Path(filename).stem,
-                max_triangles=MAX_MESH_TRIANGLES,
-            )
-        else:
-            workpiece = settings.workpiece
-        cell = Cell(
-            CellConfig(robot=settings.robot, tool=tool, workpiece=workpiece, seed=settings.seed)
-        )
-        initial = None
-        if joints is not None:
-            try:
-                initial = cell.initial_state(np.asarray(joints, dtype=float))
-            except RobomachError:
-                log.info("stored joints not usable (limits or contact): starting at home")
-        if initial is None:
-            initial = cell.initial_state()
-        lt = LeadThrough(cell)
-        self._cell, self._lt, self._mesh = cell, lt, mesh
-        self._cell_settings = settings
-        self._lt_state = lt.start(initial)
+        self._cell, self._lt, self._lt_state = _build_cell(settings, mesh, joints, parsed)
         self._epoch += 1
-
-    def _clear_downstream(self) -> None:
-        self._guides = []
-        self._recording = None
-        self._recording_guides_q = np.zeros((0, 4))
-        self._learning = None
-        self._post = None
 
     def _robot_doc_default(self) -> dict[str, Any]:
         sel = ComplianceSelection()
@@ -963,66 +804,39 @@ class Session:
                 continue
             self.store.set_last_project(project_id)
             return
-        name = DEFAULT_PROJECT_NAME
-        k = 1
+        name, k = DEFAULT_PROJECT_NAME, 1
         while self.store.find_project(name) is not None:
-            k += 1
-            name = f"{DEFAULT_PROJECT_NAME} {k}"
+            k, name = k + 1, f"{DEFAULT_PROJECT_NAME} {k + 1}"
         row = self.store.create_project(name, asdict(CellSettings()), self._robot_doc_default())
         self._load(row.id)
 
     def _load(self, project_id: int) -> None:
-        data: ProjectData = self.store.load_project(project_id)
-        known = set(CellSettings.__dataclass_fields__)
-        settings = CellSettings(**{k: v for k, v in data.cell.items() if k in known})
-        joints = data.robot.get("joints_rad")
-        self._install_cell(settings, data.mesh, joints)
+        self._apply(self._read(project_id))
+
+    def _read(self, project_id: int) -> _Loaded:
+        """A stored project and its live cell, built without touching the session (the slow
+        part of opening: the mesh, the robot model, the post-processing)."""
+        data = self.store.load_project(project_id)
+        if data is None:
+            raise NotFoundError(f"no project with id {project_id}")
+        cell = persistence_cell(data.cell)
+        mesh = data.mesh if not cell.workpiece_builtin else None
+        built = _build_cell(cell, mesh, data.robot.get("joints_rad"))
         comp = data.robot.get("compliance") or {}
         try:
-            self._selection = ComplianceSelection(
+            selection = ComplianceSelection(
                 frozenset(comp.get("axes", ("x", "y", "z"))), comp.get("frame", "base")
             )
         except RobomachError:
-            self._selection = ComplianceSelection()
-        self._project_id = project_id
-        self._guides = [
-            GuidePoint(g.T_base_tcp, g.joints_rad, g.time_s, g.force_N) for g in data.guide_points
-        ]
-        self._recording, self._learning, self._post = None, None, None
-        self._recording_guides_q = np.zeros((0, 4))
-        info = data.recording_info
-        if info is not None:
-            arrays = data.recording_arrays
-            try:
-                self._recording = Recording(
-                    **{k: arrays[k] for k in RECORDING_ARRAYS},
-                    stop_reason=str(info["stop_reason"]),
-                    completed=bool(info["completed"]),
-                )
-                self._recording_guides_q = arrays["guide_quaternions_wxyz"]
-                self._learning = PathLearningSettings(**info["learning"])
-            except (
-                KeyError,
-                TypeError,
-                ValueError,
-            ) as exc:  # written by another version
-                log.error(
-                    "project %s: cannot read its recording (%s); dropped",
-                    project_id,
-                    exc,
-                )
-                self._recording, self._learning = None, None
-        post = data.post or {}
-        try:
-            self._post_settings = PostprocessSettings(**post.get("settings", {}))
-        except (TypeError, ValueError) as exc:
-            log.error("project %s: post-processing settings unreadable (%s)", project_id, exc)
-            self._post_settings = PostprocessSettings()
-        if post.get("applied") and self._recording is not None:
-            try:
-                self._post = self._postprocess(self._post_settings)
-            except RobomachError as exc:
-                log.warning("stored post-processing no longer applies: %s", exc)
+            selection = ComplianceSelection()
+        return _Loaded(project_id, built, selection, project_from_data(data, built[0].workpiece))
+
+    def _apply(self, loaded: _Loaded) -> None:
+        self._cell, self._lt, self._lt_state = loaded.built
+        self._epoch += 1
+        self._selection = loaded.selection
+        self._project_id = loaded.project_id
+        self._project = loaded.project
 
     # Each save is one store transaction.
 
@@ -1035,96 +849,54 @@ class Session:
             },
         }
 
-    def _post_doc(self) -> dict[str, Any]:
-        return {
-            "settings": asdict(self._post_settings),
-            "applied": self._post is not None,
-        }
-
-    def _guide_rows(self) -> list[GuidePointRow]:
-        return [
-            GuidePointRow(g.T_base_tcp, g.joints_rad, g.time_s, g.force_N) for g in self._guides
-        ]
-
-    def _recording_doc(self) -> tuple[dict[str, Any], dict[str, np.ndarray]] | None:
-        if self._recording is None:
-            return None
-        info = {
-            "stop_reason": self._recording.stop_reason,
-            "completed": self._recording.completed,
-            "learning": asdict(self._learning),
-        }
-        arrays = {k: getattr(self._recording, k) for k in RECORDING_ARRAYS}
-        arrays["guide_quaternions_wxyz"] = self._recording_guides_q
-        return info, arrays
-
     def _save_robot(self) -> None:
         self.store.save(self._project_id, robot=self._robot_doc())
 
-    def _save_cell(self) -> None:
-        """The cell and everything it reset."""
-        self.store.save(
-            self._project_id,
-            cell=asdict(self._cell_settings),
-            mesh=self._mesh,
-            robot=self._robot_doc(),
-            post=self._post_doc(),
-            guide_points=self._guide_rows(),
-            recording=self._recording_doc(),
-        )
-
-    def _save_guides(self, *, with_robot: bool = False) -> None:
+    def _save(self, *parts: Part, with_robot: bool = False) -> None:
+        kwargs = save_kwargs(self._project, *parts)
         if with_robot:
-            self.store.save(
-                self._project_id,
-                guide_points=self._guide_rows(),
-                robot=self._robot_doc(),
-            )
-        else:
-            self.store.save(self._project_id, guide_points=self._guide_rows())
+            kwargs["robot"] = self._robot_doc()
+        self.store.save(self._project_id, **kwargs)
 
-    def _save_post(self) -> None:
-        self.store.save(self._project_id, post=self._post_doc())
 
-    def _save_recording(self) -> None:
-        self.store.save(
-            self._project_id,
-            recording=self._recording_doc(),
-            post=self._post_doc(),
-            robot=self._robot_doc(),
+@dataclass(frozen=True)
+class _Loaded:
+    """A project read from the store with its live cell, ready to be installed."""
+
+    project_id: int
+    built: tuple[Cell, LeadThrough, LeadThroughState]
+    selection: ComplianceSelection
+    project: Project
+
+
+def _build_cell(
+    settings: CellSettings,
+    mesh: tuple[str, bytes] | None,
+    joints: Any,
+    parsed: Workpiece | None = None,
+) -> tuple[Cell, LeadThrough, LeadThroughState]:
+    """The cell of ``settings`` and its lead-through, the robot at ``joints`` (home when None or
+    not usable)."""
+    if settings.robot not in ROBOT_URDFS:
+        raise InvalidInputError(
+            f"unknown robot {settings.robot!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
         )
-
-
-def _project_name(name: str) -> str:
-    if not isinstance(name, str) or not name.strip():
-        raise InvalidInputError("a project name must not be empty")
-    name = name.strip()
-    if len(name) > PROJECT_NAME_MAX:
-        raise InvalidInputError(f"a project name is at most {PROJECT_NAME_MAX} characters")
-    if any(ord(ch) < 32 for ch in name):
-        raise InvalidInputError("a project name must not contain control characters")
-    return name
-
-
-def rapid_identifier_or(name: str) -> str:
-    """A RAPID module name from an export name (``LearnedPath`` when it has no letter)."""
-    from robomach_core.export.rapid import rapid_identifier
-
-    try:
-        return rapid_identifier(name, prefix="m")
-    except InvalidInputError:
-        return "LearnedPath"
-
-
-def _write_atomic(path: Path, text: str) -> None:
-    """Write a file so that a crash leaves either the old or the new content."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    workpiece = parsed if parsed is not None else core.build_workpiece(settings, mesh)
+    cell = Cell(
+        CellConfig(
+            robot=settings.robot,
+            tool=core.Project(cell=settings).tool(),
+            workpiece=workpiece,
+            seed=settings.seed,
+        )
+    )
+    initial = None
+    if joints is not None:
+        try:
+            initial = cell.initial_state(np.asarray(joints, dtype=float))
+        except RobomachError:
+            log.info("stored joints not usable (limits or contact): starting at home")
+    if initial is None:
+        initial = cell.initial_state()
+    lt = LeadThrough(cell)
+    return cell, lt, lt.start(initial)

@@ -158,6 +158,12 @@ def test_pendant_teaches_a_short_path(served: Served, api: httpx.Client, page: P
     assert text.lstrip().startswith(("MODULE", "%%%")) or "MODULE" in text
     assert "MoveL" in text and "ENDMODULE" in text
 
+    # Changing the guide points leaves the path and its targets marked out of date.
+    expect(page.locator("#post-stale")).to_be_hidden()
+    assert api.delete("/api/guide-points/1").status_code == 204
+    expect(page.locator("#post-stale")).to_be_visible()
+    expect(page.locator("#learn-stale")).to_be_visible()
+
 
 def test_pendant_keeps_the_token_and_finds_the_scene(served: Served, page: Page) -> None:
     open_pendant(page, served)

@@ -33,4 +33,5 @@ def get_postprocess(session: SessionDep) -> PostprocessStatePublic:
     return PostprocessStatePublic(
         settings=PostprocessSettingsPublic.from_settings(session.postprocess_settings()),
         result=None if outcome is None else PostprocessPublic.from_outcome(outcome),
+        status=session.status()["postprocess"],
     )

@@ -6,8 +6,17 @@ from typing import Annotated
 
 from fastapi import APIRouter, Path, Response, status
 
-from app.api.routes import ERRORS, SessionDep
-from app.api.schemas import ProjectCreate, ProjectPublic, ProjectUpdate
+from app.api.routes import ERRORS, SessionDep, StudiesDep
+from app.api.schemas import (
+    ProcessSettingsFromStudies,
+    ProcessSettingsPublic,
+    ProcessSettingsUpdate,
+    ProjectCreate,
+    ProjectPublic,
+    ProjectStatusPublic,
+    ProjectUpdate,
+)
+from robomach_core import project as core
 
 router = APIRouter(prefix="/api/projects", tags=["projects"], responses=ERRORS)
 
@@ -24,6 +33,58 @@ def list_projects(session: SessionDep) -> list[ProjectPublic]:
 def current_project(session: SessionDep) -> ProjectPublic:
     """The open project."""
     return ProjectPublic.from_info(session.current_project())
+
+
+@router.get("/current/status")
+def project_status(session: SessionDep) -> ProjectStatusPublic:
+    """Per stage of the open project: none, current or stale (out of date), with reasons."""
+    return ProjectStatusPublic.from_project(session.project())
+
+
+@router.get("/current/process-settings")
+def get_process_settings(session: SessionDep) -> ProcessSettingsPublic:
+    """The CMRR and compensation settings the exported program carries (null: none)."""
+    project = session.project()
+    return ProcessSettingsPublic(
+        cmrr=core.cmrr_document(project), compensation=core.compensation_document(project)
+    )
+
+
+@router.put("/current/process-settings")
+def put_process_settings(body: ProcessSettingsUpdate, session: SessionDep) -> ProcessSettingsPublic:
+    """Choose the CMRR controller (``cmrr_settings.json`` of one controller, e.g. from
+    ``GET /api/cmrr/settings?controller=NAME``) and the compensation settings
+    (``compensation_settings.json``); RAPID exports then carry them."""
+    from robomach_core.cmrr import settings_from_dict as cmrr_from_dict
+    from robomach_core.stiffness.settings import settings_from_dict as compensation_from_dict
+
+    cmrr = None if body.cmrr is None else cmrr_from_dict(body.cmrr)
+    compensation = None if body.compensation is None else compensation_from_dict(body.compensation)
+    project = session.set_process_settings(cmrr=cmrr, compensation=compensation)
+    return ProcessSettingsPublic(
+        cmrr=core.cmrr_document(project), compensation=core.compensation_document(project)
+    )
+
+
+@router.post("/current/process-settings/from-studies")
+def process_settings_from_studies(
+    body: ProcessSettingsFromStudies, session: SessionDep, studies: StudiesDep
+) -> ProcessSettingsPublic:
+    """Adopt the open project's last CMRR study (its controller, or ``controller`` after a
+    comparison) and compensation identification as the settings RAPID exports carry."""
+    from app.session.process_settings import settings_from_studies
+
+    project = session.project()
+    cmrr, compensation = settings_from_studies(
+        studies, controller=body.controller, cmrr=body.cmrr, compensation=body.compensation
+    )
+    project = session.set_process_settings(
+        cmrr=cmrr if body.cmrr else project.cmrr,
+        compensation=compensation if body.compensation else project.compensation,
+    )
+    return ProcessSettingsPublic(
+        cmrr=core.cmrr_document(project), compensation=core.compensation_document(project)
+    )
 
 
 @router.post("", status_code=status.HTTP_201_CREATED)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, Request
 
 from app.api.routes import SessionDep
-from app.api.schemas import HealthPublic, StatePublic, WorkbenchPublic
+from app.api.schemas import HealthPublic, ProjectStatusPublic, StatePublic, WorkbenchPublic
 
 router = APIRouter(prefix="/api", tags=["state"])
 
@@ -24,5 +24,7 @@ def get_workbench(request: Request) -> WorkbenchPublic:
 
 @router.get("/state")
 def get_state(session: SessionDep) -> StatePublic:
-    """Joints, TCP pose, measured contact wrench and contact flag (live while a job runs)."""
-    return StatePublic.from_snapshot(session.snapshot())
+    """Joints, TCP pose, measured contact wrench and contact flag (live while a job runs), and
+    which results of the open project are out of date."""
+    status = ProjectStatusPublic.from_project(session.project())
+    return StatePublic.from_snapshot(session.snapshot(), project_status=status)

@@ -7,6 +7,7 @@ import viser
 import viser.uplot
 
 from .feedback import guarded
+from .postprocess import OUT_OF_DATE
 
 FORCE_RANGE_N = (10.0, 20.0)  # the chapter's 10-20 N contact force
 SPEED_RANGE_MM_S = (1.0, 20.0)
@@ -103,9 +104,13 @@ class PathLearningPanel:
         if rec is None:
             return "*No recording yet.*"
         duration = float(rec.time_s[-1]) if len(rec) else 0.0
-        return f"{len(rec):,} samples over {duration:.1f} s; {rec.stop_reason}" + (
+        text = f"{len(rec):,} samples over {duration:.1f} s; {rec.stop_reason}" + (
             "" if rec.completed else " (**incomplete**)"
         )
+        reason = self.session.stale_reasons().get("recording")
+        if reason is not None:
+            text = f"**{OUT_OF_DATE}**: {reason}.\n\n{text}"
+        return text
 
     def refresh_plot(self) -> None:
         """Redraw the force plot from the session's force trace."""

@@ -17,6 +17,8 @@ from robomach_core.scoring import true_tool_path_distance
 from ..scene import CellScene
 from .feedback import guarded
 
+OUT_OF_DATE = "\u26a0 Out of date"
+
 
 class PostprocessPanel:
     """Fmin/Fmax and tolerance; every change re-runs the filter and the reduction."""
@@ -94,7 +96,11 @@ class PostprocessPanel:
                 return "*No recording yet.*"
             return "*Not post-processed yet: move a slider.*"
         r = outcome.result
-        lines = [
+        lines = []
+        reason = self.session.stale_reasons().get("postprocess")
+        if reason is not None:
+            lines += [f"**{OUT_OF_DATE}**: {reason}.", ""]
+        lines += [
             "| | |",
             "|---|---:|",
             f"| raw samples | {outcome.samples_raw:,} |",
@@ -138,4 +144,5 @@ class PostprocessPanel:
             filtered_deviation_m=dev_f,
             targets_deviation_m=dev_t,
             deviation_scale_m=self.scale.value * 1e-3,
+            stale=self.session.status()["postprocess"] == "stale",
         )

@@ -1,0 +1,116 @@
+"""What a robot job shows while it runs: the live robot state, its force trace, and cancel.
+
+Jobs drive core functions (``project.learn``, ``scripted_leadthrough``) that own their loop;
+stepping through a ``TappedCell`` lets the session show the robot moving, plot the live force
+and stop the loop on cancel (the tap raises ``CancelledError``) without changing the core.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from robomach_core.cell import CONTROL_PERIOD_S, Cell, CellState
+from robomach_core.errors import InvalidInputError
+from robomach_core.path_learning import Recording
+from robomach_core.sensor import ForceEstimator
+
+from .jobs import JobContext
+from .records import LIVE_NOTIFY_S, LIVE_TRACE_EVERY, LIVE_TRACE_MAX, ForceTrace
+
+
+class TappedCell:
+    """A ``Cell`` whose ``step`` also calls ``tap(state)``; every other attribute is the cell's."""
+
+    def __init__(self, cell: Cell, tap: Callable[[CellState], None]) -> None:
+        self._cell = cell
+        self._tap = tap
+
+    def step(
+        self, state: CellState, q_motor_cmd: np.ndarray, dt: float = CONTROL_PERIOD_S
+    ) -> CellState:
+        new = self._cell.step(state, q_motor_cmd, dt)
+        self._tap(new)
+        return new
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._cell, name)
+
+
+class LiveFeed:
+    """The running job's latest cell state and |F| trace (every ``LIVE_TRACE_EVERY`` periods).
+
+    Args:
+        on_move: Called at most every ``LIVE_NOTIFY_S`` while the robot moves.
+    """
+
+    def __init__(self, on_move: Callable[[], None]) -> None:
+        self._on_move = on_move
+        self.cell_state: CellState | None = None
+        self.trace: list[tuple[float, float]] = []
+        self._t0 = 0.0
+        self._last_notify = 0.0
+
+    def start(self, state: CellState) -> None:
+        """A job starts from ``state``: the trace restarts at its time."""
+        self.cell_state = state
+        self._t0 = float(state.time_s)
+        self.trace = []
+
+    def stop(self) -> CellState | None:
+        """The job ended: the last state it reached (None when it never started)."""
+        last, self.cell_state = self.cell_state, None
+        return last
+
+    def force_trace(
+        self, recording: Recording | None, busy: bool, max_points: int = 2000
+    ) -> ForceTrace:
+        """Force vs time, at most ``max_points`` (>= 2) by stride: the live |F| while a job
+        runs, else the recording's force along Yp."""
+        if max_points < 2:
+            raise InvalidInputError("max_points must be at least 2")
+        live = list(self.trace)
+        if busy and live:
+            data = np.array(live)
+            t, f = data[:, 0], data[:, 1]
+            ref = np.full(len(t), np.nan)
+            source = "live"
+        elif recording is not None:
+            t, f = recording.time_s, recording.force_normal_N
+            ref, source = recording.force_reference_N, "recording"
+        else:
+            empty = np.zeros(0)
+            return ForceTrace("none", empty, empty, empty, 0)
+        n = len(t)
+        stride = max(1, math.ceil(n / max_points))
+        idx = np.arange(0, n, stride)
+        if n and idx[-1] != n - 1:
+            idx = np.append(idx, n - 1)
+        return ForceTrace(source, t[idx], f[idx], ref[idx], n)
+
+    def tapped(self, cell: Cell, estimator: ForceEstimator, ctx: JobContext) -> TappedCell:
+        """``cell`` seen through a tap that feeds this and checks the job's cancel."""
+        count = 0
+
+        def tap(state: CellState) -> None:
+            nonlocal count
+            count += 1
+            if count % LIVE_TRACE_EVERY:
+                return
+            ctx.check_cancelled()
+            self.cell_state = state
+            if len(self.trace) < LIVE_TRACE_MAX:
+                force = estimator.contact_wrench_tcp_base(
+                    state.ft_reading, cell.flange_rotation(state.T_base_tcp)
+                )[:3]
+                self.trace.append((state.time_s - self._t0, float(np.sqrt(force @ force))))
+            now = time.monotonic()
+            if now - self._last_notify >= LIVE_NOTIFY_S:
+                self._last_notify = now
+                self._on_move()
+
+        return TappedCell(cell, tap)

@@ -1,0 +1,159 @@
+"""A ``Project`` to and from the SQLite store's rows (``app.store``), one part at a time.
+
+The store's format is unchanged; the fingerprints that make staleness survive a restart and
+the CMRR / compensation settings ride in the JSON documents it already has (``recordings.
+info_json`` gets ``inputs``; ``projects.post_json`` gets ``inputs``, ``cmrr`` and
+``compensation``). A project saved before these fields existed opens with its results taken as
+current (nothing recorded what they were computed from).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, replace
+from typing import Any, Literal
+
+import numpy as np
+
+from robomach_core import project as core
+from robomach_core.errors import RobomachError
+from robomach_core.leadthrough import GuidePoint
+from robomach_core.path_learning import PathLearningSettings, Recording
+from robomach_core.postprocess import PostprocessSettings
+from robomach_core.project import (
+    CellSettings,
+    LearnedPath,
+    Project,
+    cmrr_document,
+    compensation_document,
+    recording_inputs_key,
+)
+from robomach_core.workpiece import Workpiece
+
+from ..store import GuidePointRow, ProjectData
+from .records import RECORDING_ARRAYS, log
+
+Part = Literal["cell", "guides", "recording", "post"]
+
+
+def save_kwargs(project: Project, *parts: Part) -> dict[str, Any]:
+    """Keyword arguments of ``Store.save`` writing these parts of the project."""
+    out: dict[str, Any] = {}
+    if "cell" in parts:
+        out["cell"] = asdict(project.cell)
+        out["mesh"] = project.mesh
+    if "guides" in parts:
+        out["guide_points"] = [
+            GuidePointRow(g.T_base_tcp, g.joints_rad, g.time_s, g.force_N)
+            for g in project.guide_points
+        ]
+    if "recording" in parts:
+        out["recording"] = _recording_doc(project.learned)
+    if "post" in parts:
+        processed = project.processed
+        out["post"] = {
+            "settings": asdict(project.post_settings),
+            "applied": processed is not None,
+            "applied_settings": None if processed is None else asdict(processed.settings),
+            "inputs": None if processed is None else processed.inputs,
+            "cmrr": cmrr_document(project),
+            "compensation": compensation_document(project),
+        }
+    return out
+
+
+def _recording_doc(learned: LearnedPath | None) -> tuple[dict, dict[str, np.ndarray]] | None:
+    if learned is None:
+        return None
+    rec = learned.recording
+    info = {
+        "stop_reason": rec.stop_reason,
+        "completed": rec.completed,
+        "learning": asdict(learned.settings),
+        "inputs": learned.inputs,
+    }
+    arrays = {k: getattr(rec, k) for k in RECORDING_ARRAYS}
+    arrays["guide_quaternions_wxyz"] = learned.guide_quaternions_wxyz
+    return info, arrays
+
+
+def cell_from_doc(doc: dict[str, Any]) -> CellSettings:
+    """Cell settings from ``cell_json`` (unknown keys ignored, missing ones default)."""
+    known = set(CellSettings.__dataclass_fields__)
+    values = {k: v for k, v in doc.items() if k in known}
+    if values.get("wobj_mm_deg") is not None:
+        values["wobj_mm_deg"] = tuple(float(v) for v in values["wobj_mm_deg"])
+    return CellSettings(**values)
+
+
+def project_from_data(data: ProjectData, workpiece: Workpiece) -> Project:
+    """The stored project; its post-processing is recomputed on ``workpiece`` (deterministic)."""
+    pid = data.row.id
+    cell = cell_from_doc(data.cell)
+    mesh = data.mesh if not cell.workpiece_builtin else None
+    guides = tuple(
+        GuidePoint(g.T_base_tcp, g.joints_rad, g.time_s, g.force_N) for g in data.guide_points
+    )
+    project = Project(cell=cell, mesh=mesh, guide_points=guides)
+    post = data.post or {}
+    try:
+        project = replace(project, post_settings=PostprocessSettings(**post.get("settings", {})))
+    except (TypeError, ValueError) as exc:
+        log.error("project %s: post-processing settings unreadable (%s)", pid, exc)
+    project = replace(project, learned=_learned(data, project))
+    project = _process_settings(project, post, pid)
+    if post.get("applied") and project.learned is not None:
+        try:
+            applied = PostprocessSettings(**(post.get("applied_settings") or post["settings"]))
+            processed = core.process(project.learned, applied, workpiece, cell.tool_radius_m)
+        except (RobomachError, TypeError, ValueError, KeyError) as exc:
+            log.warning("project %s: stored post-processing no longer applies: %s", pid, exc)
+        else:
+            stored = post.get("inputs")
+            if stored is None or stored == processed.inputs:
+                project = replace(project, processed=processed)
+            else:  # computed from a recording that is gone: it cannot be rebuilt
+                log.warning("project %s: post-processing of an earlier recording dropped", pid)
+    return project
+
+
+def _learned(data: ProjectData, project: Project) -> LearnedPath | None:
+    info = data.recording_info
+    if info is None:
+        return None
+    arrays = data.recording_arrays
+    try:
+        recording = Recording(
+            **{k: arrays[k] for k in RECORDING_ARRAYS},
+            stop_reason=str(info["stop_reason"]),
+            completed=bool(info["completed"]),
+        )
+        return LearnedPath(
+            recording,
+            arrays["guide_quaternions_wxyz"],
+            PathLearningSettings(**info["learning"]),
+            # Saved before fingerprints existed: take it as learned from what is stored.
+            str(info.get("inputs") or recording_inputs_key(project)),
+        )
+    except (KeyError, TypeError, ValueError) as exc:  # written by another version
+        log.error("project %s: cannot read its recording (%s); dropped", data.row.id, exc)
+        return None
+
+
+def _process_settings(project: Project, post: dict[str, Any], pid: int) -> Project:
+    """The CMRR and compensation settings stored with the project (unreadable ones dropped)."""
+    cmrr = compensation = None
+    if post.get("cmrr") is not None:
+        from robomach_core.cmrr import settings_from_dict
+
+        try:
+            cmrr = settings_from_dict(post["cmrr"])
+        except (RobomachError, TypeError, ValueError, KeyError) as exc:
+            log.error("project %s: CMRR settings unreadable (%s); dropped", pid, exc)
+    if post.get("compensation") is not None:
+        from robomach_core.stiffness.settings import settings_from_dict
+
+        try:
+            compensation = settings_from_dict(post["compensation"])
+        except (RobomachError, TypeError, ValueError, KeyError) as exc:
+            log.error("project %s: compensation settings unreadable (%s); dropped", pid, exc)
+    return replace(project, cmrr=cmrr, compensation=compensation)

@@ -1,0 +1,46 @@
+"""One job as one value, and the stages that turn it into a program (chapter section 3).
+
+PROBLEM   The CLI (``robomach demo``) and the workbench (viser, REST, pendant) both run cell ->
+          guide points -> path learning -> post-processing -> RAPID. Composed twice, the copies
+          drift (two settings.json writers, two RAPID headers, two scoring paths), and when an
+          upstream input changes, a result computed from the old one can be shown as if current.
+STRATEGY  ``Project`` is a frozen value holding the inputs of every stage and the result of each
+          (``LearnedPath``, ``ProcessedPath``, a machining slot). Each stage is a pure function
+          of the previous stage's output and its own settings (``learn``, ``process``,
+          ``program_files``). Each result carries a fingerprint of the inputs it was computed
+          from; ``Project.status()`` compares them with the project's current inputs, so a
+          result is ``"current"``, ``"stale"`` (kept, flagged) or ``"none"``.
+SOLUTION  Callers replace the value (``dataclasses.replace``) and never mark anything by hand:
+          changing the guide points or the cell makes the recording, the post-processing and the
+          machining results stale by construction. Writers refuse stale results
+          (``StaleResultError``, a 409 in the API): a program is never exported from a path that
+          no longer matches the project's guide points or cell. ``settings.json`` carries the
+          status, so a saved document says what it was made from.
+"""
+
+from ._stages import build_workpiece as build_workpiece
+from ._stages import compensate_program_targets as compensate_program_targets
+from ._stages import learn as learn
+from ._stages import process as process
+from ._stages import program_targets as program_targets
+from ._stages import require_processed as require_processed
+from ._stages import wobj_transform as wobj_transform
+from ._value import DEFAULT_MODULE_NAME as DEFAULT_MODULE_NAME
+from ._value import STAGE_NAMES as STAGE_NAMES
+from ._value import CellSettings as CellSettings
+from ._value import LearnedPath as LearnedPath
+from ._value import MissingResultError as MissingResultError
+from ._value import ProcessedPath as ProcessedPath
+from ._value import Project as Project
+from ._value import StageStatus as StageStatus
+from ._value import StaleResultError as StaleResultError
+from ._value import cmrr_document as cmrr_document
+from ._value import compensation_document as compensation_document
+from ._value import machining_inputs_key as machining_inputs_key
+from ._value import processed_inputs_key as processed_inputs_key
+from ._value import recording_inputs_key as recording_inputs_key
+from ._writers import fc_module_name as fc_module_name
+from ._writers import program_files as program_files
+from ._writers import rapid_header as rapid_header
+from ._writers import rapid_text as rapid_text
+from ._writers import settings_document as settings_document

@@ -1,0 +1,271 @@
+"""The project's values: cell settings, stage results, and the fingerprints that date them."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict, dataclass, field
+from functools import cached_property
+from typing import Any, Literal
+
+import numpy as np
+
+from ..errors import RobomachError
+from ..leadthrough import GuidePoint
+from ..path_learning import PathLearningSettings, Recording
+from ..postprocess import PostprocessResult, PostprocessSettings
+from ..scoring import PathScore
+from ..tool import Tool
+
+StageStatus = Literal["none", "current", "stale"]
+STAGE_NAMES = ("guide_points", "recording", "postprocess", "machining")
+DEFAULT_MODULE_NAME = "LearnedPath"
+
+
+class StaleResultError(RobomachError, RuntimeError):
+    """A result is out of date with the project's inputs; re-run its stage before exporting."""
+
+
+class MissingResultError(RobomachError, RuntimeError):
+    """A stage has not run yet, so what depends on it cannot be produced."""
+
+
+# --- the values ------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class CellSettings:
+    """The user's cell settings.
+
+    Attributes:
+        robot: ``"ur10"``, ``"ur5"`` or ``"ur3"``.
+        tool_radius_m: Ball cutter radius.
+        workpiece: Built-in name, or the stem of the uploaded mesh file.
+        workpiece_builtin: False for an uploaded mesh (the project holds its bytes).
+        seed: Seed of the sensor noise and the example operator.
+        wobj_mm_deg: Work-object frame (x, y, z [mm], optional rz [deg]) placing the workpiece;
+            None for the built-in placement.
+    """
+
+    robot: str = "ur10"
+    tool_radius_m: float = 0.001
+    workpiece: str = "water_pump"
+    workpiece_builtin: bool = True
+    seed: int = 0
+    wobj_mm_deg: tuple[float, ...] | None = None
+
+
+@dataclass(frozen=True)
+class LearnedPath:
+    """The path-learning stage's result: the recording and what it was learned from.
+
+    Attributes:
+        recording: The 4 ms samples.
+        guide_quaternions_wxyz: (n, 4) orientations of the guide points it followed.
+        settings: The path-learning settings.
+        inputs: Fingerprint of the cell and guide points it was learned from.
+    """
+
+    recording: Recording
+    guide_quaternions_wxyz: np.ndarray
+    settings: PathLearningSettings
+    inputs: str
+
+    @cached_property
+    def key(self) -> str:
+        """Fingerprint of this result (its inputs, settings and samples)."""
+        rec = self.recording
+        return _digest(
+            self.inputs,
+            _settings_json(self.settings),
+            rec.time_s,
+            rec.position_m,
+            rec.force_normal_N,
+            self.guide_quaternions_wxyz,
+        )
+
+
+@dataclass(frozen=True)
+class ProcessedPath:
+    """The post-processing stage's result: filter + reduction, and its score.
+
+    Attributes:
+        settings: The post-processing settings used.
+        result: Keep mask, surface points and targets.
+        samples_raw: Samples of the recording.
+        score: Deviation from the true tool path (built-in workpieces), else None.
+        inputs: Fingerprint of the recording and settings it was computed from.
+    """
+
+    settings: PostprocessSettings
+    result: PostprocessResult
+    samples_raw: int
+    score: PathScore | None
+    inputs: str
+
+
+@dataclass(frozen=True)
+class Project:
+    """The state of one job (module docstring). SI units inside.
+
+    Attributes:
+        cell: Robot, tool radius, workpiece, seed, work-object placement.
+        mesh: (filename, bytes) of an uploaded workpiece mesh (mm), None for a built-in one.
+        guide_points: The recorded guide points, in order.
+        learned: The last path-learning result.
+        post_settings: The post-processing settings the user holds now.
+        processed: The last post-processing result.
+        cmrr: ``robomach_core.cmrr.CmrrSettings`` of the chosen feed controller, or None: the
+            program's machining moves are wrapped in an FC SpeedChange block.
+        compensation: ``robomach_core.stiffness.CompensationSettings``, or None: in the
+            offline modes each target is corrected for the contact wrench learned at it.
+        machining_settings: Slot for the machining run's settings (``robomach_core.machining``).
+        machining: Slot for the machining run's result.
+        machining_inputs: Fingerprint the machining result was computed from
+            (``machining_inputs_key`` of the project at the time).
+    """
+
+    cell: CellSettings = field(default_factory=CellSettings)
+    mesh: tuple[str, bytes] | None = None
+    guide_points: tuple[GuidePoint, ...] = ()
+    learned: LearnedPath | None = None
+    post_settings: PostprocessSettings = field(default_factory=PostprocessSettings)
+    processed: ProcessedPath | None = None
+    cmrr: Any = None
+    compensation: Any = None
+    machining_settings: Any = None
+    machining: Any = None
+    machining_inputs: str | None = None
+
+    @cached_property
+    def cell_key(self) -> str:
+        """Fingerprint of the cell (settings and uploaded mesh bytes)."""
+        mesh = () if self.mesh is None else (self.mesh[0], self.mesh[1])
+        return _digest(json.dumps(asdict(self.cell), sort_keys=True), *mesh)
+
+    @cached_property
+    def guides_key(self) -> str:
+        """Fingerprint of the guide points (poses and joints)."""
+        return _digest(*(a for g in self.guide_points for a in (g.T_base_tcp, g.joints_rad)))
+
+    def tool(self) -> Tool:
+        """The cell's tool."""
+        return Tool(radius_m=self.cell.tool_radius_m)
+
+    def status(self) -> dict[str, StageStatus]:
+        """Per stage (``STAGE_NAMES``): ``"none"``, ``"current"`` or ``"stale"``."""
+        out: dict[str, StageStatus] = {
+            "guide_points": "current" if self.guide_points else "none",
+            "recording": "none",
+            "postprocess": "none",
+            "machining": "none",
+        }
+        upstream_ok = True
+        if self.learned is not None:
+            upstream_ok = self.learned.inputs == recording_inputs_key(self)
+            out["recording"] = "current" if upstream_ok else "stale"
+        if self.processed is not None:
+            ok = (
+                upstream_ok
+                and self.learned is not None
+                and self.processed.inputs
+                == processed_inputs_key(self.learned, self.processed.settings)
+            )
+            out["postprocess"] = "current" if ok else "stale"
+            upstream_ok = ok
+        else:
+            upstream_ok = False
+        if self.machining is not None:
+            ok = upstream_ok and self.machining_inputs == machining_inputs_key(self)
+            out["machining"] = "current" if ok else "stale"
+        return out
+
+    def stale_reasons(self) -> dict[str, str]:
+        """A sentence per stale stage saying why (for GUIs and error messages)."""
+        status = self.status()
+        reasons = {}
+        if status["recording"] == "stale":
+            reasons["recording"] = (
+                "the guide points or the cell changed after path learning: learn the path again"
+            )
+        if status["postprocess"] == "stale":
+            reasons["postprocess"] = (
+                "post-processed from an out-of-date recording: "
+                + ("learn the path again, then " if status["recording"] == "stale" else "")
+                + "run post-processing again"
+            )
+        if status["machining"] == "stale":
+            reasons["machining"] = "its program or settings changed: run the machining again"
+        return reasons
+
+
+# --- fingerprints ----------------------------------------------------------------------------
+
+
+def _settings_json(settings: Any) -> str:
+    return json.dumps(asdict(settings), sort_keys=True, default=str)
+
+
+def _plain(value: Any) -> Any:
+    """A JSON-able form of a settings value (a dataclass as a dict, else its repr)."""
+    if value is None:
+        return None
+    try:
+        return json.loads(json.dumps(asdict(value), default=str))
+    except TypeError:
+        return repr(value)
+
+
+def _digest(*parts: Any) -> str:
+    h = hashlib.blake2b(digest_size=12)
+    for part in parts:
+        if isinstance(part, np.ndarray):
+            a = np.ascontiguousarray(part)
+            h.update(str((a.dtype.str, a.shape)).encode())
+            h.update(a.tobytes())
+        elif isinstance(part, bytes):
+            h.update(part)
+        else:
+            h.update(str(part).encode())
+        h.update(b"\x00")
+    return h.hexdigest()
+
+
+def recording_inputs_key(project: Project) -> str:
+    """What a recording of this project must have been learned from (cell + guide points)."""
+    return _digest(project.cell_key, project.guides_key)
+
+
+def processed_inputs_key(learned: LearnedPath, settings: PostprocessSettings) -> str:
+    """What a post-processing result of ``learned`` with ``settings`` is computed from."""
+    return _digest(learned.key, _settings_json(settings))
+
+
+def machining_inputs_key(project: Project) -> str:
+    """What a machining result of this project is computed from: the processed path, the
+    machining, CMRR and compensation settings. Stamp ``Project.machining_inputs`` with it."""
+    processed = project.processed.inputs if project.processed is not None else ""
+    return _digest(
+        processed,
+        json.dumps(_plain(project.machining_settings), sort_keys=True),
+        json.dumps(cmrr_document(project), sort_keys=True),
+        json.dumps(compensation_document(project), sort_keys=True),
+    )
+
+
+def cmrr_document(project: Project) -> dict[str, Any] | None:
+    """The CMRR settings as in ``cmrr_settings.json``, or None."""
+    if project.cmrr is None:
+        return None
+    from ..cmrr import settings_to_dict
+
+    return settings_to_dict(project.cmrr)
+
+
+def compensation_document(project: Project) -> dict[str, Any] | None:
+    """The compensation settings as in ``compensation_settings.json``, or None."""
+    if project.compensation is None:
+        return None
+    from ..stiffness.settings import settings_to_dict
+
+    return settings_to_dict(project.compensation)

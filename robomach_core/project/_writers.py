@@ -1,0 +1,186 @@
+"""The one writer set: RAPID header and modules, program files, settings.json."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from ..robot import Robot
+from ..workpiece import Workpiece
+from ._stages import program_targets, require_processed
+from ._value import (
+    DEFAULT_MODULE_NAME,
+    Project,
+    cmrr_document,
+    compensation_document,
+)
+
+
+def rapid_header(
+    project: Project, workpiece_name: str, *, note: str | None = None
+) -> tuple[str, ...]:
+    """The program's comment lines: cell, learning, reduction, CMRR and compensation."""
+    c = project.cell
+    processed = require_processed(project)
+    learning = project.learned.settings
+    lines = [
+        f"robomach: {c.robot}, {workpiece_name}, tool radius {c.tool_radius_m * 1e3:g} mm, "
+        f"seed {c.seed}",
+        f"path learning: force {learning.force_N:g} N, speed {learning.speed_m_s * 1e3:g} mm/s, "
+        f"{len(project.guide_points)} guide points",
+        f"{len(processed.result.targets)} targets from {processed.samples_raw} samples "
+        f"({processed.result.samples_filtered} kept by the force filter), tolerance "
+        f"{processed.settings.tolerance_m * 1e3:g} mm",
+    ]
+    if project.cmrr is not None:
+        lines.append(
+            f"CMRR: {project.cmrr.controller.kind}, reference {project.cmrr.reference_force_N:g} N"
+        )
+    if note is not None:
+        lines.append(note)
+    return tuple(lines)
+
+
+def fc_module_name(module_name: str) -> str:
+    """The Force Control variant's module name (RAPID names are at most 32 characters)."""
+    return module_name[:30] + "FC"
+
+
+def rapid_text(
+    project: Project,
+    workpiece: Workpiece,
+    robot: Robot,
+    *,
+    module_name: str = DEFAULT_MODULE_NAME,
+    force_control: bool = False,
+) -> str:
+    """One RAPID module of the project's program.
+
+    The position-controlled program carries the FC SpeedChange block when a CMRR controller
+    is chosen; ``force_control`` gives the FCPressL variant pressing at the learning force
+    instead. Both use the compensated targets in the offline compensation modes.
+    """
+    from ..export.program import rapid_program
+    from ..export.rapid import rapid_module
+
+    targets, note = program_targets(project, robot)
+    header = rapid_header(project, workpiece.name, note=note)
+    speed_change = None
+    if project.cmrr is not None and not force_control:
+        from ..cmrr import to_speed_change_settings
+
+        speed_change = to_speed_change_settings(project.cmrr)
+    program = rapid_program(
+        targets,
+        project.tool(),
+        workpiece,
+        module_name=module_name,
+        force_control_N=project.learned.settings.force_N if force_control else None,
+        speed_change=speed_change,
+        comment=header,
+    )
+    return rapid_module(program)
+
+
+def program_files(
+    project: Project,
+    workpiece: Workpiece,
+    robot: Robot,
+    *,
+    module_name: str = DEFAULT_MODULE_NAME,
+    project_name: str | None = None,
+    compliance: dict[str, Any] | None = None,
+) -> dict[str, str]:
+    """The program's files: program.mod, program_fc.mod, targets.csv, samples.csv and
+    settings.json (the one writer set of the CLI and the workbench)."""
+    from ..export.tables import samples_csv, targets_csv
+
+    processed = require_processed(project)
+    doc = settings_document(project, workpiece, project_name=project_name, compliance=compliance)
+    return {
+        "program.mod": rapid_text(project, workpiece, robot, module_name=module_name),
+        "program_fc.mod": rapid_text(
+            project, workpiece, robot, module_name=fc_module_name(module_name), force_control=True
+        ),
+        "targets.csv": targets_csv(processed.result.targets),
+        "samples.csv": samples_csv(project.learned.recording, processed.result.keep_mask),
+        "settings.json": json.dumps(doc, indent=2) + "\n",
+    }
+
+
+def settings_document(
+    project: Project,
+    workpiece: Workpiece,
+    *,
+    project_name: str | None = None,
+    compliance: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Every setting that shaped the program, for settings.json (mm, N, s at the boundary).
+
+    Top-level ``robot``, ``workpiece``, ``T_base_wobj_mm`` and ``tool`` keep the layout the CLI
+    wrote before; ``cell`` is the workbench's; ``status`` says which results are out of date.
+    """
+    c, post = project.cell, project.post_settings
+    tool = project.tool()
+    learned, processed = project.learned, project.processed
+    doc: dict[str, Any] = {
+        "project": project_name,
+        "robot": c.robot,
+        "workpiece": workpiece.name,
+        "T_base_wobj_mm": [
+            [round(float(v) * (1e3 if j == 3 and i < 3 else 1.0), 6) for j, v in enumerate(row)]
+            for i, row in enumerate(workpiece.T_base_wobj)
+        ],
+        "cell": {
+            "robot": c.robot,
+            "tool_radius_mm": c.tool_radius_m * 1e3,
+            "workpiece": c.workpiece,
+            "workpiece_builtin": c.workpiece_builtin,
+            "seed": c.seed,
+            "wobj_mm_deg": None if c.wobj_mm_deg is None else list(c.wobj_mm_deg),
+        },
+        "tool": {
+            "name": tool.name,
+            "tcp_offset_mm": [v * 1e3 for v in tool.tcp_offset_m],
+            "mass_kg": tool.mass_kg,
+            "com_mm": [v * 1e3 for v in tool.com_m],
+            "shape": tool.shape,
+            "radius_mm": tool.radius_m * 1e3,
+        },
+        "compliance": compliance,
+        "guide_points": len(project.guide_points),
+        "path_learning": None
+        if learned is None
+        else {
+            "force_N": learned.settings.force_N,
+            "speed_mm_s": learned.settings.speed_m_s * 1e3,
+            "closed": learned.settings.closed,
+            "wall_side": learned.settings.wall_side,
+            "force_limit_N": learned.settings.force_limit_N,
+            "seed": c.seed,
+        },
+        "postprocess": {
+            "force_min_N": post.force_min_N,
+            "force_max_N": post.force_max_N,
+            "tolerance_mm": post.tolerance_m * 1e3,
+            "speed_mean_mm_s": post.speed_mean_m_s * 1e3,
+            "speed_min_mm_s": post.speed_min_m_s * 1e3,
+            "contact_stiffness_N_mm": post.contact_stiffness_N_m * 1e-3,
+        },
+        "result": None
+        if processed is None
+        else {
+            "samples_raw": processed.samples_raw,
+            "samples_filtered": processed.result.samples_filtered,
+            "targets": len(processed.result.targets),
+            "max_deviation_mm": None if processed.score is None else processed.score.max_m * 1e3,
+            "rms_deviation_mm": None if processed.score is None else processed.score.rms_m * 1e3,
+        },
+        "cmrr": cmrr_document(project),
+        "compensation": compensation_document(project),
+        "machining": None
+        if project.machining_settings is None
+        else repr(project.machining_settings),
+        "status": project.status(),
+    }
+    return doc

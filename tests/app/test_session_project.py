@@ -1,0 +1,238 @@
+"""The Session over one ``Project`` value, in process: staleness in the GUI model, and
+post-processing computed outside the session lock."""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import robomach_core.project as core
+from app.session import ConflictError, Session
+
+
+def _push_to(session: Session, goal_mm: list[float]) -> None:
+    """Admittance pushes (damping 500 N*s/m): f = D e / T, as the API tests do."""
+    for _ in range(40):
+        err = np.asarray(goal_mm) - session.snapshot().position_m * 1e3
+        if np.linalg.norm(err) < 1.0:
+            return
+        f = np.clip(500.0 * err * 1e-3 / 0.5, -25.0, 25.0)
+        session.push(np.r_[f, 0.0, 0.0, 0.0], 0.5)
+    raise AssertionError(f"could not push the tool to {goal_mm}")
+
+
+@pytest.fixture(scope="module")
+def session() -> Iterator[Session]:
+    """A session with two guide points on the block, a short recording and its targets."""
+    s = Session()
+    s.set_cell(workpiece="block")
+    s.set_compliance(["x", "y", "z"], "base")
+    _push_to(s, [760.0, 120.0, 80.0])
+    for x in (760.0, 840.0):
+        s.set_compliance(["x", "y", "z"], "base")
+        _push_to(s, [x, 131.0, 30.0])
+        s.set_compliance(["x", "y"], "base")
+        s.push(np.array([0.0, 6.0, 0.0, 0.0, 0.0, 0.0]), 1.5)
+        s.record_guide_point()
+    s.set_compliance(["x", "y", "z"], "base")
+    job = s.start_path_learning(10.0, 0.02, closed=False)
+    deadline = time.monotonic() + 120
+    while s.job(job).status in ("queued", "running") and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert s.job(job).status == "done", s.job(job)
+    s.run_postprocess(tolerance_m=5e-5)
+    yield s
+    s.close()
+
+
+def _free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def test_changing_guide_points_marks_results_out_of_date_in_the_gui(session: Session) -> None:
+    import viser
+
+    from app.gui.panels.export import ExportPanel
+    from app.gui.panels.path_learning import PathLearningPanel
+    from app.gui.panels.postprocess import OUT_OF_DATE, PostprocessPanel
+    from app.gui.scene import CellScene
+
+    server = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
+    try:
+        scene = CellScene(server)
+        post = PostprocessPanel(server, session, scene)
+        export = ExportPanel(server, session)
+        learning = PathLearningPanel(server, session)
+        learning.show_job(None)
+        assert session.status()["postprocess"] == "current"
+        assert OUT_OF_DATE not in post.summary.content
+        assert export.preview.content.startswith("**RAPID preview**")
+        assert OUT_OF_DATE not in learning.status.content
+        assert scene.stale_label is not None and not scene.stale_label.visible
+
+        # The machining slot follows the same rule (the lead wires its results).
+        project = session.project()
+        machined = replace(
+            project, machining="a run", machining_inputs=core.machining_inputs_key(project)
+        )
+        assert machined.status()["machining"] == "current"
+
+        guides = session.guide_points()
+        session.delete_guide_point(1)
+        try:
+            assert session.status()["postprocess"] == "stale"
+            assert replace(machined, guide_points=tuple(guides[:1])).status()["machining"] == (
+                "stale"
+            )
+            post.refresh()
+            export.refresh()
+            learning.show_job(None)
+            assert OUT_OF_DATE in post.summary.content
+            assert OUT_OF_DATE in export.preview.content
+            assert OUT_OF_DATE in learning.status.content
+            assert scene.stale_label.visible  # the scene's path says so too
+        finally:  # put the point back: the results are current again (same fingerprint)
+            session._set_guides(tuple(guides))
+        assert session.status()["postprocess"] == "current"
+        post.refresh()
+        assert OUT_OF_DATE not in post.summary.content
+        assert not scene.stale_label.visible
+    finally:
+        server.stop()
+
+
+def test_the_export_panel_shows_what_the_program_carries(session: Session) -> None:
+    import viser
+
+    from app.gui.panels.export import ExportPanel
+    from robomach_core.cmrr import build_scenario, cmrr_settings_for, settings_for
+
+    server = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
+    try:
+        export = ExportPanel(server, session)
+        assert "CMRR **none**" in export.process.content
+        cmrr = cmrr_settings_for(build_scenario("deburr-burrs"), settings_for("two-stage"))
+        session.set_process_settings(cmrr=cmrr)
+        export.refresh()
+        assert "CMRR **two-stage**" in export.process.content
+        assert "CMRR: two-stage" in export.preview.content
+        assert "FCSpdChgAct" in export.file_text("program.mod")
+        assert "FCSpdChgAct" not in export.file_text("program_fc.mod")
+    finally:
+        session.set_process_settings()
+        server.stop()
+
+
+@pytest.fixture
+def gated_process(monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[threading.Event, ...]]:
+    """``project.process`` (the real one) held until the test opens the gate."""
+    entered, gate = threading.Event(), threading.Event()
+    real = core.process
+
+    def held(*args, **kwargs):
+        entered.set()
+        assert gate.wait(30), "the test never opened the gate"
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(core, "process", held)
+    yield entered, gate
+    gate.set()
+
+
+def test_post_processing_runs_outside_the_session_lock(session: Session, gated_process) -> None:
+    entered, gate = gated_process
+    out: dict = {}
+    worker = threading.Thread(
+        target=lambda: out.setdefault("r", session.run_postprocess(tolerance_m=1e-4))
+    )
+    worker.start()
+    assert entered.wait(30)
+    # While it computes, the lock is free: state reads and the robot answer at once.
+    assert session._lock.acquire(timeout=2.0)
+    session._lock.release()
+    session.snapshot()
+    assert session.postprocess_settings().tolerance_m == pytest.approx(5e-5)  # not swapped yet
+    gate.set()
+    worker.join(30)
+    assert out["r"].settings.tolerance_m == pytest.approx(1e-4)
+    assert session.postprocess_outcome() is out["r"]
+    session.run_postprocess(tolerance_m=5e-5)
+
+
+def test_opening_a_project_post_processes_outside_the_lock(session: Session, gated_process) -> None:
+    entered, gate = gated_process
+    original = session.current_project().id
+    targets = len(session.postprocess_outcome().result.targets)
+    session.create_project(f"other-{time.monotonic_ns()}")
+    assert session.recording() is None
+    worker = threading.Thread(target=session.open_project, args=(original,))
+    worker.start()
+    assert entered.wait(30)  # re-running the stored post-processing
+    assert session._lock.acquire(timeout=2.0)
+    session._lock.release()
+    assert session.recording() is None  # still the other project until it is ready
+    gate.set()
+    worker.join(60)
+    assert session.current_project().id == original
+    assert len(session.postprocess_outcome().result.targets) == targets
+    assert session.status()["postprocess"] == "current"
+
+
+def test_a_project_saved_before_fingerprints_opens_as_current(
+    session: Session, tmp_path: Path
+) -> None:
+    from app.session.persistence import save_kwargs
+    from app.store import Store
+
+    project = session.project()
+    store = Store(tmp_path / "old.sqlite")
+    kwargs = save_kwargs(project, "cell", "guides", "recording", "post")
+    # The previous version's documents: no fingerprints, no process settings, no wobj.
+    info, arrays = kwargs["recording"]
+    kwargs["recording"] = ({k: v for k, v in info.items() if k != "inputs"}, arrays)
+    kwargs["post"] = {"settings": kwargs["post"]["settings"], "applied": True}
+    kwargs["cell"] = {k: v for k, v in kwargs["cell"].items() if k != "wobj_mm_deg"}
+    row = store.create_project("old", kwargs["cell"])
+    store.save(row.id, **kwargs)
+    store.close()
+    reopened = Session(Store(tmp_path / "old.sqlite"))
+    try:
+        assert reopened.status() == project.status()
+        assert reopened.status()["postprocess"] == "current"
+        assert reopened.rapid_module() == session.rapid_module()
+    finally:
+        reopened.close()
+
+
+def test_post_processing_result_is_dropped_when_its_inputs_changed(
+    session: Session, gated_process
+) -> None:
+    entered, gate = gated_process
+    before = session.postprocess_outcome()
+    errors: list[Exception] = []
+
+    def run() -> None:
+        try:
+            session.run_postprocess(tolerance_m=1e-4)
+        except ConflictError as exc:
+            errors.append(exc)
+
+    worker = threading.Thread(target=run)
+    worker.start()
+    assert entered.wait(30)
+    cell = session.cell_settings()
+    session.set_cell(tool_radius_m=cell.tool_radius_m * 2)  # a new cell while it computes
+    gate.set()
+    worker.join(30)
+    assert errors and "changed while post-processing ran" in str(errors[0])
+    assert session.postprocess_outcome() is before
+    assert session.status()["postprocess"] == "stale"
