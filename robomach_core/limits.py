@@ -108,3 +108,6 @@ JOINT_STIFFNESS_STD_NM_RAD = Range("joint stiffness uncertainty", 0.0, 1.0e9, "N
 # Work-object frame of the demo (robot base frame): the largest arms reach ~3 m.
 WOBJ_POSITION_MM = Range("work-object position", -3000.0, 3000.0, "mm")
 WOBJ_ROTATION_DEG = Range("work-object rotation", -360.0, 360.0, "deg")
+
+# Ball cutter radius: the design's 1-5 mm cutters, down to 0.5 mm (tool.TOOL_RADIUS_RANGE_M).
+TOOL_RADIUS_MM = Range("tool radius", 0.5, 5.0, "mm")
