@@ -48,7 +48,7 @@ class _RobotUrdfs(Mapping):
         if name in abb.ABB_ARMS:
             return str(abb.urdf_path(name))
         if isinstance(name, str) and custom.is_custom(name):
-            return name  # registered from a user's file (robots.custom); no file on disk
+            return str(custom.urdf_file(name))  # a user's file (robots.custom), cached
         raise KeyError(name)
 
     def __contains__(self, name: object) -> bool:  # no file is written to answer this

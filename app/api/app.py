@@ -36,6 +36,7 @@ from app.api.routes import (
     path_learning,
     postprocess,
     projects,
+    robot_wiring,
     state,
 )
 from app.session import ConflictError, NotFoundError, Session
@@ -56,7 +57,7 @@ UPLOAD_PATHS = frozenset({"/api/cell/workpiece"})
 # Multipart boundaries and part headers around the file: a few hundred bytes in practice.
 MULTIPART_OVERHEAD_BYTES = 64 * 1024
 ROUTERS = (state, leadthrough, guide_points, path_learning, jobs, postprocess, export, projects,
-           cell, cmrr, compensation)  # fmt: skip
+           cell, cmrr, compensation, robot_wiring)  # fmt: skip
 
 # A service is started in the lifespan and stopped after it (e.g. the viser workbench).
 Service = Callable[[], AbstractContextManager]

@@ -221,6 +221,29 @@ def urdf_text(name: str) -> str:
     return _URDF_TEXT[name.lower()]
 
 
+def urdf_file(name: str) -> Path:
+    """The registered arm's URDF as a file for viewers (yourdfpy), with the zip's meshes
+    beside it at their paths in the zip; written at first use into the robots cache."""
+    import os
+
+    from .abb import cache_directory
+
+    key = name.lower()
+    folder = cache_directory() / key
+    path = folder / "robot.urdf"
+    if not path.is_file():
+        for rel, data in _MESHES.get(key, {}).items():
+            target = (folder / rel).resolve()
+            if folder.resolve() in target.parents:  # no file outside the folder ("../")
+                target.parent.mkdir(parents=True, exist_ok=True)
+                target.write_bytes(data)
+        folder.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(_URDF_TEXT[key], encoding="utf-8")
+        os.replace(tmp, path)
+    return path
+
+
 def mesh_files(name: str) -> dict[str, bytes]:
     """The mesh files that came with a registered user arm's zip (path -> bytes)."""
     return dict(_MESHES.get(name.lower(), {}))
