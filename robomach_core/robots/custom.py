@@ -283,20 +283,24 @@ def register_urdf(filename: str, data: bytes) -> str:
     arm = robot_module.Robot(name)
     reach = arm.reach_m
     shoulder_z = float(arm.base_to_shoulder_m[2])
-    wobj = (0.62 * reach, 0.0, shoulder_z - 0.1 * reach)
-    workpiece.ROBOT_WOBJ_POSITION_M[name] = wobj
     big = reach > 1.5
     stiffness = joint_compliance.TRUE_JOINT_STIFFNESS_NM_RAD
     stiffness[name] = stiffness["irb4400" if big else "ur10"]
-    try:
-        robot_module.ROBOT_HOME_JOINTS_RAD[name] = _home(name, np.array(wobj))
-    except RobomachError:
-        _forget(name)
-        raise RobotFileError(
-            f"{filename}: the arm cannot point its tool down above a part placed at "
-            f"({wobj[0]:.2f}, {wobj[1]:.2f}, {wobj[2]:.2f}) m in front of it"
-        ) from None
-    return name
+    # ``reach_m`` is an upper bound (link lengths summed): nearer placements are tried too.
+    for fraction in (0.62, 0.5, 0.4, 0.3):
+        wobj = (fraction * reach, 0.0, shoulder_z - 0.1 * reach)
+        try:
+            home = _home(name, np.array(wobj))
+        except RobomachError:
+            continue
+        workpiece.ROBOT_WOBJ_POSITION_M[name] = wobj
+        robot_module.ROBOT_HOME_JOINTS_RAD[name] = home
+        return name
+    _forget(name)
+    raise RobotFileError(
+        f"{filename}: the arm cannot point its tool down above a part placed in front of it "
+        f"(tried 30-62 % of its {reach:.2f} m reach)"
+    )
 
 
 def _home(name: str, wobj_m: np.ndarray) -> np.ndarray:

@@ -90,7 +90,12 @@ def test_irb4400_confdata_agrees_with_the_ik_joints_and_rapidchecker_passes(irb4
     for k, row in enumerate(rows, start=1):
         q = joints_of(row)
         _, _, conf = targets[f"p{k}"]
-        assert tuple(conf) == confdata_from_joints(q, arm="irb4400")
+        expected = confdata_from_joints(q, arm="irb4400")
+        # targets.csv rounds joints to 1e-5 deg: a quadrant may differ only on its boundary
+        for got, want, joint in zip(conf[:3], expected[:3], q[[0, 3, 5]], strict=True):
+            on_boundary = abs(np.degrees(joint) / 90.0 - round(np.degrees(joint) / 90.0)) < 1e-6
+            assert got == want or on_boundary, (k, conf, expected)
+        assert conf[3] == expected[3]
         # the joints are the IK of the target pose: FK lands on it
         xyz = np.array([float(row[c]) for c in ("x_mm", "y_mm", "z_mm")])
         assert np.linalg.norm(robot.fk(q)[:3, 3] * 1e3 - xyz) < 0.01
