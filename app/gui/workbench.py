@@ -30,6 +30,7 @@ from .panels import (
     PostprocessPanel,
 )
 from .panels.feedback import notify_error
+from .panels.robot_wiring import GuideRulesPanel, RobotProgramPanel
 from .scene import CellScene
 
 log = logging.getLogger(__name__)
@@ -71,6 +72,8 @@ class Workbench:
         self.path_learning = PathLearningPanel(server, session)
         self.postprocess = PostprocessPanel(server, session, self.scene)
         self.export = ExportPanel(server, session)
+        self.robot_program = RobotProgramPanel(server, session)
+        self.guide_rules = GuideRulesPanel(server, session)
         self.studies = self._study_panels(server, session)
         self._dirty: set[str] = {"job"}
         self._dirty_lock = threading.Lock()
@@ -149,11 +152,13 @@ class Workbench:
             self.leadthrough.refresh_compliance()
         if "guide_points" in topics or "cell" in topics:
             self.guide_points.refresh()
+            self.guide_rules.refresh()
         if topics & {"job", "recording"}:
             self._show_jobs()
         if topics & {"recording", "postprocess", "cell"}:
             self.postprocess.refresh()
             self.export.refresh()
+            self.robot_program.refresh()
         snapshot = self.leadthrough.tick(self.session.snapshot())
         self._draw_robot(snapshot)
         now = time.monotonic()

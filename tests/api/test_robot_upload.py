@@ -88,3 +88,26 @@ def test_urscript_export_needs_a_processed_path(api: Api) -> None:
     api.new_project()
     r = api.get("/api/export/urscript")
     assert r.status_code == 409, r.text
+
+
+def test_learning_start_returns_warnings_and_the_program_exports_as_urscript(api: Api) -> None:
+    api.new_project()
+    api.block_guide_points()
+    assert isinstance(api.ok("GET", "/api/path-learning/warnings"), list)
+    body = {"force_N": 10, "speed_mm_s": 20, "closed": False}
+    started = api.ok("POST", "/api/path-learning", 202, json=body)
+    assert isinstance(started["warnings"], list)
+    assert api.wait_job(started["job_id"])["status"] == "done"
+    straight = api.ok("POST", "/api/postprocess", json={"tolerance_mm": 0.2, "arcs": False})
+    assert 0.0 <= straight["mesh_rms_deviation_mm"] <= straight["mesh_max_deviation_mm"] < 0.5
+    assert straight["moves"] == straight["targets"] and straight["circular_moves"] == 0
+    arcs = api.ok("POST", "/api/postprocess", json={"arcs": True})
+    assert arcs["settings"]["arcs"] is True
+    assert arcs["moves"] <= arcs["straight_moves"] == straight["targets"]
+    script = api.get("/api/export/urscript")
+    assert script.status_code == 200 and script.text.startswith("def learned_path():")
+    assert "program.script" in script.headers["content-disposition"]
+    fc = api.get("/api/export/urscript", params={"force_control": True})
+    assert "force_mode(" in fc.text
+    saved = api.ok("POST", "/api/exports", 201, json={"name": "wiring"})
+    assert "program.script" in saved["files"]  # the UR10's language
