@@ -122,7 +122,7 @@ def test_ur10_writes_program_script_whose_poses_are_the_targets_fk(ur10):
 
 def test_tool_radius_out_of_range_is_refused(tmp_path):
     proc = robomach("demo", "--out", str(tmp_path), "--language", "rapid", "--tool-radius-mm", "9")
-    assert proc.returncode == 2 and "tool radius" in proc.stderr
+    assert proc.returncode == 2 and "--tool-radius-mm" in proc.stderr and "0.5-5 mm" in proc.stderr
 
 
 def test_arcs_fewer_instructions_scored_like_the_straight_program(tmp_path):
