@@ -184,7 +184,8 @@ def run(args: argparse.Namespace) -> int:
             ) from None
         if len(wobj) not in (3, 4, 6):
             raise InvalidInputError(
-                f"--wobj {args.wobj!r}: expected 3, 4 or 6 numbers, got {len(wobj)}"
+                f"--wobj {args.wobj!r}: expected 3, 4 or 6 numbers (x,y,z[,rz] or "
+                f"x,y,z,rx,ry,rz), got {len(wobj)}"
             )
         ranges = (limits.WOBJ_POSITION_MM,) * 3 + (limits.WOBJ_ROTATION_DEG,) * 3
         for value, rng in zip(wobj, ranges, strict=False):
