@@ -17,7 +17,7 @@ def test_default_cell(api: Api) -> None:
     assert cell["robot"] == "ur10" and cell["workpiece"] == "water_pump"
     assert cell["tool_radius_mm"] == pytest.approx(1.0)
     assert set(cell["robots"]) == {"ur10", "ur5", "ur3", "irb4400", "irb6640"}
-    assert set(cell["workpieces"]) == {"water_pump", "block"}
+    assert set(cell["workpieces"]) == {"water_pump", "block", "s_groove"}
 
 
 def test_change_cell_resets_downstream(api: Api) -> None:
