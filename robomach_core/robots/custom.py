@@ -12,7 +12,7 @@ STRATEGY  ``validate_urdf`` parses the XML (no mesh is loaded), walks the chain 
           ``register_urdf`` registers the arm under a content-addressed name in the tables
           ``robot.Robot`` reads (URDF text, home, program language, part placement, joint
           stiffness): the part sits in front of the arm at 62 % of its reach and 0.1 reach
-          below the shoulder (where the UR10's and IRB 4400's built-in placements are), the
+          below the shoulder but not below the base (near the UR10's and IRB 4400's placements), the
           home pose is the IK of the tool pointing down 150 mm above the part.
 SOLUTION  ``register_urdf(filename, data) -> name``; ``Robot(name)`` then builds it like a
           built-in arm. The project keeps the file's bytes (``Project.robot_urdf``) and
@@ -37,7 +37,7 @@ MAX_ROBOT_FILE_BYTES = 50 * 1024 * 1024
 ROBOT_FILE_SUFFIXES = (".urdf", ".zip")
 NAME_PREFIX = "urdf_"
 FLANGE_LINK = "tool0"
-_ACTUATED = ("revolute", "continuous", "prismatic")
+HOME_CLEARANCE_M = 0.10  # elbow and wrist joints above the table at home
 
 # name -> normalised URDF text (with tool0), mesh files of the zip (path -> bytes)
 _URDF_TEXT: dict[str, str] = {}
@@ -288,7 +288,7 @@ def register_urdf(filename: str, data: bytes) -> str:
     stiffness[name] = stiffness["irb4400" if big else "ur10"]
     # ``reach_m`` is an upper bound (link lengths summed): nearer placements are tried too.
     for fraction in (0.62, 0.5, 0.4, 0.3):
-        wobj = (fraction * reach, 0.0, shoulder_z - 0.1 * reach)
+        wobj = (fraction * reach, 0.0, max(0.0, shoulder_z - 0.1 * reach))
         try:
             home = _home(name, np.array(wobj))
         except RobomachError:
@@ -304,7 +304,10 @@ def register_urdf(filename: str, data: bytes) -> str:
 
 
 def _home(name: str, wobj_m: np.ndarray) -> np.ndarray:
-    """Joints putting the default tool down 150 mm above the middle of a built-in part."""
+    """Joints putting the default tool down 150 mm above the middle of a built-in part, with
+    the elbow and wrist at least ``HOME_CLEARANCE_M`` above the part's base (the table)."""
+    import pinocchio as pin
+
     from .. import robot as robot_module
     from ..demo_operator import TOOL_DOWN
     from ..tool import Tool
@@ -314,13 +317,20 @@ def _home(name: str, wobj_m: np.ndarray) -> np.ndarray:
     goal = make_transform(TOOL_DOWN, wobj_m + np.array([0.125, 0.09, 0.15]))
     rng = np.random.default_rng(0)
     mid = 0.5 * (arm.lower_rad + arm.upper_rad)
-    seeds = [np.zeros(6), mid] + [rng.uniform(arm.lower_rad, arm.upper_rad) for _ in range(30)]
+    seeds = [np.zeros(6), robot_module.HOME_JOINTS_RAD, mid]
+    seeds += [rng.uniform(arm.lower_rad, arm.upper_rad) for _ in range(60)]
+    data = arm.model.createData()
     for seed in seeds:
         try:
             q = arm.ik(goal, np.clip(seed, arm.lower_rad, arm.upper_rad))
         except RobomachError:
             continue
-        if arm.singular_value_min(q) > 10 * robot_module.SINGULAR_VALUE_MIN:
+        pin.forwardKinematics(arm.model, data, q)
+        lowest = min(data.oMi[i].translation[2] for i in range(3, arm.model.njoints))
+        if (
+            arm.singular_value_min(q) > 10 * robot_module.SINGULAR_VALUE_MIN
+            and lowest > wobj_m[2] + HOME_CLEARANCE_M
+        ):
             return q
     raise RobotFileError("no home pose")
 

@@ -180,3 +180,26 @@ def test_an_uploaded_part_is_scored_against_its_mesh(tmp_path):
 def test_wobj_with_three_rotations_places_the_program(tmp_path):
     proc = robomach("demo", "--out", str(tmp_path), "--wobj", "800,160,0,0,0")
     assert proc.returncode == 2 and "3, 4 or 6" in proc.stderr
+
+
+def test_your_own_urdf_runs_the_demo(tmp_path):
+    from robomach_core.robot import robot_urdf_path
+
+    urdf = tmp_path / "my_arm.urdf"
+    urdf.write_bytes(robot_urdf_path("ur10").read_bytes())
+    s, _ = demo(tmp_path / "o", "--robot", str(urdf))
+    assert s["robot"].startswith("urdf_my_arm_")
+    assert s["completed"] and s["max_deviation_mm"] <= 0.3
+    assert s["robtargets_reachable"] == s["robtargets_total"]
+
+
+def test_a_bad_urdf_on_the_command_line_is_one_line(tmp_path):
+    urdf = tmp_path / "two_joints.urdf"
+    urdf.write_text(
+        '<robot name="x"><link name="a"/><link name="b"/>'
+        '<joint name="j" type="revolute"><parent link="a"/><child link="b"/>'
+        '<limit lower="-1" upper="1"/></joint></robot>'
+    )
+    proc = robomach("demo", "--out", str(tmp_path / "o"), "--robot", str(urdf))
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    assert "has 1 revolute joints" in proc.stderr
