@@ -334,8 +334,12 @@ class Session:
     def _change_cell(
         self, settings: CellSettings, mesh: tuple[str, bytes] | None, *, parsed: Any = None
     ) -> None:
+        from robomach_core.robots.custom import is_custom
+
         self._install_cell(settings, mesh, joints=None, parsed=parsed)
         self._project = replace(self._project, cell=settings, mesh=mesh, guide_points=())
+        if self._project.robot_urdf is not None and not is_custom(settings.robot):
+            self._project = replace(self._project, robot_urdf=None)  # back to a built-in arm
         self._save("cell", "guides", with_robot=True)
 
     def set_process_settings(self, *, cmrr: Any = None, compensation: Any = None) -> Project:

@@ -29,3 +29,15 @@ def test_an_uploaded_arm_survives_a_restart(tmp_path) -> None:
         np.testing.assert_allclose(second.snapshot().joints_rad, home, atol=1e-9)
     finally:
         second.close()
+
+
+def test_choosing_a_builtin_arm_drops_the_uploaded_file(tmp_path) -> None:
+    data = robot_urdf_path("ur5").read_bytes()
+    s = Session(Store(tmp_path / "db.sqlite"), data_dir=tmp_path)
+    try:
+        s.upload_robot(data, "arm.urdf")
+        assert s.project().robot_urdf is not None
+        s.set_cell(robot="ur10")
+        assert s.project().robot_urdf is None and s.cell.robot.name == "ur10"
+    finally:
+        s.close()
