@@ -87,6 +87,11 @@ def program_targets(project: Project, robot: Robot) -> tuple[Targets, str | None
     compensation modes; and the compensation's note for the header (None without one)."""
     processed = require_processed(project)
     targets = processed.result.targets
+    from ._machining import chosen_program
+
+    chosen = chosen_program(project)
+    if chosen is not None:  # offline compensation chosen from a current machining run
+        return chosen
     if project.compensation is None:
         return targets, None
     return compensate_program_targets(
