@@ -265,7 +265,11 @@ def machine(
         progress=progress,
         cancel=cancel,
     )
-    rows = tuple(_plain_row(r) for r in comparison.rows)
+    # Each run's full summary, with the table's comparison figures.
+    rows = tuple(
+        _plain_row({**run.summary, **row})
+        for run, row in zip(comparison.runs, comparison.rows, strict=True)
+    )
     programs = {
         f"{r.controller}/{r.compensation}": r.program
         for r in comparison.runs
