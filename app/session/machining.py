@@ -254,8 +254,8 @@ class MachiningService:
             project, workpiece = s._project, s._cell.workpiece
             robot = s._cell.robot
             core.require_processed(project)
-            if project.machining_settings is None:
-                project = core.with_machining_setup(project, core.MachiningSetup())
+            if project.machining_settings is None:  # from the CMRR / compensation slots
+                project = core.with_machining_setup(project, core.machining_setup_of(project))
         controllers = MACHINING_CONTROLLERS if kind == "compare" else None
         compensations = COMPENSATION_NAMES if kind == "compare" else None
 
@@ -274,7 +274,7 @@ class MachiningService:
             with s._lock:
                 current = s._project
                 if current.machining_settings is None:
-                    current = core.with_machining_setup(current, core.MachiningSetup())
+                    current = core.with_machining_setup(current, core.machining_setup_of(current))
                 if core.machining_inputs_key(current) != result.inputs:
                     raise ConflictError(
                         "the program or the machining settings changed while it ran; run it again"

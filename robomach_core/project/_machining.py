@@ -47,6 +47,12 @@ PEAK_MARGIN = 0.10
 CYCLE_MARGIN = 0.05
 # compensation choice -> the compensation settings' mode of the exported program.
 EXPORT_COMPENSATION_MODES = {"off": "off", "offline": "offline_linear", "online": "online"}
+EXPORT_MODE_CHOICES = {
+    "off": "off",
+    "offline_linear": "offline",
+    "offline_nonlinear": "offline",
+    "online": "online",
+}
 
 
 @dataclass(frozen=True)
@@ -148,9 +154,29 @@ class MachiningResult:
 
 
 def machining_setup_of(project: Project) -> MachiningSetup:
-    """The project's machining setup (defaults when it holds none)."""
+    """The project's machining setup (defaults when it holds none), its controller and
+    compensation read from the project's CMRR and compensation slots: those are what the
+    exports carry, so the machining choice and the CMRR settings cannot disagree (a CMRR
+    controller set another way, e.g. from a study, is the machining controller)."""
     setup = project.machining_settings
-    return setup if isinstance(setup, MachiningSetup) else MachiningSetup()
+    if not isinstance(setup, MachiningSetup):
+        setup = MachiningSetup()
+        if project.cmrr is None and project.compensation is None:
+            return setup
+    controller = "constant" if project.cmrr is None else project.cmrr.controller.kind
+    comp = project.compensation
+    compensation = "off" if comp is None else EXPORT_MODE_CHOICES.get(comp.mode, "off")
+    s = setup.settings
+    if (s.controller, s.compensation) == (controller, compensation):
+        return setup
+    own = s.controller_settings
+    s = replace(
+        s,
+        controller=controller,
+        compensation=compensation,
+        controller_settings=own if own is not None and own.kind == controller else None,
+    )
+    return replace(setup, settings=s)
 
 
 def wall_normals_for_project(
@@ -381,11 +407,12 @@ def cmrr_for(settings: Any) -> Any:
 def chosen_program(project: Project) -> tuple[Targets, str] | None:
     """The corrected program of the chosen offline-compensated run, when the project's machining
     result holds it and is current; else None (``program_targets`` falls back)."""
-    setup = project.machining_settings
     result = project.machining
-    if not isinstance(setup, MachiningSetup) or not isinstance(result, MachiningResult):
+    if not isinstance(project.machining_settings, MachiningSetup) or not isinstance(
+        result, MachiningResult
+    ):
         return None
-    s = setup.settings
+    s = machining_setup_of(project).settings
     if s.compensation != "offline" or project.status()["machining"] != "current":
         return None
     program = result.programs.get(f"{s.controller}/{s.compensation}")

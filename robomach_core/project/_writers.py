@@ -186,13 +186,19 @@ def settings_document(
 
 def _machining_doc(project: Project) -> dict[str, Any] | None:
     """The machining settings, the chosen configuration and the result's figures."""
-    from ._machining import MachiningResult, MachiningSetup, machining_setup_document
+    from ._machining import (
+        MachiningResult,
+        MachiningSetup,
+        machining_setup_document,
+        machining_setup_of,
+    )
 
     setup = project.machining_settings
     if setup is None:
         return None
     if not isinstance(setup, MachiningSetup):
         return {"settings": repr(setup)}
+    setup = machining_setup_of(project)
     doc = machining_setup_document(setup)
     doc["chosen"] = {
         "controller": setup.settings.controller,
