@@ -89,8 +89,8 @@ def test_the_viser_panel_shows_a_run_and_goes_out_of_date(workbench) -> None:
     (panel,) = [p for p in workbench.studies if isinstance(p, MachiningPanel)]
     session = workbench.session
     wait_for(lambda: "No machining result yet" in panel.status.content)
-    panel.controller.value = "fuzzy"  # a choice, through the dropdown's callback
-    wait_for(lambda: panel.service.setup().settings.controller == "fuzzy")
+    panel.service.choose("fuzzy", "off")  # e.g. from the REST API: the panel mirrors it
+    wait_for(lambda: panel.controller.value == "fuzzy", timeout_s=30.0)
     panel._start("run")
     wait_for(lambda: "fuzzy" in panel.table.content)
     assert "Rule's pick" in panel.table.content

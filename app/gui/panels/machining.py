@@ -61,16 +61,16 @@ class MachiningPanel:
                 "Upload stock mesh", icon=viser.Icon.UPLOAD, mime_type="*/*"
             )
             self.gain = server.gui.add_number(
-                "K (N)", s["process_gain_N"], *_limits(MACHINING_PROCESS_GAIN_N), step=0.1
+                "K (N)", s["process_gain_N"], **_limits(MACHINING_PROCESS_GAIN_N), step=0.1
             )
             self.alpha = server.gui.add_number(
-                "alpha", s["depth_exponent"], *_limits(MACHINING_DEPTH_EXPONENT), step=0.01
+                "alpha", s["depth_exponent"], **_limits(MACHINING_DEPTH_EXPONENT), step=0.01
             )
             self.beta = server.gui.add_number(
-                "beta", s["feed_exponent"], *_limits(MACHINING_FEED_EXPONENT), step=0.01
+                "beta", s["feed_exponent"], **_limits(MACHINING_FEED_EXPONENT), step=0.01
             )
             self.limit = server.gui.add_number(
-                "Force limit (N)", s["force_limit_N"], *_limits(MACHINING_FORCE_LIMIT_N), step=1.0
+                "Force limit (N)", s["force_limit_N"], **_limits(MACHINING_FORCE_LIMIT_N), step=1.0
             )
             self.controller = server.gui.add_dropdown(
                 "Controller", MACHINING_CONTROLLERS, initial_value=s["controller"]
@@ -303,8 +303,8 @@ class MachiningPanel:
             )
 
 
-def _limits(rng) -> tuple[float, float]:
-    return float(rng.min), float(rng.max)
+def _limits(rng) -> dict[str, float]:
+    return {"min": float(rng.min), "max": float(rng.max)}
 
 
 def _empty_force():
