@@ -44,7 +44,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--workpiece",
         default=None,
-        help="without --from: water_pump (default), block or a mesh FILE for the demo run",
+        help="without --from: water_pump (default) or block for the demo run (for a mesh FILE "
+        "run `robomach demo --guide-points` first, then --from)",
     )
     p.add_argument(
         "--stock",
@@ -225,6 +226,12 @@ def _project(args: argparse.Namespace, bar):
         project = core.load_project_file(path)
     else:
         from robomach_core.pipeline import DemoSettings, run_demo
+
+        if Path(args.workpiece or "").suffix:  # a mesh: its guide points come with the demo
+            raise InvalidInputError(
+                f"--workpiece {args.workpiece}: a mesh needs guide points; run `robomach demo "
+                "--workpiece FILE --guide-points CSV --out DIR`, then `robomach machine --from DIR`"
+            )
 
         result = run_demo(
             DemoSettings(workpiece=args.workpiece or "water_pump", seed=args.seed), progress=bar

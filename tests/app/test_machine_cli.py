@@ -154,6 +154,7 @@ def test_offline_compensation_exports_the_corrected_program(tmp_path):
         (["--from", "/nonexistent/demo"], ["--from", "no such folder"]),
         (["--from", "/tmp", "--workpiece", "block"], ["not both"]),
         (["--stock", "/nonexistent/stock.stl"], ["--stock", "no such file"]),
+        (["--workpiece", "part.stl"], ["--workpiece", "guide points", "--from"]),
     ],
 )
 def test_bad_arguments_give_one_line_and_exit_2(tmp_path, args, words):
