@@ -29,6 +29,7 @@ import hashlib
 import json
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -89,6 +90,10 @@ class MachiningSetup:
     def key(self) -> str:
         """Fingerprint of what a result depends on: everything but the chosen controller and
         compensation (a comparison covers every configuration)."""
+        return self._key
+
+    @cached_property
+    def _key(self) -> str:
         from ..machining import settings_to_dict
 
         doc = settings_to_dict(self.settings)
