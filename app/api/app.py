@@ -33,8 +33,10 @@ from app.api.routes import (
     guide_points,
     jobs,
     leadthrough,
+    machining,
     path_learning,
     postprocess,
+    project_file,
     projects,
     robot_wiring,
     state,
@@ -57,7 +59,7 @@ UPLOAD_PATHS = frozenset({"/api/cell/workpiece"})
 # Multipart boundaries and part headers around the file: a few hundred bytes in practice.
 MULTIPART_OVERHEAD_BYTES = 64 * 1024
 ROUTERS = (state, leadthrough, guide_points, path_learning, jobs, postprocess, export, projects,
-           cell, cmrr, compensation, robot_wiring)  # fmt: skip
+           cell, cmrr, compensation, robot_wiring, machining, project_file)  # fmt: skip
 
 # A service is started in the lifespan and stopped after it (e.g. the viser workbench).
 Service = Callable[[], AbstractContextManager]

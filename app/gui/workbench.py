@@ -75,6 +75,7 @@ class Workbench:
         self.robot_program = RobotProgramPanel(server, session)
         self.guide_rules = GuideRulesPanel(server, session)
         self.studies = self._study_panels(server, session)
+        self.studies += self._machining_panel(server, session)
         self._dirty: set[str] = {"job"}
         self._dirty_lock = threading.Lock()
         self._jobs_shown: dict[str, str] = {}  # job kind -> id of the job the panel shows
@@ -113,6 +114,17 @@ class Workbench:
             ]
         except Exception:  # the PbD pipeline's panels stay usable without the studies
             log.exception("the study panels failed to build")
+            return []
+
+    @staticmethod
+    def _machining_panel(server: viser.ViserServer, session) -> list:
+        """The Machining panel (issue 8), closed with the study panels."""
+        try:
+            from .panels.machining import MachiningPanel
+
+            return [MachiningPanel(server, session)]
+        except Exception:
+            log.exception("the machining panel failed to build")
             return []
 
     # ---------------------------------------------------------------- change notifications

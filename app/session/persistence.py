@@ -30,6 +30,7 @@ from robomach_core.project import (
 from robomach_core.workpiece import Workpiece
 
 from ..store import GuidePointRow, ProjectData
+from .machining import machining_document, machining_from_document
 from .records import RECORDING_ARRAYS, log
 
 Part = Literal["cell", "guides", "recording", "post"]
@@ -62,6 +63,7 @@ def save_kwargs(project: Project, *parts: Part) -> dict[str, Any]:
             "inputs": None if processed is None else processed.inputs,
             "cmrr": cmrr_document(project),
             "compensation": compensation_document(project),
+            "machining": machining_document(project),
         }
     return out
 
@@ -120,6 +122,7 @@ def project_from_data(data: ProjectData, workpiece: Workpiece) -> Project:
         log.error("project %s: post-processing settings unreadable (%s)", pid, exc)
     project = replace(project, learned=_learned(data, project))
     project = _process_settings(project, post, pid)
+    project = machining_from_document(project, post.get("machining"))
     if post.get("applied") and project.learned is not None:
         try:
             applied = PostprocessSettings(**(post.get("applied_settings") or post["settings"]))

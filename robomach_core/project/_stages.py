@@ -118,6 +118,11 @@ def program_targets(project: Project, robot: Robot) -> tuple[Targets, str | None
 
     processed = require_processed(project)
     targets = with_target_joints(robot, processed.result.targets)
+    from ._machining import chosen_program
+
+    chosen = chosen_program(project)
+    if chosen is not None:  # offline compensation chosen from a current machining run
+        return chosen
     if project.compensation is None:
         return targets, None
     return compensate_program_targets(

@@ -259,6 +259,10 @@ def machining_inputs_key(project: Project) -> str:
     """What a machining result of this project is computed from: the processed path, the
     machining, CMRR and compensation settings. Stamp ``Project.machining_inputs`` with it."""
     processed = project.processed.inputs if project.processed is not None else ""
+    setup = project.machining_settings
+    own_key = getattr(setup, "inputs_key", None)
+    if callable(own_key):  # a MachiningSetup: its settings, stock and the stiffness it cuts with
+        return _digest(processed, own_key(project))
     return _digest(
         processed,
         json.dumps(_plain(project.machining_settings), sort_keys=True),

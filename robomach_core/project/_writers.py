@@ -234,9 +234,7 @@ def settings_document(
         },
         "cmrr": cmrr_document(project),
         "compensation": compensation_document(project),
-        "machining": None
-        if project.machining_settings is None
-        else repr(project.machining_settings),
+        "machining": _machining_doc(project),
         "status": project.status(),
     }
     return doc
@@ -257,3 +255,33 @@ def result_extras(processed: Any) -> dict[str, Any]:
         "circular_moves": 0 if moves is None else sum(m.via is not None for m in moves),
         "straight_moves": n if processed.straight_targets is None else processed.straight_targets,
     }
+
+
+def _machining_doc(project: Project) -> dict[str, Any] | None:
+    """The machining settings, the chosen configuration and the result's figures."""
+    from ._machining import (
+        MachiningResult,
+        MachiningSetup,
+        machining_setup_document,
+        machining_setup_of,
+    )
+
+    setup = project.machining_settings
+    if setup is None:
+        return None
+    if not isinstance(setup, MachiningSetup):
+        return {"settings": repr(setup)}
+    setup = machining_setup_of(project)
+    doc = machining_setup_document(setup)
+    doc["chosen"] = {
+        "controller": setup.settings.controller,
+        "compensation": setup.settings.compensation,
+    }
+    result = project.machining
+    if isinstance(result, MachiningResult):
+        # Wall-clock figures differ from one machine (and run) to the next: left out, so the
+        # same project gives the same settings.json from the CLI and the workbench.
+        timing = ("wall_time_s", "realtime_factor")
+        doc["runs"] = [{k: v for k, v in r.items() if k not in timing} for r in result.rows]
+        doc["status"] = project.status()["machining"]
+    return doc
