@@ -48,6 +48,7 @@ EXPECTED: dict[str, list[str]] = {
         rf"online compensation step \(fig. 15\)\s+{NUMBER}\s+{NUMBER} %",
         rf"offline correction per target, eq. \(32\)\s+{NUMBER}",
     ],
+    "bench_reads_during_postprocess.py": [rf"worst read p99 during post-processing {NUMBER} ms"],
     "bench_browser_pose_rate.py": [
         rf"handle\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
         rf"rest\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
