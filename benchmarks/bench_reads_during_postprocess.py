@@ -2,7 +2,7 @@
 runs on a 311k-sample recording (issue 10, failures 1 and 2).
 
 Run: ``python benchmarks/bench_reads_during_postprocess.py [--clients 45] [--period-ms 200]
-[--runs 5] [--quick] [--data DIR]``
+[--runs 10] [--quick] [--data DIR]``
 It writes a project into a throwaway data folder (the example guide points on the water pump,
 path learning at 5 mm/s, the recording resampled 10 times denser: what a run at 0.5 mm/s, the
 lowest learning speed, records; ~311k samples), starts a real ``robomach serve`` on it, and
@@ -18,7 +18,7 @@ post-processing under 2 s.
 Back to back, the latency is the server's queue: ~``clients`` / its throughput, idle or not;
 the pendant's period measures waiting behind the work, which is what the aim is about.
 
-``--quick``: learned at 10 mm/s, densified 4 times (~62k samples), 8 clients, 2 runs: a check
+``--quick``: learned at 10 mm/s, densified 4 times (~62k samples), 8 + 4 clients, 5 runs: a check
 that the script still works, not a measurement. ``--data DIR`` reuses a folder written by an
 earlier run (``--speed``, ``--factor``: how it is written).
 """
@@ -51,14 +51,14 @@ def main() -> None:
     parser.add_argument("--clients", type=int, default=45, help="concurrent state readers")
     parser.add_argument("--health-clients", type=int, default=5, help="health readers")
     parser.add_argument("--period-ms", type=float, default=200.0, help="each reader's period")
-    parser.add_argument("--runs", type=int, default=5, help="timed post-processing calls")
+    parser.add_argument("--runs", type=int, default=10, help="timed post-processing calls")
     parser.add_argument("--speed", type=float, default=5.0, help="learning speed [mm/s]")
     parser.add_argument("--factor", type=int, default=10, help="densification")
     parser.add_argument("--data", type=Path, help="reuse this data folder (written if new)")
     parser.add_argument("--quick", action="store_true", help="small sizes: a smoke test")
     args = parser.parse_args()
     if args.quick:
-        args.clients, args.health_clients, args.runs, args.speed, args.factor = 8, 2, 2, 10.0, 4
+        args.clients, args.health_clients, args.runs, args.speed, args.factor = 8, 4, 5, 10.0, 4
 
     with tempfile.TemporaryDirectory(prefix="robomach-bench-") as tmp:
         data = args.data or Path(tmp) / "data"
