@@ -189,8 +189,8 @@ class Readers:
                         self.failures.append(f"{path}: {status} {body[:200]!r}")
                 next_s += self.period_s
                 await asyncio.sleep(max(0.0, next_s - loop.time()))
-        except (OSError, asyncio.IncompleteReadError) as exc:
-            self.failures.append(f"connection lost: {exc!r}")
+        except (OSError, ValueError, asyncio.IncompleteReadError) as exc:
+            self.failures.append(f"connection lost or bad answer: {exc!r}")
         finally:
             writer.close()
 
