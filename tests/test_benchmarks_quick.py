@@ -55,6 +55,7 @@ EXPECTED: dict[str, list[str]] = {
             for c, m in (("adaptive-pi", "off"), ("constant", "off"), ("adaptive-pi", "online"))
         ),
     ],
+    "bench_reads_during_postprocess.py": [rf"worst read p99 during post-processing {NUMBER} ms"],
     "bench_browser_pose_rate.py": [
         rf"handle\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
         rf"rest\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",

@@ -11,8 +11,9 @@ router = APIRouter(prefix="/api", tags=["state"])
 
 
 @router.get("/health")
-def health() -> HealthPublic:
-    """Liveness: answers as soon as the server accepts requests."""
+async def health() -> HealthPublic:
+    """Liveness: answers as soon as the server accepts requests. Async on purpose: it runs on
+    the event loop, so it never queues for a worker thread behind blocked or slow routes."""
     return HealthPublic()
 
 

@@ -6,11 +6,15 @@ import numpy as np
 import viser
 import viser.uplot
 
+from robomach_core import limits
+
 from .feedback import guarded
 from .postprocess import OUT_OF_DATE
 
-FORCE_RANGE_N = (10.0, 20.0)  # the chapter's 10-20 N contact force
-SPEED_RANGE_MM_S = (1.0, 20.0)
+# The core's ranges, the ones the API and CLI take: a project learned at 0.5 mm/s (through the
+# API) must open in the workbench, whose sliders refuse an initial value outside their range.
+FORCE_RANGE_N = (limits.LEARNING_FORCE_N.min, limits.LEARNING_FORCE_N.max)
+SPEED_RANGE_MM_S = (limits.LEARNING_SPEED_MM_S.min, limits.LEARNING_SPEED_MM_S.max)
 PLOT_POINTS = 600
 
 
