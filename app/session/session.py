@@ -647,10 +647,10 @@ class Session:
         return samples_csv(project.learned.recording, keep)
 
     def targets_csv(self) -> str:
-        """The post-processed targets (mm, degrees, mm/s)."""
-        from robomach_core.export.tables import targets_csv
-
-        return targets_csv(core.require_processed(self._project).result.targets)
+        """The post-processed targets (mm, degrees, mm/s; ``project.targets_text``)."""
+        with self._lock:
+            project, robot = self._project, self._cell.robot
+        return core.targets_text(project, robot)
 
     def settings_json(self) -> str:
         """``project.settings_document`` with the project name and compliance selection."""

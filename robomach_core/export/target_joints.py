@@ -27,12 +27,15 @@ from .rapid import confdata_from_joints
 # Between neighbouring targets of a machining path the joints move little; a larger step means
 # the solver found another branch of the inverse kinematics.
 MAX_JOINT_STEP_RAD = 0.5
+# Solver tolerances of the target joints (a nanometre, a nanoradian).
+IK_TOLERANCE_M = 1e-9
+IK_TOLERANCE_RAD = 1e-9
 
 
 def target_joints(
     robot: Robot, targets: Targets, *, q_seed: np.ndarray | None = None
 ) -> np.ndarray:
-    """Joints [rad] reaching every target pose exactly (within the IK's 1 um, 1e-5 rad).
+    """Joints [rad] reaching every target pose exactly (within 1 nm and 1 nrad).
 
     Args:
         robot: The arm with the program's tool as its TCP.
@@ -56,7 +59,9 @@ def target_joints(
             matrix_from_quaternion(targets.quaternion_wxyz[k]), targets.position_m[k]
         )
         try:
-            q = robot.ik(T, seed)
+            # Converged far below the CSV's 1e-5 deg, so the joints do not depend on the seed's
+            # history: the CLI and the workbench write the same bytes for the same targets.
+            q = robot.ik(T, seed, tolerance_m=IK_TOLERANCE_M, tolerance_rad=IK_TOLERANCE_RAD)
         except RobomachError as exc:
             raise UnreachableTargetError(f"target p{k + 1}: {exc}") from None
         step = float(np.max(np.abs(q - seed)))

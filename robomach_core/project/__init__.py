@@ -67,4 +67,5 @@ from ._writers import rapid_header as rapid_header
 from ._writers import rapid_text as rapid_text
 from ._writers import result_extras as result_extras
 from ._writers import settings_document as settings_document
+from ._writers import targets_text as targets_text
 from ._writers import urscript_text as urscript_text

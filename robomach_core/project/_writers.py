@@ -135,14 +135,11 @@ def program_files(
     """The program's files: program.mod, program_fc.mod, targets.csv, samples.csv and
     settings.json (the one writer set of the CLI and the workbench); program.script and
     program_fc.script too when the program language is URScript (``program_languages``)."""
-    from ..export.tables import samples_csv, targets_csv
+    from ..export.tables import samples_csv
 
     processed = require_processed(project)
     languages = program_languages(robot, language)
     doc = settings_document(project, workpiece, project_name=project_name, compliance=compliance)
-    from ..export.target_joints import with_target_joints
-
-    program_tg = with_target_joints(robot, processed.result.targets)
     files = {
         "program.mod": rapid_text(project, workpiece, robot, module_name=module_name),
         "program_fc.mod": rapid_text(
@@ -153,10 +150,20 @@ def program_files(
         files["program.script"] = urscript_text(project, workpiece, robot)
         files["program_fc.script"] = urscript_text(project, workpiece, robot, force_control=True)
     return files | {
-        "targets.csv": targets_csv(program_tg),
+        "targets.csv": targets_text(project, robot),
         "samples.csv": samples_csv(project.learned.recording, processed.result.keep_mask),
         "settings.json": json.dumps(doc, indent=2) + "\n",
     }
+
+
+def targets_text(project: Project, robot: Robot) -> str:
+    """targets.csv: the post-processed targets (mm, degrees, mm/s), their joints the inverse
+    kinematics of each target pose on ``robot`` (the joints the program's confdata is read
+    from)."""
+    from ..export.tables import targets_csv
+    from ..export.target_joints import with_target_joints
+
+    return targets_csv(with_target_joints(robot, require_processed(project).result.targets))
 
 
 def settings_document(
