@@ -29,6 +29,7 @@ from app.api.routes import (
     cell,
     cmrr,
     compensation,
+    events,
     export,
     guide_points,
     jobs,
@@ -37,6 +38,7 @@ from app.api.routes import (
     postprocess,
     projects,
     state,
+    teach,
 )
 from app.session import ConflictError, NotFoundError, Session
 from app.settings import MAX_JSON_BODY_BYTES, ServerSettings
@@ -56,7 +58,7 @@ UPLOAD_PATHS = frozenset({"/api/cell/workpiece"})
 # Multipart boundaries and part headers around the file: a few hundred bytes in practice.
 MULTIPART_OVERHEAD_BYTES = 64 * 1024
 ROUTERS = (state, leadthrough, guide_points, path_learning, jobs, postprocess, export, projects,
-           cell, cmrr, compensation)  # fmt: skip
+           cell, cmrr, compensation, teach, events)  # fmt: skip
 
 # A service is started in the lifespan and stopped after it (e.g. the viser workbench).
 Service = Callable[[], AbstractContextManager]

@@ -171,9 +171,16 @@ class PushCreate(_Request):
 
 
 class JogCreate(_Request):
-    axis: Axis = Field(description="tool axis to move along (x, y, z) or about (rx, ry, rz)")
+    axis: Axis = Field(description="axis to move along (x, y, z) or about (rx, ry, rz)")
     step: Finite = Field(
         description="step [mm] along x/y/z (at most 200) or [deg] about rx/ry/rz (at most 45)"
+    )
+    frame: Literal["tool", "base", "wobj"] = Field(
+        default="tool", description="frame of the axis: tool, robot base or work object"
+    )
+    speed: Finite | None = Field(
+        default=None,
+        description="[mm/s] along x/y/z (0.5-50) or [deg/s] about rx/ry/rz (0.5-30); default 10",
     )
 
 

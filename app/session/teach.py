@@ -12,7 +12,7 @@ STRATEGY  Every motion drives the core's own loop (``LeadThrough.push``, ``jog``
           changes, or when the session closes. Motions run one at a time (a short queue: a
           request that waits longer than ``MOTION_QUEUE_S`` is refused), so a flood of
           requests cannot bank simulated time: over a wall interval T all of them together
-          simulate at most T + burst.
+          simulate at most T + burst (20 ms).
 SOLUTION  ``Teach(session, real_time=True)``: ``push``, ``jog(axis, step, frame, speed)``,
           ``touch_off(axis, direction, force_N, max_travel_m, frame)``, ``stop()``, and
           ``tool_view()`` (gap to the nearest face of the part, contact force, height above the
@@ -52,7 +52,14 @@ Selection = ComplianceSelection
 JogFrame = Literal["base", "tool", "wobj"]
 JOG_FRAMES: tuple[JogFrame, ...] = ("base", "tool", "wobj")
 MOTION_QUEUE_S = 0.25  # a motion request waits at most this long for the one before it
-PACE_CHUNK_PERIODS = 5  # budget taken at once (20 ms): the stop check still runs every period
+# The pacer's burst: how far a motion may run ahead of the clock after an idle while. Small, so
+# that back-to-back requests (a held button, two clients) add almost nothing to the held time.
+PACE_BURST_S = 0.02
+PACE_CHUNK_PERIODS = 5
+# A push is a hand pushing during [arrival, arrival + duration]: a request that waited for the
+# one before it (another client, a held button's next push) is cut at its window's end, plus
+# this much for the scheduling of its first period.
+PUSH_GRACE_S = 0.03  # budget taken at once (20 ms): the stop check still runs every period
 JOG_SPEED_RANGE_MM_S = (0.5, 50.0)  # 50 mm/s: the admittance's speed limit
 JOG_RATE_RANGE_DEG_S = (0.5, 30.0)
 DEFAULT_JOG_SPEED_MM_S = 10.0
@@ -104,17 +111,20 @@ class Teach:
 
     def __init__(self, session: Session, *, real_time: bool = True) -> None:
         self._session = session
-        self.pacer = RealTimePacer() if real_time else None
+        self.pacer = RealTimePacer(burst_s=PACE_BURST_S) if real_time else None
         self._motion = threading.Lock()
         self._stop_generation = 0
         self._probe: tuple[int, ClearanceProbe] | None = None
+        # Listeners (the viser scene) redraw in their own thread: never slow the motion down.
+        self._notifier = _Coalescer(lambda: session._notify("robot"))
 
     # --- motions -----------------------------------------------------------------------------
 
     def push(self, wrench: np.ndarray, duration_s: float) -> None:
         """A constant push (6,) [N, N*m] at the TCP, base axes, for ``duration_s`` of wall time."""
         w = np.asarray(wrench, dtype=float)
-        self._run(lambda lt, st, sel: lt.push(st, w, sel, duration_s))
+        until = time.monotonic() + duration_s + PUSH_GRACE_S
+        self._run(lambda lt, st, sel: lt.push(st, w, sel, duration_s), until=until)
 
     def jog(
         self,
@@ -210,7 +220,11 @@ class Teach:
     def _run(
         self,
         move: Callable[[LeadThrough, LeadThroughState, ComplianceSelection], LeadThroughState],
+        *,
+        until: float | None = None,
     ) -> None:
+        """Run ``move`` paced, published and stoppable; ``until``: wall-clock end (monotonic)
+        of a paced motion's window."""
         s = self._session
         if not self._motion.acquire(timeout=MOTION_QUEUE_S):
             raise BusyError(
@@ -239,6 +253,8 @@ class Teach:
                             if self._stop_generation != generation or s._epoch != epoch:
                                 raise _Stopped
                     credit -= 1
+                    if until is not None and time.monotonic() > until:
+                        raise _Stopped
                 now = time.monotonic()
                 if now - last_notify >= LIVE_NOTIFY_S:
                     last_notify = now
@@ -247,7 +263,7 @@ class Teach:
                             s._lt_state = LeadThroughState(
                                 cell_state, cell_state.T_base_tcp.copy(), np.zeros(6)
                             )
-                    s._notify("robot")
+                    self._notifier.poke()
 
             tapped = LeadThrough(
                 TappedCell(lt.cell, tap),  # type: ignore[arg-type]
@@ -295,3 +311,25 @@ def _base_axis_of_wobj(
             "axes; use the base or tool frame"
         )
     return "xyz"[i], (1 if column[i] > 0 else -1)  # type: ignore[return-value]
+
+
+class _Coalescer:
+    """Calls ``action`` in a daemon thread after ``poke`` (pokes meanwhile: one more call)."""
+
+    def __init__(self, action: Callable[[], None]) -> None:
+        self._action = action
+        self._wanted = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._lock = threading.Lock()
+
+    def poke(self) -> None:
+        self._wanted.set()
+        with self._lock:
+            if self._thread is None or not self._thread.is_alive():
+                self._thread = threading.Thread(target=self._loop, name="teach-notify", daemon=True)
+                self._thread.start()
+
+    def _loop(self) -> None:
+        while self._wanted.wait(timeout=5.0):
+            self._wanted.clear()
+            self._action()
