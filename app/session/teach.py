@@ -57,9 +57,9 @@ MOTION_QUEUE_S = 0.25  # a motion request waits at most this long for the one be
 PACE_BURST_S = 0.02
 PACE_CHUNK_PERIODS = 5
 # A push is a hand pushing during [arrival, arrival + duration]: a request that waited for the
-# one before it (another client, a held button's next push) is cut at its window's end, plus
-# this much for the scheduling of its first period.
-PUSH_GRACE_S = 0.03  # budget taken at once (20 ms): the stop check still runs every period
+# one before it (another client, a held button's next push) loses the time it waited, beyond
+# this much (the scheduling of the request itself).
+PUSH_GRACE_S = 0.01  # budget taken at once (20 ms): the stop check still runs every period
 JOG_SPEED_RANGE_MM_S = (0.5, 50.0)  # 50 mm/s: the admittance's speed limit
 JOG_RATE_RANGE_DEG_S = (0.5, 30.0)
 DEFAULT_JOG_SPEED_MM_S = 10.0
@@ -123,8 +123,14 @@ class Teach:
     def push(self, wrench: np.ndarray, duration_s: float) -> None:
         """A constant push (6,) [N, N*m] at the TCP, base axes, for ``duration_s`` of wall time."""
         w = np.asarray(wrench, dtype=float)
-        until = time.monotonic() + duration_s + PUSH_GRACE_S
-        self._run(lambda lt, st, sel: lt.push(st, w, sel, duration_s), until=until)
+        arrival = time.monotonic()
+
+        def move(lt: LeadThrough, st: LeadThroughState, sel: Selection) -> LeadThroughState:
+            late_s = max(0.0, time.monotonic() - arrival - PUSH_GRACE_S)
+            left_s = duration_s - late_s
+            return lt.push(st, w, sel, left_s) if left_s >= CONTROL_PERIOD_S else st
+
+        self._run(move)
 
     def jog(
         self,
@@ -220,11 +226,8 @@ class Teach:
     def _run(
         self,
         move: Callable[[LeadThrough, LeadThroughState, ComplianceSelection], LeadThroughState],
-        *,
-        until: float | None = None,
     ) -> None:
-        """Run ``move`` paced, published and stoppable; ``until``: wall-clock end (monotonic)
-        of a paced motion's window."""
+        """Run ``move`` paced, published and stoppable (one motion at a time)."""
         s = self._session
         if not self._motion.acquire(timeout=MOTION_QUEUE_S):
             raise BusyError(
@@ -253,8 +256,6 @@ class Teach:
                             if self._stop_generation != generation or s._epoch != epoch:
                                 raise _Stopped
                     credit -= 1
-                    if until is not None and time.monotonic() > until:
-                        raise _Stopped
                 now = time.monotonic()
                 if now - last_notify >= LIVE_NOTIFY_S:
                     last_notify = now
