@@ -159,7 +159,8 @@ function showMove(state) {
 
 async function jog(axis, sign) {
   const rotational = axis.startsWith("r");
-  const step = Number($(rotational ? "jog-step-deg" : "jog-step-mm").value) * sign;
+  const field = rotational ? "jog-step-deg" : (axis === "z" && $("jog-step-z") ? "jog-step-z" : "jog-step-mm");
+  const step = Number($(field).value) * sign;
   const body = { axis, step, frame: $("jog-frame") ? $("jog-frame").value : "tool" };
   const speed = $(rotational ? "jog-rate" : "jog-speed");
   if (speed && Number(speed.value) > 0) body.speed = Number(speed.value);

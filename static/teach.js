@@ -48,7 +48,8 @@ async function exclusive(fn) {
 
 async function jogBy(axis, sign, factor = 1) {
   const rotational = axis.startsWith("r");
-  const step = Number($(rotational ? "jog-step-deg" : "jog-step-mm").value) * sign * factor;
+  const field = rotational ? "jog-step-deg" : axis === "z" ? "jog-step-z" : "jog-step-mm";
+  const step = Number($(field).value) * sign * factor;
   const body = { axis, step, frame: jogFrame() };
   const speed = Number($(rotational ? "jog-rate" : "jog-speed").value);
   if (speed > 0) body.speed = speed;
@@ -89,7 +90,10 @@ function scheduleTool() {
 
 // ---------------------------------------------------------------- keyboard
 
+// Keys jog everywhere but in text fields; in a jog step field too (type the step, then
+// press the arrow: the arrows would only nudge the number there).
 function typing(target) {
+  if (target && target.classList && target.classList.contains("jog-step")) return false;
   return target && ["INPUT", "SELECT", "TEXTAREA"].includes(target.tagName);
 }
 
