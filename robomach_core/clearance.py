@@ -54,7 +54,6 @@ class ClearanceProbe:
             self._cutter = coal.Cylinder(tool.radius_m, tool.flute_length_m)
             self._offset = -0.5 * tool.flute_length_m
         self._request = coal.DistanceRequest()
-        self._request.enable_nearest_points = True
         self._request.enable_signed_distance = True
         self._T_cutter = coal.Transform3s()
 

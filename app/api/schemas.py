@@ -250,7 +250,8 @@ class PathLearningCreate(_Request):
 
 class ForceTracePublic(BaseModel):
     source: Literal["live", "recording", "none"] = Field(
-        description="live: a job runs (|F| every 20 ms, time since the job started); "
+        description="live: a job runs (the force across the path every 20 ms, time since "
+        "the job started); "
         "recording: the last recording (force along the path normal); none: nothing yet"
     )
     time_s: list[float]
@@ -259,6 +260,12 @@ class ForceTracePublic(BaseModel):
     samples_total: int = Field(description="samples before decimation")
     stop_reason: str | None = Field(description="why the last recording ended")
     completed: bool | None = Field(description="the last recording reached its last guide point")
+    force_min_N: list[float] | None = Field(
+        default=None, description="smallest force of the samples each point stands for [N]"
+    )
+    force_max_N: list[float] | None = Field(
+        default=None, description="largest force of the samples each point stands for [N]"
+    )
 
     @classmethod
     def from_trace(
@@ -275,6 +282,8 @@ class ForceTracePublic(BaseModel):
             samples_total=t.samples_total,
             stop_reason=stop_reason,
             completed=completed,
+            force_min_N=None if t.force_min_N is None else _floats(t.force_min_N, digits=3),
+            force_max_N=None if t.force_max_N is None else _floats(t.force_max_N, digits=3),
         )
 
 

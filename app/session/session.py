@@ -515,9 +515,10 @@ class Session:
             start = self._lt_state.cell
 
             def work(ctx: JobContext) -> tuple[core.LearnedPath, CellState]:
+                path_m = np.array([g.position_m for g in project.guide_points])
                 return core.learn(
                     project,
-                    self._live.tapped(cell, estimator, ctx),
+                    self._live.tapped(cell, estimator, ctx, path_m=path_m, closed=closed),
                     start,
                     settings,
                     estimator,
