@@ -143,6 +143,22 @@ function pollGamepad() {
 
 // ---------------------------------------------------------------- server push
 
+// An event sent while a motion ran may arrive after the motion's own answer: never show a pose
+// older than the one shown (simulated time; a reset to Home goes back further than this).
+const STALE_WINDOW_S = 2.0;
+let shownTime = -Infinity;
+const showStateNow = showState;
+// eslint-disable-next-line no-global-assign
+showState = (state) => {
+  if (state && Number.isFinite(state.time_s)) shownTime = state.time_s;
+  showStateNow(state);
+};
+
+function olderThanShown(state) {
+  const t = state.time_s;
+  return Number.isFinite(t) && t < shownTime && shownTime - t < STALE_WINDOW_S;
+}
+
 async function resync() {
   await Promise.allSettled([pollState(), refreshGuides(), loadSettings(), refreshTool()]);
 }
@@ -173,7 +189,7 @@ function connectEvents() {
   };
   source.addEventListener("robot", (e) => {
     const data = JSON.parse(e.data);
-    if (data.state && !moving) showState(data.state);
+    if (data.state && !moving && !olderThanShown(data.state)) showState(data.state);
     scheduleTool();
   });
   for (const topic of ["guide_points", "cell", "project"]) {
