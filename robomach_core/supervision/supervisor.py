@@ -384,7 +384,10 @@ class Supervisor:
                 in_joint6(shank_top),
                 SHANK_RADIUS_FRACTION * r,
                 True,
-                True,
+                # Not against the part: the shank is thinner than the cutter just below it, so
+                # when the cutter presses on the wall the shank is 0.2 r from it; a slow zone
+                # there would stop every approach to the wall short of contact.
+                False,
                 True,
             )
         )

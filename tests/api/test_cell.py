@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 import trimesh
 
+from robomach_core.robot import ROBOT_URDFS
 from tests.api.conftest import TRIANGLE_LIMIT, UPLOAD_LIMIT_BYTES
 from tests.api.server_process import Api
 
@@ -16,7 +17,7 @@ def test_default_cell(api: Api) -> None:
     cell = api.ok("GET", CELL)
     assert cell["robot"] == "ur10" and cell["workpiece"] == "water_pump"
     assert cell["tool_radius_mm"] == pytest.approx(1.0)
-    assert set(cell["robots"]) == {"ur10", "ur5", "ur3"}
+    assert set(cell["robots"]) == set(ROBOT_URDFS)
     assert set(cell["workpieces"]) == {"water_pump", "block"}
 
 
