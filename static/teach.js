@@ -165,7 +165,10 @@ async function resync() {
 
 function reloadScene() {
   const frame = $("viser-frame");
-  if (frame.src && !frame.src.startsWith("about:")) frame.src = frame.src;
+  if (frame.src && !frame.src.startsWith("about:")) {
+    frame.src = frame.src;
+    window.sceneReloads = (window.sceneReloads || 0) + 1;
+  }
 }
 
 function connectEvents() {
