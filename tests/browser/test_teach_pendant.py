@@ -157,3 +157,31 @@ def test_preview_keeps_the_pendant_column_width(served: Served, page: Page) -> N
     card = page.locator("#export-card").evaluate("el => el.getBoundingClientRect().left")
     assert page.locator(".pendant").evaluate("el => el.getBoundingClientRect().width") == width
     assert card >= 0
+
+
+FAKE_GAMEPAD = """
+(() => {
+  const pad = { id: "test stick", connected: true, index: 0, axes: [0, 0, 0, 0],
+                buttons: [{ pressed: false, value: 0 }] };
+  window.testPad = pad;
+  navigator.getGamepads = () => [pad];
+})();
+"""
+
+
+def test_gamepad_stick_jogs_and_button_records(
+    served: Served, api: httpx.Client, page: Page
+) -> None:
+    page.add_init_script(FAKE_GAMEPAD)
+    open_pendant(page, served)
+    expect(page.locator("#gamepad-status")).to_have_text("test stick")
+    expect(page.locator("#keymap")).to_be_visible()
+    x0 = pose_mm(page)[0]
+    page.evaluate("() => { window.testPad.axes[0] = 0.8; }")  # stick right: +X of the frame
+    page.wait_for_timeout(1500)
+    page.evaluate("() => { window.testPad.axes[0] = 0; }")
+    page.wait_for_timeout(500)
+    moved = pose_mm(page)[0] - x0
+    assert 5.0 < moved < 1.5 * 25.0 * 0.8 * 1.6, moved  # up to 0.8 x 25 mm/s for ~1.5 s
+    page.evaluate("() => { window.testPad.buttons[0].pressed = true; }")
+    expect(page.locator("#guide-count")).to_have_text("1")
