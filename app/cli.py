@@ -15,7 +15,7 @@ import tempfile
 from pathlib import Path
 
 # The command modules in app/commands, in the order `robomach --help` lists them.
-COMMANDS: tuple[str, ...] = ("demo", "serve", "cmrr", "compensate")
+COMMANDS: tuple[str, ...] = ("demo", "serve", "cmrr", "compensate", "machine")
 
 
 def writable_folder(path: Path, option: str = "--out") -> Path:

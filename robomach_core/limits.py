@@ -108,3 +108,12 @@ JOINT_STIFFNESS_STD_NM_RAD = Range("joint stiffness uncertainty", 0.0, 1.0e9, "N
 # Work-object frame of the demo (robot base frame): the largest arms reach ~3 m.
 WOBJ_POSITION_MM = Range("work-object position", -3000.0, 3000.0, "mm")
 WOBJ_ROTATION_DEG = Range("work-object rotation", -360.0, 360.0, "deg")
+
+# Ball cutter radius: the design's 1-5 mm cutters, down to 0.5 mm (tool.TOOL_RADIUS_RANGE_M).
+TOOL_RADIUS_MM = Range("tool radius", 0.5, 5.0, "mm")
+
+# --- machining run (chapter eq. 6: F = 23 d^0.9 f^0.5; the spindle limit ~150-300 N) ----------
+MACHINING_PROCESS_GAIN_N = Range("process gain K", 0.1, 1.0e4, "N")
+MACHINING_DEPTH_EXPONENT = Range("depth exponent alpha", 0.0, 3.0)
+MACHINING_FEED_EXPONENT = Range("feed exponent beta", 0.01, 2.0)
+MACHINING_FORCE_LIMIT_N = Range("force limit", 1.0, 5000.0, "N")

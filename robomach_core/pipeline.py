@@ -67,6 +67,12 @@ class DemoSettings:
             are wrapped in an FC SpeedChange block.
         compensation: Identified stiffness and mode (``robomach compensate``); in the offline
             modes each target is corrected for the contact wrench learned at it.
+        closed: Learn a closed contour (back to the first guide point); False for an open
+            one (a groove, an edge that ends).
+        language: Program language (``project.PROGRAM_LANGUAGE_CHOICES``): ``"auto"`` follows
+            the arm; program.mod is always written, program.script when URScript.
+        robot_urdf: (filename, bytes) of a user's 6-axis URDF (``robots.custom``); ``robot``
+            is then its registered name.
     """
 
     robot: str = "ur10"
@@ -83,6 +89,9 @@ class DemoSettings:
     wobj_mm_deg: tuple[float, ...] | None = None
     cmrr: Any = None  # robomach_core.cmrr.CmrrSettings
     compensation: Any = None  # robomach_core.stiffness.CompensationSettings
+    closed: bool = True
+    language: str = "auto"
+    robot_urdf: tuple[str, bytes] | None = None
 
 
 @dataclass(frozen=True)
@@ -153,6 +162,12 @@ class DemoResult:
             if self.settings.compensation is None
             else self.settings.compensation.mode,
         }
+        if self.project is not None and self.project.processed is not None:
+            from .project import result_extras
+
+            out |= result_extras(self.project.processed)
+            out["program_language"] = "urscript" if "program.script" in self.files else "rapid"
+            out["closed"] = self.settings.closed
         if self.score is not None:
             out["max_deviation_mm"] = self.score.max_m * 1e3
             out["rms_deviation_mm"] = self.score.rms_m * 1e3
@@ -181,6 +196,12 @@ def load_workpiece(name_or_path: str) -> tuple[CellSettings, tuple[str, bytes] |
     )
 
 
+def default_robot(language: str = "auto") -> str:
+    """The arm a job gets when none is named: an ABB IRB 4400 (the chapter's) when the program
+    asked for is RAPID, else the UR10 (the CLI's default since the start)."""
+    return "irb4400" if language == "rapid" else "ur10"
+
+
 def demo_project(settings: DemoSettings) -> Project:
     """The project ``run_demo`` starts from: the cell, post-processing and process settings."""
     cell, mesh = load_workpiece(settings.workpiece)
@@ -198,6 +219,7 @@ def demo_project(settings: DemoSettings) -> Project:
         post_settings=post,
         cmrr=settings.cmrr,
         compensation=settings.compensation,
+        robot_urdf=settings.robot_urdf,
     )
 
 
@@ -205,6 +227,10 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
     """Run the whole pipeline headless; ``progress(stage, fraction)`` reports as it goes."""
     started = time.perf_counter()
     report = progress or (lambda stage, fraction: None)
+    if settings.robot_urdf is not None:
+        from .robots.custom import register_urdf
+
+        settings = replace(settings, robot=register_urdf(*settings.robot_urdf))
     project = demo_project(settings)
     workpiece = build_workpiece(project.cell, project.mesh)
     if workpiece.wall is None and settings.guide_points_csv is None:
@@ -233,7 +259,10 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
     project = replace(project, guide_points=tuple(guides))
     t_learn = time.perf_counter()
     learning = PathLearningSettings(
-        force_N=settings.force_N, speed_m_s=settings.speed_m_s, wall_side=settings.wall_side
+        force_N=settings.force_N,
+        speed_m_s=settings.speed_m_s,
+        wall_side=settings.wall_side,
+        closed=settings.closed,
     )
     learned, _ = learn(
         project,
@@ -249,7 +278,7 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
     project = replace(project, learned=learned, processed=processed)
     report("post-processing", 1.0)
     report("export", 0.0)
-    files = program_files(project, workpiece, cell.robot)
+    files = program_files(project, workpiece, cell.robot, language=settings.language)
     targets, _ = program_targets(project, cell.robot)
     reach = check_reachability(files["program.mod"], cell.robot, workpiece, targets.joints_rad[0])
     report("export", 1.0)

@@ -32,6 +32,10 @@ class PostprocessSettings:
         curvature_ref_1_m: Curvature at which the feed is halved.
         contact_stiffness_N_m: Interaction stiffness used to move each sample back to the
             unloaded surface (sample + F / k); 0 disables this compensation.
+        arcs: Fit circular moves (MoveC / movec) where the contour is an arc within the arc
+            tolerance (``robomach_core.arcs.arc_targets``) instead of the straight program.
+        arc_tolerance_m: Largest distance of a filtered sample from its line or arc; None uses
+            ``tolerance_m``.
     """
 
     force_min_N: float = 5.0
@@ -41,6 +45,8 @@ class PostprocessSettings:
     speed_min_m_s: float = 0.003
     curvature_ref_1_m: float = 1.0 / 0.010
     contact_stiffness_N_m: float = 100e3
+    arcs: bool = False
+    arc_tolerance_m: float | None = None
 
     def __post_init__(self) -> None:
         if not (self.tolerance_m > 0 and np.isfinite(self.tolerance_m)):
@@ -54,6 +60,12 @@ class PostprocessSettings:
             raise InvalidInputError("speeds need 0 < minimum speed <= mean speed")
         if self.contact_stiffness_N_m < 0:
             raise InvalidInputError("contact stiffness must be >= 0 N/mm")
+        if self.arc_tolerance_m is not None and not (
+            self.arc_tolerance_m > 0 and np.isfinite(self.arc_tolerance_m)
+        ):
+            raise InvalidInputError(
+                f"arc tolerance must be > 0 mm, got {self.arc_tolerance_m * 1e3:g} mm"
+            )
 
 
 def force_threshold_mask(force_N: np.ndarray, force_min_N: float, force_max_N: float) -> np.ndarray:

@@ -22,7 +22,7 @@ import pinocchio as pin
 
 from . import _kernels
 from .errors import SingularConfigurationError, UnknownNameError, UnreachableTargetError
-from .robots import abb
+from .robots import abb, custom
 from .transforms import pose_error
 
 ProgramLanguage = Literal["rapid", "urscript"]
@@ -47,10 +47,16 @@ class _RobotUrdfs(Mapping):
             return _UR_URDFS[name]
         if name in abb.ABB_ARMS:
             return str(abb.urdf_path(name))
+        if isinstance(name, str) and custom.is_custom(name):
+            return str(custom.urdf_file(name))  # a user's file (robots.custom), cached
         raise KeyError(name)
 
     def __contains__(self, name: object) -> bool:  # no file is written to answer this
-        return name in _UR_URDFS or name in abb.ABB_ARMS
+        return (
+            name in _UR_URDFS
+            or name in abb.ABB_ARMS
+            or (isinstance(name, str) and custom.is_custom(name))
+        )
 
     def __iter__(self) -> Iterator[str]:
         return iter([*_UR_URDFS, *abb.ABB_ARMS])
@@ -60,6 +66,8 @@ class _RobotUrdfs(Mapping):
 
 
 ROBOT_URDFS: Mapping[str, str] = _RobotUrdfs()
+# The built-in arms, for every robot choice (CLI, API schema, GUIs): UR arms, then ABB arms.
+ROBOT_NAMES: tuple[str, ...] = (*_UR_URDFS, *abb.ABB_ARMS)
 # The language of the programs each arm's controller runs.
 ROBOT_PROGRAM_LANGUAGE: dict[str, ProgramLanguage] = {
     **dict.fromkeys(_UR_URDFS, "urscript"),
@@ -123,6 +131,8 @@ class Robot:
         self.name = key
         if key in abb.ABB_ARMS:
             self.model = pin.buildModelFromXML(abb.urdf_text(abb.ABB_ARMS[key]))
+        elif custom.is_custom(key):
+            self.model = pin.buildModelFromXML(custom.urdf_text(key))
         else:
             self.model = pin.buildModelFromUrdf(str(robots_directory() / ROBOT_URDFS[key]))
         self.home_rad = ROBOT_HOME_JOINTS_RAD[key].copy()

@@ -18,7 +18,7 @@ from .contour import Contour, filleted_polygon
 from .errors import InvalidInputError, MeshFileError, UnknownNameError
 from .transforms import make_transform
 
-WORKPIECE_NAMES = ("water_pump", "block")
+WORKPIECE_NAMES = ("water_pump", "block", "s_groove")
 MESH_SUFFIXES = (".stl", ".obj", ".ply")
 MAX_MESH_BYTES = 50 * 1024 * 1024
 MAX_MESH_TRIANGLES = 500_000
@@ -200,7 +200,9 @@ def builtin_workpiece(
     """A built-in workpiece by name, at ``T_base_wobj`` or the built-in placement for ``robot``."""
     if T_base_wobj is None and robot is not None:
         T_base_wobj = default_T_base_wobj(robot)
-    makers = {"water_pump": water_pump, "block": block}
+    from .s_groove import s_groove
+
+    makers = {"water_pump": water_pump, "block": block, "s_groove": s_groove}
     if name not in makers:
         raise UnknownNameError(
             f"unknown workpiece {name!r}; built-ins are {', '.join(WORKPIECE_NAMES)}, "

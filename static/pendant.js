@@ -320,6 +320,7 @@ async function startLearning() {
     closed: $("learn-closed").checked,
   };
   const start = await api("POST", "/path-learning", body);
+  showLearnWarnings(start.warnings || []);
   learnJob = start.job_id ?? start.id;
   $("learn-start").disabled = true;
   $("learn-cancel").disabled = false;
@@ -353,6 +354,7 @@ async function runPostprocess() {
     force_min_N: Number($("post-fmin").value),
     force_max_N: Number($("post-fmax").value),
     tolerance_mm: Number($("post-tol").value),
+    arcs: $("post-arcs").checked,
   };
   showPostprocess(await api("POST", "/postprocess", body));
 }
@@ -362,6 +364,7 @@ function showPostprocessSettings(s) {
   if (s.force_min_N !== undefined) $("post-fmin").value = s.force_min_N;
   if (s.force_max_N !== undefined) $("post-fmax").value = s.force_max_N;
   if (s.tolerance_mm !== undefined) $("post-tol").value = s.tolerance_mm;
+  if (s.arcs !== undefined) $("post-arcs").checked = s.arcs;
 }
 
 function showPostprocess(r) {
@@ -375,6 +378,40 @@ function showPostprocess(r) {
   const rms = pick(dev, "rms_deviation_mm", "rms_mm");
   $("post-max").textContent = max === undefined ? "n/a" : `${fmt(max, 3)} mm`;
   $("post-rms").textContent = rms === undefined ? "n/a" : `${fmt(rms, 3)} mm`;
+  const meshMax = pick(r, "mesh_max_deviation_mm");
+  const meshRms = pick(r, "mesh_rms_deviation_mm");
+  $("post-mesh").textContent =
+    meshMax === undefined ? "n/a" : `max ${fmt(meshMax, 3)} mm, RMS ${fmt(meshRms, 3)} mm`;
+  const moves = pick(r, "moves");
+  $("post-moves").textContent =
+    moves === undefined
+      ? "-"
+      : `${moves} (${r.circular_moves || 0} circular; straight program ${r.straight_moves})`;
+}
+
+// Guide points that break an operator rule (docs/guide_points.md), from the learning start.
+function showLearnWarnings(warnings) {
+  const list = $("learn-warnings");
+  list.replaceChildren(
+    ...warnings.map((w) => {
+      const li = document.createElement("li");
+      li.textContent = `\u26a0 ${w}`;
+      return li;
+    }),
+  );
+  list.classList.toggle("hidden", warnings.length === 0);
+}
+
+async function downloadScript() {
+  const text = await api("GET", "/export/urscript", undefined, { text: true });
+  const url = URL.createObjectURL(new Blob([text], { type: "text/plain" }));
+  const a = document.createElement("a");
+  a.href = url;
+  a.download = "program.script";
+  document.body.appendChild(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 1000);
 }
 
 async function previewRapid() {
@@ -466,6 +503,7 @@ async function init() {
   $("post-run").addEventListener("click", safe(runPostprocess));
   $("export-preview").addEventListener("click", safe(previewRapid));
   $("export-download").addEventListener("click", safe(downloadRapid));
+  $("export-script").addEventListener("click", safe(downloadScript));
 
   const url = await viserUrl();
   $("viser-frame").src = url;

@@ -48,6 +48,13 @@ EXPECTED: dict[str, list[str]] = {
         rf"online compensation step \(fig. 15\)\s+{NUMBER}\s+{NUMBER} %",
         rf"offline correction per target, eq. \(32\)\s+{NUMBER}",
     ],
+    "bench_machining.py": [
+        r"water pump, program along the true wall \(--quick\): \d+ targets, \d+ mm",
+        *(
+            rf"{c}\s+{m}\s+{NUMBER}\s+{NUMBER}\s+{NUMBER}"
+            for c, m in (("adaptive-pi", "off"), ("constant", "off"), ("adaptive-pi", "online"))
+        ),
+    ],
     "bench_browser_pose_rate.py": [
         rf"handle\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
         rf"rest\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",

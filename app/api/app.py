@@ -34,9 +34,12 @@ from app.api.routes import (
     guide_points,
     jobs,
     leadthrough,
+    machining,
     path_learning,
     postprocess,
+    project_file,
     projects,
+    robot_wiring,
     state,
     teach,
 )
@@ -58,7 +61,8 @@ UPLOAD_PATHS = frozenset({"/api/cell/workpiece"})
 # Multipart boundaries and part headers around the file: a few hundred bytes in practice.
 MULTIPART_OVERHEAD_BYTES = 64 * 1024
 ROUTERS = (state, leadthrough, guide_points, path_learning, jobs, postprocess, export, projects,
-           cell, cmrr, compensation, teach, events)  # fmt: skip
+           cell, cmrr, compensation, robot_wiring, machining, project_file, teach,
+           events)  # fmt: skip
 
 # A service is started in the lifespan and stopped after it (e.g. the viser workbench).
 Service = Callable[[], AbstractContextManager]

@@ -213,6 +213,10 @@ class GuidePointPublic(BaseModel):
 
 class JobCreated(BaseModel):
     job_id: str
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="guide points that break an operator rule (docs/guide_points.md)",
+    )
 
 
 class JobPublic(BaseModel):
@@ -296,6 +300,12 @@ class PostprocessUpdate(_Request):
     tolerance_mm: Finite | None = Field(
         None, gt=0.0, le=10.0, description="deviation-height tolerance [mm]"
     )
+    arcs: bool | None = Field(
+        None, description="fit circular moves (MoveC / movec) where the contour is an arc"
+    )
+    arc_tolerance_mm: Finite | None = Field(
+        None, gt=0.0, le=10.0, description="arc fitting tolerance [mm]; default the tolerance"
+    )
 
 
 class PostprocessSettingsPublic(BaseModel):
@@ -304,6 +314,8 @@ class PostprocessSettingsPublic(BaseModel):
     tolerance_mm: float
     speed_mean_mm_s: float
     speed_min_mm_s: float
+    arcs: bool = False
+    arc_tolerance_mm: float | None = None
 
     @classmethod
     def from_settings(cls, s: PostprocessSettings) -> PostprocessSettingsPublic:
@@ -313,6 +325,8 @@ class PostprocessSettingsPublic(BaseModel):
             tolerance_mm=round(s.tolerance_m * 1e3, 9),
             speed_mean_mm_s=round(s.speed_mean_m_s * 1e3, 9),
             speed_min_mm_s=round(s.speed_min_m_s * 1e3, 9),
+            arcs=s.arcs,
+            arc_tolerance_mm=None if s.arc_tolerance_m is None else s.arc_tolerance_m * 1e3,
         )
 
 
@@ -329,11 +343,28 @@ class PostprocessPublic(BaseModel):
         "null for an uploaded mesh (no known truth)"
     )
     rms_deviation_mm: float | None = Field(description="RMS deviation along the path [mm]")
+    mesh_max_deviation_mm: float | None = Field(
+        None,
+        description="largest deviation of the program from the workpiece mesh minus the "
+        "tool radius [mm], every part (built-in or uploaded)",
+    )
+    mesh_rms_deviation_mm: float | None = Field(None, description="its RMS along the path [mm]")
+    moves: int | None = Field(None, description="motion instructions of the program")
+    circular_moves: int | None = Field(None, description="of which circular (MoveC / movec)")
+    straight_moves: int | None = Field(None, description="instructions of the straight program")
     settings: PostprocessSettingsPublic
 
     @classmethod
     def from_outcome(cls, o: PostprocessOutcome) -> PostprocessPublic:
+        from robomach_core.project import result_extras
+
+        extras = result_extras(o)
         return cls(
+            mesh_max_deviation_mm=extras["mesh_max_deviation_mm"],
+            mesh_rms_deviation_mm=extras["mesh_rms_deviation_mm"],
+            moves=extras["moves"],
+            circular_moves=extras["circular_moves"],
+            straight_moves=extras["straight_moves"],
             samples_raw=o.samples_raw,
             samples_filtered=o.result.samples_filtered,
             targets=len(o.result.targets),
@@ -406,7 +437,9 @@ class ProjectPublic(BaseModel):
 
 
 class CellUpdate(_Request):
-    robot: str | None = Field(None, description="ur10, ur5 or ur3")
+    robot: str | None = Field(
+        None, description="a built-in arm (robots in GET /api/cell) or an uploaded one"
+    )
     tool_radius_mm: Finite | None = Field(None, description="ball cutter radius [mm], 0.5-5")
     workpiece: str | None = Field(None, description="water_pump, block, or the uploaded mesh")
 

@@ -20,13 +20,55 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         ),
     )
     p.add_argument("--out", required=True, type=Path, help="output folder (created if missing)")
-    p.add_argument("--robot", default="ur10", help="ur10 (default), ur5 or ur3")
+    from robomach_core.robot import ROBOT_NAMES
+
+    p.add_argument(
+        "--robot",
+        default=None,
+        metavar="|".join(ROBOT_NAMES) + "|FILE.urdf",
+        help="the arm: a built-in one, or your own serial 6-axis URDF file (default ur10, or "
+        "irb4400 with --language rapid)",
+    )
+    p.add_argument(
+        "--language",
+        choices=("auto", "rapid", "urscript"),
+        default="auto",
+        help="program language: auto follows the arm (URScript for UR arms, RAPID for ABB); "
+        "program.mod is always written, program.script too for URScript",
+    )
+    p.add_argument(
+        "--arcs",
+        action="store_true",
+        help="fit circular moves (MoveC / movec) where the contour is an arc within tolerance",
+    )
+    p.add_argument(
+        "--arc-tolerance",
+        type=float,
+        default=None,
+        metavar="MM",
+        help="largest distance of a sample from its line or arc with --arcs (default: --tolerance)",
+    )
+    p.add_argument(
+        "--open",
+        action="store_true",
+        help="the contour is open (a groove or an edge that ends): no move back to the first "
+        "guide point",
+    )
+    p.add_argument(
+        "--tool-radius-mm",
+        type=float,
+        default=1.0,
+        metavar="MM",
+        help="ball cutter radius in mm (default 1)",
+    )
     p.add_argument("--workpiece", default="water_pump", help="water_pump (default) or block")
     p.add_argument(
         "--wobj",
-        metavar="X,Y,Z[,RZ]",
-        help="work-object frame placing the workpiece: x,y,z in mm (robot base frame) and an "
-        "optional rotation about z in degrees (default 800,160,0)",
+        metavar="X,Y,Z[,RZ|,RX,RY,RZ]",
+        help="work-object frame placing the workpiece and the program's wobjdata: x,y,z in mm "
+        "(robot base frame) and an optional rotation about z, or rotations about the base x, "
+        "y and z axes in that order, in degrees (default: in front of the arm, 800,160,0 for "
+        "a UR10)",
     )
     p.add_argument(
         "--force",
@@ -127,6 +169,9 @@ def run(args: argparse.Namespace) -> int:
     limits.LEARNING_FORCE_N.check(args.force, "--force")
     limits.LEARNING_SPEED_MM_S.check(args.speed, "--speed")
     limits.SEED.check(args.seed, "--seed")
+    limits.TOOL_RADIUS_MM.check(args.tool_radius_mm, "--tool-radius-mm")
+    if args.arc_tolerance is not None:
+        limits.TOLERANCE_MM.check(args.arc_tolerance, "--arc-tolerance")
     writable_folder(args.out)
 
     wobj = None
@@ -134,8 +179,15 @@ def run(args: argparse.Namespace) -> int:
         try:
             wobj = tuple(float(v) for v in args.wobj.split(","))
         except ValueError:
-            raise InvalidInputError(f"--wobj {args.wobj!r}: expected numbers x,y,z[,rz]") from None
-        ranges = (limits.WOBJ_POSITION_MM,) * 3 + (limits.WOBJ_ROTATION_DEG,)
+            raise InvalidInputError(
+                f"--wobj {args.wobj!r}: expected numbers x,y,z[,rz] or x,y,z,rx,ry,rz"
+            ) from None
+        if len(wobj) not in (3, 4, 6):
+            raise InvalidInputError(
+                f"--wobj {args.wobj!r}: expected 3, 4 or 6 numbers (x,y,z[,rz] or "
+                f"x,y,z,rx,ry,rz), got {len(wobj)}"
+            )
+        ranges = (limits.WOBJ_POSITION_MM,) * 3 + (limits.WOBJ_ROTATION_DEG,) * 3
         for value, rng in zip(wobj, ranges, strict=False):
             rng.check(value, "--wobj")
     guide_csv = None
@@ -155,10 +207,19 @@ def run(args: argparse.Namespace) -> int:
         compensation = load_compensation(args.compensation_settings)
 
     from robomach_core.export.outputs import write_demo_outputs
-    from robomach_core.pipeline import DemoSettings, run_demo
+    from robomach_core.pipeline import DemoSettings, default_robot, run_demo
+    from robomach_core.postprocess import PostprocessSettings
+    from robomach_core.tool import Tool
+
+    robot, robot_urdf = args.robot or default_robot(args.language), None
+    if robot.lower().endswith(".urdf"):
+        from robomach_core.robots.custom import read_robot_file, register_urdf
+
+        robot_urdf = read_robot_file(Path(robot))
+        robot = register_urdf(*robot_urdf)
 
     settings = DemoSettings(
-        robot=args.robot,
+        robot=robot,
         workpiece=args.workpiece,
         force_N=args.force,
         speed_m_s=args.speed * 1e-3,
@@ -169,6 +230,14 @@ def run(args: argparse.Namespace) -> int:
         cmrr=cmrr,
         compensation=compensation,
         wobj_mm_deg=wobj,
+        tool=Tool(radius_m=args.tool_radius_mm * 1e-3),
+        postprocess=PostprocessSettings(
+            arcs=args.arcs,
+            arc_tolerance_m=None if args.arc_tolerance is None else args.arc_tolerance * 1e-3,
+        ),
+        closed=not args.open,
+        language=args.language,
+        robot_urdf=robot_urdf,
     )
     bar = _ProgressLine()
     try:
@@ -195,6 +264,16 @@ def run(args: argparse.Namespace) -> int:
         print(
             f"deviation         max {s['max_deviation_mm']:.3f} mm, RMS "
             f"{s['rms_deviation_mm']:.3f} mm (path vs true wall - tool radius)"
+        )
+    if s.get("arcs"):
+        print(
+            f"moves             {s['moves']} ({s['circular_moves']} circular) vs "
+            f"{s['straight_moves']} straight: {s['moves'] / s['straight_moves']:.0%}"
+        )
+    if s.get("mesh_max_deviation_mm") is not None:
+        print(
+            f"mesh deviation    max {s['mesh_max_deviation_mm']:.3f} mm, RMS "
+            f"{s['mesh_rms_deviation_mm']:.3f} mm (program vs workpiece mesh - tool radius)"
         )
     print(f"reachable         {s['robtargets_reachable']}/{s['robtargets_total']} robtargets")
     print(

@@ -30,6 +30,7 @@ from .panels import (
     PostprocessPanel,
 )
 from .panels.feedback import notify_error
+from .panels.robot_wiring import GuideRulesPanel, RobotProgramPanel
 from .panels.teach_panel import TeachPanel
 from .scene import CellScene
 
@@ -73,7 +74,10 @@ class Workbench:
         self.path_learning = PathLearningPanel(server, session)
         self.postprocess = PostprocessPanel(server, session, self.scene)
         self.export = ExportPanel(server, session)
+        self.robot_program = RobotProgramPanel(server, session)
+        self.guide_rules = GuideRulesPanel(server, session)
         self.studies = self._study_panels(server, session)
+        self.studies += self._machining_panel(server, session)
         self._dirty: set[str] = {"job"}
         self._dirty_lock = threading.Lock()
         self._jobs_shown: dict[str, str] = {}  # job kind -> id of the job the panel shows
@@ -114,6 +118,17 @@ class Workbench:
             log.exception("the study panels failed to build")
             return []
 
+    @staticmethod
+    def _machining_panel(server: viser.ViserServer, session) -> list:
+        """The Machining panel (issue 8), closed with the study panels."""
+        try:
+            from .panels.machining import MachiningPanel
+
+            return [MachiningPanel(server, session)]
+        except Exception:
+            log.exception("the machining panel failed to build")
+            return []
+
     # ---------------------------------------------------------------- change notifications
 
     def _on_change(self, topic: str) -> None:
@@ -151,11 +166,13 @@ class Workbench:
             self.leadthrough.refresh_compliance()
         if "guide_points" in topics or "cell" in topics:
             self.guide_points.refresh()
+            self.guide_rules.refresh()
         if topics & {"job", "recording"}:
             self._show_jobs()
         if topics & {"recording", "postprocess", "cell"}:
             self.postprocess.refresh()
             self.export.refresh()
+            self.robot_program.refresh()
         snapshot = self.leadthrough.tick(self.session.snapshot())
         self.teach.tick(snapshot)
         self._draw_robot(snapshot)

@@ -30,6 +30,7 @@ from robomach_core.project import (
 from robomach_core.workpiece import Workpiece
 
 from ..store import GuidePointRow, ProjectData
+from .machining import machining_document, machining_from_document
 from .records import RECORDING_ARRAYS, log
 
 Part = Literal["cell", "guides", "recording", "post"]
@@ -41,6 +42,11 @@ def save_kwargs(project: Project, *parts: Part) -> dict[str, Any]:
     if "cell" in parts:
         out["cell"] = asdict(project.cell)
         out["mesh"] = project.mesh
+        if project.robot_urdf is not None:  # the user's arm file rides in the cell document
+            import base64
+
+            name, data = project.robot_urdf
+            out["cell"]["robot_urdf"] = [name, base64.b64encode(data).decode("ascii")]
     if "guides" in parts:
         out["guide_points"] = [
             GuidePointRow(g.T_base_tcp, g.joints_rad, g.time_s, g.force_N)
@@ -57,6 +63,7 @@ def save_kwargs(project: Project, *parts: Part) -> dict[str, Any]:
             "inputs": None if processed is None else processed.inputs,
             "cmrr": cmrr_document(project),
             "compensation": compensation_document(project),
+            "machining": machining_document(project),
         }
     return out
 
@@ -80,9 +87,21 @@ def cell_from_doc(doc: dict[str, Any]) -> CellSettings:
     """Cell settings from ``cell_json`` (unknown keys ignored, missing ones default)."""
     known = set(CellSettings.__dataclass_fields__)
     values = {k: v for k, v in doc.items() if k in known}
+    if doc.get("robot_urdf"):  # register the user's arm again so Robot(name) builds it
+        from robomach_core.robots.custom import register_urdf
+
+        register_urdf(*robot_urdf_from_doc(doc))
     if values.get("wobj_mm_deg") is not None:
         values["wobj_mm_deg"] = tuple(float(v) for v in values["wobj_mm_deg"])
     return CellSettings(**values)
+
+
+def robot_urdf_from_doc(doc: dict[str, Any]) -> tuple[str, bytes] | None:
+    """(filename, bytes) of the user's arm file stored in ``cell_json``, or None."""
+    import base64
+
+    stored = doc.get("robot_urdf")
+    return None if not stored else (stored[0], base64.b64decode(stored[1]))
 
 
 def project_from_data(data: ProjectData, workpiece: Workpiece) -> Project:
@@ -93,7 +112,9 @@ def project_from_data(data: ProjectData, workpiece: Workpiece) -> Project:
     guides = tuple(
         GuidePoint(g.T_base_tcp, g.joints_rad, g.time_s, g.force_N) for g in data.guide_points
     )
-    project = Project(cell=cell, mesh=mesh, guide_points=guides)
+    project = Project(
+        cell=cell, mesh=mesh, guide_points=guides, robot_urdf=robot_urdf_from_doc(data.cell)
+    )
     post = data.post or {}
     try:
         project = replace(project, post_settings=PostprocessSettings(**post.get("settings", {})))
@@ -101,6 +122,7 @@ def project_from_data(data: ProjectData, workpiece: Workpiece) -> Project:
         log.error("project %s: post-processing settings unreadable (%s)", pid, exc)
     project = replace(project, learned=_learned(data, project))
     project = _process_settings(project, post, pid)
+    project = machining_from_document(project, post.get("machining"))
     if post.get("applied") and project.learned is not None:
         try:
             applied = PostprocessSettings(**(post.get("applied_settings") or post["settings"]))

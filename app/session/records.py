@@ -33,6 +33,7 @@ Topic = Literal[
     "job",
     "project",
     "exports",
+    "machining",
 ]
 JobStatus = Literal["queued", "running", "done", "failed", "cancelled"]
 

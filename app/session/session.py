@@ -342,8 +342,12 @@ class Session:
     def _change_cell(
         self, settings: CellSettings, mesh: tuple[str, bytes] | None, *, parsed: Any = None
     ) -> None:
+        from robomach_core.robots.custom import is_custom
+
         self._install_cell(settings, mesh, joints=None, parsed=parsed)
         self._project = replace(self._project, cell=settings, mesh=mesh, guide_points=())
+        if self._project.robot_urdf is not None and not is_custom(settings.robot):
+            self._project = replace(self._project, robot_urdf=None)  # back to a built-in arm
         self._save("cell", "guides", with_robot=True)
 
     def set_process_settings(self, *, cmrr: Any = None, compensation: Any = None) -> Project:
@@ -570,6 +574,8 @@ class Session:
         force_min_N: float | None = None,
         force_max_N: float | None = None,
         tolerance_m: float | None = None,
+        arcs: bool | None = None,
+        arc_tolerance_m: float | None = None,
     ) -> ProcessedPath:
         """Filter, reduce and score the last recording (``project.process``); None keeps a
         setting. It computes outside the lock from a snapshot of the project, so reads never
@@ -582,6 +588,8 @@ class Session:
             force_min_N=cur.force_min_N if force_min_N is None else float(force_min_N),
             force_max_N=cur.force_max_N if force_max_N is None else float(force_max_N),
             tolerance_m=cur.tolerance_m if tolerance_m is None else float(tolerance_m),
+            arcs=cur.arcs if arcs is None else bool(arcs),
+            arc_tolerance_m=cur.arc_tolerance_m if arc_tolerance_m is None else arc_tolerance_m,
         )
         if project.learned is None:
             raise ConflictError("nothing to post-process yet: run path learning first")
@@ -607,6 +615,43 @@ class Session:
         return core.rapid_text(
             project, workpiece, robot, module_name=module_name, force_control=force_control
         )
+
+    def urscript_program(self, *, force_control: bool = False) -> str:
+        """The project's program as URScript (``project.urscript_text``)."""
+        with self._lock:
+            project, workpiece, robot = self._project, self._cell.workpiece, self._cell.robot
+        return core.urscript_text(project, workpiece, robot, force_control=force_control)
+
+    def guide_warnings(self, force_N: float, *, closed: bool = True) -> list[str]:
+        """The guide points that break an operator rule (``guide_check``), as messages."""
+        from robomach_core.guide_check import guide_point_warnings
+        from robomach_core.path_learning import PathLearningSettings
+
+        with self._lock:
+            project, workpiece = self._project, self._cell.workpiece
+        settings = PathLearningSettings(force_N=force_N, closed=closed)
+        found = guide_point_warnings(
+            project.guide_points,
+            settings,
+            workpiece=workpiece,
+            tool_radius_m=project.cell.tool_radius_m,
+        )
+        return [w.message for w in found]
+
+    def upload_robot(self, data: bytes, filename: str) -> CellSettings:
+        """Use a user's serial 6-axis URDF (a .urdf, or a .zip with its meshes) as the arm
+        (``robots.custom``); kept in the project like an uploaded mesh. Clears the guide
+        points like a ``set_cell`` change."""
+        from robomach_core.robots.custom import register_urdf
+
+        name = register_urdf(filename, data)
+        with self._lock:
+            self._require_idle()
+            self._project = replace(self._project, robot_urdf=(filename, data))
+            new = replace(self._project.cell, robot=name)
+            self._change_cell(new, self._project.mesh)
+        self._notify("cell", "robot", "guide_points", *DOWNSTREAM_TOPICS)
+        return new
 
     def samples_csv(self) -> str:
         """Every recorded sample with the force filter's verdict (mm, N, degrees); the

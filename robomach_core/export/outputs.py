@@ -1,6 +1,7 @@
 """Writing the demo's files into a folder: the project's program files (``project.program_files``:
 program.mod, program_fc.mod, targets.csv, samples.csv, settings.json), workpiece.stl and
-summary.json."""
+summary.json,
+and project.npz (``project.save_project_file``)."""
 
 from __future__ import annotations
 
@@ -23,6 +24,10 @@ def write_demo_outputs(result: DemoResult, out_dir: str | Path) -> list[Path]:
         path = out / name
         path.write_text(text)
         written.append(path)
+    if result.project is not None:  # what `robomach machine --from` and the workbench open
+        from ..project import PROJECT_FILE, save_project_file
+
+        written.append(save_project_file(result.project, out / PROJECT_FILE))
     stl = out / "workpiece.stl"
     result.workpiece.mesh_in_base().export(stl)
     written.append(stl)

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from ..arcs import Move
 from ..errors import RobomachError
 from ..postprocess import Targets
 from ..robot import Robot
@@ -32,12 +34,16 @@ def rapid_program(
     force_control_N: float | None = None,
     speed_change: SpeedChangeSettings | None = None,
     comment: tuple[str, ...] = (),
+    arm: str | None = None,
+    moves: Sequence[Move] | None = None,
 ) -> RapidProgram:
     """A RAPID program: one robtarget per target, in the work-object frame.
 
     Args:
         force_control_N: When given, the Force Control variant pressing with this force along
             the tool's Y axis (the learned contact direction) is generated.
+        arm: ABB arm whose geometry gives the confdata's cfx (``RapidProgram.arm``).
+        moves: Move sequence with circular moves (``arcs.arc_targets``); None: MoveL to each.
     """
     T_wobj_base = inverse_transform(workpiece.T_base_wobj)
     rapid_targets = []
@@ -59,6 +65,8 @@ def rapid_program(
         force_control=fc,
         speed_change=speed_change,
         comment=comment,
+        arm=arm,
+        moves=moves,
     )
 
 

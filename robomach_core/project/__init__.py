@@ -18,6 +18,26 @@ SOLUTION  Callers replace the value (``dataclasses.replace``) and never mark any
           status, so a saved document says what it was made from.
 """
 
+from ._file import PROJECT_FILE as PROJECT_FILE
+from ._file import ProjectFileError as ProjectFileError
+from ._file import load_project_file as load_project_file
+from ._file import project_file_bytes as project_file_bytes
+from ._file import project_from_file_bytes as project_from_file_bytes
+from ._file import save_project_file as save_project_file
+from ._machining import MachiningResult as MachiningResult
+from ._machining import MachiningSetup as MachiningSetup
+from ._machining import best_row as best_row
+from ._machining import choose as choose
+from ._machining import cmrr_for as cmrr_for
+from ._machining import machine as machine
+from ._machining import machining_result_document as machining_result_document
+from ._machining import machining_result_from_document as machining_result_from_document
+from ._machining import machining_setup_document as machining_setup_document
+from ._machining import machining_setup_from_document as machining_setup_from_document
+from ._machining import machining_setup_of as machining_setup_of
+from ._machining import wall_normals_for_project as wall_normals_for_project
+from ._machining import with_machining_result as with_machining_result
+from ._machining import with_machining_setup as with_machining_setup
 from ._stages import build_workpiece as build_workpiece
 from ._stages import compensate_program_targets as compensate_program_targets
 from ._stages import learn as learn
@@ -39,8 +59,12 @@ from ._value import compensation_document as compensation_document
 from ._value import machining_inputs_key as machining_inputs_key
 from ._value import processed_inputs_key as processed_inputs_key
 from ._value import recording_inputs_key as recording_inputs_key
+from ._writers import PROGRAM_LANGUAGE_CHOICES as PROGRAM_LANGUAGE_CHOICES
 from ._writers import fc_module_name as fc_module_name
 from ._writers import program_files as program_files
+from ._writers import program_languages as program_languages
 from ._writers import rapid_header as rapid_header
 from ._writers import rapid_text as rapid_text
+from ._writers import result_extras as result_extras
 from ._writers import settings_document as settings_document
+from ._writers import urscript_text as urscript_text

@@ -58,16 +58,44 @@ def process(
     workpiece: Workpiece,
     tool_radius_m: float,
 ) -> ProcessedPath:
-    """Force filter, deviation-height reduction and speeds (``postprocess.postprocess``), then
-    the score against the true tool path when the workpiece has a known wall."""
+    """Force filter, deviation-height reduction and speeds (``postprocess.postprocess``), arc
+    fitting when asked (``settings.arcs``), then the score against the true tool path when
+    the workpiece has a known wall and against its mesh for every part (``mesh_score``)."""
     rec = learned.recording
     result = postprocess(
         rec, learned.guide_quaternions_wxyz, settings, closed=learned.settings.closed
     )
-    score = None
-    if workpiece.wall is not None and len(result.targets) >= 2:
-        score = score_path(workpiece, tool_radius_m, result.targets.position_m)
-    return ProcessedPath(settings, result, len(rec), score, processed_inputs_key(learned, settings))
+    moves = straight = None
+    if settings.arcs and len(result.targets) >= 2:
+        from ..arcs import arc_targets
+
+        straight = len(result.targets)
+        tol = settings.arc_tolerance_m or settings.tolerance_m
+        arc_tg, moves = arc_targets(result.targets, result.surface_m, result.keep_mask, tol)
+        result = replace(result, targets=arc_tg)
+    score = mesh = None
+    if len(result.targets) >= 2:
+        from ..arcs import score_moves
+        from ..mesh_score import score_mesh
+
+        pos = result.targets.position_m
+        if workpiece.wall is not None:
+            score = (
+                score_path(workpiece, tool_radius_m, pos)
+                if moves is None
+                else score_moves(workpiece, tool_radius_m, pos, moves)
+            )
+        mesh = score_mesh(workpiece, tool_radius_m, pos, moves)
+    return ProcessedPath(
+        settings,
+        result,
+        len(rec),
+        score,
+        processed_inputs_key(learned, settings),
+        moves=moves,
+        mesh_score=mesh,
+        straight_targets=straight,
+    )
 
 
 def require_processed(project: Project) -> ProcessedPath:
@@ -83,10 +111,18 @@ def require_processed(project: Project) -> ProcessedPath:
 
 
 def program_targets(project: Project, robot: Robot) -> tuple[Targets, str | None]:
-    """The targets the program runs: post-processed, corrected for deflection in the offline
-    compensation modes; and the compensation's note for the header (None without one)."""
+    """The targets the program runs: post-processed, their joints the inverse kinematics of
+    each target pose on ``robot`` (``export.target_joints``), corrected for deflection in the
+    offline compensation modes; and the compensation's note for the header (None without)."""
+    from ..export.target_joints import with_target_joints
+
     processed = require_processed(project)
-    targets = processed.result.targets
+    targets = with_target_joints(robot, processed.result.targets)
+    from ._machining import chosen_program
+
+    chosen = chosen_program(project)
+    if chosen is not None:  # offline compensation chosen from a current machining run
+        return chosen
     if project.compensation is None:
         return targets, None
     return compensate_program_targets(
@@ -145,21 +181,36 @@ def compensate_program_targets(
 
 
 def wobj_transform(values: Sequence[float]) -> np.ndarray:
-    """4x4 work-object frame from (x, y, z [mm]) or (x, y, z [mm], rz [deg])."""
+    """4x4 work-object frame from (x, y, z [mm]), (x, y, z [mm], rz [deg]) or
+    (x, y, z [mm], rx, ry, rz [deg]); three angles are rotations about the fixed base axes x,
+    then y, then z (R = Rz Ry Rx, scipy's extrinsic ``"xyz"``)."""
+    from scipy.spatial.transform import Rotation
+
     from ..transforms import make_transform, rotation_about
 
     v = [float(x) for x in values]
-    if len(v) not in (3, 4) or not all(np.isfinite(v)):
-        raise InvalidInputError("the work object is x,y,z in mm with an optional rz in degrees")
-    rz = np.radians(v[3]) if len(v) == 4 else 0.0
-    return make_transform(rotation_about("z", rz), np.array(v[:3]) * 1e-3)
+    if len(v) not in (3, 4, 6) or not all(np.isfinite(v)):
+        raise InvalidInputError(
+            "the work object is x,y,z in mm with an optional rz, or rx,ry,rz, in degrees"
+        )
+    if len(v) == 6:
+        R = Rotation.from_euler("xyz", v[3:], degrees=True).as_matrix()
+    else:
+        R = rotation_about("z", np.radians(v[3]) if len(v) == 4 else 0.0)
+    return make_transform(R, np.array(v[:3]) * 1e-3)
 
 
 def build_workpiece(
     cell: CellSettings, mesh: tuple[str, bytes] | None, *, max_triangles: int | None = None
 ) -> Workpiece:
-    """The project's workpiece: built-in by name, or its mesh bytes; placed at ``wobj_mm_deg``."""
-    from ..workpiece import MAX_MESH_TRIANGLES, builtin_workpiece, mesh_from_bytes
+    """The project's workpiece: built-in by name, or its mesh bytes; placed where the cell's
+    robot reaches it (``workpiece.default_T_base_wobj``), or at ``wobj_mm_deg``."""
+    from ..workpiece import (
+        MAX_MESH_TRIANGLES,
+        builtin_workpiece,
+        default_T_base_wobj,
+        mesh_from_bytes,
+    )
 
     if mesh is not None and not cell.workpiece_builtin:
         filename, data = mesh
@@ -167,10 +218,11 @@ def build_workpiece(
             data,
             Path(filename).suffix.lower(),
             name=Path(filename).stem,
+            T_base_wobj=default_T_base_wobj(cell.robot),
             max_triangles=max_triangles or MAX_MESH_TRIANGLES,
         )
     else:
-        workpiece = builtin_workpiece(cell.workpiece)
+        workpiece = builtin_workpiece(cell.workpiece, robot=cell.robot)
     if cell.wobj_mm_deg is not None:
         workpiece = workpiece.placed(wobj_transform(cell.wobj_mm_deg))
     return workpiece

@@ -38,7 +38,8 @@ class CellSettings:
     """The user's cell settings.
 
     Attributes:
-        robot: ``"ur10"``, ``"ur5"`` or ``"ur3"``.
+        robot: A built-in arm (``robot.ROBOT_NAMES``: UR and ABB) or an uploaded URDF's
+            name (``robots.custom``).
         tool_radius_m: Ball cutter radius.
         workpiece: Built-in name, or the stem of the uploaded mesh file.
         workpiece_builtin: False for an uploaded mesh (the project holds its bytes).
@@ -95,6 +96,11 @@ class ProcessedPath:
         samples_raw: Samples of the recording.
         score: Deviation from the true tool path (built-in workpieces), else None.
         inputs: Fingerprint of the recording and settings it was computed from.
+        moves: The program's move sequence (``arcs.Move``) when arcs are fitted
+            (``settings.arcs``); None for a straight move to every target.
+        mesh_score: Deviation of the program from the workpiece mesh (every part).
+        straight_targets: Targets of the straight (deviation-height) program, to compare the
+            arc program's instruction count with; None when no arcs are fitted.
     """
 
     settings: PostprocessSettings
@@ -102,6 +108,9 @@ class ProcessedPath:
     samples_raw: int
     score: PathScore | None
     inputs: str
+    moves: tuple[Any, ...] | None = None
+    mesh_score: PathScore | None = None
+    straight_targets: int | None = None
 
 
 @dataclass(frozen=True)
@@ -123,6 +132,8 @@ class Project:
         machining: Slot for the machining run's result.
         machining_inputs: Fingerprint the machining result was computed from
             (``machining_inputs_key`` of the project at the time).
+        robot_urdf: (filename, bytes) of the user's own arm (a .urdf, or a .zip with its
+            meshes) when ``cell.robot`` names one (``robots.custom.register_urdf``).
     """
 
     cell: CellSettings = field(default_factory=CellSettings)
@@ -136,11 +147,14 @@ class Project:
     machining_settings: Any = None
     machining: Any = None
     machining_inputs: str | None = None
+    robot_urdf: tuple[str, bytes] | None = None
 
     @cached_property
     def cell_key(self) -> str:
-        """Fingerprint of the cell (settings and uploaded mesh bytes)."""
+        """Fingerprint of the cell (settings, uploaded mesh and robot file bytes)."""
         mesh = () if self.mesh is None else (self.mesh[0], self.mesh[1])
+        if self.robot_urdf is not None:
+            mesh = (*mesh, *self.robot_urdf)
         return _digest(json.dumps(asdict(self.cell), sort_keys=True), *mesh)
 
     @cached_property
@@ -245,6 +259,10 @@ def machining_inputs_key(project: Project) -> str:
     """What a machining result of this project is computed from: the processed path, the
     machining, CMRR and compensation settings. Stamp ``Project.machining_inputs`` with it."""
     processed = project.processed.inputs if project.processed is not None else ""
+    setup = project.machining_settings
+    own_key = getattr(setup, "inputs_key", None)
+    if callable(own_key):  # a MachiningSetup: its settings, stock and the stiffness it cuts with
+        return _digest(processed, own_key(project))
     return _digest(
         processed,
         json.dumps(_plain(project.machining_settings), sort_keys=True),

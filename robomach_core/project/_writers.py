@@ -15,6 +15,9 @@ from ._value import (
     compensation_document,
 )
 
+# "auto": the language of the arm's controller (``robot.ROBOT_PROGRAM_LANGUAGE``).
+PROGRAM_LANGUAGE_CHOICES = ("auto", "rapid", "urscript")
+
 
 def rapid_header(
     project: Project, workpiece_name: str, *, note: str | None = None
@@ -70,6 +73,8 @@ def rapid_text(
         from ..cmrr import to_speed_change_settings
 
         speed_change = to_speed_change_settings(project.cmrr)
+    from ..robots.abb import ABB_ARMS
+
     program = rapid_program(
         targets,
         project.tool(),
@@ -78,8 +83,43 @@ def rapid_text(
         force_control_N=project.learned.settings.force_N if force_control else None,
         speed_change=speed_change,
         comment=header,
+        arm=robot.name if robot.name in ABB_ARMS else None,
+        moves=require_processed(project).moves,
     )
     return rapid_module(program)
+
+
+def urscript_text(
+    project: Project, workpiece: Workpiece, robot: Robot, *, force_control: bool = False
+) -> str:
+    """The project's program as URScript (``export.urscript``): ``movel``/``movec`` to the
+    same targets as the RAPID module; ``force_control`` presses along tool y at the learning
+    force (``force_mode``)."""
+    from ..export.urscript import urscript_program
+
+    targets, note = program_targets(project, robot)
+    return urscript_program(
+        targets,
+        project.tool(),
+        workpiece,
+        force_control_N=project.learned.settings.force_N if force_control else None,
+        comment=rapid_header(project, workpiece.name, note=note),
+        arcs=require_processed(project).moves,
+    )
+
+
+def program_languages(robot: Robot, language: str = "auto") -> tuple[str, ...]:
+    """The program languages to write: RAPID always (program.mod, the stable output), and
+    URScript when the arm runs it (``language="auto"`` on a UR arm) or when asked for."""
+    from ..errors import InvalidInputError
+
+    if language not in PROGRAM_LANGUAGE_CHOICES:
+        raise InvalidInputError(
+            f"unknown program language {language!r}; choose one of "
+            f"{', '.join(PROGRAM_LANGUAGE_CHOICES)}"
+        )
+    resolved = robot.program_language if language == "auto" else language
+    return ("rapid", "urscript") if resolved == "urscript" else ("rapid",)
 
 
 def program_files(
@@ -90,19 +130,30 @@ def program_files(
     module_name: str = DEFAULT_MODULE_NAME,
     project_name: str | None = None,
     compliance: dict[str, Any] | None = None,
+    language: str = "auto",
 ) -> dict[str, str]:
     """The program's files: program.mod, program_fc.mod, targets.csv, samples.csv and
-    settings.json (the one writer set of the CLI and the workbench)."""
+    settings.json (the one writer set of the CLI and the workbench); program.script and
+    program_fc.script too when the program language is URScript (``program_languages``)."""
     from ..export.tables import samples_csv, targets_csv
 
     processed = require_processed(project)
+    languages = program_languages(robot, language)
     doc = settings_document(project, workpiece, project_name=project_name, compliance=compliance)
-    return {
+    from ..export.target_joints import with_target_joints
+
+    program_tg = with_target_joints(robot, processed.result.targets)
+    files = {
         "program.mod": rapid_text(project, workpiece, robot, module_name=module_name),
         "program_fc.mod": rapid_text(
             project, workpiece, robot, module_name=fc_module_name(module_name), force_control=True
         ),
-        "targets.csv": targets_csv(processed.result.targets),
+    }
+    if "urscript" in languages:
+        files["program.script"] = urscript_text(project, workpiece, robot)
+        files["program_fc.script"] = urscript_text(project, workpiece, robot, force_control=True)
+    return files | {
+        "targets.csv": targets_csv(program_tg),
         "samples.csv": samples_csv(project.learned.recording, processed.result.keep_mask),
         "settings.json": json.dumps(doc, indent=2) + "\n",
     }
@@ -166,6 +217,10 @@ def settings_document(
             "speed_mean_mm_s": post.speed_mean_m_s * 1e3,
             "speed_min_mm_s": post.speed_min_m_s * 1e3,
             "contact_stiffness_N_mm": post.contact_stiffness_N_m * 1e-3,
+            "arcs": post.arcs,
+            "arc_tolerance_mm": None
+            if post.arc_tolerance_m is None
+            else post.arc_tolerance_m * 1e3,
         },
         "result": None
         if processed is None
@@ -175,12 +230,58 @@ def settings_document(
             "targets": len(processed.result.targets),
             "max_deviation_mm": None if processed.score is None else processed.score.max_m * 1e3,
             "rms_deviation_mm": None if processed.score is None else processed.score.rms_m * 1e3,
+            **result_extras(processed),
         },
         "cmrr": cmrr_document(project),
         "compensation": compensation_document(project),
-        "machining": None
-        if project.machining_settings is None
-        else repr(project.machining_settings),
+        "machining": _machining_doc(project),
         "status": project.status(),
     }
+    return doc
+
+
+def result_extras(processed: Any) -> dict[str, Any]:
+    """The post-processing result's mesh score and move counts (mm), for settings.json,
+    summary.json and the API: ``mesh_max_deviation_mm``, ``mesh_rms_deviation_mm``,
+    ``moves``, ``circular_moves``, ``straight_moves``."""
+    mesh = processed.mesh_score
+    n = len(processed.result.targets)
+    moves = processed.moves
+    return {
+        "mesh_max_deviation_mm": None if mesh is None else mesh.max_m * 1e3,
+        "mesh_rms_deviation_mm": None if mesh is None else mesh.rms_m * 1e3,
+        "arcs": moves is not None,
+        "moves": n if moves is None else len(moves),
+        "circular_moves": 0 if moves is None else sum(m.via is not None for m in moves),
+        "straight_moves": n if processed.straight_targets is None else processed.straight_targets,
+    }
+
+
+def _machining_doc(project: Project) -> dict[str, Any] | None:
+    """The machining settings, the chosen configuration and the result's figures."""
+    from ._machining import (
+        MachiningResult,
+        MachiningSetup,
+        machining_setup_document,
+        machining_setup_of,
+    )
+
+    setup = project.machining_settings
+    if setup is None:
+        return None
+    if not isinstance(setup, MachiningSetup):
+        return {"settings": repr(setup)}
+    setup = machining_setup_of(project)
+    doc = machining_setup_document(setup)
+    doc["chosen"] = {
+        "controller": setup.settings.controller,
+        "compensation": setup.settings.compensation,
+    }
+    result = project.machining
+    if isinstance(result, MachiningResult):
+        # Wall-clock figures differ from one machine (and run) to the next: left out, so the
+        # same project gives the same settings.json from the CLI and the workbench.
+        timing = ("wall_time_s", "realtime_factor")
+        doc["runs"] = [{k: v for k, v in r.items() if k not in timing} for r in result.rows]
+        doc["status"] = project.status()["machining"]
     return doc

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import trimesh
 
-from robomach_core.robot import ROBOT_URDFS
+from robomach_core.robot import ROBOT_NAMES
 from tests.api.conftest import TRIANGLE_LIMIT, UPLOAD_LIMIT_BYTES
 from tests.api.server_process import Api
 
@@ -17,8 +17,9 @@ def test_default_cell(api: Api) -> None:
     cell = api.ok("GET", CELL)
     assert cell["robot"] == "ur10" and cell["workpiece"] == "water_pump"
     assert cell["tool_radius_mm"] == pytest.approx(1.0)
-    assert set(cell["robots"]) == set(ROBOT_URDFS)
-    assert set(cell["workpieces"]) == {"water_pump", "block"}
+    # the core's list of built-in arms (an uploaded one joins it only while it is the cell's)
+    assert set(cell["robots"]) == set(ROBOT_NAMES)
+    assert set(cell["workpieces"]) == {"water_pump", "block", "s_groove"}
 
 
 def test_change_cell_resets_downstream(api: Api) -> None:

@@ -89,6 +89,7 @@ def test_demo_writes_every_file_with_the_summary_keys(pump_demo):
         "workpiece.stl",
         "summary.json",
         "demo.png",
+        "project.npz",
     ):
         assert (pump_demo / name).stat().st_size > 0, name
     summary = json.loads((pump_demo / "summary.json").read_text())

@@ -28,9 +28,14 @@ def _recording() -> Recording:
     x = np.linspace(0.76, 0.84, N)
     position = np.column_stack([x, np.full(N, 0.134), np.full(N, 0.03)])
     quaternion = np.tile([1.0, 0.0, 0.0, 0.0], (N, 1))
+    T0 = np.eye(4)
+    T0[:3, 3] = position[0]
+    # joints on the pose's IK branch, as a real recording's: the writers solve each target's
+    # joints from them (export.target_joints) and refuse a jump to another branch
+    q0 = Robot("ur10").ik(T0)
     return Recording(
         time_s=np.arange(N) * 0.004,
-        joints_rad=np.zeros((N, 6)),
+        joints_rad=np.tile(q0, (N, 1)),
         position_m=position,
         quaternion_wxyz=quaternion,
         wrench_sensor=np.zeros((N, 6)),
@@ -135,6 +140,8 @@ def test_one_settings_document_and_one_header(processed) -> None:
     assert set(files) == {
         "program.mod",
         "program_fc.mod",
+        "program.script",  # a UR arm's language (project.program_languages)
+        "program_fc.script",
         "targets.csv",
         "samples.csv",
         "settings.json",

@@ -7,7 +7,7 @@ from starlette.concurrency import run_in_threadpool
 
 from app.api.routes import ERRORS, SessionDep, SettingsDep
 from app.api.schemas import CellPublic, CellUpdate
-from robomach_core.robot import ROBOT_URDFS
+from robomach_core.robot import ROBOT_NAMES
 from robomach_core.workpiece import MAX_MESH_BYTES, WORKPIECE_NAMES
 
 router = APIRouter(prefix="/api/cell", tags=["cell"], responses=ERRORS)
@@ -19,9 +19,9 @@ UPLOAD_BODY_LIMIT_BYTES = MAX_MESH_BYTES + 1024 * 1024
 
 
 def _public(session: SessionDep) -> CellPublic:
-    return CellPublic.from_settings(
-        session.cell_settings(), sorted(ROBOT_URDFS), list(WORKPIECE_NAMES)
-    )
+    cell = session.cell_settings()
+    uploaded = [] if cell.robot in ROBOT_NAMES else [cell.robot]  # the user's own arm
+    return CellPublic.from_settings(cell, [*ROBOT_NAMES, *uploaded], list(WORKPIECE_NAMES))
 
 
 @router.get("")

@@ -16,8 +16,9 @@ router = APIRouter(prefix="/api/path-learning", tags=["path learning"], response
 def start_path_learning(body: PathLearningCreate, session: SessionDep) -> JobCreated:
     """Job: follow the wall through the guide points at constant contact force and record it.
     Follow it at /api/jobs/{job_id}; the recording replaces the last one when it is done."""
+    warnings = session.guide_warnings(body.force_N, closed=body.closed)
     job_id = session.start_path_learning(body.force_N, body.speed_mm_s * 1e-3, closed=body.closed)
-    return JobCreated(job_id=job_id)
+    return JobCreated(job_id=job_id, warnings=warnings)
 
 
 @router.get("/recording")

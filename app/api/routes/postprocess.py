@@ -22,6 +22,8 @@ def run_postprocess(body: PostprocessUpdate, session: SessionDep) -> Postprocess
         force_min_N=body.force_min_N,
         force_max_N=body.force_max_N,
         tolerance_m=None if body.tolerance_mm is None else body.tolerance_mm * 1e-3,
+        arcs=body.arcs,
+        arc_tolerance_m=None if body.arc_tolerance_mm is None else body.arc_tolerance_mm * 1e-3,
     )
     return PostprocessPublic.from_outcome(outcome)
 

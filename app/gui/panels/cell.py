@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import viser
 
-from robomach_core.robot import ROBOT_URDFS
+from robomach_core.robot import ROBOT_NAMES
 from robomach_core.tool import TOOL_RADIUS_RANGE_M
 from robomach_core.workpiece import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, WORKPIECE_NAMES
 
@@ -28,7 +28,7 @@ class CellPanel:
         max_triangles = getattr(session, "max_triangles", MAX_MESH_TRIANGLES)
         with server.gui.add_folder("Cell"):
             self.robot = server.gui.add_dropdown(
-                "Robot", tuple(sorted(ROBOT_URDFS)), initial_value=s.robot
+                "Robot", self._robot_options(s), initial_value=s.robot
             )
             self.tool_radius = server.gui.add_slider(
                 "Tool radius (mm)",
@@ -75,6 +75,12 @@ class CellPanel:
         self.refresh()
 
     @staticmethod
+    def _robot_options(settings) -> tuple[str, ...]:
+        """The built-in arms, and the user's uploaded one when the cell has it."""
+        mine = () if settings.robot in ROBOT_NAMES else (settings.robot,)
+        return (*ROBOT_NAMES, *mine)
+
+    @staticmethod
     def _workpiece_options(settings) -> tuple[str, ...]:
         names = tuple(WORKPIECE_NAMES)
         return names if settings.workpiece_builtin else (*names, settings.workpiece)
@@ -83,6 +89,7 @@ class CellPanel:
         """Mirror the session's cell (after a change from here, the API or a project load)."""
         s = self.session.cell_settings()
         wp = self.session.workpiece
+        self.robot.options = self._robot_options(s)
         self.robot.value = s.robot
         self.tool_radius.value = round(s.tool_radius_m * 1e3, 3)
         self.workpiece.options = self._workpiece_options(s)

@@ -41,7 +41,12 @@ class GuidePointsPanel:
         self.scene = scene
         with server.gui.add_folder("Guide points"):
             self.record = server.gui.add_button(
-                "Record guide point", icon=viser.Icon.PLAYER_RECORD, color="orange"
+                "Record guide point",
+                icon=viser.Icon.PLAYER_RECORD,
+                color="orange",
+                hint="1-3 mm from the wall or a light touch, tool as it should machine; a point "
+                "each side of a corner; outside corners: own point, no wall push "
+                "(docs/guide_points.md)",
             )
             self.example = server.gui.add_button(
                 "Load the example",

@@ -117,6 +117,11 @@ class PostprocessPanel:
             ]
         else:
             lines.append("| deviation | no ground truth |")
+        if outcome.mesh_score is not None:  # every part: against its mesh
+            lines += [
+                f"| max deviation from the mesh | {outcome.mesh_score.max_m * 1e3:.3f} mm |",
+                f"| RMS deviation from the mesh | {outcome.mesh_score.rms_m * 1e3:.3f} mm |",
+            ]
         return "\n".join(lines)
 
     def show_in_scene(self) -> None:

@@ -54,7 +54,10 @@ def run_gravity_study(
     true_tool = ToolGravity.from_tool(
         tool, force_bias_N=SENSOR_FORCE_BIAS_N, torque_bias_Nm=SENSOR_TORQUE_BIAS_NM
     )
-    joints = calibration_joints(options.gravity_configurations, seed=options.seed)
+    # centred on the arm's own home (the UR home is out of an ABB arm's axis-2 range)
+    joints = calibration_joints(
+        options.gravity_configurations, seed=options.seed, center_rad=robot.home_rad
+    )
     R, W = simulate_sensor_readings(
         robot,
         joints,
@@ -65,7 +68,7 @@ def run_gravity_study(
     )
     estimate = identify_tool_gravity(R, W)
     report(0.4)
-    test = calibration_joints(50, seed=options.seed + 100)
+    test = calibration_joints(50, seed=options.seed + 100, center_rad=robot.home_rad)
     R_test, W_test = simulate_sensor_readings(
         robot,
         test,

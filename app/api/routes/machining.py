@@ -1,0 +1,220 @@
+"""The machining run of the project's program: settings, run and comparison jobs, the result
+and its plots, the table, the choice the exports carry, and the stock (issue 8)."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from fastapi import APIRouter, HTTPException, UploadFile, status
+from pydantic import BaseModel, ConfigDict, Field
+from starlette.concurrency import run_in_threadpool
+
+from app.api.routes import ERRORS, SessionDep
+from app.api.schemas import JobCreated
+from app.session.machining import MAX_STOCK_BYTES, PLOT_POINTS, machining_for, markdown_table
+from robomach_core.limits import (
+    MACHINING_DEPTH_EXPONENT,
+    MACHINING_FEED_EXPONENT,
+    MACHINING_FORCE_LIMIT_N,
+    MACHINING_PROCESS_GAIN_N,
+    Range,
+)
+
+router = APIRouter(prefix="/api/machining", tags=["machining"], responses=ERRORS)
+
+Controller = Literal["constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage", "adaptive-lq"]
+Compensation = Literal["off", "offline", "online"]
+StockSource = Literal["builtin", "profile", "mesh"]
+UPLOAD_CHUNK_BYTES = 1024 * 1024
+
+
+def within(rng: Range, description: str) -> Any:
+    """An optional field bounded by ``rng``, its range in the description and the schema."""
+    return Field(
+        None,
+        ge=rng.min,
+        le=rng.max,
+        allow_inf_nan=False,
+        description=f"{description}, {rng.text()}",
+    )
+
+
+class MachiningSettingsPublic(BaseModel):
+    """The project's machining settings and its chosen configuration."""
+
+    process_gain_N: float = Field(description="K of F = K d^alpha f^beta (d mm, f mm/s)")
+    depth_exponent: float = Field(description="alpha")
+    feed_exponent: float = Field(description="beta")
+    force_limit_N: float = Field(description="the force the cut must not exceed")
+    reference_force_N: float = Field(description="Fr the CMRR controllers hold (0.7 x limit)")
+    controller: Controller = Field(description="the chosen feed control")
+    compensation: Compensation = Field(description="the chosen deflection compensation")
+    stock_source: StockSource
+    stock_profile_mm: list[list[float]] | None = Field(description="(s_mm, allowance_mm) pairs")
+    stock_mesh: str | None = Field(description="file name of the uploaded stock mesh")
+    status: Literal["none", "current", "stale"] = Field(description="of the machining result")
+
+
+class MachiningSettingsUpdate(BaseModel):
+    """Settings to change (omitted ones stay; unknown fields are refused)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    process_gain_N: float | None = within(MACHINING_PROCESS_GAIN_N, "process gain K [N]")
+    depth_exponent: float | None = within(MACHINING_DEPTH_EXPONENT, "depth exponent alpha")
+    feed_exponent: float | None = within(MACHINING_FEED_EXPONENT, "feed exponent beta")
+    force_limit_N: float | None = within(MACHINING_FORCE_LIMIT_N, "force limit [N]")
+    controller: Controller | None = None
+    compensation: Compensation | None = None
+    stock_source: StockSource | None = Field(
+        None, description="builtin, or profile / mesh once given (PUT stock/profile, POST stock)"
+    )
+
+
+class MachiningChoice(BaseModel):
+    """The configuration the exported program carries."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    controller: Controller
+    compensation: Compensation
+
+
+class StockProfile(BaseModel):
+    """An allowance profile along the program's path."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    profile_mm: list[tuple[float, float]] = Field(
+        min_length=1,
+        max_length=100_000,
+        description="(s_mm, allowance_mm) pairs, s increasing along the path, allowance 0-20 mm",
+    )
+
+
+class MachiningResultPublic(BaseModel):
+    """The last machining result: one summary row per run, the choice, the plotted trace."""
+
+    status: Literal["none", "current", "stale"]
+    stale_reason: str | None
+    runs: list[dict[str, Any]] = Field(description="figures per run, units in the keys")
+    chosen_by_rule: dict[str, str] = Field(description="the configuration the rule picks")
+    choice_rule: str
+    trace: dict[str, Any] | None = Field(
+        description="the chosen (or first) run decimated along the path: mean, min and max of "
+        "force and feed per bucket, reference and limit, and the finished-wall error"
+    )
+
+
+class ComparisonPublic(BaseModel):
+    """The side-by-side table of the last result."""
+
+    status: Literal["none", "current", "stale"]
+    rows: list[dict[str, Any]]
+    table_text: str
+    table_markdown: str
+
+
+def _settings(session: SessionDep) -> MachiningSettingsPublic:
+    service = machining_for(session)
+    return MachiningSettingsPublic(**service.settings_document(), status=service.status())
+
+
+@router.get("/settings")
+def get_settings(session: SessionDep) -> MachiningSettingsPublic:
+    """The machining settings, the stock source and the chosen configuration."""
+    return _settings(session)
+
+
+@router.put("/settings")
+def put_settings(body: MachiningSettingsUpdate, session: SessionDep) -> MachiningSettingsPublic:
+    """Change the process, force limit, controller, compensation or stock source. Process and
+    limit changes make the result stale; controller and compensation are the choice."""
+    machining_for(session).set_settings(**body.model_dump(exclude_none=True))
+    return _settings(session)
+
+
+@router.put("/choice")
+def put_choice(body: MachiningChoice, session: SessionDep) -> MachiningSettingsPublic:
+    """Save the configuration the exports carry: the FC SpeedChange block for a CMRR
+    controller, the corrected targets for offline compensation, and both in settings.json."""
+    machining_for(session).choose(body.controller, body.compensation)
+    return _settings(session)
+
+
+@router.put("/stock/profile")
+def put_stock_profile(body: StockProfile, session: SessionDep) -> MachiningSettingsPublic:
+    """Use an allowance profile as the stock."""
+    machining_for(session).set_stock_profile(body.profile_mm)
+    return _settings(session)
+
+
+@router.post(
+    "/stock",
+    max_body_size=MAX_STOCK_BYTES + 1024 * 1024,
+    responses={413: {"description": "the file is larger than the upload limit"}},
+)
+async def upload_stock(file: UploadFile, session: SessionDep) -> MachiningSettingsPublic:
+    """Upload a stock mesh (STL, OBJ or PLY in mm, in the workpiece's frame; multipart field
+    ``file``): the part before machining, paired with the nominal one."""
+    chunks, size = [], 0
+    while chunk := await file.read(UPLOAD_CHUNK_BYTES):
+        size += len(chunk)
+        if size > MAX_STOCK_BYTES:
+            raise HTTPException(
+                status.HTTP_413_REQUEST_ENTITY_TOO_LARGE,
+                f"{file.filename}: the upload exceeds the {MAX_STOCK_BYTES / 1e6:g} MB limit",
+            )
+        chunks.append(chunk)
+    data = b"".join(chunks)
+    if not data:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_ENTITY, "the uploaded file is empty")
+    service = machining_for(session)
+    await run_in_threadpool(service.upload_stock, data, file.filename or "stock.stl")
+    return _settings(session)
+
+
+@router.post("/run", status_code=status.HTTP_202_ACCEPTED)
+def start_run(session: SessionDep) -> JobCreated:
+    """Job: cut the program with the chosen configuration. Follow and cancel it at
+    /api/jobs/{job_id}; 409 without a current post-processed program."""
+    return JobCreated(job_id=machining_for(session).start("run"))
+
+
+@router.post("/compare", status_code=status.HTTP_202_ACCEPTED)
+def start_compare(session: SessionDep) -> JobCreated:
+    """Job: the matrix, the greatest safe constant feed and each CMRR controller with
+    compensation off, offline and online (18 runs)."""
+    return JobCreated(job_id=machining_for(session).start("compare"))
+
+
+@router.get("/result")
+def get_result(session: SessionDep, points: int = PLOT_POINTS) -> MachiningResultPublic:
+    """The last result (409 without one); ``status`` says whether it is still current."""
+    service = machining_for(session)
+    result = service.require_result()
+    summary = result.summary()
+    trace = None
+    if result.runs:
+        trace = service.plot_data(max_points=max(10, min(points, 20_000)))
+    return MachiningResultPublic(
+        status=service.status(),
+        stale_reason=session.stale_reasons().get("machining"),
+        runs=summary["runs"],
+        chosen_by_rule=summary["chosen"],
+        choice_rule=summary["choice_rule"],
+        trace=trace,
+    )
+
+
+@router.get("/comparison")
+def get_comparison(session: SessionDep) -> ComparisonPublic:
+    """The side-by-side table of the last result (text and markdown)."""
+    service = machining_for(session)
+    result = service.require_result()
+    return ComparisonPublic(
+        status=service.status(),
+        rows=list(result.rows),
+        table_text=result.table_text,
+        table_markdown=markdown_table(result.table_text),
+    )

@@ -1,0 +1,70 @@
+"""The user's own arm (a URDF upload), the URScript export and the guide-point rules check."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import APIRouter, HTTPException, Query, Response, UploadFile, status
+from starlette.concurrency import run_in_threadpool
+
+from app.api.routes import ERRORS, SessionDep
+from app.api.routes.cell import UPLOAD_CHUNK_BYTES, _public
+from app.api.schemas import CellPublic
+from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
+
+router = APIRouter(prefix="/api", tags=["cell"], responses=ERRORS)
+
+
+@router.post(
+    "/cell/robot",
+    max_body_size=MAX_ROBOT_FILE_BYTES + 1024 * 1024,
+    responses={413: {"description": "the file is larger than the upload limit"}},
+)
+async def upload_robot(file: UploadFile, session: SessionDep) -> CellPublic:
+    """Upload your own serial 6-axis arm (multipart field ``file``): a ``.urdf``, or a ``.zip``
+    holding one URDF and its meshes. It must be a chain of six revolute joints with limits
+    (else 422 naming what is wrong). The arm goes home above the part; the guide points are
+    cleared like PUT /api/cell."""
+    chunks, size = [], 0
+    while chunk := await file.read(UPLOAD_CHUNK_BYTES):
+        size += len(chunk)
+        if size > MAX_ROBOT_FILE_BYTES:
+            raise HTTPException(
+                status.HTTP_413_REQUEST_ENTITY_TOO_LARGE,
+                f"{file.filename}: the upload exceeds the {MAX_ROBOT_FILE_BYTES / 1e6:g} MB limit",
+            )
+        chunks.append(chunk)
+    data = b"".join(chunks)
+    if not data:
+        raise HTTPException(status.HTTP_422_UNPROCESSABLE_ENTITY, "the uploaded file is empty")
+    await run_in_threadpool(session.upload_robot, data, file.filename or "robot.urdf")
+    return _public(session)
+
+
+@router.get(
+    "/export/urscript", response_class=Response, responses={200: {"content": {"text/plain": {}}}}
+)
+def export_urscript(
+    session: SessionDep,
+    force_control: Annotated[
+        bool, Query(description="the force variant (force_mode along tool y at the learning force)")
+    ] = False,
+) -> Response:
+    """The program as a URScript ``.script`` (poses in the base frame: m, rotation vectors)."""
+    name = "program_fc.script" if force_control else "program.script"
+    return Response(
+        session.urscript_program(force_control=force_control),
+        media_type="text/plain; charset=utf-8",
+        headers={"Content-Disposition": f'attachment; filename="{name}"'},
+    )
+
+
+@router.get("/path-learning/warnings")
+def guide_point_warnings(
+    session: SessionDep,
+    force_N: Annotated[float, Query(ge=1.0, le=50.0, description="contact force [N]")] = 10.0,
+    closed: Annotated[bool, Query(description="closed contour")] = True,
+) -> list[str]:
+    """The guide points that would trip the protection or slow path learning
+    (docs/guide_points.md); POST /api/path-learning returns the same with its job."""
+    return session.guide_warnings(force_N, closed=closed)

@@ -1,0 +1,326 @@
+"""Machining panel: stock, process, force limit, controller and compensation; run and compare
+with progress and cancel; the comparison table; live uPlot plots of force and feed along the
+path; the stock (translucent ribbon) and the path coloured by the finished-wall error.
+
+It works through ``app.session.machining.MachiningService`` (the same the REST API and the
+pendant use) and follows the session's events from its own thread, so a run started from the
+REST API shows here too, and a change of the guide points marks the result out of date.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+
+import numpy as np
+import viser
+
+from app.session.machining import machining_for, markdown_table
+from robomach_core.limits import (
+    MACHINING_DEPTH_EXPONENT,
+    MACHINING_FEED_EXPONENT,
+    MACHINING_FORCE_LIMIT_N,
+    MACHINING_PROCESS_GAIN_N,
+)
+from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
+
+from ..scene import deviation_colors
+from .feedback import guarded
+
+log = logging.getLogger(__name__)
+OUT_OF_DATE = "\u26a0 Out of date"
+JOB_KINDS = ("machining_run", "machining_compare")
+REFRESH_HZ = 4.0
+PLOT_POINTS = 800
+WALL_SCALE_MM = 0.2  # red at and above this finished-wall error
+STOCK_COLOR = (200, 140, 60)
+EVENTS = ("job", "machining", "postprocess", "recording", "guide_points", "cell", "project")
+
+
+class MachiningPanel:
+    """The Machining folder of the sidebar (module docstring)."""
+
+    def __init__(self, server: viser.ViserServer, session) -> None:
+        self.server = server
+        self.session = session
+        self.service = machining_for(session)
+        s = self.service.settings_document()
+        with server.gui.add_folder("Machining", expand_by_default=False):
+            self.stock = server.gui.add_dropdown(
+                "Stock",
+                ("builtin", "profile", "mesh"),
+                initial_value=s["stock_source"],
+                hint="builtin: allowance 0.3-3 mm with burrs from the cell's seed",
+            )
+            self.profile = server.gui.add_text(
+                "Profile s:a (mm)",
+                "",
+                hint="allowance profile along the path, e.g. 0:0.5, 100:2, 300:1",
+            )
+            self.upload = server.gui.add_upload_button(
+                "Upload stock mesh", icon=viser.Icon.UPLOAD, mime_type="*/*"
+            )
+            self.gain = server.gui.add_number(
+                "K (N)", s["process_gain_N"], **_limits(MACHINING_PROCESS_GAIN_N), step=0.1
+            )
+            self.alpha = server.gui.add_number(
+                "alpha", s["depth_exponent"], **_limits(MACHINING_DEPTH_EXPONENT), step=0.01
+            )
+            self.beta = server.gui.add_number(
+                "beta", s["feed_exponent"], **_limits(MACHINING_FEED_EXPONENT), step=0.01
+            )
+            self.limit = server.gui.add_number(
+                "Force limit (N)", s["force_limit_N"], **_limits(MACHINING_FORCE_LIMIT_N), step=1.0
+            )
+            self.controller = server.gui.add_dropdown(
+                "Controller", MACHINING_CONTROLLERS, initial_value=s["controller"]
+            )
+            self.compensation = server.gui.add_dropdown(
+                "Compensation", COMPENSATION_NAMES, initial_value=s["compensation"]
+            )
+            self.run = server.gui.add_button("Run", icon=viser.Icon.PLAYER_PLAY, color="green")
+            self.compare = server.gui.add_button(
+                "Compare all", icon=viser.Icon.TABLE, hint="6 feed controls x 3 compensations"
+            )
+            self.cancel = server.gui.add_button(
+                "Cancel", icon=viser.Icon.PLAYER_STOP, color="red", disabled=True
+            )
+            self.progress = server.gui.add_progress_bar(0.0)
+            self.status = server.gui.add_markdown("")
+            self.choose_best = server.gui.add_button(
+                "Choose the rule's pick",
+                disabled=True,
+                hint="fastest within the force limit +10 %, then the smallest wall error",
+            )
+            self.table = server.gui.add_markdown("")
+            self.force_plot = server.gui.add_uplot(
+                *_empty_force(), title="Force along the path", aspect=1.6,
+                scales={"x": viser.uplot.Scale(time=False, auto=True)},
+                legend=viser.uplot.Legend(show=True),
+            )  # fmt: skip
+            self.feed_plot = server.gui.add_uplot(
+                (np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(2)),
+                (
+                    viser.uplot.Series(label="path (mm)"),
+                    viser.uplot.Series(label="feed (mm/s)", stroke="#1d3557", width=1.5),
+                    viser.uplot.Series(label="min", stroke="#a8dadc", width=0.8),
+                    viser.uplot.Series(label="max", stroke="#a8dadc", width=0.8),
+                ),
+                title="Feed along the path",
+                scales={"x": viser.uplot.Scale(time=False, auto=True)},
+                legend=viser.uplot.Legend(show=True),
+                aspect=1.6,
+            )
+        self._wire()
+        self.job_id: str | None = None
+        self._shown_result: object = None
+        self._nodes: dict[str, object] = {}
+        self._dirty = threading.Event()
+        self._stop = threading.Event()
+        self._unsubscribe = session.subscribe(self._on_event)
+        self._thread = threading.Thread(target=self._loop, name="panel-machining", daemon=True)
+        self._dirty.set()
+        self._thread.start()
+
+    def close(self) -> None:
+        self._stop.set()
+        self._dirty.set()
+        self._unsubscribe()
+        self._thread.join(timeout=2.0)
+
+    # --- controls ----------------------------------------------------------------------------
+
+    def _wire(self) -> None:
+        def settings(_e) -> None:
+            self.service.set_settings(
+                process_gain_N=float(self.gain.value),
+                depth_exponent=float(self.alpha.value),
+                feed_exponent=float(self.beta.value),
+                force_limit_N=float(self.limit.value),
+            )
+
+        for control in (self.gain, self.alpha, self.beta, self.limit):
+            control.on_update(guarded("Machining", settings))
+        choice = guarded(
+            "Machining",
+            lambda e: self.service.choose(self.controller.value, self.compensation.value),
+        )
+        self.controller.on_update(choice)
+        self.compensation.on_update(choice)
+        self.stock.on_update(guarded("Machining stock", lambda e: self._set_stock()))
+        self.profile.on_update(guarded("Machining stock", lambda e: self._set_stock()))
+
+        @self.upload.on_upload
+        def _(event) -> None:
+            f = self.upload.value
+            guarded("Stock mesh", lambda e: self.service.upload_stock(f.content, f.name))(event)
+
+        self.run.on_click(guarded("Machining", lambda e: self._start("run")))
+        self.compare.on_click(guarded("Machining", lambda e: self._start("compare")))
+        self.cancel.on_click(guarded("Cancel", lambda e: self._cancel()))
+        self.choose_best.on_click(guarded("Machining", lambda e: self._choose_best()))
+
+    def _set_stock(self) -> None:
+        source = self.stock.value
+        if source == "profile" and self.profile.value.strip():
+            pairs = []
+            for item in self.profile.value.split(","):
+                s_mm, a_mm = item.split(":")
+                pairs.append((float(s_mm), float(a_mm)))
+            self.service.set_stock_profile(pairs)
+        elif source == "builtin":
+            self.service.set_settings(stock_source="builtin")
+
+    def _start(self, kind: str) -> None:
+        self.job_id = self.service.start(kind)
+        self._dirty.set()
+
+    def _cancel(self) -> None:
+        if self.job_id is not None:
+            self.session.cancel_job(self.job_id)
+
+    def _choose_best(self) -> None:
+        result = self.service.require_result()
+        row = result.rows[result.chosen]
+        self.service.choose(row["controller"], row["compensation"])
+
+    # --- refresh -----------------------------------------------------------------------------
+
+    def _on_event(self, topic: str) -> None:
+        if topic in EVENTS:
+            self._dirty.set()
+
+    def _loop(self) -> None:
+        while not self._stop.is_set():
+            self._dirty.wait()
+            if self._stop.is_set():
+                return
+            self._dirty.clear()
+            try:
+                self.refresh()
+            except Exception:
+                log.exception("machining panel refresh failed")
+            self._stop.wait(1.0 / REFRESH_HZ)
+
+    def refresh(self) -> None:
+        """Mirror the settings, the job, the result and the scene."""
+        s = self.service.settings_document()
+        self.controller.value = s["controller"]
+        self.compensation.value = s["compensation"]
+        self.stock.value = s["stock_source"]
+        job = self._job()
+        running = job is not None and job.status in ("queued", "running")
+        self.run.disabled = self.compare.disabled = running
+        self.cancel.disabled = not running
+        self.progress.animated = running
+        if running:
+            self.progress.value = round(job.progress * 100.0, 1)
+            self.status.content = f"{job.kind.replace('_', ' ')}: {job.progress:.0%}"
+            self._dirty.set()  # keep polling the progress while it runs
+        else:
+            self.status.content = self._summary(job)
+        self._show_result()
+
+    def _job(self):
+        active = self.session.jobs.active(JOB_KINDS)
+        if active:
+            self.job_id = active[0].id
+            return active[0]
+        if self.job_id is None:
+            return None
+        try:
+            return self.session.job(self.job_id)
+        except KeyError:
+            return None
+
+    def _summary(self, job) -> str:
+        lines = []
+        if job is not None and job.status not in ("done", "queued", "running"):
+            lines.append(f"**{job.status}**: {job.error or ''}")
+        status = self.service.status()
+        if status == "none":
+            lines.append("*No machining result yet: run or compare.*")
+        elif status == "stale":
+            reason = self.session.stale_reasons().get("machining", "")
+            lines.append(f"**{OUT_OF_DATE}**: {reason}.")
+        return "\n\n".join(lines)
+
+    def _show_result(self) -> None:
+        result = self.service.result()
+        self.choose_best.disabled = result is None
+        if result is self._shown_result:
+            return
+        self._shown_result = result
+        if result is None:
+            self.table.content = ""
+            self.force_plot.data = _empty_force()[0]
+            for node in self._nodes.values():
+                node.remove()
+            self._nodes.clear()
+            return
+        self.table.content = _markdown(result)
+        if result.runs:
+            d = self.service.plot_data(max_points=PLOT_POINTS)
+            x = np.asarray(d["path_mm"])
+            n = len(x)
+            self.force_plot.data = (
+                x,
+                np.asarray(d["force_N"]),
+                np.asarray(d["force_max_N"]),
+                np.full(n, d["reference_N"]),
+                np.full(n, d["limit_N"]),
+            )
+            self.feed_plot.data = (
+                x,
+                np.asarray(d["feed_mm_s"]),
+                np.asarray(d["feed_min_mm_s"]),
+                np.asarray(d["feed_max_mm_s"]),
+            )
+        self._show_scene()
+
+    def _show_scene(self) -> None:
+        ribbon = self.service.stock_ribbon()
+        if ribbon is not None:
+            vertices, faces = ribbon
+            self._nodes["stock"] = self.server.scene.add_mesh_simple(
+                "/machining/stock",
+                vertices,
+                faces,
+                color=STOCK_COLOR,
+                opacity=0.45,
+                side="double",
+                cast_shadow=False,
+            )
+        wall = self.service.wall_error_points()
+        if wall is not None:
+            points, error_mm = wall
+            step = max(1, len(points) // 4000)
+            self._nodes["wall"] = self.server.scene.add_point_cloud(
+                "/machining/wall_error",
+                points[::step],
+                deviation_colors(np.abs(error_mm[::step]) * 1e-3, WALL_SCALE_MM * 1e-3),
+                point_size=0.0015,
+            )
+
+
+def _limits(rng) -> dict[str, float]:
+    return {"min": float(rng.min), "max": float(rng.max)}
+
+
+def _empty_force():
+    z = np.zeros(2)
+    return (z, z, z, z, z), (
+        viser.uplot.Series(label="path (mm)"),
+        viser.uplot.Series(label="force (N)", stroke="#d62728", width=1.2),
+        viser.uplot.Series(label="max (N)", stroke="#f4a261", width=0.8),
+        viser.uplot.Series(label="reference (N)", stroke="#1d3557", width=2.0, dash=[8, 4]),
+        viser.uplot.Series(label="limit (N)", stroke="#000000", width=1.5, dash=[3, 3]),
+    )
+
+
+def _markdown(result) -> str:
+    chosen = result.rows[result.chosen]
+    return (
+        markdown_table(result.table_text)
+        + f"\n\nRule's pick: **{chosen['controller']} / {chosen['compensation']}**"
+    )

@@ -1,0 +1,350 @@
+"""The workbench's machining: settings, runs and comparisons as jobs, the result, the choice.
+
+One ``MachiningService`` per session (``machining_for``), shared by the viser panel, the REST
+routes and the pendant. It acts on the session's ``Project`` through the core's stage
+(``robomach_core.project.machine``, ``choose``), so the CLI and the workbench compute and export
+the same way. A run computes from a snapshot of the project outside the lock and is swapped in
+only if the project's machining inputs did not change meanwhile. The traces of the last run
+live in memory (the store keeps the settings, the choice and the result's figures).
+
+Public API (thread-safe):
+    setup() -> MachiningSetup; settings_document() -> dict
+    set_settings(process_gain_N=, depth_exponent=, feed_exponent=, force_limit_N=,
+                 controller=, compensation=, stock_source=) -> MachiningSetup
+    set_stock_profile(profile_mm) / upload_stock(data, filename) -> MachiningSetup
+    start(kind: "run" | "compare") -> job_id          progress and cancel through session.jobs
+    result() -> MachiningResult | None; status() -> none | current | stale
+    plot_data(controller=None, compensation=None, max_points=) -> dict   decimated trace
+    choose(controller, compensation) -> MachiningSetup
+"""
+
+from __future__ import annotations
+
+import base64
+import threading
+import weakref
+from dataclasses import replace
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from robomach_core import project as core
+from robomach_core.errors import InvalidInputError
+from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
+
+from .records import ConflictError, log
+
+MM = 1e-3
+JobKind = Literal["run", "compare"]
+# Points of a plotted trace: each bucket gives its mean, min and max (the envelope).
+PLOT_POINTS = 1500
+MAX_STOCK_BYTES = 20_000_000
+
+_SERVICES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_SERVICES_LOCK = threading.Lock()
+
+
+def machining_for(session: Any) -> MachiningService:
+    """The session's ``MachiningService``, made on first use."""
+    with _SERVICES_LOCK:
+        service = _SERVICES.get(session)
+        if service is None:
+            service = _SERVICES[session] = MachiningService(session)
+        return service
+
+
+class MachiningService:
+    """Machining of the session's open project (module docstring)."""
+
+    def __init__(self, session: Any) -> None:
+        self.session = session
+
+    # --- reading -----------------------------------------------------------------------------
+
+    def setup(self) -> core.MachiningSetup:
+        return core.machining_setup_of(self.session.project())
+
+    def settings_document(self) -> dict[str, Any]:
+        """The settings (units in the keys), the stock source and the chosen configuration."""
+        setup = self.setup()
+        s = setup.settings
+        return {
+            "process_gain_N": s.process_gain_N,
+            "depth_exponent": s.depth_exponent,
+            "feed_exponent": s.feed_exponent,
+            "force_limit_N": s.force_limit_N,
+            "reference_force_N": s.reference_N,
+            "controller": s.controller,
+            "compensation": s.compensation,
+            "stock_source": setup.stock_source,
+            "stock_profile_mm": None
+            if setup.stock_profile_mm is None
+            else [list(p) for p in setup.stock_profile_mm],
+            "stock_mesh": None if setup.stock_mesh is None else setup.stock_mesh[0],
+        }
+
+    def result(self) -> core.MachiningResult | None:
+        result = self.session.project().machining
+        return result if isinstance(result, core.MachiningResult) else None
+
+    def status(self) -> str:
+        return self.session.project().status()["machining"]
+
+    def require_result(self) -> core.MachiningResult:
+        result = self.result()
+        if result is None:
+            raise ConflictError("no machining result yet: run the machining or the comparison")
+        return result
+
+    def stock_ribbon(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(vertices, faces) of the last run's stock for the 3D scene, or None."""
+        result = self.result()
+        if result is None or result.stock is None:
+            return None
+        return result.stock.ribbon_mesh()
+
+    def plot_data(
+        self,
+        controller: str | None = None,
+        compensation: str | None = None,
+        *,
+        max_points: int = PLOT_POINTS,
+    ) -> dict[str, Any]:
+        """A run's trace for plots, decimated to ``max_points`` buckets along the path with the
+        min/max envelope of force and feed, and the finished-wall error along the path.
+        Defaults to the chosen configuration, else the result's first run."""
+        result = self.require_result()
+        setup = self.setup()
+        c = controller or setup.settings.controller
+        m = compensation or setup.settings.compensation
+        run = result.run_for(c, m)
+        if run is None and controller is None and compensation is None and result.runs:
+            run = result.runs[0]
+        if run is None:
+            raise ConflictError(
+                f"no trace of {c} / {m} in memory: run it (traces are not kept across restarts)"
+            )
+        tr = run.trace
+        idx = np.linspace(0, len(tr), min(max_points, len(tr)) + 1).astype(int)
+        starts, ends = idx[:-1], idx[1:]
+
+        def bucket(x: np.ndarray, fn) -> list[float]:
+            return [float(fn(x[a:b])) for a, b in zip(starts, ends, strict=True) if b > a]
+
+        w_idx = np.linspace(0, len(run.wall.s_m) - 1, min(max_points, len(run.wall.s_m))).astype(
+            int
+        )
+        return {
+            "controller": run.controller,
+            "compensation": run.compensation,
+            "samples": len(tr),
+            "path_mm": bucket(tr.path_m / MM, np.mean),
+            "time_s": bucket(tr.time_s, np.mean),
+            "force_N": bucket(tr.force_N, np.mean),
+            "force_min_N": bucket(tr.force_N, np.min),
+            "force_max_N": bucket(tr.force_N, np.max),
+            "reference_N": float(tr.reference_N[0]),
+            "limit_N": float(tr.limit_N[0]),
+            "feed_mm_s": bucket(tr.feed_m_s / MM, np.mean),
+            "feed_min_mm_s": bucket(tr.feed_m_s / MM, np.min),
+            "feed_max_mm_s": bucket(tr.feed_m_s / MM, np.max),
+            "depth_mm": bucket(tr.depth_m / MM, np.mean),
+            "wall_s_mm": (run.wall.s_m[w_idx] / MM).tolist(),
+            "wall_error_mm": (run.wall.error_m[w_idx] / MM).tolist(),
+        }
+
+    def wall_error_points(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(points (k, 3) m, wall error (k,) mm) along the chosen run's path, or None."""
+        result = self.result()
+        if result is None or result.stock is None:
+            return None
+        setup = self.setup()
+        run = result.run_for(setup.settings.controller, setup.settings.compensation)
+        run = run or (result.runs[0] if result.runs else None)
+        if run is None:
+            return None
+        from robomach_core.machining.path import arc_length_m
+
+        stock = result.stock
+        s_path = arc_length_m(stock.path_points_m)
+        s = run.wall.s_m
+        points = np.stack(
+            [np.interp(s, s_path, stock.path_points_m[:, i]) for i in range(3)], axis=1
+        )
+        return points, run.wall.error_m / MM
+
+    # --- acting ------------------------------------------------------------------------------
+
+    def set_settings(
+        self,
+        *,
+        process_gain_N: float | None = None,
+        depth_exponent: float | None = None,
+        feed_exponent: float | None = None,
+        force_limit_N: float | None = None,
+        controller: str | None = None,
+        compensation: str | None = None,
+        stock_source: str | None = None,
+    ) -> core.MachiningSetup:
+        """Change settings (None keeps one). A process or limit change dates the result; a
+        controller or compensation change is a choice (``choose``) and does not."""
+        values = {
+            k: v
+            for k, v in {
+                "process_gain_N": process_gain_N,
+                "depth_exponent": depth_exponent,
+                "feed_exponent": feed_exponent,
+                "force_limit_N": force_limit_N,
+                "controller": controller,
+                "compensation": compensation,
+            }.items()
+            if v is not None
+        }
+
+        def change(setup: core.MachiningSetup) -> core.MachiningSetup:
+            s = replace(setup.settings, **values)
+            if s.reference_force_N is not None and s.reference_force_N > s.force_limit_N:
+                s = replace(s, reference_force_N=None)
+            source = setup.stock_source if stock_source is None else stock_source
+            return replace(setup, settings=s, stock_source=source)
+
+        return self._update(change)
+
+    def set_stock_profile(self, profile_mm: list[tuple[float, float]]) -> core.MachiningSetup:
+        """Use an allowance profile [(s_mm, allowance_mm), ...] as the stock (checked against
+        the program's path when the machining runs)."""
+        table = tuple((float(a), float(b)) for a, b in profile_mm)
+        if not table:
+            raise InvalidInputError("the allowance profile needs at least one (s_mm, mm) pair")
+        return self._update(
+            lambda setup: replace(setup, stock_source="profile", stock_profile_mm=table)
+        )
+
+    def upload_stock(self, data: bytes, filename: str) -> core.MachiningSetup:
+        """Use a stock mesh (STL/OBJ/PLY, mm, the workpiece's frame) as the stock."""
+        from robomach_core.workpiece import mesh_from_bytes
+
+        if len(data) > MAX_STOCK_BYTES:
+            raise InvalidInputError(
+                f"{filename}: {len(data) / 1e6:.1f} MB exceeds {MAX_STOCK_BYTES / 1e6:.0f} MB"
+            )
+        name = Path(filename).name or "stock.stl"
+        mesh_from_bytes(data, Path(name).suffix.lower(), name=Path(name).stem)  # parse check
+        return self._update(
+            lambda setup: replace(setup, stock_source="mesh", stock_mesh=(name, bytes(data)))
+        )
+
+    def choose(self, controller: str, compensation: str) -> core.MachiningSetup:
+        """Save the configuration the exports carry (``project.choose``)."""
+        s = self.session
+        with s._lock:
+            s._project = core.choose(s._project, controller, compensation)
+            self._save()
+            setup = core.machining_setup_of(s._project)
+        s._notify("postprocess", "machining")
+        return setup
+
+    def start(self, kind: JobKind) -> str:
+        """Job: run the chosen configuration (``"run"``) or the matrix (``"compare"``)."""
+        if kind not in ("run", "compare"):
+            raise InvalidInputError(f"machining job kind must be run or compare, got {kind!r}")
+        s = self.session
+        with s._lock:
+            project, workpiece = s._project, s._cell.workpiece
+            robot = s._cell.robot
+            core.require_processed(project)
+            if project.machining_settings is None:  # from the CMRR / compensation slots
+                project = core.with_machining_setup(project, core.machining_setup_of(project))
+        controllers = MACHINING_CONTROLLERS if kind == "compare" else None
+        compensations = COMPENSATION_NAMES if kind == "compare" else None
+
+        def work(ctx: Any) -> core.MachiningResult:
+            return core.machine(
+                project,
+                workpiece,
+                robot,
+                controllers=controllers,
+                compensations=compensations,
+                progress=ctx.progress,
+                cancel=ctx.cancelled,
+            )
+
+        def done(result: core.MachiningResult) -> None:
+            with s._lock:
+                current = s._project
+                if current.machining_settings is None:
+                    current = core.with_machining_setup(current, core.machining_setup_of(current))
+                if core.machining_inputs_key(current) != result.inputs:
+                    raise ConflictError(
+                        "the program or the machining settings changed while it ran; run it again"
+                    )
+                s._project = core.with_machining_result(current, result)
+                self._save()
+            s._notify("machining")
+
+        return s.jobs.submit(f"machining_{kind}", work, on_done=done)
+
+    # --- internals ---------------------------------------------------------------------------
+
+    def _update(self, change) -> core.MachiningSetup:
+        s = self.session
+        with s._lock:
+            setup = change(core.machining_setup_of(s._project))
+            s._project = core.with_machining_setup(s._project, setup)
+            self._save()
+        s._notify("postprocess", "machining")
+        return setup
+
+    def _save(self) -> None:
+        self.session._save("post")
+
+
+# --- persistence (the project's post_json gets "machining") ----------------------------------
+
+
+def machining_document(project: core.Project) -> dict[str, Any] | None:
+    """What the store keeps of the machining: settings (stock mesh as base64), the result's
+    figures and offline programs, and the fingerprint it was computed from."""
+    setup = project.machining_settings
+    if not isinstance(setup, core.MachiningSetup):
+        return None
+    doc: dict[str, Any] = {"setup": core.machining_setup_document(setup)}
+    if setup.stock_mesh is not None:
+        doc["stock_mesh_b64"] = base64.b64encode(setup.stock_mesh[1]).decode()
+    result = project.machining
+    if isinstance(result, core.MachiningResult):
+        doc["result"] = core.machining_result_document(result)
+    return doc
+
+
+def machining_from_document(project: core.Project, doc: dict[str, Any] | None) -> core.Project:
+    """The project with the stored machining (an unreadable one is dropped and logged)."""
+    if not doc:
+        return project
+    try:
+        mesh = None
+        if doc.get("stock_mesh_b64"):
+            name = (doc["setup"] or {}).get("stock_mesh") or "stock.stl"
+            mesh = (name, base64.b64decode(doc["stock_mesh_b64"]))
+        setup = core.machining_setup_from_document(doc["setup"], mesh)
+        project = replace(project, machining_settings=setup)
+        if doc.get("result"):
+            project = core.with_machining_result(
+                project, core.machining_result_from_document(doc["result"])
+            )
+    except (KeyError, TypeError, ValueError, InvalidInputError) as exc:
+        log.error("stored machining settings unreadable (%s); dropped", exc)
+    return project
+
+
+def markdown_table(text: str) -> str:
+    """The fixed-width comparison table as markdown (columns split on runs of two spaces)."""
+    import re
+
+    lines = [re.split(r"\s{2,}", line.strip()) for line in text.splitlines() if line.strip()]
+    if not lines:
+        return ""
+    out = ["| " + " | ".join(lines[0]) + " |", "|" + "---|" * len(lines[0])]
+    out += ["| " + " | ".join(cells) + " |" for cells in lines[1:]]
+    return "\n".join(out)

@@ -1,0 +1,34 @@
+"""Projects as files: import a ``project.npz`` (what ``robomach demo`` and ``robomach machine``
+write) as a new project of the session, and export the open one the same way. The CLI and the
+workbench then hold the same ``Project`` value and write the same program files."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from robomach_core import project as core
+
+from .records import ProjectInfo
+
+
+def import_project(session: Any, data: bytes, name: str) -> ProjectInfo:
+    """A new project named ``name`` holding the file's project, opened at once.
+
+    Raises:
+        ProjectFileError: not a robomach project file (422).
+        ConflictError: the name is taken, or the robot is busy.
+    """
+    project = core.project_from_file_bytes(data)  # parse (and re-process) before touching
+    info = session.create_project(name)
+    with session._lock:
+        session._install_cell(project.cell, project.mesh, joints=None)
+        # The machining result is not in the file (re-run it); a stale stamp is not carried.
+        session._project = project
+        session._save("cell", "guides", "recording", "post", with_robot=True)
+    session._notify_all()
+    return info if info.name == name else session.current_project()
+
+
+def export_project(session: Any) -> bytes:
+    """The open project as ``project.npz`` bytes."""
+    return core.project_file_bytes(session.project())

@@ -1,0 +1,198 @@
+"""A project as one file (``project.npz``): what ``robomach demo`` leaves for ``robomach machine
+--from`` and for the workbench to open.
+
+The file holds the inputs of every stage and the recording (arrays), plus one JSON document
+(cell, learning, post-processing, CMRR, compensation and machining settings). The
+post-processing is recomputed on load (deterministic, so its fingerprint and the program come
+out the same); machining results are not stored (they are re-run).
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from dataclasses import asdict, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from ..leadthrough import GuidePoint
+from ..path_learning import PathLearningSettings, Recording
+from ..postprocess import PostprocessSettings
+from ._machining import (
+    MachiningSetup,
+    machining_setup_document,
+    machining_setup_from_document,
+)
+from ._stages import build_workpiece, process
+from ._value import CellSettings, LearnedPath, Project, cmrr_document, compensation_document
+
+PROJECT_FILE = "project.npz"
+FORMAT = "robomach-project"
+VERSION = 1
+RECORDING_FIELDS = (
+    "time_s",
+    "joints_rad",
+    "position_m",
+    "quaternion_wxyz",
+    "wrench_sensor",
+    "wrench_tool",
+    "force_normal_N",
+    "force_reference_N",
+    "in_contact",
+    "yp",
+    "segment",
+)
+
+
+class ProjectFileError(InvalidInputError):
+    """A project file is missing, unreadable, or written by an unknown version."""
+
+
+def project_file_bytes(project: Project) -> bytes:
+    """The project as ``project.npz`` bytes (stage inputs, recording, settings)."""
+    doc: dict[str, Any] = {
+        "format": FORMAT,
+        "version": VERSION,
+        "cell": asdict(project.cell),
+        "mesh_name": None if project.mesh is None else project.mesh[0],
+        "guide_times_s": [g.time_s for g in project.guide_points],
+        "post_settings": asdict(project.post_settings),
+        "processed": project.processed is not None,
+        "applied_settings": None
+        if project.processed is None
+        else asdict(project.processed.settings),
+        "cmrr": cmrr_document(project),
+        "compensation": compensation_document(project),
+        "machining": None
+        if not isinstance(project.machining_settings, MachiningSetup)
+        else machining_setup_document(project.machining_settings),
+    }
+    arrays: dict[str, np.ndarray] = {}
+    if project.guide_points:
+        arrays["guide_T_base_tcp"] = np.array([g.T_base_tcp for g in project.guide_points])
+        arrays["guide_joints_rad"] = np.array([g.joints_rad for g in project.guide_points])
+        arrays["guide_force_N"] = np.array([g.force_N for g in project.guide_points])
+    if project.mesh is not None:
+        arrays["mesh_bytes"] = np.frombuffer(project.mesh[1], dtype=np.uint8)
+    learned = project.learned
+    if learned is not None:
+        rec = learned.recording
+        for name in RECORDING_FIELDS:
+            arrays[f"rec_{name}"] = np.asarray(getattr(rec, name))
+        arrays["guide_quaternions_wxyz"] = learned.guide_quaternions_wxyz
+        doc["recording"] = {
+            "stop_reason": rec.stop_reason,
+            "completed": rec.completed,
+            "learning": asdict(learned.settings),
+            "inputs": learned.inputs,
+        }
+    setup = project.machining_settings
+    if isinstance(setup, MachiningSetup) and setup.stock_mesh is not None:
+        arrays["stock_mesh_bytes"] = np.frombuffer(setup.stock_mesh[1], dtype=np.uint8)
+    arrays["document"] = np.frombuffer(json.dumps(doc).encode(), dtype=np.uint8)
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, **arrays)
+    return buffer.getvalue()
+
+
+def save_project_file(project: Project, path: str | Path) -> Path:
+    """Write ``project_file_bytes`` to ``path``."""
+    out = Path(path)
+    out.write_bytes(project_file_bytes(project))
+    return out
+
+
+def load_project_file(path: str | Path) -> Project:
+    """The project of a ``project.npz`` (its post-processing recomputed).
+
+    Raises:
+        ProjectFileError: no such file, not a robomach project, or an unknown version.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise ProjectFileError(f"{p}: no such file")
+    return project_from_file_bytes(p.read_bytes(), str(p))
+
+
+def project_from_file_bytes(data: bytes, name: str = "project.npz") -> Project:
+    """``load_project_file`` from bytes (uploads)."""
+    try:
+        with np.load(io.BytesIO(data), allow_pickle=False) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+        doc = json.loads(arrays.pop("document").tobytes().decode())
+    except Exception as exc:  # noqa: BLE001 - any unreadable file is the user's to fix
+        raise ProjectFileError(f"{name}: not a robomach project file ({exc})") from None
+    if doc.get("format") != FORMAT or doc.get("version") != VERSION:
+        raise ProjectFileError(
+            f"{name}: not a robomach project file of version {VERSION} "
+            f"(format {doc.get('format')!r}, version {doc.get('version')!r})"
+        )
+    try:
+        return _project(doc, arrays)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ProjectFileError(f"{name}: incomplete or damaged project file ({exc})") from None
+
+
+def _project(doc: dict[str, Any], arrays: dict[str, np.ndarray]) -> Project:
+    cell_doc = dict(doc["cell"])
+    if cell_doc.get("wobj_mm_deg") is not None:
+        cell_doc["wobj_mm_deg"] = tuple(float(v) for v in cell_doc["wobj_mm_deg"])
+    cell = CellSettings(**cell_doc)
+    mesh = None
+    if doc.get("mesh_name") is not None:
+        mesh = (str(doc["mesh_name"]), arrays["mesh_bytes"].tobytes())
+    guides = tuple(
+        GuidePoint(T, q, float(t), f)
+        for T, q, t, f in zip(
+            arrays.get("guide_T_base_tcp", ()),
+            arrays.get("guide_joints_rad", ()),
+            doc["guide_times_s"],
+            arrays.get("guide_force_N", ()),
+            strict=True,
+        )
+    )
+    project = Project(
+        cell=cell,
+        mesh=mesh,
+        guide_points=guides,
+        post_settings=PostprocessSettings(**doc["post_settings"]),
+    )
+    if doc.get("cmrr") is not None:
+        from ..cmrr import settings_from_dict
+
+        project = replace(project, cmrr=settings_from_dict(doc["cmrr"]))
+    if doc.get("compensation") is not None:
+        from ..stiffness.settings import settings_from_dict as compensation_from_dict
+
+        project = replace(project, compensation=compensation_from_dict(doc["compensation"]))
+    if doc.get("machining") is not None:
+        stock_mesh = None
+        if doc["machining"].get("stock_mesh") is not None:
+            stock_mesh = (str(doc["machining"]["stock_mesh"]), arrays["stock_mesh_bytes"].tobytes())
+        project = replace(
+            project, machining_settings=machining_setup_from_document(doc["machining"], stock_mesh)
+        )
+    info = doc.get("recording")
+    if info is None:
+        return project
+    recording = Recording(
+        **{name: arrays[f"rec_{name}"] for name in RECORDING_FIELDS},
+        stop_reason=str(info["stop_reason"]),
+        completed=bool(info["completed"]),
+    )
+    learned = LearnedPath(
+        recording,
+        arrays["guide_quaternions_wxyz"],
+        PathLearningSettings(**info["learning"]),
+        str(info["inputs"]),
+    )
+    project = replace(project, learned=learned)
+    if doc.get("processed"):
+        applied = PostprocessSettings(**(doc.get("applied_settings") or doc["post_settings"]))
+        workpiece = build_workpiece(cell, mesh)
+        processed = process(learned, applied, workpiece, cell.tool_radius_m)
+        project = replace(project, processed=processed)
+    return project

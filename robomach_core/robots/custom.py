@@ -1,0 +1,350 @@
+"""A user's own serial 6-axis arm from a URDF file (or a zip of the URDF and its meshes).
+
+PROBLEM   Users bring arms the workbench does not ship. Pinocchio builds any URDF, but the rest
+          of the cell needs more than a kinematic tree: a serial chain of exactly six actuated
+          joints with limits (the IK, supervision and confdata assume it), a flange frame
+          ``tool0``, a home pose above the part, a placement of the part in reach, and the
+          simulator's joint stiffness. A bad file must be refused with what is wrong in it.
+STRATEGY  ``validate_urdf`` parses the XML (no mesh is loaded), walks the chain from the root
+          link and names the first fault: not XML, no or several root links, a branch, a
+          joint of an unsupported type, a revolute joint without limits, not six revolute
+          joints. The chain's last link gets a fixed ``tool0`` child when the file has none.
+          ``register_urdf`` registers the arm under a content-addressed name in the tables
+          ``robot.Robot`` reads (URDF text, home, program language, part placement, joint
+          stiffness): the part sits in front of the arm at 62 % of its reach and 0.1 reach
+          below the shoulder but not below the base (near the UR10's and IRB 4400's placements), the
+          home pose is the IK of the tool pointing down 150 mm above the part.
+SOLUTION  ``register_urdf(filename, data) -> name``; ``Robot(name)`` then builds it like a
+          built-in arm. The project keeps the file's bytes (``Project.robot_urdf``) and
+          registers it again when opened, so the name is stable across restarts.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import re
+import xml.etree.ElementTree as ET
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import RobomachError
+
+MAX_ROBOT_FILE_BYTES = 50 * 1024 * 1024
+ROBOT_FILE_SUFFIXES = (".urdf", ".zip")
+NAME_PREFIX = "urdf_"
+FLANGE_LINK = "tool0"
+HOME_CLEARANCE_M = 0.10  # elbow and wrist joints above the table at home
+
+# name -> normalised URDF text (with tool0), mesh files of the zip (path -> bytes)
+_URDF_TEXT: dict[str, str] = {}
+_MESHES: dict[str, dict[str, bytes]] = {}
+
+
+class RobotFileError(RobomachError, ValueError):
+    """A robot file is not a serial 6-axis URDF with joint limits (the message says why)."""
+
+
+@dataclass(frozen=True)
+class UrdfChain:
+    """The serial chain of a URDF.
+
+    Attributes:
+        robot_name: The ``<robot name>`` attribute.
+        links: Link names from the root to the last link.
+        joints: Names of the six revolute joints, base to wrist.
+        lower_rad: (6,) lower limits.
+        upper_rad: (6,) upper limits.
+        has_flange: The file has a ``tool0`` link.
+    """
+
+    robot_name: str
+    links: tuple[str, ...]
+    joints: tuple[str, ...]
+    lower_rad: np.ndarray
+    upper_rad: np.ndarray
+    has_flange: bool
+
+
+def validate_urdf(text: str) -> UrdfChain:
+    """The serial chain of ``text``, or ``RobotFileError`` naming what is wrong."""
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise RobotFileError(f"the URDF is not valid XML ({exc})") from None
+    if root.tag != "robot":
+        raise RobotFileError(f"the URDF's root element is <{root.tag}>, expected <robot>")
+    links = [link.get("name") for link in root.findall("link")]
+    joints = root.findall("joint")
+    if not links:
+        raise RobotFileError("the URDF has no <link>")
+    children: dict[str, list[ET.Element]] = {}
+    child_links = set()
+    for joint in joints:
+        parent, child = joint.find("parent"), joint.find("child")
+        if parent is None or child is None:
+            raise RobotFileError(f"joint {joint.get('name')!r} lacks a <parent> or <child> link")
+        children.setdefault(parent.get("link"), []).append(joint)
+        child_links.add(child.get("link"))
+    roots = [name for name in links if name not in child_links]
+    if len(roots) != 1:
+        raise RobotFileError(
+            f"the URDF has {len(roots)} root links ({', '.join(map(str, roots)) or 'none'}); "
+            "a serial arm has one"
+        )
+    chain_links, revolute, lower, upper = [roots[0]], [], [], []
+    link = roots[0]
+    while link in children:
+        outgoing = children[link]
+        moving = [j for j in outgoing if j.get("type") != "fixed" or link_has_children(j, children)]
+        if len(moving) > 1:
+            raise RobotFileError(
+                f"link {link!r} branches into joints "
+                f"{', '.join(repr(j.get('name')) for j in moving)}: not a serial chain"
+            )
+        joint = (moving or outgoing)[0]
+        kind, name = joint.get("type"), joint.get("name")
+        if kind in ("continuous", "prismatic", "floating", "planar"):
+            raise RobotFileError(
+                f"joint {name!r} is {kind}: a supported arm has six revolute joints with limits"
+            )
+        if kind == "revolute":
+            limit = joint.find("limit")
+            try:
+                lo, hi = float(limit.get("lower")), float(limit.get("upper"))
+            except (AttributeError, TypeError, ValueError):
+                raise RobotFileError(
+                    f"revolute joint {name!r} has no <limit lower=... upper=...>"
+                ) from None
+            if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+                raise RobotFileError(f"revolute joint {name!r} has limits {lo} >= {hi}")
+            revolute.append(name)
+            lower.append(lo)
+            upper.append(hi)
+        elif kind != "fixed":
+            raise RobotFileError(f"joint {name!r} has an unknown type {kind!r}")
+        link = joint.find("child").get("link")
+        chain_links.append(link)
+    if len(revolute) != 6:
+        raise RobotFileError(
+            f"the chain from {roots[0]!r} to {link!r} has {len(revolute)} revolute joints "
+            f"({', '.join(revolute) or 'none'}); a supported arm has exactly 6"
+        )
+    return UrdfChain(
+        robot_name=root.get("name") or "robot",
+        links=tuple(chain_links),
+        joints=tuple(revolute),
+        lower_rad=np.array(lower),
+        upper_rad=np.array(upper),
+        has_flange=FLANGE_LINK in links,
+    )
+
+
+def link_has_children(joint: ET.Element, children: dict[str, list[ET.Element]]) -> bool:
+    """True when the joint's child link carries further joints (part of the chain)."""
+    return joint.find("child").get("link") in children
+
+
+def with_flange(text: str, chain: UrdfChain) -> str:
+    """The URDF with a fixed ``tool0`` link on the chain's last link when it has none."""
+    if chain.has_flange:
+        return text
+    addition = (
+        f'<link name="{FLANGE_LINK}"/>'
+        f'<joint name="{FLANGE_LINK}_fixed" type="fixed"><parent link="{chain.links[-1]}"/>'
+        f'<child link="{FLANGE_LINK}"/><origin xyz="0 0 0" rpy="0 0 0"/></joint>'
+    )
+    closing = text.rstrip().rfind("</robot>")
+    return text[:closing] + addition + text[closing:]
+
+
+def urdf_from_file(filename: str, data: bytes) -> tuple[str, dict[str, bytes]]:
+    """The URDF text (and the zip's other files by path) of an uploaded ``.urdf`` or ``.zip``."""
+    suffix = Path(filename).suffix.lower()
+    if suffix not in ROBOT_FILE_SUFFIXES:
+        raise RobotFileError(
+            f"{filename}: expected a .urdf file or a .zip holding one (and its meshes)"
+        )
+    if len(data) > MAX_ROBOT_FILE_BYTES:
+        raise RobotFileError(
+            f"{filename}: {len(data) / 1e6:.1f} MB exceeds the "
+            f"{MAX_ROBOT_FILE_BYTES / 1e6:.0f} MB limit"
+        )
+    if suffix == ".urdf":
+        return _decode(filename, data), {}
+    try:
+        archive = zipfile.ZipFile(io.BytesIO(data))
+        names = [n for n in archive.namelist() if not n.endswith("/")]
+        urdfs = [n for n in names if n.lower().endswith(".urdf")]
+        if len(urdfs) != 1:
+            raise RobotFileError(
+                f"{filename}: the zip holds {len(urdfs)} .urdf files; it must hold exactly one"
+            )
+        files = {n: archive.read(n) for n in names if n != urdfs[0]}
+        return _decode(urdfs[0], archive.read(urdfs[0])), files
+    except zipfile.BadZipFile:
+        raise RobotFileError(f"{filename}: not a readable zip file") from None
+
+
+def _decode(filename: str, data: bytes) -> str:
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise RobotFileError(f"{filename}: not UTF-8 text") from None
+
+
+def read_robot_file(path: Path) -> tuple[str, bytes]:
+    """(filename, bytes) of a robot file given on the command line, checked for size."""
+    if not path.is_file():
+        raise RobotFileError(f"{path}: no such file")
+    if path.stat().st_size > MAX_ROBOT_FILE_BYTES:
+        raise RobotFileError(f"{path.name}: exceeds the {MAX_ROBOT_FILE_BYTES / 1e6:.0f} MB limit")
+    return path.name, path.read_bytes()
+
+
+def robot_name_for(filename: str, data: bytes) -> str:
+    """The registered name of a robot file: ``urdf_<stem>_<8 hex digits of its content>``."""
+    stem = re.sub(r"[^a-z0-9]+", "_", Path(filename).stem.lower()).strip("_")[:24] or "arm"
+    return f"{NAME_PREFIX}{stem}_{hashlib.blake2b(data, digest_size=4).hexdigest()}"
+
+
+def is_custom(name: str) -> bool:
+    """True for a registered user arm."""
+    return name.lower() in _URDF_TEXT
+
+
+def urdf_text(name: str) -> str:
+    """The normalised URDF text of a registered user arm."""
+    return _URDF_TEXT[name.lower()]
+
+
+def urdf_file(name: str) -> Path:
+    """The registered arm's URDF as a file for viewers (yourdfpy), with the zip's meshes
+    beside it at their paths in the zip; written at first use into the robots cache."""
+    import os
+
+    from .abb import cache_directory
+
+    key = name.lower()
+    folder = cache_directory() / key
+    path = folder / "robot.urdf"
+    if not path.is_file():
+        for rel, data in _MESHES.get(key, {}).items():
+            target = (folder / rel).resolve()
+            if folder.resolve() in target.parents:  # no file outside the folder ("../")
+                target.parent.mkdir(parents=True, exist_ok=True)
+                target.write_bytes(data)
+        folder.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(_URDF_TEXT[key], encoding="utf-8")
+        os.replace(tmp, path)
+    return path
+
+
+def mesh_files(name: str) -> dict[str, bytes]:
+    """The mesh files that came with a registered user arm's zip (path -> bytes)."""
+    return dict(_MESHES.get(name.lower(), {}))
+
+
+def register_urdf(filename: str, data: bytes) -> str:
+    """Validate a robot file and register its arm; returns the name ``Robot`` takes.
+
+    Raises:
+        RobotFileError: not a .urdf/.zip, too large, not XML, or not a serial chain of six
+            revolute joints with limits (the message names the fault).
+    """
+    from .. import joint_compliance, workpiece
+    from .. import robot as robot_module
+
+    name = robot_name_for(filename, data)
+    if name in _URDF_TEXT:
+        return name
+    text, files = urdf_from_file(filename, data)
+    chain = validate_urdf(text)
+    normalised = with_flange(text, chain)
+    import pinocchio as pin
+
+    try:
+        model = pin.buildModelFromXML(normalised)
+    except Exception as exc:  # pinocchio raises std exceptions for malformed models
+        raise RobotFileError(f"{filename}: pinocchio cannot build the model ({exc})") from None
+    if model.nq != 6:
+        raise RobotFileError(f"{filename}: the model has {model.nq} joints, expected 6")
+    _URDF_TEXT[name] = normalised
+    _MESHES[name] = files
+    # The tables Robot reads; a placeholder home until the IK below finds one.
+    robot_module.ROBOT_HOME_JOINTS_RAD[name] = np.clip(
+        np.zeros(6), model.lowerPositionLimit, model.upperPositionLimit
+    )
+    robot_module.ROBOT_PROGRAM_LANGUAGE[name] = "rapid"
+    arm = robot_module.Robot(name)
+    reach = arm.reach_m
+    shoulder_z = float(arm.base_to_shoulder_m[2])
+    big = reach > 1.5
+    stiffness = joint_compliance.TRUE_JOINT_STIFFNESS_NM_RAD
+    stiffness[name] = stiffness["irb4400" if big else "ur10"]
+    # ``reach_m`` is an upper bound (link lengths summed): nearer placements are tried too.
+    for fraction in (0.62, 0.5, 0.4, 0.3):
+        wobj = (fraction * reach, 0.0, max(0.0, shoulder_z - 0.1 * reach))
+        try:
+            home = _home(name, np.array(wobj))
+        except RobomachError:
+            continue
+        workpiece.ROBOT_WOBJ_POSITION_M[name] = wobj
+        robot_module.ROBOT_HOME_JOINTS_RAD[name] = home
+        return name
+    _forget(name)
+    raise RobotFileError(
+        f"{filename}: the arm cannot point its tool down above a part placed in front of it "
+        f"(tried 30-62 % of its {reach:.2f} m reach)"
+    )
+
+
+def _home(name: str, wobj_m: np.ndarray) -> np.ndarray:
+    """Joints putting the default tool down 150 mm above the middle of a built-in part, with
+    the elbow and wrist at least ``HOME_CLEARANCE_M`` above the part's base (the table)."""
+    import pinocchio as pin
+
+    from .. import robot as robot_module
+    from ..demo_operator import TOOL_DOWN
+    from ..tool import Tool
+    from ..transforms import make_transform
+
+    arm = robot_module.Robot(name, Tool().T_flange_tcp)
+    goal = make_transform(TOOL_DOWN, wobj_m + np.array([0.125, 0.09, 0.15]))
+    rng = np.random.default_rng(0)
+    mid = 0.5 * (arm.lower_rad + arm.upper_rad)
+    seeds = [np.zeros(6), robot_module.HOME_JOINTS_RAD, mid]
+    seeds += [rng.uniform(arm.lower_rad, arm.upper_rad) for _ in range(60)]
+    data = arm.model.createData()
+    for seed in seeds:
+        try:
+            q = arm.ik(goal, np.clip(seed, arm.lower_rad, arm.upper_rad))
+        except RobomachError:
+            continue
+        pin.forwardKinematics(arm.model, data, q)
+        lowest = min(data.oMi[i].translation[2] for i in range(3, arm.model.njoints))
+        if (
+            arm.singular_value_min(q) > 10 * robot_module.SINGULAR_VALUE_MIN
+            and lowest > wobj_m[2] + HOME_CLEARANCE_M
+        ):
+            return q
+    raise RobotFileError("no home pose")
+
+
+def _forget(name: str) -> None:
+    from .. import joint_compliance, workpiece
+    from .. import robot as robot_module
+
+    for table in (
+        _URDF_TEXT,
+        _MESHES,
+        robot_module.ROBOT_HOME_JOINTS_RAD,
+        robot_module.ROBOT_PROGRAM_LANGUAGE,
+        workpiece.ROBOT_WOBJ_POSITION_M,
+        joint_compliance.TRUE_JOINT_STIFFNESS_NM_RAD,
+    ):
+        table.pop(name, None)

@@ -1,0 +1,43 @@
+"""The session keeps a user's arm in the project: it survives a restart (a new process has an
+empty registry, so the arm is registered again from the stored file)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from app.session import Session
+from app.store import Store
+from robomach_core.robot import robot_urdf_path
+from robomach_core.robots import custom
+
+
+def test_an_uploaded_arm_survives_a_restart(tmp_path) -> None:
+    data = robot_urdf_path("ur5").read_bytes()
+    path = tmp_path / "robomach.sqlite"
+    first = Session(Store(path), data_dir=tmp_path)
+    cell = first.upload_robot(data, "my ur5.urdf")
+    assert cell.robot.startswith("urdf_my_ur5_")
+    assert first.cell.robot.name == cell.robot
+    home = first.snapshot().joints_rad.copy()
+    first.close()
+    custom._forget(cell.robot)  # as in a new process
+    assert not custom.is_custom(cell.robot)
+    second = Session(Store(path), data_dir=tmp_path)
+    try:
+        assert second.cell_settings().robot == cell.robot
+        assert second.project().robot_urdf == ("my ur5.urdf", data)
+        np.testing.assert_allclose(second.snapshot().joints_rad, home, atol=1e-9)
+    finally:
+        second.close()
+
+
+def test_choosing_a_builtin_arm_drops_the_uploaded_file(tmp_path) -> None:
+    data = robot_urdf_path("ur5").read_bytes()
+    s = Session(Store(tmp_path / "db.sqlite"), data_dir=tmp_path)
+    try:
+        s.upload_robot(data, "arm.urdf")
+        assert s.project().robot_urdf is not None
+        s.set_cell(robot="ur10")
+        assert s.project().robot_urdf is None and s.cell.robot.name == "ur10"
+    finally:
+        s.close()

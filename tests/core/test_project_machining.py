@@ -1,0 +1,90 @@
+"""The project's machining stage: the choice rule, the choice as one setting with the CMRR and
+compensation slots, staleness, and the project file."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from robomach_core import project as core
+from robomach_core.cmrr import CmrrSettings
+from robomach_core.cmrr.controllers import settings_for
+from robomach_core.machining import MachiningSettings
+from tests.demo_project import block_demo_dir
+
+
+def _row(controller, compensation, cycle, peak, wall, completed=True):
+    return {
+        "controller": controller,
+        "compensation": compensation,
+        "cycle_time_s": cycle if completed else None,
+        "force_peak_N": peak,
+        "force_limit_N": 150.0,
+        "wall_error_max_mm": wall,
+        "completed": completed,
+    }
+
+
+def test_the_rule_takes_the_fastest_safe_runs_then_the_best_wall():
+    rows = [
+        _row("constant", "off", 240.0, 146.0, 0.12),
+        _row("adaptive-pi", "off", 134.0, 156.0, 0.13),
+        _row("adaptive-pi", "online", 136.0, 157.0, 0.011),  # within 5 % of 134 s: best wall
+        _row("adaptive-lq", "off", 130.0, 219.0, 0.001),  # fastest, but 46 % over the limit
+        _row("two-stage", "off", 100.0, 150.0, 0.0, completed=False),  # stopped
+    ]
+    assert core.best_row(rows) == 2
+    assert core.best_row([rows[0], rows[3]]) == 0
+    assert core.best_row([rows[4]]) == 0
+
+
+@pytest.fixture(scope="module")
+def block_project() -> core.Project:
+    return core.load_project_file(block_demo_dir() / "project.npz")
+
+
+def test_the_project_file_reopens_current_with_the_same_program(block_project):
+    from robomach_core.robot import Robot
+
+    p = block_project
+    assert p.status() == {
+        "guide_points": "current",
+        "recording": "current",
+        "postprocess": "current",
+        "machining": "none",
+    }
+    workpiece = core.build_workpiece(p.cell, p.mesh)
+    robot = Robot(p.cell.robot, p.tool().T_flange_tcp)
+    files = core.program_files(p, workpiece, robot)
+    assert files["program.mod"] == (block_demo_dir() / "program.mod").read_text()
+    again = core.project_from_file_bytes(core.project_file_bytes(p))
+    assert core.processed_inputs_key(again.learned, again.post_settings) == (p.processed.inputs)
+    with pytest.raises(core.ProjectFileError, match="not a robomach project"):
+        core.project_from_file_bytes(b"PK\x03\x04 nope")
+
+
+def test_the_choice_is_the_cmrr_and_compensation_settings(block_project):
+    p = core.with_machining_setup(block_project, core.MachiningSetup())
+    assert p.cmrr.controller.kind == "adaptive-pi" and p.compensation is None
+    assert p.cmrr.reference_force_N == pytest.approx(105.0)
+    p = core.choose(p, "constant", "offline")
+    assert p.cmrr is None and p.compensation.mode == "offline_linear"
+    setup = core.machining_setup_of(p)
+    assert (setup.settings.controller, setup.settings.compensation) == ("constant", "offline")
+    # A CMRR controller set another way (a study) is the machining controller.
+    study = CmrrSettings(settings_for("fuzzy"), 80.0, 0.01, 0.1)
+    p = replace(p, cmrr=study, compensation=None)
+    setup = core.machining_setup_of(p)
+    assert (setup.settings.controller, setup.settings.compensation) == ("fuzzy", "off")
+
+
+def test_choosing_keeps_a_result_current_and_a_process_change_dates_it(block_project):
+    p = core.with_machining_setup(block_project, core.MachiningSetup())
+    key = core.machining_inputs_key(p)
+    for controller, compensation in (("fuzzy", "online"), ("constant", "off")):
+        assert core.machining_inputs_key(core.choose(p, controller, compensation)) == key
+    changed = core.MachiningSetup(MachiningSettings(process_gain_N=30.0))
+    assert core.machining_inputs_key(core.with_machining_setup(p, changed)) != key
+    profile = core.MachiningSetup(stock_source="profile", stock_profile_mm=((0.0, 1.0),))
+    assert core.machining_inputs_key(core.with_machining_setup(p, profile)) != key

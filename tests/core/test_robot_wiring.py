@@ -1,0 +1,98 @@
+"""Issue 11 core pieces: work-object frames, user URDFs, guide-point rules, mesh score."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robomach_core.demo_operator import TOOL_DOWN
+from robomach_core.errors import InvalidInputError
+from robomach_core.guide_check import guide_point_warnings
+from robomach_core.leadthrough import GuidePoint
+from robomach_core.mesh_score import score_mesh
+from robomach_core.path_learning import PathLearningSettings
+from robomach_core.pipeline import default_robot
+from robomach_core.project import wobj_transform
+from robomach_core.robot import Robot, robot_urdf_path
+from robomach_core.robots.custom import RobotFileError, register_urdf, validate_urdf
+from robomach_core.scoring import score_path
+from robomach_core.transforms import make_transform, rotation_about
+from robomach_core.workpiece import builtin_workpiece
+
+
+def test_wobj_forms():
+    T4 = wobj_transform([800, 160, 0, 30])
+    T6 = wobj_transform([800, 160, 0, 0, 0, 30])
+    np.testing.assert_allclose(T4, T6, atol=1e-12)
+    T = wobj_transform([0, 0, 0, 90, 0, 90])  # about x, then about the base z
+    np.testing.assert_allclose(
+        T[:3, :3], rotation_about("z", np.pi / 2) @ rotation_about("x", np.pi / 2), atol=1e-12
+    )
+    with pytest.raises(InvalidInputError):
+        wobj_transform([1, 2, 3, 4, 5])
+
+
+def test_default_robot_follows_the_language():
+    assert default_robot("rapid") == "irb4400"
+    assert default_robot("auto") == default_robot("urscript") == "ur10"
+
+
+def test_a_ur_urdf_from_example_robot_data_registers_and_matches_the_builtin():
+    data = robot_urdf_path("ur5").read_bytes()
+    chain = validate_urdf(data.decode())
+    assert len(chain.joints) == 6 and chain.has_flange
+    name = register_urdf("ur5_copy.urdf", data)
+    mine, builtin = Robot(name), Robot("ur5")
+    q = np.array([0.1, -1.2, 1.4, -1.5, -1.4, 0.3])
+    np.testing.assert_allclose(mine.fk(q), builtin.fk(q), atol=1e-12)
+    assert np.all(mine.home_rad >= mine.lower_rad) and np.all(mine.home_rad <= mine.upper_rad)
+
+
+def test_a_branching_urdf_is_named():
+    text = (
+        '<robot name="y"><link name="a"/><link name="b"/><link name="c"/>'
+        '<joint name="j1" type="revolute"><parent link="a"/><child link="b"/>'
+        '<limit lower="-1" upper="1"/></joint>'
+        '<joint name="j2" type="revolute"><parent link="a"/><child link="c"/>'
+        '<limit lower="-1" upper="1"/></joint></robot>'
+    )
+    with pytest.raises(RobotFileError, match="branches"):
+        validate_urdf(text)
+
+
+def _guide(p, force=(0.0, 0.0, 0.0)) -> GuidePoint:
+    return GuidePoint(
+        make_transform(TOOL_DOWN, np.array(p, float)), np.zeros(6), 0.0, np.array(force)
+    )
+
+
+def test_guide_rules_flag_heavy_contact_and_a_push_at_an_outside_corner():
+    settings = PathLearningSettings(closed=False)
+    # material on the right of travel: along +x first, the wall is at -y; the path turns
+    # right (towards the material) at the corner point.
+    wall_push = (0.0, 6.0, 0.0)  # the wall at -y pushes the tool towards +y
+    guides = [
+        _guide([0.0, 0.0, 0.0], wall_push),
+        _guide([0.05, 0.0, 0.0], wall_push),
+        _guide([0.05, -0.05, 0.0]),
+    ]
+    rules = [w.rule for w in guide_point_warnings(guides, settings)]
+    assert rules == ["outside_corner_push"]
+    free = [guides[0], _guide([0.05, 0.0, 0.0]), guides[2]]
+    assert guide_point_warnings(free, settings) == ()
+    heavy = [_guide([0, 0, 0], (0, 40.0, 0)), _guide([0.05, 0, 0])]
+    assert [w.rule for w in guide_point_warnings(heavy, settings)] == ["heavy_contact"]
+
+
+def test_mesh_score_agrees_with_the_true_wall_score():
+    wp = builtin_workpiece("water_pump")
+    from robomach_core.demo_operator import guide_plan  # noqa: F401 (the wall's frame)
+
+    T = wp.T_base_wobj
+    path = wp.wall.offset(0.001).sample(0.004)[:60]
+    z = wp.wall_z_m[1] - 0.003
+    pts = np.c_[path, np.full(len(path), z)] @ T[:3, :3].T + T[:3, 3]
+    truth = score_path(wp, 0.001, pts)
+    mesh = score_mesh(wp, 0.001, pts)
+    assert mesh.max_m == pytest.approx(truth.max_m, abs=5e-5)
+    assert mesh.rms_m == pytest.approx(truth.rms_m, abs=5e-5)
