@@ -249,6 +249,7 @@ def serve(settings: ServerSettings) -> int:
                 access_log=False,
             )
             server = uvicorn.Server(config)
+            app.state.should_exit = lambda: server.should_exit  # ends event streams on stop
             server.run()
             # uvicorn returns normally when it could not start (e.g. the port is taken).
             return 0 if server.started else 1

@@ -282,13 +282,16 @@ class LeadThrough:
         *,
         frame: ComplianceFrame = "tool",
         rate: float | None = None,
+        frame_rotation: np.ndarray | None = None,
     ) -> LeadThroughState:
         """Force-control jogging: move the reference by ``step`` (m, or rad for rx/ry/rz).
 
         The motion runs at ``rate`` (m/s or rad/s; default 10 mm/s or 10 deg/s) while the
         compliant axes keep answering to the measured force, so a jog into the part is safe.
         Near a limit supervision slows it (it still completes the step) and refuses to cross
-        it with ``SupervisionError`` (``error.state``: the last safe state).
+        it with ``SupervisionError`` (``error.state``: the last safe state). ``frame_rotation``
+        (3x3, base frame), when given, is the frame of the axis instead of ``frame`` (e.g. the
+        work object's).
         """
         if axis not in AXES:
             raise InvalidInputError(f"jog axis must be one of {', '.join(AXES)}, not {axis!r}")
@@ -303,6 +306,8 @@ class LeadThrough:
         n = max(1, int(math.ceil(abs(step) / speed / CONTROL_PERIOD_S)))
         unit = {"x": 0, "y": 1, "z": 2}[axis[-1]]
         R_frame = state.cell.T_base_tcp[:3, :3] if frame == "tool" else np.eye(3)
+        if frame_rotation is not None:
+            R_frame = np.asarray(frame_rotation, dtype=float)
         direction = R_frame[:, unit]
         # Near a limit supervision scales each period's increment down; the jog goes on until
         # the whole step is done (progress counts increments), or the motion is refused.

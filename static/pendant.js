@@ -7,6 +7,7 @@ const API = "/api";
 const TOKEN_KEY = "robomach.token";
 const STATE_PERIOD_MS = 200;
 const JOB_PERIOD_MS = 250;
+const CLICK_MS = 300; // a press shorter than this is a click: one push of the set duration
 const DEFAULT_VISER_PORT = 8080;
 const TERMINAL = new Set(["done", "succeeded", "success", "completed", "finished",
   "failed", "error", "cancelled", "canceled"]);
@@ -158,8 +159,12 @@ function showMove(state) {
 
 async function jog(axis, sign) {
   const rotational = axis.startsWith("r");
-  const step = Number($(rotational ? "jog-step-deg" : "jog-step-mm").value) * sign;
-  showMove(await api("POST", "/leadthrough/jog", { axis, step }));
+  const field = rotational ? "jog-step-deg" : (axis === "z" && $("jog-step-z") ? "jog-step-z" : "jog-step-mm");
+  const step = Number($(field).value) * sign;
+  const body = { axis, step, frame: $("jog-frame") ? $("jog-frame").value : "tool" };
+  const speed = $(rotational ? "jog-rate" : "jog-speed");
+  if (speed && Number(speed.value) > 0) body.speed = Number(speed.value);
+  showMove(await api("POST", "/leadthrough/jog", body));
 }
 
 async function push(dir, sign) {
@@ -172,6 +177,7 @@ async function push(dir, sign) {
 // Hold-to-push: one push per press, repeated while the button stays pressed.
 function bindHold(button, action) {
   let held = false;
+  let downAt = 0;
   const loop = async () => {
     do {
       try { await action(); } catch (_) { held = false; }
@@ -180,10 +186,18 @@ function bindHold(button, action) {
   button.addEventListener("pointerdown", (ev) => {
     if (ev.button !== 0 || held) return;
     held = true;
+    downAt = performance.now();
     loop();
   });
   for (const ev of ["pointerup", "pointerleave", "pointercancel"]) {
-    button.addEventListener(ev, () => { held = false; });
+    button.addEventListener(ev, () => {
+      // Let go after holding: the push running on the server stops within a control
+      // period (a short click gives one whole push of the set duration).
+      if (held && performance.now() - downAt > CLICK_MS) {
+        api("POST", "/leadthrough/stop", {}, { quiet: true }).catch(() => {});
+      }
+      held = false;
+    });
   }
   // Keyboard users: Enter/Space give one push.
   button.addEventListener("keydown", (ev) => {

@@ -30,6 +30,7 @@ from app.api.routes import (
     cell,
     cmrr,
     compensation,
+    events,
     export,
     guide_points,
     jobs,
@@ -41,6 +42,7 @@ from app.api.routes import (
     projects,
     robot_wiring,
     state,
+    teach,
 )
 from app.session import ConflictError, NotFoundError, Session
 from app.settings import MAX_JSON_BODY_BYTES, ServerSettings
@@ -60,7 +62,8 @@ UPLOAD_PATHS = frozenset({"/api/cell/workpiece"})
 # Multipart boundaries and part headers around the file: a few hundred bytes in practice.
 MULTIPART_OVERHEAD_BYTES = 64 * 1024
 ROUTERS = (state, leadthrough, guide_points, path_learning, jobs, postprocess, export, projects,
-           cell, cmrr, compensation, robot_wiring, machining, project_file)  # fmt: skip
+           cell, cmrr, compensation, robot_wiring, machining, project_file, teach,
+           events)  # fmt: skip
 
 # A service is started in the lifespan and stopped after it (e.g. the viser workbench).
 Service = Callable[[], AbstractContextManager]

@@ -171,9 +171,16 @@ class PushCreate(_Request):
 
 
 class JogCreate(_Request):
-    axis: Axis = Field(description="tool axis to move along (x, y, z) or about (rx, ry, rz)")
+    axis: Axis = Field(description="axis to move along (x, y, z) or about (rx, ry, rz)")
     step: Finite = Field(
         description="step [mm] along x/y/z (at most 200) or [deg] about rx/ry/rz (at most 45)"
+    )
+    frame: Literal["tool", "base", "wobj"] = Field(
+        default="tool", description="frame of the axis: tool, robot base or work object"
+    )
+    speed: Finite | None = Field(
+        default=None,
+        description="[mm/s] along x/y/z (0.5-50) or [deg/s] about rx/ry/rz (0.5-30); default 10",
     )
 
 
@@ -247,7 +254,8 @@ class PathLearningCreate(_Request):
 
 class ForceTracePublic(BaseModel):
     source: Literal["live", "recording", "none"] = Field(
-        description="live: a job runs (|F| every 20 ms, time since the job started); "
+        description="live: a job runs (the force across the path every 20 ms, time since "
+        "the job started); "
         "recording: the last recording (force along the path normal); none: nothing yet"
     )
     time_s: list[float]
@@ -256,6 +264,12 @@ class ForceTracePublic(BaseModel):
     samples_total: int = Field(description="samples before decimation")
     stop_reason: str | None = Field(description="why the last recording ended")
     completed: bool | None = Field(description="the last recording reached its last guide point")
+    force_min_N: list[float] | None = Field(
+        default=None, description="smallest force of the samples each point stands for [N]"
+    )
+    force_max_N: list[float] | None = Field(
+        default=None, description="largest force of the samples each point stands for [N]"
+    )
 
     @classmethod
     def from_trace(
@@ -272,6 +286,8 @@ class ForceTracePublic(BaseModel):
             samples_total=t.samples_total,
             stop_reason=stop_reason,
             completed=completed,
+            force_min_N=None if t.force_min_N is None else _floats(t.force_min_N, digits=3),
+            force_max_N=None if t.force_max_N is None else _floats(t.force_max_N, digits=3),
         )
 
 

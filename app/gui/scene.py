@@ -40,6 +40,9 @@ TARGET_COLOR = (240, 120, 20)
 STALE_COLOR = (110, 110, 120)  # a path computed from inputs that changed since
 GUIDE_COLOR = (20, 160, 90)
 SELECTED_GUIDE_COLOR = (230, 40, 160)
+SPINDLE_OPACITY = 0.3
+HANDLE_SCALE = 0.05  # the push handle: small, beside the tool rather than over it
+GUIDE_LABEL_LIFT_M = (0.010, 0.022)
 
 
 def _mesh_filename(fname: str) -> str:
@@ -212,7 +215,7 @@ class CellScene:
         self.push_label = scene.add_label("/robot/push/label", "", anchor="top-left", visible=False)
         self.handle = scene.add_transform_controls(
             "/robot/handle",
-            scale=0.12,
+            scale=HANDLE_SCALE,
             disable_rotations=True,
             depth_test=False,
         )
@@ -240,7 +243,11 @@ class CellScene:
         cutter = cutter_mesh(tool)
         with self.server.atomic():
             self.server.scene.add_mesh_simple(
-                "/robot/tcp/tool/body", body.vertices, body.faces, color=TOOL_COLOR
+                "/robot/tcp/tool/body",
+                body.vertices,
+                body.faces,
+                color=TOOL_COLOR,
+                opacity=SPINDLE_OPACITY,  # the 1 mm ball stays visible through it
             )
             self.server.scene.add_mesh_simple(
                 "/robot/tcp/tool/cutter", cutter.vertices, cutter.faces, color=CUTTER_COLOR
@@ -354,11 +361,13 @@ class CellScene:
                 axes_radius=0.001,
             )
             for k, p in enumerate(positions):
+                # Only the number, at two heights in turn: neighbours' labels do not overlap.
+                lift = GUIDE_LABEL_LIFT_M[k % len(GUIDE_LABEL_LIFT_M)]
                 self.guide_labels.append(
                     scene.add_label(
                         f"/path/guide_points/labels/G{k + 1}",
-                        f"G{k + 1}",
-                        position=p + np.array([0.0, 0.0, 0.012]),
+                        f"{k + 1}",
+                        position=p + np.array([0.0, 0.0, lift]),
                         anchor="bottom-center",
                     )
                 )
@@ -373,6 +382,7 @@ class CellScene:
         targets_deviation_m: np.ndarray | None = None,
         deviation_scale_m: float = 0.5e-3,
         stale: bool = False,
+        segments_deviation: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> None:
         """Show raw samples (grey), filtered samples (blue, or coloured by deviation) and the
         reduced targets (orange points joined by segments, or coloured by deviation). A
@@ -428,7 +438,19 @@ class CellScene:
                 position=tuple(tg[0]) if len(tg) else (0.0, 0.0, 0.0),
                 visible=bool(stale and len(tg)),
             )
-            if len(tg) >= 2:
+            if segments_deviation is not None and not stale and len(segments_deviation[0]) >= 2:
+                # Coloured along the straight moves by the deviation of points between targets.
+                dense, dense_dev = segments_deviation
+                dense = np.asarray(dense, dtype=float)
+                c = deviation_colors(np.asarray(dense_dev), deviation_scale_m)
+                scene.add_line_segments(
+                    "/path/targets/segments",
+                    np.stack([dense[:-1], dense[1:]], axis=1),
+                    np.stack([c[:-1], c[1:]], axis=1),
+                    thickness=2.0,
+                    thickness_units="screen",
+                )
+            elif len(tg) >= 2:
                 segments = np.stack([tg[:-1], tg[1:]], axis=1)
                 seg_colors = np.stack([tcolors[:-1], tcolors[1:]], axis=1)
                 scene.add_line_segments(

@@ -31,6 +31,7 @@ from .panels import (
 )
 from .panels.feedback import notify_error
 from .panels.robot_wiring import GuideRulesPanel, RobotProgramPanel
+from .panels.teach_panel import TeachPanel
 from .scene import CellScene
 
 log = logging.getLogger(__name__)
@@ -68,6 +69,7 @@ class Workbench:
         self._show_cell()
         self.cell = CellPanel(server, session)
         self.leadthrough = LeadThroughPanel(server, session, self.scene)
+        self.teach = TeachPanel(server, session)
         self.guide_points = GuidePointsPanel(server, session, self.scene)
         self.path_learning = PathLearningPanel(server, session)
         self.postprocess = PostprocessPanel(server, session, self.scene)
@@ -172,6 +174,7 @@ class Workbench:
             self.export.refresh()
             self.robot_program.refresh()
         snapshot = self.leadthrough.tick(self.session.snapshot())
+        self.teach.tick(snapshot)
         self._draw_robot(snapshot)
         now = time.monotonic()
         if snapshot.busy and now >= self._next_plot:

@@ -69,8 +69,9 @@ class LiveFeed:
     def force_trace(
         self, recording: Recording | None, busy: bool, max_points: int = 2000
     ) -> ForceTrace:
-        """Force vs time, at most ``max_points`` (>= 2) by stride: the live |F| while a job
-        runs, else the recording's force along Yp."""
+        """Force vs time, at most ``max_points`` (>= 2) by stride, with the min/max envelope
+        of each stride: while a job runs the live force across the path (along Yp, when the
+        job follows guide points; else |F|), else the recording's force along Yp."""
         if max_points < 2:
             raise InvalidInputError("max_points must be at least 2")
         live = list(self.trace)
@@ -90,11 +91,25 @@ class LiveFeed:
         idx = np.arange(0, n, stride)
         if n and idx[-1] != n - 1:
             idx = np.append(idx, n - 1)
-        return ForceTrace(source, t[idx], f[idx], ref[idx], n)
+        f = np.asarray(f, dtype=float)
+        lo = np.minimum.reduceat(f, idx) if n else f
+        hi = np.maximum.reduceat(f, idx) if n else f
+        return ForceTrace(source, t[idx], f[idx], ref[idx], n, lo, hi)
 
-    def tapped(self, cell: Cell, estimator: ForceEstimator, ctx: JobContext) -> TappedCell:
-        """``cell`` seen through a tap that feeds this and checks the job's cancel."""
+    def tapped(
+        self,
+        cell: Cell,
+        estimator: ForceEstimator,
+        ctx: JobContext,
+        *,
+        path_m: np.ndarray | None = None,
+        closed: bool = False,
+    ) -> TappedCell:
+        """``cell`` seen through a tap that feeds this and checks the job's cancel. With the
+        guide points' positions ``path_m`` (n, 3) the live force is the one across the path,
+        the quantity the recording keeps (``across_path_force``); else |F|."""
         count = 0
+        segments = _segments(path_m, closed) if path_m is not None and len(path_m) >= 2 else None
 
         def tap(state: CellState) -> None:
             nonlocal count
@@ -107,10 +122,43 @@ class LiveFeed:
                 force = estimator.contact_wrench_tcp_base(
                     state.ft_reading, cell.flange_rotation(state.T_base_tcp)
                 )[:3]
-                self.trace.append((state.time_s - self._t0, float(np.sqrt(force @ force))))
+                value = (
+                    float(np.sqrt(force @ force))
+                    if segments is None
+                    else across_path_force(force, state.T_base_tcp, segments)
+                )
+                self.trace.append((state.time_s - self._t0, value))
             now = time.monotonic()
             if now - self._last_notify >= LIVE_NOTIFY_S:
                 self._last_notify = now
                 self._on_move()
 
         return TappedCell(cell, tap)
+
+
+def _segments(path_m: np.ndarray, closed: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Start points (m, 3) and unit directions (m, 3) of the guide polyline's segments."""
+    p = np.asarray(path_m, dtype=float)
+    if closed:
+        p = np.vstack([p, p[:1]])
+    d = np.diff(p, axis=0)
+    length = np.linalg.norm(d, axis=1)
+    keep = length > 1e-9
+    return p[:-1][keep], d[keep] / length[keep, None]
+
+
+def across_path_force(
+    force_N: np.ndarray, T_base_tcp: np.ndarray, segments: tuple[np.ndarray, np.ndarray]
+) -> float:
+    """The contact force across the path, |F - (F.Xp) Xp - (F.Zp) Zp| [N]: what path learning
+    regulates along Yp (``Recording.force_normal_N``), without the friction along Xp and the
+    floor's push along the tool axis Zp. Xp: the direction of the guide segment nearest the TCP."""
+    starts, dirs = segments
+    rel = T_base_tcp[:3, 3] - starts
+    s = np.einsum("ij,ij->i", rel, dirs)
+    off = rel - s[:, None] * dirs
+    xp = dirs[int(np.argmin(np.einsum("ij,ij->i", off, off)))]
+    zp = T_base_tcp[:3, 2] - (T_base_tcp[:3, 2] @ xp) * xp
+    zp = zp / max(float(np.linalg.norm(zp)), 1e-12)
+    f = np.asarray(force_N, dtype=float)
+    return float(np.linalg.norm(f - (f @ xp) * xp - (f @ zp) * zp))

@@ -129,6 +129,9 @@ class ForceTrace:
         force_N: (k,)
         force_reference_N: (k,) the reference (NaN when live).
         samples_total: Samples before decimation.
+        force_min_N: (k,) smallest force of the samples each plotted point stands for (so
+            spikes show however far the trace is decimated); None: not computed.
+        force_max_N: (k,) largest force of those samples.
     """
 
     source: Literal["live", "recording", "none"]
@@ -136,6 +139,8 @@ class ForceTrace:
     force_N: np.ndarray
     force_reference_N: np.ndarray
     samples_total: int
+    force_min_N: np.ndarray | None = None
+    force_max_N: np.ndarray | None = None
 
 
 # The last post-processing: its settings, result, and score (the core stage's value).

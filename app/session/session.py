@@ -37,7 +37,11 @@ SOLUTION  Public API (all thread-safe):
     set_process_settings(cmrr=, compensation=) -> Project   what the exported program carries
     set_compliance(axes, frame) -> ComplianceSelection
     push(wrench6, duration_s) -> RobotSnapshot        wrench [N, N*m] at the TCP, base axes
-    jog(axis, step) -> RobotSnapshot                   step [m] or [rad], tool frame
+    jog(axis, step, frame=, speed=) -> RobotSnapshot   step [m] or [rad], tool/base/wobj frame
+    touch_off(axis, direction, force_N, max_travel_m, frame=) -> RobotSnapshot
+    stop_motion()                           the person let go: the running motion ends
+    tool_view() -> teach.ToolView           gap to the nearest wall, force, table clearance
+    (pushes, jogs and touch-offs run at wall-clock speed: see ``teach.py``)
     go_home() -> RobotSnapshot
     record_guide_point() -> GuidePointEntry
     delete_guide_point(index) / clear_guide_points()
@@ -126,6 +130,7 @@ from .records import (
     check_project_name,
     log,
 )
+from .teach import JogFrame, Teach, ToolView
 
 # --- the session ---------------------------------------------------------------------------
 
@@ -143,6 +148,7 @@ class Session:
             are kept only in the store when None.
         max_upload_bytes: Largest mesh file ``upload_workpiece`` takes.
         max_triangles: Most triangles of an uploaded mesh.
+        real_time: Pace a person's pushes and jogs to the wall clock (``teach.Teach``).
     """
 
     def __init__(
@@ -152,6 +158,7 @@ class Session:
         data_dir: str | Path | None = None,
         max_upload_bytes: int = MAX_MESH_BYTES,
         max_triangles: int = MAX_MESH_TRIANGLES,
+        real_time: bool = True,
     ) -> None:
         self.max_upload_bytes = min(max_upload_bytes, MAX_MESH_BYTES)
         self.max_triangles = min(max_triangles, MAX_MESH_TRIANGLES)
@@ -166,6 +173,7 @@ class Session:
         self._live = LiveFeed(on_move=lambda: self._notify("robot"))
         self._project_id = 0
         self._closed = False
+        self.teach = Teach(self, real_time=real_time)
         self._open_initial_project()
 
     # --- listeners ---------------------------------------------------------------------------
@@ -378,24 +386,37 @@ class Session:
             raise InvalidInputError("a push is 6 finite values: force [N] and torque [N*m]")
         if not (math.isfinite(duration_s) and 0 <= duration_s <= 60):
             raise InvalidInputError(f"push duration {duration_s:g} s is outside 0-60 s")
-        with self._lock:
-            self._require_idle()
-            self._lt_state = self._lt.push(self._lt_state, w, self._selection, duration_s)
-            self._save_robot()
-        self._notify("robot")
+        self.teach.push(w, duration_s)
         return self.snapshot()
 
-    def jog(self, axis: str, step: float) -> RobotSnapshot:
-        """Force-control jogging: move ``step`` [m] along, or [rad] about, a tool axis; the
-        compliant axes keep answering to the contact force."""
-        if axis not in AXES:
-            raise InvalidInputError(f"jog axis must be one of {', '.join(AXES)}, not {axis!r}")
-        with self._lock:
-            self._require_idle()
-            self._lt_state = self._lt.jog(self._lt_state, axis, float(step), self._selection)
-            self._save_robot()
-        self._notify("robot")
+    def jog(
+        self, axis: str, step: float, *, frame: JogFrame = "tool", speed: float | None = None
+    ) -> RobotSnapshot:
+        """Force-control jogging: move ``step`` [m] along, or [rad] about, an axis of ``frame``
+        (tool, base or wobj) at ``speed`` [m/s or rad/s]; the compliant axes keep answering to
+        the contact force."""
+        self.teach.jog(axis, float(step), frame=frame, speed=speed)
         return self.snapshot()
+
+    def touch_off(
+        self,
+        axis: str,
+        direction: int,
+        force_N: float,
+        max_travel_m: float,
+        *,
+        frame: JogFrame = "base",
+    ) -> RobotSnapshot:
+        """Guarded move along an axis until contact at ``force_N`` (``teach.Teach.touch_off``)."""
+        self.teach.touch_off(axis, direction, force_N, max_travel_m, frame=frame)  # type: ignore[arg-type]
+        return self.snapshot()
+
+    def stop_motion(self) -> None:
+        """The person let go: the running push, jog or touch-off ends within a period."""
+        self.teach.stop()
+
+    def tool_view(self) -> ToolView:
+        return self.teach.tool_view()
 
     def go_home(self) -> RobotSnapshot:
         """Put the robot back at its home pose (a reset of the simulation, not a move)."""
@@ -498,9 +519,10 @@ class Session:
             start = self._lt_state.cell
 
             def work(ctx: JobContext) -> tuple[core.LearnedPath, CellState]:
+                path_m = np.array([g.position_m for g in project.guide_points])
                 return core.learn(
                     project,
-                    self._live.tapped(cell, estimator, ctx),
+                    self._live.tapped(cell, estimator, ctx, path_m=path_m, closed=closed),
                     start,
                     settings,
                     estimator,

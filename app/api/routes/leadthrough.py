@@ -34,9 +34,12 @@ def push(body: PushCreate, session: SessionDep) -> StatePublic:
 
 @router.post("/jog")
 def jog(body: JogCreate, session: SessionDep) -> StatePublic:
-    """Force-control jogging: a step along (mm) or about (deg) a tool axis."""
-    step = math.radians(body.step) if body.axis.startswith("r") else body.step * 1e-3
-    return StatePublic.from_snapshot(session.jog(body.axis, step))
+    """Force-control jogging: a step along (mm) or about (deg) an axis of the tool, base or
+    work-object frame, at wall-clock speed."""
+    to_si = math.radians if body.axis.startswith("r") else (lambda v: v * 1e-3)
+    speed = None if body.speed is None else to_si(body.speed)
+    snapshot = session.jog(body.axis, to_si(body.step), frame=body.frame, speed=speed)
+    return StatePublic.from_snapshot(snapshot)
 
 
 @router.post("/home")

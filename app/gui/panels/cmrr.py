@@ -27,6 +27,7 @@ from .feedback import guarded
 
 REFRESH_HZ = 4.0
 _NOTHING_SHOWN = object()  # the panel has shown no study, not even "none yet"
+LARGE_WIDTH_PX = 1600  # "Open the figure large": the figure at its own size
 PLOT_WIDTH_PX = 720  # the sidebar is narrower: a smaller image is sent faster
 SCENARIO_HINTS = {
     "milling-steps": "End milling 1 -> 2 -> 3 mm deep, 250 N (chapter figs. 11-12)",
@@ -185,9 +186,13 @@ class CmrrPanel:
             self.status = server.gui.add_markdown("")
             self.figures = server.gui.add_markdown("")
             self.plot = server.gui.add_image(np.full((2, 2, 3), 255, np.uint8), format="png")
+            self.enlarge = server.gui.add_button(
+                "Open the figure large", disabled=last is None, hint="Full size, in a window"
+            )
             self.download = server.gui.add_button(
                 "Download settings JSON", icon=viser.Icon.DOWNLOAD, disabled=last is None
             )
+        self.enlarge.on_click(guarded("CMRR figure", self._open_large))
         self.scenario.on_update(lambda e: self._show_hint())
         self.run.on_click(guarded("CMRR study", lambda e: self.start()))
         self.cancel.on_click(guarded("Cancel", lambda e: self._cancel()))
@@ -220,6 +225,19 @@ class CmrrPanel:
     def _cancel(self) -> None:
         self.follower.cancel()
 
+    def _open_large(self, event) -> None:
+        """The last study's figure at full size in a modal window of the user's browser."""
+        outcome = self.service.cmrr_result()
+        if outcome is None or outcome.plot_png is None:
+            return
+        gui = event.client.gui
+        with gui.add_modal("CMRR study figure") as modal:
+            gui.add_image(png_to_image(outcome.plot_png, LARGE_WIDTH_PX), format="png")
+            gui.add_button("Download the PNG").on_click(
+                lambda _: event.client.send_file_download("cmrr_study.png", outcome.plot_png)
+            )
+            gui.add_button("Close").on_click(lambda _: modal.close())
+
     def _show_hint(self) -> None:
         self.run.hint = SCENARIO_HINTS.get(self.scenario.value)
 
@@ -233,6 +251,7 @@ class CmrrPanel:
             return
         self._shown = outcome
         self.download.disabled = outcome is None
+        self.enlarge.disabled = outcome is None or outcome.plot_png is None
         if outcome is None:
             self.progress.value = 0.0
             self.figures.content = "*No CMRR study in this project yet.*"

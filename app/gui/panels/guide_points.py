@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import viser
 
+from robomach_core.errors import InvalidInputError
+
 from ..scene import CellScene
 from .feedback import guarded
 
@@ -59,12 +61,16 @@ class GuidePointsPanel:
             self.table = server.gui.add_markdown("")
         self.record.on_click(guarded("Record", lambda e: self.session.record_guide_point()))
         self.example.on_click(guarded("Example", lambda e: self.session.start_example()))
-        self.delete.on_click(
-            guarded("Delete", lambda e: self.session.delete_guide_point(self.selected_index()))
-        )
+        self.delete.on_click(guarded("Delete", lambda e: self._delete_selected()))
         self.clear.on_click(guarded("Clear", lambda e: self.session.clear_guide_points()))
         self.selected.on_update(lambda e: self.show_in_scene())
         self.refresh()
+
+    def _delete_selected(self) -> None:
+        index = self.selected_index()
+        if index < 0:
+            raise InvalidInputError("select a guide point in the list first, then delete it")
+        self.session.delete_guide_point(index)
 
     def selected_index(self) -> int:
         """0-based index of the selected guide point (-1 when none, which the session refuses)."""

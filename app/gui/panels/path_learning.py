@@ -57,13 +57,15 @@ class PathLearningPanel:
             self.progress = server.gui.add_progress_bar(0.0)
             self.status = server.gui.add_markdown("")
             self.plot = server.gui.add_uplot(
-                (np.zeros(2), np.zeros(2), np.full(2, self.force.value)),
+                (np.zeros(2), np.zeros(2), np.full(2, self.force.value), np.zeros(2), np.zeros(2)),
                 (
                     viser.uplot.Series(label="t (s)"),
                     viser.uplot.Series(label="contact force (N)", stroke="#d62728", width=1.0),
                     viser.uplot.Series(
                         label="setpoint (N)", stroke="#1d3557", width=2.5, dash=[8, 4]
                     ),
+                    viser.uplot.Series(label="min (N)", stroke="#f4a3a3", width=0.8),
+                    viser.uplot.Series(label="max (N)", stroke="#f4a3a3", width=0.8),
                 ),
                 title="Contact force",
                 scales={
@@ -121,13 +123,16 @@ class PathLearningPanel:
         trace = self.session.force_trace(PLOT_POINTS)
         if trace.source == "none" or len(trace.time_s) < 2:
             t = np.zeros(2)
-            self.plot.data = (t, np.zeros(2), np.full(2, float(self.force.value)))
+            self.plot.data = (t, t, np.full(2, float(self.force.value)), t, t)
             return
         ref = trace.force_reference_N
         if np.all(np.isnan(ref)):  # live: the reference of the run in progress
             ref = np.full(len(trace.time_s), float(self.force.value))
+        f = np.asarray(trace.force_N, dtype=float)
         self.plot.data = (
             np.asarray(trace.time_s, dtype=float),
-            np.asarray(trace.force_N, dtype=float),
+            f,
             np.asarray(ref, dtype=float),
+            f if trace.force_min_N is None else np.asarray(trace.force_min_N, dtype=float),
+            f if trace.force_max_N is None else np.asarray(trace.force_max_N, dtype=float),
         )

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import threading
 
+import numpy as np
 import viser
 
 from robomach_core.errors import RobomachError
@@ -54,7 +55,9 @@ class PostprocessPanel:
             )
             self.colour = server.gui.add_checkbox("Colour by deviation", True)
             self.scale = server.gui.add_slider("Colour scale (mm)", 0.05, 2.0, 0.05, 0.5)
+            self.run = server.gui.add_button("Run post-processing", hint="With the values above")
             self.summary = server.gui.add_markdown("")
+        self.run.on_click(guarded("Post-processing", lambda e: self.rerun()))
         for slider in (self.force_min, self.force_max, self.tolerance):
             slider.on_update(guarded("Post-processing", lambda e: self.rerun()))
         for control in (self.colour, self.scale):
@@ -94,7 +97,7 @@ class PostprocessPanel:
         if outcome is None:
             if self.session.recording() is None:
                 return "*No recording yet.*"
-            return "*Not post-processed yet: move a slider.*"
+            return "*Not post-processed yet: press Run (or move a slider).*"
         r = outcome.result
         lines = []
         reason = self.session.stale_reasons().get("postprocess")
@@ -134,20 +137,41 @@ class PostprocessPanel:
         r = outcome.result
         filtered = r.surface_m[r.keep_mask]
         targets = r.targets.position_m
-        dev_f = dev_t = None
+        dev_f = dev_t = dense = None
         if self.colour.value:
             wp, radius = self.session.workpiece, self.session.cell.tool.radius_m
             try:
                 dev_f = true_tool_path_distance(wp, radius, filtered)
                 dev_t = true_tool_path_distance(wp, radius, targets)
+                # The straight moves between the targets too, not only their ends.
+                along = densified(targets, SEGMENT_SAMPLE_M)
+                dense = (along, true_tool_path_distance(wp, radius, along))
             except RobomachError:  # an uploaded mesh has no true wall
-                dev_f = dev_t = None
+                dev_f = dev_t = dense = None
         self.scene.set_samples(
             rec.position_m,
             filtered,
             targets,
             filtered_deviation_m=dev_f,
             targets_deviation_m=dev_t,
+            segments_deviation=dense,
             deviation_scale_m=self.scale.value * 1e-3,
             stale=self.session.status()["postprocess"] == "stale",
         )
+
+
+SEGMENT_SAMPLE_M = 0.0005
+
+
+def densified(points_m: np.ndarray, spacing_m: float) -> np.ndarray:
+    """(k, 3) points along the polyline through ``points_m`` (n, 3), at most ``spacing_m``
+    apart, keeping every vertex."""
+    pts = np.asarray(points_m, dtype=float)
+    if len(pts) < 2:
+        return pts.copy()
+    out = [pts[:1]]
+    for a, b in zip(pts[:-1], pts[1:], strict=True):
+        n = max(1, int(np.ceil(np.linalg.norm(b - a) / spacing_m)))
+        t = np.linspace(0.0, 1.0, n + 1)[1:, None]
+        out.append(a + (b - a) * t)
+    return np.concatenate(out)

@@ -1,0 +1,336 @@
+"""A person's motions of the robot: paced pushes, jogs and touch-offs, and what the tool sees.
+
+PROBLEM   The simulation runs some twenty times faster than real time, so a person's 2 s push
+          was answered in milliseconds and a held button ran the arm into a singularity; a
+          refused motion must leave the robot at its last safe state and say why; and reads
+          (the GUIs' live pose) must never wait for a motion to finish.
+STRATEGY  Every motion drives the core's own loop (``LeadThrough.push``, ``jog``,
+          ``touch_off``) through a tapped cell (``live.TappedCell``): each control period the
+          tap takes one period of the session's ``RealTimePacer`` budget (sleeping when it is
+          empty, with the session lock released), publishes the live pose every
+          ``LIVE_NOTIFY_S``, and aborts when the person lets go (``stop``), when the cell
+          changes, or when the session closes. Motions run one at a time (a short queue: a
+          request that waits longer than ``MOTION_QUEUE_S`` is refused), so a flood of
+          requests cannot bank simulated time: over a wall interval T all of them together
+          simulate at most T + burst (20 ms).
+SOLUTION  ``Teach(session, real_time=True)``: ``push``, ``jog(axis, step, frame, speed)``,
+          ``touch_off(axis, direction, force_N, max_travel_m, frame)``, ``stop()``, and
+          ``tool_view()`` (gap to the nearest face of the part, contact force, height above the
+          table). A ``SupervisionError`` keeps the robot at ``error.state`` (the last safe
+          state), saves it and is raised again (the API answers 409 with its message).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+
+from robomach_core.cell import CONTROL_PERIOD_S, CellState
+from robomach_core.clearance import ClearanceProbe
+from robomach_core.errors import InvalidInputError, NoContactError, SupervisionError
+from robomach_core.leadthrough import (
+    AXES,
+    ComplianceSelection,
+    LeadThrough,
+    LeadThroughState,
+    halted,
+)
+from robomach_core.realtime import RealTimePacer
+
+from .live import TappedCell
+from .records import LIVE_NOTIFY_S, BusyError, ConflictError
+
+if TYPE_CHECKING:
+    from .session import Session
+
+Selection = ComplianceSelection
+JogFrame = Literal["base", "tool", "wobj"]
+JOG_FRAMES: tuple[JogFrame, ...] = ("base", "tool", "wobj")
+MOTION_QUEUE_S = 0.25  # a motion request waits at most this long for the one before it
+# The pacer's burst: how far a motion may run ahead of the clock after an idle while. Small, so
+# that back-to-back requests (a held button, two clients) add almost nothing to the held time.
+PACE_BURST_S = 0.02
+PACE_CHUNK_PERIODS = 5
+# A push is a hand pushing during [arrival, arrival + duration]: a request that waited for the
+# one before it (another client, a held button's next push) loses the time it waited, beyond
+# this much (the scheduling of the request itself).
+PUSH_GRACE_S = 0.01  # budget taken at once (20 ms): the stop check still runs every period
+JOG_SPEED_RANGE_MM_S = (0.5, 50.0)  # 50 mm/s: the admittance's speed limit
+JOG_RATE_RANGE_DEG_S = (0.5, 30.0)
+DEFAULT_JOG_SPEED_MM_S = 10.0
+DEFAULT_JOG_RATE_DEG_S = 10.0
+
+
+class _Stopped(Exception):
+    """The person let go (or the cell changed): end the motion where it is."""
+
+
+@dataclass(frozen=True)
+class ToolView:
+    """What the operator sees at the tool tip (base frame, SI units).
+
+    Attributes:
+        gap_m: Signed distance of the cutter to the nearest face of the part (< 0: in contact).
+        normal: (3,) unit vector from that face towards the cutter.
+        force_N: (3,) measured, compensated contact force at the TCP.
+        table_gap_m: Height of the cutter's lowest point above the table.
+        in_contact: The cutter touches the part.
+    """
+
+    gap_m: float
+    normal: np.ndarray
+    force_N: np.ndarray
+    table_gap_m: float
+    in_contact: bool
+
+
+def frame_rotation(frame: JogFrame, T_base_tcp: np.ndarray, T_base_wobj: np.ndarray) -> np.ndarray:
+    """3x3 rotation of the jog frame in the base frame (its columns: the x, y, z axes)."""
+    if frame == "base":
+        return np.eye(3)
+    if frame == "tool":
+        return np.asarray(T_base_tcp[:3, :3], dtype=float)
+    if frame == "wobj":
+        return np.asarray(T_base_wobj[:3, :3], dtype=float)
+    raise InvalidInputError(f"jog frame must be one of {', '.join(JOG_FRAMES)}, not {frame!r}")
+
+
+class Teach:
+    """The paced motions of one session (see the module docstring).
+
+    Args:
+        session: The session whose robot moves.
+        real_time: Pace motions to the wall clock (a person at a pendant); False runs them as
+            fast as the simulation allows (scripts and in-process tests).
+    """
+
+    def __init__(self, session: Session, *, real_time: bool = True) -> None:
+        self._session = session
+        self.pacer = RealTimePacer(burst_s=PACE_BURST_S) if real_time else None
+        self._motion = threading.Lock()
+        self._stop_generation = 0
+        self._probe: tuple[int, ClearanceProbe] | None = None
+        # Listeners (the viser scene) redraw in their own thread: never slow the motion down.
+        self._notifier = _Coalescer(lambda: session._notify("robot"))
+
+    # --- motions -----------------------------------------------------------------------------
+
+    def push(self, wrench: np.ndarray, duration_s: float) -> None:
+        """A constant push (6,) [N, N*m] at the TCP, base axes, for ``duration_s`` of wall time."""
+        w = np.asarray(wrench, dtype=float)
+        arrival = time.monotonic()
+
+        def move(lt: LeadThrough, st: LeadThroughState, sel: Selection) -> LeadThroughState:
+            late_s = max(0.0, time.monotonic() - arrival - PUSH_GRACE_S)
+            left_s = duration_s - late_s
+            return lt.push(st, w, sel, left_s) if left_s >= CONTROL_PERIOD_S else st
+
+        self._run(move)
+
+    def jog(
+        self,
+        axis: str,
+        step: float,
+        *,
+        frame: JogFrame = "tool",
+        speed: float | None = None,
+    ) -> None:
+        """Move ``step`` [m] along, or [rad] about, an axis of ``frame`` at ``speed`` [m/s or
+        rad/s] (default 10 mm/s, 10 deg/s); the compliant axes keep answering to contact."""
+        if axis not in AXES:
+            raise InvalidInputError(f"jog axis must be one of {', '.join(AXES)}, not {axis!r}")
+        if frame not in JOG_FRAMES:
+            raise InvalidInputError(
+                f"jog frame must be one of {', '.join(JOG_FRAMES)}, not {frame!r}"
+            )
+        rotational = axis.startswith("r")
+        if speed is not None:
+            lo, hi = JOG_RATE_RANGE_DEG_S if rotational else JOG_SPEED_RANGE_MM_S
+            scale = 180.0 / np.pi if rotational else 1e3
+            if not (lo <= speed * scale <= hi):
+                unit = "deg/s" if rotational else "mm/s"
+                raise InvalidInputError(
+                    f"jog speed {speed * scale:g} {unit} is outside {lo:g}-{hi:g} {unit}"
+                )
+        wobj = self._session.cell.workpiece.T_base_wobj
+
+        def move(lt: LeadThrough, st: LeadThroughState, sel: Selection) -> LeadThroughState:
+            R = frame_rotation(frame, st.cell.T_base_tcp, wobj)
+            return lt.jog(st, axis, float(step), sel, rate=speed, frame_rotation=R)  # type: ignore[arg-type]
+
+        self._run(move)
+
+    def touch_off(
+        self,
+        axis: Literal["x", "y", "z"],
+        direction: Literal[1, -1],
+        force_N: float,
+        max_travel_m: float,
+        *,
+        frame: JogFrame = "base",
+    ) -> None:
+        """Guarded move along ``axis`` of ``frame`` until the wall pushes back with ``force_N``
+        (``LeadThrough.touch_off``); the robot stays there, in contact. A work-object frame is
+        taken as the base axis it is aligned with (refused when it is turned otherwise)."""
+        if axis not in ("x", "y", "z"):
+            raise InvalidInputError(f"touch-off axis must be x, y or z, not {axis!r}")
+        if direction not in (1, -1):
+            raise InvalidInputError("touch-off direction must be +1 or -1")
+        core_frame: Literal["tool", "base"] = "tool" if frame == "tool" else "base"
+        if frame == "wobj":
+            axis, direction = _base_axis_of_wobj(self._session.cell.workpiece.T_base_wobj, axis,
+                                                 direction)  # fmt: skip
+        elif frame not in JOG_FRAMES:
+            raise InvalidInputError(
+                f"touch-off frame must be one of {', '.join(JOG_FRAMES)}, not {frame!r}"
+            )
+
+        def move(lt: LeadThrough, st: LeadThroughState, sel: Selection) -> LeadThroughState:
+            moving = ComplianceSelection(sel.axes, core_frame)
+            return lt.touch_off(st, axis, direction, float(force_N), moving, float(max_travel_m))
+
+        self._run(move)
+
+    def stop(self) -> None:
+        """End the running motion (the person let go); it stops within one control period."""
+        self._stop_generation += 1
+
+    # --- what the tool sees ------------------------------------------------------------------
+
+    def tool_view(self) -> ToolView:
+        """Gap to the nearest face of the part, contact force and table clearance, now."""
+        s = self._session
+        with s._lock:
+            epoch, cell = s._epoch, s._cell
+        snap = s.snapshot()
+        if self._probe is None or self._probe[0] != epoch:
+            self._probe = (epoch, ClearanceProbe(cell.tool, cell.workpiece))
+        probe = self._probe[1]
+        gap = probe.gap(snap.T_base_tcp)
+        table_z = float(s._lt.supervisor.table_z_m)
+        return ToolView(
+            float(gap.distance_m),
+            gap.normal,
+            snap.wrench[:3].copy(),
+            probe.height_above_m(snap.T_base_tcp, table_z),
+            snap.in_contact,
+        )
+
+    # --- internals ---------------------------------------------------------------------------
+
+    def _run(
+        self,
+        move: Callable[[LeadThrough, LeadThroughState, ComplianceSelection], LeadThroughState],
+    ) -> None:
+        """Run ``move`` paced, published and stoppable (one motion at a time)."""
+        s = self._session
+        if not self._motion.acquire(timeout=MOTION_QUEUE_S):
+            raise BusyError(
+                "another push, jog or touch-off is still moving the robot; wait for it "
+                "(or let go of the other button)"
+            )
+        try:
+            with s._lock:
+                s._require_idle()
+                epoch, start, selection, lt = s._epoch, s._lt_state, s._selection, s._lt
+                generation = self._stop_generation
+            last: list[CellState] = [start.cell]
+            credit = 0
+            last_notify = time.monotonic()
+
+            def tap(cell_state: CellState) -> None:
+                nonlocal credit, last_notify
+                last[0] = cell_state
+                if self._stop_generation != generation or s._epoch != epoch or s._closed:
+                    raise _Stopped
+                if self.pacer is not None:
+                    while credit == 0:
+                        credit = self.pacer.grant(PACE_CHUNK_PERIODS)
+                        if credit == 0:
+                            time.sleep(max(self.pacer.wait_s(1), CONTROL_PERIOD_S / 2))
+                            if self._stop_generation != generation or s._epoch != epoch:
+                                raise _Stopped
+                    credit -= 1
+                now = time.monotonic()
+                if now - last_notify >= LIVE_NOTIFY_S:
+                    last_notify = now
+                    with s._lock:
+                        if s._epoch == epoch:
+                            s._lt_state = LeadThroughState(
+                                cell_state, cell_state.T_base_tcp.copy(), np.zeros(6)
+                            )
+                    self._notifier.poke()
+
+            tapped = LeadThrough(
+                TappedCell(lt.cell, tap),  # type: ignore[arg-type]
+                lt.params,
+                lt.estimator,
+                supervisor=lt.supervisor,
+            )
+            error: Exception | None = None
+            try:
+                end = move(tapped, start, selection)
+            except _Stopped:
+                end = halted(LeadThroughState(last[0], last[0].T_base_tcp, np.zeros(6)))
+            except (SupervisionError, NoContactError) as exc:
+                state = exc.state
+                end = (
+                    state
+                    if isinstance(state, LeadThroughState)
+                    else halted(LeadThroughState(last[0], last[0].T_base_tcp, np.zeros(6)))
+                )
+                error = exc
+            with s._lock:
+                if s._epoch != epoch:
+                    raise ConflictError(
+                        "the cell or the project changed while the robot moved; the motion "
+                        "was stopped"
+                    )
+                s._lt_state = end
+                s._save_robot()
+            s._notify("robot")
+            if error is not None:
+                raise error
+        finally:
+            self._motion.release()
+
+
+def _base_axis_of_wobj(
+    T_base_wobj: np.ndarray, axis: str, direction: int
+) -> tuple[Literal["x", "y", "z"], Literal[1, -1]]:
+    """The base axis and sign a work-object axis is aligned with (within 0.1 degree)."""
+    column = np.asarray(T_base_wobj[:3, "xyz".index(axis)], dtype=float) * direction
+    i = int(np.argmax(np.abs(column)))
+    if abs(column[i]) < np.cos(np.radians(0.1)):
+        raise InvalidInputError(
+            "a touch-off in the work-object frame needs the work object aligned with the base "
+            "axes; use the base or tool frame"
+        )
+    return "xyz"[i], (1 if column[i] > 0 else -1)  # type: ignore[return-value]
+
+
+class _Coalescer:
+    """Calls ``action`` in a daemon thread after ``poke`` (pokes meanwhile: one more call)."""
+
+    def __init__(self, action: Callable[[], None]) -> None:
+        self._action = action
+        self._wanted = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._lock = threading.Lock()
+
+    def poke(self) -> None:
+        self._wanted.set()
+        with self._lock:
+            if self._thread is None or not self._thread.is_alive():
+                self._thread = threading.Thread(target=self._loop, name="teach-notify", daemon=True)
+                self._thread.start()
+
+    def _loop(self) -> None:
+        while self._wanted.wait(timeout=5.0):
+            self._wanted.clear()
+            self._action()

@@ -1,0 +1,237 @@
+// robomach teach pendant: quick teaching on top of pendant.js (same page, its helpers).
+//  - server push: GET /api/events (server-sent events) keeps the page in sync with viser and
+//    scripts; EventSource reconnects by itself after a restart, and the 3D scene reloads then;
+//    polling (pendant.js) stays as the fallback.
+//  - jog frame shown beside the numbers, touch-off buttons, the tool's gap and force,
+//  - keyboard jogging (arrows, PageUp/PageDown, Shift = 10x) and G/Enter to record,
+//  - the browser Gamepad API: sticks jog at a speed, button A records.
+"use strict";
+
+const GAMEPAD_PERIOD_MS = 100;
+const GAMEPAD_DEADZONE = 0.15;
+const TOOL_PERIOD_MS = 200;
+const GUIDE_FALLBACK_MS = 2000;
+const FRAME_NAMES = { wobj: "work object", base: "base", tool: "tool" };
+const KEY_JOGS = {
+  ArrowLeft: ["x", -1], ArrowRight: ["x", 1],
+  ArrowDown: ["y", -1], ArrowUp: ["y", 1],
+  PageDown: ["z", -1], PageUp: ["z", 1],
+};
+
+let eventsLive = false;
+let moving = false; // one motion request at a time from this page
+let toolTimer = null;
+
+// ---------------------------------------------------------------- frame labels
+
+function jogFrame() {
+  return $("jog-frame").value;
+}
+
+function showFrame() {
+  for (const el of document.querySelectorAll("[data-frame-label]")) {
+    el.textContent = FRAME_NAMES[jogFrame()] || jogFrame();
+  }
+}
+
+// ---------------------------------------------------------------- motions
+
+async function exclusive(fn) {
+  if (moving) return;
+  moving = true;
+  try {
+    await fn();
+  } finally {
+    moving = false;
+  }
+}
+
+async function jogBy(axis, sign, factor = 1) {
+  const rotational = axis.startsWith("r");
+  const field = rotational ? "jog-step-deg" : axis === "z" ? "jog-step-z" : "jog-step-mm";
+  const step = Number($(field).value) * sign * factor;
+  const body = { axis, step, frame: jogFrame() };
+  const speed = Number($(rotational ? "jog-rate" : "jog-speed").value);
+  if (speed > 0) body.speed = speed;
+  showMove(await api("POST", "/leadthrough/jog", body));
+}
+
+async function touchOff(axis, sign) {
+  const body = {
+    axis,
+    direction: sign,
+    force_N: Number($("touch-force").value),
+    max_travel_mm: Number($("touch-travel").value),
+    frame: jogFrame(),
+  };
+  clearMessage();
+  const state = await api("POST", "/leadthrough/touch-off", body);
+  showMove(state);
+  const f = state.wrench.force_N;
+  showMessage(`touched at ${fmt(Math.hypot(...f), 1)} N: record the guide point (G)`, "info");
+}
+
+// ---------------------------------------------------------------- the tool's view
+
+async function refreshTool() {
+  const v = await api("GET", "/leadthrough/tool", undefined, { quiet: true });
+  $("tool-gap").textContent = fmt(v.gap_mm, 2);
+  $("tool-force").textContent = fmt(v.force_magnitude_N, 1);
+  $("tool-table").textContent = fmt(v.table_gap_mm, 1);
+}
+
+function scheduleTool() {
+  if (toolTimer !== null) return;
+  toolTimer = setTimeout(() => {
+    toolTimer = null;
+    refreshTool().catch(() => {});
+  }, TOOL_PERIOD_MS);
+}
+
+// ---------------------------------------------------------------- keyboard
+
+// Keys jog everywhere but in text fields; in a jog step field too (type the step, then
+// press the arrow: the arrows would only nudge the number there).
+function typing(target) {
+  if (target && target.classList && target.classList.contains("jog-step")) return false;
+  return target && ["INPUT", "SELECT", "TEXTAREA"].includes(target.tagName);
+}
+
+function onKey(ev) {
+  if (typing(ev.target) || ev.ctrlKey || ev.altKey || ev.metaKey) return;
+  const jogKey = KEY_JOGS[ev.key];
+  if (jogKey) {
+    ev.preventDefault();
+    if (ev.repeat && moving) return;
+    const factor = ev.shiftKey ? 10 : 1;
+    exclusive(() => jogBy(jogKey[0], jogKey[1], factor)).catch(() => {});
+    return;
+  }
+  if (ev.key === "g" || ev.key === "G" || (ev.key === "Enter" && ev.target === document.body)) {
+    ev.preventDefault();
+    if (!ev.repeat) recordGuide().catch(() => {});
+  }
+}
+
+// ---------------------------------------------------------------- gamepad
+
+let padRecordWasDown = false;
+
+function pollGamepad() {
+  const pads = navigator.getGamepads ? [...navigator.getGamepads()].filter(Boolean) : [];
+  const pill = $("gamepad-status");
+  pill.textContent = pads.length ? pads[0].id.slice(0, 24) : "no gamepad";
+  pill.className = `pill ${pads.length ? "pill-on" : "pill-off"}`;
+  if (!pads.length) return;
+  const pad = pads[0];
+  const a = (i) => (Math.abs(pad.axes[i] || 0) > GAMEPAD_DEADZONE ? pad.axes[i] : 0);
+  // Left stick: X (right +) and Y (up +); right stick vertical: Z (up +).
+  const v = { x: a(0), y: -a(1), z: -a(3) };
+  const recordDown = Boolean(pad.buttons[0] && pad.buttons[0].pressed);
+  if (recordDown && !padRecordWasDown) recordGuide().catch(() => {});
+  padRecordWasDown = recordDown;
+  const axis = ["x", "y", "z"].reduce((best, k) => (Math.abs(v[k]) > Math.abs(v[best]) ? k : best));
+  if (!v[axis] || moving) return;
+  // Velocity jog: the step one period covers at the stick's share of the jog speed.
+  const speed = Math.max(0.5, Number($("jog-speed").value) * Math.abs(v[axis]));
+  const step = Math.sign(v[axis]) * speed * (GAMEPAD_PERIOD_MS / 1000);
+  exclusive(async () => {
+    showMove(await api("POST", "/leadthrough/jog",
+      { axis, step, frame: jogFrame(), speed }, { quiet: true }));
+  }).catch(() => {});
+}
+
+// ---------------------------------------------------------------- server push
+
+// An event sent while a motion ran may arrive after the motion's own answer: never show a pose
+// older than the one shown (simulated time; a reset to Home goes back further than this).
+const STALE_WINDOW_S = 2.0;
+let shownTime = -Infinity;
+const showStateNow = showState;
+// eslint-disable-next-line no-global-assign
+showState = (state) => {
+  if (state && Number.isFinite(state.time_s)) shownTime = state.time_s;
+  showStateNow(state);
+};
+
+function olderThanShown(state) {
+  const t = state.time_s;
+  return Number.isFinite(t) && t < shownTime && shownTime - t < STALE_WINDOW_S;
+}
+
+async function resync() {
+  await Promise.allSettled([pollState(), refreshGuides(), loadSettings(), refreshTool()]);
+}
+
+function reloadScene() {
+  const frame = $("viser-frame");
+  if (frame.src && !frame.src.startsWith("about:")) {
+    frame.src = frame.src;
+    window.sceneReloads = (window.sceneReloads || 0) + 1;
+  }
+}
+
+function connectEvents() {
+  if (!window.EventSource) return;
+  const source = new EventSource(`${API}/events`);
+  let lost = false;
+  source.onopen = () => {
+    eventsLive = true;
+    setConnected(true);
+    if (lost) {
+      // The server came back (a restart): its viser scene is a new one, reload it.
+      reloadScene();
+      resync();
+    }
+    lost = false;
+  };
+  source.onerror = () => {
+    eventsLive = false;
+    lost = true;
+    setConnected(false);
+  };
+  source.addEventListener("robot", (e) => {
+    const data = JSON.parse(e.data);
+    if (data.state && !moving && !olderThanShown(data.state)) showState(data.state);
+    scheduleTool();
+  });
+  for (const topic of ["guide_points", "cell", "project"]) {
+    source.addEventListener(topic, () => {
+      refreshGuides().catch(() => {});
+      pollState();
+      scheduleTool();
+    });
+  }
+  source.addEventListener("compliance", () => {
+    api("GET", "/leadthrough/compliance", undefined, { quiet: true })
+      .then(showCompliance).catch(() => {});
+  });
+  for (const topic of ["recording", "postprocess"]) {
+    source.addEventListener(topic, () => {
+      loadSettings().catch(() => {});
+      pollState();
+    });
+  }
+  window.robomachEvents = source;
+}
+
+// ---------------------------------------------------------------- wiring
+
+function initTeach() {
+  $("jog-frame").addEventListener("change", showFrame);
+  showFrame();
+  for (const b of document.querySelectorAll("button.touch")) {
+    b.addEventListener("click", () => exclusive(
+      () => touchOff(b.dataset.axis, Number(b.dataset.sign))).catch(() => {}));
+  }
+  document.addEventListener("keydown", onKey);
+  window.addEventListener("gamepadconnected", pollGamepad);
+  setInterval(pollGamepad, GAMEPAD_PERIOD_MS);
+  setInterval(() => {
+    if (!eventsLive) refreshGuides().catch(() => {});
+  }, GUIDE_FALLBACK_MS);
+  connectEvents();
+  refreshTool().catch(() => {});
+}
+
+document.addEventListener("DOMContentLoaded", initTeach);

@@ -1,0 +1,75 @@
+"""A server restart: the pendant's event stream and its embedded 3D scene come back by
+themselves (no reload of the page), and changes reach the page again."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+from playwright.sync_api import expect
+
+from tests.api.server_process import ROOT, ServerProcess, free_port
+
+pytestmark = pytest.mark.slow
+
+
+def serve(data: Path, port: int, viser_port: int, log_name: str) -> ServerProcess:
+    """``robomach serve`` on the given ports (a restart must come back where it was)."""
+    log_path = data.parent / log_name
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    env.pop("ROBOMACH_TOKEN", None)
+    with open(log_path, "ab") as log:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "app.cli", "serve", "--port", str(port), "--viser-port",
+             str(viser_port), "--data", str(data)],
+            cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT,
+        )  # fmt: skip
+    server = ServerProcess(
+        proc, f"http://127.0.0.1:{port}", data, log_path, f"http://127.0.0.1:{viser_port}/"
+    )
+    deadline = time.monotonic() + 90.0
+    while time.monotonic() < deadline:
+        assert proc.poll() is None, server.log()
+        try:
+            if httpx.get(server.base_url + "/api/health", timeout=1.0).status_code == 200:
+                return server
+        except httpx.TransportError:
+            pass
+        time.sleep(0.2)
+    server.kill()
+    raise AssertionError(f"the server did not start:\n{server.log()}")
+
+
+def test_the_pendant_reconnects_after_a_restart(tmp_path: Path, browser) -> None:
+    data = tmp_path / "data"
+    port, viser_port = free_port(), free_port()
+    server = serve(data, port, viser_port, "first.log")
+    context = browser.new_context(viewport={"width": 1400, "height": 900})
+    page = context.new_page()
+    try:
+        page.goto(f"{server.base_url}/pendant/?viser={server.viser_url}")
+        expect(page.locator("#connection")).to_have_text("online")
+        page.wait_for_function("() => window.robomachEvents.readyState === 1")
+        t = time.monotonic()
+        assert server.stop(kill_on_timeout=True) in (0, 130), server.log()
+        stop_s = time.monotonic() - t
+        assert "Traceback" not in server.log(), server.log()
+        expect(page.locator("#connection")).to_have_text("offline", timeout=10_000)
+
+        server = serve(data, port, viser_port, "second.log")
+        page.wait_for_function(
+            "() => window.robomachEvents.readyState === 1 && window.sceneReloads >= 1",
+            timeout=30_000,
+        )
+        expect(page.locator("#connection")).to_have_text("online")
+        assert httpx.post(server.base_url + "/api/guide-points", json={}).status_code == 201
+        expect(page.locator("#guide-count")).to_have_text("1", timeout=2_000)
+        print(f"\nthe server stopped in {stop_s:.1f} s with a pendant connected; both came back")
+    finally:
+        context.close()
+        server.stop(kill_on_timeout=True)
