@@ -231,6 +231,7 @@ def serve(settings: ServerSettings) -> int:
             data_dir=data_dir,
             max_upload_bytes=settings.max_upload_bytes,
             max_triangles=settings.max_triangles,
+            real_time=settings.real_time,
         )
         try:
             app = build_app(settings, session)

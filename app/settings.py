@@ -41,6 +41,9 @@ class ServerSettings:
         max_upload_bytes: Largest mesh upload [bytes].
         max_triangles: Most triangles of an uploaded mesh.
         static_dir: Folder served at ``/pendant/`` when it exists.
+        real_time: Pace lead-through pushes and jogs to the wall clock, as for a person at a
+            pendant (``ROBOMACH_REAL_TIME=0`` turns it off for scripted rigs and test suites
+            that drive the robot by REST and want it as fast as the simulation allows).
     """
 
     host: str = DEFAULT_HOST
@@ -51,6 +54,7 @@ class ServerSettings:
     max_upload_bytes: int = MAX_MESH_BYTES
     max_triangles: int = MAX_MESH_TRIANGLES
     static_dir: Path = field(default=STATIC_DIR)
+    real_time: bool = True
 
     @classmethod
     def from_env(cls, env: dict[str, str] | None = None, **overrides: Any) -> ServerSettings:
@@ -76,6 +80,13 @@ class ServerSettings:
             values["data_dir"] = Path(env["ROBOMACH_DATA"])
         if env.get("ROBOMACH_TOKEN"):
             values["token"] = env["ROBOMACH_TOKEN"]
+        if env.get("ROBOMACH_REAL_TIME"):
+            flag = env["ROBOMACH_REAL_TIME"].strip().lower()
+            if flag not in ("0", "1", "on", "off", "true", "false"):
+                raise InvalidInputError(
+                    f"ROBOMACH_REAL_TIME must be 1/on/true or 0/off/false, not {flag!r}"
+                )
+            values["real_time"] = flag in ("1", "on", "true")
         values.update({k: v for k, v in overrides.items() if v is not None})
         settings = replace(cls(), **values)
         settings.validate()

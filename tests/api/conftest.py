@@ -21,6 +21,9 @@ def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServerProcess]:
         env={
             "ROBOMACH_MAX_UPLOAD_BYTES": str(UPLOAD_LIMIT_BYTES),
             "ROBOMACH_MAX_TRIANGLES": str(TRIANGLE_LIMIT),
+            # These tests drive the robot by script (push_to): unpaced, as fast as the
+            # simulation allows. tests/api/test_teach.py runs a paced server of its own.
+            "ROBOMACH_REAL_TIME": "0",
         },
     )
     yield proc

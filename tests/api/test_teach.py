@@ -6,14 +6,17 @@ Pushes run at wall-clock speed (``app/session/teach.py``), so these tests take r
 
 from __future__ import annotations
 
+import concurrent.futures
 import json
 import threading
 import time
+from collections.abc import Iterator
 
 import httpx
 import numpy as np
+import pytest
 
-from tests.api.server_process import Api
+from tests.api.server_process import Api, ServerProcess, start_server
 
 PUSH = "/api/leadthrough/push"
 HOME = "/api/leadthrough/home"
@@ -28,6 +31,16 @@ CAUSES = (
 )
 MAX_JOINT_STEP_DEG = 5.0
 SAME_DIRECTION_PUSHES = 30  # random directions, each held for 30 pushes: far enough to meet limits
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServerProcess]:
+    """A paced server (the default): pushes take the wall-clock time a person holds them."""
+    proc = start_server(tmp_path_factory.mktemp("teach") / "data", env={"ROBOMACH_REAL_TIME": "1"})
+    yield proc
+    code = proc.stop()
+    assert code in (0, 130), proc.log()
+    assert "Traceback" not in proc.log(), proc.log()
 
 
 def joints(state: dict) -> np.ndarray:
@@ -225,3 +238,27 @@ def test_changes_reach_an_event_listener_within_a_second(api: Api) -> None:
         assert late and late[0] < 1.0, f"{topic} event not seen within 1 s of {method} {path}"
         print(f"{method} {path}: {topic} event after {late[0] * 1e3:.0f} ms")
     stop.set()
+
+
+def test_concurrent_pushes_and_reads_stay_consistent(api: Api) -> None:
+    p0 = api.position_mm()
+
+    def push(_: int) -> int:
+        return api.post(PUSH, json={"force_N": [5, 0, 0], "duration_s": 0.2}).status_code
+
+    def read(_: int) -> int:
+        r = api.get("/api/state")
+        assert len(r.json()["joints_deg"]) == 6
+        return r.status_code
+
+    t0 = time.monotonic()
+    with concurrent.futures.ThreadPoolExecutor(8) as pool:
+        pushes = [pool.submit(push, k) for k in range(10)]
+        reads = list(pool.map(read, range(40)))
+        codes = [f.result() for f in pushes] + reads
+    pushed_s = time.monotonic() - t0
+    assert set(codes) == {200}
+    # Pushes are hands pushing during their own 0.2 s of wall time (issue 9): overlapping ones
+    # move the robot no further than 5 N for the wall time they spanned, (5 - 1) / 500 mm/ms.
+    d = api.position_mm() - p0
+    assert 0.5 < d[0] <= (5.0 - 1.0) / 500.0 * 1e3 * (pushed_s + 0.05)
