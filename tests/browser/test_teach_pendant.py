@@ -118,8 +118,9 @@ def test_eight_guide_points_by_touch_off_then_learn_and_download(
     page.check("#learn-closed")
     page.click("#learn-start")
     status = page.locator("#learn-status")
-    expect(status).to_have_text(re.compile(r"^(done|failed|cancelled)"), timeout=300_000)
-    assert status.inner_text() == "done", status.inner_text()
+    expect(status).to_have_text(re.compile(r"^(done|failed|cancelled|recorded)"), timeout=300_000)
+    # "done", or the recording's line that an event redraws over it right after.
+    assert status.inner_text().startswith(("done", "recorded")), status.inner_text()
     page.click("#post-run")
     expect(page.locator("#post-targets")).not_to_have_text("-")
     assert int(page.locator("#post-targets").inner_text()) >= 8
