@@ -141,6 +141,9 @@ def test_pendant_teaches_a_short_path(served: Served, api: httpx.Client, page: P
     page.fill("#post-fmax", "15")
     page.fill("#post-tol", "0.05")
     click_and_wait(page, "#post-run", "/api/postprocess")
+    # The result is drawn from the answer or from the event that follows it: wait for it.
+    expect(page.locator("#post-targets")).not_to_have_text("-")
+    expect(page.locator("#post-samples")).not_to_have_text("-")
     assert int(page.locator("#post-samples").inner_text()) > 500
     assert (
         0
