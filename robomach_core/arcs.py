@@ -28,7 +28,7 @@ has 60 fillets joined by 60 lines, so a program that stays within 0.1 mm needs a
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -330,11 +330,29 @@ def score_moves(
 ) -> PathScore:
     """Deviation of the moved path (lines and arcs) from the true tool path, like
     ``scoring.score_path`` for the straight program (built-in parts with a known wall)."""
+    return score_sampled_moves(
+        lambda points: true_tool_path_distance(workpiece, tool_radius_m, points),
+        positions_m,
+        moves,
+        spacing_m=SCORE_SPACING_M,
+    )
+
+
+def score_sampled_moves(
+    deviation: Callable[[np.ndarray], np.ndarray],
+    positions_m: np.ndarray,
+    moves: Sequence[Move],
+    *,
+    spacing_m: float,
+) -> PathScore:
+    """Score a move sequence by ``deviation`` (points (k, 3) [m] -> (k,) [m]) of its path
+    sampled every ``spacing_m`` and of the targets it uses (the truth is the caller's: the
+    known wall, or the mesh)."""
     pts = np.asarray(positions_m, dtype=float)
-    path = sample_moves(pts, moves, spacing_m=SCORE_SPACING_M)
-    dev = true_tool_path_distance(workpiece, tool_radius_m, path)
+    path = sample_moves(pts, moves, spacing_m=spacing_m)
+    dev = deviation(path)
     used = sorted({m.to for m in moves} | {m.via for m in moves if m.via is not None})
-    at_targets = true_tool_path_distance(workpiece, tool_radius_m, pts[used])
+    at_targets = deviation(pts[used])
     along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
     return PathScore(
         max_m=float(dev.max()),

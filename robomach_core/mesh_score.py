@@ -20,7 +20,7 @@ from collections.abc import Sequence
 import numpy as np
 import trimesh
 
-from .arcs import Move, linear_moves, sample_moves
+from .arcs import Move, linear_moves, score_sampled_moves
 from .errors import InvalidInputError
 from .scoring import PathScore
 from .workpiece import Workpiece
@@ -63,16 +63,9 @@ def score_mesh(
     if len(pts) < 2:
         raise InvalidInputError("scoring needs at least 2 targets")
     moves = linear_moves(len(pts)) if moves is None else tuple(moves)
-    path = sample_moves(pts, moves, spacing_m=spacing_m)
-    dev = mesh_deviation(workpiece, tool_radius_m, path)
-    used = sorted({m.to for m in moves} | {m.via for m in moves if m.via is not None})
-    at_targets = mesh_deviation(workpiece, tool_radius_m, pts[used])
-    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
-    return PathScore(
-        max_m=float(dev.max()),
-        rms_m=float(np.sqrt(np.mean(dev**2))),
-        targets_max_m=float(at_targets.max()),
-        targets_rms_m=float(np.sqrt(np.mean(at_targets**2))),
-        along_s_m=along,
-        deviation_m=dev,
+    return score_sampled_moves(
+        lambda points: mesh_deviation(workpiece, tool_radius_m, points),
+        pts,
+        moves,
+        spacing_m=spacing_m,
     )

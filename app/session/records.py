@@ -17,8 +17,8 @@ from robomach_core.errors import (
 from robomach_core.leadthrough import (
     GuidePoint,
 )
+from robomach_core.project import RECORDING_FIELDS, ProcessedPath
 from robomach_core.project import CellSettings as CellSettings
-from robomach_core.project import ProcessedPath
 from robomach_core.transforms import quaternion_from_matrix
 
 log = logging.getLogger(__name__)
@@ -44,19 +44,7 @@ LIVE_TRACE_EVERY = 5  # live force sample every 5 periods (20 ms simulated)
 LIVE_TRACE_MAX = 20_000
 LIVE_NOTIFY_S = 0.05  # robot-pose notifications during a job: at most 20 per second
 MAX_GUIDE_POINTS = 200
-RECORDING_ARRAYS = (
-    "time_s",
-    "joints_rad",
-    "position_m",
-    "quaternion_wxyz",
-    "wrench_sensor",
-    "wrench_tool",
-    "force_normal_N",
-    "force_reference_N",
-    "in_contact",
-    "yp",
-    "segment",
-)
+RECORDING_ARRAYS = RECORDING_FIELDS  # the recording's arrays, saved one by one
 
 
 # --- errors of the session (the API maps them by their builtin base) -------------------------

@@ -19,6 +19,7 @@ SOLUTION  Callers replace the value (``dataclasses.replace``) and never mark any
 """
 
 from ._file import PROJECT_FILE as PROJECT_FILE
+from ._file import RECORDING_FIELDS as RECORDING_FIELDS
 from ._file import ProjectFileError as ProjectFileError
 from ._file import load_project_file as load_project_file
 from ._file import project_file_bytes as project_file_bytes
