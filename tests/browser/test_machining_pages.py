@@ -98,7 +98,8 @@ def test_the_viser_panel_shows_a_run_and_goes_out_of_date(workbench) -> None:
     x, force, _, reference, limit = panel.force_plot.data
     assert limit[0] == 150.0 and reference[0] == pytest.approx(105.0)
     assert force.max() > 0.5 * reference[0]
-    assert set(panel._nodes) == {"stock", "wall"}
+    # The scene is drawn after the plots, in the same refresh: wait for it too.
+    wait_for(lambda: set(panel._nodes) == {"stock", "wall"}, timeout_s=30.0)
 
     session.delete_guide_point(0)
     wait_for(lambda: "Out of date" in panel.status.content)
