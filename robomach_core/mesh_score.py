@@ -36,9 +36,13 @@ def mesh_deviation(
 ) -> np.ndarray:
     """| distance from the mesh - tool radius | [m] of base-frame TCP points, shape (k,)."""
     pts = np.asarray(points_base, dtype=float).reshape(-1, 3)
-    mesh = workpiece.mesh_in_base()
+    # Distances do not change under the rigid work-object transform: query the part's own mesh
+    # in its frame, whose triangle tree trimesh builds once and caches (a mesh moved into the
+    # base frame would be a new mesh, its tree rebuilt on every call).
+    T_wobj_base = np.linalg.inv(workpiece.T_base_wobj)
+    pts_wobj = pts @ T_wobj_base[:3, :3].T + T_wobj_base[:3, 3]
     with np.errstate(divide="ignore", invalid="ignore"):  # degenerate facets in trimesh's maths
-        _, distance, _ = trimesh.proximity.closest_point(mesh, pts)
+        _, distance, _ = trimesh.proximity.closest_point(workpiece.mesh, pts_wobj)
     return np.abs(np.asarray(distance, dtype=float) - tool_radius_m)
 
 

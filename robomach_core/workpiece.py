@@ -67,6 +67,16 @@ class Workpiece:
     wall_z_m: tuple[float, float] = (0.0, 0.0)
     surface_z_m: float = 0.0
 
+    def __getstate__(self) -> dict:
+        """Pickled without trimesh's caches: a cached triangle tree (rtree) comes back empty
+        from a pickle, and every later distance query on the mesh then fails."""
+        state = dict(self.__dict__)
+        state["mesh"] = trimesh.Trimesh(self.mesh.vertices, self.mesh.faces, process=False)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+
     def mesh_in_base(self) -> trimesh.Trimesh:
         """A copy of the mesh in the robot base frame (metres)."""
         mesh = self.mesh.copy()

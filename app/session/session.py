@@ -163,6 +163,7 @@ class Session:
         self.max_upload_bytes = min(max_upload_bytes, MAX_MESH_BYTES)
         self.max_triangles = min(max_triangles, MAX_MESH_TRIANGLES)
         self._lock = threading.RLock()
+        self._last_snapshot: RobotSnapshot | None = None  # snapshot(wait=False) while locked
         self._listeners: list[Callable[[Topic], None]] = []
         self._listeners_lock = threading.Lock()
         self.store = store or Store(":memory:")
@@ -237,21 +238,34 @@ class Session:
         """True while a job owns the robot."""
         return bool(self.jobs.active(ROBOT_JOB_KINDS))
 
-    def snapshot(self) -> RobotSnapshot:
-        """The robot now (live during a job)."""
-        with self._lock:
+    def snapshot(self, *, wait: bool = True) -> RobotSnapshot:
+        """The robot now (live during a job).
+
+        ``wait=False`` never waits for the session lock: while a change holds it, the answer is
+        the last snapshot taken, the state just before that change (``GET /api/state`` answers
+        on the server's event loop, which must never block)."""
+        if not self._lock.acquire(blocking=wait):
+            last = self._last_snapshot
+            if last is not None:
+                return last
+            self._lock.acquire()
+        try:
             busy = self.busy()
             live = self._live.cell_state
             cs = live if (busy and live is not None) else self._lt_state.cell
             wrench = self._lt.measured_wrench(cs)
-        return RobotSnapshot(
-            float(cs.time_s),
-            cs.q_motor.copy(),
-            cs.T_base_tcp.copy(),
-            wrench,
-            bool(cs.in_contact),
-            busy,
-        )
+            snap = RobotSnapshot(
+                float(cs.time_s),
+                cs.q_motor.copy(),
+                cs.T_base_tcp.copy(),
+                wrench,
+                bool(cs.in_contact),
+                busy,
+            )
+            self._last_snapshot = snap
+            return snap
+        finally:
+            self._lock.release()
 
     def cell_settings(self) -> CellSettings:
         return self._project.cell
