@@ -14,19 +14,12 @@ import math
 import numba
 import numpy as np
 
+from .._kernels import cross
+
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 # A margin shrinking by less than this (m or rad) in one period is not approaching its limit:
 # the IK's rounding when sliding along a limit, 100 times below the slowest real approach.
 APPROACH_TOLERANCE = 1e-8
-
-
-@_jit
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    out = np.empty(3)
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
-    return out
 
 
 @_jit
@@ -94,7 +87,7 @@ def geometry_margins(
             z[j, r] = Ts[j, r, 0] * axes[j, 0] + Ts[j, r, 1] * axes[j, 1] + Ts[j, r, 2] * axes[j, 2]
             o[j, r] = Ts[j, r, 3]
     # Wrist: angle between axes 4 and 6, folded to [0, 90] deg (0 when axis 5 is at 0).
-    c = _cross(z[3], z[5])
+    c = cross(z[3], z[5])
     margins[6] = math.atan2(math.sqrt(c @ c), abs(z[3] @ z[5]))
     # Wrist centre: the point of axis 6 closest to axis 5.
     w = o[5] - o[4]
@@ -110,10 +103,10 @@ def geometry_margins(
     v = x_point - o[2]
     u = u - (u @ n) * n
     v = v - (v @ n) * n
-    c = _cross(u, v)
+    c = cross(u, v)
     margins[7] = math.atan2(math.sqrt(c @ c), u @ v)
     # Shoulder: the wrist centre's distance from the axis-1 line, in the arm plane.
-    across = _cross(z[0], z[1])
+    across = cross(z[0], z[1])
     norm = math.sqrt(across @ across)
     margins[8] = abs((wrist_centre - o[0]) @ across) / norm if norm > 1e-9 else np.inf
     # Collisions: the table plane exactly; boxes and hull by their bounding box, from below.
