@@ -84,6 +84,7 @@ class Workbench:
         self._last_time_s = float("nan")
         self._last_push: np.ndarray | None = None
         self._next_text = 0.0
+        self._text_behind = False  # the pose readout is older than the drawn robot
         self._next_draw = 0.0
         self._next_plot = 0.0
         self.frames_drawn = 0  # robot redraws (benchmarks read it)
@@ -188,13 +189,19 @@ class Workbench:
         moved = snapshot.time_s != self._last_time_s
         pushed = not _same(push, self._last_push)
         now = time.monotonic()
+        if self._text_behind and not (moved or pushed) and now >= self._next_text:
+            # The last move's readout was skipped by the 10 Hz limit: show where it stopped.
+            self._text_behind = False
+            self._next_text = now + POSE_TEXT_PERIOD_S
+            self.leadthrough.show_pose(snapshot)
         if not (moved or pushed) or (snapshot.busy and now < self._next_draw):
             return
         self._next_draw = now + JOB_DRAW_PERIOD_S
         self._last_time_s, self._last_push = snapshot.time_s, None if push is None else push.copy()
         self.scene.update_robot(snapshot.joints_rad, snapshot.T_base_tcp, snapshot.wrench[:3], push)
         self.frames_drawn += 1
-        if now >= self._next_text:
+        self._text_behind = now < self._next_text
+        if not self._text_behind:
             self._next_text = now + POSE_TEXT_PERIOD_S
             self.leadthrough.show_pose(snapshot)
 

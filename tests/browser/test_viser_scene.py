@@ -146,3 +146,14 @@ def test_panels_follow_session_changes(workbench) -> None:
     wait_for(lambda: "bracket" in workbench.cell.workpiece.options)
     assert workbench.cell.workpiece.value == "bracket"
     assert "no ground truth" in workbench.cell.info.content
+
+
+def test_the_pose_readout_shows_where_the_robot_stopped(workbench) -> None:
+    """Two jogs back to back: the second ends inside the readout's 10 Hz limit, and the
+    readout still catches up with the robot once it stands."""
+    session = workbench.session
+    for _ in range(2):
+        session.jog("z", 0.004, frame="base")
+    stopped_mm = session.snapshot().position_m * 1e3
+    row = f"| mm | {stopped_mm[0]:.2f} | {stopped_mm[1]:.2f} | {stopped_mm[2]:.2f} |"
+    wait_for(lambda: row in workbench.leadthrough.pose.content)
