@@ -5,11 +5,16 @@ PROBLEM   The test program (straight lines through the guide points) is far from
 STRATEGY  Path frame per segment: Xp along the segment, Zp the tool axis interpolated from the
           guide orientations, Yp = side * (Zp x Xp) towards the wall. Position control along Xp
           at the learning speed and along Zp; PI force control along Yp to the reference force:
-              v_y = Kp e + Ki integral(e),  e = F_ref - F_y,  F_y = -(F_contact . Yp),
+              v_y = Kp e + Ki integral(e),  e = F_ref - F_n,
+              F_n = |F_contact - (F_contact . Zp) Zp|  while F_y = -(F_contact . Yp) > 0,
+              F_n = F_y  otherwise (out of contact, or pressed from the other side),
           i.e. the tool yields into or out of the program path until the wall pushes back with
           F_ref (the chapter: "the tool tip will yield along the Y axis until it reaches the
-          equilibrium"). At a guide point the reference moves to the next segment's frame
-          without a jump. The controller sees only motor-side joints and the F/T reading.
+          equilibrium") normal to the edge (the chapter's "contact force normal to the edge of
+          10 N"): where the wall turns away from the program line, its Yp part alone would
+          let the whole force grow as F_ref / cos(angle). At a guide point the reference moves
+          to the next segment's frame without a jump. The controller sees only motor-side
+          joints and the F/T reading.
 SOLUTION  ``learn_path(...) -> Recording``: every 4 ms the time, motor-side joints, measured TCP
           pose, sensor and tool-frame wrenches, reference force and a contact flag; the run ends at
           the last guide point, or on the protection rule (contact force above the limit).
@@ -43,7 +48,19 @@ FORCE_RANGE_N = (1.0, 50.0)
 SPEED_RANGE_M_S = (0.0005, 0.05)
 CONTACT_FLAG_N = 1.0  # a measured contact force above this counts as contact
 LOST_WALL_M = 0.03  # protection: the tool left the program path by more than this
+# Force-dependent speed (``_speed_ratio``): full speed up to 1.25 F_ref, 10 % from 2 F_ref.
+SLOW_FROM, SLOWEST_AT, SLOWEST = 1.25, 2.0, 0.1
 MOVE_MAX_PERIODS_FACTOR = 20  # a MoveL slowed by supervision may take this many times longer
+
+
+def _speed_ratio(f_n: float, f_ref: float) -> float:
+    """Share of the learning speed to advance at: 1 up to ``SLOW_FROM`` x F_ref, falling
+    linearly to ``SLOWEST`` at ``SLOWEST_AT`` x F_ref. Along a wall that turns steeply away
+    from the program line the tool must back off at speed x tan(angle), more than the Yp loop's
+    speed limit when learning fast; slowing where the force climbs lets it (the chapter's
+    program is likewise "slower at sharp corner")."""
+    over = (f_n / f_ref - SLOW_FROM) / (SLOWEST_AT - SLOW_FROM)
+    return min(1.0, max(SLOWEST, 1.0 - (1.0 - SLOWEST) * over))
 
 
 @dataclass(frozen=True)
@@ -60,8 +77,8 @@ class PathLearningSettings:
         kp_m_s_N: Proportional gain of the Yp force loop.
         ki_m_s2_N: Integral gain of the Yp force loop.
         max_normal_speed_m_s: Speed limit along Yp.
-        search_speed_m_s: Speed limit along Yp while out of contact (searching for the wall),
-            so the tool meets it gently instead of at the full speed limit.
+        search_speed_m_s: Speed limit along Yp, and along Xp, while out of contact (searching
+            for the wall), so the tool meets it gently instead of at full speed.
     """
 
     force_N: float = 10.0
@@ -101,7 +118,8 @@ class Recording:
         quaternion_wxyz: (n, 4) measured TCP orientation.
         wrench_sensor: (n, 6) raw F/T reading in the sensor frame [N, N*m].
         wrench_tool: (n, 6) compensated contact wrench in the tool frame, about the TCP.
-        force_normal_N: (n,) measured contact force along Yp (what the loop regulates).
+        force_normal_N: (n,) measured contact force normal to the edge, F_n (what the loop
+            regulates; see the module docstring).
         force_reference_N: (n,) the reference.
         in_contact: (n,) contact flag (measured force above 1 N).
         yp: (n, 3) the Yp direction in use (for post-processing).
@@ -293,7 +311,9 @@ def learn_path(
     at_start[:3, 3] = start
     state = move_linear(cell, state, at_start, 0.01, supervisor=supervisor)
 
-    n_max = int(sum(s.length for s in segs) / settings.speed_m_s / dt * 1.6) + 2000
+    # Room for the run at the speed it may fall to out of contact (the search speed).
+    slowest = min(settings.speed_m_s, settings.search_speed_m_s)
+    n_max = int(sum(s.length for s in segs) / slowest / dt * 1.6) + 2000
     cols = {
         "time_s": np.empty(n_max),
         "joints_rad": np.empty((n_max, 6)),
@@ -352,6 +372,12 @@ def learn_path(
         fx, fy, fz = w_base[0], w_base[1], w_base[2]
         f_y = -(fx * yp[0] + fy * yp[1] + fz * yp[2])
         f_abs = math.sqrt(fx * fx + fy * fy + fz * fz)
+        f_z = fx * zp[0] + fy * zp[1] + fz * zp[2]
+        # The force normal to the edge: the contact force across the tool axis. Where the wall
+        # is at an angle theta to the program line (a boss between two guide points) its Yp
+        # part is only cos(theta) of it, and holding that part at F_ref pressed with
+        # F_ref / cos(theta): 58 N at 20 N on the water pump's bosses, tripping the protection.
+        f_n = math.sqrt(max(f_abs * f_abs - f_z * f_z, 0.0)) if f_y > 0.0 else f_y
         # --- record ---
         times[n] = state.time_s - t0
         joints[n] = state.q_motor
@@ -360,7 +386,7 @@ def learn_path(
         sensor[n] = state.ft_reading
         tool[n, :3] = R_meas.T @ w_base[:3]
         tool[n, 3:] = R_meas.T @ w_base[3:]
-        normal[n] = f_y
+        normal[n] = f_n
         contact[n] = f_abs > CONTACT_FLAG_N
         yps[n] = yp
         segment[n] = seg_index
@@ -378,13 +404,16 @@ def learn_path(
             )
             break
         # --- force control along Yp, position along Xp and Zp ---
-        e = f_ref - f_y
+        e = f_ref - f_n
         limit = vmax if f_abs > CONTACT_FLAG_N else search
         integral = min(max(integral + ki * e * dt, -limit), limit)
         v_y = min(max(kp * e + integral, -vmax), limit)
         s_base, y_base, h_base = s, y, h
         y += v_y * dt
-        s += speed * dt
+        # Out of contact the tool advances no faster than it searches sideways: racing blind
+        # along the program line at 20-50 mm/s it met the bosses head-on (60-120 N).
+        advance = speed if f_abs > CONTACT_FLAG_N else min(speed, search)
+        s += advance * _speed_ratio(f_n, f_ref) * dt
         h *= 0.99  # fade any height offset left by a segment change (~1 s)
         if s >= seg.length:
             if seg_index + 1 >= total:

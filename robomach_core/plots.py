@@ -18,7 +18,9 @@ def demo_figure(result, path: str | Path) -> Path:
     post = result.settings.postprocess
     kept = result.processed.keep_mask
     fig, (ax_f, ax_p) = plt.subplots(1, 2, figsize=(13, 5), gridspec_kw={"width_ratios": [1.2, 1]})
-    ax_f.plot(rec.time_s, rec.force_normal_N, lw=0.6, color="0.3", label="measured (Yp)")
+    ax_f.plot(
+        rec.time_s, rec.force_normal_N, lw=0.6, color="0.3", label="measured (normal to the edge)"
+    )
     ax_f.plot(
         rec.time_s[~kept],
         rec.force_normal_N[~kept],

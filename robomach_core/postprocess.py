@@ -11,12 +11,18 @@ local curvature is high (section 3.4: about 10 mm/s on average, slower at sharp 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from . import _kernels
 from .errors import InvalidInputError
+
+
+# The force filter's band around the learning force (the defaults, 5-15 N, at the chapter's
+# 10 N), and the least a band must reach to keep a recording held at that force.
+FORCE_BAND = (0.5, 1.5)
+FORCE_BAND_MARGIN = (0.8, 1.2)
 
 
 @dataclass(frozen=True)
@@ -47,6 +53,17 @@ class PostprocessSettings:
     contact_stiffness_N_m: float = 100e3
     arcs: bool = False
     arc_tolerance_m: float | None = None
+
+    def holds_force(self, force_N: float) -> bool:
+        """True when the filter band keeps a recording held at ``force_N``: the band reaches
+        ``FORCE_BAND_MARGIN`` of it on both sides (its noise and the corners' dips)."""
+        lo, hi = FORCE_BAND_MARGIN
+        return self.force_min_N <= lo * force_N and self.force_max_N >= hi * force_N
+
+    def with_band_for(self, force_N: float) -> PostprocessSettings:
+        """These settings with the filter band ``FORCE_BAND`` x ``force_N`` (5-15 N at 10 N)."""
+        lo, hi = FORCE_BAND
+        return replace(self, force_min_N=lo * force_N, force_max_N=hi * force_N)
 
     def __post_init__(self) -> None:
         if not (self.tolerance_m > 0 and np.isfinite(self.tolerance_m)):

@@ -70,8 +70,9 @@ class LiveFeed:
         self, recording: Recording | None, busy: bool, max_points: int = 2000
     ) -> ForceTrace:
         """Force vs time, at most ``max_points`` (>= 2) by stride, with the min/max envelope
-        of each stride: while a job runs the live force across the path (along Yp, when the
-        job follows guide points; else |F|), else the recording's force along Yp."""
+        of each stride: while a job runs the live force across the path (normal to the edge,
+        when the job follows guide points; else |F|), else the recording's force normal to the
+        edge."""
         if max_points < 2:
             raise InvalidInputError("max_points must be at least 2")
         live = list(self.trace)
@@ -150,9 +151,9 @@ def _segments(path_m: np.ndarray, closed: bool) -> tuple[np.ndarray, np.ndarray]
 def across_path_force(
     force_N: np.ndarray, T_base_tcp: np.ndarray, segments: tuple[np.ndarray, np.ndarray]
 ) -> float:
-    """The contact force across the path, |F - (F.Xp) Xp - (F.Zp) Zp| [N]: what path learning
-    regulates along Yp (``Recording.force_normal_N``), without the friction along Xp and the
-    floor's push along the tool axis Zp. Xp: the direction of the guide segment nearest the TCP."""
+    """The contact force normal to the edge, |F - (F.Zp) Zp| [N]: what path learning regulates
+    (``Recording.force_normal_N``), without the floor's push along the tool axis Zp (the tool
+    axis made square to Xp, the direction of the guide segment nearest the TCP)."""
     starts, dirs = segments
     rel = T_base_tcp[:3, 3] - starts
     s = np.einsum("ij,ij->i", rel, dirs)
@@ -161,4 +162,4 @@ def across_path_force(
     zp = T_base_tcp[:3, 2] - (T_base_tcp[:3, 2] @ xp) * xp
     zp = zp / max(float(np.linalg.norm(zp)), 1e-12)
     f = np.asarray(force_N, dtype=float)
-    return float(np.linalg.norm(f - (f @ xp) * xp - (f @ zp) * zp))
+    return float(np.linalg.norm(f - (f @ zp) * zp))

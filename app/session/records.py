@@ -112,7 +112,7 @@ class ForceTrace:
 
     Attributes:
         source: ``"live"`` (a job is running: |F| measured every 20 ms, time since the job
-            started), ``"recording"`` (the last recording's force along Yp) or ``"none"``.
+            started), ``"recording"`` (the last recording's force normal to the edge) or ``"none"``.
         time_s: (k,)
         force_N: (k,)
         force_reference_N: (k,) the reference (NaN when live).

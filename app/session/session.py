@@ -518,7 +518,9 @@ class Session:
     def start_path_learning(self, force_N: float, speed_m_s: float, *, closed: bool = True) -> str:
         """Job: learn the path through the guide points at ``force_N`` and ``speed_m_s``
         (``project.learn``); on success the recording replaces the last one, and the last
-        post-processing stays, marked stale. Returns the job id."""
+        post-processing stays, marked stale. A force filter band that would not keep samples
+        at ``force_N`` moves to 0.5-1.5 x ``force_N`` (``PostprocessSettings.holds_force``).
+        Returns the job id."""
         settings = PathLearningSettings(
             force_N=float(force_N), speed_m_s=float(speed_m_s), closed=bool(closed)
         )
@@ -550,7 +552,10 @@ class Session:
                     if epoch != self._epoch:
                         raise ConflictError("the cell changed while path learning ran")
                     self._lt_state = LeadThroughState(end, end.T_base_tcp.copy(), np.zeros(6))
-                    self._project = replace(self._project, learned=learned)
+                    post = self._project.post_settings
+                    if not post.holds_force(force_N):  # learned at a force outside the band
+                        post = post.with_band_for(force_N)
+                    self._project = replace(self._project, learned=learned, post_settings=post)
                     self._save("recording", "post", with_robot=True)
                 self._notify("robot", *DOWNSTREAM_TOPICS)
 

@@ -236,3 +236,33 @@ def test_post_processing_result_is_dropped_when_its_inputs_changed(
     assert errors and "changed while post-processing ran" in str(errors[0])
     assert session.postprocess_outcome() is before
     assert session.status()["postprocess"] == "stale"
+
+
+def test_learning_at_20_N_moves_the_force_filter_band_with_it() -> None:
+    """The chapter's 20 N on the water pump: the run completes, and the filter band (5-15 N,
+    made for 10 N, which would keep almost none of it) follows to 10-30 N; post-processing
+    then keeps nearly every sample."""
+    s = Session(real_time=False)
+    try:
+
+        def finish(job: str) -> None:
+            deadline = time.monotonic() + 300
+            while s.job(job).status in ("queued", "running") and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert s.job(job).status == "done", s.job(job)
+
+        finish(s.start_example())
+        finish(s.start_path_learning(20.0, 0.010))
+        assert s.recording().completed, s.recording().stop_reason
+        post = s.postprocess_settings()
+        assert (post.force_min_N, post.force_max_N) == (10.0, 30.0)
+        outcome = s.run_postprocess()
+        assert outcome.result.samples_filtered > 0.98 * len(s.recording())
+        assert outcome.score.max_m < 0.25e-3
+        # A band the user chose that holds the force stays as it is.
+        s.run_postprocess(force_min_N=12.0, force_max_N=40.0)
+        finish(s.start_path_learning(15.0, 0.010))
+        post = s.postprocess_settings()
+        assert (post.force_min_N, post.force_max_N) == (12.0, 40.0)
+    finally:
+        s.close()

@@ -111,3 +111,39 @@ def test_fewer_than_two_guide_points_is_refused():
 def test_out_of_range_settings_are_refused(kwargs):
     with pytest.raises(InvalidInputError):
         PathLearningSettings(**kwargs)
+
+
+def _guides_past_the_boss(cell: Cell) -> list[GuidePoint]:
+    """The example's first two guide points: the bottom run between them passes a bolt boss,
+    where the wall turns up to ~70 degrees from the program line."""
+    wp = cell.workpiece
+    guides = []
+    for x in (-0.0836, -0.0415):
+        T = np.eye(4)
+        T[:3, :3] = TOOL_DOWN
+        T[:3, 3] = wp.T_base_wobj[:3, 3] + np.array([x, -0.0641, wp.surface_z_m - 0.0028])
+        guides.append(GuidePoint(T, cell.robot.ik(T), 0.0))
+    return guides
+
+
+@pytest.mark.parametrize(("force_N", "speed_mm_s"), [(20.0, 10.0), (10.0, 20.0)])
+def test_the_force_normal_to_the_edge_is_held_past_a_boss(force_N, speed_mm_s):
+    """The chapter's 20 N, and a fast run, pass the boss: the loop holds the force normal to
+    the edge (its Yp part alone let |F| reach F_ref / cos(70 deg) = 58 N at 20 N and trip the
+    60 N protection), the run slows where the force climbs, and searches no faster than it
+    advances."""
+    cell = Cell(CellConfig(seed=0))
+    lt = LeadThrough(cell)
+    state = lt.start(cell.initial_state())
+    settings = PathLearningSettings(
+        force_N=force_N, speed_m_s=speed_mm_s * 1e-3, closed=False, wall_side="right"
+    )
+    rec, _ = learn_path(cell, state.cell, _guides_past_the_boss(cell), settings, lt.estimator)
+    assert rec.completed, rec.stop_reason
+    settled = _settled(rec)
+    planar = np.linalg.norm(rec.wrench_tool[settled, :2], axis=1)
+    assert planar.max() < 2.0 * force_N
+    held = np.mean(np.abs(rec.force_normal_N[settled] - force_N) <= 0.2 * force_N)
+    # At 20 mm/s the loop loses the wall on the boss's far side more than it holds it (32 %
+    # within 20 %): it passes safely, but the chapter's 5-10 mm/s is what learns well.
+    assert held >= (0.9 if speed_mm_s <= 10.0 else 0.25), held

@@ -185,3 +185,15 @@ def test_curvature_at_some_points_equals_the_full_evaluation():
 def test_bad_settings_are_refused(kwargs):
     with pytest.raises(InvalidInputError):
         PostprocessSettings(**kwargs)
+
+
+def test_the_force_band_follows_the_learning_force():
+    from robomach_core.postprocess import PostprocessSettings
+
+    default = PostprocessSettings()
+    assert default.holds_force(10.0)
+    assert default == default.with_band_for(10.0)  # 5-15 N at the chapter's 10 N
+    assert not default.holds_force(20.0)  # 20 N samples would sit on the 15 N edge
+    band = default.with_band_for(20.0)
+    assert (band.force_min_N, band.force_max_N) == (10.0, 30.0) and band.holds_force(20.0)
+    assert band.tolerance_m == default.tolerance_m

@@ -22,7 +22,7 @@ class PathLearningPanel:
     """Run the straight-line program through the guide points under Yp force control.
 
     The plot shows the contact force against the setpoint: live (|F| every 20 ms of simulated
-    time) while a run goes on, then the recorded force along Yp.
+    time) while a run goes on, then the recorded force normal to the edge.
     """
 
     def __init__(self, server: viser.ViserServer, session) -> None:
@@ -34,7 +34,7 @@ class PathLearningPanel:
                 *FORCE_RANGE_N,
                 0.5,
                 last.force_N if last else 10.0,
-                hint="Contact force reference along Yp, towards the wall",
+                hint="Contact force reference, normal to the wall (held along Yp)",
             )
             self.speed = server.gui.add_slider(
                 "Speed (mm/s)",

@@ -40,7 +40,7 @@ class PostprocessPanel:
             self.force_max = server.gui.add_slider(
                 "Fmax (N)",
                 1.0,
-                60.0,
+                80.0,  # 1.5 x the strongest learning force (50 N): the band that follows it
                 0.5,
                 s.force_max_N,
                 hint="Samples with more contact force are dropped (corner spikes)",
