@@ -1,7 +1,7 @@
 """Safe, real-time lead-through over real HTTP (issue 9's acceptance tests).
 
 Pushes run at wall-clock speed (``app/session/teach.py``), so these tests take real time: the
-300 random pushes last 0.05-0.1 s each (about 30 s in all).
+300 random pushes last 0.05-0.1 s each (about 30 s in all), the 200 leaning down 0.1 s each.
 """
 
 from __future__ import annotations
@@ -89,6 +89,37 @@ def test_random_pushes_never_flip_the_arm(api: Api) -> None:
         state = new
     print(f"300 random pushes: {refusals} refused (409 with a cause), {recoveries} recovered; "
           f"joints moved at most {max_step:.2f} deg between consecutive states")  # fmt: skip
+
+
+def test_random_pushes_towards_the_table_are_refused_and_recovered(api: Api) -> None:
+    """The random walk above meets no limit from Home; this one leans down (a person pushing
+    down and around beside the part), so it reaches the table: every refusal names its cause,
+    a push the other way moves the robot again, and the tool never goes below the table."""
+    rng = np.random.default_rng(4)
+    api.ok("POST", HOME)
+    api.compliance(["x", "y", "z"])
+    state = api.ok("GET", "/api/state")
+    refusals, lowest = 0, np.inf
+    for _ in range(200):
+        direction = rng.normal(size=3) + np.array([0.0, 0.0, -1.5])
+        force = direction / np.linalg.norm(direction) * rng.uniform(20.0, 30.0)
+        r = api.post(PUSH, json={"force_N": force.tolist(), "duration_s": 0.1})
+        if r.status_code == 200:
+            new = r.json()
+        else:
+            assert_refused_with_cause(r)
+            refusals += 1
+            stopped = api.ok("GET", "/api/state")
+            new = api.ok("POST", PUSH, json={"force_N": (-force).tolist(), "duration_s": 0.1})
+            moved = np.subtract(new["tcp"]["position_mm"], stopped["tcp"]["position_mm"])
+            assert np.linalg.norm(moved) > 0.05, "a push the other way did not move the robot"
+        assert np.max(np.abs(joints(new) - joints(state))) <= MAX_JOINT_STEP_DEG
+        lowest = min(lowest, new["tcp"]["position_mm"][2])
+        state = new
+    assert refusals >= 1, "the walk never met the table: the refusal path went untested"
+    # The TCP is the ball's centre: its lowest point (1 mm below) stays above the table.
+    assert lowest > 1.0, f"the TCP went to z = {lowest:.1f} mm: the cutter is in the table"
+    print(f"200 pushes leaning down: {refusals} refused and recovered; lowest z {lowest:.1f} mm")
 
 
 def test_pushing_up_from_home_ends_in_a_named_refusal(api: Api) -> None:
