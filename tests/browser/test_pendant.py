@@ -8,6 +8,7 @@ jog, lead the tool by push buttons to two points pressed against the block's fro
 from __future__ import annotations
 
 import re
+import time
 
 import httpx
 import numpy as np
@@ -94,10 +95,14 @@ def test_pendant_teaches_a_short_path(served: Served, api: httpx.Client, page: P
     # Jog: a 5 mm step along a tool axis moves the TCP by 5 mm.
     before = pose_mm(page)
     click_and_wait(page, "#jog-x-plus", "/api/leadthrough/jog")
+    # The page draws the pose once it has read the answer's body: wait for the move to show.
+    deadline = time.monotonic() + 10.0
+    while np.linalg.norm(pose_mm(page) - before) < 4.0 and time.monotonic() < deadline:
+        time.sleep(0.05)
     assert abs(np.linalg.norm(pose_mm(page) - before) - 5.0) < 0.5
     rx_before = page.locator("#pose-rz").inner_text()
     click_and_wait(page, "#jog-rz-plus", "/api/leadthrough/jog")
-    assert page.locator("#pose-rz").inner_text() != rx_before
+    expect(page.locator("#pose-rz")).not_to_have_text(rx_before)
 
     # Lead-through: two guide points pressed gently against the front wall.
     for x in (760.0, 840.0):
