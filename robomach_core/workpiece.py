@@ -31,6 +31,10 @@ DEFAULT_T_BASE_WOBJ = make_transform(np.eye(3), np.array([0.80, 0.16, 0.0]))
 ROBOT_WOBJ_POSITION_M: dict[str, tuple[float, float, float]] = {
     "irb4400": (1.30, 0.0, 0.60),
     "irb6640": (1.50, 0.0, 0.60),
+    # The UR5 (850 mm reach) met its elbow singularity at the UR10's 0.8 m; at 0.525 m it learns
+    # the pump within 0.216 mm and the block within 0.204 mm. The UR3 (500 mm) reaches neither
+    # part whole with the tool down: it keeps the default and says so.
+    "ur5": (0.525, 0.0, 0.0),
 }
 
 # Water-pump geometry: plate, groove and the bolt-boss bumps of the groove's outer wall.

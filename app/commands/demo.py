@@ -207,6 +207,7 @@ def run(args: argparse.Namespace) -> int:
 
         compensation = load_compensation(args.compensation_settings)
 
+    from robomach_core.errors import SupervisionError
     from robomach_core.export.outputs import write_demo_outputs
     from robomach_core.pipeline import DemoSettings, default_robot, run_demo
     from robomach_core.postprocess import PostprocessSettings
@@ -244,6 +245,14 @@ def run(args: argparse.Namespace) -> int:
     bar = _ProgressLine()
     try:
         result = run_demo(settings, progress=bar)
+    except SupervisionError as exc:
+        where = "" if args.wobj is not None else " (the built-in placement)"
+        raise SupervisionError(
+            f"{exc}; the part may be beyond the {robot} arm's reach{where}: place it nearer "
+            "with --wobj x,y,z (mm)",
+            cause=exc.cause,
+            axis=exc.axis,
+        ) from None
     finally:
         bar.close()
     paths = write_demo_outputs(result, args.out)

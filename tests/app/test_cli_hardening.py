@@ -171,3 +171,13 @@ def test_out_that_cannot_be_written_is_refused_before_any_work(
 def test_compensate_unknown_robot_is_one_line(tmp_path, capsys):
     code = main(["compensate", "--quick", "--robot", "kuka", "--out", str(tmp_path / "o")])
     _one_line_error(capsys, code, "compensate", "unknown robot", "ur10")
+
+
+def test_an_arm_too_small_for_the_part_says_to_place_it_nearer(tmp_path: Path, capsys) -> None:
+    """The UR3 (500 mm reach) cannot reach the water pump where the UR10 has it: one line that
+    names the limit and the way out (--wobj), exit 2, no traceback, no files."""
+    code = main(["demo", "--robot", "ur3", "--out", str(tmp_path / "out"), "--no-plot"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "edge of reach" in err and "--wobj" in err and "Traceback" not in err
+    assert not (tmp_path / "out" / "program.mod").exists()

@@ -96,3 +96,14 @@ def test_mesh_score_agrees_with_the_true_wall_score():
     mesh = score_mesh(wp, 0.001, pts)
     assert mesh.max_m == pytest.approx(truth.max_m, abs=5e-5)
     assert mesh.rms_m == pytest.approx(truth.rms_m, abs=5e-5)
+
+
+def test_the_ur5_learns_the_pump_where_it_is_placed_for_it():
+    """At the UR10's placement (0.8 m) the UR5 met its elbow singularity before the first
+    guide point; its own placement (0.525 m) is within its reach."""
+    from robomach_core.pipeline import DemoSettings, run_demo
+
+    result = run_demo(DemoSettings(robot="ur5", speed_m_s=0.010))
+    assert result.recording.completed, result.recording.stop_reason
+    assert result.score.max_m < 0.25e-3
+    assert result.reachability.reachable == result.reachability.total
