@@ -82,6 +82,7 @@ from robomach_core.cell import Cell, CellState
 from robomach_core.errors import (
     InvalidInputError,
     NotEnoughGuidePointsError,
+    SupervisionError,
 )
 from robomach_core.leadthrough import (
     AXES,
@@ -490,13 +491,21 @@ class Session(ProjectsMixin):
 
             def work(ctx: JobContext) -> tuple[LeadThroughState, list[GuidePoint]]:
                 lt = LeadThrough(self._live.tapped(cell, estimator, ctx), estimator=estimator)
-                return scripted_leadthrough(
-                    lt,
-                    start,
-                    cell.workpiece,
-                    np.random.default_rng(seed),
-                    progress=ctx.progress,
-                )
+                try:
+                    return scripted_leadthrough(
+                        lt,
+                        start,
+                        cell.workpiece,
+                        np.random.default_rng(seed),
+                        progress=ctx.progress,
+                    )
+                except SupervisionError as exc:
+                    raise SupervisionError(
+                        f"{exc}; the part may be beyond the {cell.robot.name} arm's reach: "
+                        "choose a larger arm",
+                        cause=exc.cause,
+                        axis=exc.axis,
+                    ) from None
 
             def done(result: tuple[LeadThroughState, list[GuidePoint]]) -> None:
                 state, guides = result

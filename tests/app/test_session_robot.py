@@ -41,3 +41,20 @@ def test_choosing_a_builtin_arm_drops_the_uploaded_file(tmp_path) -> None:
         assert s.project().robot_urdf is None and s.cell.robot.name == "ur10"
     finally:
         s.close()
+
+
+def test_the_example_on_an_arm_too_small_for_the_part_says_so() -> None:
+    import time
+
+    s = Session(real_time=False)
+    try:
+        s.set_cell(robot="ur3")
+        job = s.start_example()
+        deadline = time.monotonic() + 60
+        while s.job(job).status in ("queued", "running") and time.monotonic() < deadline:
+            time.sleep(0.05)
+        info = s.job(job)
+        assert info.status == "failed"
+        assert "edge of reach" in info.error and "larger arm" in info.error, info.error
+    finally:
+        s.close()
