@@ -129,9 +129,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 class _ProgressLine:
     """One terminal line per stage, redrawn in place on a TTY, printed at 25 % steps otherwise."""
 
-    def __init__(self, stream=sys.stderr) -> None:
-        self.stream = stream
-        self.tty = stream.isatty()
+    def __init__(self, stream=None) -> None:
+        # sys.stderr now, not when the module was imported (a caller may have replaced it since).
+        self.stream = sys.stderr if stream is None else stream
+        self.tty = self.stream.isatty()
         self.stage = None
         self.last_quarter = -1
         self.started = time.perf_counter()
