@@ -72,6 +72,12 @@ class SupervisionError(RobomachError, RuntimeError):
         self.stop = stop
         self.state = state
 
+    def with_note(self, note: str) -> SupervisionError:
+        """The same refusal with ``note`` appended to its message (what the user can do)."""
+        return SupervisionError(
+            f"{self}; {note}", cause=self.cause, axis=self.axis, stop=self.stop, state=self.state
+        )
+
 
 class NoContactError(RobomachError, RuntimeError):
     """A guarded move travelled its whole distance without touching anything.

@@ -18,7 +18,6 @@ import numpy as np
 from . import _kernels
 from .errors import InvalidInputError
 
-
 # The force filter's band around the learning force (the defaults, 5-15 N, at the chapter's
 # 10 N), and the least a band must reach to keep a recording held at that force.
 FORCE_BAND = (0.5, 1.5)

@@ -248,11 +248,9 @@ def run(args: argparse.Namespace) -> int:
         result = run_demo(settings, progress=bar)
     except SupervisionError as exc:
         where = "" if args.wobj is not None else " (the built-in placement)"
-        raise SupervisionError(
-            f"{exc}; the part may be beyond the {robot} arm's reach{where}: place it nearer "
-            "with --wobj x,y,z (mm)",
-            cause=exc.cause,
-            axis=exc.axis,
+        raise exc.with_note(
+            f"the part may be beyond the {robot} arm's reach{where}: place it nearer with "
+            "--wobj x,y,z (mm)"
         ) from None
     finally:
         bar.close()

@@ -190,10 +190,7 @@ class Workbench:
         pushed = not _same(push, self._last_push)
         now = time.monotonic()
         if self._text_behind and not (moved or pushed) and now >= self._next_text:
-            # The last move's readout was skipped by the 10 Hz limit: show where it stopped.
-            self._text_behind = False
-            self._next_text = now + POSE_TEXT_PERIOD_S
-            self.leadthrough.show_pose(snapshot)
+            self._show_pose(snapshot, now)  # the last move's readout was skipped: catch up
         if not (moved or pushed) or (snapshot.busy and now < self._next_draw):
             return
         self._next_draw = now + JOB_DRAW_PERIOD_S
@@ -202,8 +199,13 @@ class Workbench:
         self.frames_drawn += 1
         self._text_behind = now < self._next_text
         if not self._text_behind:
-            self._next_text = now + POSE_TEXT_PERIOD_S
-            self.leadthrough.show_pose(snapshot)
+            self._show_pose(snapshot, now)
+
+    def _show_pose(self, snapshot, now: float) -> None:
+        """The pose readout, at most every ``POSE_TEXT_PERIOD_S`` (10 Hz is plenty to read)."""
+        self._text_behind = False
+        self._next_text = now + POSE_TEXT_PERIOD_S
+        self.leadthrough.show_pose(snapshot)
 
     def _show_cell(self) -> None:
         cell = self.session.cell

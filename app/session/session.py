@@ -500,11 +500,9 @@ class Session(ProjectsMixin):
                         progress=ctx.progress,
                     )
                 except SupervisionError as exc:
-                    raise SupervisionError(
-                        f"{exc}; the part may be beyond the {cell.robot.name} arm's reach: "
-                        "choose a larger arm",
-                        cause=exc.cause,
-                        axis=exc.axis,
+                    raise exc.with_note(
+                        f"the part may be beyond the {cell.robot.name} arm's reach: choose a "
+                        "larger arm"
                     ) from None
 
             def done(result: tuple[LeadThroughState, list[GuidePoint]]) -> None:
