@@ -9,14 +9,16 @@ from __future__ import annotations
 
 import os
 import shutil
+import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import httpx
 import pytest
 
-from tests.api.server_process import ServerProcess, start_server
+from tests.api.server_process import ServerProcess, free_port, start_server
 
 Served = ServerProcess  # the browser tests' name for a running ``robomach serve``
 
@@ -93,3 +95,29 @@ def page(browser):
     pg = context.new_page()
     yield pg
     context.close()
+
+
+def wait_for(condition: Callable[[], bool], timeout_s: float = 60.0, poll_s: float = 0.02) -> None:
+    """Poll ``condition`` until it holds; fail after ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError("condition not met in time")
+        time.sleep(poll_s)
+
+
+@contextmanager
+def workbench_on(session) -> Iterator:
+    """The viser workbench in-process over ``session`` (no browser needed); closes both."""
+    import viser
+
+    from app.gui import Workbench
+
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    wb = Workbench(server, session)
+    try:
+        yield wb
+    finally:
+        wb.close()
+        server.stop()
+        session.close()

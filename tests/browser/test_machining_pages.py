@@ -4,19 +4,19 @@ points marks the result out of date in the panel."""
 
 from __future__ import annotations
 
-import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 
 import pytest
 from playwright.sync_api import expect
 
-from tests.api.server_process import Api, free_port
-from tests.browser.conftest import Served
+from tests.api.server_process import Api
+from tests.browser.conftest import Served, wait_for, workbench_on
 from tests.demo_project import block_demo_dir
 
 pytestmark = pytest.mark.slow
 
 COMPARE_TIMEOUT_MS = 600_000
+RUN_TIMEOUT_S = 300.0  # an in-process machining run on the block
 
 
 def test_the_pendant_compares_and_chooses(served: Served, browser) -> None:
@@ -58,29 +58,14 @@ def test_the_pendant_compares_and_chooses(served: Served, browser) -> None:
 
 @pytest.fixture
 def workbench() -> Iterator:
-    import viser
-
-    from app.gui import Workbench
     from app.session import Session
     from app.session.project_file import import_project
 
     session = Session()
     data = (block_demo_dir() / "project.npz").read_bytes()
     import_project(session, data, "block demo")
-    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
-    wb = Workbench(server, session)
-    yield wb
-    wb.close()
-    server.stop()
-    session.close()
-
-
-def wait_for(condition: Callable[[], bool], timeout_s: float = 300.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("condition not met in time")
-        time.sleep(0.05)
+    with workbench_on(session) as wb:
+        yield wb
 
 
 def test_the_viser_panel_shows_a_run_and_goes_out_of_date(workbench) -> None:
@@ -88,13 +73,16 @@ def test_the_viser_panel_shows_a_run_and_goes_out_of_date(workbench) -> None:
 
     (panel,) = [p for p in workbench.studies if isinstance(p, MachiningPanel)]
     session = workbench.session
-    wait_for(lambda: "No machining result yet" in panel.status.content)
+    wait_for(
+        lambda: "No machining result yet" in panel.status.content,
+        timeout_s=RUN_TIMEOUT_S,
+    )
     panel.service.choose("fuzzy", "off")  # e.g. from the REST API: the panel mirrors it
     wait_for(lambda: panel.controller.value == "fuzzy", timeout_s=30.0)
     panel._start("run")
-    wait_for(lambda: "fuzzy" in panel.table.content)
+    wait_for(lambda: "fuzzy" in panel.table.content, timeout_s=RUN_TIMEOUT_S)
     assert "Rule's pick" in panel.table.content
-    wait_for(lambda: len(panel.force_plot.data[0]) > 100)
+    wait_for(lambda: len(panel.force_plot.data[0]) > 100, timeout_s=RUN_TIMEOUT_S)
     x, force, _, reference, limit = panel.force_plot.data
     assert limit[0] == 150.0 and reference[0] == pytest.approx(105.0)
     assert force.max() > 0.5 * reference[0]
@@ -102,5 +90,5 @@ def test_the_viser_panel_shows_a_run_and_goes_out_of_date(workbench) -> None:
     wait_for(lambda: set(panel._nodes) == {"stock", "wall"}, timeout_s=30.0)
 
     session.delete_guide_point(0)
-    wait_for(lambda: "Out of date" in panel.status.content)
+    wait_for(lambda: "Out of date" in panel.status.content, timeout_s=RUN_TIMEOUT_S)
     assert session.status()["machining"] == "stale"

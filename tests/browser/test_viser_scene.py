@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import io
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 
 import httpx
 import numpy as np
@@ -13,8 +13,7 @@ import pytest
 from PIL import Image
 from playwright.sync_api import Page, expect
 
-from tests.api.server_process import free_port
-from tests.browser.conftest import Served
+from tests.browser.conftest import Served, wait_for, workbench_on
 
 pytestmark = pytest.mark.slow
 
@@ -77,26 +76,10 @@ def test_viser_page_draws_the_robot(served: Served, api: httpx.Client, browser) 
 
 @pytest.fixture
 def workbench() -> Iterator:
-    import viser
-
-    from app.gui import Workbench
     from app.session import Session
 
-    session = Session()
-    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
-    wb = Workbench(server, session)
-    yield wb
-    wb.close()
-    server.stop()
-    session.close()
-
-
-def wait_for(condition: Callable[[], bool], timeout_s: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError("condition not met in time")
-        time.sleep(0.02)
+    with workbench_on(Session()) as wb:
+        yield wb
 
 
 def test_spring_handle_pushes_the_robot(workbench) -> None:
