@@ -10,6 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from starlette.concurrency import run_in_threadpool
 
 from app.api.routes import ERRORS, SessionDep
+from app.api.routes.cmrr import within
 from app.api.schemas import JobCreated
 from app.session.machining import MAX_STOCK_BYTES, PLOT_POINTS, machining_for, markdown_table
 from robomach_core.limits import (
@@ -17,7 +18,6 @@ from robomach_core.limits import (
     MACHINING_FEED_EXPONENT,
     MACHINING_FORCE_LIMIT_N,
     MACHINING_PROCESS_GAIN_N,
-    Range,
 )
 
 router = APIRouter(prefix="/api/machining", tags=["machining"], responses=ERRORS)
@@ -26,17 +26,6 @@ Controller = Literal["constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage"
 Compensation = Literal["off", "offline", "online"]
 StockSource = Literal["builtin", "profile", "mesh"]
 UPLOAD_CHUNK_BYTES = 1024 * 1024
-
-
-def within(rng: Range, description: str) -> Any:
-    """An optional field bounded by ``rng``, its range in the description and the schema."""
-    return Field(
-        None,
-        ge=rng.min,
-        le=rng.max,
-        allow_inf_nan=False,
-        description=f"{description}, {rng.text()}",
-    )
 
 
 class MachiningSettingsPublic(BaseModel):
