@@ -20,7 +20,7 @@ function machiningCard() {
       <label>K <input id="mach-gain" type="number" min="0.1" max="10000" step="0.5"> N</label>
       <label>&alpha; <input id="mach-alpha" type="number" min="0" max="3" step="0.05"></label>
       <label>&beta; <input id="mach-beta" type="number" min="0.01" max="2" step="0.05"></label>
-      <label>Limit <input id="mach-limit" type="number" min="1" max="5000" step="5"> N</label>
+      <label>Limit <input id="mach-limit" type="number" min="1.5" max="1400" step="5"> N</label>
     </div>
     <div class="row">
       <label>Controller <select id="mach-controller">${options(MACHINING_CONTROLLERS)}</select></label>
