@@ -23,6 +23,7 @@ STRATEGY  Design each controller from what is known before the cut (the nominal 
             which the nominal process at the deepest cut gives Fr (eq. 9's steady state
             F = Df v); and the constant start-up feed never exceeds the one that keeps the
             limit at the deepest cut, so the cut cannot pass the limit while Df converges;
+            the LQ is re-solved when Df_hat has moved by 10 %;
           - the PI and fuzzy controllers keep the papers' designs (eqs. 12-15; five stages).
 SOLUTION  ``designed_controller_settings`` returns the controller's settings for this cut; the
           run records them, and the exported FC SpeedChange block carries the same stages.
@@ -46,6 +47,9 @@ PAPER_LOW_SPEED_RATIO = 0.5
 # A low stage below this is a crawl, not a cut (the MRR paper's minimal feed): the design
 # does not go lower, and a cut that needs it trips the protection rule.
 LOWEST_DESIGN_RATIO = 0.05
+# The LQ is re-designed when Df_hat moves 10 % (the Lund paper re-solves "continuously"): a
+# casting's Df spans a factor of ten, and a Riccati solution per 2 % step was 7 s of a 2 s cut.
+LQ_RESOLVE_TOLERANCE = 0.1
 
 
 def safe_speed_ratio(settings: MachiningSettings, max_depth_m: float, speed_m_s: float) -> float:
@@ -88,6 +92,7 @@ def designed_controller_settings(
         if interaction_stiffness_N_m is not None and interaction_stiffness_N_m > 0.0:
             stiffness = interaction_stiffness_N_m * MM
         return AdaptiveLqSettings(
+            resolve_tolerance=LQ_RESOLVE_TOLERANCE,
             startup_speed_ratio=min(defaults.startup_speed_ratio, max(safe, LOWEST_DESIGN_RATIO)),
             initial_removal_N_s_mm=prior if prior is not None and 1e-6 < prior < 1e9 else None,
             stiffness_N_mm=stiffness,

@@ -40,6 +40,9 @@ MAX_REHEARSALS = 4
 # between two targets by more than this, and at most this far apart [m].
 PLACEMENT_TOLERANCE_M = 1.0e-6
 MAX_SPACING_M = 5.0e-3
+# Learning gain of the update from the rehearsal's wall error (ILC paper: 0 < L <= 1); a
+# half step does not chase the ripple a CMRR controller leaves from one rehearsal to the next.
+LEARNING_GAIN = 0.5
 
 
 def densify_targets(targets: Targets, spacing_m: float) -> Targets:
@@ -129,6 +132,13 @@ def corrected_program(
     )
 
 
+def _worse(a, b) -> bool:
+    """Whether run ``a`` is worse than run ``b``: not completed, or a larger wall error."""
+    if a.summary["completed"] != b.summary["completed"]:
+        return not a.summary["completed"]
+    return a.summary["wall_error_max_mm"] > b.summary["wall_error_max_mm"]
+
+
 def force_met_N(run, s_m: np.ndarray) -> np.ndarray:
     """The process force a run met at arc lengths ``s_m`` along the path [N] (zero beyond
     where a stopped run ended)."""
@@ -184,8 +194,7 @@ def offline_compensated_run(
     force = np.asarray(first_force_N, dtype=float)
     program, dense, shift = plan(force)
     change = np.inf
-    run = None
-    met = np.zeros(len(s_f))
+    best = None
     for k in range(MAX_REHEARSALS):
 
         def sub(fraction: float, k: int = k) -> None:
@@ -193,18 +202,22 @@ def offline_compensated_run(
                 progress(min((k + fraction) / MAX_REHEARSALS, 1.0))
 
         run = cut(program, dense, sub)
+        if best is None or _worse(best[0], run):
+            best = (run, program, dense)
         if not run.summary["completed"]:
             break  # a stopped cut cannot plan the rest of the path
-        # The next plan is the mean force of the rehearsals so far: where the cut is
-        # reproducible it is that force; where it is not (a staged controller switching a
-        # little earlier or later), the mean halves the worst miss of either.
-        met += force_met_N(run, s_f)
-        force = met / (k + 1)
-        new_shift = normal_compliance_m_N * force
-        change = float(np.max(np.abs(new_shift - shift)))
+        # ILC on the finished wall (ILC paper, u_{k+1} = u_k + L e_k): the rehearsal's wall
+        # error, as the force whose deflection it equals, corrects the plan. It answers what
+        # the force alone cannot: the wall is the lowest reach of the ball over the passes,
+        # so where the force ripples faster than a tool radius the wall follows its minima.
+        error = np.interp(s_f, run.wall.s_m, run.wall.error_m)
+        step = LEARNING_GAIN * error / np.maximum(normal_compliance_m_N, 1e-12)
+        force = np.maximum(force + step, 0.0)
+        change = float(np.max(np.abs(LEARNING_GAIN * error)))
         if change <= SETTLE_M or k + 1 == MAX_REHEARSALS:
             break
         program, dense, shift = plan(force)
+    run, program, dense = best
     if progress is not None:
         progress(1.0)
     return run, program, dense, k + 1, change

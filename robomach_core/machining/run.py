@@ -52,7 +52,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from ..cmrr.controllers import ControlDesign, make_controller, settings_for
-from ..cmrr.controllers.base import Measurement
+from ..cmrr.controllers._fast import fast_stepper
 from ..cmrr.feed_dynamics import FeedDynamics
 from ..cmrr.process import ForceSensorModel, PowerLawForceModel
 from ..joint_compliance import JointCompliance, true_joint_compliance
@@ -432,13 +432,14 @@ def cut_program(
     else:
         s_t, off_t, lateral = project_onto_path(P, stock.path_points_m, stock.wall_normals_m)
     L = stock.path_length_m
-    if float(np.max(lateral)) > PATH_LENGTH_TOLERANCE_M or abs(
-        arc_length_m(P)[-1] - L
-    ) > max(PATH_LENGTH_TOLERANCE_M, 0.01 * L):
+    own = arc_length_m(P if nominal is None else nominal.position_m)[-1]
+    if float(np.max(lateral)) > PATH_LENGTH_TOLERANCE_M or abs(own - L) > max(
+        PATH_LENGTH_TOLERANCE_M, 0.01 * L
+    ):
         raise StockError(
-            f"the stock lies along a {L / MM:.1f} mm path, the program's is "
-            f"{arc_length_m(P)[-1] / MM:.1f} mm long and up to {float(np.max(lateral)) / MM:.1f} "
-            "mm beside it; build the stock on the program's path"
+            f"the stock lies along a {L / MM:.1f} mm path, the program's is {own / MM:.1f} mm "
+            f"long and up to {float(np.max(lateral)) / MM:.1f} mm beside it; build the stock "
+            "on the program's path"
         )
     if wall_normals_m is None:
         N = np.stack([np.interp(s_t, stock.path_s_m, stock.wall_normals_m[:, i]) for i in range(3)], 1)
@@ -569,7 +570,7 @@ def cut_program(
     s_held = 0.0
     filt = _FilterState.start(sensor_filter)
     x = _FeedState.start(robot_model)
-    ctrl_state = ctrl.initial_state() if ctrl is not None else None
+    control = fast_stepper(ctrl) if ctrl is not None else None
     first_ratio = ctrl.initial_speed_ratio if ctrl is not None else 1.0
     pending = [first_ratio]  # one period of control delay
     stop_time: float | None = None
@@ -610,11 +611,11 @@ def cut_program(
                 noise = rng.standard_normal(NOISE_BLOCK).tolist()
             raw = force + sigma * noise[k % NOISE_BLOCK]
             measured = filt.step(raw)
-            if ctrl is not None:
-                ctrl_state, out = ctrl.step(ctrl_state, Measurement(measured, feed))
-                if out.stop and stop_time is None:
+            if control is not None:
+                next_ratio, stop = control(measured, feed)
+                if stop and stop_time is None:
                     stop_time, stop_reason = t, "protection rule"
-                pending.append(0.0 if stop_time is not None else out.speed_ratio)
+                pending.append(0.0 if stop_time is not None else next_ratio)
                 ratio = pending.pop(0)
                 command = ratio * v_l[j]
             else:
