@@ -13,9 +13,10 @@ STRATEGY  Design each controller from what is known before the cut (the nominal 
           - two-stage (MRR paper sec. III-D, fig. 9: "two-stage switch control (0.5, 1.0) is
             sufficient to keep the system under spindle limit"): the low stage is the paper's
             0.5, lowered where needed so that the deepest cut at the low stage stays under the
-            limit, f_low = (F_lim / (K d_max^alpha))^(1/beta) (inverse of eq. 5); the
-            protection rule then fires only on a real failure (a force the design did not
-            allow for), not on the burrs the low stage was chosen for;
+            limit and under the force at which the protection rule starts to fire (with a 5 %
+            margin), f_low = (F / (K d_max^alpha))^(1/beta) (inverse of eq. 5); the rule then
+            fires only on a real failure (a force the design did not allow for), not on the
+            burrs the low stage was chosen for;
           - adaptive LQ (Lund paper sec. 2.1 and 4): Kf is the interaction stiffness "of the
             workpiece, the tool and the robot" measured by a contact experiment, here the
             arm's stiffness along the wall normal, 1 / (n^T C u) averaged along the path
@@ -32,6 +33,7 @@ SOLUTION  ``designed_controller_settings`` returns the controller's settings for
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from ..cmrr.controllers import (
     AdaptiveLqSettings,
@@ -47,6 +49,8 @@ PAPER_LOW_SPEED_RATIO = 0.5
 # A low stage below this is a crawl, not a cut (the MRR paper's minimal feed): the design
 # does not go lower, and a cut that needs it trips the protection rule.
 LOWEST_DESIGN_RATIO = 0.05
+# The two-stage design keeps the deepest cut this far under the protection rule's onset.
+PROTECTION_MARGIN = 0.95
 # The LQ is re-designed when Df_hat moves 10 % (the Lund paper re-solves "continuously"): a
 # casting's Df spans a factor of ten, and a Riccati solution per 2 % step was 7 s of a 2 s cut.
 LQ_RESOLVE_TOLERANCE = 0.1
@@ -77,7 +81,15 @@ def designed_controller_settings(
         return settings.controller_settings
     safe = safe_speed_ratio(settings, max_depth_m, speed_m_s)
     if name == "two-stage":
-        low = min(PAPER_LOW_SPEED_RATIO, max(safe, LOWEST_DESIGN_RATIO))
+        # The deepest cut at the low stage stays under the limit and, with a margin, under
+        # the force at which the protection rule (PB error at the low stage) starts to fire:
+        # e / span >= 1 - (1 - stop strength) / 2 of the triangular PB set.
+        paper = TwoStageSettings()
+        span = paper.error_span_fraction * settings.reference_N
+        onset = settings.reference_N + span * (1.0 - 0.5 * (1.0 - paper.stop_strength))
+        target = min(settings.force_limit_N, PROTECTION_MARGIN * onset)
+        ratio = safe_speed_ratio(replace(settings, force_limit_N=target), max_depth_m, speed_m_s)
+        low = min(PAPER_LOW_SPEED_RATIO, max(ratio, LOWEST_DESIGN_RATIO))
         return TwoStageSettings(low_speed_ratio=round(low, 3))
     if name == "adaptive-lq":
         defaults = AdaptiveLqSettings()
