@@ -22,6 +22,7 @@ import numpy as np
 
 from .adaptive_lq import AdaptiveLqController, _matching_integral
 from .base import Measurement
+from .pi import POWER_CAP_EXP, FixedPiController
 from .fuzzy import (
     ERROR_TERMS,
     OUTPUT_SETS,
@@ -45,11 +46,42 @@ def fast_stepper(controller) -> Stepper:
         return _FuzzyStepper(controller).step
     if isinstance(controller, AdaptiveLqController):
         return _LqStepper(controller).step
+    if isinstance(controller, FixedPiController):
+        return _fixed_pi_stepper(controller)
     state = [controller.initial_state()]
 
     def step(force_N: float, feed_m_s: float) -> tuple[float, bool]:
         state[0], out = controller.step(state[0], Measurement(force_N, feed_m_s))
         return out.speed_ratio, out.stop
+
+    return step
+
+
+def _fixed_pi_stepper(ctrl: FixedPiController) -> Stepper:
+    """``FixedPiController.step`` (eqs. 10-13) as a closure over plain floats."""
+    d = ctrl.design
+    inv_beta = 1.0 / ctrl.feed_exponent
+    kp, ki = ctrl.unit_gains
+    kf = ctrl.design_force_gain_N
+    cap = math.exp(POWER_CAP_EXP)
+    dt, low = d.dt_s, d.min_speed_ratio
+
+    def power(x: float) -> float:
+        if x <= 0.0:
+            return 0.0
+        e = inv_beta * math.log(x)
+        return math.exp(e) if e < POWER_CAP_EXP else cap
+
+    ref = power(d.reference_force_N / kf)
+    integral = [ctrl.initial_state().integral]
+
+    def step(force_N: float, feed_m_s: float) -> tuple[float, bool]:
+        error = ref - power((force_N if force_N > 0.0 else 0.0) / kf)
+        u_free = kp * error + integral[0]
+        u = 1.0 if u_free >= 1.0 else (low if u_free <= low else u_free)
+        if not ((u_free >= 1.0 and error > 0.0) or (u_free <= low and error < 0.0)):
+            integral[0] = min(max(integral[0] + ki * error * dt, low), 1.0)
+        return u, False
 
     return step
 
