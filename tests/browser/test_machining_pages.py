@@ -156,3 +156,30 @@ def _check_the_viser_table_and_its_large_view(context, served: Served) -> None:
     assert figure.bounding_box()["width"] >= 0.8 * page.viewport_size["width"]
     page.screenshot(path=str(SHOTS / "robomach-viser-machining-large.png"))
     page.close()
+
+
+def test_the_cmrr_figure_opens_window_wide(served: Served, browser) -> None:
+    """Issue 16: "open large" opened a modal no bigger than the thumbnail."""
+    api = Api(served.base_url)
+    api.new_project()
+    job = api.ok("POST", "/api/cmrr/studies", 202, json={"scenario": "deburr-burrs"})["job_id"]
+    assert api.wait_job(job, timeout_s=300.0)["status"] == "done"
+    context = browser.new_context(viewport={"width": 1400, "height": 900})
+    page = context.new_page()
+    try:
+        page.goto(served.viser_url)
+        expect(page.get_by_text("Connected")).to_be_visible(timeout=60_000)
+        page.get_by_text("CMRR study", exact=True).first.dispatch_event("click")
+        button = page.get_by_text("Open the figure large")
+        expect(button).to_be_visible(timeout=60_000)
+        page.wait_for_timeout(1000)  # the button is enabled when the study is shown
+        button.dispatch_event("click")
+        figure = page.locator("img[alt='CMRR study figure']")
+        expect(figure).to_be_visible(timeout=30_000)
+        page.wait_for_timeout(1000)  # the modal's opening transition
+        assert figure.bounding_box()["width"] >= 0.8 * page.viewport_size["width"]
+        page.screenshot(path=str(SHOTS / "robomach-viser-cmrr-large.png"))
+    finally:
+        context.close()
+        api.cancel_all()
+        api.http.close()
