@@ -102,7 +102,9 @@ def designed_controller_settings(
                 prior = settings.reference_N / feed_r_mm_s
         stiffness = None
         if interaction_stiffness_N_m is not None and interaction_stiffness_N_m > 0.0:
-            stiffness = interaction_stiffness_N_m * MM
+            # As a contact experiment gives it, to two digits (and the same design, and the same
+            # cached Riccati solutions, for every rehearsal of a corrected program).
+            stiffness = float(f"{interaction_stiffness_N_m * MM:.2g}")
         return AdaptiveLqSettings(
             resolve_tolerance=LQ_RESOLVE_TOLERANCE,
             startup_speed_ratio=min(defaults.startup_speed_ratio, max(safe, LOWEST_DESIGN_RATIO)),

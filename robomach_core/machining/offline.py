@@ -29,7 +29,6 @@ import numpy as np
 
 from ..postprocess import Targets
 from ..robot import Robot
-from ..stiffness import compensate_targets_and_joints
 from ..transforms import make_transform, matrices_from_quaternions, quaternions_from_matrices
 from .path import arc_length_m, path_tangents
 
@@ -114,21 +113,32 @@ def corrected_program(
     model,
 ) -> Targets:
     """The dense program with each target moved against the deflection the force ``force_N``
-    (along u = (n - rho t) / |n - rho t|) causes under the identified stiffness ``model``,
-    chapter eq. (32) (linear)."""
+    (along u = (n - rho t) / |n - rho t|) causes under the identified stiffness ``model``:
+    chapter eq. (32), linear, as ``stiffness.compensate_targets_and_joints`` does it, with the
+    joints moved by -theta (first order: the robot's IK of the corrected pose differs by
+    O(theta^2), nano-radians here), so a rehearsal needs no IK per target."""
+    from ..stiffness.model import apply_twist
+
     u = normals_m - feed_force_ratio * path_tangents(dense.position_m)
     u /= np.linalg.norm(u, axis=1, keepdims=True)
-    wrenches = np.zeros((len(dense), 6))
-    wrenches[:, :3] = np.asarray(force_N, dtype=float)[:, None] * u
+    force = np.asarray(force_N, dtype=float)
+    c = np.asarray(model.compliance_rad_Nm, dtype=float)
     Ts = program_poses(dense)
-    Ts_c, q_c = compensate_targets_and_joints(
-        robot, Ts, dense.joints_rad, wrenches, model, "linear"
-    )
+    q0 = np.asarray(dense.joints_rad, dtype=float)
+    out_T = np.empty_like(Ts)
+    out_q = np.empty_like(q0)
+    wrench = np.zeros(6)
+    for i in range(len(dense)):
+        _, J = robot.fk_and_jacobian(q0[i])
+        wrench[:3] = force[i] * u[i]
+        theta = c * (J.T @ wrench)
+        out_T[i] = apply_twist(Ts[i], -(J @ theta))
+        out_q[i] = q0[i] - theta
     return replace(
         dense,
-        position_m=Ts_c[:, :3, 3].copy(),
-        quaternion_wxyz=quaternions_from_matrices(Ts_c[:, :3, :3]),
-        joints_rad=np.asarray(q_c),
+        position_m=out_T[:, :3, 3].copy(),
+        quaternion_wxyz=quaternions_from_matrices(out_T[:, :3, :3]),
+        joints_rad=out_q,
     )
 
 

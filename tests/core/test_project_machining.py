@@ -122,3 +122,25 @@ def test_choosing_keeps_a_result_current_and_a_process_change_dates_it(block_pro
     assert core.machining_inputs_key(core.with_machining_setup(p, changed)) != key
     profile = core.MachiningSetup(stock_source="profile", stock_profile_mm=((0.0, 1.0),))
     assert core.machining_inputs_key(core.with_machining_setup(p, profile)) != key
+
+
+def test_compensation_settings_of_another_arm_are_re_derived_not_blocking_the_export(
+    block_project,
+):
+    """Issue 16: after switching the arm, the old arm's compensation settings blocked the
+    export ("identified on ur10, the cell has irb4400"); they are stale, re-derived for the
+    cell's arm, and the program says so in its header."""
+    from robomach_core.robot import Robot
+    from robomach_core.stiffness import CompensationSettings
+
+    p = core.with_machining_setup(block_project, core.MachiningSetup())
+    p = core.choose(p, "constant", "offline")
+    other = CompensationSettings("ur5", (1e5,) * 6, mode="offline_linear")
+    p = replace(p, compensation=other)
+    assert "ur5" in core.stale_settings(p)["compensation"]
+    workpiece = core.build_workpiece(p.cell, p.mesh)
+    robot = Robot(p.cell.robot, p.tool().T_flange_tcp)
+    files = core.program_files(p, workpiece, robot)
+    assert "identified on ur5" in files["program.mod"] and "re-derives it for ur10" in files["program.mod"]
+    # The CMRR choice and the mode are kept (no "Remove" needed).
+    assert p.compensation.mode == "offline_linear"

@@ -22,7 +22,7 @@ import numpy as np
 
 from .adaptive_lq import AdaptiveLqController, _matching_integral
 from .base import Measurement
-from .pi import POWER_CAP_EXP, FixedPiController
+from .pi import POWER_CAP_EXP, AdaptivePiController, FixedPiController, pi_gains
 from .fuzzy import (
     ERROR_TERMS,
     OUTPUT_SETS,
@@ -48,6 +48,10 @@ def fast_stepper(controller) -> Stepper:
         return _LqStepper(controller).step
     if isinstance(controller, FixedPiController):
         return _fixed_pi_stepper(controller)
+    if isinstance(controller, AdaptivePiController) and controller.settings.estimate_feed_exponent:
+        f = controller.design.measurement_filter
+        if f is None or len(f.sos) == 1:
+            return _adaptive_pi_stepper(controller)
     state = [controller.initial_state()]
 
     def step(force_N: float, feed_m_s: float) -> tuple[float, bool]:
@@ -81,6 +85,71 @@ def _fixed_pi_stepper(ctrl: FixedPiController) -> Stepper:
         u = 1.0 if u_free >= 1.0 else (low if u_free <= low else u_free)
         if not ((u_free >= 1.0 and error > 0.0) or (u_free <= low and error < 0.0)):
             integral[0] = min(max(integral[0] + ki * error * dt, low), 1.0)
+        return u, False
+
+    return step
+
+
+def _adaptive_pi_stepper(ctrl: AdaptivePiController) -> Stepper:
+    """``AdaptivePiController.step`` (eqs. 15-16 with ``rls._rls_update_2``) over plain floats."""
+    d, s = ctrl.design, ctrl.settings
+    est = ctrl.estimator
+    st = ctrl.initial_state()
+    (t0, t1) = st.rls.theta.tolist()
+    (p00, p01), (p10, p11) = st.rls.covariance.tolist()
+    x = [st.integral, t0, t1, p00, p01, p10, p11]
+    filt = d.measurement_filter
+    if filt is not None:
+        b0, b1, b2, _, a1, a2 = filt.sos[0].tolist()
+        z = list(st.feed_filter)
+    lam = est.forgetting
+    cap0, cap1 = (float(v) for v in est.max_variances)
+    lo_b, hi_b = est.feed_exponent_bounds
+    vr = d.command_speed_m_s
+    log_vr_ref = math.log(vr / 1e-3)
+    fr, low, dt = d.reference_force_N, d.min_speed_ratio, d.dt_s
+    f_gate, v_gate = s.min_force_fraction * fr, s.min_feed_ratio * vr
+
+    def step(force_N: float, feed_m_s: float) -> tuple[float, bool]:
+        feed = feed_m_s
+        if filt is not None:
+            out = b0 * feed + z[0]
+            z[0] = b1 * feed - a1 * out + z[1]
+            z[1] = b2 * feed - a2 * out
+            feed = out
+        force = force_N if force_N > 0.0 else 0.0
+        integral, t0, t1, p00, p01, p10, p11 = x
+        if force > f_gate and feed > v_gate:
+            x1 = math.log(feed / vr)
+            y = math.log(force)
+            px0 = p00 + p01 * x1
+            px1 = p10 + p11 * x1
+            denom = lam + (px0 + x1 * px1)
+            g0, g1 = px0 / denom, px1 / denom
+            err = y - (t0 + t1 * x1)
+            n00 = (p00 - g0 * px0) / lam
+            n01 = (p01 - g0 * px1) / lam
+            n10 = (p10 - g1 * px0) / lam
+            n11 = (p11 - g1 * px1) / lam
+            n01 = n10 = 0.5 * (n01 + n10)
+            if n00 > cap0 or n11 > cap1:
+                s0 = math.sqrt(min(1.0, cap0 / max(n00, 1e-300)))
+                s1 = math.sqrt(min(1.0, cap1 / max(n11, 1e-300)))
+                n00, n01, n10, n11 = n00 * s0 * s0, n01 * s0 * s1, n10 * s1 * s0, n11 * s1 * s1
+            t0, t1 = t0 + g0 * err, t1 + g1 * err
+            p00, p01, p10, p11 = n00, n01, n10, n11
+        beta = min(max(t1, lo_b), hi_b)
+        kf_hat = math.exp(t0 - beta * log_vr_ref)
+        inv_beta = 1.0 / beta
+        kp, ki = pi_gains(s.loop_gain, vr, kf_hat**inv_beta, s.pi_zero_rad_s)
+        error = fr**inv_beta - force**inv_beta
+        if not math.isfinite(error):
+            error = 0.0
+        u_free = kp * error + integral
+        u = 1.0 if u_free >= 1.0 else (low if u_free <= low else u_free)
+        if not ((u_free >= 1.0 and error > 0.0) or (u_free <= low and error < 0.0)):
+            integral = min(max(integral + ki * error * dt, low), 1.0)
+        x[:] = integral, t0, t1, p00, p01, p10, p11
         return u, False
 
     return step
@@ -251,6 +320,46 @@ def _lq_estimate(
         scal[5], scal[6], scal[7] = theta, p, r2
 
 
+@_jit
+def _lq_act(
+    gain: np.ndarray, feedforward: float, x_hat: np.ndarray, delayed: np.ndarray, force: float,
+    integral: float, fr: float, vr: float, low: float, active: bool, startup: float, dt: float,
+    phi: np.ndarray, gamma: np.ndarray,
+) -> tuple[float, float]:  # fmt: skip
+    """The LQ step after the estimate, in place: eq. (13)'s command with the integral state,
+    saturation (anti-windup), the delay line and the Kalman time update. Returns (ratio,
+    integral)."""
+    n = x_hat.shape[0]
+    if active:
+        feedback = gain[-2] * force + gain[-1] * integral
+        for i in range(n):
+            feedback += gain[i] * x_hat[i]
+        for i in range(delayed.shape[0]):
+            feedback += gain[n + i] * delayed[i]
+        u = (-feedback + feedforward * fr) / vr
+        ratio = 1.0 if u >= 1.0 else (low if u <= low else u)
+        error = fr - force
+        pushing = (ratio >= 1.0 and error > 0.0) or (ratio <= low and error < 0.0)
+        if not pushing:
+            integral += dt * error
+    else:
+        ratio = startup
+    command = ratio * vr
+    acting = delayed[0] if delayed.shape[0] > 0 else command
+    nxt = np.empty(n)
+    for i in range(n):
+        acc = gamma[i] * acting
+        for j in range(n):
+            acc += phi[i, j] * x_hat[j]
+        nxt[i] = acc
+    x_hat[:] = nxt
+    if delayed.shape[0] > 0:
+        for i in range(delayed.shape[0] - 1):
+            delayed[i] = delayed[i + 1]
+        delayed[-1] = command
+    return ratio, integral
+
+
 class _LqStepper:
     """``AdaptiveLqController.step`` with the state in arrays and the arithmetic compiled."""
 
@@ -273,9 +382,23 @@ class _LqStepper:
             [d.reference_force_N, ctrl.kf, ctrl.vr_mm_s, 1.0 if s.adapt else 0.0,
              s.forgetting_factor, st.theta, st.covariance, st.residual_var]
         )  # fmt: skip
-        self.commands = list(st.commands_mm_s)
+        self.delayed = np.array(st.commands_mm_s, dtype=float)
         self.integral, self.time_s, self.active = st.integral_N_s, st.time_s, st.active
         self.lq = st.design
+        self.gain = np.ascontiguousarray(self.lq.gain)
+        self.grid_key = self.lq.removal_N_s_mm
+        self._set_cell()
+
+    def _set_cell(self) -> None:
+        """The Df_hat interval (open, with a 1e-9 margin to the rounding's ties) that the
+        current design's grid point stands for."""
+        tol = self.s.resolve_tolerance
+        if tol <= 0.0:
+            self.cell_lo = self.cell_hi = self.grid_key
+            return
+        half = math.sqrt(1.0 + tol)
+        self.cell_lo = self.grid_key / half * (1.0 + 1e-9)
+        self.cell_hi = self.grid_key * half * (1.0 - 1e-9)
 
     def step(self, force_N: float, feed_m_s: float) -> tuple[float, bool]:
         s, d, ctrl = self.s, self.d, self.ctrl
@@ -287,45 +410,34 @@ class _LqStepper:
         )  # fmt: skip
         theta, p, r2 = self.scal[5], self.scal[6], self.scal[7]
         df_hat = theta * fr / ctrl.vr_mm_s
-        rel_std = math.sqrt(max(r2 * p, 0.0)) / max(abs(theta), 1e-9)
         self.time_s += d.dt_s
-        x_hat = self.x_hat
-        delayed = np.array(self.commands)
-        lq = self.lq
-        grid_df = ctrl._grid(df_hat)
-        if s.adapt and grid_df is not None and grid_df != lq.removal_N_s_mm:
-            old = lq
-            lq = ctrl.solve(grid_df)
-            if self.active:
-                before = _command(old, x_hat, delayed, force, self.integral, fr)
+        # The grid cell of the current design: inside it, ``_grid`` would return its centre.
+        if s.adapt and not (self.cell_lo < df_hat < self.cell_hi):
+            grid_df = ctrl._grid(df_hat)
+            if grid_df is not None and grid_df != self.grid_key:
+                old = self.lq
+                lq = ctrl.solve(grid_df)
+                if self.active:
+                    before = _command(old, self.x_hat, self.delayed, force, self.integral, fr)
+                    self.integral = _matching_integral(
+                        lq, self.x_hat, self.delayed, force, fr, before, self.integral
+                    )
+                self.lq, self.gain, self.grid_key = lq, np.ascontiguousarray(lq.gain), grid_df
+                self._set_cell()
+        if not self.active and self.time_s >= s.min_startup_s:
+            rel_std = math.sqrt(max(r2 * p, 0.0)) / max(abs(theta), 1e-9)
+            if not s.adapt or rel_std < s.activation_rel_std:
+                self.active = True
+                last = float(self.delayed[-1]) if self.delayed.shape[0] else None
+                current = s.startup_speed_ratio * ctrl.vr_mm_s if last is None else last
                 self.integral = _matching_integral(
-                    lq, x_hat, delayed, force, fr, before, self.integral
+                    self.lq, self.x_hat, self.delayed, force, fr, current, self.integral
                 )
-            self.lq = lq
-        ready = not s.adapt or rel_std < s.activation_rel_std
-        if not self.active and self.time_s >= s.min_startup_s and ready:
-            self.active = True
-            last = self.commands[-1] if self.commands else None
-            current = s.startup_speed_ratio * ctrl.vr_mm_s if last is None else last
-            self.integral = _matching_integral(
-                lq, x_hat, delayed, force, fr, current, self.integral
-            )
-        if self.active:
-            command = _command(lq, x_hat, delayed, force, self.integral, fr)
-            low = d.min_speed_ratio
-            u = command / ctrl.vr_mm_s
-            ratio = 1.0 if u >= 1.0 else (low if u <= low else u)
-            error = fr - force
-            pushing = (ratio >= 1.0 and error > 0.0) or (ratio <= low and error < 0.0)
-            if not pushing:
-                self.integral += d.dt_s * error
-        else:
-            ratio = s.startup_speed_ratio
-        command_mm_s = ratio * ctrl.vr_mm_s
-        acting = self.commands[0] if self.commands else command_mm_s
-        self.x_hat = self.phi @ x_hat + self.gamma * acting
-        if self.commands:
-            self.commands = [*self.commands[1:], command_mm_s]
+        ratio, self.integral = _lq_act(
+            self.gain, self.lq.feedforward, self.x_hat, self.delayed, force, self.integral, fr,
+            ctrl.vr_mm_s, d.min_speed_ratio, self.active, s.startup_speed_ratio, d.dt_s,
+            self.phi, self.gamma,
+        )  # fmt: skip
         return ratio, False
 
 
