@@ -48,6 +48,13 @@ TABLE_COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("mrr_mean_mm3_s", "MRR [mm3/s]", "{:.1f}"),
     ("realtime_factor", "x real time", "{:.0f}"),
 )
+# The variation sweep's columns (``variation.variation_rows``), shown when a sweep ran.
+VARIATION_TABLE_COLUMNS: tuple[tuple[str, str, str], ...] = (
+    ("cycle_time_p95_s", "cycle p95 [s]", "{:.1f}"),
+    ("force_peak_p95_N", "F peak p95 [N]", "{:.1f}"),
+    ("wall_error_max_p95_mm", "wall p95 [mm]", "{:.3f}"),
+    ("within_limit_share", "in limit", "{:.0%}"),
+)
 # Per-sample CSV columns: (header, trace attribute, scale to the header's unit).
 CSV_COLUMNS: tuple[tuple[str, str, float], ...] = (
     ("time_s", "time_s", 1.0),
@@ -116,11 +123,14 @@ def comparison_rows(
 
 def format_table(rows: Sequence[dict[str, Any]]) -> str:
     """The rows as a fixed-width text table ("stopped" for a cut that did not finish)."""
-    header = [h for _, h, _ in TABLE_COLUMNS]
+    columns = TABLE_COLUMNS
+    if any("cycle_time_p95_s" in row for row in rows):
+        columns = TABLE_COLUMNS[:-1] + VARIATION_TABLE_COLUMNS + TABLE_COLUMNS[-1:]
+    header = [h for _, h, _ in columns]
     body = []
     for row in rows:
         cells = []
-        for key, _, fmt in TABLE_COLUMNS:
+        for key, _, fmt in columns:
             value = row.get(key)
             if value is None:
                 stopped = "refused" if row.get("refused") else "stopped"

@@ -557,8 +557,8 @@ def chosen_program(project: Project) -> tuple[Targets, str] | None:
         return None
     nominal = require_processed(project).result.targets
     return program, (
-        f"deflection compensation: offline for the {s.controller} cut's predicted process "
-        f"force, {len(program)} targets from {len(nominal)}"
+        f"deflection compensation: offline, planned from rehearsals of the {s.controller} cut "
+        f"on the stock, {len(program)} targets from {len(nominal)}"
     )
 
 

@@ -145,7 +145,7 @@ def test_cli_and_rest_write_the_same_program_for_the_same_project(api: Api, tmp_
     _run(api)
     rest = api.get("/api/export/rapid").text
     cli = (out / "program.mod").read_text()
-    assert "offline for the adaptive-pi cut" in cli and "FCSpdChgAct" in cli
+    assert "planned from rehearsals of the adaptive-pi cut" in cli and "FCSpdChgAct" in cli
     assert rest == cli
     fc = api.get(
         "/api/export/rapid", params={"force_control": True, "module_name": "LearnedPathFC"}

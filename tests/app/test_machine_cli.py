@@ -146,7 +146,7 @@ def test_offline_compensation_exports_the_corrected_program(tmp_path):
     assert summary["stock"]["allowance_max_mm"] == pytest.approx(2.5)
     program = (out / "program.mod").read_text()
     assert "FCSpdChgAct" in program
-    assert "offline for the fuzzy cut's predicted process force" in program
+    assert "offline, planned from rehearsals of the fuzzy cut" in program
     plain = (block_demo_dir() / "program.mod").read_text()
     assert program.count("MoveL") > 5 * plain.count("MoveL")  # densified and corrected
 
@@ -236,3 +236,21 @@ def test_exit_130_when_interrupted(tmp_path):
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert "Traceback" not in err
+
+
+@pytest.mark.slow
+def test_variations_report_percentiles_and_choose_on_them(tmp_path):
+    out = tmp_path / "o"
+    proc = robomach(
+        "machine", "--out", str(out), "--from", str(block_demo_dir()), "--controller",
+        "constant", "--compensation", "off", "--variations", "3", "--workers", "2", "--no-plot",
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "machining_summary.json").read_text())
+    (row,) = summary["runs"]
+    assert row["stocks"] == 3 and row["completed_share"] == 1.0
+    for key in ("cycle_time", "force_peak", "wall_error_max"):
+        unit = {"cycle_time": "s", "force_peak": "N", "wall_error_max": "mm"}[key]
+        assert row[f"{key}_p50_{unit}"] <= row[f"{key}_p95_{unit}"]
+    assert summary["variation"]["stocks"] == 3 and "material K" in summary["variation"]["ranges"]
+    assert "95th percentiles" in summary["choice_reason"]
