@@ -422,7 +422,11 @@ class StudyService:
 
             folder = self._new_run_folder()
             try:
-                options = StudyOptions(seed=seed, mode=mode, quick=bool(quick))
+                # The cell's arm: the identified stiffness is the one its program compensates
+                # with (``robomach compensate`` runs each paper's arm instead).
+                options = StudyOptions(
+                    robot=self.session.cell.robot.name, seed=seed, mode=mode, quick=bool(quick)
+                )
                 results = run_studies(
                     study, folder, options, progress=ctx.progress, cancel=ctx.cancelled
                 )

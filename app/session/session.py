@@ -683,13 +683,14 @@ class Session(ProjectsMixin):
         )
         return [w.message for w in found]
 
-    def upload_robot(self, data: bytes, filename: str) -> CellSettings:
+    def upload_robot(self, data: bytes, filename: str, *, family: str = "auto") -> CellSettings:
         """Use a user's serial 6-axis URDF (a .urdf, or a .zip with its meshes) as the arm
-        (``robots.custom``); kept in the project like an uploaded mesh. Clears the guide
-        points like a ``set_cell`` change."""
+        (``robots.custom``; ``family`` names its controller, ``auto`` recognises a built-in
+        arm's kinematics); kept in the project like an uploaded mesh. Clears the guide points
+        like a ``set_cell`` change."""
         from robomach_core.robots.custom import register_urdf
 
-        name = register_urdf(filename, data)
+        name = register_urdf(filename, data, family)
         with self._lock:
             self._require_idle()
             self._project = replace(self._project, robot_urdf=(filename, data))
