@@ -52,6 +52,10 @@ APPROACH_OFFSET_M = 0.020
 AIR_SPEED_M_S = 0.1
 APPROXIMATION_MM = 0.5  # the RAPID program's z_path zone
 TOOL_INERTIA_KG_M2 = (0.001, 0.001, 0.001)
+# Joint values this close to 0 count as 0 for Status and Turn: the target joints are solved to
+# 1e-9 (export.target_joints), and a tool-down path keeps A4 at 0 within that noise; its sign
+# would make T flip from point to point.
+ANGLE_NOISE_RAD = 1e-8
 APPROACH_NAME = "XP_APPROACH"
 RETRACT_NAME = "XP_RETRACT"
 
@@ -109,6 +113,7 @@ def status_turn(robot: Robot, joints_rad: np.ndarray) -> tuple[int, int]:
     definitions), from the arm's own model: the wrist root point is axis 5's origin, the A1
     coordinate system axis 1's frame, the A2-A3 line the one through axes 2 and 3."""
     q = np.asarray(joints_rad, dtype=float)
+    q = np.where(np.abs(q) < ANGLE_NOISE_RAD, 0.0, q)
     data = robot.model.createData()
     pin.forwardKinematics(robot.model, data, q)
     o1, R1 = data.oMi[1].translation, data.oMi[1].rotation

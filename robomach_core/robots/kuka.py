@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UnknownNameError
-from ._urdf import box, cached_urdf, cylinder, number, visual, xyz
+from ._urdf import box, cached_urdf, cylinder, visual, xyz
 
 FLANGE_FRAME = "tool0"
 KUKA_ORANGE_RGBA = "1 0.35 0 1"
@@ -198,7 +198,7 @@ def urdf_text(spec: KukaArmSpec) -> str:
     out.append(
         f'  <joint name="joint_a6-tool0" type="fixed"><parent link="link_6"/>'
         f'<child link="{FLANGE_FRAME}"/><origin xyz="0 0 0" '
-        f'rpy="0 {number(half_pi)} 0"/></joint>'
+        f'rpy="0 {half_pi:.12f} 0"/></joint>'
     )
     out.append("</robot>")
     return "\n".join(out) + "\n"

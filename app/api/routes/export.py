@@ -111,9 +111,8 @@ def make_router() -> APIRouter:
         offered = set(session.program_languages())
         return [language_public(lang, lang.name in offered) for lang in registry.languages()]
 
-    @router.get("/export/program/{language}", response_class=Response, responses=PROGRAM_ANSWERS)
     def export_program(
-        language: Language,  # type: ignore[valid-type]
+        language: str,
         session: SessionDep,
         force_control: Annotated[
             bool, Query(description="the force-controlled variant, where the language has one")
@@ -129,11 +128,18 @@ def make_router() -> APIRouter:
         with a CMRR controller; in the offline compensation modes the targets are corrected."""
         return program_download(
             session,
-            language.value,
+            getattr(language, "value", language),
             force_control=force_control,
             module_name=module_name,
             file=file,
         )
+
+    # The path parameter's type is the enum built above: set it on the function itself (this
+    # module's annotations are strings, resolved in its globals, where no ``Language`` is).
+    export_program.__annotations__["language"] = Language
+    router.get("/export/program/{language}", response_class=Response, responses=PROGRAM_ANSWERS)(
+        export_program
+    )
 
     @router.get(
         "/export/rapid", response_class=Response, responses={200: {"content": {"text/plain": {}}}}
