@@ -91,7 +91,10 @@ def test_every_e6pos_is_the_fk_of_its_joints_and_its_status_turn_theirs(program,
         angle = np.arccos(np.clip((np.trace(poses[name][:3, :3].T @ T_fk[:3, :3]) - 1) / 2, -1, 1))
         assert math.degrees(angle) < 1e-3
         point = info.points[name]
-        assert (point.status, point.turn) == (status_bits(KR270, q), turn_bits(q))
+        assert point.status == status_bits(KR270, q)
+        # A4 stays at 0 on a tool-down path; its IK noise (< 1e-6 rad here) carries no sign
+        sure = sum(1 << i for i in range(6) if abs(q[i]) > 1e-6)
+        assert point.turn & sure == turn_bits(q) & sure
 
 
 @settings(max_examples=200, deadline=None)
