@@ -228,6 +228,12 @@ def run(args: argparse.Namespace) -> int:
         robot_urdf = read_robot_file(Path(robot))
         robot = register_urdf(*robot_urdf)
 
+    # A language the arm's controller does not run is refused now, not after learning.
+    from robomach_core.export.languages import resolve_languages
+    from robomach_core.robot import Robot
+
+    resolve_languages(Robot(robot), args.language)
+
     settings = DemoSettings(
         robot=robot,
         workpiece=args.workpiece,
