@@ -7,7 +7,6 @@ from .krl_check import check_krl_program as check_krl_program
 from .languages import ProgramContext as ProgramContext
 from .languages import ProgramLanguage as ProgramLanguage
 from .languages import language as language
-from .languages import languages as languages
 from .languages import languages_for as languages_for
 from .languages import register_language as register_language
 from .rapid import ForceControlSettings as ForceControlSettings

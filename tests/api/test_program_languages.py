@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+import robomach_core.export.languages as registry
 from app.api import create_app
 from app.cli import build_parser
 from app.session import Session
 from app.settings import ServerSettings
 from robomach_core import project as core
-from robomach_core.export import languages as registry
 from robomach_core.export.krl_check import check_krl_program
 from robomach_core.path_learning import PathLearningSettings
 from robomach_core.workpiece import builtin_workpiece

@@ -18,9 +18,9 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Response, status
 
+import robomach_core.export.languages as registry
 from app.api.routes import ERRORS, SessionDep, SettingsDep
 from app.api.schemas import ExportCreate, ExportPublic, ProgramLanguagePublic
-from robomach_core.export import languages as registry
 from robomach_core.export.rapid import rapid_identifier
 
 MEDIA_TYPES = {

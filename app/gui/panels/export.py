@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import viser
 
+import robomach_core.export.languages as registry
 from app.session import ConflictError
 from robomach_core.errors import RobomachError
-from robomach_core.export import languages as registry
 from robomach_core.project import StaleResultError
 
 from .feedback import guarded
