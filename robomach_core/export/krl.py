@@ -8,8 +8,8 @@ PROBLEM   A KUKA controller (KR C4, KSS 8) runs KRL: a ``.src`` with the motion 
 STRATEGY  The same inputs as the RAPID and URScript writers (targets in the base frame with
           their joint solutions, the tool, the work object, the arc-fitted moves) and the same
           structure: BASE_DATA[1] from the work object (the part's frame in the robot base,
-          $ROBROOT = $WORLD assumed), TOOL_DATA[1] and LOAD_DATA[1] from the tool; PTP to an
-          approach point 20 mm back along the tool axis; ``LIN`` / ``CIRC via, to`` along the
+          $ROBROOT = $WORLD assumed), TOOL_DATA[1] and LOAD_DATA[1] from the tool; PTP (at
+          20 % axis speed) to an approach point 20 mm back along the tool axis; ``LIN`` / ``CIRC via, to`` along the
           path with ``C_DIS`` approximation ($APO.CDIS, the RAPID zone's 0.5 mm) and
           ``$VEL.CP`` [m/s] set before every move whose learned speed differs; an exact stop
           at the last target; LIN to the retract point. Status and Turn come from the joints
@@ -49,6 +49,7 @@ POSITION_DECIMALS = 3  # mm
 ANGLE_DECIMALS = 4  # deg
 VELOCITY_DECIMALS = 5  # m/s: 0.01 mm/s
 APPROACH_OFFSET_M = 0.020
+PTP_PERCENT = 20  # axis speed and acceleration of the PTP to the approach point (BAS)
 AIR_SPEED_M_S = 0.1
 APPROXIMATION_MM = 0.5  # the RAPID program's z_path zone
 TOOL_INERTIA_KG_M2 = (0.001, 0.001, 0.001)
@@ -247,6 +248,7 @@ def _src_lines(
     lines += [f"  ; {_comment(c)}".rstrip() for c in comment]
     lines.append("  ; $ROBROOT is assumed at $WORLD: BASE_DATA[1] is the part in the robot base.")
     lines += [";FOLD INI", "  BAS(#INITMOV, 0)", ";ENDFOLD (INI)"]
+    lines += [f"  BAS(#VEL_PTP, {PTP_PERCENT})", f"  BAS(#ACC_PTP, {PTP_PERCENT})"]
     cog = np.asarray(tool.com_m, dtype=float) * 1e3
     inertia = ", ".join(f"{a} {_short(v)}" for a, v in zip("XYZ", TOOL_INERTIA_KG_M2, strict=True))
     lines += [
