@@ -10,8 +10,9 @@ STRATEGY  The same inputs as the RAPID and URScript writers (targets in the base
           structure: BASE_DATA[1] from the work object (the part's frame in the robot base,
           $ROBROOT = $WORLD assumed), TOOL_DATA[1] and LOAD_DATA[1] from the tool; PTP (at
           20 % axis speed) to an approach point 20 mm back along the tool axis; ``LIN`` /
-          ``CIRC via, to`` along the path with ``C_DIS`` approximation ($APO.CDIS, the RAPID zone's 0.5 mm) and
-          ``$VEL.CP`` [m/s] set before every move whose learned speed differs; an exact stop
+          ``CIRC via, to`` along the path with ``C_DIS`` approximation ($APO.CDIS, the RAPID
+          zone's 0.5 mm) and ``$VEL.CP`` [m/s] set before every move whose learned speed
+          differs; an exact stop
           at the last target; LIN to the retract point. Status and Turn come from the joints
           (``robots.kuka``: bit 0 overhead area, bit 1 A3 >= phi, bit 2 A5 <= 0; Turn bit
           i - 1 when Ai < 0), computed on the pinocchio model so an uploaded KUKA arm gets them
