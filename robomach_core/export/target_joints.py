@@ -7,7 +7,8 @@ PROBLEM   ``Targets.joints_rad`` are the joints recorded at each target's sample
 STRATEGY  Solve the IK of every target pose, seeded from the previous target's solution (the
           first from its recorded joints), so the solution follows the arm's branch along the
           path as the controller would; refuse a solution that changes the configuration (a
-          different ABB cfx / UR branch) or jumps more than ``MAX_JOINT_STEP_RAD`` on an axis.
+          different ABB cfx / UR branch / KUKA Status) or jumps more than
+          ``MAX_JOINT_STEP_RAD`` on an axis.
 SOLUTION  ``target_joints(robot, targets) -> (m, 6)`` and ``with_target_joints`` (the same
           ``Targets`` with those joints).
 """
@@ -52,8 +53,7 @@ def target_joints(
     n = len(targets)
     out = np.empty((n, 6))
     seed = np.asarray(targets.joints_rad[0] if q_seed is None else q_seed, dtype=float)
-    arm = robot.name
-    branch = confdata_from_joints(seed, arm=arm)[3]
+    branch = configuration(robot, seed)
     for k in range(n):
         T = make_transform(
             matrix_from_quaternion(targets.quaternion_wxyz[k]), targets.position_m[k]
@@ -65,15 +65,27 @@ def target_joints(
         except RobomachError as exc:
             raise UnreachableTargetError(f"target p{k + 1}: {exc}") from None
         step = float(np.max(np.abs(q - seed)))
-        cfx = confdata_from_joints(q, arm=arm)[3]
-        if step > MAX_JOINT_STEP_RAD or cfx != branch:
+        case = configuration(robot, q)
+        if step > MAX_JOINT_STEP_RAD or case != branch:
             raise UnreachableTargetError(
-                f"target p{k + 1}: the inverse kinematics leaves the arm's branch (cfx "
-                f"{branch} -> {cfx}, largest joint step {np.degrees(step):.0f} deg)"
+                f"target p{k + 1}: the inverse kinematics leaves the arm's branch "
+                f"(configuration {branch} -> {case}, largest joint step "
+                f"{np.degrees(step):.0f} deg)"
             )
         out[k] = q
         seed = q
     return out
+
+
+def configuration(robot: Robot, joints_rad: np.ndarray) -> int:
+    """The arm's configuration case as its controller names it: KUKA's Status
+    (``export.krl.status_turn``), else ABB's cfx (``rapid.confdata_from_joints``; the UR
+    branch in ABB's numbering for a UR arm)."""
+    if robot.family == "kuka":
+        from .krl import status_turn
+
+        return status_turn(robot, joints_rad)[0]
+    return confdata_from_joints(joints_rad, arm=robot.name)[3]
 
 
 def with_target_joints(robot: Robot, targets: Targets) -> Targets:
