@@ -102,8 +102,17 @@ def main() -> None:
 
     def tasks(stocks):
         return [
-            CutTask(robot.name, robot.T_flange_tcp, targets, normals, st, MachiningSettings(),
-                    c, tuple(COMPENSATION_NAMES), model)  # fmt: skip
+            CutTask(
+                robot.name,
+                robot.T_flange_tcp,
+                targets,
+                normals,
+                st,
+                MachiningSettings(),
+                c,
+                tuple(COMPENSATION_NAMES),
+                model,
+            )  # fmt: skip
             for st in stocks
             for c in MACHINING_CONTROLLERS
         ]

@@ -243,7 +243,10 @@ def run(args: argparse.Namespace) -> int:
         )
     print(f"wrote             {', '.join(p.name for p in written)} in {out}")
     if export_error is not None:
-        print(f"robomach machine: error: the chosen configuration cannot be exported: {export_error}", file=sys.stderr)
+        print(
+            f"robomach machine: error: the chosen configuration cannot be exported: {export_error}",
+            file=sys.stderr,
+        )
     if chosen is None:
         print(f"robomach machine: error: nothing to choose: {result.reason}", file=sys.stderr)
     return EXIT_NOTHING_CHOSEN if chosen is None or export_error is not None else EXIT_OK

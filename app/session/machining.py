@@ -13,7 +13,7 @@ Public API (thread-safe):
                  controller=, compensation=, stock_source=, cell_options=,
                  cell_options_default=, variations=) -> MachiningSetup
     set_stock_profile(profile_mm) / upload_stock(data, filename) -> MachiningSetup
-    start(kind: "run" | "compare", cluster=None) -> job_id   progress and cancel: session.jobs
+    start(kind: "run" | "compare") -> job_id   progress and cancel through session.jobs
     result() -> MachiningResult | None; status() -> none | current | stale
     plot_data(controller=None, compensation=None, max_points=) -> dict   decimated trace
     choose(controller, compensation) -> MachiningSetup
@@ -22,6 +22,7 @@ Public API (thread-safe):
 from __future__ import annotations
 
 import base64
+import os
 import threading
 import weakref
 from dataclasses import replace
@@ -41,6 +42,8 @@ JobKind = Literal["run", "compare"]
 # Points of a plotted trace: each bucket gives its mean, min and max (the envelope).
 PLOT_POINTS = 1500
 MAX_STOCK_BYTES = 20_000_000
+# The Dask scheduler the workbench runs its machining cuts on (unset: the local cores).
+CLUSTER_ENV = "ROBOMACH_CLUSTER"
 
 _SERVICES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _SERVICES_LOCK = threading.Lock()
@@ -267,9 +270,12 @@ class MachiningService:
         s._notify("postprocess", "machining")
         return setup
 
-    def start(self, kind: JobKind, *, cluster: str | None = None) -> str:
+    def start(self, kind: JobKind) -> str:
         """Job: run the chosen configuration (``"run"``) or the matrix (``"compare"``), on the
-        setup's stock and its variations; on every local core, or the Dask ``cluster``."""
+        setup's stock and its variations; on every local core, or on the Dask cluster named
+        by ``ROBOMACH_CLUSTER`` when the server runs (the operator's choice: no request can
+        point the server at an address)."""
+        cluster = os.environ.get(CLUSTER_ENV) or None
         if kind not in ("run", "compare"):
             raise InvalidInputError(f"machining job kind must be run or compare, got {kind!r}")
         s = self.session

@@ -126,7 +126,12 @@ def _figures(row: dict[str, Any]) -> tuple[Any, Any, Any, bool]:
     variation sweep, else the single run's."""
     if "cycle_time_p95_s" in row:
         complete = row.get("completed_share", 0.0) >= COMPLETED_SHARE
-        return row["cycle_time_p95_s"], row["force_peak_p95_N"], row["wall_error_max_p95_mm"], complete
+        return (
+            row["cycle_time_p95_s"],
+            row["force_peak_p95_N"],
+            row["wall_error_max_p95_mm"],
+            complete,
+        )
     return (
         row.get("cycle_time_s"),
         row.get("force_peak_N"),
@@ -139,7 +144,11 @@ def choose(rows: list[dict[str, Any]], capabilities: CellCapabilities) -> Choice
     """The configuration to choose (module docstring), with the rule's reason in words."""
     p95 = bool(rows) and "cycle_time_p95_s" in rows[0]
     tag = " (95th percentiles over the stocks)" if p95 else ""
-    runnable = [i for i, r in enumerate(rows) if not missing(r["controller"], r["compensation"], capabilities)]
+    runnable = [
+        i
+        for i, r in enumerate(rows)
+        if not missing(r["controller"], r["compensation"], capabilities)
+    ]
     not_here = len(rows) - len(runnable)
     done = [i for i in runnable if _figures(rows[i])[3] and _figures(rows[i])[0] is not None]
     if not done:
@@ -147,9 +156,7 @@ def choose(rows: list[dict[str, Any]], capabilities: CellCapabilities) -> Choice
         if not runnable:
             why = f"this cell ({capabilities.describe()}) can run none of the configurations"
         return Choice(None, why)
-    safe = [
-        i for i in done if _figures(rows[i])[1] <= (1 + PEAK_MARGIN) * rows[i]["force_limit_N"]
-    ]
+    safe = [i for i in done if _figures(rows[i])[1] <= (1 + PEAK_MARGIN) * rows[i]["force_limit_N"]]
     pool = safe or done
     fastest = min(_figures(rows[i])[0] for i in pool)
     quick = [i for i in pool if _figures(rows[i])[0] <= (1 + CYCLE_MARGIN) * fastest]

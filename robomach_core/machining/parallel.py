@@ -70,7 +70,9 @@ def _robot(name: str, T: np.ndarray):
     return robot
 
 
-def run_cut_task(task: CutTask, cancel: Any = None) -> list[tuple[Any, dict[str, Any] | None, str | None]]:
+def run_cut_task(
+    task: CutTask, cancel: Any = None
+) -> list[tuple[Any, dict[str, Any] | None, str | None]]:
     """The task's cuts: per compensation (run or None, summary or None, refusal or None)."""
     from .compare import run_configuration
 
@@ -95,7 +97,10 @@ def run_cut_task(task: CutTask, cancel: Any = None) -> list[tuple[Any, dict[str,
 
 def default_workers() -> int:
     """All local cores."""
-    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
+    return max(
+        1,
+        len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1),
+    )
 
 
 def run_tasks(

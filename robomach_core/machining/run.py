@@ -35,9 +35,10 @@ programmed speed (capped), with speed changes between moves ramped at the path a
 zone blending at corners (a few tenths of a millimetre) is not modelled. The offline
 compensation densifies the program to a target every ``offline_target_spacing_m`` (the
 corrected program is ``MachiningRun.program``). The stock's ``material_factor`` scales the
-process gain K the controllers were designed for (a harder or softer casting). The wall error is measured against the
-program's own path (the nominal wall is that path moved back by the tool radius), so it shows
-what the cut adds to the learning error, not the learning error itself.
+process gain K the controllers were designed for (a harder or softer casting). The wall error
+is measured against the program's own path (the nominal wall is that path moved back by the
+tool radius), so it shows what the cut adds to the learning error, not the learning error
+itself.
 """
 
 from __future__ import annotations
@@ -51,29 +52,31 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from ..cmrr.controllers import ControlDesign, make_controller, settings_for
+from ..cmrr.controllers import ControlDesign, make_controller
 from ..cmrr.controllers._fast import fast_stepper
 from ..cmrr.feed_dynamics import FeedDynamics
 from ..cmrr.process import ForceSensorModel, PowerLawForceModel
+from ..errors import InvalidInputError
 from ..joint_compliance import JointCompliance, true_joint_compliance
 from ..postprocess import Targets
 from ..robot import Robot
 from ..stiffness import (
     CompensationSettings,
     StiffnessIdentification,
-    compensate_targets_and_joints,
     identify_joint_stiffness,
     sample_workspace_joints,
     simulate_stiffness_measurements,
     sphere_tip_transform,
 )
-from ..errors import InvalidInputError
 from .design import designed_controller_settings
 from .errors import CancelledError, MachiningSettingsError, SampleLimitError, StockError
 from .offline import densify_targets as densify_targets
 from .path import arc_length_m, check_normals, check_path, path_tangents, project_onto_path
 from .settings import CONTROL_PERIOD_S, MachiningSettings
 from .stock import Stock
+from .summary import finished_wall as finished_wall
+from .summary import steady_force_N as steady_force_N
+from .summary import summarize
 
 MM = 1e-3
 # Samples between two checks of the cancel flag.
@@ -253,17 +256,6 @@ def start_feed_m_s(
     return np.where(beyond, np.interp(s_m, plan_s_m, plan_feed_m_s), out)
 
 
-def steady_force_N(
-    process: PowerLawForceModel, depth_m: np.ndarray, feed_m_s: np.ndarray
-) -> np.ndarray:
-    """Eq. (5) on arrays: K (d/1 mm)^alpha (f/1 mm/s)^beta, zero without depth or feed."""
-    d = np.maximum(np.asarray(depth_m, dtype=float), 0.0) / MM
-    f = np.maximum(np.asarray(feed_m_s, dtype=float), 0.0) / MM
-    with np.errstate(over="ignore", invalid="ignore"):
-        out = process.gain_N * d**process.depth_exponent * f**process.feed_exponent
-    return np.where((d > 0.0) & (f > 0.0), out, 0.0)
-
-
 def predicted_force_N(
     settings: MachiningSettings, depth_m: np.ndarray, planned_feed_m_s: np.ndarray
 ) -> np.ndarray:
@@ -348,7 +340,9 @@ def run_machining(
     P = check_path(targets.position_m)
     s_t, _, _ = project_onto_path(P, stock.path_points_m, stock.wall_normals_m)
     s_f = np.arange(0.0, float(s_t[-1]), settings.station_spacing_m)
-    n_t = np.stack([np.interp(s_t, stock.path_s_m, stock.wall_normals_m[:, i]) for i in range(3)], 1)
+    n_t = np.stack(
+        [np.interp(s_t, stock.path_s_m, stock.wall_normals_m[:, i]) for i in range(3)], 1
+    )
     n_t /= np.linalg.norm(n_t, axis=1, keepdims=True)
     U = force_directions(n_t, path_tangents(P), settings.feed_force_ratio)
     c_hat = np.interp(s_f, s_t, normal_compliance(robot, targets.joints_rad, n_t, U, model))
@@ -426,7 +420,9 @@ def cut_program(
                 f"the program has {m} targets, its nominal program {len(P0)}: they must pair"
             )
         s_t, _, lateral = project_onto_path(P0, stock.path_points_m, stock.wall_normals_m)
-        n_t = np.stack([np.interp(s_t, stock.path_s_m, stock.wall_normals_m[:, i]) for i in range(3)], 1)
+        n_t = np.stack(
+            [np.interp(s_t, stock.path_s_m, stock.wall_normals_m[:, i]) for i in range(3)], 1
+        )
         n_t /= np.linalg.norm(n_t, axis=1, keepdims=True)
         off_t = np.einsum("ij,ij->i", P - P0, n_t)
     else:
@@ -442,7 +438,9 @@ def cut_program(
             "on the program's path"
         )
     if wall_normals_m is None:
-        N = np.stack([np.interp(s_t, stock.path_s_m, stock.wall_normals_m[:, i]) for i in range(3)], 1)
+        N = np.stack(
+            [np.interp(s_t, stock.path_s_m, stock.wall_normals_m[:, i]) for i in range(3)], 1
+        )
         N /= np.linalg.norm(N, axis=1, keepdims=True)
     else:
         N = check_normals(wall_normals_m, m)
@@ -765,86 +763,3 @@ class _FilterState:
         self.z1 = self.b1 * x - self.a1 * out + self.z2
         self.z2 = self.b2 * x - self.a2 * out
         return out
-
-
-def finished_wall(
-    s_st: np.ndarray,
-    allowance_m: np.ndarray,
-    path_m: np.ndarray,
-    tool_normal_m: np.ndarray,
-    tool_radius_m: float,
-) -> FinishedWall:
-    """The wall the ball cutter leaves: at each station the lowest reach of the ball over the
-    tool positions within one radius along the path, h + r - sqrt(r^2 - ds^2), clipped by the
-    stock (where the tool never reached the stock surface the stock remains)."""
-    ds = float(s_st[1] - s_st[0])
-    n_st = len(s_st)
-    idx = np.clip(np.rint(path_m / ds).astype(np.int64), 0, n_st - 1)
-    reach = np.full(n_st, np.inf)
-    np.minimum.at(reach, idx, tool_normal_m)
-    envelope = reach.copy()
-    r = tool_radius_m
-    for shift in range(1, int(r / ds) + 1):
-        rise = r - math.sqrt(max(r * r - (shift * ds) ** 2, 0.0))
-        envelope[shift:] = np.minimum(envelope[shift:], reach[:-shift] + rise)
-        envelope[:-shift] = np.minimum(envelope[:-shift], reach[shift:] + rise)
-    return FinishedWall(s_st, allowance_m, np.minimum(allowance_m, envelope))
-
-
-def summarize(
-    settings: MachiningSettings,
-    trace: MachiningTrace,
-    wall: FinishedWall,
-    *,
-    v_prog: np.ndarray,
-    cycle_time_s: float | None,
-    stop_time_s: float | None,
-    constant_feed_m_s: float | None,
-    wall_time_s: float,
-    max_depth_m: float,
-) -> dict[str, Any]:
-    """The figures of a run, units in the keys.
-
-    ``force_rms_error_N`` is taken where the reference is binding: where the steady force at
-    the programmed speed and the depth met would exceed Fr (CMRR must act there); elsewhere
-    the force is below Fr at full programmed speed by design.
-    """
-    fr = settings.reference_N
-    process = settings.process
-    full_speed = steady_force_N(process, trace.depth_m, v_prog)
-    binding = full_speed >= fr
-    sel = binding if np.any(binding) else trace.depth_m > 0.0
-    err = trace.force_N[sel] - fr
-    e = wall.error_m
-    i_max = int(np.argmax(np.abs(e)))
-    removed = float(np.trapezoid(wall.allowance_m - wall.finished_m, wall.s_m))
-    volume_mm3 = removed * settings.axial_engagement_m / MM**3
-    sim_time = float(trace.time_s[-1]) if len(trace) else 0.0
-    return {
-        "controller": settings.controller,
-        "compensation": settings.compensation,
-        "completed": cycle_time_s is not None,
-        "cycle_time_s": cycle_time_s,
-        "stop_time_s": stop_time_s,
-        "samples": len(trace),
-        "path_length_mm": float(wall.s_m[-1]) / MM,
-        "force_peak_N": float(np.max(trace.force_N)),
-        "force_limit_N": settings.force_limit_N,
-        "force_reference_N": fr,
-        "force_rms_error_N": float(np.sqrt(np.mean(err**2))) if err.size else 0.0,
-        "force_over_limit_fraction": float(np.mean(trace.force_N > settings.force_limit_N)),
-        "wall_error_max_mm": float(abs(e[i_max])) / MM,
-        "wall_error_max_at_path_mm": float(wall.s_m[i_max]) / MM,
-        "wall_error_rms_mm": float(np.sqrt(np.mean(e**2))) / MM,
-        "material_left_max_mm": max(0.0, float(e.max())) / MM,
-        "overcut_max_mm": max(0.0, float(-e.min())) / MM,
-        "deflection_max_mm": float(np.max(trace.deflection_m)) / MM,
-        "depth_max_mm": max_depth_m / MM,
-        "feed_mean_mm_s": float(np.mean(trace.feed_m_s)) / MM,
-        "constant_feed_mm_s": None if constant_feed_m_s is None else constant_feed_m_s / MM,
-        "removed_volume_mm3": volume_mm3,
-        "mrr_mean_mm3_s": volume_mm3 / cycle_time_s if cycle_time_s else None,
-        "sim_time_s": sim_time,
-        "wall_time_s": wall_time_s,
-        "realtime_factor": sim_time / wall_time_s if wall_time_s > 0 else None,
-    }

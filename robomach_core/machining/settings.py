@@ -12,6 +12,7 @@ from dataclasses import dataclass, fields
 from typing import Any, Literal, get_args
 
 from ..cmrr.controllers import CONTROLLER_NAMES, ControllerSettings
+from ..cmrr.process import DEFAULT_TAU_M_S, PowerLawForceModel
 from ..limits import (
     CMRR_COMMAND_SPEED_MM_S,
     CMRR_MIN_SPEED_RATIO,
@@ -21,7 +22,6 @@ from ..limits import (
     MACHINING_FORCE_LIMIT_N,
     MACHINING_PROCESS_GAIN_N,
 )
-from ..cmrr.process import DEFAULT_TAU_M_S, PowerLawForceModel
 from .errors import MachiningSettingsError
 
 MM = 1e-3
@@ -44,7 +44,10 @@ _RANGES: dict[str, tuple[float, float, bool, str]] = {
     "process_time_constant_s": (0.0, 1.0, True, "s"),
     "force_limit_N": (MACHINING_FORCE_LIMIT_N.min, MACHINING_FORCE_LIMIT_N.max, True, "N"),
     "command_speed_cap_m_s": (
-        CMRR_COMMAND_SPEED_MM_S.min * MM, CMRR_COMMAND_SPEED_MM_S.max * MM, True, "m/s",
+        CMRR_COMMAND_SPEED_MM_S.min * MM,
+        CMRR_COMMAND_SPEED_MM_S.max * MM,
+        True,
+        "m/s",
     ),  # fmt: skip
     "path_acceleration_m_s2": (0.0, 10.0, False, "m/s^2"),
     "min_speed_ratio": (CMRR_MIN_SPEED_RATIO.min, CMRR_MIN_SPEED_RATIO.max, True, ""),

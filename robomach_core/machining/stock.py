@@ -258,7 +258,9 @@ def check_profile_mm(profile_mm: Sequence[tuple[float, float]]) -> tuple[tuple[f
     bad = ~np.isfinite(table)
     if np.any(bad):
         row = int(np.argmax(bad.any(axis=1)))
-        raise StockError(f"the allowance profile's point {row + 1} is not finite: {table[row].tolist()}")
+        raise StockError(
+            f"the allowance profile's point {row + 1} is not finite: {table[row].tolist()}"
+        )
     s, a = table[:, 0], table[:, 1]
     if s[0] < 0.0 or s[-1] > MAX_PROFILE_S_MM:
         raise StockError(

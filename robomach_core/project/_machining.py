@@ -378,7 +378,15 @@ def machine(
         }
     tasks = [
         CutTask(
-            robot.name, robot.T_flange_tcp, targets, normals, st, s, c, modes, model,
+            robot.name,
+            robot.T_flange_tcp,
+            targets,
+            normals,
+            st,
+            s,
+            c,
+            modes,
+            model,
             keep_runs=i == 0,
         )  # fmt: skip
         for i, st in enumerate(stocks)
@@ -399,7 +407,9 @@ def machine(
     runs = [nominal[p][0] for p in pairs if nominal[p][0] is not None]
     refused = {p: nominal[p][2] for p in pairs if nominal[p][2] is not None}
     rows = comparison_rows(runs, refused=refused, order=pairs)
-    rows = [_plain_row({**(nominal[p][1] or {}), **row}) for p, row in zip(pairs, rows, strict=True)]
+    rows = [
+        _plain_row({**(nominal[p][1] or {}), **row}) for p, row in zip(pairs, rows, strict=True)
+    ]
     if variation is not None:
         summaries = [[per_stock[i][p][1] for i in range(1, len(stocks))] for p in pairs]
         stats = variation_rows(
@@ -441,7 +451,9 @@ def _plain_row(row: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def best_row(rows: tuple[dict[str, Any], ...] | list[dict[str, Any]], capabilities: Any = None) -> int | None:
+def best_row(
+    rows: tuple[dict[str, Any], ...] | list[dict[str, Any]], capabilities: Any = None
+) -> int | None:
     """Index of the configuration to choose (``machining.choice.choose``; every configuration
     counts as runnable without ``capabilities``); None when none completed."""
     from ..machining.choice import OPTION_NAMES, CellCapabilities, choose

@@ -199,7 +199,9 @@ def test_every_advertised_force_limit_is_accepted_under_its_own_name(api: Api) -
         assert s["reference_force_N"] == pytest.approx(0.7 * value)
         for controller in ("fixed-pi", "two-stage"):
             chosen = api.ok(
-                "PUT", "/api/machining/choice", json={"controller": controller, "compensation": "off"}
+                "PUT",
+                "/api/machining/choice",
+                json={"controller": controller, "compensation": "off"},
             )
             assert chosen["controller"] == controller
     r = api.put("/api/machining/settings", json={"force_limit_N": 1.0})

@@ -141,6 +141,9 @@ def test_compensation_settings_of_another_arm_are_re_derived_not_blocking_the_ex
     workpiece = core.build_workpiece(p.cell, p.mesh)
     robot = Robot(p.cell.robot, p.tool().T_flange_tcp)
     files = core.program_files(p, workpiece, robot)
-    assert "identified on ur5" in files["program.mod"] and "re-derives it for ur10" in files["program.mod"]
+    assert (
+        "identified on ur5" in files["program.mod"]
+        and "re-derives it for ur10" in files["program.mod"]
+    )
     # The CMRR choice and the mode are kept (no "Remove" needed).
     assert p.compensation.mode == "offline_linear"

@@ -213,26 +213,14 @@ def start_run(session: SessionDep) -> JobCreated:
     return JobCreated(job_id=machining_for(session).start("run"))
 
 
-class CompareOptions(BaseModel):
-    """Where the comparison runs (optional body)."""
-
-    model_config = ConfigDict(extra="forbid")
-
-    cluster: str | None = Field(
-        None,
-        max_length=200,
-        pattern=r"^(tcp|tls|inproc|ucx)://[A-Za-z0-9_.:\[\]-]+$",
-        description="a Dask scheduler address to run the cuts on instead of the local cores",
-    )
-
-
 @router.post("/compare", status_code=status.HTTP_202_ACCEPTED)
-def start_compare(session: SessionDep, body: CompareOptions | None = None) -> JobCreated:
+def start_compare(session: SessionDep) -> JobCreated:
     """Job: the matrix, the greatest safe constant feed and each CMRR controller with
     compensation off, offline and online (18 runs), on the stock and ``variations`` more
-    stocks drawn from the part's variation, on every local core or a Dask cluster."""
-    cluster = body.cluster if body is not None else None
-    return JobCreated(job_id=machining_for(session).start("compare", cluster=cluster))
+    stocks drawn from the part's variation, on every local core (or the Dask cluster the
+    server was started with, ``ROBOMACH_CLUSTER``; a request cannot point the server at
+    another address)."""
+    return JobCreated(job_id=machining_for(session).start("compare"))
 
 
 @router.get("/result")

@@ -28,11 +28,10 @@ from robomach_core.limits import (
 from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
 from robomach_core.machining.choice import OPTION_NAMES, OPTION_TEXT, RULE_TEXT
 
-from .large import open_large, png_html
-from .machining_table import SORT_KEYS, table_html
-
 from ..scene import deviation_colors
 from .feedback import guarded
+from .large import open_large, png_html
+from .machining_table import SORT_KEYS, table_html
 
 log = logging.getLogger(__name__)
 OUT_OF_DATE = "\u26a0 Out of date"
@@ -198,7 +197,8 @@ class MachiningPanel:
         )
         self.variations.on_update(
             guarded(
-                "Machining", lambda e: self.service.set_settings(variations=int(self.variations.value))
+                "Machining",
+                lambda e: self.service.set_settings(variations=int(self.variations.value)),
             )
         )
         self.sort.on_update(guarded("Machining", lambda e: self._show_table()))
@@ -342,7 +342,9 @@ class MachiningPanel:
         self.table.content = (
             ""
             if result is None
-            else table_html(list(result.rows), result.chosen, result.reason, sort_by=self.sort.value)
+            else table_html(
+                list(result.rows), result.chosen, result.reason, sort_by=self.sort.value
+            )
         )
 
     def _show_result(self) -> None:

@@ -119,7 +119,9 @@ def table_html(
             title = str(row["refused"])
         elif not row.get("completed"):
             title = f"stopped: {row.get('stop_reason') or 'stopped'}"
-        status = "refused" if row.get("refused") else ("stopped" if not row.get("completed") else "")
+        status = (
+            "refused" if row.get("refused") else ("stopped" if not row.get("completed") else "")
+        )
         name = f"{row['controller']} / {row['compensation']}"
         cells = [f"<td>{'&#9733; ' if i == chosen else ''}{html.escape(name)}</td>"]
         for key, _, fmt in columns:
@@ -132,7 +134,11 @@ def table_html(
         if title:
             attrs += f' title="{html.escape(title)}"'
         body.append(f"<tr{attrs}>{''.join(cells)}</tr>")
-    pick = "none" if chosen is None else f"{rows[chosen]['controller']} / {rows[chosen]['compensation']}"
+    pick = (
+        "none"
+        if chosen is None
+        else f"{rows[chosen]['controller']} / {rows[chosen]['compensation']}"
+    )
     why = (
         f'<p class="rm-why">Rule\'s pick: <b>{html.escape(pick)}</b>. {html.escape(reason)} '
         "Greyed: the cell cannot run them (hover for what they need).</p>"

@@ -22,7 +22,6 @@ import numpy as np
 
 from .adaptive_lq import AdaptiveLqController, _matching_integral
 from .base import Measurement
-from .pi import POWER_CAP_EXP, AdaptivePiController, FixedPiController, pi_gains
 from .fuzzy import (
     ERROR_TERMS,
     OUTPUT_SETS,
@@ -34,6 +33,7 @@ from .fuzzy import (
     FuzzyController,
     _switch_level,
 )
+from .pi import POWER_CAP_EXP, AdaptivePiController, FixedPiController, pi_gains
 
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 Stepper = Callable[[float, float], tuple[float, bool]]

@@ -120,7 +120,9 @@ def test_the_fast_copy_of_each_controller_equals_its_public_step(values, name):
 
 
 def _tiny(program: Targets, count: int = 16) -> Targets:
-    return Targets(**{k: np.asarray(getattr(program, k))[:count] for k in program.__dataclass_fields__})
+    return Targets(
+        **{k: np.asarray(getattr(program, k))[:count] for k in program.__dataclass_fields__}
+    )
 
 
 @given(
@@ -157,10 +159,11 @@ def test_the_reproducers_of_r5_get_a_result_or_a_physical_message(robot, short_p
     program = _tiny(short_program)
     stock = builtin_stock(program.position_m, seed=0)
     model = identify_stiffness(robot.name, seed=0).model
+    common = {"process_gain_N": 1000.0, "depth_exponent": 3.0}
     cases = [
-        dict(process_gain_N=1000.0, depth_exponent=3.0, feed_exponent=0.5, controller="adaptive-pi", compensation="online"),
-        dict(process_gain_N=1000.0, depth_exponent=3.0, feed_exponent=0.01, controller="fixed-pi", compensation="offline"),
-        dict(process_gain_N=1000.0, depth_exponent=3.0, feed_exponent=0.01, force_limit_N=1.5, controller="constant"),
+        {**common, "feed_exponent": 0.5, "controller": "adaptive-pi", "compensation": "online"},
+        {**common, "feed_exponent": 0.01, "controller": "fixed-pi", "compensation": "offline"},
+        {**common, "feed_exponent": 0.01, "force_limit_N": 1.5, "controller": "constant"},
     ]  # fmt: skip
     for case in cases:
         try:
@@ -189,8 +192,17 @@ def _sweep_tasks(robot, program) -> list[CutTask]:
     stocks = draw_stocks(base, 2, 0, StockVariation())
     model = identify_stiffness(robot.name, seed=0).model
     return [
-        CutTask(robot.name, robot.T_flange_tcp, program, None, stock, MachiningSettings(),
-                controller, ("off", "online"), model)  # fmt: skip
+        CutTask(
+            robot.name,
+            robot.T_flange_tcp,
+            program,
+            None,
+            stock,
+            MachiningSettings(),
+            controller,
+            ("off", "online"),
+            model,
+        )  # fmt: skip
         for stock in stocks
         for controller in ("constant", "adaptive-pi")
     ]
