@@ -147,3 +147,21 @@ def test_compensation_settings_of_another_arm_are_re_derived_not_blocking_the_ex
     )
     # The CMRR choice and the mode are kept (no "Remove" needed).
     assert p.compensation.mode == "offline_linear"
+
+
+def test_a_result_is_re_chosen_for_another_cell_without_running_again():
+    from robomach_core.machining.choice import CellCapabilities
+
+    rows = (
+        _row("constant", "off", 240.0, 146.0, 0.12),
+        _row("adaptive-pi", "offline", 137.0, 155.0, 0.03),
+        _row("adaptive-pi", "online", 136.0, 157.0, 0.011),
+    )
+    result = core.MachiningResult(rows=rows, table_text="", chosen=None, programs={})
+    abb = result.for_cell(CellCapabilities.for_language("rapid"))
+    assert abb.chosen == 1 and abb.rows[2]["runnable"] is False
+    full = abb.for_cell(CellCapabilities(frozenset({"fc_speed_change", "path_correction"})))
+    assert full.chosen == 2 and all(r["runnable"] for r in full.rows)
+    bare = full.for_cell(CellCapabilities())
+    assert bare.chosen == 0 and "constant / off" in bare.reason
+    assert [r["cycle_time_s"] for r in bare.rows] == [r["cycle_time_s"] for r in rows]
