@@ -51,7 +51,12 @@ from .sensor import GRAVITY_M_S2, ForceEstimator
 from .supervision import Supervisor, cell_supervisor
 from .transforms import matrix_from_quaternion, quaternion_from_matrix, quaternions_from_matrices
 from .transforms import slerp as _slerp
-from .wall_side import WallSideDecision, mean_tool_axis, resolve_wall_side
+from .wall_side import (
+    WALL_FORCE_CLEAR_N,
+    WallSideDecision,
+    mean_tool_axis,
+    resolve_wall_side,
+)
 
 FORCE_RANGE_N = (1.0, 50.0)
 SPEED_RANGE_M_S = (0.0005, 0.05)
@@ -73,6 +78,7 @@ PENETRATION_STOP_FRACTION = 0.5  # of the cutter radius: deeper is a collision, 
 LEG_END_MARGIN_M = 0.002  # a leg ends this far before its guide point's plane
 LEG_DETOUR_FACTOR = 4.0  # a leg's wall longer than this x the leg (+ LEG_DETOUR_EXTRA_M): lost
 LEG_DETOUR_EXTRA_M = 0.05
+FIRST_SEARCH_ACROSS_M = 0.006  # the first search goes straight across this far, then also along
 SEARCH_TURN_M = 0.006  # out of contact this long after a wall, search along the leg again
 APPROACH_CLEARANCE_M = 0.03  # the approach travels this far above the first point
 CLOSE_LOOP_M = 0.001  # a closed route ends at its nearest approach within this of its start
@@ -206,6 +212,9 @@ class Recording:
         stop_reason: Why the run ended.
         completed: True when the run reached its last guide point.
         stop: Where and why it stopped early (None when completed).
+        wall_side: The side of the wall the run followed ("left"/"right" of travel), "" when
+            unknown (recordings from before the side was kept).
+        wall_side_reason: What decided the side (the setting, the pushes, the mesh).
     """
 
     time_s: np.ndarray
@@ -222,6 +231,8 @@ class Recording:
     stop_reason: str
     completed: bool
     stop: LearningStop | None = None
+    wall_side: str = ""
+    wall_side_reason: str = ""
 
     def __len__(self) -> int:
         return len(self.time_s)
@@ -406,7 +417,9 @@ def _approach(
     return move_linear(cell, state, T_start, 0.01, supervisor=supervisor)
 
 
-def _wall_turn(yps: np.ndarray, positions: np.ndarray, n: int, side: float, axis: np.ndarray) -> str:
+def _wall_turn(
+    yps: np.ndarray, positions: np.ndarray, n: int, side: float, axis: np.ndarray
+) -> str:
     """What the wall did over the last ~5 mm before sample ``n``: its turn towards the tool."""
     if n < 2:
         return "no wall found yet"
@@ -434,6 +447,7 @@ def learn_path(
     cancelled: Callable[[], bool] | None = None,
     supervisor: Supervisor | None = None,
     wall_side: WallSideDecision | None = None,
+    start_towards_wall: np.ndarray | None = None,
 ) -> tuple[Recording, CellState]:
     """Follow the wall along the route through ``guides`` and record it (module docstring).
 
@@ -447,6 +461,9 @@ def learn_path(
     Args:
         wall_side: The side already decided (with the part's mesh, ``resolve_wall_side``);
             default: ``settings.wall_side``, "auto" deciding from the guide points' forces.
+        start_towards_wall: (3,) direction from the first guide point to the wall it was taught
+            on (from the part's mesh, ``learning_route``); default: the force recorded there
+            when it is a push, else across the first leg on the wall's side.
 
     Returns:
         The recording and the cell state at its end.
@@ -472,9 +489,7 @@ def learn_path(
     axis = mean_tool_axis(guides)  # Zp: the height axis, into the part
     ax, ay, az = (float(v) for v in axis)
 
-    state = _approach(
-        cell, state, guides, segs[0].a, axis, settings.closed, supervisor=supervisor
-    )
+    state = _approach(cell, state, guides, segs[0].a, axis, settings.closed, supervisor=supervisor)
 
     # Room for the run at the speed it may fall to (the slowest advance near the force limit).
     slowest = min(settings.speed_m_s, settings.search_speed_m_s)
@@ -521,6 +536,11 @@ def learn_path(
     R_ref = state.T_base_tcp[:3, :3].copy()
     turn_step = TURN_RATE_RAD_S * dt
     w = across(np.cross(axis, seg.xp) * side)
+    pushed = across(-np.asarray(guides[0].force_N, dtype=float))
+    if start_towards_wall is not None:
+        w = across(np.asarray(start_towards_wall, dtype=float))
+    elif float(np.linalg.norm(pushed)) >= WALL_FORCE_CLEAR_N and float(pushed @ w) > 0.0:
+        w = pushed
     w /= float(np.linalg.norm(w))
     found_wall = ever_touched = False
     first_touch = p_ref.copy()
@@ -617,7 +637,8 @@ def learn_path(
             )
             break
         rel = p_ref - seg.a
-        off_route = float(np.linalg.norm(rel - seg.xp * float(rel @ seg.xp)))
+        along = float(rel @ seg.xp)
+        off_route = math.sqrt(max(float(rel @ rel) - along * along, 0.0))
         if off_route > max(LOST_WALL_M, ROUTE_WANDER_FRACTION * seg.length):
             stop_cause = "lost"
             stop_reason = (
@@ -635,17 +656,17 @@ def learn_path(
         # --- the wall's tangent, the force loop across it, the leg's height along the axis ---
         if not touching and found_wall and out_of_contact_m > SEARCH_TURN_M:
             # the wall has been lost for a while: search across the leg again
-            w = across(np.cross(axis, seg.xp) * side)
-            w /= float(np.linalg.norm(w))
+            w = across(_kernels.cross(axis, seg.xp) * side)
+            w /= math.sqrt(float(w @ w))
             found_wall = False
-        t = np.cross(w, axis) * side
+        t = _kernels.cross(w, axis) * side
         e = f_ref - f_n
         limit = vmax if touching else search
         integral = min(max(integral + ki * e * dt, -limit), limit)
         v_w = min(max(kp * e + integral, -vmax), limit)
         if touching:
             v_t = speed * _speed_ratio(f_n, f_ref)
-        elif ever_touched:
+        elif ever_touched or out_of_contact_m > FIRST_SEARCH_ACROSS_M:
             v_t = min(speed, search)
         else:
             v_t = 0.0  # the first search: straight across to the wall, nothing skipped
@@ -671,11 +692,16 @@ def learn_path(
         q_now = state.q_motor
 
         def propose(
-            scale: float, step: np.ndarray = step, turn: np.ndarray = turn, q_now: np.ndarray = q_now
+            scale: float,
+            step: np.ndarray = step,
+            turn: np.ndarray = turn,
+            q_now: np.ndarray = q_now,
+            p0: np.ndarray = p_ref,
+            R0: np.ndarray = R_ref,
         ) -> tuple[np.ndarray, np.ndarray]:
             T_ref = np.eye(4)
-            T_ref[:3, :3] = R_ref @ _kernels.exp3(turn * scale)
-            T_ref[:3, 3] = p_ref + step * scale
+            T_ref[:3, :3] = R0 @ _kernels.exp3(turn * scale)
+            T_ref[:3, 3] = p0 + step * scale
             T_now, J = robot.fk_and_jacobian(q_now)
             return T_ref, _kernels.ik_newton_step(q_now, T_now, J, T_ref, lower, upper, 1e-4)
 
@@ -686,7 +712,7 @@ def learn_path(
             break
         p_ref = p_ref + step * supervised.scale
         R_ref = supervised.T_ref[:3, :3].copy()
-        leg_travel += float(np.linalg.norm(step[:3])) * supervised.scale
+        leg_travel += math.sqrt(float(step @ step)) * supervised.scale
         state = cell.step(state, supervised.q_next)
         s_now = float((p_ref - seg.a) @ seg.xp)
         if seg_index + 1 >= total and settings.closed and ever_touched:
@@ -694,7 +720,7 @@ def learn_path(
             # the nearest approach to that point (no chord across the start).
             if s_now >= 0.5 * seg.length:
                 gap = across(p_ref - first_touch)
-                d = float(np.linalg.norm(gap))
+                d = math.sqrt(float(gap @ gap))
                 if d < CLOSE_LOOP_M and d > closing_best:
                     completed = True
                     break
@@ -734,5 +760,7 @@ def learn_path(
         stop_reason=stop_reason,
         completed=completed,
         stop=stop,
+        wall_side=decision.side,
+        wall_side_reason=decision.detail,
     )
     return rec, state

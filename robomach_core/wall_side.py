@@ -12,8 +12,8 @@ STRATEGY  The side is a setting ("left", "right" of travel, looking along the to
               ``MIN_FORCE_VOTES`` are clear and none points the other way;
             - the part's mesh (the CAD, when known): the nearest wall face to each point lies on
               one side of its leg; a point votes when that wall is within ``MAX_WALL_GAP_M`` and
-              clearly nearer than the wall on the other side; the votes decide when at least half
-              the points vote and they all agree.
+              nearer than the wall on the other side by ``NEARER_MARGIN_M``; the votes decide when
+              at least half the points vote and ``MESH_MAJORITY`` of them agree.
           Evidence that disagrees (forces one way, the mesh the other; or points on opposite
           walls) is refused with the points named, and so is no evidence at all.
 SOLUTION  ``resolve_wall_side(guides, setting, *, closed, workpiece, tool_radius_m)`` returns a
@@ -39,7 +39,8 @@ WALL_SIDE_CHOICES = ("auto", "left", "right")
 WALL_FORCE_CLEAR_N = 2.0  # a force across the leg this large is a push, not the sensor's noise
 MIN_FORCE_VOTES = 2  # clear pushes needed (all of them when fewer guide points)
 MAX_WALL_GAP_M = 0.005  # a wall farther than this from a point is not the one it was taught on
-NEARER_MARGIN_M = 0.0008  # the nearer wall must be nearer by this to count as the taught one
+NEARER_MARGIN_M = 0.00025  # the nearer wall must be nearer by this for a point to vote
+MESH_MAJORITY = 0.75  # of the voting points on one side, and votes from half the points
 WALL_FACE_MAX_COS = math.cos(math.radians(45.0))  # |n . tool axis| below this: a wall face
 
 
@@ -75,9 +76,7 @@ def mean_tool_axis(guides: Sequence[GuidePoint]) -> np.ndarray:
     return u / n if n > 1e-9 else axes[0]
 
 
-def travel_directions(
-    guides: Sequence[GuidePoint], closed: bool, axis: np.ndarray
-) -> np.ndarray:
+def travel_directions(guides: Sequence[GuidePoint], closed: bool, axis: np.ndarray) -> np.ndarray:
     """(n, 3) unit direction of travel at each guide point, across ``axis``: the mean of its
     incoming and outgoing legs (one leg at the ends of an open route)."""
     pts = np.array([g.position_m for g in guides])
@@ -167,6 +166,80 @@ def mesh_wall_gaps(
     return right_gap, left_gap
 
 
+def _wall_point(
+    position_m: np.ndarray,
+    travel: np.ndarray,
+    side: float,
+    workpiece: Workpiece,
+    axis: np.ndarray,
+    reach_m: float,
+) -> np.ndarray | None:
+    """The nearest wall point (base frame) on the ``side`` (+1 right, -1 left) of ``travel``
+    from ``position_m``, across ``axis``; None when none lies within ``reach_m``."""
+    import trimesh
+
+    T = workpiece.T_base_wobj
+    R, t = T[:3, :3], T[:3, 3]
+    axis_w = R.T @ axis
+    walls = _wall_faces(workpiece, axis_w)
+    if walls is None:
+        return None
+    p_w = R.T @ (np.asarray(position_m, dtype=float) - t)
+    towards_side = R.T @ (np.cross(axis, travel) * side)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        closest, dist, _ = trimesh.proximity.closest_point(walls, p_w[None, :])
+    rel = closest[0] - p_w
+    rel = rel - axis_w * (rel @ axis_w)
+    if float(np.linalg.norm(rel)) > 1e-9 and float(rel @ towards_side) > 0.0:
+        if dist[0] <= reach_m:
+            return R @ closest[0] + t
+    hits, _, _ = walls.ray.intersects_location(p_w[None, :], towards_side[None, :])
+    if len(hits):
+        k = int(np.argmin(np.linalg.norm(hits - p_w, axis=1)))
+        if float(np.linalg.norm(hits[k] - p_w)) <= reach_m:
+            return R @ hits[k] + t
+    return None
+
+
+def wall_direction(
+    guide: GuidePoint,
+    travel: np.ndarray,
+    side: float,
+    workpiece: Workpiece,
+    axis: np.ndarray,
+) -> np.ndarray | None:
+    """(3,) unit direction, across ``axis``, from ``guide`` to the nearest wall on the ``side``
+    (+1 right, -1 left) of ``travel`` in the part's mesh; None when none is near."""
+    point = _wall_point(guide.position_m, travel, side, workpiece, axis, 2 * MAX_WALL_GAP_M)
+    if point is None:
+        return None
+    rel = point - guide.position_m
+    rel = rel - axis * float(rel @ axis)
+    norm = float(np.linalg.norm(rel))
+    return rel / norm if norm > 1e-9 else None
+
+
+def taught_wall_points(
+    guides: Sequence[GuidePoint],
+    side: str,
+    *,
+    closed: bool,
+    workpiece: Workpiece,
+    tool_radius_m: float,
+) -> list[np.ndarray | None]:
+    """The wall point each guide point was taught on (base frame): the nearest wall on its side
+    of travel in the part's mesh, within ``MAX_WALL_GAP_M`` of the cutter; None where none is.
+    What the scene highlights before a run, and what the score checks the program touches."""
+    axis = mean_tool_axis(guides)
+    dirs = travel_directions(guides, closed, axis)
+    sign = 1.0 if side == "right" else -1.0
+    reach = MAX_WALL_GAP_M + tool_radius_m
+    return [
+        _wall_point(g.position_m, d, sign, workpiece, axis, reach)
+        for g, d in zip(guides, dirs, strict=True)
+    ]
+
+
 def _points(numbers: Sequence[int]) -> str:
     return ", ".join(f"G{k + 1}" for k in numbers)
 
@@ -220,16 +293,19 @@ def resolve_wall_side(
         votes_right = (right_gap <= MAX_WALL_GAP_M) & (right_gap + NEARER_MARGIN_M < left_gap)
         votes_left = (left_gap <= MAX_WALL_GAP_M) & (left_gap + NEARER_MARGIN_M < right_gap)
         n_r, n_l = int(votes_right.sum()), int(votes_left.sum())
-        if n_r and n_l and force_side is None:
+        decided = max(n_r, n_l) >= MESH_MAJORITY * (n_r + n_l)
+        if n_r + n_l >= math.ceil(len(guides) / 2) and decided:
+            mesh_side = "right" if n_r > n_l else "left"
+            mesh_detail = (
+                f"{max(n_r, n_l)} of {len(guides)} points are nearer the wall on the {mesh_side}"
+            )
+        elif n_r and n_l and force_side is None:
             raise WallSideError(
                 f"the guide points sit nearer walls on both sides of the route "
                 f"({_points(np.flatnonzero(votes_right))} nearer the right, "
                 f"{_points(np.flatnonzero(votes_left))} nearer the left): set the wall side, "
                 "or move them nearer the one wall to follow"
             )
-        if n_r + n_l >= math.ceil(len(guides) / 2):
-            mesh_side = "right" if n_r > n_l else "left"
-            mesh_detail = f"{max(n_r, n_l)} of {len(guides)} points are nearest a wall on the {mesh_side}"
     if force_side is not None:
         if mesh_side is not None and mesh_side != force_side:
             raise WallSideError(
@@ -247,11 +323,7 @@ def resolve_wall_side(
     raise WallSideError(
         "cannot tell which wall to follow: the guide points were not pushed against a wall "
         f"(at least {WALL_FORCE_CLEAR_N:g} N at {needed} points)"
-        + (
-            " and they are not clearly nearer one wall of the part"
-            if workpiece is not None
-            else ""
-        )
+        + (" and they are not clearly nearer one wall of the part" if workpiece is not None else "")
         + ": set the wall side (left or right of travel, looking along the tool into the "
         "part), or record the points with a light push towards the wall"
     )

@@ -142,7 +142,9 @@ def sloppy_guides(
         p_wobj = np.array([*(c - right * (r + gap)), z])
         tilt_axis = rng.uniform(-math.pi, math.pi)
         tilt = math.radians(rng.uniform(0.0, max_tilt_deg))
-        R_tilt = Rotation.from_rotvec(tilt * np.array([math.cos(tilt_axis), math.sin(tilt_axis), 0]))
+        R_tilt = Rotation.from_rotvec(
+            tilt * np.array([math.cos(tilt_axis), math.sin(tilt_axis), 0])
+        )
         yaw = math.radians(rng.uniform(-max_yaw_deg, max_yaw_deg))
         R_wobj = R_tilt * R_set * Rotation.from_euler("z", yaw)
         T_base_tcp = np.eye(4)
@@ -205,9 +207,7 @@ def cornered_boss_stl() -> tuple[bytes, Contour]:
     )
     radii = np.array([1e-5, 1e-5, 1e-5, 1e-5, 0.003, 1e-5, 1e-5, 0.003])
     outline = filleted_polygon(corners, radii)
-    boss = trimesh.creation.extrude_polygon(
-        shapely.geometry.Polygon(outline.sample(0.0004)), 0.008
-    )
+    boss = trimesh.creation.extrude_polygon(shapely.geometry.Polygon(outline.sample(0.0004)), 0.008)
     boss.apply_translation([0.0, 0.0, 0.010])
     plate = trimesh.creation.box(extents=(0.14, 0.10, 0.010))
     plate.apply_translation([0.0, 0.0, 0.005])

@@ -613,7 +613,13 @@ class Session(ProjectsMixin):
         )
         if project.learned is None:
             raise ConflictError("nothing to post-process yet: run path learning first")
-        outcome = core.process(project.learned, settings, workpiece, project.cell.tool_radius_m)
+        outcome = core.process(
+            project.learned,
+            settings,
+            workpiece,
+            project.cell.tool_radius_m,
+            guides=project.guide_points,
+        )
         with self._lock:
             if self._project.learned is not project.learned or epoch != self._epoch:
                 raise ConflictError(
