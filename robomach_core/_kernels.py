@@ -249,6 +249,27 @@ def nearest_face(
 
 
 @_jit
+def winding_number(p: np.ndarray, triangles: np.ndarray) -> float:
+    """Generalised winding number of the closed surface ``triangles`` (F, 3, 3) about ``p``:
+    1 inside a closed outward-oriented mesh, 0 outside (the solid angles of the triangles seen
+    from p over 4 pi; Van Oosterom and Strackee, IEEE Trans. Biomed. Eng. 30(2), 1983)."""
+    total = 0.0
+    for f in range(triangles.shape[0]):
+        ax, ay, az = triangles[f, 0, 0] - p[0], triangles[f, 0, 1] - p[1], triangles[f, 0, 2] - p[2]
+        bx, by, bz = triangles[f, 1, 0] - p[0], triangles[f, 1, 1] - p[1], triangles[f, 1, 2] - p[2]
+        cx, cy, cz = triangles[f, 2, 0] - p[0], triangles[f, 2, 1] - p[1], triangles[f, 2, 2] - p[2]
+        la = math.sqrt(ax * ax + ay * ay + az * az)
+        lb = math.sqrt(bx * bx + by * by + bz * bz)
+        lc = math.sqrt(cx * cx + cy * cy + cz * cz)
+        det = ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
+        ab = ax * bx + ay * by + az * bz
+        bc = bx * cx + by * cy + bz * cz
+        ca = cx * ax + cy * ay + cz * az
+        total += 2.0 * math.atan2(det, la * lb * lc + ab * lc + bc * la + ca * lb)
+    return total / (4.0 * math.pi)
+
+
+@_jit
 def path_reference(
     Ra: np.ndarray,
     omega: np.ndarray,

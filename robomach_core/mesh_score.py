@@ -10,8 +10,8 @@ STRATEGY  The cutter is a ball of radius r centred on the TCP. The deviation of 
               dev(p) = d_wall(p) - r   when p is outside the material (> 0: air, < 0: the
                                        cutter cuts into the wall),
               dev(p) = -(d(p) + r)     when p is inside it (an overcut, never a small number),
-          inside from the nearest face's outward normal (``mesh.contains`` confirms it on a
-          watertight mesh). And a program must follow the wall the guide points were taught
+          inside from the nearest face's outward normal, or from the winding number where the
+          nearest point is on an edge (``_inside``). And a program must follow the wall the guide points were taught
           on: the wall point each guide point faces on its side (``wall_side.taught_wall_points``)
           must be touched by the program (within ``TAUGHT_WALL_TOLERANCE_M``); a program on the
           island wall of a groove, or on its floor, misses them.
@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
+from . import _kernels
 from .arcs import Move, linear_moves, sample_moves, score_sampled_moves
 from .errors import InvalidInputError
 from .leadthrough import GuidePoint
@@ -63,6 +64,28 @@ def _walls_of(mesh: trimesh.Trimesh, axis_wobj: np.ndarray) -> trimesh.Trimesh |
     return walls
 
 
+def _inside(
+    mesh: trimesh.Trimesh,
+    pts: np.ndarray,
+    closest: np.ndarray,
+    distance: np.ndarray,
+    tri: np.ndarray,
+) -> np.ndarray:
+    """(k,) True for points inside the part. Where the nearest point lies inside a face, that
+    face's outward normal tells; where it lies on an edge or a corner (the direction to it off
+    the face's normal), the winding number does (``_kernels.winding_number``): ray tests
+    (``trimesh.contains``) gave different answers for the same points in two frames."""
+    rel = pts - closest
+    along = np.einsum("ij,ij->i", rel, mesh.face_normals[tri])
+    inside = along < 0.0
+    unsure = np.abs(along) < 0.999 * distance
+    if unsure.any():
+        triangles = np.ascontiguousarray(mesh.vertices[mesh.faces], dtype=float)
+        for k in np.flatnonzero(unsure):
+            inside[k] = _kernels.winding_number(np.ascontiguousarray(pts[k]), triangles) > 0.5
+    return inside
+
+
 def mesh_deviation(
     workpiece: Workpiece,
     tool_radius_m: float,
@@ -83,9 +106,7 @@ def mesh_deviation(
     mesh = workpiece.mesh
     with np.errstate(divide="ignore", invalid="ignore"):  # degenerate facets in trimesh's maths
         closest, distance, tri = trimesh.proximity.closest_point(mesh, pts_w)
-        behind = np.einsum("ij,ij->i", pts_w - closest, mesh.face_normals[tri]) < 0.0
-        if behind.any() and mesh.is_watertight:
-            behind[behind] = mesh.contains(pts_w[behind])
+        behind = _inside(mesh, pts_w, closest, np.asarray(distance), tri)
         walls = _walls_of(mesh, axis_w / np.linalg.norm(axis_w))
         if walls is None:
             wall_distance = np.asarray(distance, dtype=float)

@@ -79,6 +79,7 @@ def sloppy_guides(
     top_margin_m: float = 0.001,
     side_mode: str = "given",
     span_m: tuple[float, float] | None = None,
+    yaw_follows_wall: bool = False,
 ) -> SloppySet:
     """A seeded set of sloppy guide points on ``cell.workpiece``'s known wall.
 
@@ -95,6 +96,9 @@ def sloppy_guides(
         top_margin_m: The highest a point sits below the top of the wall.
         side_mode: "given" (the person states the side) or "auto".
         span_m: For an open stretch, the arc-length range along the wall to teach.
+        yaw_follows_wall: Turn the tool about its axis with the wall (its y axis towards the
+            wall at every point, the old docs' rule): the wrist turns a full circle round a
+            loop.
     """
     wp: Workpiece = cell.workpiece
     contour = wp.wall
@@ -146,7 +150,14 @@ def sloppy_guides(
             tilt * np.array([math.cos(tilt_axis), math.sin(tilt_axis), 0])
         )
         yaw = math.radians(rng.uniform(-max_yaw_deg, max_yaw_deg))
-        R_wobj = R_tilt * R_set * Rotation.from_euler("z", yaw)
+        R_point = R_set
+        if yaw_follows_wall:  # tool y towards the wall: x = y x z with y = right, z down
+            y_tool = np.array([right[0], right[1], 0.0])
+            z_tool = np.array([0.0, 0.0, -1.0])
+            R_point = Rotation.from_matrix(
+                np.column_stack([np.cross(y_tool, z_tool), y_tool, z_tool])
+            )
+        R_wobj = R_tilt * R_point * Rotation.from_euler("z", yaw)
         T_base_tcp = np.eye(4)
         T_base_tcp[:3, :3] = T[:3, :3] @ R_wobj.as_matrix()
         T_base_tcp[:3, 3] = T[:3, :3] @ p_wobj + T[:3, 3]
