@@ -11,10 +11,11 @@ STRATEGY  The cutter is a ball of radius r centred on the TCP. The deviation of 
                                        cutter cuts into the wall),
               dev(p) = -(d(p) + r)     when p is inside it (an overcut, never a small number),
           inside from the nearest face's outward normal, or from the winding number where the
-          nearest point is on an edge (``_inside``). And a program must follow the wall the guide points were taught
-          on: the wall point each guide point faces on its side (``wall_side.taught_wall_points``)
-          must be touched by the program (within ``TAUGHT_WALL_TOLERANCE_M``); a program on the
-          island wall of a groove, or on its floor, misses them.
+          nearest point is on an edge (``_inside``). And a program must follow the wall the
+          guide points were taught on: the wall point each guide point faces on its side
+          (``wall_side.taught_wall_points``) must be touched by the program (within
+          ``TAUGHT_WALL_TOLERANCE_M``); a program on the island wall of a groove, or on its
+          floor, misses them.
 SOLUTION  ``mesh_deviation``, ``score_mesh`` (a ``scoring.PathScore`` with the overcut and the
           air), and ``taught_wall_check`` (a ``TaughtWallCheck``). The project's post-processing
           stage calls them for every part.

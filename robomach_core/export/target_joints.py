@@ -8,9 +8,9 @@ STRATEGY  Solve the IK of every target pose, seeded from the joints recorded at 
           (the branch path learning was on there, axis 6 wound as far as the run wound it), so
           the program follows the arm's branch along the path as the run did; refuse a solution
           that changes the configuration (a different ABB cfx / UR branch) or lands more than
-          ``MAX_JOINT_STEP_RAD`` on an axis from the joints it was seeded with. Seeded from the previous
-          target instead, a wrist that turns round a loop met axis 6's limit and the solver
-          landed a turn away: learning and export disagreed.
+          ``MAX_JOINT_STEP_RAD`` on an axis from the joints it was seeded with. Seeded from the
+          previous target instead, a wrist that turns round a loop met axis 6's limit and the
+          solver landed a turn away: learning and export disagreed.
 SOLUTION  ``target_joints(robot, targets) -> (m, 6)`` and ``with_target_joints`` (the same
           ``Targets`` with those joints).
 """
