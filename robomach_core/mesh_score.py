@@ -32,12 +32,12 @@ import trimesh
 
 from . import _kernels
 from .arcs import Move, linear_moves, sample_moves, score_sampled_moves
-from .errors import InvalidInputError
+from .errors import InvalidInputError, WallSideError
 from .leadthrough import GuidePoint
 from .scoring import PathScore
 from .wall_side import (
     WALL_FACE_MAX_COS,
-    WallSideError,
+    mean_tool_axis,
     resolve_wall_side,
     taught_wall_points,
 )
@@ -48,6 +48,7 @@ from .workpiece import Workpiece
 # (mm-long chords), so the coarser sampling lowers the maximum by 2 um on the water pump.
 MESH_SCORE_SPACING_M = 5e-4
 TAUGHT_WALL_TOLERANCE_M = 0.001  # the program passes this near every taught wall point
+TAUGHT_WALL_HEIGHT_BAND_M = 0.005  # ... measured across the axis within this height of it
 _WALLS: dict[int, tuple[weakref.ref, tuple[float, ...], trimesh.Trimesh | None]] = {}
 
 
@@ -210,11 +211,20 @@ def taught_wall_check(
     pts = np.asarray(positions_m, dtype=float)
     moves = linear_moves(len(pts)) if moves is None else tuple(moves)
     path = sample_moves(pts, moves, spacing_m=MESH_SCORE_SPACING_M / 2)
+    # Across the tool axis, among the program's points near the wall point's height: the wall
+    # is what the check is about, the height along it is the route's (interpolated).
+    axis = mean_tool_axis(guides)
+    path_height = path @ axis
+    across = path - np.outer(path_height, axis)
     checked, missed, worst = [], [], 0.0
     for k, wall_point in enumerate(points):
         if wall_point is None:
             continue
-        gap = float(np.min(np.linalg.norm(path - wall_point, axis=1))) - tool_radius_m
+        near = np.abs(path_height - float(wall_point @ axis)) <= TAUGHT_WALL_HEIGHT_BAND_M
+        if not near.any():
+            near[:] = True
+        w_across = wall_point - axis * float(wall_point @ axis)
+        gap = float(np.min(np.linalg.norm(across[near] - w_across, axis=1))) - tool_radius_m
         checked.append(k + 1)
         worst = max(worst, gap)
         if gap > TAUGHT_WALL_TOLERANCE_M:

@@ -38,7 +38,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 import pinocchio as pin
@@ -47,20 +46,22 @@ from . import _kernels
 from .cell import CONTROL_PERIOD_S, Cell, CellState
 from .errors import CancelledError, InvalidInputError, NotEnoughGuidePointsError
 from .leadthrough import GuidePoint
+from .limits import FLOOR_CLEARANCE_MM
 from .sensor import GRAVITY_M_S2, ForceEstimator
 from .supervision import Supervisor, cell_supervisor
 from .transforms import matrix_from_quaternion, quaternion_from_matrix, quaternions_from_matrices
 from .transforms import slerp as _slerp
 from .wall_side import (
     WALL_FORCE_CLEAR_N,
+    WALL_SIDE_CHOICES,
     WallSideDecision,
+    WallSideSetting,
     mean_tool_axis,
     resolve_wall_side,
 )
 
 FORCE_RANGE_N = (1.0, 50.0)
 SPEED_RANGE_M_S = (0.0005, 0.05)
-FLOOR_CLEARANCE_RANGE_M = (0.0, 0.005)
 CONTACT_FLAG_N = 1.0  # a measured contact force above this counts as contact
 LOST_WALL_M = 0.03  # protection: the tool searched this far without finding the wall
 ROUTE_WANDER_FRACTION = 1.0  # protection: the wall led the tool this far (x leg) off the leg
@@ -73,7 +74,7 @@ BEHIND_COS = math.cos(math.radians(135.0))
 FLOOR_FORCE_N = 2.0  # a push along the tool axis above this is the floor
 FLOOR_LIFT_SPEED_M_S = 0.002
 HEIGHT_TIME_S = 0.25  # the height returns to the leg's within about this
-HEIGHT_SPEED_M_S = 0.005
+HEIGHT_SPEED_M_S = 0.01
 PENETRATION_STOP_FRACTION = 0.5  # of the cutter radius: deeper is a collision, not a contact
 LEG_END_MARGIN_M = 0.002  # a leg ends this far before its guide point's plane
 LEG_DETOUR_FACTOR = 4.0  # a leg's wall longer than this x the leg (+ LEG_DETOUR_EXTRA_M): lost
@@ -121,7 +122,7 @@ class PathLearningSettings:
     force_N: float = 10.0
     speed_m_s: float = 0.005
     closed: bool = True
-    wall_side: Literal["auto", "left", "right"] = "auto"
+    wall_side: WallSideSetting = "auto"
     force_limit_N: float = 60.0
     floor_clearance_m: float = 0.0005
     kp_m_s_N: float = 1.5e-3
@@ -141,14 +142,9 @@ class PathLearningSettings:
             )
         if self.force_limit_N <= self.force_N:
             raise InvalidInputError("the force limit must be above the force reference")
-        if self.wall_side not in ("auto", "left", "right"):
-            raise InvalidInputError("wall side must be 'auto', 'left' or 'right'")
-        lo, hi = FLOOR_CLEARANCE_RANGE_M
-        if not (lo <= self.floor_clearance_m <= hi):
-            raise InvalidInputError(
-                f"floor clearance {self.floor_clearance_m * 1e3:g} mm is outside "
-                f"{lo * 1e3:g}-{hi * 1e3:g} mm"
-            )
+        if self.wall_side not in WALL_SIDE_CHOICES:
+            raise InvalidInputError(f"wall side must be one of {', '.join(WALL_SIDE_CHOICES)}")
+        FLOOR_CLEARANCE_MM.check(self.floor_clearance_m * 1e3)
 
 
 @dataclass(frozen=True)
@@ -549,6 +545,7 @@ def learn_path(
     integral = 0.0
     lift = 0.0
     lift_pending = False
+    h_goal_last: float | None = None
     leg_travel = 0.0
     t0 = state.time_s
     stop_reason = "reached the last guide point"
@@ -679,8 +676,13 @@ def learn_path(
             lift += clearance
             lift_pending = False
         s_now = float((p_ref - seg.a) @ seg.xp)
-        h_err = (leg_height(seg, s_now) - lift) - float(p_ref @ axis)
-        v_h = min(max(h_err / HEIGHT_TIME_S, -HEIGHT_SPEED_M_S), HEIGHT_SPEED_M_S)
+        # The leg's height: its rate as the tool advances (feedforward) plus a first-order
+        # return of the error, so a steep leg is followed without lag.
+        h_goal = leg_height(seg, s_now) - lift
+        h_rate = 0.0 if h_goal_last is None else (h_goal - h_goal_last) / dt
+        h_goal_last = h_goal
+        h_err = h_goal - float(p_ref @ axis)
+        v_h = min(max(h_rate + h_err / HEIGHT_TIME_S, -HEIGHT_SPEED_M_S), HEIGHT_SPEED_M_S)
         step = (t * v_t + w * v_w + axis * v_h) * dt
         # The orientation moves towards the route's at the next position, no faster than
         # TURN_RATE_RAD_S (no jump where one leg hands over to the next).

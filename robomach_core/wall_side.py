@@ -26,26 +26,23 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
 
-from .errors import InvalidInputError
+from .errors import InvalidInputError, WallSideError
 from .leadthrough import GuidePoint
 from .workpiece import Workpiece
 
 WallSide = Literal["left", "right"]
-WALL_SIDE_CHOICES = ("auto", "left", "right")
+WallSideSetting = Literal["auto", "left", "right"]
+WALL_SIDE_CHOICES: tuple[str, ...] = get_args(WallSideSetting)
 WALL_FORCE_CLEAR_N = 2.0  # a force across the leg this large is a push, not the sensor's noise
 MIN_FORCE_VOTES = 2  # clear pushes needed (all of them when fewer guide points)
 MAX_WALL_GAP_M = 0.005  # a wall farther than this from a point is not the one it was taught on
 NEARER_MARGIN_M = 0.00025  # the nearer wall must be nearer by this for a point to vote
 MESH_MAJORITY = 0.75  # of the voting points on one side, and votes from half the points
 WALL_FACE_MAX_COS = math.cos(math.radians(45.0))  # |n . tool axis| below this: a wall face
-
-
-class WallSideError(InvalidInputError):
-    """The side of the wall to follow cannot be told from the guide points: set it."""
 
 
 @dataclass(frozen=True)

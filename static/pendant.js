@@ -318,6 +318,8 @@ async function startLearning() {
     force_N: Number($("learn-force").value),
     speed_mm_s: Number($("learn-speed").value),
     closed: $("learn-closed").checked,
+    wall_side: $("learn-wall-side").value,
+    floor_clearance_mm: Number($("learn-floor").value),
   };
   const start = await api("POST", "/path-learning", body);
   showLearnWarnings(start.warnings || []);
@@ -336,6 +338,16 @@ async function startLearning() {
     $("learn-start").disabled = false;
     $("learn-cancel").disabled = true;
   }
+}
+
+// The operator check with the card's settings, before learning (refusals come first).
+async function checkGuides() {
+  const q = new URLSearchParams({
+    force_N: $("learn-force").value,
+    closed: $("learn-closed").checked,
+    wall_side: $("learn-wall-side").value,
+  });
+  showLearnWarnings(await api("GET", `/path-learning/warnings?${q}`));
 }
 
 async function cancelLearning() {
@@ -500,6 +512,8 @@ async function init() {
   $("guide-example").addEventListener("click", safe(loadExample));
   $("learn-start").addEventListener("click", safe(startLearning));
   $("learn-cancel").addEventListener("click", safe(cancelLearning));
+  $("learn-check").addEventListener("click", safe(checkGuides));
+  $("learn-wall-side").addEventListener("change", safe(checkGuides));
   $("post-run").addEventListener("click", safe(runPostprocess));
   $("export-preview").addEventListener("click", safe(previewRapid));
   $("export-download").addEventListener("click", safe(downloadRapid));

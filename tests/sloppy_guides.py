@@ -227,3 +227,51 @@ def cornered_boss_stl() -> tuple[bytes, Contour]:
     data = mesh.export(file_type="stl")
     # Travelled clockwise, the boss's material is on the right of travel.
     return data, outline
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What became of one set: refused before learning, or learned and scored."""
+
+    refused: str | None
+    completed: bool = False
+    stop_reason: str = ""
+    max_m: float = float("inf")
+    problems: tuple[str, ...] = ()
+    side: str = ""
+
+
+def learn_and_score(
+    cell: Cell, sset: SloppySet, *, speed_m_s: float = 0.005, closed: bool = True
+) -> Outcome:
+    """Plan the route (the wall side, the floor) with the part's mesh, learn it, post-process
+    and score it: the project's own stages, as the CLI and the workbench run them."""
+    from robomach_core.errors import WallSideError
+    from robomach_core.leadthrough import LeadThrough
+    from robomach_core.path_learning import PathLearningSettings
+    from robomach_core.postprocess import PostprocessSettings
+    from robomach_core.project import CellSettings, Project, learn, process
+
+    project = Project(cell=CellSettings(seed=cell.config.seed), guide_points=tuple(sset.guides))
+    lt = LeadThrough(cell)
+    state = lt.start(cell.initial_state())
+    settings = PathLearningSettings(speed_m_s=speed_m_s, wall_side=sset.wall_side, closed=closed)
+    try:
+        learned, _ = learn(project, cell, state.cell, settings, lt.estimator)
+    except WallSideError as exc:
+        return Outcome(refused=str(exc))
+    rec = learned.recording
+    try:
+        processed = process(
+            learned, PostprocessSettings(), cell.workpiece, cell.tool.radius_m, guides=sset.guides
+        )
+    except RobomachError as exc:
+        return Outcome(None, rec.completed, f"{rec.stop_reason}; {exc}", side=rec.wall_side)
+    return Outcome(
+        None,
+        rec.completed,
+        rec.stop_reason,
+        processed.score.max_m,
+        tuple(processed.problems()),
+        rec.wall_side,
+    )

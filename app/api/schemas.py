@@ -23,9 +23,11 @@ from app.session import (
     ProjectInfo,
     RobotSnapshot,
 )
+from robomach_core import limits
 from robomach_core.leadthrough import ComplianceSelection
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import StageStatus
+from robomach_core.wall_side import WallSideSetting
 
 Axis = Literal["x", "y", "z", "rx", "ry", "rz"]
 Finite = Annotated[float, Field(allow_inf_nan=False)]
@@ -247,9 +249,30 @@ class JobPublic(BaseModel):
 
 
 class PathLearningCreate(_Request):
-    force_N: Finite = Field(ge=1.0, le=50.0, description="contact force reference [N], 1-50")
-    speed_mm_s: Finite = Field(ge=0.5, le=50.0, description="learning speed [mm/s], 0.5-50")
+    force_N: Finite = Field(
+        ge=limits.LEARNING_FORCE_N.min,
+        le=limits.LEARNING_FORCE_N.max,
+        description=f"contact force reference [N], {limits.LEARNING_FORCE_N.text()}",
+    )
+    speed_mm_s: Finite = Field(
+        ge=limits.LEARNING_SPEED_MM_S.min,
+        le=limits.LEARNING_SPEED_MM_S.max,
+        description=f"learning speed [mm/s], {limits.LEARNING_SPEED_MM_S.text()}",
+    )
     closed: bool = Field(True, description="the path returns from the last guide point to the 1st")
+    wall_side: WallSideSetting = Field(
+        "auto",
+        description="side of the wall to follow, left or right of travel looking along the tool "
+        "into the part; auto decides from a clear push at the guide points or the part's mesh, "
+        "and is refused (422) when neither tells",
+    )
+    floor_clearance_mm: Finite = Field(
+        0.5,
+        ge=limits.FLOOR_CLEARANCE_MM.min,
+        le=limits.FLOOR_CLEARANCE_MM.max,
+        description="machining height: the cutter this far above a floor the run meets or a "
+        "guide point rests on [mm], 0-5",
+    )
 
 
 class ForceTracePublic(BaseModel):
