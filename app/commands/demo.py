@@ -99,7 +99,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="CSV",
         help="lead the robot to these guide points instead of the built-in plan: rows "
         "x_mm,y_mm,z_mm[,qw,qx,qy,qz[,wall_nx,wall_ny,wall_nz]] in the robot base "
-        "frame (needed for a mesh file)",
+        "frame (needed for a mesh file); the optional wall direction points from the tool "
+        "into the wall (where to push lightly to feel it), see docs/guide_points.md",
     )
     from robomach_core.wall_side import WALL_SIDE_CHOICES
 
