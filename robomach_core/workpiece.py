@@ -31,6 +31,11 @@ DEFAULT_T_BASE_WOBJ = make_transform(np.eye(3), np.array([0.80, 0.16, 0.0]))
 ROBOT_WOBJ_POSITION_M: dict[str, tuple[float, float, float]] = {
     "irb4400": (1.30, 0.0, 0.60),
     "irb6640": (1.50, 0.0, 0.60),
+    # The IRB 2400 (1.55 m reach) reaching lower or nearer meets its combined axis-2/3 limit:
+    # at 0.85 m every axis keeps >= 20 deg, the elbow 28 deg from stretched.
+    "irb2400": (0.85, 0.0, 0.60),
+    # The KR 270 (2.7 m reach): every axis >= 44 deg inside its range.
+    "kr270": (1.80, 0.0, 0.60),
     # The UR5 (850 mm reach) met its elbow singularity at the UR10's 0.8 m; at 0.525 m it learns
     # the pump within 0.216 mm and the block within 0.204 mm. The UR3 (500 mm) reaches neither
     # part whole with the tool down: it keeps the default and says so.

@@ -414,31 +414,66 @@ function showLearnWarnings(warnings) {
   list.classList.toggle("hidden", warnings.length === 0);
 }
 
-async function downloadScript() {
-  const text = await api("GET", "/export/urscript", undefined, { text: true });
-  const url = URL.createObjectURL(new Blob([text], { type: "text/plain" }));
-  const a = document.createElement("a");
-  a.href = url;
-  a.download = "program.script";
-  document.body.appendChild(a);
-  a.click();
-  a.remove();
-  setTimeout(() => URL.revokeObjectURL(url), 1000);
+// ---------------------------------------------------------------- export
+// The menus come from GET /api/export/languages (the server's language registry): the
+// languages the arm's controller runs and their files.
+
+let exportLanguages = [];
+
+function option(value, label) {
+  const o = document.createElement("option");
+  o.value = value;
+  o.textContent = label;
+  return o;
 }
 
-async function previewRapid() {
-  const text = await api("GET", "/export/rapid", undefined, { text: true });
+async function loadLanguages() {
+  const all = await api("GET", "/export/languages", undefined, { quiet: true });
+  const previous = $("export-language").value;
+  exportLanguages = all.filter((l) => l.offered);
+  $("export-language").replaceChildren(...exportLanguages.map((l) => option(l.name, l.title)));
+  if (exportLanguages.some((l) => l.name === previous)) $("export-language").value = previous;
+  showExportFiles();
+}
+
+function showExportFiles() {
+  const lang = exportLanguages.find((l) => l.name === $("export-language").value);
+  const previous = $("export-file").value;
+  const files = lang ? [...lang.files, ...(lang.force_control_files || [])] : [];
+  $("export-file").replaceChildren(...files.map((f) => option(f, f)));
+  if (files.includes(previous)) $("export-file").value = previous;
+  $("export-download").textContent = files.length ? `Download ${$("export-file").value}` : "Download";
+}
+
+// One file of the program in the chosen language (GET /api/export/program/{language}).
+async function programFile(file) {
+  const language = $("export-language").value;
+  if (!language) throw new Error("this arm's controller runs none of the program languages");
+  const fc = file.startsWith("program_fc.");
+  const query = new URLSearchParams({ file, force_control: String(fc) });
+  if (fc) query.set("module_name", "LearnedPathFC");
+  return api("GET", `/export/program/${encodeURIComponent(language)}?${query}`, undefined, {
+    text: true,
+  });
+}
+
+async function previewProgram() {
+  await loadLanguages();
+  const lang = exportLanguages.find((l) => l.name === $("export-language").value);
+  const text = await programFile(lang ? lang.files[0] : "");
   const pre = $("rapid-preview");
   pre.textContent = text;
   pre.classList.remove("hidden");
 }
 
-async function downloadRapid() {
-  const text = await api("GET", "/export/rapid", undefined, { text: true });
+async function downloadProgram() {
+  await loadLanguages();
+  const file = $("export-file").value;
+  const text = await programFile(file);
   const url = URL.createObjectURL(new Blob([text], { type: "text/plain" }));
   const a = document.createElement("a");
   a.href = url;
-  a.download = "program.mod";
+  a.download = file;
   document.body.appendChild(a);
   a.click();
   a.remove();
@@ -515,9 +550,11 @@ async function init() {
   $("learn-check").addEventListener("click", safe(checkGuides));
   $("learn-wall-side").addEventListener("change", safe(checkGuides));
   $("post-run").addEventListener("click", safe(runPostprocess));
-  $("export-preview").addEventListener("click", safe(previewRapid));
-  $("export-download").addEventListener("click", safe(downloadRapid));
-  $("export-script").addEventListener("click", safe(downloadScript));
+  $("export-preview").addEventListener("click", safe(previewProgram));
+  $("export-download").addEventListener("click", safe(downloadProgram));
+  $("export-language").addEventListener("change", showExportFiles);
+  $("export-language").addEventListener("focus", safe(loadLanguages));
+  $("export-file").addEventListener("change", showExportFiles);
 
   const url = await viserUrl();
   $("viser-frame").src = url;
@@ -527,6 +564,7 @@ async function init() {
   await pollState();
   safe(refreshGuides)();
   safe(loadSettings)();
+  safe(loadLanguages)();
   setInterval(pollState, STATE_PERIOD_MS);
 }
 

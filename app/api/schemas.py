@@ -431,6 +431,20 @@ class ExportPublic(BaseModel):
         return cls(name=e.name, created_s=e.created_s, files=e.files, folder=folder)
 
 
+class ProgramLanguagePublic(BaseModel):
+    """A program language of ``robomach_core.export.languages`` and whether the cell's arm is
+    offered it (its controller runs it)."""
+
+    name: str = Field(description="the {language} of GET /api/export/program/{language}")
+    title: str
+    files: list[str] = Field(description="the program's files")
+    force_control_files: list[str] | None = Field(
+        description="the force-controlled variant's files (force_control=true), if it has one"
+    )
+    families: list[str] = Field(description="arm families whose controllers run it")
+    offered: bool = Field(description="the cell's arm runs it")
+
+
 # --- projects ----------------------------------------------------------------------------
 
 

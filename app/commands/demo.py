@@ -11,12 +11,13 @@ from pathlib import Path
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "demo",
-        help="run lead-through, path learning, post-processing and RAPID export headless",
+        help="run lead-through, path learning, post-processing and program export headless",
         description=(
             "Lead the simulated robot to guide points around the workpiece by virtual pushes, "
             "learn the contour at constant contact force, filter and reduce the recording, and "
-            "write program.mod, samples.csv, targets.csv, workpiece.stl, summary.json and "
-            "demo.png into --out."
+            "write the program in the arm's language (program.mod for ABB and UR arms, "
+            "program.script for UR arms, program.src/.dat for KUKA arms), samples.csv, "
+            "targets.csv, workpiece.stl, summary.json and demo.png into --out."
         ),
     )
     p.add_argument("--out", required=True, type=Path, help="output folder (created if missing)")
@@ -26,15 +27,21 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--robot",
         default=None,
         metavar="|".join(ROBOT_NAMES) + "|FILE.urdf",
-        help="the arm: a built-in one, or your own serial 6-axis URDF file (default ur10, or "
-        "irb4400 with --language rapid)",
+        help="the arm: a built-in one, or your own serial 6-axis URDF file (default ur10; with "
+        "--language, that language's arm: irb4400 for rapid, kr270 for krl)",
+    )
+    from robomach_core.export.languages import language_choices, languages
+
+    by_family = "; ".join(
+        f"{lang.name}: {'/'.join(lang.file_names())} for {', '.join(lang.families)} arms"
+        for lang in languages()
     )
     p.add_argument(
         "--language",
-        choices=("auto", "rapid", "urscript"),
+        choices=language_choices(),
         default="auto",
-        help="program language: auto follows the arm (URScript for UR arms, RAPID for ABB); "
-        "program.mod is always written, program.script too for URScript",
+        help="program language: auto writes every language the arm's controller is offered "
+        f"({by_family}); a language the arm's controller does not run is refused",
     )
     p.add_argument(
         "--arcs",
@@ -225,6 +232,12 @@ def run(args: argparse.Namespace) -> int:
         robot_urdf = read_robot_file(Path(robot))
         robot = register_urdf(*robot_urdf)
 
+    # A language the arm's controller does not run is refused now, not after learning.
+    from robomach_core.export.languages import resolve_languages
+    from robomach_core.robot import Robot
+
+    resolve_languages(Robot(robot), args.language)
+
     settings = DemoSettings(
         robot=robot,
         workpiece=args.workpiece,
@@ -290,10 +303,17 @@ def run(args: argparse.Namespace) -> int:
             f"{s['mesh_rms_deviation_mm']:.3f} mm, overcut {s['mesh_overcut_mm']:.3f} mm, air "
             f"{s['mesh_air_mm']:.3f} mm (program vs the part's walls - tool radius)"
         )
+<<<<<<< HEAD
     print(f"wall              on the {s['wall_side']} of travel: {s['wall_side_reason']}")
     if s.get("taught_wall"):
         print(f"taught wall       {s['taught_wall']}")
     print(f"reachable         {s['robtargets_reachable']}/{s['robtargets_total']} robtargets")
+=======
+    print(
+        f"reachable         {s['robtargets_reachable']}/{s['robtargets_total']} program targets "
+        f"({s['program_language']})"
+    )
+>>>>>>> main
     print(
         f"run               {s['stop_reason']}; {s['sim_time_s']:.1f} s simulated in "
         f"{s['learning_wall_time_s']:.1f} s (x{s['realtime_factor']:.0f} real time)"

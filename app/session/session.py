@@ -660,18 +660,43 @@ class Session(ProjectsMixin):
     ) -> str:
         """The RAPID module of the project (``project.rapid_text``): the FC SpeedChange block
         with a CMRR controller, compensated targets in the offline compensation modes, or the
-        FC pressure variant."""
-        with self._lock:
-            project, workpiece, robot = self._project, self._cell.workpiece, self._cell.robot
-        return core.rapid_text(
-            project, workpiece, robot, module_name=module_name, force_control=force_control
-        )
+        FC pressure variant. Refused on an arm whose controller does not run RAPID."""
+        files = self.program_texts("rapid", module_name=module_name, force_control=force_control)
+        return next(iter(files.values()))
 
     def urscript_program(self, *, force_control: bool = False) -> str:
         """The project's program as URScript (``project.urscript_text``)."""
+        files = self.program_texts("urscript", force_control=force_control)
+        return next(iter(files.values()))
+
+    def program_texts(
+        self,
+        language: str,
+        *,
+        force_control: bool = False,
+        module_name: str = core.DEFAULT_MODULE_NAME,
+    ) -> dict[str, str]:
+        """The project's program in a registered language the arm's controller runs
+        (``project.program_texts``): file name -> text."""
+        from robomach_core.export.languages import resolve_languages
+
         with self._lock:
             project, workpiece, robot = self._project, self._cell.workpiece, self._cell.robot
-        return core.urscript_text(project, workpiece, robot, force_control=force_control)
+        (lang,) = resolve_languages(robot, language)
+        return core.program_texts(
+            project,
+            workpiece,
+            robot,
+            lang.name,
+            module_name=module_name,
+            force_control=force_control,
+        )
+
+    def program_languages(self) -> tuple[str, ...]:
+        """The languages the cell's arm is offered (``export.languages.languages_for``)."""
+        from robomach_core.export.languages import languages_for
+
+        return tuple(lang.name for lang in languages_for(self._cell.robot))
 
     def guide_findings(
         self, force_N: float = 10.0, *, closed: bool = True, wall_side: str = "auto"
@@ -722,13 +747,14 @@ class Session(ProjectsMixin):
         found = self.guide_findings(force_N, closed=closed, wall_side=wall_side)
         return [w.message for w in found]
 
-    def upload_robot(self, data: bytes, filename: str) -> CellSettings:
+    def upload_robot(self, data: bytes, filename: str, *, family: str = "auto") -> CellSettings:
         """Use a user's serial 6-axis URDF (a .urdf, or a .zip with its meshes) as the arm
-        (``robots.custom``); kept in the project like an uploaded mesh. Clears the guide
-        points like a ``set_cell`` change."""
+        (``robots.custom``; ``family`` names its controller, ``auto`` recognises a built-in
+        arm's kinematics); kept in the project like an uploaded mesh. Clears the guide points
+        like a ``set_cell`` change."""
         from robomach_core.robots.custom import register_urdf
 
-        name = register_urdf(filename, data)
+        name = register_urdf(filename, data, family)
         with self._lock:
             self._require_idle()
             self._project = replace(self._project, robot_urdf=(filename, data))

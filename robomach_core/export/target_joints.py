@@ -7,10 +7,10 @@ PROBLEM   ``Targets.joints_rad`` are the joints recorded at each target's sample
 STRATEGY  Solve the IK of every target pose, seeded from the joints recorded at its sample
           (the branch path learning was on there, axis 6 wound as far as the run wound it), so
           the program follows the arm's branch along the path as the run did; refuse a solution
-          that changes the configuration (a different ABB cfx / UR branch) or lands more than
-          ``MAX_JOINT_STEP_RAD`` on an axis from the joints it was seeded with. Seeded from the
-          previous target instead, a wrist that turns round a loop met axis 6's limit and the
-          solver landed a turn away: learning and export disagreed.
+          that changes the configuration (a different ABB cfx / UR branch / KUKA Status) or
+          lands more than ``MAX_JOINT_STEP_RAD`` on an axis from the joints it was seeded with.
+          Seeded from the previous target instead, a wrist that turns round a loop met axis 6's
+          limit and the solver landed a turn away: learning and export disagreed.
 SOLUTION  ``target_joints(robot, targets) -> (m, 6)`` and ``with_target_joints`` (the same
           ``Targets`` with those joints).
 """
@@ -56,8 +56,7 @@ def target_joints(
     n = len(targets)
     out = np.empty((n, 6))
     seed = np.asarray(targets.joints_rad[0] if q_seed is None else q_seed, dtype=float)
-    arm = robot.name
-    branch = confdata_from_joints(seed, arm=arm)[3]
+    branch = configuration(robot, seed)
     recorded = np.asarray(targets.joints_rad, dtype=float)
     for k in range(n):
         T = make_transform(
@@ -73,15 +72,27 @@ def target_joints(
         # Against the joints the run had at this target (its branch there), not the previous
         # target's: a wrist turning round a loop moves axis 6 far between sparse targets.
         step = float(np.max(np.abs(q - start)))
-        cfx = confdata_from_joints(q, arm=arm)[3]
-        if step > MAX_JOINT_STEP_RAD or cfx != branch:
+        case = configuration(robot, q)
+        if step > MAX_JOINT_STEP_RAD or case != branch:
             raise UnreachableTargetError(
-                f"target p{k + 1}: the inverse kinematics leaves the arm's branch (cfx "
-                f"{branch} -> {cfx}, largest joint step {np.degrees(step):.0f} deg)"
+                f"target p{k + 1}: the inverse kinematics leaves the arm's branch "
+                f"(configuration {branch} -> {case}, largest joint step "
+                f"{np.degrees(step):.0f} deg)"
             )
         out[k] = q
         seed = q
     return out
+
+
+def configuration(robot: Robot, joints_rad: np.ndarray) -> int:
+    """The arm's configuration case as its controller names it: KUKA's Status
+    (``export.krl.status_turn``), else ABB's cfx (``rapid.confdata_from_joints``; the UR
+    branch in ABB's numbering for a UR arm)."""
+    if robot.family == "kuka":
+        from .krl import status_turn
+
+        return status_turn(robot, joints_rad)[0]
+    return confdata_from_joints(joints_rad, arm=robot.name)[3]
 
 
 def with_target_joints(robot: Robot, targets: Targets) -> Targets:
