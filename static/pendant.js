@@ -392,8 +392,26 @@ function showPostprocess(r) {
   $("post-rms").textContent = rms === undefined ? "n/a" : `${fmt(rms, 3)} mm`;
   const meshMax = pick(r, "mesh_max_deviation_mm");
   const meshRms = pick(r, "mesh_rms_deviation_mm");
+  const over = pick(r, "mesh_overcut_mm");
+  const air = pick(r, "mesh_air_mm");
   $("post-mesh").textContent =
-    meshMax === undefined ? "n/a" : `max ${fmt(meshMax, 3)} mm, RMS ${fmt(meshRms, 3)} mm`;
+    meshMax === undefined
+      ? "n/a"
+      : `max ${fmt(meshMax, 3)} mm, RMS ${fmt(meshRms, 3)} mm` +
+        (over === undefined || over === null ? "" : `; overcut ${fmt(over, 3)}, air ${fmt(air, 3)} mm`);
+  const follows = pick(r, "follows_taught_wall");
+  $("post-taught").textContent =
+    follows === undefined || follows === null ? "-" : `${follows ? "\u2714" : "\u26d4"} ${r.taught_wall}`;
+  const problems = r.problems || [];
+  const list = $("post-problems");
+  list.replaceChildren(
+    ...problems.map((p) => {
+      const li = document.createElement("li");
+      li.textContent = `\u26d4 not fit to machine: ${p}`;
+      return li;
+    }),
+  );
+  list.classList.toggle("hidden", problems.length === 0);
   const moves = pick(r, "moves");
   $("post-moves").textContent =
     moves === undefined

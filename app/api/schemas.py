@@ -368,10 +368,25 @@ class PostprocessPublic(BaseModel):
     rms_deviation_mm: float | None = Field(description="RMS deviation along the path [mm]")
     mesh_max_deviation_mm: float | None = Field(
         None,
-        description="largest deviation of the program from the workpiece mesh minus the "
-        "tool radius [mm], every part (built-in or uploaded)",
+        description="largest deviation of the program from the part's walls minus the tool "
+        "radius, signed inside the material [mm], every part (built-in or uploaded)",
     )
     mesh_rms_deviation_mm: float | None = Field(None, description="its RMS along the path [mm]")
+    mesh_overcut_mm: float | None = Field(
+        None, description="deepest the program's cutter goes into the part's walls [mm]"
+    )
+    mesh_air_mm: float | None = Field(
+        None, description="farthest the program's cutter stays off the part's walls [mm]"
+    )
+    follows_taught_wall: bool | None = Field(
+        None, description="the program follows the wall the guide points were taught on"
+    )
+    taught_wall: str | None = Field(None, description="the taught-wall check in words")
+    problems: list[str] = Field(
+        default_factory=list,
+        description="what makes the program unfit to machine with (a partial run, the wrong "
+        "wall, an overcut); empty when none",
+    )
     moves: int | None = Field(None, description="motion instructions of the program")
     circular_moves: int | None = Field(None, description="of which circular (MoveC / movec)")
     straight_moves: int | None = Field(None, description="instructions of the straight program")
@@ -385,6 +400,11 @@ class PostprocessPublic(BaseModel):
         return cls(
             mesh_max_deviation_mm=extras["mesh_max_deviation_mm"],
             mesh_rms_deviation_mm=extras["mesh_rms_deviation_mm"],
+            mesh_overcut_mm=extras["mesh_overcut_mm"],
+            mesh_air_mm=extras["mesh_air_mm"],
+            follows_taught_wall=extras["follows_taught_wall"],
+            taught_wall=extras["taught_wall"],
+            problems=extras["problems"],
             moves=extras["moves"],
             circular_moves=extras["circular_moves"],
             straight_moves=extras["straight_moves"],

@@ -303,17 +303,13 @@ def run(args: argparse.Namespace) -> int:
             f"{s['mesh_rms_deviation_mm']:.3f} mm, overcut {s['mesh_overcut_mm']:.3f} mm, air "
             f"{s['mesh_air_mm']:.3f} mm (program vs the part's walls - tool radius)"
         )
-<<<<<<< HEAD
     print(f"wall              on the {s['wall_side']} of travel: {s['wall_side_reason']}")
     if s.get("taught_wall"):
         print(f"taught wall       {s['taught_wall']}")
-    print(f"reachable         {s['robtargets_reachable']}/{s['robtargets_total']} robtargets")
-=======
     print(
         f"reachable         {s['robtargets_reachable']}/{s['robtargets_total']} program targets "
         f"({s['program_language']})"
     )
->>>>>>> main
     print(
         f"run               {s['stop_reason']}; {s['sim_time_s']:.1f} s simulated in "
         f"{s['learning_wall_time_s']:.1f} s (x{s['realtime_factor']:.0f} real time)"

@@ -267,3 +267,98 @@ def test_sloppy_sets_learn_the_taught_wall_or_are_refused(part):
     print(f"{part}: {learned} learned within 0.3 mm, {len(refused)} refused (seeds {refused})")
     assert not failures, "\n".join(failures)
     assert learned >= SETS_PER_PART // 2
+
+
+# --- the issue's reproducers through the whole pipeline ---------------------------------------
+
+P10_MM = [
+    (715, 97, 17), (800, 97, 17), (885, 97, 17), (898, 110, 17), (898, 210, 17),
+    (885, 223, 17), (800, 223, 17), (715, 223, 17), (702, 210, 17), (702, 110, 17),
+]  # fmt: skip
+
+
+def _demo(**kwargs):
+    from robomach_core.pipeline import DemoSettings, run_demo
+
+    return run_demo(DemoSettings(**kwargs))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("points", [P8_MM, P10_MM], ids=["p8", "p10"])
+def test_the_reproducers_learn_the_outer_wall_for_every_seed(points):
+    """8 or 10 points 2 mm from the pump's outer wall with the cutter free, led to by the
+    scripted operator from a CSV (``robomach demo --guide-points``), seeds 0-5: the noise voted
+    the island wall three runs in seven; now the mesh decides, every seed, within 0.3 mm."""
+    csv = "\n".join(",".join(str(v) for v in p) for p in points)
+    for seed in range(6):
+        result = _demo(guide_points_csv=csv, seed=seed, force_control_variant=False)
+        rec, summary = result.recording, result.summary()
+        assert rec.completed, (seed, rec.stop_reason)
+        assert rec.wall_side == "right", (seed, rec.wall_side_reason)
+        assert result.score.max_m <= 0.3e-3, (seed, result.score.max_m)
+        assert summary["problems"] == [], (seed, summary["problems"])
+
+
+@pytest.mark.slow
+def test_the_example_points_without_their_push_learn_the_wall():
+    """The example operator's 14 points recorded free (no push towards the wall): the first
+    sample sat 0.4 mm inside the outer wall and the loop was learned 0.9 mm inside the
+    material; now within 0.3 mm, never inside."""
+    from robomach_core import demo_operator
+
+    plan = demo_operator.guide_plan
+
+    def free_plan(*args, **kwargs):
+        return [replace(intent, wall_normal=None) for intent in plan(*args, **kwargs)]
+
+    demo_operator.guide_plan = free_plan
+    try:
+        for seed in range(2):
+            result = _demo(seed=seed, force_control_variant=False)
+            assert result.recording.completed, result.recording.stop_reason
+            assert result.score.max_m <= 0.3e-3
+            mesh = result.project.processed.mesh_score
+            assert mesh.overcut_m <= 0.25e-3  # the chords' sagitta at 0.2 mm, no more
+    finally:
+        demo_operator.guide_plan = plan
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("robot", ["ur10", "irb4400"])
+def test_points_taught_by_the_docs_learn_and_export(robot):
+    """Guide points as docs/guide_points.md asks (the tool's turn about its axis the same at
+    every point) and as the old docs asked (its y axis towards the wall: a full turn of the
+    wrist round the loop) learn and export on the UR10 and the IRB 4400: the run starts in the
+    first point's configuration with axis 6 unwound, and the export's branch check follows
+    the joints the run recorded ('cfx 5 -> 5, largest joint step 49 deg' before)."""
+    from robomach_core.project import program_files
+
+    for follows_wall in (False, True):
+        cell = Cell(CellConfig(robot=robot, seed=0))
+        sset = sloppy_guides(
+            cell,
+            np.random.default_rng(7),
+            yaw_follows_wall=follows_wall,
+            max_yaw_deg=0.0 if not follows_wall else 5.0,
+            max_tilt_deg=2.0,
+        )
+        project = Project(cell=CellSettings(robot=robot), guide_points=tuple(sset.guides))
+        lt = LeadThrough(cell)
+        state = lt.start(cell.initial_state())
+        learned, _ = learn(
+            project,
+            cell,
+            state.cell,
+            PathLearningSettings(speed_m_s=0.010, wall_side=sset.wall_side),
+            lt.estimator,
+        )
+        assert learned.recording.completed, learned.recording.stop_reason
+        processed = process(
+            learned, PostprocessSettings(), cell.workpiece, 0.001, guides=project.guide_points
+        )
+        assert processed.score.max_m <= 0.3e-3 and processed.problems() == []
+        project = replace(project, learned=learned, processed=processed)
+        files = program_files(project, cell.workpiece, cell.robot)
+        assert any(name.startswith("program.") for name in files)
+        turn = np.ptp(learned.recording.joints_rad[:, 5])
+        assert (turn > np.radians(300)) == follows_wall, np.degrees(turn)
