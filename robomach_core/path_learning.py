@@ -730,10 +730,11 @@ def learn_path(
             if s_now >= seg.length + CLOSE_LOOP_OVERRUN_M:
                 completed = True  # the wall did not come back within reach of the start
                 break
-        elif s_now >= seg.length - min(LEG_END_MARGIN_M, 0.25 * seg.length):
-            if seg_index + 1 >= total:
+        elif seg_index + 1 >= total:
+            if s_now >= seg.length:  # an open route ends at its last point's plane, not before
                 completed = True
                 break
+        elif s_now >= seg.length - min(LEG_END_MARGIN_M, 0.25 * seg.length):
             seg_index += 1
             seg = segs[seg_index]
             leg_travel = 0.0

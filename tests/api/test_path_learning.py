@@ -101,9 +101,9 @@ def test_the_wall_side_is_set_or_told_never_guessed(api: Api) -> None:
     (422) with what to do, before any job, and the check says so first; with the side set
     the run learns."""
     api.compliance(["x", "y", "z"])
-    for x, y in ((720.0, 96.5), (760.0, 98.5)):  # outer wall at y = 95, island at 100 mm
+    for x, y in ((720.0, 96.3), (760.0, 98.7)):  # outer wall at y = 95, island at 100 mm
         api.push_to([x, y, 30.0])
-        api.push_to([x, y, 17.0], tolerance_mm=0.3)
+        api.push_to([x, y, 17.0])
         api.ok("POST", "/api/guide-points", 201)
     api.push_to([760.0, 97.5, 30.0])
     body = {"force_N": 10, "speed_mm_s": 20, "closed": False}
