@@ -2,7 +2,8 @@
 
 Eight guide points around the water-pump groove, each with at most five user actions (key
 presses, clicks, one typed number), then path learning on the wall the operator names,
-post-processing (within 0.3 mm of the true wall) and the RAPID download, all through the page. The actions and seconds per point are printed (``-s``).
+post-processing (within 0.3 mm of the true wall) and the RAPID download, all through the page.
+The actions and seconds per point are printed (``-s``).
 """
 
 from __future__ import annotations
