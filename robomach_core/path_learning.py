@@ -14,7 +14,7 @@ STRATEGY  Hybrid force/velocity contour following in the plane across the tool a
               across the axis, reversed and low-passed; before the first contact it is Yp of the
               first leg (the wall side: ``wall_side``);
             - the tool advances along the wall's tangent t = side * (w x Zp) at the learning
-              speed, slower where the force climbs (``_speed_ratio``), and moves along w under PI
+              speed, slower where the force climbs (``speed_ratio``), and moves along w under PI
               force control to the reference:
                   v_w = Kp e + Ki integral(e),  e = F_ref - F_n,  F_n = |F across Zp|;
               out of contact it searches along w and advances no faster than it searches, so at
@@ -24,9 +24,10 @@ STRATEGY  Hybrid force/velocity contour following in the plane across the tool a
               orientations) and the height (the leg's, along the guide points' mean tool axis),
               and ends the leg; a force from the floor (along the axis) lifts the run until it is
               clear of the floor by ``floor_clearance_m``.
-          The controller sees only motor-side joints and the F/T reading; supervision (joint
-          limits, singularities, reach, collisions, and a cutter driven into the part) slows and
-          stops it as for any motion.
+          The law of one period is ``contour_following.contour_law`` (compiled). The controller
+          sees only motor-side joints and the F/T reading; supervision (joint limits,
+          singularities, reach, collisions, and a cutter driven into the part) slows and stops
+          it as for any motion.
 SOLUTION  ``learn_path(...) -> Recording``: every 4 ms the time, motor-side joints, measured TCP
           pose, sensor and tool-frame wrenches, the force normal to the edge, the reference and a
           contact flag; the run ends at the last guide point or on a stop, whose ``LearningStop``
@@ -44,6 +45,14 @@ import pinocchio as pin
 
 from . import _kernels
 from .cell import CONTROL_PERIOD_S, Cell, CellState
+from .contour_following import (
+    EVER_TOUCHED,
+    OUT_OF_CONTACT,
+    contour_law,
+    initial_state,
+    law_parameters,
+    turn_towards,
+)
 from .errors import CancelledError, InvalidInputError, NotEnoughGuidePointsError
 from .leadthrough import GuidePoint
 from .limits import FLOOR_CLEARANCE_MM
@@ -65,7 +74,8 @@ SPEED_RANGE_M_S = (0.0005, 0.05)
 CONTACT_FLAG_N = 1.0  # a measured contact force above this counts as contact
 LOST_WALL_M = 0.03  # protection: the tool searched this far without finding the wall
 ROUTE_WANDER_FRACTION = 1.0  # protection: the wall led the tool this far (x leg) off the leg
-# Force-dependent speed (``_speed_ratio``): full speed up to 1.25 F_ref, 10 % from 2 F_ref.
+# Force-dependent speed (``contour_following.speed_ratio``): full speed up to 1.25 F_ref,
+# 10 % from 2 F_ref.
 SLOW_FROM, SLOWEST_AT, SLOWEST = 1.25, 2.0, 0.1
 MOVE_MAX_PERIODS_FACTOR = 20  # a MoveL slowed by supervision may take this many times longer
 WALL_DIRECTION_TIME_S = 0.02  # low-pass of the measured wall direction
@@ -85,16 +95,6 @@ APPROACH_CLEARANCE_M = 0.03  # the approach travels this far above the first poi
 CLOSE_LOOP_M = 0.001  # a closed route ends at its nearest approach within this of its start
 CLOSE_LOOP_OVERRUN_M = 0.01  # ... or this far past the first guide point's plane
 TURN_RATE_RAD_S = 0.5  # the tool's orientation follows the route's at most this fast
-
-
-def _speed_ratio(f_n: float, f_ref: float) -> float:
-    """Share of the learning speed to advance at: 1 up to ``SLOW_FROM`` x F_ref, falling
-    linearly to ``SLOWEST`` at ``SLOWEST_AT`` x F_ref. Where the wall turns steeply towards
-    the tool (an inside corner, the far side of a boss) the tool must back off faster than it
-    advances; slowing where the force climbs lets it (the chapter's program is likewise
-    "slower at sharp corner")."""
-    over = (f_n / f_ref - SLOW_FROM) / (SLOWEST_AT - SLOW_FROM)
-    return min(1.0, max(SLOWEST, 1.0 - (1.0 - SLOWEST) * over))
 
 
 @dataclass(frozen=True)
@@ -432,6 +432,32 @@ def _wall_turn(
     return f"the wall turns {abs(turn):.0f} deg towards the tool (an inside corner or a boss)"
 
 
+def contour_law_parameters(settings: PathLearningSettings) -> np.ndarray:
+    """The parameter vector of ``contour_following.contour_law`` for these settings."""
+    return law_parameters(
+        force_N=settings.force_N,
+        kp_m_s_N=settings.kp_m_s_N,
+        ki_m_s2_N=settings.ki_m_s2_N,
+        max_normal_speed_m_s=settings.max_normal_speed_m_s,
+        search_speed_m_s=settings.search_speed_m_s,
+        speed_m_s=settings.speed_m_s,
+        beta=min(1.0, CONTROL_PERIOD_S / WALL_DIRECTION_TIME_S),
+        dt_s=CONTROL_PERIOD_S,
+        floor_force_N=FLOOR_FORCE_N,
+        floor_lift_speed_m_s=FLOOR_LIFT_SPEED_M_S,
+        floor_clearance_m=settings.floor_clearance_m,
+        height_time_s=HEIGHT_TIME_S,
+        height_speed_m_s=HEIGHT_SPEED_M_S,
+        behind_cos=BEHIND_COS,
+        contact_flag_N=CONTACT_FLAG_N,
+        first_search_across_m=FIRST_SEARCH_ACROSS_M,
+        search_turn_m=SEARCH_TURN_M,
+        slow_from=SLOW_FROM,
+        slowest_at=SLOWEST_AT,
+        slowest=SLOWEST,
+    )
+
+
 def learn_path(
     cell: Cell,
     state: CellState,
@@ -538,14 +564,10 @@ def learn_path(
     elif float(np.linalg.norm(pushed)) >= WALL_FORCE_CLEAR_N and float(pushed @ w) > 0.0:
         w = pushed
     w /= float(np.linalg.norm(w))
-    found_wall = ever_touched = False
+    ever_touched = False
     first_touch = p_ref.copy()
     closing_best = math.inf  # closed route: the nearest the last leg came to the first touch
-    out_of_contact_m = 0.0
-    integral = 0.0
-    lift = 0.0
-    lift_pending = False
-    h_goal_last: float | None = None
+    law = initial_state()
     leg_travel = 0.0
     t0 = state.time_s
     stop_reason = "reached the last guide point"
@@ -553,52 +575,30 @@ def learn_path(
     completed = False
     n = 0
     report_every = max(1, int(1.0 / dt))
-    vmax = settings.max_normal_speed_m_s
     weight = estimator.mass_kg * GRAVITY_M_S2
     com, tcp, bias = estimator.com_m, estimator.tcp_m, estimator.bias
     lower, upper = robot.lower_rad, robot.upper_rad
-    kp, ki, speed, f_ref = (
-        settings.kp_m_s_N,
-        settings.ki_m_s2_N,
-        settings.speed_m_s,
-        settings.force_N,
-    )
-    search = settings.search_speed_m_s
-    beta = min(1.0, dt / WALL_DIRECTION_TIME_S)
     penetration_stop = PENETRATION_STOP_FRACTION * cell.tool.radius_m
-    clearance = settings.floor_clearance_m
+    params = contour_law_parameters(settings)
     while True:
         if n >= n_max:
             stop_reason = "stopped: the run took far longer than the program predicts"
             stop_cause = "timeout"
             break
-        # --- measure (controller side: motor-side pose and the F/T reading) ---
+        # --- measure (controller side: motor-side pose and the F/T reading); the law ---
         T_meas = state.T_base_tcp
         R_meas = T_meas[:3, :3]
         w_base = _kernels.contact_wrench_tcp_base(
             state.ft_reading, cell.flange_rotation(T_meas), weight, com, tcp, bias
         )
         fx, fy, fz = float(w_base[0]), float(w_base[1]), float(w_base[2])
-        f_axis = fx * ax + fy * ay + fz * az  # < 0: the floor pushes the tool back up
-        px, py, pz = fx - f_axis * ax, fy - f_axis * ay, fz - f_axis * az
-        f_across = math.sqrt(px * px + py * py + pz * pz)
         f_abs = math.sqrt(fx * fx + fy * fy + fz * fz)
-        touching = f_across > CONTACT_FLAG_N
-        f_n = f_across
-        if touching:
-            mx, my, mz = -px / f_across, -py / f_across, -pz / f_across
-            if mx * w[0] + my * w[1] + mz * w[2] < BEHIND_COS:
-                f_n = -f_across  # the wall behind the tool: move away from it, keep w
-            else:
-                wx = w[0] + beta * (mx - w[0])
-                wy = w[1] + beta * (my - w[1])
-                wz = w[2] + beta * (mz - w[2])
-                norm = math.sqrt(wx * wx + wy * wy + wz * wz)
-                w = np.array([wx / norm, wy / norm, wz / norm])
-                if not ever_touched:
-                    first_touch = T_meas[:3, 3].copy()
-                found_wall = ever_touched = True
-                out_of_contact_m = 0.0
+        step, w, law, f_n, touching = contour_law(
+            w_base[:3], w, axis, side, seg.a, seg.xp, seg.length, p_ref, law, params
+        )
+        if touching and not ever_touched and law[EVER_TOUCHED] > 0.0:
+            first_touch = T_meas[:3, 3].copy()
+        ever_touched = law[EVER_TOUCHED] > 0.0
         # --- record ---
         times[n] = state.time_s - t0
         joints[n] = state.q_motor
@@ -626,11 +626,11 @@ def learn_path(
                 f"(more than {PENETRATION_STOP_FRACTION:g} of its radius)"
             )
             break
-        if out_of_contact_m > LOST_WALL_M:
+        if law[OUT_OF_CONTACT] > LOST_WALL_M:
             stop_cause = "lost"
             stop_reason = (
-                f"protection: the tool searched {out_of_contact_m * 1e3:.0f} mm without finding "
-                "the wall"
+                f"protection: the tool searched {law[OUT_OF_CONTACT] * 1e3:.0f} mm without "
+                "finding the wall"
             )
             break
         rel = p_ref - seg.a
@@ -650,47 +650,11 @@ def learn_path(
                 f"than the {seg.length * 1e3:.0f} mm leg: a guide point may be on another wall"
             )
             break
-        # --- the wall's tangent, the force loop across it, the leg's height along the axis ---
-        if not touching and found_wall and out_of_contact_m > SEARCH_TURN_M:
-            # the wall has been lost for a while: search across the leg again
-            w = across(_kernels.cross(axis, seg.xp) * side)
-            w /= math.sqrt(float(w @ w))
-            found_wall = False
-        t = _kernels.cross(w, axis) * side
-        e = f_ref - f_n
-        limit = vmax if touching else search
-        integral = min(max(integral + ki * e * dt, -limit), limit)
-        v_w = min(max(kp * e + integral, -vmax), limit)
-        if touching:
-            v_t = speed * _speed_ratio(f_n, f_ref)
-        elif ever_touched or out_of_contact_m > FIRST_SEARCH_ACROSS_M:
-            v_t = min(speed, search)
-        else:
-            v_t = 0.0  # the first search: straight across to the wall, nothing skipped
-        if not touching:
-            out_of_contact_m += math.hypot(v_t, v_w) * dt
-        if -f_axis > FLOOR_FORCE_N:  # the floor: lift off it
-            lift += FLOOR_LIFT_SPEED_M_S * dt
-            lift_pending = True
-        elif lift_pending and -f_axis < 0.5 * FLOOR_FORCE_N:
-            lift += clearance
-            lift_pending = False
-        s_now = float((p_ref - seg.a) @ seg.xp)
-        # The leg's height: its rate as the tool advances (feedforward) plus a first-order
-        # return of the error, so a steep leg is followed without lag.
-        h_goal = leg_height(seg, s_now) - lift
-        h_rate = 0.0 if h_goal_last is None else (h_goal - h_goal_last) / dt
-        h_goal_last = h_goal
-        h_err = h_goal - float(p_ref @ axis)
-        v_h = min(max(h_rate + h_err / HEIGHT_TIME_S, -HEIGHT_SPEED_M_S), HEIGHT_SPEED_M_S)
-        step = (t * v_t + w * v_w + axis * v_h) * dt
         # The orientation moves towards the route's at the next position, no faster than
         # TURN_RATE_RAD_S (no jump where one leg hands over to the next).
-        _, R_goal = leg_frame(seg, p_ref + step)
-        turn = _kernels.log3(R_ref.T @ R_goal)
-        angle = math.sqrt(float(turn @ turn))
-        if angle > turn_step:
-            turn = turn * (turn_step / angle)
+        turn = turn_towards(
+            R_ref, seg.Ra, seg.omega, seg.a, seg.xp, seg.length, p_ref + step, turn_step
+        )
         q_now = state.q_motor
 
         def propose(
