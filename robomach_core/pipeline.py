@@ -152,6 +152,9 @@ class DemoResult:
             "robtargets_total": self.reachability.total,
             "stop_reason": rec.stop_reason,
             "completed": rec.completed,
+            "stop": None if rec.stop is None else rec.stop.document(),
+            "wall_side": rec.wall_side,
+            "wall_side_reason": rec.wall_side_reason,
             "leadthrough_sim_time_s": self.leadthrough_sim_s,
             "sim_time_s": sim_s,
             "wall_time_s": self.wall_time_s,
@@ -284,7 +287,13 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
     )
     learning_wall = time.perf_counter() - t_learn
     report("post-processing", 0.0)
-    processed = process(learned, project.post_settings, workpiece, project.cell.tool_radius_m)
+    processed = process(
+        learned,
+        project.post_settings,
+        workpiece,
+        project.cell.tool_radius_m,
+        guides=project.guide_points,
+    )
     project = replace(project, learned=learned, processed=processed)
     report("post-processing", 1.0)
     report("export", 0.0)

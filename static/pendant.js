@@ -318,6 +318,8 @@ async function startLearning() {
     force_N: Number($("learn-force").value),
     speed_mm_s: Number($("learn-speed").value),
     closed: $("learn-closed").checked,
+    wall_side: $("learn-wall-side").value,
+    floor_clearance_mm: Number($("learn-floor").value),
   };
   const start = await api("POST", "/path-learning", body);
   showLearnWarnings(start.warnings || []);
@@ -336,6 +338,16 @@ async function startLearning() {
     $("learn-start").disabled = false;
     $("learn-cancel").disabled = true;
   }
+}
+
+// The operator check with the card's settings, before learning (refusals come first).
+async function checkGuides() {
+  const q = new URLSearchParams({
+    force_N: $("learn-force").value,
+    closed: $("learn-closed").checked,
+    wall_side: $("learn-wall-side").value,
+  });
+  showLearnWarnings(await api("GET", `/path-learning/warnings?${q}`));
 }
 
 async function cancelLearning() {
@@ -380,8 +392,26 @@ function showPostprocess(r) {
   $("post-rms").textContent = rms === undefined ? "n/a" : `${fmt(rms, 3)} mm`;
   const meshMax = pick(r, "mesh_max_deviation_mm");
   const meshRms = pick(r, "mesh_rms_deviation_mm");
+  const over = pick(r, "mesh_overcut_mm");
+  const air = pick(r, "mesh_air_mm");
   $("post-mesh").textContent =
-    meshMax === undefined ? "n/a" : `max ${fmt(meshMax, 3)} mm, RMS ${fmt(meshRms, 3)} mm`;
+    meshMax === undefined
+      ? "n/a"
+      : `max ${fmt(meshMax, 3)} mm, RMS ${fmt(meshRms, 3)} mm` +
+        (over === undefined || over === null ? "" : `; overcut ${fmt(over, 3)}, air ${fmt(air, 3)} mm`);
+  const follows = pick(r, "follows_taught_wall");
+  $("post-taught").textContent =
+    follows === undefined || follows === null ? "-" : `${follows ? "\u2714" : "\u26d4"} ${r.taught_wall}`;
+  const problems = r.problems || [];
+  const list = $("post-problems");
+  list.replaceChildren(
+    ...problems.map((p) => {
+      const li = document.createElement("li");
+      li.textContent = `\u26d4 not fit to machine: ${p}`;
+      return li;
+    }),
+  );
+  list.classList.toggle("hidden", problems.length === 0);
   const moves = pick(r, "moves");
   $("post-moves").textContent =
     moves === undefined
@@ -535,6 +565,8 @@ async function init() {
   $("guide-example").addEventListener("click", safe(loadExample));
   $("learn-start").addEventListener("click", safe(startLearning));
   $("learn-cancel").addEventListener("click", safe(cancelLearning));
+  $("learn-check").addEventListener("click", safe(checkGuides));
+  $("learn-wall-side").addEventListener("change", safe(checkGuides));
   $("post-run").addEventListener("click", safe(runPostprocess));
   $("export-preview").addEventListener("click", safe(previewProgram));
   $("export-download").addEventListener("click", safe(downloadProgram));

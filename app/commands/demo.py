@@ -106,14 +106,18 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="CSV",
         help="lead the robot to these guide points instead of the built-in plan: rows "
         "x_mm,y_mm,z_mm[,qw,qx,qy,qz[,wall_nx,wall_ny,wall_nz]] in the robot base "
-        "frame (needed for a mesh file)",
+        "frame (needed for a mesh file); the optional wall direction points from the tool "
+        "into the wall (where to push lightly to feel it), see docs/guide_points.md",
     )
+    from robomach_core.wall_side import WALL_SIDE_CHOICES
+
     p.add_argument(
         "--wall-side",
-        choices=("auto", "left", "right"),
+        choices=WALL_SIDE_CHOICES,
         default="auto",
-        help="side of the wall relative to the travel direction (default: from the "
-        "contact force recorded at the guide points)",
+        help="side of the wall to follow, left or right of the direction of travel looking "
+        "along the tool into the part; auto (default) decides from a clear push against the "
+        "wall at the guide points or from the part's mesh, and refuses when neither tells",
     )
     p.add_argument(
         "--cmrr-settings",
@@ -296,8 +300,12 @@ def run(args: argparse.Namespace) -> int:
     if s.get("mesh_max_deviation_mm") is not None:
         print(
             f"mesh deviation    max {s['mesh_max_deviation_mm']:.3f} mm, RMS "
-            f"{s['mesh_rms_deviation_mm']:.3f} mm (program vs workpiece mesh - tool radius)"
+            f"{s['mesh_rms_deviation_mm']:.3f} mm, overcut {s['mesh_overcut_mm']:.3f} mm, air "
+            f"{s['mesh_air_mm']:.3f} mm (program vs the part's walls - tool radius)"
         )
+    print(f"wall              on the {s['wall_side']} of travel: {s['wall_side_reason']}")
+    if s.get("taught_wall"):
+        print(f"taught wall       {s['taught_wall']}")
     print(
         f"reachable         {s['robtargets_reachable']}/{s['robtargets_total']} program targets "
         f"({s['program_language']})"
@@ -307,4 +315,6 @@ def run(args: argparse.Namespace) -> int:
         f"{s['learning_wall_time_s']:.1f} s (x{s['realtime_factor']:.0f} real time)"
     )
     print(f"wrote             {', '.join(p.name for p in paths)} in {args.out}")
-    return 0 if result.recording.completed else 1
+    for problem in s.get("problems") or ():
+        print(f"NOT FIT TO MACHINE: {problem}", file=sys.stderr)
+    return 0 if result.recording.completed and not s.get("problems") else 1

@@ -19,11 +19,16 @@ from ._value import (
 def rapid_header(
     project: Project, workpiece_name: str, *, note: str | None = None
 ) -> tuple[str, ...]:
-    """The program's comment lines: cell, learning, reduction, CMRR and compensation."""
+    """The program's comment lines: cell, learning, reduction, CMRR and compensation; first, a
+    banner for each problem that makes the program unfit to machine with (a partial run, the
+    wrong wall, an overcut: ``ProcessedPath.problems``)."""
     c = project.cell
     processed = require_processed(project)
     learning = project.learned.settings
-    lines = [
+    lines = [f"NOT FIT TO MACHINE: {problem}" for problem in processed.problems()]
+    if not project.learned.recording.completed:
+        lines.append(f"path learning stopped: {project.learned.recording.stop_reason}")
+    lines += [
         f"robomach: {c.robot}, {workpiece_name}, tool radius {c.tool_radius_m * 1e3:g} mm, "
         f"seed {c.seed}",
         f"path learning: force {learning.force_N:g} N, speed {learning.speed_m_s * 1e3:g} mm/s, "
@@ -291,13 +296,20 @@ def settings_document(
 def result_extras(processed: Any) -> dict[str, Any]:
     """The post-processing result's mesh score and move counts (mm), for settings.json,
     summary.json and the API: ``mesh_max_deviation_mm``, ``mesh_rms_deviation_mm``,
-    ``moves``, ``circular_moves``, ``straight_moves``."""
+    ``mesh_overcut_mm``, ``mesh_air_mm``, ``follows_taught_wall``, ``taught_wall``,
+    ``problems``, ``moves``, ``circular_moves``, ``straight_moves``."""
     mesh = processed.mesh_score
     n = len(processed.result.targets)
     moves = processed.moves
+    taught = processed.taught_wall
     return {
         "mesh_max_deviation_mm": None if mesh is None else mesh.max_m * 1e3,
         "mesh_rms_deviation_mm": None if mesh is None else mesh.rms_m * 1e3,
+        "mesh_overcut_mm": None if mesh is None else mesh.overcut_m * 1e3,
+        "mesh_air_mm": None if mesh is None else mesh.air_m * 1e3,
+        "follows_taught_wall": None if taught is None else taught.follows,
+        "taught_wall": None if taught is None else taught.message,
+        "problems": processed.problems(),
         "arcs": moves is not None,
         "moves": n if moves is None else len(moves),
         "circular_moves": 0 if moves is None else sum(m.via is not None for m in moves),

@@ -13,6 +13,7 @@ from app.api.routes.export import program_download
 from app.api.schemas import CellPublic
 from robomach_core.robots.builtin import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
+from robomach_core.wall_side import WallSideSetting
 
 # The controller families an uploaded arm may be given (``robots.builtin.ARM_FAMILIES``).
 FamilyChoice = Literal[("auto", *ARM_FAMILIES)]  # type: ignore[valid-type]
@@ -77,7 +78,12 @@ def guide_point_warnings(
     session: SessionDep,
     force_N: Annotated[float, Query(ge=1.0, le=50.0, description="contact force [N]")] = 10.0,
     closed: Annotated[bool, Query(description="closed contour")] = True,
+    wall_side: Annotated[
+        WallSideSetting, Query(description="the wall side to learn with")
+    ] = "auto",
 ) -> list[str]:
-    """The guide points that would trip the protection or slow path learning
-    (docs/guide_points.md); POST /api/path-learning returns the same with its job."""
-    return session.guide_warnings(force_N, closed=closed)
+    """What the operator check finds in the guide points (docs/guide_points.md): the wall side
+    that cannot be told, heavy contact, a point nearer another wall, on the floor, a leg
+    through the part, a wrist turn axis 6 cannot make; POST /api/path-learning returns the same
+    with its job."""
+    return session.guide_warnings(force_N, closed=closed, wall_side=wall_side)

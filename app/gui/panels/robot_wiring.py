@@ -6,8 +6,6 @@ from __future__ import annotations
 
 import viser
 
-from robomach_core.guide_check import guide_point_warnings
-from robomach_core.path_learning import PathLearningSettings
 from robomach_core.project import result_extras
 from robomach_core.robots.builtin import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
@@ -17,11 +15,12 @@ from .feedback import guarded
 ROBOT_MIME_TYPES = ".urdf,.zip,application/xml,application/zip,application/octet-stream"
 FAMILY_CHOICES = ("auto", *ARM_FAMILIES)
 GUIDE_HINT = (
-    "A guide point: **1-3 mm from the wall** or touching it lightly, the tool as it should "
-    "machine (Y towards the wall). Bracket each corner with a point on each side; an **outside "
-    "corner** gets its own point off its middle with **no wall push**; never record in heavy "
-    "contact. See docs/guide_points.md."
+    "A guide point: **1-3 mm from the wall**, or touching it with a **light push** (2-10 N) "
+    "that tells the wall side; the tool axis as it should machine, the same turn about it at "
+    "every point. Corners and bosses need no point of their own: the run follows the wall "
+    "round them by force. Never record in heavy contact. See docs/guide_points.md."
 )
+SEVERITY_ICON = {"refusal": "\u26d4", "warning": "\u26a0", "info": "\u2139"}
 
 
 class RobotProgramPanel:
@@ -91,24 +90,23 @@ class RobotProgramPanel:
 class GuideRulesPanel:
     """The operator's rules as a hint, and the guide points that break them."""
 
-    def __init__(self, server: viser.ViserServer, session) -> None:
+    def __init__(self, server: viser.ViserServer, session, settings=None) -> None:
         self.session = session
+        self.settings = settings  # () -> (wall_side, closed) of the path-learning panel
         with server.gui.add_folder("Guide-point rules", expand_by_default=False):
             server.gui.add_markdown(GUIDE_HINT)
             self.warnings = server.gui.add_markdown("")
         self.refresh()
 
     def refresh(self) -> None:
-        """Check the current guide points (``guide_check``) and list the warnings."""
-        project = self.session.project()
-        found = guide_point_warnings(
-            project.guide_points,
-            PathLearningSettings(),
-            workpiece=self.session.workpiece,
-            tool_radius_m=project.cell.tool_radius_m,
-        )
+        """Check the current guide points (``guide_check``) with the path-learning panel's
+        wall side, and list the findings, refusals first."""
+        wall_side, closed = self.settings() if self.settings is not None else ("auto", True)
+        found = self.session.guide_findings(closed=closed, wall_side=wall_side)
+        order = {"refusal": 0, "warning": 1, "info": 2}
+        found = sorted(found, key=lambda w: order[w.severity])
         self.warnings.content = (
-            "\n".join(f"- \u26a0 {w.message}" for w in found)
+            "\n".join(f"- {SEVERITY_ICON[w.severity]} {w.message}" for w in found)
             if found
             else "*No guide point breaks a rule.*"
         )
