@@ -93,6 +93,8 @@ ROBOT_HOME_JOINTS_RAD: dict[str, np.ndarray] = {
 }
 # Below this smallest singular value of the 6x6 TCP Jacobian the arm is called singular.
 SINGULAR_VALUE_MIN = 1e-3
+# Damping of the control period's IK step where its Newton step is large (near a singularity).
+IK_STEP_DAMPING = 1e-4
 
 
 def robots_directory() -> Path:
@@ -205,17 +207,17 @@ class Robot:
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         """4x4 ``T_base_tcp`` at joints ``q`` (rad)."""
-        with self._lock:
-            self._cache_key = b""  # the data buffer no longer holds the cached Jacobian's pose
-            pin.framesForwardKinematics(self.model, self.data, q)
-            return self.data.oMf[self.tcp_frame_id].homogeneous
+        return self._frame_pose(q, self.tcp_frame_id)
 
     def flange_pose(self, q: np.ndarray) -> np.ndarray:
         """4x4 ``T_base_flange`` at joints ``q`` (rad)."""
+        return self._frame_pose(q, self.flange_frame_id)
+
+    def _frame_pose(self, q: np.ndarray, frame_id: int) -> np.ndarray:
         with self._lock:
-            self._cache_key = b""
-            pin.framesForwardKinematics(self.model, self.data, q)
-            return self.data.oMf[self.flange_frame_id].homogeneous
+            self._cache_key = b""  # the data buffer no longer holds the cached Jacobian's pose
+            pin.forwardKinematics(self.model, self.data, q)
+            return pin.updateFramePlacement(self.model, self.data, frame_id).homogeneous
 
     def fk_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``T_base_tcp`` and the 6x6 TCP Jacobian [v; omega] in base-aligned axes.
@@ -228,17 +230,15 @@ class Robot:
         with self._lock:
             if key == self._cache_key:
                 return self._cache_T, self._cache_J
-            pin.computeJointJacobians(self.model, self.data, q)
-            pin.updateFramePlacements(self.model, self.data)
-            J = pin.getFrameJacobian(
-                self.model, self.data, self.tcp_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+            J = pin.computeFrameJacobian(
+                self.model, self.data, q, self.tcp_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
             )
-            T = self.data.oMf[self.tcp_frame_id].homogeneous
+            T = pin.updateFramePlacement(self.model, self.data, self.tcp_frame_id).homogeneous
             self._cache_key, self._cache_T, self._cache_J = key, T, J
             return T, J
 
     def ik_step(
-        self, q: np.ndarray, T_base_target: np.ndarray, *, damping: float = 1e-4
+        self, q: np.ndarray, T_base_target: np.ndarray, *, damping: float = IK_STEP_DAMPING
     ) -> np.ndarray:
         """One damped-least-squares step towards ``T_base_target``, clamped to the joint limits.
 

@@ -510,7 +510,7 @@ def choose(project: Project, controller: str, compensation: str) -> Project:
         gravity = comp.tool_gravity
         if mode == "online" and gravity is None:
             # Not identified here: the tool's nominal mass and centre of mass, no sensor bias.
-            from ..stiffness.gravity import ToolGravity
+            from ..sensor import ToolGravity
 
             tool = project.tool()
             gravity = ToolGravity(tool.mass_kg, tuple(float(v) for v in tool.com_m))

@@ -22,9 +22,9 @@ import numpy as np
 
 from ..joint_compliance import JointCompliance
 from ..robot import Robot
+from ..sensor import ToolGravity, compensate_gravity, wrench_at_tcp_in_base
 from ..transforms import pose_error
 from .errors import ConvergenceError
-from .gravity import ToolGravity, compensate_gravity, wrench_at_tcp_in_base
 from .model import apply_twist, loaded_equilibrium
 
 CompensationMode = Literal["linear", "nonlinear"]

@@ -31,6 +31,7 @@ import numpy as np
 from ..errors import CancelledError, InvalidInputError
 from ..joint_compliance import JointCompliance
 from ..robot import Robot
+from ..sensor import ToolGravity, contact_reading, gravity_reading
 from ..transforms import make_transform, pose_error, rotation_about
 from .compensation import (
     OnlineCompensationParams,
@@ -38,7 +39,6 @@ from .compensation import (
     compensate_targets_and_joints,
     online_compensation_step,
 )
-from .gravity import ToolGravity, contact_reading, gravity_reading
 from .model import apply_twist, loaded_equilibrium
 
 MillingCompensation = Literal["none", "online", "offline_linear", "offline_nonlinear"]

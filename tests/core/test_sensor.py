@@ -44,7 +44,7 @@ def test_compiled_arm_side_pose_is_eq_16():
     compliance = true_joint_compliance("ur10")
     T, J = robot.fk_and_jacobian(HOME_JOINTS_RAD + 0.2)
     wrench = np.array([300.0, -300.0, 50.0, 2.0, -1.0, 0.5])
-    T_arm, dq = _kernels.arm_side_pose(T, J, wrench, compliance.compliance_rad_Nm)
+    T_arm, dq, _ = _kernels.arm_side_pose(T, J, wrench, compliance.compliance_rad_Nm, T[:3, 3], 1.0)
     np.testing.assert_allclose(dq, compliance.joint_deflection(J, wrench), rtol=1e-12)
     np.testing.assert_allclose(T_arm[:3, 3], T[:3, 3] + (J @ dq)[:3], atol=1e-15)
     # To first order the arm side is the motor side turned by the deflection.
