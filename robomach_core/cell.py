@@ -19,6 +19,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import _kernels
+from .clock import CONTROL_PERIOD_S as CONTROL_PERIOD_S
 from .contact import NO_CONTACT, ContactModel, ContactResult
 from .errors import InvalidInputError
 from .joint_compliance import JointCompliance, true_joint_compliance
@@ -26,8 +27,6 @@ from .robot import Robot
 from .sensor import ForceEstimator, ForceTorqueSensor, SensorParams
 from .tool import Tool
 from .workpiece import Workpiece, builtin_workpiece
-
-CONTROL_PERIOD_S = 0.004
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .cell import CONTROL_PERIOD_S
+from .clock import CONTROL_PERIOD_S
 from .contour import Arc, Line
 from .errors import InvalidInputError, NotEnoughGuidePointsError, UnreachableTargetError
 from .leadthrough import ComplianceSelection, GuidePoint, LeadThrough, LeadThroughState

@@ -43,7 +43,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from .cell import CONTROL_PERIOD_S, Cell, CellState
+from .cell import Cell, CellState
+from .clock import CONTROL_PERIOD_S
 from .contour_following import (
     REC_CONTACT,
     REC_JOINTS,

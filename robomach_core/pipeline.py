@@ -15,7 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from .cell import CONTROL_PERIOD_S, Cell, CellConfig
+from .cell import Cell, CellConfig
+from .clock import CONTROL_PERIOD_S
 from .demo_operator import intents_from_csv, scripted_leadthrough
 from .errors import InvalidInputError, MeshFileError
 from .export.languages import language

@@ -52,6 +52,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from ..clock import CONTROL_PERIOD_S
 from ..cmrr.controllers import ControlDesign, make_controller
 from ..cmrr.controllers._fast import fast_stepper
 from ..cmrr.feed_dynamics import FeedDynamics
@@ -72,7 +73,7 @@ from .design import designed_controller_settings
 from .errors import CancelledError, MachiningSettingsError, SampleLimitError, StockError
 from .offline import densify_targets as densify_targets
 from .path import arc_length_m, check_normals, check_path, path_tangents, project_onto_path
-from .settings import CONTROL_PERIOD_S, MachiningSettings
+from .settings import MachiningSettings
 from .stock import Stock
 from .summary import finished_wall as finished_wall
 from .summary import steady_force_N as steady_force_N

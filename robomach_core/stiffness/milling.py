@@ -28,6 +28,7 @@ from typing import Literal
 
 import numpy as np
 
+from ..clock import CONTROL_PERIOD_S
 from ..errors import CancelledError, InvalidInputError
 from ..joint_compliance import JointCompliance
 from ..robot import Robot
@@ -45,7 +46,6 @@ MillingCompensation = Literal["none", "online", "offline_linear", "offline_nonli
 ErrorMeasure = Literal["surface_depth", "path_lateral"]
 MILLING_COMPENSATIONS: tuple[str, ...] = ("none", "online", "offline_linear", "offline_nonlinear")
 
-CONTROL_PERIOD_S = 0.004
 # Grid on which the machined surface is evaluated [m].
 SURFACE_STEP_ALONG_M = 0.0005
 SURFACE_POINTS_ACROSS = 11

@@ -41,7 +41,7 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from ..cell import CONTROL_PERIOD_S
+from ..clock import CONTROL_PERIOD_S
 from ..errors import InvalidInputError, SupervisionError
 from ..robot import IK_STEP_DAMPING, Robot
 from ..tool import Tool
