@@ -4,7 +4,7 @@ PROBLEM   One control period does ~30 small vector operations besides pinocchio'
           coal's collision query; as separate numpy calls they cost 1-12 us each, ten times the
           two library calls together, and even inside a kernel a BLAS or LAPACK call on a 3x3
           or 6x6 matrix costs more than the arithmetic it does.
-STRATEGY  Fuse them into numba kernels over plain loops (no BLAS calls: ``mul3`` and friends,
+STRATEGY  Fuse them into numba kernels over plain loops (no BLAS calls: ``mul3``, ``rotate``,
           ``solve``). Each is the private copy of a public function (pinocchio's ``exp3`` and
           ``log3``, ``Robot.ik_step``'s Newton step, the sensor model of ``sensor``) or follows a
           documented formula, and a test checks that it agrees with its reference.
@@ -38,52 +38,30 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 @_jit
-def mul3(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """(3, 3) product of the upper-left 3x3 blocks of ``A`` and ``B``."""
+def mul3(
+    A: np.ndarray, B: np.ndarray, transpose_a: bool = False, transpose_b: bool = False
+) -> np.ndarray:
+    """(3, 3) product of the upper-left 3x3 blocks of ``A`` and ``B``, each transposed when
+    asked."""
     out = np.empty((3, 3))
     for i in range(3):
         for j in range(3):
-            out[i, j] = A[i, 0] * B[0, j] + A[i, 1] * B[1, j] + A[i, 2] * B[2, j]
+            s = 0.0
+            for k in range(3):
+                s += (A[k, i] if transpose_a else A[i, k]) * (B[j, k] if transpose_b else B[k, j])
+            out[i, j] = s
     return out
 
 
 @_jit
-def mul3_bt(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """(3, 3) A B^T of the upper-left 3x3 blocks."""
-    out = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = A[i, 0] * B[j, 0] + A[i, 1] * B[j, 1] + A[i, 2] * B[j, 2]
-    return out
-
-
-@_jit
-def mul3_at(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """(3, 3) A^T B of the upper-left 3x3 blocks."""
-    out = np.empty((3, 3))
-    for i in range(3):
-        for j in range(3):
-            out[i, j] = A[0, i] * B[0, j] + A[1, i] * B[1, j] + A[2, i] * B[2, j]
-    return out
-
-
-@_jit
-def rotate(R: np.ndarray, v: np.ndarray, offset: int = 0) -> np.ndarray:
-    """(3,) R v[offset : offset + 3] with the upper-left 3x3 block of ``R``."""
-    x, y, z = v[offset], v[offset + 1], v[offset + 2]
+def rotate(R: np.ndarray, v: np.ndarray, offset: int = 0, transpose: bool = False) -> np.ndarray:
+    """(3,) R v[offset : offset + 3] (R^T v when ``transpose``), R the upper-left 3x3 block."""
     out = np.empty(3)
     for i in range(3):
-        out[i] = R[i, 0] * x + R[i, 1] * y + R[i, 2] * z
-    return out
-
-
-@_jit
-def rotate_t(R: np.ndarray, v: np.ndarray, offset: int = 0) -> np.ndarray:
-    """(3,) R^T v[offset : offset + 3] with the upper-left 3x3 block of ``R``."""
-    x, y, z = v[offset], v[offset + 1], v[offset + 2]
-    out = np.empty(3)
-    for i in range(3):
-        out[i] = R[0, i] * x + R[1, i] * y + R[2, i] * z
+        s = 0.0
+        for k in range(3):
+            s += (R[k, i] if transpose else R[i, k]) * v[offset + k]
+        out[i] = s
     return out
 
 
@@ -198,11 +176,10 @@ def arm_side_pose(
     p_before: np.ndarray,
     dt: float,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Arm-side TCP pose under ``wrench``: dq = Kq^-1 J^T W (``JointCompliance.joint_deflection``),
-    T_arm = T_motor moved by J dq; and the TCP's velocity from ``p_before`` ``dt`` earlier.
-
-    The rotation is updated to first order (R + [J dq]_x R); deflections are microradians.
-    Returns (T_arm, dq, velocity).
+    """Arm-side TCP pose under ``wrench`` by the linear joint-stiffness model, the cell's copy
+    of ``stiffness.model.loaded_equilibrium(..., mode="linear")``: dq = Kq^-1 J^T W, the TCP
+    moved by the twist J dq (p + dp, exp(dtheta) R); and the TCP's velocity from ``p_before``
+    ``dt`` earlier. Returns (T_arm, dq, velocity).
     """
     dq = np.empty(6)
     for j in range(6):
@@ -219,12 +196,7 @@ def arm_side_pose(
     for i in range(3):
         T[i, 3] += dx[i]
         velocity[i] = (T[i, 3] - p_before[i]) / dt
-    wx, wy, wz = dx[3], dx[4], dx[5]
-    for j in range(3):
-        r0, r1, r2 = T_motor[0, j], T_motor[1, j], T_motor[2, j]
-        T[0, j] = r0 + (-wz * r1 + wy * r2)
-        T[1, j] = r1 + (wz * r0 - wx * r2)
-        T[2, j] = r2 + (-wy * r0 + wx * r1)
+    T[:3, :3] = mul3(exp3(dx[3:]), T_motor)
     return T, dq, velocity
 
 
@@ -243,9 +215,9 @@ def sensor_reading(
 
     f_s = R^T (F_c + m g);  tau_s = R^T tau_c + r_tcp x (R^T F_c) + r_com x (R^T m g).
     """
-    f_c = rotate_t(R_flange, wrench)
-    f_g = rotate_t(R_flange, weight)
-    tau = rotate_t(R_flange, wrench, 3) + cross(tcp, f_c) + cross(com, f_g)
+    f_c = rotate(R_flange, wrench, 0, True)
+    f_g = rotate(R_flange, weight, 0, True)
+    tau = rotate(R_flange, wrench, 3, True) + cross(tcp, f_c) + cross(com, f_g)
     out = np.empty(6)
     out[:3] = f_c + f_g
     out[3:] = tau
@@ -266,7 +238,7 @@ def contact_wrench_tcp_base(
 
     w_s = reading - bias - [R^T m g; r_com x R^T m g]; tau_tcp = tau_s - r_tcp x f_s; to base.
     """
-    f_g = rotate_t(R_flange, weight)
+    f_g = rotate(R_flange, weight, 0, True)
     f_s = reading[:3] - bias[:3] - f_g
     tau_s = reading[3:] - bias[3:] - cross(com, f_g)
     tau_tcp = tau_s - cross(tcp, f_s)
@@ -293,7 +265,7 @@ def ik_newton_step(
     e[0] = T_target[0, 3] - T[0, 3]
     e[1] = T_target[1, 3] - T[1, 3]
     e[2] = T_target[2, 3] - T[2, 3]
-    e[3:] = log3(mul3_bt(T_target, T))
+    e[3:] = log3(mul3(T_target, T, False, True))
     dq = solve(J, e)
     size = 0.0
     for i in range(6):

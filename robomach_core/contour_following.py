@@ -34,7 +34,7 @@ import math
 import numba
 import numpy as np
 
-from ._kernels import contact_wrench_tcp_base, exp3, log3, mul3, mul3_at, rotate_t
+from ._kernels import contact_wrench_tcp_base, exp3, log3, mul3, rotate
 
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 
@@ -242,7 +242,7 @@ def turn_towards(
         + (p[2] - leg_a[2]) * leg_xp[2]
     )
     f = min(max(s / leg_length, 0.0), 1.0)
-    turn = log3(mul3_at(R_ref, mul3(R_leg_start, exp3(omega * f))))
+    turn = log3(mul3(R_ref, mul3(R_leg_start, exp3(omega * f)), True))
     angle = math.sqrt(turn[0] * turn[0] + turn[1] * turn[1] + turn[2] * turn[2])
     if angle > max_turn:
         turn = turn * (max_turn / angle)
@@ -334,8 +334,8 @@ def record_row(
         for j in range(3):
             row[REC_ROTATION + 3 * i + j] = T_meas[i, j]
     row[REC_SENSOR : REC_SENSOR + 6] = reading
-    row[REC_TOOL : REC_TOOL + 3] = rotate_t(T_meas, wrench)
-    row[REC_TOOL + 3 : REC_TOOL + 6] = rotate_t(T_meas, wrench, 3)
+    row[REC_TOOL : REC_TOOL + 3] = rotate(T_meas, wrench, 0, True)
+    row[REC_TOOL + 3 : REC_TOOL + 6] = rotate(T_meas, wrench, 3, True)
     row[REC_NORMAL] = f_n
     row[REC_CONTACT] = contact
     row[REC_YP : REC_YP + 3] = w

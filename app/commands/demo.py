@@ -220,8 +220,7 @@ def run(args: argparse.Namespace) -> int:
         compensation = load_compensation(args.compensation_settings)
 
     from robomach_core.errors import SupervisionError
-    from robomach_core.export.outputs import write_demo_outputs
-    from robomach_core.pipeline import DemoSettings, default_robot, run_demo
+    from robomach_core.pipeline import DemoSettings, default_robot, run_demo, write_demo_outputs
     from robomach_core.postprocess import PostprocessSettings
     from robomach_core.tool import Tool
 

@@ -43,10 +43,8 @@ from ._machining import wall_normals_for_project as wall_normals_for_project
 from ._machining import with_machining_result as with_machining_result
 from ._machining import with_machining_setup as with_machining_setup
 from ._stages import build_workpiece as build_workpiece
-from ._stages import compensate_program_targets as compensate_program_targets
 from ._stages import learn as learn
 from ._stages import process as process
-from ._stages import program_targets as program_targets
 from ._stages import require_processed as require_processed
 from ._stages import wobj_transform as wobj_transform
 from ._value import DEFAULT_MODULE_NAME as DEFAULT_MODULE_NAME
@@ -63,10 +61,13 @@ from ._value import compensation_document as compensation_document
 from ._value import machining_inputs_key as machining_inputs_key
 from ._value import processed_inputs_key as processed_inputs_key
 from ._value import recording_inputs_key as recording_inputs_key
+from ._writers import compensate_program_targets as compensate_program_targets
 from ._writers import fc_module_name as fc_module_name
 from ._writers import program_context as program_context
+from ._writers import program_export as program_export
 from ._writers import program_files as program_files
 from ._writers import program_languages as program_languages
+from ._writers import program_targets as program_targets
 from ._writers import program_texts as program_texts
 from ._writers import rapid_header as rapid_header
 from ._writers import rapid_text as rapid_text

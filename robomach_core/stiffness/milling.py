@@ -215,19 +215,11 @@ class MillingRun:
 
 
 def _track_ik(robot: Robot, Ts: np.ndarray, q_start: np.ndarray) -> np.ndarray:
-    """Joints along a finely sampled path: Newton steps from the previous solution."""
+    """Joints along a finely sampled path, each pose solved (``Robot.ik``) from the last."""
     qs = np.empty((len(Ts), 6))
-    q = q_start.copy()
+    q = q_start
     for i, T in enumerate(Ts):
-        for _ in range(8):
-            T_now, J = robot.fk_and_jacobian(q)
-            e = pose_error(T_now, T)
-            if np.linalg.norm(e[:3]) <= TRACK_TOLERANCE_M and (
-                np.linalg.norm(e[3:]) <= TRACK_TOLERANCE_RAD
-            ):
-                break
-            q = q + np.linalg.solve(J, e)
-        qs[i] = q
+        q = qs[i] = robot.ik(T, q, tolerance_m=TRACK_TOLERANCE_M, tolerance_rad=TRACK_TOLERANCE_RAD)
     return qs
 
 

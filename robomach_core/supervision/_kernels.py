@@ -157,23 +157,21 @@ def _end(T: np.ndarray, body: np.ndarray, at: int) -> tuple[float, float, float]
 
 
 @_jit
-def margins_at(q: np.ndarray, model: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """The margins at joints ``q`` (see the ``supervisor`` module) and the TCP pose.
+def margins_at(
+    q: np.ndarray, model: np.ndarray, parts: tuple | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """The margins at joints ``q`` (see the ``supervisor`` module), the TCP pose and Jacobian.
+
+    Args:
+        parts: ``_unpack(model)`` when the caller has it.
 
     Returns:
         margins (9 + P + C,): joint limits (6), wrist, elbow, shoulder, one clearance per pair
         (NaN where an obstacle's bounding box is nearer than the slow value, so coal must
-        measure it), the combined joint limits; the 4x4 TCP pose; how many margins are NaN.
+        measure it), the combined joint limits; the 4x4 TCP pose; its (6, 6) Jacobian
+        (``tcp_jacobian``); how many margins are NaN.
     """
-    margins, T_tcp, _, n_near = _margins(q, model, _unpack(model))
-    return margins, T_tcp, n_near
-
-
-@_jit
-def _margins(
-    q: np.ndarray, model: np.ndarray, parts: tuple
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    """``margins_at``, and the TCP's Jacobian there (``tcp_jacobian``)."""
+    parts = _unpack(model) if parts is None else parts
     placements, axes, limits, M_tcp, _, _, bodies, pairs, obstacles, couplings, _ = parts
     elbow_to_axis4 = model[4] > 0.5
     table_z = model[5]
@@ -292,6 +290,7 @@ def decide(
     T_tcp: np.ndarray,
     track: bool,
     model: np.ndarray,
+    parts: tuple | None = None,
 ) -> tuple[float, int, int, float]:
     """The speed scale of a step and its verdict, from the margins before (m0) and after (m1).
 
@@ -303,21 +302,7 @@ def decide(
     3 the TCP misses the reference ``T_ref`` by ``value`` (index 0: metres, 1: radians; only
     when ``track``).
     """
-    return _decide(m0, m1, q0, q1, T_ref, T_tcp, track, model, _unpack(model))
-
-
-@_jit
-def _decide(
-    m0: np.ndarray,
-    m1: np.ndarray,
-    q0: np.ndarray,
-    q1: np.ndarray,
-    T_ref: np.ndarray,
-    T_tcp: np.ndarray,
-    track: bool,
-    model: np.ndarray,
-    parts: tuple,
-) -> tuple[float, int, int, float]:
+    parts = _unpack(model) if parts is None else parts
     _, _, _, _, step_bound, tracking, _, _, _, _, thresholds = parts
     min_scale = model[6]
     scale = 1.0
@@ -367,27 +352,14 @@ def increment_proposal(
     turn: np.ndarray,
     scale: float,
     model: np.ndarray,
+    parts: tuple | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The reference ``T_ref`` moved by ``scale`` x (``step``, ``turn``) and one IK step to it.
 
     T = (p_ref + s step, R_ref exp(s turn)) (``turn`` in the reference's own axes);
     q = ``_kernels.ik_newton_step`` from ``q0`` at the pose ``T0`` with Jacobian ``J0``.
     """
-    return _proposal(q0, T0, J0, T_ref, step, turn, scale, model, _unpack(model)[2])
-
-
-@_jit
-def _proposal(
-    q0: np.ndarray,
-    T0: np.ndarray,
-    J0: np.ndarray,
-    T_ref: np.ndarray,
-    step: np.ndarray,
-    turn: np.ndarray,
-    scale: float,
-    model: np.ndarray,
-    limits: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
+    limits = (_unpack(model) if parts is None else parts)[2]
     T = np.eye(4)
     T[:3, :3] = mul3(T_ref, exp3(turn * scale))
     for i in range(3):
@@ -430,18 +402,18 @@ def supervise_increment(
     J0 = memory[22:58].reshape((6, 6))
     for i in range(6):
         if memory[i] != q0[i]:
-            m0, T0, J0, n_near = _margins(q0, model, parts)
+            m0, T0, J0, n_near = margins_at(q0, model, parts)
             if n_near > 0:
                 return -1, scale, 0, -1, 0.0, T_ref, q0
             break
     for attempt in range(2):
-        T, q1 = _proposal(q0, T0, J0, T_ref, step, turn, scale, model, parts[2])
+        T, q1 = increment_proposal(q0, T0, J0, T_ref, step, turn, scale, model, parts)
         if not math.isfinite(q1 @ q1):
             break
-        m1, T_tcp, J1, n_near = _margins(q1, model, parts)
+        m1, T_tcp, J1, n_near = margins_at(q1, model, parts)
         if n_near > 0:
             break
-        s, code, index, value = _decide(m0, m1, q0, q1, T, T_tcp, True, model, parts)
+        s, code, index, value = decide(m0, m1, q0, q1, T, T_tcp, True, model, parts)
         if attempt == 0:
             scale = s
         if attempt == 1 or s >= 1.0:

@@ -44,6 +44,7 @@ import pinocchio as pin
 from ..clock import CONTROL_PERIOD_S
 from ..errors import InvalidInputError, SupervisionError
 from ..robot import IK_STEP_DAMPING, Robot
+from ..robots.registry import DEFAULT_LINK_RADIUS_M
 from ..tool import Tool
 from ..workpiece import Workpiece
 from ._kernels import (
@@ -65,13 +66,6 @@ SupervisionCause = Literal[
     "joint speed",
     "collision",
 ]
-# Link radii of the arm's capsules (upper arm, forearm, wrist 1-3), metres; other arms: default.
-ARM_LINK_RADII_M: dict[str, tuple[float, float, float, float, float]] = {
-    "ur10": (0.075, 0.060, 0.045, 0.045, 0.045),
-    "ur5": (0.060, 0.050, 0.040, 0.040, 0.040),
-    "ur3": (0.045, 0.040, 0.035, 0.035, 0.035),
-}
-DEFAULT_LINK_RADIUS_M = 0.06
 ARM_LINK_NAMES = ("upper arm", "forearm", "wrist 1", "wrist 2", "wrist 3")
 SPINDLE_RADIUS_M = 0.03  # the spindle body the GUIs draw (app/gui/scene.py ``tool_mesh``)
 SHANK_LENGTH_M = 0.01  # between the cutter's flutes and the spindle body
@@ -365,7 +359,8 @@ class Supervisor:
 
     def _make_bodies(self, flange_in_joint6: np.ndarray) -> list[_Body]:
         model, robot, tool = self.robot.model, self.robot, self.tool
-        radii = ARM_LINK_RADII_M.get(robot.name, (DEFAULT_LINK_RADIUS_M,) * 5)
+        # The arm's capsules (upper arm, forearm, wrists 1-3): its record's radii.
+        radii = robot.record.link_radii_m or (DEFAULT_LINK_RADIUS_M,) * 5
         bodies = []
         for k, name in enumerate(ARM_LINK_NAMES):
             joint = k + 2
@@ -461,7 +456,7 @@ class Supervisor:
         for known, margins, T_tcp in recent:
             if known == key:
                 return margins, T_tcp
-        margins, T_tcp, n_near = margins_at(q, self._model)
+        margins, T_tcp, _, n_near = margins_at(q, self._model)
         if n_near:
             self._measure_near(margins, T_tcp, q)
         self._recent = ((key, margins, T_tcp), *recent[:2])
