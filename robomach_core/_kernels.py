@@ -202,26 +202,24 @@ def arm_side_pose(
 
 @_jit
 def sensor_reading(
-    R_flange: np.ndarray,
-    wrench: np.ndarray,
-    weight: np.ndarray,
-    com: np.ndarray,
-    tcp: np.ndarray,
-    bias: np.ndarray,
-    noise: np.ndarray,
+    R_flange: np.ndarray, wrench: np.ndarray, load: np.ndarray, noise: np.ndarray, row: int
 ) -> np.ndarray:
-    """F/T reading in the sensor frame: contact wrench moved to the sensor + weight + bias + noise
-    (``sensor.contact_reading`` + ``sensor.gravity_reading``).
+    """F/T reading in the sensor frame: contact wrench moved to the sensor + weight + bias + the
+    ``row`` of ``noise`` (``sensor.contact_reading`` + ``sensor.gravity_reading``).
 
     f_s = R^T (F_c + m g);  tau_s = R^T tau_c + r_tcp x (R^T F_c) + r_com x (R^T m g).
+
+    Args:
+        load: (15,) weight m g (3), centre of mass (3), TCP (3) in the sensor frame, bias (6).
     """
     f_c = rotate(R_flange, wrench, 0, True)
-    f_g = rotate(R_flange, weight, 0, True)
-    tau = rotate(R_flange, wrench, 3, True) + cross(tcp, f_c) + cross(com, f_g)
+    f_g = rotate(R_flange, load, 0, True)
+    tau = rotate(R_flange, wrench, 3, True) + cross(load[6:9], f_c) + cross(load[3:6], f_g)
     out = np.empty(6)
-    out[:3] = f_c + f_g
-    out[3:] = tau
-    return out + bias + noise
+    for i in range(3):
+        out[i] = f_c[i] + f_g[i] + load[9 + i] + noise[row, i]
+        out[3 + i] = tau[i] + load[12 + i] + noise[row, 3 + i]
+    return out
 
 
 @_jit

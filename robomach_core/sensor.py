@@ -139,8 +139,10 @@ class ForceTorqueSensor:
         self._noise = np.empty((0, 6))
         self._next = 0
         self._com = np.asarray(tool.com_m, dtype=float)
-        self._tcp = np.asarray(tool.tcp_offset_m, dtype=float)
-        self._weight = tool.mass_kg * GRAVITY_M_S2
+        # weight m g, centre of mass, TCP, bias: the compiled reading's ``load``.
+        self._load = np.concatenate(
+            [tool.mass_kg * GRAVITY_M_S2, self._com, tool.tcp_offset_m, self.bias]
+        ).astype(float)
 
     @property
     def load(self) -> ToolGravity:
@@ -148,14 +150,6 @@ class ForceTorqueSensor:
         return ToolGravity(
             self.tool.mass_kg, tuple(self._com), tuple(self.bias[:3]), tuple(self.bias[3:])
         )
-
-    def _draw_noise(self) -> np.ndarray:
-        if self._next >= len(self._noise):
-            self._noise = self._rng.standard_normal((_NOISE_BLOCK, 6)) * self._scale
-            self._next = 0
-        row = self._noise[self._next]
-        self._next += 1
-        return row
 
     def measure(self, R_base_flange: np.ndarray, contact_wrench_tcp_base: np.ndarray) -> np.ndarray:
         """(6,) reading [F (N), tau (N*m)] in the sensor frame: ``contact_reading`` +
@@ -165,14 +159,12 @@ class ForceTorqueSensor:
             R_base_flange: 3x3 orientation of the sensor (arm side, the true one).
             contact_wrench_tcp_base: (6,) contact wrench at the TCP, base-aligned axes.
         """
+        if self._next >= len(self._noise):  # white noise, drawn a block at a time
+            self._noise = self._rng.standard_normal((_NOISE_BLOCK, 6)) * self._scale
+            self._next = 0
+        self._next += 1
         return _kernels.sensor_reading(
-            R_base_flange,
-            contact_wrench_tcp_base,
-            self._weight,
-            self._com,
-            self._tcp,
-            self.bias,
-            self._draw_noise(),
+            R_base_flange, contact_wrench_tcp_base, self._load, self._noise, self._next - 1
         )
 
 

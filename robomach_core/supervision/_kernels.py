@@ -397,9 +397,9 @@ def supervise_increment(
     """
     parts = _unpack(model)
     scale = 1.0
-    m0 = memory[MEMORY_MARGINS:]
-    T0 = memory[6:22].reshape((4, 4))
-    J0 = memory[22:58].reshape((6, 6))
+    remembered_T = memory[6:22].reshape((4, 4))
+    remembered_J = memory[22:58].reshape((6, 6))
+    m0, T0, J0 = memory[MEMORY_MARGINS:], remembered_T, remembered_J
     for i in range(6):
         if memory[i] != q0[i]:
             m0, T0, J0, n_near = margins_at(q0, model, parts)
@@ -408,7 +408,10 @@ def supervise_increment(
             break
     for attempt in range(2):
         T, q1 = increment_proposal(q0, T0, J0, T_ref, step, turn, scale, model, parts)
-        if not math.isfinite(q1 @ q1):
+        size = 0.0
+        for i in range(6):
+            size += q1[i] * q1[i]
+        if not math.isfinite(size):
             break
         m1, T_tcp, J1, n_near = margins_at(q1, model, parts)
         if n_near > 0:
@@ -418,8 +421,8 @@ def supervise_increment(
             scale = s
         if attempt == 1 or s >= 1.0:
             memory[:6] = q1
-            memory[6:22] = T_tcp.ravel()
-            memory[22:58] = J1.ravel()
+            remembered_T[:, :] = T_tcp
+            remembered_J[:, :] = J1
             memory[MEMORY_MARGINS:] = m1
             return 0, scale, code, index, value, T, q1
     return -1, scale, 0, -1, 0.0, T_ref, q0

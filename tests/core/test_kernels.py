@@ -185,7 +185,9 @@ def test_the_sensor_kernels_are_the_sensor_model():
         W = rng.normal(size=6) * 20
         noise = rng.normal(size=6) * 0.1
         want = contact_reading(R, tcp, W) + gravity_reading(R, load) + noise
-        got = _kernels.sensor_reading(R, W, weight, com, tcp, load.bias, noise)
+        got = _kernels.sensor_reading(
+            R, W, np.concatenate([weight, com, tcp, load.bias]), noise[None], 0
+        )
         np.testing.assert_allclose(got, want, atol=1e-12)
         back = wrench_at_tcp_in_base(compensate_gravity(got - noise, R, load), R, tcp)
         compiled = _kernels.contact_wrench_tcp_base(got - noise, R, weight, com, tcp, load.bias)
