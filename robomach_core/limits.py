@@ -79,6 +79,10 @@ LEARNING_FORCE_N = Range("contact force", 1.0, 50.0, "N")
 LEARNING_SPEED_MM_S = Range("learning speed", 0.5, 50.0, "mm/s")
 PUSH_FORCE_N = Range("push force", 0.0, 200.0, "N")
 PUSH_DURATION_S = Range("push duration", 0.0, 10.0, "s")
+# Guide points of one project, and samples of one recording (4 ms each: 1 M is 67 min of
+# learning, ~260 MB of arrays; the papers' runs are minutes).
+GUIDE_POINTS_MAX = 200
+RECORDING_SAMPLES_MAX = 1_000_000
 
 # --- post-processing (chapter fig. 3: 0.2 mm gave ~300 targets) -----------------------------
 TOLERANCE_MM = Range("deviation-height tolerance", 0.01, 5.0, "mm")

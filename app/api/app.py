@@ -4,7 +4,9 @@ upload limits, lifespan.
 Errors: ``RobomachError`` subclasses map to 4xx by their builtin base (ValueError/KeyError ->
 422, not found -> 404, state conflicts and RuntimeError -> 409); request validation (malformed
 JSON, wrong types, out-of-range values) -> 422 with a one-line summary plus per-field errors;
-anything unforeseen -> 503 with its message (and a logged traceback), never a bare 500.
+anything unforeseen -> 503 with a sentence saying what limit it met (``describe_unexpected``),
+answered once and logged once by ``UnexpectedErrorMiddleware``, with ``Connection: close`` so
+that the client's next request opens a fresh connection; never a bare 500.
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ from app.api.routes import (
     teach,
 )
 from app.session import ConflictError, NotFoundError, Session
+from app.session.jobs import describe_unexpected
 from app.settings import MAX_JSON_BODY_BYTES, ServerSettings
 from app.studies import StudyQueueFullError
 from robomach_core.errors import (
@@ -216,6 +219,48 @@ class SameOriginMiddleware:
         return viser_port is not None and given == (own[0], viser_port)
 
 
+class UnexpectedErrorMiddleware:
+    """The one handler of errors no route foresaw: a 503 whose message says what limit the
+    request met, logged once with its traceback, sent with ``Connection: close`` (the request
+    body may be unread, so the connection is closed properly rather than reused).
+
+    Starlette's own handler for ``Exception`` answers and then re-raises to the server, which
+    logged the error a second time and dropped the keep-alive connection without saying so:
+    the client's next request on it failed (issue 19, R6). A response already started cannot
+    be replaced: that error goes on to the server, which closes the connection.
+    """
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        started = False
+
+        async def tracked(message: dict) -> None:
+            nonlocal started
+            if message["type"] == "http.response.start":
+                started = True
+            await send(message)
+
+        try:
+            await self.app(scope, receive, tracked)
+        except Exception as exc:
+            if started:
+                raise
+            log.error(
+                "unexpected error on %s %s", scope.get("method"), scope.get("path"), exc_info=exc
+            )
+            response = JSONResponse(
+                {"detail": describe_unexpected(exc)},
+                status_code=503,
+                headers={"Connection": "close"},
+            )
+            await response(scope, receive, send)
+
+
 class UploadSizeMiddleware:
     """413 for a mesh upload whose declared size (``Content-Length``) is over the server's
     limit, before a byte of it is read; the route still counts the bytes of an upload that
@@ -302,6 +347,7 @@ def create_app(
     for module in ROUTERS:
         app.include_router(module.router)
     _add_error_handlers(app)
+    app.add_middleware(UnexpectedErrorMiddleware)  # innermost: every route's error
     if settings.token:
         app.add_middleware(TokenMiddleware, token=settings.token)
     app.add_middleware(UploadSizeMiddleware, limit_bytes=settings.max_upload_bytes)
@@ -351,10 +397,4 @@ def _add_error_handlers(app: FastAPI) -> None:
             {"detail": f"the project database is unavailable ({exc}); try again"}, status_code=503
         )
 
-    @app.exception_handler(Exception)
-    async def unexpected(request: Request, exc: Exception) -> JSONResponse:
-        log.error("unexpected error on %s %s", request.method, request.url.path, exc_info=exc)
-        return JSONResponse(
-            {"detail": f"the server could not do this: {exc.__class__.__name__}: {exc}"},
-            status_code=503,
-        )
+    # Errors no handler above maps: UnexpectedErrorMiddleware (answers once, logs once).

@@ -84,7 +84,7 @@ class JobRunner:
     ``submit(kind, work)`` queues ``work(ctx)``; its return value becomes the job's result and
     is handed to ``on_done`` (still in the worker) before the job reads as done. A
     ``CancelledError`` makes it cancelled, a ``RobomachError`` failed with its message, any
-    other exception failed with "internal error" (logged with its traceback). ``on_end`` runs
+    other exception failed with ``describe_unexpected`` (logged with its traceback). ``on_end`` runs
     after every outcome. The CMRR and stiffness studies plug in here the same way.
 
     Args:
@@ -231,11 +231,27 @@ class JobRunner:
             except Exception as exc:
                 log.exception("job %s (%s) failed", job.id, job.kind)
                 job.status = "failed"
-                job.error = f"internal error: {exc.__class__.__name__}: {exc}"
+                job.error = describe_unexpected(exc)
             else:
                 job.status, job.result, job.progress = "done", result, 1.0
             job.finished_s = time.time()
             self._finish(job)
+
+
+def describe_unexpected(exc: BaseException) -> str:
+    """A user-facing sentence for an error no check foresaw, saying what kind of limit it met
+    (the class and message follow, for the report)."""
+    what = f"{exc.__class__.__name__}: {exc}"[:500]
+    if isinstance(exc, MemoryError):
+        return f"not enough memory for this work: use a smaller input or fewer samples ({what})"
+    if isinstance(exc, (OverflowError, FloatingPointError, ZeroDivisionError)):
+        return (
+            "a number in this work went outside what the simulation can compute: check that "
+            f"every value is within its documented range ({what})"
+        )
+    if isinstance(exc, RecursionError):
+        return f"the input is nested too deeply to process ({what})"
+    return f"the server could not do this ({what})"
 
 
 # --- the tapped cell: live pose and cancel during a job ----------------------------------
