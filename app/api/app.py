@@ -46,7 +46,7 @@ from app.api.routes import (
     state,
     teach,
 )
-from app.session import ConflictError, NotFoundError, Session
+from app.session import ConflictError, NotFoundError, QueueFullError, Session
 from app.session.jobs import describe_unexpected
 from app.settings import MAX_JSON_BODY_BYTES, ServerSettings
 from app.studies import StudyQueueFullError
@@ -76,7 +76,7 @@ def status_for(exc: RobomachError) -> int:
     """The HTTP status of a user-caused error, by what kind of error it is."""
     if isinstance(exc, NotFoundError):
         return 404
-    if isinstance(exc, StudyQueueFullError):
+    if isinstance(exc, (StudyQueueFullError, QueueFullError)):
         return 429
     if isinstance(exc, (ConflictError, CancelledError, ForceLimitError, NotEnoughGuidePointsError)):
         return 409

@@ -20,8 +20,15 @@ from .records import (
     JobInfo,
     JobStatus,
     NotFoundError,
+    QueueFullError,
     log,
 )
+
+# Queued and running jobs at once: of one kind, and of all kinds. Each waits on the one worker,
+# and the robot and the user wait behind them: 300 machining comparisons (3.3 h of work) were
+# accepted at once (issue 19, R9). Robot jobs are one at a time anyway (BusyError).
+MAX_ACTIVE_JOBS_PER_KIND = 3
+MAX_ACTIVE_JOBS = 8
 
 
 class JobContext:
@@ -90,6 +97,9 @@ class JobRunner:
     Args:
         on_change: Called with the ``JobInfo`` after every status or progress change.
         keep_finished: Finished jobs remembered for ``get``.
+        max_active_per_kind: Queued and running jobs of one kind; one more is refused with
+            ``QueueFullError`` (429).
+        max_active: Queued and running jobs of all kinds.
     """
 
     def __init__(
@@ -97,9 +107,13 @@ class JobRunner:
         *,
         on_change: Callable[[JobInfo], None] | None = None,
         keep_finished: int = 200,
+        max_active_per_kind: int = MAX_ACTIVE_JOBS_PER_KIND,
+        max_active: int = MAX_ACTIVE_JOBS,
     ) -> None:
         self._on_change = on_change
         self._keep = keep_finished
+        self._max_per_kind = max_active_per_kind
+        self._max_active = max_active
         self._jobs: dict[str, _Job] = {}
         self._queue: deque[_Job] = deque()
         self._cv = threading.Condition()
@@ -115,10 +129,16 @@ class JobRunner:
         on_done: Callable[[Any], None] | None = None,
         on_end: Callable[[JobInfo], None] | None = None,
     ) -> str:
-        """Queue a job; returns its id."""
+        """Queue a job; returns its id.
+
+        Raises:
+            QueueFullError: ``max_active_per_kind`` jobs of this kind, or ``max_active`` of all
+                kinds, are already queued or running.
+        """
         with self._cv:
             if self._closed:
                 raise ConflictError("the server is shutting down")
+            self._check_room(kind)
             job = _Job(self, uuid.uuid4().hex[:12], kind, work, on_done, on_end)
             self._jobs[job.id] = job
             self._queue.append(job)
@@ -188,6 +208,21 @@ class JobRunner:
         if job is None:
             raise NotFoundError(f"no job with id {job_id!r}")
         return job
+
+    def _check_room(self, kind: str) -> None:
+        active = [j for j in self._jobs.values() if j.status in ("queued", "running")]
+        same = sum(1 for j in active if j.kind == kind)
+        what = kind.replace("_", " ")
+        if same >= self._max_per_kind:
+            raise QueueFullError(
+                f"{same} {what} jobs are already queued or running (at most "
+                f"{self._max_per_kind}): wait for one to end or cancel one at /api/jobs"
+            )
+        if len(active) >= self._max_active:
+            raise QueueFullError(
+                f"{len(active)} jobs are already queued or running (at most {self._max_active}): "
+                f"wait for one to end or cancel one at /api/jobs before starting a {what} job"
+            )
 
     def _forget_old(self) -> None:
         ended = [j for j in self._jobs.values() if j.status in ("done", "failed", "cancelled")]
