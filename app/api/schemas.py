@@ -259,8 +259,16 @@ class JobPublic(BaseModel):
 
 
 class PathLearningCreate(_Request):
-    force_N: Finite = Field(ge=1.0, le=50.0, description="contact force reference [N], 1-50")
-    speed_mm_s: Finite = Field(ge=0.5, le=50.0, description="learning speed [mm/s], 0.5-50")
+    force_N: Finite = Field(
+        ge=limits.LEARNING_FORCE_N.min,
+        le=limits.LEARNING_FORCE_N.max,
+        description=f"contact force reference, {limits.LEARNING_FORCE_N.text()}",
+    )
+    speed_mm_s: Finite = Field(
+        ge=limits.LEARNING_SPEED_MM_S.min,
+        le=limits.LEARNING_SPEED_MM_S.max,
+        description=f"learning speed, {limits.LEARNING_SPEED_MM_S.text()}",
+    )
     closed: bool = Field(True, description="the path returns from the last guide point to the 1st")
 
 
@@ -307,8 +315,18 @@ class ForceTracePublic(BaseModel):
 
 
 class PostprocessUpdate(_Request):
-    force_min_N: Finite | None = Field(None, ge=0.0, description="drop samples below [N]")
-    force_max_N: Finite | None = Field(None, gt=0.0, description="drop samples above [N]")
+    force_min_N: Finite | None = Field(
+        None,
+        ge=limits.FORCE_THRESHOLD_N.min,
+        le=limits.FORCE_THRESHOLD_N.max,
+        description=f"drop samples below, {limits.FORCE_THRESHOLD_N.text()}",
+    )
+    force_max_N: Finite | None = Field(
+        None,
+        gt=limits.FORCE_THRESHOLD_N.min,
+        le=limits.FORCE_THRESHOLD_N.max,
+        description=f"drop samples above, {limits.FORCE_THRESHOLD_N.text()}",
+    )
     tolerance_mm: Finite | None = Field(
         None,
         ge=limits.TOLERANCE_MM.min,

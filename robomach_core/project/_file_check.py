@@ -189,11 +189,13 @@ def _check_recording(doc: dict[str, Any], arrays: dict[str, np.ndarray], name: s
         shown = ", ".join(missing) or "guide_quaternions_wxyz"
         raise _error(f"{name}: the recording lacks {shown}")
     lengths = {f: len(arrays[f"rec_{f}"]) for f in RECORDING_FIELDS}
-    n = lengths["time_s"]
+    n = max(set(lengths.values()), key=list(lengths.values()).count)  # the most arrays' length
     odd = {f: k for f, k in lengths.items() if k != n}
     if odd:
-        shown = ", ".join(f"{f} {k}" for f, k in odd.items())
-        raise _error(f"{name}: the recording's arrays differ in length (time_s {n}, {shown})")
+        shown = ", ".join(f"{f} has {k}" for f, k in odd.items())
+        raise _error(
+            f"{name}: the recording's arrays differ in length ({shown} samples, the others {n})"
+        )
     if n < 2:
         raise _error(f"{name}: the recording holds {n} samples; at least 2 are needed")
     if np.any(np.diff(arrays["rec_time_s"]) < 0):
