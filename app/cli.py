@@ -59,7 +59,7 @@ def settings_file(path: Path, option: str) -> Path:
             )
         path.read_bytes().decode("utf-8")
     except FileNotFoundError:
-        raise InvalidInputError(f"{option} {path}: no such file") from None
+        raise InvalidInputError(f"{option} {path}: the file does not exist") from None
     except UnicodeDecodeError as exc:
         raise InvalidInputError(
             f"{option} {path}: not a text file (byte {exc.start} is not UTF-8); give the JSON "

@@ -242,7 +242,9 @@ class Session(ProjectsMixin):
         if not self._lock.acquire(blocking=wait):
             last = self._last_snapshot
             if last is not None:
-                return last
+                # busy from the job runner (its own lock): a job that just ended while its
+                # end still holds the session lock must not read as running
+                return replace(last, busy=self.busy())
             self._lock.acquire()
         try:
             busy = self.busy()
