@@ -255,7 +255,12 @@ def serve(settings: ServerSettings) -> int:
             log.info("data folder %s, project %r", data_dir, session.current_project().name)
             log.info("REST API at http://%s:%d/docs, pendant at /pendant/", host, settings.port)
             if settings.token:
-                log.info("mutating REST calls need the token (Authorization: Bearer ...)")
+                which = (
+                    "every REST call but /api/health"
+                    if settings.reads_need_token
+                    else ("mutating REST calls")
+                )
+                log.info("%s need the token (Authorization: Bearer ...)", which)
             config = uvicorn.Config(
                 app,
                 host=settings.host,
