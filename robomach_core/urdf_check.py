@@ -171,9 +171,16 @@ def _entry_count(data: bytes) -> int | None:
     return None if end is None else int(end[zipfile._ECD_ENTRIES_TOTAL])  # noqa: SLF001
 
 
-def open_zip(data: bytes, filename: str, error: type[RobomachError]) -> zipfile.ZipFile:
+def open_zip(
+    data: bytes,
+    filename: str,
+    error: type[RobomachError],
+    *,
+    unreadable: str = "not a readable zip file",
+) -> zipfile.ZipFile:
     """The archive of ``data`` once its end record declares at most ``MAX_ZIP_ENTRIES``
-    entries (zipfile would list millions of entries in memory first)."""
+    entries (zipfile would list millions of entries in memory first); ``error`` saying
+    ``unreadable`` when it is not a zip."""
     try:
         count = _entry_count(data)
         if count is not None and count > MAX_ZIP_ENTRIES:
@@ -184,7 +191,7 @@ def open_zip(data: bytes, filename: str, error: type[RobomachError]) -> zipfile.
     except (zipfile.BadZipFile, zipfile.LargeZipFile, OSError, ValueError, EOFError) as exc:
         if isinstance(exc, RobomachError):
             raise
-        raise error(f"{filename}: not a readable zip file") from None
+        raise error(f"{filename}: {unreadable}") from None
 
 
 def read_robot_zip(

@@ -107,7 +107,9 @@ def read_project_arrays(data: bytes, name: str) -> dict[str, np.ndarray]:
     """
     from ._file import ProjectFileError
 
-    archive = open_zip(data, name, ProjectFileError)
+    archive = open_zip(
+        data, name, ProjectFileError, unreadable="not a robomach project file (not a zip)"
+    )
     arrays: dict[str, np.ndarray] = {}
     try:
         for info in archive.infolist():
