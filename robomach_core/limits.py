@@ -131,4 +131,10 @@ TOOL_RADIUS_MM = Range("tool radius", 0.5, 5.0, "mm")
 MACHINING_PROCESS_GAIN_N = Range("process gain K", 0.1, 1.0e4, "N")
 MACHINING_DEPTH_EXPONENT = Range("depth exponent alpha", 0.0, 3.0)
 MACHINING_FEED_EXPONENT = Range("feed exponent beta", 0.01, 2.0)
-MACHINING_FORCE_LIMIT_N = Range("force limit", 1.0, 5000.0, "N")
+# Fr defaults to 0.7 of the limit and must stay within CMRR_REFERENCE_FORCE_N (1-1000 N), so
+# the limit's range is that range over 0.7, rounded inwards: every limit here is accepted
+# everywhere (machining.settings.DEFAULT_REFERENCE_FRACTION; a test checks both ends).
+MACHINING_FORCE_LIMIT_N = Range("force limit", 1.5, 1400.0, "N")
+# Stocks of a variation sweep per configuration, and local worker processes.
+MACHINING_VARIATIONS = Range("variations", 0, 1000, integer=True)
+MACHINING_WORKERS = Range("workers", 1, 256, integer=True)

@@ -174,8 +174,15 @@ def program_targets(project: Project, robot: Robot) -> tuple[Targets, str | None
         return chosen
     if project.compensation is None:
         return targets, None
-    return compensate_program_targets(
-        robot, project.learned.recording, targets, project.compensation
+    from ._machining import compensation_for_arm, stale_settings
+
+    compensation = compensation_for_arm(project, robot.name)  # settings of another arm: re-derived
+    corrected, note = compensate_program_targets(
+        robot, project.learned.recording, targets, compensation
+    )
+    stale = stale_settings(project).get("compensation")
+    return corrected, note if stale is None or compensation is project.compensation else (
+        f"{note}; {stale}"
     )
 
 
