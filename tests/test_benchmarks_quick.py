@@ -59,6 +59,12 @@ EXPECTED: dict[str, list[str]] = {
         rf"x{NUMBER} faster \(same figures: yes\)",
     ],
     "bench_reads_during_postprocess.py": [rf"worst read p99 during post-processing {NUMBER} ms"],
+    "bench_events.py": [
+        rf"no listener, robot still\s+\d+\s+{NUMBER}\s+{NUMBER}",
+        rf"no listener, robot moving\s+\d+\s+{NUMBER}\s+{NUMBER}",
+        rf"\d+ listeners, robot moving\s+\d+\s+{NUMBER}\s+{NUMBER}",
+        rf"robot events per listener: {NUMBER}/s",
+    ],
     "bench_browser_pose_rate.py": [
         rf"handle\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
         rf"rest\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
