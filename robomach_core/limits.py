@@ -79,11 +79,24 @@ LEARNING_FORCE_N = Range("contact force", 1.0, 50.0, "N")
 LEARNING_SPEED_MM_S = Range("learning speed", 0.5, 50.0, "mm/s")
 # The cutter's height above a floor the run meets (a little above: the machining height).
 FLOOR_CLEARANCE_MM = Range("floor clearance", 0.0, 5.0, "mm")
-PUSH_FORCE_N = Range("push force", 0.0, 200.0, "N")
+PUSH_FORCE_N = Range("push force", 0.0, 200.0, "N")  # magnitude of the force vector
+PUSH_TORQUE_NM = Range("push torque", 0.0, 20.0, "N*m")  # a hand's twist on a tool handle
 PUSH_DURATION_S = Range("push duration", 0.0, 10.0, "s")
+# Guide points of one project, and samples of one recording (4 ms each: 1 M is 67 min of
+# learning, ~260 MB of arrays; the papers' runs are minutes).
+GUIDE_POINTS_MAX = 200
+RECORDING_SAMPLES_MAX = 1_000_000
 
 # --- post-processing (chapter fig. 3: 0.2 mm gave ~300 targets) -----------------------------
 TOLERANCE_MM = Range("deviation-height tolerance", 0.01, 5.0, "mm")
+# The force filter's band (1.5 x the strongest learning force is 75 N; the F/T sensors of the
+# papers measure a few hundred N), the program's feeds by curvature (the chapter's deburring
+# feeds are a few mm/s; CMRR_COMMAND_SPEED_MM_S allows 500) and the interaction stiffness that
+# moves samples back to the unloaded surface (the papers measured 85-143 N/mm; 0 turns it off).
+FORCE_THRESHOLD_N = Range("force threshold", 0.0, 1000.0, "N")
+PROGRAM_SPEED_MM_S = Range("program speed", 0.1, 500.0, "mm/s")
+CURVATURE_REFERENCE_1_M = Range("reference curvature", 1.0, 1.0e5, "1/m")
+CONTACT_STIFFNESS_N_MM = Range("contact stiffness", 0.0, 1.0e5, "N/mm")
 
 # --- CMRR (papers: Fr 20-250 N, spindle limit 300 N, Vr 6-100 mm/s, delta 0.05-0.1) --------
 CMRR_REFERENCE_FORCE_N = Range("reference force", 1.0, 1000.0, "N")

@@ -43,6 +43,16 @@ EXPECTED: dict[str, list[str]] = {
         rf"lead-through: {NUMBER} s simulated",
         rf"path learning: \d+ samples, .*real-time factor median x{NUMBER}",
         rf"whole cell step\s+{NUMBER}",
+        rf"one period = {NUMBER} x the pinocchio reference",
+        *(
+            rf"{part}\s+{NUMBER} us\s+{NUMBER} %"
+            for part in (
+                r"supervision \(limits, IK step\)",
+                r"cell: contact \(coal, nearest face, force\)",
+                r"force loop \(law, turn, recording row\)",
+            )
+        ),
+        rf"inside supervision: the IK step \(ik_newton_step\)\s+{NUMBER} us",
     ],
     "bench_stiffness.py": [
         rf"online compensation step \(fig. 15\)\s+{NUMBER}\s+{NUMBER} %",
@@ -59,6 +69,12 @@ EXPECTED: dict[str, list[str]] = {
         rf"x{NUMBER} faster \(same figures: yes\)",
     ],
     "bench_reads_during_postprocess.py": [rf"worst read p99 during post-processing {NUMBER} ms"],
+    "bench_events.py": [
+        rf"no listener, robot still\s+\d+\s+{NUMBER}\s+{NUMBER}",
+        rf"no listener, robot moving\s+\d+\s+{NUMBER}\s+{NUMBER}",
+        rf"\d+ listeners, robot moving\s+\d+\s+{NUMBER}\s+{NUMBER}",
+        rf"robot events per listener: {NUMBER}/s",
+    ],
     "bench_browser_pose_rate.py": [
         rf"handle\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
         rf"rest\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",

@@ -167,12 +167,9 @@ def wobj_transform(values: Sequence[float]) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
     from ..transforms import make_transform, rotation_about
+    from ._file_check import check_wobj
 
-    v = [float(x) for x in values]
-    if len(v) not in (3, 4, 6) or not all(np.isfinite(v)):
-        raise InvalidInputError(
-            "the work object is x,y,z in mm with an optional rz, or rx,ry,rz, in degrees"
-        )
+    v = check_wobj(list(values))  # limits.WOBJ_POSITION_MM and WOBJ_ROTATION_DEG
     if len(v) == 6:
         R = Rotation.from_euler("xyz", v[3:], degrees=True).as_matrix()
     else:
