@@ -220,6 +220,11 @@ def urdf_file(name: str) -> Path:
     return registry.arm(name).urdf_path()
 
 
+def mesh_files(name: str) -> dict[str, bytes]:
+    """The mesh files that came with a registered user arm's zip (path -> bytes)."""
+    return dict(registry.arm(name).meshes)
+
+
 def register_urdf(filename: str, data: bytes, family: str = "auto") -> str:
     """Validate a robot file and register its arm; returns the name ``Robot`` takes.
 
