@@ -29,6 +29,7 @@ import coal
 import numpy as np
 
 from . import _kernels
+from .bvh import bvh_from_mesh
 from .tool import Tool
 from .workpiece import Workpiece
 
@@ -63,18 +64,6 @@ class ContactResult(NamedTuple):
 NO_CONTACT = ContactResult(False, np.inf, 0.0, np.zeros(3), np.zeros(6))
 
 
-def _bvh_from_mesh(vertices: np.ndarray, faces: np.ndarray) -> coal.BVHModelOBBRSS:
-    """A coal BVH of the triangles ``faces`` (indices into ``vertices``), in their order, with
-    only the vertices they use."""
-    used, local = np.unique(faces, return_inverse=True)
-    bvh = coal.BVHModelOBBRSS()
-    bvh.beginModel(len(faces), len(used))
-    bvh.addVertices(np.ascontiguousarray(vertices[used], dtype=float))
-    bvh.addTriangles(np.ascontiguousarray(local.reshape(-1, 3), dtype=np.int32))
-    bvh.endModel()
-    return bvh
-
-
 class ContactModel:
     """Penalty contact between a tool and a workpiece (coal geometry, built once)."""
 
@@ -93,7 +82,7 @@ class ContactModel:
             self._cutter = coal.Cylinder(tool.radius_m, tool.flute_length_m)
             # The cylinder's centre sits half a flute length behind the tip (towards the flange).
             self._cutter_offset = -0.5 * tool.flute_length_m
-        self._bvh = _bvh_from_mesh(workpiece.mesh.vertices, workpiece.mesh.faces)
+        self._bvh = bvh_from_mesh(workpiece.mesh.vertices, workpiece.mesh.faces)
         self._request = coal.CollisionRequest(coal.CollisionRequestFlag.CONTACT, MAX_CONTACTS)
         # The part's triangles and outward normals in the base frame (the ball's exact contact).
         R, t = workpiece.T_base_wobj[:3, :3], workpiece.T_base_wobj[:3, 3]

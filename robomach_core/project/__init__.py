@@ -19,12 +19,12 @@ SOLUTION  Callers replace the value (``dataclasses.replace``) and never mark any
 """
 
 from ._file import PROJECT_FILE as PROJECT_FILE
-from ._file import RECORDING_FIELDS as RECORDING_FIELDS
-from ._file import ProjectFileError as ProjectFileError
 from ._file import load_project_file as load_project_file
 from ._file import project_file_bytes as project_file_bytes
 from ._file import project_from_file_bytes as project_from_file_bytes
 from ._file import save_project_file as save_project_file
+from ._file_check import RECORDING_FIELDS as RECORDING_FIELDS
+from ._file_check import ProjectFileError as ProjectFileError
 from ._machining import MachiningResult as MachiningResult
 from ._machining import MachiningSetup as MachiningSetup
 from ._machining import best_row as best_row
