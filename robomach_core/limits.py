@@ -117,3 +117,14 @@ MACHINING_PROCESS_GAIN_N = Range("process gain K", 0.1, 1.0e4, "N")
 MACHINING_DEPTH_EXPONENT = Range("depth exponent alpha", 0.0, 3.0)
 MACHINING_FEED_EXPONENT = Range("feed exponent beta", 0.01, 2.0)
 MACHINING_FORCE_LIMIT_N = Range("force limit", 1.0, 5000.0, "N")
+
+# --- the real part (real_part.PartDeviation) and teaching by pointing (guide_proposal) ------
+# A fixture places a casting within a few mm and a degree or two; castings hold their walls
+# within tenths of a mm of the CAD (issue 15).
+FIXTURE_SHIFT_MM = Range("fixture shift", 0.0, 5.0, "mm")
+FIXTURE_ROTATION_DEG = Range("fixture rotation", 0.0, 3.0, "deg")
+WALL_OFFSET_MM = Range("casting wall offset", 0.0, 2.0, "mm")
+BURR_COUNT = Range("burrs", 0, 50, integer=True)
+BURR_HEIGHT_MM = Range("burr height", 0.0, 1.0, "mm")
+WALL_GAP_MM = Range("gap to the wall", 0.2, 5.0, "mm")
+MACHINING_HEIGHT_MM = Range("machining height above the floor", 0.5, 50.0, "mm")
