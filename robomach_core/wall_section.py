@@ -283,8 +283,14 @@ def pick_wall(
         )
     n_xy = n[:2] / np.linalg.norm(n[:2])
     on = np.asarray(closest[0], dtype=float)
-    beside = on.copy()
-    beside[:2] += n_xy * (tool_radius_m + gap_m)
+    # The floor beside the wall: straight down from where the tool will stand, or from the
+    # middle of a free space narrower than that (a narrow slot).
+    across = np.array([n_xy[0], n_xy[1], 0.0])
+    hits, _, _ = mesh.ray.intersects_location(
+        (on + across * 2e-5)[None], across[None], multiple_hits=False
+    )
+    width = float(np.linalg.norm(hits[0] - on)) if len(hits) else np.inf
+    beside = on + across * min(tool_radius_m + gap_m, 0.5 * width)
     bottom = float(mesh.bounds[0, 2])
     floor = _first_hit_below(mesh, beside + np.array([0.0, 0.0, 1e-6]))
     floor = bottom if floor is None else floor
