@@ -678,3 +678,89 @@ def proposal_summary(proposal: GuideProposal) -> dict:
         },
         "notes": list(proposal.notes),
     }
+
+
+def move_point(
+    proposal: GuideProposal,
+    index: int,
+    point_wobj_m: np.ndarray,
+    robot: Robot,
+    *,
+    tool_radius_m: float,
+    gap_m: float,
+    supervisor: object | None = None,
+) -> GuideProposal:
+    """The proposal with point ``index`` moved to where ``point_wobj_m`` (any point, work-object
+    frame) projects on the wall: dragged along it, it stays ``gap_m`` off the wall."""
+    if not 0 <= index < len(proposal.points):
+        raise InvalidInputError(
+            f"no proposed point G{index + 1}; there are {len(proposal.points)}"
+        )
+    xy = np.asarray(point_wobj_m, dtype=float).reshape(-1)[:2]
+    wall = proposal.wall
+    s = float(wall.project(xy[None])[0])
+    place = _Placer(wall, (proposal.pick.loop, *proposal.pick.others), tool_radius_m, gap_m)
+    foot_xy, note = place(s)
+    old = proposal.points[index]
+    T = old.T_base_tcp.copy()
+    T[:3, 3] = proposal.T_base_wobj[:3, :3] @ np.array(
+        [foot_xy[0], foot_xy[1], proposal.z_m]
+    ) + proposal.T_base_wobj[:3, 3]
+    seed = next(
+        (p.joints_rad for p in proposal.points[:index][::-1] if p.joints_rad is not None),
+        old.joints_rad,
+    )
+    ((r, message, q),) = reach_points(robot, [T], q_seed=seed, supervisor=supervisor)
+    if note and "too narrow" in note:
+        r, message = "unreachable", note
+    moved = ProposedPoint(
+        T, np.array([foot_xy[0], foot_xy[1], proposal.z_m]), s, old.kind, r, message or note, q
+    )
+    points = list(proposal.points)
+    points[index] = moved
+    return replace(proposal, points=tuple(points))
+
+
+def delete_point(proposal: GuideProposal, index: int) -> GuideProposal:
+    """The proposal without point ``index``."""
+    if not 0 <= index < len(proposal.points):
+        raise InvalidInputError(
+            f"no proposed point G{index + 1}; there are {len(proposal.points)}"
+        )
+    if len(proposal.points) <= 2:
+        raise InvalidInputError("a proposal keeps at least 2 points; discard it instead")
+    return replace(proposal, points=proposal.points[:index] + proposal.points[index + 1 :])
+
+
+def wall_side_of(positions_base_m: np.ndarray, workpiece: Workpiece) -> str | None:
+    """The wall side ("left"/"right") of guide points taught beside one wall of the part's
+    mesh: "right" when they follow the wall's own direction (material on the right), None
+    when they are not beside one wall at one height or go neither way."""
+    from .wall_section import _off_vertices, section_loops
+
+    cad = workpiece.cad()
+    pts = np.asarray(positions_base_m, dtype=float)
+    if len(pts) < 2:
+        return None
+    T = cad.T_base_wobj
+    wobj = (pts - T[:3, 3]) @ T[:3, :3]
+    z = float(np.median(wobj[:, 2]))
+    if np.ptp(wobj[:, 2]) > 0.005:
+        return None
+    loops = section_loops(cad.mesh, _off_vertices(cad.mesh, z))
+    best = None
+    for loop in loops:
+        d = np.abs(loop.signed_distance(wobj[:, :2]))
+        if d.max() < 0.008 and (best is None or d.mean() < best[1]):
+            best = (loop, float(d.mean()))
+    if best is None:
+        return None
+    loop = best[0]
+    s = loop.project(wobj[:, :2])
+    steps = np.diff(s)
+    if loop.closed:
+        steps = (steps + 0.5 * loop.length_m) % loop.length_m - 0.5 * loop.length_m
+    forward, backward = float(steps[steps > 0].sum()), float(-steps[steps < 0].sum())
+    if max(forward, backward) < 3.0 * min(forward, backward) + 1e-4:
+        return None
+    return "right" if forward > backward else "left"

@@ -231,7 +231,12 @@ def _build_cell(
         raise InvalidInputError(
             f"unknown robot {settings.robot!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
         )
-    workpiece = parsed if parsed is not None else core.build_workpiece(settings, mesh)
+    if parsed is not None:
+        from robomach_core.real_part import real_workpiece
+
+        workpiece = real_workpiece(parsed, settings.part_deviation)
+    else:
+        workpiece = core.build_cell_workpiece(settings, mesh)
     cell = Cell(
         CellConfig(
             robot=settings.robot,

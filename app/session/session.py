@@ -125,11 +125,13 @@ from .records import (
     Topic,
     log,
 )
+from .pointing import Pointing
 from .teach import JogFrame, Teach, ToolView
 
 # --- the session ---------------------------------------------------------------------------
 
-ROBOT_JOB_KINDS = ("example", "path_learning")
+ROBOT_JOB_KINDS = ("example", "path_learning", "accept_proposal")
+_KEEP: Any = object()  # set_cell: leave this setting as it is
 # What a change of the project's inputs makes stale, for the listeners to redraw.
 DOWNSTREAM_TOPICS: tuple[Topic, ...] = ("recording", "postprocess")
 
@@ -170,6 +172,7 @@ class Session(ProjectsMixin):
         self._project_id = 0
         self._closed = False
         self.teach = Teach(self, real_time=real_time)
+        self.pointing = Pointing(self)
         self._open_initial_project()
 
     # --- listeners ---------------------------------------------------------------------------
@@ -223,7 +226,14 @@ class Session(ProjectsMixin):
 
     @property
     def workpiece(self) -> Workpiece:
+        """The part the cell's tool meets (the real part when it deviates from its mesh:
+        programs are scored against it)."""
         return self._cell.workpiece
+
+    @property
+    def cad_workpiece(self) -> Workpiece:
+        """The part as its mesh: what the user sees, teaches on and is checked against."""
+        return self._cell.workpiece.cad()
 
     @property
     def compliance(self) -> ComplianceSelection:
@@ -299,10 +309,13 @@ class Session(ProjectsMixin):
         robot: str | None = None,
         tool_radius_m: float | None = None,
         workpiece: str | None = None,
+        part_deviation: Any = _KEEP,
     ) -> CellSettings:
-        """Change the cell; None keeps a setting. A request that changes nothing keeps all
-        work (the robot stays where it is). A change puts the robot home and clears the guide
-        points (poses of the old cell); the recording and results stay, marked stale."""
+        """Change the cell; None keeps a setting (``part_deviation``: a
+        ``real_part.PartDeviation``, None for a part that is its mesh; omitted keeps it). A
+        request that changes nothing keeps all work (the robot stays where it is). A change
+        puts the robot home and clears the guide points (poses of the old cell); the
+        recording and results stay, marked stale."""
         with self._lock:
             self._require_idle()
             cur, mesh = self._project.cell, self._project.mesh
@@ -310,6 +323,7 @@ class Session(ProjectsMixin):
                 cur,
                 robot=cur.robot if robot is None else robot.lower(),
                 tool_radius_m=cur.tool_radius_m if tool_radius_m is None else float(tool_radius_m),
+                part_deviation=cur.part_deviation if part_deviation is _KEEP else part_deviation,
             )
             if workpiece in WORKPIECE_NAMES:
                 new, mesh = replace(new, workpiece=workpiece, workpiece_builtin=True), None
@@ -484,7 +498,8 @@ class Session(ProjectsMixin):
             if self._cell.workpiece.wall is None:
                 raise InvalidInputError(
                     f"the example lead-through needs a built-in workpiece, not "
-                    f"{self._cell.workpiece.name!r}; lead the robot by pushes instead"
+                    f"{self._cell.workpiece.name!r}; click its wall to propose guide points, "
+                    "or lead the robot by pushes"
                 )
             epoch, cell, estimator = self._epoch, self._cell, self._lt.estimator
             start, seed = self._lt_state, self._project.cell.seed
@@ -495,7 +510,7 @@ class Session(ProjectsMixin):
                     return scripted_leadthrough(
                         lt,
                         start,
-                        cell.workpiece,
+                        cell.workpiece.cad(),  # the operator plans on the mesh they see
                         np.random.default_rng(seed),
                         progress=ctx.progress,
                     )
@@ -516,15 +531,25 @@ class Session(ProjectsMixin):
 
             return self._submit_robot_job("example", work, done, epoch)
 
-    def start_path_learning(self, force_N: float, speed_m_s: float, *, closed: bool = True) -> str:
+    def start_path_learning(
+        self,
+        force_N: float,
+        speed_m_s: float,
+        *,
+        closed: bool = True,
+        wall_side: str | None = None,
+    ) -> str:
         """Job: learn the path through the guide points at ``force_N`` and ``speed_m_s``
         (``project.learn``); on success the recording replaces the last one, and the last
         post-processing stays, marked stale. A force filter band that would not keep samples
         at ``force_N`` moves to 0.5-1.5 x ``force_N`` (``PostprocessSettings.holds_force``).
-        Returns the job id."""
+        ``wall_side`` None: the side of guide points taught by pointing at the wall
+        (``pointing.learning_side``), else "auto". Returns the job id."""
+        side = wall_side or self.pointing.learning_side() or "auto"
         settings = PathLearningSettings(
-            force_N=float(force_N), speed_m_s=float(speed_m_s), closed=bool(closed)
-        )
+            force_N=float(force_N), speed_m_s=float(speed_m_s), closed=bool(closed),
+            wall_side=side,  # type: ignore[arg-type]
+        )  # fmt: skip
         with self._lock:
             self._require_idle()
             project = self._project
@@ -648,7 +673,7 @@ class Session(ProjectsMixin):
         from robomach_core.path_learning import PathLearningSettings
 
         with self._lock:
-            project, workpiece = self._project, self._cell.workpiece
+            project, workpiece = self._project, self._cell.workpiece.cad()
         settings = PathLearningSettings(force_N=force_N, closed=closed)
         found = guide_point_warnings(
             project.guide_points,

@@ -41,6 +41,7 @@ from robomach_core.leadthrough import (
     halted,
 )
 from robomach_core.realtime import RealTimePacer
+from robomach_core.teach_motion import Arrival, go_to_point
 
 from .live import TappedCell
 from .records import LIVE_NOTIFY_S, BusyError, ConflictError
@@ -195,6 +196,25 @@ class Teach:
             return lt.touch_off(st, axis, direction, float(force_N), moving, float(max_travel_m))
 
         self._run(move)
+
+    def move_to(self, T_base_tcp: np.ndarray, *, safe_z_m: float) -> Arrival:
+        """Take the tool to ``T_base_tcp``: up to ``safe_z_m``, turned, over and down into
+        place (``teach_motion.go_to_point``), paced and supervised like a jog. Returns where it
+        stopped (against the part when it is not where its mesh is)."""
+        T = np.asarray(T_base_tcp, dtype=float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise InvalidInputError("a target pose is a finite 4x4 transform")
+        arrival: list[Arrival] = []
+
+        def move(lt: LeadThrough, st: LeadThroughState, sel: Selection) -> LeadThroughState:
+            end, got = go_to_point(lt, st, T, safe_z_m=safe_z_m)
+            arrival.append(got)
+            return end
+
+        self._run(move)
+        if not arrival:  # let go (or the cell changed) on the way
+            raise ConflictError("the move to the taught point was stopped before it arrived")
+        return arrival[0]
 
     def stop(self) -> None:
         """End the running motion (the person let go); it stops within one control period."""
