@@ -718,18 +718,44 @@ def move_point(
     )
     points = list(proposal.points)
     points[index] = moved
-    return replace(proposal, points=tuple(points))
+    return _with_leg_notes(replace(proposal, points=tuple(points)), tool_radius_m)
 
 
-def delete_point(proposal: GuideProposal, index: int) -> GuideProposal:
-    """The proposal without point ``index``."""
+def delete_point(proposal: GuideProposal, index: int, *, tool_radius_m: float) -> GuideProposal:
+    """The proposal without point ``index`` (its notes say which legs now need a point)."""
     if not 0 <= index < len(proposal.points):
         raise InvalidInputError(
             f"no proposed point G{index + 1}; there are {len(proposal.points)}"
         )
     if len(proposal.points) <= 2:
         raise InvalidInputError("a proposal keeps at least 2 points; discard it instead")
-    return replace(proposal, points=proposal.points[:index] + proposal.points[index + 1 :])
+    fewer = replace(proposal, points=proposal.points[:index] + proposal.points[index + 1 :])
+    return _with_leg_notes(fewer, tool_radius_m)
+
+
+def leg_problems(proposal: GuideProposal, tool_radius_m: float) -> list[str]:
+    """A sentence per leg that cuts towards the wall or leaves it too far (after edits)."""
+    wall, pts = proposal.wall, proposal.points
+    out = []
+    legs = len(pts) if proposal.closed else len(pts) - 1
+    for k in range(legs):
+        j = (k + 1) % len(pts)
+        a, b = pts[k], pts[j]
+        at = _leg_problem(
+            wall, tool_radius_m, a.position_wobj_m[:2], b.position_wobj_m[:2], a.s_m, b.s_m
+        )
+        if at is not None:
+            x, y = wall.point_at(np.array([at]))[0] * 1e3
+            out.append(
+                f"the leg G{k + 1}-G{j + 1} leaves the wall near ({x:.1f}, {y:.1f}) mm: add a "
+                "point there or undo the edit"
+            )
+    return out
+
+
+def _with_leg_notes(proposal: GuideProposal, tool_radius_m: float) -> GuideProposal:
+    kept = [n for n in proposal.notes if not n.startswith("the leg G")]
+    return replace(proposal, notes=tuple(kept + leg_problems(proposal, tool_radius_m)))
 
 
 def wall_side_of(positions_base_m: np.ndarray, workpiece: Workpiece) -> str | None:

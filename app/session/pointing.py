@@ -223,7 +223,8 @@ class Pointing:
     def delete_proposed(self, index: int) -> GuideProposal:
         """Delete proposed point ``index``."""
         epoch, proposal = self._require()
-        return self._replace(epoch, delete_point(proposal, index))
+        radius = self._session._cell.tool.radius_m
+        return self._replace(epoch, delete_point(proposal, index, tool_radius_m=radius))
 
     def discard(self) -> None:
         """Drop the pending proposal."""
