@@ -33,7 +33,7 @@ MAX_TURN_RAD = math.radians(45.0)  # ... and its largest rotation
 TURN_RATE_RAD_S = math.radians(30.0)
 DESCENT_TIMEOUT_S = 4.0
 # Above the part, a positioning move: well under the 250 mm/s of a robot's reduced speed.
-TRAVEL_SPEED_M_S = 0.12
+TRAVEL_SPEED_M_S = 0.2
 
 
 @dataclass(frozen=True)

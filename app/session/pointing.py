@@ -150,6 +150,28 @@ class Pointing:
             notice = f"{notice}; {planned.message}" if notice else planned.message
         return TaughtPoint(GuidePointEntry(index, point), planned, pick, arrival, notice)
 
+    def teach_near(self, tcp_wobj_m: np.ndarray, *, replace_index: int | None = None) -> TaughtPoint:
+        """Teach at the wall nearest a TCP position (work-object frame) at its height: where a
+        dragged marker was dropped."""
+        from robomach_core.wall_section import _off_vertices, section_loops
+
+        cad = self._session._cell.workpiece.cad()
+        p = np.asarray(tcp_wobj_m, dtype=float).reshape(3)
+        loops = section_loops(cad.mesh, _off_vertices(cad.mesh, float(p[2])))
+        if not loops:
+            raise InvalidInputError(
+                f"no wall at {p[2] * 1e3:.1f} mm (work object): drop the point beside a wall"
+            )
+        loop = min(loops, key=lambda lp: abs(lp.signed_distance(p[None, :2])[0]))
+        s = float(loop.project(p[None, :2])[0])
+        foot = loop.point_at(np.array([s]))[0]
+        n = loop.free_normal_at(np.array([s]))[0]
+        return self.teach_at_surface(
+            np.array([foot[0], foot[1], p[2]]),
+            np.array([n[0], n[1], 0.0]),
+            replace_index=replace_index,
+        )
+
     @staticmethod
     def _safe_z(cad) -> float:
         """Base-frame height the tool travels at: above the part's highest point."""

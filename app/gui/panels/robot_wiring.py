@@ -102,7 +102,7 @@ class GuideRulesPanel:
         found = guide_point_warnings(
             project.guide_points,
             PathLearningSettings(),
-            workpiece=self.session.workpiece,
+            workpiece=self.session.cad_workpiece,
             tool_radius_m=project.cell.tool_radius_m,
         )
         self.warnings.content = (
