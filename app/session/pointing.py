@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
@@ -48,6 +48,8 @@ if TYPE_CHECKING:
     from .session import Session
 
 SAFE_HEIGHT_M = 0.008  # the tool travels this far above the part's top
+ClickMode = Literal["propose", "teach", "move", "off"]
+CLICK_MODES: tuple[ClickMode, ...] = ("propose", "teach", "move", "off")
 
 
 @dataclass(frozen=True)
@@ -78,19 +80,35 @@ class Pointing:
         self._proposal: tuple[int, GuideProposal] | None = None
         self._pointed: tuple[str, str | None] | None = None  # (guides_key, side) taught so
         self.settings = ProposalSettings()
+        self.click_mode: ClickMode = "propose"  # what a click on the part does (both GUIs)
 
     # --- settings ------------------------------------------------------------------------
 
     def set_settings(
-        self, *, gap_m: float | None = None, height_above_floor_m: float | None = None
+        self,
+        *,
+        gap_m: float | None = None,
+        height_above_floor_m: float | None = None,
+        click_mode: ClickMode | None = None,
     ) -> ProposalSettings:
-        """Change the gap to the wall or the height above the floor (None keeps one)."""
-        self.settings = replace(
+        """Change the gap to the wall, the height above the floor or what a click on the part
+        does (None keeps one); both GUIs follow."""
+        if click_mode is not None and click_mode not in CLICK_MODES:
+            raise InvalidInputError(
+                f"click mode must be one of {', '.join(CLICK_MODES)}, not {click_mode!r}"
+            )
+        new = replace(
             self.settings,
             **{k: float(v) for k, v in (("gap_m", gap_m),
                                         ("height_above_floor_m", height_above_floor_m))
                if v is not None},
         )  # fmt: skip
+        changed = new != self.settings or (click_mode is not None and click_mode != self.click_mode)
+        self.settings = new
+        if click_mode is not None:
+            self.click_mode = click_mode
+        if changed:
+            self._session._notify("guide_points")
         return self.settings
 
     # --- click to teach ------------------------------------------------------------------

@@ -115,7 +115,12 @@ def test_pointing_settings_have_ranges(client: TestClient) -> None:
     assert _ok(client, "PUT", f"{GP}/pointing", json={"gap_mm": 1.5}) == {
         "gap_mm": 1.5,
         "height_above_floor_mm": 3.0,
+        "click_mode": "propose",
     }
+    assert _ok(client, "PUT", f"{GP}/pointing", json={"click_mode": "teach"})["click_mode"] == (
+        "teach"
+    )
+    assert client.put(f"{GP}/pointing", json={"click_mode": "fly"}).status_code == 422
     r = client.put(f"{GP}/pointing", json={"gap_mm": 9})
     assert r.status_code == 422 and "gap_mm" in r.text
     taught = _ok(client, "POST", f"{GP}/from-surface", 201, json={"point_mm": [40.0, -65.0, 18.5]})

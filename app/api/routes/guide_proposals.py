@@ -54,11 +54,17 @@ class PointingSettingsUpdate(_Request):
         description="the TCP's height above the floor beside the wall [mm], "
         f"{MACHINING_HEIGHT_MM.text()}",
     )
+    click_mode: Literal["propose", "teach", "move", "off"] | None = Field(
+        default=None,
+        description="what a click on the part in the 3-D scene does: propose the wall's guide "
+        "points, teach a point, move the selected point there, or nothing",
+    )
 
 
 class PointingSettingsPublic(BaseModel):
     gap_mm: float
     height_above_floor_mm: float
+    click_mode: Literal["propose", "teach", "move", "off"]
 
 
 class ProposedPointPublic(BaseModel):
@@ -216,10 +222,13 @@ def accept_proposal(session: SessionDep) -> JobCreated:
 
 @router.get("/pointing")
 def get_pointing(session: SessionDep) -> PointingSettingsPublic:
-    """The gap to the wall and the height above the floor of taught and proposed points."""
+    """The gap to the wall and the height above the floor of taught and proposed points, and
+    what a click on the part does."""
     s = session.pointing.settings
     return PointingSettingsPublic(
-        gap_mm=round(s.gap_m * 1e3, 4), height_above_floor_mm=round(s.height_above_floor_m * 1e3, 4)
+        gap_mm=round(s.gap_m * 1e3, 4),
+        height_above_floor_mm=round(s.height_above_floor_m * 1e3, 4),
+        click_mode=session.pointing.click_mode,
     )
 
 
@@ -231,5 +240,6 @@ def put_pointing(body: PointingSettingsUpdate, session: SessionDep) -> PointingS
         height_above_floor_m=None
         if body.height_above_floor_mm is None
         else body.height_above_floor_mm * 1e-3,
+        click_mode=body.click_mode,
     )
     return get_pointing(session)

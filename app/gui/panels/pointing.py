@@ -25,6 +25,8 @@ MODE_PROPOSE = "propose the wall"
 MODE_MOVE = "move the selected point"
 MODE_OFF = "nothing"
 MODES = (MODE_PROPOSE, MODE_TEACH, MODE_MOVE, MODE_OFF)
+MODE_OF = {"propose": MODE_PROPOSE, "teach": MODE_TEACH, "move": MODE_MOVE, "off": MODE_OFF}
+SESSION_MODE = {label: key for key, label in MODE_OF.items()}
 NO_SELECTION = "none"
 COMPARISON_SCALE_MM = 1.0  # the CAD-only and learned paths: green at 0, red at 1 mm
 
@@ -49,7 +51,7 @@ class PointingPanel:
             self.mode = server.gui.add_dropdown(
                 "Click on the part",
                 MODES,
-                initial_value=MODE_PROPOSE,
+                initial_value=MODE_OF[session.pointing.click_mode],
                 hint="propose: guide points for the whole wall you click (nothing moves); "
                 "teach: the robot goes beside the wall where you click and records a point; "
                 "move: the selected point goes where you click",
@@ -91,6 +93,7 @@ class PointingPanel:
             visible=False,
         )
         self.handle.on_update(self._dragged)
+        self.mode.on_update(guarded("Click mode", lambda e: self._settings()))
         self.gap.on_update(guarded("Gap", lambda e: self._settings()))
         self.height.on_update(guarded("Height", lambda e: self._settings()))
         self.undo.on_click(guarded("Undo", lambda e: self._undo()))
@@ -116,7 +119,9 @@ class PointingPanel:
 
     def _settings(self) -> None:
         self.session.pointing.set_settings(
-            gap_m=self.gap.value * 1e-3, height_above_floor_m=self.height.value * 1e-3
+            gap_m=self.gap.value * 1e-3,
+            height_above_floor_m=self.height.value * 1e-3,
+            click_mode=SESSION_MODE[self.mode.value],
         )
 
     def _undo(self) -> None:
@@ -138,7 +143,7 @@ class PointingPanel:
 
     def _clicked(self, point_wobj_m: np.ndarray, normal: np.ndarray, client) -> None:
         """A click on the part, as the mode says (errors go to the user who clicked)."""
-        mode = self.mode.value
+        mode = MODE_OF[self.session.pointing.click_mode]
         if mode == MODE_OFF:
             return
         started = time.monotonic()
@@ -197,8 +202,13 @@ class PointingPanel:
     # --- mirroring the session -------------------------------------------------------------
 
     def refresh(self) -> None:
-        """The proposal (list, drawing, status) and the drag handle on the selected point."""
-        proposal = self.session.pointing.proposal()
+        """The settings, the proposal (list, drawing, status) and the drag handle on the
+        selected point."""
+        pointing = self.session.pointing
+        self.mode.value = MODE_OF[pointing.click_mode]
+        self.gap.value = round(pointing.settings.gap_m * 1e3, 3)
+        self.height.value = round(pointing.settings.height_above_floor_m * 1e3, 3)
+        proposal = pointing.proposal()
         options = (NO_SELECTION,)
         if proposal is not None:
             options += tuple(f"P{k + 1}" for k in range(len(proposal.points)))
