@@ -239,7 +239,10 @@ async function clearGuides() {
 
 async function refreshTool() {
   const v = await api("GET", "/leadthrough/tool", undefined, { quiet: true });
-  $("tool-gap").textContent = fmt(v.gap_mm, 2);
+  // The gap to the wall at the tool's height; the nearest face when that is a floor.
+  const wall = v.wall_gap_mm === null || v.wall_gap_mm === undefined ? "-" : fmt(v.wall_gap_mm, 2);
+  $("tool-gap").textContent = v.nearest_face && v.nearest_face !== "wall"
+    ? `${wall} (${v.nearest_face} ${fmt(v.gap_mm, 2)})` : wall;
   $("tool-force").textContent = fmt(v.force_magnitude_N, 1);
   $("tool-table").textContent = fmt(v.table_gap_mm, 1);
 }

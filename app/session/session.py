@@ -130,6 +130,22 @@ from .teach import JogFrame, Teach, ToolView
 
 # --- the session ---------------------------------------------------------------------------
 
+EXAMPLE_CLEARANCE_M = 0.008  # the example operator lifts the tool this far above the part
+
+
+def _squared(lt: LeadThrough, state: LeadThroughState, cad: Workpiece) -> LeadThroughState:
+    """The tool lifted clear of the part (when below its top) and turned square to it (tool
+    axis down, as the example operator holds it), by supervised jogs of at most 45 degrees."""
+    from robomach_core.demo_operator import TOOL_DOWN
+    from robomach_core.teach_motion import move_by, turn_to
+
+    top = float(cad.mesh_in_base().bounds[1, 2]) + EXAMPLE_CLEARANCE_M
+    z = float(state.cell.T_base_tcp[2, 3])
+    if z < top:
+        state = move_by(lt, state, np.array([0.0, 0.0, top - z]), 0.05)
+    return turn_to(lt, state, TOOL_DOWN)
+
+
 ROBOT_JOB_KINDS = ("example", "path_learning", "accept_proposal")
 _KEEP: Any = object()  # set_cell: leave this setting as it is
 # What a change of the project's inputs makes stale, for the listeners to redraw.
@@ -507,9 +523,13 @@ class Session(ProjectsMixin):
             def work(ctx: JobContext) -> tuple[LeadThroughState, list[GuidePoint]]:
                 lt = LeadThrough(self._live.tapped(cell, estimator, ctx), estimator=estimator)
                 try:
+                    # Hand teaching may have left the tool turned and in the part: the operator
+                    # first lifts it clear and turns it square in steps (a jog turns 45 deg at
+                    # most), as a person would.
+                    state = _squared(lt, start, cell.workpiece.cad())
                     return scripted_leadthrough(
                         lt,
-                        start,
+                        state,
                         cell.workpiece.cad(),  # the operator plans on the mesh they see
                         np.random.default_rng(seed),
                         progress=ctx.progress,
@@ -517,7 +537,7 @@ class Session(ProjectsMixin):
                 except SupervisionError as exc:
                     raise exc.with_note(
                         f"the part may be beyond the {cell.robot.name} arm's reach: choose a "
-                        "larger arm"
+                        "larger arm, or press Home first"
                     ) from None
 
             def done(result: tuple[LeadThroughState, list[GuidePoint]]) -> None:
