@@ -232,8 +232,10 @@ def cad_only_program(
     if closed:
         dense = np.vstack([np.roll(dense, -i0, axis=0), dense[i0 : i0 + 1]])
     else:
-        i1 = len(dense) - 1 if end_xy is None else int(
-            np.argmin(np.linalg.norm(dense - end_xy, axis=1))
+        i1 = (
+            len(dense) - 1
+            if end_xy is None
+            else int(np.argmin(np.linalg.norm(dense - end_xy, axis=1)))
         )
         dense = dense[min(i0, i1) : max(i0, i1) + 1]
         if i1 < i0:
@@ -300,9 +302,7 @@ def compare_with_cad(
     )
     quats = np.asarray(quaternions_wxyz, dtype=float)[nearest]
     learned = score_against_wall(positions, real_wall, T, tool_radius_m)
-    cad_only = score_against_wall(
-        cad_targets, real_wall, T, tool_radius_m, closed=closed_program
-    )
+    cad_only = score_against_wall(cad_targets, real_wall, T, tool_radius_m, closed=closed_program)
     return CadComparison(
         cad_targets,
         quats,

@@ -274,8 +274,12 @@ def _wall_extent(
     ]
     if loop.closed:  # groups past the loop's end, seen from a piece running over it
         kept += [
-            _Group(g.start_m + loop.length_m - a, g.end_m + loop.length_m - a, g.turn_rad,
-                   g.sharpest_outside_rad)  # fmt: skip
+            _Group(
+                g.start_m + loop.length_m - a,
+                g.end_m + loop.length_m - a,
+                g.turn_rad,
+                g.sharpest_outside_rad,
+            )  # fmt: skip
             for g in groups
             if g not in ends and a < g.start_m + loop.length_m and g.end_m + loop.length_m < b
         ]
@@ -340,8 +344,10 @@ class _Placer:
         self.wall, self.radius, self.gap = wall, radius_m, gap_m
         self._placed: dict[float, tuple[np.ndarray, str]] = {}
         self._all = shapely.MultiLineString(
-            [np.vstack([lp.points_m, lp.points_m[:1]]) if lp.closed else lp.points_m
-             for lp in everything]  # fmt: skip
+            [
+                np.vstack([lp.points_m, lp.points_m[:1]]) if lp.closed else lp.points_m
+                for lp in everything
+            ]  # fmt: skip
         )
 
     def __call__(self, s: float) -> tuple[np.ndarray, str]:
@@ -580,9 +586,7 @@ def propose_guide_points(
             r, message = "unreachable", note
         elif note and not message:
             message = note
-        out.append(
-            ProposedPoint(T, np.array([xy[0], xy[1], pick.z_m]), s, kind, r, message, q)
-        )
+        out.append(ProposedPoint(T, np.array([xy[0], xy[1], pick.z_m]), s, kind, r, message, q))
     return GuideProposal(
         tuple(out),
         wall,
@@ -615,7 +619,7 @@ def teach_point(
     xy, note = place(pick.s_m)
     R = job_tool_rotation(workpiece.cad().T_base_wobj, tool_rotation)
     T = _pose(workpiece, xy, pick.z_m, R)
-    (r, message, q), = reach_points(robot, [T], q_seed=q_seed, supervisor=supervisor)
+    ((r, message, q),) = reach_points(robot, [T], q_seed=q_seed, supervisor=supervisor)
     if note and "too narrow" in note:
         r, message = "unreachable", note
     point = ProposedPoint(
@@ -693,9 +697,7 @@ def move_point(
     """The proposal with point ``index`` moved to where ``point_wobj_m`` (any point, work-object
     frame) projects on the wall: dragged along it, it stays ``gap_m`` off the wall."""
     if not 0 <= index < len(proposal.points):
-        raise InvalidInputError(
-            f"no proposed point G{index + 1}; there are {len(proposal.points)}"
-        )
+        raise InvalidInputError(f"no proposed point G{index + 1}; there are {len(proposal.points)}")
     xy = np.asarray(point_wobj_m, dtype=float).reshape(-1)[:2]
     wall = proposal.wall
     s = float(wall.project(xy[None])[0])
@@ -703,9 +705,10 @@ def move_point(
     foot_xy, note = place(s)
     old = proposal.points[index]
     T = old.T_base_tcp.copy()
-    T[:3, 3] = proposal.T_base_wobj[:3, :3] @ np.array(
-        [foot_xy[0], foot_xy[1], proposal.z_m]
-    ) + proposal.T_base_wobj[:3, 3]
+    T[:3, 3] = (
+        proposal.T_base_wobj[:3, :3] @ np.array([foot_xy[0], foot_xy[1], proposal.z_m])
+        + proposal.T_base_wobj[:3, 3]
+    )
     seed = next(
         (p.joints_rad for p in proposal.points[:index][::-1] if p.joints_rad is not None),
         old.joints_rad,
@@ -724,9 +727,7 @@ def move_point(
 def delete_point(proposal: GuideProposal, index: int, *, tool_radius_m: float) -> GuideProposal:
     """The proposal without point ``index`` (its notes say which legs now need a point)."""
     if not 0 <= index < len(proposal.points):
-        raise InvalidInputError(
-            f"no proposed point G{index + 1}; there are {len(proposal.points)}"
-        )
+        raise InvalidInputError(f"no proposed point G{index + 1}; there are {len(proposal.points)}")
     if len(proposal.points) <= 2:
         raise InvalidInputError("a proposal keeps at least 2 points; discard it instead")
     fewer = replace(proposal, points=proposal.points[:index] + proposal.points[index + 1 :])

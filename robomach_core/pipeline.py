@@ -351,8 +351,10 @@ def _proposed(settings: DemoSettings, cad: Workpiece, cell: Cell) -> tuple[Any, 
             "the picked wall is a closed loop; learn it closed (leave out --open)"
         )
     side = proposal.wall_side if settings.wall_side == "auto" else settings.wall_side
-    return proposal, guide_intents(proposal), replace(
-        settings, closed=proposal.closed, wall_side=side
+    return (
+        proposal,
+        guide_intents(proposal),
+        replace(settings, closed=proposal.closed, wall_side=side),
     )
 
 

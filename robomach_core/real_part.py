@@ -27,8 +27,8 @@ from __future__ import annotations
 
 import hashlib
 import math
-from dataclasses import asdict, dataclass, replace
 import threading
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 import trimesh

@@ -83,9 +83,7 @@ def move_by(
     frame = _direction_frame(delta)
     steps = max(1, math.ceil(distance / MAX_JOG_M))
     for _ in range(steps):
-        state = lt.jog(
-            state, "x", distance / steps, STIFF, rate=speed_m_s, frame_rotation=frame
-        )
+        state = lt.jog(state, "x", distance / steps, STIFF, rate=speed_m_s, frame_rotation=frame)
     return state
 
 

@@ -166,7 +166,7 @@ def section_loops(mesh: trimesh.Trimesh, z_m: float) -> list[WallLoop]:
     for i, (u, v) in enumerate(zip(start, stop, strict=True)):
         if u != v:
             successor.setdefault(int(u), i)
-    incoming = set(int(v) for v in stop)
+    incoming = {int(v) for v in stop}
     used = np.zeros(len(a), dtype=bool)
     loops: list[WallLoop] = []
 

@@ -65,9 +65,7 @@ def grooved_plate() -> GeneratedPart:
 def l_block() -> GeneratedPart:
     """An L-shaped block, 100 x 70 x 30 mm with a 50 x 35 mm notch: sharp outside corners and
     one inside corner, on the table (an outside edge: no floor but the table)."""
-    outline = shapely.geometry.Polygon(
-        [(-50, -35), (50, -35), (50, 0), (0, 0), (0, 35), (-50, 35)]
-    )
+    outline = shapely.geometry.Polygon([(-50, -35), (50, -35), (50, 0), (0, 0), (0, 35), (-50, 35)])
     return GeneratedPart(
         "l_block",
         _extrude(outline, 0, 30),

@@ -437,7 +437,11 @@ class CellScene:
         height = 0.65 * span / math.tan(0.5 * fov) + 0.05
         with client.atomic():
             client.camera.up_direction = (0.0, 1.0, 0.0)
-            client.camera.position = (float(centre[0]), float(centre[1]), float(bounds[1, 2] + height))
+            client.camera.position = (
+                float(centre[0]),
+                float(centre[1]),
+                float(bounds[1, 2] + height),
+            )
             client.camera.look_at = (float(centre[0]), float(centre[1]), float(bounds[1, 2]))
 
     def part_view(self, client, workpiece: Workpiece) -> None:

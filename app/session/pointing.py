@@ -168,7 +168,9 @@ class Pointing:
             notice = f"{notice}; {planned.message}" if notice else planned.message
         return TaughtPoint(GuidePointEntry(index, point), planned, pick, arrival, notice)
 
-    def teach_near(self, tcp_wobj_m: np.ndarray, *, replace_index: int | None = None) -> TaughtPoint:
+    def teach_near(
+        self, tcp_wobj_m: np.ndarray, *, replace_index: int | None = None
+    ) -> TaughtPoint:
         """Teach at the wall nearest a TCP position (work-object frame) at its height: where a
         dragged marker was dropped."""
         from robomach_core.wall_section import _off_vertices, section_loops

@@ -111,6 +111,7 @@ from .jobs import (
     JobRunner,
 )
 from .live import LiveFeed
+from .pointing import Pointing
 from .projects import ProjectsMixin, _build_cell
 from .records import (
     MAX_GUIDE_POINTS,
@@ -125,7 +126,6 @@ from .records import (
     Topic,
     log,
 )
-from .pointing import Pointing
 from .teach import JogFrame, Teach, ToolView
 
 # --- the session ---------------------------------------------------------------------------

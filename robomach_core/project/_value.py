@@ -63,7 +63,9 @@ class CellSettings:
 
     def __post_init__(self) -> None:
         if not (self.part_deviation is None or isinstance(self.part_deviation, PartDeviation)):
-            object.__setattr__(self, "part_deviation", PartDeviation.from_value(self.part_deviation))
+            object.__setattr__(
+                self, "part_deviation", PartDeviation.from_value(self.part_deviation)
+            )
 
 
 @dataclass(frozen=True)

@@ -170,9 +170,7 @@ def _propose_accept_learn(page: Page, client, workbench, xy, normal, z_mm) -> fl
     return _learn_and_postprocess(page, workbench)
 
 
-def test_one_click_proposes_the_pump_groove_then_learns_within_a_third_of_a_mm(
-    browser, workbench
-):
+def test_one_click_proposes_the_pump_groove_then_learns_within_a_third_of_a_mm(browser, workbench):
     page, client = _open(browser, workbench)
     deviation = _propose_accept_learn(page, client, workbench, (40.0, 65.0), (0, -1), 17.5)
     print(f"proposed on the pump: learned within {deviation:.3f} mm")

@@ -36,7 +36,9 @@ def _cell(workpiece: Workpiece, robot: str = "ur10") -> Cell:
 def _uploaded(part) -> Workpiece:
     from robomach_core.workpiece import DEFAULT_T_BASE_WOBJ, mesh_from_bytes
 
-    return mesh_from_bytes(part.stl_bytes(), ".stl", name=part.name, T_base_wobj=DEFAULT_T_BASE_WOBJ)
+    return mesh_from_bytes(
+        part.stl_bytes(), ".stl", name=part.name, T_base_wobj=DEFAULT_T_BASE_WOBJ
+    )
 
 
 def _propose(workpiece: Workpiece, point_mm, robot: str = "ur10", **kw):
