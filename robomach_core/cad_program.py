@@ -24,6 +24,7 @@ SOLUTION  ``compare_with_cad(workpiece, positions, quaternions, tool_radius_m, t
 from __future__ import annotations
 
 import math
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,7 +34,10 @@ from .postprocess import reduce_deviation_height
 from .wall_section import WallLoop, section_loops
 from .workpiece import Workpiece
 
-SCORE_SPACING_M = 2e-5  # as scoring.score_path: every 0.02 mm along the moves
+# Every 0.1 mm along the moves: between targets the error is a smooth chord sagitta, whose
+# maximum a 0.1 mm sampling misses by well under a micrometre on millimetre-long chords.
+SCORE_SPACING_M = 1e-4
+NEAREST_LOOP_POINTS = 200  # the learned targets that decide which wall they follow
 DENSE_M = 5e-5  # the CAD path is sampled this densely before the reduction
 MAX_WALL_DISTANCE_M = 0.005  # a learned path farther than this from every wall follows none
 
@@ -121,9 +125,11 @@ def _to_base(T_base_wobj: np.ndarray, points_wobj: np.ndarray) -> np.ndarray:
 
 
 def _nearest_loop(loops: list[WallLoop], xy: np.ndarray) -> tuple[WallLoop, float] | None:
+    points = shapely.points(xy[:: max(1, len(xy) // NEAREST_LOOP_POINTS)])
     best = None
     for loop in loops:
-        d = float(np.median(np.abs(loop.signed_distance(xy))))
+        chain = np.vstack([loop.points_m, loop.points_m[:1]]) if loop.closed else loop.points_m
+        d = float(np.median(shapely.distance(points, shapely.LineString(chain))))
         if best is None or d < best[1]:
             best = (loop, d)
     return best
@@ -268,9 +274,8 @@ def compare_with_cad(
     T = cad.T_base_wobj
     wobj = _to_wobj(T, positions)
     z = float(np.median(wobj[:, 2]))
-    cad_loops = section_loops(cad.mesh, _off(cad.mesh, z))
-    real_mesh = workpiece.scoring_mesh()
-    real_loops = section_loops(real_mesh, _off(real_mesh, z))
+    cad_loops = _sections(cad.mesh, z)
+    real_loops = _sections(workpiece.scoring_mesh(), z)
     found_cad = _nearest_loop(cad_loops, wobj[:, :2])
     found_real = _nearest_loop(real_loops, wobj[:, :2])
     if found_cad is None or found_real is None:
@@ -315,7 +320,23 @@ def compare_with_cad(
     )
 
 
-def _off(mesh, z: float) -> float:
+_SECTIONS: list[tuple[object, float, list[WallLoop]]] = []
+_SECTIONS_KEPT = 8
+_SECTIONS_LOCK = threading.Lock()
+
+
+def _sections(mesh, z: float) -> list[WallLoop]:
+    """``section_loops`` of a mesh at ``z``, remembered for the last few (mesh, z): a
+    post-processing run again with other settings compares at the same height."""
     from .wall_section import _off_vertices
 
-    return _off_vertices(mesh, z)
+    z = round(float(z), 7)
+    with _SECTIONS_LOCK:
+        for m, zz, loops in _SECTIONS:
+            if m is mesh and zz == z:
+                return loops
+    loops = section_loops(mesh, _off_vertices(mesh, z))
+    with _SECTIONS_LOCK:
+        _SECTIONS.append((mesh, z, loops))
+        del _SECTIONS[:-_SECTIONS_KEPT]
+    return loops

@@ -25,6 +25,8 @@ from functools import cached_property
 import numpy as np
 import shapely
 import trimesh
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from .errors import InvalidInputError
@@ -155,18 +157,17 @@ def section_loops(mesh: trimesh.Trimesh, z_m: float) -> list[WallLoop]:
     flip = (-d[:, 1] * n[:, 0] + d[:, 0] * n[:, 1]) < 0  # the free side must be on the left
     a[flip], b[flip] = b[flip].copy(), a[flip].copy()
     ends = np.vstack([a, b])
-    tree = cKDTree(ends)
-    groups = tree.query_ball_point(ends, MERGE_M)
-    ids = np.array([min(g) for g in groups])
-    _, ids = np.unique(ids, return_inverse=True)
+    pairs = cKDTree(ends).query_pairs(MERGE_M, output_type="ndarray")
+    n = len(ends)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, ids = connected_components(graph, directed=False)
     start, stop = ids[: len(a)], ids[len(a) :]
     point = np.zeros((ids.max() + 1, 2))
     point[start], point[stop] = a, b
-    successor: dict[int, int] = {}
-    for i, (u, v) in enumerate(zip(start, stop, strict=True)):
-        if u != v:
-            successor.setdefault(int(u), i)
-    incoming = {int(v) for v in stop}
+    moving = np.flatnonzero(start != stop)
+    # The first segment leaving each point (reversed so the first one wins in the dict).
+    successor = dict(zip(start[moving][::-1].tolist(), moving[::-1].tolist(), strict=True))
+    incoming = set(stop.tolist())
     used = np.zeros(len(a), dtype=bool)
     loops: list[WallLoop] = []
 
