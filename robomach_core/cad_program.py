@@ -330,7 +330,7 @@ def _sections(mesh, z: float) -> list[WallLoop]:
     post-processing run again with other settings compares at the same height."""
     from .wall_section import _off_vertices
 
-    z = round(float(z), 7)
+    z = round(float(z), 5)  # 10 um: the walls are the same a few micrometres up or down
     with _SECTIONS_LOCK:
         for m, zz, loops in _SECTIONS:
             if m is mesh and zz == z:
