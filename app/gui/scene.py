@@ -226,6 +226,7 @@ class CellScene:
         )
         self.workpiece_node: viser.SceneNodeHandle | None = None
         self._guides_node: viser.SceneNodeHandle | None = None
+        self.paths_hidden = False  # the drawn paths belong to a cell no longer there
 
     # ----------------------------------------------------------------- cell set-up
 
@@ -416,6 +417,7 @@ class CellScene:
 
     def hide_paths(self) -> None:
         """Hide the recording, targets and comparison (a result of a cell no longer there)."""
+        self.paths_hidden = True
         with self.server.atomic():
             for name in ("/path/samples/raw", "/path/samples/filtered", "/path/targets",
                          "/path/targets/segments"):  # fmt: skip
@@ -580,6 +582,7 @@ class CellScene:
         "out of date" label at its first target."""
         if stale:
             filtered_deviation_m = targets_deviation_m = None
+        self.paths_hidden = False
         scene = self.server.scene
         empty = np.zeros((0, 3))
         with self.server.atomic():

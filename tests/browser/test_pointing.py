@@ -203,3 +203,27 @@ def _shot(name: str):
     folder = Path(tempfile.gettempdir()) / "robomach-browser-shots"
     folder.mkdir(exist_ok=True)
     return folder / f"pointing_{name}.png"
+
+
+def test_a_cell_change_leaves_nothing_of_the_old_cell_in_the_scene() -> None:
+    """In process (no browser): learned, compared and proposed on the pump; then the block."""
+    from app.session import Session
+
+    with workbench_on(Session(real_time=False)) as wb:
+        session = wb.session
+        session.pointing.propose(np.array([0.0, -0.065, 0.019]))
+        job = session.pointing.accept()
+        wait_for(lambda: session.job(job).status == "done", timeout_s=300)
+        job = session.start_path_learning(10.0, 0.005)
+        wait_for(lambda: session.job(job).status == "done", timeout_s=300)
+        session.run_postprocess()
+        wait_for(lambda: "What learning buys" in wb.pointing.compare.content)
+        session.pointing.propose(np.array([0.04, -0.065, 0.019]))
+        wait_for(lambda: "P14" in wb.pointing.selected.options)
+        assert not wb.scene.paths_hidden
+        session.set_cell(workpiece="block")
+        wait_for(lambda: wb.scene.paths_hidden)
+        wait_for(lambda: wb.pointing.selected.options == ("none",))
+        wait_for(lambda: wb.pointing.compare.content == "")
+        assert wb.guide_points.selected.options == ("none",)
+        assert session.status()["recording"] == "stale"  # kept in the project, not drawn
