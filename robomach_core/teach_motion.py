@@ -27,7 +27,7 @@ from .transforms import rotation_log
 
 STIFF = ComplianceSelection(frozenset(), "base")
 FREE = ComplianceSelection(frozenset({"x", "y", "z"}), "base")
-ARRIVED_M = 3e-4  # within this of the target, the tool is there
+ARRIVED_M = 1.5e-4  # within this of the target, the tool is there
 MAX_JOG_M = 0.2  # LeadThrough.jog's longest translation
 MAX_TURN_RAD = math.radians(45.0)  # ... and its largest rotation
 TURN_RATE_RAD_S = math.radians(30.0)

@@ -404,7 +404,7 @@ class CellScene:
                     f"/path/comparison/{name}",
                     np.stack([pts[:-1] + lift, pts[1:] + lift], axis=1),
                     np.stack([c[:-1], c[1:]], axis=1),
-                    thickness=3.0 if name == "cad_only" else 2.0,
+                    thickness=4.0 if name == "cad_only" else 2.5,
                     thickness_units="screen",
                 )
                 k = int(np.argmax(np.abs(score.deviation_m)))
