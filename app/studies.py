@@ -64,7 +64,7 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 StudyKind = Literal["cmrr", "compensation"]
-CompensationStudy = Literal["identify", "gravity", "milling", "ilc", "all"]
+CompensationStudy = Literal["identify", "gravity", "milling", "ilc", "compliance", "all"]
 COMPENSATION_STUDIES: tuple[str, ...] = get_args(CompensationStudy)
 CMRR_CONTROLLER_CHOICES: tuple[str, ...] = (*CONTROLLER_NAMES, "all")
 
@@ -139,7 +139,7 @@ class CompensationOutcome:
     """The last compensation study of the open project.
 
     Attributes:
-        study: identify, gravity, milling, ilc or all.
+        study: identify, gravity, milling, ilc, compliance or all.
         quick: Shorter cuts and fewer poses.
         seed: Seed of every random element.
         summary: ``compensation_summary.json`` (µm, mm, N in the key names; NaN as None).
@@ -397,7 +397,8 @@ class StudyService:
         """Queue a compensation study; returns the job id.
 
         Args:
-            study: identify, gravity, milling, ilc or all.
+            study: identify, gravity, milling, ilc, compliance (the KR 270 line of the
+                compliance paper, always on the KR 270) or all.
             quick: Shorter cuts and fewer poses (a preview in seconds).
             seed: Seed of every random element.
             mode: Compensation mode written to the settings (off, online, offline_linear,
@@ -422,7 +423,11 @@ class StudyService:
 
             folder = self._new_run_folder()
             try:
-                options = StudyOptions(seed=seed, mode=mode, quick=bool(quick))
+                # The cell's arm: the identified stiffness is the one its program compensates
+                # with (``robomach compensate`` runs each paper's arm instead).
+                options = StudyOptions(
+                    robot=self.session.cell.robot.name, seed=seed, mode=mode, quick=bool(quick)
+                )
                 results = run_studies(
                     study, folder, options, progress=ctx.progress, cancel=ctx.cancelled
                 )

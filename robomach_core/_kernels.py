@@ -186,6 +186,90 @@ def ik_newton_step(
 
 
 @_jit
+def _closest_on_triangle(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Closest point of triangle abc to p (Ericson, Real-Time Collision Detection, 5.1.5)."""
+    ab = b - a
+    ac = c - a
+    ap = p - a
+    d1 = ab @ ap
+    d2 = ac @ ap
+    if d1 <= 0.0 and d2 <= 0.0:
+        return a.copy()
+    bp = p - b
+    d3 = ab @ bp
+    d4 = ac @ bp
+    if d3 >= 0.0 and d4 <= d3:
+        return b.copy()
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        return a + ab * (d1 / (d1 - d3))
+    cp = p - c
+    d5 = ab @ cp
+    d6 = ac @ cp
+    if d6 >= 0.0 and d5 <= d6:
+        return c.copy()
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        return a + ac * (d2 / (d2 - d6))
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)))
+    denom = 1.0 / (va + vb + vc)
+    return a + ab * (vb * denom) + ac * (vc * denom)
+
+
+@_jit
+def nearest_face(
+    p: np.ndarray, triangles: np.ndarray, normals: np.ndarray, faces: np.ndarray
+) -> tuple[float, np.ndarray, np.ndarray, bool]:
+    """The nearest of ``faces`` (indices into ``triangles`` (F, 3, 3) and their outward
+    ``normals`` (F, 3)) to the point ``p``: (distance, closest point, that face's normal,
+    inside). Inside: ``p`` lies behind every nearest face (ties within 1e-12 m: several faces
+    meet at the closest point, an edge or a corner; outside when any of them faces ``p``)."""
+    best = np.inf
+    closest = np.zeros(3)
+    normal = np.zeros(3)
+    inside = False
+    for k in range(faces.shape[0]):
+        f = faces[k]
+        q = _closest_on_triangle(p, triangles[f, 0], triangles[f, 1], triangles[f, 2])
+        d = p - q
+        dist = math.sqrt(d @ d)
+        behind = (d @ normals[f]) < 0.0
+        if dist < best - 1e-12:
+            best = dist
+            closest = q
+            normal = normals[f].copy()
+            inside = behind
+        elif dist <= best + 1e-12:
+            inside = inside and behind
+            if not behind:
+                normal = normals[f].copy()
+    return best, closest, normal, inside
+
+
+@_jit
+def winding_number(p: np.ndarray, triangles: np.ndarray) -> float:
+    """Generalised winding number of the closed surface ``triangles`` (F, 3, 3) about ``p``:
+    1 inside a closed outward-oriented mesh, 0 outside (the solid angles of the triangles seen
+    from p over 4 pi; Van Oosterom and Strackee, IEEE Trans. Biomed. Eng. 30(2), 1983)."""
+    total = 0.0
+    for f in range(triangles.shape[0]):
+        ax, ay, az = triangles[f, 0, 0] - p[0], triangles[f, 0, 1] - p[1], triangles[f, 0, 2] - p[2]
+        bx, by, bz = triangles[f, 1, 0] - p[0], triangles[f, 1, 1] - p[1], triangles[f, 1, 2] - p[2]
+        cx, cy, cz = triangles[f, 2, 0] - p[0], triangles[f, 2, 1] - p[1], triangles[f, 2, 2] - p[2]
+        la = math.sqrt(ax * ax + ay * ay + az * az)
+        lb = math.sqrt(bx * bx + by * by + bz * bz)
+        lc = math.sqrt(cx * cx + cy * cy + cz * cz)
+        det = ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
+        ab = ax * bx + ay * by + az * bz
+        bc = bx * cx + by * cy + bz * cz
+        ca = cx * ax + cy * ay + cz * az
+        total += 2.0 * math.atan2(det, la * lb * lc + ab * lc + bc * la + ca * lb)
+    return total / (4.0 * math.pi)
+
+
+@_jit
 def path_reference(
     Ra: np.ndarray,
     omega: np.ndarray,

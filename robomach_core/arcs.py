@@ -345,9 +345,10 @@ def score_sampled_moves(
     *,
     spacing_m: float,
 ) -> PathScore:
-    """Score a move sequence by ``deviation`` (points (k, 3) [m] -> (k,) [m]) of its path
-    sampled every ``spacing_m`` and of the targets it uses (the truth is the caller's: the
-    known wall, or the mesh)."""
+    """Score a move sequence by ``deviation`` (points (k, 3) [m] -> (k,) [m], signed or not)
+    of its path sampled every ``spacing_m`` and of the targets it uses (the truth is the
+    caller's: the known wall, or the mesh). Max and RMS are of the deviation's size; a signed
+    deviation's most negative value is the overcut, its most positive the air."""
     pts = np.asarray(positions_m, dtype=float)
     path = sample_moves(pts, moves, spacing_m=spacing_m)
     dev = deviation(path)
@@ -355,10 +356,12 @@ def score_sampled_moves(
     at_targets = deviation(pts[used])
     along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
     return PathScore(
-        max_m=float(dev.max()),
+        max_m=float(np.abs(dev).max()),
         rms_m=float(np.sqrt(np.mean(dev**2))),
-        targets_max_m=float(at_targets.max()),
+        targets_max_m=float(np.abs(at_targets).max()),
         targets_rms_m=float(np.sqrt(np.mean(at_targets**2))),
         along_s_m=along,
         deviation_m=dev,
+        overcut_m=float(max(0.0, -dev.min())),
+        air_m=float(max(0.0, dev.max())),
     )

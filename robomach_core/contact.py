@@ -2,10 +2,18 @@
 
 PROBLEM   The simulated cutter must feel the part: a normal force that grows with penetration
           (the interaction stiffness the papers measured, 85-143 N/mm) and friction along the
-          motion, computed fast enough for a 4 ms control loop.
-STRATEGY  coal's signed distance between the cutter primitive (sphere or cylinder) and the part's
-          BVH mesh gives the penetration depth, the contact normal and the nearest points in a few
-          microseconds; the part is fixed, so the velocity of the cutter is the sliding velocity.
+          motion, computed fast enough for a 4 ms control loop. A mesh is a surface, not a solid:
+          measured against the nearest triangle alone, a ball whose centre slips behind a face
+          is pushed on through it (the normal flips), and coal reports degenerate contacts
+          (depth equal to the radius, no normal) for a centre in a facet's plane, which read as
+          no contact at all: learning then ran through 20 mm of wall with no force.
+STRATEGY  coal finds the triangles the cutter overlaps (a BVH per cell of a uniform grid, built
+          when first visited). For the ball cutter the exact geometry is then computed from them:
+          the nearest triangle's closest point, and the side of the part the centre is on from
+          that face's outward normal (``_kernels.nearest_face``): outside, depth = r - d along
+          the direction from the surface to the centre; behind the surface (inside the
+          material), depth = r + d along the face's normal, so the force always pushes the ball
+          out to the free side. Other cutter shapes use coal's deepest valid contact.
 SOLUTION  F_n = k_c * depth + c_c * d(depth)/dt (>= 0), F_t = -mu * F_n * v_t / |v_t| regularised
           by tanh(|v_t| / v_0); the wrench is reported at the TCP in base-aligned axes.
 """
@@ -18,10 +26,12 @@ from typing import NamedTuple
 import coal
 import numpy as np
 
+from . import _kernels
 from .tool import Tool
 from .workpiece import Workpiece
 
 CONTACT_DAMPING_N_S_M = 100.0
+MAX_CONTACTS = 64  # triangles coal reports per query (a wall of 0.4 mm facets: ~10 at once)
 FRICTION_VELOCITY_M_S = 0.0005  # below this the friction force is scaled down (tanh)
 
 
@@ -78,13 +88,14 @@ class _CellGrid:
         self.hi = tri.max(axis=1)
         self.cell_m = cell_m
         self.margin_m = margin_m
-        self._cells: dict[tuple[int, int, int], coal.BVHModelOBBRSS | None] = {}
+        self._cells: dict[tuple[int, int, int], tuple[coal.BVHModelOBBRSS, np.ndarray] | None] = {}
         # p_wobj = R^T (p_base - t), as plain floats (this runs every control period).
         self._rows = T_base_wobj[:3, :3].T.tolist()
         self._origin = T_base_wobj[:3, 3].tolist()
 
-    def bvh_at(self, p_base: np.ndarray) -> coal.BVHModelOBBRSS | None:
-        """The BVH of the cell holding ``p_base`` (base frame), built on first visit."""
+    def bvh_at(self, p_base: np.ndarray) -> tuple[coal.BVHModelOBBRSS, np.ndarray] | None:
+        """The BVH of the cell holding ``p_base`` (base frame), built on first visit, and the
+        mesh's face index of each of its triangles."""
         x, y, z = p_base.tolist()
         ox, oy, oz = self._origin
         x, y, z = x - ox, y - oy, z - oz
@@ -99,7 +110,10 @@ class _CellGrid:
             cmin = np.asarray(key, dtype=float) * self.cell_m - self.margin_m
             cmax = cmin + self.cell_m + 2 * self.margin_m
             sel = np.all((self.hi >= cmin) & (self.lo <= cmax), axis=1)
-            self._cells[key] = _bvh_from_mesh(self.vertices, self.faces[sel]) if sel.any() else None
+            faces = np.flatnonzero(sel)
+            self._cells[key] = (
+                (_bvh_from_mesh(self.vertices, self.faces[faces]), faces) if len(faces) else None
+            )
         return self._cells[key]
 
 
@@ -132,7 +146,13 @@ class ContactModel:
             margin_m=bounding_radius + tool.radius_m,
             T_base_wobj=workpiece.T_base_wobj,
         )
-        self._request = coal.CollisionRequest(coal.CollisionRequestFlag.CONTACT, 8)
+        self._request = coal.CollisionRequest(coal.CollisionRequestFlag.CONTACT, MAX_CONTACTS)
+        # The part's triangles and outward normals in the base frame (the ball's exact contact).
+        R, t = workpiece.T_base_wobj[:3, :3], workpiece.T_base_wobj[:3, 3]
+        mesh = workpiece.mesh
+        self._triangles = np.ascontiguousarray(mesh.vertices[mesh.faces] @ R.T + t)
+        self._normals = np.ascontiguousarray(np.asarray(mesh.face_normals) @ R.T)
+        self._radius = tool.radius_m
         self._result = coal.CollisionResult()
         self._T_cutter = coal.Transform3s()
 
@@ -145,15 +165,18 @@ class ContactModel:
     ) -> ContactResult:
         """Contact wrench on the cutter at pose ``T_base_tcp`` moving at ``velocity_m_s``.
 
-        The deepest of coal's contacts defines depth, normal and contact point (adjacent facets
-        of one wall report the same penetration, so summing them would count it twice).
+        The ball: the nearest of the triangles coal reports defines depth, normal and contact
+        point, on the free side of the part (module docstring); adjacent facets of one wall
+        report the same penetration, so summing them would count it twice. Other cutters: the
+        deepest of coal's non-degenerate contacts.
         """
         R = T_base_tcp[:3, :3]
         p_tcp = T_base_tcp[:3, 3]
         center = p_tcp + R[:, 2] * self._cutter_offset if self._cutter_offset else p_tcp
-        bvh = self._grid.bvh_at(center)
-        if bvh is None:
+        cell = self._grid.bvh_at(center)
+        if cell is None:
             return NO_CONTACT
+        bvh, faces = cell
         self._T_cutter.setRotation(R)
         self._T_cutter.setTranslation(center)
         self._result.clear()
@@ -162,25 +185,44 @@ class ContactModel:
         ):
             return NO_CONTACT
         result = self._result
-        deepest = result.getContact(0)
-        for i in range(1, result.numContacts()):
-            contact = result.getContact(i)
-            if contact.penetration_depth < deepest.penetration_depth:
-                deepest = contact
-        depth = -float(deepest.penetration_depth)
-        if depth <= 0.0:
-            return NO_CONTACT
-        # coal: the contact normal points from o1 (the part) to o2 (the cutter).
-        nx, ny, nz = deepest.normal.tolist()
-        px, py, pz = deepest.pos.tolist()
-        norm = math.sqrt(nx * nx + ny * ny + nz * nz)
-        if not norm > 1e-12:  # degenerate contact: use the direction from the contact point
-            cx, cy, cz = center.tolist()
-            nx, ny, nz = cx - px, cy - py, cz - pz
-            norm = math.sqrt(nx * nx + ny * ny + nz * nz)
-            if not norm > 1e-12:
+        if self._cutter_offset == 0.0:  # the ball: exact nearest face and side
+            touched = np.array(
+                [faces[result.getContact(i).b1] for i in range(result.numContacts())],
+                dtype=np.int64,
+            )
+            dist, closest, face_normal, inside = _kernels.nearest_face(
+                center, self._triangles, self._normals, touched
+            )
+            if inside:
+                depth = self._radius + dist
+                nx, ny, nz = face_normal.tolist()
+            else:
+                depth = self._radius - dist
+                if depth <= 0.0:
+                    return NO_CONTACT
+                if dist > 1e-9:
+                    nx, ny, nz = ((center - closest) / dist).tolist()
+                else:
+                    nx, ny, nz = face_normal.tolist()
+            px, py, pz = closest.tolist()
+        else:
+            deepest = None
+            for i in range(result.numContacts()):
+                contact = result.getContact(i)
+                if float(np.linalg.norm(contact.normal)) < 1e-9:
+                    continue  # degenerate contact (a centre in a facet's plane): no normal
+                if deepest is None or contact.penetration_depth < deepest.penetration_depth:
+                    deepest = contact
+            if deepest is None:
                 return NO_CONTACT
-        nx, ny, nz = nx / norm, ny / norm, nz / norm
+            depth = -float(deepest.penetration_depth)
+            if depth <= 0.0:
+                return NO_CONTACT
+            # coal: the contact normal points from o1 (the part) to o2 (the cutter).
+            nx, ny, nz = deepest.normal.tolist()
+            px, py, pz = deepest.pos.tolist()
+            norm = math.sqrt(nx * nx + ny * ny + nz * nz)
+            nx, ny, nz = nx / norm, ny / norm, nz / norm
         depth_rate = (depth - previous_depth_m) / dt
         f_n = max(0.0, self.stiffness_N_m * depth + self.damping_N_s_m * depth_rate)
         vx, vy, vz = velocity_m_s.tolist()

@@ -30,6 +30,7 @@ HAND_GAIN_N_M = 2000.0  # push per metre of distance to the goal
 HAND_MAX_N = 15.0  # a comfortable one-hand push
 HAND_MIN_N = 1.5  # a hand pushes firmly enough to get past the admittance's 1 N deadband
 WALL_PUSH_N = 6.0  # the gentle sideways push that finds the wall
+MAX_JOG_TURN_DEG = 45.0  # the largest rotational jog (leadthrough.LeadThrough.jog)
 TOOL_DOWN = np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # x_tool = -y_base
 
 
@@ -52,8 +53,11 @@ class GuideIntent:
 def intents_from_csv(text: str, robot: Robot | None = None) -> list[GuideIntent]:
     """Guide intents from CSV text: x_mm,y_mm,z_mm[,qw,qx,qy,qz[,wall_nx,wall_ny,wall_nz]].
 
-    A header row is allowed. Positions are TCP positions in the robot base frame. With a
-    ``robot``, every point is checked for reachability first.
+    A header row is allowed. Positions are TCP positions in the robot base frame. The
+    orientation is the tool's (default: straight down). The wall direction is where the
+    operator pushes to feel the wall: from the tool *into* the wall (the opposite of the wall
+    surface's normal); without it the point is recorded where it is, free. With a ``robot``,
+    every point is checked for reachability first.
 
     Raises:
         InvalidInputError: malformed rows or fewer than two points.
@@ -184,8 +188,11 @@ def square_up(
 ) -> LeadThroughState:
     """Jog the orientation about the tool axes until it matches ``rotation`` (within a step).
 
-    The default ``rotation`` is square to the part: the tool axis straight down.
+    The default ``rotation`` is square to the part: the tool axis straight down. A turn larger
+    than a jog allows (45 deg) is made in several jogs (the example failed from wherever a
+    person left the tool: "a rotational jog step is at most 45 degrees").
     """
+    max_steps = max(1, int(MAX_JOG_TURN_DEG / step_deg))
     goal = TOOL_DOWN if rotation is None else rotation
     for _ in range(3):
         R = state.cell.T_base_tcp[:3, :3]
@@ -193,8 +200,10 @@ def square_up(
         moved = False
         for i, axis in enumerate(("rx", "ry", "rz")):
             steps = round(math.degrees(err_tool[i]) / step_deg)
-            if steps:
-                state = lt.jog(state, axis, math.radians(steps * step_deg), selection)
+            while steps:  # a jog turns at most MAX_JOG_TURN_DEG, as the pendant's joystick
+                now = max(-max_steps, min(max_steps, steps))
+                state = lt.jog(state, axis, math.radians(now * step_deg), selection)
+                steps -= now
                 moved = True
         if not moved:
             break

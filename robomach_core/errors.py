@@ -39,6 +39,10 @@ class NotEnoughGuidePointsError(RobomachError, ValueError):
     """Path learning needs at least two guide points."""
 
 
+class WallSideError(InvalidInputError):
+    """The side of the wall to follow cannot be told from the guide points: set it."""
+
+
 class ForceLimitError(RobomachError, RuntimeError):
     """A contact force exceeded the protection limit."""
 

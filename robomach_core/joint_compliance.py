@@ -31,6 +31,12 @@ TRUE_JOINT_STIFFNESS_NM_RAD: dict[str, tuple[float, ...]] = {
     # the chapter's IRB 6400 (~0.5 N/um), in the range given for machining arms.
     "irb4400": (4.0e6, 3.5e6, 2.5e6, 4.0e5, 4.0e5, 2.5e5),
     "irb6640": (8.0e6, 7.0e6, 5.0e6, 8.0e5, 8.0e5, 5.0e5),
+    # The Lund papers' IRB 2400 (no joint stiffness published): between the UR10 and the
+    # IRB 4400, 0.8-3 N/um over the translation directions at its built-in work pose.
+    "irb2400": (2.5e6, 2.0e6, 1.5e6, 2.5e5, 2.5e5, 1.5e5),
+    # The KR 270: the inverse of the compliance paper's Table 1 joint compliances
+    # k1..k6 = 0.26, 0.15, 0.26, 1.79, 1.52, 2.13 x 1e-6 rad/(N m).
+    "kr270": tuple(1.0 / (c * 1e-6) for c in (0.26, 0.15, 0.26, 1.79, 1.52, 2.13)),
 }
 
 

@@ -77,6 +77,8 @@ PORT = Range("port", 1, 65535, integer=True)
 # --- lead-through and path learning (chapter sec. 3: 10-20 N contact, a few mm/s) ---------
 LEARNING_FORCE_N = Range("contact force", 1.0, 50.0, "N")
 LEARNING_SPEED_MM_S = Range("learning speed", 0.5, 50.0, "mm/s")
+# The cutter's height above a floor the run meets (a little above: the machining height).
+FLOOR_CLEARANCE_MM = Range("floor clearance", 0.0, 5.0, "mm")
 PUSH_FORCE_N = Range("push force", 0.0, 200.0, "N")
 PUSH_DURATION_S = Range("push duration", 0.0, 10.0, "s")
 

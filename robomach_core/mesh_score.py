@@ -1,49 +1,124 @@
 """Scoring a program against the workpiece mesh itself (any part: built-in or uploaded).
 
 PROBLEM   ``scoring.score_path`` needs the true wall contour, which only the built-in parts have;
-          an uploaded STL/OBJ/PLY got no quality figure at all, yet its mesh is the truth the
-          user cares about.
-STRATEGY  The cutter is a ball of radius r centred on the TCP; where it touches the wall without
-          cutting into it, the TCP is exactly r from the surface. So the deviation of a program
-          point p is | d(p, mesh) - r |, with d the unsigned distance to the nearest triangle
-          (``trimesh.proximity``). The program is sampled along its moves (lines, and arcs
-          through their via point) every ``MESH_SCORE_SPACING_M``, and at its targets.
-SOLUTION  ``mesh_deviation(workpiece, tool_radius_m, points)`` and ``score_mesh(workpiece,
-          tool_radius_m, positions, moves)`` returning a ``scoring.PathScore``. The one scoring
-          path for meshes: the project's post-processing stage calls it for every part.
+          on an uploaded part the mesh is the only truth. Measured as the unsigned distance to
+          the nearest surface minus the cutter radius, a path learned on the wrong wall, rolling
+          on the groove's floor or held inside the material scored 0.20 mm like a good one.
+STRATEGY  The cutter is a ball of radius r centred on the TCP. The deviation of a program point
+          p is signed and measured against the part's walls (faces across the tool axis, not the
+          floor or the top):
+              dev(p) = d_wall(p) - r   when p is outside the material (> 0: air, < 0: the
+                                       cutter cuts into the wall),
+              dev(p) = -(d(p) + r)     when p is inside it (an overcut, never a small number),
+          inside from the nearest face's outward normal, or from the winding number where the
+          nearest point is on an edge (``_inside``). And a program must follow the wall the
+          guide points were taught on: the wall point each guide point faces on its side
+          (``wall_side.taught_wall_points``) must be touched by the program (within
+          ``TAUGHT_WALL_TOLERANCE_M``); a program on the island wall of a groove, or on its
+          floor, misses them.
+SOLUTION  ``mesh_deviation``, ``score_mesh`` (a ``scoring.PathScore`` with the overcut and the
+          air), and ``taught_wall_check`` (a ``TaughtWallCheck``). The project's post-processing
+          stage calls them for every part.
 """
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import trimesh
 
-from .arcs import Move, linear_moves, score_sampled_moves
-from .errors import InvalidInputError
+from . import _kernels
+from .arcs import Move, linear_moves, sample_moves, score_sampled_moves
+from .errors import InvalidInputError, WallSideError
+from .leadthrough import GuidePoint
 from .scoring import PathScore
+from .wall_side import (
+    WALL_FACE_MAX_COS,
+    mean_tool_axis,
+    resolve_wall_side,
+    taught_wall_points,
+)
 from .workpiece import Workpiece
 
 # 0.5 mm between scored points (~0.2 s for a metre of path on an 8k-triangle mesh; 0.1 mm cost
 # 1 s, most of a workbench post-processing). Between targets the error is a smooth chord sagitta
 # (mm-long chords), so the coarser sampling lowers the maximum by 2 um on the water pump.
 MESH_SCORE_SPACING_M = 5e-4
+TAUGHT_WALL_TOLERANCE_M = 0.001  # the program passes this near every taught wall point
+TAUGHT_WALL_HEIGHT_BAND_M = 0.005  # ... measured across the axis within this height of it
+_WALLS: dict[int, tuple[weakref.ref, tuple[float, ...], trimesh.Trimesh | None]] = {}
+
+
+def _walls_of(mesh: trimesh.Trimesh, axis_wobj: np.ndarray) -> trimesh.Trimesh | None:
+    """The faces of ``mesh`` across ``axis_wobj`` (cached, so its triangle tree is built once)."""
+    key = tuple(np.round(axis_wobj, 3))
+    hit = _WALLS.get(id(mesh))
+    if hit is not None and hit[0]() is mesh and hit[1] == key:
+        return hit[2]
+    keep = np.flatnonzero(np.abs(mesh.face_normals @ axis_wobj) < WALL_FACE_MAX_COS)
+    walls = mesh.submesh([keep], append=True) if len(keep) else None
+    if len(_WALLS) > 16:
+        _WALLS.clear()
+    _WALLS[id(mesh)] = (weakref.ref(mesh), key, walls)
+    return walls
+
+
+def _inside(
+    mesh: trimesh.Trimesh,
+    pts: np.ndarray,
+    closest: np.ndarray,
+    distance: np.ndarray,
+    tri: np.ndarray,
+) -> np.ndarray:
+    """(k,) True for points inside the part. Where the nearest point lies inside a face, that
+    face's outward normal tells; where it lies on an edge or a corner (the direction to it off
+    the face's normal), the winding number does (``_kernels.winding_number``): ray tests
+    (``trimesh.contains``) gave different answers for the same points in two frames."""
+    rel = pts - closest
+    along = np.einsum("ij,ij->i", rel, mesh.face_normals[tri])
+    inside = along < 0.0
+    unsure = np.abs(along) < 0.999 * distance
+    if unsure.any():
+        triangles = np.ascontiguousarray(mesh.vertices[mesh.faces], dtype=float)
+        for k in np.flatnonzero(unsure):
+            inside[k] = _kernels.winding_number(np.ascontiguousarray(pts[k]), triangles) > 0.5
+    return inside
 
 
 def mesh_deviation(
-    workpiece: Workpiece, tool_radius_m: float, points_base: np.ndarray
+    workpiece: Workpiece,
+    tool_radius_m: float,
+    points_base: np.ndarray,
+    *,
+    axis_base: np.ndarray | None = None,
 ) -> np.ndarray:
-    """| distance from the mesh - tool radius | [m] of base-frame TCP points, shape (k,)."""
+    """Signed deviation [m] of base-frame TCP points from the part's walls (module docstring):
+    > 0 air, < 0 into the material. ``axis_base``: the tool axis (default the work object's z).
+    Shape (k,)."""
     pts = np.asarray(points_base, dtype=float).reshape(-1, 3)
+    T = workpiece.T_base_wobj
+    R, t = T[:3, :3], T[:3, 3]
     # Distances do not change under the rigid work-object transform: query the part's own mesh
-    # in its frame, whose triangle tree trimesh builds once and caches (a mesh moved into the
-    # base frame would be a new mesh, its tree rebuilt on every call).
-    T_wobj_base = np.linalg.inv(workpiece.T_base_wobj)
-    pts_wobj = pts @ T_wobj_base[:3, :3].T + T_wobj_base[:3, 3]
+    # in its frame, whose triangle tree trimesh builds once and caches.
+    pts_w = (pts - t) @ R
+    axis_w = np.array([0.0, 0.0, 1.0]) if axis_base is None else R.T @ np.asarray(axis_base)
+    mesh = workpiece.mesh
     with np.errstate(divide="ignore", invalid="ignore"):  # degenerate facets in trimesh's maths
-        _, distance, _ = trimesh.proximity.closest_point(workpiece.mesh, pts_wobj)
-    return np.abs(np.asarray(distance, dtype=float) - tool_radius_m)
+        closest, distance, tri = trimesh.proximity.closest_point(mesh, pts_w)
+        behind = _inside(mesh, pts_w, closest, np.asarray(distance), tri)
+        walls = _walls_of(mesh, axis_w / np.linalg.norm(axis_w))
+        if walls is None:
+            wall_distance = np.asarray(distance, dtype=float)
+        else:
+            _, wall_distance, _ = trimesh.proximity.closest_point(walls, pts_w)
+    return np.where(
+        behind,
+        -(np.asarray(distance, dtype=float) + tool_radius_m),
+        np.asarray(wall_distance, dtype=float) - tool_radius_m,
+    )
 
 
 def score_mesh(
@@ -53,8 +128,10 @@ def score_mesh(
     moves: Sequence[Move] | None = None,
     *,
     spacing_m: float = MESH_SCORE_SPACING_M,
+    axis_base: np.ndarray | None = None,
 ) -> PathScore:
-    """Deviation of the program (targets and the moves between them) from the mesh.
+    """Signed deviation of the program (targets and the moves between them) from the part's
+    walls: max and RMS of its size, the overcut and the air.
 
     Args:
         workpiece: The part; its mesh in the base frame is the truth.
@@ -62,14 +139,105 @@ def score_mesh(
         positions_m: (m, 3) target positions, base frame.
         moves: The move sequence (``arcs.Move``); default a straight move to every target.
         spacing_m: Distance between scored points along the moves.
+        axis_base: The tool axis, which tells walls from floors (default the work object's z).
     """
     pts = np.asarray(positions_m, dtype=float)
     if len(pts) < 2:
         raise InvalidInputError("scoring needs at least 2 targets")
     moves = linear_moves(len(pts)) if moves is None else tuple(moves)
     return score_sampled_moves(
-        lambda points: mesh_deviation(workpiece, tool_radius_m, points),
+        lambda points: mesh_deviation(workpiece, tool_radius_m, points, axis_base=axis_base),
         pts,
         moves,
         spacing_m=spacing_m,
     )
+
+
+@dataclass(frozen=True)
+class TaughtWallCheck:
+    """Whether the program follows the wall the guide points were taught on.
+
+    Attributes:
+        follows: True when the program touches the taught wall at every guide point checked.
+        checked: Guide points with a taught wall in the mesh (1-based numbers).
+        missed: The guide points whose taught wall the program does not touch.
+        worst_gap_m: The farthest the program's cutter stays from a taught wall point.
+        message: One line for the user.
+    """
+
+    follows: bool
+    checked: tuple[int, ...]
+    missed: tuple[int, ...]
+    worst_gap_m: float
+    message: str
+
+
+def taught_wall_check(
+    workpiece: Workpiece,
+    tool_radius_m: float,
+    guides: Sequence[GuidePoint],
+    side: str,
+    positions_m: np.ndarray,
+    moves: Sequence[Move] | None = None,
+    *,
+    closed: bool = True,
+) -> TaughtWallCheck:
+    """The program (targets and moves) against the taught wall points (module docstring).
+
+    ``side`` is the side the run followed. When the guide points themselves tell the side
+    (pushes or nearness, ``wall_side.resolve_wall_side`` on "auto") and it is the other one,
+    the program is on the wrong wall whatever it touches.
+    """
+    if side not in ("left", "right") or len(guides) < 2:
+        return TaughtWallCheck(True, (), (), 0.0, "the taught wall is not known")
+    try:
+        evidence = resolve_wall_side(
+            guides, "auto", closed=closed, workpiece=workpiece, tool_radius_m=tool_radius_m
+        )
+    except WallSideError:
+        evidence = None
+    if evidence is not None and evidence.side != side:
+        return TaughtWallCheck(
+            False,
+            tuple(range(1, len(guides) + 1)),
+            tuple(range(1, len(guides) + 1)),
+            float("inf"),
+            f"the program follows the wall on the {side} of travel, but the guide points were "
+            f"taught on the {evidence.side} ({evidence.detail}): the wrong wall",
+        )
+    points = taught_wall_points(
+        guides, side, closed=closed, workpiece=workpiece, tool_radius_m=tool_radius_m
+    )
+    pts = np.asarray(positions_m, dtype=float)
+    moves = linear_moves(len(pts)) if moves is None else tuple(moves)
+    path = sample_moves(pts, moves, spacing_m=MESH_SCORE_SPACING_M / 2)
+    # Across the tool axis, among the program's points near the wall point's height: the wall
+    # is what the check is about, the height along it is the route's (interpolated).
+    axis = mean_tool_axis(guides)
+    path_height = path @ axis
+    across = path - np.outer(path_height, axis)
+    checked, missed, worst = [], [], 0.0
+    for k, wall_point in enumerate(points):
+        if wall_point is None:
+            continue
+        near = np.abs(path_height - float(wall_point @ axis)) <= TAUGHT_WALL_HEIGHT_BAND_M
+        if not near.any():
+            near[:] = True
+        w_across = wall_point - axis * float(wall_point @ axis)
+        gap = float(np.min(np.linalg.norm(across[near] - w_across, axis=1))) - tool_radius_m
+        checked.append(k + 1)
+        worst = max(worst, gap)
+        if gap > TAUGHT_WALL_TOLERANCE_M:
+            missed.append(k + 1)
+    if not checked:
+        return TaughtWallCheck(True, (), (), 0.0, "no taught wall found in the part's mesh")
+    if missed:
+        where = ", ".join(f"G{k}" for k in missed)
+        message = (
+            f"the program does not follow the wall taught at {where} (it passes "
+            f"{worst * 1e3:.1f} mm from it): it was learned on another wall, the floor or "
+            "inside the part"
+        )
+    else:
+        message = f"the program follows the taught wall at all {len(checked)} guide points"
+    return TaughtWallCheck(not missed, tuple(checked), tuple(missed), worst, message)

@@ -1,23 +1,37 @@
 """Automatic path learning (chapter section 3.2): follow the wall at constant contact force.
 
 PROBLEM   The test program (straight lines through the guide points) is far from the real
-          contour; the robot must find the contour itself and record it.
-STRATEGY  Path frame per segment: Xp along the segment, Zp the tool axis interpolated from the
-          guide orientations, Yp = side * (Zp x Xp) towards the wall. Position control along Xp
-          at the learning speed and along Zp; PI force control along Yp to the reference force:
-              v_y = Kp e + Ki integral(e),  e = F_ref - F_n,
-              F_n = |F_contact - (F_contact . Zp) Zp|  while F_y = -(F_contact . Yp) > 0,
-              F_n = F_y  otherwise (out of contact, or pressed from the other side),
-          i.e. the tool yields into or out of the program path until the wall pushes back with
-          F_ref (the chapter: "the tool tip will yield along the Y axis until it reaches the
-          equilibrium") normal to the edge (the chapter's "contact force normal to the edge of
-          10 N"): where the wall turns away from the program line, its Yp part alone would
-          let the whole force grow as F_ref / cos(angle). At a guide point the reference moves
-          to the next segment's frame without a jump. The controller sees only motor-side
-          joints and the F/T reading.
+          contour; the robot must find the contour itself and record it. The chapter's run is
+          compliant only along Yp, across the program line: that follows the wall while it stays
+          near the line, but a person's points are rough. Where a leg skips an outside corner or
+          a boss, the line runs far from the wall (the tool chases it sideways, or meets its far
+          side head on and trips the protection); where a point rests on the groove's floor, the
+          tool is dragged along it.
+STRATEGY  Hybrid force/velocity contour following in the plane across the tool axis (the
+          chapter's "constant contact force normal to the edge", section 3.2, with the path
+          direction taken from the wall instead of the line):
+            - the wall direction w (from the tool towards the wall) is the measured contact force
+              across the axis, reversed and low-passed; before the first contact it is Yp of the
+              first leg (the wall side: ``wall_side``);
+            - the tool advances along the wall's tangent t = side * (w x Zp) at the learning
+              speed, slower where the force climbs (``speed_ratio``), and moves along w under PI
+              force control to the reference:
+                  v_w = Kp e + Ki integral(e),  e = F_ref - F_n,  F_n = |F across Zp|;
+              out of contact it searches along w and advances no faster than it searches, so at
+              an outside corner it turns round the wall instead of heading for the next point;
+            - the guide points give the route: the progress along the current leg (the tool's
+              projection on it) sets the tool orientation (slerp between the legs' guide
+              orientations) and the height (the leg's, along the guide points' mean tool axis),
+              and ends the leg; a force from the floor (along the axis) lifts the run until it is
+              clear of the floor by ``floor_clearance_m``.
+          The law of one period is ``contour_following.contour_law`` (compiled). The controller
+          sees only motor-side joints and the F/T reading; supervision (joint limits,
+          singularities, reach, collisions, and a cutter driven into the part) slows and stops
+          it as for any motion.
 SOLUTION  ``learn_path(...) -> Recording``: every 4 ms the time, motor-side joints, measured TCP
-          pose, sensor and tool-frame wrenches, reference force and a contact flag; the run ends at
-          the last guide point, or on the protection rule (contact force above the limit).
+          pose, sensor and tool-frame wrenches, the force normal to the edge, the reference and a
+          contact flag; the run ends at the last guide point or on a stop, whose ``LearningStop``
+          names the place (leg, position) and the cause.
 """
 
 from __future__ import annotations
@@ -25,42 +39,62 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 import pinocchio as pin
 
 from . import _kernels
 from .cell import CONTROL_PERIOD_S, Cell, CellState
+from .contour_following import (
+    EVER_TOUCHED,
+    OUT_OF_CONTACT,
+    contour_law,
+    initial_state,
+    law_parameters,
+    turn_towards,
+)
 from .errors import CancelledError, InvalidInputError, NotEnoughGuidePointsError
 from .leadthrough import GuidePoint
+from .limits import FLOOR_CLEARANCE_MM
 from .sensor import GRAVITY_M_S2, ForceEstimator
 from .supervision import Supervisor, cell_supervisor
-from .transforms import (
-    cross3,
-    matrix_from_quaternion,
-    quaternion_from_matrix,
-    quaternions_from_matrices,
-    slerp,
+from .transforms import matrix_from_quaternion, quaternion_from_matrix, quaternions_from_matrices
+from .transforms import slerp as _slerp
+from .wall_side import (
+    WALL_FORCE_CLEAR_N,
+    WALL_SIDE_CHOICES,
+    WallSideDecision,
+    WallSideSetting,
+    mean_tool_axis,
+    resolve_wall_side,
 )
 
 FORCE_RANGE_N = (1.0, 50.0)
 SPEED_RANGE_M_S = (0.0005, 0.05)
 CONTACT_FLAG_N = 1.0  # a measured contact force above this counts as contact
-LOST_WALL_M = 0.03  # protection: the tool left the program path by more than this
-# Force-dependent speed (``_speed_ratio``): full speed up to 1.25 F_ref, 10 % from 2 F_ref.
+LOST_WALL_M = 0.03  # protection: the tool searched this far without finding the wall
+ROUTE_WANDER_FRACTION = 1.0  # protection: the wall led the tool this far (x leg) off the leg
+# Force-dependent speed (``contour_following.speed_ratio``): full speed up to 1.25 F_ref,
+# 10 % from 2 F_ref.
 SLOW_FROM, SLOWEST_AT, SLOWEST = 1.25, 2.0, 0.1
 MOVE_MAX_PERIODS_FACTOR = 20  # a MoveL slowed by supervision may take this many times longer
-
-
-def _speed_ratio(f_n: float, f_ref: float) -> float:
-    """Share of the learning speed to advance at: 1 up to ``SLOW_FROM`` x F_ref, falling
-    linearly to ``SLOWEST`` at ``SLOWEST_AT`` x F_ref. Along a wall that turns steeply away
-    from the program line the tool must back off at speed x tan(angle), more than the Yp loop's
-    speed limit when learning fast; slowing where the force climbs lets it (the chapter's
-    program is likewise "slower at sharp corner")."""
-    over = (f_n / f_ref - SLOW_FROM) / (SLOWEST_AT - SLOW_FROM)
-    return min(1.0, max(SLOWEST, 1.0 - (1.0 - SLOWEST) * over))
+WALL_DIRECTION_TIME_S = 0.02  # low-pass of the measured wall direction
+# A contact force from more than 135 deg off the wall direction is the wall behind the tool.
+BEHIND_COS = math.cos(math.radians(135.0))
+FLOOR_FORCE_N = 2.0  # a push along the tool axis above this is the floor
+FLOOR_LIFT_SPEED_M_S = 0.002
+HEIGHT_TIME_S = 0.25  # the height returns to the leg's within about this
+HEIGHT_SPEED_M_S = 0.01
+PENETRATION_STOP_FRACTION = 0.5  # of the cutter radius: deeper is a collision, not a contact
+LEG_END_MARGIN_M = 0.002  # a leg ends this far before its guide point's plane
+LEG_DETOUR_FACTOR = 4.0  # a leg's wall longer than this x the leg (+ LEG_DETOUR_EXTRA_M): lost
+LEG_DETOUR_EXTRA_M = 0.05
+FIRST_SEARCH_ACROSS_M = 0.006  # the first search goes straight across this far, then also along
+SEARCH_TURN_M = 0.006  # out of contact this long after a wall, search along the leg again
+APPROACH_CLEARANCE_M = 0.03  # the approach travels this far above the first point
+CLOSE_LOOP_M = 0.001  # a closed route ends at its nearest approach within this of its start
+CLOSE_LOOP_OVERRUN_M = 0.01  # ... or this far past the first guide point's plane
+TURN_RATE_RAD_S = 0.5  # the tool's orientation follows the route's at most this fast
 
 
 @dataclass(frozen=True)
@@ -68,24 +102,29 @@ class PathLearningSettings:
     """Settings of a path-learning run (SI units).
 
     Attributes:
-        force_N: Contact force reference along Yp (the chapter: 10-20 N; 10 N on the pump).
-        speed_m_s: Learning speed along Xp (the chapter: 5 mm/s).
+        force_N: Contact force reference normal to the edge (the chapter: 10-20 N; 10 N on
+            the pump).
+        speed_m_s: Learning speed along the wall (the chapter: 5 mm/s).
         closed: The contour returns from the last guide point to the first.
-        wall_side: Side of the wall relative to the travel direction seen along -Zp; "auto"
-            reads it from the contact force recorded with the guide points.
+        wall_side: Side of the wall relative to the travel direction, looking along the tool
+            axis into the part; "auto" decides from a clear wall push at the guide points or
+            the part's mesh, and refuses otherwise (``wall_side.resolve_wall_side``).
         force_limit_N: Protection rule: the run stops when the contact force exceeds this.
-        kp_m_s_N: Proportional gain of the Yp force loop.
-        ki_m_s2_N: Integral gain of the Yp force loop.
-        max_normal_speed_m_s: Speed limit along Yp.
-        search_speed_m_s: Speed limit along Yp, and along Xp, while out of contact (searching
+        floor_clearance_m: Height kept above a floor the run meets (and above the floor under
+            a guide point, when the part's mesh is known): the machining height.
+        kp_m_s_N: Proportional gain of the force loop.
+        ki_m_s2_N: Integral gain of the force loop.
+        max_normal_speed_m_s: Speed limit of the force loop.
+        search_speed_m_s: Speed towards the wall, and along it, while out of contact (searching
             for the wall), so the tool meets it gently instead of at full speed.
     """
 
     force_N: float = 10.0
     speed_m_s: float = 0.005
     closed: bool = True
-    wall_side: Literal["auto", "left", "right"] = "auto"
+    wall_side: WallSideSetting = "auto"
     force_limit_N: float = 60.0
+    floor_clearance_m: float = 0.0005
     kp_m_s_N: float = 1.5e-3
     ki_m_s2_N: float = 0.03
     max_normal_speed_m_s: float = 0.025
@@ -103,8 +142,50 @@ class PathLearningSettings:
             )
         if self.force_limit_N <= self.force_N:
             raise InvalidInputError("the force limit must be above the force reference")
-        if self.wall_side not in ("auto", "left", "right"):
-            raise InvalidInputError("wall side must be 'auto', 'left' or 'right'")
+        if self.wall_side not in WALL_SIDE_CHOICES:
+            raise InvalidInputError(f"wall side must be one of {', '.join(WALL_SIDE_CHOICES)}")
+        FLOOR_CLEARANCE_MM.check(self.floor_clearance_m * 1e3)
+
+
+@dataclass(frozen=True)
+class LearningStop:
+    """Where and why a run ended before its last guide point.
+
+    Attributes:
+        cause: "protection", "collision", "supervision", "lost" or "timeout".
+        position_m: (3,) TCP position at the stop, base frame.
+        leg: (from, to) 1-based guide point numbers of the leg it was on.
+        after_m: Distance travelled along that leg's wall since its first guide point.
+        wall: What the wall did there ("turns 80 deg towards the tool", "straight", ...).
+    """
+
+    cause: str
+    position_m: np.ndarray
+    leg: tuple[int, int]
+    after_m: float
+    wall: str
+
+    def document(self) -> dict:
+        """JSON form (mm, base frame)."""
+        return {
+            "cause": self.cause,
+            "position_mm": [round(float(v) * 1e3, 3) for v in self.position_m],
+            "leg": list(self.leg),
+            "after_mm": round(self.after_m * 1e3, 1),
+            "wall": self.wall,
+        }
+
+    @staticmethod
+    def from_document(doc: dict | None) -> LearningStop | None:
+        if not doc:
+            return None
+        return LearningStop(
+            str(doc["cause"]),
+            np.asarray(doc["position_mm"], dtype=float) * 1e-3,
+            (int(doc["leg"][0]), int(doc["leg"][1])),
+            float(doc["after_mm"]) * 1e-3,
+            str(doc["wall"]),
+        )
 
 
 @dataclass(frozen=True)
@@ -119,13 +200,17 @@ class Recording:
         wrench_sensor: (n, 6) raw F/T reading in the sensor frame [N, N*m].
         wrench_tool: (n, 6) compensated contact wrench in the tool frame, about the TCP.
         force_normal_N: (n,) measured contact force normal to the edge, F_n (what the loop
-            regulates; see the module docstring).
+            regulates; negative when the tool is pressed from the wall's other side).
         force_reference_N: (n,) the reference.
         in_contact: (n,) contact flag (measured force above 1 N).
-        yp: (n, 3) the Yp direction in use (for post-processing).
-        segment: (n,) index of the program segment.
+        yp: (n, 3) the direction towards the wall in use.
+        segment: (n,) index of the program leg (its first guide point, 0-based).
         stop_reason: Why the run ended.
         completed: True when the run reached its last guide point.
+        stop: Where and why it stopped early (None when completed).
+        wall_side: The side of the wall the run followed ("left"/"right" of travel), "" when
+            unknown (recordings from before the side was kept).
+        wall_side_reason: What decided the side (the setting, the pushes, the mesh).
     """
 
     time_s: np.ndarray
@@ -141,6 +226,9 @@ class Recording:
     segment: np.ndarray
     stop_reason: str
     completed: bool
+    stop: LearningStop | None = None
+    wall_side: str = ""
+    wall_side_reason: str = ""
 
     def __len__(self) -> int:
         return len(self.time_s)
@@ -150,18 +238,20 @@ class Recording:
 class _Segment:
     a: np.ndarray
     b: np.ndarray
-    qa: np.ndarray
-    qb: np.ndarray
     length: float
     xp: np.ndarray
     Ra: np.ndarray  # orientation at a
     omega: np.ndarray  # rotation vector from Ra to Rb, in the frame of Ra (slerp = Ra exp(f w))
+    first: int  # 0-based guide index of a
+    last: int  # 0-based guide index of b
 
 
 def _segments(guides: Sequence[GuidePoint], closed: bool) -> list[_Segment]:
-    points = list(guides) + ([guides[0]] if closed else [])
+    n = len(guides)
+    order = list(range(n)) + ([0] if closed else [])
     segs = []
-    for g0, g1 in zip(points[:-1], points[1:], strict=True):
+    for i0, i1 in zip(order[:-1], order[1:], strict=True):
+        g0, g1 = guides[i0], guides[i1]
         a, b = g0.position_m.copy(), g1.position_m.copy()
         d = b - a
         length = float(np.linalg.norm(d))
@@ -169,39 +259,8 @@ def _segments(guides: Sequence[GuidePoint], closed: bool) -> list[_Segment]:
             continue  # coincident guide points: nothing to travel
         Ra = matrix_from_quaternion(g0.quaternion_wxyz)
         Rb = matrix_from_quaternion(g1.quaternion_wxyz)
-        segs.append(
-            _Segment(
-                a,
-                b,
-                g0.quaternion_wxyz,
-                g1.quaternion_wxyz,
-                length,
-                d / length,
-                Ra,
-                pin.log3(Ra.T @ Rb),
-            )
-        )
+        segs.append(_Segment(a, b, length, d / length, Ra, pin.log3(Ra.T @ Rb), i0, i1))
     return segs
-
-
-def _wall_side(guides: Sequence[GuidePoint], segs: list[_Segment], setting: str) -> float:
-    """+1 when the wall is on the right of travel (Yp = Zp x Xp ... seen with Zp into the part)."""
-    if setting == "right":
-        return 1.0
-    if setting == "left":
-        return -1.0
-    votes = 0.0
-    for g, seg in zip(guides, segs, strict=False):
-        zp = matrix_from_quaternion(g.quaternion_wxyz)[:, 2]
-        yp_right = cross3(zp, seg.xp)
-        # The wall pushes the tool away from itself: force . Yp < 0 when Yp points at the wall.
-        votes += -float(g.force_N @ yp_right)
-    if abs(votes) < 1e-6:
-        raise InvalidInputError(
-            "cannot tell on which side the wall is: record guide points in contact with the wall "
-            "or set wall_side to 'left' or 'right'"
-        )
-    return 1.0 if votes > 0 else -1.0
 
 
 def move_linear(
@@ -238,7 +297,7 @@ def move_linear(
         ) -> tuple[np.ndarray, np.ndarray]:
             f = min(1.0, (base + scale * step) / n)
             T = np.eye(4)
-            T[:3, :3] = matrix_from_quaternion(slerp(q0, q1, f))
+            T[:3, :3] = matrix_from_quaternion(_slerp(q0, q1, f))
             T[:3, 3] = T0[:3, 3] + f * (T_target[:3, 3] - T0[:3, 3])
             return T, robot.ik_step(q, T)
 
@@ -252,6 +311,153 @@ def move_linear(
     return state
 
 
+def move_joint(
+    cell: Cell,
+    state: CellState,
+    q_target: np.ndarray,
+    speed_rad_s: float = 0.5,
+    *,
+    supervisor: Supervisor | None = None,
+) -> CellState:
+    """Joint-interpolated move (MoveJ / MoveAbsJ) to ``q_target``, supervised like MoveL."""
+    supervisor = supervisor or cell_supervisor(cell)
+    q0 = state.q_motor.copy()
+    q1 = np.asarray(q_target, dtype=float)
+    span = float(np.max(np.abs(q1 - q0)))
+    n = max(1, int(math.ceil(span / speed_rad_s / CONTROL_PERIOD_S)))
+    robot = cell.robot
+    progress = 0.0
+    for _ in range(MOVE_MAX_PERIODS_FACTOR * n + 10):
+        if progress >= n:
+            break
+        base = progress
+        step = min(1.0, n - progress)
+
+        def propose(scale: float, base: float = base, step: float = step):
+            q = q0 + (q1 - q0) * min(1.0, (base + scale * step) / n)
+            return robot.fk(q), q
+
+        supervised = supervisor.supervise(state.q_motor, propose)
+        if supervised.stop is not None:
+            raise supervised.stop.error(state=state)
+        state = cell.step(state, supervised.q_next)
+        progress += supervised.scale * step
+    for _ in range(10):  # settle
+        state = cell.step(state, state.q_motor)
+    return state
+
+
+def _wrist_turns(robot, guides: Sequence[GuidePoint], closed: bool) -> np.ndarray:
+    """Joints to start from: the first guide point's, with axis 6 shifted by whole turns so the
+    wrist's turn round the route (the guide points solved in order, each seeded by the last)
+    stays inside axis 6's range; the recorded joints when nothing fits better."""
+    q0 = np.asarray(guides[0].joints_rad, dtype=float).copy()
+    lo, hi = robot.lower_rad[5], robot.upper_rad[5]
+    if hi - lo < 2 * math.pi + 0.5:
+        return q0
+    q6 = [q0[5]]
+    seed = q0
+    order = list(range(1, len(guides))) + ([0] if closed else [])
+    for k in order:
+        try:
+            q = robot.ik(guides[k].T_base_tcp, seed)
+        except Exception:  # noqa: BLE001 - an unreachable point is reported by the check
+            return q0
+        # the nearest equivalent of axis 6 to the last (the solver may land a turn away)
+        q[5] = seed[5] + math.remainder(q[5] - seed[5], 2 * math.pi)
+        q6.append(q[5])
+        seed = q
+    lo_need, hi_need = min(q6), max(q6)
+    margin = 0.2
+    for turns in sorted(range(-3, 4), key=abs):
+        shift = turns * 2 * math.pi
+        if lo_need + shift >= lo + margin and hi_need + shift <= hi - margin:
+            q0[5] += shift
+            return q0
+    return q0
+
+
+def _approach(
+    cell: Cell,
+    state: CellState,
+    guides: Sequence[GuidePoint],
+    start: np.ndarray,
+    axis: np.ndarray,
+    closed: bool,
+    supervisor: Supervisor,
+) -> CellState:
+    """To the first guide point: up out of the part, across above the start in the first
+    point's arm configuration (axis 6 unwound for the route), and down to the start."""
+    robot = cell.robot
+    R0 = guides[0].T_base_tcp[:3, :3]
+    p_now = state.T_base_tcp[:3, 3]
+    above = start - axis * APPROACH_CLEARANCE_M
+    if float((p_now - above) @ axis) > 0.0:  # below the approach plane: straight up first
+        T_up = state.T_base_tcp.copy()
+        T_up[:3, 3] = p_now - axis * float((p_now - above) @ axis)
+        state = move_linear(cell, state, T_up, supervisor=supervisor)
+    T_above = np.eye(4)
+    T_above[:3, :3] = R0
+    T_above[:3, 3] = above
+    q_start = _wrist_turns(robot, guides, closed)
+    try:
+        q_above = robot.ik(T_above, q_start)
+    except Exception:  # noqa: BLE001 - fall back to a straight move from where the arm is
+        q_above = None
+    if q_above is not None and float(np.max(np.abs(q_above - q_start))) < 1.0:
+        state = move_joint(cell, state, q_above, supervisor=supervisor)
+    else:
+        state = move_linear(cell, state, T_above, supervisor=supervisor)
+    T_start = T_above.copy()
+    T_start[:3, 3] = start
+    return move_linear(cell, state, T_start, 0.01, supervisor=supervisor)
+
+
+def _wall_turn(
+    yps: np.ndarray, positions: np.ndarray, n: int, side: float, axis: np.ndarray
+) -> str:
+    """What the wall did over the last ~5 mm before sample ``n``: its turn towards the tool."""
+    if n < 2:
+        return "no wall found yet"
+    steps = np.linalg.norm(np.diff(positions[max(0, n - 3000) : n], axis=0), axis=1)
+    back = np.cumsum(steps[::-1])
+    k = int(np.searchsorted(back, 0.005))
+    i0 = max(0, n - 1 - k - 1)
+    w0, w1 = yps[i0], yps[n - 1]
+    turn = math.degrees(math.atan2(float(np.cross(w0, w1) @ axis) * side, float(w0 @ w1)))
+    if abs(turn) < 15.0:
+        return "a straight stretch of wall"
+    if turn > 0:
+        return f"the wall turns {abs(turn):.0f} deg away from the tool (an outside corner)"
+    return f"the wall turns {abs(turn):.0f} deg towards the tool (an inside corner or a boss)"
+
+
+def contour_law_parameters(settings: PathLearningSettings) -> np.ndarray:
+    """The parameter vector of ``contour_following.contour_law`` for these settings."""
+    return law_parameters(
+        force_N=settings.force_N,
+        kp_m_s_N=settings.kp_m_s_N,
+        ki_m_s2_N=settings.ki_m_s2_N,
+        max_normal_speed_m_s=settings.max_normal_speed_m_s,
+        search_speed_m_s=settings.search_speed_m_s,
+        speed_m_s=settings.speed_m_s,
+        beta=min(1.0, CONTROL_PERIOD_S / WALL_DIRECTION_TIME_S),
+        dt_s=CONTROL_PERIOD_S,
+        floor_force_N=FLOOR_FORCE_N,
+        floor_lift_speed_m_s=FLOOR_LIFT_SPEED_M_S,
+        floor_clearance_m=settings.floor_clearance_m,
+        height_time_s=HEIGHT_TIME_S,
+        height_speed_m_s=HEIGHT_SPEED_M_S,
+        behind_cos=BEHIND_COS,
+        contact_flag_N=CONTACT_FLAG_N,
+        first_search_across_m=FIRST_SEARCH_ACROSS_M,
+        search_turn_m=SEARCH_TURN_M,
+        slow_from=SLOW_FROM,
+        slowest_at=SLOWEST_AT,
+        slowest=SLOWEST,
+    )
+
+
 def learn_path(
     cell: Cell,
     state: CellState,
@@ -261,23 +467,32 @@ def learn_path(
     *,
     progress: Callable[[float], None] | None = None,
     cancelled: Callable[[], bool] | None = None,
-    approach_height_m: float = 0.010,
     supervisor: Supervisor | None = None,
+    wall_side: WallSideDecision | None = None,
+    start_towards_wall: np.ndarray | None = None,
 ) -> tuple[Recording, CellState]:
-    """Run the test program through ``guides`` under Yp force control and record it.
+    """Follow the wall along the route through ``guides`` and record it (module docstring).
 
-    The robot first moves (position control) above the first guide point, down beside it, a
-    little away from the wall, then the force-controlled run starts and is recorded.
+    The robot first moves above the first guide point in that point's arm configuration, then
+    down to it; the force-controlled run starts there and is recorded.
 
     Supervision (joint limits, singularities, reach, collisions) slows the run near a limit;
     a step that would cross one ends the run there, like the protection rule, with the cause
-    in ``stop_reason``.
+    in ``stop_reason`` and the place in ``stop``.
+
+    Args:
+        wall_side: The side already decided (with the part's mesh, ``resolve_wall_side``);
+            default: ``settings.wall_side``, "auto" deciding from the guide points' forces.
+        start_towards_wall: (3,) direction from the first guide point to the wall it was taught
+            on (from the part's mesh, ``learning_route``); default: the force recorded there
+            when it is a push, else across the first leg on the wall's side.
 
     Returns:
         The recording and the cell state at its end.
 
     Raises:
         NotEnoughGuidePointsError: fewer than two (distinct) guide points.
+        WallSideError: "auto" and the guide points do not tell the side.
         CancelledError: ``cancelled()`` returned True.
         SupervisionError: the approach to the first guide point crosses a limit.
     """
@@ -288,32 +503,19 @@ def learn_path(
     segs = _segments(guides, settings.closed)
     if not segs:
         raise NotEnoughGuidePointsError("the guide points coincide; record distinct points")
-    side = _wall_side(guides, segs, settings.wall_side)
+    decision = wall_side or resolve_wall_side(guides, settings.wall_side, closed=settings.closed)
+    side = decision.sign
     robot = cell.robot
     dt = CONTROL_PERIOD_S
     supervisor = supervisor or cell_supervisor(cell)
+    axis = mean_tool_axis(guides)  # Zp: the height axis, into the part
+    ax, ay, az = (float(v) for v in axis)
 
-    def frame(seg: _Segment, fraction: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(R, Yp, Zp) of the path frame at ``fraction`` of a segment."""
-        T, yp, zp = _kernels.path_reference(
-            seg.Ra, seg.omega, fraction, seg.a, seg.xp, side, 0.0, 0.0, 0.0
-        )
-        return T[:3, :3], yp, zp
+    state = _approach(cell, state, guides, segs[0].a, axis, settings.closed, supervisor=supervisor)
 
-    # Approach: above the first guide point, then down to it, 1.5 mm away from the wall.
-    R0, yp0, _ = frame(segs[0], 0.0)
-    start = segs[0].a - 0.0015 * yp0
-    above = np.eye(4)
-    above[:3, :3] = R0
-    above[:3, 3] = start - R0[:, 2] * approach_height_m
-    state = move_linear(cell, state, above, supervisor=supervisor)
-    at_start = above.copy()
-    at_start[:3, 3] = start
-    state = move_linear(cell, state, at_start, 0.01, supervisor=supervisor)
-
-    # Room for the run at the speed it may fall to out of contact (the search speed).
+    # Room for the run at the speed it may fall to (the slowest advance near the force limit).
     slowest = min(settings.speed_m_s, settings.search_speed_m_s)
-    n_max = int(sum(s.length for s in segs) / slowest / dt * 1.6) + 2000
+    n_max = int(sum(s.length for s in segs) / slowest / dt * 2.0) + 4000
     cols = {
         "time_s": np.empty(n_max),
         "joints_rad": np.empty((n_max, 6)),
@@ -326,24 +528,6 @@ def learn_path(
         "yp": np.empty((n_max, 3)),
         "segment": np.empty(n_max, dtype=np.int32),
     }
-    seg_index = 0
-    seg = segs[0]
-    rel = state.T_base_tcp[:3, 3] - seg.a
-    s = float(rel @ seg.xp)
-    R, yp, zp = frame(seg, s / seg.length)
-    y = float(rel @ yp)
-    h = float(rel @ zp)
-    integral = 0.0
-    t0 = state.time_s
-    stop_reason = "reached the last guide point"
-    completed = False
-    n = 0
-    report_every = max(1, int(1.0 / dt))
-    total = len(segs)
-    vmax = settings.max_normal_speed_m_s
-    weight = estimator.mass_kg * GRAVITY_M_S2
-    com, tcp, bias = estimator.com_m, estimator.tcp_m, estimator.bias
-    lower, upper = robot.lower_rad, robot.upper_rad
     times, joints, positions = cols["time_s"], cols["joints_rad"], cols["position_m"]
     rotations, sensor, tool = cols["rotation"], cols["wrench_sensor"], cols["wrench_tool"]
     normal, contact, yps, segment = (
@@ -352,32 +536,69 @@ def learn_path(
         cols["yp"],
         cols["segment"],
     )
-    kp, ki, speed, f_ref = (
-        settings.kp_m_s_N,
-        settings.ki_m_s2_N,
-        settings.speed_m_s,
-        settings.force_N,
-    )
-    search = settings.search_speed_m_s
+    seg_index = 0
+    seg = segs[0]
+    total = len(segs)
+
+    def leg_frame(seg: _Segment, p: np.ndarray) -> tuple[float, np.ndarray]:
+        """Progress along the leg, and the reference orientation there."""
+        s = float((p - seg.a) @ seg.xp)
+        f = min(max(s / seg.length, 0.0), 1.0)
+        return s, seg.Ra @ _kernels.exp3(seg.omega * f)
+
+    def leg_height(seg: _Segment, s: float) -> float:
+        """Height of the leg at progress ``s`` along the axis (into the part)."""
+        s = min(max(s, 0.0), seg.length)
+        return float((seg.a + s * seg.xp) @ axis)
+
+    def across(v: np.ndarray) -> np.ndarray:
+        return v - axis * float(v @ axis)
+
+    p_ref = state.T_base_tcp[:3, 3].copy()
+    R_ref = state.T_base_tcp[:3, :3].copy()
+    turn_step = TURN_RATE_RAD_S * dt
+    w = across(np.cross(axis, seg.xp) * side)
+    pushed = across(-np.asarray(guides[0].force_N, dtype=float))
+    if start_towards_wall is not None:
+        w = across(np.asarray(start_towards_wall, dtype=float))
+    elif float(np.linalg.norm(pushed)) >= WALL_FORCE_CLEAR_N and float(pushed @ w) > 0.0:
+        w = pushed
+    w /= float(np.linalg.norm(w))
+    ever_touched = False
+    first_touch = p_ref.copy()
+    closing_best = math.inf  # closed route: the nearest the last leg came to the first touch
+    law = initial_state()
+    leg_travel = 0.0
+    t0 = state.time_s
+    stop_reason = "reached the last guide point"
+    stop_cause = ""
+    completed = False
+    n = 0
+    report_every = max(1, int(1.0 / dt))
+    weight = estimator.mass_kg * GRAVITY_M_S2
+    com, tcp, bias = estimator.com_m, estimator.tcp_m, estimator.bias
+    lower, upper = robot.lower_rad, robot.upper_rad
+    penetration_stop = PENETRATION_STOP_FRACTION * cell.tool.radius_m
+    params = contour_law_parameters(settings)
     while True:
         if n >= n_max:
             stop_reason = "stopped: the run took far longer than the program predicts"
+            stop_cause = "timeout"
             break
-        # --- measure (controller side: motor-side pose and the F/T reading) ---
+        # --- measure (controller side: motor-side pose and the F/T reading); the law ---
         T_meas = state.T_base_tcp
         R_meas = T_meas[:3, :3]
         w_base = _kernels.contact_wrench_tcp_base(
             state.ft_reading, cell.flange_rotation(T_meas), weight, com, tcp, bias
         )
-        fx, fy, fz = w_base[0], w_base[1], w_base[2]
-        f_y = -(fx * yp[0] + fy * yp[1] + fz * yp[2])
+        fx, fy, fz = float(w_base[0]), float(w_base[1]), float(w_base[2])
         f_abs = math.sqrt(fx * fx + fy * fy + fz * fz)
-        f_z = fx * zp[0] + fy * zp[1] + fz * zp[2]
-        # The force normal to the edge: the contact force across the tool axis. Where the wall
-        # is at an angle theta to the program line (a boss between two guide points) its Yp
-        # part is only cos(theta) of it, and holding that part at F_ref pressed with
-        # F_ref / cos(theta): 58 N at 20 N on the water pump's bosses, tripping the protection.
-        f_n = math.sqrt(max(f_abs * f_abs - f_z * f_z, 0.0)) if f_y > 0.0 else f_y
+        step, w, law, f_n, touching = contour_law(
+            w_base[:3], w, axis, side, seg.a, seg.xp, seg.length, p_ref, law, params
+        )
+        if touching and not ever_touched and law[EVER_TOUCHED] > 0.0:
+            first_touch = T_meas[:3, 3].copy()
+        ever_touched = law[EVER_TOUCHED] > 0.0
         # --- record ---
         times[n] = state.time_s - t0
         joints[n] = state.q_motor
@@ -388,90 +609,116 @@ def learn_path(
         tool[n, 3:] = R_meas.T @ w_base[3:]
         normal[n] = f_n
         contact[n] = f_abs > CONTACT_FLAG_N
-        yps[n] = yp
-        segment[n] = seg_index
+        yps[n] = w
+        segment[n] = seg.first
         n += 1
         if f_abs > settings.force_limit_N:
+            stop_cause = "protection"
             stop_reason = (
                 f"protection: contact force {f_abs:.1f} N exceeded the "
-                f"{settings.force_limit_N:g} N limit at t = {state.time_s - t0:.2f} s"
+                f"{settings.force_limit_N:g} N limit"
             )
             break
-        if abs(y) > LOST_WALL_M:
+        if state.contact.depth_m > penetration_stop:
+            stop_cause = "collision"
             stop_reason = (
-                f"protection: the tool moved {abs(y) * 1e3:.0f} mm off the program path without "
+                f"collision: the cutter went {state.contact.depth_m * 1e3:.2f} mm into the part "
+                f"(more than {PENETRATION_STOP_FRACTION:g} of its radius)"
+            )
+            break
+        if law[OUT_OF_CONTACT] > LOST_WALL_M:
+            stop_cause = "lost"
+            stop_reason = (
+                f"protection: the tool searched {law[OUT_OF_CONTACT] * 1e3:.0f} mm without "
                 "finding the wall"
             )
             break
-        # --- force control along Yp, position along Xp and Zp ---
-        e = f_ref - f_n
-        limit = vmax if f_abs > CONTACT_FLAG_N else search
-        integral = min(max(integral + ki * e * dt, -limit), limit)
-        v_y = min(max(kp * e + integral, -vmax), limit)
-        s_base, y_base, h_base = s, y, h
-        y += v_y * dt
-        # Out of contact the tool advances no faster than it searches sideways: racing blind
-        # along the program line at 20-50 mm/s it met the bosses head-on (60-120 N).
-        advance = speed if f_abs > CONTACT_FLAG_N else min(speed, search)
-        s += advance * _speed_ratio(f_n, f_ref) * dt
-        h *= 0.99  # fade any height offset left by a segment change (~1 s)
-        if s >= seg.length:
-            if seg_index + 1 >= total:
-                completed = True
-                break
-            p_ref = seg.a + s * seg.xp + y * yp + h * zp
-            seg_index += 1
-            seg = segs[seg_index]
-            rel = p_ref - seg.a
-            s = float(rel @ seg.xp)
-            _, yp, zp = frame(seg, s / seg.length)
-            y = float(rel @ yp)
-            h = float(rel @ zp)
-            s_base, y_base, h_base = s, y, h  # a new segment's first period is not scaled
-        # --- supervision: slow near a limit (scale this period's motion), stop before it ---
+        rel = p_ref - seg.a
+        along = float(rel @ seg.xp)
+        off_route = math.sqrt(max(float(rel @ rel) - along * along, 0.0))
+        if off_route > max(LOST_WALL_M, ROUTE_WANDER_FRACTION * seg.length):
+            stop_cause = "lost"
+            stop_reason = (
+                f"protection: the wall led the tool {off_route * 1e3:.0f} mm off the leg's "
+                "route: a guide point may be on another wall"
+            )
+            break
+        if leg_travel > LEG_DETOUR_FACTOR * seg.length + LEG_DETOUR_EXTRA_M:
+            stop_cause = "lost"
+            stop_reason = (
+                f"protection: the wall of this leg ran {leg_travel * 1e3:.0f} mm, far longer "
+                f"than the {seg.length * 1e3:.0f} mm leg: a guide point may be on another wall"
+            )
+            break
+        # The orientation moves towards the route's at the next position, no faster than
+        # TURN_RATE_RAD_S (no jump where one leg hands over to the next).
+        turn = turn_towards(
+            R_ref, seg.Ra, seg.omega, seg.a, seg.xp, seg.length, p_ref + step, turn_step
+        )
         q_now = state.q_motor
 
         def propose(
             scale: float,
-            seg: _Segment = seg,
-            sb: float = s_base,
-            yb: float = y_base,
-            hb: float = h_base,
-            s1: float = s,
-            y1: float = y,
-            h1: float = h,
+            step: np.ndarray = step,
+            turn: np.ndarray = turn,
             q_now: np.ndarray = q_now,
+            p0: np.ndarray = p_ref,
+            R0: np.ndarray = R_ref,
         ) -> tuple[np.ndarray, np.ndarray]:
-            ss, yy, hh = (
-                (s1, y1, h1)
-                if scale >= 1.0
-                else (sb + scale * (s1 - sb), yb + scale * (y1 - yb), hb + scale * (h1 - hb))
-            )
-            T_ref, _, _ = _kernels.path_reference(
-                seg.Ra, seg.omega, ss / seg.length, seg.a, seg.xp, side, ss, yy, hh
-            )
+            T_ref = np.eye(4)
+            T_ref[:3, :3] = R0 @ _kernels.exp3(turn * scale)
+            T_ref[:3, 3] = p0 + step * scale
             T_now, J = robot.fk_and_jacobian(q_now)
             return T_ref, _kernels.ik_newton_step(q_now, T_now, J, T_ref, lower, upper, 1e-4)
 
         supervised = supervisor.supervise(q_now, propose)
         if supervised.stop is not None:
+            stop_cause = "supervision"
             stop_reason = f"supervision: {supervised.stop.message}"
             break
-        if supervised.scale < 1.0:
-            s = s_base + supervised.scale * (s - s_base)
-            y = y_base + supervised.scale * (y - y_base)
-            h = h_base + supervised.scale * (h - h_base)
-        _, yp, zp = _kernels.path_reference(
-            seg.Ra, seg.omega, s / seg.length, seg.a, seg.xp, side, s, y, h
-        )
+        p_ref = p_ref + step * supervised.scale
+        R_ref = supervised.T_ref[:3, :3].copy()
+        leg_travel += math.sqrt(float(step @ step)) * supervised.scale
         state = cell.step(state, supervised.q_next)
+        s_now = float((p_ref - seg.a) @ seg.xp)
+        if seg_index + 1 >= total and settings.closed and ever_touched:
+            # The loop closes where it first met the wall: past the last leg's half, finish at
+            # the nearest approach to that point (no chord across the start).
+            if s_now >= 0.5 * seg.length:
+                gap = across(p_ref - first_touch)
+                d = math.sqrt(float(gap @ gap))
+                if d < CLOSE_LOOP_M and d > closing_best:
+                    completed = True
+                    break
+                closing_best = min(closing_best, d)
+            if s_now >= seg.length + CLOSE_LOOP_OVERRUN_M:
+                completed = True  # the wall did not come back within reach of the start
+                break
+        elif seg_index + 1 >= total:
+            if s_now >= seg.length:  # an open route ends at its last point's plane, not before
+                completed = True
+                break
+        elif s_now >= seg.length - min(LEG_END_MARGIN_M, 0.25 * seg.length):
+            seg_index += 1
+            seg = segs[seg_index]
+            leg_travel = 0.0
         if n % report_every == 0:
             if cancelled is not None and cancelled():
                 raise CancelledError("path learning was cancelled")
             if progress is not None:
-                progress(min(1.0, (seg_index + s / seg.length) / total))
+                progress(min(1.0, (seg_index + max(0.0, s_now) / seg.length) / total))
     if progress is not None:
         progress(1.0)
+    stop = None
+    if not completed:
+        p_stop = positions[n - 1].copy() if n else state.T_base_tcp[:3, 3].copy()
+        leg = (seg.first + 1, seg.last + 1)
+        wall = _wall_turn(yps, positions, n, side, axis)
+        stop = LearningStop(stop_cause or "stopped", p_stop, leg, leg_travel, wall)
+        stop_reason = (
+            f"{stop_reason} at t = {times[n - 1] if n else 0.0:.2f} s, "
+            f"{leg_travel * 1e3:.0f} mm along the leg G{leg[0]} -> G{leg[1]}, where {wall}"
+        )
     rotations = cols.pop("rotation")[:n]
     rec = Recording(
         **{k: v[:n].copy() for k, v in cols.items()},
@@ -479,5 +726,8 @@ def learn_path(
         force_reference_N=np.full(n, settings.force_N),
         stop_reason=stop_reason,
         completed=completed,
+        stop=stop,
+        wall_side=decision.side,
+        wall_side_reason=decision.detail,
     )
     return rec, state

@@ -18,7 +18,8 @@ import numpy as np
 from .cell import CONTROL_PERIOD_S, Cell, CellConfig
 from .demo_operator import intents_from_csv, scripted_leadthrough
 from .errors import InvalidInputError, MeshFileError
-from .export.program import ReachabilityReport, check_reachability
+from .export.languages import language
+from .export.program import ReachabilityReport, check_program_reachability
 from .leadthrough import GuidePoint, LeadThrough
 from .path_learning import PathLearningSettings, Recording
 from .postprocess import PostprocessResult, PostprocessSettings, Targets
@@ -29,6 +30,7 @@ from .project import (
     learn,
     process,
     program_files,
+    program_languages,
     program_targets,
 )
 from .project import compensate_program_targets as _compensate
@@ -70,8 +72,8 @@ class DemoSettings:
             modes each target is corrected for the contact wrench learned at it.
         closed: Learn a closed contour (back to the first guide point); False for an open
             one (a groove, an edge that ends).
-        language: Program language (``project.PROGRAM_LANGUAGE_CHOICES``): ``"auto"`` follows
-            the arm; program.mod is always written, program.script when URScript.
+        language: Program language (``export.languages.language_choices``): ``"auto"``
+            writes every language the arm's controller is offered (``project.program_files``).
         robot_urdf: (filename, bytes) of a user's 6-axis URDF (``robots.custom``); ``robot``
             is then its registered name.
         propose_at_m: (3,) a point on the wall to follow, work-object frame [m]: the guide
@@ -161,6 +163,9 @@ class DemoResult:
             "robtargets_total": self.reachability.total,
             "stop_reason": rec.stop_reason,
             "completed": rec.completed,
+            "stop": None if rec.stop is None else rec.stop.document(),
+            "wall_side": rec.wall_side,
+            "wall_side_reason": rec.wall_side_reason,
             "leadthrough_sim_time_s": self.leadthrough_sim_s,
             "sim_time_s": sim_s,
             "wall_time_s": self.wall_time_s,
@@ -177,9 +182,13 @@ class DemoResult:
             from .project import result_extras
 
             out |= result_extras(self.project.processed)
-            out["program_language"] = "urscript" if "program.script" in self.files else "rapid"
-            out["closed"] = self.project.learned.settings.closed
-            out["wall_side"] = self.project.learned.settings.wall_side
+            from .robot import program_language
+
+            out["program_language"] = program_language(self.settings.robot)
+            out["program_files"] = [
+                name for name in self.files if name.startswith(("program.", "program_fc."))
+            ]
+            out["closed"] = self.settings.closed
         if self.proposal is not None:
             from .guide_proposal import proposal_summary
 
@@ -213,9 +222,12 @@ def load_workpiece(name_or_path: str) -> tuple[CellSettings, tuple[str, bytes] |
 
 
 def default_robot(language: str = "auto") -> str:
-    """The arm a job gets when none is named: an ABB IRB 4400 (the chapter's) when the program
-    asked for is RAPID, else the UR10 (the CLI's default since the start)."""
-    return "irb4400" if language == "rapid" else "ur10"
+    """The arm a job gets when none is named: the language's own arm (``ProgramLanguage.
+    default_arm``: an ABB IRB 4400, the chapter's, for RAPID; a KUKA KR 270 for KRL), else the
+    UR10 (the CLI's default since the start)."""
+    from .export.languages import default_arm
+
+    return default_arm(language)
 
 
 def demo_project(settings: DemoSettings) -> Project:
@@ -295,13 +307,21 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
     )
     learning_wall = time.perf_counter() - t_learn
     report("post-processing", 0.0)
-    processed = process(learned, project.post_settings, workpiece, project.cell.tool_radius_m)
+    processed = process(
+        learned,
+        project.post_settings,
+        workpiece,
+        project.cell.tool_radius_m,
+        guides=project.guide_points,
+    )
     project = replace(project, learned=learned, processed=processed)
     report("post-processing", 1.0)
     report("export", 0.0)
     files = program_files(project, workpiece, cell.robot, language=settings.language)
     targets, _ = program_targets(project, cell.robot)
-    reach = check_reachability(files["program.mod"], cell.robot, workpiece, targets.joints_rad[0])
+    main = program_languages(cell.robot, settings.language)[0]
+    reach = check_program_reachability(files, main, cell.robot, workpiece, targets.joints_rad[0])
+    main_files = language(main).file_names()
     report("export", 1.0)
     return DemoResult(
         settings=settings,
@@ -310,8 +330,10 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         recording=learned.recording,
         processed=processed.result,
         score=processed.score,
-        module_text=files["program.mod"],
-        module_text_fc=files["program_fc.mod"] if settings.force_control_variant else None,
+        module_text=files[main_files[0]],
+        module_text_fc=files.get(language(main).file_names(force_control=True)[0])
+        if settings.force_control_variant
+        else None,
         reachability=reach,
         leadthrough_sim_s=float(state.cell.time_s),
         learning_wall_s=learning_wall,

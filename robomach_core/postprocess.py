@@ -304,14 +304,11 @@ def postprocess(
 
     Args:
         recording: A ``path_learning.Recording``.
-        guide_quaternions_wxyz: (g, 4) orientations of the guide points, in order; target
-            orientations are interpolated from them along the program segments (the chapter: the
-            guide points' orientation "will be kept in the final program").
+        guide_quaternions_wxyz: (g, 4) orientations of the guide points, in order (the run
+            interpolated its orientation from them; each target keeps the run's at its sample).
         settings: Thresholds, tolerance and speeds.
         closed: Whether the program's last segment returns to the first guide point.
     """
-    from .transforms import slerp
-
     rec = recording
     mask = force_threshold_mask(rec.force_normal_N, settings.force_min_N, settings.force_max_N)
     if mask.sum() < 2:
@@ -333,27 +330,10 @@ def postprocess(
         speed_min_m_s=settings.speed_min_m_s,
         curvature_ref_1_m=settings.curvature_ref_1_m,
     )
-    # Orientation: slerp between the segment's guide points by the fraction travelled.
-    gq = np.asarray(guide_quaternions_wxyz, dtype=float)
-    n_guides = len(gq)
-    # First and last sample of every segment (the recording visits segments in order).
-    segments = np.asarray(rec.segment)
-    seg_first = {
-        int(v): int(i) for v, i in zip(*np.unique(segments, return_index=True), strict=True)
-    }
-    seg_last = {
-        int(v): len(segments) - 1 - int(i)
-        for v, i in zip(*np.unique(segments[::-1], return_index=True), strict=True)
-    }
-    quats = np.empty((len(idx), 4))
-    for k, i in enumerate(idx):
-        seg = int(segments[i])
-        first, last = seg_first[seg], seg_last[seg]
-        span = max(1, last - first)
-        fraction = (i - first) / span
-        q0 = gq[seg % n_guides]
-        q1 = gq[(seg + 1) % n_guides] if (closed or seg + 1 < n_guides) else gq[seg % n_guides]
-        quats[k] = slerp(q0, q1, fraction)
+    # Orientation: the one the run held at the target's sample, which is the guide points'
+    # interpolated along the route (the chapter: their orientation "will be kept in the final
+    # program"), turned no faster than the arm could; the joints recorded there reach it.
+    quats = np.asarray(rec.quaternion_wxyz, dtype=float)[idx].copy()
     targets = Targets(
         position_m=surface[idx],
         quaternion_wxyz=quats,

@@ -1,4 +1,4 @@
-"""The robot arm: pinocchio kinematics of a UR arm (example-robot-data) or an ABB arm, with a TCP.
+"""The robot arm: pinocchio kinematics of a UR (example-robot-data), ABB or KUKA arm, with a TCP.
 
 PROBLEM   The controller needs FK, the TCP Jacobian and an inverse kinematics that never leaves
           the joint limits, and users need a clear word when a pose cannot be reached.
@@ -15,17 +15,18 @@ import importlib.metadata
 import threading
 from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import Literal
 
 import numpy as np
 import pinocchio as pin
 
 from . import _kernels
 from .errors import SingularConfigurationError, UnknownNameError, UnreachableTargetError
-from .robots import abb, custom
+from .robots import builtin, custom
+from .robots.builtin import GENERATED_ARMS, JointCoupling
 from .transforms import pose_error
 
-ProgramLanguage = Literal["rapid", "urscript"]
+# A program language's name (``export.languages``: "rapid", "urscript", "krl", ...).
+ProgramLanguage = str
 
 _UR_URDFS: dict[str, str] = {
     "ur10": "ur_description/urdf/ur10_robot.urdf",
@@ -37,16 +38,16 @@ _UR_URDFS: dict[str, str] = {
 class _RobotUrdfs(Mapping):
     """Robot name -> URDF path, relative to ``robots_directory()`` for example-robot-data's arms.
 
-    The ABB arms' URDFs are generated from ``robots.abb`` and written into a cache folder when
-    first looked up; their value is that absolute path, so ``robots_directory() / value`` is
-    the file for every arm.
+    The ABB and KUKA arms' URDFs are generated (``robots.builtin``) and written into a cache
+    folder when first looked up; their value is that absolute path, so
+    ``robots_directory() / value`` is the file for every arm.
     """
 
     def __getitem__(self, name: str) -> str:
         if name in _UR_URDFS:
             return _UR_URDFS[name]
-        if name in abb.ABB_ARMS:
-            return str(abb.urdf_path(name))
+        if name in GENERATED_ARMS:
+            return str(builtin.generated_urdf_path(name))
         if isinstance(name, str) and custom.is_custom(name):
             return str(custom.urdf_file(name))  # a user's file (robots.custom), cached
         raise KeyError(name)
@@ -54,34 +55,41 @@ class _RobotUrdfs(Mapping):
     def __contains__(self, name: object) -> bool:  # no file is written to answer this
         return (
             name in _UR_URDFS
-            or name in abb.ABB_ARMS
+            or name in GENERATED_ARMS
             or (isinstance(name, str) and custom.is_custom(name))
         )
 
     def __iter__(self) -> Iterator[str]:
-        return iter([*_UR_URDFS, *abb.ABB_ARMS])
+        return iter([*_UR_URDFS, *GENERATED_ARMS])
 
     def __len__(self) -> int:
-        return len(_UR_URDFS) + len(abb.ABB_ARMS)
+        return len(_UR_URDFS) + len(GENERATED_ARMS)
 
 
 ROBOT_URDFS: Mapping[str, str] = _RobotUrdfs()
-# The built-in arms, for every robot choice (CLI, API schema, GUIs): UR arms, then ABB arms.
-ROBOT_NAMES: tuple[str, ...] = (*_UR_URDFS, *abb.ABB_ARMS)
+# The built-in arms, for every robot choice (CLI, API schema, GUIs): UR, ABB, then KUKA arms.
+ROBOT_NAMES: tuple[str, ...] = (*_UR_URDFS, *GENERATED_ARMS)
+# Whose controller each arm has (``robots.builtin.ARM_FAMILIES``); uploaded arms register too.
+ROBOT_FAMILY: dict[str, str] = {**dict.fromkeys(_UR_URDFS, "ur"), **builtin.ARM_FAMILY}
+# The language a family's controller runs natively (``export.languages`` lists every language
+# and the families it serves).
+FAMILY_LANGUAGE: dict[str, ProgramLanguage] = {"ur": "urscript", "abb": "rapid", "kuka": "krl"}
 # The language of the programs each arm's controller runs.
 ROBOT_PROGRAM_LANGUAGE: dict[str, ProgramLanguage] = {
-    **dict.fromkeys(_UR_URDFS, "urscript"),
-    **dict.fromkeys(abb.ABB_ARMS, "rapid"),
+    name: FAMILY_LANGUAGE[family] for name, family in ROBOT_FAMILY.items()
 }
 FLANGE_FRAME = "tool0"
 # A home pose with the tool pointing down above the table in front of the robot (UR arms).
 HOME_JOINTS_RAD = np.array([0.0, -1.7, 1.9, -1.77, -1.5708, 0.0])
 # Home poses per arm: tool pointing down, above the built-in workpiece's placement
-# (``workpiece.default_T_base_wobj``). The ABB ones are in ABB's axis zeros and directions.
+# (``workpiece.default_T_base_wobj``), in the controller's axis zeros and directions (ABB's;
+# KUKA's A1-A6).
 ROBOT_HOME_JOINTS_RAD: dict[str, np.ndarray] = {
     **dict.fromkeys(_UR_URDFS, HOME_JOINTS_RAD),
     "irb4400": np.radians([0.0, 22.0, 19.0, 0.0, 49.0, -90.0]),
+    "irb2400": np.radians([0.0, 4.1, 30.2, 0.0, 55.8, -90.0]),
     "irb6640": np.radians([0.0, 0.0, 41.0, 0.0, 49.0, -90.0]),
+    "kr270": np.radians([0.0, -69.4, 96.9, 0.0, 62.5, 90.0]),
 }
 # Below this smallest singular value of the 6x6 TCP Jacobian the arm is called singular.
 SINGULAR_VALUE_MIN = 1e-3
@@ -104,7 +112,8 @@ def robot_urdf_path(name: str) -> Path:
 
 
 def program_language(name: str) -> ProgramLanguage:
-    """``"rapid"`` for an ABB arm, ``"urscript"`` for a UR arm."""
+    """The language the arm's controller runs: ``"rapid"`` (ABB), ``"urscript"`` (UR),
+    ``"krl"`` (KUKA)."""
     try:
         return ROBOT_PROGRAM_LANGUAGE[name.lower()]
     except KeyError:
@@ -117,8 +126,9 @@ class Robot:
     """A 6-axis arm with a TCP frame; holds one pinocchio Model and its Data buffers.
 
     Args:
-        name: ``"ur10"`` (default), ``"ur5"``, ``"ur3"`` (example-robot-data) or an ABB arm
-            (``"irb4400"``, ``"irb6640"``, built by ``robots.abb``).
+        name: ``"ur10"`` (default), ``"ur5"``, ``"ur3"`` (example-robot-data), an ABB arm
+            (``"irb4400"``, ``"irb2400"``, ``"irb6640"``, built by ``robots.abb``), a KUKA arm
+            (``"kr270"``, ``robots.kuka``) or a registered user arm (``robots.custom``).
         T_flange_tcp: 4x4 TCP pose in the flange frame (metres).
     """
 
@@ -129,14 +139,17 @@ class Robot:
                 f"unknown robot {name!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
             )
         self.name = key
-        if key in abb.ABB_ARMS:
-            self.model = pin.buildModelFromXML(abb.urdf_text(abb.ABB_ARMS[key]))
+        if key in GENERATED_ARMS:
+            self.model = pin.buildModelFromXML(builtin.generated_urdf_text(key))
         elif custom.is_custom(key):
             self.model = pin.buildModelFromXML(custom.urdf_text(key))
         else:
             self.model = pin.buildModelFromUrdf(str(robots_directory() / ROBOT_URDFS[key]))
         self.home_rad = ROBOT_HOME_JOINTS_RAD[key].copy()
         self.program_language: ProgramLanguage = ROBOT_PROGRAM_LANGUAGE[key]
+        self.family: str = ROBOT_FAMILY.get(key, "abb")
+        # Limits on combinations of joints (a parallel-bar arm's axis 3 from the horizontal).
+        self.couplings: tuple[JointCoupling, ...] = builtin.joint_couplings(key)
         flange_id = self.model.getFrameId(FLANGE_FRAME)
         flange = self.model.frames[flange_id]
         T = np.eye(4) if T_flange_tcp is None else np.asarray(T_flange_tcp, dtype=float)
@@ -175,8 +188,20 @@ class Robot:
         return self.model.nq
 
     def within_limits(self, q: np.ndarray) -> bool:
-        """True when every joint is inside its limits."""
-        return bool(np.all(q >= self.lower_rad - 1e-9) and np.all(q <= self.upper_rad + 1e-9))
+        """True when every joint is inside its limits, and every combined limit holds."""
+        inside = bool(np.all(q >= self.lower_rad - 1e-9) and np.all(q <= self.upper_rad + 1e-9))
+        return inside and builtin.within_couplings(self.couplings, q)
+
+    def clamp(self, q: np.ndarray) -> np.ndarray:
+        """``q`` moved into the joint limits and the combined limits (``couplings``)."""
+        out = np.minimum(np.maximum(np.asarray(q, dtype=float), self.lower_rad), self.upper_rad)
+        if self.couplings:
+            out = builtin.project_couplings(self.couplings, out, self.lower_rad, self.upper_rad)
+        return out
+
+    def controller_axes_deg(self, q: np.ndarray) -> np.ndarray:
+        """The axis values [deg] the arm's controller shows (``robots.controller_axes_deg``)."""
+        return builtin.controller_axes_deg(self.name, q)
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         """4x4 ``T_base_tcp`` at joints ``q`` (rad)."""
@@ -222,7 +247,7 @@ class Robot:
         """
         T, J = self.fk_and_jacobian(q)
         # Plain Newton step, exact away from singularities; damped least squares near them.
-        return _kernels.ik_newton_step(
+        out = _kernels.ik_newton_step(
             np.asarray(q, dtype=float),
             T,
             J,
@@ -231,6 +256,9 @@ class Robot:
             self.upper_rad,
             damping,
         )
+        if self.couplings:
+            out = builtin.project_couplings(self.couplings, out, self.lower_rad, self.upper_rad)
+        return out
 
     def ik(
         self,
@@ -265,7 +293,7 @@ class Robot:
         ]
         best_error = np.inf
         for seed in seeds:
-            q = np.clip(seed, self.lower_rad, self.upper_rad)
+            q = self.clamp(seed)
             damping = 1e-3
             for _ in range(max_iterations):
                 T, J = self.fk_and_jacobian(q)
@@ -282,7 +310,7 @@ class Robot:
                 step = np.linalg.norm(dq)
                 if step > 0.5:
                     dq *= 0.5 / step
-                q = np.clip(q + dq, self.lower_rad, self.upper_rad)
+                q = self.clamp(q + dq)
             best_error = min(best_error, float(np.linalg.norm(e[:3])))
         raise UnreachableTargetError(
             f"cannot reach target at {np.round(p * 1e3, 1).tolist()} mm inside the joint limits "

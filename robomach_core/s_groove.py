@@ -57,6 +57,8 @@ def s_groove(T_base_wobj: np.ndarray | None = None):  # -> workpiece.Workpiece
     rim = shapely.geometry.box(-sx / 2, -sy / 2, sx / 2, sy / 2).difference(slot)
     top = trimesh.creation.extrude_polygon(rim, S_GROOVE_DEPTH_M)
     top.apply_translation([0.0, 0.0, floor_z])
+    from .workpiece import solid_mesh
+
     mesh = trimesh.util.concatenate(
         [
             trimesh.creation.box(
@@ -68,7 +70,7 @@ def s_groove(T_base_wobj: np.ndarray | None = None):  # -> workpiece.Workpiece
     )
     return Workpiece(
         name="s_groove",
-        mesh=mesh,
+        mesh=solid_mesh(mesh),
         T_base_wobj=DEFAULT_T_BASE_WOBJ.copy() if T_base_wobj is None else T_base_wobj,
         material="cast_iron",
         contact_stiffness_N_m=CONTACT_STIFFNESS_N_M["cast_iron"],

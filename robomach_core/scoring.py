@@ -28,7 +28,10 @@ class PathScore:
         targets_max_m: Largest deviation at the targets alone.
         targets_rms_m: RMS deviation at the targets alone.
         along_s_m: (k,) arc length of the scored points along the path.
-        deviation_m: (k,) deviation at each scored point.
+        deviation_m: (k,) deviation at each scored point; signed where the truth has a side
+            (the mesh score: > 0 air, < 0 the cutter inside the material), else >= 0.
+        overcut_m: Deepest the cutter goes into the material (>= 0; 0 for unsigned scores).
+        air_m: Farthest the cutter stays off the surface (>= 0; ``max_m`` when unsigned).
     """
 
     max_m: float
@@ -37,6 +40,8 @@ class PathScore:
     targets_rms_m: float
     along_s_m: np.ndarray
     deviation_m: np.ndarray
+    overcut_m: float = 0.0
+    air_m: float = 0.0
 
 
 def _to_wobj_xy(workpiece: Workpiece, points_base: np.ndarray) -> np.ndarray:
@@ -83,4 +88,5 @@ def score_path(
         targets_rms_m=float(np.sqrt(np.mean(at_targets**2))),
         along_s_m=np.concatenate(along),
         deviation_m=dev,
+        air_m=float(dev.max()),
     )

@@ -31,6 +31,11 @@ DEFAULT_T_BASE_WOBJ = make_transform(np.eye(3), np.array([0.80, 0.16, 0.0]))
 ROBOT_WOBJ_POSITION_M: dict[str, tuple[float, float, float]] = {
     "irb4400": (1.30, 0.0, 0.60),
     "irb6640": (1.50, 0.0, 0.60),
+    # The IRB 2400 (1.55 m reach) reaching lower or nearer meets its combined axis-2/3 limit:
+    # at 0.85 m every axis keeps >= 20 deg, the elbow 28 deg from stretched.
+    "irb2400": (0.85, 0.0, 0.60),
+    # The KR 270 (2.7 m reach): every axis >= 44 deg inside its range.
+    "kr270": (1.80, 0.0, 0.60),
     # The UR5 (850 mm reach) met its elbow singularity at the UR10's 0.8 m; at 0.525 m it learns
     # the pump within 0.216 mm and the block within 0.204 mm. The UR3 (500 mm) reaches neither
     # part whole with the tool down: it keeps the default and says so.
@@ -154,6 +159,25 @@ def water_pump_wall() -> Contour:
     return filleted_polygon(np.array(corners), np.array(radii))
 
 
+def solid_mesh(mesh: trimesh.Trimesh) -> trimesh.Trimesh:
+    """The mesh as one solid: its closed bodies joined by a boolean union (manifold3d).
+
+    A part modelled as stacked or overlapping bodies (a plate and the rim extruded on it) has
+    faces inside the material, coincident with real ones and facing the other way: a point
+    above the floor but inside the rim is nearest both the floor (facing up) and the rim's
+    bottom (facing down), and the side of the part it is on cannot be told from the nearest
+    face. A mesh that is one body, or that the union refuses (open bodies), is returned as is.
+    """
+    bodies = mesh.split(only_watertight=False)
+    if len(bodies) < 2 or not all(b.is_watertight for b in bodies):
+        return mesh
+    try:
+        joined = trimesh.boolean.union(bodies, engine="manifold")
+    except Exception:  # noqa: BLE001 - the union is an improvement, not a requirement
+        return mesh
+    return joined if joined.is_watertight and len(joined.faces) else mesh
+
+
 def _extrude(polygon: shapely.geometry.Polygon, z0: float, height: float) -> trimesh.Trimesh:
     mesh = trimesh.creation.extrude_polygon(polygon, height)
     mesh.apply_translation([0.0, 0.0, z0])
@@ -169,15 +193,17 @@ def water_pump(T_base_wobj: np.ndarray | None = None) -> Workpiece:
     island = outer.buffer(-PUMP_GROOVE_WIDTH_M, join_style="round", quad_segs=16)
     plate = shapely.geometry.box(-sx / 2, -sy / 2, sx / 2, sy / 2)
     rim = plate.difference(outer)
-    mesh = trimesh.util.concatenate(
-        [
-            trimesh.creation.box(
-                extents=(sx, sy, floor_z),
-                transform=make_transform(np.eye(3), np.array([0.0, 0.0, floor_z / 2])),
-            ),
-            _extrude(rim, floor_z, PUMP_GROOVE_DEPTH_M),
-            _extrude(island, floor_z, PUMP_GROOVE_DEPTH_M),
-        ]
+    mesh = solid_mesh(
+        trimesh.util.concatenate(
+            [
+                trimesh.creation.box(
+                    extents=(sx, sy, floor_z),
+                    transform=make_transform(np.eye(3), np.array([0.0, 0.0, floor_z / 2])),
+                ),
+                _extrude(rim, floor_z, PUMP_GROOVE_DEPTH_M),
+                _extrude(island, floor_z, PUMP_GROOVE_DEPTH_M),
+            ]
+        )
     )
     return Workpiece(
         name="water_pump",
@@ -417,6 +443,7 @@ def mesh_from_bytes(
             "(is the unit right?)"
         )
     z_top = float(loaded.bounds[1, 2])
+    loaded = solid_mesh(loaded)
     return Workpiece(
         name=name,
         mesh=loaded,

@@ -318,6 +318,8 @@ async function startLearning() {
     force_N: Number($("learn-force").value),
     speed_mm_s: Number($("learn-speed").value),
     closed: $("learn-closed").checked,
+    wall_side: $("learn-wall-side").value,
+    floor_clearance_mm: Number($("learn-floor").value),
   };
   const start = await api("POST", "/path-learning", body);
   showLearnWarnings(start.warnings || []);
@@ -336,6 +338,16 @@ async function startLearning() {
     $("learn-start").disabled = false;
     $("learn-cancel").disabled = true;
   }
+}
+
+// The operator check with the card's settings, before learning (refusals come first).
+async function checkGuides() {
+  const q = new URLSearchParams({
+    force_N: $("learn-force").value,
+    closed: $("learn-closed").checked,
+    wall_side: $("learn-wall-side").value,
+  });
+  showLearnWarnings(await api("GET", `/path-learning/warnings?${q}`));
 }
 
 async function cancelLearning() {
@@ -380,8 +392,26 @@ function showPostprocess(r) {
   $("post-rms").textContent = rms === undefined ? "n/a" : `${fmt(rms, 3)} mm`;
   const meshMax = pick(r, "mesh_max_deviation_mm");
   const meshRms = pick(r, "mesh_rms_deviation_mm");
+  const over = pick(r, "mesh_overcut_mm");
+  const air = pick(r, "mesh_air_mm");
   $("post-mesh").textContent =
-    meshMax === undefined ? "n/a" : `max ${fmt(meshMax, 3)} mm, RMS ${fmt(meshRms, 3)} mm`;
+    meshMax === undefined
+      ? "n/a"
+      : `max ${fmt(meshMax, 3)} mm, RMS ${fmt(meshRms, 3)} mm` +
+        (over === undefined || over === null ? "" : `; overcut ${fmt(over, 3)}, air ${fmt(air, 3)} mm`);
+  const follows = pick(r, "follows_taught_wall");
+  $("post-taught").textContent =
+    follows === undefined || follows === null ? "-" : `${follows ? "\u2714" : "\u26d4"} ${r.taught_wall}`;
+  const problems = r.problems || [];
+  const list = $("post-problems");
+  list.replaceChildren(
+    ...problems.map((p) => {
+      const li = document.createElement("li");
+      li.textContent = `\u26d4 not fit to machine: ${p}`;
+      return li;
+    }),
+  );
+  list.classList.toggle("hidden", problems.length === 0);
   const moves = pick(r, "moves");
   $("post-moves").textContent =
     moves === undefined
@@ -402,31 +432,66 @@ function showLearnWarnings(warnings) {
   list.classList.toggle("hidden", warnings.length === 0);
 }
 
-async function downloadScript() {
-  const text = await api("GET", "/export/urscript", undefined, { text: true });
-  const url = URL.createObjectURL(new Blob([text], { type: "text/plain" }));
-  const a = document.createElement("a");
-  a.href = url;
-  a.download = "program.script";
-  document.body.appendChild(a);
-  a.click();
-  a.remove();
-  setTimeout(() => URL.revokeObjectURL(url), 1000);
+// ---------------------------------------------------------------- export
+// The menus come from GET /api/export/languages (the server's language registry): the
+// languages the arm's controller runs and their files.
+
+let exportLanguages = [];
+
+function option(value, label) {
+  const o = document.createElement("option");
+  o.value = value;
+  o.textContent = label;
+  return o;
 }
 
-async function previewRapid() {
-  const text = await api("GET", "/export/rapid", undefined, { text: true });
+async function loadLanguages() {
+  const all = await api("GET", "/export/languages", undefined, { quiet: true });
+  const previous = $("export-language").value;
+  exportLanguages = all.filter((l) => l.offered);
+  $("export-language").replaceChildren(...exportLanguages.map((l) => option(l.name, l.title)));
+  if (exportLanguages.some((l) => l.name === previous)) $("export-language").value = previous;
+  showExportFiles();
+}
+
+function showExportFiles() {
+  const lang = exportLanguages.find((l) => l.name === $("export-language").value);
+  const previous = $("export-file").value;
+  const files = lang ? [...lang.files, ...(lang.force_control_files || [])] : [];
+  $("export-file").replaceChildren(...files.map((f) => option(f, f)));
+  if (files.includes(previous)) $("export-file").value = previous;
+  $("export-download").textContent = files.length ? `Download ${$("export-file").value}` : "Download";
+}
+
+// One file of the program in the chosen language (GET /api/export/program/{language}).
+async function programFile(file) {
+  const language = $("export-language").value;
+  if (!language) throw new Error("this arm's controller runs none of the program languages");
+  const fc = file.startsWith("program_fc.");
+  const query = new URLSearchParams({ file, force_control: String(fc) });
+  if (fc) query.set("module_name", "LearnedPathFC");
+  return api("GET", `/export/program/${encodeURIComponent(language)}?${query}`, undefined, {
+    text: true,
+  });
+}
+
+async function previewProgram() {
+  await loadLanguages();
+  const lang = exportLanguages.find((l) => l.name === $("export-language").value);
+  const text = await programFile(lang ? lang.files[0] : "");
   const pre = $("rapid-preview");
   pre.textContent = text;
   pre.classList.remove("hidden");
 }
 
-async function downloadRapid() {
-  const text = await api("GET", "/export/rapid", undefined, { text: true });
+async function downloadProgram() {
+  await loadLanguages();
+  const file = $("export-file").value;
+  const text = await programFile(file);
   const url = URL.createObjectURL(new Blob([text], { type: "text/plain" }));
   const a = document.createElement("a");
   a.href = url;
-  a.download = "program.mod";
+  a.download = file;
   document.body.appendChild(a);
   a.click();
   a.remove();
@@ -500,10 +565,14 @@ async function init() {
   $("guide-example").addEventListener("click", safe(loadExample));
   $("learn-start").addEventListener("click", safe(startLearning));
   $("learn-cancel").addEventListener("click", safe(cancelLearning));
+  $("learn-check").addEventListener("click", safe(checkGuides));
+  $("learn-wall-side").addEventListener("change", safe(checkGuides));
   $("post-run").addEventListener("click", safe(runPostprocess));
-  $("export-preview").addEventListener("click", safe(previewRapid));
-  $("export-download").addEventListener("click", safe(downloadRapid));
-  $("export-script").addEventListener("click", safe(downloadScript));
+  $("export-preview").addEventListener("click", safe(previewProgram));
+  $("export-download").addEventListener("click", safe(downloadProgram));
+  $("export-language").addEventListener("change", showExportFiles);
+  $("export-language").addEventListener("focus", safe(loadLanguages));
+  $("export-file").addEventListener("change", showExportFiles);
 
   const url = await viserUrl();
   $("viser-frame").src = url;
@@ -513,6 +582,7 @@ async function init() {
   await pollState();
   safe(refreshGuides)();
   safe(loadSettings)();
+  safe(loadLanguages)();
   setInterval(pollState, STATE_PERIOD_MS);
 }
 

@@ -23,9 +23,11 @@ from app.session import (
     ProjectInfo,
     RobotSnapshot,
 )
+from robomach_core import limits
 from robomach_core.leadthrough import ComplianceSelection
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import StageStatus
+from robomach_core.wall_side import WallSideSetting
 
 Axis = Literal["x", "y", "z", "rx", "ry", "rz"]
 Finite = Annotated[float, Field(allow_inf_nan=False)]
@@ -247,9 +249,30 @@ class JobPublic(BaseModel):
 
 
 class PathLearningCreate(_Request):
-    force_N: Finite = Field(ge=1.0, le=50.0, description="contact force reference [N], 1-50")
-    speed_mm_s: Finite = Field(ge=0.5, le=50.0, description="learning speed [mm/s], 0.5-50")
+    force_N: Finite = Field(
+        ge=limits.LEARNING_FORCE_N.min,
+        le=limits.LEARNING_FORCE_N.max,
+        description=f"contact force reference [N], {limits.LEARNING_FORCE_N.text()}",
+    )
+    speed_mm_s: Finite = Field(
+        ge=limits.LEARNING_SPEED_MM_S.min,
+        le=limits.LEARNING_SPEED_MM_S.max,
+        description=f"learning speed [mm/s], {limits.LEARNING_SPEED_MM_S.text()}",
+    )
     closed: bool = Field(True, description="the path returns from the last guide point to the 1st")
+    wall_side: WallSideSetting = Field(
+        "auto",
+        description="side of the wall to follow, left or right of travel looking along the tool "
+        "into the part; auto decides from a clear push at the guide points or the part's mesh, "
+        "and is refused (422) when neither tells",
+    )
+    floor_clearance_mm: Finite = Field(
+        0.5,
+        ge=limits.FLOOR_CLEARANCE_MM.min,
+        le=limits.FLOOR_CLEARANCE_MM.max,
+        description="machining height: the cutter this far above a floor the run meets or a "
+        "guide point rests on [mm], 0-5",
+    )
 
 
 class ForceTracePublic(BaseModel):
@@ -345,10 +368,25 @@ class PostprocessPublic(BaseModel):
     rms_deviation_mm: float | None = Field(description="RMS deviation along the path [mm]")
     mesh_max_deviation_mm: float | None = Field(
         None,
-        description="largest deviation of the program from the workpiece mesh minus the "
-        "tool radius [mm], every part (built-in or uploaded)",
+        description="largest deviation of the program from the part's walls minus the tool "
+        "radius, signed inside the material [mm], every part (built-in or uploaded)",
     )
     mesh_rms_deviation_mm: float | None = Field(None, description="its RMS along the path [mm]")
+    mesh_overcut_mm: float | None = Field(
+        None, description="deepest the program's cutter goes into the part's walls [mm]"
+    )
+    mesh_air_mm: float | None = Field(
+        None, description="farthest the program's cutter stays off the part's walls [mm]"
+    )
+    follows_taught_wall: bool | None = Field(
+        None, description="the program follows the wall the guide points were taught on"
+    )
+    taught_wall: str | None = Field(None, description="the taught-wall check in words")
+    problems: list[str] = Field(
+        default_factory=list,
+        description="what makes the program unfit to machine with (a partial run, the wrong "
+        "wall, an overcut); empty when none",
+    )
     moves: int | None = Field(None, description="motion instructions of the program")
     circular_moves: int | None = Field(None, description="of which circular (MoveC / movec)")
     straight_moves: int | None = Field(None, description="instructions of the straight program")
@@ -369,6 +407,11 @@ class PostprocessPublic(BaseModel):
         return cls(
             mesh_max_deviation_mm=extras["mesh_max_deviation_mm"],
             mesh_rms_deviation_mm=extras["mesh_rms_deviation_mm"],
+            mesh_overcut_mm=extras["mesh_overcut_mm"],
+            mesh_air_mm=extras["mesh_air_mm"],
+            follows_taught_wall=extras["follows_taught_wall"],
+            taught_wall=extras["taught_wall"],
+            problems=extras["problems"],
             moves=extras["moves"],
             circular_moves=extras["circular_moves"],
             straight_moves=extras["straight_moves"],
@@ -414,6 +457,20 @@ class ExportPublic(BaseModel):
         if e.folder is not None and data_dir is not None:
             folder = str(e.folder.relative_to(data_dir))
         return cls(name=e.name, created_s=e.created_s, files=e.files, folder=folder)
+
+
+class ProgramLanguagePublic(BaseModel):
+    """A program language of ``robomach_core.export.languages`` and whether the cell's arm is
+    offered it (its controller runs it)."""
+
+    name: str = Field(description="the {language} of GET /api/export/program/{language}")
+    title: str
+    files: list[str] = Field(description="the program's files")
+    force_control_files: list[str] | None = Field(
+        description="the force-controlled variant's files (force_control=true), if it has one"
+    )
+    families: list[str] = Field(description="arm families whose controllers run it")
+    offered: bool = Field(description="the cell's arm runs it")
 
 
 # --- projects ----------------------------------------------------------------------------

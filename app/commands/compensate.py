@@ -7,7 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-STUDY_CHOICES = ("identify", "gravity", "milling", "ilc", "all")
+STUDY_CHOICES = ("identify", "gravity", "milling", "ilc", "compliance", "all")
 MODE_CHOICES = ("off", "online", "offline_linear", "offline_nonlinear")
 
 
@@ -18,7 +18,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         description=(
             "Simulate the stiffness identification (CMM under known loads), the F/T gravity "
             "compensation, the chapter's end-milling block and the Lund face-milling pass with "
-            "and without deflection compensation, and iterative learning control. Writes CSVs, "
+            "and without deflection compensation, iterative learning control and the "
+            "compliance paper's KR 270 line, each on its paper's arm (the chapter's on the IRB "
+            "6640, its IRB 6400 having no published kinematics; the Lund papers' on the IRB "
+            "2400; the compliance paper's on the KR 270) unless --robot names one. Writes CSVs, "
             "PNG plots, compensation_summary.json and compensation_settings.json into --out."
         ),
     )
@@ -31,7 +34,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=Path("compensation"),
         help="output folder, created if missing (default ./compensation)",
     )
-    p.add_argument("--robot", default="ur10", help="ur10 (default), ur5 or ur3")
+    from robomach_core.robot import ROBOT_NAMES
+    from robomach_core.stiffness.studies import PAPER_ARMS
+
+    papers = ", ".join(f"{study} {arm}" for study, arm in PAPER_ARMS.items())
+    p.add_argument(
+        "--robot",
+        default=None,
+        metavar="|".join(ROBOT_NAMES),
+        help=f"run every study on this arm (default: each on its paper's: {papers})",
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of every random element")
     p.add_argument(
         "--cmm-noise",
@@ -105,7 +117,8 @@ def _report(summary: dict) -> list[str]:
     lines = []
     if "stiffness_rel_error_max" in summary:
         lines.append(
-            f"stiffness: max relative error {summary['stiffness_rel_error_max'] * 100:.1f} % "
+            f"stiffness ({summary['identify_robot']}): max relative error "
+            f"{summary['stiffness_rel_error_max'] * 100:.1f} % "
             f"(joints 1-5: {summary['stiffness_rel_error_max_joints_1_to_5'] * 100:.1f} %); "
             f"prediction error max {summary['prediction_error_max_mm']:.3f} mm "
             "(chapter: < 0.04 mm)"
@@ -118,23 +131,36 @@ def _report(summary: dict) -> list[str]:
         )
     if "error_max_uncompensated_um" in summary:
         lines.append(
-            f"end milling: max error {summary['error_max_uncompensated_um']:.0f} um -> "
+            f"end milling ({summary['milling_robot']}): max error "
+            f"{summary['error_max_uncompensated_um']:.0f} um -> "
             f"{summary['error_max_compensated_online_um']:.0f} online, "
             f"{summary['error_max_compensated_linear_um']:.0f} offline linear, "
             f"{summary['error_max_compensated_nonlinear_um']:.0f} offline non-linear "
             "(chapter: 400 -> < 100 um)"
         )
         lines.append(
-            f"face milling: max {summary['face_error_max_uncompensated_um']:.1f} -> "
+            f"face milling ({summary['face_milling_robot']}): max "
+            f"{summary['face_error_max_uncompensated_um']:.1f} -> "
             f"{summary['face_error_max_compensated_um']:.1f} um, std "
             f"{summary['face_error_std_uncompensated_um']:.1f} -> "
             f"{summary['face_error_std_compensated_um']:.1f} um (Lund: 273.9 -> 51.4, "
             "37.9 -> 18.6)"
         )
+    if "compliance_max_ratio" in summary:
+        lines.append(
+            f"compliance paper ({summary['compliance_robot']}, Table 1): static "
+            f"{summary['compliance_static_uncompensated_um']:.1f} -> "
+            f"{summary['compliance_static_compensated_um']:.2f} um, max "
+            f"{summary['compliance_max_uncompensated_um']:.1f} -> "
+            f"{summary['compliance_max_compensated_um']:.2f} um (ratio "
+            f"{summary['compliance_max_ratio']:.3f}; identified stiffness "
+            f"{summary['compliance_max_ratio_identified']:.3f}; paper 58.1 -> 0.14, "
+            f"63.2 -> 4.70 um, ratio {summary['compliance_paper_max_ratio']:.3f})"
+        )
     if "ilc_arm_error_per_iteration" in summary:
         arm = ", ".join(f"{e:.0f}" for e in summary["ilc_arm_error_per_iteration"])
         force = ", ".join(f"{e:.0f}" for e in summary["ilc_force_error_per_iteration"])
-        lines.append(f"ILC arm-side mean error per iteration [um]: {arm}")
+        lines.append(f"ILC ({summary['ilc_robot']}) arm-side mean error per iteration [um]: {arm}")
         lines.append(
             f"ILC force mean error per iteration [um]: {force} (around the offset: "
             f"-{summary['ilc_force_deviation_reduction_percent']:.0f} %; paper: -85 % / -50 %)"

@@ -11,12 +11,13 @@ from pathlib import Path
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "demo",
-        help="run lead-through, path learning, post-processing and RAPID export headless",
+        help="run lead-through, path learning, post-processing and program export headless",
         description=(
             "Lead the simulated robot to guide points around the workpiece by virtual pushes, "
             "learn the contour at constant contact force, filter and reduce the recording, and "
-            "write program.mod, samples.csv, targets.csv, workpiece.stl, summary.json and "
-            "demo.png into --out."
+            "write the program in the arm's language (program.mod for ABB and UR arms, "
+            "program.script for UR arms, program.src/.dat for KUKA arms), samples.csv, "
+            "targets.csv, workpiece.stl, summary.json and demo.png into --out."
         ),
     )
     p.add_argument("--out", required=True, type=Path, help="output folder (created if missing)")
@@ -26,15 +27,21 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--robot",
         default=None,
         metavar="|".join(ROBOT_NAMES) + "|FILE.urdf",
-        help="the arm: a built-in one, or your own serial 6-axis URDF file (default ur10, or "
-        "irb4400 with --language rapid)",
+        help="the arm: a built-in one, or your own serial 6-axis URDF file (default ur10; with "
+        "--language, that language's arm: irb4400 for rapid, kr270 for krl)",
+    )
+    from robomach_core.export.languages import language_choices, languages
+
+    by_family = "; ".join(
+        f"{lang.name}: {'/'.join(lang.file_names())} for {', '.join(lang.families)} arms"
+        for lang in languages()
     )
     p.add_argument(
         "--language",
-        choices=("auto", "rapid", "urscript"),
+        choices=language_choices(),
         default="auto",
-        help="program language: auto follows the arm (URScript for UR arms, RAPID for ABB); "
-        "program.mod is always written, program.script too for URScript",
+        help="program language: auto writes every language the arm's controller is offered "
+        f"({by_family}); a language the arm's controller does not run is refused",
     )
     p.add_argument(
         "--arcs",
@@ -99,8 +106,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="CSV",
         help="lead the robot to these guide points instead of the built-in plan: rows "
         "x_mm,y_mm,z_mm[,qw,qx,qy,qz[,wall_nx,wall_ny,wall_nz]] in the robot base "
-        "frame (needed for a mesh file)",
+        "frame (needed for a mesh file); the optional wall direction points from the tool "
+        "into the wall (where to push lightly to feel it), see docs/guide_points.md",
     )
+    from robomach_core.wall_side import WALL_SIDE_CHOICES
+
     p.add_argument(
         "--propose-guide-points",
         metavar="X,Y,Z",
@@ -126,10 +136,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--wall-side",
-        choices=("auto", "left", "right"),
+        choices=WALL_SIDE_CHOICES,
         default="auto",
-        help="side of the wall relative to the travel direction (default: from the "
-        "contact force recorded at the guide points)",
+        help="side of the wall to follow, left or right of the direction of travel looking "
+        "along the tool into the part; auto (default) decides from a clear push against the "
+        "wall at the guide points or from the part's mesh, and refuses when neither tells",
     )
     p.add_argument(
         "--cmrr-settings",
@@ -270,6 +281,12 @@ def run(args: argparse.Namespace) -> int:
         robot_urdf = read_robot_file(Path(robot))
         robot = register_urdf(*robot_urdf)
 
+    # A language the arm's controller does not run is refused now, not after learning.
+    from robomach_core.export.languages import resolve_languages
+    from robomach_core.robot import Robot
+
+    resolve_languages(Robot(robot), args.language)
+
     settings = DemoSettings(
         robot=robot,
         workpiece=args.workpiece,
@@ -345,8 +362,12 @@ def run(args: argparse.Namespace) -> int:
     if s.get("mesh_max_deviation_mm") is not None:
         print(
             f"mesh deviation    max {s['mesh_max_deviation_mm']:.3f} mm, RMS "
-            f"{s['mesh_rms_deviation_mm']:.3f} mm (program vs workpiece mesh - tool radius)"
+            f"{s['mesh_rms_deviation_mm']:.3f} mm, overcut {s['mesh_overcut_mm']:.3f} mm, air "
+            f"{s['mesh_air_mm']:.3f} mm (program vs the part's walls - tool radius)"
         )
+    print(f"wall              on the {s['wall_side']} of travel: {s['wall_side_reason']}")
+    if s.get("taught_wall"):
+        print(f"taught wall       {s['taught_wall']}")
     comparison = s.get("cad_comparison")
     if comparison is not None:
         title = "vs the real wall" if comparison["part_deviates_from_cad"] else "vs the wall"
@@ -359,10 +380,15 @@ def run(args: argparse.Namespace) -> int:
                 f"{c['overcut_mm']:.3f} mm, air {c['air_mm']:.3f} mm; worst at ({x:.1f}, "
                 f"{y:.1f}) mm, {c['worst_at_fraction']:.0%} along"
             )
-    print(f"reachable         {s['robtargets_reachable']}/{s['robtargets_total']} robtargets")
+    print(
+        f"reachable         {s['robtargets_reachable']}/{s['robtargets_total']} program targets "
+        f"({s['program_language']})"
+    )
     print(
         f"run               {s['stop_reason']}; {s['sim_time_s']:.1f} s simulated in "
         f"{s['learning_wall_time_s']:.1f} s (x{s['realtime_factor']:.0f} real time)"
     )
     print(f"wrote             {', '.join(p.name for p in paths)} in {args.out}")
-    return 0 if result.recording.completed else 1
+    for problem in s.get("problems") or ():
+        print(f"NOT FIT TO MACHINE: {problem}", file=sys.stderr)
+    return 0 if result.recording.completed and not s.get("problems") else 1

@@ -40,6 +40,8 @@ FILTERED_COLOR = (40, 110, 220)
 TARGET_COLOR = (240, 120, 20)
 STALE_COLOR = (110, 110, 120)  # a path computed from inputs that changed since
 GUIDE_COLOR = (20, 160, 90)
+TAUGHT_WALL_COLOR = (255, 200, 0)  # the wall the next run will follow
+STOP_COLOR = (220, 20, 20)
 SELECTED_GUIDE_COLOR = (230, 40, 160)
 SPINDLE_OPACITY = 0.3
 HANDLE_SCALE = 0.05  # the push handle: small, beside the tool rather than over it
@@ -563,6 +565,73 @@ class CellScene:
                         anchor="bottom-center",
                     )
                 )
+
+    def set_taught_wall(self, points_m: Sequence[np.ndarray | None], text: str = "") -> None:
+        """Highlight the wall the next run will follow: the wall point each guide point faces
+        (``wall_side.taught_wall_points``), joined in order, and what decided the side."""
+        scene = self.server.scene
+        pts = np.array([p for p in points_m if p is not None], dtype=float).reshape(-1, 3)
+        with self.server.atomic():
+            if len(pts) == 0:
+                scene.add_point_cloud(
+                    "/path/taught_wall/points",
+                    np.zeros((1, 3)),
+                    TAUGHT_WALL_COLOR,
+                    point_size=0.004,
+                    visible=False,
+                )
+                scene.add_line_segments(
+                    "/path/taught_wall/line",
+                    np.zeros((1, 2, 3)),
+                    TAUGHT_WALL_COLOR,
+                    visible=False,
+                )
+                scene.add_label("/path/taught_wall/label", "", visible=False)
+                return
+            scene.add_point_cloud(
+                "/path/taught_wall/points",
+                pts,
+                TAUGHT_WALL_COLOR,
+                point_size=0.004,
+                point_shape="diamond",
+            )
+            segments = (
+                np.stack([pts[:-1], pts[1:]], axis=1) if len(pts) > 1 else np.zeros((1, 2, 3))
+            )
+            scene.add_line_segments(
+                "/path/taught_wall/line",
+                segments,
+                TAUGHT_WALL_COLOR,
+                thickness=0.0012,
+                visible=len(pts) > 1,
+            )
+            scene.add_label(
+                "/path/taught_wall/label",
+                text,
+                position=pts[0] + np.array([0.0, 0.0, 0.012]),
+                anchor="bottom-left",
+                visible=bool(text),
+            )
+
+    def set_stop(self, position_m: np.ndarray | None, text: str = "") -> None:
+        """Mark where the last path-learning run stopped early (hidden when it completed)."""
+        scene = self.server.scene
+        p = np.zeros(3) if position_m is None else np.asarray(position_m, dtype=float)
+        with self.server.atomic():
+            scene.add_icosphere(
+                "/path/stop",
+                radius=0.003,
+                color=STOP_COLOR,
+                position=p,
+                visible=position_m is not None,
+            )
+            scene.add_label(
+                "/path/stop/label",
+                text,
+                position=np.array([0.0, 0.0, 0.008]),
+                anchor="bottom-center",
+                visible=position_m is not None and bool(text),
+            )
 
     def set_samples(
         self,

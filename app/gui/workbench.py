@@ -78,11 +78,12 @@ class Workbench:
         self.teach = TeachPanel(server, session)
         self.guide_points = GuidePointsPanel(server, session, self.scene)
         self.pointing = PointingPanel(server, session, self.scene, self.guide_points)
-        self.path_learning = PathLearningPanel(server, session)
+        self.path_learning = PathLearningPanel(server, session, self.scene)
         self.postprocess = PostprocessPanel(server, session, self.scene)
         self.export = ExportPanel(server, session)
         self.robot_program = RobotProgramPanel(server, session)
-        self.guide_rules = GuideRulesPanel(server, session)
+        self.guide_rules = GuideRulesPanel(server, session, self.path_learning.route_settings)
+        self.path_learning.on_route_change(lambda: self._on_change("guide_points"))
         self.studies = self._study_panels(server, session)
         self.studies += self._machining_panel(server, session)
         self._dirty: set[str] = {"job"}
@@ -176,6 +177,9 @@ class Workbench:
             self.guide_points.refresh()
             self.guide_rules.refresh()
             self.pointing.refresh()
+            self.path_learning.refresh_wall()
+        if topics & {"recording", "cell", "project"}:
+            self.path_learning.refresh_stop()
         if topics & {"job", "recording"}:
             self._show_jobs()
         if topics & {"recording", "postprocess", "cell"}:

@@ -17,7 +17,7 @@ import numpy as np
 from robomach_core import project as core
 from robomach_core.errors import RobomachError
 from robomach_core.leadthrough import GuidePoint
-from robomach_core.path_learning import PathLearningSettings, Recording
+from robomach_core.path_learning import LearningStop, PathLearningSettings, Recording
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import (
     CellSettings,
@@ -75,6 +75,9 @@ def _recording_doc(learned: LearnedPath | None) -> tuple[dict, dict[str, np.ndar
     info = {
         "stop_reason": rec.stop_reason,
         "completed": rec.completed,
+        "stop": None if rec.stop is None else rec.stop.document(),
+        "wall_side": rec.wall_side,
+        "wall_side_reason": rec.wall_side_reason,
         "learning": asdict(learned.settings),
         "inputs": learned.inputs,
     }
@@ -126,7 +129,9 @@ def project_from_data(data: ProjectData, workpiece: Workpiece) -> Project:
     if post.get("applied") and project.learned is not None:
         try:
             applied = PostprocessSettings(**(post.get("applied_settings") or post["settings"]))
-            processed = core.process(project.learned, applied, workpiece, cell.tool_radius_m)
+            processed = core.process(
+                project.learned, applied, workpiece, cell.tool_radius_m, guides=project.guide_points
+            )
         except (RobomachError, TypeError, ValueError, KeyError) as exc:
             log.warning("project %s: stored post-processing no longer applies: %s", pid, exc)
         else:
@@ -148,6 +153,9 @@ def _learned(data: ProjectData, project: Project) -> LearnedPath | None:
             **{k: arrays[k] for k in RECORDING_ARRAYS},
             stop_reason=str(info["stop_reason"]),
             completed=bool(info["completed"]),
+            stop=LearningStop.from_document(info.get("stop")),
+            wall_side=str(info.get("wall_side", "")),
+            wall_side_reason=str(info.get("wall_side_reason", "")),
         )
         return LearnedPath(
             recording,

@@ -557,19 +557,29 @@ class Session(ProjectsMixin):
         speed_m_s: float,
         *,
         closed: bool = True,
-        wall_side: str | None = None,
+        wall_side: str = "auto",
+        floor_clearance_m: float | None = None,
     ) -> str:
         """Job: learn the path through the guide points at ``force_N`` and ``speed_m_s``
-        (``project.learn``); on success the recording replaces the last one, and the last
-        post-processing stays, marked stale. A force filter band that would not keep samples
-        at ``force_N`` moves to 0.5-1.5 x ``force_N`` (``PostprocessSettings.holds_force``).
-        ``wall_side`` None: the side of guide points taught by pointing at the wall
-        (``pointing.learning_side``), else "auto". Returns the job id."""
-        side = wall_side or self.pointing.learning_side() or "auto"
+        (``project.learn``) along the wall on ``wall_side``; on success the recording replaces
+        the last one, and the last post-processing stays, marked stale. A force filter band
+        that would not keep samples at ``force_N`` moves to 0.5-1.5 x ``force_N``
+        (``PostprocessSettings.holds_force``). "auto" takes the side of guide points taught
+        by pointing at the wall (``pointing.learning_side``) when they are still those.
+        Returns the job id.
+
+        Raises:
+            WallSideError: "auto" and the guide points do not tell the side (before any job).
+        """
+        if wall_side == "auto":
+            wall_side = self.pointing.learning_side() or "auto"
         settings = PathLearningSettings(
-            force_N=float(force_N), speed_m_s=float(speed_m_s), closed=bool(closed),
-            wall_side=side,  # type: ignore[arg-type]
-        )  # fmt: skip
+            force_N=float(force_N),
+            speed_m_s=float(speed_m_s),
+            closed=bool(closed),
+            wall_side=wall_side,
+            **({} if floor_clearance_m is None else {"floor_clearance_m": floor_clearance_m}),
+        )
         with self._lock:
             self._require_idle()
             project = self._project
@@ -579,6 +589,15 @@ class Session(ProjectsMixin):
                 )
             epoch, cell, estimator = self._epoch, self._cell, self._lt.estimator
             start = self._lt_state.cell
+            from robomach_core.wall_side import resolve_wall_side
+
+            resolve_wall_side(  # refuse now, with the cause, not as a failed job
+                project.guide_points,
+                settings.wall_side,
+                closed=settings.closed,
+                workpiece=cell.workpiece.cad(),  # the mesh the user sees
+                tool_radius_m=project.cell.tool_radius_m,
+            )
 
             def work(ctx: JobContext) -> tuple[core.LearnedPath, CellState]:
                 path_m = np.array([g.position_m for g in project.guide_points])
@@ -658,7 +677,13 @@ class Session(ProjectsMixin):
         )
         if project.learned is None:
             raise ConflictError("nothing to post-process yet: run path learning first")
-        outcome = core.process(project.learned, settings, workpiece, project.cell.tool_radius_m)
+        outcome = core.process(
+            project.learned,
+            settings,
+            workpiece,
+            project.cell.tool_radius_m,
+            guides=project.guide_points,
+        )
         with self._lock:
             if self._project.learned is not project.learned or epoch != self._epoch:
                 raise ConflictError(
@@ -674,42 +699,102 @@ class Session(ProjectsMixin):
     ) -> str:
         """The RAPID module of the project (``project.rapid_text``): the FC SpeedChange block
         with a CMRR controller, compensated targets in the offline compensation modes, or the
-        FC pressure variant."""
-        with self._lock:
-            project, workpiece, robot = self._project, self._cell.workpiece, self._cell.robot
-        return core.rapid_text(
-            project, workpiece, robot, module_name=module_name, force_control=force_control
-        )
+        FC pressure variant. Refused on an arm whose controller does not run RAPID."""
+        files = self.program_texts("rapid", module_name=module_name, force_control=force_control)
+        return next(iter(files.values()))
 
     def urscript_program(self, *, force_control: bool = False) -> str:
         """The project's program as URScript (``project.urscript_text``)."""
+        files = self.program_texts("urscript", force_control=force_control)
+        return next(iter(files.values()))
+
+    def program_texts(
+        self,
+        language: str,
+        *,
+        force_control: bool = False,
+        module_name: str = core.DEFAULT_MODULE_NAME,
+    ) -> dict[str, str]:
+        """The project's program in a registered language the arm's controller runs
+        (``project.program_texts``): file name -> text."""
+        from robomach_core.export.languages import resolve_languages
+
         with self._lock:
             project, workpiece, robot = self._project, self._cell.workpiece, self._cell.robot
-        return core.urscript_text(project, workpiece, robot, force_control=force_control)
+        (lang,) = resolve_languages(robot, language)
+        return core.program_texts(
+            project,
+            workpiece,
+            robot,
+            lang.name,
+            module_name=module_name,
+            force_control=force_control,
+        )
 
-    def guide_warnings(self, force_N: float, *, closed: bool = True) -> list[str]:
-        """The guide points that break an operator rule (``guide_check``), as messages."""
+    def program_languages(self) -> tuple[str, ...]:
+        """The languages the cell's arm is offered (``export.languages.languages_for``)."""
+        from robomach_core.export.languages import languages_for
+
+        return tuple(lang.name for lang in languages_for(self._cell.robot))
+
+    def guide_findings(
+        self, force_N: float = 10.0, *, closed: bool = True, wall_side: str = "auto"
+    ) -> tuple:
+        """What the operator check finds in the guide points (``guide_check``)."""
         from robomach_core.guide_check import guide_point_warnings
         from robomach_core.path_learning import PathLearningSettings
 
         with self._lock:
-            project, workpiece = self._project, self._cell.workpiece.cad()
-        settings = PathLearningSettings(force_N=force_N, closed=closed)
-        found = guide_point_warnings(
+            project, robot = self._project, self._cell.robot
+            workpiece = self._cell.workpiece.cad()  # checks use the mesh the user sees
+        settings = PathLearningSettings(force_N=force_N, closed=closed, wall_side=wall_side)
+        return guide_point_warnings(
             project.guide_points,
             settings,
             workpiece=workpiece,
             tool_radius_m=project.cell.tool_radius_m,
+            robot=robot,
         )
+
+    def taught_wall_preview(
+        self, wall_side: str = "auto", *, closed: bool = True
+    ) -> tuple[list, str]:
+        """The wall the next run would follow: its point at each guide point (base frame, None
+        where none is near) and one line saying which side and why, or why it cannot tell."""
+        from robomach_core.errors import WallSideError
+        from robomach_core.wall_side import resolve_wall_side, taught_wall_points
+
+        with self._lock:
+            project, workpiece = self._project, self._cell.workpiece.cad()
+        guides, radius = project.guide_points, project.cell.tool_radius_m
+        if len(guides) < 2:
+            return [], ""
+        try:
+            decision = resolve_wall_side(
+                guides, wall_side, closed=closed, workpiece=workpiece, tool_radius_m=radius
+            )
+        except WallSideError as exc:
+            return [], f"wall side: {exc}"
+        points = taught_wall_points(
+            guides, decision.side, closed=closed, workpiece=workpiece, tool_radius_m=radius
+        )
+        return points, f"follows the wall on the {decision.side}: {decision.detail}"
+
+    def guide_warnings(
+        self, force_N: float, *, closed: bool = True, wall_side: str = "auto"
+    ) -> list[str]:
+        """The operator check's findings (``guide_findings``) as messages."""
+        found = self.guide_findings(force_N, closed=closed, wall_side=wall_side)
         return [w.message for w in found]
 
-    def upload_robot(self, data: bytes, filename: str) -> CellSettings:
+    def upload_robot(self, data: bytes, filename: str, *, family: str = "auto") -> CellSettings:
         """Use a user's serial 6-axis URDF (a .urdf, or a .zip with its meshes) as the arm
-        (``robots.custom``); kept in the project like an uploaded mesh. Clears the guide
-        points like a ``set_cell`` change."""
+        (``robots.custom``; ``family`` names its controller, ``auto`` recognises a built-in
+        arm's kinematics); kept in the project like an uploaded mesh. Clears the guide points
+        like a ``set_cell`` change."""
         from robomach_core.robots.custom import register_urdf
 
-        name = register_urdf(filename, data)
+        name = register_urdf(filename, data, family)
         with self._lock:
             self._require_idle()
             self._project = replace(self._project, robot_urdf=(filename, data))

@@ -1,5 +1,14 @@
-"""Program export: ABB RAPID modules and a checker for them."""
+"""Program export: the registry of program languages (``languages``), ABB RAPID modules,
+URScript programs and KUKA KRL pairs, and the project's checkers for RAPID and KRL."""
 
+from .krl_check import KrlProgramInfo as KrlProgramInfo
+from .krl_check import KrlSyntaxError as KrlSyntaxError
+from .krl_check import check_krl_program as check_krl_program
+from .languages import ProgramContext as ProgramContext
+from .languages import ProgramLanguage as ProgramLanguage
+from .languages import language as language
+from .languages import languages_for as languages_for
+from .languages import register_language as register_language
 from .rapid import ForceControlSettings as ForceControlSettings
 from .rapid import RapidProgram as RapidProgram
 from .rapid import RapidTarget as RapidTarget

@@ -1,7 +1,7 @@
 """Writing the demo's files into a folder: the project's program files (``project.program_files``:
-program.mod, program_fc.mod, targets.csv, samples.csv, settings.json), workpiece.stl and
-summary.json,
-and project.npz (``project.save_project_file``)."""
+the program in each language of the arm, e.g. program.mod and program_fc.mod, targets.csv,
+samples.csv, settings.json), workpiece.stl and summary.json, and project.npz
+(``project.save_project_file``)."""
 
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ def write_demo_outputs(result: DemoResult, out_dir: str | Path) -> list[Path]:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = dict(result.files)
-    if result.module_text_fc is None:
-        files.pop("program_fc.mod", None)
+    if result.module_text_fc is None:  # no force-controlled variant asked for
+        files = {k: v for k, v in files.items() if not k.startswith("program_fc.")}
     files["summary.json"] = json.dumps(result.summary(), indent=2) + "\n"
     written = []
     for name, text in files.items():

@@ -102,3 +102,31 @@ def check_reachability(
             failures.append((name, str(exc)))
     total = len(info.robtargets)
     return ReachabilityReport(total, total - len(failures), tuple(failures))
+
+
+def check_program_reachability(
+    files: dict[str, str],
+    language: str,
+    robot: Robot,
+    workpiece: Workpiece,
+    joints_hint: np.ndarray | None = None,
+) -> ReachabilityReport:
+    """Read the motion targets back from a written program (``ProgramLanguage.read_poses``:
+    the checker of its language parses them) and solve the IK of each, as
+    ``check_reachability`` does for a RAPID module."""
+    from .languages import language as language_named
+
+    lang = language_named(language)
+    names = lang.file_names()
+    if lang.read_poses is None or not all(name in files for name in names):
+        return ReachabilityReport(0, 0, ())
+    poses = lang.read_poses(tuple(files[name] for name in names), workpiece)
+    failures = []
+    q = joints_hint
+    for name, T_base in poses:
+        try:
+            q = robot.ik(T_base, q)
+        except RobomachError as exc:
+            failures.append((name, str(exc)))
+    total = len(poses)
+    return ReachabilityReport(total, total - len(failures), tuple(failures))

@@ -62,10 +62,11 @@ from ._value import compensation_document as compensation_document
 from ._value import machining_inputs_key as machining_inputs_key
 from ._value import processed_inputs_key as processed_inputs_key
 from ._value import recording_inputs_key as recording_inputs_key
-from ._writers import PROGRAM_LANGUAGE_CHOICES as PROGRAM_LANGUAGE_CHOICES
 from ._writers import fc_module_name as fc_module_name
+from ._writers import program_context as program_context
 from ._writers import program_files as program_files
 from ._writers import program_languages as program_languages
+from ._writers import program_texts as program_texts
 from ._writers import rapid_header as rapid_header
 from ._writers import rapid_text as rapid_text
 from ._writers import result_extras as result_extras

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..leadthrough import GuidePoint
-from ..path_learning import PathLearningSettings, Recording
+from ..path_learning import LearningStop, PathLearningSettings, Recording
 from ..postprocess import PostprocessSettings
 from ._machining import (
     MachiningSetup,
@@ -86,6 +86,9 @@ def project_file_bytes(project: Project) -> bytes:
         doc["recording"] = {
             "stop_reason": rec.stop_reason,
             "completed": rec.completed,
+            "stop": None if rec.stop is None else rec.stop.document(),
+            "wall_side": rec.wall_side,
+            "wall_side_reason": rec.wall_side_reason,
             "learning": asdict(learned.settings),
             "inputs": learned.inputs,
         }
@@ -182,6 +185,9 @@ def _project(doc: dict[str, Any], arrays: dict[str, np.ndarray]) -> Project:
         **{name: arrays[f"rec_{name}"] for name in RECORDING_FIELDS},
         stop_reason=str(info["stop_reason"]),
         completed=bool(info["completed"]),
+        stop=LearningStop.from_document(info.get("stop")),
+        wall_side=str(info.get("wall_side", "")),
+        wall_side_reason=str(info.get("wall_side_reason", "")),
     )
     learned = LearnedPath(
         recording,
@@ -193,6 +199,8 @@ def _project(doc: dict[str, Any], arrays: dict[str, np.ndarray]) -> Project:
     if doc.get("processed"):
         applied = PostprocessSettings(**(doc.get("applied_settings") or doc["post_settings"]))
         workpiece = build_cell_workpiece(cell, mesh)
-        processed = process(learned, applied, workpiece, cell.tool_radius_m)
+        processed = process(
+            learned, applied, workpiece, cell.tool_radius_m, guides=project.guide_points
+        )
         project = replace(project, processed=processed)
     return project

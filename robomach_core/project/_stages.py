@@ -10,7 +10,8 @@ from typing import Any
 import numpy as np
 
 from ..cell import Cell, CellState
-from ..errors import InvalidInputError
+from ..errors import InvalidInputError, NotEnoughGuidePointsError
+from ..leadthrough import GuidePoint
 from ..path_learning import PathLearningSettings, Recording, learn_path
 from ..postprocess import PostprocessSettings, Targets, postprocess
 from ..robot import Robot
@@ -38,15 +39,41 @@ def learn(
     *,
     progress: Callable[[float], None] | None = None,
     cancelled: Callable[[], bool] | None = None,
+    cad: Workpiece | None = None,
 ) -> tuple[LearnedPath, CellState]:
-    """Path learning through the project's guide points (``path_learning.learn_path``).
+    """Path learning through the project's guide points (``path_learning.learn_path``) on the
+    route ``learning_route.plan_route`` plans with the part as the user sees it (``cad``,
+    default the cell's part): the wall side decided, points resting on the floor lifted.
 
     ``cell`` is the project's cell (possibly seen through a proxy that taps each step); returns
     the learned path and the cell state at the end.
+
+    Raises:
+        WallSideError: the side is "auto" and neither pushes nor the mesh tell it.
     """
+    from ..learning_route import plan_route
+
     guides = list(project.guide_points)
+    if len(guides) < 2:
+        raise NotEnoughGuidePointsError(
+            f"path learning needs at least 2 guide points, got {len(guides)}"
+        )
+    route = plan_route(
+        guides,
+        settings,
+        workpiece=cad if cad is not None else cell.workpiece.cad(),
+        tool_radius_m=cell.tool.radius_m,
+    )
     recording, end = learn_path(
-        cell, state, guides, settings, estimator, progress=progress, cancelled=cancelled
+        cell,
+        state,
+        route.guides,
+        settings,
+        estimator,
+        progress=progress,
+        cancelled=cancelled,
+        wall_side=route.wall_side,
+        start_towards_wall=route.start_towards_wall,
     )
     quats = np.array([g.quaternion_wxyz for g in guides]).reshape(-1, 4)
     return LearnedPath(recording, quats, settings, recording_inputs_key(project)), end
@@ -57,14 +84,22 @@ def process(
     settings: PostprocessSettings,
     workpiece: Workpiece,
     tool_radius_m: float,
+    *,
+    guides: Sequence[GuidePoint] | None = None,
 ) -> ProcessedPath:
     """Force filter, deviation-height reduction and speeds (``postprocess.postprocess``), arc
     fitting when asked (``settings.arcs``), then the score against the true tool path when
-    the workpiece has a known wall and against its mesh for every part (``mesh_score``)."""
+    the workpiece has a known wall, and against its mesh for every part (``mesh_score``:
+    signed, and with ``guides``, whether the program follows the wall they were taught on)."""
     rec = learned.recording
-    result = postprocess(
-        rec, learned.guide_quaternions_wxyz, settings, closed=learned.settings.closed
-    )
+    try:
+        result = postprocess(
+            rec, learned.guide_quaternions_wxyz, settings, closed=learned.settings.closed
+        )
+    except InvalidInputError as exc:
+        if rec.completed:
+            raise
+        raise InvalidInputError(f"{exc}: path learning ended early ({rec.stop_reason})") from None
     moves = straight = None
     if settings.arcs and len(result.targets) >= 2:
         from ..arcs import arc_targets
@@ -73,10 +108,11 @@ def process(
         tol = settings.arc_tolerance_m or settings.tolerance_m
         arc_tg, moves = arc_targets(result.targets, result.surface_m, result.keep_mask, tol)
         result = replace(result, targets=arc_tg)
-    score = mesh = None
+    score = mesh = taught = None
     if len(result.targets) >= 2:
         from ..arcs import score_moves
-        from ..mesh_score import score_mesh
+        from ..mesh_score import score_mesh, taught_wall_check
+        from ..transforms import matrices_from_quaternions
 
         pos = result.targets.position_m
         if workpiece.wall is not None:
@@ -85,7 +121,18 @@ def process(
                 if moves is None
                 else score_moves(workpiece, tool_radius_m, pos, moves)
             )
-        mesh = score_mesh(workpiece, tool_radius_m, pos, moves)
+        axis = matrices_from_quaternions(result.targets.quaternion_wxyz)[:, :, 2].mean(axis=0)
+        mesh = score_mesh(workpiece, tool_radius_m, pos, moves, axis_base=axis)
+        if guides is not None and rec.wall_side:
+            taught = taught_wall_check(
+                workpiece,
+                tool_radius_m,
+                guides,
+                rec.wall_side,
+                pos,
+                moves,
+                closed=learned.settings.closed,
+            )
     comparison = cad_comparison_of(workpiece, result.targets, tool_radius_m, settings, learned)
     return ProcessedPath(
         settings,
@@ -96,6 +143,8 @@ def process(
         moves=moves,
         mesh_score=mesh,
         straight_targets=straight,
+        taught_wall=taught,
+        completed=rec.completed,
         cad_comparison=comparison,
     )
 

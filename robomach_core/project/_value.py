@@ -21,6 +21,7 @@ from ..tool import Tool
 StageStatus = Literal["none", "current", "stale"]
 STAGE_NAMES = ("guide_points", "recording", "postprocess", "machining")
 DEFAULT_MODULE_NAME = "LearnedPath"
+OVERCUT_MARGIN_M = 0.05e-3  # beyond the reduction's tolerance, a program's overcut is a fault
 
 
 class StaleResultError(RobomachError, RuntimeError):
@@ -113,6 +114,9 @@ class ProcessedPath:
         mesh_score: Deviation of the program from the workpiece mesh (every part).
         straight_targets: Targets of the straight (deviation-height) program, to compare the
             arc program's instruction count with; None when no arcs are fitted.
+        taught_wall: Whether the program follows the wall the guide points were taught on
+            (``mesh_score.TaughtWallCheck``); None when not checked.
+        completed: Whether the recording it was made from reached its last guide point.
         cad_comparison: The program a CAD/CAM tool would make from the mesh alone and the
             learned one, both scored against the real wall (``cad_program``); None when the
             path follows no wall of the mesh.
@@ -126,7 +130,27 @@ class ProcessedPath:
     moves: tuple[Any, ...] | None = None
     mesh_score: PathScore | None = None
     straight_targets: int | None = None
+    taught_wall: Any = None
+    completed: bool = True
     cad_comparison: Any = None
+
+    def problems(self) -> list[str]:
+        """What makes this program unfit to machine with, one line each (empty: none):
+        learning ended early, another wall than the taught one, or the cutter into the wall
+        beyond the reduction's tolerance."""
+        out = []
+        if not self.completed:
+            out.append("path learning ended before the last guide point: the program is partial")
+        if self.taught_wall is not None and not self.taught_wall.follows:
+            out.append(self.taught_wall.message)
+        mesh = self.mesh_score
+        limit = self.settings.tolerance_m + OVERCUT_MARGIN_M
+        if mesh is not None and mesh.overcut_m > limit:
+            out.append(
+                f"the program cuts {mesh.overcut_m * 1e3:.2f} mm into the part's wall (more "
+                f"than the {self.settings.tolerance_m * 1e3:g} mm tolerance): an overcut"
+            )
+        return out
 
 
 @dataclass(frozen=True)

@@ -15,18 +15,20 @@ from ._value import (
     compensation_document,
 )
 
-# "auto": the language of the arm's controller (``robot.ROBOT_PROGRAM_LANGUAGE``).
-PROGRAM_LANGUAGE_CHOICES = ("auto", "rapid", "urscript")
-
 
 def rapid_header(
     project: Project, workpiece_name: str, *, note: str | None = None
 ) -> tuple[str, ...]:
-    """The program's comment lines: cell, learning, reduction, CMRR and compensation."""
+    """The program's comment lines: cell, learning, reduction, CMRR and compensation; first, a
+    banner for each problem that makes the program unfit to machine with (a partial run, the
+    wrong wall, an overcut: ``ProcessedPath.problems``)."""
     c = project.cell
     processed = require_processed(project)
     learning = project.learned.settings
-    lines = [
+    lines = [f"NOT FIT TO MACHINE: {problem}" for problem in processed.problems()]
+    if not project.learned.recording.completed:
+        lines.append(f"path learning stopped: {project.learned.recording.stop_reason}")
+    lines += [
         f"robomach: {c.robot}, {workpiece_name}, tool radius {c.tool_radius_m * 1e3:g} mm, "
         f"seed {c.seed}",
         f"path learning: force {learning.force_N:g} N, speed {learning.speed_m_s * 1e3:g} mm/s, "
@@ -49,6 +51,74 @@ def fc_module_name(module_name: str) -> str:
     return module_name[:30] + "FC"
 
 
+def program_context(
+    project: Project,
+    workpiece: Workpiece,
+    robot: Robot,
+    *,
+    module_name: str = DEFAULT_MODULE_NAME,
+    force_control: bool = False,
+) -> Any:
+    """The ``export.languages.ProgramContext`` of the project's program: its targets
+    (``program_targets``: IK joints, compensated in the offline modes), the header, the moves,
+    the CMRR speed change (position-controlled program) or the learning force
+    (``force_control``)."""
+    from ..export.languages import ProgramContext
+
+    processed = require_processed(project)
+    targets, note = program_targets(project, robot)
+    speed_change = None
+    if project.cmrr is not None and not force_control:
+        from ..cmrr import to_speed_change_settings
+
+        speed_change = to_speed_change_settings(project.cmrr)
+    return ProgramContext(
+        targets=targets,
+        tool=project.tool(),
+        workpiece=workpiece,
+        robot=robot,
+        moves=processed.moves,
+        comment=rapid_header(project, workpiece.name, note=note),
+        module_name=module_name,
+        force_control_N=project.learned.settings.force_N if force_control else None,
+        speed_change=speed_change,
+    )
+
+
+def program_texts(
+    project: Project,
+    workpiece: Workpiece,
+    robot: Robot,
+    language: str,
+    *,
+    module_name: str = DEFAULT_MODULE_NAME,
+    force_control: bool = False,
+) -> dict[str, str]:
+    """One program of the project in a registered language (``export.languages``): file
+    name -> text (``program.mod``; ``program.src`` and ``program.dat``; ``program_fc.*`` for
+    the force-controlled variant).
+
+    Raises:
+        StaleResultError: the post-processing is missing or out of date.
+        UnknownNameError: no such language.
+        InvalidInputError: the language has no force-controlled variant and one is asked for.
+    """
+    from ..errors import InvalidInputError
+    from ..export.languages import language as language_named
+
+    require_processed(project)
+    lang = language_named(language)
+    if force_control and not lang.force_control:
+        raise InvalidInputError(f"{lang.title} programs have no force-controlled variant here")
+    if force_control and module_name == DEFAULT_MODULE_NAME:
+        module_name = fc_module_name(module_name)
+    context = program_context(
+        project, workpiece, robot, module_name=module_name, force_control=force_control
+    )
+    texts = lang.write(context)
+    return dict(zip(lang.file_names(force_control=force_control), texts, strict=True))
+
+
 def rapid_text(
     project: Project,
     workpiece: Workpiece,
@@ -63,30 +133,10 @@ def rapid_text(
     is chosen; ``force_control`` gives the FCPressL variant pressing at the learning force
     instead. Both use the compensated targets in the offline compensation modes.
     """
-    from ..export.program import rapid_program
-    from ..export.rapid import rapid_module
-
-    targets, note = program_targets(project, robot)
-    header = rapid_header(project, workpiece.name, note=note)
-    speed_change = None
-    if project.cmrr is not None and not force_control:
-        from ..cmrr import to_speed_change_settings
-
-        speed_change = to_speed_change_settings(project.cmrr)
-    from ..robots.abb import ABB_ARMS
-
-    program = rapid_program(
-        targets,
-        project.tool(),
-        workpiece,
-        module_name=module_name,
-        force_control_N=project.learned.settings.force_N if force_control else None,
-        speed_change=speed_change,
-        comment=header,
-        arm=robot.name if robot.name in ABB_ARMS else None,
-        moves=require_processed(project).moves,
+    texts = program_texts(
+        project, workpiece, robot, "rapid", module_name=module_name, force_control=force_control
     )
-    return rapid_module(program)
+    return next(iter(texts.values()))
 
 
 def urscript_text(
@@ -95,31 +145,17 @@ def urscript_text(
     """The project's program as URScript (``export.urscript``): ``movel``/``movec`` to the
     same targets as the RAPID module; ``force_control`` presses along tool y at the learning
     force (``force_mode``)."""
-    from ..export.urscript import urscript_program
-
-    targets, note = program_targets(project, robot)
-    return urscript_program(
-        targets,
-        project.tool(),
-        workpiece,
-        force_control_N=project.learned.settings.force_N if force_control else None,
-        comment=rapid_header(project, workpiece.name, note=note),
-        arcs=require_processed(project).moves,
-    )
+    texts = program_texts(project, workpiece, robot, "urscript", force_control=force_control)
+    return next(iter(texts.values()))
 
 
 def program_languages(robot: Robot, language: str = "auto") -> tuple[str, ...]:
-    """The program languages to write: RAPID always (program.mod, the stable output), and
-    URScript when the arm runs it (``language="auto"`` on a UR arm) or when asked for."""
-    from ..errors import InvalidInputError
+    """The program languages to write (``export.languages.resolve_languages``): ``auto``,
+    every language the arm's controller is offered (UR: RAPID and URScript; ABB: RAPID; KUKA:
+    KRL); a language's name, that one if the arm's controller runs it."""
+    from ..export.languages import resolve_languages
 
-    if language not in PROGRAM_LANGUAGE_CHOICES:
-        raise InvalidInputError(
-            f"unknown program language {language!r}; choose one of "
-            f"{', '.join(PROGRAM_LANGUAGE_CHOICES)}"
-        )
-    resolved = robot.program_language if language == "auto" else language
-    return ("rapid", "urscript") if resolved == "urscript" else ("rapid",)
+    return tuple(lang.name for lang in resolve_languages(robot, language))
 
 
 def program_files(
@@ -132,23 +168,28 @@ def program_files(
     compliance: dict[str, Any] | None = None,
     language: str = "auto",
 ) -> dict[str, str]:
-    """The program's files: program.mod, program_fc.mod, targets.csv, samples.csv and
-    settings.json (the one writer set of the CLI and the workbench); program.script and
-    program_fc.script too when the program language is URScript (``program_languages``)."""
+    """The program's files (the one writer set of the CLI and the workbench): for every
+    language of ``program_languages`` its program and, where it has one, its force-controlled
+    variant (program.mod and program_fc.mod; program.script and program_fc.script;
+    program.src and program.dat), then targets.csv, samples.csv and settings.json."""
+    from ..export.languages import language as language_named
     from ..export.tables import samples_csv
 
     processed = require_processed(project)
     languages = program_languages(robot, language)
     doc = settings_document(project, workpiece, project_name=project_name, compliance=compliance)
-    files = {
-        "program.mod": rapid_text(project, workpiece, robot, module_name=module_name),
-        "program_fc.mod": rapid_text(
-            project, workpiece, robot, module_name=fc_module_name(module_name), force_control=True
-        ),
-    }
-    if "urscript" in languages:
-        files["program.script"] = urscript_text(project, workpiece, robot)
-        files["program_fc.script"] = urscript_text(project, workpiece, robot, force_control=True)
+    files: dict[str, str] = {}
+    for name in languages:
+        files |= program_texts(project, workpiece, robot, name, module_name=module_name)
+        if language_named(name).force_control:
+            files |= program_texts(
+                project,
+                workpiece,
+                robot,
+                name,
+                module_name=fc_module_name(module_name),
+                force_control=True,
+            )
     return files | {
         "targets.csv": targets_text(project, robot),
         "samples.csv": samples_csv(project.learned.recording, processed.result.keep_mask),
@@ -251,13 +292,20 @@ def settings_document(
 def result_extras(processed: Any) -> dict[str, Any]:
     """The post-processing result's mesh score and move counts (mm), for settings.json,
     summary.json and the API: ``mesh_max_deviation_mm``, ``mesh_rms_deviation_mm``,
-    ``moves``, ``circular_moves``, ``straight_moves``."""
+    ``mesh_overcut_mm``, ``mesh_air_mm``, ``follows_taught_wall``, ``taught_wall``,
+    ``problems``, ``moves``, ``circular_moves``, ``straight_moves``."""
     mesh = processed.mesh_score
     n = len(processed.result.targets)
     moves = processed.moves
+    taught = processed.taught_wall
     return {
         "mesh_max_deviation_mm": None if mesh is None else mesh.max_m * 1e3,
         "mesh_rms_deviation_mm": None if mesh is None else mesh.rms_m * 1e3,
+        "mesh_overcut_mm": None if mesh is None else mesh.overcut_m * 1e3,
+        "mesh_air_mm": None if mesh is None else mesh.air_m * 1e3,
+        "follows_taught_wall": None if taught is None else taught.follows,
+        "taught_wall": None if taught is None else taught.message,
+        "problems": processed.problems(),
         "arcs": moves is not None,
         "moves": n if moves is None else len(moves),
         "circular_moves": 0 if moves is None else sum(m.via is not None for m in moves),

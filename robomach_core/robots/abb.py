@@ -1,4 +1,4 @@
-"""ABB machining arms from their published kinematics: IRB 4400/60 and IRB 6640-185/2.80.
+"""ABB arms from their published kinematics: IRB 4400/60, IRB 2400/16 and IRB 6640-185/2.80.
 
 PROBLEM   example-robot-data ships no ABB arm, yet the chapter's deburring cell is an IRB 4400
           and the export is RAPID, whose confdata only means something on the arm's own axes.
@@ -14,37 +14,54 @@ STRATEGY  Every ABB 6-axis arm here has the same serial structure (ABB's axis ze
 
           The numbers are the joint origins, axes and limits of ROS-Industrial's support
           packages (github.com/ros-industrial/abb: ``abb_irb4400_support/urdf/
-          irb4400_macro.xacro`` and ``abb_irb6640_support/urdf/irb6640_185_280_macro.xacro``),
-          whose joint zeros and positive directions are the controller's (its abb_driver passes
-          joint angles through unchanged, but for the coupled axis 3 below), and whose limits
-          follow ABB's product specifications (IRB 4400: axis 1 +-165, 2 -70/+96, 3 -60/+65,
-          4 +-200, 5 +-120, 6 +-400 deg; IRB 6640: 1 +-170, 2 -65/+85, 3 -180/+70, 4 +-300,
-          5 +-120, 6 +-360 deg). Their meshes are not used: boxes and cylinders draw the links.
+          irb4400_macro.xacro``, ``abb_irb2400_support/urdf/irb2400_macro.xacro`` and
+          ``abb_irb6640_support/urdf/irb6640_185_280_macro.xacro``), whose joint zeros and
+          positive directions are the controller's (its abb_driver passes joint angles through
+          unchanged, but for the coupled axis 3 below), and whose limits follow ABB's product
+          specifications (IRB 4400: axis 1 +-165, 2 -70/+96, 3 -60/+65, 4 +-200, 5 +-120,
+          6 +-400 deg; IRB 2400: 1 +-180, 2 -100/+110, 3 -60/+65, 4 +-200, 5 +-120, 6 +-400 deg;
+          IRB 6640: 1 +-170, 2 -65/+85, 3 -180/+70, 4 +-300, 5 +-120, 6 +-360 deg). The IRB
+          2400's axis 4 sits 0.258 m along the forearm from axis 3 (it turns about the
+          forearm, so only the 0.755 m to the wrist centre counts). Their meshes are not used:
+          boxes and cylinders draw the links.
 SOLUTION  ``ABB_ARMS`` (name -> ``ArmSpec``), ``urdf_text(spec)`` (a URDF that pinocchio and
           yourdfpy load), ``urdf_path(name)`` (that URDF written once into a cache folder) and
           ``controller_axes_deg`` (the joint values the ABB controller shows).
 
-The IRB 4400 is a parallel-bar arm: its controller measures axis 3 from the horizontal, so
-ABB's axis 3 = q2 + q3 of this serial model (abb_driver's ``J23_coupled``); the zeros agree.
+The IRB 4400 and IRB 2400 are parallel-bar arms: the controller measures axis 3 from the
+horizontal, so ABB's axis 3 = q2 + q3 of this serial model (abb_driver's ``J23_coupled``); the
+zeros agree. ABB's axis-3 range applies to that controller value, which makes it a combined
+limit on axes 2 and 3 of the serial model (``ArmSpec.axis3_from_horizontal_deg``, enforced by
+``Robot`` and supervision); the serial elbow angle q3 keeps the range ROS-Industrial gives its
+joint_3. ABB does not publish the parallelogram's own coupled bounds (its MOC.cfg), so this
+range on the serial joint stands for them.
+
+No IRB 6400 is built: its kinematics are not published in ROS-Industrial's packages (the
+former ``abb_common`` "irb6400" model was an IRB 6640 and was replaced by
+``abb_irb6640_support``), and the chapter's DH table did not survive in our copy.
 """
 
 from __future__ import annotations
 
-import hashlib
 import math
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import UnknownNameError
+from ._urdf import CACHE_ENV as CACHE_ENV
+from ._urdf import box as _box
+from ._urdf import cache_directory as cache_directory
+from ._urdf import cached_urdf
+from ._urdf import cylinder as _cylinder
+from ._urdf import number as _f
+from ._urdf import visual as _visual
+from ._urdf import xyz as _xyz
 
 FLANGE_FRAME = "tool0"
 ABB_ORANGE_RGBA = "1 0.43 0 1"
 GRAPHITE_RGBA = "0.3 0.3 0.3 1"
-CACHE_ENV = "ROBOMACH_CACHE_DIR"
 
 
 @dataclass(frozen=True)
@@ -64,6 +81,8 @@ class ArmSpec:
         velocity_deg_s: (6,) axis speed limits.
         j23_coupled: The controller's axis 3 is measured from the horizontal (parallel bar).
         link_radius_m: Half-thickness of the drawn links (display and collision only).
+        axis3_from_horizontal_deg: On a parallel-bar arm, ABB's axis-3 range, which applies to
+            the controller's axis 3 = q2 + q3 (the combined axis-2/3 limit); None otherwise.
     """
 
     name: str
@@ -79,6 +98,7 @@ class ArmSpec:
     velocity_deg_s: tuple[float, ...]
     j23_coupled: bool
     link_radius_m: float
+    axis3_from_horizontal_deg: tuple[float, float] | None = None
 
 
 IRB4400 = ArmSpec(
@@ -95,6 +115,25 @@ IRB4400 = ArmSpec(
     velocity_deg_s=(150.0, 120.0, 120.0, 225.0, 135.4, 330.0),
     j23_coupled=True,
     link_radius_m=0.09,
+    axis3_from_horizontal_deg=(-60.0, 65.0),
+)
+
+# The Lund papers' arm (S4CPlus): IRB 2400/16, 1.55 m reach.
+IRB2400 = ArmSpec(
+    name="irb2400",
+    title="ABB IRB 2400/16",
+    base_height_m=0.0,
+    shoulder_m=(0.100, 0.615),
+    upper_arm_m=0.705,
+    elbow_offset_m=0.135,
+    forearm_m=0.755,
+    flange_m=0.085,
+    lower_deg=(-180.0, -100.0, -60.0, -200.0, -120.0, -400.0),
+    upper_deg=(180.0, 110.0, 65.0, 200.0, 120.0, 400.0),
+    velocity_deg_s=(150.0, 150.0, 150.0, 360.0, 360.0, 450.0),
+    j23_coupled=True,
+    link_radius_m=0.06,
+    axis3_from_horizontal_deg=(-60.0, 65.0),
 )
 
 IRB6640 = ArmSpec(
@@ -113,7 +152,7 @@ IRB6640 = ArmSpec(
     link_radius_m=0.13,
 )
 
-ABB_ARMS: dict[str, ArmSpec] = {arm.name: arm for arm in (IRB4400, IRB6640)}
+ABB_ARMS: dict[str, ArmSpec] = {arm.name: arm for arm in (IRB4400, IRB2400, IRB6640)}
 
 
 def arm_spec(name: str) -> ArmSpec:
@@ -124,31 +163,6 @@ def arm_spec(name: str) -> ArmSpec:
         raise UnknownNameError(
             f"no ABB arm {name!r}; known: {', '.join(sorted(ABB_ARMS))}"
         ) from None
-
-
-def _f(x: float) -> str:
-    return f"{x:.6g}"
-
-
-def _xyz(*v: float) -> str:
-    return " ".join(_f(x) for x in v)
-
-
-def _visual(shape: str, origin_xyz: tuple[float, ...], rpy: tuple[float, ...], rgba: str) -> str:
-    geometry = f"<geometry>{shape}</geometry>"
-    origin = f'<origin xyz="{_xyz(*origin_xyz)}" rpy="{_xyz(*rpy)}"/>'
-    return (
-        f'    <visual>{origin}{geometry}<material name="m"><color rgba="{rgba}"/></material>'
-        f"</visual>\n    <collision>{origin}{geometry}</collision>\n"
-    )
-
-
-def _box(size: tuple[float, float, float]) -> str:
-    return f'<box size="{_xyz(*size)}"/>'
-
-
-def _cylinder(radius: float, length: float) -> str:
-    return f'<cylinder radius="{_f(radius)}" length="{_f(length)}"/>'
 
 
 def urdf_text(spec: ArmSpec) -> str:
@@ -239,31 +253,9 @@ def urdf_text(spec: ArmSpec) -> str:
     return "\n".join(out) + "\n"
 
 
-def cache_directory() -> Path:
-    """Folder for generated files: ``$ROBOMACH_CACHE_DIR``, else ~/.cache/robomach, else /tmp."""
-    env = os.environ.get(CACHE_ENV)
-    candidates = [Path(env)] if env else []
-    candidates += [Path.home() / ".cache" / "robomach", Path(tempfile.gettempdir()) / "robomach"]
-    for folder in candidates:
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-        except OSError:
-            continue
-        if os.access(folder, os.W_OK):
-            return folder
-    raise OSError("no writable cache folder for generated robot files")
-
-
 def urdf_path(name: str) -> Path:
     """The arm's URDF as a file (written at first use; the name holds a hash of the content)."""
-    text = urdf_text(arm_spec(name))
-    digest = hashlib.sha256(text.encode()).hexdigest()[:12]
-    path = cache_directory() / f"{name.lower()}-{digest}.urdf"
-    if not path.is_file():
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)  # atomic: a concurrent reader never sees half a file
-    return path
+    return cached_urdf(name, urdf_text(arm_spec(name)))
 
 
 def controller_axes_deg(name: str, joints_rad: np.ndarray) -> np.ndarray:

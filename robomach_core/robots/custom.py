@@ -10,13 +10,20 @@ STRATEGY  ``validate_urdf`` parses the XML (no mesh is loaded), walks the chain 
           joint of an unsupported type, a revolute joint without limits, not six revolute
           joints. The chain's last link gets a fixed ``tool0`` child when the file has none.
           ``register_urdf`` registers the arm under a content-addressed name in the tables
-          ``robot.Robot`` reads (URDF text, home, program language, part placement, joint
-          stiffness): the part sits in front of the arm at 62 % of its reach and 0.1 reach
-          below the shoulder but not below the base (near the UR10's and IRB 4400's placements), the
-          home pose is the IK of the tool pointing down 150 mm above the part.
-SOLUTION  ``register_urdf(filename, data) -> name``; ``Robot(name)`` then builds it like a
-          built-in arm. The project keeps the file's bytes (``Project.robot_urdf``) and
-          registers it again when opened, so the name is stable across restarts.
+          ``robot.Robot`` reads (URDF text, home, family and program language, part
+          placement, joint stiffness). An arm with a built-in arm's kinematics
+          (``robots.recognise``: a UR5 copied out of example-robot-data) is that arm: its
+          family (a UR gets URScript), placement, home and stiffness. Any other arm is taken
+          for an ABB controller's (RAPID, as before), the part in front of it at 62 % of its
+          reach and 0.1 reach below the shoulder but not below the base (near the UR10's and
+          IRB 4400's placements), its home the IK of the tool pointing down 150 mm above the
+          part. The user may name the controller's family at upload (``family``): the arm is
+          then registered under the name with ``_<family>`` appended, so the choice is part of
+          the name the project keeps.
+SOLUTION  ``register_urdf(filename, data, family="auto") -> name``; ``Robot(name)`` then
+          builds it like a built-in arm. The project keeps the file's bytes
+          (``Project.robot_urdf``) and registers it again when opened, so the name is stable
+          across restarts (a ``_<family>`` name is registered again on first use).
 """
 
 from __future__ import annotations
@@ -212,8 +219,51 @@ def robot_name_for(filename: str, data: bytes) -> str:
 
 
 def is_custom(name: str) -> bool:
-    """True for a registered user arm."""
-    return name.lower() in _URDF_TEXT
+    """True for a registered user arm (a ``_<family>`` variant of a registered one is
+    registered on the way)."""
+    key = name.lower()
+    return key in _URDF_TEXT or _family_variant(key) is not None
+
+
+def family_of(name: str) -> str:
+    """The controller family a registered user arm was given (``robots.builtin``)."""
+    from .. import robot as robot_module
+
+    return robot_module.ROBOT_FAMILY[name.lower()]
+
+
+def _family_variant(name: str) -> str | None:
+    """Register ``<base>_<family>`` when ``<base>`` is a registered arm; its name, or None."""
+    from .builtin import ARM_FAMILIES
+
+    base, _, family = name.rpartition("_")
+    if family not in ARM_FAMILIES or base not in _URDF_TEXT:
+        return None
+    return _register_variant(base, family)
+
+
+def _register_variant(base: str, family: str) -> str:
+    """The arm ``base`` with its controller of ``family``: same kinematics, placement, home
+    and stiffness; the family's language."""
+    from .. import joint_compliance, workpiece
+    from .. import robot as robot_module
+
+    if robot_module.ROBOT_FAMILY.get(base) == family:
+        return base
+    name = f"{base}_{family}"
+    if name in _URDF_TEXT:
+        return name
+    _URDF_TEXT[name] = _URDF_TEXT[base]
+    _MESHES[name] = _MESHES.get(base, {})
+    robot_module.ROBOT_FAMILY[name] = family
+    robot_module.ROBOT_PROGRAM_LANGUAGE[name] = robot_module.FAMILY_LANGUAGE[family]
+    robot_module.ROBOT_HOME_JOINTS_RAD[name] = robot_module.ROBOT_HOME_JOINTS_RAD[base]
+    joint_compliance.TRUE_JOINT_STIFFNESS_NM_RAD[name] = (
+        joint_compliance.TRUE_JOINT_STIFFNESS_NM_RAD[base]
+    )
+    if base in workpiece.ROBOT_WOBJ_POSITION_M:
+        workpiece.ROBOT_WOBJ_POSITION_M[name] = workpiece.ROBOT_WOBJ_POSITION_M[base]
+    return name
 
 
 def urdf_text(name: str) -> str:
@@ -226,7 +276,7 @@ def urdf_file(name: str) -> Path:
     beside it at their paths in the zip; written at first use into the robots cache."""
     import os
 
-    from .abb import cache_directory
+    from ._urdf import cache_directory
 
     key = name.lower()
     folder = cache_directory() / key
@@ -249,15 +299,33 @@ def mesh_files(name: str) -> dict[str, bytes]:
     return dict(_MESHES.get(name.lower(), {}))
 
 
-def register_urdf(filename: str, data: bytes) -> str:
+def register_urdf(filename: str, data: bytes, family: str = "auto") -> str:
     """Validate a robot file and register its arm; returns the name ``Robot`` takes.
+
+    Args:
+        filename, data: The uploaded file.
+        family: The controller's family (``robots.builtin.ARM_FAMILIES``), or ``"auto"``: the
+            family of the built-in arm with the same kinematics, else ABB's (RAPID).
 
     Raises:
         RobotFileError: not a .urdf/.zip, too large, not XML, or not a serial chain of six
-            revolute joints with limits (the message names the fault).
+            revolute joints with limits (the message names the fault); an unknown family.
     """
+    from .builtin import ARM_FAMILIES
+
+    if family != "auto" and family not in ARM_FAMILIES:
+        raise RobotFileError(
+            f"unknown controller family {family!r}; choose auto, {', '.join(ARM_FAMILIES)}"
+        )
+    name = _register_file(filename, data)
+    return name if family == "auto" else _register_variant(name, family)
+
+
+def _register_file(filename: str, data: bytes) -> str:
+    """``register_urdf`` with the family found from the kinematics."""
     from .. import joint_compliance, workpiece
     from .. import robot as robot_module
+    from .recognise import recognise_arm
 
     name = robot_name_for(filename, data)
     if name in _URDF_TEXT:
@@ -275,10 +343,26 @@ def register_urdf(filename: str, data: bytes) -> str:
         raise RobotFileError(f"{filename}: the model has {model.nq} joints, expected 6")
     _URDF_TEXT[name] = normalised
     _MESHES[name] = files
+    same = recognise_arm(model)
+    if same is not None:  # a built-in arm's kinematics: its controller, placement, home
+        robot_module.ROBOT_FAMILY[name] = robot_module.ROBOT_FAMILY[same]
+        robot_module.ROBOT_PROGRAM_LANGUAGE[name] = robot_module.ROBOT_PROGRAM_LANGUAGE[same]
+        robot_module.ROBOT_HOME_JOINTS_RAD[name] = np.clip(
+            robot_module.ROBOT_HOME_JOINTS_RAD[same],
+            model.lowerPositionLimit,
+            model.upperPositionLimit,
+        )
+        joint_compliance.TRUE_JOINT_STIFFNESS_NM_RAD[name] = (
+            joint_compliance.TRUE_JOINT_STIFFNESS_NM_RAD[same]
+        )
+        if same in workpiece.ROBOT_WOBJ_POSITION_M:
+            workpiece.ROBOT_WOBJ_POSITION_M[name] = workpiece.ROBOT_WOBJ_POSITION_M[same]
+        return name
     # The tables Robot reads; a placeholder home until the IK below finds one.
     robot_module.ROBOT_HOME_JOINTS_RAD[name] = np.clip(
         np.zeros(6), model.lowerPositionLimit, model.upperPositionLimit
     )
+    robot_module.ROBOT_FAMILY[name] = "abb"
     robot_module.ROBOT_PROGRAM_LANGUAGE[name] = "rapid"
     arm = robot_module.Robot(name)
     reach = arm.reach_m
@@ -344,6 +428,7 @@ def _forget(name: str) -> None:
         _MESHES,
         robot_module.ROBOT_HOME_JOINTS_RAD,
         robot_module.ROBOT_PROGRAM_LANGUAGE,
+        robot_module.ROBOT_FAMILY,
         workpiece.ROBOT_WOBJ_POSITION_M,
         joint_compliance.TRUE_JOINT_STIFFNESS_NM_RAD,
     ):

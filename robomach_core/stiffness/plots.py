@@ -164,3 +164,27 @@ def plot_ilc(path: Path, arm: IlcResult, force: IlcResult) -> Path:
         ax.set_title(f"{name} ILC: first and last run")
         ax.legend(fontsize=7, ncol=2)
     return _save(fig, path)
+
+
+def plot_compliance_paper(
+    path: Path, time_s: np.ndarray, runs: Mapping[str, np.ndarray], engaged: np.ndarray
+) -> Path:
+    """The compliance paper's Figs. 13 and 15: the deviation across the feed over the line,
+    uncompensated and compensated, the fully engaged part shaded."""
+    fig = Figure(figsize=(9, 4))
+    ax = fig.subplots()
+    labels = {
+        "uncompensated": "uncompensated",
+        "paper_model": "compensated, eq. (32), Table 1 stiffness",
+        "identified_model": "compensated, eq. (32), identified stiffness",
+    }
+    for key, deviation in runs.items():
+        ax.plot(time_s, np.asarray(deviation) * 1e6, label=labels.get(key, key))
+    t_engaged = np.asarray(time_s)[np.asarray(engaged)]
+    if t_engaged.size:
+        ax.axvspan(t_engaged[0], t_engaged[-1], color="0.9", zorder=0, label="fully engaged")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("deviation across the feed [µm]")
+    ax.set_title("KR 270 at Table 1's pose, 80 mm at 4 m/min")
+    ax.legend(fontsize=8)
+    return _save(fig, path)

@@ -6,7 +6,8 @@ PROBLEM   A person pushing or jogging the arm must never drive it through a join
           branch and the arm flips. A real controller slows down near such a limit and stops
           before it with a message that names the cause and the axis.
 STRATEGY  Every limit is a margin m(q) >= 0 that shrinks towards it (a distance or an angle):
-            - joint limits: min(q_i - lower_i, upper_i - q_i);
+            - joint limits: min(q_i - lower_i, upper_i - q_i), and the combined limits of
+              a parallel-bar arm (``Robot.couplings``: ABB's axis 3 = q2 + q3 in its range);
             - wrist singularity: the angle between axes 4 and 6 (parallel when axis 5 is at 0);
             - elbow singularity (the arm stretched, the edge of its reach): the angle between
               the upper arm and the forearm in the arm plane;
@@ -204,7 +205,7 @@ class _Body:
 
 @dataclass
 class _Margin:
-    kind: str  # "joint", "wrist", "elbow", "shoulder" or "collision"
+    kind: str  # "joint", "wrist", "elbow", "shoulder", "collision" or "coupling"
     stop: float
     slow: float
     index: int = -1  # joint index (0-based) or body index
@@ -325,13 +326,15 @@ class Supervisor:
                     np.concatenate([corners.min(axis=0), corners.max(axis=0)]),
                 )
             )
+        self._couplings = robot.couplings
         self._margin_defs = self._make_margins()
         self._thresholds = np.array(
             [[m.stop for m in self._margin_defs], [m.slow for m in self._margin_defs]]
         )
         self._tracking = np.array([lim.tracking_stop_m, lim.tracking_stop_rad])
         self._pairs = np.array(
-            [[m.index, m.obstacle, m.slow] for m in self._margin_defs[9:]], dtype=float
+            [[m.index, m.obstacle, m.slow] for m in self._margin_defs if m.kind == "collision"],
+            dtype=float,
         ).reshape(-1, 3)
         self._body_table = np.array(
             [[b.joint - 1, *b.a, *b.b, b.radius, float(b.flat)] for b in self._bodies]
@@ -422,6 +425,9 @@ class Supervisor:
                 if o == 0 and self.workpiece is not None and not body.touches_part:
                     continue  # the cutter against the part is contact, not a collision
                 defs.append(_Margin("collision", stop, slow, k, o))
+        # Combined joint limits come last, after the kernel's margins (``_compute``).
+        for k in range(len(self._couplings)):
+            defs.append(_Margin("coupling", lim.joint_stop_rad, lim.joint_slow_rad, k))
         return defs
 
     @property
@@ -473,6 +479,8 @@ class Supervisor:
                 self._request,
                 self._result,
             )
+        if self._couplings:
+            margins = np.concatenate([margins, [c.margin(q) for c in self._couplings]])
         return _Evaluation(margins, Ts[5] @ self._M_tcp)
 
     def joint_placements(self, q: np.ndarray) -> np.ndarray:
@@ -480,7 +488,8 @@ class Supervisor:
         return chain_placements(np.asarray(q, dtype=float), self._placements, self._axes)
 
     def margins(self, q: np.ndarray) -> np.ndarray:
-        """All margins at joints ``q`` (rad): joints (6), wrist, elbow, shoulder, clearances.
+        """All margins at joints ``q`` (rad): joints (6), wrist, elbow, shoulder, clearances,
+        then the combined joint limits (``Robot.couplings``) if the arm has any.
 
         Angles in radians, distances in metres; the clearances of far bodies are lower bounds
         (their bounding-box distance), exact within the slow zone.
@@ -493,12 +502,16 @@ class Supervisor:
     def describe(self, q: np.ndarray) -> dict[str, float]:
         """The nearest limits at ``q`` for a display: angles in deg, distances in mm."""
         m = self.margins(q)
+        n_coupled = len(self._couplings)
+        clearances = m[9 : len(m) - n_coupled]
         return {
-            "joint_limit_deg": math.degrees(float(m[:6].min())),
+            "joint_limit_deg": math.degrees(
+                float(min(m[:6].min(), *(m[len(m) - n_coupled :] if n_coupled else ())))
+            ),
             "wrist_axis5_deg": math.degrees(float(m[6])),
             "elbow_axis3_deg": math.degrees(float(m[7])),
             "shoulder_mm": float(m[8]) * 1e3,
-            "clearance_mm": float(m[9:].min()) * 1e3 if len(m) > 9 else math.inf,
+            "clearance_mm": float(clearances.min()) * 1e3 if len(clearances) else math.inf,
         }
 
     # --- the decision --------------------------------------------------------------------
@@ -601,6 +614,18 @@ class Supervisor:
                 "joint limit",
                 f"joint limit: axis {j + 1} at {deg:.1f} deg (limit {math.degrees(limit):.0f} deg)",
                 j + 1,
+                deg,
+                "deg",
+            )
+        if m.kind == "coupling":
+            c = self._couplings[m.index]
+            deg = math.degrees(c.value(q))
+            near_upper = c.upper_rad - c.value(q) < c.value(q) - c.lower_rad
+            limit = math.degrees(c.upper_rad if near_upper else c.lower_rad)
+            return SupervisionStop(
+                "joint limit",
+                f"joint limit: {c.description} at {deg:.1f} deg (limit {limit:.0f} deg)",
+                c.axis,
                 deg,
                 "deg",
             )

@@ -93,3 +93,30 @@ def test_cancel_while_learning_keeps_the_last_recording(api: Api) -> None:
     assert after["busy"] is False and after["time_s"] >= state["time_s"]
     r = api.post("/api/postprocess", json={})
     assert r.status_code == 409
+
+
+def test_the_wall_side_is_set_or_told_never_guessed(api: Api) -> None:
+    """Two points recorded free in the pump's groove, one nearer its outer wall and one nearer
+    the island's: neither a push nor the nearer wall tells the side, so "auto" is refused
+    (422) with what to do, before any job, and the check says so first; with the side set
+    the run learns."""
+    api.compliance(["x", "y", "z"])
+    for x, y in ((720.0, 96.3), (760.0, 98.7)):  # outer wall at y = 95, island at 100 mm
+        api.push_to([x, y, 30.0])
+        api.push_to([x, y, 17.0])
+        api.ok("POST", "/api/guide-points", 201)
+    api.push_to([760.0, 97.5, 30.0])
+    body = {"force_N": 10, "speed_mm_s": 20, "closed": False}
+    for bad, field in (({"wall_side": "up"}, "wall_side"), ({"floor_clearance_mm": 9}, "floor")):
+        r = api.post(PL, json=body | bad)
+        assert r.status_code == 422 and field in r.json()["detail"], r.text
+    r = api.post(PL, json=body | {"wall_side": "auto"})
+    assert r.status_code == 422 and "both sides" in r.json()["detail"], r.text
+    assert api.ok("GET", "/api/state")["busy"] is False  # refused before any job
+    warnings = api.ok("GET", f"{PL}/warnings", params={"wall_side": "auto", "closed": False})
+    assert "both sides" in warnings[0]
+    job = api.wait_job(api.ok("POST", PL, 202, json=body | {"wall_side": "right"})["job_id"])
+    assert job["status"] == "done", job
+    post = api.ok("POST", "/api/postprocess", json={})
+    assert post["follows_taught_wall"] is True and post["problems"] == []
+    assert post["mesh_overcut_mm"] <= 0.25

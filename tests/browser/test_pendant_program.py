@@ -1,5 +1,6 @@
-"""The pendant's issue-11 parts: the guide-point hint, the arcs option, the URScript download
-and the mesh score, on the real page."""
+"""The pendant's issue-11 parts: the guide-point hint, the arcs option, the program download in
+the arm's languages (from the server's language registry) and the mesh score, on the real
+page."""
 
 from __future__ import annotations
 
@@ -18,8 +19,12 @@ def test_pendant_hint_arcs_and_urscript(served: Served, api: httpx.Client, page:
     expect(page.locator("#connection")).to_have_text("online")
     expect(page.locator("#guide-hint")).to_contain_text("outside corner")
     expect(page.locator("#post-arcs")).not_to_be_checked()
+    # The UR10 is offered its languages only, URScript among them (GET /api/export/languages).
+    expect(page.locator("#export-language option")).to_have_count(2)
+    page.select_option("#export-language", "urscript")
+    expect(page.locator("#export-download")).to_have_text("Download program.script")
     # Nothing learned yet: the download says why instead of saving an empty file.
-    page.click("#export-script")
+    page.click("#export-download")
     expect(page.locator("#message-text")).to_contain_text("path learning")
     page.click("#message-close")
     # Arcs ride in the post-processing request; the server refuses it for the same reason.

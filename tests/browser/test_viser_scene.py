@@ -140,3 +140,21 @@ def test_the_pose_readout_shows_where_the_robot_stopped(workbench) -> None:
     stopped_mm = session.snapshot().position_m * 1e3
     row = f"| mm | {stopped_mm[0]:.2f} | {stopped_mm[1]:.2f} | {stopped_mm[2]:.2f} |"
     wait_for(lambda: row in workbench.leadthrough.pose.content)
+
+
+def test_the_wall_to_follow_is_shown_before_the_run_and_the_side_is_checked(workbench) -> None:
+    """After the example's lead-through, the path-learning panel says which wall the run
+    will follow and why (the pushes), and the scene highlights it; set to the other side, the
+    rules panel says every point is nearer the wall on the right."""
+    session = workbench.session
+    job = session.start_example()
+    wait_for(lambda: session.job(job).status == "done", timeout_s=180.0)
+    panel = workbench.path_learning
+    wait_for(lambda: "follows the wall on the right" in panel.wall_note.content)
+    assert "pushed back from the right" in panel.wall_note.content
+    panel.wall_side.value = "left"
+    wait_for(lambda: "nearer the wall on the right" in workbench.guide_rules.warnings.content)
+    wait_for(lambda: "follows the wall on the left" in panel.wall_note.content)
+    panel.wall_side.value = "auto"
+    wait_for(lambda: "follows the wall on the right" in panel.wall_note.content)
+    panel.refresh_stop()  # no recording yet: no stop marker (and no error drawing it)

@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 from robomach_core.cell import Cell, CellConfig
 from robomach_core.demo_operator import TOOL_DOWN
+from robomach_core.errors import UnreachableTargetError
 from robomach_core.export.rapid import abb_cfx, abb_wrist_centre_in_arm_plane, confdata_from_joints
 from robomach_core.joint_compliance import true_joint_compliance
 from robomach_core.robot import (
@@ -23,6 +24,7 @@ from robomach_core.robot import (
     robot_urdf_path,
 )
 from robomach_core.robots import ABB_ARMS, IRB4400, IRB6640, controller_axes_deg, urdf_text
+from robomach_core.supervision import Supervisor
 from robomach_core.tool import Tool
 from robomach_core.transforms import rotation_about
 from robomach_core.workpiece import builtin_workpiece, default_T_base_wobj
@@ -206,3 +208,46 @@ def test_fk_of_ik_is_the_target_around_the_work_pose(name, offset, tilt):
     q = robot.ik(T)
     assert robot.within_limits(q)
     np.testing.assert_allclose(robot.fk(q), T, atol=1e-5)
+
+
+# -------------------------------------------------------------------------------------------------
+# The parallel-bar arms' combined axis-2/3 limit (ABB's axis 3 = q2 + q3 in its range)
+
+
+@pytest.mark.parametrize("name", ["irb4400", "irb2400"])
+def test_combined_axis_2_3_limit_holds_at_the_limit_and_refuses_beyond(name):
+    """At the limit the joints are allowed; a hair beyond, refused, though each joint is inside
+    its own range; the clamp brings them back onto the limit."""
+    robot = Robot(name, Tool().T_flange_tcp)
+    (coupling,) = robot.couplings
+    hi = math.degrees(coupling.upper_rad)
+    assert hi == pytest.approx(ABB_ARMS[name].axis3_from_horizontal_deg[1])
+    at_limit = np.radians([0.0, 40.0, hi - 40.0, 0.0, 40.0, 0.0])
+    beyond = np.radians([0.0, 40.0, hi - 40.0 + 0.5, 0.0, 40.0, 0.0])
+    assert np.all(beyond >= robot.lower_rad) and np.all(beyond <= robot.upper_rad)
+    assert robot.within_limits(at_limit)
+    assert not robot.within_limits(beyond)
+    assert controller_axes_deg(name, beyond)[2] == pytest.approx(hi + 0.5)
+    clamped = robot.clamp(beyond)
+    assert robot.within_limits(clamped)
+    assert math.degrees(clamped[1] + clamped[2]) == pytest.approx(hi)
+    # a pose that needs axis 3 past its range from the horizontal is out of reach
+    T = robot.fk(beyond)
+    with pytest.raises(UnreachableTargetError):
+        robot.ik(T, beyond)
+    assert robot.within_limits(robot.ik(robot.fk(at_limit), at_limit))
+
+
+def test_supervision_stops_a_step_past_the_combined_limit_and_lets_the_arm_back():
+    robot = Robot("irb4400", Tool().T_flange_tcp)
+    supervisor = Supervisor(robot)
+    near = np.radians([0.0, 40.0, 23.3, 0.0, 40.0, 0.0])  # axis 3 at 63.3 of 65 deg
+    further = np.radians([0.0, 40.0, 23.6, 0.0, 40.0, 0.0])
+    stop = supervisor.check(near, further)
+    assert stop is not None and stop.cause == "joint limit" and stop.axis == 3
+    assert "axis 3 from the horizontal" in stop.message and "65 deg" in stop.message
+    assert supervisor.check(further, near) is None  # moving away is never refused
+    assert supervisor.speed_scale(np.radians([0, 40, 20, 0, 40, 0]), near) < 1.0  # slow zone
+    assert supervisor.describe(near)["joint_limit_deg"] == pytest.approx(1.7, abs=1e-6)
+    # the IRB 6640 has no parallel bar: no combined limit
+    assert Robot("irb6640").couplings == ()

@@ -1,5 +1,5 @@
-"""The mesh score measures in the part's own frame: the same distances as the mesh moved into
-the base frame, for any work-object pose."""
+"""The mesh score: signed against the part's walls, measured in the part's own frame (the same
+as the mesh moved into the base frame, for any work-object pose)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,17 @@ from robomach_core.mesh_score import mesh_deviation
 from robomach_core.workpiece import builtin_workpiece
 
 
+def _winding(mesh: trimesh.Trimesh, p: np.ndarray) -> float:
+    """Winding number of the mesh about p (solid angles / 4 pi): the reference inside test
+    (trimesh's ray test gave different answers for the same points in two frames)."""
+    a, b, c = (mesh.vertices[mesh.faces[:, i]] - p for i in range(3))
+    la, lb, lc = (np.linalg.norm(v, axis=1) for v in (a, b, c))
+    det = np.einsum("ij,ij->i", a, np.cross(b, c))
+    dot = np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la
+    dot += np.einsum("ij,ij->i", c, a) * lb
+    return float(np.sum(2 * np.arctan2(det, la * lb * lc + dot)) / (4 * np.pi))
+
+
 def test_mesh_deviation_equals_the_distance_to_the_mesh_placed_in_the_base_frame():
     rng = np.random.default_rng(7)
     T = np.eye(4)
@@ -19,9 +30,30 @@ def test_mesh_deviation_equals_the_distance_to_the_mesh_placed_in_the_base_frame
     wp = builtin_workpiece("water_pump").placed(T)
     placed = wp.mesh_in_base()
     pts = placed.bounds[0] + rng.random((300, 3)) * (placed.bounds[1] - placed.bounds[0])
-    _, reference, _ = trimesh.proximity.closest_point(placed, pts)
-    got = mesh_deviation(wp, 0.001, pts)
-    np.testing.assert_allclose(got, np.abs(reference - 0.001), atol=1e-9)
+    # The reference, in the base frame: walls are the faces across the part's z axis; inside
+    # the solid the deviation is -(distance to the surface + r).
+    walls = placed.submesh(
+        [np.flatnonzero(np.abs(placed.face_normals @ T[:3, 2]) < np.cos(np.radians(45)))],
+        append=True,
+    )
+    _, to_wall, _ = trimesh.proximity.closest_point(walls, pts)
+    _, to_surface, _ = trimesh.proximity.closest_point(placed, pts)
+    inside = np.array([_winding(placed, p) > 0.5 for p in pts])
+    reference = np.where(inside, -(to_surface + 0.001), to_wall - 0.001)
+    got = mesh_deviation(wp, 0.001, pts, axis_base=-T[:3, 2])
+    assert inside.any() and (~inside).any()
+    np.testing.assert_allclose(got, reference, atol=1e-9)
+
+
+def test_the_deviation_is_signed_and_blind_to_the_floor():
+    """In the pump's groove (wall at y = -65 mm, floor at z = 14 mm, r = 1 mm): a ball resting
+    on the floor 2 mm from the wall is 1 mm of air, not a perfect 0 (the floor is not the
+    wall); 0.5 mm inside the wall is -1.5 mm; touching the wall is 0."""
+    wp = builtin_workpiece("water_pump")
+    T = wp.T_base_wobj
+    wobj = np.array([[0.0, -0.063, 0.015], [0.0, -0.0655, 0.017], [0.0, -0.064, 0.017]])
+    got = mesh_deviation(wp, 0.001, wobj @ T[:3, :3].T + T[:3, 3])
+    np.testing.assert_allclose(got, [0.001, -0.0015, 0.0], atol=1e-8)  # the union: float32
 
 
 def test_a_pickled_workpiece_still_measures_distances():

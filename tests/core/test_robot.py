@@ -24,7 +24,9 @@ def test_robots_load_with_six_joints(name):
 
 
 def test_unknown_robot_is_a_clear_error():
-    with pytest.raises(UnknownNameError, match="choose one of irb4400, irb6640, ur10, ur3, ur5"):
+    with pytest.raises(
+        UnknownNameError, match="choose one of irb2400, irb4400, irb6640, kr270, ur10, ur3, ur5"
+    ):
         Robot("kuka")
 
 

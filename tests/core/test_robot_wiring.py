@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -66,21 +68,21 @@ def _guide(p, force=(0.0, 0.0, 0.0)) -> GuidePoint:
     )
 
 
-def test_guide_rules_flag_heavy_contact_and_a_push_at_an_outside_corner():
+def test_guide_rules_flag_heavy_contact_a_touch_and_an_untold_wall_side():
     settings = PathLearningSettings(closed=False)
-    # material on the right of travel: along +x first, the wall is at -y; the path turns
-    # right (towards the material) at the corner point.
-    wall_push = (0.0, 6.0, 0.0)  # the wall at -y pushes the tool towards +y
-    guides = [
-        _guide([0.0, 0.0, 0.0], wall_push),
-        _guide([0.05, 0.0, 0.0], wall_push),
-        _guide([0.05, -0.05, 0.0]),
+    # material on the right of travel: along +x, the wall at -y pushes the tool towards +y.
+    wall_push = (0.0, 6.0, 0.0)
+    guides = [_guide([0.0, 0.0, 0.0], wall_push), _guide([0.05, 0.0, 0.0], wall_push)]
+    assert guide_point_warnings(guides, settings) == ()
+    free = [_guide([0.0, 0.0, 0.0]), _guide([0.05, 0.0, 0.0], (0.0, 1.2, 0.0))]
+    found = guide_point_warnings(free, settings)
+    assert [(w.rule, w.severity) for w in found] == [
+        ("wall_side", "refusal"),
+        ("touching_without_push", "info"),
     ]
-    rules = [w.rule for w in guide_point_warnings(guides, settings)]
-    assert rules == ["outside_corner_push"]
-    free = [guides[0], _guide([0.05, 0.0, 0.0]), guides[2]]
-    assert guide_point_warnings(free, settings) == ()
-    heavy = [_guide([0, 0, 0], (0, 40.0, 0)), _guide([0.05, 0, 0])]
+    assert "set the wall side" in found[0].message
+    assert guide_point_warnings(free, replace(settings, wall_side="right")) == ()
+    heavy = [_guide([0, 0, 0], (0, 40.0, 0)), _guide([0.05, 0, 0], wall_push)]
     assert [w.rule for w in guide_point_warnings(heavy, settings)] == ["heavy_contact"]
 
 

@@ -11,7 +11,7 @@ from robomach_core.arcs import Move
 from robomach_core.demo_operator import TOOL_DOWN
 from robomach_core.errors import InvalidInputError, UnreachableTargetError
 from robomach_core.export.rapid import confdata_from_joints
-from robomach_core.export.target_joints import target_joints, with_target_joints
+from robomach_core.export.target_joints import configuration, target_joints, with_target_joints
 from robomach_core.export.urscript import (
     BLEND_RADIUS_M,
     script_poses,
@@ -151,7 +151,7 @@ def test_bad_input_is_a_clear_error(ur10):
 # Target joints from IK
 
 
-@pytest.mark.parametrize("name", ["ur10", "irb4400"])
+@pytest.mark.parametrize("name", ["ur10", "irb4400", "irb2400", "kr270"])
 def test_target_joints_reach_the_target_pose_on_the_recorded_branch(name):
     robot = Robot(name, TOOL.T_flange_tcp)
     targets = groove_targets(robot, joint_error_rad=3e-4)
@@ -165,8 +165,11 @@ def test_target_joints_reach_the_target_pose_on_the_recorded_branch(name):
         T = robot.fk(q[k])
         assert np.linalg.norm(T[:3, 3] - targets.position_m[k]) < 1e-6
         assert robot.within_limits(q[k])
-    branches = {confdata_from_joints(j, arm=name)[3] for j in q}
-    assert branches == {confdata_from_joints(targets.joints_rad[0], arm=name)[3]}
+    # one configuration: ABB's cfx (UR: its branch in ABB's numbering), KUKA's Status
+    branches = {configuration(robot, j) for j in q}
+    assert branches == {configuration(robot, targets.joints_rad[0])}
+    if robot.family != "kuka":
+        assert branches == {confdata_from_joints(targets.joints_rad[0], arm=name)[3]}
     assert np.max(np.abs(q - targets.joints_rad)) < 0.01
 
 

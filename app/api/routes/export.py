@@ -1,82 +1,198 @@
-"""Exports: the RAPID program, CSV tables and settings as downloads; named saved exports."""
+"""Exports: the program in every registered language, CSV tables and settings as downloads;
+named saved exports.
+
+``GET /api/export/program/{language}`` serves every language of
+``robomach_core.export.languages``; its path parameter is an enum of the languages registered
+when the app is created, so the router is built then: ``router`` is made by the module's
+``__getattr__`` (``make_router``) each time ``create_app`` includes it, and a language
+registered before that shows in the route and the OpenAPI schema. ``/export/rapid`` and
+``/export/urscript`` stay as aliases of the program route.
+"""
 
 from __future__ import annotations
 
-from typing import Annotated
+import enum
+import io
+import zipfile
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Response, status
 
+import robomach_core.export.languages as registry
 from app.api.routes import ERRORS, SessionDep, SettingsDep
-from app.api.schemas import ExportCreate, ExportPublic
+from app.api.schemas import ExportCreate, ExportPublic, ProgramLanguagePublic
 from robomach_core.export.rapid import rapid_identifier
-
-router = APIRouter(prefix="/api", tags=["export"], responses=ERRORS)
 
 MEDIA_TYPES = {
     ".mod": "text/plain; charset=utf-8",
     ".csv": "text/csv; charset=utf-8",
     ".json": "application/json",
+    ".zip": "application/zip",
 }
+PROGRAM_ANSWERS: dict[int | str, dict[str, Any]] = {
+    200: {
+        "content": {"text/plain": {}, "application/zip": {}},
+        "description": "the program file, or a zip of the program's files (KRL's .src and "
+        ".dat) when it has several and no ``file`` is named",
+    }
+}
+ModuleName = Annotated[
+    str,
+    Query(
+        min_length=1, max_length=64, description="RAPID's MODULE name (other languages: the header)"
+    ),  # fmt: skip
+]
 
 
-def _download(text: str, filename: str) -> Response:
+def _download(text: str | bytes, filename: str, media_type: str | None = None) -> Response:
     suffix = filename[filename.rfind(".") :]
     return Response(
         text,
-        media_type=MEDIA_TYPES.get(suffix, "text/plain; charset=utf-8"),
+        media_type=media_type or MEDIA_TYPES.get(suffix, "text/plain; charset=utf-8"),
         headers={"Content-Disposition": f'attachment; filename="{filename}"'},
     )
 
 
-@router.get(
-    "/export/rapid", response_class=Response, responses={200: {"content": {"text/plain": {}}}}
-)
-def export_rapid(
-    session: SessionDep,
-    module_name: Annotated[str, Query(min_length=1, max_length=64)] = "LearnedPath",
-    force_control: Annotated[
-        bool, Query(description="the Force Control variant (FCPressL at the learning force)")
-    ] = False,
+def program_download(
+    session: Any,
+    language: str,
+    *,
+    force_control: bool = False,
+    module_name: str = "LearnedPath",
+    file: str | None = None,
 ) -> Response:
-    """The ABB RAPID module of the post-processed targets (text/plain)."""
-    name = rapid_identifier(module_name)
-    return _download(
-        session.rapid_module(module_name=name, force_control=force_control), f"{name}.mod"
+    """One program file, or a zip of all of a program's files (the route and its aliases)."""
+    from robomach_core.errors import InvalidInputError
+
+    lang = registry.language(language)
+    files = session.program_texts(
+        lang.name, force_control=force_control, module_name=rapid_identifier(module_name)
+    )
+    if file is not None:
+        if file not in files:
+            raise InvalidInputError(
+                f"{lang.title} programs have the files {', '.join(files)}, not {file!r}"
+            )
+        return _download(files[file], file, lang.media_type)
+    if len(files) == 1:
+        name, text = next(iter(files.items()))
+        return _download(text, name, lang.media_type)
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+        for name, text in files.items():
+            archive.writestr(name, text)
+    stem = "program_fc" if force_control else "program"
+    return _download(buffer.getvalue(), f"{stem}_{lang.name}.zip")
+
+
+def language_public(lang: registry.ProgramLanguage, offered: bool) -> ProgramLanguagePublic:
+    """The schema of one registered language."""
+    return ProgramLanguagePublic(
+        name=lang.name,
+        title=lang.title,
+        files=list(lang.file_names()),
+        force_control_files=list(lang.file_names(force_control=True))
+        if lang.force_control
+        else None,
+        families=list(lang.families),
+        offered=offered,
     )
 
 
-@router.get("/export/samples.csv", response_class=Response)
-def export_samples(session: SessionDep) -> Response:
-    """Every recorded 4 ms sample (mm, N, degrees) with the force filter's verdict."""
-    return _download(session.samples_csv(), "samples.csv")
+def make_router() -> APIRouter:
+    """The export router, its program route's language enum from the registry as it is now."""
+    router = APIRouter(prefix="/api", tags=["export"], responses=ERRORS)
+    Language = enum.Enum("Language", {n: n for n in registry.language_names()}, type=str)
+
+    @router.get("/export/languages")
+    def list_languages(session: SessionDep) -> list[ProgramLanguagePublic]:
+        """Every program language, and whether the cell's arm is offered it (its controller
+        runs it): the menus of the workbench and the pendant."""
+        offered = set(session.program_languages())
+        return [language_public(lang, lang.name in offered) for lang in registry.languages()]
+
+    def export_program(
+        language: str,
+        session: SessionDep,
+        force_control: Annotated[
+            bool, Query(description="the force-controlled variant, where the language has one")
+        ] = False,
+        module_name: ModuleName = "LearnedPath",
+        file: Annotated[
+            str | None,
+            Query(max_length=64, description="one of the program's files (default: all)"),
+        ] = None,
+    ) -> Response:
+        """The post-processed program in one language (GET /api/export/languages lists them):
+        the arm's controller must run it (else 422). RAPID carries the FC SpeedChange block
+        with a CMRR controller; in the offline compensation modes the targets are corrected."""
+        return program_download(
+            session,
+            getattr(language, "value", language),
+            force_control=force_control,
+            module_name=module_name,
+            file=file,
+        )
+
+    # The path parameter's type is the enum built above: set it on the function itself (this
+    # module's annotations are strings, resolved in its globals, where no ``Language`` is).
+    export_program.__annotations__["language"] = Language
+    router.get("/export/program/{language}", response_class=Response, responses=PROGRAM_ANSWERS)(
+        export_program
+    )
+
+    @router.get(
+        "/export/rapid", response_class=Response, responses={200: {"content": {"text/plain": {}}}}
+    )
+    def export_rapid(
+        session: SessionDep,
+        module_name: ModuleName = "LearnedPath",
+        force_control: Annotated[
+            bool, Query(description="the Force Control variant (FCPressL at the learning force)")
+        ] = False,
+    ) -> Response:
+        """The ABB RAPID module (alias of GET /api/export/program/rapid; text/plain)."""
+        name = rapid_identifier(module_name)
+        return _download(
+            session.rapid_module(module_name=name, force_control=force_control), f"{name}.mod"
+        )
+
+    @router.get("/export/samples.csv", response_class=Response)
+    def export_samples(session: SessionDep) -> Response:
+        """Every recorded 4 ms sample (mm, N, degrees) with the force filter's verdict."""
+        return _download(session.samples_csv(), "samples.csv")
+
+    @router.get("/export/targets.csv", response_class=Response)
+    def export_targets(session: SessionDep) -> Response:
+        """The post-processed targets (mm, degrees, mm/s)."""
+        return _download(session.targets_csv(), "targets.csv")
+
+    @router.get("/export/settings.json", response_class=Response)
+    def export_settings(session: SessionDep) -> Response:
+        """Cell, compliance, path-learning and post-processing settings (mm, N, s)."""
+        return _download(session.settings_json(), "settings.json")
+
+    @router.post("/exports", status_code=status.HTTP_201_CREATED)
+    def save_export(body: ExportCreate, session: SessionDep, settings: SettingsDep) -> ExportPublic:
+        """Save every export file under a name, in the project and in the data folder
+        (``exports/<project id>/<name>/``); the same name replaces them."""
+        return ExportPublic.from_info(session.save_export(body.name), session.data_dir)
+
+    @router.get("/exports")
+    def list_exports(session: SessionDep) -> list[ExportPublic]:
+        """The open project's saved exports, newest first."""
+        return [ExportPublic.from_info(e, session.data_dir) for e in session.exports()]
+
+    @router.get("/exports/{name}/{filename}", response_class=Response)
+    def get_export_file(name: str, filename: str, session: SessionDep) -> Response:
+        """One file of a saved export."""
+        return _download(session.export_file(name, filename), filename)
+
+    return router
 
 
-@router.get("/export/targets.csv", response_class=Response)
-def export_targets(session: SessionDep) -> Response:
-    """The post-processed targets (mm, degrees, mm/s)."""
-    return _download(session.targets_csv(), "targets.csv")
-
-
-@router.get("/export/settings.json", response_class=Response)
-def export_settings(session: SessionDep) -> Response:
-    """Cell, compliance, path-learning and post-processing settings (mm, N, s)."""
-    return _download(session.settings_json(), "settings.json")
-
-
-@router.post("/exports", status_code=status.HTTP_201_CREATED)
-def save_export(body: ExportCreate, session: SessionDep, settings: SettingsDep) -> ExportPublic:
-    """Save every export file under a name, in the project and in the data folder
-    (``exports/<project id>/<name>/``); the same name replaces them."""
-    return ExportPublic.from_info(session.save_export(body.name), session.data_dir)
-
-
-@router.get("/exports")
-def list_exports(session: SessionDep) -> list[ExportPublic]:
-    """The open project's saved exports, newest first."""
-    return [ExportPublic.from_info(e, session.data_dir) for e in session.exports()]
-
-
-@router.get("/exports/{name}/{filename}", response_class=Response)
-def get_export_file(name: str, filename: str, session: SessionDep) -> Response:
-    """One file of a saved export."""
-    return _download(session.export_file(name, filename), filename)
+def __getattr__(name: str) -> APIRouter:
+    """``router``: a fresh ``make_router()`` for each app (see the module docstring)."""
+    if name == "router":
+        return make_router()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -14,10 +14,17 @@ router = APIRouter(prefix="/api/path-learning", tags=["path learning"], response
 
 @router.post("", status_code=status.HTTP_202_ACCEPTED)
 def start_path_learning(body: PathLearningCreate, session: SessionDep) -> JobCreated:
-    """Job: follow the wall through the guide points at constant contact force and record it.
-    Follow it at /api/jobs/{job_id}; the recording replaces the last one when it is done."""
-    warnings = session.guide_warnings(body.force_N, closed=body.closed)
-    job_id = session.start_path_learning(body.force_N, body.speed_mm_s * 1e-3, closed=body.closed)
+    """Job: follow the wall along the guide points at constant contact force and record it.
+    Follow it at /api/jobs/{job_id}; the recording replaces the last one when it is done.
+    422 when the wall side is "auto" and the guide points do not tell it."""
+    warnings = session.guide_warnings(body.force_N, closed=body.closed, wall_side=body.wall_side)
+    job_id = session.start_path_learning(
+        body.force_N,
+        body.speed_mm_s * 1e-3,
+        closed=body.closed,
+        wall_side=body.wall_side,
+        floor_clearance_m=body.floor_clearance_mm * 1e-3,
+    )
     return JobCreated(job_id=job_id, warnings=warnings)
 
 

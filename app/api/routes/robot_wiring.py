@@ -2,15 +2,21 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 from fastapi import APIRouter, HTTPException, Query, Response, UploadFile, status
 from starlette.concurrency import run_in_threadpool
 
 from app.api.routes import ERRORS, SessionDep
 from app.api.routes.cell import UPLOAD_CHUNK_BYTES, _public
+from app.api.routes.export import program_download
 from app.api.schemas import CellPublic
+from robomach_core.robots.builtin import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
+from robomach_core.wall_side import WallSideSetting
+
+# The controller families an uploaded arm may be given (``robots.builtin.ARM_FAMILIES``).
+FamilyChoice = Literal[("auto", *ARM_FAMILIES)]  # type: ignore[valid-type]
 
 router = APIRouter(prefix="/api", tags=["cell"], responses=ERRORS)
 
@@ -20,7 +26,17 @@ router = APIRouter(prefix="/api", tags=["cell"], responses=ERRORS)
     max_body_size=MAX_ROBOT_FILE_BYTES + 1024 * 1024,
     responses={413: {"description": "the file is larger than the upload limit"}},
 )
-async def upload_robot(file: UploadFile, session: SessionDep) -> CellPublic:
+async def upload_robot(
+    file: UploadFile,
+    session: SessionDep,
+    family: Annotated[
+        FamilyChoice,
+        Query(
+            description="the arm's controller: auto (a built-in arm's kinematics, e.g. a UR5, "
+            "make it that arm; else ABB's), ur, abb or kuka; it decides the program language"
+        ),
+    ] = "auto",
+) -> CellPublic:
     """Upload your own serial 6-axis arm (multipart field ``file``): a ``.urdf``, or a ``.zip``
     holding one URDF and its meshes. It must be a chain of six revolute joints with limits
     (else 422 naming what is wrong). The arm goes home above the part; the guide points are
@@ -37,7 +53,9 @@ async def upload_robot(file: UploadFile, session: SessionDep) -> CellPublic:
     data = b"".join(chunks)
     if not data:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_ENTITY, "the uploaded file is empty")
-    await run_in_threadpool(session.upload_robot, data, file.filename or "robot.urdf")
+    await run_in_threadpool(
+        session.upload_robot, data, file.filename or "robot.urdf", family=family
+    )
     return _public(session)
 
 
@@ -50,13 +68,9 @@ def export_urscript(
         bool, Query(description="the force variant (force_mode along tool y at the learning force)")
     ] = False,
 ) -> Response:
-    """The program as a URScript ``.script`` (poses in the base frame: m, rotation vectors)."""
-    name = "program_fc.script" if force_control else "program.script"
-    return Response(
-        session.urscript_program(force_control=force_control),
-        media_type="text/plain; charset=utf-8",
-        headers={"Content-Disposition": f'attachment; filename="{name}"'},
-    )
+    """The program as a URScript ``.script`` (poses in the base frame: m, rotation vectors);
+    alias of GET /api/export/program/urscript (UR arms only)."""
+    return program_download(session, "urscript", force_control=force_control)
 
 
 @router.get("/path-learning/warnings")
@@ -64,7 +78,12 @@ def guide_point_warnings(
     session: SessionDep,
     force_N: Annotated[float, Query(ge=1.0, le=50.0, description="contact force [N]")] = 10.0,
     closed: Annotated[bool, Query(description="closed contour")] = True,
+    wall_side: Annotated[
+        WallSideSetting, Query(description="the wall side to learn with")
+    ] = "auto",
 ) -> list[str]:
-    """The guide points that would trip the protection or slow path learning
-    (docs/guide_points.md); POST /api/path-learning returns the same with its job."""
-    return session.guide_warnings(force_N, closed=closed)
+    """What the operator check finds in the guide points (docs/guide_points.md): the wall side
+    that cannot be told, heavy contact, a point nearer another wall, on the floor, a leg
+    through the part, a wrist turn axis 6 cannot make; POST /api/path-learning returns the same
+    with its job."""
+    return session.guide_warnings(force_N, closed=closed, wall_side=wall_side)

@@ -1,9 +1,13 @@
-"""Export panel: the RAPID program's preview and downloads of every export file."""
+"""Export panel: the program in the arm's languages (a preview and downloads), the CSVs and the
+settings. The menus come from the language registry (``robomach_core.export.languages``): an
+arm is offered only the languages its controller runs, and a registered language shows up
+here without a change to this panel."""
 
 from __future__ import annotations
 
 import viser
 
+import robomach_core.export.languages as registry
 from app.session import ConflictError
 from robomach_core.errors import RobomachError
 from robomach_core.project import StaleResultError
@@ -12,17 +16,40 @@ from .feedback import guarded
 from .postprocess import OUT_OF_DATE
 
 PREVIEW_LINES = 60
+TABLE_FILES = ("samples.csv", "targets.csv", "settings.json")
+FC_MODULE_NAME = "LearnedPathFC"
 
 
-FILES = ("program.mod", "program_fc.mod", "samples.csv", "targets.csv", "settings.json")
+def program_file_names(language_names: tuple[str, ...]) -> tuple[str, ...]:
+    """The files of the programs in these languages: each one's program, then its
+    force-controlled variant where it has one."""
+    names: list[str] = []
+    for name in language_names:
+        lang = registry.language(name)
+        names += lang.file_names()
+        if lang.force_control:
+            names += lang.file_names(force_control=True)
+    return tuple(names)
+
+
+def language_of(filename: str) -> tuple[registry.ProgramLanguage, bool]:
+    """The registered language writing ``filename`` and whether it is the force variant."""
+    for lang in registry.languages():
+        if filename in lang.file_names():
+            return lang, False
+        if lang.force_control and filename in lang.file_names(force_control=True):
+            return lang, True
+    raise RobomachError(f"no program language writes {filename!r}")
 
 
 class ExportPanel:
-    """Preview the RAPID module and download program.mod, the FC variant, the CSVs and the
-    settings JSON (each straight from the session, so it always matches the last result)."""
+    """Preview the program in one of the arm's languages and download every program file, the
+    CSVs and the settings JSON (each straight from the session, so it always matches the last
+    result)."""
 
     def __init__(self, server: viser.ViserServer, session) -> None:
         self.session = session
+        languages = session.program_languages()
         with server.gui.add_folder("Export", expand_by_default=False):
             self.process = server.gui.add_markdown("")
             self.controller = server.gui.add_text(
@@ -31,32 +58,42 @@ class ExportPanel:
                 hint="After a CMRR study that compared controllers: the one to use",
             )
             self.adopt = server.gui.add_button_group("Studies' settings", ("Use", "Remove"))
-            self.download = server.gui.add_button_group("Download", FILES)
+            self.language = server.gui.add_dropdown(
+                "Language",
+                languages or ("none",),
+                hint="The languages the arm's controller runs (the preview below)",
+            )
+            self.program = server.gui.add_button_group(
+                "Program", program_file_names(languages) or ("none",)
+            )
+            self.tables = server.gui.add_button_group("Tables", TABLE_FILES)
             self.preview = server.gui.add_markdown("")
         self.adopt.on_click(guarded("Export", lambda e: self.use_studies(e.target.value == "Use")))
-        self.download.on_click(
-            guarded(
-                "Export",
-                lambda e: e.client.send_file_download(
-                    e.target.value,
-                    self.file_text(e.target.value).encode("utf-8"),
-                    save_immediately=True,
-                ),
+        self.language.on_update(guarded("Export", lambda _: self.refresh()))
+        for group in (self.program, self.tables):
+            group.on_click(
+                guarded(
+                    "Export",
+                    lambda e: e.client.send_file_download(
+                        e.target.value,
+                        self.file_text(e.target.value).encode("utf-8"),
+                        save_immediately=True,
+                    ),
+                )
             )
-        )
         self.refresh()
 
     def file_text(self, name: str) -> str:
         """The text of one export file."""
-        if name == "program.mod":
-            return self.session.rapid_module()
-        if name == "program_fc.mod":
-            return self.session.rapid_module(module_name="LearnedPathFC", force_control=True)
         if name == "samples.csv":
             return self.session.samples_csv()
         if name == "targets.csv":
             return self.session.targets_csv()
-        return self.session.settings_json()
+        if name == "settings.json":
+            return self.session.settings_json()
+        lang, force = language_of(name)
+        kwargs = {"module_name": FC_MODULE_NAME} if force else {}
+        return self.session.program_texts(lang.name, force_control=force, **kwargs)[name]
 
     def use_studies(self, use: bool) -> None:
         """Carry the last CMRR study's controller and the identified compensation in the
@@ -87,12 +124,30 @@ class ExportPanel:
         comp = "none" if project.compensation is None else project.compensation.mode
         return f"Program carries: CMRR **{cmrr}**, deflection compensation **{comp}**"
 
+    def _sync_menus(self) -> tuple[str, ...]:
+        """The language and file menus for the cell's arm (it may have changed)."""
+        languages = self.session.program_languages()
+        options = languages or ("none",)
+        if tuple(self.language.options) != options:
+            self.language.options = options
+        if self.language.value not in options:
+            self.language.value = options[0]
+        files = program_file_names(languages) or ("none",)
+        if tuple(self.program.options) != files:
+            self.program.options = files
+        return languages
+
     def refresh(self) -> None:
-        """Show the process settings and the first lines of the RAPID module (or why there is
-        none yet)."""
+        """Show the process settings and the first lines of the program in the chosen language
+        (or why there is none yet)."""
         self.process.content = self._process_text()
+        if not self._sync_menus():
+            self.preview.content = "*This arm's controller runs none of the languages.*"
+            return
+        lang = registry.language(self.language.value)
+        main = lang.file_names()[0]
         try:
-            text = self.session.rapid_module()
+            text = self.session.program_texts(lang.name)[main]
         except StaleResultError as exc:
             self.preview.content = f"**{OUT_OF_DATE}**: {exc}"
             return
@@ -102,8 +157,9 @@ class ExportPanel:
         lines = text.splitlines()
         shown = "\n".join(lines[:PREVIEW_LINES])
         more = (
-            f"\n\n*... {len(lines) - PREVIEW_LINES} more lines in program.mod*"
+            f"\n\n*... {len(lines) - PREVIEW_LINES} more lines in {main}*"
             if len(lines) > PREVIEW_LINES
             else ""
         )
-        self.preview.content = f"**RAPID preview**\n\n```\n{shown}\n```{more}"
+        title = lang.title.split()[-1]  # "RAPID", "URScript", "KRL"
+        self.preview.content = f"**{title} preview** ({main})\n\n```\n{shown}\n```{more}"

@@ -7,6 +7,7 @@ import viser
 import viser.uplot
 
 from robomach_core import limits
+from robomach_core.wall_side import WALL_SIDE_CHOICES
 
 from .feedback import guarded
 from .postprocess import OUT_OF_DATE
@@ -19,14 +20,15 @@ PLOT_POINTS = 600
 
 
 class PathLearningPanel:
-    """Run the straight-line program through the guide points under Yp force control.
+    """Follow the wall along the guide points at constant contact force (path learning).
 
     The plot shows the contact force against the setpoint: live (|F| every 20 ms of simulated
     time) while a run goes on, then the recorded force normal to the edge.
     """
 
-    def __init__(self, server: viser.ViserServer, session) -> None:
+    def __init__(self, server: viser.ViserServer, session, scene=None) -> None:
         self.session = session
+        self.scene = scene
         last = session.learning_settings()
         with server.gui.add_folder("Path learning"):
             self.force = server.gui.add_slider(
@@ -48,6 +50,24 @@ class PathLearningPanel:
                 last.closed if last else True,
                 hint="Return from the last guide point to the first",
             )
+            self.wall_side = server.gui.add_dropdown(
+                "Wall side",
+                WALL_SIDE_CHOICES,
+                initial_value=last.wall_side if last else "auto",
+                hint="The wall to follow: left or right of travel, looking along the tool into "
+                "the part. auto: from a push at the guide points or the part's mesh; refused "
+                "when neither tells (the scene shows the wall it will follow)",
+            )
+            self.floor_clearance = server.gui.add_slider(
+                "Floor clearance (mm)",
+                limits.FLOOR_CLEARANCE_MM.min,
+                limits.FLOOR_CLEARANCE_MM.max,
+                0.1,
+                last.floor_clearance_m * 1e3 if last else 0.5,
+                hint="Machining height: the cutter this far above a floor the run meets or a "
+                "guide point rests on",
+            )
+            self.wall_note = server.gui.add_markdown("")
             self.run = server.gui.add_button(
                 "Run path learning", icon=viser.Icon.PLAYER_PLAY, color="green"
             )
@@ -79,13 +99,48 @@ class PathLearningPanel:
             guarded(
                 "Path learning",
                 lambda e: self.session.start_path_learning(
-                    self.force.value, self.speed.value * 1e-3, closed=self.closed.value
+                    self.force.value,
+                    self.speed.value * 1e-3,
+                    closed=self.closed.value,
+                    wall_side=self.wall_side.value,
+                    floor_clearance_m=self.floor_clearance.value * 1e-3,
                 ),
             )
         )
         self.cancel.on_click(guarded("Cancel", lambda e: self.session.cancel_job(self.job_id)))
         self.job_id: str | None = None
         self.refresh_plot()
+
+    def route_settings(self) -> tuple[str, bool]:
+        """(wall side, closed) as set in the panel: the operator check and the preview use
+        them."""
+        return self.wall_side.value, self.closed.value
+
+    def on_route_change(self, callback) -> None:
+        """Call ``callback`` when the wall side or the closed setting changes."""
+        self.wall_side.on_update(lambda e: callback())
+        self.closed.on_update(lambda e: callback())
+
+    def refresh_wall(self) -> None:
+        """Highlight the wall the next run will follow (or say why it cannot tell)."""
+        if self.scene is None:
+            return
+        points, text = self.session.taught_wall_preview(
+            self.wall_side.value, closed=self.closed.value
+        )
+        self.scene.set_taught_wall(points, "" if not points else "wall to follow")
+        self.wall_note.content = text
+
+    def refresh_stop(self) -> None:
+        """Mark where the last run stopped early, if it did."""
+        if self.scene is None:
+            return
+        rec = self.session.recording()
+        stop = None if rec is None else rec.stop
+        if stop is None:
+            self.scene.set_stop(None)
+        else:
+            self.scene.set_stop(stop.position_m, f"stopped: {stop.cause}")
 
     def show_job(self, job) -> None:
         """Reflect a path-learning job (running or just ended) in the buttons and the status."""

@@ -117,11 +117,22 @@ class PostprocessPanel:
             ]
         else:
             lines.append("| deviation | no ground truth |")
-        if outcome.mesh_score is not None:  # every part: against its mesh
+        mesh = outcome.mesh_score
+        if mesh is not None:  # every part: against its walls, signed
             lines += [
-                f"| max deviation from the mesh | {outcome.mesh_score.max_m * 1e3:.3f} mm |",
-                f"| RMS deviation from the mesh | {outcome.mesh_score.rms_m * 1e3:.3f} mm |",
+                f"| max deviation from the walls | {mesh.max_m * 1e3:.3f} mm |",
+                f"| RMS deviation from the walls | {mesh.rms_m * 1e3:.3f} mm |",
+                f"| overcut (into the wall) | {mesh.overcut_m * 1e3:.3f} mm |",
+                f"| air (off the wall) | {mesh.air_m * 1e3:.3f} mm |",
             ]
+        if outcome.taught_wall is not None:
+            lines += [
+                "",
+                ("\u2714 " if outcome.taught_wall.follows else "\u26d4 ")
+                + outcome.taught_wall.message,
+            ]
+        for problem in outcome.problems():
+            lines += ["", f"\u26d4 **Not fit to machine**: {problem}"]
         return "\n".join(lines)
 
     def show_in_scene(self) -> None:

@@ -1,34 +1,42 @@
-"""Panels for issue 11: the user's own arm, arcs and the URScript program, the mesh score, and
-the operator's guide-point rules with the warnings before learning."""
+"""Panels for issue 11: the user's own arm and its controller, arcs, the mesh score, and the
+operator's guide-point rules with the warnings before learning. The programs themselves, in
+every language the arm runs, are downloaded from the Export panel."""
 
 from __future__ import annotations
 
 import viser
 
-from robomach_core.guide_check import guide_point_warnings
-from robomach_core.path_learning import PathLearningSettings
 from robomach_core.project import result_extras
+from robomach_core.robots.builtin import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
 
 from .feedback import guarded
 
 ROBOT_MIME_TYPES = ".urdf,.zip,application/xml,application/zip,application/octet-stream"
-SCRIPT_FILES = ("program.script", "program_fc.script")
+FAMILY_CHOICES = ("auto", *ARM_FAMILIES)
 GUIDE_HINT = (
-    "A guide point: **1-3 mm from the wall** or touching it lightly, the tool as it should "
-    "machine (Y towards the wall). Bracket each corner with a point on each side; an **outside "
-    "corner** gets its own point off its middle with **no wall push**; never record in heavy "
-    "contact. See docs/guide_points.md."
+    "A guide point: **1-3 mm from the wall**, or touching it with a **light push** (2-10 N) "
+    "that tells the wall side; the tool axis as it should machine, the same turn about it at "
+    "every point. Corners and bosses need no point of their own: the run follows the wall "
+    "round them by force. Never record in heavy contact. See docs/guide_points.md."
 )
+SEVERITY_ICON = {"refusal": "\u26d4", "warning": "\u26a0", "info": "\u2139"}
 
 
 class RobotProgramPanel:
-    """Upload a URDF arm; arcs on or off; download the URScript; the program's mesh score."""
+    """Upload a URDF arm (its controller recognised or chosen); arcs on or off; the arm's
+    languages and the program's mesh score."""
 
     def __init__(self, server: viser.ViserServer, session) -> None:
         self.session = session
         s = session.postprocess_settings()
         with server.gui.add_folder("Robot & program", expand_by_default=False):
+            self.family = server.gui.add_dropdown(
+                "Controller",
+                FAMILY_CHOICES,
+                hint="The uploaded arm's controller, which decides its program language: auto "
+                "recognises a built-in arm's kinematics (a UR5 URDF is a UR), else ABB",
+            )
             self.upload = server.gui.add_upload_button(
                 "Upload robot (URDF or zip)",
                 icon=viser.Icon.UPLOAD,
@@ -41,35 +49,28 @@ class RobotProgramPanel:
                 s.arcs,
                 hint="Circular moves where the contour is an arc within the tolerance",
             )
-            self.download = server.gui.add_button_group("URScript", SCRIPT_FILES)
             self.summary = server.gui.add_markdown("")
         self.upload.on_upload(
             guarded(
                 "Robot upload",
-                lambda e: self.session.upload_robot(e.target.value.content, e.target.value.name),
+                lambda e: self.session.upload_robot(
+                    e.target.value.content, e.target.value.name, family=self.family.value
+                ),
             )
         )
         self.arcs.on_update(
             guarded("Arcs", lambda e: self.session.run_postprocess(arcs=self.arcs.value))
-        )
-        self.download.on_click(
-            guarded(
-                "URScript",
-                lambda e: e.client.send_file_download(
-                    e.target.value,
-                    self.session.urscript_program(
-                        force_control=e.target.value == "program_fc.script"
-                    ).encode("utf-8"),
-                    save_immediately=True,
-                ),
-            )
         )
         self.refresh()
 
     def refresh(self) -> None:
         """The arm and its language, the arcs setting, the moves and the mesh score."""
         robot = self.session.cell.robot
-        lines = [f"Arm **{robot.name}**, program language **{robot.program_language}**."]
+        offered = ", ".join(self.session.program_languages()) or "none"
+        lines = [
+            f"Arm **{robot.name}** ({robot.family} controller), program languages "
+            f"**{offered}** (downloads in the Export panel)."
+        ]
         self.arcs.value = self.session.postprocess_settings().arcs
         outcome = self.session.postprocess_outcome()
         if outcome is not None:
@@ -89,24 +90,23 @@ class RobotProgramPanel:
 class GuideRulesPanel:
     """The operator's rules as a hint, and the guide points that break them."""
 
-    def __init__(self, server: viser.ViserServer, session) -> None:
+    def __init__(self, server: viser.ViserServer, session, settings=None) -> None:
         self.session = session
+        self.settings = settings  # () -> (wall_side, closed) of the path-learning panel
         with server.gui.add_folder("Guide-point rules", expand_by_default=False):
             server.gui.add_markdown(GUIDE_HINT)
             self.warnings = server.gui.add_markdown("")
         self.refresh()
 
     def refresh(self) -> None:
-        """Check the current guide points (``guide_check``) and list the warnings."""
-        project = self.session.project()
-        found = guide_point_warnings(
-            project.guide_points,
-            PathLearningSettings(),
-            workpiece=self.session.cad_workpiece,
-            tool_radius_m=project.cell.tool_radius_m,
-        )
+        """Check the current guide points (``guide_check``) with the path-learning panel's
+        wall side, and list the findings, refusals first."""
+        wall_side, closed = self.settings() if self.settings is not None else ("auto", True)
+        found = self.session.guide_findings(closed=closed, wall_side=wall_side)
+        order = {"refusal": 0, "warning": 1, "info": 2}
+        found = sorted(found, key=lambda w: order[w.severity])
         self.warnings.content = (
-            "\n".join(f"- \u26a0 {w.message}" for w in found)
+            "\n".join(f"- {SEVERITY_ICON[w.severity]} {w.message}" for w in found)
             if found
             else "*No guide point breaks a rule.*"
         )

@@ -15,8 +15,8 @@ from ...transforms import make_transform, rotation_about
 from ..milling import CHAPTER_END_MILLING
 from ..settings import CompensationSetting
 
-StudyName = Literal["identify", "gravity", "milling", "ilc", "all"]
-STUDIES: tuple[str, ...] = ("identify", "gravity", "milling", "ilc")
+StudyName = Literal["identify", "gravity", "milling", "ilc", "compliance", "all"]
+STUDIES: tuple[str, ...] = ("identify", "gravity", "milling", "ilc", "compliance")
 Progress = Callable[[float], None]
 Cancel = Callable[[], bool]
 
@@ -24,9 +24,29 @@ SUMMARY_FILE = "compensation_summary.json"
 SETTINGS_FILE = "compensation_settings.json"
 RAPID_FILE = "milling_compensated.mod"
 # Share of the whole run each study takes, for one progress bar over "all".
-STUDY_WEIGHTS = {"identify": 0.2, "gravity": 0.05, "milling": 0.6, "ilc": 0.15}
-# The work pose of the studies: TCP in front of the UR10, tool pointing down [m].
+STUDY_WEIGHTS = {
+    "identify": 0.15,
+    "gravity": 0.05,
+    "milling": 0.5,
+    "ilc": 0.15,
+    "compliance": 0.15,
+}
+# Each paper's experiment on its own arm (``StudyOptions.robot`` None): the chapter's cell was
+# an IRB 6400, whose kinematics are not published (robots/abb.py), so the chapter's studies
+# run on the IRB 6640 that replaced it; the Lund papers (face milling, ILC) used an IRB 2400;
+# the compliance-error paper a KUKA KR 270.
+PAPER_ARMS: dict[str, str] = {
+    "identify": "irb6640",
+    "gravity": "irb6640",
+    "milling": "irb6640",
+    "face_milling": "irb2400",
+    "ilc": "irb2400",
+    "compliance": "kr270",
+}
+# The work pose of the studies on a UR arm: TCP in front of the UR10, tool pointing down [m].
 WORK_POSITION_M = (0.70, 0.10, 0.03)
+# Elsewhere: this far from the built-in part's placement (``workpiece.ROBOT_WOBJ_POSITION_M``).
+WORK_OFFSET_FROM_PART_M = (0.0, 0.10, 0.03)
 # The sensor's true offsets in the simulated cell.
 SENSOR_FORCE_BIAS_N = (1.5, -0.8, 2.0)
 SENSOR_TORQUE_BIAS_NM = (0.05, 0.10, -0.02)
@@ -56,7 +76,8 @@ class StudyOptions:
     """Settings shared by the studies.
 
     Attributes:
-        robot: Robot model.
+        robot: Robot model for every study; None runs each study on its paper's arm
+            (``PAPER_ARMS``).
         seed: Seeds every random element.
         cmm_noise_um: CMM noise per axis and reading (the chapter's 10-50 um).
         identification_poses: Poses of the CMM campaign.
@@ -68,7 +89,7 @@ class StudyOptions:
         quick: Shorter cuts and fewer poses (tests, previews).
     """
 
-    robot: str = "ur10"
+    robot: str | None = None
     seed: int = 0
     cmm_noise_um: float = 20.0
     identification_poses: int = 30
@@ -141,8 +162,30 @@ def _write_csv(path: Path, header: list[str], rows: np.ndarray) -> Path:
     return path
 
 
+def study_robot(options: StudyOptions, part: str) -> str:
+    """The arm a study (or a part of one: ``"face_milling"``) runs on: ``options.robot``, else
+    its paper's (``PAPER_ARMS``). The compliance study always runs on the KR 270: Table 1's
+    pose and stiffness are that arm's."""
+    if part == "compliance":
+        return PAPER_ARMS[part]
+    return (options.robot or PAPER_ARMS[part]).lower()
+
+
+def work_position_m(robot_name: str) -> np.ndarray:
+    """Where the studies cut and measure, tool down: in front of a UR arm as before
+    (``WORK_POSITION_M``), else beside the built-in part's placement for the arm. Shape (3,)."""
+    from ...robot import ROBOT_FAMILY
+    from ...workpiece import ROBOT_WOBJ_POSITION_M
+
+    key = robot_name.lower()
+    if ROBOT_FAMILY.get(key) == "ur" or key not in ROBOT_WOBJ_POSITION_M:
+        return np.asarray(WORK_POSITION_M, dtype=float)
+    return np.asarray(ROBOT_WOBJ_POSITION_M[key]) + np.asarray(WORK_OFFSET_FROM_PART_M)
+
+
 def _work_joints(robot: Robot) -> np.ndarray:
-    return robot.ik(make_transform(np.diag([1.0, -1.0, -1.0]), np.asarray(WORK_POSITION_M)))
+    T = make_transform(np.diag([1.0, -1.0, -1.0]), work_position_m(robot.name))
+    return robot.ik(T)
 
 
 def _chapter_wrenches(count: int, seed: int) -> np.ndarray:

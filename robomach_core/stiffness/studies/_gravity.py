@@ -36,6 +36,7 @@ from ._common import (
     _Progress,
     _work_joints,
     _write_csv,
+    study_robot,
 )
 
 
@@ -50,7 +51,7 @@ def run_gravity_study(
     random poses; the compensated force in the tool frame."""
     report = progress if isinstance(progress, _Progress) else _Progress(progress, cancel)
     tool = Tool()
-    robot = Robot(options.robot, tool.T_flange_tcp)
+    robot = Robot(study_robot(options, "gravity"), tool.T_flange_tcp)
     true_tool = ToolGravity.from_tool(
         tool, force_bias_N=SENSOR_FORCE_BIAS_N, torque_bias_Nm=SENSOR_TORQUE_BIAS_NM
     )
@@ -100,6 +101,7 @@ def run_gravity_study(
     in_base = wrench_at_tcp_in_base(compensated, R_work, p_tcp)
     report(0.8)
     summary = {
+        "gravity_robot": robot.name,
         "gravity_configurations": int(len(joints)),
         "tool_mass_true_kg": true_tool.mass_kg,
         "tool_mass_identified_kg": estimate.mass_kg,

@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from ...joint_compliance import true_joint_compliance
+from ...joint_compliance import JointCompliance, true_joint_compliance
 from ...robot import Robot
 from ...tool import Tool
 from ...transforms import pose_error
@@ -34,7 +35,13 @@ from ._common import (
     _Progress,
     _work_joints,
     _write_csv,
+    study_robot,
+    work_position_m,
 )
+
+# The CMM campaign's poses: a box this high above the work position (the UR10's box was
+# centred 0.12 m above its work pose, ``identification.WORKSPACE_CENTER_M``).
+CAMPAIGN_HEIGHT_M = 0.12
 
 
 def run_identification_study(
@@ -47,21 +54,25 @@ def run_identification_study(
     """Simulated CMM campaign, Kq by eq. (23), prediction error over the workspace, and the
     non-linear model next to the linear one."""
     report = progress if isinstance(progress, _Progress) else _Progress(progress, cancel)
-    tip_robot = Robot(options.robot, sphere_tip_transform())  # unknown names fail here
-    tool_robot = Robot(options.robot, Tool().T_flange_tcp)
-    truth = true_joint_compliance(options.robot)
+    name = study_robot(options, "identify")
+    tip_robot = Robot(name, sphere_tip_transform())  # unknown names fail here
+    tool_robot = Robot(name, Tool().T_flange_tcp)
+    truth = true_joint_compliance(name)
+    center = tuple(work_position_m(name) + (0.0, 0.0, CAMPAIGN_HEIGHT_M))
     n_poses = (
         min(options.identification_poses, 12) if options.quick else options.identification_poses
     )
     n_test = min(options.test_poses, 10) if options.quick else options.test_poses
-    poses = sample_workspace_joints(tip_robot, n_poses, seed=options.seed)
+    poses = sample_workspace_joints(tip_robot, n_poses, seed=options.seed, center_m=center)
     report(0.2)
     data = simulate_stiffness_measurements(
         tip_robot, poses, truth, cmm_noise_m=options.cmm_noise_um * 1e-6, seed=options.seed
     )
     ident = identify_joint_stiffness(tip_robot, data)
     report(0.5)
-    test_joints = sample_workspace_joints(tool_robot, n_test, seed=options.seed + 1)
+    test_joints = sample_workspace_joints(
+        tool_robot, n_test, seed=options.seed + 1, center_m=center
+    )
     wrenches = _chapter_wrenches(n_test, options.seed + 2)
     errors = prediction_errors(tool_robot, test_joints, wrenches, ident.model, truth)
     report(0.8)
@@ -97,7 +108,8 @@ def run_identification_study(
         nl = loaded_equilibrium(tool_robot, q_work, W, truth).T_base_tcp
         gap_at.append(float(np.linalg.norm(pose_error(lin, nl)[:3])))
     summary = {
-        "robot": options.robot,
+        "robot": name,
+        "identify_robot": name,
         "cmm_noise_um": options.cmm_noise_um,
         "identification_poses": int(n_poses),
         "identification_loads": len(DEFAULT_LOADS_N),
@@ -188,3 +200,12 @@ def run_identification_study(
         ]
     report(1.0)
     return StudyResult("identify", summary, arrays, tuple(files), {"identification": ident})
+
+
+def identified_model(
+    options: StudyOptions, robot_name: str, progress: Progress | None = None
+) -> JointCompliance:
+    """The joint stiffness the CMM campaign identifies on ``robot_name`` (no files written):
+    what a study on that arm compensates with when no identification was handed to it."""
+    result = run_identification_study(replace(options, robot=robot_name), progress=progress)
+    return result.objects["identification"].model

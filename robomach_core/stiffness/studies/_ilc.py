@@ -17,7 +17,6 @@ from ._common import (
     ILC_FORCE_DISTURBANCE_N,
     ILC_MODEL_ERRORS,
     ILC_TRACKER_NOISE_M,
-    WORK_POSITION_M,
     Cancel,
     Progress,
     StudyOptions,
@@ -25,8 +24,10 @@ from ._common import (
     _Progress,
     _work_joints,
     _write_csv,
+    study_robot,
+    work_position_m,
 )
-from ._identify import run_identification_study
+from ._identify import identified_model
 
 
 def run_ilc_study(
@@ -37,18 +38,16 @@ def run_ilc_study(
     progress: Progress | None = None,
     cancel: Cancel | None = None,
 ) -> StudyResult:
-    """Arm-side and force ILC over repeated runs of the Lund paper's square."""
+    """Arm-side and force ILC over repeated runs of the Lund paper's square, on its IRB 2400
+    by default. ``model``: the stiffness identified on that arm (identified here if None)."""
     report = progress if isinstance(progress, _Progress) else _Progress(progress, cancel)
     share = 0.0
+    name = study_robot(options, "ilc")
     if model is None:
-        model = (
-            run_identification_study(options, progress=report.slice(0.0, 0.3))
-            .objects["identification"]
-            .model
-        )
+        model = identified_model(options, name, report.slice(0.0, 0.3))
         share = 0.3
-    truth = true_joint_compliance(options.robot)
-    robot = Robot(options.robot, Tool().T_flange_tcp)
+    truth = true_joint_compliance(name)
+    robot = Robot(name, Tool().T_flange_tcp)
     q = _work_joints(robot)
     gain = milling_process_gain()
     truth_system = IlcSystem(cartesian_compliance(robot, q, truth)[:3, :3], gain)
@@ -56,7 +55,7 @@ def run_ilc_study(
         IlcSystem(cartesian_compliance(robot, q, model)[:3, :3], gain), **ILC_MODEL_ERRORS
     )
     side = 0.02 if options.quick else 0.04
-    path = square_path(side_m=side, center_m=WORK_POSITION_M)
+    path = square_path(side_m=side, center_m=tuple(work_position_m(name)))
     iterations = min(options.ilc_iterations, 3) if options.quick else options.ilc_iterations
     results = {}
     for i, kind in enumerate(("arm", "force")):
@@ -74,6 +73,7 @@ def run_ilc_study(
         )
     arm, force = results["arm"], results["force"]
     summary = {
+        "ilc_robot": name,
         "ilc_iterations": iterations,
         "ilc_arm_error_per_iteration": arm.error_mean_um.tolist(),
         "ilc_force_error_per_iteration": force.error_mean_um.tolist(),

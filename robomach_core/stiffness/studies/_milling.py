@@ -38,9 +38,11 @@ from ._common import (
     StudyResult,
     _Progress,
     _write_csv,
+    study_robot,
+    work_position_m,
 )
 from ._gravity import run_gravity_study
-from ._identify import run_identification_study
+from ._identify import identified_model
 
 
 def _quick(scenario: MillingScenario) -> MillingScenario:
@@ -75,22 +77,34 @@ def run_milling_study(
     out_dir: Path | None = None,
     *,
     model: JointCompliance | None = None,
+    models: dict[str, JointCompliance] | None = None,
     tool_gravity: ToolGravity | None = None,
     true_tool_gravity: ToolGravity | None = None,
     progress: Progress | None = None,
     cancel: Cancel | None = None,
 ) -> StudyResult:
-    """The chapter's end-milling block and the Lund face-milling pass, uncompensated and with
-    each compensation. Without ``model``/``tool_gravity`` it identifies them first."""
+    """The chapter's end-milling block (on the chapter's arm, the IRB 6640 by default) and the
+    Lund face-milling pass (on the Lund IRB 2400), uncompensated and with each compensation.
+
+    Args:
+        model: The stiffness identified on the chapter's arm.
+        models: Identified stiffness by arm name (the chapter's and the face pass's arms);
+            an arm with none is identified here, as is the tool gravity without
+            ``tool_gravity``.
+    """
     report = progress if isinstance(progress, _Progress) else _Progress(progress, cancel)
     share = 0.0
-    if model is None:
-        model = (
-            run_identification_study(options, progress=report.slice(0.0, 0.1))
-            .objects["identification"]
-            .model
-        )
-        share = 0.1
+    names = {
+        "chapter": study_robot(options, "milling"),
+        "lund": study_robot(options, "face_milling"),
+    }
+    known = dict(models or {})
+    if model is not None:
+        known.setdefault(names["chapter"], model)
+    for name in dict.fromkeys(names.values()):
+        if name not in known:
+            known[name] = identified_model(options, name, report.slice(share, 0.05))
+            share += 0.05
     if tool_gravity is None:
         g = run_gravity_study(options, progress=report.slice(share, 0.02)).objects
         tool_gravity, true_tool_gravity = g["tool_gravity"], g["true_tool_gravity"]
@@ -99,10 +113,13 @@ def run_milling_study(
         true_tool_gravity = ToolGravity.from_tool(
             Tool(), force_bias_N=SENSOR_FORCE_BIAS_N, torque_bias_Nm=SENSOR_TORQUE_BIAS_NM
         )
-    truth = true_joint_compliance(options.robot)
     tool = Tool()
-    robot = Robot(options.robot, tool.T_flange_tcp)
-    chapter, lund = CHAPTER_END_MILLING, LUND_FACE_MILLING
+    robots = {key: Robot(name, tool.T_flange_tcp) for key, name in names.items()}
+    truths = {key: true_joint_compliance(name) for key, name in names.items()}
+    chapter = replace(
+        CHAPTER_END_MILLING, surface_center_m=tuple(work_position_m(names["chapter"]))
+    )
+    lund = replace(LUND_FACE_MILLING, surface_center_m=tuple(work_position_m(names["lund"])))
     if options.quick:
         chapter, lund = _quick(chapter), _quick(lund)
     jobs = [(chapter, m) for m in ("none", "online", "offline_linear", "offline_nonlinear")]
@@ -112,11 +129,11 @@ def run_milling_study(
     for i, (scenario, mode) in enumerate(jobs):
         key = "chapter" if scenario.error_measure == "surface_depth" else "lund"
         runs[key][mode] = simulate_milling(
-            robot,
+            robots[key],
             scenario,
-            truth,
+            truths[key],
             compensation=mode,
-            model=model,
+            model=known[names[key]],
             tool_gravity=tool_gravity,
             true_tool_gravity=true_tool_gravity,
             seed=options.seed,
@@ -132,6 +149,8 @@ def run_milling_study(
         return float(100.0 * (1.0 - after.error_max_m / before.error_max_m))
 
     summary = {
+        "milling_robot": names["chapter"],
+        "face_milling_robot": names["lund"],
         "chapter_scenario": chapter.name,
         "error_max_uncompensated_um": um(ch["none"].error_max_m),
         "error_mean_uncompensated_um": um(ch["none"].error_mean_m),
@@ -225,6 +244,7 @@ def run_milling_study(
                 error_label="path error across the feed [µm]",
             )
         )
+        robot, model = robots["chapter"], known[names["chapter"]]
         u, Ts, joints, wrenches = _compensated_targets_table(robot, chapter, model)
         T_lin, _ = compensate_targets_and_joints(robot, Ts, joints, wrenches, model, "linear")
         T_nl, _ = compensate_targets_and_joints(robot, Ts, joints, wrenches, model, "nonlinear")
@@ -278,4 +298,4 @@ def run_milling_study(
             )
             files.append(write_rapid_module(program, out / RAPID_FILE))
     report(1.0)
-    return StudyResult("milling", summary, arrays, tuple(files), {"runs": runs})
+    return StudyResult("milling", summary, arrays, tuple(files), {"runs": runs, "models": known})

@@ -24,7 +24,9 @@ from ._common import (
     StudyOptions,
     StudyResult,
     _Progress,
+    study_robot,
 )
+from ._compliance import run_compliance_study
 from ._gravity import run_gravity_study
 from ._identify import run_identification_study
 from ._ilc import run_ilc_study
@@ -39,10 +41,13 @@ def run_studies(
     progress: Progress | None = None,
     cancel: Cancel | None = None,
 ) -> dict[str, StudyResult]:
-    """Run one study or all of them; with a folder, also write the summary JSON and settings.
+    """Run one study or all of them, each on its paper's arm unless ``options.robot`` names
+    one; with a folder, also write the summary JSON and the settings of the arm identified.
+    A stiffness identified on an arm is reused by the later studies on that arm.
 
     Raises:
-        UnknownStudyError: ``study`` is not one of identify, gravity, milling, ilc, all.
+        UnknownStudyError: ``study`` is not one of identify, gravity, milling, ilc,
+            compliance, all.
         CancelledError: ``cancel()`` returned True.
     """
     if study not in (*STUDIES, "all"):
@@ -55,13 +60,14 @@ def run_studies(
     report = _Progress(progress, cancel)
     results: dict[str, StudyResult] = {}
     start = 0.0
-    model = tool_gravity = true_tool = None
+    models: dict = {}  # arm name -> identified JointCompliance
+    tool_gravity = true_tool = None
     for name in names:
         part = report.slice(start / total, STUDY_WEIGHTS[name] / total)
         start += STUDY_WEIGHTS[name]
         if name == "identify":
             results[name] = run_identification_study(options, out, progress=part)
-            model = results[name].objects["identification"].model
+            models[study_robot(options, "identify")] = results[name].objects["identification"].model
         elif name == "gravity":
             results[name] = run_gravity_study(options, out, progress=part)
             tool_gravity = results[name].objects["tool_gravity"]
@@ -70,17 +76,25 @@ def run_studies(
             results[name] = run_milling_study(
                 options,
                 out,
-                model=model,
+                models=models,
                 tool_gravity=tool_gravity,
                 true_tool_gravity=true_tool,
                 progress=part,
             )
+            models.update(results[name].objects["models"])
+        elif name == "ilc":
+            results[name] = run_ilc_study(
+                options, out, model=models.get(study_robot(options, "ilc")), progress=part
+            )
         else:
-            results[name] = run_ilc_study(options, out, model=model, progress=part)
+            results[name] = run_compliance_study(
+                options, out, model=models.get(study_robot(options, "compliance")), progress=part
+            )
     if out is not None:
         summary: dict[str, Any] = {
             "studies": list(names),
             "seed": options.seed,
+            "robots": {n: study_robot(options, n) for n in names},
             "paper_references": PAPER_REFERENCES,
         }
         for result in results.values():
@@ -93,7 +107,7 @@ def run_studies(
                 mode = "offline_linear"  # online needs the tool gravity of the gravity study
             save_settings(
                 CompensationSettings(
-                    robot=options.robot,
+                    robot=study_robot(options, "identify"),
                     joint_stiffness_Nm_rad=ident.model.stiffness_Nm_rad,
                     mode=mode,
                     joint_stiffness_std_Nm_rad=tuple(ident.standard_error_Nm_rad.tolist()),

@@ -1,0 +1,235 @@
+"""The control law of path learning, one 4 ms period of it: follow the wall by force.
+
+PROBLEM   Path learning (``path_learning``, chapter section 3.2) must follow the wall from
+          rough guide points, every 4 ms, in a few microseconds of arithmetic: as Python on
+          numpy 3-vectors the law cost more than the simulated cell it drives.
+STRATEGY  Hybrid force/velocity contour following in the plane across the tool axis ``a``
+          (the chapter's "constant contact force normal to the edge", with the direction of
+          travel taken from the wall):
+            - the contact force across the axis, F_x = F - (F . a) a, gives the wall direction
+              w = -F_x / |F_x|, low-passed (w <- normalise(w + beta (w_meas - w))); a force from
+              more than 135 deg off w is the wall behind the tool (F_n = -|F_x|, w kept);
+            - the tangent t = side * (w x a) is the direction of travel; along it the tool
+              advances at the learning speed times ``speed_ratio`` (slower where the force
+              climbs, chapter section 3.4 "slower at sharp corner");
+            - across it, PI force control to the reference (eq. of the chapter's Yp loop):
+                  v_w = Kp e + Ki integral(e),  e = F_ref - F_n,  F_n = |F_x|;
+            - out of contact the tool searches along w at the search speed, advancing no faster
+              (not at all before the first touch, until it has searched ``first_across``), and
+              after ``search_turn`` without the wall it searches across the leg again;
+            - along the axis the tool holds the leg's height (feedforward of its rate plus a
+              first-order return, time ``height_time``); a push from the floor (-F . a above
+              ``floor_force``) lifts it, and once clear it rises ``clearance`` more.
+SOLUTION  ``contour_law`` (compiled with numba; its ``py_func`` is the same law in Python, the
+          reference the tests compare it with) returns the period's motion and the law's new
+          state; ``turn_towards`` turns the tool's orientation towards the leg's, rate-limited.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from ._kernels import exp3, log3
+
+_jit = numba.njit(cache=True, fastmath=False, nogil=True)
+
+# The law's state vector: its entries by name.
+INTEGRAL, LIFT, LIFT_PENDING, H_GOAL_LAST, FOUND_WALL, EVER_TOUCHED, OUT_OF_CONTACT = range(7)
+STATE_SIZE = 7
+# The law's parameters (``law_parameters``): their order.
+PARAMETERS = (
+    "force_N",
+    "kp_m_s_N",
+    "ki_m_s2_N",
+    "max_normal_speed_m_s",
+    "search_speed_m_s",
+    "speed_m_s",
+    "beta",
+    "dt_s",
+    "floor_force_N",
+    "floor_lift_speed_m_s",
+    "floor_clearance_m",
+    "height_time_s",
+    "height_speed_m_s",
+    "behind_cos",
+    "contact_flag_N",
+    "first_search_across_m",
+    "search_turn_m",
+    "slow_from",
+    "slowest_at",
+    "slowest",
+)
+
+
+def initial_state() -> np.ndarray:
+    """The law's state before the run: no integral, no lift, no wall found yet."""
+    state = np.zeros(STATE_SIZE)
+    state[H_GOAL_LAST] = np.nan
+    return state
+
+
+def law_parameters(**values: float) -> np.ndarray:
+    """The parameter vector of ``contour_law`` from keyword values named as ``PARAMETERS``."""
+    missing = set(PARAMETERS) - set(values)
+    if missing:
+        raise TypeError(f"missing contour-law parameters: {', '.join(sorted(missing))}")
+    return np.array([float(values[name]) for name in PARAMETERS])
+
+
+@_jit
+def speed_ratio(f_n: float, f_ref: float, slow_from: float, slowest_at: float, slowest: float):
+    """Share of the learning speed to advance at: 1 up to ``slow_from`` x F_ref, falling
+    linearly to ``slowest`` at ``slowest_at`` x F_ref (the tool must back off a wall that
+    turns towards it faster than it advances)."""
+    over = (f_n / f_ref - slow_from) / (slowest_at - slow_from)
+    return min(1.0, max(slowest, 1.0 - (1.0 - slowest) * over))
+
+
+@_jit
+def contour_law(
+    force: np.ndarray,
+    w: np.ndarray,
+    axis: np.ndarray,
+    side: float,
+    leg_a: np.ndarray,
+    leg_xp: np.ndarray,
+    leg_length: float,
+    p_ref: np.ndarray,
+    state: np.ndarray,
+    params: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, bool]:
+    """One period of the law (module docstring).
+
+    Args:
+        force: (3,) measured contact force on the tool, base frame [N].
+        w: (3,) the wall direction in use (unit, across ``axis``).
+        axis: (3,) the height axis, into the part (unit).
+        side: +1 wall on the right of travel, -1 on the left.
+        leg_a, leg_xp, leg_length: the current leg: its start, unit direction, length [m].
+        p_ref: (3,) the reference TCP position [m].
+        state: (STATE_SIZE,) the law's state (``initial_state``); not modified.
+        params: (len(PARAMETERS),) the law's parameters (``law_parameters``).
+
+    Returns:
+        (step (3,) [m] this period, new w, new state, F_n [N], touching).
+    """
+    f_ref, kp, ki, vmax, search, speed = (
+        params[0],
+        params[1],
+        params[2],
+        params[3],
+        params[4],
+        params[5],
+    )  # noqa: E501
+    beta, dt, floor_force, lift_speed = params[6], params[7], params[8], params[9]
+    clearance, height_time, height_speed = params[10], params[11], params[12]
+    behind_cos, contact_flag, first_across, search_turn = (
+        params[13],
+        params[14],
+        params[15],
+        params[16],
+    )  # noqa: E501
+    out = state.copy()
+    w_new = w.copy()
+    ax, ay, az = axis[0], axis[1], axis[2]
+    f_axis = force[0] * ax + force[1] * ay + force[2] * az  # < 0: the floor pushes back up
+    px = force[0] - f_axis * ax
+    py = force[1] - f_axis * ay
+    pz = force[2] - f_axis * az
+    f_across = math.sqrt(px * px + py * py + pz * pz)
+    touching = f_across > contact_flag
+    f_n = f_across
+    if touching:
+        mx, my, mz = -px / f_across, -py / f_across, -pz / f_across
+        if mx * w[0] + my * w[1] + mz * w[2] < behind_cos:
+            f_n = -f_across  # the wall behind the tool: move away from it, keep w
+        else:
+            wx = w[0] + beta * (mx - w[0])
+            wy = w[1] + beta * (my - w[1])
+            wz = w[2] + beta * (mz - w[2])
+            norm = math.sqrt(wx * wx + wy * wy + wz * wz)
+            w_new[0], w_new[1], w_new[2] = wx / norm, wy / norm, wz / norm
+            out[FOUND_WALL] = 1.0
+            out[EVER_TOUCHED] = 1.0
+            out[OUT_OF_CONTACT] = 0.0
+    if not touching and out[FOUND_WALL] > 0.0 and out[OUT_OF_CONTACT] > search_turn:
+        # the wall has been lost for a while: search across the leg again
+        cx = (ay * leg_xp[2] - az * leg_xp[1]) * side
+        cy = (az * leg_xp[0] - ax * leg_xp[2]) * side
+        cz = (ax * leg_xp[1] - ay * leg_xp[0]) * side
+        dot = cx * ax + cy * ay + cz * az
+        cx, cy, cz = cx - dot * ax, cy - dot * ay, cz - dot * az
+        norm = math.sqrt(cx * cx + cy * cy + cz * cz)
+        w_new[0], w_new[1], w_new[2] = cx / norm, cy / norm, cz / norm
+        out[FOUND_WALL] = 0.0
+    # the tangent t = side * (w x a)
+    tx = (w_new[1] * az - w_new[2] * ay) * side
+    ty = (w_new[2] * ax - w_new[0] * az) * side
+    tz = (w_new[0] * ay - w_new[1] * ax) * side
+    e = f_ref - f_n
+    limit = vmax if touching else search
+    integral = min(max(out[INTEGRAL] + ki * e * dt, -limit), limit)
+    out[INTEGRAL] = integral
+    v_w = min(max(kp * e + integral, -vmax), limit)
+    if touching:
+        v_t = speed * speed_ratio(f_n, f_ref, params[17], params[18], params[19])
+    elif out[EVER_TOUCHED] > 0.0 or out[OUT_OF_CONTACT] > first_across:
+        v_t = min(speed, search)
+    else:
+        v_t = 0.0  # the first search: straight across to the wall, nothing skipped
+    if not touching:
+        out[OUT_OF_CONTACT] += math.sqrt(v_t * v_t + v_w * v_w) * dt
+    if -f_axis > floor_force:  # the floor: lift off it
+        out[LIFT] += lift_speed * dt
+        out[LIFT_PENDING] = 1.0
+    elif out[LIFT_PENDING] > 0.0 and -f_axis < 0.5 * floor_force:
+        out[LIFT] += clearance
+        out[LIFT_PENDING] = 0.0
+    # the leg's height at the progress along it, with its rate as feedforward
+    rx, ry, rz = p_ref[0] - leg_a[0], p_ref[1] - leg_a[1], p_ref[2] - leg_a[2]
+    s = min(max(rx * leg_xp[0] + ry * leg_xp[1] + rz * leg_xp[2], 0.0), leg_length)
+    h_goal = (
+        (leg_a[0] + s * leg_xp[0]) * ax
+        + (leg_a[1] + s * leg_xp[1]) * ay
+        + (leg_a[2] + s * leg_xp[2]) * az
+    ) - out[LIFT]
+    h_rate = 0.0 if math.isnan(out[H_GOAL_LAST]) else (h_goal - out[H_GOAL_LAST]) / dt
+    out[H_GOAL_LAST] = h_goal
+    h_err = h_goal - (p_ref[0] * ax + p_ref[1] * ay + p_ref[2] * az)
+    v_h = min(max(h_rate + h_err / height_time, -height_speed), height_speed)
+    step = np.empty(3)
+    step[0] = (tx * v_t + w_new[0] * v_w + ax * v_h) * dt
+    step[1] = (ty * v_t + w_new[1] * v_w + ay * v_h) * dt
+    step[2] = (tz * v_t + w_new[2] * v_w + az * v_h) * dt
+    return step, w_new, out, f_n, touching
+
+
+@_jit
+def turn_towards(
+    R_ref: np.ndarray,
+    R_leg_start: np.ndarray,
+    omega: np.ndarray,
+    leg_a: np.ndarray,
+    leg_xp: np.ndarray,
+    leg_length: float,
+    p: np.ndarray,
+    max_turn: float,
+) -> np.ndarray:
+    """The rotation vector (in the frame of ``R_ref``) that turns the tool towards the leg's
+    orientation at ``p`` (R_a exp(f omega), f the progress along the leg, slerp between its
+    guide points), at most ``max_turn`` [rad]: no jump where one leg hands over to the next."""
+    s = (
+        (p[0] - leg_a[0]) * leg_xp[0]
+        + (p[1] - leg_a[1]) * leg_xp[1]
+        + (p[2] - leg_a[2]) * leg_xp[2]
+    )
+    f = min(max(s / leg_length, 0.0), 1.0)
+    R_goal = R_leg_start @ exp3(omega * f)
+    turn = log3(np.ascontiguousarray(R_ref.T) @ R_goal)
+    angle = math.sqrt(turn[0] * turn[0] + turn[1] * turn[1] + turn[2] * turn[2])
+    if angle > max_turn:
+        turn = turn * (max_turn / angle)
+    return turn

@@ -1,0 +1,116 @@
+"""The route path learning runs, planned from the guide points and the part as the user sees it.
+
+PROBLEM   The guide points give the route and the tool's orientation; the wall gives the
+          position by force (chapter section 3.1). Two things about the route cannot come from
+          force alone before the run starts: which side of the route the wall is on when the
+          points were recorded free of it, and how high to run where a point rests on the floor
+          of a groove (a touch-off along -Z leaves it there, and dragged along the floor the
+          cutter presses on two faces at once).
+STRATEGY  With the part's mesh (the CAD the user teaches on, when known): the wall side from
+          ``wall_side.resolve_wall_side``; under each point, the floor found by a ray along the
+          tool axis, and the point lifted until the cutter clears it by the machining height
+          (``PathLearningSettings.floor_clearance_m``). Without a mesh: the side from the pushes
+          alone, and the run's own floor guard (a force along the axis lifts it).
+SOLUTION  ``plan_route(guides, settings, *, workpiece, tool_radius_m) -> LearningRoute``: the
+          guide points as learned (lifted where needed), the side and why, and what was lifted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .leadthrough import GuidePoint
+from .path_learning import PathLearningSettings
+from .wall_side import (
+    WallSideDecision,
+    mean_tool_axis,
+    resolve_wall_side,
+    travel_directions,
+    wall_direction,
+)
+from .workpiece import Workpiece
+
+FLOOR_SEARCH_M = 0.01  # a floor farther than this below a point is not the one it rests on
+
+
+@dataclass(frozen=True)
+class LearningRoute:
+    """The route a run follows.
+
+    Attributes:
+        guides: The guide points as learned: positions lifted off the floor where they rested
+            on it; orientations, joints and forces as recorded.
+        wall_side: The side of the wall and what decided it.
+        lifted_m: (n,) how far each point was lifted [m] (0 where it was clear of the floor).
+        start_towards_wall: (3,) from the first point towards the wall it was taught on (the
+            mesh's nearest wall face on the wall's side), or None without a mesh.
+    """
+
+    guides: tuple[GuidePoint, ...]
+    wall_side: WallSideDecision
+    lifted_m: np.ndarray
+    start_towards_wall: np.ndarray | None = None
+
+
+def floor_clearances(
+    guides: Sequence[GuidePoint], workpiece: Workpiece, tool_radius_m: float
+) -> np.ndarray:
+    """(n,) gap [m] between the cutter and the floor below each point, along the mean tool
+    axis (``inf`` where no floor lies within ``FLOOR_SEARCH_M``; negative: into the floor)."""
+    T = workpiece.T_base_wobj
+    R, t = T[:3, :3], T[:3, 3]
+    axis_w = R.T @ mean_tool_axis(guides)
+    pts_w = (np.array([g.position_m for g in guides]) - t) @ R
+    # From 2 r above the point, along the axis (into the part): the first face met below.
+    origins = pts_w - axis_w * 2.0 * tool_radius_m
+    directions = np.repeat(axis_w[None, :], len(pts_w), axis=0)
+    out = np.full(len(pts_w), np.inf)
+    hits, rays, _ = workpiece.mesh.ray.intersects_location(origins, directions)
+    for p, k in zip(hits, rays, strict=True):
+        along = float((p - origins[k]) @ axis_w) - 2.0 * tool_radius_m  # below the centre
+        gap = along - tool_radius_m
+        if along > -tool_radius_m and gap < FLOOR_SEARCH_M:
+            out[k] = min(out[k], gap)
+    return out
+
+
+def plan_route(
+    guides: Sequence[GuidePoint],
+    settings: PathLearningSettings,
+    *,
+    workpiece: Workpiece | None = None,
+    tool_radius_m: float | None = None,
+) -> LearningRoute:
+    """The route for ``guides`` (module docstring).
+
+    Raises:
+        WallSideError: the side is "auto" and neither the pushes nor the mesh tell it.
+    """
+    guides = tuple(guides)
+    decision = resolve_wall_side(
+        guides,
+        settings.wall_side,
+        closed=settings.closed,
+        workpiece=workpiece,
+        tool_radius_m=tool_radius_m,
+    )
+    lifted = np.zeros(len(guides))
+    if workpiece is None or tool_radius_m is None or not guides:
+        return LearningRoute(guides, decision, lifted)
+    gaps = floor_clearances(guides, workpiece, tool_radius_m)
+    axis = mean_tool_axis(guides)
+    out = []
+    for k, g in enumerate(guides):
+        need = settings.floor_clearance_m - float(gaps[k])
+        if np.isfinite(gaps[k]) and need > 1e-6:
+            T = g.T_base_tcp.copy()
+            T[:3, 3] = T[:3, 3] - axis * need
+            g = GuidePoint(T, g.joints_rad, g.time_s, g.force_N)
+            lifted[k] = need
+        out.append(g)
+    travel = travel_directions(out, settings.closed, axis)[0]
+    start = wall_direction(out[0], travel, decision.sign, workpiece, axis)
+    return LearningRoute(tuple(out), decision, lifted, start)
