@@ -567,7 +567,7 @@ def propose_guide_points(
     """
     settings = settings or ProposalSettings()
     pick = _pick(workpiece, point_wobj_m, normal, tool_radius_m, settings, tool_reach_m)
-    wall, closed, groups, _, notes = _wall_extent(
+    wall, closed, groups, pick_s, notes = _wall_extent(
         pick.loop, pick.s_m, tool_radius_m, settings.gap_m
     )
     notes = [*pick.notes, *notes]
@@ -576,6 +576,10 @@ def propose_guide_points(
     points = _initial_points(wall, closed, groups, end_margin)
     points, added = _add_points(wall, closed, points, place, tool_radius_m)
     notes += added
+    if closed:  # start at the point nearest the click: learning begins where the user pointed
+        gaps = [min(abs(s - pick_s), wall.length_m - abs(s - pick_s)) for s, _ in points]
+        first = int(np.argmin(gaps))
+        points = points[first:] + points[:first]
     R = job_tool_rotation(workpiece.cad().T_base_wobj, tool_rotation)
     placed = [place(s) for s, _ in points]
     Ts = [_pose(workpiece, xy, pick.z_m, R) for xy, _ in placed]
@@ -721,7 +725,16 @@ def move_point(
     )
     points = list(proposal.points)
     points[index] = moved
-    return _with_leg_notes(replace(proposal, points=tuple(points)), tool_radius_m)
+    return _with_leg_notes(replace(proposal, points=_in_wall_order(points, proposal)), tool_radius_m)
+
+
+def _in_wall_order(points: list[ProposedPoint], proposal: GuideProposal) -> tuple:
+    """The points in order along the wall (a point dragged past its neighbours takes its place
+    among them); a closed wall keeps its first point first."""
+    if not proposal.closed:
+        return tuple(sorted(points, key=lambda p: p.s_m))
+    s0, length = points[0].s_m, proposal.wall.length_m
+    return tuple(sorted(points, key=lambda p: (p.s_m - s0) % length))
 
 
 def delete_point(proposal: GuideProposal, index: int, *, tool_radius_m: float) -> GuideProposal:

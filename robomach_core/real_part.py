@@ -246,17 +246,27 @@ def refine_walls(
     tri = v[f]
     normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     wall = _wall_faces(v, f)
-    across = np.ptp(tri[:, :, :2], axis=1)
-    wide = wall & (np.linalg.norm(across, axis=1) > max_across_m)
+    # Every wall face is cut at the planes that cross it, narrow ones too: a narrow face beside
+    # a wide one in the same wall then shares its cut points (no crack after the warp).
+    across = np.linalg.norm(np.ptp(tri[:, :, :2], axis=1), axis=1)
+    if not (wall & (across > max_across_m)).any():
+        return v, f
+    # u per face, then whether a plane u . p = j step crosses it (inside its slivers' margin).
+    u = np.stack([-normal[:, 1], normal[:, 0], np.zeros(len(f))], axis=1)
+    u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-300)
+    flip = (u[:, 0] < -1e-12) | ((np.abs(u[:, 0]) <= 1e-12) & (u[:, 1] < 0))
+    u[flip] *= -1.0
+    s = np.einsum("fkj,fj->fk", tri, u)
+    lo = s.min(axis=1) + 0.05 * max_across_m
+    hi = s.max(axis=1) - 0.05 * max_across_m
+    crossed = np.floor(hi / max_across_m) >= np.ceil(lo / max_across_m)
+    wide = wall & (across > 1e-9) & crossed
     if not wide.any():
         return v, f
     new = []
     for i in np.flatnonzero(wide):
         n = normal[i]
-        u = np.array([-n[1], n[0], 0.0]) / math.hypot(n[0], n[1])
-        if u[0] < -1e-12 or (abs(u[0]) <= 1e-12 and u[1] < 0):
-            u = -u
-        pieces = _slab_triangles(tri[i], u, max_across_m)
+        pieces = _slab_triangles(tri[i], u[i], max_across_m)
         flip = np.cross(pieces[:, 1] - pieces[:, 0], pieces[:, 2] - pieces[:, 0]) @ n < 0
         pieces[flip] = pieces[flip][:, [0, 2, 1]]
         new.append(pieces)

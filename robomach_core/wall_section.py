@@ -34,6 +34,7 @@ from .errors import InvalidInputError
 WALL_NORMAL_Z_MAX = 0.5  # a picked face whose normal has |z| above this is a floor or a top
 MAX_PICK_DISTANCE_M = 0.002  # a picked point farther than this from the surface is refused
 MERGE_M = 1e-9  # segment ends closer than this are one point of a loop
+STITCH_M = 2e-5  # chains ending this close to each other are one wall across a crack
 NORMAL_WINDOW_M = 5e-4  # the free-side normal is the mean over this much wall either side
 TOOL_REACH_MARGIN_M = 0.005  # the spindle body stays this far above the part's top
 DENSE_M = 2e-5  # wall points this far apart measure distances to it
@@ -193,8 +194,33 @@ def section_loops(mesh: trimesh.Trimesh, z_m: float) -> list[WallLoop]:
         if not used[first]:
             chain, closed = walk(first)
             loops.append(WallLoop(point[chain], float(z_m), closed))
-    loops = [lp for lp in loops if len(lp.points_m) >= 2 and lp.length_m > 1e-6]
+    loops = _stitched([lp for lp in loops if len(lp.points_m) >= 2 and lp.length_m > 1e-6])
     return sorted(loops, key=lambda lp: -lp.length_m)
+
+
+def _stitched(loops: list[WallLoop]) -> list[WallLoop]:
+    """Open chains joined where one ends within ``STITCH_M`` of another's start (a crack in
+    the mesh: faces that meet along an edge one of them has a vertex on), and a chain closed
+    when its ends meet so."""
+    closed = [lp for lp in loops if lp.closed]
+    chains = [lp.points_m for lp in loops if not lp.closed]
+    joined = True
+    while joined and chains:
+        joined = False
+        for i, a in enumerate(chains):
+            for j, b in enumerate(chains):
+                if i != j and np.linalg.norm(a[-1] - b[0]) < STITCH_M:
+                    chains[i] = np.vstack([a, b])
+                    del chains[j]
+                    joined = True
+                    break
+            if joined:
+                break
+    z = loops[0].z_m if loops else 0.0
+    for c in chains:
+        ends_meet = bool(len(c) > 2 and np.linalg.norm(c[-1] - c[0]) < STITCH_M)
+        closed.append(WallLoop(c[:-1] if ends_meet else c, z, ends_meet))
+    return [lp for lp in closed if len(lp.points_m) >= 2 and lp.length_m > 1e-5]
 
 
 @dataclass(frozen=True)

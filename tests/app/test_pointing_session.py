@@ -69,8 +69,17 @@ def test_a_proposal_is_shown_edited_and_accepted_then_learned_within_the_wall(fa
     proposal = fast.pointing.propose(ON_WALL)
     assert len(proposal.points) == 14 and proposal.closed
     assert fast.guide_points() == []  # nothing recorded, nothing moved yet
-    moved = fast.pointing.move_proposed(0, np.array([-0.0845, -0.070, 0.017]))
-    assert moved.points[0].position_wobj_m[:2] == pytest.approx([-0.0845, -0.063], abs=2e-4)
+    first = proposal.points[0].position_wobj_m
+    assert first[:2] == pytest.approx([0.0, -0.063], abs=1e-3)  # the one nearest the click
+    xy = np.array([p.position_wobj_m[:2] for p in proposal.points])
+    k = int(np.argmin(np.linalg.norm(xy - [-0.084, -0.063], axis=1)))
+    moved = fast.pointing.move_proposed(k, np.array([-0.0845, -0.070, 0.017]))
+    assert moved.points[k].position_wobj_m[:2] == pytest.approx([-0.0845, -0.063], abs=2e-4)
+    # Dragged past its neighbours, a point takes its place among them along the wall.
+    swapped = fast.pointing.move_proposed(1, np.array([-0.020, -0.070, 0.017]))
+    xs = [p.position_wobj_m[0] for p in swapped.points[:3]]
+    assert xs == sorted(xs)
+    moved = fast.pointing.move_proposed(0, np.array([0.0, -0.070, 0.017]))
     fewer = fast.pointing.delete_proposed(3)
     assert len(fewer.points) == 13
     info = _wait_job(fast, fast.pointing.accept())
