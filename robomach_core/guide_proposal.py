@@ -804,3 +804,44 @@ def wall_side_of(positions_base_m: np.ndarray, workpiece: Workpiece) -> str | No
     if max(forward, backward) < 3.0 * min(forward, backward) + 1e-4:
         return None
     return "right" if forward > backward else "left"
+
+
+OPEN_EDGE_ENTRY_M = 0.003  # beside an open edge, the operator comes down this far off the wall
+
+
+def robust_intents(intents: Sequence, workpiece: Workpiece, tool_radius_m: float) -> list:
+    """Intents for a part that may not be where its mesh is: each point with a wall push is
+    entered in the middle of the free space beside its wall (a groove's middle; 3 mm off an
+    open edge), so that the cutter comes down clear of the real walls, and the push finds the
+    wall from there (a careful operator does the same when the part may be off its drawing).
+    Points without a push (outside corners) stay where they are."""
+    from dataclasses import replace as _replace
+
+    from .wall_section import _off_vertices, section_loops
+
+    cad = workpiece.cad()
+    T = cad.T_base_wobj
+    walls: dict[float, list[WallLoop]] = {}
+    out = []
+    for intent in intents:
+        if intent.wall_normal is None:
+            out.append(intent)
+            continue
+        p = (np.asarray(intent.position_m) - T[:3, 3]) @ T[:3, :3]
+        z = round(float(p[2]), 5)
+        if z not in walls:
+            walls[z] = section_loops(cad.mesh, _off_vertices(cad.mesh, z))
+        loops = walls[z]
+        if not loops:
+            out.append(intent)
+            continue
+        loop = min(loops, key=lambda lp: abs(lp.signed_distance(p[None, :2])[0]))
+        place = _Placer(loop, loops, tool_radius_m, OPEN_EDGE_ENTRY_M)
+        s = float(loop.project(p[None, :2])[0])
+        xy, note = place(s)
+        if "too narrow" in note:
+            out.append(intent)
+            continue
+        entry = T[:3, :3] @ np.array([xy[0], xy[1], p[2]]) + T[:3, 3]
+        out.append(_replace(intent, position_m=entry))
+    return out

@@ -279,6 +279,14 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         intents = intents_from_csv(settings.guide_points_csv, cell.robot)
     elif settings.propose_at_m is not None:
         proposal, intents, settings = _proposed(settings, cad, cell)
+    if workpiece.nominal is not None and settings.guide_points_csv is None:
+        # The part is not where its mesh is: the operator enters each groove in its middle
+        # and touches the real wall from there (``guide_proposal.robust_intents``).
+        from .demo_operator import guide_plan
+        from .guide_proposal import robust_intents
+
+        planned = intents or guide_plan(cad, cell.tool.radius_m, np.random.default_rng(settings.seed))
+        intents = robust_intents(planned, cad, cell.tool.radius_m)
     lt = LeadThrough(cell)
     state = lt.start(cell.initial_state())
     state, guides = scripted_leadthrough(

@@ -110,9 +110,12 @@ def go_to_point(
     *,
     safe_z_m: float,
     speed_m_s: float = TRAVEL_SPEED_M_S,
+    entry_m: np.ndarray | None = None,
 ) -> tuple[LeadThroughState, Arrival]:
     """Lift to ``safe_z_m`` (base z), turn, go over the target and down to it (module
-    docstring). Supervision errors propagate with the last safe state."""
+    docstring); with ``entry_m`` (base frame), down there first and across to the target (a
+    groove entered in its middle, when the part may not be where its mesh is). Supervision
+    errors propagate with the last safe state."""
     from .demo_operator import push_to
 
     T = np.asarray(T_target, dtype=float)
@@ -120,9 +123,12 @@ def go_to_point(
     if p[2] < safe_z_m:
         state = move_by(lt, state, np.array([0.0, 0.0, safe_z_m - p[2]]), speed_m_s)
     state = turn_to(lt, state, T[:3, :3])
-    above = T[:3, 3].copy()
+    down_at = T[:3, 3] if entry_m is None else np.asarray(entry_m, dtype=float)
+    above = down_at.copy()
     above[2] = max(safe_z_m, above[2])
     state = move_by(lt, state, above - state.T_ref[:3, 3], speed_m_s)
+    if entry_m is not None:
+        state = push_to(lt, state, down_at, FREE, tolerance_m=5e-4, timeout_s=DESCENT_TIMEOUT_S)
     state = push_to(lt, state, T[:3, 3], FREE, tolerance_m=ARRIVED_M, timeout_s=DESCENT_TIMEOUT_S)
     distance = float(np.linalg.norm(state.cell.T_base_tcp[:3, 3] - T[:3, 3]))
     force = float(np.linalg.norm(lt.measured_wrench(state.cell)[:3]))

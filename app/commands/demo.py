@@ -130,7 +130,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--realistic",
         action="store_true",
         help="the realistic preset: the part in the cell differs from its mesh by a fixture "
-        "error (0.5-1 mm, 0.25-0.5 deg) and casting deviations (walls within +-0.5 mm, burrs), "
+        "error (0.3-0.6 mm, 0.15-0.3 deg) and casting deviations (walls within +-0.5 mm, burrs), "
         "drawn from --seed; teaching uses the mesh, learning meets the real part, and the "
         "program a CAD/CAM tool would make from the mesh is scored beside the learned one",
     )

@@ -34,6 +34,7 @@ from robomach_core.guide_proposal import (
     guide_intents,
     move_point,
     propose_guide_points,
+    robust_intents,
     teach_point,
     tool_reach,
     wall_side_of,
@@ -150,7 +151,19 @@ class Pointing:
                 f"the arm cannot stand beside the wall at ({x:.1f}, {y:.1f}, {z:.1f}) mm (work "
                 f"object): {planned.message}"
             )
-        arrival = s.teach.move_to(planned.T_base_tcp, safe_z_m=self._safe_z(cad))
+        entry = None
+        if cell.workpiece.nominal is not None:  # the real part may be off: enter mid-groove
+            from robomach_core.demo_operator import GuideIntent
+
+            n = pick.loop.free_normal_at(np.array([pick.s_m]))[0]
+            towards = -(cad.T_base_wobj[:3, :3] @ np.array([n[0], n[1], 0.0]))
+            (robust,) = robust_intents(
+                [GuideIntent(planned.T_base_tcp[:3, 3].copy(), towards)],
+                cell.workpiece,
+                cell.tool.radius_m,
+            )
+            entry = robust.position_m
+        arrival = s.teach.move_to(planned.T_base_tcp, safe_z_m=self._safe_z(cad), entry_m=entry)
         with s._lock:
             point = s._lt.record(s._lt_state)
             guides = list(s._project.guide_points)
@@ -295,6 +308,8 @@ class Pointing:
             cell, estimator, start = s._cell, s._lt.estimator, s._lt_state
             rng_seed = s._project.cell.seed
         intents = guide_intents(proposal)
+        if cell.workpiece.nominal is not None:  # the real part is not where its mesh is
+            intents = robust_intents(intents, cell.workpiece, cell.tool.radius_m)
 
         def work(ctx) -> tuple[LeadThroughState, list[GuidePoint]]:
             lt = LeadThrough(s._live.tapped(cell, estimator, ctx), estimator=estimator)

@@ -133,6 +133,18 @@ from .teach import JogFrame, Teach, ToolView
 EXAMPLE_CLEARANCE_M = 0.008  # the example operator lifts the tool this far above the part
 
 
+def _example_intents(cell: Cell, seed: int) -> list | None:
+    """The example operator's points: its own plan (None), or, on a part that is not where its
+    mesh is, the same entered in each groove's middle (``guide_proposal.robust_intents``)."""
+    if cell.workpiece.nominal is None:
+        return None
+    from robomach_core.demo_operator import guide_plan
+    from robomach_core.guide_proposal import robust_intents
+
+    plan = guide_plan(cell.workpiece.cad(), cell.tool.radius_m, np.random.default_rng(seed))
+    return robust_intents(plan, cell.workpiece, cell.tool.radius_m)
+
+
 def _squared(lt: LeadThrough, state: LeadThroughState, cad: Workpiece) -> LeadThroughState:
     """The tool lifted clear of the part (when below its top) and turned square to it (tool
     axis down, as the example operator holds it), by supervised jogs of at most 45 degrees."""
@@ -532,6 +544,7 @@ class Session(ProjectsMixin):
                         state,
                         cell.workpiece.cad(),  # the operator plans on the mesh they see
                         np.random.default_rng(seed),
+                        intents=_example_intents(cell, seed),
                         progress=ctx.progress,
                     )
                 except SupervisionError as exc:

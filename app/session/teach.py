@@ -246,7 +246,9 @@ class Teach:
                 state=exc.state,
             ) from None
 
-    def move_to(self, T_base_tcp: np.ndarray, *, safe_z_m: float) -> Arrival:
+    def move_to(
+        self, T_base_tcp: np.ndarray, *, safe_z_m: float, entry_m: np.ndarray | None = None
+    ) -> Arrival:
         """Take the tool to ``T_base_tcp``: up to ``safe_z_m``, turned, over and down into
         place (``teach_motion.go_to_point``), paced and supervised like a jog. Returns where it
         stopped (against the part when it is not where its mesh is)."""
@@ -256,7 +258,7 @@ class Teach:
         arrival: list[Arrival] = []
 
         def move(lt: LeadThrough, st: LeadThroughState, sel: Selection) -> LeadThroughState:
-            end, got = go_to_point(lt, st, T, safe_z_m=safe_z_m)
+            end, got = go_to_point(lt, st, T, safe_z_m=safe_z_m, entry_m=entry_m)
             arrival.append(got)
             return end
 

@@ -45,8 +45,8 @@ class CellPanel:
             self.realistic = server.gui.add_checkbox(
                 "Realistic part",
                 s.part_deviation is not None,
-                hint="The part in the cell differs from its mesh by a fixture error (0.5-1 mm, "
-                "0.25-0.5 deg) and casting deviations (+-0.5 mm, burrs), from the cell's seed: "
+                hint="The part in the cell differs from its mesh by a fixture error (0.3-0.6 mm, "
+                "0.15-0.3 deg) and casting deviations (+-0.5 mm, burrs), from the cell's seed: "
                 "you teach on the mesh, learning meets the real part",
             )
             self.apply = server.gui.add_button(
