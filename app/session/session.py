@@ -782,6 +782,8 @@ class Session(ProjectsMixin):
         guides, radius = project.guide_points, project.cell.tool_radius_m
         if len(guides) < 2:
             return [], ""
+        if wall_side == "auto":  # as start_path_learning decides it
+            wall_side = self.pointing.learning_side() or "auto"
         try:
             decision = resolve_wall_side(
                 guides, wall_side, closed=closed, workpiece=workpiece, tool_radius_m=radius

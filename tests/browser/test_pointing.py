@@ -77,11 +77,13 @@ def _look_at_wall(client, workbench, xy_mm, normal_xy, z_mm=WALL_MID_Z_MM) -> np
     p = T[:3, :3] @ np.array([xy_mm[0], xy_mm[1], z_mm]) * 1e-3 + T[:3, 3]
     n = T[:3, :3] @ np.array([normal_xy[0], normal_xy[1], 0.0])
     eye = p + CAMERA_DISTANCE_M * (0.55 * n + 0.83 * np.array([0.0, 0.0, 1.0]))
+    before = client.camera.update_timestamp
     with client.atomic():
         client.camera.up_direction = (0.0, 0.0, 1.0)
         client.camera.position = tuple(eye)
         client.camera.look_at = tuple(p)
-    wait_for(lambda: np.allclose(client.camera.look_at, p, atol=1e-6), timeout_s=10)
+    # The orbit is done when the browser reports the camera back (it has drawn the new view).
+    wait_for(lambda: client.camera.update_timestamp > before, timeout_s=30)
     return p
 
 
