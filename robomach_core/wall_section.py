@@ -30,6 +30,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from .errors import InvalidInputError
+from .mesh_query import closest_point, ray_hits
 
 WALL_NORMAL_Z_MAX = 0.5  # a picked face whose normal has |z| above this is a floor or a top
 MAX_PICK_DISTANCE_M = 0.002  # a picked point farther than this from the surface is refused
@@ -252,9 +253,7 @@ class WallPick:
 
 def _first_hit_below(mesh: trimesh.Trimesh, origin: np.ndarray) -> float | None:
     """z of the highest surface straight below ``origin`` (None: nothing below)."""
-    hits, _, _ = mesh.ray.intersects_location(
-        np.asarray([origin], dtype=float), np.array([[0.0, 0.0, -1.0]]), multiple_hits=True
-    )
+    hits, _, _ = ray_hits(mesh, np.asarray([origin]), np.array([[0.0, 0.0, -1.0]]))
     below = [h[2] for h in hits if h[2] < origin[2] - 1e-7]
     return max(below) if below else None
 
@@ -289,7 +288,7 @@ def pick_wall(
     p = np.asarray(point_m, dtype=float).reshape(3)
     if not np.all(np.isfinite(p)):
         raise InvalidInputError("the picked point must be 3 finite coordinates")
-    closest, distance, triangle = trimesh.proximity.closest_point(mesh, p[None, :])
+    closest, distance, triangle = closest_point(mesh, p[None, :])
     if float(distance[0]) > MAX_PICK_DISTANCE_M:
         raise InvalidInputError(
             f"the point ({_mm(p)}) mm is {distance[0] * 1e3:.1f} mm from the part's surface; "
@@ -313,9 +312,7 @@ def pick_wall(
     # The floor beside the wall: straight down from where the tool will stand, or from the
     # middle of a free space narrower than that (a narrow slot).
     across = np.array([n_xy[0], n_xy[1], 0.0])
-    hits, _, _ = mesh.ray.intersects_location(
-        (on + across * 2e-5)[None], across[None], multiple_hits=False
-    )
+    hits, _, _ = ray_hits(mesh, (on + across * 2e-5)[None], across[None], multiple_hits=False)
     width = float(np.linalg.norm(hits[0] - on)) if len(hits) else np.inf
     beside = on + across * min(tool_radius_m + gap_m, 0.5 * width)
     bottom = float(mesh.bounds[0, 2])

@@ -311,9 +311,9 @@ class CellScene:
         mesh = getattr(self, "_cad_in_base", None)
         if mesh is None:
             return None
-        hits, _, faces = mesh.ray.intersects_location(
-            np.asarray([origin], dtype=float), np.asarray([direction], dtype=float)
-        )
+        from robomach_core.mesh_query import ray_hits
+
+        hits, _, faces = ray_hits(mesh, np.asarray([origin]), np.asarray([direction]))
         if len(hits) == 0:
             return None
         k = int(np.argmin(np.linalg.norm(hits - origin, axis=1)))

@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from robomach_core import mesh_query
 from robomach_core.errors import InvalidInputError, SupervisionError, UnreachableTargetError
 from robomach_core.guide_proposal import (
     GuideProposal,
@@ -134,17 +135,18 @@ class Pointing:
                 raise ConflictError(f"a project holds at most {MAX_GUIDE_POINTS} guide points")
             supervisor = s._lt.supervisor
         cad = cell.workpiece.cad()
-        planned, pick = teach_point(
-            cad,
-            cell.robot,
-            np.asarray(point_wobj_m, dtype=float),
-            None if normal is None else np.asarray(normal, dtype=float),
-            tool_radius_m=cell.tool.radius_m,
-            settings=self.settings,
-            q_seed=lt_state.cell.q_motor,
-            supervisor=supervisor,
-            tool_reach_m=tool_reach(cell.tool),
-        )
+        with mesh_query.LOCK:  # the mesh's trees answer one thread at a time
+            planned, pick = teach_point(
+                cad,
+                cell.robot,
+                np.asarray(point_wobj_m, dtype=float),
+                None if normal is None else np.asarray(normal, dtype=float),
+                tool_radius_m=cell.tool.radius_m,
+                settings=self.settings,
+                q_seed=lt_state.cell.q_motor,
+                supervisor=supervisor,
+                tool_reach_m=tool_reach(cell.tool),
+            )
         if planned.reach == "unreachable":
             x, y, z = planned.position_wobj_m * 1e3
             raise UnreachableTargetError(
@@ -220,17 +222,18 @@ class Pointing:
         with s._lock:
             cell, epoch, q = s._cell, s._epoch, s._lt_state.cell.q_motor
             supervisor = s._lt.supervisor
-        proposal = propose_guide_points(
-            cell.workpiece.cad(),
-            cell.robot,
-            np.asarray(point_wobj_m, dtype=float),
-            None if normal is None else np.asarray(normal, dtype=float),
-            tool_radius_m=cell.tool.radius_m,
-            settings=self.settings,
-            q_seed=q,
-            supervisor=supervisor,
-            tool_reach_m=tool_reach(cell.tool),
-        )
+        with mesh_query.LOCK:
+            proposal = propose_guide_points(
+                cell.workpiece.cad(),
+                cell.robot,
+                np.asarray(point_wobj_m, dtype=float),
+                None if normal is None else np.asarray(normal, dtype=float),
+                tool_radius_m=cell.tool.radius_m,
+                settings=self.settings,
+                q_seed=q,
+                supervisor=supervisor,
+                tool_reach_m=tool_reach(cell.tool),
+            )
         with self._lock:
             if epoch != s._epoch:
                 raise ConflictError("the cell changed while the guide points were proposed")

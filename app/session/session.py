@@ -77,6 +77,7 @@ from typing import Any
 
 import numpy as np
 
+from robomach_core import mesh_query
 from robomach_core import project as core
 from robomach_core.cell import Cell, CellState
 from robomach_core.errors import (
@@ -604,13 +605,14 @@ class Session(ProjectsMixin):
             start = self._lt_state.cell
             from robomach_core.wall_side import resolve_wall_side
 
-            resolve_wall_side(  # refuse now, with the cause, not as a failed job
-                project.guide_points,
-                settings.wall_side,
-                closed=settings.closed,
-                workpiece=cell.workpiece.cad(),  # the mesh the user sees
-                tool_radius_m=project.cell.tool_radius_m,
-            )
+            with mesh_query.LOCK:
+                resolve_wall_side(  # refuse now, with the cause, not as a failed job
+                    project.guide_points,
+                    settings.wall_side,
+                    closed=settings.closed,
+                    workpiece=cell.workpiece.cad(),  # the mesh the user sees
+                    tool_radius_m=project.cell.tool_radius_m,
+                )
 
             def work(ctx: JobContext) -> tuple[core.LearnedPath, CellState]:
                 path_m = np.array([g.position_m for g in project.guide_points])
@@ -690,13 +692,14 @@ class Session(ProjectsMixin):
         )
         if project.learned is None:
             raise ConflictError("nothing to post-process yet: run path learning first")
-        outcome = core.process(
-            project.learned,
-            settings,
-            workpiece,
-            project.cell.tool_radius_m,
-            guides=project.guide_points,
-        )
+        with mesh_query.LOCK:  # the scores query the mesh's trees, one thread at a time
+            outcome = core.process(
+                project.learned,
+                settings,
+                workpiece,
+                project.cell.tool_radius_m,
+                guides=project.guide_points,
+            )
         with self._lock:
             if self._project.learned is not project.learned or epoch != self._epoch:
                 raise ConflictError(
@@ -754,13 +757,19 @@ class Session(ProjectsMixin):
         self, force_N: float = 10.0, *, closed: bool = True, wall_side: str = "auto"
     ) -> tuple:
         """What the operator check finds in the guide points (``guide_check``)."""
-        from robomach_core.guide_check import guide_point_warnings
         from robomach_core.path_learning import PathLearningSettings
 
         with self._lock:
             project, robot = self._project, self._cell.robot
             workpiece = self._cell.workpiece.cad()  # checks use the mesh the user sees
         settings = PathLearningSettings(force_N=force_N, closed=closed, wall_side=wall_side)
+        with mesh_query.LOCK:  # the mesh's nearest-point tree answers one thread at a time
+            return self._guide_findings(project, settings, workpiece, robot)
+
+    @staticmethod
+    def _guide_findings(project, settings, workpiece, robot) -> tuple:
+        from robomach_core.guide_check import guide_point_warnings
+
         return guide_point_warnings(
             project.guide_points,
             settings,
@@ -785,14 +794,15 @@ class Session(ProjectsMixin):
         if wall_side == "auto":  # as start_path_learning decides it
             wall_side = self.pointing.learning_side() or "auto"
         try:
-            decision = resolve_wall_side(
-                guides, wall_side, closed=closed, workpiece=workpiece, tool_radius_m=radius
-            )
+            with mesh_query.LOCK:
+                decision = resolve_wall_side(
+                    guides, wall_side, closed=closed, workpiece=workpiece, tool_radius_m=radius
+                )
+                points = taught_wall_points(
+                    guides, decision.side, closed=closed, workpiece=workpiece, tool_radius_m=radius
+                )
         except WallSideError as exc:
             return [], f"wall side: {exc}"
-        points = taught_wall_points(
-            guides, decision.side, closed=closed, workpiece=workpiece, tool_radius_m=radius
-        )
         return points, f"follows the wall on the {decision.side}: {decision.detail}"
 
     def guide_warnings(

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from robomach_core import mesh_query
 from robomach_core.cell import CONTROL_PERIOD_S, CellState
 from robomach_core.clearance import ClearanceProbe
 from robomach_core.errors import (
@@ -284,8 +285,12 @@ class Teach:
             self._probe = (epoch, ClearanceProbe(cell.tool, cell.workpiece.cad()))
             self._walls = {}
         probe = self._probe[1]
-        gap = probe.gap(snap.T_base_tcp)
         table_z = float(s._lt.supervisor.table_z_m)
+        # The probe's coal objects and the mesh's section serve one thread at a time (the
+        # pendant polls this while viser's panel does).
+        with mesh_query.LOCK:
+            gap = probe.gap(snap.T_base_tcp)
+            wall_gap = self._wall_gap(cell, snap.T_base_tcp[:3, 3])
         nz = float(gap.normal[2])
         face = "floor" if nz > 0.7 else "underside" if nz < -0.7 else "wall"
         return ToolView(
@@ -295,7 +300,7 @@ class Teach:
             probe.height_above_m(snap.T_base_tcp, table_z),
             snap.in_contact,
             face,
-            self._wall_gap(cell, snap.T_base_tcp[:3, 3]),
+            wall_gap,
         )
 
     def _wall_gap(self, cell, p_base: np.ndarray) -> float | None:
