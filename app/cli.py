@@ -2,7 +2,9 @@
 
 Each command module exposes ``add_parser(subparsers)`` (which sets ``func`` on its parser) and
 keeps its imports of heavy libraries inside its ``run`` function, so ``robomach --help`` is fast.
-Errors a user can cause (``RobomachError``, bad files, bad arguments) print one line and exit 2.
+Errors a user can cause (``RobomachError``, bad files, bad arguments) print one line and exit 2;
+a fault no check foresaw prints one line too and exits 1 (``ROBOMACH_DEBUG=1`` shows its
+traceback).
 """
 
 from __future__ import annotations
@@ -38,6 +40,36 @@ def writable_folder(path: Path, option: str = "--out") -> Path:
     return path
 
 
+MAX_SETTINGS_FILE_BYTES = 10_000_000  # a settings file is a few kB of JSON
+
+
+def settings_file(path: Path, option: str) -> Path:
+    """``path`` once it is a readable UTF-8 text file of at most 10 MB (a settings file).
+
+    Raises:
+        InvalidInputError: missing, too large, or binary; the message names ``option``.
+    """
+    from robomach_core.errors import InvalidInputError
+
+    try:
+        size = path.stat().st_size
+        if size > MAX_SETTINGS_FILE_BYTES:
+            raise InvalidInputError(
+                f"{option} {path}: {size / 1e6:.1f} MB is not a settings file (JSON of a few kB)"
+            )
+        path.read_bytes().decode("utf-8")
+    except FileNotFoundError:
+        raise InvalidInputError(f"{option} {path}: the file does not exist") from None
+    except UnicodeDecodeError as exc:
+        raise InvalidInputError(
+            f"{option} {path}: not a text file (byte {exc.start} is not UTF-8); give the JSON "
+            "settings file the workbench or a study wrote"
+        ) from None
+    except OSError as exc:
+        raise InvalidInputError(f"{option} {path}: cannot read it ({exc.strerror})") from None
+    return path
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="robomach",
@@ -69,6 +101,17 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"robomach {args.command}: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # a fault no check foresaw: one line, the traceback on request
+        if os.environ.get("ROBOMACH_DEBUG"):
+            raise
+        from app.session.jobs import describe_unexpected
+
+        print(
+            f"robomach {args.command}: error: {describe_unexpected(exc)} "
+            "(set ROBOMACH_DEBUG=1 for the traceback)",
+            file=sys.stderr,
+        )
+        return 1
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ from urllib.parse import urlsplit
 from fastapi import FastAPI
 
 from app.session import Session
-from app.settings import ServerSettings
+from app.settings import ServerSettings, is_loopback_name
 from app.store import Store
 from robomach_core.errors import InvalidInputError
 
@@ -118,8 +118,9 @@ def refuse_foreign_websockets(server: object) -> bool:
     A browser lets any page open a websocket to any port, sending its own ``Origin``; without
     this, a page on another site could click the workbench's buttons through viser. viser
     1.1 has no public hook, so this wraps two of its internals (checked here: when they are
-    missing, it logs a warning and returns False). A connection passes when it sends no
-    ``Origin`` (not a browser) or one equal to the ``Host`` it connected to (the viser page,
+    missing, it logs a warning and returns False). A connection passes when its ``Host`` is a
+    loopback name (viser only listens there: a name rebound to 127.0.0.1 by DNS is refused)
+    and it sends no ``Origin`` (not a browser) or one equal to that ``Host`` (the viser page,
     also inside the pendant's frame).
     """
     infra = getattr(server, "_websock_server", None)
@@ -139,16 +140,31 @@ def refuse_foreign_websockets(server: object) -> bool:
         request = getattr(live.get(client_id), "request", None)
         if request is None:
             return
-        origin = request.headers.get("Origin")
-        if origin is None or _same_origin(origin, request.headers.get("Host", "")):
+        origin, host = request.headers.get("Origin"), request.headers.get("Host", "")
+        if not _loopback_host(host):
+            # viser listens on loopback only (viser_host): a page under another name that
+            # resolves here (DNS rebinding) is "same origin" with itself; refuse its name.
+            reason, shown = "a non-loopback Host refused", f"host {host[:200]!r}"
+        elif origin is None or _same_origin(origin, host):
             return
+        else:
+            reason, shown = "cross-origin connection refused", f"origin {origin[:200]!r}"
         refused.add(client_id)  # before the first message is read: the consumer starts later
-        log.warning("viser: refused a websocket from origin %r", origin[:200])
-        await live[client_id].close(1008, "cross-origin connection refused")
+        log.warning("viser: refused a websocket from %s", shown)
+        await live[client_id].close(1008, reason)
 
     infra._handle_incoming_message = dispatch_known
     infra.on_client_connect(check_origin)
     return True
+
+
+def _loopback_host(host: str) -> bool:
+    """True when a ``Host`` header (``name[:port]``) names this machine's loopback."""
+    try:
+        name = urlsplit(f"//{host}").hostname
+    except ValueError:
+        return False
+    return name is not None and is_loopback_name(name)
 
 
 def _same_origin(origin: str, host: str) -> bool:
@@ -239,7 +255,12 @@ def serve(settings: ServerSettings) -> int:
             log.info("data folder %s, project %r", data_dir, session.current_project().name)
             log.info("REST API at http://%s:%d/docs, pendant at /pendant/", host, settings.port)
             if settings.token:
-                log.info("mutating REST calls need the token (Authorization: Bearer ...)")
+                which = (
+                    "every REST call but /api/health"
+                    if settings.reads_need_token
+                    else ("mutating REST calls")
+                )
+                log.info("%s need the token (Authorization: Bearer ...)", which)
             config = uvicorn.Config(
                 app,
                 host=settings.host,

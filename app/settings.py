@@ -2,8 +2,9 @@
 
 pydantic-settings is not a dependency, so this is a frozen dataclass with a ``from_env``
 constructor. Environment variables: ``ROBOMACH_HOST``, ``ROBOMACH_PORT``,
-``ROBOMACH_VISER_PORT``, ``ROBOMACH_DATA``, ``ROBOMACH_TOKEN``, and the upload limits
-``ROBOMACH_MAX_UPLOAD_BYTES`` and ``ROBOMACH_MAX_TRIANGLES`` (at most the mesh reader's).
+``ROBOMACH_VISER_PORT``, ``ROBOMACH_DATA``, ``ROBOMACH_TOKEN``, ``ROBOMACH_TOKEN_READS``
+(1/0: reads need the token too; default on when binding beyond loopback), and the upload
+limits ``ROBOMACH_MAX_UPLOAD_BYTES`` and ``ROBOMACH_MAX_TRIANGLES`` (at most the mesh reader's).
 """
 
 from __future__ import annotations
@@ -26,6 +27,18 @@ MAX_JSON_BODY_BYTES = 1024 * 1024  # every JSON body the API takes is far smalle
 STATIC_DIR = Path(__file__).resolve().parent.parent / "static"
 
 
+def is_loopback_name(host: str) -> bool:
+    """True for a name only this machine answers to: localhost, *.localhost, 127.0.0.0/8, ::1
+    (a hostname from a ``Host`` header or a bind address, without a port)."""
+    host = host.strip().lower().rstrip(".")
+    if host == "localhost" or host.endswith(".localhost"):
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
 @dataclass(frozen=True)
 class ServerSettings:
     """How the workbench serves.
@@ -44,6 +57,12 @@ class ServerSettings:
         real_time: Pace lead-through pushes and jogs to the wall clock, as for a person at a
             pendant (``ROBOMACH_REAL_TIME=0`` turns it off for scripted rigs and test suites
             that drive the robot by REST and want it as fast as the simulation allows).
+        token_reads: Reads (GET) of /api/ need the token too (the project file holds the
+            customer's part and robot); None: on when the server binds beyond loopback.
+            ``/api/health`` stays open.
+        refuse_foreign_hosts: On loopback, refuse every request whose ``Host`` is not a
+            loopback name (a page under a name rebound to 127.0.0.1: DNS rebinding).
+            ``from_env`` (the CLI) turns it on; off by default for in-process clients.
     """
 
     host: str = DEFAULT_HOST
@@ -55,6 +74,8 @@ class ServerSettings:
     max_triangles: int = MAX_MESH_TRIANGLES
     static_dir: Path = field(default=STATIC_DIR)
     real_time: bool = True
+    token_reads: bool | None = None
+    refuse_foreign_hosts: bool = False
 
     @classmethod
     def from_env(cls, env: dict[str, str] | None = None, **overrides: Any) -> ServerSettings:
@@ -80,13 +101,18 @@ class ServerSettings:
             values["data_dir"] = Path(env["ROBOMACH_DATA"])
         if env.get("ROBOMACH_TOKEN"):
             values["token"] = env["ROBOMACH_TOKEN"]
-        if env.get("ROBOMACH_REAL_TIME"):
-            flag = env["ROBOMACH_REAL_TIME"].strip().lower()
-            if flag not in ("0", "1", "on", "off", "true", "false"):
-                raise InvalidInputError(
-                    f"ROBOMACH_REAL_TIME must be 1/on/true or 0/off/false, not {flag!r}"
-                )
-            values["real_time"] = flag in ("1", "on", "true")
+        for key, name in (
+            ("real_time", "ROBOMACH_REAL_TIME"),
+            ("token_reads", "ROBOMACH_TOKEN_READS"),
+        ):
+            if env.get(name):
+                flag = env[name].strip().lower()
+                if flag not in ("0", "1", "on", "off", "true", "false"):
+                    raise InvalidInputError(
+                        f"{name} must be 1/on/true or 0/off/false, not {flag!r}"
+                    )
+                values[key] = flag in ("1", "on", "true")
+        values["refuse_foreign_hosts"] = True
         values.update({k: v for k, v in overrides.items() if v is not None})
         settings = replace(cls(), **values)
         settings.validate()
@@ -95,12 +121,14 @@ class ServerSettings:
     @property
     def loopback(self) -> bool:
         """True when only this machine can reach the server."""
-        if self.host == "localhost":
-            return True
-        try:
-            return ipaddress.ip_address(self.host).is_loopback
-        except ValueError:
+        return is_loopback_name(self.host)
+
+    @property
+    def reads_need_token(self) -> bool:
+        """GETs of /api/ need the token: ``token_reads``, by default beyond loopback."""
+        if not self.token:
             return False
+        return self.token_reads if self.token_reads is not None else not self.loopback
 
     def validate(self) -> None:
         """Raise ``InvalidInputError`` for settings that must not serve."""
@@ -114,6 +142,8 @@ class ServerSettings:
                 f"binding to {self.host} makes the workbench reachable from other machines: "
                 "set ROBOMACH_TOKEN (at least 16 characters) so mutating calls need it"
             )
+        if self.token_reads and not self.token:
+            raise InvalidInputError("reads can need the token only when ROBOMACH_TOKEN is set")
         if self.token is not None and len(self.token) < TOKEN_MIN_LENGTH:
             raise InvalidInputError(
                 f"ROBOMACH_TOKEN must be at least {TOKEN_MIN_LENGTH} characters"

@@ -314,7 +314,10 @@ def admittance_reference(
     """One admittance period: M dv/dt + D v = W in the selection frame, integrated into T_ref.
 
     W (base axes) is rotated into the selection frame, shrunk by the deadband, and the damping is
-    taken implicitly: v+ = (M v + dt W) / (M + D dt); stiff axes (mask 0) keep v = 0.
+    taken implicitly: v+ = (M v + dt W) / (M + D dt); stiff axes (mask 0) keep v = 0. The
+    limits bound the speed and the rate as vectors (``limit[0]`` the norm of the linear part,
+    ``limit[3]`` of the angular part), so a diagonal push is no faster than a straight one
+    (clipping each axis let it reach sqrt(3) x the limit; issue 19, R11).
     Returns (new T_ref, new v).
     """
     Rt = R_frame.T
@@ -327,8 +330,13 @@ def admittance_reference(
         mag = abs(wi) - deadband[i]
         wi = math.copysign(mag, wi) if mag > 0.0 else 0.0
         vi = (mass[i] * velocity[i] + dt * wi) / (mass[i] + damping[i] * dt)
-        vi *= mask[i]
-        v[i] = min(max(vi, -limit[i]), limit[i])
+        v[i] = vi * mask[i]
+    for start in (0, 3):
+        norm = math.sqrt(v[start] ** 2 + v[start + 1] ** 2 + v[start + 2] ** 2)
+        if norm > limit[start]:
+            scale = limit[start] / norm
+            for i in range(start, start + 3):
+                v[i] *= scale
     lin = R_frame @ v[:3]
     ang = R_frame @ v[3:]
     T = T_ref.copy()

@@ -87,8 +87,9 @@ class AdmittanceParams:
         damping_N_s_m: Translational damping: a 10 N push moves the tool at 10 / D m/s.
         inertia_kg_m2: Virtual inertia per rotational axis.
         damping_rot_Nm_s_rad: Rotational damping.
-        max_speed_m_s: Translational speed limit.
-        max_rate_rad_s: Rotational speed limit.
+        max_speed_m_s: Translational speed limit (of the speed vector's norm: 50 mm/s in
+            every direction, diagonals too).
+        max_rate_rad_s: Rotational speed limit (of the angular velocity's norm).
         deadband_N: Forces below this (about 4 sigma of the sensor noise) do not move the robot,
             so it stands still when nobody pushes; larger forces are reduced by it.
         deadband_Nm: The same for torques.

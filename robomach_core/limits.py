@@ -79,11 +79,24 @@ LEARNING_FORCE_N = Range("contact force", 1.0, 50.0, "N")
 LEARNING_SPEED_MM_S = Range("learning speed", 0.5, 50.0, "mm/s")
 # The cutter's height above a floor the run meets (a little above: the machining height).
 FLOOR_CLEARANCE_MM = Range("floor clearance", 0.0, 5.0, "mm")
-PUSH_FORCE_N = Range("push force", 0.0, 200.0, "N")
+PUSH_FORCE_N = Range("push force", 0.0, 200.0, "N")  # magnitude of the force vector
+PUSH_TORQUE_NM = Range("push torque", 0.0, 20.0, "N*m")  # a hand's twist on a tool handle
 PUSH_DURATION_S = Range("push duration", 0.0, 10.0, "s")
+# Guide points of one project, and samples of one recording (4 ms each: 1 M is 67 min of
+# learning, ~260 MB of arrays; the papers' runs are minutes).
+GUIDE_POINTS_MAX = 200
+RECORDING_SAMPLES_MAX = 1_000_000
 
 # --- post-processing (chapter fig. 3: 0.2 mm gave ~300 targets) -----------------------------
 TOLERANCE_MM = Range("deviation-height tolerance", 0.01, 5.0, "mm")
+# The force filter's band (1.5 x the strongest learning force is 75 N; the F/T sensors of the
+# papers measure a few hundred N), the program's feeds by curvature (the chapter's deburring
+# feeds are a few mm/s; CMRR_COMMAND_SPEED_MM_S allows 500) and the interaction stiffness that
+# moves samples back to the unloaded surface (the papers measured 85-143 N/mm; 0 turns it off).
+FORCE_THRESHOLD_N = Range("force threshold", 0.0, 1000.0, "N")
+PROGRAM_SPEED_MM_S = Range("program speed", 0.1, 500.0, "mm/s")
+CURVATURE_REFERENCE_1_M = Range("reference curvature", 1.0, 1.0e5, "1/m")
+CONTACT_STIFFNESS_N_MM = Range("contact stiffness", 0.0, 1.0e5, "N/mm")
 
 # --- CMRR (papers: Fr 20-250 N, spindle limit 300 N, Vr 6-100 mm/s, delta 0.05-0.1) --------
 CMRR_REFERENCE_FORCE_N = Range("reference force", 1.0, 1000.0, "N")
@@ -118,7 +131,13 @@ TOOL_RADIUS_MM = Range("tool radius", 0.5, 5.0, "mm")
 MACHINING_PROCESS_GAIN_N = Range("process gain K", 0.1, 1.0e4, "N")
 MACHINING_DEPTH_EXPONENT = Range("depth exponent alpha", 0.0, 3.0)
 MACHINING_FEED_EXPONENT = Range("feed exponent beta", 0.01, 2.0)
-MACHINING_FORCE_LIMIT_N = Range("force limit", 1.0, 5000.0, "N")
+# Fr defaults to 0.7 of the limit and must stay within CMRR_REFERENCE_FORCE_N (1-1000 N), so
+# the limit's range is that range over 0.7, rounded inwards: every limit here is accepted
+# everywhere (machining.settings.DEFAULT_REFERENCE_FRACTION; a test checks both ends).
+MACHINING_FORCE_LIMIT_N = Range("force limit", 1.5, 1400.0, "N")
+# Stocks of a variation sweep per configuration, and local worker processes.
+MACHINING_VARIATIONS = Range("variations", 0, 1000, integer=True)
+MACHINING_WORKERS = Range("workers", 1, 256, integer=True)
 
 # --- the real part (real_part.PartDeviation) and teaching by pointing (guide_proposal) ------
 # A fixture places a casting within a few mm and a degree or two; castings hold their walls

@@ -47,6 +47,7 @@ from .workpiece import Workpiece
 # 1 s, most of a workbench post-processing). Between targets the error is a smooth chord sagitta
 # (mm-long chords), so the coarser sampling lowers the maximum by 2 um on the water pump.
 MESH_SCORE_SPACING_M = 5e-4
+MESH_QUERY_CHUNK = 2000  # points per trimesh query (its memory grows with the points asked)
 TAUGHT_WALL_TOLERANCE_M = 0.001  # the program passes this near every taught wall point
 TAUGHT_WALL_HEIGHT_BAND_M = 0.005  # ... measured across the axis within this height of it
 _WALLS: dict[int, tuple[weakref.ref, tuple[float, ...], trimesh.Trimesh | None]] = {}
@@ -102,23 +103,31 @@ def mesh_deviation(
     T = workpiece.T_base_wobj
     R, t = T[:3, :3], T[:3, 3]
     # Distances do not change under the rigid work-object transform: query the part's own mesh
-    # in its frame, whose triangle tree trimesh builds once and caches.
+    # in its frame, whose triangle tree trimesh builds once and caches. trimesh's query holds
+    # every candidate triangle of every point at once: in chunks, its memory stays bounded
+    # whatever the tolerance (30k targets at 0.01 mm took 1.1 GB at once; issue 19, R3).
     pts_w = (pts - t) @ R
     axis_w = np.array([0.0, 0.0, 1.0]) if axis_base is None else R.T @ np.asarray(axis_base)
     mesh = workpiece.mesh
-    with np.errstate(divide="ignore", invalid="ignore"):  # degenerate facets in trimesh's maths
-        closest, distance, tri = trimesh.proximity.closest_point(mesh, pts_w)
-        behind = _inside(mesh, pts_w, closest, np.asarray(distance), tri)
+    with np.errstate(divide="ignore", invalid="ignore"):
         walls = _walls_of(mesh, axis_w / np.linalg.norm(axis_w))
-        if walls is None:
-            wall_distance = np.asarray(distance, dtype=float)
-        else:
-            _, wall_distance, _ = trimesh.proximity.closest_point(walls, pts_w)
-    return np.where(
-        behind,
-        -(np.asarray(distance, dtype=float) + tool_radius_m),
-        np.asarray(wall_distance, dtype=float) - tool_radius_m,
-    )
+    out = np.empty(len(pts_w))
+    for start in range(0, len(pts_w), MESH_QUERY_CHUNK):
+        chunk = pts_w[start : start + MESH_QUERY_CHUNK]
+        with np.errstate(divide="ignore", invalid="ignore"):  # degenerate facets in trimesh
+            closest, distance, tri = trimesh.proximity.closest_point(mesh, chunk)
+            distance = np.asarray(distance, dtype=float)
+            behind = _inside(mesh, chunk, closest, distance, tri)
+            if walls is None:
+                wall_distance = distance
+            else:
+                _, wall_distance, _ = trimesh.proximity.closest_point(walls, chunk)
+        out[start : start + len(chunk)] = np.where(
+            behind,
+            -(distance + tool_radius_m),
+            np.asarray(wall_distance, dtype=float) - tool_radius_m,
+        )
+    return out
 
 
 def score_mesh(

@@ -17,6 +17,13 @@ import numpy as np
 
 from . import _kernels
 from .errors import InvalidInputError
+from .limits import (
+    CONTACT_STIFFNESS_N_MM,
+    CURVATURE_REFERENCE_1_M,
+    FORCE_THRESHOLD_N,
+    PROGRAM_SPEED_MM_S,
+    TOLERANCE_MM,
+)
 
 # The force filter's band around the learning force (the defaults, 5-15 N, at the chapter's
 # 10 N), and the least a band must reach to keep a recording held at that force.
@@ -65,8 +72,17 @@ class PostprocessSettings:
         return replace(self, force_min_N=lo * force_N, force_max_N=hi * force_N)
 
     def __post_init__(self) -> None:
-        if not (self.tolerance_m > 0 and np.isfinite(self.tolerance_m)):
-            raise InvalidInputError(f"tolerance must be > 0 mm, got {self.tolerance_m * 1e3:g} mm")
+        # limits.TOLERANCE_MM: below 0.01 mm the reduction keeps nearly every sample (a 311k
+        # sample recording took 6.5-7 GB at 0.001 mm; issue 19, R3).
+        TOLERANCE_MM.check(_mm(self.tolerance_m), "deviation-height tolerance [mm]")
+        FORCE_THRESHOLD_N.check(self.force_min_N, "force_min_N")
+        FORCE_THRESHOLD_N.check(self.force_max_N, "force_max_N")
+        PROGRAM_SPEED_MM_S.check(_mm(self.speed_mean_m_s), "mean program speed [mm/s]")
+        PROGRAM_SPEED_MM_S.check(_mm(self.speed_min_m_s), "slowest program speed [mm/s]")
+        CURVATURE_REFERENCE_1_M.check(self.curvature_ref_1_m, "reference curvature [1/m]")
+        CONTACT_STIFFNESS_N_MM.check(
+            _per_mm(self.contact_stiffness_N_m), "contact stiffness [N/mm]"
+        )
         if not (0 <= self.force_min_N < self.force_max_N):
             raise InvalidInputError(
                 f"force thresholds need 0 <= Fmin < Fmax, got Fmin={self.force_min_N:g} N, "
@@ -76,12 +92,22 @@ class PostprocessSettings:
             raise InvalidInputError("speeds need 0 < minimum speed <= mean speed")
         if self.contact_stiffness_N_m < 0:
             raise InvalidInputError("contact stiffness must be >= 0 N/mm")
-        if self.arc_tolerance_m is not None and not (
-            self.arc_tolerance_m > 0 and np.isfinite(self.arc_tolerance_m)
-        ):
-            raise InvalidInputError(
-                f"arc tolerance must be > 0 mm, got {self.arc_tolerance_m * 1e3:g} mm"
-            )
+        if self.arc_tolerance_m is not None:
+            TOLERANCE_MM.check(_mm(self.arc_tolerance_m), "arc tolerance [mm]")
+
+
+def _mm(value_m: object) -> object:
+    """A length in metres as millimetres for a range check (non-numbers pass through)."""
+    if isinstance(value_m, bool) or not isinstance(value_m, (int, float, np.floating)):
+        return value_m
+    return value_m * 1e3
+
+
+def _per_mm(value_per_m: object) -> object:
+    """A stiffness in N/m as N/mm for a range check (non-numbers pass through)."""
+    if isinstance(value_per_m, bool) or not isinstance(value_per_m, (int, float, np.floating)):
+        return value_per_m
+    return value_per_m * 1e-3
 
 
 def force_threshold_mask(force_N: np.ndarray, force_min_N: float, force_max_N: float) -> np.ndarray:

@@ -16,6 +16,7 @@ import trimesh
 
 from .contour import Contour, filleted_polygon
 from .errors import InvalidInputError, MeshFileError, UnknownNameError
+from .mesh_check import check_mesh, check_mesh_bytes
 from .transforms import make_transform
 
 WORKPIECE_NAMES = ("water_pump", "block", "s_groove")
@@ -408,8 +409,10 @@ def mesh_from_bytes(
     max_triangles: int = MAX_MESH_TRIANGLES,
 ) -> Workpiece:
     """A workpiece from the bytes of a mesh file (for uploads); see ``load_mesh_file``. A file
-    with more than ``max_triangles`` is refused from its bytes, before it is parsed
-    (``count_mesh_triangles``)."""
+    with more than ``max_triangles`` (or three times as many vertices) is refused from its
+    bytes, before it is parsed (``count_mesh_triangles``, ``mesh_check.check_mesh_bytes``);
+    the parsed mesh must pass ``mesh_check.check_mesh`` (finite, near its origin, 1-2000 mm,
+    not flat, and the native hull and BVH built once in an isolated process)."""
     import io
 
     kind = suffix.lower().lstrip(".")
@@ -421,6 +424,7 @@ def mesh_from_bytes(
             f"{name}: {'at least ' if not complete else ''}{counted} triangles exceed the "
             f"limit of {max_triangles} (simplify the mesh)"
         )
+    check_mesh_bytes(data, kind, name, max_triangles=max_triangles)
     try:
         loaded = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=True)
     except Exception as exc:  # trimesh raises many types for corrupt files
@@ -434,14 +438,9 @@ def mesh_from_bytes(
             f"{name}: {len(loaded.faces)} triangles exceed the limit of {max_triangles}"
         )
     if not np.all(np.isfinite(loaded.vertices)):
-        raise MeshFileError(f"{name}: the mesh has non-finite vertices")
+        raise MeshFileError(f"{name}: the mesh has non-finite vertices (NaN or infinity)")
     loaded.apply_scale(scale)
-    extent = float(np.max(loaded.extents))
-    if not (1e-3 <= extent <= 2.0):
-        raise MeshFileError(
-            f"{name}: mesh is {extent * 1e3:.1f} mm across after scaling; expected 1-2000 mm "
-            "(is the unit right?)"
-        )
+    check_mesh(loaded, name)  # size, thickness, far away; native steps in a child process
     z_top = float(loaded.bounds[1, 2])
     loaded = solid_mesh(loaded)
     return Workpiece(

@@ -1,12 +1,19 @@
-// robomach teach pendant: the Machining card (issue 8). Uses pendant.js's api(), followJob(),
-// fraction(), safe() and $(): settings, run / compare with progress and cancel, the comparison
-// table, the choice the exports carry, and a small force / feed plot along the path (canvas).
+// robomach teach pendant: the Machining card (issues 8, 16). Uses pendant.js's api(),
+// followJob(), fraction(), safe() and $(): settings, the cell's options and the variations, run /
+// compare with progress and cancel, the comparison table (sortable by clicking a header, the
+// rule's pick and its reason, configurations the cell cannot run greyed), the choice the exports
+// carry, and a force / feed plot along the path that opens large.
 "use strict";
 
 const MACHINING_CONTROLLERS = ["constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage",
   "adaptive-lq"];
 const MACHINING_COMPENSATIONS = ["off", "offline", "online"];
+const CELL_OPTIONS = [["fc_speed_change", "FC SpeedChange"], ["path_correction", "path correction"],
+  ["force_mode", "force mode"]];
 let machiningJob = null;
+let machiningRows = [];
+let machiningSort = { key: null, up: true };
+let machiningTrace = null;
 
 function machiningCard() {
   const options = (names) => names.map((n) => `<option value="${n}">${n}</option>`).join("");
@@ -20,13 +27,20 @@ function machiningCard() {
       <label>K <input id="mach-gain" type="number" min="0.1" max="10000" step="0.5"> N</label>
       <label>&alpha; <input id="mach-alpha" type="number" min="0" max="3" step="0.05"></label>
       <label>&beta; <input id="mach-beta" type="number" min="0.01" max="2" step="0.05"></label>
-      <label>Limit <input id="mach-limit" type="number" min="1" max="5000" step="5"> N</label>
+      <label>Limit <input id="mach-limit" type="number" min="1.5" max="1400" step="5"> N</label>
     </div>
     <div class="row">
       <label>Controller <select id="mach-controller">${options(MACHINING_CONTROLLERS)}</select></label>
       <label>Compensation <select id="mach-compensation">${options(MACHINING_COMPENSATIONS)}</select></label>
       <span class="small">stock: <span id="mach-stock">-</span></span>
     </div>
+    <div class="row">
+      <span class="small">cell options:</span>
+      ${CELL_OPTIONS.map(([v, t]) => `<label class="small"><input type="checkbox" class="mach-option" value="${v}"> ${t}</label>`).join("")}
+      <button id="mach-options-default" class="small">defaults</button>
+      <label>Variations <input id="mach-variations" type="number" min="0" max="1000" step="1"></label>
+    </div>
+    <div id="mach-notes" class="small"></div>
     <div class="row">
       <button id="mach-run" class="primary">Run</button>
       <button id="mach-compare">Compare all</button>
@@ -40,7 +54,12 @@ function machiningCard() {
       <button id="mach-choose" disabled>Choose</button>
       <span id="mach-chosen" class="small"></span>
     </div>
-    <canvas id="mach-plot" width="560" height="200" aria-label="force and feed along the path"></canvas>`;
+    <canvas id="mach-plot" width="560" height="200" aria-label="force and feed along the path"></canvas>
+    <button id="mach-plot-large" disabled>Open the plot large</button>
+    <div id="mach-large" class="mach-large hidden" role="dialog" aria-label="machining plot, large">
+      <button id="mach-large-close">Close</button>
+      <canvas id="mach-plot-big" aria-label="force and feed along the path, large"></canvas>
+    </div>`;
   return card;
 }
 
@@ -54,6 +73,20 @@ function showMachiningSettings(s) {
   $("mach-stock").textContent = s.stock_source;
   $("mach-chosen").textContent = `chosen: ${s.controller} / ${s.compensation}`;
   $("mach-stale").classList.toggle("hidden", s.status !== "stale");
+  for (const box of document.querySelectorAll(".mach-option")) {
+    box.checked = s.cell_options.includes(box.value);
+  }
+  $("mach-variations").value = s.variations;
+  const notes = Object.values(s.stale_settings || {}).map((t) => `stale: ${t}`);
+  if (s.program_needs) notes.push(`program: ${s.program_needs}`);
+  $("mach-notes").textContent = notes.join(" | ");
+}
+
+async function putCellOptions() {
+  const chosen = [...document.querySelectorAll(".mach-option")].filter((b) => b.checked)
+    .map((b) => b.value);
+  showMachiningSettings(await api("PUT", "/machining/settings", { cell_options: chosen }));
+  await loadMachiningResult();
 }
 
 async function putMachiningSettings() {
@@ -72,25 +105,69 @@ async function putMachiningChoice(controller, compensation) {
 
 const machCell = (v, d = 1) => (v === null || v === undefined ? "-" : (typeof v === "number" ? v.toFixed(d) : String(v)));
 
-function showComparison(rows) {
-  const head = ["controller", "comp.", "cycle [s]", "vs const [%]", "F peak [N]", "wall max [mm]",
-    "wall rms [mm]", "x real time"];
-  const body = rows.map((r) => `<tr${r.chosen ? ' class="chosen"' : ""}><td>${r.controller}</td>`
-    + `<td>${r.compensation}</td><td>${r.cycle_time_s === null ? "stopped" : machCell(r.cycle_time_s)}</td>`
-    + `<td>${machCell(r.faster_than_constant_pct, 0)}</td><td>${machCell(r.force_peak_N)}</td>`
-    + `<td>${machCell(r.wall_error_max_mm, 3)}</td><td>${machCell(r.wall_error_rms_mm, 3)}</td>`
-    + `<td>${machCell(r.realtime_factor, 0)}</td></tr>`).join("");
-  $("mach-table").innerHTML = `<table id="mach-comparison" class="results-table"><thead><tr>`
-    + head.map((h) => `<th>${h}</th>`).join("") + `</tr></thead><tbody>${body}</tbody></table>`;
+const MACH_COLUMNS = [
+  ["cycle_time_s", "cycle [s]", 1], ["faster_than_constant_pct", "vs const [%]", 0],
+  ["force_peak_N", "F peak [N]", 1], ["wall_error_max_mm", "wall max [mm]", 3],
+  ["wall_error_rms_mm", "wall rms [mm]", 3]];
+const MACH_P95 = [["cycle_time_p95_s", "cycle p95", 1], ["force_peak_p95_N", "peak p95", 1],
+  ["wall_error_max_p95_mm", "wall p95", 3], ["within_limit_share", "in limit", 2]];
+
+function sortedMachiningRows() {
+  const rows = machiningRows.map((r, i) => [i, r]);
+  const { key, up } = machiningSort;
+  if (!key) return rows;
+  const have = rows.filter(([, r]) => r[key] !== null && r[key] !== undefined);
+  const lack = rows.filter(([, r]) => r[key] === null || r[key] === undefined);
+  have.sort(([, a], [, b]) => (up ? 1 : -1) * (a[key] - b[key]));
+  return have.concat(lack);
+}
+
+function showComparison(rows, reason) {
+  machiningRows = rows;
+  const varied = rows.some((r) => r.cycle_time_p95_s !== undefined);
+  const cols = MACH_COLUMNS.concat(varied ? MACH_P95 : []);
+  const arrow = (k) => (machiningSort.key === k ? (machiningSort.up ? " \u25b2" : " \u25bc") : "");
+  const head = `<th data-key="">configuration${arrow(null)}</th>`
+    + cols.map(([k, h]) => `<th data-key="${k}" title="sort by ${h}">${h}${arrow(k)}</th>`).join("");
+  const body = sortedMachiningRows().map(([, r]) => {
+    const cls = [r.chosen ? "chosen" : "", r.runnable === false ? "unrunnable" : "",
+      r.completed ? "" : "stopped"].filter(Boolean).join(" ");
+    const why = r.needs ? `the cell lacks ${r.needs.join(" and ")}`
+      : (r.refused ? r.refused : (r.completed ? "" : `stopped: ${r.stop_reason || "stopped"}`));
+    const cells = cols.map(([k, , d]) => {
+      if (k === "cycle_time_s" && !r.completed) return `<td class="status">${r.refused ? "refused" : "stopped"}</td>`;
+      return `<td>${machCell(r[k], d)}</td>`;
+    }).join("");
+    return `<tr class="${cls}" title="${safeText(why)}"><td>${r.chosen ? "\u2605 " : ""}${r.controller} / ${r.compensation}</td>${cells}</tr>`;
+  }).join("");
+  $("mach-table").innerHTML = `<div class="mach-table-wrap"><table id="mach-comparison" class="results-table">`
+    + `<thead><tr>${head}</tr></thead><tbody>${body}</tbody></table></div>`
+    + `<p id="mach-reason" class="small">${reason ? `Rule's pick: ${safeText(reason)}` : ""}</p>`;
+  for (const th of $("mach-table").querySelectorAll("th")) {
+    th.addEventListener("click", () => {
+      const key = th.dataset.key || null;
+      machiningSort = { key, up: machiningSort.key === key ? !machiningSort.up : true };
+      showComparison(machiningRows, reason);
+    });
+  }
   $("mach-pick").innerHTML = rows.map((r) => {
     const v = `${r.controller}/${r.compensation}`;
-    return `<option value="${v}"${r.chosen ? " selected" : ""}>${v}</option>`;
+    const off = r.runnable === false ? " (cell lacks an option)" : "";
+    return `<option value="${v}"${r.chosen ? " selected" : ""}>${v}${off}</option>`;
   }).join("");
   $("mach-choose").disabled = rows.length === 0;
 }
 
-function drawMachiningPlot(trace) {
-  const canvas = $("mach-plot");
+function safeText(text) {
+  return String(text).replace(/[&<>"]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;" })[c]);
+}
+
+function drawMachiningPlot(trace, canvasId = "mach-plot") {
+  if (canvasId === "mach-plot") {
+    machiningTrace = trace;
+    $("mach-plot-large").disabled = !trace;
+  }
+  const canvas = $(canvasId);
   const ctx = canvas.getContext("2d");
   const W = canvas.width, H = canvas.height, pad = 28;
   ctx.clearRect(0, 0, W, H);
@@ -129,7 +206,7 @@ async function loadMachiningResult() {
     if (err.status === 409) { $("mach-table").textContent = "no machining result yet"; return; }
     throw err;
   }
-  showComparison(result.runs);
+  showComparison(result.runs, result.choice_reason);
   drawMachiningPlot(result.trace);
   $("mach-stale").classList.toggle("hidden", result.status !== "stale");
 }
@@ -166,6 +243,25 @@ async function initMachining() {
     $(id).addEventListener("change", safe(() => putMachiningChoice(
       $("mach-controller").value, $("mach-compensation").value)));
   }
+  for (const box of document.querySelectorAll(".mach-option")) {
+    box.addEventListener("change", safe(putCellOptions));
+  }
+  $("mach-options-default").addEventListener("click", safe(async () => {
+    showMachiningSettings(await api("PUT", "/machining/settings", { cell_options_default: true }));
+    await loadMachiningResult();
+  }));
+  $("mach-variations").addEventListener("change", safe(async () => {
+    showMachiningSettings(await api("PUT", "/machining/settings",
+      { variations: Number($("mach-variations").value) }));
+  }));
+  $("mach-plot-large").addEventListener("click", () => {
+    const big = $("mach-plot-big");
+    big.width = Math.max(800, Math.floor(window.innerWidth * 0.92));
+    big.height = Math.max(400, Math.floor(window.innerHeight * 0.75));
+    $("mach-large").classList.remove("hidden");
+    drawMachiningPlot(machiningTrace, "mach-plot-big");
+  });
+  $("mach-large-close").addEventListener("click", () => $("mach-large").classList.add("hidden"));
   $("mach-run").addEventListener("click", safe(() => startMachining("run")));
   $("mach-compare").addEventListener("click", safe(() => startMachining("compare")));
   $("mach-cancel").addEventListener("click", safe(async () => {

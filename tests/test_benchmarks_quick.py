@@ -52,10 +52,19 @@ EXPECTED: dict[str, list[str]] = {
         r"water pump, program along the true wall \(--quick\): \d+ targets, \d+ mm",
         *(
             rf"{c}\s+{m}\s+{NUMBER}\s+{NUMBER}\s+{NUMBER}"
-            for c, m in (("adaptive-pi", "off"), ("constant", "off"), ("adaptive-pi", "online"))
+            for c, m in (("adaptive-pi", "off"), ("constant", "off"), ("adaptive-lq", "offline"))
         ),
+        rf"slowest configuration: x{NUMBER} real time",
+        rf"variations: 2 stocks x 18 runs: 1 worker {NUMBER} s, \d+ workers {NUMBER} s: "
+        rf"x{NUMBER} faster \(same figures: yes\)",
     ],
     "bench_reads_during_postprocess.py": [rf"worst read p99 during post-processing {NUMBER} ms"],
+    "bench_events.py": [
+        rf"no listener, robot still\s+\d+\s+{NUMBER}\s+{NUMBER}",
+        rf"no listener, robot moving\s+\d+\s+{NUMBER}\s+{NUMBER}",
+        rf"\d+ listeners, robot moving\s+\d+\s+{NUMBER}\s+{NUMBER}",
+        rf"robot events per listener: {NUMBER}/s",
+    ],
     "bench_browser_pose_rate.py": [
         rf"handle\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
         rf"rest\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",

@@ -4,14 +4,15 @@ upload limits, lifespan.
 Errors: ``RobomachError`` subclasses map to 4xx by their builtin base (ValueError/KeyError ->
 422, not found -> 404, state conflicts and RuntimeError -> 409); request validation (malformed
 JSON, wrong types, out-of-range values) -> 422 with a one-line summary plus per-field errors;
-anything unforeseen -> 503 with its message (and a logged traceback), never a bare 500.
+anything unforeseen -> 503 with a sentence saying what limit it met (``describe_unexpected``),
+answered once and logged once by ``UnexpectedErrorMiddleware``, with ``Connection: close`` so
+that the client's next request opens a fresh connection; never a bare 500.
 """
 
 from __future__ import annotations
 
 import gc
 import hmac
-import ipaddress
 import logging
 import sqlite3
 from collections.abc import AsyncIterator, Callable, Sequence
@@ -45,8 +46,9 @@ from app.api.routes import (
     state,
     teach,
 )
-from app.session import ConflictError, NotFoundError, Session
-from app.settings import MAX_JSON_BODY_BYTES, ServerSettings
+from app.session import ConflictError, NotFoundError, QueueFullError, Session
+from app.session.jobs import describe_unexpected
+from app.settings import MAX_JSON_BODY_BYTES, ServerSettings, is_loopback_name
 from app.studies import StudyQueueFullError
 from robomach_core.errors import (
     CancelledError,
@@ -58,6 +60,8 @@ from robomach_core.errors import (
 log = logging.getLogger(__name__)
 
 SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
+OPEN_READ_PATHS = frozenset({"/api/health"})  # liveness probes need no token
+READ_COOKIE = "robomach_read"
 DEFAULT_PORTS = {"http": 80, "https": 443}
 UPLOAD_PATHS = frozenset({"/api/cell/workpiece"})
 # Multipart boundaries and part headers around the file: a few hundred bytes in practice.
@@ -75,7 +79,7 @@ def status_for(exc: RobomachError) -> int:
     """The HTTP status of a user-caused error, by what kind of error it is."""
     if isinstance(exc, NotFoundError):
         return 404
-    if isinstance(exc, StudyQueueFullError):
+    if isinstance(exc, (StudyQueueFullError, QueueFullError)):
         return 429
     if isinstance(exc, (ConflictError, CancelledError, ForceLimitError, NotEnoughGuidePointsError)):
         return 409
@@ -113,34 +117,97 @@ def validation_message(errors: Sequence[dict]) -> tuple[str, list[dict]]:
 
 class TokenMiddleware:
     """Every mutating /api/ call must carry the token (``Authorization: Bearer <token>`` or
-    ``X-Robomach-Token: <token>``); compared in constant time."""
+    ``X-Robomach-Token: <token>``); compared in constant time. With ``reads`` every /api/ read
+    needs it too, except ``OPEN_READ_PATHS``; a read that sent the token gets a cookie
+    (HttpOnly, SameSite=Strict) that stands for it on later reads only, so that the browser's
+    ``EventSource`` and downloads work. The cookie holds an HMAC of the token, not the token,
+    and never opens a mutating call."""
 
-    def __init__(self, app: ASGIApp, token: str) -> None:
+    def __init__(self, app: ASGIApp, token: str, *, reads: bool = False) -> None:
         self.app = app
         self._token = token.encode()
+        self._reads = reads
+        self._cookie = hmac.new(self._token, b"robomach reads", "sha256").hexdigest()
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if (
-            scope["type"] == "http"
-            and scope["method"] not in SAFE_METHODS
-            and scope["path"].startswith("/api/")
-        ):
-            headers = Headers(scope=scope)
-            given = headers.get("x-robomach-token")
-            auth = headers.get("authorization", "")
-            if given is None and auth.lower().startswith("bearer "):
-                given = auth[7:].strip()
-            if given is None or not hmac.compare_digest(given.encode(), self._token):
+        if scope["type"] not in ("http", "websocket") or not scope["path"].startswith("/api/"):
+            await self.app(scope, receive, send)
+            return
+        method = scope.get("method", "GET")
+        mutating = method not in SAFE_METHODS
+        guarded = mutating or (
+            self._reads and method != "OPTIONS" and scope["path"] not in OPEN_READ_PATHS
+        )
+        if not guarded:
+            await self.app(scope, receive, send)
+            return
+        headers = Headers(scope=scope)
+        given = headers.get("x-robomach-token")
+        auth = headers.get("authorization", "")
+        if given is None and auth.lower().startswith("bearer "):
+            given = auth[7:].strip()
+        if given is not None and hmac.compare_digest(given.encode(), self._token):
+            if mutating or not self._reads:
+                await self.app(scope, receive, send)
+            else:
+                await self.app(scope, receive, self._with_cookie(send))
+            return
+        if given is None and not mutating and self._has_cookie(headers):
+            await self.app(scope, receive, send)
+            return
+        if given is None:
+            what = "this call changes the workbench" if mutating else "this read is guarded"
+            detail = (
+                f"{what} and needs the server's token: send 'Authorization: Bearer "
+                "<ROBOMACH_TOKEN>'"
+            )
+        else:
+            detail = "wrong token"
+        response = JSONResponse(
+            {"detail": detail}, status_code=401, headers={"WWW-Authenticate": "Bearer"}
+        )
+        await response(scope, receive, send)
+
+    def _has_cookie(self, headers: Headers) -> bool:
+        for part in headers.get("cookie", "").split(";"):
+            name, _, value = part.strip().partition("=")
+            if name == READ_COOKIE and hmac.compare_digest(value.encode(), self._cookie.encode()):
+                return True
+        return False
+
+    def _with_cookie(self, send: Send) -> Send:
+        cookie = f"{READ_COOKIE}={self._cookie}; Path=/api; HttpOnly; SameSite=Strict".encode()
+
+        async def sending(message: dict) -> None:
+            if message["type"] == "http.response.start":
+                message = {**message, "headers": [*message.get("headers", []),
+                                                  (b"set-cookie", cookie)]}  # fmt: skip
+            await send(message)
+
+        return sending
+
+
+class LoopbackHostMiddleware:
+    """On a server bound to loopback, 403 for any request whose ``Host`` is not a loopback
+    name (reads too): a page under a name its owner rebound to 127.0.0.1 (DNS rebinding) is
+    "same origin" with itself, and could otherwise read the project file and the exports."""
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] in ("http", "websocket"):
+            host = Headers(scope=scope).get("host", "")
+            parsed = _host_port(host, "http")
+            if parsed is None or not is_loopback_name(parsed[0]):
                 detail = (
-                    "this call changes the workbench and needs the server's token: send "
-                    "'Authorization: Bearer <ROBOMACH_TOKEN>'"
-                    if given is None
-                    else "wrong token"
+                    f"this server listens on loopback only and is not {host[:100]!r}: open it "
+                    "as http://127.0.0.1:<port> or http://localhost:<port>"
                 )
-                response = JSONResponse(
-                    {"detail": detail}, status_code=401, headers={"WWW-Authenticate": "Bearer"}
-                )
-                await response(scope, receive, send)
+                if scope["type"] == "websocket":
+                    await send({"type": "websocket.close", "code": 1008})
+                    return
+                await JSONResponse({"detail": detail}, status_code=403)(scope, receive, send)
                 return
         await self.app(scope, receive, send)
 
@@ -155,15 +222,6 @@ def _host_port(netloc: str, scheme: str) -> tuple[str, int] | None:
     if not parts.hostname:
         return None
     return parts.hostname.lower(), port or DEFAULT_PORTS.get(scheme, 0)
-
-
-def _is_loopback(host: str) -> bool:
-    if host == "localhost" or host.endswith(".localhost"):
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
 
 
 class SameOriginMiddleware:
@@ -207,7 +265,7 @@ class SameOriginMiddleware:
         own = _host_port(headers.get("host", ""), scheme)
         if given is None or own is None:
             return False
-        if self.loopback_only and not _is_loopback(own[0]):
+        if self.loopback_only and not is_loopback_name(own[0]):
             # A page whose name was rebound to 127.0.0.1 (DNS rebinding) is "same origin"
             # with its own name: a server on loopback is only ever called by a loopback name.
             return False
@@ -216,6 +274,48 @@ class SameOriginMiddleware:
         app = scope.get("app")
         viser_port = getattr(getattr(app, "state", None), "viser_port", None)
         return viser_port is not None and given == (own[0], viser_port)
+
+
+class UnexpectedErrorMiddleware:
+    """The one handler of errors no route foresaw: a 503 whose message says what limit the
+    request met, logged once with its traceback, sent with ``Connection: close`` (the request
+    body may be unread, so the connection is closed properly rather than reused).
+
+    Starlette's own handler for ``Exception`` answers and then re-raises to the server, which
+    logged the error a second time and dropped the keep-alive connection without saying so:
+    the client's next request on it failed (issue 19, R6). A response already started cannot
+    be replaced: that error goes on to the server, which closes the connection.
+    """
+
+    def __init__(self, app: ASGIApp) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        started = False
+
+        async def tracked(message: dict) -> None:
+            nonlocal started
+            if message["type"] == "http.response.start":
+                started = True
+            await send(message)
+
+        try:
+            await self.app(scope, receive, tracked)
+        except Exception as exc:
+            if started:
+                raise
+            log.error(
+                "unexpected error on %s %s", scope.get("method"), scope.get("path"), exc_info=exc
+            )
+            response = JSONResponse(
+                {"detail": describe_unexpected(exc)},
+                status_code=503,
+                headers={"Connection": "close"},
+            )
+            await response(scope, receive, send)
 
 
 class UploadSizeMiddleware:
@@ -304,11 +404,14 @@ def create_app(
     for module in ROUTERS:
         app.include_router(module.router)
     _add_error_handlers(app)
+    app.add_middleware(UnexpectedErrorMiddleware)  # innermost: every route's error
     if settings.token:
-        app.add_middleware(TokenMiddleware, token=settings.token)
+        app.add_middleware(TokenMiddleware, token=settings.token, reads=settings.reads_need_token)
     app.add_middleware(UploadSizeMiddleware, limit_bytes=settings.max_upload_bytes)
     # outermost: a foreign page learns nothing more
     app.add_middleware(SameOriginMiddleware, loopback_only=settings.loopback)
+    if settings.loopback and settings.refuse_foreign_hosts:
+        app.add_middleware(LoopbackHostMiddleware)  # outermost: DNS rebinding, reads too
     app.state.viser_port = None  # the port viser bound, set by the workbench service
     _mount_pendant(app, settings)
     return app
@@ -353,10 +456,4 @@ def _add_error_handlers(app: FastAPI) -> None:
             {"detail": f"the project database is unavailable ({exc}); try again"}, status_code=503
         )
 
-    @app.exception_handler(Exception)
-    async def unexpected(request: Request, exc: Exception) -> JSONResponse:
-        log.error("unexpected error on %s %s", request.method, request.url.path, exc_info=exc)
-        return JSONResponse(
-            {"detail": f"the server could not do this: {exc.__class__.__name__}: {exc}"},
-            status_code=503,
-        )
+    # Errors no handler above maps: UnexpectedErrorMiddleware (answers once, logs once).

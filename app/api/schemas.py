@@ -163,13 +163,24 @@ class CompliancePublic(BaseModel):
         return cls(axes=[a for a in AXIS_ORDER if a in s.axes], frame=s.frame)
 
 
+_PUSH_N, _PUSH_NM, _PUSH_S = limits.PUSH_FORCE_N, limits.PUSH_TORQUE_NM, limits.PUSH_DURATION_S
+
+
 class PushCreate(_Request):
-    force_N: Vector3 = Field(description="push force at the TCP, base axes [N]")
-    torque_Nm: Vector3 = Field(
+    force_N: Annotated[
+        list[Annotated[float, Field(allow_inf_nan=False, ge=-_PUSH_N.max, le=_PUSH_N.max)]],
+        Field(min_length=3, max_length=3),
+    ] = Field(description=f"push force at the TCP, base axes [N]; magnitude {_PUSH_N.text()}")
+    torque_Nm: Annotated[
+        list[Annotated[float, Field(allow_inf_nan=False, ge=-_PUSH_NM.max, le=_PUSH_NM.max)]],
+        Field(min_length=3, max_length=3),
+    ] = Field(
         default_factory=lambda: [0.0, 0.0, 0.0],
-        description="push torque about the TCP, base axes [N*m]",
+        description=f"push torque about the TCP, base axes [N*m]; magnitude {_PUSH_NM.text()}",
     )
-    duration_s: Finite = Field(ge=0.0, le=60.0, description="how long the push lasts [s], 0-60")
+    duration_s: Finite = Field(
+        ge=_PUSH_S.min, le=_PUSH_S.max, description=f"how long the push lasts, {_PUSH_S.text()}"
+    )
 
 
 class JogCreate(_Request):
@@ -318,16 +329,32 @@ class ForceTracePublic(BaseModel):
 
 
 class PostprocessUpdate(_Request):
-    force_min_N: Finite | None = Field(None, ge=0.0, description="drop samples below [N]")
-    force_max_N: Finite | None = Field(None, gt=0.0, description="drop samples above [N]")
+    force_min_N: Finite | None = Field(
+        None,
+        ge=limits.FORCE_THRESHOLD_N.min,
+        le=limits.FORCE_THRESHOLD_N.max,
+        description=f"drop samples below, {limits.FORCE_THRESHOLD_N.text()}",
+    )
+    force_max_N: Finite | None = Field(
+        None,
+        gt=limits.FORCE_THRESHOLD_N.min,
+        le=limits.FORCE_THRESHOLD_N.max,
+        description=f"drop samples above, {limits.FORCE_THRESHOLD_N.text()}",
+    )
     tolerance_mm: Finite | None = Field(
-        None, gt=0.0, le=10.0, description="deviation-height tolerance [mm]"
+        None,
+        ge=limits.TOLERANCE_MM.min,
+        le=limits.TOLERANCE_MM.max,
+        description=f"deviation-height tolerance, {limits.TOLERANCE_MM.text()}",
     )
     arcs: bool | None = Field(
         None, description="fit circular moves (MoveC / movec) where the contour is an arc"
     )
     arc_tolerance_mm: Finite | None = Field(
-        None, gt=0.0, le=10.0, description="arc fitting tolerance [mm]; default the tolerance"
+        None,
+        ge=limits.TOLERANCE_MM.min,
+        le=limits.TOLERANCE_MM.max,
+        description=f"arc fitting tolerance, {limits.TOLERANCE_MM.text()}; default the tolerance",
     )
 
 

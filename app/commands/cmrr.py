@@ -78,7 +78,7 @@ class _Progress:
 
 
 def run(args: argparse.Namespace) -> int:
-    from app.cli import writable_folder
+    from app.cli import settings_file, writable_folder
     from robomach_core.cmrr import (
         build_scenario,
         compare_controllers,
@@ -103,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
     if args.settings is not None:
         if args.controller == "all":
             raise CmrrSettingsError("--settings runs one controller; it cannot go with all")
-        loaded = load_settings(args.settings)
+        loaded = load_settings(settings_file(args.settings, "--settings"))
         if args.controller is not None and args.controller != loaded.controller.kind:
             raise CmrrSettingsError(
                 f"--controller {args.controller} but {args.settings} holds {loaded.controller.kind}"

@@ -215,7 +215,7 @@ class _ProgressLine:
 
 
 def run(args: argparse.Namespace) -> int:
-    from app.cli import writable_folder
+    from app.cli import settings_file, writable_folder
     from robomach_core import limits
     from robomach_core.errors import InvalidInputError
 
@@ -260,11 +260,13 @@ def run(args: argparse.Namespace) -> int:
     if args.cmrr_settings is not None:
         from robomach_core.cmrr import load_settings as load_cmrr
 
-        cmrr = load_cmrr(args.cmrr_settings)
+        cmrr = load_cmrr(settings_file(args.cmrr_settings, "--cmrr-settings"))
     if args.compensation_settings is not None:
         from robomach_core.stiffness import load_settings as load_compensation
 
-        compensation = load_compensation(args.compensation_settings)
+        compensation = load_compensation(
+            settings_file(args.compensation_settings, "--compensation-settings")
+        )
 
     from robomach_core.errors import SupervisionError
     from robomach_core.export.outputs import write_demo_outputs

@@ -2,26 +2,44 @@
 
 Without ``--from`` it first runs the demo pipeline (``robomach demo``'s, progress on the
 terminal); ``--from DIR`` opens the ``project.npz`` a demo wrote there. Then it runs the
-chosen controller and compensation, or the matrix (``all``), prints the side-by-side table,
-chooses a configuration (``robomach_core.project.best_row``) and writes the program files for
-it, the per-run traces, the summary, a figure and the project (``project.npz``, with the
-choice) into ``--out``.
+chosen controller and compensation, or the matrix (``all``), on the stock and on
+``--variations`` stocks drawn from the part's variation (on the local cores, or a Dask
+cluster), prints the side-by-side table, chooses a configuration the cell can run
+(``robomach_core.machining.choice``) and writes the program files for it, the per-run traces,
+the summary, a figure and the project (``project.npz``, with the choice) into ``--out``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 CONTROLLER_CHOICES = ("constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage", "adaptive-lq")
 COMPENSATION_CHOICES = ("off", "offline", "online")
 MESH_STOCK_SUFFIXES = (".stl", ".obj", ".ply")
+CELL_OPTION_CHOICES = ("fc_speed_change", "path_correction", "force_mode")
+# Exit codes (also in the README and --help).
+EXIT_OK = 0  # the comparison ran and a configuration was chosen and exported (stops included)
+EXIT_NOTHING_CHOSEN = 1  # no configuration the cell can run completed, or it cannot be exported
+EXIT_BAD_INPUT = 2  # a bad argument, file or setting (one line on stderr, nothing written)
+EXIT_INTERRUPTED = 130  # Ctrl-C
+EXIT_CODES_TEXT = """exit codes:
+  0    the comparison ran, a configuration the cell can run was chosen and its program
+       written; configurations that stopped (protection rule, force supervision) or were
+       refused are rows of the table, not failures
+  1    no configuration the cell can run completed, or the chosen one could not be
+       exported: the table and traces are still written, no program is
+  2    bad input: an argument, file or setting out of range (one line on stderr)
+  130  interrupted (Ctrl-C)"""
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "machine",
+        epilog=EXIT_CODES_TEXT,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
         help="simulate the machining run of the learned program: CMRR and compensation compared",
         description=(
             "Cut the project's program along its stock on the simulated compliant robot at 4 ms: "
@@ -83,6 +101,38 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="seed of the demo run (without --from), the sensor noise and the stiffness "
         "identification; the built-in stock uses the project's seed",
     )
+    p.add_argument(
+        "--cell-options",
+        default="default",
+        metavar="LIST",
+        help="the cell's controller options, comma-separated from "
+        f"{', '.join(CELL_OPTION_CHOICES)}, or none; default: those of the arm's program "
+        "language (RAPID: fc_speed_change; URScript: force_mode). Only configurations the cell "
+        "can run are chosen",
+    )
+    p.add_argument(
+        "--variations",
+        type=int,
+        default=0,
+        metavar="N",
+        help="also cut every configuration on N stocks drawn from the part's variation "
+        "(allowance x0.85-1.15, burrs re-drawn, material K x0.9-1.1; seeded by the project's "
+        "seed) and choose on the 95th percentiles (default 0: the one stock)",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="local processes for the cuts (default: every core; 1: in this process)",
+    )
+    p.add_argument(
+        "--cluster",
+        default=None,
+        metavar="ADDRESS",
+        help="a Dask scheduler (tcp://host:8786) to run the cuts on instead of the local "
+        "cores (pip install 'robomach[cluster]')",
+    )
     p.add_argument("--no-plot", action="store_true", help="skip machining.png")
     p.set_defaults(func=run)
 
@@ -91,13 +141,17 @@ def run(args: argparse.Namespace) -> int:
     from app.cli import writable_folder
     from app.commands.demo import _ProgressLine
     from robomach_core import limits
-    from robomach_core.errors import InvalidInputError
+    from robomach_core.errors import InvalidInputError, RobomachError
 
     limits.SEED.check(args.seed, "--seed")
     limits.MACHINING_FORCE_LIMIT_N.check(args.force_limit_N, "--force-limit-N")
+    limits.MACHINING_VARIATIONS.check(args.variations, "--variations")
+    if args.workers is not None:
+        limits.MACHINING_WORKERS.check(args.workers, "--workers")
     if args.from_dir is not None and args.workpiece is not None:
         raise InvalidInputError("give --workpiece (a new demo run) or --from DIR, not both")
     stock_arg = _stock_argument(args.stock)
+    options = _cell_options(args.cell_options)
     writable_folder(args.out)
 
     from robomach_core import project as core
@@ -108,7 +162,9 @@ def run(args: argparse.Namespace) -> int:
     try:
         project = _project(args, bar)
         settings = MachiningSettings(force_limit_N=args.force_limit_N, seed=args.seed)
-        setup = core.MachiningSetup(settings, **stock_arg)
+        setup = core.MachiningSetup(
+            settings, **stock_arg, cell_options=options, variations=args.variations
+        )
         project = core.with_machining_setup(project, setup)
         workpiece = core.build_workpiece(project.cell, project.mesh)
         robot = Robot(project.cell.robot, project.tool().T_flange_tcp)
@@ -121,13 +177,15 @@ def run(args: argparse.Namespace) -> int:
             controllers=controllers,
             compensations=compensations,
             progress=lambda f: bar("machining", f),
+            workers=args.workers,
+            cluster=args.cluster,
         )
     finally:
         bar.close()
-    chosen = result.rows[result.chosen]
-    project = core.choose(
-        core.with_machining_result(project, result), chosen["controller"], chosen["compensation"]
-    )
+    project = core.with_machining_result(project, result)
+    chosen = None if result.chosen is None else result.rows[result.chosen]
+    if chosen is not None:
+        project = core.choose(project, chosen["controller"], chosen["compensation"])
     out: Path = args.out
     written = []
     summary = result.summary()
@@ -138,39 +196,79 @@ def run(args: argparse.Namespace) -> int:
         "allowance_max_mm": result.stock.max_allowance_m * 1e3,
         "burrs": len(result.stock.burrs),
     }
-    path = out / "machining_summary.json"
-    path.write_text(json.dumps(summary, indent=2) + "\n")
-    written.append(path)
     for run_ in result.runs:
         written.append(
             write_run_csv(run_, out / f"machining_{run_.controller}_{run_.compensation}.csv")
         )
-    files = core.program_files(project, workpiece, robot)
-    for name, text in files.items():
-        (out / name).write_text(text)
-        written.append(out / name)
-    written.append(core.save_project_file(project, out / core.PROJECT_FILE))
-    if not args.no_plot:
+    export_error = None
+    if chosen is not None:
+        try:
+            files = core.program_files(project, workpiece, robot)
+        except RobomachError as exc:
+            export_error = str(exc)
+        else:
+            for name, text in files.items():
+                (out / name).write_text(text)
+                written.append(out / name)
+            written.append(core.save_project_file(project, out / core.PROJECT_FILE))
+    summary["export_error"] = export_error
+    path = out / "machining_summary.json"
+    path.write_text(json.dumps(summary, indent=2) + "\n")
+    written.insert(0, path)
+    if not args.no_plot and result.runs:
         shown = _figure_runs(result, chosen)
-        written.append(
-            plot_runs(
-                shown,
-                out / "machining.png",
-                title=f"{workpiece.name}: {len(result.runs)} runs, chosen "
-                f"{chosen['controller']} / {chosen['compensation']}",
+        title = f"{workpiece.name}: {len(result.runs)} runs, chosen " + (
+            "none" if chosen is None else f"{chosen['controller']} / {chosen['compensation']}"
+        )
+        written.append(plot_runs(shown, out / "machining.png", title=title))
+    print(result.table_text)
+    if chosen is None:
+        print(f"\nchosen            none: {result.reason}")
+    else:
+        print(
+            f"\nchosen            {chosen['controller']} / {chosen['compensation']} "
+            f"(cycle {chosen['cycle_time_s']:.1f} s, peak {chosen['force_peak_N']:.1f} N, "
+            f"wall max {chosen['wall_error_max_mm']:.3f} mm)"
+        )
+        print(f"why               {result.reason}")
+    print(f"rule              {summary['choice_rule']}")
+    stopped = [r for r in result.rows if not r["completed"]]
+    if stopped:
+        print(
+            "stopped           "
+            + "; ".join(
+                f"{r['controller']} / {r['compensation']}: {r.get('stop_reason') or 'stopped'}"
+                for r in stopped
             )
         )
-    print(result.table_text)
-    print(
-        f"\nchosen            {chosen['controller']} / {chosen['compensation']} "
-        f"(cycle {chosen['cycle_time_s']:.1f} s, peak {chosen['force_peak_N']:.1f} N, "
-        f"wall max {chosen['wall_error_max_mm']:.3f} mm)"
-        if chosen["cycle_time_s"] is not None
-        else f"\nchosen            {chosen['controller']} / {chosen['compensation']} (stopped)"
-    )
-    print(f"rule              {summary['choice_rule']}")
     print(f"wrote             {', '.join(p.name for p in written)} in {out}")
-    return 0 if all(r["completed"] for r in result.rows) else 1
+    if export_error is not None:
+        print(
+            f"robomach machine: error: the chosen configuration cannot be exported: {export_error}",
+            file=sys.stderr,
+        )
+    if chosen is None:
+        print(f"robomach machine: error: nothing to choose: {result.reason}", file=sys.stderr)
+    return EXIT_NOTHING_CHOSEN if chosen is None or export_error is not None else EXIT_OK
+
+
+def _cell_options(value: str) -> tuple[str, ...] | None:
+    """``--cell-options``: None for the language's defaults, else the options."""
+    from robomach_core.errors import InvalidInputError
+
+    text = value.strip().lower()
+    if text in ("", "default"):
+        return None
+    if text == "none":
+        return ()
+    names = tuple(v.strip() for v in text.split(",") if v.strip())
+    unknown = [n for n in names if n not in CELL_OPTION_CHOICES]
+    if unknown:
+        raise InvalidInputError(
+            f"--cell-options: unknown option(s) {', '.join(unknown)}; choose from "
+            f"{', '.join(CELL_OPTION_CHOICES)}, none or default"
+        )
+    return names
 
 
 def _stock_argument(value: str) -> dict:
@@ -249,15 +347,12 @@ def _project(args: argparse.Namespace, bar):
     return project
 
 
-def _figure_runs(result, chosen: dict) -> list:
+def _figure_runs(result, chosen: dict | None) -> list:
     """At most four runs for the figure: constant and the self-tuning PI without compensation,
     the chosen run and the chosen controller without compensation."""
-    wanted = [
-        ("constant", "off"),
-        ("adaptive-pi", "off"),
-        (chosen["controller"], "off"),
-        (chosen["controller"], chosen["compensation"]),
-    ]
+    wanted = [("constant", "off"), ("adaptive-pi", "off")]
+    if chosen is not None:
+        wanted += [(chosen["controller"], "off"), (chosen["controller"], chosen["compensation"])]
     runs = []
     for c, m in wanted:
         run_ = result.run_for(c, m)

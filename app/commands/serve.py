@@ -21,7 +21,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
             "Start the viser 3D workbench, the REST API (OpenAPI docs at /docs) and the teach "
             "pendant page (/pendant/) in one process, on the last opened project of --data. "
             "Binding to anything but 127.0.0.1/localhost needs the ROBOMACH_TOKEN environment "
-            "variable; mutating REST calls must then send it as 'Authorization: Bearer TOKEN'. "
+            "variable; mutating REST calls must then send it as 'Authorization: Bearer TOKEN', "
+            "and reads too (--token-reads, on by default beyond loopback). "
             "Ctrl-C stops it."
         ),
     )
@@ -47,6 +48,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="DIR",
         help="project database and exports (default ./robomach-data, or $ROBOMACH_DATA)",
     )
+    p.add_argument(
+        "--token-reads",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="reads (GET /api/...) need the token too (default: on when --host is beyond "
+        "loopback, or $ROBOMACH_TOKEN_READS); /api/health stays open",
+    )
     p.set_defaults(func=run)
 
 
@@ -64,6 +72,10 @@ def run(args: argparse.Namespace) -> int:
             PORT.check(value, flag)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s:     %(name)s: %(message)s")
     settings = ServerSettings.from_env(
-        host=args.host, port=args.port, viser_port=args.viser_port, data_dir=args.data
+        host=args.host,
+        port=args.port,
+        viser_port=args.viser_port,
+        data_dir=args.data,
+        token_reads=args.token_reads,
     )
     return serve(settings)

@@ -23,6 +23,7 @@ from .records import JobStatus as JobStatus
 from .records import NotFoundError as NotFoundError
 from .records import PostprocessOutcome as PostprocessOutcome
 from .records import ProjectInfo as ProjectInfo
+from .records import QueueFullError as QueueFullError
 from .records import RobotSnapshot as RobotSnapshot
 from .records import Topic as Topic
 from .session import ROBOT_JOB_KINDS as ROBOT_JOB_KINDS

@@ -20,8 +20,15 @@ from .records import (
     JobInfo,
     JobStatus,
     NotFoundError,
+    QueueFullError,
     log,
 )
+
+# Queued and running jobs at once: of one kind, and of all kinds. Each waits on the one worker,
+# and the robot and the user wait behind them: 300 machining comparisons (3.3 h of work) were
+# accepted at once (issue 19, R9). Robot jobs are one at a time anyway (BusyError).
+MAX_ACTIVE_JOBS_PER_KIND = 3
+MAX_ACTIVE_JOBS = 8
 
 
 class JobContext:
@@ -84,12 +91,15 @@ class JobRunner:
     ``submit(kind, work)`` queues ``work(ctx)``; its return value becomes the job's result and
     is handed to ``on_done`` (still in the worker) before the job reads as done. A
     ``CancelledError`` makes it cancelled, a ``RobomachError`` failed with its message, any
-    other exception failed with "internal error" (logged with its traceback). ``on_end`` runs
+    other exception failed with ``describe_unexpected`` (logged with its traceback). ``on_end`` runs
     after every outcome. The CMRR and stiffness studies plug in here the same way.
 
     Args:
         on_change: Called with the ``JobInfo`` after every status or progress change.
         keep_finished: Finished jobs remembered for ``get``.
+        max_active_per_kind: Queued and running jobs of one kind; one more is refused with
+            ``QueueFullError`` (429).
+        max_active: Queued and running jobs of all kinds.
     """
 
     def __init__(
@@ -97,9 +107,13 @@ class JobRunner:
         *,
         on_change: Callable[[JobInfo], None] | None = None,
         keep_finished: int = 200,
+        max_active_per_kind: int = MAX_ACTIVE_JOBS_PER_KIND,
+        max_active: int = MAX_ACTIVE_JOBS,
     ) -> None:
         self._on_change = on_change
         self._keep = keep_finished
+        self._max_per_kind = max_active_per_kind
+        self._max_active = max_active
         self._jobs: dict[str, _Job] = {}
         self._queue: deque[_Job] = deque()
         self._cv = threading.Condition()
@@ -115,10 +129,16 @@ class JobRunner:
         on_done: Callable[[Any], None] | None = None,
         on_end: Callable[[JobInfo], None] | None = None,
     ) -> str:
-        """Queue a job; returns its id."""
+        """Queue a job; returns its id.
+
+        Raises:
+            QueueFullError: ``max_active_per_kind`` jobs of this kind, or ``max_active`` of all
+                kinds, are already queued or running.
+        """
         with self._cv:
             if self._closed:
                 raise ConflictError("the server is shutting down")
+            self._check_room(kind)
             job = _Job(self, uuid.uuid4().hex[:12], kind, work, on_done, on_end)
             self._jobs[job.id] = job
             self._queue.append(job)
@@ -189,6 +209,21 @@ class JobRunner:
             raise NotFoundError(f"no job with id {job_id!r}")
         return job
 
+    def _check_room(self, kind: str) -> None:
+        active = [j for j in self._jobs.values() if j.status in ("queued", "running")]
+        same = sum(1 for j in active if j.kind == kind)
+        what = kind.replace("_", " ")
+        if same >= self._max_per_kind:
+            raise QueueFullError(
+                f"{same} {what} jobs are already queued or running (at most "
+                f"{self._max_per_kind}): wait for one to end or cancel one at /api/jobs"
+            )
+        if len(active) >= self._max_active:
+            raise QueueFullError(
+                f"{len(active)} jobs are already queued or running (at most {self._max_active}): "
+                f"wait for one to end or cancel one at /api/jobs before starting a {what} job"
+            )
+
     def _forget_old(self) -> None:
         ended = [j for j in self._jobs.values() if j.status in ("done", "failed", "cancelled")]
         for job in ended[: max(0, len(ended) - self._keep)]:
@@ -231,11 +266,27 @@ class JobRunner:
             except Exception as exc:
                 log.exception("job %s (%s) failed", job.id, job.kind)
                 job.status = "failed"
-                job.error = f"internal error: {exc.__class__.__name__}: {exc}"
+                job.error = describe_unexpected(exc)
             else:
                 job.status, job.result, job.progress = "done", result, 1.0
             job.finished_s = time.time()
             self._finish(job)
+
+
+def describe_unexpected(exc: BaseException) -> str:
+    """A user-facing sentence for an error no check foresaw, saying what kind of limit it met
+    (the class and message follow, for the report)."""
+    what = f"{exc.__class__.__name__}: {exc}"[:500]
+    if isinstance(exc, MemoryError):
+        return f"not enough memory for this work: use a smaller input or fewer samples ({what})"
+    if isinstance(exc, (OverflowError, FloatingPointError, ZeroDivisionError)):
+        return (
+            "a number in this work went outside what the simulation can compute: check that "
+            f"every value is within its documented range ({what})"
+        )
+    if isinstance(exc, RecursionError):
+        return f"the input is nested too deeply to process ({what})"
+    return f"the server could not do this ({what})"
 
 
 # --- the tapped cell: live pose and cancel during a job ----------------------------------

@@ -10,9 +10,10 @@ live in memory (the store keeps the settings, the choice and the result's figure
 Public API (thread-safe):
     setup() -> MachiningSetup; settings_document() -> dict
     set_settings(process_gain_N=, depth_exponent=, feed_exponent=, force_limit_N=,
-                 controller=, compensation=, stock_source=) -> MachiningSetup
+                 controller=, compensation=, stock_source=, cell_options=,
+                 cell_options_default=, variations=) -> MachiningSetup
     set_stock_profile(profile_mm) / upload_stock(data, filename) -> MachiningSetup
-    start(kind: "run" | "compare") -> job_id          progress and cancel through session.jobs
+    start(kind: "run" | "compare") -> job_id   progress and cancel through session.jobs
     result() -> MachiningResult | None; status() -> none | current | stale
     plot_data(controller=None, compensation=None, max_points=) -> dict   decimated trace
     choose(controller, compensation) -> MachiningSetup
@@ -21,6 +22,7 @@ Public API (thread-safe):
 from __future__ import annotations
 
 import base64
+import os
 import threading
 import weakref
 from dataclasses import replace
@@ -40,6 +42,8 @@ JobKind = Literal["run", "compare"]
 # Points of a plotted trace: each bucket gives its mean, min and max (the envelope).
 PLOT_POINTS = 1500
 MAX_STOCK_BYTES = 20_000_000
+# The Dask scheduler the workbench runs its machining cuts on (unset: the local cores).
+CLUSTER_ENV = "ROBOMACH_CLUSTER"
 
 _SERVICES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _SERVICES_LOCK = threading.Lock()
@@ -67,9 +71,18 @@ class MachiningService:
 
     def settings_document(self) -> dict[str, Any]:
         """The settings (units in the keys), the stock source and the chosen configuration."""
-        setup = self.setup()
+        project = self.session.project()
+        setup = core.machining_setup_of(project)
         s = setup.settings
+        caps = core.capabilities_of(project)
+        result = self.result()
         return {
+            "cell_options": sorted(caps.options),
+            "cell_options_default": setup.cell_options is None,
+            "variations": setup.variations,
+            "choice_reason": None if result is None else result.reason,
+            "stale_settings": core.stale_settings(project),
+            "program_needs": core.machining_note(project),
             "process_gain_N": s.process_gain_N,
             "depth_exponent": s.depth_exponent,
             "feed_exponent": s.feed_exponent,
@@ -186,9 +199,14 @@ class MachiningService:
         controller: str | None = None,
         compensation: str | None = None,
         stock_source: str | None = None,
+        cell_options: list[str] | tuple[str, ...] | None = None,
+        cell_options_default: bool | None = None,
+        variations: int | None = None,
     ) -> core.MachiningSetup:
-        """Change settings (None keeps one). A process or limit change dates the result; a
-        controller or compensation change is a choice (``choose``) and does not."""
+        """Change settings (None keeps one). A process, limit or variations change dates the
+        result; a controller or compensation change is a choice (``choose``) and does not, nor
+        do the cell's options (``cell_options``; ``cell_options_default`` back to the program
+        language's): the result is re-chosen for them."""
         values = {
             k: v
             for k, v in {
@@ -207,7 +225,14 @@ class MachiningService:
             if s.reference_force_N is not None and s.reference_force_N > s.force_limit_N:
                 s = replace(s, reference_force_N=None)
             source = setup.stock_source if stock_source is None else stock_source
-            return replace(setup, settings=s, stock_source=source)
+            out = replace(setup, settings=s, stock_source=source)
+            if cell_options_default:
+                out = replace(out, cell_options=None)
+            elif cell_options is not None:
+                out = replace(out, cell_options=tuple(cell_options))
+            if variations is not None:
+                out = replace(out, variations=int(variations))
+            return out
 
         return self._update(change)
 
@@ -246,7 +271,11 @@ class MachiningService:
         return setup
 
     def start(self, kind: JobKind) -> str:
-        """Job: run the chosen configuration (``"run"``) or the matrix (``"compare"``)."""
+        """Job: run the chosen configuration (``"run"``) or the matrix (``"compare"``), on the
+        setup's stock and its variations; on every local core, or on the Dask cluster named
+        by ``ROBOMACH_CLUSTER`` when the server runs (the operator's choice: no request can
+        point the server at an address)."""
+        cluster = os.environ.get(CLUSTER_ENV) or None
         if kind not in ("run", "compare"):
             raise InvalidInputError(f"machining job kind must be run or compare, got {kind!r}")
         s = self.session
@@ -268,6 +297,8 @@ class MachiningService:
                 compensations=compensations,
                 progress=ctx.progress,
                 cancel=ctx.cancelled,
+                workers=None,
+                cluster=cluster,
             )
 
         def done(result: core.MachiningResult) -> None:
@@ -292,6 +323,12 @@ class MachiningService:
         with s._lock:
             setup = change(core.machining_setup_of(s._project))
             s._project = core.with_machining_setup(s._project, setup)
+            result = s._project.machining
+            if isinstance(result, core.MachiningResult):
+                # The cell's options decide what is choosable: the same figures, re-chosen.
+                caps = core.capabilities_of(s._project)
+                if tuple(sorted(caps.options)) != tuple(result.capabilities):
+                    s._project = replace(s._project, machining=result.for_cell(caps))
             self._save()
         s._notify("postprocess", "machining")
         return setup

@@ -61,6 +61,10 @@ class ConflictError(RobomachError, RuntimeError):
     """The action does not fit the current state (e.g. post-processing before a recording)."""
 
 
+class QueueFullError(RobomachError, RuntimeError):
+    """Too many jobs are queued or running: wait for one to end or cancel one (429)."""
+
+
 class BusyError(ConflictError):
     """A job is moving the robot; wait for it or cancel it first."""
 

@@ -67,7 +67,6 @@ While a job moves the robot, pushes, jogs, recording and cell or project changes
 from __future__ import annotations
 
 import json
-import math
 import re
 import threading
 from collections.abc import Callable, Iterable
@@ -77,7 +76,7 @@ from typing import Any
 
 import numpy as np
 
-from robomach_core import mesh_query
+from robomach_core import limits, mesh_query
 from robomach_core import project as core
 from robomach_core.cell import Cell, CellState
 from robomach_core.errors import (
@@ -281,7 +280,9 @@ class Session(ProjectsMixin):
         if not self._lock.acquire(blocking=wait):
             last = self._last_snapshot
             if last is not None:
-                return last
+                # busy from the job runner (its own lock): a job that just ended while its
+                # end still holds the session lock must not read as running
+                return replace(last, busy=self.busy())
             self._lock.acquire()
         try:
             busy = self.busy()
@@ -432,12 +433,15 @@ class Session(ProjectsMixin):
 
     def push(self, wrench: np.ndarray, duration_s: float) -> RobotSnapshot:
         """Push the tool with a constant wrench (6,) [N, N*m] at the TCP, base axes, for
-        ``duration_s`` (0-60 s) under admittance control on the compliant axes."""
+        ``duration_s`` under admittance control on the compliant axes; the force's and the
+        torque's magnitudes and the duration within ``limits.PUSH_FORCE_N``,
+        ``PUSH_TORQUE_NM`` and ``PUSH_DURATION_S``."""
         w = np.asarray(wrench, dtype=float)
         if w.shape != (6,) or not np.all(np.isfinite(w)):
             raise InvalidInputError("a push is 6 finite values: force [N] and torque [N*m]")
-        if not (math.isfinite(duration_s) and 0 <= duration_s <= 60):
-            raise InvalidInputError(f"push duration {duration_s:g} s is outside 0-60 s")
+        limits.PUSH_FORCE_N.check(float(np.linalg.norm(w[:3])), "push force magnitude [N]")
+        limits.PUSH_TORQUE_NM.check(float(np.linalg.norm(w[3:])), "push torque magnitude [N*m]")
+        limits.PUSH_DURATION_S.check(duration_s, "push duration [s]")
         self.teach.push(w, duration_s)
         return self.snapshot()
 

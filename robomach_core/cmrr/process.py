@@ -27,6 +27,8 @@ MM = 1e-3
 # 63 % of one spindle revolution at 10 000 rpm (MRR paper, after eq. (3)).
 DEFAULT_SPINDLE_RPM = 10_000.0
 DEFAULT_TAU_M_S = 0.63 * 60.0 / DEFAULT_SPINDLE_RPM
+# exp() of more than this overflows a float.
+MAX_EXP = 700.0
 
 FeedbackSignal = Literal["force", "spindle_current"]
 
@@ -92,7 +94,13 @@ class PowerLawForceModel:
         kf = self.force_gain_N(depth_m)
         if kf <= 0.0:
             return math.inf
-        return MM * (max(force_N, 0.0) / kf) ** (1.0 / self.feed_exponent)
+        if force_N <= 0.0:
+            return 0.0
+        # In logs: a small beta makes the power overflow (or underflow) a float.
+        exponent = math.log(force_N / kf) / self.feed_exponent
+        if exponent > MAX_EXP:
+            return math.inf
+        return MM * math.exp(exponent) if exponent > -MAX_EXP else 0.0
 
 
 @dataclass(frozen=True)

@@ -130,6 +130,7 @@ def run_study(
     est_rec = {name: np.full(n_max, np.nan) for name in ctrl.estimate_names}
 
     x = robot.initial_state()
+    held = 0.0
     force = 0.0
     filt_state = sensor_filter.initial_state()
     ctrl_state = ctrl.initial_state()
@@ -142,9 +143,12 @@ def run_study(
         if cancelled is not None and k % CANCEL_CHECK_EVERY == 0 and cancelled():
             raise CancelledError(f"CMRR study {scenario.name}/{ctrl.name} cancelled")
         t = k * dt
-        position = float(x[-1])
+        # The path interpolator never runs the tool backwards: eq. (1) is non-minimum phase and
+        # dips before it rises; the dip below rest is held at rest (as in the machining run).
+        position = max(float(x[-1]), held)
+        held = position
         depth = depth_at(position)
-        feed = robot.feed(x)
+        feed = max(robot.feed(x), 0.0)
         current = spindle.current_A(force, noise[k, 1])
         raw = (
             spindle.force_from_current(current)

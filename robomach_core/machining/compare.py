@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import InvalidInputError
 from ..postprocess import Targets
 from ..robot import Robot
 from .run import (
@@ -47,6 +48,13 @@ TABLE_COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("mrr_mean_mm3_s", "MRR [mm3/s]", "{:.1f}"),
     ("realtime_factor", "x real time", "{:.0f}"),
 )
+# The variation sweep's columns (``variation.variation_rows``), shown when a sweep ran.
+VARIATION_TABLE_COLUMNS: tuple[tuple[str, str, str], ...] = (
+    ("cycle_time_p95_s", "cycle p95 [s]", "{:.1f}"),
+    ("force_peak_p95_N", "F peak p95 [N]", "{:.1f}"),
+    ("wall_error_max_p95_mm", "wall p95 [mm]", "{:.3f}"),
+    ("within_limit_share", "in limit", "{:.0%}"),
+)
 # Per-sample CSV columns: (header, trace attribute, scale to the header's unit).
 CSV_COLUMNS: tuple[tuple[str, str, float], ...] = (
     ("time_s", "time_s", 1.0),
@@ -74,34 +82,59 @@ class Comparison:
     table_text: str
 
 
-def comparison_rows(runs: Sequence[MachiningRun]) -> list[dict[str, Any]]:
-    """One dict per run with the table's keys; ``faster_than_constant_pct`` compares the cycle
-    time with the constant-feed run of the same compensation (None without one)."""
+def comparison_rows(
+    runs: Sequence[MachiningRun],
+    *,
+    refused: dict[tuple[str, str], str] | None = None,
+    order: Sequence[tuple[str, str]] | None = None,
+) -> list[dict[str, Any]]:
+    """One dict per configuration with the table's keys (in ``order`` when given);
+    ``faster_than_constant_pct`` compares the cycle time with the constant-feed run of the
+    same compensation (None without one). A ``refused`` configuration's row holds its
+    message under ``refused`` and no figures."""
+    refused = refused or {}
     constant = {
         r.compensation: r.summary["cycle_time_s"] for r in runs if r.controller == "constant"
     }
+    by_pair = {(r.controller, r.compensation): r for r in runs}
+    pairs = list(order) if order is not None else list(by_pair)
     rows = []
-    for r in runs:
+    for pair in pairs:
+        r = by_pair.get(pair)
+        if r is None:
+            if pair in refused:
+                rows.append(
+                    {key: None for key, _, _ in TABLE_COLUMNS}
+                    | {"controller": pair[0], "compensation": pair[1], "completed": False,
+                       "refused": refused[pair], "stop_reason": "refused"}
+                )  # fmt: skip
+            continue
         row = {key: r.summary.get(key) for key, _, _ in TABLE_COLUMNS}
         base, own = constant.get(r.compensation), r.summary["cycle_time_s"]
         row["faster_than_constant_pct"] = (
             100.0 * (1.0 - own / base) if base and own is not None else None
         )
         row["completed"] = r.summary["completed"]
+        row["stop_reason"] = r.summary.get("stop_reason")
+        row["refused"] = None
         rows.append(row)
     return rows
 
 
 def format_table(rows: Sequence[dict[str, Any]]) -> str:
     """The rows as a fixed-width text table ("stopped" for a cut that did not finish)."""
-    header = [h for _, h, _ in TABLE_COLUMNS]
+    columns = TABLE_COLUMNS
+    if any("cycle_time_p95_s" in row for row in rows):
+        columns = TABLE_COLUMNS[:-1] + VARIATION_TABLE_COLUMNS + TABLE_COLUMNS[-1:]
+    header = [h for _, h, _ in columns]
     body = []
     for row in rows:
         cells = []
-        for key, _, fmt in TABLE_COLUMNS:
+        for key, _, fmt in columns:
             value = row.get(key)
             if value is None:
-                cells.append("stopped" if key == "cycle_time_s" else "-")
+                stopped = "refused" if row.get("refused") else "stopped"
+                cells.append(stopped if key == "cycle_time_s" else "-")
             else:
                 cells.append(fmt.format(value))
         body.append(cells)
@@ -139,34 +172,68 @@ def compare_configurations(
             poses=settings.identification_poses,
             cmm_noise_m=settings.cmm_noise_m,
         ).model
-    runs = []
+    runs: list[MachiningRun] = []
+    refused: dict[tuple[str, str], str] = {}
     for i, (controller, compensation) in enumerate(pairs):
-        own = settings.controller_settings
-        run_settings = replace(
-            settings,
-            controller=controller,
-            compensation=compensation,
-            controller_settings=own if own is not None and own.kind == controller else None,
-        )
 
         def sub_progress(fraction: float, i: int = i) -> None:
             if progress is not None:
                 progress((i + fraction) / len(pairs))
 
-        runs.append(
-            run_machining(
-                robot,
-                targets,
-                wall_normals_m,
-                stock,
-                run_settings,
-                compensation_model=model,
-                progress=sub_progress,
-                cancel=cancel,
-            )
+        rehearsal = next(
+            (r for r in runs if (r.controller, r.compensation) == (controller, "off")), None
         )
-    rows = comparison_rows(runs)
+        try:
+            runs.append(
+                run_configuration(
+                    robot, targets, wall_normals_m, stock, settings, controller, compensation,
+                    compensation_model=model, progress=sub_progress, cancel=cancel,
+                    rehearsal=rehearsal,
+                )
+            )  # fmt: skip
+        except InvalidInputError as exc:
+            # A configuration these settings cannot run (no feed keeps the limit, a cut that
+            # would never end) is a row of the comparison, not the end of it.
+            refused[controller, compensation] = str(exc)
+    rows = comparison_rows(runs, refused=refused, order=pairs)
     return Comparison(runs, rows, format_table(rows))
+
+
+def run_configuration(
+    robot: Robot,
+    targets: Targets,
+    wall_normals_m: np.ndarray | None,
+    stock: Stock,
+    settings: MachiningSettings,
+    controller: str,
+    compensation: str,
+    *,
+    compensation_model: CompensationModel | None = None,
+    progress: ProgressCallback | None = None,
+    cancel: CancelFlag | Callable[[], bool] | None = None,
+    rehearsal: MachiningRun | None = None,
+) -> MachiningRun:
+    """One configuration of the matrix: ``settings`` with this controller and compensation
+    (the settings' own controller settings only for their own controller); ``rehearsal`` (the
+    same controller uncompensated) plans an offline compensation's first correction."""
+    own = settings.controller_settings
+    run_settings = replace(
+        settings,
+        controller=controller,
+        compensation=compensation,
+        controller_settings=own if own is not None and own.kind == controller else None,
+    )
+    return run_machining(
+        robot,
+        targets,
+        wall_normals_m,
+        stock,
+        run_settings,
+        compensation_model=compensation_model,
+        progress=progress,
+        cancel=cancel,
+        rehearsal_force=rehearsal if compensation == "offline" else None,
+    )
 
 
 def write_run_csv(run: MachiningRun, path: str | Path) -> Path:

@@ -150,3 +150,49 @@ def targets_along_wall(
         curvature_1_m=curvature,
         sample_index=np.arange(len(p)),
     )
+
+
+def project_onto_path(
+    points_m: np.ndarray,
+    path_points_m: np.ndarray,
+    normals_m: np.ndarray,
+    *,
+    window_m: float = 0.005,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where a program's points lie relative to a reference path (the stock's).
+
+    Each point is projected onto the nearest segment of the reference polyline among those
+    within ``window_m`` of its expected arc length (its own arc length scaled to the reference
+    length), so a closed loop's last point lands at the end, not the start.
+
+    Returns:
+        (s_m (k,) arc length along the reference, non-decreasing; offset_m (k,) distance along
+        the reference's normal (interpolated at s); lateral_m (k,) the rest of the distance).
+    """
+    p = np.asarray(points_m, dtype=float)
+    ref = np.asarray(path_points_m, dtype=float)
+    s_ref = arc_length_m(ref)
+    length = float(s_ref[-1])
+    s_own = arc_length_m(p)
+    expected = s_own * (length / s_own[-1]) if s_own[-1] > 0.0 else np.zeros(len(p))
+    a, b = ref[:-1], ref[1:]
+    d = b - a
+    seg_len2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-30)
+    # (k, n-1): parameter of the foot on each segment, clipped to the segment.
+    t = np.einsum("kij,ij->ki", p[:, None, :] - a[None], d) / seg_len2
+    t = np.clip(t, 0.0, 1.0)
+    foot = a[None] + t[..., None] * d[None]
+    dist = np.linalg.norm(p[:, None, :] - foot, axis=2)
+    s_foot = s_ref[:-1][None] + t * np.sqrt(seg_len2)[None]
+    far = np.abs(s_foot - expected[:, None]) > window_m + np.sqrt(seg_len2)[None]
+    dist = np.where(far, np.inf, dist)
+    best = np.argmin(dist, axis=1)
+    rows = np.arange(len(p))
+    s = s_foot[rows, best]
+    s = np.maximum.accumulate(s)
+    n = np.stack([np.interp(s, s_ref, normals_m[:, i]) for i in range(3)], axis=1)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    delta = p - foot[rows, best]
+    offset = np.einsum("ij,ij->i", delta, n)
+    lateral = np.sqrt(np.maximum(np.einsum("ij,ij->i", delta, delta) - offset**2, 0.0))
+    return s, offset, lateral

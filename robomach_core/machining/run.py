@@ -14,10 +14,16 @@ STRATEGY  One 4 ms control period at a time along the program's MoveL path:
             (joint_compliance, chapter eq. 16), i.e. the TCP moves by C F, C = J Kq^-1 J^T;
             only its normal part n^T C u F moves the cut;
           - the F/T sensor adds noise; CMRR filters it and sets the speed ratio that scales the
-            programmed speed; online compensation shifts the joint reference by
-            -Kq_hat^-1 J^T W_f (stiffness.online_compensation_step), offline compensation
-            corrects the targets before the run (stiffness.compensate_targets_and_joints),
-            both with a stiffness identified from a simulated CMM campaign, never the truth;
+            programmed speed (each controller designed for this cut, ``design``); online
+            compensation shifts the joint reference by -Kq_hat^-1 J^T W_f
+            (stiffness.online_compensation_step); offline compensation corrects the targets
+            before the run, planned from rehearsals of the same cut (``offline``), both with a
+            stiffness identified from a simulated CMM campaign, never the truth;
+          - the program runs along the stock's path: its offset from that path along n (a
+            corrected program, a program read back from an exported file) moves the cut;
+          - eq. (1) is non-minimum phase (it dips before it rises); the path interpolator never
+            runs the TCP backwards, so the feed is held at zero where the dip would reverse it;
+          - the cell's force supervision stops the robot at twice the force limit;
           - the finished wall is the envelope of the ball cutter over the tool positions, clipped
             by the stock (where the tool did not reach the stock surface the stock remains).
 SOLUTION  ``run_machining`` returns a ``MachiningRun`` (trace, finished wall at stations,
@@ -28,9 +34,11 @@ Modelling choices, stated: the TCP runs the MoveL chain through the targets at t
 programmed speed (capped), with speed changes between moves ramped at the path acceleration;
 zone blending at corners (a few tenths of a millimetre) is not modelled. The offline
 compensation densifies the program to a target every ``offline_target_spacing_m`` (the
-corrected program is ``MachiningRun.program``). The wall error is measured against the
-program's own path (the nominal wall is that path moved back by the tool radius), so it shows
-what the cut adds to the learning error, not the learning error itself.
+corrected program is ``MachiningRun.program``). The stock's ``material_factor`` scales the
+process gain K the controllers were designed for (a harder or softer casting). The wall error
+is measured against the program's own path (the nominal wall is that path moved back by the
+tool radius), so it shows what the cut adds to the learning error, not the learning error
+itself.
 """
 
 from __future__ import annotations
@@ -44,27 +52,31 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from ..cmrr.controllers import ControlDesign, make_controller, settings_for
-from ..cmrr.controllers.base import Measurement
+from ..cmrr.controllers import ControlDesign, make_controller
+from ..cmrr.controllers._fast import fast_stepper
 from ..cmrr.feed_dynamics import FeedDynamics
 from ..cmrr.process import ForceSensorModel, PowerLawForceModel
+from ..errors import InvalidInputError
 from ..joint_compliance import JointCompliance, true_joint_compliance
 from ..postprocess import Targets
 from ..robot import Robot
 from ..stiffness import (
     CompensationSettings,
     StiffnessIdentification,
-    compensate_targets_and_joints,
     identify_joint_stiffness,
     sample_workspace_joints,
     simulate_stiffness_measurements,
     sphere_tip_transform,
 )
-from ..transforms import make_transform, matrices_from_quaternions, quaternions_from_matrices
+from .design import designed_controller_settings
 from .errors import CancelledError, MachiningSettingsError, SampleLimitError, StockError
-from .path import arc_length_m, check_normals, check_path, path_tangents, wall_normals_from_path
+from .offline import densify_targets as densify_targets
+from .path import arc_length_m, check_normals, check_path, path_tangents, project_onto_path
 from .settings import CONTROL_PERIOD_S, MachiningSettings
 from .stock import Stock
+from .summary import finished_wall as finished_wall
+from .summary import steady_force_N as steady_force_N
+from .summary import summarize
 
 MM = 1e-3
 # Samples between two checks of the cancel flag.
@@ -75,8 +87,13 @@ NOISE_BLOCK = 65_536
 STOP_TAIL_S = 0.3
 # The controllers are designed for the deepest cut, and no shallower than this [m].
 DESIGN_DEPTH_MIN_M = 0.1 * MM
-# The stock's path and the program's may differ in length by this much [m].
+# The stock's path and the program's may differ in length (and lie apart) by this much [m].
 PATH_LENGTH_TOLERANCE_M = 1.0 * MM
+# The cell's force supervision stops the robot at this multiple of the force limit (the
+# spindle's overload trip): a cut that runs away is stopped, not simulated to infinity.
+FORCE_SUPERVISION_FACTOR = 2.0
+# Below this a constant feed rubs rather than cuts (the MRR paper's minimal feed) [m/s].
+MIN_CONSTANT_FEED_M_S = 0.05 * MM
 
 
 class CancelFlag(Protocol):
@@ -140,7 +157,9 @@ class FinishedWall:
 
 @dataclass(frozen=True, eq=False)
 class MachiningRun:
-    """A finished run: settings, the program it executed, trace, finished wall and summary."""
+    """A finished run: settings, the program it executed, trace, finished wall and summary;
+    ``controller_settings`` the controller as designed for the cut (None: constant feed);
+    ``nominal`` the nominal targets an offline-corrected ``program`` pairs with."""
 
     settings: MachiningSettings
     controller: str
@@ -150,6 +169,8 @@ class MachiningRun:
     wall: FinishedWall
     summary: dict[str, Any]
     stiffness_model: JointCompliance | None
+    controller_settings: Any = None
+    nominal: Targets | None = None
 
 
 @functools.lru_cache(maxsize=8)
@@ -199,29 +220,6 @@ def normal_compliance(
     return out
 
 
-def _program_poses(targets: Targets) -> np.ndarray:
-    Rs = matrices_from_quaternions(np.asarray(targets.quaternion_wxyz, dtype=float))
-    return np.array([make_transform(R, p) for R, p in zip(Rs, targets.position_m, strict=True)])
-
-
-def densify_targets(targets: Targets, spacing_m: float) -> Targets:
-    """Targets every ~``spacing_m`` along the MoveL path, positions and joints linear between
-    the program's targets, orientation and speed of the move's end target."""
-    s = arc_length_m(targets.position_m)
-    grid = np.union1d(np.arange(0.0, s[-1], spacing_m), s)
-    seg = np.clip(np.searchsorted(s, grid, side="left"), 1, len(s) - 1)
-    pos = np.stack([np.interp(grid, s, targets.position_m[:, i]) for i in range(3)], axis=1)
-    joints = np.stack([np.interp(grid, s, targets.joints_rad[:, i]) for i in range(6)], axis=1)
-    return Targets(
-        position_m=pos,
-        quaternion_wxyz=np.asarray(targets.quaternion_wxyz)[seg],
-        joints_rad=joints,
-        speed_m_s=np.asarray(targets.speed_m_s)[seg],
-        curvature_1_m=np.asarray(targets.curvature_1_m)[seg],
-        sample_index=np.asarray(targets.sample_index)[seg],
-    )
-
-
 def planned_speed_profile(speed_m_s: np.ndarray, ds_m: float, acceleration_m_s2: float):
     """The path planner's speed along the stations: the programmed speeds with the speed
     changes between moves limited to ``acceleration_m_s2`` (v^2 <= v0^2 + 2 a ds forward, and
@@ -258,26 +256,35 @@ def start_feed_m_s(
     return np.where(beyond, np.interp(s_m, plan_s_m, plan_feed_m_s), out)
 
 
-def steady_force_N(
-    process: PowerLawForceModel, depth_m: np.ndarray, feed_m_s: np.ndarray
-) -> np.ndarray:
-    """Eq. (5) on arrays: K (d/1 mm)^alpha (f/1 mm/s)^beta, zero without depth or feed."""
-    d = np.maximum(np.asarray(depth_m, dtype=float), 0.0) / MM
-    f = np.maximum(np.asarray(feed_m_s, dtype=float), 0.0) / MM
-    out = process.gain_N * d**process.depth_exponent * f**process.feed_exponent
-    return np.where((d > 0.0) & (f > 0.0), out, 0.0)
-
-
 def predicted_force_N(
     settings: MachiningSettings, depth_m: np.ndarray, planned_feed_m_s: np.ndarray
 ) -> np.ndarray:
-    """The force the offline compensation plans for: eq. (5) at the stock depth and the planned
-    feed, and no more than Fr where a CMRR controller will hold the force there."""
-    process = settings.process
-    f = steady_force_N(process, depth_m, planned_feed_m_s)
+    """The first plan of the offline compensation when no rehearsal is at hand: eq. (5) at the
+    stock depth and the planned feed, and no more than Fr where a CMRR controller will hold
+    the force there."""
+    f = steady_force_N(settings.process, depth_m, planned_feed_m_s)
     if settings.controller != "constant":
         f = np.minimum(f, settings.reference_N)
     return f
+
+
+def _resolve_model(
+    robot: Robot, settings: MachiningSettings, compensation_model: CompensationModel | None
+) -> JointCompliance | None:
+    if settings.compensation == "off":
+        return None
+    if compensation_model is None:
+        return identify_stiffness(
+            robot.name,
+            seed=settings.seed,
+            poses=settings.identification_poses,
+            cmm_noise_m=settings.cmm_noise_m,
+        ).model
+    if isinstance(compensation_model, CompensationSettings):
+        return compensation_model.model
+    if isinstance(compensation_model, JointCompliance):
+        return compensation_model
+    raise MachiningSettingsError("compensation_model must be a JointCompliance")
 
 
 def run_machining(
@@ -290,15 +297,19 @@ def run_machining(
     compensation_model: CompensationModel | None = None,
     progress: ProgressCallback | None = None,
     cancel: CancelFlag | Callable[[], bool] | None = None,
+    rehearsal_force: MachiningRun | None = None,
+    nominal: Targets | None = None,
 ) -> MachiningRun:
     """Cut ``stock`` with the program ``targets`` on the compliant ``robot``.
 
     Args:
         robot: The arm with the machining tool's TCP; its name selects the true stiffness.
-        targets: The program (positions, orientations, joints, per-target speeds).
-        wall_normals_m: (m, 3) wall normals at the targets, pointing at the tool; None derives
-            them from the path with the wall on the right of travel (built-in parts).
-        stock: The part before machining along the same path.
+        targets: The program (positions, orientations, joints, per-target speeds). It runs
+            along the stock's path; a program off that path (a corrected one, or one read back
+            from an exported file) cuts where its targets are.
+        wall_normals_m: (m, 3) wall normals at the targets, pointing at the tool; None takes
+            the stock's.
+        stock: The part before machining along the program's path.
         settings: Process, force limit, controller, compensation, seed.
         compensation_model: The identified stiffness (a ``JointCompliance`` or the ``model`` of
             ``CompensationSettings``); None identifies one with ``identify_stiffness`` when
@@ -306,110 +317,190 @@ def run_machining(
         progress: Called with the fraction of the path done, about every 1 %.
         cancel: A flag (``is_set()``) or a callable; when true the run raises
             ``CancelledError``.
+        rehearsal_force: For offline compensation, a run of the same controller on the same
+            stock whose force plans the first correction (``offline``); None plans it from
+            eq. (5).
+        nominal: The nominal targets ``targets`` correct one for one (``cut_program``).
 
     Raises:
         StockError: the stock does not lie along the program's path.
         SampleLimitError: the run would record more than ``settings.max_samples`` samples.
+        MachiningSettingsError: no feed keeps the force limit, or the cut diverged.
+    """
+    from .offline import force_met_N, offline_compensated_run
+
+    model = _resolve_model(robot, settings, compensation_model)
+    if settings.compensation != "offline":
+        return cut_program(
+            robot, targets, wall_normals_m, stock, settings,
+            model=model, progress=progress, cancel=cancel, nominal=nominal,
+        )  # fmt: skip
+    started = time.perf_counter()
+    assert model is not None
+    P = check_path(targets.position_m)
+    s_t, _, _ = project_onto_path(P, stock.path_points_m, stock.wall_normals_m)
+    s_f = np.arange(0.0, float(s_t[-1]), settings.station_spacing_m)
+    n_t = np.stack(
+        [np.interp(s_t, stock.path_s_m, stock.wall_normals_m[:, i]) for i in range(3)], 1
+    )
+    n_t /= np.linalg.norm(n_t, axis=1, keepdims=True)
+    U = force_directions(n_t, path_tangents(P), settings.feed_force_ratio)
+    c_hat = np.interp(s_f, s_t, normal_compliance(robot, targets.joints_rad, n_t, U, model))
+    n_f = np.stack([np.interp(s_f, s_t, n_t[:, i]) for i in range(3)], 1)
+    if rehearsal_force is not None:
+        first = force_met_N(rehearsal_force, s_f)
+    else:
+        first = _first_plan(settings, stock, targets, s_f)
+
+    def cut(program: Targets, dense: Targets, sub: ProgressCallback | None) -> MachiningRun:
+        return cut_program(
+            robot, program, None, stock, settings, model=None, progress=sub, cancel=cancel,
+            compensation_model_for_record=model, nominal=dense,
+        )  # fmt: skip
+
+    run, program, dense, rehearsals, change = offline_compensated_run(
+        cut, robot, targets, s_f, c_hat, n_f, first,
+        feed_force_ratio=settings.feed_force_ratio, model=model, progress=progress,
+    )  # fmt: skip
+    summary = dict(run.summary)
+    summary["rehearsals"] = rehearsals
+    summary["offline_last_change_um"] = None if not math.isfinite(change) else change / 1e-6
+    summary["offline_targets"] = len(program)
+    wall_s = time.perf_counter() - started
+    summary["wall_time_s"] = wall_s
+    summary["realtime_factor"] = summary["sim_time_s"] / wall_s if wall_s > 0 else None
+    return replace(run, program=program, nominal=dense, summary=summary)
+
+
+def _first_plan(
+    settings: MachiningSettings, stock: Stock, targets: Targets, s_m: np.ndarray
+) -> np.ndarray:
+    """Eq. (5) at the stock's depth and the planned feed at arc lengths ``s_m``."""
+    s_t = arc_length_m(targets.position_m)
+    seg = np.clip(np.searchsorted(s_t, s_m, side="left"), 1, len(s_t) - 1)
+    v = np.minimum(np.asarray(targets.speed_m_s, dtype=float)[seg], settings.command_speed_cap_m_s)
+    if settings.controller == "constant":
+        feed = settings.constant_feed_m_s or settings.safe_constant_feed_m_s(stock.max_allowance_m)
+        v = np.minimum(v, feed)
+    planned = np.minimum(v, start_feed_m_s(s_m, s_m, v))
+    return predicted_force_N(settings, stock.allowance_m(s_m), planned)
+
+
+def cut_program(
+    robot: Robot,
+    targets: Targets,
+    wall_normals_m: np.ndarray | None,
+    stock: Stock,
+    settings: MachiningSettings,
+    *,
+    model: JointCompliance | None = None,
+    progress: ProgressCallback | None = None,
+    cancel: CancelFlag | Callable[[], bool] | None = None,
+    compensation_model_for_record: JointCompliance | None = None,
+    nominal: Targets | None = None,
+) -> MachiningRun:
+    """One cut of ``targets`` along ``stock`` (module docstring); online compensation with
+    ``model`` when ``settings.compensation == "online"``; the program's own geometry is the
+    rest of the compensation.
+
+    ``nominal`` are the targets ``targets`` correct, one for one (an offline-compensated
+    program, or one read back from its exported file): each target's offset is its shift
+    from its nominal along the wall normal there, the model's one dimension (the tangential
+    part of a correction answers the tangential deflection, which the cut does not model).
+    Without it the program is taken along the stock's path, matched to it by projection.
     """
     started = time.perf_counter()
     cancelled = _cancel_predicate(cancel)
     P = check_path(targets.position_m)
     m = len(P)
-    N = wall_normals_from_path(P) if wall_normals_m is None else check_normals(wall_normals_m, m)
-    S = arc_length_m(P)
-    L = float(S[-1])
-    if abs(stock.path_length_m - L) > PATH_LENGTH_TOLERANCE_M:
-        raise StockError(
-            f"the stock lies along a {stock.path_length_m / MM:.1f} mm path, the program's is "
-            f"{L / MM:.1f} mm long; build the stock on the program's path"
+    if nominal is not None:
+        P0 = check_path(nominal.position_m)
+        if P0.shape != P.shape:
+            raise StockError(
+                f"the program has {m} targets, its nominal program {len(P0)}: they must pair"
+            )
+        s_t, _, lateral = project_onto_path(P0, stock.path_points_m, stock.wall_normals_m)
+        n_t = np.stack(
+            [np.interp(s_t, stock.path_s_m, stock.wall_normals_m[:, i]) for i in range(3)], 1
         )
+        n_t /= np.linalg.norm(n_t, axis=1, keepdims=True)
+        off_t = np.einsum("ij,ij->i", P - P0, n_t)
+    else:
+        s_t, off_t, lateral = project_onto_path(P, stock.path_points_m, stock.wall_normals_m)
+    L = stock.path_length_m
+    own = arc_length_m(P if nominal is None else nominal.position_m)[-1]
+    if float(np.max(lateral)) > PATH_LENGTH_TOLERANCE_M or abs(own - L) > max(
+        PATH_LENGTH_TOLERANCE_M, 0.01 * L
+    ):
+        raise StockError(
+            f"the stock lies along a {L / MM:.1f} mm path, the program's is {own / MM:.1f} mm "
+            f"long and up to {float(np.max(lateral)) / MM:.1f} mm beside it; build the stock "
+            "on the program's path"
+        )
+    if wall_normals_m is None:
+        N = np.stack(
+            [np.interp(s_t, stock.path_s_m, stock.wall_normals_m[:, i]) for i in range(3)], 1
+        )
+        N /= np.linalg.norm(N, axis=1, keepdims=True)
+    else:
+        N = check_normals(wall_normals_m, m)
     process: PowerLawForceModel = settings.process
     d_max = stock.max_allowance_m
     truth = true_joint_compliance(robot.name)
-    model: JointCompliance | None = None
-    if settings.compensation != "off":
-        if compensation_model is None:
-            model = identify_stiffness(
-                robot.name,
-                seed=settings.seed,
-                poses=settings.identification_poses,
-                cmm_noise_m=settings.cmm_noise_m,
-            ).model
-        elif isinstance(compensation_model, CompensationSettings):
-            model = compensation_model.model
-        elif isinstance(compensation_model, JointCompliance):
-            model = compensation_model
-        else:
-            raise MachiningSettingsError("compensation_model must be a JointCompliance")
+    online = settings.compensation == "online"
+    if online and model is None:
+        model = _resolve_model(robot, settings, None)
 
     # Along the program: force direction and normal compliance (true and identified).
     U = force_directions(N, path_tangents(P), settings.feed_force_ratio)
     c_true_t = normal_compliance(robot, targets.joints_rad, N, U, truth)
-    c_hat_t = (
-        normal_compliance(robot, targets.joints_rad, N, U, model) if model is not None else None
-    )
+    c_hat_t = normal_compliance(robot, targets.joints_rad, N, U, model) if online else None
 
-    # Stations: allowance, programmed speed (the move's end target's), compliance.
+    # Stations along the stock's path: allowance, programmed speed (the move's end target's),
+    # compliance, and the program's offset from the path (MoveL between its targets).
     ds = settings.station_spacing_m
     n_st = int(math.floor(L / ds)) + 2
     s_st = np.arange(n_st) * ds
     allowance = stock.allowance_m(s_st)
-    seg = np.clip(np.searchsorted(S, s_st, side="left"), 1, m - 1)
+    seg = np.clip(np.searchsorted(s_t, s_st, side="left"), 1, m - 1)
     v_prog = planned_speed_profile(
         np.minimum(np.asarray(targets.speed_m_s, dtype=float)[seg], settings.command_speed_cap_m_s),
         ds,
         settings.path_acceleration_m_s2,
     )
-    if np.any(v_prog <= 0.0):
+    if not np.all(v_prog > 0.0):
         raise MachiningSettingsError("every programmed speed must be positive")
-    c_true = np.interp(s_st, S, c_true_t)
-    c_hat = np.interp(s_st, S, c_hat_t) if c_hat_t is not None else np.zeros(n_st)
-
+    c_true = np.interp(s_st, s_t, c_true_t)
+    c_hat = np.interp(s_st, s_t, c_hat_t) if c_hat_t is not None else np.zeros(n_st)
+    offset = np.interp(s_st, s_t, off_t)
+    is_constant = settings.controller == "constant"
     constant_feed = (
         settings.constant_feed_m_s
         if settings.constant_feed_m_s is not None
         else settings.safe_constant_feed_m_s(d_max)
     )
-    is_constant = settings.controller == "constant"
-
-    # Offline compensation: corrected targets for the force planned from stock and feed.
-    program = targets
-    offset = np.zeros(n_st)  # commanded path's shift along n [m]
-    if settings.compensation == "offline":
-        assert model is not None
-        dense = densify_targets(targets, settings.offline_target_spacing_m)
-        s_d = arc_length_m(dense.position_m)
-        v_d = np.interp(s_d, s_st, v_prog)
-        planned = np.minimum(v_d, constant_feed) if is_constant else v_d
-        # The robot starts the cut from rest: the plan follows eq. (1) out of it.
-        planned = np.minimum(planned, start_feed_m_s(s_d, s_d, planned))
-        f_pred = predicted_force_N(settings, stock.allowance_m(s_d), planned)
-        n_d = np.stack([np.interp(s_d, S, N[:, i]) for i in range(3)], axis=1)
-        n_d /= np.linalg.norm(n_d, axis=1, keepdims=True)
-        u_d = np.stack([np.interp(s_d, S, U[:, i]) for i in range(3)], axis=1)
-        u_d /= np.linalg.norm(u_d, axis=1, keepdims=True)
-        wrenches = np.zeros((len(s_d), 6))
-        wrenches[:, :3] = f_pred[:, None] * u_d
-        Ts = _program_poses(dense)
-        Ts_c, q_c = compensate_targets_and_joints(
-            robot, Ts, dense.joints_rad, wrenches, model, "linear"
+    if is_constant and not constant_feed >= MIN_CONSTANT_FEED_M_S:
+        raise MachiningSettingsError(
+            f"no constant feed keeps the {settings.force_limit_N:g} N force limit at the deepest "
+            f"cut ({d_max / MM:.2f} mm): F = {settings.process_gain_N:g} d^"
+            f"{settings.depth_exponent:g} f^{settings.feed_exponent:g} reaches it at "
+            f"{constant_feed / MM:.2g} mm/s, below {MIN_CONSTANT_FEED_M_S / MM:g} mm/s (rubbing, "
+            "not cutting); raise the force limit or check the process K, alpha and beta"
         )
-        program = replace(
-            dense,
-            position_m=Ts_c[:, :3, 3].copy(),
-            quaternion_wxyz=quaternions_from_matrices(Ts_c[:, :3, :3]),
-            joints_rad=np.asarray(q_c),
-        )
-        shift = np.einsum("ij,ij->i", Ts_c[:, :3, 3] - Ts[:, :3, 3], n_d)
-        offset = np.interp(s_st, s_d, shift)  # MoveL between corrected targets
 
-    # Feed control.
+    # Feed control, designed for this cut (``design``).
     dt = CONTROL_PERIOD_S
     sensor = ForceSensorModel(
         noise_std_N=settings.sensor_noise_N, filter_cutoff_hz=settings.sensor_filter_cutoff_hz
     )
     sensor_filter = sensor.make_filter(dt)
     v_top = float(v_prog.max())
+    ctrl_settings = designed_controller_settings(
+        settings,
+        max_depth_m=d_max,
+        speed_m_s=v_top,
+        interaction_stiffness_N_m=1.0 / float(np.mean(c_true_t)) if np.all(c_true_t > 0) else None,
+    )
     design = ControlDesign(
         dt_s=dt,
         command_speed_m_s=v_top,
@@ -421,11 +512,7 @@ def run_machining(
         measurement_filter=sensor_filter,
         control_delay_steps=1,
     )
-    if is_constant:
-        ctrl = None
-    else:
-        ctrl_settings = settings.controller_settings or settings_for(settings.controller)
-        ctrl = make_controller(ctrl_settings, design)
+    ctrl = None if ctrl_settings is None else make_controller(ctrl_settings, design)
 
     slowest = (
         float(np.min(np.minimum(v_prog, constant_feed)))
@@ -455,15 +542,16 @@ def run_machining(
     ct_l = c_true.tolist()
     ch_l = c_hat.tolist()
     off_l = offset.tolist()
-    K = process.gain_N
+    # The stock's material: its coefficient scales K of the process the controller was designed for.
+    K = process.gain_N * stock.material_factor
     alpha_d, beta_f = process.depth_exponent, process.feed_exponent
     tau = process.time_constant_s
     lag = math.exp(-dt / tau) if tau > 0 else 0.0
     sigma = settings.sensor_noise_N
-    online = settings.compensation == "online"
     tau_c = 1.0 / (2.0 * math.pi * settings.online_filter_cutoff_hz)
     alpha_c = dt / (dt + tau_c)  # the first-order filter of online_compensation_step
     fr = settings.reference_N
+    supervision_N = FORCE_SUPERVISION_FACTOR * settings.force_limit_N
 
     rt: list[float] = []
     rs: list[float] = []
@@ -477,80 +565,104 @@ def run_machining(
     rh: list[float] = []
     force = 0.0
     w_f = 0.0
+    s_held = 0.0
     filt = _FilterState.start(sensor_filter)
     x = _FeedState.start(robot_model)
-    ctrl_state = ctrl.initial_state() if ctrl is not None else None
+    control = fast_stepper(ctrl) if ctrl is not None else None
     first_ratio = ctrl.initial_speed_ratio if ctrl is not None else 1.0
     pending = [first_ratio]  # one period of control delay
     stop_time: float | None = None
+    stop_reason: str | None = None
     cycle_time: float | None = None
     next_progress = 0.0
     k = 0
-    while True:
-        if k >= n_max:
-            raise SampleLimitError(
-                f"the run did not finish within {n_max} samples ({n_max * dt:.0f} s); the feed "
-                "stalled"
-            )
-        if cancelled is not None and k % CANCEL_CHECK_EVERY == 0 and cancelled():
-            raise CancelledError(f"machining run {settings.controller} cancelled")
-        t = k * dt
-        s = x.position
-        j = int(s * inv_ds)
-        if j > last:
-            j = last
-        elif j < 0:
-            j = 0
-        feed = x.feed()
-        deflection = ct_l[j] * force
-        h = off_l[j] + deflection - ch_l[j] * w_f
-        depth = a_l[j] - h
-        if depth < 0.0:
-            depth = 0.0
-        if k % NOISE_BLOCK == 0:
-            noise = rng.standard_normal(NOISE_BLOCK).tolist()
-        raw = force + sigma * noise[k % NOISE_BLOCK]
-        measured = filt.step(raw)
-        if ctrl is not None:
-            ctrl_state, out = ctrl.step(ctrl_state, Measurement(measured, feed))
-            if out.stop and stop_time is None:
-                stop_time = t
-            pending.append(0.0 if stop_time is not None else out.speed_ratio)
-            ratio = pending.pop(0)
-            command = ratio * v_l[j]
-        else:
-            command = constant_feed if constant_feed < v_l[j] else v_l[j]
-            ratio = command / v_l[j]
-        if stop_time is not None:
-            ratio = command = 0.0
-        rt.append(t)
-        rs.append(s)
-        rf.append(feed)
-        rcf.append(command)
-        rr.append(ratio)
-        rd.append(depth)
-        rF.append(force)
-        rm.append(raw)
-        rdef.append(deflection)
-        rh.append(h)
-        k += 1
-        if s >= L:
-            cycle_time = t
-            break
-        if stop_time is not None and t - stop_time >= STOP_TAIL_S:
-            break
-        # Process force, eq. (3): exact first-order lag towards eq. (5) at this depth and feed.
-        if depth > 0.0 and feed > 0.0:
-            target = K * (depth * 1e3) ** alpha_d * (feed * 1e3) ** beta_f
-        else:
-            target = 0.0
-        force = lag * force + (1.0 - lag) * target
-        if online:
-            w_f += alpha_c * (raw - w_f)
-        x.step(command)  # the robot's feed, eq. (1)
-        if progress is not None and s >= next_progress * L:
-            progress(min(s / L, 1.0))
-            next_progress = s / L + 0.01
+    s = 0.0
+    try:
+        while True:
+            if k >= n_max:
+                raise SampleLimitError(
+                    f"the run did not finish within {n_max} samples ({n_max * dt:.0f} s); the "
+                    "feed stalled"
+                )
+            if cancelled is not None and k % CANCEL_CHECK_EVERY == 0 and cancelled():
+                raise CancelledError(f"machining run {settings.controller} cancelled")
+            t = k * dt
+            # The path interpolator never runs the TCP backwards: eq. (1) is non-minimum phase
+            # and dips before it rises, and the dip below rest is held at rest.
+            s = x.position
+            if s < s_held:
+                s = s_held
+            else:
+                s_held = s
+            j = int(s * inv_ds)
+            if j > last:
+                j = last
+            feed = x.feed()
+            if feed < 0.0:
+                feed = 0.0
+            deflection = ct_l[j] * force
+            h = off_l[j] + deflection - ch_l[j] * w_f
+            depth = a_l[j] - h
+            if depth < 0.0:
+                depth = 0.0
+            if k % NOISE_BLOCK == 0:
+                noise = rng.standard_normal(NOISE_BLOCK).tolist()
+            raw = force + sigma * noise[k % NOISE_BLOCK]
+            measured = filt.step(raw)
+            if control is not None:
+                next_ratio, stop = control(measured, feed)
+                if stop and stop_time is None:
+                    stop_time, stop_reason = t, "protection rule"
+                pending.append(0.0 if stop_time is not None else next_ratio)
+                ratio = pending.pop(0)
+                command = ratio * v_l[j]
+            else:
+                command = constant_feed if constant_feed < v_l[j] else v_l[j]
+                ratio = command / v_l[j]
+            if stop_time is not None:
+                ratio = command = 0.0
+            rt.append(t)
+            rs.append(s)
+            rf.append(feed)
+            rcf.append(command)
+            rr.append(ratio)
+            rd.append(depth)
+            rF.append(force)
+            rm.append(raw)
+            rdef.append(deflection)
+            rh.append(h)
+            k += 1
+            if s >= L:
+                cycle_time = t
+                break
+            if stop_time is not None and t - stop_time >= STOP_TAIL_S:
+                break
+            # Process force, eq. (3): exact first-order lag towards eq. (5) at this depth and feed.
+            if depth > 0.0 and feed > 0.0:
+                target = K * (depth * 1e3) ** alpha_d * (feed * 1e3) ** beta_f
+            else:
+                target = 0.0
+            force = lag * force + (1.0 - lag) * target
+            if force > supervision_N:
+                # The cell's force supervision (the spindle's overload trip) stops the robot.
+                force = supervision_N
+                if stop_time is None:
+                    stop_time, stop_reason = t, "force supervision"
+            if online:
+                w_f += alpha_c * (raw - w_f)
+            x.step(command)  # the robot's feed, eq. (1)
+            if progress is not None and s >= next_progress * L:
+                progress(min(s / L, 1.0))
+                next_progress = s / L + 0.01
+    except (OverflowError, ZeroDivisionError, ValueError) as exc:
+        if isinstance(exc, InvalidInputError):
+            raise
+        raise MachiningSettingsError(
+            f"the simulated cut diverged at {s / MM:.1f} mm along the path (force "
+            f"{force:.3g} N): F = {settings.process_gain_N:g} d^{settings.depth_exponent:g} "
+            f"f^{settings.feed_exponent:g} with a {settings.force_limit_N:g} N limit is beyond "
+            "what this arm and controller can cut; check the process K, alpha and beta"
+        ) from None
     if progress is not None:
         progress(1.0)
     wall_s = time.perf_counter() - started
@@ -583,15 +695,24 @@ def run_machining(
         wall_time_s=wall_s,
         max_depth_m=d_max,
     )
+    summary["stop_reason"] = stop_reason
+    summary["controller_design"] = None if ctrl is None else ctrl.describe()
+    if ctrl_settings is not None:
+        from ..cmrr.settings import controller_settings_to_dict
+
+        summary["controller_settings"] = controller_settings_to_dict(ctrl_settings)
+    else:
+        summary["controller_settings"] = None
     return MachiningRun(
         settings=settings,
         controller=settings.controller,
         compensation=settings.compensation,
-        program=program,
+        program=targets,
         trace=trace,
         wall=wall,
         summary=summary,
-        stiffness_model=model,
+        stiffness_model=model if model is not None else compensation_model_for_record,
+        controller_settings=ctrl_settings,
     )
 
 
@@ -642,86 +763,3 @@ class _FilterState:
         self.z1 = self.b1 * x - self.a1 * out + self.z2
         self.z2 = self.b2 * x - self.a2 * out
         return out
-
-
-def finished_wall(
-    s_st: np.ndarray,
-    allowance_m: np.ndarray,
-    path_m: np.ndarray,
-    tool_normal_m: np.ndarray,
-    tool_radius_m: float,
-) -> FinishedWall:
-    """The wall the ball cutter leaves: at each station the lowest reach of the ball over the
-    tool positions within one radius along the path, h + r - sqrt(r^2 - ds^2), clipped by the
-    stock (where the tool never reached the stock surface the stock remains)."""
-    ds = float(s_st[1] - s_st[0])
-    n_st = len(s_st)
-    idx = np.clip(np.rint(path_m / ds).astype(np.int64), 0, n_st - 1)
-    reach = np.full(n_st, np.inf)
-    np.minimum.at(reach, idx, tool_normal_m)
-    envelope = reach.copy()
-    r = tool_radius_m
-    for shift in range(1, int(r / ds) + 1):
-        rise = r - math.sqrt(max(r * r - (shift * ds) ** 2, 0.0))
-        envelope[shift:] = np.minimum(envelope[shift:], reach[:-shift] + rise)
-        envelope[:-shift] = np.minimum(envelope[:-shift], reach[shift:] + rise)
-    return FinishedWall(s_st, allowance_m, np.minimum(allowance_m, envelope))
-
-
-def summarize(
-    settings: MachiningSettings,
-    trace: MachiningTrace,
-    wall: FinishedWall,
-    *,
-    v_prog: np.ndarray,
-    cycle_time_s: float | None,
-    stop_time_s: float | None,
-    constant_feed_m_s: float | None,
-    wall_time_s: float,
-    max_depth_m: float,
-) -> dict[str, Any]:
-    """The figures of a run, units in the keys.
-
-    ``force_rms_error_N`` is taken where the reference is binding: where the steady force at
-    the programmed speed and the depth met would exceed Fr (CMRR must act there); elsewhere
-    the force is below Fr at full programmed speed by design.
-    """
-    fr = settings.reference_N
-    process = settings.process
-    full_speed = steady_force_N(process, trace.depth_m, v_prog)
-    binding = full_speed >= fr
-    sel = binding if np.any(binding) else trace.depth_m > 0.0
-    err = trace.force_N[sel] - fr
-    e = wall.error_m
-    i_max = int(np.argmax(np.abs(e)))
-    removed = float(np.trapezoid(wall.allowance_m - wall.finished_m, wall.s_m))
-    volume_mm3 = removed * settings.axial_engagement_m / MM**3
-    sim_time = float(trace.time_s[-1]) if len(trace) else 0.0
-    return {
-        "controller": settings.controller,
-        "compensation": settings.compensation,
-        "completed": cycle_time_s is not None,
-        "cycle_time_s": cycle_time_s,
-        "stop_time_s": stop_time_s,
-        "samples": len(trace),
-        "path_length_mm": float(wall.s_m[-1]) / MM,
-        "force_peak_N": float(np.max(trace.force_N)),
-        "force_limit_N": settings.force_limit_N,
-        "force_reference_N": fr,
-        "force_rms_error_N": float(np.sqrt(np.mean(err**2))) if err.size else 0.0,
-        "force_over_limit_fraction": float(np.mean(trace.force_N > settings.force_limit_N)),
-        "wall_error_max_mm": float(abs(e[i_max])) / MM,
-        "wall_error_max_at_path_mm": float(wall.s_m[i_max]) / MM,
-        "wall_error_rms_mm": float(np.sqrt(np.mean(e**2))) / MM,
-        "material_left_max_mm": max(0.0, float(e.max())) / MM,
-        "overcut_max_mm": max(0.0, float(-e.min())) / MM,
-        "deflection_max_mm": float(np.max(trace.deflection_m)) / MM,
-        "depth_max_mm": max_depth_m / MM,
-        "feed_mean_mm_s": float(np.mean(trace.feed_m_s)) / MM,
-        "constant_feed_mm_s": None if constant_feed_m_s is None else constant_feed_m_s / MM,
-        "removed_volume_mm3": volume_mm3,
-        "mrr_mean_mm3_s": volume_mm3 / cycle_time_s if cycle_time_s else None,
-        "sim_time_s": sim_time,
-        "wall_time_s": wall_time_s,
-        "realtime_factor": sim_time / wall_time_s if wall_time_s > 0 else None,
-    }

@@ -13,6 +13,15 @@ from typing import Any, Literal, get_args
 
 from ..cmrr.controllers import CONTROLLER_NAMES, ControllerSettings
 from ..cmrr.process import DEFAULT_TAU_M_S, PowerLawForceModel
+from ..limits import (
+    CMRR_COMMAND_SPEED_MM_S,
+    CMRR_MIN_SPEED_RATIO,
+    CMRR_REFERENCE_FORCE_N,
+    MACHINING_DEPTH_EXPONENT,
+    MACHINING_FEED_EXPONENT,
+    MACHINING_FORCE_LIMIT_N,
+    MACHINING_PROCESS_GAIN_N,
+)
 from .errors import MachiningSettingsError
 
 MM = 1e-3
@@ -25,16 +34,23 @@ ControllerName = Literal["constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-st
 MACHINING_CONTROLLERS: tuple[str, ...] = get_args(ControllerName)
 assert set(MACHINING_CONTROLLERS) == set(CONTROLLER_NAMES)
 
-# (field, low, high, low inclusive, unit) of the scalar settings.
+# (field, low, high, low inclusive, unit) of the scalar settings. The ones a user sets at the
+# boundary come from ``limits`` (closed ranges), so an advertised value is never refused here
+# or, through the CMRR settings the choice makes, under another field's name.
 _RANGES: dict[str, tuple[float, float, bool, str]] = {
-    "process_gain_N": (0.0, 1.0e4, False, "N"),
-    "depth_exponent": (0.0, 3.0, True, ""),
-    "feed_exponent": (0.0, 2.0, False, ""),
+    "process_gain_N": (MACHINING_PROCESS_GAIN_N.min, MACHINING_PROCESS_GAIN_N.max, True, "N"),
+    "depth_exponent": (MACHINING_DEPTH_EXPONENT.min, MACHINING_DEPTH_EXPONENT.max, True, ""),
+    "feed_exponent": (MACHINING_FEED_EXPONENT.min, MACHINING_FEED_EXPONENT.max, True, ""),
     "process_time_constant_s": (0.0, 1.0, True, "s"),
-    "force_limit_N": (0.0, 5.0e3, False, "N"),
-    "command_speed_cap_m_s": (0.0, 0.5, False, "m/s"),
+    "force_limit_N": (MACHINING_FORCE_LIMIT_N.min, MACHINING_FORCE_LIMIT_N.max, True, "N"),
+    "command_speed_cap_m_s": (
+        CMRR_COMMAND_SPEED_MM_S.min * MM,
+        CMRR_COMMAND_SPEED_MM_S.max * MM,
+        True,
+        "m/s",
+    ),  # fmt: skip
     "path_acceleration_m_s2": (0.0, 10.0, False, "m/s^2"),
-    "min_speed_ratio": (0.0, 1.0, False, ""),
+    "min_speed_ratio": (CMRR_MIN_SPEED_RATIO.min, CMRR_MIN_SPEED_RATIO.max, True, ""),
     "feed_force_ratio": (0.0, 2.0, True, ""),
     "axial_engagement_m": (0.0, 0.05, False, "m"),
     "sensor_noise_N": (0.0, 50.0, True, "N"),
@@ -139,10 +155,15 @@ class MachiningSettings:
                 f"the controller is {self.controller!r}"
             )
         ref = self.reference_force_N
-        if ref is not None and not (math.isfinite(ref) and 0.0 < ref <= self.force_limit_N):
+        top = min(self.force_limit_N, CMRR_REFERENCE_FORCE_N.max)
+        if ref is not None and not (
+            isinstance(ref, (int, float))
+            and math.isfinite(ref)
+            and CMRR_REFERENCE_FORCE_N.min <= ref <= top
+        ):
             raise MachiningSettingsError(
-                f"reference_force_N must be in (0, {self.force_limit_N:g}] N (the force limit), "
-                f"got {ref!r}"
+                f"reference_force_N must be within {CMRR_REFERENCE_FORCE_N.min:g}-{top:g} N "
+                f"(at most the force limit), got {ref!r}"
             )
         cf = self.constant_feed_m_s
         if cf is not None and not (math.isfinite(cf) and 0.0 < cf <= self.command_speed_cap_m_s):

@@ -37,6 +37,9 @@ LEAD_IN_M = 5.0 * MM
 PROFILE_SPACING_M = 0.1 * MM
 # A user allowance beyond this is not an allowance but a different part [m].
 MAX_ALLOWANCE_M = 20.0 * MM
+# A user profile: at most this many points, along at most this much path [mm].
+MAX_PROFILE_POINTS = 100_000
+MAX_PROFILE_S_MM = 100_000.0
 # Ray casting of a stock mesh: start this far inside the nominal wall, search this far out [m].
 RAY_INSET_M = 0.05 * MM
 RAY_RANGE_M = MAX_ALLOWANCE_M
@@ -70,6 +73,8 @@ class Stock:
         profile_allowance_m: (k,) allowance at ``profile_s_m`` (burrs included).
         burrs: The burrs of a built-in stock (empty for profiles and meshes).
         source: ``"builtin"``, ``"profile"`` or ``"mesh"``.
+        material_factor: The casting's material coefficient relative to the nominal one: it
+            scales the process gain K of the cut (1.0: the material the process was fitted on).
     """
 
     path_points_m: np.ndarray
@@ -79,6 +84,12 @@ class Stock:
     profile_allowance_m: np.ndarray
     burrs: tuple[Burr, ...] = ()
     source: str = "builtin"
+    material_factor: float = 1.0
+
+    @property
+    def path_s_m(self) -> np.ndarray:
+        """(n,) arc length of the path points [m]."""
+        return arc_length_m(self.path_points_m)
 
     @property
     def path_length_m(self) -> float:
@@ -216,25 +227,54 @@ def stock_from_profile(
     between the points, flat before the first and after the last.
     """
     p, n = _path_and_normals(path_points_m, wall_normals_m)
-    try:
-        table = np.asarray(profile_mm, dtype=float).reshape(-1, 2)
-    except (TypeError, ValueError):
-        raise StockError("the allowance profile must be pairs (s_mm, allowance_mm)") from None
-    if len(table) == 0 or not np.all(np.isfinite(table)):
-        raise StockError("the allowance profile needs at least one finite (s_mm, allowance_mm)")
+    table = np.asarray(check_profile_mm(profile_mm), dtype=float)
     s, a = table[:, 0] * MM, table[:, 1] * MM
     length = float(arc_length_m(p)[-1])
-    if np.any(np.diff(s) <= 0.0):
-        raise StockError("the allowance profile's s_mm must increase strictly")
-    if s[0] < 0.0 or s[-1] > length + 1e-9:
+    if s[-1] > length + 1e-9:
         raise StockError(
-            f"the allowance profile's s_mm must lie in [0, {length / MM:.1f}] mm (the path length)"
+            f"the allowance profile's s_mm must lie in [0, {length / MM:.1f}] mm (the path "
+            f"length), got {s[-1] / MM:g} mm"
         )
-    if np.any(a < 0.0) or np.any(a > MAX_ALLOWANCE_M):
-        raise StockError(f"allowances must be in [0, {MAX_ALLOWANCE_M / MM:g}] mm")
     grid = np.linspace(0.0, length, max(2, int(np.ceil(length / PROFILE_SPACING_M)) + 1))
     grid = np.union1d(grid, s)
     return Stock(p, n, _check_radius(tool_radius_m), grid, np.interp(grid, s, a), (), "profile")
+
+
+def check_profile_mm(profile_mm: Sequence[tuple[float, float]]) -> tuple[tuple[float, float], ...]:
+    """The allowance profile as ((s_mm, allowance_mm), ...), or ``StockError`` naming what is
+    wrong: pairs of finite numbers, at most ``MAX_PROFILE_POINTS``, s_mm from 0 up to
+    ``MAX_PROFILE_S_MM`` and strictly increasing, allowances within 0-20 mm. (Whether the
+    profile fits the program's path is checked when the stock is built on it.)"""
+    try:
+        table = np.asarray(profile_mm, dtype=float)
+    except (TypeError, ValueError):
+        raise StockError("the allowance profile must be pairs (s_mm, allowance_mm)") from None
+    if table.ndim != 2 or table.shape[1] != 2 or len(table) == 0:
+        raise StockError("the allowance profile must be one or more pairs (s_mm, allowance_mm)")
+    if len(table) > MAX_PROFILE_POINTS:
+        raise StockError(
+            f"the allowance profile has {len(table)} points, more than {MAX_PROFILE_POINTS}"
+        )
+    bad = ~np.isfinite(table)
+    if np.any(bad):
+        row = int(np.argmax(bad.any(axis=1)))
+        raise StockError(
+            f"the allowance profile's point {row + 1} is not finite: {table[row].tolist()}"
+        )
+    s, a = table[:, 0], table[:, 1]
+    if s[0] < 0.0 or s[-1] > MAX_PROFILE_S_MM:
+        raise StockError(
+            f"the allowance profile's s_mm must lie within 0-{MAX_PROFILE_S_MM:g} mm along the path"
+        )
+    if np.any(np.diff(s) <= 0.0):
+        raise StockError("the allowance profile's s_mm must increase strictly")
+    if np.any(a < 0.0) or np.any(a > MAX_ALLOWANCE_M / MM):
+        row = int(np.argmax((a < 0.0) | (a > MAX_ALLOWANCE_M / MM)))
+        raise StockError(
+            f"allowances must be within 0-{MAX_ALLOWANCE_M / MM:g} mm, got {a[row]:g} mm at "
+            f"s = {s[row]:g} mm"
+        )
+    return tuple((float(x), float(y)) for x, y in table)
 
 
 def stock_from_mesh(

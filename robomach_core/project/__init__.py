@@ -28,14 +28,17 @@ from ._file import save_project_file as save_project_file
 from ._machining import MachiningResult as MachiningResult
 from ._machining import MachiningSetup as MachiningSetup
 from ._machining import best_row as best_row
+from ._machining import capabilities_of as capabilities_of
 from ._machining import choose as choose
 from ._machining import cmrr_for as cmrr_for
 from ._machining import machine as machine
+from ._machining import machining_note as machining_note
 from ._machining import machining_result_document as machining_result_document
 from ._machining import machining_result_from_document as machining_result_from_document
 from ._machining import machining_setup_document as machining_setup_document
 from ._machining import machining_setup_from_document as machining_setup_from_document
 from ._machining import machining_setup_of as machining_setup_of
+from ._machining import stale_settings as stale_settings
 from ._machining import wall_normals_for_project as wall_normals_for_project
 from ._machining import with_machining_result as with_machining_result
 from ._machining import with_machining_setup as with_machining_setup

@@ -21,6 +21,7 @@ from ..errors import InvalidInputError
 from ..leadthrough import GuidePoint
 from ..path_learning import LearningStop, PathLearningSettings, Recording
 from ..postprocess import PostprocessSettings
+from ._file_check import check_project, read_project_arrays
 from ._machining import (
     MachiningSetup,
     machining_setup_document,
@@ -122,20 +123,21 @@ def load_project_file(path: str | Path) -> Project:
 
 def project_from_file_bytes(data: bytes, name: str = "project.npz") -> Project:
     """``load_project_file`` from bytes (uploads)."""
+    arrays = read_project_arrays(data, name)  # headers checked before any array is read
     try:
-        with np.load(io.BytesIO(data), allow_pickle=False) as npz:
-            arrays = {k: npz[k] for k in npz.files}
         doc = json.loads(arrays.pop("document").tobytes().decode())
-    except Exception as exc:  # noqa: BLE001 - any unreadable file is the user's to fix
+    except (UnicodeDecodeError, ValueError) as exc:
         raise ProjectFileError(f"{name}: not a robomach project file ({exc})") from None
-    if doc.get("format") != FORMAT or doc.get("version") != VERSION:
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT or doc.get("version") != VERSION:
+        doc = doc if isinstance(doc, dict) else {}
         raise ProjectFileError(
             f"{name}: not a robomach project file of version {VERSION} "
             f"(format {doc.get('format')!r}, version {doc.get('version')!r})"
         )
+    check_project(doc, arrays, name)  # lengths, types, finite, in range: before it is used
     try:
         return _project(doc, arrays)
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
         raise ProjectFileError(f"{name}: incomplete or damaged project file ({exc})") from None
 
 

@@ -19,8 +19,10 @@ SOLUTION  ``choose`` saves the configuration: it sets the machining settings' co
           thing. ``program_targets`` then exports the run's corrected program when offline
           compensation is chosen and the machining result holding it is current.
 
-Choice rule (``best_row``): among completed runs whose peak force stays within 10 % of the
-limit, those within 5 % of the fastest cycle time; of these the smallest finished-wall max error.
+Choice rule (``machining.choice.choose``, the one the CLI, REST and both GUIs use): among the
+completed runs the cell can run (``capabilities_of``) whose peak force stays within 10 % of the
+limit, those within 5 % of the fastest cycle time; of these the smallest finished-wall max
+error; with a variation sweep (``MachiningSetup.variations``) on the 95th percentiles.
 """
 
 from __future__ import annotations
@@ -43,9 +45,8 @@ from ._value import Project, machining_inputs_key
 
 MM = 1e-3
 STOCK_SOURCES = ("builtin", "profile", "mesh")
-# The choice: peak force within this share above the limit, cycle within this of the fastest.
-PEAK_MARGIN = 0.10
-CYCLE_MARGIN = 0.05
+# Stocks of a variation sweep (0: the one stock only).
+MAX_VARIATIONS = 1000
 # compensation choice -> the compensation settings' mode of the exported program.
 EXPORT_COMPENSATION_MODES = {"off": "off", "offline": "offline_linear", "online": "online"}
 EXPORT_MODE_CHOICES = {
@@ -66,12 +67,18 @@ class MachiningSetup:
         stock_source: ``"builtin"`` (from the cell's seed), ``"profile"`` or ``"mesh"``.
         stock_profile_mm: ((s_mm, allowance_mm), ...) for ``"profile"``.
         stock_mesh: (filename, bytes) of a stock mesh (mm, base frame) for ``"mesh"``.
+        cell_options: The cell's controller options (``machining.choice.OPTION_NAMES``);
+            None: the defaults of the arm's program language.
+        variations: Stocks drawn from the part's variation per configuration (0: the one
+            stock); the choice then reads the 95th percentiles.
     """
 
     settings: Any = None
     stock_source: str = "builtin"
     stock_profile_mm: tuple[tuple[float, float], ...] | None = None
     stock_mesh: tuple[str, bytes] | None = field(default=None, repr=False)
+    cell_options: tuple[str, ...] | None = None
+    variations: int = 0
 
     def __post_init__(self) -> None:
         if self.settings is None:
@@ -84,8 +91,23 @@ class MachiningSetup:
             )
         if self.stock_source == "profile" and not self.stock_profile_mm:
             raise InvalidInputError("a profile stock needs its allowance profile (s_mm, mm)")
+        if self.stock_profile_mm is not None:
+            from ..machining.stock import check_profile_mm
+
+            object.__setattr__(self, "stock_profile_mm", check_profile_mm(self.stock_profile_mm))
         if self.stock_source == "mesh" and self.stock_mesh is None:
             raise InvalidInputError("a mesh stock needs its mesh file")
+        if self.cell_options is not None:
+            from ..machining.choice import CellCapabilities
+
+            options = tuple(sorted(CellCapabilities(frozenset(self.cell_options)).options))
+            object.__setattr__(self, "cell_options", options)
+        if isinstance(self.variations, bool) or not (
+            isinstance(self.variations, int) and 0 <= self.variations <= MAX_VARIATIONS
+        ):
+            raise InvalidInputError(
+                f"variations must be an integer within 0-{MAX_VARIATIONS}, got {self.variations!r}"
+            )
 
     def key(self) -> str:
         """Fingerprint of what a result depends on: everything but the chosen controller and
@@ -104,6 +126,8 @@ class MachiningSetup:
         h.update(json.dumps(doc, sort_keys=True, default=str).encode())
         h.update(self.stock_source.encode())
         h.update(json.dumps(self.stock_profile_mm).encode())
+        if self.variations:
+            h.update(f"variations {self.variations}".encode())
         if self.stock_mesh is not None:
             h.update(self.stock_mesh[0].encode())
             h.update(self.stock_mesh[1])
@@ -121,34 +145,61 @@ class MachiningResult:
     """The machining stage's result (the project's ``machining`` slot).
 
     Attributes:
-        rows: One dict per run (``machining.comparison_rows``: units in the keys).
+        rows: One dict per configuration (``machining.comparison_rows``: units in the keys;
+            with a variation sweep also its p50 / p95 figures), ``runnable`` and ``needs``
+            marked for the cell it was chosen for.
         table_text: The side-by-side table.
-        chosen: Index into ``rows`` of the configuration ``best_row`` picks.
+        chosen: Index into ``rows`` of the rule's pick (``machining.choice.choose``); None
+            when the cell can run no completed configuration.
         programs: "controller/compensation" -> corrected program of each offline run.
         runs: The ``MachiningRun`` values (traces), when computed in this process.
         stock: The ``machining.Stock`` cut (None when read back from a store).
         inputs: ``machining_inputs_key`` of the project it was computed from.
+        reason: The rule's reason for ``chosen``, in words.
+        capabilities: The cell options the rows were marked for.
+        variation: The variation sweep (stocks, seed, ranges) or None.
     """
 
     rows: tuple[dict[str, Any], ...]
     table_text: str
-    chosen: int
+    chosen: int | None
     programs: dict[str, Targets]
     runs: tuple[Any, ...] = ()
     stock: Any = None
     inputs: str = ""
+    reason: str = ""
+    capabilities: tuple[str, ...] = ()
+    variation: dict[str, Any] | None = None
 
     def summary(self) -> dict[str, Any]:
-        """``machining_summary.json``: the runs and which one the rule chose."""
-        chosen = self.rows[self.chosen]
+        """``machining_summary.json``: the runs, the rule's pick and why."""
+        from ..machining.choice import RULE_TEXT
+
+        chosen = None if self.chosen is None else self.rows[self.chosen]
         return {
             "runs": [dict(r, chosen=i == self.chosen) for i, r in enumerate(self.rows)],
-            "chosen": {"controller": chosen["controller"], "compensation": chosen["compensation"]},
-            "choice_rule": (
-                f"completed runs with peak force within {PEAK_MARGIN:.0%} of the limit; of those "
-                f"within {CYCLE_MARGIN:.0%} of the fastest cycle, the smallest wall max error"
-            ),
+            "chosen": None
+            if chosen is None
+            else {"controller": chosen["controller"], "compensation": chosen["compensation"]},
+            "choice_rule": RULE_TEXT,
+            "choice_reason": self.reason,
+            "cell_options": list(self.capabilities),
+            "variation": self.variation,
         }
+
+    def for_cell(self, capabilities: Any) -> MachiningResult:
+        """The result re-chosen for another cell (rows re-marked; the figures are the same)."""
+        from ..machining.choice import choose, mark_runnable
+
+        rows = tuple(mark_runnable(list(self.rows), capabilities))
+        pick = choose(list(rows), capabilities)
+        return replace(
+            self,
+            rows=rows,
+            chosen=pick.index,
+            reason=pick.reason,
+            capabilities=tuple(sorted(capabilities.options)),
+        )
 
     def run_for(self, controller: str, compensation: str) -> Any:
         """The ``MachiningRun`` of a configuration, or None."""
@@ -156,6 +207,22 @@ class MachiningResult:
             if run.controller == controller and run.compensation == compensation:
                 return run
         return None
+
+
+def capabilities_of(project: Project) -> Any:
+    """The cell's controller options: the machining setup's, else the defaults of the program
+    language of the cell's arm (``machining.choice.LANGUAGE_DEFAULT_OPTIONS``)."""
+    from ..machining.choice import CellCapabilities
+    from ..robot import program_language
+
+    setup = project.machining_settings
+    if isinstance(setup, MachiningSetup) and setup.cell_options is not None:
+        return CellCapabilities(frozenset(setup.cell_options))
+    try:
+        language = program_language(project.cell.robot)
+    except Exception:  # an arm not (yet) registered in this process: no options assumed
+        language = ""
+    return CellCapabilities.for_language(language)
 
 
 def machining_setup_of(project: Project) -> MachiningSetup:
@@ -263,17 +330,26 @@ def machine(
     compensations: tuple[str, ...] | None = None,
     progress: Callable[[float], None] | None = None,
     cancel: Any = None,
+    workers: int | None = 1,
+    cluster: str | None = None,
 ) -> MachiningResult:
-    """Cut the project's current program (``machining.compare_configurations``).
+    """Cut the project's current program, one configuration or the matrix, on the stock and,
+    with ``MachiningSetup.variations``, on that many stocks drawn from the part's variation.
 
     ``controllers`` / ``compensations`` None run the chosen one of the project's settings; give
-    tuples for the matrix. ``cancel`` (flag or callable) raises ``CancelledError``. The result
-    is stamped with ``machining_inputs_key(project)``; store it with ``with_machining_result``.
+    tuples for the matrix. ``workers`` local processes (None: every core, 1: this process) or
+    a Dask ``cluster`` address run the cuts (``machining.parallel``); ``cancel`` (flag or
+    callable) raises ``CancelledError``. The result is stamped with
+    ``machining_inputs_key(project)``; store it with ``with_machining_result``.
 
     Raises:
         MissingResultError / StaleResultError: no current post-processed program.
     """
-    from ..machining import compare_configurations
+    from ..machining import format_table
+    from ..machining.choice import PEAK_MARGIN, choose, mark_runnable
+    from ..machining.compare import comparison_rows
+    from ..machining.parallel import CutTask, run_tasks
+    from ..machining.variation import StockVariation, draw_stocks, variation_rows
 
     processed = require_processed(project)
     targets = processed.result.targets
@@ -284,37 +360,89 @@ def machine(
     ctrls = (s.controller,) if controllers is None else tuple(controllers)
     comps = (s.compensation,) if compensations is None else tuple(compensations)
     model = compensation_model(project, robot.name) if any(m != "off" for m in comps) else None
-    comparison = compare_configurations(
-        robot,
-        targets,
-        normals,
-        stock,
-        s,
-        controllers=ctrls,
-        compensations=comps,
-        compensation_model=model,
-        progress=progress,
-        cancel=cancel,
+    # A controller's modes run in order in one task: offline rehearses from its off run.
+    modes = tuple(m for m in ("off", "offline", "online") if m in comps)
+    if "offline" in modes and "off" not in modes:
+        modes = ("off", *modes)
+    pairs = [(c, m) for c in ctrls for m in comps]
+    cancelled = _cancel_callable(cancel)
+    stocks = [stock]
+    variation = None
+    if setup.variations:
+        spec = StockVariation()
+        stocks += draw_stocks(stock, setup.variations, project.cell.seed, spec)
+        variation = {
+            "stocks": setup.variations,
+            "seed": project.cell.seed,
+            "ranges": spec.describe(),
+        }
+    tasks = [
+        CutTask(
+            robot.name,
+            robot.T_flange_tcp,
+            targets,
+            normals,
+            st,
+            s,
+            c,
+            modes,
+            model,
+            keep_runs=i == 0,
+        )  # fmt: skip
+        for i, st in enumerate(stocks)
+        for c in ctrls
+    ]
+    results = run_tasks(
+        tasks, workers=workers, cluster=cluster, progress=progress, cancel=cancelled
     )
-    # Each run's full summary, with the table's comparison figures.
-    rows = tuple(
-        _plain_row({**run.summary, **row})
-        for run, row in zip(comparison.runs, comparison.rows, strict=True)
-    )
+    # results[i * len(ctrls) + j][k]: stock i, controller j, mode k.
+    per_stock: list[dict[tuple[str, str], tuple]] = []
+    for i in range(len(stocks)):
+        out = {}
+        for j, c in enumerate(ctrls):
+            for k, m in enumerate(modes):
+                out[c, m] = results[i * len(ctrls) + j][k]
+        per_stock.append(out)
+    nominal = per_stock[0]
+    runs = [nominal[p][0] for p in pairs if nominal[p][0] is not None]
+    refused = {p: nominal[p][2] for p in pairs if nominal[p][2] is not None}
+    rows = comparison_rows(runs, refused=refused, order=pairs)
+    rows = [
+        _plain_row({**(nominal[p][1] or {}), **row}) for p, row in zip(pairs, rows, strict=True)
+    ]
+    if variation is not None:
+        summaries = [[per_stock[i][p][1] for i in range(1, len(stocks))] for p in pairs]
+        stats = variation_rows(
+            summaries, pairs, force_limit_N=s.force_limit_N, peak_margin=PEAK_MARGIN
+        )
+        rows = [dict(row, **_plain_row(st)) for row, st in zip(rows, stats, strict=True)]
+    capabilities = capabilities_of(project)
+    rows = mark_runnable(rows, capabilities)
+    pick = choose(rows, capabilities)
     programs = {
         f"{r.controller}/{r.compensation}": r.program
-        for r in comparison.runs
+        for r in runs
         if r.compensation == "offline" and r.program is not None
     }
     return MachiningResult(
-        rows=rows,
-        table_text=comparison.table_text,
-        chosen=best_row(rows),
+        rows=tuple(rows),
+        table_text=format_table(rows),
+        chosen=pick.index,
         programs=programs,
-        runs=tuple(comparison.runs),
+        runs=tuple(runs),
         stock=stock,
         inputs=machining_inputs_key(project),
+        reason=pick.reason,
+        capabilities=tuple(sorted(capabilities.options)),
+        variation=variation,
     )
+
+
+def _cancel_callable(cancel: Any) -> Callable[[], bool] | None:
+    if cancel is None:
+        return None
+    is_set = getattr(cancel, "is_set", None)
+    return is_set if callable(is_set) else cancel
 
 
 def _plain_row(row: dict[str, Any]) -> dict[str, Any]:
@@ -323,19 +451,15 @@ def _plain_row(row: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def best_row(rows: tuple[dict[str, Any], ...] | list[dict[str, Any]]) -> int:
-    """Index of the configuration to choose (module docstring); the smallest wall error of all
-    completed runs when none keeps the force, and 0 when none completed."""
-    done = [i for i, r in enumerate(rows) if r.get("completed") and r.get("cycle_time_s")]
-    if not done:
-        return 0
-    safe = [
-        i for i in done if rows[i]["force_peak_N"] <= (1 + PEAK_MARGIN) * rows[i]["force_limit_N"]
-    ]
-    pool = safe or done
-    fastest = min(rows[i]["cycle_time_s"] for i in pool)
-    quick = [i for i in pool if rows[i]["cycle_time_s"] <= (1 + CYCLE_MARGIN) * fastest]
-    return min(quick, key=lambda i: (rows[i]["wall_error_max_mm"], rows[i]["cycle_time_s"]))
+def best_row(
+    rows: tuple[dict[str, Any], ...] | list[dict[str, Any]], capabilities: Any = None
+) -> int | None:
+    """Index of the configuration to choose (``machining.choice.choose``; every configuration
+    counts as runnable without ``capabilities``); None when none completed."""
+    from ..machining.choice import OPTION_NAMES, CellCapabilities, choose
+
+    caps = capabilities or CellCapabilities(frozenset(OPTION_NAMES))
+    return choose(list(rows), caps).index
 
 
 def with_machining_result(project: Project, result: MachiningResult) -> Project:
@@ -369,7 +493,8 @@ def choose(project: Project, controller: str, compensation: str) -> Project:
     if s.controller_settings is not None and s.controller_settings.kind != controller:
         s = replace(s, controller_settings=None)
     setup = replace(setup, settings=s)
-    project = replace(project, machining_settings=setup, cmrr=cmrr_for(s))
+    project = replace(project, machining_settings=setup)
+    project = replace(project, cmrr=cmrr_for(s, designed=_designed_settings(project, controller)))
     comp = project.compensation
     mode = EXPORT_COMPENSATION_MODES[compensation]
     if compensation != "off" and (comp is None or comp.robot != project.cell.robot):
@@ -393,16 +518,35 @@ def choose(project: Project, controller: str, compensation: str) -> Project:
     return replace(project, compensation=comp)
 
 
-def cmrr_for(settings: Any) -> Any:
+def _designed_settings(project: Project, controller: str) -> Any:
+    """The controller's settings as the current machining result designed them for the cut
+    (``machining.design``: e.g. the two-stage low stage), or None."""
+    result = project.machining
+    if not isinstance(result, MachiningResult) or project.status()["machining"] != "current":
+        return None
+    from ..cmrr.settings import controller_settings_from_dict
+
+    for row in result.rows:
+        doc = row.get("controller_settings")
+        if row["controller"] == controller and doc:
+            try:
+                return controller_settings_from_dict(controller, doc)
+            except InvalidInputError:
+                return None
+    return None
+
+
+def cmrr_for(settings: Any, *, designed: Any = None) -> Any:
     """The CMRR settings of a machining configuration (None for constant feed): the same
-    controller, reference force, speed cap and minimum speed ratio the run used."""
+    controller (as ``designed`` for the cut, when given), reference force, speed cap and
+    minimum speed ratio the run used."""
     if settings.controller == "constant":
         return None
     from ..cmrr import CmrrSettings
     from ..cmrr.controllers import settings_for
 
     return CmrrSettings(
-        controller=settings.controller_settings or settings_for(settings.controller),
+        controller=settings.controller_settings or designed or settings_for(settings.controller),
         reference_force_N=settings.reference_N,
         command_speed_m_s=settings.command_speed_cap_m_s,
         min_speed_ratio=settings.min_speed_ratio,
@@ -425,8 +569,8 @@ def chosen_program(project: Project) -> tuple[Targets, str] | None:
         return None
     nominal = require_processed(project).result.targets
     return program, (
-        f"deflection compensation: offline for the {s.controller} cut's predicted process "
-        f"force, {len(program)} targets from {len(nominal)}"
+        f"deflection compensation: offline, planned from rehearsals of the {s.controller} cut "
+        f"on the stock, {len(program)} targets from {len(nominal)}"
     )
 
 
@@ -444,6 +588,8 @@ def machining_setup_document(setup: MachiningSetup) -> dict[str, Any]:
         if setup.stock_profile_mm is None
         else [list(p) for p in setup.stock_profile_mm],
         "stock_mesh": None if setup.stock_mesh is None else setup.stock_mesh[0],
+        "cell_options": None if setup.cell_options is None else list(setup.cell_options),
+        "variations": setup.variations,
     }
 
 
@@ -459,11 +605,14 @@ def machining_setup_from_document(doc: dict[str, Any], mesh: tuple[str, bytes] |
     source = doc.get("stock_source", "builtin")
     if source == "mesh" and mesh is None:
         source = "builtin"
+    options = doc.get("cell_options")
     return MachiningSetup(
         settings,
         source,
         None if profile is None else tuple((float(a), float(b)) for a, b in profile),
         mesh if source == "mesh" else None,
+        cell_options=None if options is None else tuple(str(o) for o in options),
+        variations=int(doc.get("variations") or 0),
     )
 
 
@@ -475,16 +624,23 @@ def machining_result_document(result: MachiningResult) -> dict[str, Any]:
         "chosen": result.chosen,
         "inputs": result.inputs,
         "programs": {k: _targets_doc(t) for k, t in result.programs.items()},
+        "reason": result.reason,
+        "capabilities": list(result.capabilities),
+        "variation": result.variation,
     }
 
 
 def machining_result_from_document(doc: dict[str, Any]) -> MachiningResult:
+    chosen = doc.get("chosen")
     return MachiningResult(
         rows=tuple(doc["rows"]),
         table_text=str(doc["table_text"]),
-        chosen=int(doc["chosen"]),
+        chosen=None if chosen is None else int(chosen),
         programs={k: _targets_from(v) for k, v in (doc.get("programs") or {}).items()},
         inputs=str(doc["inputs"]),
+        reason=str(doc.get("reason") or ""),
+        capabilities=tuple(doc.get("capabilities") or ()),
+        variation=doc.get("variation"),
     )
 
 
@@ -500,4 +656,56 @@ def _targets_from(doc: dict[str, Any]) -> Targets:
         speed_m_s=np.asarray(doc["speed_m_s"], dtype=float),
         curvature_1_m=np.asarray(doc["curvature_1_m"], dtype=float),
         sample_index=np.asarray(doc["sample_index"], dtype=int),
+    )
+
+
+# --- what the program needs from the cell, and settings of another arm ---------------------
+
+
+def machining_note(project: Project) -> str | None:
+    """The program header's line on the chosen configuration: what it needs from the cell
+    and whether the cell (``capabilities_of``) has it; None without machining settings."""
+    from ..machining.choice import REQUIREMENT_TEXT, missing, requirements
+
+    if not isinstance(project.machining_settings, MachiningSetup):
+        return None
+    s = machining_setup_of(project).settings
+    caps = capabilities_of(project)
+    needs = requirements(s.controller, s.compensation)
+    lacks = set(missing(s.controller, s.compensation, caps))
+    head = f"machining: {s.controller} / {s.compensation}"
+    if not needs:
+        return f"{head}; needs nothing from the cell beyond this program"
+    parts = [
+        f"{REQUIREMENT_TEXT[r]} ({'MISSING in this cell' if r in lacks else 'the cell has it'})"
+        for r in needs
+    ]
+    return f"{head}; the cell must provide " + " and ".join(parts)
+
+
+def stale_settings(project: Project) -> dict[str, str]:
+    """Settings that belong to another arm than the cell's, with a sentence each: they are
+    re-derived for the cell's arm when the program is exported, not a reason to refuse it."""
+    comp = project.compensation
+    if comp is not None and comp.robot != project.cell.robot:
+        return {
+            "compensation": (
+                f"the compensation's joint stiffness was identified on {comp.robot}; the "
+                f"export re-derives it for {project.cell.robot} (simulated CMM campaign)"
+            )
+        }
+    return {}
+
+
+def compensation_for_arm(project: Project, robot_name: str) -> Any:
+    """The project's compensation settings for ``robot_name``: as they are when identified on
+    it, else re-derived (the simulated CMM campaign's stiffness, the same mode and tool)."""
+    comp = project.compensation
+    if comp is None or comp.robot == robot_name:
+        return comp
+    model = compensation_model(replace(project, compensation=None), robot_name)
+    return replace(
+        comp,
+        robot=robot_name,
+        joint_stiffness_Nm_rad=tuple(float(k) for k in model.stiffness_Nm_rad),
     )

@@ -199,8 +199,15 @@ def program_targets(project: Project, robot: Robot) -> tuple[Targets, str | None
         return chosen
     if project.compensation is None:
         return targets, None
-    return compensate_program_targets(
-        robot, project.learned.recording, targets, project.compensation
+    from ._machining import compensation_for_arm, stale_settings
+
+    compensation = compensation_for_arm(project, robot.name)  # settings of another arm: re-derived
+    corrected, note = compensate_program_targets(
+        robot, project.learned.recording, targets, compensation
+    )
+    stale = stale_settings(project).get("compensation")
+    return corrected, note if stale is None or compensation is project.compensation else (
+        f"{note}; {stale}"
     )
 
 
@@ -261,12 +268,9 @@ def wobj_transform(values: Sequence[float]) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
     from ..transforms import make_transform, rotation_about
+    from ._file_check import check_wobj
 
-    v = [float(x) for x in values]
-    if len(v) not in (3, 4, 6) or not all(np.isfinite(v)):
-        raise InvalidInputError(
-            "the work object is x,y,z in mm with an optional rz, or rx,ry,rz, in degrees"
-        )
+    v = check_wobj(list(values))  # limits.WOBJ_POSITION_MM and WOBJ_ROTATION_DEG
     if len(v) == 6:
         R = Rotation.from_euler("xyz", v[3:], degrees=True).as_matrix()
     else:

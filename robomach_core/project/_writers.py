@@ -43,6 +43,11 @@ def rapid_header(
         )
     if note is not None:
         lines.append(note)
+    from ._machining import machining_note  # what the chosen configuration needs from the cell
+
+    needs = machining_note(project)
+    if needs is not None:
+        lines.append(needs)
     return tuple(lines)
 
 

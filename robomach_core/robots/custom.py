@@ -29,16 +29,15 @@ SOLUTION  ``register_urdf(filename, data, family="auto") -> name``; ``Robot(name
 from __future__ import annotations
 
 import hashlib
-import io
 import re
 import xml.etree.ElementTree as ET
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import RobomachError
+from ..urdf_check import check_urdf_native, check_urdf_text, read_robot_zip
 
 MAX_ROBOT_FILE_BYTES = 50 * 1024 * 1024
 ROBOT_FILE_SUFFIXES = (".urdf", ".zip")
@@ -182,18 +181,8 @@ def urdf_from_file(filename: str, data: bytes) -> tuple[str, dict[str, bytes]]:
         )
     if suffix == ".urdf":
         return _decode(filename, data), {}
-    try:
-        archive = zipfile.ZipFile(io.BytesIO(data))
-        names = [n for n in archive.namelist() if not n.endswith("/")]
-        urdfs = [n for n in names if n.lower().endswith(".urdf")]
-        if len(urdfs) != 1:
-            raise RobotFileError(
-                f"{filename}: the zip holds {len(urdfs)} .urdf files; it must hold exactly one"
-            )
-        files = {n: archive.read(n) for n in names if n != urdfs[0]}
-        return _decode(urdfs[0], archive.read(urdfs[0])), files
-    except zipfile.BadZipFile:
-        raise RobotFileError(f"{filename}: not a readable zip file") from None
+    # Declared sizes summed before extraction; only the files the URDF references are read.
+    return read_robot_zip(filename, data, RobotFileError)
 
 
 def _decode(filename: str, data: bytes) -> str:
@@ -331,8 +320,10 @@ def _register_file(filename: str, data: bytes) -> str:
     if name in _URDF_TEXT:
         return name
     text, files = urdf_from_file(filename, data)
+    check_urdf_text(text, filename, RobotFileError)  # size, links, depth: before any parser
     chain = validate_urdf(text)
     normalised = with_flange(text, chain)
+    check_urdf_native(normalised, filename, RobotFileError)  # pinocchio once, in a child
     import pinocchio as pin
 
     try:

@@ -180,3 +180,48 @@ class Api:
             if job["status"] in ("queued", "running"):
                 self.http.post(f"/api/jobs/{job['job_id']}/cancel")
                 self.wait_job(job["job_id"])
+
+
+# --- memory of a running server (Linux /proc) ----------------------------------------------
+
+
+def _status_kb(pid: int, field: str) -> int:
+    with open(f"/proc/{pid}/status") as status:
+        for line in status:
+            if line.startswith(f"{field}:"):
+                return int(line.split()[1])
+    return 0
+
+
+def descendants(pid: int) -> list[int]:
+    """Every live process under ``pid`` (the isolation helper and its children)."""
+    found, frontier = [], [pid]
+    while frontier:
+        parent = frontier.pop()
+        try:
+            with open(f"/proc/{parent}/task/{parent}/children") as f:
+                kids = [int(k) for k in f.read().split()]
+        except OSError:
+            kids = []
+        found += kids
+        frontier += kids
+    return found
+
+
+def reset_peak_rss(pid: int) -> None:
+    """Start a new peak: the kernel sets ``VmHWM`` back to the current RSS (clear_refs 5)."""
+    for p in (pid, *descendants(pid)):
+        try:
+            with open(f"/proc/{p}/clear_refs", "w") as f:
+                f.write("5")
+        except OSError:
+            pass
+
+
+def peak_rss_bytes(pid: int) -> int:
+    """Peak resident memory (``VmHWM``) of ``pid`` since start or ``reset_peak_rss``."""
+    return _status_kb(pid, "VmHWM") * 1024
+
+
+def rss_bytes(pid: int) -> int:
+    return _status_kb(pid, "VmRSS") * 1024

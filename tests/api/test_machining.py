@@ -145,7 +145,7 @@ def test_cli_and_rest_write_the_same_program_for_the_same_project(api: Api, tmp_
     _run(api)
     rest = api.get("/api/export/rapid").text
     cli = (out / "program.mod").read_text()
-    assert "offline for the adaptive-pi cut" in cli and "FCSpdChgAct" in cli
+    assert "planned from rehearsals of the adaptive-pi cut" in cli and "FCSpdChgAct" in cli
     assert rest == cli
     fc = api.get(
         "/api/export/rapid", params={"force_control": True, "module_name": "LearnedPathFC"}
@@ -158,3 +158,66 @@ def test_cli_and_rest_write_the_same_program_for_the_same_project(api: Api, tmp_
     for key in ("project", "compliance"):  # the workbench's own: project name, compliance
         cli_doc.pop(key), rest_settings.pop(key)
     assert rest_settings == cli_doc
+
+
+@pytest.mark.parametrize(
+    ("content", "words"),
+    [
+        ('{"profile_mm": [[0, -1]]}', "greater than or equal to 0"),
+        ('{"profile_mm": [[0, NaN]]}', "finite number"),
+        ('{"profile_mm": [[0, 1], [5, 25]]}', "less than or equal to 20"),
+        ('{"profile_mm": [[5, 1], [5, 2]]}', "increase strictly"),
+        ('{"profile_mm": [[-3, 1]]}', "greater than or equal to 0"),
+    ],
+)
+def test_bad_stock_profiles_are_refused_before_they_are_stored(api: Api, content, words) -> None:
+    """Issue 19 R12: profiles with NaN, negative or out-of-range values were stored (200) and
+    failed only when the machining ran."""
+    r = api.put(
+        "/api/machining/stock/profile",
+        content=content,
+        headers={"content-type": "application/json"},
+    )
+    assert r.status_code == 422, r.text
+    assert words in r.text
+    assert api.ok("GET", "/api/machining/settings")["stock_source"] == "builtin"
+
+
+def test_every_advertised_force_limit_is_accepted_under_its_own_name(api: Api) -> None:
+    """Issue 19 R12: a limit inside the advertised range was refused as "reference_force_N ...
+    got 0.7". The schema's range is the one limits.py states, and both ends go through."""
+    from robomach_core.limits import MACHINING_FORCE_LIMIT_N
+
+    schema = api.ok("GET", "/openapi.json")["components"]["schemas"]["MachiningSettingsUpdate"]
+    limit = schema["properties"]["force_limit_N"]["anyOf"][0]
+    assert (limit["minimum"], limit["maximum"]) == (
+        MACHINING_FORCE_LIMIT_N.min,
+        MACHINING_FORCE_LIMIT_N.max,
+    )
+    for value in (MACHINING_FORCE_LIMIT_N.min, MACHINING_FORCE_LIMIT_N.max):
+        s = api.ok("PUT", "/api/machining/settings", json={"force_limit_N": value})
+        assert s["reference_force_N"] == pytest.approx(0.7 * value)
+        for controller in ("fixed-pi", "two-stage"):
+            chosen = api.ok(
+                "PUT",
+                "/api/machining/choice",
+                json={"controller": controller, "compensation": "off"},
+            )
+            assert chosen["controller"] == controller
+    r = api.put("/api/machining/settings", json={"force_limit_N": 1.0})
+    assert r.status_code == 422 and "force_limit_N" in r.text
+
+
+def test_the_cell_options_follow_the_arm_until_set(api: Api) -> None:
+    s = api.ok("GET", "/api/machining/settings")
+    assert s["cell_options"] == ["force_mode"] and s["cell_options_default"]  # UR10: URScript
+    s = api.ok("PUT", "/api/machining/settings", json={"cell_options": ["path_correction"]})
+    assert s["cell_options"] == ["path_correction"] and not s["cell_options_default"]
+    assert "MISSING" in s["program_needs"]  # the chosen adaptive-pi needs a feed override
+    s = api.ok("PUT", "/api/machining/settings", json={"cell_options_default": True})
+    assert s["cell_options"] == ["force_mode"] and s["cell_options_default"]
+    r = api.put("/api/machining/settings", json={"cell_options": ["laser"]})
+    assert r.status_code == 422
+    r = api.put("/api/machining/settings", json={"variations": 5000})
+    assert r.status_code == 422 and "1000" in r.text
+    assert api.ok("PUT", "/api/machining/settings", json={"variations": 3})["variations"] == 3

@@ -164,3 +164,68 @@ def test_the_workbench_reports_the_port_viser_bound(tmp_path: Path) -> None:
             reported = client.get("/api/workbench").json()["viser_port"]
             assert reported != asked and _reachable("127.0.0.1", reported)
             assert app.state.viser_port == reported
+
+
+# --- issue 19, R13: reads need the token too (on by default beyond loopback) -----------------
+
+GUARDED_READS = (
+    "/api/projects/current/project.npz",  # the customer's part and robot files
+    "/api/state",
+    "/api/exports",
+    "/api/guide-points",
+    "/api/cell",
+)
+
+
+@pytest.fixture(scope="module")
+def beyond_loopback() -> Iterator[TestClient]:
+    """The app as ``--host 0.0.0.0`` with a token serves it: reads guarded by default."""
+    settings = ServerSettings(viser_port=None, token=TOKEN, host="0.0.0.0")
+    assert settings.reads_need_token
+    with TestClient(create_app(Session(), settings), raise_server_exceptions=False) as client:
+        yield client
+
+
+@pytest.mark.parametrize("path", GUARDED_READS)
+def test_reads_need_the_token_beyond_loopback(beyond_loopback: TestClient, path: str) -> None:
+    beyond_loopback.cookies.clear()
+    r = beyond_loopback.get(path)
+    assert r.status_code == 401, r.text[:200]
+    assert "this read is guarded" in r.json()["detail"]
+    r = beyond_loopback.get(path, headers={"Authorization": "Bearer wrong-token-0123456789"})
+    assert r.status_code == 401 and r.json()["detail"] == "wrong token"
+    r = beyond_loopback.get(path, headers={"Authorization": f"Bearer {TOKEN}"})
+    assert r.status_code == 200, r.text[:200]
+
+
+def test_health_stays_open_for_liveness_probes(beyond_loopback: TestClient) -> None:
+    beyond_loopback.cookies.clear()
+    assert beyond_loopback.get("/api/health").status_code == 200
+
+
+def test_a_read_with_the_token_leaves_a_cookie_for_reads_only(beyond_loopback: TestClient) -> None:
+    """The browser's EventSource and downloads cannot send a header: the cookie stands in for
+    the token on reads (HttpOnly, SameSite=Strict), never on a mutating call."""
+    beyond_loopback.cookies.clear()
+    r = beyond_loopback.get("/api/state", headers={"X-Robomach-Token": TOKEN})
+    cookie = r.headers["set-cookie"]
+    assert "HttpOnly" in cookie and "SameSite=Strict" in cookie and TOKEN not in cookie
+    assert beyond_loopback.get("/api/projects/current/project.npz").status_code == 200
+    r = beyond_loopback.post("/api/guide-points")
+    assert r.status_code == 401 and "changes the workbench" in r.json()["detail"]
+    beyond_loopback.cookies.clear()
+    beyond_loopback.cookies.set("robomach_read", "0" * 64)  # a forged cookie
+    assert beyond_loopback.get("/api/state").status_code == 401
+
+
+def test_reads_on_loopback_are_open_unless_asked(guarded: TestClient) -> None:
+    assert guarded.get("/api/projects/current/project.npz").status_code == 200
+    settings = ServerSettings(viser_port=None, token=TOKEN, token_reads=True)
+    with TestClient(create_app(Session(), settings)) as client:
+        assert client.get("/api/state").status_code == 401
+    with pytest.raises(InvalidInputError, match="only when ROBOMACH_TOKEN is set"):
+        ServerSettings.from_env({}, token_reads=True)
+    settings = ServerSettings.from_env(
+        {"ROBOMACH_TOKEN": TOKEN, "ROBOMACH_HOST": "0.0.0.0", "ROBOMACH_TOKEN_READS": "0"}
+    )
+    assert not settings.reads_need_token

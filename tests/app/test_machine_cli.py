@@ -1,4 +1,5 @@
-"""``robomach machine`` end to end on a block demo project, and its answers to bad input."""
+"""``robomach machine`` end to end on a block demo project (slow: the shared demo subprocess),
+its exit codes, and its answers to bad input."""
 
 from __future__ import annotations
 
@@ -53,7 +54,7 @@ def _assert_one_line_error(proc: subprocess.CompletedProcess, *words: str) -> No
 
 
 @pytest.fixture(scope="module")
-def compared(tmp_path_factory) -> Path:
+def compared(tmp_path_factory) -> Path:  # exit 0: the matrix
     """constant and adaptive-pi, compensation off and offline, on the block demo's program."""
     out = tmp_path_factory.mktemp("machine")
     proc = robomach(
@@ -68,9 +69,11 @@ def compared(tmp_path_factory) -> Path:
         "off",
     )
     assert proc.returncode == 0, proc.stderr
+    (out / "stdout.txt").write_text(proc.stdout)
     return out
 
 
+@pytest.mark.slow
 def test_the_matrix_writes_summary_traces_program_and_figure(compared):
     summary = json.loads((compared / "machining_summary.json").read_text())
     runs = summary["runs"]
@@ -109,6 +112,7 @@ def test_the_matrix_writes_summary_traces_program_and_figure(compared):
     assert (compared / "machining.png").read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.slow
 def test_the_saved_project_holds_the_choice(compared):
     project = load_project_file(compared / "project.npz")
     chosen = json.loads((compared / "machining_summary.json").read_text())["chosen"]
@@ -117,6 +121,7 @@ def test_the_saved_project_holds_the_choice(compared):
     assert project.status()["postprocess"] == "current"
 
 
+@pytest.mark.slow
 def test_offline_compensation_exports_the_corrected_program(tmp_path):
     profile = tmp_path / "stock.csv"
     profile.write_text("s_mm,allowance_mm\n0,0\n10,1.5\n200,2.5\n")
@@ -141,7 +146,7 @@ def test_offline_compensation_exports_the_corrected_program(tmp_path):
     assert summary["stock"]["allowance_max_mm"] == pytest.approx(2.5)
     program = (out / "program.mod").read_text()
     assert "FCSpdChgAct" in program
-    assert "offline for the fuzzy cut's predicted process force" in program
+    assert "offline, planned from rehearsals of the fuzzy cut" in program
     plain = (block_demo_dir() / "program.mod").read_text()
     assert program.count("MoveL") > 5 * plain.count("MoveL")  # densified and corrected
 
@@ -149,7 +154,9 @@ def test_offline_compensation_exports_the_corrected_program(tmp_path):
 @pytest.mark.parametrize(
     ("args", "words"),
     [
-        (["--force-limit-N", "0"], ["--force-limit-N", "1-5000 N"]),
+        (["--force-limit-N", "0"], ["--force-limit-N", "1.5-1400 N"]),
+        (["--variations", "-1"], ["--variations", "0-1000"]),
+        (["--cell-options", "laser"], ["--cell-options", "laser", "fc_speed_change"]),
         (["--seed", "-1"], ["--seed"]),
         (["--from", "/nonexistent/demo"], ["--from", "no such folder"]),
         (["--from", "/tmp", "--workpiece", "block"], ["not both"]),
@@ -170,3 +177,80 @@ def test_a_folder_without_a_project(tmp_path):
 def test_an_unwritable_out_is_refused_before_work():
     proc = robomach("machine", "--out", "/proc/robomach-machine", "--workpiece", "block")
     _assert_one_line_error(proc, "--out", "cannot write")
+
+
+def test_help_lists_every_exit_code():
+    proc = robomach("machine", "--help")
+    assert proc.returncode == 0
+    for code in ("0 ", "1 ", "2 ", "130"):
+        assert f"\n  {code}" in proc.stdout, proc.stdout
+    assert "--variations" in proc.stdout and "--cluster" in proc.stdout
+
+
+@pytest.mark.slow
+def test_exit_0_when_some_configurations_stop_and_the_stops_are_shown(tmp_path):
+    """A comparison in which a configuration stops is a result: the two-stage controller on a
+    casting whose allowance is far beyond anything its low stage allows for stops on its
+    protection rule, the constant feed (designed for the deepest cut) finishes."""
+    profile = tmp_path / "stock.csv"
+    profile.write_text("s_mm,allowance_mm\n0,0\n5,1\n60,1\n62,12\n70,12\n72,1\n")
+    out = tmp_path / "o"
+    proc = robomach(
+        "machine", "--out", str(out), "--from", str(block_demo_dir()), "--controller", "all",
+        "--stock", str(profile), "--no-plot", "--workers", "1",
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "machining_summary.json").read_text())
+    stopped = [r for r in summary["runs"] if not r["completed"]]
+    assert stopped, "the steep wall was meant to stop a controller"
+    assert "stopped" in proc.stdout and all(r["controller"] in proc.stdout for r in stopped)
+    assert summary["chosen"] is not None and (out / "program.mod").is_file()
+
+
+@pytest.mark.slow
+def test_exit_1_when_the_cell_can_run_nothing_that_completes(tmp_path):
+    out = tmp_path / "o"
+    proc = robomach(
+        "machine", "--out", str(out), "--from", str(block_demo_dir()), "--controller",
+        "adaptive-pi", "--cell-options", "none", "--no-plot", "--workers", "1",
+    )  # fmt: skip
+    assert proc.returncode == 1, proc.stderr
+    assert "nothing to choose" in proc.stderr and "Traceback" not in proc.stderr
+    summary = json.loads((out / "machining_summary.json").read_text())
+    assert summary["chosen"] is None and summary["runs"][0]["runnable"] is False
+    assert not (out / "program.mod").exists()  # nothing the cell can run is exported
+
+
+@pytest.mark.slow
+def test_exit_130_when_interrupted(tmp_path):
+    import signal
+    import time
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "app.cli", "machine", "--out", str(tmp_path / "o"),
+         "--workpiece", "block", "--no-plot"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    time.sleep(6.0)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+
+
+@pytest.mark.slow
+def test_variations_report_percentiles_and_choose_on_them(tmp_path):
+    out = tmp_path / "o"
+    proc = robomach(
+        "machine", "--out", str(out), "--from", str(block_demo_dir()), "--controller",
+        "constant", "--compensation", "off", "--variations", "3", "--workers", "2", "--no-plot",
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "machining_summary.json").read_text())
+    (row,) = summary["runs"]
+    assert row["stocks"] == 3 and row["completed_share"] == 1.0
+    for key in ("cycle_time", "force_peak", "wall_error_max"):
+        unit = {"cycle_time": "s", "force_peak": "N", "wall_error_max": "mm"}[key]
+        assert row[f"{key}_p50_{unit}"] <= row[f"{key}_p95_{unit}"]
+    assert summary["variation"]["stocks"] == 3 and "material K" in summary["variation"]["ranges"]
+    assert "95th percentiles" in summary["choice_reason"]

@@ -31,7 +31,7 @@ def test_settings_choice_and_result_survive_a_restart(tmp_path):
         _wait(session, service.start("run"))
         rows = service.result().rows
         rapid = session.rapid_module()
-        assert "offline for the fuzzy cut" in rapid
+        assert "planned from rehearsals of the fuzzy cut" in rapid
     finally:
         session.close()
 

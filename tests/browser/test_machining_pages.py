@@ -4,7 +4,10 @@ points marks the result out of date in the panel."""
 
 from __future__ import annotations
 
+import os
+import tempfile
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 from playwright.sync_api import expect
@@ -50,6 +53,8 @@ def test_the_pendant_compares_and_chooses(served: Served, browser) -> None:
             " return !d.every((v) => v === 0); }",
             timeout=10_000,
         )
+        _check_the_pendant_table_reads_and_sorts(page)
+        _check_the_viser_table_and_its_large_view(context, served)
     finally:
         context.close()
         api.cancel_all()
@@ -81,7 +86,7 @@ def test_the_viser_panel_shows_a_run_and_goes_out_of_date(workbench) -> None:
     wait_for(lambda: panel.controller.value == "fuzzy", timeout_s=30.0)
     panel._start("run")
     wait_for(lambda: "fuzzy" in panel.table.content, timeout_s=RUN_TIMEOUT_S)
-    assert "Rule's pick" in panel.table.content
+    assert "Rule's pick" in panel.table.content and "rm-mt" in panel.table.content
     wait_for(lambda: len(panel.force_plot.data[0]) > 100, timeout_s=RUN_TIMEOUT_S)
     x, force, _, reference, limit = panel.force_plot.data
     assert limit[0] == 150.0 and reference[0] == pytest.approx(105.0)
@@ -92,3 +97,89 @@ def test_the_viser_panel_shows_a_run_and_goes_out_of_date(workbench) -> None:
     session.delete_guide_point(0)
     wait_for(lambda: "Out of date" in panel.status.content, timeout_s=RUN_TIMEOUT_S)
     assert session.status()["machining"] == "stale"
+
+
+SHOTS = Path(os.environ.get("ROBOMACH_SHOTS", tempfile.gettempdir()))
+
+
+def _check_the_pendant_table_reads_and_sorts(page) -> None:
+    """Issue 16: the rule's pick and its reason shown, what this cell (UR10: force mode, no
+    path correction) cannot run greyed with what it lacks, sortable by a click on a header,
+    and the plot opening large."""
+    table = page.locator("#mach-comparison")
+    expect(page.locator("#mach-reason")).to_contain_text("of the")
+    unrunnable = page.locator("#mach-comparison tr.unrunnable")
+    expect(unrunnable).to_have_count(6)  # the six online configurations
+    assert "path-correction" in unrunnable.first.get_attribute("title")
+    grey = unrunnable.first.locator("td").first.evaluate("e => getComputedStyle(e).color")
+    assert grey == "rgb(173, 181, 189)", grey
+    page.locator("#mach-comparison th", has_text="cycle [s]").click()
+    cycles = [
+        float(t) for t in table.locator("tbody tr td:nth-child(2)").all_inner_texts()
+        if t not in ("stopped", "refused")
+    ]  # fmt: skip
+    assert cycles == sorted(cycles) and len(cycles) >= 12
+    # The table scrolls inside the card instead of widening the page.
+    wrap = page.locator(".mach-table-wrap").bounding_box()
+    card = page.locator("#machining-card").bounding_box()
+    assert wrap["width"] <= card["width"] + 1
+    page.screenshot(path=str(SHOTS / "robomach-pendant-machining.png"), full_page=True)
+    page.click("#mach-plot-large")
+    big = page.locator("#mach-plot-big").bounding_box()
+    assert big["width"] >= 0.85 * page.viewport_size["width"]
+    page.screenshot(path=str(SHOTS / "robomach-pendant-machining-large.png"))
+    page.click("#mach-large-close")
+
+
+def _check_the_viser_table_and_its_large_view(context, served: Served) -> None:
+    page = context.new_page()
+    page.goto(served.viser_url)
+    expect(page.get_by_text("Connected")).to_be_visible(timeout=60_000)
+    # dispatch_event: a pointer click waits for the page to settle, which the software-rendered
+    # 3D scene on a loaded machine may never do within the timeout.
+    page.get_by_text("Machining", exact=True).first.dispatch_event("click")
+    table = page.locator("table.rm-mt")
+    expect(table).to_be_visible(timeout=60_000)
+    expect(page.locator(".rm-why")).to_contain_text("Rule's pick")
+    expect(page.locator("table.rm-mt tr.chosen")).to_have_count(1)
+    expect(page.locator("table.rm-mt tr.unrunnable")).to_have_count(6)
+    table.evaluate("e => e.scrollIntoView({block: 'center'})")  # no wait for stability
+    page.screenshot(path=str(SHOTS / "robomach-viser-machining.png"))
+    page.get_by_text("Open the table and figure large").dispatch_event("click")
+    wide = page.locator("table.rm-mt").last
+    expect(wide).to_be_visible(timeout=30_000)
+    page.wait_for_timeout(1000)  # the modal's opening transition
+    box = wide.bounding_box()
+    assert box["width"] >= 0.8 * page.viewport_size["width"], box
+    figure = page.locator("img[alt='force, feed and wall error along the path']")
+    expect(figure).to_be_visible(timeout=30_000)
+    assert figure.bounding_box()["width"] >= 0.8 * page.viewport_size["width"]
+    page.screenshot(path=str(SHOTS / "robomach-viser-machining-large.png"))
+    page.close()
+
+
+def test_the_cmrr_figure_opens_window_wide(served: Served, browser) -> None:
+    """Issue 16: "open large" opened a modal no bigger than the thumbnail."""
+    api = Api(served.base_url)
+    api.new_project()
+    job = api.ok("POST", "/api/cmrr/studies", 202, json={"scenario": "deburr-burrs"})["job_id"]
+    assert api.wait_job(job, timeout_s=300.0)["status"] == "done"
+    context = browser.new_context(viewport={"width": 1400, "height": 900})
+    page = context.new_page()
+    try:
+        page.goto(served.viser_url)
+        expect(page.get_by_text("Connected")).to_be_visible(timeout=60_000)
+        page.get_by_text("CMRR study", exact=True).first.dispatch_event("click")
+        button = page.get_by_text("Open the figure large")
+        expect(button).to_be_visible(timeout=60_000)
+        page.wait_for_timeout(1000)  # the button is enabled when the study is shown
+        button.dispatch_event("click")
+        figure = page.locator("img[alt='CMRR study figure']")
+        expect(figure).to_be_visible(timeout=30_000)
+        page.wait_for_timeout(1000)  # the modal's opening transition
+        assert figure.bounding_box()["width"] >= 0.8 * page.viewport_size["width"]
+        page.screenshot(path=str(SHOTS / "robomach-viser-cmrr-large.png"))
+    finally:
+        context.close()
+        api.cancel_all()
+        api.http.close()

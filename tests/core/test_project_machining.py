@@ -36,7 +36,41 @@ def test_the_rule_takes_the_fastest_safe_runs_then_the_best_wall():
     ]
     assert core.best_row(rows) == 2
     assert core.best_row([rows[0], rows[3]]) == 0
-    assert core.best_row([rows[4]]) == 0
+    assert core.best_row([rows[4]]) is None  # nothing completed: nothing to choose
+
+
+def test_the_rule_chooses_only_what_the_cell_can_run_and_says_why():
+    from robomach_core.machining.choice import CellCapabilities, choose, mark_runnable
+
+    rows = [
+        _row("constant", "off", 240.0, 146.0, 0.12),
+        _row("adaptive-pi", "offline", 137.0, 155.0, 0.03),
+        _row("adaptive-pi", "online", 136.0, 157.0, 0.011),  # best, needs path correction
+        _row("fixed-pi", "online", 136.0, 164.0, 0.007),
+    ]
+    abb = CellCapabilities.for_language("rapid")
+    assert abb.options == {"fc_speed_change"}
+    pick = choose(rows, abb)
+    assert pick.index == 1
+    assert "adaptive-pi / offline" in pick.reason and "2 configurations need options" in pick.reason
+    marked = mark_runnable(rows, abb)
+    assert [r["runnable"] for r in marked] == [True, True, False, False]
+    assert marked[2]["needs"] == ["an online path-correction interface"]
+    full = CellCapabilities(frozenset({"fc_speed_change", "path_correction"}))
+    assert choose(rows, full).index == 3
+    # A cell with no option at all can still run the constant feed.
+    assert choose(rows, CellCapabilities()).index == 0
+    assert CellCapabilities.for_language("urscript").options == {"force_mode"}
+    assert CellCapabilities.for_language("a language not listed").options == frozenset()
+    # With a variation sweep the rule reads the 95th percentiles and needs every stock done.
+    p95 = [
+        dict(r, cycle_time_p95_s=r["cycle_time_s"], force_peak_p95_N=r["force_peak_N"],
+             wall_error_max_p95_mm=r["wall_error_max_mm"], completed_share=1.0)
+        for r in rows
+    ]  # fmt: skip
+    p95[1]["force_peak_p95_N"] = 200.0  # trips the limit on one stock in twenty
+    assert choose(p95, abb).index == 0
+    assert "95th percentiles" in choose(p95, abb).reason
 
 
 @pytest.fixture(scope="module")
@@ -88,3 +122,46 @@ def test_choosing_keeps_a_result_current_and_a_process_change_dates_it(block_pro
     assert core.machining_inputs_key(core.with_machining_setup(p, changed)) != key
     profile = core.MachiningSetup(stock_source="profile", stock_profile_mm=((0.0, 1.0),))
     assert core.machining_inputs_key(core.with_machining_setup(p, profile)) != key
+
+
+def test_compensation_settings_of_another_arm_are_re_derived_not_blocking_the_export(
+    block_project,
+):
+    """Issue 16: after switching the arm, the old arm's compensation settings blocked the
+    export ("identified on ur10, the cell has irb4400"); they are stale, re-derived for the
+    cell's arm, and the program says so in its header."""
+    from robomach_core.robot import Robot
+    from robomach_core.stiffness import CompensationSettings
+
+    p = core.with_machining_setup(block_project, core.MachiningSetup())
+    p = core.choose(p, "constant", "offline")
+    other = CompensationSettings("ur5", (1e5,) * 6, mode="offline_linear")
+    p = replace(p, compensation=other)
+    assert "ur5" in core.stale_settings(p)["compensation"]
+    workpiece = core.build_workpiece(p.cell, p.mesh)
+    robot = Robot(p.cell.robot, p.tool().T_flange_tcp)
+    files = core.program_files(p, workpiece, robot)
+    assert (
+        "identified on ur5" in files["program.mod"]
+        and "re-derives it for ur10" in files["program.mod"]
+    )
+    # The CMRR choice and the mode are kept (no "Remove" needed).
+    assert p.compensation.mode == "offline_linear"
+
+
+def test_a_result_is_re_chosen_for_another_cell_without_running_again():
+    from robomach_core.machining.choice import CellCapabilities
+
+    rows = (
+        _row("constant", "off", 240.0, 146.0, 0.12),
+        _row("adaptive-pi", "offline", 137.0, 155.0, 0.03),
+        _row("adaptive-pi", "online", 136.0, 157.0, 0.011),
+    )
+    result = core.MachiningResult(rows=rows, table_text="", chosen=None, programs={})
+    abb = result.for_cell(CellCapabilities.for_language("rapid"))
+    assert abb.chosen == 1 and abb.rows[2]["runnable"] is False
+    full = abb.for_cell(CellCapabilities(frozenset({"fc_speed_change", "path_correction"})))
+    assert full.chosen == 2 and all(r["runnable"] for r in full.rows)
+    bare = full.for_cell(CellCapabilities())
+    assert bare.chosen == 0 and "constant / off" in bare.reason
+    assert [r["cycle_time_s"] for r in bare.rows] == [r["cycle_time_s"] for r in rows]

@@ -37,6 +37,7 @@ ERRORS: dict[int | str, dict] = {
     404: {"model": ErrorPublic, "description": "no such item"},
     409: {"model": ErrorPublic, "description": "not possible now (robot busy, nothing to process)"},
     422: {"model": ErrorPublic, "description": "invalid input; the message says what is wrong"},
+    429: {"model": ErrorPublic, "description": "too many jobs queued or running (job routes)"},
 }
 
 # File answers of the study routes.

@@ -3,7 +3,7 @@ and its plots, the table, the choice the exports carry, and the stock (issue 8).
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, HTTPException, UploadFile, status
 from pydantic import BaseModel, ConfigDict, Field
@@ -18,13 +18,16 @@ from robomach_core.limits import (
     MACHINING_FEED_EXPONENT,
     MACHINING_FORCE_LIMIT_N,
     MACHINING_PROCESS_GAIN_N,
+    MACHINING_VARIATIONS,
 )
+from robomach_core.machining.stock import MAX_ALLOWANCE_M, MAX_PROFILE_POINTS, MAX_PROFILE_S_MM
 
 router = APIRouter(prefix="/api/machining", tags=["machining"], responses=ERRORS)
 
 Controller = Literal["constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage", "adaptive-lq"]
 Compensation = Literal["off", "offline", "online"]
 StockSource = Literal["builtin", "profile", "mesh"]
+CellOption = Literal["fc_speed_change", "path_correction", "force_mode"]
 UPLOAD_CHUNK_BYTES = 1024 * 1024
 
 
@@ -42,6 +45,20 @@ class MachiningSettingsPublic(BaseModel):
     stock_profile_mm: list[list[float]] | None = Field(description="(s_mm, allowance_mm) pairs")
     stock_mesh: str | None = Field(description="file name of the uploaded stock mesh")
     status: Literal["none", "current", "stale"] = Field(description="of the machining result")
+    cell_options: list[CellOption] = Field(
+        description="the cell's controller options: only configurations it can run are chosen"
+    )
+    cell_options_default: bool = Field(
+        description="the options are the defaults of the arm's program language"
+    )
+    variations: int = Field(description="stocks drawn from the part's variation (0: one stock)")
+    choice_reason: str | None = Field(description="why the rule picked its configuration")
+    stale_settings: dict[str, str] = Field(
+        description="settings identified on another arm, re-derived for this one at export"
+    )
+    program_needs: str | None = Field(
+        description="what the chosen configuration needs from the cell (the program header's line)"
+    )
 
 
 class MachiningSettingsUpdate(BaseModel):
@@ -57,6 +74,18 @@ class MachiningSettingsUpdate(BaseModel):
     compensation: Compensation | None = None
     stock_source: StockSource | None = Field(
         None, description="builtin, or profile / mesh once given (PUT stock/profile, POST stock)"
+    )
+    cell_options: list[CellOption] | None = Field(
+        None, max_length=3, description="the cell's controller options (an empty list: none)"
+    )
+    cell_options_default: bool | None = Field(
+        None, description="true: back to the defaults of the arm's program language"
+    )
+    variations: int | None = Field(
+        None,
+        ge=MACHINING_VARIATIONS.min,
+        le=MACHINING_VARIATIONS.max,
+        description="stocks drawn from the part's variation per configuration (0: one stock)",
     )
 
 
@@ -74,9 +103,14 @@ class StockProfile(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
 
-    profile_mm: list[tuple[float, float]] = Field(
+    profile_mm: list[
+        tuple[
+            Annotated[float, Field(ge=0.0, le=MAX_PROFILE_S_MM, allow_inf_nan=False)],
+            Annotated[float, Field(ge=0.0, le=MAX_ALLOWANCE_M * 1e3, allow_inf_nan=False)],
+        ]
+    ] = Field(
         min_length=1,
-        max_length=100_000,
+        max_length=MAX_PROFILE_POINTS,
         description="(s_mm, allowance_mm) pairs, s increasing along the path, allowance 0-20 mm",
     )
 
@@ -86,9 +120,18 @@ class MachiningResultPublic(BaseModel):
 
     status: Literal["none", "current", "stale"]
     stale_reason: str | None
-    runs: list[dict[str, Any]] = Field(description="figures per run, units in the keys")
-    chosen_by_rule: dict[str, str] = Field(description="the configuration the rule picks")
+    runs: list[dict[str, Any]] = Field(
+        description="figures per run, units in the keys; ``runnable`` false (and ``needs``) "
+        "where the cell lacks an option; p50 / p95 figures with variations"
+    )
+    chosen_by_rule: dict[str, str] | None = Field(
+        description="the configuration the rule picks (none when the cell can run nothing "
+        "that completed)"
+    )
     choice_rule: str
+    choice_reason: str = Field(description="why the rule picked it, in words")
+    cell_options: list[str] = Field(description="the cell options the rows were marked for")
+    variation: dict[str, Any] | None = Field(description="the variation sweep, or null")
     trace: dict[str, Any] | None = Field(
         description="the chosen (or first) run decimated along the path: mean, min and max of "
         "force and feed per bucket, reference and limit, and the finished-wall error"
@@ -173,7 +216,10 @@ def start_run(session: SessionDep) -> JobCreated:
 @router.post("/compare", status_code=status.HTTP_202_ACCEPTED)
 def start_compare(session: SessionDep) -> JobCreated:
     """Job: the matrix, the greatest safe constant feed and each CMRR controller with
-    compensation off, offline and online (18 runs)."""
+    compensation off, offline and online (18 runs), on the stock and ``variations`` more
+    stocks drawn from the part's variation, on every local core (or the Dask cluster the
+    server was started with, ``ROBOMACH_CLUSTER``; a request cannot point the server at
+    another address)."""
     return JobCreated(job_id=machining_for(session).start("compare"))
 
 
@@ -192,6 +238,9 @@ def get_result(session: SessionDep, points: int = PLOT_POINTS) -> MachiningResul
         runs=summary["runs"],
         chosen_by_rule=summary["chosen"],
         choice_rule=summary["choice_rule"],
+        choice_reason=summary["choice_reason"],
+        cell_options=summary["cell_options"],
+        variation=summary["variation"],
         trace=trace,
     )
 

@@ -27,7 +27,6 @@ from .feedback import guarded
 
 REFRESH_HZ = 4.0
 _NOTHING_SHOWN = object()  # the panel has shown no study, not even "none yet"
-LARGE_WIDTH_PX = 1600  # "Open the figure large": the figure at its own size
 PLOT_WIDTH_PX = 720  # the sidebar is narrower: a smaller image is sent faster
 SCENARIO_HINTS = {
     "milling-steps": "End milling 1 -> 2 -> 3 mm deep, 250 N (chapter figs. 11-12)",
@@ -226,17 +225,18 @@ class CmrrPanel:
         self.follower.cancel()
 
     def _open_large(self, event) -> None:
-        """The last study's figure at full size in a modal window of the user's browser."""
+        """The last study's figure at full size in a wide modal of the user's browser."""
+        from .large import open_large, png_html
+
         outcome = self.service.cmrr_result()
         if outcome is None or outcome.plot_png is None:
             return
-        gui = event.client.gui
-        with gui.add_modal("CMRR study figure") as modal:
-            gui.add_image(png_to_image(outcome.plot_png, LARGE_WIDTH_PX), format="png")
-            gui.add_button("Download the PNG").on_click(
-                lambda _: event.client.send_file_download("cmrr_study.png", outcome.plot_png)
-            )
-            gui.add_button("Close").on_click(lambda _: modal.close())
+        open_large(
+            event.client,
+            "CMRR study figure",
+            png_html(outcome.plot_png, alt="CMRR study figure"),
+            download=("cmrr_study.png", outcome.plot_png),
+        )
 
     def _show_hint(self) -> None:
         self.run.hint = SCENARIO_HINTS.get(self.scenario.value)

@@ -9,6 +9,7 @@ from typing import Any, TypeVar
 
 import viser
 
+from app.session.jobs import describe_unexpected
 from robomach_core.errors import RobomachError
 
 log = logging.getLogger(__name__)
@@ -45,6 +46,6 @@ def guarded(title: str, callback: Callable[[E], Any]) -> Callable[[E], None]:
             notify_error(client, title, str(exc))
         except Exception as exc:  # a bug must not kill the GUI thread pool silently
             log.exception("%s failed", title)
-            notify_error(client, title, f"internal error: {exc.__class__.__name__}: {exc}")
+            notify_error(client, title, describe_unexpected(exc))
 
     return run

@@ -1,6 +1,8 @@
-"""Machining panel: stock, process, force limit, controller and compensation; run and compare
-with progress and cancel; the comparison table; live uPlot plots of force and feed along the
-path; the stock (translucent ribbon) and the path coloured by the finished-wall error.
+"""Machining panel: stock, process, force limit, controller and compensation, the cell's options
+and the variations; run and compare with progress and cancel; the comparison table (sortable,
+the rule's pick and its reason, what the cell cannot run greyed; open large with the figure);
+live uPlot plots of force and feed along the path; the stock (translucent ribbon) and the path
+coloured by the finished-wall error.
 
 It works through ``app.session.machining.MachiningService`` (the same the REST API and the
 pendant use) and follows the session's events from its own thread, so a run started from the
@@ -15,17 +17,21 @@ import threading
 import numpy as np
 import viser
 
-from app.session.machining import machining_for, markdown_table
+from app.session.machining import machining_for
 from robomach_core.limits import (
     MACHINING_DEPTH_EXPONENT,
     MACHINING_FEED_EXPONENT,
     MACHINING_FORCE_LIMIT_N,
     MACHINING_PROCESS_GAIN_N,
+    MACHINING_VARIATIONS,
 )
 from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
+from robomach_core.machining.choice import OPTION_NAMES, OPTION_TEXT, RULE_TEXT
 
 from ..scene import deviation_colors
 from .feedback import guarded
+from .large import open_large, png_html
+from .machining_table import SORT_KEYS, table_html
 
 log = logging.getLogger(__name__)
 OUT_OF_DATE = "\u26a0 Out of date"
@@ -78,6 +84,27 @@ class MachiningPanel:
             self.compensation = server.gui.add_dropdown(
                 "Compensation", COMPENSATION_NAMES, initial_value=s["compensation"]
             )
+            with server.gui.add_folder("Cell options", expand_by_default=False):
+                self.options = {
+                    name: server.gui.add_checkbox(
+                        OPTION_TEXT[name].split(" (")[0],
+                        name in s["cell_options"],
+                        hint=OPTION_TEXT[name] + ": decides which configurations are choosable",
+                    )
+                    for name in OPTION_NAMES
+                }
+                self.options_default = server.gui.add_button(
+                    "Defaults of the arm's language", hint="RAPID: FC SpeedChange; UR: force mode"
+                )
+            self.variations = server.gui.add_number(
+                "Variations",
+                s["variations"],
+                min=int(MACHINING_VARIATIONS.min),
+                max=int(MACHINING_VARIATIONS.max),
+                step=1,
+                hint="also cut each configuration on N castings drawn from the part's variation; "
+                "the rule then reads the 95th percentiles",
+            )
             self.run = server.gui.add_button("Run", icon=viser.Icon.PLAYER_PLAY, color="green")
             self.compare = server.gui.add_button(
                 "Compare all", icon=viser.Icon.TABLE, hint="6 feed controls x 3 compensations"
@@ -88,11 +115,15 @@ class MachiningPanel:
             self.progress = server.gui.add_progress_bar(0.0)
             self.status = server.gui.add_markdown("")
             self.choose_best = server.gui.add_button(
-                "Choose the rule's pick",
-                disabled=True,
-                hint="fastest within the force limit +10 %, then the smallest wall error",
+                "Choose the rule's pick", disabled=True, hint=RULE_TEXT
             )
-            self.table = server.gui.add_markdown("")
+            self.sort = server.gui.add_dropdown(
+                "Sort by", tuple(SORT_KEYS), initial_value="configuration"
+            )
+            self.table = server.gui.add_html("")
+            self.enlarge = server.gui.add_button(
+                "Open the table and figure large", icon=viser.Icon.ARROWS_MAXIMIZE, disabled=True
+            )
             self.force_plot = server.gui.add_uplot(
                 *_empty_force(), title="Force along the path", aspect=1.6,
                 scales={"x": viser.uplot.Scale(time=False, auto=True)},
@@ -155,6 +186,23 @@ class MachiningPanel:
             f = self.upload.value
             guarded("Stock mesh", lambda e: self.service.upload_stock(f.content, f.name))(event)
 
+        def options(_e) -> None:
+            chosen = [n for n, box in self.options.items() if box.value]
+            self.service.set_settings(cell_options=chosen)
+
+        for box in self.options.values():
+            box.on_update(guarded("Cell options", options))
+        self.options_default.on_click(
+            guarded("Cell options", lambda e: self.service.set_settings(cell_options_default=True))
+        )
+        self.variations.on_update(
+            guarded(
+                "Machining",
+                lambda e: self.service.set_settings(variations=int(self.variations.value)),
+            )
+        )
+        self.sort.on_update(guarded("Machining", lambda e: self._show_table()))
+        self.enlarge.on_click(guarded("Machining", self._open_large))
         self.run.on_click(guarded("Machining", lambda e: self._start("run")))
         self.compare.on_click(guarded("Machining", lambda e: self._start("compare")))
         self.cancel.on_click(guarded("Cancel", lambda e: self._cancel()))
@@ -180,9 +228,45 @@ class MachiningPanel:
             self.session.cancel_job(self.job_id)
 
     def _choose_best(self) -> None:
+        from app.session.records import ConflictError
+
         result = self.service.require_result()
+        if result.chosen is None:
+            raise ConflictError(f"nothing to choose: {result.reason}")
         row = result.rows[result.chosen]
         self.service.choose(row["controller"], row["compensation"])
+
+    def _open_large(self, event) -> None:
+        """The whole table (every column) and the figure of the chosen run, window-wide."""
+        result = self.service.require_result()
+        parts = [table_html(list(result.rows), result.chosen, result.reason,
+                            sort_by=self.sort.value, wide=True)]  # fmt: skip
+        png = self._figure_png(result)
+        if png is not None:
+            parts.append(png_html(png, alt="force, feed and wall error along the path"))
+        open_large(
+            event.client,
+            "Machining comparison",
+            "".join(parts),
+            download=None if png is None else ("machining.png", png),
+        )
+
+    def _figure_png(self, result) -> bytes | None:
+        import tempfile
+        from pathlib import Path
+
+        from robomach_core.machining import plot_runs
+
+        setup = self.service.setup().settings
+        runs = [r for r in result.runs if r.compensation == "off"][:3]
+        own = result.run_for(setup.controller, setup.compensation)
+        if own is not None and own not in runs:
+            runs.append(own)
+        if not runs:
+            return None
+        with tempfile.TemporaryDirectory() as folder:
+            path = plot_runs(runs, Path(folder) / "machining.png", title="machining runs")
+            return path.read_bytes()
 
     # --- refresh -----------------------------------------------------------------------------
 
@@ -208,6 +292,9 @@ class MachiningPanel:
         self.controller.value = s["controller"]
         self.compensation.value = s["compensation"]
         self.stock.value = s["stock_source"]
+        for name, box in self.options.items():
+            box.value = name in s["cell_options"]
+        self.variations.value = s["variations"]
         job = self._job()
         running = job is not None and job.status in ("queued", "running")
         self.run.disabled = self.compare.disabled = running
@@ -237,6 +324,11 @@ class MachiningPanel:
         lines = []
         if job is not None and job.status not in ("done", "queued", "running"):
             lines.append(f"**{job.status}**: {job.error or ''}")
+        s = self.service.settings_document()
+        for reason in s["stale_settings"].values():
+            lines.append(f"*Stale*: {reason}.")
+        if s["program_needs"]:
+            lines.append(f"Program: {s['program_needs']}.")
         status = self.service.status()
         if status == "none":
             lines.append("*No machining result yet: run or compare.*")
@@ -245,20 +337,30 @@ class MachiningPanel:
             lines.append(f"**{OUT_OF_DATE}**: {reason}.")
         return "\n\n".join(lines)
 
+    def _show_table(self) -> None:
+        result = self.service.result()
+        self.table.content = (
+            ""
+            if result is None
+            else table_html(
+                list(result.rows), result.chosen, result.reason, sort_by=self.sort.value
+            )
+        )
+
     def _show_result(self) -> None:
         result = self.service.result()
-        self.choose_best.disabled = result is None
+        self.choose_best.disabled = result is None or result.chosen is None
+        self.enlarge.disabled = result is None
         if result is self._shown_result:
             return
         self._shown_result = result
+        self._show_table()
         if result is None:
-            self.table.content = ""
             self.force_plot.data = _empty_force()[0]
             for node in self._nodes.values():
                 node.remove()
             self._nodes.clear()
             return
-        self.table.content = _markdown(result)
         if result.runs:
             d = self.service.plot_data(max_points=PLOT_POINTS)
             x = np.asarray(d["path_mm"])
@@ -315,12 +417,4 @@ def _empty_force():
         viser.uplot.Series(label="max (N)", stroke="#f4a261", width=0.8),
         viser.uplot.Series(label="reference (N)", stroke="#1d3557", width=2.0, dash=[8, 4]),
         viser.uplot.Series(label="limit (N)", stroke="#000000", width=1.5, dash=[3, 3]),
-    )
-
-
-def _markdown(result) -> str:
-    chosen = result.rows[result.chosen]
-    return (
-        markdown_table(result.table_text)
-        + f"\n\nRule's pick: **{chosen['controller']} / {chosen['compensation']}**"
     )

@@ -42,6 +42,18 @@ def pi_gains(
     return ki / zero_rad_s, ki
 
 
+# x^p is capped at e^POWER_CAP_EXP: with a small beta, F^(1/beta) would overflow a float.
+POWER_CAP_EXP = 300.0
+
+
+def safe_power(x: float, p: float) -> float:
+    """x^p for x >= 0 and p > 0, capped at e^300 instead of overflowing."""
+    if x <= 0.0:
+        return 0.0
+    e = p * math.log(x)
+    return math.exp(e) if e < POWER_CAP_EXP else math.exp(POWER_CAP_EXP)
+
+
 def _check_pi(loop_gain: float, zero_rad_s: float, initial_speed_ratio: float) -> None:
     if not loop_gain > 0.0:
         raise CmrrSettingsError(f"loop gain must be positive, got {loop_gain}")
@@ -123,9 +135,17 @@ class FixedPiController:
     @cached_property
     def gains(self) -> tuple[float, float]:
         """(Kp, Ki) of eq. (12) for the design k."""
-        k = self.design_force_gain_N ** (1.0 / self.feed_exponent)
+        k = safe_power(self.design_force_gain_N, 1.0 / self.feed_exponent)
         return pi_gains(
             self.settings.loop_gain, self.design.command_speed_m_s, k, self.settings.pi_zero_rad_s
+        )
+
+    @cached_property
+    def unit_gains(self) -> tuple[float, float]:
+        """(Kp k, Ki k): the gains acting on the error in units of (F / Kf)^(1/beta), which
+        stays a float where F^(1/beta) itself would overflow (a small beta)."""
+        return pi_gains(
+            self.settings.loop_gain, self.design.command_speed_m_s, 1.0, self.settings.pi_zero_rad_s
         )
 
     @property
@@ -137,8 +157,12 @@ class FixedPiController:
 
     def step(self, state: PiState, measurement: Measurement) -> tuple[PiState, ControlOutput]:
         inv_beta = 1.0 / self.feed_exponent
-        kp, ki = self.gains
-        error = self.design.reference_force_N**inv_beta - max(measurement.force_N, 0.0) ** inv_beta
+        kp, ki = self.unit_gains
+        kf = self.design_force_gain_N
+        # e' / k = (Fr / Kf)^(1/beta) - (F / Kf)^(1/beta): eq. (10)'s error over k = Kf^(1/beta).
+        error = safe_power(self.design.reference_force_N / kf, inv_beta) - safe_power(
+            max(measurement.force_N, 0.0) / kf, inv_beta
+        )
         u, integral = _pi_step(
             state.integral, error, kp, ki, self.design.dt_s, self.design.min_speed_ratio
         )

@@ -187,15 +187,18 @@ def test_offline_program_moves_the_targets_against_the_predicted_force(
         compensation_model=settings,
     )
     assert run.stiffness_model == ident.model
-    program = run.program
-    assert len(program) > len(short_program)  # a target every millimetre
-    from robomach_core.machining.run import arc_length_m, densify_targets
+    program, nominal = run.program, run.nominal
+    assert len(program) == len(nominal) > len(short_program)  # targets where the force changes
+    assert run.summary["rehearsals"] >= 1
+    from robomach_core.machining.run import arc_length_m
 
-    nominal = densify_targets(short_program, MachiningSettings().offline_target_spacing_m)
     n = wall_normals_from_path(nominal.position_m)
     shift = np.einsum("ij,ij->i", program.position_m - nominal.position_m, n)
     s = arc_length_m(nominal.position_m)
     deep = short_stock.allowance_m(s) > 1.0 * MM
     assert np.all(shift[deep] < -5e-6)  # into the wall, micrometres to a tenth of a mm
     assert np.all(shift > -0.3 * MM)
+    # Planned from the cut: each deep target moves by about the deflection the force met there.
+    met = np.interp(s, run.trace.path_m, run.trace.deflection_m)
+    assert np.median(np.abs(-shift[deep] - met[deep])) < 0.15 * np.median(met[deep])
     assert np.max(np.abs(program.joints_rad - nominal.joints_rad)) < 1e-3

@@ -64,11 +64,12 @@ def test_profile_interpolates_linearly_and_is_flat_beyond_its_ends():
     ("profile", "words"),
     [
         ([(10.0, 1.0), (5.0, 1.0)], "increase"),
-        ([(10.0, -1.0)], "[0, 20] mm"),
-        ([(10.0, 25.0)], "[0, 20] mm"),
+        ([(10.0, -1.0)], "within 0-20 mm, got -1 mm at s = 10 mm"),
+        ([(10.0, 25.0)], "within 0-20 mm, got 25 mm"),
         ([(500.0, 1.0)], "path length"),
-        ([], "at least one"),
-        ([(1.0, float("nan"))], "finite"),
+        ([], "one or more pairs"),
+        ([(1.0, float("nan"))], "point 1 is not finite"),
+        ([(-1.0, 1.0)], "within 0-100000 mm"),
     ],
 )
 def test_bad_profiles_are_refused_with_the_reason(profile, words):
@@ -122,3 +123,17 @@ def test_display_geometry_lies_on_the_stock_surface():
     assert vertices.shape == (2 * len(pts), 3) and faces.shape == (2 * (len(pts) - 1), 3)
     assert faces.max() == len(vertices) - 1
     assert np.ptp(vertices[:, 2]) == pytest.approx(4 * MM)
+
+
+@pytest.mark.parametrize(
+    "profile",
+    [[(0.0, float("nan"))], [(0.0, -0.5)], [(0.0, 1.0), (float("inf"), 2.0)], [(0.0, 21.0)],
+     [(5.0, 1.0), (5.0, 2.0)], [(-3.0, 1.0)]],
+)  # fmt: skip
+def test_a_setup_refuses_a_bad_profile_before_it_is_stored(profile):
+    """Issue 19 R12: profiles with NaN, negative or out-of-range values were stored and failed
+    only at run time; the setup (what the store, the CLI and the API hold) refuses them."""
+    from robomach_core.project import MachiningSetup
+
+    with pytest.raises(StockError):
+        MachiningSetup(stock_source="profile", stock_profile_mm=tuple(profile))

@@ -1,0 +1,353 @@
+"""Native steps that may crash, run where a crash cannot take the caller down.
+
+PROBLEM   coal, qhull and pinocchio are C++: on an input they do not expect they can crash the
+          whole process (a segfault on a flat mesh's hull, a stack overflow on a URDF 4,000
+          links deep) or allocate without bound. In the workbench that process is the server.
+          The checks in ``mesh_check`` and ``urdf_check`` refuse every input known to do this,
+          but a check can only refuse what someone thought of.
+STRATEGY  Before such an input reaches the native code in this process, the same native steps
+          run in a child process: a helper (started at first use, one per process, with numpy,
+          coal, pinocchio and trimesh imported once) forks a child per task, lowers the child's
+          address-space limit (``RLIMIT_AS``) and runs the task there. A child that dies of a
+          signal, runs out of its memory or overruns its time is reported as an ``IsolatedError``
+          and the helper lives on; a helper that dies is started again at the next call. The
+          answer comes back as JSON (a crashed child's output is never unpickled).
+SOLUTION  ``run_isolated(task, payload, memory_bytes=, timeout_s=) -> dict``; the tasks are the
+          functions of ``TASKS`` (``mesh`` builds the part's convex hull and BVH as the
+          supervisor and the contact model will; ``urdf`` builds the pinocchio model).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import signal
+import struct
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from .errors import RobomachError
+
+DEFAULT_MEMORY_BYTES = 1 << 30  # what one task may allocate above the helper's own footprint
+DEFAULT_TIMEOUT_S = 60.0
+HELPER_START_TIMEOUT_S = 60.0
+_HEADER = struct.Struct("<Q")
+_MAX_ANSWER_BYTES = 1 << 20
+
+
+class IsolatedError(RobomachError, ValueError):
+    """A native step crashed, ran out of memory or time, or raised in its isolated process.
+
+    Attributes:
+        kind: "crash" (a signal), "memory", "timeout", "error" (the task raised) or "helper"
+            (the helper process could not run it).
+    """
+
+    def __init__(self, message: str, *, kind: str = "error") -> None:
+        super().__init__(message)
+        self.kind = kind
+
+
+# --- the tasks (they run in the child) -----------------------------------------------------
+
+
+def _task_mesh(payload: dict[str, Any]) -> dict[str, Any]:
+    """The part's convex hull in coal (supervision obstacle), its BVH (contact, clearance) and
+    one distance query, as ``supervision.Supervisor`` and ``contact`` build them."""
+    import coal
+    import numpy as np
+    import trimesh
+
+    from .contact import _bvh_from_mesh
+
+    vertices = np.asarray(payload["vertices"], dtype=float)
+    faces = np.asarray(payload["faces"], dtype=np.int64)
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    hull_mesh = mesh.convex_hull
+    points = coal.StdVec_Vec3s()
+    for p in np.asarray(hull_mesh.vertices, dtype=float):
+        points.append(p)
+    hull = coal.Convex.convexHull(points, False, None)
+    bvh = _bvh_from_mesh(vertices, faces)
+    request, result = coal.DistanceRequest(), coal.DistanceResult()
+    request.enable_signed_distance = True
+    centre = np.asarray(mesh.bounds[1], dtype=float) + 0.01
+    T_sphere = coal.Transform3s(np.eye(3), centre)
+    distance = coal.distance(bvh, coal.Transform3s(), coal.Sphere(0.001), T_sphere, request, result)
+    hull_distance = coal.distance(hull, coal.Transform3s(), coal.Sphere(0.001), T_sphere, request,
+                                  coal.DistanceResult())  # fmt: skip
+    return {
+        "hull_vertices": int(hull.num_points),
+        "hull_volume_m3": float(hull_mesh.volume),
+        "distance_m": float(distance),
+        "hull_distance_m": float(hull_distance),
+    }
+
+
+def _task_urdf(payload: dict[str, Any]) -> dict[str, Any]:
+    """The pinocchio model of a URDF text, as ``robot.Robot`` builds it."""
+    import pinocchio as pin
+
+    model = pin.buildModelFromXML(payload["text"])
+    data = model.createData()
+    pin.forwardKinematics(model, data, pin.neutral(model))
+    return {"nq": int(model.nq), "njoints": int(model.njoints), "nframes": int(model.nframes)}
+
+
+def _task_echo(payload: dict[str, Any]) -> dict[str, Any]:
+    """For tests: crash, allocate or sleep on request, else answer the payload."""
+    if payload.get("crash"):
+        os.kill(os.getpid(), signal.SIGSEGV)
+    if payload.get("allocate_bytes"):
+        block = bytearray(int(payload["allocate_bytes"]))
+        return {"allocated": len(block)}
+    if payload.get("sleep_s"):
+        time.sleep(float(payload["sleep_s"]))
+    return {"echo": payload.get("value")}
+
+
+TASKS: dict[str, Callable[[dict[str, Any]], dict[str, Any]]] = {
+    "mesh": _task_mesh,
+    "urdf": _task_urdf,
+    "echo": _task_echo,
+}
+
+# --- the parent's side --------------------------------------------------------------------
+
+
+class _Helper:
+    """The helper process and the lock that gives it one task at a time."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.proc: subprocess.Popen | None = None
+
+    def ensure(self) -> subprocess.Popen:
+        if self.proc is not None and self.proc.poll() is None:
+            return self.proc
+        env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
+               "MKL_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}  # fmt: skip
+        self.proc = subprocess.Popen(
+            [sys.executable, "-c", "from robomach_core.isolation import serve; serve()"],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            env=env,
+            close_fds=True,
+        )
+        return self.proc
+
+    def stop(self) -> None:
+        proc, self.proc = self.proc, None
+        if proc is not None and proc.poll() is None:
+            proc.kill()
+            proc.wait(10)
+
+
+_HELPER = _Helper()
+
+
+def helper_pid() -> int | None:
+    """The helper's process id while it runs (for memory measurements), else None."""
+    proc = _HELPER.proc
+    return proc.pid if proc is not None and proc.poll() is None else None
+
+
+def stop_helper() -> None:
+    """Stop the helper process (it is started again at the next ``run_isolated``)."""
+    with _HELPER.lock:
+        _HELPER.stop()
+
+
+def run_isolated(
+    task: str,
+    payload: dict[str, Any],
+    *,
+    memory_bytes: int = DEFAULT_MEMORY_BYTES,
+    timeout_s: float = DEFAULT_TIMEOUT_S,
+) -> dict[str, Any]:
+    """The answer of ``TASKS[task](payload)`` computed in an isolated child process.
+
+    Args:
+        task: A key of ``TASKS``.
+        payload: The task's input (pickled to the helper, which this process started).
+        memory_bytes: Address space the child may add to the helper's.
+        timeout_s: Wall-clock limit of the task.
+
+    Raises:
+        IsolatedError: the task crashed (a signal), ran out of memory or time, or raised (the
+            message says which, with the exception's class and text).
+    """
+    if task not in TASKS:
+        raise KeyError(task)
+    request = pickle.dumps((task, payload, int(memory_bytes), float(timeout_s)), protocol=5)
+    with _HELPER.lock:
+        for attempt in (1, 2):  # a helper that died since the last call is started again
+            proc = _HELPER.ensure()
+            try:
+                _write(proc.stdin, request)
+                answer = _read(proc.stdout, timeout_s + HELPER_START_TIMEOUT_S)
+                break
+            except (OSError, EOFError, TimeoutError):
+                _HELPER.stop()
+                if attempt == 2:
+                    raise IsolatedError(
+                        f"the isolated {task} check could not run (its helper process stopped)",
+                        kind="helper",
+                    ) from None
+    if answer.get("ok"):
+        return answer["value"]
+    raise IsolatedError(
+        answer.get("error") or f"the isolated {task} check failed",
+        kind=str(answer.get("kind", "error")),
+    )
+
+
+def _write(stream: Any, data: bytes) -> None:
+    stream.write(_HEADER.pack(len(data)) + data)
+    stream.flush()
+
+
+def _read_exact(stream: Any, n: int) -> bytes:
+    chunks, left = [], n
+    while left:
+        chunk = stream.read(left) if not hasattr(stream, "read1") else stream.read1(left)
+        if not chunk:
+            raise EOFError("the stream ended")
+        chunks.append(chunk)
+        left -= len(chunk)
+    return b"".join(chunks)
+
+
+def _read(stream: Any, timeout_s: float) -> dict[str, Any]:
+    import select
+
+    ready, _, _ = select.select([stream], [], [], timeout_s)
+    if not ready:
+        raise TimeoutError
+    (size,) = _HEADER.unpack(_read_exact(stream, _HEADER.size))
+    if size > _MAX_ANSWER_BYTES:
+        raise EOFError("answer too large")
+    return json.loads(_read_exact(stream, size))
+
+
+# --- the helper's side --------------------------------------------------------------------
+
+
+def _address_space_bytes() -> int:
+    """This process's virtual memory size (``VmSize``), 0 when /proc cannot tell."""
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("VmSize:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 0
+
+
+def _describe_exit(status: int, task: str) -> str:
+    if os.WIFSIGNALED(status):
+        sig = os.WTERMSIG(status)
+        try:
+            name = signal.Signals(sig).name
+        except ValueError:
+            name = f"signal {sig}"
+        return f"the {task} check crashed ({name}) in its isolated process"
+    return f"the {task} check ended with code {os.WEXITSTATUS(status)} without an answer"
+
+
+def _child(task: str, payload: dict[str, Any], memory_bytes: int, out_fd: int) -> None:
+    """Run one task under the memory limit and write its JSON answer to ``out_fd``."""
+    import resource
+
+    limit = _address_space_bytes() + memory_bytes
+    if limit > memory_bytes:
+        resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    try:
+        answer = {"ok": True, "value": TASKS[task](payload)}
+    except MemoryError:
+        answer = {
+            "ok": False,
+            "kind": "memory",
+            "error": f"the {task} check needs more than {memory_bytes / 2**20:.0f} MiB of memory",
+        }
+    except Exception as exc:  # noqa: BLE001 - reported to the caller as its message
+        answer = {"ok": False, "kind": "error", "error": f"{exc.__class__.__name__}: {exc}"[:2000]}
+    data = json.dumps(answer).encode()
+    with os.fdopen(out_fd, "wb") as out:
+        out.write(data)
+
+
+def _run_forked(task: str, payload: dict[str, Any], memory_bytes: int, timeout_s: float) -> dict:
+    import select
+
+    read_fd, write_fd = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child
+        os.close(read_fd)
+        code = 0
+        try:
+            _child(task, payload, memory_bytes, write_fd)
+        except BaseException:  # noqa: BLE001 - the child must always _exit
+            code = 1
+        os._exit(code)
+    os.close(write_fd)
+    chunks: list[bytes] = []
+    deadline = time.monotonic() + timeout_s
+    timed_out = False
+    with os.fdopen(read_fd, "rb") as pipe:
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                timed_out = True
+                break
+            ready, _, _ = select.select([pipe], [], [], left)
+            if not ready:
+                continue
+            chunk = os.read(pipe.fileno(), 1 << 16)
+            if not chunk:
+                break
+            chunks.append(chunk)
+    if timed_out:
+        os.kill(pid, signal.SIGKILL)
+    _, status = os.waitpid(pid, 0)
+    if timed_out:
+        return {
+            "ok": False,
+            "kind": "timeout",
+            "error": f"the {task} check took longer than {timeout_s:g} s",
+        }
+    data = b"".join(chunks)
+    if os.WIFEXITED(status) and os.WEXITSTATUS(status) == 0 and data:
+        try:
+            return json.loads(data)
+        except ValueError:
+            pass
+    return {"ok": False, "kind": "crash", "error": _describe_exit(status, task)}
+
+
+def serve() -> None:
+    """The helper's loop: read a request from stdin, answer on stdout, until stdin closes."""
+    import coal  # noqa: F401 - imported once here, shared by every forked child
+    import numpy  # noqa: F401
+    import pinocchio  # noqa: F401
+    import trimesh  # noqa: F401
+
+    from . import contact  # noqa: F401
+
+    stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
+    while True:
+        try:
+            (size,) = _HEADER.unpack(_read_exact(stdin, _HEADER.size))
+            task, payload, memory_bytes, timeout_s = pickle.loads(_read_exact(stdin, size))
+        except (EOFError, OSError):
+            return
+        answer = _run_forked(task, payload, memory_bytes, timeout_s)
+        data = json.dumps(answer).encode()
+        _write(stdout, data)

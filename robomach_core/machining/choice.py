@@ -1,0 +1,185 @@
+"""What the cell can run, and the one rule that chooses a configuration (CLI, REST and GUIs).
+
+PROBLEM   A configuration is only worth choosing if the cell can run it and the exported program
+          carries it: CMRR needs a feed override driven by the force in the controller (ABB's
+          FC SpeedChange, or the UR's force mode), online compensation an interface that
+          corrects the path while it runs; offline compensation and a constant feed need
+          nothing but the program. A table that recommends online compensation to a cell
+          without the option promises an error the cell will never see.
+STRATEGY  The cell states its options (``CellCapabilities``); the defaults follow the program
+          language of the arm's controller (an ABB cell with RAPID has FC SpeedChange and no
+          path-correction option; a UR with URScript has force mode), through a mapping owned
+          here, so a new language gets the safe default (no option) until it is listed. Each
+          configuration needs a set of requirements (``requirements``), each met by any of a
+          set of options. ``choose`` picks among the runnable rows only, and says why.
+SOLUTION  ``choose(rows, capabilities)`` -> ``Choice(index, reason)``; the rule: among the
+          completed runs the cell can run whose peak force stays within 10 % of the limit,
+          those within 5 % of the fastest cycle; of these the smallest finished-wall max
+          error. With variations the same rule reads the 95th percentiles and asks for every
+          stock to complete.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+# The choice: peak force within this share above the limit, cycle within this of the fastest.
+PEAK_MARGIN = 0.10
+CYCLE_MARGIN = 0.05
+# A configuration must complete on at least this share of the stocks of a variation sweep.
+COMPLETED_SHARE = 1.0
+
+OPTION_NAMES: tuple[str, ...] = ("fc_speed_change", "path_correction", "force_mode")
+OPTION_TEXT = {
+    "fc_speed_change": "FC SpeedChange (ABB Force Control option)",
+    "path_correction": "an online path-correction interface",
+    "force_mode": "force mode (UR)",
+}
+# Requirement -> the options that meet it (any one).
+REQUIREMENTS: dict[str, tuple[str, ...]] = {
+    "feed_override": ("fc_speed_change", "force_mode"),
+    "online_correction": ("path_correction",),
+}
+REQUIREMENT_TEXT = {
+    "feed_override": "a force-driven feed override (FC SpeedChange or force mode)",
+    "online_correction": "an online path-correction interface",
+}
+# Program language -> the options such a cell has by default (a language not listed: none).
+LANGUAGE_DEFAULT_OPTIONS: dict[str, tuple[str, ...]] = {
+    "rapid": ("fc_speed_change",),
+    "urscript": ("force_mode",),
+    "krl": (),
+}
+
+
+@dataclass(frozen=True)
+class CellCapabilities:
+    """The controller options of the cell (``OPTION_NAMES``)."""
+
+    options: frozenset[str] = frozenset()
+
+    def __post_init__(self) -> None:
+        unknown = sorted(set(self.options) - set(OPTION_NAMES))
+        if unknown:
+            from .errors import MachiningSettingsError
+
+            raise MachiningSettingsError(
+                f"unknown cell option(s) {', '.join(unknown)}; choose from "
+                f"{', '.join(OPTION_NAMES)}"
+            )
+        object.__setattr__(self, "options", frozenset(self.options))
+
+    @classmethod
+    def for_language(cls, language: str) -> CellCapabilities:
+        """The default options of a cell programmed in ``language``."""
+        return cls(frozenset(LANGUAGE_DEFAULT_OPTIONS.get(language, ())))
+
+    def describe(self) -> str:
+        if not self.options:
+            return "no controller options"
+        return ", ".join(OPTION_TEXT[o] for o in OPTION_NAMES if o in self.options)
+
+
+def requirements(controller: str, compensation: str) -> tuple[str, ...]:
+    """What a configuration needs from the cell beyond running the program."""
+    out = []
+    if controller != "constant":
+        out.append("feed_override")
+    if compensation == "online":
+        out.append("online_correction")
+    return tuple(out)
+
+
+def missing(controller: str, compensation: str, capabilities: CellCapabilities) -> tuple[str, ...]:
+    """The requirements of a configuration the cell does not meet."""
+    return tuple(
+        r
+        for r in requirements(controller, compensation)
+        if not any(o in capabilities.options for o in REQUIREMENTS[r])
+    )
+
+
+def mark_runnable(
+    rows: list[dict[str, Any]], capabilities: CellCapabilities
+) -> list[dict[str, Any]]:
+    """The rows with ``runnable`` and ``needs`` (what the cell lacks, in words) set."""
+    out = []
+    for row in rows:
+        lacks = missing(row["controller"], row["compensation"], capabilities)
+        out.append(
+            dict(row, runnable=not lacks, needs=[REQUIREMENT_TEXT[r] for r in lacks] or None)
+        )
+    return out
+
+
+@dataclass(frozen=True)
+class Choice:
+    """The rule's pick: ``index`` into the rows (None: nothing can be chosen) and why."""
+
+    index: int | None
+    reason: str
+
+
+def _figures(row: dict[str, Any]) -> tuple[Any, Any, Any, bool]:
+    """(cycle, peak, wall error, completed) as the rule reads them: the 95th percentiles of a
+    variation sweep, else the single run's."""
+    if "cycle_time_p95_s" in row:
+        complete = row.get("completed_share", 0.0) >= COMPLETED_SHARE
+        return (
+            row["cycle_time_p95_s"],
+            row["force_peak_p95_N"],
+            row["wall_error_max_p95_mm"],
+            complete,
+        )
+    return (
+        row.get("cycle_time_s"),
+        row.get("force_peak_N"),
+        row.get("wall_error_max_mm"),
+        bool(row.get("completed")),
+    )
+
+
+def choose(rows: list[dict[str, Any]], capabilities: CellCapabilities) -> Choice:
+    """The configuration to choose (module docstring), with the rule's reason in words."""
+    p95 = bool(rows) and "cycle_time_p95_s" in rows[0]
+    tag = " (95th percentiles over the stocks)" if p95 else ""
+    runnable = [
+        i
+        for i, r in enumerate(rows)
+        if not missing(r["controller"], r["compensation"], capabilities)
+    ]
+    not_here = len(rows) - len(runnable)
+    done = [i for i in runnable if _figures(rows[i])[3] and _figures(rows[i])[0] is not None]
+    if not done:
+        why = "none of the configurations this cell can run completed"
+        if not runnable:
+            why = f"this cell ({capabilities.describe()}) can run none of the configurations"
+        return Choice(None, why)
+    safe = [i for i in done if _figures(rows[i])[1] <= (1 + PEAK_MARGIN) * rows[i]["force_limit_N"]]
+    pool = safe or done
+    fastest = min(_figures(rows[i])[0] for i in pool)
+    quick = [i for i in pool if _figures(rows[i])[0] <= (1 + CYCLE_MARGIN) * fastest]
+    pick = min(quick, key=lambda i: (_figures(rows[i])[2], _figures(rows[i])[0]))
+    cycle, peak, wall, _ = _figures(rows[pick])
+    row = rows[pick]
+    limit = (1 + PEAK_MARGIN) * row["force_limit_N"]
+    parts = [
+        f"{row['controller']} / {row['compensation']}{tag}: of the {len(done)} completed "
+        f"configurations this cell can run ({capabilities.describe()})",
+        f"{len(safe)} keep the peak force within 10 % of the limit ({limit:.0f} N)"
+        if safe
+        else f"none keeps the peak force within {limit:.0f} N, so all {len(done)} are compared",
+        f"{len(quick)} are within 5 % of the fastest cycle ({fastest:.1f} s), and this one "
+        f"leaves the smallest wall error ({wall:.3f} mm; cycle {cycle:.1f} s, peak {peak:.1f} N)",
+    ]
+    if not_here:
+        parts.append(f"{not_here} configurations need options this cell lacks")
+    return Choice(pick, "; ".join(parts) + ".")
+
+
+RULE_TEXT = (
+    "among the completed configurations the cell can run, those with peak force within 10 % "
+    "of the limit; of those within 5 % of the fastest cycle, the smallest wall max error "
+    "(with variations: the 95th percentiles, every stock completed)"
+)

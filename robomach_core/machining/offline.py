@@ -1,0 +1,233 @@
+"""Offline deflection compensation planned from the cut the program will meet (chapter sec. 5.4).
+
+PROBLEM   Offline compensation moves each target against the deflection the process force will
+          cause there, x_c = x - C F (chapter eq. 32, ``stiffness.compensate_targets_and_joints``).
+          Planning it for the reference force Fr (what a CMRR controller aims at) falls short
+          wherever the cut never reaches Fr: the feed is limited by the programmed speed on a
+          thin allowance, the controller is still catching a burr, or the tool is entering the
+          stock; there the planned correction overcuts, and the error cut by compensation
+          stays at 57-74 % instead of >= 75 %.
+STRATEGY  Rehearse the cut: plan the targets for the force the same controller met on the same
+          stock (first the uncompensated run's, when the caller has it, else eq. 5 at the
+          stock's depth and the planned feed), cut the corrected program in the simulator, take
+          the force it met at each target, re-plan, and repeat until no target moves by more
+          than ``SETTLE_M`` between two rehearsals (at most ``MAX_REHEARSALS``). The
+          compensated cut meets a larger depth than the uncompensated one (the tool no longer
+          backs off the wall), so the force, and with a CMRR controller the feed, change with
+          the plan; the iteration is a fixed point of "plan for the force this plan meets".
+SOLUTION  ``offline_compensated_run`` returns the last rehearsal: its program is the corrected
+          program the export carries, and its trace and finished wall are what that program
+          does, so the table shows what the exported program will cut.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+
+from ..postprocess import Targets
+from ..robot import Robot
+from ..transforms import make_transform, matrices_from_quaternions, quaternions_from_matrices
+from .path import arc_length_m, path_tangents
+
+# Rehearsals stop when the planned shift moves by no more than this between two of them [m].
+SETTLE_M = 1.0e-6
+MAX_REHEARSALS = 4
+# The corrected program's targets: where the planned shift departs from a straight line
+# between two targets by more than this, and at most this far apart [m].
+PLACEMENT_TOLERANCE_M = 1.0e-6
+MAX_SPACING_M = 5.0e-3
+# Learning gain of the update from the rehearsal's wall error (ILC paper: 0 < L <= 1); a
+# half step does not chase the ripple a CMRR controller leaves from one rehearsal to the next.
+LEARNING_GAIN = 0.5
+
+
+def densify_targets(targets: Targets, spacing_m: float) -> Targets:
+    """Targets every ~``spacing_m`` along the MoveL path, positions and joints linear between
+    the program's targets, orientation and speed of the move's end target."""
+    s = arc_length_m(targets.position_m)
+    return targets_at(targets, np.union1d(np.arange(0.0, s[-1], spacing_m), s))
+
+
+def targets_at(targets: Targets, grid_m: np.ndarray) -> Targets:
+    """Targets at arc lengths ``grid_m`` (increasing, within the path) of the MoveL path."""
+    s = arc_length_m(targets.position_m)
+    grid = np.asarray(grid_m, dtype=float)
+    seg = np.clip(np.searchsorted(s, grid, side="left"), 1, len(s) - 1)
+    pos = np.stack([np.interp(grid, s, targets.position_m[:, i]) for i in range(3)], axis=1)
+    joints = np.stack([np.interp(grid, s, targets.joints_rad[:, i]) for i in range(6)], axis=1)
+    return Targets(
+        position_m=pos,
+        quaternion_wxyz=np.asarray(targets.quaternion_wxyz)[seg],
+        joints_rad=joints,
+        speed_m_s=np.asarray(targets.speed_m_s)[seg],
+        curvature_1_m=np.asarray(targets.curvature_1_m)[seg],
+        sample_index=np.asarray(targets.sample_index)[seg],
+    )
+
+
+def correction_stations(
+    s_m: np.ndarray, shift_m: np.ndarray, fixed_m: np.ndarray, *, tolerance_m: float,
+    max_spacing_m: float,
+) -> np.ndarray:  # fmt: skip
+    """Where the corrected program needs targets: the ``fixed_m`` stations (the nominal
+    targets), at most ``max_spacing_m`` apart, and wherever the planned shift between two
+    targets departs from a straight line by more than ``tolerance_m`` (the deviation-height
+    reduction of chapter fig. 3, applied to the correction: a burr's force transient gets
+    targets every few tenths of a millimetre, a steady cut one every few millimetres)."""
+    keep = np.zeros(len(s_m), dtype=bool)
+    keep[np.searchsorted(s_m, np.clip(fixed_m, s_m[0], s_m[-1]))] = True
+    keep[[0, -1]] = True
+    grid = np.arange(0.0, s_m[-1], max_spacing_m)
+    keep[np.searchsorted(s_m, grid)] = True
+    stack = list(zip(np.flatnonzero(keep)[:-1], np.flatnonzero(keep)[1:], strict=True))
+    while stack:
+        i, j = stack.pop()
+        if j - i < 2:
+            continue
+        t = (s_m[i + 1 : j] - s_m[i]) / (s_m[j] - s_m[i])
+        line = shift_m[i] + t * (shift_m[j] - shift_m[i])
+        dev = np.abs(shift_m[i + 1 : j] - line)
+        k = int(np.argmax(dev))
+        if dev[k] > tolerance_m:
+            mid = i + 1 + k
+            keep[mid] = True
+            stack += [(i, mid), (mid, j)]
+    return s_m[keep]
+
+
+def program_poses(targets: Targets) -> np.ndarray:
+    """(m, 4, 4) poses of the targets."""
+    Rs = matrices_from_quaternions(np.asarray(targets.quaternion_wxyz, dtype=float))
+    return np.array([make_transform(R, p) for R, p in zip(Rs, targets.position_m, strict=True)])
+
+
+def corrected_program(
+    robot: Robot,
+    dense: Targets,
+    normals_m: np.ndarray,
+    force_N: np.ndarray,
+    feed_force_ratio: float,
+    model,
+) -> Targets:
+    """The dense program with each target moved against the deflection the force ``force_N``
+    (along u = (n - rho t) / |n - rho t|) causes under the identified stiffness ``model``:
+    chapter eq. (32), linear, as ``stiffness.compensate_targets_and_joints`` does it, with the
+    joints moved by -theta (first order: the robot's IK of the corrected pose differs by
+    O(theta^2), nano-radians here), so a rehearsal needs no IK per target."""
+    from ..stiffness.model import apply_twist
+
+    u = normals_m - feed_force_ratio * path_tangents(dense.position_m)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    force = np.asarray(force_N, dtype=float)
+    c = np.asarray(model.compliance_rad_Nm, dtype=float)
+    Ts = program_poses(dense)
+    q0 = np.asarray(dense.joints_rad, dtype=float)
+    out_T = np.empty_like(Ts)
+    out_q = np.empty_like(q0)
+    wrench = np.zeros(6)
+    for i in range(len(dense)):
+        _, J = robot.fk_and_jacobian(q0[i])
+        wrench[:3] = force[i] * u[i]
+        theta = c * (J.T @ wrench)
+        out_T[i] = apply_twist(Ts[i], -(J @ theta))
+        out_q[i] = q0[i] - theta
+    return replace(
+        dense,
+        position_m=out_T[:, :3, 3].copy(),
+        quaternion_wxyz=quaternions_from_matrices(out_T[:, :3, :3]),
+        joints_rad=out_q,
+    )
+
+
+def _worse(a, b) -> bool:
+    """Whether run ``a`` is worse than run ``b``: not completed, or a larger wall error."""
+    if a.summary["completed"] != b.summary["completed"]:
+        return not a.summary["completed"]
+    return a.summary["wall_error_max_mm"] > b.summary["wall_error_max_mm"]
+
+
+def force_met_N(run, s_m: np.ndarray) -> np.ndarray:
+    """The process force a run met at arc lengths ``s_m`` along the path [N] (zero beyond
+    where a stopped run ended)."""
+    tr = run.trace
+    if len(tr) < 2:
+        return np.zeros(len(s_m))
+    return np.interp(s_m, tr.path_m, tr.force_N, right=0.0)
+
+
+def offline_compensated_run(
+    cut: Callable[[Targets, Targets, Callable[[float], None] | None], object],
+    robot: Robot,
+    nominal: Targets,
+    stations_m: np.ndarray,
+    normal_compliance_m_N: np.ndarray,
+    normals_m: np.ndarray,
+    first_force_N: np.ndarray,
+    *,
+    feed_force_ratio: float,
+    model,
+    progress: Callable[[float], None] | None = None,
+):
+    """Rehearse until the corrected targets settle (module docstring).
+
+    Args:
+        cut: Cuts a program paired with its nominal targets (the simulator with compensation
+            applied by the program alone), with a progress callback; returns the
+            ``MachiningRun``.
+        nominal: The nominal program; ``stations_m`` (k,) a fine grid of arc lengths along it
+            (the run's stations), ``normal_compliance_m_N`` (k,) n^T C_hat u there (for the
+            target placement), ``normals_m`` (k, 3) the wall normals there.
+        first_force_N: (k,) the force of the first plan at the stations.
+
+    Returns:
+        (the last rehearsal's run, its corrected program, its nominal targets, number of
+        rehearsals, the last change of the planned shift [m]).
+    """
+    s_n = arc_length_m(nominal.position_m)
+    s_f = np.asarray(stations_m, dtype=float)
+
+    def plan(force: np.ndarray) -> tuple[Targets, Targets, np.ndarray]:
+        shift = normal_compliance_m_N * force
+        grid = correction_stations(
+            s_f, shift, s_n, tolerance_m=PLACEMENT_TOLERANCE_M, max_spacing_m=MAX_SPACING_M
+        )
+        dense = targets_at(nominal, grid)
+        n = np.stack([np.interp(grid, s_f, normals_m[:, i]) for i in range(3)], axis=1)
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        f = np.interp(grid, s_f, force)
+        program = corrected_program(robot, dense, n, f, feed_force_ratio, model)
+        return program, dense, shift
+
+    force = np.asarray(first_force_N, dtype=float)
+    program, dense, shift = plan(force)
+    change = np.inf
+    best = None
+    for k in range(MAX_REHEARSALS):
+
+        def sub(fraction: float, k: int = k) -> None:
+            if progress is not None:
+                progress(min((k + fraction) / MAX_REHEARSALS, 1.0))
+
+        run = cut(program, dense, sub)
+        if best is None or _worse(best[0], run):
+            best = (run, program, dense)
+        if not run.summary["completed"]:
+            break  # a stopped cut cannot plan the rest of the path
+        # ILC on the finished wall (ILC paper, u_{k+1} = u_k + L e_k): the rehearsal's wall
+        # error, as the force whose deflection it equals, corrects the plan. It answers what
+        # the force alone cannot: the wall is the lowest reach of the ball over the passes,
+        # so where the force ripples faster than a tool radius the wall follows its minima.
+        error = np.interp(s_f, run.wall.s_m, run.wall.error_m)
+        step = LEARNING_GAIN * error / np.maximum(normal_compliance_m_N, 1e-12)
+        force = np.maximum(force + step, 0.0)
+        change = float(np.max(np.abs(LEARNING_GAIN * error)))
+        if change <= SETTLE_M or k + 1 == MAX_REHEARSALS:
+            break
+        program, dense, shift = plan(force)
+    run, program, dense = best
+    if progress is not None:
+        progress(1.0)
+    return run, program, dense, k + 1, change

@@ -1,0 +1,180 @@
+"""Run many machining cuts at once: a process pool on the local cores, or a Dask cluster.
+
+PROBLEM   A sweep over the stock's variation is hundreds of independent cuts of a second or
+          two each (embarrassingly parallel); a thread cannot run two (the cut is Python).
+STRATEGY  One task is one controller on one stock: its compensation modes in order (off,
+          then offline rehearsed from the off run, then online), so a task needs nothing from
+          another. Tasks carry only plain values (the arm's name and TCP, targets, stock,
+          settings, identified stiffness), each worker builds the arm once. Locally they go to
+          a ``ProcessPoolExecutor`` (spawned workers, safe beside the server's threads); with a
+          cluster address to a Dask ``distributed.Client`` (Dask rather than Ray: a pure-Python
+          wheel, a LocalCluster that starts in a second or two on two cores, and futures that
+          map one to one onto ``concurrent.futures``). The same task function runs in both, so
+          the results are the same numbers.
+SOLUTION  ``run_tasks`` returns the tasks' results in order; progress counts finished tasks,
+          cancel stops the pool (or the cluster's futures) and raises ``CancelledError``.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import CancelledError, InvalidInputError
+from ..postprocess import Targets
+from .settings import MachiningSettings
+from .stock import Stock
+
+# Seconds between two looks at the cancel flag while tasks run.
+POLL_S = 0.2
+_ROBOTS: dict[tuple[str, bytes], Any] = {}
+
+
+@dataclass(frozen=True, eq=False)
+class CutTask:
+    """One controller's compensation modes on one stock (picklable).
+
+    Attributes:
+        robot_name: The arm; ``T_flange_tcp`` (4, 4) its tool.
+        targets, wall_normals_m, stock, settings: as ``run_machining`` takes them.
+        controller: The controller; ``compensations`` its modes, run in order.
+        model: The identified stiffness (``JointCompliance``) or None.
+        keep_runs: Return the ``MachiningRun`` values (traces) too, not only the summaries.
+    """
+
+    robot_name: str
+    T_flange_tcp: np.ndarray
+    targets: Targets
+    wall_normals_m: np.ndarray | None
+    stock: Stock
+    settings: MachiningSettings
+    controller: str
+    compensations: tuple[str, ...]
+    model: Any = None
+    keep_runs: bool = False
+
+
+def _robot(name: str, T: np.ndarray):
+    from ..robot import Robot
+
+    key = (name, np.asarray(T, dtype=float).tobytes())
+    robot = _ROBOTS.get(key)
+    if robot is None:
+        robot = _ROBOTS[key] = Robot(name, np.asarray(T, dtype=float))
+    return robot
+
+
+def run_cut_task(
+    task: CutTask, cancel: Any = None
+) -> list[tuple[Any, dict[str, Any] | None, str | None]]:
+    """The task's cuts: per compensation (run or None, summary or None, refusal or None)."""
+    from .compare import run_configuration
+
+    robot = _robot(task.robot_name, task.T_flange_tcp)
+    out: list[tuple[Any, dict[str, Any] | None, str | None]] = []
+    off = None
+    for mode in task.compensations:
+        try:
+            run = run_configuration(
+                robot, task.targets, task.wall_normals_m, task.stock, task.settings,
+                task.controller, mode, compensation_model=task.model, cancel=cancel,
+                rehearsal=off,
+            )  # fmt: skip
+        except InvalidInputError as exc:
+            out.append((None, None, str(exc)))
+            continue
+        if mode == "off":
+            off = run
+        out.append((run if task.keep_runs else None, run.summary, None))
+    return out
+
+
+def default_workers() -> int:
+    """All local cores."""
+    return max(
+        1,
+        len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1),
+    )
+
+
+def run_tasks(
+    tasks: Sequence[CutTask],
+    *,
+    workers: int | None = None,
+    cluster: str | None = None,
+    progress: Callable[[float], None] | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> list[list[tuple[Any, dict[str, Any] | None, str | None]]]:
+    """Each task's results, in order (module docstring).
+
+    Args:
+        workers: Local processes; None: every core; 1: in this process.
+        cluster: A Dask scheduler address (``tcp://host:8786``): run there instead.
+        progress: Called with the share of tasks finished.
+        cancel: Polled while tasks run; true stops them with ``CancelledError``.
+    """
+    if cluster:
+        return _run_on_dask(tasks, cluster, progress, cancel)
+    n = default_workers() if workers is None else int(workers)
+    if n < 1:
+        raise InvalidInputError(f"workers must be at least 1, got {workers}")
+    if n == 1 or len(tasks) <= 1:
+        results = []
+        for i, task in enumerate(tasks):
+            if cancel is not None and cancel():
+                raise CancelledError("machining cancelled")
+            results.append(run_cut_task(task, cancel))
+            if progress is not None:
+                progress((i + 1) / len(tasks))
+        return results
+    context = multiprocessing.get_context("spawn")
+    pool = ProcessPoolExecutor(max_workers=min(n, len(tasks)), mp_context=context)
+    try:
+        futures = [pool.submit(run_cut_task, task) for task in tasks]
+        pending = set(futures)
+        while pending:
+            done, pending = wait(pending, timeout=POLL_S, return_when=FIRST_COMPLETED)
+            if cancel is not None and cancel():
+                for f in pending:
+                    f.cancel()
+                raise CancelledError("machining cancelled")
+            if progress is not None and done:
+                progress(1.0 - len(pending) / len(futures))
+        return [f.result() for f in futures]
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _run_on_dask(tasks, address: str, progress, cancel):
+    try:
+        from distributed import Client, as_completed
+    except ImportError:  # pragma: no cover - the [cluster] extra
+        raise InvalidInputError(
+            "a cluster address needs Dask: pip install 'robomach[cluster]'"
+        ) from None
+    try:
+        client = Client(address, timeout="10s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise InvalidInputError(f"cannot reach the Dask cluster at {address}: {exc}") from None
+    try:
+        futures = client.map(run_cut_task, list(tasks), pure=False)
+        index = {f.key: i for i, f in enumerate(futures)}
+        results: list[Any] = [None] * len(futures)
+        finished = 0
+        for future in as_completed(futures):
+            if cancel is not None and cancel():
+                client.cancel(futures)
+                raise CancelledError("machining cancelled")
+            results[index[future.key]] = future.result()
+            finished += 1
+            if progress is not None:
+                progress(finished / len(futures))
+        return results
+    finally:
+        client.close()

@@ -1,0 +1,88 @@
+"""A cap on queued jobs of every kind: one more is refused with 429 and a message (issue 19,
+R9: 300 machining comparisons, 3.3 h of work, were accepted at once, the robot locked behind
+them). In process: the session's job runner, and the machining route through ``TestClient``
+on a project imported from a small synthetic recording."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from app.api.app import create_app
+from app.session import JobRunner, QueueFullError, Session
+from app.session.jobs import MAX_ACTIVE_JOBS, MAX_ACTIVE_JOBS_PER_KIND
+from app.settings import ServerSettings
+from robomach_core import project as core
+from robomach_core.path_learning import PathLearningSettings
+from tests.core.test_project import _guide, _recording
+
+
+def test_the_runner_caps_jobs_per_kind_and_in_all() -> None:
+    release = threading.Event()
+    runner = JobRunner()
+    try:
+        held = [runner.submit("machining_compare", lambda ctx: release.wait(30))]
+        held += [runner.submit("machining_compare", lambda ctx: None)
+                 for _ in range(MAX_ACTIVE_JOBS_PER_KIND - 1)]  # fmt: skip
+        with pytest.raises(QueueFullError, match="3 machining compare jobs are already queued"):
+            runner.submit("machining_compare", lambda ctx: None)
+        others = [f"kind_{i}" for i in range(MAX_ACTIVE_JOBS - len(held))]
+        for kind in others:
+            runner.submit(kind, lambda ctx: None)
+        with pytest.raises(QueueFullError, match=f"{MAX_ACTIVE_JOBS} jobs are already queued"):
+            runner.submit("cmrr", lambda ctx: None)
+        runner.cancel(held[-1])  # cancelling one makes room again
+        runner.submit("machining_compare", lambda ctx: None)
+    finally:
+        release.set()
+        runner.close()
+
+
+def processed_project_bytes() -> bytes:
+    """A project on the block with a short synthetic recording, post-processed on import."""
+    project = core.Project(
+        cell=core.CellSettings(workpiece="block"), guide_points=(_guide(0.76), _guide(0.84))
+    )
+    learned = core.LearnedPath(
+        _recording(),
+        np.tile([1.0, 0.0, 0.0, 0.0], (2, 1)),
+        PathLearningSettings(closed=False),
+        core.recording_inputs_key(project),
+    )
+    workpiece = core.build_workpiece(project.cell, None)
+    processed = core.process(learned, project.post_settings, workpiece, 0.001)
+    return core.project_file_bytes(replace(project, learned=learned, processed=processed))
+
+
+@pytest.fixture(scope="module")
+def client() -> Iterator[TestClient]:
+    session = Session(real_time=False)
+    with TestClient(create_app(session, ServerSettings(viser_port=None))) as c:
+        r = c.post(
+            "/api/projects/import",
+            params={"name": "queue"},
+            files={"file": ("project.npz", processed_project_bytes())},
+        )
+        assert r.status_code == 201, r.text
+        yield c
+
+
+def test_machining_comparisons_past_the_cap_get_429(client: TestClient) -> None:
+    started = []
+    try:
+        for _ in range(MAX_ACTIVE_JOBS_PER_KIND):
+            r = client.post("/api/machining/compare")
+            assert r.status_code == 202, r.text
+            started.append(r.json()["job_id"])
+        r = client.post("/api/machining/compare")
+        assert r.status_code == 429, r.text
+        assert "machining compare jobs are already queued or running" in r.json()["detail"]
+        assert "/api/jobs" in r.json()["detail"]
+    finally:
+        for job_id in started:
+            client.post(f"/api/jobs/{job_id}/cancel")
