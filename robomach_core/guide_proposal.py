@@ -725,7 +725,9 @@ def move_point(
     )
     points = list(proposal.points)
     points[index] = moved
-    return _with_leg_notes(replace(proposal, points=_in_wall_order(points, proposal)), tool_radius_m)
+    return _with_leg_notes(
+        replace(proposal, points=_in_wall_order(points, proposal)), tool_radius_m
+    )
 
 
 def _in_wall_order(points: list[ProposedPoint], proposal: GuideProposal) -> tuple:

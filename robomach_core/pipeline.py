@@ -285,7 +285,9 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         from .demo_operator import guide_plan
         from .guide_proposal import robust_intents
 
-        planned = intents or guide_plan(cad, cell.tool.radius_m, np.random.default_rng(settings.seed))
+        planned = intents or guide_plan(
+            cad, cell.tool.radius_m, np.random.default_rng(settings.seed)
+        )
         intents = robust_intents(planned, cad, cell.tool.radius_m)
     lt = LeadThrough(cell)
     state = lt.start(cell.initial_state())

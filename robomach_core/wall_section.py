@@ -288,11 +288,18 @@ def pick_wall(
     p = np.asarray(point_m, dtype=float).reshape(3)
     if not np.all(np.isfinite(p)):
         raise InvalidInputError("the picked point must be 3 finite coordinates")
-    closest, distance, triangle = closest_point(mesh, p[None, :])
-    if float(distance[0]) > MAX_PICK_DISTANCE_M:
+    lo, hi = mesh.bounds
+    if np.any(p < lo - MAX_PICK_DISTANCE_M) or np.any(p > hi + MAX_PICK_DISTANCE_M):
         raise InvalidInputError(
-            f"the point ({_mm(p)}) mm is {distance[0] * 1e3:.1f} mm from the part's surface; "
-            "pick a point on the wall (work-object frame, mm)"
+            f"the point ({_mm(p)}) mm is off the part, which spans ({_mm(lo)}) to ({_mm(hi)}) mm "
+            "in its work-object frame; pick a point on a wall"
+        )
+    closest, distance, triangle = closest_point(mesh, p[None, :])
+    if len(distance) == 0 or float(distance[0]) > MAX_PICK_DISTANCE_M:
+        raise InvalidInputError(
+            f"the point ({_mm(p)}) mm is "
+            f"{distance[0] * 1e3 if len(distance) else float('inf'):.1f} mm from the part's "
+            "surface; pick a point on the wall (work-object frame, mm)"
         )
     if normal is None:
         n = np.asarray(mesh.face_normals[int(triangle[0])], dtype=float)

@@ -67,9 +67,9 @@ UPLOAD_PATHS = frozenset({"/api/cell/workpiece"})
 # Multipart boundaries and part headers around the file: a few hundred bytes in practice.
 MULTIPART_OVERHEAD_BYTES = 64 * 1024
 # guide_proposals before guide_points: its /proposal paths must not be read as an {index}.
-ROUTERS = (state, leadthrough, guide_proposals, guide_points, path_learning, jobs, postprocess, export, projects,
-           cell, cmrr, compensation, robot_wiring, machining, project_file, teach,
-           events)  # fmt: skip
+ROUTERS = (state, leadthrough, guide_proposals, guide_points, path_learning, jobs, postprocess,
+           export, projects, cell, cmrr, compensation, robot_wiring, machining, project_file,
+           teach, events)  # fmt: skip
 
 # A service is started in the lifespan and stopped after it (e.g. the viser workbench).
 Service = Callable[[], AbstractContextManager]

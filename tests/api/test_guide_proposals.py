@@ -58,7 +58,9 @@ def test_from_surface_moves_the_robot_beside_the_wall_and_records(client: TestCl
     "body, status, words",
     [
         ({"point_mm": [0.0, -62.5, 14.0]}, 422, "floor or a top"),
-        ({"point_mm": [0.0, -62.5, 40.0]}, 422, "surface"),
+        ({"point_mm": [0.0, -62.5, 40.0]}, 422, "off the part"),
+        ({"point_mm": [0.0, -62.5, 21.5]}, 422, "from the part's surface"),
+        ({"point_mm": [0.0, 1e6, 0.0]}, 422, "point_mm"),
         ({"point_mm": [0.0, -65.0]}, 422, "point_mm"),
         ({"point_mm": [0.0, -65.0, 19.0], "normal": [0, 0, 0]}, 422, "normal"),
         ({"point_mm": [0.0, -65.0, 19.0], "index": 3}, 404, "G4"),

@@ -71,7 +71,8 @@ def test_an_outside_edge_is_worked_where_the_spindle_stays_above_the_part():
     [
         ([0.0, -0.0625, 0.014], "floor or a top"),  # the groove floor
         ([0.0, 0.0, 0.020], "floor or a top"),  # the island's top
-        ([0.0, -0.0625, 0.030], "from the part's surface"),  # in the air
+        ([0.0, -0.0625, 0.030], "off the part"),  # above it
+        ([0.0, -0.0625, 0.0215], "from the part's surface"),  # in the air above the groove
     ],
 )
 def test_a_pick_off_a_wall_says_what_to_pick(point, message):

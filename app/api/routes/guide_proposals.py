@@ -15,16 +15,22 @@ from pydantic import BaseModel, Field
 from app.api.routes import ERRORS, SessionDep
 from app.api.schemas import Finite, GuidePointPublic, JobCreated, Vector3, _floats, _Request
 from robomach_core.guide_proposal import GuideProposal, ProposedPoint
-from robomach_core.limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
+from robomach_core.limits import MACHINING_HEIGHT_MM, WALL_GAP_MM, WOBJ_POSITION_MM
 
 router = APIRouter(prefix="/api/guide-points", tags=["guide points"], responses=ERRORS)
+
+# A point in the work-object frame: within the work object's own range (the largest arms).
+Coordinate = Annotated[
+    float, Field(allow_inf_nan=False, ge=WOBJ_POSITION_MM.min, le=WOBJ_POSITION_MM.max)
+]
+PointMm = Annotated[list[Coordinate], Field(min_length=3, max_length=3)]
 
 WALL_DRAWN_POINTS = 600  # the proposal's wall is sent decimated to about this many points
 IndexPath = Annotated[int, Path(ge=0, description="the proposed point's index, from 0")]
 
 
 class SurfacePointCreate(_Request):
-    point_mm: Vector3 = Field(description="a point on the part's wall, work-object frame [mm]")
+    point_mm: PointMm = Field(description="a point on the part's wall, work-object frame [mm]")
     normal: Vector3 | None = Field(
         default=None,
         description="the surface normal there (out of the material, any length); default: "
@@ -184,7 +190,7 @@ def get_proposal(session: SessionDep) -> ProposalPublic:
 
 
 class ProposedPointUpdate(_Request):
-    point_mm: Vector3 = Field(
+    point_mm: PointMm = Field(
         description="where to move the point, work-object frame [mm]: it slides to the "
         "nearest place beside the wall"
     )
