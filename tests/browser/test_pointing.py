@@ -25,6 +25,7 @@ pytestmark = pytest.mark.slow
 VIEWPORT = {"width": 1400, "height": 900}
 MAX_ACTIONS_PER_POINT = 2
 MAX_SECONDS_PER_POINT = 5.0
+FIRST_POINT_MAX_SECONDS = 8.0  # from home (measured 3.3-5.0 s on the loaded 2-core machine)
 MAX_DEVIATION_MM = 0.3
 CAMERA_DISTANCE_M = 0.11
 # The pump groove's outer wall, on each straight run the example operator uses (work object,
@@ -140,8 +141,9 @@ def test_click_to_teach_the_pump_then_learn_within_a_third_of_a_mm(browser, work
         print(f"G{k + 1}: {actions.count} actions, {seconds:.1f} s "
               f"(server {workbench.pointing.last_click_s:.1f} s)")  # fmt: skip
         assert actions.count <= MAX_ACTIONS_PER_POINT
-        if k > 0:  # the first comes from the robot's home, far above the part
-            assert seconds <= MAX_SECONDS_PER_POINT, f"G{k + 1} took {seconds:.1f} s"
+        # The first comes from the robot's home, 400 mm away: it may take a little longer.
+        limit = MAX_SECONDS_PER_POINT if k > 0 else FIRST_POINT_MAX_SECONDS
+        assert seconds <= limit, f"G{k + 1} took {seconds:.1f} s"
     guides = session.guide_points()
     T = session.cad_workpiece.T_base_wobj
     for g, (xy, normal) in zip(guides, PUMP_WALL_POINTS, strict=True):
