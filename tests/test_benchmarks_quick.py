@@ -65,6 +65,14 @@ EXPECTED: dict[str, list[str]] = {
         rf"\d+ listeners, robot moving\s+\d+\s+{NUMBER}\s+{NUMBER}",
         rf"robot events per listener: {NUMBER}/s",
     ],
+    "bench_answer_times.py": [
+        rf"stop during a paced push\s+1\s+{NUMBER}\s+{NUMBER}",
+        rf"refuse a 6 M-face OBJ \(48 MB\)\s+1\s+{NUMBER}",
+        rf"refuse the 5,000-link URDF\s+1\s+{NUMBER}",
+        rf"refuse a project file number out of range\s+1\s+{NUMBER}",
+        rf"refuse a language the arm does not run \(demo\)\s+1\s+{NUMBER}",
+        rf"cut an isolated child hanging past 0.5 s\s+1\s+{NUMBER}",
+    ],
     "bench_browser_pose_rate.py": [
         rf"handle\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
         rf"rest\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
