@@ -93,3 +93,15 @@ class NoContactError(RobomachError, RuntimeError):
     def __init__(self, message: str, *, state: object | None = None) -> None:
         super().__init__(message)
         self.state = state
+
+
+class ContactStopError(RobomachError, RuntimeError):
+    """A motion was stopped by contact with the part before it reached its goal.
+
+    Attributes:
+        state: Where the motion ended, in contact, to continue from.
+    """
+
+    def __init__(self, message: str, *, state: object | None = None) -> None:
+        super().__init__(message)
+        self.state = state

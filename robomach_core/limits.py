@@ -138,3 +138,14 @@ MACHINING_FORCE_LIMIT_N = Range("force limit", 1.5, 1400.0, "N")
 # Stocks of a variation sweep per configuration, and local worker processes.
 MACHINING_VARIATIONS = Range("variations", 0, 1000, integer=True)
 MACHINING_WORKERS = Range("workers", 1, 256, integer=True)
+
+# --- the real part (real_part.PartDeviation) and teaching by pointing (guide_proposal) ------
+# A fixture places a casting within a few mm and a degree or two; castings hold their walls
+# within tenths of a mm of the CAD (issue 15).
+FIXTURE_SHIFT_MM = Range("fixture shift", 0.0, 5.0, "mm")
+FIXTURE_ROTATION_DEG = Range("fixture rotation", 0.0, 3.0, "deg")
+WALL_OFFSET_MM = Range("casting wall offset", 0.0, 2.0, "mm")
+BURR_COUNT = Range("burrs", 0, 50, integer=True)
+BURR_HEIGHT_MM = Range("burr height", 0.0, 1.0, "mm")
+WALL_GAP_MM = Range("gap to the wall", 0.2, 5.0, "mm")
+MACHINING_HEIGHT_MM = Range("machining height above the floor", 0.5, 50.0, "mm")

@@ -36,6 +36,7 @@ from .project import (
 )
 from .project import compensate_program_targets as _compensate
 from .project import wobj_transform as wobj_transform
+from .real_part import real_workpiece
 from .scoring import PathScore
 from .tool import Tool
 from .workpiece import MAX_MESH_BYTES, MESH_SUFFIXES, Workpiece
@@ -76,6 +77,12 @@ class DemoSettings:
             writes every language the arm's controller is offered (``project.program_files``).
         robot_urdf: (filename, bytes) of a user's 6-axis URDF (``robots.custom``); ``robot``
             is then its registered name.
+        propose_at_m: (3,) a point on the wall to follow, work-object frame [m]: the guide
+            points are proposed along that wall (``guide_proposal``) and the operator leads the
+            robot to them; the wall decides open or closed, and the wall side.
+        proposal: Gap and height of the proposed points.
+        part_deviation: The real part's deviation from its mesh (``real_part``; the
+            ``realistic`` preset is ``PartDeviation.realistic(seed)``); None: none.
     """
 
     robot: str = "ur10"
@@ -95,6 +102,9 @@ class DemoSettings:
     closed: bool = True
     language: str = "auto"
     robot_urdf: tuple[str, bytes] | None = None
+    propose_at_m: tuple[float, float, float] | None = None
+    proposal: Any = None  # guide_proposal.ProposalSettings
+    part_deviation: Any = None  # real_part.PartDeviation
 
 
 @dataclass(frozen=True)
@@ -115,6 +125,7 @@ class DemoResult:
     wall_time_s: float
     project: Project | None = None
     files: dict[str, str] = field(default_factory=dict)
+    proposal: Any = None  # guide_proposal.GuideProposal
 
     def summary(self) -> dict:
         """The summary.json dictionary (units in key names)."""
@@ -179,6 +190,10 @@ class DemoResult:
                 name for name in self.files if name.startswith(("program.", "program_fc."))
             ]
             out["closed"] = self.settings.closed
+        if self.proposal is not None:
+            from .guide_proposal import proposal_summary
+
+            out["proposed_guide_points"] = proposal_summary(self.proposal)
         if self.score is not None:
             out["max_deviation_mm"] = self.score.max_m * 1e3
             out["rms_deviation_mm"] = self.score.rms_m * 1e3
@@ -225,6 +240,7 @@ def demo_project(settings: DemoSettings) -> Project:
         tool_radius_m=settings.tool.radius_m,
         seed=settings.seed,
         wobj_mm_deg=None if settings.wobj_mm_deg is None else tuple(settings.wobj_mm_deg),
+        part_deviation=settings.part_deviation,
     )
     post = replace(settings.postprocess, tolerance_m=settings.tolerance_m)
     return Project(
@@ -246,26 +262,40 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
 
         settings = replace(settings, robot=register_urdf(*settings.robot_urdf))
     project = demo_project(settings)
-    workpiece = build_workpiece(project.cell, project.mesh)
-    if workpiece.wall is None and settings.guide_points_csv is None:
+    cad = build_workpiece(project.cell, project.mesh)
+    workpiece = real_workpiece(cad, project.cell.part_deviation)  # what the cell's tool meets
+    if cad.wall is None and settings.guide_points_csv is None and settings.propose_at_m is None:
         raise InvalidInputError(
-            f"{workpiece.name}: a mesh file has no known wall to plan guide points on; "
-            "give --guide-points FILE.csv"
+            f"{cad.name}: a mesh file has no known wall to plan guide points on; give "
+            "--propose-guide-points X,Y,Z (a point on the wall, work-object frame, mm) or "
+            "--guide-points FILE.csv"
         )
     cell = Cell(
         CellConfig(
             robot=settings.robot, tool=project.tool(), workpiece=workpiece, seed=settings.seed
         )
     )
-    intents = None
+    intents = proposal = None
     if settings.guide_points_csv is not None:
         intents = intents_from_csv(settings.guide_points_csv, cell.robot)
+    elif settings.propose_at_m is not None:
+        proposal, intents, settings = _proposed(settings, cad, cell)
+    if workpiece.nominal is not None and settings.guide_points_csv is None:
+        # The part is not where its mesh is: the operator enters each groove in its middle
+        # and touches the real wall from there (``guide_proposal.robust_intents``).
+        from .demo_operator import guide_plan
+        from .guide_proposal import robust_intents
+
+        planned = intents or guide_plan(
+            cad, cell.tool.radius_m, np.random.default_rng(settings.seed)
+        )
+        intents = robust_intents(planned, cad, cell.tool.radius_m)
     lt = LeadThrough(cell)
     state = lt.start(cell.initial_state())
     state, guides = scripted_leadthrough(
         lt,
         state,
-        workpiece,
+        cad,
         np.random.default_rng(settings.seed),
         intents=intents,
         progress=lambda f: report("lead-through", f),
@@ -320,6 +350,43 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         wall_time_s=time.perf_counter() - started,
         project=project,
         files=files,
+        proposal=proposal,
+    )
+
+
+def _proposed(settings: DemoSettings, cad: Workpiece, cell: Cell) -> tuple[Any, list, DemoSettings]:
+    """The guide points proposed along the wall through ``settings.propose_at_m``, the
+    operator's intents to lead the robot to them, and the settings with the wall's side and
+    whether it is closed."""
+    from .guide_proposal import (
+        ProposalSettings,
+        guide_intents,
+        propose_guide_points,
+        refuse_unreachable,
+        tool_reach,
+    )
+    from .supervision import cell_supervisor
+
+    proposal = propose_guide_points(
+        cad,
+        cell.robot,
+        np.asarray(settings.propose_at_m, dtype=float),
+        tool_radius_m=cell.tool.radius_m,
+        settings=settings.proposal or ProposalSettings(),
+        q_seed=cell.robot.home_rad,
+        supervisor=cell_supervisor(cell),
+        tool_reach_m=tool_reach(cell.tool),
+    )
+    refuse_unreachable(proposal)
+    if not settings.closed and proposal.closed:
+        raise InvalidInputError(
+            "the picked wall is a closed loop; learn it closed (leave out --open)"
+        )
+    side = proposal.wall_side if settings.wall_side == "auto" else settings.wall_side
+    return (
+        proposal,
+        guide_intents(proposal),
+        replace(settings, closed=proposal.closed, wall_side=side),
     )
 
 

@@ -17,7 +17,17 @@ def demo_figure(result, path: str | Path) -> Path:
     rec = result.recording
     post = result.settings.postprocess
     kept = result.processed.keep_mask
-    fig, (ax_f, ax_p) = plt.subplots(1, 2, figsize=(13, 5), gridspec_kw={"width_ratios": [1.2, 1]})
+    processed = None if result.project is None else result.project.processed
+    comparison = getattr(processed, "cad_comparison", None)
+    if comparison is not None and comparison.part_deviates:
+        fig, (ax_f, ax_p, ax_c) = plt.subplots(
+            1, 3, figsize=(19, 5), gridspec_kw={"width_ratios": [1.1, 1, 1.1]}
+        )
+    else:
+        comparison = None
+        fig, (ax_f, ax_p) = plt.subplots(
+            1, 2, figsize=(13, 5), gridspec_kw={"width_ratios": [1.2, 1]}
+        )
     ax_f.plot(
         rec.time_s, rec.force_normal_N, lw=0.6, color="0.3", label="measured (normal to the edge)"
     )
@@ -79,6 +89,14 @@ def demo_figure(result, path: str | Path) -> Path:
             f"RMS {result.score.rms_m * 1e3:.3f} mm"
         )
     ax_p.plot(tg[:, 0], tg[:, 1], "-", color="tab:blue", lw=0.6, label="learned program")
+    if comparison is not None:
+        cad = result.workpiece.cad().wall
+        if cad is not None:
+            c = cad.sample(0.0005) * 1e3
+            ax_p.plot(np.append(c[:, 0], c[0, 0]), np.append(c[:, 1], c[0, 1]), ":",
+                      color="tab:purple", lw=0.8, label="CAD wall")  # fmt: skip
+        ax_p.lines[0].set_label("real wall")
+        _comparison_axis(ax_c, comparison)
     ax_p.set_aspect("equal")
     ax_p.set_xlabel("x (work object) [mm]")
     ax_p.set_ylabel("y (work object) [mm]")
@@ -88,3 +106,30 @@ def demo_figure(result, path: str | Path) -> Path:
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return out
+
+
+def _comparison_axis(ax, comparison) -> None:
+    """The signed error along both programs against the real wall (+ air, - overcut)."""
+    for score, name, color in (
+        (comparison.cad_only, "CAD-only program", "tab:purple"),
+        (comparison.learned, "learned program", "tab:blue"),
+    ):
+        along = score.along_m / max(score.along_m[-1], 1e-12) * 100.0
+        step = max(1, len(along) // 5000)
+        ax.plot(
+            along[::step],
+            score.deviation_m[::step] * 1e3,
+            lw=0.8,
+            color=color,
+            label=f"{name}: max {score.max_m * 1e3:.2f} mm, RMS {score.rms_m * 1e3:.2f} mm",
+        )
+    ax.axhline(0.0, color="0.4", lw=0.8)
+    ax.axhspan(-1e3, 0.0, color="tab:red", alpha=0.06)
+    low = min(comparison.cad_only.deviation_m.min(), comparison.learned.deviation_m.min())
+    high = max(comparison.cad_only.deviation_m.max(), comparison.learned.deviation_m.max())
+    ax.set_ylim(low * 1e3 - 0.2, high * 1e3 + 0.2)
+    ax.text(1, low * 1e3 - 0.1, "overcut (into the material)", fontsize=8, color="tab:red")
+    ax.set_xlabel("along the program [%]")
+    ax.set_ylabel("error against the real wall [mm]")
+    ax.set_title("What learning buys: the same wall, from the CAD or learned")
+    ax.legend(loc="upper right", fontsize=8)

@@ -51,6 +51,11 @@ class Workpiece:
             material of the wall is on the right.
         wall_z_m: (low, high) z range of the wall in the wobj frame.
         surface_z_m: z of the top surface (wobj frame).
+        reference_mesh: The surface programs are scored against when it differs from
+            ``mesh`` (a real casting without its burrs, ``real_part``); None: ``mesh``.
+        nominal: The CAD this part deviates from (``real_part.real_workpiece``); None when
+            the part is its CAD. Teaching, checks and the scene use ``cad()``.
+        deviation_note: How the part deviates from its CAD, for people ("" when it does not).
     """
 
     name: str
@@ -62,12 +67,27 @@ class Workpiece:
     wall: Contour | None = None
     wall_z_m: tuple[float, float] = (0.0, 0.0)
     surface_z_m: float = 0.0
+    reference_mesh: trimesh.Trimesh | None = None
+    nominal: Workpiece | None = None
+    deviation_note: str = ""
+
+    def cad(self) -> Workpiece:
+        """The part as its CAD: what the user sees and teaches on (itself when it has no
+        deviation)."""
+        return self if self.nominal is None else self.nominal
+
+    def scoring_mesh(self) -> trimesh.Trimesh:
+        """The surface a program is scored against (``reference_mesh`` or ``mesh``)."""
+        return self.mesh if self.reference_mesh is None else self.reference_mesh
 
     def __getstate__(self) -> dict:
         """Pickled without trimesh's caches: a cached triangle tree (rtree) comes back empty
         from a pickle, and every later distance query on the mesh then fails."""
         state = dict(self.__dict__)
         state["mesh"] = trimesh.Trimesh(self.mesh.vertices, self.mesh.faces, process=False)
+        if self.reference_mesh is not None:
+            ref = self.reference_mesh
+            state["reference_mesh"] = trimesh.Trimesh(ref.vertices, ref.faces, process=False)
         return state
 
     def __setstate__(self, state: dict) -> None:
@@ -86,7 +106,8 @@ class Workpiece:
             raise InvalidInputError("work-object pose must be a finite 4x4 transform")
         if not np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-6):
             raise InvalidInputError("work-object rotation is not orthonormal")
-        return replace(self, T_base_wobj=T)
+        nominal = None if self.nominal is None else self.nominal.placed(T)
+        return replace(self, T_base_wobj=T, nominal=nominal)
 
 
 def water_pump_wall() -> Contour:

@@ -71,7 +71,7 @@ async function api(method, path, body, { text = false, quiet = false } = {}) {
     let parsed = null;
     try { parsed = await response.json(); } catch (_) { /* not JSON */ }
     const message = detailOf(parsed, response.status);
-    if (!quiet) showMessage(`${method} ${path}: ${message}`);
+    if (!quiet) showMessage(message);  // the user's terms: not the route
     const err = new Error(message);
     err.status = response.status;
     throw err;

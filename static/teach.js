@@ -4,7 +4,10 @@
 //    polling (pendant.js) stays as the fallback.
 //  - jog frame shown beside the numbers, touch-off buttons, the tool's gap and force,
 //  - keyboard jogging (arrows, PageUp/PageDown, Shift = 10x) and G/Enter to record,
-//  - the browser Gamepad API: sticks jog at a speed, button A records.
+//  - the browser Gamepad API: sticks jog at a speed, button A records,
+//  - teaching by pointing: what a click on the part does, a typed point forwarded through
+//    REST, the proposed guide points with their reachability, accept / delete / discard,
+//  - the CAD-only program beside the learned one, Home, Clear all.
 "use strict";
 
 const GAMEPAD_PERIOD_MS = 100;
@@ -71,11 +74,175 @@ async function touchOff(axis, sign) {
   showMessage(`touched at ${fmt(Math.hypot(...f), 1)} N: record the guide point (G)`, "info");
 }
 
+// A recorded guide point ends the touch-off's "record the guide point" banner.
+const recordGuideNow = recordGuide;
+// eslint-disable-next-line no-global-assign
+recordGuide = async () => {
+  await recordGuideNow();
+  if (!$("message").classList.contains("hidden") && $("message").classList.contains("info")) {
+    clearMessage();
+  }
+};
+
+// ---------------------------------------------------------------- teaching by pointing
+
+let selectedProposed = null;
+
+function pointMm() {
+  return ["point-x", "point-y", "point-z"].map((id) => Number($(id).value));
+}
+
+function showPointing(s) {
+  if (!s) return;
+  $("point-mode").value = s.click_mode;
+  if (document.activeElement !== $("point-gap")) $("point-gap").value = s.gap_mm;
+  if (document.activeElement !== $("point-height")) $("point-height").value = s.height_above_floor_mm;
+}
+
+async function putPointing() {
+  showPointing(await api("PUT", "/guide-points/pointing", {
+    click_mode: $("point-mode").value,
+    gap_mm: Number($("point-gap").value),
+    height_above_floor_mm: Number($("point-height").value),
+  }));
+}
+
+function showProposal(p) {
+  const tbody = $("proposal-list");
+  tbody.textContent = "";
+  const has = Boolean(p && p.points);
+  for (const id of ["proposal-accept", "proposal-discard", "proposal-delete"]) $(id).disabled = !has;
+  if (!has) {
+    $("point-summary").textContent = "";
+    selectedProposed = null;
+    return;
+  }
+  const counts = { ok: 0, near: 0, unreachable: 0 };
+  for (const q of p.points) counts[q.reach] += 1;
+  $("point-summary").textContent =
+    `${p.points.length} proposed points along the ${p.closed ? "closed" : "open"} wall ` +
+    `(${fmt(p.wall_length_mm, 0)} mm) at z = ${fmt(p.height_wobj_mm, 1)} mm, wall side ` +
+    `${p.wall_side}: ${counts.ok} ok, ${counts.near} near a limit, ${counts.unreachable} ` +
+    `unreachable. ${p.notes.join(" ")}`;
+  for (const q of p.points) {
+    const tr = document.createElement("tr");
+    tr.className = `reach-${q.reach}` + (q.index === selectedProposed ? " selected" : "");
+    tr.title = q.message;
+    for (const v of [`P${q.index + 1}`, fmt(q.position_wobj_mm[0], 1), fmt(q.position_wobj_mm[1], 1),
+      q.kind, q.reach]) {
+      const td = document.createElement("td");
+      td.textContent = v;
+      tr.appendChild(td);
+    }
+    tr.addEventListener("click", () => {
+      selectedProposed = q.index;
+      for (const other of tbody.children) other.classList.toggle("selected", other === tr);
+    });
+    tbody.appendChild(tr);
+  }
+  if (!p.points.some((q) => q.index === selectedProposed)) selectedProposed = null;
+}
+
+async function refreshProposal() {
+  try {
+    showProposal(await api("GET", "/guide-points/proposal", undefined, { quiet: true }));
+  } catch (err) {
+    if (err.status === 404) showProposal(null);
+  }
+  showPointing(await api("GET", "/guide-points/pointing", undefined, { quiet: true }));
+}
+
+async function proposeTyped() {
+  clearMessage();
+  showProposal(await api("POST", "/guide-points/propose", { point_mm: pointMm() }));
+}
+
+async function teachTyped() {
+  clearMessage();
+  const taught = await api("POST", "/guide-points/from-surface", { point_mm: pointMm() });
+  await refreshGuides();
+  pollState();
+  if (taught.notice) showMessage(`G${taught.guide_point.index + 1}: ${taught.notice}`, "info");
+}
+
+async function acceptProposal() {
+  const start = await api("POST", "/guide-points/proposal/accept", {});
+  const bar = $("proposal-progress");
+  bar.classList.remove("hidden");
+  $("proposal-accept").disabled = true;
+  try {
+    const job = await followJob(start.job_id, (j) => { bar.value = fraction(j.progress); });
+    if (jobFailed(job)) showMessage(`accept the proposal: ${job.error || job.status}`);
+    else {
+      const guides = await api("GET", "/guide-points");
+      showGuides(guides);
+    }
+  } finally {
+    bar.classList.add("hidden");
+    await refreshProposal();
+  }
+}
+
+async function deleteProposed() {
+  if (selectedProposed === null) {
+    showMessage("select a proposed point in the list first");
+    return;
+  }
+  showProposal(await api("DELETE", `/guide-points/proposal/points/${selectedProposed}`));
+}
+
+async function discardProposal() {
+  await api("DELETE", "/guide-points/proposal");
+  showProposal(null);
+}
+
+// The CAD-only program beside the learned one (post-processing's answer).
+function showCadComparison(r) {
+  const c = r && r.cad_comparison;
+  $("compare-table").classList.toggle("hidden", !c);
+  $("compare-note").classList.toggle("hidden", !c);
+  if (!c) return;
+  const rows = [["learned", c.learned], ["CAD-only", c.cad_only]].map(([name, s]) => {
+    const tr = document.createElement("tr");
+    const [x, y] = s.worst_at_wobj_mm;
+    for (const v of [name, fmt(s.max_deviation_mm, 3), fmt(s.rms_deviation_mm, 3),
+      fmt(s.overcut_mm, 3), fmt(s.air_mm, 3), `(${fmt(x, 0)}, ${fmt(y, 0)})`]) {
+      const td = document.createElement("td");
+      td.textContent = v;
+      tr.appendChild(td);
+    }
+    return tr;
+  });
+  $("compare-list").replaceChildren(...rows);
+  $("compare-note").textContent = c.part_deviates_from_cad
+    ? `Against the real wall. Real part: ${c.deviation}.`
+    : "Against the wall (the part is its mesh: the CAD-only program is as good).";
+}
+
+const showPostprocessNow = showPostprocess;
+// eslint-disable-next-line no-global-assign
+showPostprocess = (r) => {
+  showPostprocessNow(r);
+  showCadComparison(r);
+};
+
+async function goHome() {
+  showMove(await api("POST", "/leadthrough/home", {}));
+}
+
+async function clearGuides() {
+  await api("DELETE", "/guide-points");
+  await refreshGuides();
+}
+
 // ---------------------------------------------------------------- the tool's view
 
 async function refreshTool() {
   const v = await api("GET", "/leadthrough/tool", undefined, { quiet: true });
-  $("tool-gap").textContent = fmt(v.gap_mm, 2);
+  // The gap to the wall at the tool's height; the nearest face when that is a floor.
+  const wall = v.wall_gap_mm === null || v.wall_gap_mm === undefined ? "-" : fmt(v.wall_gap_mm, 2);
+  $("tool-gap").textContent = v.nearest_face && v.nearest_face !== "wall"
+    ? `${wall} (${v.nearest_face} ${fmt(v.gap_mm, 2)})` : wall;
   $("tool-force").textContent = fmt(v.force_magnitude_N, 1);
   $("tool-table").textContent = fmt(v.table_gap_mm, 1);
 }
@@ -198,6 +365,7 @@ function connectEvents() {
   for (const topic of ["guide_points", "cell", "project"]) {
     source.addEventListener(topic, () => {
       refreshGuides().catch(() => {});
+      refreshProposal().catch(() => {});
       pollState();
       scheduleTool();
     });
@@ -225,6 +393,18 @@ function initTeach() {
       () => touchOff(b.dataset.axis, Number(b.dataset.sign))).catch(() => {}));
   }
   document.addEventListener("keydown", onKey);
+  const guard = (fn) => () => fn().catch(() => {});
+  for (const id of ["point-mode", "point-gap", "point-height"]) {
+    $(id).addEventListener("change", guard(putPointing));
+  }
+  $("point-propose").addEventListener("click", guard(proposeTyped));
+  $("point-teach").addEventListener("click", () => exclusive(teachTyped).catch(() => {}));
+  $("proposal-accept").addEventListener("click", guard(acceptProposal));
+  $("proposal-delete").addEventListener("click", guard(deleteProposed));
+  $("proposal-discard").addEventListener("click", guard(discardProposal));
+  $("jog-home").addEventListener("click", () => exclusive(goHome).catch(() => {}));
+  $("guide-clear").addEventListener("click", guard(clearGuides));
+  refreshProposal().catch(() => {});
   window.addEventListener("gamepadconnected", pollGamepad);
   setInterval(pollGamepad, GAMEPAD_PERIOD_MS);
   setInterval(() => {

@@ -34,6 +34,7 @@ from app.api.routes import (
     events,
     export,
     guide_points,
+    guide_proposals,
     jobs,
     leadthrough,
     machining,
@@ -65,9 +66,10 @@ DEFAULT_PORTS = {"http": 80, "https": 443}
 UPLOAD_PATHS = frozenset({"/api/cell/workpiece"})
 # Multipart boundaries and part headers around the file: a few hundred bytes in practice.
 MULTIPART_OVERHEAD_BYTES = 64 * 1024
-ROUTERS = (state, leadthrough, guide_points, path_learning, jobs, postprocess, export, projects,
-           cell, cmrr, compensation, robot_wiring, machining, project_file, teach,
-           events)  # fmt: skip
+# guide_proposals before guide_points: its /proposal paths must not be read as an {index}.
+ROUTERS = (state, leadthrough, guide_proposals, guide_points, path_learning, jobs, postprocess,
+           export, projects, cell, cmrr, compensation, robot_wiring, machining, project_file,
+           teach, events)  # fmt: skip
 
 # A service is started in the lifespan and stopped after it (e.g. the viser workbench).
 Service = Callable[[], AbstractContextManager]

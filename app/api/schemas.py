@@ -417,6 +417,13 @@ class PostprocessPublic(BaseModel):
     moves: int | None = Field(None, description="motion instructions of the program")
     circular_moves: int | None = Field(None, description="of which circular (MoveC / movec)")
     straight_moves: int | None = Field(None, description="instructions of the straight program")
+    cad_comparison: dict[str, Any] | None = Field(
+        None,
+        description="the program a CAD/CAM tool would make from the mesh alone (the wall "
+        "offset by the tool radius, reduced to the same tolerance) and the learned one, both "
+        "against the real wall: max, RMS, overcut and air [mm], where the worst error sits "
+        "(work object, mm; fraction along); null when the path follows no wall of the mesh",
+    )
     settings: PostprocessSettingsPublic
 
     @classmethod
@@ -435,6 +442,7 @@ class PostprocessPublic(BaseModel):
             moves=extras["moves"],
             circular_moves=extras["circular_moves"],
             straight_moves=extras["straight_moves"],
+            cad_comparison=extras.get("cad_comparison"),
             samples_raw=o.samples_raw,
             samples_filtered=o.result.samples_filtered,
             targets=len(o.result.targets),
@@ -526,6 +534,12 @@ class CellUpdate(_Request):
     )
     tool_radius_mm: Finite | None = Field(None, description="ball cutter radius [mm], 0.5-5")
     workpiece: str | None = Field(None, description="water_pump, block, or the uploaded mesh")
+    realistic: bool | None = Field(
+        None,
+        description="the realistic preset: the part in the cell differs from its mesh by a "
+        "fixture error and casting deviations drawn from the cell's seed (teaching uses the "
+        "mesh, learning meets the real part); false: the part is its mesh",
+    )
 
 
 class CellPublic(BaseModel):
@@ -536,10 +550,17 @@ class CellPublic(BaseModel):
     seed: int
     robots: list[str] = Field(description="robots to choose from")
     workpieces: list[str] = Field(description="built-in workpieces")
+    realistic: bool = Field(False, description="the part differs from its mesh (the preset)")
+    part_deviation: dict[str, Any] | None = Field(
+        None, description="how the part differs from its mesh: fixture and casting (mm, deg)"
+    )
 
     @classmethod
     def from_settings(cls, s: CellSettings, robots: list[str], workpieces: list[str]) -> CellPublic:
+        d = s.part_deviation
         return cls(
+            realistic=d is not None,
+            part_deviation=None if d is None else d.as_dict(),
             robot=s.robot,
             tool_radius_mm=round(s.tool_radius_m * 1e3, 9),
             workpiece=s.workpiece,

@@ -112,6 +112,29 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     from robomach_core.wall_side import WALL_SIDE_CHOICES
 
     p.add_argument(
+        "--propose-guide-points",
+        metavar="X,Y,Z",
+        help="propose the guide points along the wall through this point (on the wall, in the "
+        "work-object frame, mm, as a click in the workbench gives it) and lead the robot to "
+        "them: no CSV needed, for a mesh file too; the wall decides open or closed and the "
+        "wall side",
+    )
+    p.add_argument(
+        "--gap-mm",
+        type=float,
+        default=1.0,
+        metavar="MM",
+        help="with --propose-guide-points: gap between the cutter and the wall (default 1)",
+    )
+    p.add_argument(
+        "--realistic",
+        action="store_true",
+        help="the realistic preset: the part in the cell differs from its mesh by a fixture "
+        "error (0.3-0.6 mm, 0.15-0.3 deg) and casting deviations (walls within +-0.5 mm, burrs), "
+        "drawn from --seed; teaching uses the mesh, learning meets the real part, and the "
+        "program a CAD/CAM tool would make from the mesh is scored beside the learned one",
+    )
+    p.add_argument(
         "--wall-side",
         choices=WALL_SIDE_CHOICES,
         default="auto",
@@ -135,6 +158,24 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--no-plot", action="store_true", help="skip demo.png")
     p.set_defaults(func=run)
+
+
+def _point_mm(text: str, option: str) -> tuple[float, float, float]:
+    """A point x,y,z in mm (work-object frame) as metres, each inside the work-object range."""
+    from robomach_core import limits
+    from robomach_core.errors import InvalidInputError
+
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise InvalidInputError(f"{option} {text!r}: expected three numbers x,y,z in mm") from None
+    if len(values) != 3:
+        raise InvalidInputError(
+            f"{option} {text!r}: expected three numbers x,y,z in mm, got {len(values)}"
+        )
+    for v in values:
+        limits.WOBJ_POSITION_MM.check(v, option)
+    return values[0] * 1e-3, values[1] * 1e-3, values[2] * 1e-3  # type: ignore[return-value]
 
 
 class _ProgressLine:
@@ -203,6 +244,12 @@ def run(args: argparse.Namespace) -> int:
         ranges = (limits.WOBJ_POSITION_MM,) * 3 + (limits.WOBJ_ROTATION_DEG,) * 3
         for value, rng in zip(wobj, ranges, strict=False):
             rng.check(value, "--wobj")
+    propose_at = None
+    if args.propose_guide_points is not None:
+        if args.guide_points is not None:
+            raise InvalidInputError("give --guide-points or --propose-guide-points, not both")
+        propose_at = _point_mm(args.propose_guide_points, "--propose-guide-points")
+    limits.WALL_GAP_MM.check(args.gap_mm, "--gap-mm")
     guide_csv = None
     if args.guide_points is not None:
         if not args.guide_points.is_file():
@@ -222,8 +269,10 @@ def run(args: argparse.Namespace) -> int:
         )
 
     from robomach_core.errors import SupervisionError
+    from robomach_core.guide_proposal import ProposalSettings
     from robomach_core.pipeline import DemoSettings, default_robot, run_demo, write_demo_outputs
     from robomach_core.postprocess import PostprocessSettings
+    from robomach_core.real_part import PartDeviation
     from robomach_core.tool import Tool
 
     robot, robot_urdf = args.robot or default_robot(args.language), None
@@ -260,6 +309,9 @@ def run(args: argparse.Namespace) -> int:
         closed=not args.open,
         language=args.language,
         robot_urdf=robot_urdf,
+        propose_at_m=propose_at,
+        proposal=ProposalSettings(gap_m=args.gap_mm * 1e-3),
+        part_deviation=PartDeviation.realistic(args.seed) if args.realistic else None,
     )
     bar = _ProgressLine()
     try:
@@ -278,6 +330,16 @@ def run(args: argparse.Namespace) -> int:
 
         paths.append(demo_figure(result, args.out / "demo.png"))
     s = result.summary()
+    if result.workpiece.deviation_note:
+        print(f"real part         {result.workpiece.deviation_note}")
+    proposed = s.get("proposed_guide_points")
+    if proposed is not None:
+        shape = "a closed" if proposed["closed"] else "an open"
+        print(
+            f"proposed          {proposed['points']} guide points along {shape} wall of "
+            f"{proposed['wall_length_mm']:.0f} mm at z = {proposed['height_wobj_mm']:.1f} mm "
+            f"(work object), wall side {proposed['wall_side']}"
+        )
     print(f"guide points      {s['guide_points']}")
     print(
         f"samples           {s['samples_raw']} raw, {s['samples_filtered']} kept "
@@ -307,6 +369,18 @@ def run(args: argparse.Namespace) -> int:
     print(f"wall              on the {s['wall_side']} of travel: {s['wall_side_reason']}")
     if s.get("taught_wall"):
         print(f"taught wall       {s['taught_wall']}")
+    comparison = s.get("cad_comparison")
+    if comparison is not None:
+        title = "vs the real wall" if comparison["part_deviates_from_cad"] else "vs the wall"
+        for label, key in (("learned program", "learned"), ("CAD-only program", "cad_only")):
+            c = comparison[key]
+            x, y, _ = c["worst_at_wobj_mm"]
+            print(
+                f"{title if key == 'learned' else '':<18}{label:<17} max "
+                f"{c['max_deviation_mm']:.3f} mm, RMS {c['rms_deviation_mm']:.3f} mm, overcut "
+                f"{c['overcut_mm']:.3f} mm, air {c['air_mm']:.3f} mm; worst at ({x:.1f}, "
+                f"{y:.1f}) mm, {c['worst_at_fraction']:.0%} along"
+            )
     print(
         f"reachable         {s['robtargets_reachable']}/{s['robtargets_total']} program targets "
         f"({s['program_language']})"

@@ -27,7 +27,8 @@ from robomach_core.workpiece import Workpiece
 
 # The example-robot-data URDFs name their meshes package://example-robot-data/robots/...
 _PACKAGE_PREFIXES = ("package://example-robot-data/robots/", "package://")
-FORCE_ARROW_M_PER_N = 0.005  # 10 N draws a 50 mm arrow
+FORCE_ARROW_M_PER_N = 0.002  # 10 N draws a 20 mm arrow: beside a 1 mm cutter, not over the part
+FORCE_ARROW_MAX_M = 0.04  # a 60 N spike stays a 40 mm arrow
 ARROW_MIN_N = 1.0  # weaker forces draw no arrow (noise; path learning's contact flag is 1 N)
 WORKPIECE_COLOR = (150, 160, 175)
 TOOL_COLOR = (70, 70, 80)
@@ -44,7 +45,11 @@ STOP_COLOR = (220, 20, 20)
 SELECTED_GUIDE_COLOR = (230, 40, 160)
 SPINDLE_OPACITY = 0.3
 HANDLE_SCALE = 0.05  # the push handle: small, beside the tool rather than over it
-GUIDE_LABEL_LIFT_M = (0.010, 0.022)
+GUIDE_LABEL_LIFT_M = 0.004  # the "G1" label sits just above its marker
+REACH_COLORS = {"ok": (30, 170, 70), "near": (240, 160, 20), "unreachable": (220, 40, 40)}
+PROPOSAL_LINE_COLOR = (120, 120, 200)
+WALL_COLOR = (40, 140, 220)
+WOBJ_AXES_M = 0.05
 
 
 def _mesh_filename(fname: str) -> str:
@@ -223,6 +228,7 @@ class CellScene:
         )
         self.workpiece_node: viser.SceneNodeHandle | None = None
         self._guides_node: viser.SceneNodeHandle | None = None
+        self.paths_hidden = False  # the drawn paths belong to a cell no longer there
 
     # ----------------------------------------------------------------- cell set-up
 
@@ -256,8 +262,12 @@ class CellScene:
             )
 
     def set_workpiece(self, workpiece: Workpiece) -> None:
-        """Show the workpiece mesh at its place in the base frame."""
-        mesh = workpiece.mesh_in_base()
+        """Show the workpiece mesh (as its CAD: what the user teaches on) at its place in the
+        base frame, clickable, with its work-object frame and coordinates."""
+        cad = workpiece.cad()
+        mesh = cad.mesh_in_base()
+        self._cad_in_base = mesh
+        self._T_base_wobj = cad.T_base_wobj.copy()
         self.workpiece_node = self.server.scene.add_mesh_simple(
             "/workpiece",
             mesh.vertices,
@@ -266,6 +276,188 @@ class CellScene:
             flat_shading=True,
             side="double",
         )
+        self.workpiece_node.on_click(self._part_clicked)
+        self._show_wobj_frame(cad.T_base_wobj)
+
+    def _show_wobj_frame(self, T_base_wobj: np.ndarray) -> None:
+        """The work-object frame (axes at its origin) and its coordinates in the base frame."""
+        x, y, z = T_base_wobj[:3, 3] * 1e3
+        with self.server.atomic():
+            self.server.scene.add_frame(
+                "/wobj",
+                wxyz=quaternion_from_matrix(T_base_wobj[:3, :3]),
+                position=T_base_wobj[:3, 3],
+                axes_length=WOBJ_AXES_M,
+                axes_radius=0.0012,
+            )
+            self.server.scene.add_label(
+                "/wobj/label",
+                f"work object ({x:.0f}, {y:.0f}, {z:.0f}) mm",
+                position=(0.0, 0.0, 0.004),
+                anchor="bottom-left",
+            )
+
+    # ----------------------------------------------------------------- pointing at the part
+
+    def on_part_click(self, callback) -> None:
+        """Call ``callback(point_wobj_m, normal_wobj, client)`` when the user clicks the part
+        (the first surface the click's ray meets, and its normal, in the work-object frame)."""
+        self._click_callback = callback
+
+    def hit_part(
+        self, origin: np.ndarray, direction: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """(point, normal) in the work-object frame where a base-frame ray meets the part."""
+        mesh = getattr(self, "_cad_in_base", None)
+        if mesh is None:
+            return None
+        from robomach_core.mesh_query import ray_hits
+
+        hits, _, faces = ray_hits(mesh, np.asarray([origin]), np.asarray([direction]))
+        if len(hits) == 0:
+            return None
+        k = int(np.argmin(np.linalg.norm(hits - origin, axis=1)))
+        T = self._T_base_wobj
+        point = (hits[k] - T[:3, 3]) @ T[:3, :3]
+        normal = mesh.face_normals[faces[k]] @ T[:3, :3]
+        return point, normal
+
+    def _part_clicked(self, event) -> None:
+        callback = getattr(self, "_click_callback", None)
+        if callback is None:
+            return
+        hit = self.hit_part(np.asarray(event.ray_origin), np.asarray(event.ray_direction))
+        if hit is not None:
+            callback(hit[0], hit[1], event.client)
+
+    def set_proposal(
+        self,
+        points_base_m: np.ndarray | None,
+        reach: Sequence[str] = (),
+        *,
+        closed: bool = True,
+        wall_base_m: np.ndarray | None = None,
+        selected: int | None = None,
+    ) -> None:
+        """The proposed guide points (coloured by reachability: green, orange near a limit,
+        red unreachable; the selected one magenta), the test program through them, the wall
+        they follow; None removes them."""
+        scene = self.server.scene
+        with self.server.atomic():
+            node = getattr(self, "_proposal_node", None)
+            if node is not None:
+                node.remove()
+            self._proposal_node = scene.add_frame("/path/proposal", show_axes=False)
+            if points_base_m is None or len(points_base_m) == 0:
+                return
+            pts = np.asarray(points_base_m, dtype=float)
+            colors = np.array([REACH_COLORS.get(r, REACH_COLORS["near"]) for r in reach],
+                              dtype=np.uint8)  # fmt: skip
+            if selected is not None and 0 <= selected < len(pts):
+                colors[selected] = SELECTED_GUIDE_COLOR
+            scene.add_point_cloud(
+                "/path/proposal/points", pts, colors, point_size=0.005, point_shape="diamond",
+                precision="float32",
+            )  # fmt: skip
+            chain = np.vstack([pts, pts[:1]]) if closed else pts
+            scene.add_line_segments(
+                "/path/proposal/program",
+                np.stack([chain[:-1], chain[1:]], axis=1),
+                PROPOSAL_LINE_COLOR,
+                thickness=1.5,
+                thickness_units="screen",
+            )
+            if wall_base_m is not None and len(wall_base_m) >= 2:
+                w = np.asarray(wall_base_m, dtype=float)
+                scene.add_line_segments(
+                    "/path/proposal/wall", np.stack([w[:-1], w[1:]], axis=1), WALL_COLOR,
+                    thickness=2.5, thickness_units="screen",
+                )  # fmt: skip
+            for k, p in enumerate(pts):
+                scene.add_label(
+                    f"/path/proposal/labels/P{k + 1}",
+                    f"P{k + 1}",
+                    position=p + np.array([0.0, 0.0, GUIDE_LABEL_LIFT_M]),
+                    anchor="bottom-center",
+                )
+
+    def set_comparison(self, comparison, scale_m: float = 0.5e-3) -> None:
+        """The CAD-only program and the learned one, each coloured by its error against the
+        real wall (green to red at ``scale_m``), labelled at its worst place; None removes
+        them."""
+        scene = self.server.scene
+        with self.server.atomic():
+            node = getattr(self, "_comparison_node", None)
+            if node is not None:
+                node.remove()
+            self._comparison_node = scene.add_frame("/path/comparison", show_axes=False)
+            if comparison is None:
+                return
+            for name, score, title in (
+                ("cad_only", comparison.cad_only, "CAD-only"),
+                ("learned", comparison.learned, "learned"),
+            ):
+                pts, dev = score.points_m, np.abs(score.deviation_m)
+                step = max(1, len(pts) // 4000)
+                pts, dev = pts[::step], dev[::step]
+                c = deviation_colors(dev, scale_m)
+                lift = np.array([0.0, 0.0, 0.0015 if name == "cad_only" else 0.0])
+                scene.add_line_segments(
+                    f"/path/comparison/{name}",
+                    np.stack([pts[:-1] + lift, pts[1:] + lift], axis=1),
+                    np.stack([c[:-1], c[1:]], axis=1),
+                    thickness=4.0 if name == "cad_only" else 2.5,
+                    thickness_units="screen",
+                )
+                k = int(np.argmax(np.abs(score.deviation_m)))
+                scene.add_label(
+                    f"/path/comparison/{name}/worst",
+                    f"{title}: max {score.max_m * 1e3:.2f} mm",
+                    position=score.points_m[k] + lift + np.array([0.0, 0.0, 0.006]),
+                    anchor="bottom-center",
+                )
+
+    def hide_paths(self) -> None:
+        """Hide the recording, targets and comparison (a result of a cell no longer there)."""
+        self.paths_hidden = True
+        with self.server.atomic():
+            for name in ("/path/samples/raw", "/path/samples/filtered", "/path/targets",
+                         "/path/targets/segments"):  # fmt: skip
+                self.server.scene.add_point_cloud(
+                    name, np.zeros((0, 3)), RAW_COLOR, point_size=0.001, visible=False
+                ) if "segments" not in name else self.server.scene.add_line_segments(
+                    name, np.zeros((1, 2, 3)), TARGET_COLOR, visible=False
+                )
+        self.set_comparison(None)
+
+    def top_view(self, client, workpiece: Workpiece) -> None:
+        """Put ``client``'s camera straight above the part, looking down, the whole part in
+        view (x to the right, y up)."""
+        cad = workpiece.cad()
+        bounds = cad.mesh_in_base().bounds
+        centre = 0.5 * (bounds[0] + bounds[1])
+        span = float(np.max(bounds[1, :2] - bounds[0, :2]))
+        fov = float(getattr(client.camera, "fov", math.radians(50.0)))
+        height = 0.65 * span / math.tan(0.5 * fov) + 0.05
+        with client.atomic():
+            client.camera.up_direction = (0.0, 1.0, 0.0)
+            client.camera.position = (
+                float(centre[0]),
+                float(centre[1]),
+                float(bounds[1, 2] + height),
+            )
+            client.camera.look_at = (float(centre[0]), float(centre[1]), float(bounds[1, 2]))
+
+    def part_view(self, client, workpiece: Workpiece) -> None:
+        """An oblique view of the part from in front of the robot (its walls visible)."""
+        cad = workpiece.cad()
+        bounds = cad.mesh_in_base().bounds
+        centre = 0.5 * (bounds[0] + bounds[1])
+        span = float(np.max(bounds[1] - bounds[0]))
+        with client.atomic():
+            client.camera.up_direction = (0.0, 0.0, 1.0)
+            client.camera.position = tuple(centre + np.array([-0.9, -0.9, 1.3]) * span)
+            client.camera.look_at = tuple(centre)
 
     # ----------------------------------------------------------------- live state
 
@@ -310,7 +502,8 @@ class CellScene:
                 arrow.visible = False
                 label.visible = False
             return
-        tip = origin + np.asarray(force_N) * FORCE_ARROW_M_PER_N
+        length = min(magnitude * FORCE_ARROW_M_PER_N, FORCE_ARROW_MAX_M)
+        tip = origin + np.asarray(force_N) / magnitude * length
         arrow.points = np.array([[origin, tip]], dtype=np.float32)
         label.position = tip
         label.text = f"{what} {magnitude:.1f} N"
@@ -363,13 +556,12 @@ class CellScene:
                 axes_radius=0.001,
             )
             for k, p in enumerate(positions):
-                # Only the number, at two heights in turn: neighbours' labels do not overlap.
-                lift = GUIDE_LABEL_LIFT_M[k % len(GUIDE_LABEL_LIFT_M)]
+                # "G1" as in the table, just above its own marker.
                 self.guide_labels.append(
                     scene.add_label(
                         f"/path/guide_points/labels/G{k + 1}",
-                        f"{k + 1}",
-                        position=p + np.array([0.0, 0.0, lift]),
+                        f"G{k + 1}",
+                        position=p + np.array([0.0, 0.0, GUIDE_LABEL_LIFT_M]),
                         anchor="bottom-center",
                     )
                 )
@@ -459,6 +651,7 @@ class CellScene:
         "out of date" label at its first target."""
         if stale:
             filtered_deviation_m = targets_deviation_m = None
+        self.paths_hidden = False
         scene = self.server.scene
         empty = np.zeros((0, 3))
         with self.server.atomic():

@@ -30,6 +30,7 @@ from .panels import (
     PostprocessPanel,
 )
 from .panels.feedback import notify_error
+from .panels.pointing import PointingPanel
 from .panels.robot_wiring import GuideRulesPanel, RobotProgramPanel
 from .panels.teach_panel import TeachPanel
 from .scene import CellScene
@@ -41,6 +42,11 @@ JOB_DRAW_PERIOD_S = 0.03  # while a job runs, ~30 redraws a second leave it the 
 POSE_TEXT_PERIOD_S = 0.1  # the pose readout is text: 10 Hz is plenty to read
 PLOT_PERIOD_S = 0.25  # live force plot while a job runs
 BRAND_COLOR = (29, 53, 87)
+JOB_TITLES = {
+    "example": "Load the example",
+    "path_learning": "Path learning",
+    "accept_proposal": "Accepting the proposal",
+}
 
 
 class Workbench:
@@ -71,6 +77,7 @@ class Workbench:
         self.leadthrough = LeadThroughPanel(server, session, self.scene)
         self.teach = TeachPanel(server, session)
         self.guide_points = GuidePointsPanel(server, session, self.scene)
+        self.pointing = PointingPanel(server, session, self.scene, self.guide_points)
         self.path_learning = PathLearningPanel(server, session, self.scene)
         self.postprocess = PostprocessPanel(server, session, self.scene)
         self.export = ExportPanel(server, session)
@@ -169,6 +176,7 @@ class Workbench:
         if "guide_points" in topics or "cell" in topics:
             self.guide_points.refresh()
             self.guide_rules.refresh()
+            self.pointing.refresh()
             self.path_learning.refresh_wall()
         if topics & {"recording", "cell", "project"}:
             self.path_learning.refresh_stop()
@@ -178,6 +186,8 @@ class Workbench:
             self.postprocess.refresh()
             self.export.refresh()
             self.robot_program.refresh()
+            self.pointing.show_comparison()
+            self._hide_old_cell_paths(topics)
         snapshot = self.leadthrough.tick(self.session.snapshot())
         self.teach.tick(snapshot)
         self._draw_robot(snapshot)
@@ -215,13 +225,28 @@ class Workbench:
         cell = self.session.cell
         self.scene.set_robot(cell.robot.name)
         self.scene.set_tool(cell.tool)
-        self.scene.set_workpiece(cell.workpiece)
+        self.scene.set_workpiece(cell.workpiece)  # drawn as its mesh (``Workpiece.cad``)
         self._last_time_s = float("nan")  # redraw the new robot at once
 
+    def _hide_old_cell_paths(self, topics: set[str]) -> None:
+        """A cell change leaves the old cell's recording in the project (stale), but its paths
+        are not drawn through the new part: they stay hidden until the next learning."""
+        learned = self.session.project().learned
+        if "cell" in topics and "project" not in topics:
+            self._old_cell_learned = learned
+        if learned is not None and learned is getattr(self, "_old_cell_learned", None):
+            self.scene.hide_paths()
+
     def _show_jobs(self) -> None:
-        """Progress of the example and path-learning jobs, whoever started them."""
-        active = {j.kind: j for j in self.session.jobs.active(("example", "path_learning"))}
-        panels = {"example": self.guide_points, "path_learning": self.path_learning}
+        """Progress of the robot jobs, whoever started them; a job that failed says why in
+        every browser, until it is closed."""
+        kinds = ("example", "path_learning", "accept_proposal")
+        active = {j.kind: j for j in self.session.jobs.active(kinds)}
+        panels = {
+            "example": self.guide_points,
+            "path_learning": self.path_learning,
+            "accept_proposal": self.pointing,
+        }
         for kind, panel in panels.items():
             job = active.get(kind)
             if job is not None:
@@ -230,6 +255,10 @@ class Workbench:
             elif kind in self._jobs_shown:
                 finished = self.session.job(self._jobs_shown.pop(kind))
                 panel.show_job(finished if kind == "path_learning" else None)
+                if finished.status == "failed":
+                    title = JOB_TITLES.get(kind, kind)
+                    for client in self.server.get_clients().values():
+                        notify_error(client, f"{title} failed", finished.error or "no reason given")
             else:
                 panel.show_job(None)
 

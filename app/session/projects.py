@@ -231,7 +231,19 @@ def _build_cell(
         raise InvalidInputError(
             f"unknown robot {settings.robot!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
         )
-    workpiece = parsed if parsed is not None else core.build_workpiece(settings, mesh)
+    if parsed is not None:
+        from robomach_core.real_part import real_workpiece
+        from robomach_core.workpiece import default_T_base_wobj
+
+        # Placed as ``build_workpiece`` places it when the project is opened again.
+        T = (
+            core.wobj_transform(settings.wobj_mm_deg)
+            if settings.wobj_mm_deg is not None
+            else default_T_base_wobj(settings.robot)
+        )
+        workpiece = real_workpiece(parsed.placed(T), settings.part_deviation)
+    else:
+        workpiece = core.build_cell_workpiece(settings, mesh)
     cell = Cell(
         CellConfig(
             robot=settings.robot,

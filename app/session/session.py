@@ -76,7 +76,7 @@ from typing import Any
 
 import numpy as np
 
-from robomach_core import limits
+from robomach_core import limits, mesh_query
 from robomach_core import project as core
 from robomach_core.cell import Cell, CellState
 from robomach_core.errors import (
@@ -111,6 +111,7 @@ from .jobs import (
     JobRunner,
 )
 from .live import LiveFeed
+from .pointing import Pointing
 from .projects import ProjectsMixin, _build_cell
 from .records import (
     MAX_GUIDE_POINTS,
@@ -129,7 +130,36 @@ from .teach import JogFrame, Teach, ToolView
 
 # --- the session ---------------------------------------------------------------------------
 
-ROBOT_JOB_KINDS = ("example", "path_learning")
+EXAMPLE_CLEARANCE_M = 0.008  # the example operator lifts the tool this far above the part
+
+
+def _example_intents(cell: Cell, seed: int) -> list | None:
+    """The example operator's points: its own plan (None), or, on a part that is not where its
+    mesh is, the same entered in each groove's middle (``guide_proposal.robust_intents``)."""
+    if cell.workpiece.nominal is None:
+        return None
+    from robomach_core.demo_operator import guide_plan
+    from robomach_core.guide_proposal import robust_intents
+
+    plan = guide_plan(cell.workpiece.cad(), cell.tool.radius_m, np.random.default_rng(seed))
+    return robust_intents(plan, cell.workpiece, cell.tool.radius_m)
+
+
+def _squared(lt: LeadThrough, state: LeadThroughState, cad: Workpiece) -> LeadThroughState:
+    """The tool lifted clear of the part (when below its top) and turned square to it (tool
+    axis down, as the example operator holds it), by supervised jogs of at most 45 degrees."""
+    from robomach_core.demo_operator import TOOL_DOWN
+    from robomach_core.teach_motion import move_by, turn_to
+
+    top = float(cad.mesh_in_base().bounds[1, 2]) + EXAMPLE_CLEARANCE_M
+    z = float(state.cell.T_base_tcp[2, 3])
+    if z < top:
+        state = move_by(lt, state, np.array([0.0, 0.0, top - z]), 0.05)
+    return turn_to(lt, state, TOOL_DOWN)
+
+
+ROBOT_JOB_KINDS = ("example", "path_learning", "accept_proposal")
+_KEEP: Any = object()  # set_cell: leave this setting as it is
 # What a change of the project's inputs makes stale, for the listeners to redraw.
 DOWNSTREAM_TOPICS: tuple[Topic, ...] = ("recording", "postprocess")
 
@@ -170,6 +200,7 @@ class Session(ProjectsMixin):
         self._project_id = 0
         self._closed = False
         self.teach = Teach(self, real_time=real_time)
+        self.pointing = Pointing(self)
         self._open_initial_project()
 
     # --- listeners ---------------------------------------------------------------------------
@@ -223,7 +254,14 @@ class Session(ProjectsMixin):
 
     @property
     def workpiece(self) -> Workpiece:
+        """The part the cell's tool meets (the real part when it deviates from its mesh:
+        programs are scored against it)."""
         return self._cell.workpiece
+
+    @property
+    def cad_workpiece(self) -> Workpiece:
+        """The part as its mesh: what the user sees, teaches on and is checked against."""
+        return self._cell.workpiece.cad()
 
     @property
     def compliance(self) -> ComplianceSelection:
@@ -301,10 +339,13 @@ class Session(ProjectsMixin):
         robot: str | None = None,
         tool_radius_m: float | None = None,
         workpiece: str | None = None,
+        part_deviation: Any = _KEEP,
     ) -> CellSettings:
-        """Change the cell; None keeps a setting. A request that changes nothing keeps all
-        work (the robot stays where it is). A change puts the robot home and clears the guide
-        points (poses of the old cell); the recording and results stay, marked stale."""
+        """Change the cell; None keeps a setting (``part_deviation``: a
+        ``real_part.PartDeviation``, None for a part that is its mesh; omitted keeps it). A
+        request that changes nothing keeps all work (the robot stays where it is). A change
+        puts the robot home and clears the guide points (poses of the old cell); the
+        recording and results stay, marked stale."""
         with self._lock:
             self._require_idle()
             cur, mesh = self._project.cell, self._project.mesh
@@ -312,6 +353,7 @@ class Session(ProjectsMixin):
                 cur,
                 robot=cur.robot if robot is None else robot.lower(),
                 tool_radius_m=cur.tool_radius_m if tool_radius_m is None else float(tool_radius_m),
+                part_deviation=cur.part_deviation if part_deviation is _KEEP else part_deviation,
             )
             if workpiece in WORKPIECE_NAMES:
                 new, mesh = replace(new, workpiece=workpiece, workpiece_builtin=True), None
@@ -489,7 +531,8 @@ class Session(ProjectsMixin):
             if self._cell.workpiece.wall is None:
                 raise InvalidInputError(
                     f"the example lead-through needs a built-in workpiece, not "
-                    f"{self._cell.workpiece.name!r}; lead the robot by pushes instead"
+                    f"{self._cell.workpiece.name!r}; click its wall to propose guide points, "
+                    "or lead the robot by pushes"
                 )
             epoch, cell, estimator = self._epoch, self._cell, self._lt.estimator
             start, seed = self._lt_state, self._project.cell.seed
@@ -497,17 +540,22 @@ class Session(ProjectsMixin):
             def work(ctx: JobContext) -> tuple[LeadThroughState, list[GuidePoint]]:
                 lt = LeadThrough(self._live.tapped(cell, estimator, ctx), estimator=estimator)
                 try:
+                    # Hand teaching may have left the tool turned and in the part: the operator
+                    # first lifts it clear and turns it square in steps (a jog turns 45 deg at
+                    # most), as a person would.
+                    state = _squared(lt, start, cell.workpiece.cad())
                     return scripted_leadthrough(
                         lt,
-                        start,
-                        cell.workpiece,
+                        state,
+                        cell.workpiece.cad(),  # the operator plans on the mesh they see
                         np.random.default_rng(seed),
+                        intents=_example_intents(cell, seed),
                         progress=ctx.progress,
                     )
                 except SupervisionError as exc:
                     raise exc.with_note(
                         f"the part may be beyond the {cell.robot.name} arm's reach: choose a "
-                        "larger arm"
+                        "larger arm, or press Home first"
                     ) from None
 
             def done(result: tuple[LeadThroughState, list[GuidePoint]]) -> None:
@@ -534,11 +582,15 @@ class Session(ProjectsMixin):
         (``project.learn``) along the wall on ``wall_side``; on success the recording replaces
         the last one, and the last post-processing stays, marked stale. A force filter band
         that would not keep samples at ``force_N`` moves to 0.5-1.5 x ``force_N``
-        (``PostprocessSettings.holds_force``). Returns the job id.
+        (``PostprocessSettings.holds_force``). "auto" takes the side of guide points taught
+        by pointing at the wall (``pointing.learning_side``) when they are still those.
+        Returns the job id.
 
         Raises:
             WallSideError: "auto" and the guide points do not tell the side (before any job).
         """
+        if wall_side == "auto":
+            wall_side = self.pointing.learning_side() or "auto"
         settings = PathLearningSettings(
             force_N=float(force_N),
             speed_m_s=float(speed_m_s),
@@ -557,13 +609,14 @@ class Session(ProjectsMixin):
             start = self._lt_state.cell
             from robomach_core.wall_side import resolve_wall_side
 
-            resolve_wall_side(  # refuse now, with the cause, not as a failed job
-                project.guide_points,
-                settings.wall_side,
-                closed=settings.closed,
-                workpiece=cell.workpiece,
-                tool_radius_m=project.cell.tool_radius_m,
-            )
+            with mesh_query.LOCK:
+                resolve_wall_side(  # refuse now, with the cause, not as a failed job
+                    project.guide_points,
+                    settings.wall_side,
+                    closed=settings.closed,
+                    workpiece=cell.workpiece.cad(),  # the mesh the user sees
+                    tool_radius_m=project.cell.tool_radius_m,
+                )
 
             def work(ctx: JobContext) -> tuple[core.LearnedPath, CellState]:
                 path_m = np.array([g.position_m for g in project.guide_points])
@@ -643,13 +696,14 @@ class Session(ProjectsMixin):
         )
         if project.learned is None:
             raise ConflictError("nothing to post-process yet: run path learning first")
-        outcome = core.process(
-            project.learned,
-            settings,
-            workpiece,
-            project.cell.tool_radius_m,
-            guides=project.guide_points,
-        )
+        with mesh_query.LOCK:  # the scores query the mesh's trees, one thread at a time
+            outcome = core.process(
+                project.learned,
+                settings,
+                workpiece,
+                project.cell.tool_radius_m,
+                guides=project.guide_points,
+            )
         with self._lock:
             if self._project.learned is not project.learned or epoch != self._epoch:
                 raise ConflictError(
@@ -707,12 +761,19 @@ class Session(ProjectsMixin):
         self, force_N: float = 10.0, *, closed: bool = True, wall_side: str = "auto"
     ) -> tuple:
         """What the operator check finds in the guide points (``guide_check``)."""
-        from robomach_core.guide_check import guide_point_warnings
         from robomach_core.path_learning import PathLearningSettings
 
         with self._lock:
-            project, workpiece, robot = self._project, self._cell.workpiece, self._cell.robot
+            project, robot = self._project, self._cell.robot
+            workpiece = self._cell.workpiece.cad()  # checks use the mesh the user sees
         settings = PathLearningSettings(force_N=force_N, closed=closed, wall_side=wall_side)
+        with mesh_query.LOCK:  # the mesh's nearest-point tree answers one thread at a time
+            return self._guide_findings(project, settings, workpiece, robot)
+
+    @staticmethod
+    def _guide_findings(project, settings, workpiece, robot) -> tuple:
+        from robomach_core.guide_check import guide_point_warnings
+
         return guide_point_warnings(
             project.guide_points,
             settings,
@@ -730,19 +791,22 @@ class Session(ProjectsMixin):
         from robomach_core.wall_side import resolve_wall_side, taught_wall_points
 
         with self._lock:
-            project, workpiece = self._project, self._cell.workpiece
+            project, workpiece = self._project, self._cell.workpiece.cad()
         guides, radius = project.guide_points, project.cell.tool_radius_m
         if len(guides) < 2:
             return [], ""
+        if wall_side == "auto":  # as start_path_learning decides it
+            wall_side = self.pointing.learning_side() or "auto"
         try:
-            decision = resolve_wall_side(
-                guides, wall_side, closed=closed, workpiece=workpiece, tool_radius_m=radius
-            )
+            with mesh_query.LOCK:
+                decision = resolve_wall_side(
+                    guides, wall_side, closed=closed, workpiece=workpiece, tool_radius_m=radius
+                )
+                points = taught_wall_points(
+                    guides, decision.side, closed=closed, workpiece=workpiece, tool_radius_m=radius
+                )
         except WallSideError as exc:
             return [], f"wall side: {exc}"
-        points = taught_wall_points(
-            guides, decision.side, closed=closed, workpiece=workpiece, tool_radius_m=radius
-        )
         return points, f"follows the wall on the {decision.side}: {decision.detail}"
 
     def guide_warnings(

@@ -30,9 +30,15 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from robomach_core import mesh_query
 from robomach_core.cell import CONTROL_PERIOD_S, CellState
 from robomach_core.clearance import ClearanceProbe
-from robomach_core.errors import InvalidInputError, NoContactError, SupervisionError
+from robomach_core.errors import (
+    ContactStopError,
+    InvalidInputError,
+    NoContactError,
+    SupervisionError,
+)
 from robomach_core.leadthrough import (
     AXES,
     ComplianceSelection,
@@ -41,6 +47,7 @@ from robomach_core.leadthrough import (
     halted,
 )
 from robomach_core.realtime import RealTimePacer
+from robomach_core.teach_motion import Arrival, go_to_point
 
 from .live import TappedCell
 from .records import LIVE_NOTIFY_S, BusyError, ConflictError
@@ -64,6 +71,9 @@ JOG_SPEED_RANGE_MM_S = (0.5, 50.0)  # 50 mm/s: the admittance's speed limit
 JOG_RATE_RANGE_DEG_S = (0.5, 30.0)
 DEFAULT_JOG_SPEED_MM_S = 10.0
 DEFAULT_JOG_RATE_DEG_S = 10.0
+JOG_CONTACT_N = 3.0  # a jog ending against the part with more than this ...
+JOG_SHORT_M = 5e-4  # ... and short of its step by more than this was stopped by contact
+FRAME_NAMES = {"base": "base", "tool": "tool", "wobj": "work-object"}
 
 
 class _Stopped(Exception):
@@ -80,6 +90,10 @@ class ToolView:
         force_N: (3,) measured, compensated contact force at the TCP.
         table_gap_m: Height of the cutter's lowest point above the table.
         in_contact: The cutter touches the part.
+        face: What the nearest face is: "wall", "floor" (faces up) or "underside".
+        wall_gap_m: Gap of the cutter to the nearest wall at the tool's height (the
+            wall it works on; across, as a touch-off towards it goes), None when no wall is
+            there (above the part).
     """
 
     gap_m: float
@@ -87,6 +101,8 @@ class ToolView:
     force_N: np.ndarray
     table_gap_m: float
     in_contact: bool
+    face: str = "wall"
+    wall_gap_m: float | None = None
 
 
 def frame_rotation(frame: JogFrame, T_base_tcp: np.ndarray, T_base_wobj: np.ndarray) -> np.ndarray:
@@ -158,12 +174,36 @@ class Teach:
                     f"jog speed {speed * scale:g} {unit} is outside {lo:g}-{hi:g} {unit}"
                 )
         wobj = self._session.cell.workpiece.T_base_wobj
+        before: list[np.ndarray] = []
 
         def move(lt: LeadThrough, st: LeadThroughState, sel: Selection) -> LeadThroughState:
             R = frame_rotation(frame, st.cell.T_base_tcp, wobj)
+            before.append(R[:, "xyz".index(axis[-1])].copy())
+            before.append(st.cell.T_base_tcp.copy())
             return lt.jog(st, axis, float(step), sel, rate=speed, frame_rotation=R)  # type: ignore[arg-type]
 
         self._run(move)
+        if before and not rotational:
+            self._say_if_stopped_by_contact(before[1], before[0] * float(step), axis, frame)
+
+    def _say_if_stopped_by_contact(
+        self, T_before: np.ndarray, delta: np.ndarray, axis: str, frame: JogFrame
+    ) -> None:
+        """Raise ``ContactStopError`` when a jog ended short of its step against the part
+        (the robot stays where it stopped; before, it stopped there silently at 30-50 N)."""
+        snap = self._session.snapshot()
+        force = float(np.linalg.norm(snap.wrench[:3]))
+        step = float(np.linalg.norm(delta))
+        done = float((snap.position_m - T_before[:3, 3]) @ delta) / step if step > 0 else 1.0
+        if force > JOG_CONTACT_N and step - done > JOG_SHORT_M:
+            sign = "+" if (delta @ frame_rotation(frame, T_before,
+                           self._session.cell.workpiece.T_base_wobj)[:, "xyz".index(axis)]) > 0 \
+                else "-"  # fmt: skip
+            raise ContactStopError(
+                f"the jog along {sign}{axis} ({FRAME_NAMES[frame]} frame) stopped against the "
+                f"part after {max(done, 0.0) * 1e3:.1f} of {step * 1e3:.1f} mm, pressing with "
+                f"{force:.0f} N: jog back, or use a touch-off to meet a wall"
+            )
 
     def touch_off(
         self,
@@ -182,6 +222,7 @@ class Teach:
         if direction not in (1, -1):
             raise InvalidInputError("touch-off direction must be +1 or -1")
         core_frame: Literal["tool", "base"] = "tool" if frame == "tool" else "base"
+        asked_axis, asked_direction = axis, direction
         if frame == "wobj":
             axis, direction = _base_axis_of_wobj(self._session.cell.workpiece.T_base_wobj, axis,
                                                  direction)  # fmt: skip
@@ -190,11 +231,42 @@ class Teach:
                 f"touch-off frame must be one of {', '.join(JOG_FRAMES)}, not {frame!r}"
             )
 
+        named = (asked_axis, asked_direction, frame)
+
         def move(lt: LeadThrough, st: LeadThroughState, sel: Selection) -> LeadThroughState:
             moving = ComplianceSelection(sel.axes, core_frame)
             return lt.touch_off(st, axis, direction, float(force_N), moving, float(max_travel_m))
 
+        try:
+            self._run(move)
+        except NoContactError as exc:  # said in the frame the user chose
+            a, d, f = named
+            raise NoContactError(
+                f"touch-off: no contact within {max_travel_m * 1e3:.1f} mm along "
+                f"{'+' if d > 0 else '-'}{a} ({FRAME_NAMES[f]} frame)",
+                state=exc.state,
+            ) from None
+
+    def move_to(
+        self, T_base_tcp: np.ndarray, *, safe_z_m: float, entry_m: np.ndarray | None = None
+    ) -> Arrival:
+        """Take the tool to ``T_base_tcp``: up to ``safe_z_m``, turned, over and down into
+        place (``teach_motion.go_to_point``), paced and supervised like a jog. Returns where it
+        stopped (against the part when it is not where its mesh is)."""
+        T = np.asarray(T_base_tcp, dtype=float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise InvalidInputError("a target pose is a finite 4x4 transform")
+        arrival: list[Arrival] = []
+
+        def move(lt: LeadThrough, st: LeadThroughState, sel: Selection) -> LeadThroughState:
+            end, got = go_to_point(lt, st, T, safe_z_m=safe_z_m, entry_m=entry_m)
+            arrival.append(got)
+            return end
+
         self._run(move)
+        if not arrival:  # let go (or the cell changed) on the way
+            raise ConflictError("the move to the taught point was stopped before it arrived")
+        return arrival[0]
 
     def stop(self) -> None:
         """End the running motion (the person let go); it stops within one control period."""
@@ -209,17 +281,48 @@ class Teach:
             epoch, cell = s._epoch, s._cell
         snap = s.snapshot()
         if self._probe is None or self._probe[0] != epoch:
-            self._probe = (epoch, ClearanceProbe(cell.tool, cell.workpiece))
+            # The mesh the user sees (the real part would tell what no real cell knows).
+            self._probe = (epoch, ClearanceProbe(cell.tool, cell.workpiece.cad()))
+            self._walls = {}
         probe = self._probe[1]
-        gap = probe.gap(snap.T_base_tcp)
         table_z = float(s._lt.supervisor.table_z_m)
+        # The probe's coal objects and the mesh's section serve one thread at a time (the
+        # pendant polls this while viser's panel does).
+        with mesh_query.LOCK:
+            gap = probe.gap(snap.T_base_tcp)
+            wall_gap = self._wall_gap(cell, snap.T_base_tcp[:3, 3])
+        nz = float(gap.normal[2])
+        face = "floor" if nz > 0.7 else "underside" if nz < -0.7 else "wall"
         return ToolView(
             float(gap.distance_m),
             gap.normal,
             snap.wrench[:3].copy(),
             probe.height_above_m(snap.T_base_tcp, table_z),
             snap.in_contact,
+            face,
+            wall_gap,
         )
+
+    def _wall_gap(self, cell, p_base: np.ndarray) -> float | None:
+        """The cutter's gap to the nearest wall of the mesh at the TCP's height (the section
+        there, kept per 0.1 mm of height)."""
+        from robomach_core.wall_section import _off_vertices, section_loops
+
+        cad = cell.workpiece.cad()
+        T = cad.T_base_wobj
+        p = (np.asarray(p_base) - T[:3, 3]) @ T[:3, :3]
+        key = round(float(p[2]) * 1e4)
+        walls = getattr(self, "_walls", {})
+        if key not in walls:
+            if len(walls) > 64:
+                walls.clear()
+            walls[key] = section_loops(cad.mesh, _off_vertices(cad.mesh, key * 1e-4))
+            self._walls = walls
+        loops = walls[key]
+        if not loops:
+            return None
+        d = min(abs(float(lp.signed_distance(p[None, :2])[0])) for lp in loops)
+        return d - cell.tool.radius_m
 
     # --- internals ---------------------------------------------------------------------------
 

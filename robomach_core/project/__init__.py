@@ -42,7 +42,9 @@ from ._machining import stale_settings as stale_settings
 from ._machining import wall_normals_for_project as wall_normals_for_project
 from ._machining import with_machining_result as with_machining_result
 from ._machining import with_machining_setup as with_machining_setup
+from ._stages import build_cell_workpiece as build_cell_workpiece
 from ._stages import build_workpiece as build_workpiece
+from ._stages import cad_comparison_of as cad_comparison_of
 from ._stages import learn as learn
 from ._stages import process as process
 from ._stages import require_processed as require_processed

@@ -26,7 +26,7 @@ from ._machining import (
     machining_setup_document,
     machining_setup_from_document,
 )
-from ._stages import build_workpiece, process
+from ._stages import build_cell_workpiece, process
 from ._value import CellSettings, LearnedPath, Project, cmrr_document, compensation_document
 
 PROJECT_FILE = "project.npz"
@@ -182,7 +182,7 @@ def _project(doc: dict[str, Any], arrays: dict[str, np.ndarray]) -> Project:
     project = replace(project, learned=learned)
     if doc.get("processed"):
         applied = PostprocessSettings(**(doc.get("applied_settings") or doc["post_settings"]))
-        workpiece = build_workpiece(cell, mesh)
+        workpiece = build_cell_workpiece(cell, mesh)
         processed = process(
             learned, applied, workpiece, cell.tool_radius_m, guides=project.guide_points
         )

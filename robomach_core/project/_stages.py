@@ -1,10 +1,11 @@
-"""The stages: path learning, post-processing and scoring, and the program's targets."""
+"""The stages: path learning, post-processing and scoring, and the CAD comparison."""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -12,7 +13,7 @@ from ..cell import Cell, CellState
 from ..errors import InvalidInputError, NotEnoughGuidePointsError
 from ..leadthrough import GuidePoint
 from ..path_learning import PathLearningSettings, learn_path
-from ..postprocess import PostprocessSettings, postprocess
+from ..postprocess import PostprocessSettings, Targets, postprocess
 from ..scoring import score_path
 from ..sensor import ForceEstimator
 from ..workpiece import Workpiece
@@ -59,7 +60,7 @@ def learn(
     route = plan_route(
         guides,
         settings,
-        workpiece=cad if cad is not None else cell.workpiece,
+        workpiece=cad if cad is not None else cell.workpiece.cad(),
         tool_radius_m=cell.tool.radius_m,
     )
     recording, end = learn_path(
@@ -131,6 +132,7 @@ def process(
                 moves,
                 closed=learned.settings.closed,
             )
+    comparison = cad_comparison_of(workpiece, result.targets, tool_radius_m, settings, learned)
     return ProcessedPath(
         settings,
         result,
@@ -142,6 +144,30 @@ def process(
         straight_targets=straight,
         taught_wall=taught,
         completed=rec.completed,
+        cad_comparison=comparison,
+    )
+
+
+def cad_comparison_of(
+    workpiece: Workpiece,
+    targets: Targets,
+    tool_radius_m: float,
+    settings: PostprocessSettings,
+    learned: LearnedPath,
+) -> Any:
+    """The CAD-only program beside the learned one, both against the real wall
+    (``cad_program.compare_with_cad``); None for fewer than 2 targets or no wall followed."""
+    if len(targets) < 2:
+        return None
+    from ..cad_program import compare_with_cad
+
+    return compare_with_cad(
+        workpiece,
+        targets.position_m,
+        targets.quaternion_wxyz,
+        tool_radius_m,
+        settings.tolerance_m,
+        closed=learned.settings.closed,
     )
 
 
@@ -175,6 +201,17 @@ def wobj_transform(values: Sequence[float]) -> np.ndarray:
     else:
         R = rotation_about("z", np.radians(v[3]) if len(v) == 4 else 0.0)
     return make_transform(R, np.array(v[:3]) * 1e-3)
+
+
+def build_cell_workpiece(
+    cell: CellSettings, mesh: tuple[str, bytes] | None, *, max_triangles: int | None = None
+) -> Workpiece:
+    """The part the cell's contact meets: ``build_workpiece``'s, made real by the cell's
+    ``part_deviation`` (``real_part.real_workpiece``; its ``cad()`` is the mesh the user sees)."""
+    from ..real_part import real_workpiece
+
+    cad = build_workpiece(cell, mesh, max_triangles=max_triangles)
+    return real_workpiece(cad, cell.part_deviation)
 
 
 def build_workpiece(

@@ -14,6 +14,7 @@ from ..errors import RobomachError
 from ..leadthrough import GuidePoint
 from ..path_learning import PathLearningSettings, Recording
 from ..postprocess import PostprocessResult, PostprocessSettings
+from ..real_part import PartDeviation
 from ..scoring import PathScore
 from ..tool import Tool
 
@@ -47,6 +48,10 @@ class CellSettings:
         seed: Seed of the sensor noise and the example operator.
         wobj_mm_deg: Work-object frame (x, y, z [mm], optional rz [deg]) placing the workpiece;
             None for the built-in placement.
+        part_deviation: How the part in the cell differs from its mesh (``real_part``: a
+            fixture error and casting deviations; ``PartDeviation.realistic()`` is the
+            ``realistic`` preset); None: the part is its mesh. A dict (a saved document) is
+            read as one.
     """
 
     robot: str = "ur10"
@@ -55,6 +60,13 @@ class CellSettings:
     workpiece_builtin: bool = True
     seed: int = 0
     wobj_mm_deg: tuple[float, ...] | None = None
+    part_deviation: PartDeviation | None = None
+
+    def __post_init__(self) -> None:
+        if not (self.part_deviation is None or isinstance(self.part_deviation, PartDeviation)):
+            object.__setattr__(
+                self, "part_deviation", PartDeviation.from_value(self.part_deviation)
+            )
 
 
 @dataclass(frozen=True)
@@ -105,6 +117,9 @@ class ProcessedPath:
         taught_wall: Whether the program follows the wall the guide points were taught on
             (``mesh_score.TaughtWallCheck``); None when not checked.
         completed: Whether the recording it was made from reached its last guide point.
+        cad_comparison: The program a CAD/CAM tool would make from the mesh alone and the
+            learned one, both scored against the real wall (``cad_program``); None when the
+            path follows no wall of the mesh.
     """
 
     settings: PostprocessSettings
@@ -117,6 +132,7 @@ class ProcessedPath:
     straight_targets: int | None = None
     taught_wall: Any = None
     completed: bool = True
+    cad_comparison: Any = None
 
     def problems(self) -> list[str]:
         """What makes this program unfit to machine with, one line each (empty: none):

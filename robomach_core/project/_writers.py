@@ -346,6 +346,7 @@ def settings_document(
             "workpiece_builtin": c.workpiece_builtin,
             "seed": c.seed,
             "wobj_mm_deg": None if c.wobj_mm_deg is None else list(c.wobj_mm_deg),
+            "part_deviation": None if c.part_deviation is None else c.part_deviation.as_dict(),
         },
         "tool": {
             "name": tool.name,
@@ -418,6 +419,9 @@ def result_extras(processed: Any) -> dict[str, Any]:
         "moves": n if moves is None else len(moves),
         "circular_moves": 0 if moves is None else sum(m.via is not None for m in moves),
         "straight_moves": n if processed.straight_targets is None else processed.straight_targets,
+        "cad_comparison": None
+        if getattr(processed, "cad_comparison", None) is None
+        else processed.cad_comparison.summary(),
     }
 
 

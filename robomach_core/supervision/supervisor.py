@@ -508,7 +508,7 @@ class Supervisor:
         clearances = m[9 : len(m) - n_coupled]
         return {
             "joint_limit_deg": math.degrees(
-                float(min(m[:6].min(), *(m[len(m) - n_coupled :] if n_coupled else ())))
+                float(min([m[:6].min(), *(m[len(m) - n_coupled :] if n_coupled else ())]))
             ),
             "wrist_axis5_deg": math.degrees(float(m[6])),
             "elbow_axis3_deg": math.degrees(float(m[7])),

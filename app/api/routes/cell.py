@@ -32,12 +32,19 @@ def get_cell(session: SessionDep) -> CellPublic:
 
 @router.put("")
 def put_cell(body: CellUpdate, session: SessionDep) -> CellPublic:
-    """Change robot, tool radius or workpiece (omitted ones stay). The robot goes home and the
-    guide points, recording and post-processing result are cleared."""
+    """Change robot, tool radius, workpiece or the realistic preset (omitted ones stay). The
+    robot goes home and the guide points, recording and post-processing result are cleared."""
+    extra = {}
+    if body.realistic is not None:
+        from robomach_core.real_part import PartDeviation
+
+        seed = session.cell_settings().seed
+        extra["part_deviation"] = PartDeviation.realistic(seed) if body.realistic else None
     session.set_cell(
         robot=body.robot,
         tool_radius_m=None if body.tool_radius_mm is None else body.tool_radius_mm * 1e-3,
         workpiece=body.workpiece,
+        **extra,
     )
     return _public(session)
 

@@ -39,6 +39,14 @@ class ToolViewPublic(BaseModel):
     force_magnitude_N: float = Field(description="|force| [N]")
     table_gap_mm: float = Field(description="height of the cutter above the table [mm]")
     in_contact: bool
+    nearest_face: Literal["wall", "floor", "underside"] = Field(
+        "wall", description="what the nearest face of the part is"
+    )
+    wall_gap_mm: float | None = Field(
+        None,
+        description="gap of the cutter to the nearest wall at the tool's height [mm] (across, "
+        "as a touch-off towards it goes); null above the part",
+    )
 
 
 @router.post("/touch-off")
@@ -61,7 +69,8 @@ def stop(session: SessionDep) -> None:
 
 @router.get("/tool")
 def tool_view(session: SessionDep) -> ToolViewPublic:
-    """The gap from the cutter to the nearest wall, the contact force and the table clearance."""
+    """The gap from the cutter to the nearest face (and which kind it is) and to the nearest
+    wall at the tool's height, the contact force and the table clearance."""
     v = session.tool_view()
     return ToolViewPublic(
         gap_mm=round(v.gap_m * 1e3, 4),
@@ -70,4 +79,6 @@ def tool_view(session: SessionDep) -> ToolViewPublic:
         force_magnitude_N=round(float((v.force_N @ v.force_N) ** 0.5), 3),
         table_gap_mm=round(v.table_gap_m * 1e3, 3),
         in_contact=v.in_contact,
+        nearest_face=v.face,
+        wall_gap_mm=None if v.wall_gap_m is None else round(v.wall_gap_m * 1e3, 4),
     )

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import viser
 
+from robomach_core.real_part import PartDeviation
 from robomach_core.robot import ROBOT_NAMES
 from robomach_core.tool import TOOL_RADIUS_RANGE_M
 from robomach_core.workpiece import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, WORKPIECE_NAMES
 
-from .feedback import guarded
+from .feedback import guarded, notify_info
 
 MESH_MIME_TYPES = ".stl,.obj,.ply,model/stl,model/obj,application/octet-stream"
 
@@ -41,6 +42,13 @@ class CellPanel:
             self.workpiece = server.gui.add_dropdown(
                 "Workpiece", self._workpiece_options(s), initial_value=s.workpiece
             )
+            self.realistic = server.gui.add_checkbox(
+                "Realistic part",
+                s.part_deviation is not None,
+                hint="The part in the cell differs from its mesh by a fixture error (0.3-0.6 mm, "
+                "0.15-0.3 deg) and casting deviations (+-0.5 mm, burrs), from the cell's seed: "
+                "you teach on the mesh, learning meets the real part",
+            )
             self.apply = server.gui.add_button(
                 "Apply cell",
                 icon=viser.Icon.CHECK,
@@ -61,18 +69,30 @@ class CellPanel:
                     robot=self.robot.value,
                     tool_radius_m=self.tool_radius.value * 1e-3,
                     workpiece=self.workpiece.value,
+                    part_deviation=PartDeviation.realistic(self.session.cell_settings().seed)
+                    if self.realistic.value
+                    else None,
                 ),
             )
         )
-        self.upload.on_upload(
-            guarded(
-                "Mesh upload",
-                lambda e: self.session.upload_workpiece(
-                    e.target.value.content, e.target.value.name
-                ),
-            )
-        )
+        self.upload.on_upload(guarded("Mesh upload", self._uploaded))
         self.refresh()
+
+    def _uploaded(self, event) -> None:
+        """Use the uploaded mesh and say so, or say why not (viser's own "uploaded" note only
+        means the bytes arrived)."""
+        name = event.target.value.name
+        self.session.upload_workpiece(event.target.value.content, name)
+        wp = self.session.cad_workpiece
+        x, y, z = wp.T_base_wobj[:3, 3] * 1e3
+        e = wp.mesh.extents * 1e3
+        notify_info(
+            event.client,
+            f"{name} is the workpiece",
+            f"{len(wp.mesh.faces):,} triangles, {e[0]:.0f} x {e[1]:.0f} x {e[2]:.0f} mm; its "
+            f"origin is at the work object, ({x:.0f}, {y:.0f}, {z:.0f}) mm in the base frame. "
+            "Click a wall to propose guide points.",
+        )
 
     @staticmethod
     def _robot_options(settings) -> tuple[str, ...]:
@@ -94,10 +114,15 @@ class CellPanel:
         self.tool_radius.value = round(s.tool_radius_m * 1e3, 3)
         self.workpiece.options = self._workpiece_options(s)
         self.workpiece.value = s.workpiece
-        extents = wp.mesh.extents * 1e3
+        self.realistic.value = s.part_deviation is not None
+        cad = wp.cad()
+        extents = cad.mesh.extents * 1e3
         kind = "built-in" if s.workpiece_builtin else "uploaded mesh"
         truth = "scored against its true wall" if wp.wall is not None else "no ground truth"
+        x, y, z = cad.T_base_wobj[:3, 3] * 1e3
+        real = f" The part in the cell differs: {wp.deviation_note}." if wp.deviation_note else ""
         self.info.content = (
-            f"**{wp.name}** ({kind}): {len(wp.mesh.faces):,} triangles, "
-            f"{extents[0]:.0f} x {extents[1]:.0f} x {extents[2]:.0f} mm; {truth}."
+            f"**{cad.name}** ({kind}): {len(cad.mesh.faces):,} triangles, "
+            f"{extents[0]:.0f} x {extents[1]:.0f} x {extents[2]:.0f} mm, work object at "
+            f"({x:.0f}, {y:.0f}, {z:.0f}) mm (base frame); {truth}.{real}"
         )

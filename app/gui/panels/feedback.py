@@ -17,10 +17,17 @@ E = TypeVar("E")
 
 
 def notify_error(client: viser.ClientHandle | None, title: str, message: str) -> None:
-    """A red notification for ``client`` (a server-side event has none: only logged)."""
+    """A red notification for ``client`` that stays until the user closes it (a server-side
+    event has none: only logged)."""
     log.info("%s: %s", title, message)
     if client is not None:
-        client.add_notification(title, message, color="red", auto_close_seconds=8.0)
+        client.add_notification(title, message, color="red", auto_close_seconds=None)
+
+
+def notify_info(client: viser.ClientHandle | None, title: str, message: str) -> None:
+    """A short blue notification for ``client`` (what just happened; it closes by itself)."""
+    if client is not None:
+        client.add_notification(title, message, color="blue", auto_close_seconds=6.0)
 
 
 def guarded(title: str, callback: Callable[[E], Any]) -> Callable[[E], None]:

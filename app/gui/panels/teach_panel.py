@@ -15,7 +15,7 @@ import viser
 
 from app.session.teach import JOG_FRAMES
 
-from .feedback import guarded
+from .feedback import guarded, notify_info
 
 FRAME_NAMES = {"wobj": "work object", "base": "base", "tool": "tool"}
 FOLLOW_DISTANCE_M = 0.12  # the close-up camera, this far from the tool tip
@@ -77,12 +77,19 @@ class TeachPanel:
 
     def _touch(self, event) -> None:
         sign, axis = event.target.value[0], event.target.value[1:].lower()
-        self.session.touch_off(
+        snapshot = self.session.touch_off(
             axis,
             1 if sign == "+" else -1,
             float(self.force.value),
             float(self.travel.value) * 1e-3,
             frame=self.frame.value,
+        )
+        force = float(np.linalg.norm(snapshot.wrench[:3]))
+        notify_info(
+            event.client,
+            "Touch-off",
+            f"touched the part at {force:.1f} N along {sign}{axis.upper()} "
+            f"({FRAME_NAMES[self.frame.value]} frame): record the guide point",
         )
 
     def tick(self, snapshot) -> None:
@@ -96,8 +103,14 @@ class TeachPanel:
         except Exception:  # a cell being rebuilt: next time
             return
         frame = FRAME_NAMES[self.frame.value]
+        wall = (
+            f"gap to the wall **{v.wall_gap_m * 1e3:.2f} mm**"
+            if v.wall_gap_m is not None
+            else "above the part's walls"
+        )
+        nearest = "" if v.face == "wall" else f" (the {v.face} is nearer: {v.gap_m * 1e3:.2f} mm)"
         self.view.content = (
-            f"**Tool tip** ({frame} frame for jogs): gap to wall **{v.gap_m * 1e3:.2f} mm**, "
+            f"**Tool tip** ({frame} frame for jogs): {wall}{nearest}, "
             f"force **{np.linalg.norm(v.force_N):.1f} N**, "
             f"{'in contact' if v.in_contact else 'free'}; above table {v.table_gap_m * 1e3:.0f} mm"
         )

@@ -1,0 +1,325 @@
+"""Teach by pointing panel: a click on the part's wall teaches a point or proposes the wall's
+guide points; the proposal is drawn before anything moves (reachability colours), edited,
+accepted or discarded; a selected point is dragged along the wall; the CAD-only program is
+drawn beside the learned one; top view and part view.
+
+The click's ray meets the part's mesh in the scene (``CellScene.hit_part``), which gives the
+point and normal in the work-object frame; the session's ``pointing`` does the rest.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import viser
+
+from robomach_core.errors import InvalidInputError
+from robomach_core.limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
+
+from ..scene import CellScene
+from .feedback import guarded, notify_error, notify_info
+
+MODE_TEACH = "teach a point"
+MODE_PROPOSE = "propose the wall"
+MODE_MOVE = "move the selected point"
+MODE_OFF = "nothing"
+MODES = (MODE_PROPOSE, MODE_TEACH, MODE_MOVE, MODE_OFF)
+MODE_OF = {"propose": MODE_PROPOSE, "teach": MODE_TEACH, "move": MODE_MOVE, "off": MODE_OFF}
+SESSION_MODE = {label: key for key, label in MODE_OF.items()}
+NO_SELECTION = "none"
+COMPARISON_SCALE_MM = 1.0  # the CAD-only and learned paths: green at 0, red at 1 mm
+
+
+class PointingPanel:
+    """The "Teach by pointing" folder and the part's click handler (module docstring).
+
+    Args:
+        server: The viser server.
+        session: The workbench session.
+        scene: The cell's scene (the part's clicks, the drawings).
+        guide_points: The guide-points panel (its selected point is the one dragged).
+    """
+
+    def __init__(self, server: viser.ViserServer, session, scene: CellScene, guide_points) -> None:
+        self.server = server
+        self.session = session
+        self.scene = scene
+        self.guide_points = guide_points
+        s = session.pointing.settings
+        with server.gui.add_folder("Teach by pointing"):
+            self.mode = server.gui.add_dropdown(
+                "Click on the part",
+                MODES,
+                initial_value=MODE_OF[session.pointing.click_mode],
+                hint="propose: guide points for the whole wall you click (nothing moves); "
+                "teach: the robot goes beside the wall where you click and records a point; "
+                "move: the selected point goes where you click",
+            )
+            self.gap = server.gui.add_number(
+                "Gap to wall (mm)", round(s.gap_m * 1e3, 3), min=WALL_GAP_MM.min,
+                max=WALL_GAP_MM.max, step=0.1,
+            )  # fmt: skip
+            self.height = server.gui.add_number(
+                "Height above floor (mm)", round(s.height_above_floor_m * 1e3, 3),
+                min=MACHINING_HEIGHT_MM.min, max=MACHINING_HEIGHT_MM.max, step=0.5,
+            )  # fmt: skip
+            self.undo = server.gui.add_button("Undo last point", icon=viser.Icon.ARROW_BACK_UP)
+            self.selected = server.gui.add_dropdown("Proposed point", (NO_SELECTION,))
+            self.delete = server.gui.add_button("Delete proposed point", icon=viser.Icon.TRASH)
+            self.accept = server.gui.add_button(
+                "Accept proposal", icon=viser.Icon.CHECK, color="green",
+                hint="The robot goes to each point by pushes and touches the wall there; the "
+                "points replace the guide points",
+            )  # fmt: skip
+            self.discard = server.gui.add_button("Discard proposal", icon=viser.Icon.X)
+            self.progress = server.gui.add_progress_bar(0.0, visible=False, animated=True)
+            self.status = server.gui.add_markdown("")
+            self.top = server.gui.add_button("Top view", icon=viser.Icon.ARROW_DOWN)
+            self.part = server.gui.add_button("View the part", icon=viser.Icon.CAMERA)
+            self.rich = server.gui.add_checkbox(
+                "Shadows and reflections",
+                False,
+                hint="Off: the scene draws several times faster without a GPU (software WebGL), "
+                "so clicks on the part answer at once",
+            )
+            self.compare = server.gui.add_markdown("")
+        self.handle = server.scene.add_transform_controls(
+            "/path/adjust",
+            scale=0.03,
+            disable_rotations=True,
+            active_axes=(True, True, False),
+            depth_test=False,
+            visible=False,
+        )
+        self.handle.on_update(self._dragged)
+        self.mode.on_update(guarded("Click mode", lambda e: self._settings()))
+        self.gap.on_update(guarded("Gap", lambda e: self._settings()))
+        self.height.on_update(guarded("Height", lambda e: self._settings()))
+        self.undo.on_click(guarded("Undo", lambda e: self._undo()))
+        self.delete.on_click(guarded("Delete", lambda e: self._delete()))
+        self.accept.on_click(guarded("Accept", lambda e: self.session.pointing.accept()))
+        self.discard.on_click(guarded("Discard", lambda e: self.session.pointing.discard()))
+        self.selected.on_update(lambda e: self.refresh())
+        self.rich.on_update(lambda e: self._rendering(server))
+        self._rendering(server)
+        self.top.on_click(lambda e: e.client and scene.top_view(e.client, session.workpiece))
+        self.part.on_click(lambda e: e.client and scene.part_view(e.client, session.workpiece))
+        scene.on_part_click(self._clicked)
+        self.last_click_s = float("nan")  # how long the last click took (tests read it)
+        self.refresh()
+
+    # --- the user's actions ----------------------------------------------------------------
+
+    def _rendering(self, server: viser.ViserServer) -> None:
+        """Shadows and the environment's reflections on or off (for every browser)."""
+        rich = bool(self.rich.value)
+        server.scene.configure_default_lights(cast_shadow=rich)
+        server.scene.configure_environment_map(hdri="warehouse" if rich else None)
+
+    def _settings(self) -> None:
+        self.session.pointing.set_settings(
+            gap_m=self.gap.value * 1e-3,
+            height_above_floor_m=self.height.value * 1e-3,
+            click_mode=SESSION_MODE[self.mode.value],
+        )
+
+    def _undo(self) -> None:
+        n = len(self.session.guide_points())
+        if n == 0:
+            raise InvalidInputError("no guide point to undo")
+        self.session.delete_guide_point(n - 1)
+
+    def _selected_proposed(self) -> int:
+        value = self.selected.value
+        return int(value[1:]) - 1 if value.startswith("P") else -1
+
+    def _delete(self) -> None:
+        index = self._selected_proposed()
+        if index < 0:
+            raise InvalidInputError("select a proposed point first (P1, P2, ...)")
+        self.session.pointing.delete_proposed(index)
+        self.selected.value = NO_SELECTION
+
+    def _clicked(self, point_wobj_m: np.ndarray, normal: np.ndarray, client) -> None:
+        """A click on the part, as the mode says (errors go to the user who clicked)."""
+        mode = MODE_OF[self.session.pointing.click_mode]
+        if mode == MODE_OFF:
+            return
+        started = time.monotonic()
+        title = {MODE_TEACH: "Teach", MODE_PROPOSE: "Propose", MODE_MOVE: "Move"}[mode]
+        guarded(title, lambda e: self._act(mode, point_wobj_m, normal, client))(_Event(client))
+        self.last_click_s = time.monotonic() - started
+
+    def _act(self, mode: str, point: np.ndarray, normal: np.ndarray, client) -> None:
+        pointing = self.session.pointing
+        if mode == MODE_PROPOSE:
+            proposal = pointing.propose(point, normal)
+            self.selected.value = NO_SELECTION
+            shape = "closed" if proposal.closed else "open"
+            notify_info(
+                client,
+                "Proposed",
+                f"{len(proposal.points)} guide points along the {shape} wall at "
+                f"{proposal.z_m * 1e3:.1f} mm; check them, then Accept proposal",
+            )
+        elif mode == MODE_TEACH:
+            taught = pointing.teach_at_surface(point, normal)
+            if taught.notice:
+                notify_error(client, f"G{taught.entry.index + 1} recorded", taught.notice)
+        elif mode == MODE_MOVE:
+            self._move_selected(point, normal)
+
+    def _move_selected(self, point_wobj_m: np.ndarray, normal: np.ndarray | None) -> None:
+        """The selected proposed point slides along the wall there; else the selected guide
+        point is taught again there."""
+        proposed = self._selected_proposed()
+        if proposed >= 0:
+            self.session.pointing.move_proposed(proposed, point_wobj_m)
+            return
+        index = self.guide_points.selected_index()
+        if index < 0:
+            raise InvalidInputError("select a guide point (G1, ...) or a proposed point first")
+        self.session.pointing.teach_at_surface(point_wobj_m, normal, replace_index=index)
+
+    def _dragged(self, event) -> None:
+        """The drag handle released: move the selected point to where it was dropped."""
+        if getattr(event, "phase", "end") != "end" or event.client is None:
+            return
+        T = self.session.cad_workpiece.T_base_wobj
+        p = (np.asarray(self.handle.position) - T[:3, 3]) @ T[:3, :3]
+        guarded("Drag", lambda e: self._move_dropped(p))(event)
+
+    def _move_dropped(self, tcp_wobj_m: np.ndarray) -> None:
+        proposed = self._selected_proposed()
+        if proposed >= 0:
+            self.session.pointing.move_proposed(proposed, tcp_wobj_m)
+        else:
+            index = self.guide_points.selected_index()
+            if index >= 0:
+                self.session.pointing.teach_near(tcp_wobj_m, replace_index=index)
+
+    # --- mirroring the session -------------------------------------------------------------
+
+    def refresh(self) -> None:
+        """The settings, the proposal (list, drawing, status) and the drag handle on the
+        selected point."""
+        pointing = self.session.pointing
+        self.mode.value = MODE_OF[pointing.click_mode]
+        self.gap.value = round(pointing.settings.gap_m * 1e3, 3)
+        self.height.value = round(pointing.settings.height_above_floor_m * 1e3, 3)
+        proposal = pointing.proposal()
+        options = (NO_SELECTION,)
+        if proposal is not None:
+            options += tuple(f"P{k + 1}" for k in range(len(proposal.points)))
+        keep = self.selected.value if self.selected.value in options else NO_SELECTION
+        self.selected.options = options
+        self.selected.value = keep
+        selected = self._selected_proposed()
+        if proposal is None:
+            self.scene.set_proposal(None)
+            self.status.content = (
+                "*Click a wall of the part: **propose** shows guide points for the whole wall; "
+                "**teach** sends the robot beside the wall and records a point.*"
+            )
+        else:
+            T = proposal.T_base_wobj
+            wall = np.column_stack([proposal.wall.points_m, np.full(len(proposal.wall.points_m),
+                                                                    proposal.z_m)])  # fmt: skip
+            if proposal.closed:
+                wall = np.vstack([wall, wall[:1]])
+            self.scene.set_proposal(
+                np.array([p.T_base_tcp[:3, 3] for p in proposal.points]),
+                [p.reach for p in proposal.points],
+                closed=proposal.closed,
+                wall_base_m=wall @ T[:3, :3].T + T[:3, 3],
+                selected=selected if selected >= 0 else None,
+            )
+            self.status.content = proposal_markdown(proposal)
+        self.accept.disabled = proposal is None
+        self.discard.disabled = proposal is None
+        self._place_handle(proposal, selected)
+
+    def _place_handle(self, proposal, selected: int) -> None:
+        T = self.session.cad_workpiece.T_base_wobj
+        position = None
+        if proposal is not None and selected >= 0:
+            position = proposal.points[selected].T_base_tcp[:3, 3]
+        else:
+            index = self.guide_points.selected_index()
+            guides = self.session.guide_points()
+            if 0 <= index < len(guides):
+                position = guides[index].position_m
+        if position is None:
+            self.handle.visible = False
+            return
+        from robomach_core.transforms import quaternion_from_matrix
+
+        self.handle.wxyz = quaternion_from_matrix(T[:3, :3])
+        self.handle.position = position
+        self.handle.visible = True
+
+    def show_comparison(self) -> None:
+        """The CAD-only and learned programs against the real wall, drawn and tabled."""
+        outcome = self.session.postprocess_outcome()
+        current = self.session.status()["postprocess"] == "current"
+        comparison = getattr(outcome, "cad_comparison", None) if current else None
+        self.scene.set_comparison(comparison, COMPARISON_SCALE_MM * 1e-3)
+        self.compare.content = comparison_markdown(comparison)
+
+    def show_job(self, job) -> None:
+        """Progress of a running accept job (None hides the bar)."""
+        self.progress.visible = job is not None
+        self.accept.disabled = job is not None or self.session.pointing.proposal() is None
+        if job is not None:
+            self.progress.value = round(job.progress * 100.0, 1)
+
+
+class _Event:
+    """The bits of a GUI event ``guarded`` reads, for a click forwarded from the scene."""
+
+    def __init__(self, client) -> None:
+        self.client = client
+
+
+def proposal_markdown(proposal) -> str:
+    """The proposal in a few lines: counts, reachability, notes."""
+    n = len(proposal.points)
+    reach = {r: sum(p.reach == r for p in proposal.points) for r in ("ok", "near", "unreachable")}
+    kinds = {k: sum(p.kind == k for p in proposal.points) for k in ("outside corner", "added")}
+    lines = [
+        f"**{n} proposed points** along the {'closed' if proposal.closed else 'open'} wall "
+        f"({proposal.wall.length_m * 1e3:.0f} mm) at z = {proposal.z_m * 1e3:.1f} mm (work "
+        f"object), {proposal.pick.z_m * 1e3 - proposal.pick.floor_z_m * 1e3:.1f} mm above the "
+        f"floor; wall side {proposal.wall_side}.",
+        f"Reach: {reach['ok']} ok (green), {reach['near']} near a limit (orange), "
+        f"{reach['unreachable']} unreachable (red); {kinds['outside corner']} at outside "
+        f"corners, {kinds['added']} added where a leg would leave the wall.",
+    ]
+    for k, p in enumerate(proposal.points):
+        if p.message:
+            lines.append(f"- P{k + 1}: {p.message}")
+    lines += [f"- {note}" for note in proposal.notes]
+    return "\n\n".join(lines[:2]) + ("\n\n" + "\n".join(lines[2:]) if lines[2:] else "")
+
+
+def comparison_markdown(comparison) -> str:
+    """The two programs against the (real) wall, as a table."""
+    if comparison is None:
+        return ""
+    title = "the real wall" if comparison.part_deviates else "the wall"
+    rows = [
+        f"**What learning buys** (against {title}, mm):",
+        "",
+        "| program | max | RMS | overcut | air | worst at (x, y) |",
+        "|---|---:|---:|---:|---:|---|",
+    ]
+    for name, s in (("learned", comparison.learned), ("CAD-only", comparison.cad_only)):
+        x, y, _ = s.worst_wobj_m * 1e3
+        rows.append(
+            f"| {name} | {s.max_m * 1e3:.2f} | {s.rms_m * 1e3:.2f} | {s.overcut_m * 1e3:.2f} | "
+            f"{s.air_m * 1e3:.2f} | ({x:.0f}, {y:.0f}) |"
+        )
+    if comparison.deviation_note:
+        rows += ["", f"*Real part: {comparison.deviation_note}.*"]
+    return "\n".join(rows)

@@ -1,0 +1,358 @@
+"""Teaching by pointing at the part: click-to-teach, and guide points proposed for a wall.
+
+PROBLEM   The workbench knows the part's mesh, so the user can point at the wall instead of
+          jogging to it: one click should put the tool beside the wall and record the point,
+          another propose the guide points for the whole wall, shown before anything moves, to
+          accept, edit or delete. Both GUIs and the REST API do it, on the same session.
+STRATEGY  The core computes (``guide_proposal.teach_point`` / ``propose_guide_points`` on the
+          part's CAD, ``Workpiece.cad()``); the robot moves by ``Teach.move_to`` (paced and
+          supervised like a jog, stopped by the real part when it is not where its mesh is);
+          accepting a proposal is a job in which the scripted operator leads the robot by
+          pushes to each point and touches the wall there (``guide_proposal.guide_intents``),
+          as "Load the example" does. The pending proposal belongs to the cell it was made
+          in (its epoch): a cell change drops it. The wall side of points taught this way is
+          known, and path learning uses it unless told otherwise.
+SOLUTION  ``Pointing(session)``, the session's ``pointing``: ``teach_at_surface``, ``propose``,
+          ``proposal``, ``move_proposed``, ``delete_proposed``, ``discard``, ``accept``,
+          ``learning_side``; the settings (gap, height above the floor) in ``settings``.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+
+from robomach_core import mesh_query
+from robomach_core.errors import InvalidInputError, SupervisionError, UnreachableTargetError
+from robomach_core.guide_proposal import (
+    GuideProposal,
+    ProposalSettings,
+    ProposedPoint,
+    delete_point,
+    guide_intents,
+    move_point,
+    propose_guide_points,
+    robust_intents,
+    teach_point,
+    tool_reach,
+    wall_side_of,
+)
+from robomach_core.leadthrough import GuidePoint, LeadThrough, LeadThroughState
+from robomach_core.teach_motion import Arrival
+from robomach_core.wall_section import WallPick
+
+from .records import MAX_GUIDE_POINTS, ConflictError, GuidePointEntry, NotFoundError
+
+if TYPE_CHECKING:
+    from .session import Session
+
+SAFE_HEIGHT_M = 0.008  # the tool travels this far above the part's top
+ClickMode = Literal["propose", "teach", "move", "off"]
+CLICK_MODES: tuple[ClickMode, ...] = ("propose", "teach", "move", "off")
+
+
+@dataclass(frozen=True)
+class TaughtPoint:
+    """A guide point taught by pointing at the wall.
+
+    Attributes:
+        entry: The recorded guide point and its index.
+        planned: Where the tool was sent (beside the wall, at the machining height).
+        pick: The picked wall.
+        arrival: Where the motion ended (against the part if it is not where its mesh is).
+        notice: What the user should know ("" when the tool is there, free).
+    """
+
+    entry: GuidePointEntry
+    planned: ProposedPoint
+    pick: WallPick
+    arrival: Arrival
+    notice: str
+
+
+class Pointing:
+    """Click-to-teach and proposals of one session (module docstring)."""
+
+    def __init__(self, session: Session) -> None:
+        self._session = session
+        self._lock = threading.Lock()
+        self._proposal: tuple[int, GuideProposal] | None = None
+        self._pointed: tuple[str, str | None] | None = None  # (guides_key, side) taught so
+        self.settings = ProposalSettings()
+        self.click_mode: ClickMode = "propose"  # what a click on the part does (both GUIs)
+
+    # --- settings ------------------------------------------------------------------------
+
+    def set_settings(
+        self,
+        *,
+        gap_m: float | None = None,
+        height_above_floor_m: float | None = None,
+        click_mode: ClickMode | None = None,
+    ) -> ProposalSettings:
+        """Change the gap to the wall, the height above the floor or what a click on the part
+        does (None keeps one); both GUIs follow."""
+        if click_mode is not None and click_mode not in CLICK_MODES:
+            raise InvalidInputError(
+                f"click mode must be one of {', '.join(CLICK_MODES)}, not {click_mode!r}"
+            )
+        new = replace(
+            self.settings,
+            **{k: float(v) for k, v in (("gap_m", gap_m),
+                                        ("height_above_floor_m", height_above_floor_m))
+               if v is not None},
+        )  # fmt: skip
+        changed = new != self.settings or (click_mode is not None and click_mode != self.click_mode)
+        self.settings = new
+        if click_mode is not None:
+            self.click_mode = click_mode
+        if changed:
+            self._session._notify("guide_points")
+        return self.settings
+
+    # --- click to teach ------------------------------------------------------------------
+
+    def teach_at_surface(
+        self,
+        point_wobj_m: np.ndarray,
+        normal: np.ndarray | None = None,
+        *,
+        replace_index: int | None = None,
+    ) -> TaughtPoint:
+        """Put the tool beside the wall at a picked point (work-object frame) and record a
+        guide point there: appended, or in place of ``replace_index`` (drag to adjust)."""
+        s = self._session
+        with s._lock:
+            s._require_idle()
+            cell, lt_state = s._cell, s._lt_state
+            count = len(s._project.guide_points)
+            if replace_index is not None and not 0 <= replace_index < count:
+                raise NotFoundError(f"no guide point G{replace_index + 1}; there are {count}")
+            if replace_index is None and count >= MAX_GUIDE_POINTS:
+                raise ConflictError(f"a project holds at most {MAX_GUIDE_POINTS} guide points")
+            supervisor = s._lt.supervisor
+        cad = cell.workpiece.cad()
+        with mesh_query.LOCK:  # the mesh's trees answer one thread at a time
+            planned, pick = teach_point(
+                cad,
+                cell.robot,
+                np.asarray(point_wobj_m, dtype=float),
+                None if normal is None else np.asarray(normal, dtype=float),
+                tool_radius_m=cell.tool.radius_m,
+                settings=self.settings,
+                q_seed=lt_state.cell.q_motor,
+                supervisor=supervisor,
+                tool_reach_m=tool_reach(cell.tool),
+            )
+        if planned.reach == "unreachable":
+            x, y, z = planned.position_wobj_m * 1e3
+            raise UnreachableTargetError(
+                f"the arm cannot stand beside the wall at ({x:.1f}, {y:.1f}, {z:.1f}) mm (work "
+                f"object): {planned.message}"
+            )
+        entry = None
+        if cell.workpiece.nominal is not None:  # the real part may be off: enter mid-groove
+            from robomach_core.demo_operator import GuideIntent
+
+            n = pick.loop.free_normal_at(np.array([pick.s_m]))[0]
+            towards = -(cad.T_base_wobj[:3, :3] @ np.array([n[0], n[1], 0.0]))
+            (robust,) = robust_intents(
+                [GuideIntent(planned.T_base_tcp[:3, 3].copy(), towards)],
+                cell.workpiece,
+                cell.tool.radius_m,
+            )
+            entry = robust.position_m
+        arrival = s.teach.move_to(planned.T_base_tcp, safe_z_m=self._safe_z(cad), entry_m=entry)
+        with s._lock:
+            point = s._lt.record(s._lt_state)
+            guides = list(s._project.guide_points)
+            if replace_index is None:
+                guides.append(point)
+                index = len(guides) - 1
+            else:
+                guides[replace_index] = point
+                index = replace_index
+            s._set_guides(tuple(guides))
+            self._pointed = (s._project.guides_key, None)
+        s._notify("guide_points", "recording", "postprocess")
+        notice = arrival.describe()
+        if planned.message:
+            notice = f"{notice}; {planned.message}" if notice else planned.message
+        return TaughtPoint(GuidePointEntry(index, point), planned, pick, arrival, notice)
+
+    def teach_near(
+        self, tcp_wobj_m: np.ndarray, *, replace_index: int | None = None
+    ) -> TaughtPoint:
+        """Teach at the wall nearest a TCP position (work-object frame) at its height: where a
+        dragged marker was dropped."""
+        from robomach_core.wall_section import _off_vertices, section_loops
+
+        cad = self._session._cell.workpiece.cad()
+        p = np.asarray(tcp_wobj_m, dtype=float).reshape(3)
+        loops = section_loops(cad.mesh, _off_vertices(cad.mesh, float(p[2])))
+        if not loops:
+            raise InvalidInputError(
+                f"no wall at {p[2] * 1e3:.1f} mm (work object): drop the point beside a wall"
+            )
+        loop = min(loops, key=lambda lp: abs(lp.signed_distance(p[None, :2])[0]))
+        s = float(loop.project(p[None, :2])[0])
+        foot = loop.point_at(np.array([s]))[0]
+        n = loop.free_normal_at(np.array([s]))[0]
+        return self.teach_at_surface(
+            np.array([foot[0], foot[1], p[2]]),
+            np.array([n[0], n[1], 0.0]),
+            replace_index=replace_index,
+        )
+
+    @staticmethod
+    def _safe_z(cad) -> float:
+        """Base-frame height the tool travels at: above the part's highest point."""
+        top = cad.mesh_in_base().bounds[1, 2]
+        return float(top) + SAFE_HEIGHT_M
+
+    # --- proposals -----------------------------------------------------------------------
+
+    def propose(self, point_wobj_m: np.ndarray, normal: np.ndarray | None = None) -> GuideProposal:
+        """Propose the guide points for the wall through a picked point (nothing moves); it
+        replaces any pending proposal."""
+        s = self._session
+        with s._lock:
+            cell, epoch, q = s._cell, s._epoch, s._lt_state.cell.q_motor
+            supervisor = s._lt.supervisor
+        with mesh_query.LOCK:
+            proposal = propose_guide_points(
+                cell.workpiece.cad(),
+                cell.robot,
+                np.asarray(point_wobj_m, dtype=float),
+                None if normal is None else np.asarray(normal, dtype=float),
+                tool_radius_m=cell.tool.radius_m,
+                settings=self.settings,
+                q_seed=q,
+                supervisor=supervisor,
+                tool_reach_m=tool_reach(cell.tool),
+            )
+        with self._lock:
+            if epoch != s._epoch:
+                raise ConflictError("the cell changed while the guide points were proposed")
+            self._proposal = (epoch, proposal)
+        s._notify("guide_points")
+        return proposal
+
+    def proposal(self) -> GuideProposal | None:
+        """The pending proposal of this cell, or None."""
+        with self._lock:
+            if self._proposal is None or self._proposal[0] != self._session._epoch:
+                return None
+            return self._proposal[1]
+
+    def _require(self) -> tuple[int, GuideProposal]:
+        with self._lock:
+            pending = self._proposal
+        if pending is None or pending[0] != self._session._epoch:
+            raise NotFoundError("no proposed guide points: click a wall to propose them first")
+        return pending
+
+    def _replace(self, epoch: int, proposal: GuideProposal) -> GuideProposal:
+        with self._lock:
+            if self._proposal is None or self._proposal[0] != epoch:
+                raise ConflictError("the proposal changed meanwhile; look at it again")
+            self._proposal = (epoch, proposal)
+        self._session._notify("guide_points")
+        return proposal
+
+    def move_proposed(self, index: int, point_wobj_m: np.ndarray) -> GuideProposal:
+        """Drag proposed point ``index`` along the wall to where ``point_wobj_m`` projects."""
+        epoch, proposal = self._require()
+        cell = self._session._cell
+        moved = move_point(
+            proposal,
+            index,
+            np.asarray(point_wobj_m, dtype=float),
+            cell.robot,
+            tool_radius_m=cell.tool.radius_m,
+            gap_m=self.settings.gap_m,
+            supervisor=self._session._lt.supervisor,
+        )
+        return self._replace(epoch, moved)
+
+    def delete_proposed(self, index: int) -> GuideProposal:
+        """Delete proposed point ``index``."""
+        epoch, proposal = self._require()
+        radius = self._session._cell.tool.radius_m
+        return self._replace(epoch, delete_point(proposal, index, tool_radius_m=radius))
+
+    def discard(self) -> None:
+        """Drop the pending proposal."""
+        with self._lock:
+            self._proposal = None
+        self._session._notify("guide_points")
+
+    def accept(self) -> str:
+        """Job: the operator leads the robot by pushes to each proposed point, touches the
+        wall there (not at outside corners) and records it; the points replace the guide
+        points, and path learning then follows the proposal's wall side. Returns the job id."""
+        from robomach_core.demo_operator import scripted_leadthrough
+
+        epoch, proposal = self._require()
+        bad = [k + 1 for k, p in enumerate(proposal.points) if p.reach == "unreachable"]
+        if bad:
+            listed = ", ".join(f"G{k}" for k in bad[:6])
+            raise InvalidInputError(
+                f"the arm cannot reach {listed}: move or delete them before accepting"
+            )
+        s = self._session
+        with s._lock:
+            s._require_idle()
+            if epoch != s._epoch:
+                raise ConflictError("the cell changed since the proposal; propose again")
+            cell, estimator, start = s._cell, s._lt.estimator, s._lt_state
+            rng_seed = s._project.cell.seed
+        intents = guide_intents(proposal)
+        if cell.workpiece.nominal is not None:  # the real part is not where its mesh is
+            intents = robust_intents(intents, cell.workpiece, cell.tool.radius_m)
+
+        def work(ctx) -> tuple[LeadThroughState, list[GuidePoint]]:
+            lt = LeadThrough(s._live.tapped(cell, estimator, ctx), estimator=estimator)
+            try:
+                return scripted_leadthrough(
+                    lt,
+                    start,
+                    cell.workpiece.cad(),
+                    np.random.default_rng(rng_seed),
+                    intents=intents,
+                    progress=ctx.progress,
+                )
+            except SupervisionError as exc:
+                raise exc.with_note("move or delete that point and accept again") from None
+
+        def done(result: tuple[LeadThroughState, list[GuidePoint]]) -> None:
+            state, guides = result
+            with s._lock:
+                if epoch != s._epoch:
+                    raise ConflictError("the cell changed while the proposal was accepted")
+                s._lt_state = replace(state, velocity=np.zeros(6))
+                s._set_guides(tuple(guides), with_robot=True)
+                self._pointed = (s._project.guides_key, proposal.wall_side)
+            with self._lock:
+                self._proposal = None
+            s._notify("robot", "guide_points", "recording", "postprocess")
+
+        return s._submit_robot_job("accept", work, done, epoch)
+
+    # --- what path learning needs ----------------------------------------------------------
+
+    def learning_side(self) -> str | None:
+        """The wall side of guide points taught by pointing ("left"/"right"), when the guide
+        points are still those; None otherwise (path learning then reads the forces)."""
+        s = self._session
+        pointed = self._pointed
+        project = s._project
+        if pointed is None or pointed[0] != project.guides_key:
+            return None
+        if pointed[1] is not None:
+            return pointed[1]
+        positions = np.array([g.position_m for g in project.guide_points])
+        return wall_side_of(positions, s._cell.workpiece)

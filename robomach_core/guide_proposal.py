@@ -1,0 +1,849 @@
+"""Guide points from a point on the wall: one for click-to-teach, or a whole wall's worth.
+
+PROBLEM   Teaching is the one step a person does, and with the part's mesh at hand it need not
+          be blind: pointing at the wall says which wall to follow. The guide points must then
+          be where path learning (chapter section 3.2) works from them: beside the wall with
+          the cutter free, off the floor, bracketing every corner, with a point of its own at
+          each outside corner (docs/guide_points.md), the wall side stated, and every point
+          reachable by the arm.
+STRATEGY  The picked wall at the machining height (``wall_section.pick_wall``) is a loop with
+          the material on its right. Along it, corners are where the wall turns faster than a
+          15 mm radius; corners closer than ``MIN_RUN_M`` merge into a group, and a group that
+          turns back round the free side (>= 150 deg, a slot's end) ends the wall there, so
+          the wall to follow is open. Each straight run between groups gets one point (two,
+          at 20 % and 80 %, from ``LONG_RUN_M``), each group turning round the material by
+          45 deg or more a point at its middle. Then every leg is checked against the wall:
+          where its chord comes within ``tool radius + LEG_CLEARANCE_M`` of the material, or
+          the wall recedes more than ``MAX_LEG_GAP_M`` from it, a point is added at the worst
+          place. Each point stands ``gap`` off the wall on the free side (centred in a groove
+          too narrow for that), at the machining height, with the job's tool orientation.
+SOLUTION  ``propose_guide_points(workpiece, robot, point, normal, ...) -> GuideProposal`` and
+          ``teach_point(...) -> ProposedPoint`` (one point: click to teach); both say per point
+          whether the arm reaches it (inverse kinematics from the previous point, and the
+          supervisor's margins) and ``wall_side`` is always ``"right"`` (the loop's direction).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+import numpy as np
+import shapely
+
+from .errors import InvalidInputError, RobomachError
+from .limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
+from .robot import Robot
+from .wall_section import WallLoop, WallPick, pick_wall
+from .workpiece import Workpiece
+
+CORNER_RADIUS_M = 0.015  # the wall turning faster than this radius is a corner
+TURN_MIN_DEG = 15.0  # a corner region turning less than this is ignored
+OUTSIDE_CORNER_DEG = 45.0  # a group turning round the material this much gets its own point
+SLOT_END_DEG = 150.0  # a group turning back round the free side this much ...
+SLOT_END_MAX_M = 0.025  # ... within this length ends the wall (a slot's end)
+MIN_RUN_M = 0.011  # corners closer than this are one group; shorter runs get no point
+LONG_RUN_M = 0.040  # a run this long gets two points (20 % and 80 %)
+LEG_CLEARANCE_M = 3e-4  # a leg's chord keeps the cutter this far off the wall ...
+MAX_LEG_GAP_M = 0.012  # ... and the wall no farther than this from the chord
+MIN_POINT_SPACING_M = 0.0015  # along the wall, between two points
+TURN_WINDOW_M = 5e-4
+SAMPLE_M = 2e-4
+MAX_ADDED = 200
+NEAR_LIMIT_FRACTION = 1.0  # inside the supervisor's slow zone: "near a limit"
+JOINT_JUMP_RAD = math.radians(60.0)  # between neighbouring points: a change of configuration
+
+PointKind = Literal["run", "outside corner", "wall end", "added", "taught"]
+Reach = Literal["ok", "near", "unreachable"]
+
+
+@dataclass(frozen=True)
+class ProposalSettings:
+    """Where a proposed guide point stands (SI units).
+
+    Attributes:
+        gap_m: Gap between the cutter and the wall (default 1 mm; a narrow groove centres it).
+        height_above_floor_m: TCP height above the floor beside the wall (raised where the
+            spindle would meet the part, ``wall_section.pick_wall``).
+    """
+
+    gap_m: float = 0.001
+    height_above_floor_m: float = 0.003
+
+    def __post_init__(self) -> None:
+        WALL_GAP_MM.check(self.gap_m * 1e3)
+        MACHINING_HEIGHT_MM.check(self.height_above_floor_m * 1e3)
+
+
+@dataclass(frozen=True)
+class ProposedPoint:
+    """One proposed guide point.
+
+    Attributes:
+        T_base_tcp: 4x4 TCP pose in the robot base frame [m].
+        position_wobj_m: (3,) TCP position in the work-object frame [m].
+        s_m: Arc length along the wall of the point's foot.
+        kind: Why it is there (``PointKind``).
+        reach: ``"ok"``, ``"near"`` (inside a slow zone of the supervisor) or ``"unreachable"``.
+        message: What is wrong or near, for people ("" when ok).
+        joints_rad: (6,) the arm's joints there, None when unreachable.
+    """
+
+    T_base_tcp: np.ndarray
+    position_wobj_m: np.ndarray
+    s_m: float
+    kind: PointKind
+    reach: Reach = "ok"
+    message: str = ""
+    joints_rad: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class GuideProposal:
+    """Guide points for a whole wall, in the order to learn them.
+
+    Attributes:
+        points: The points.
+        wall: The wall they follow (work-object frame), open or closed.
+        closed: Learn a closed contour (back to the first point).
+        wall_side: Side of the wall for path learning: always ``"right"`` (the wall's
+            direction puts the material on the right).
+        pick: The picked wall and the machining height.
+        notes: What was adjusted or cannot be helped, for people.
+    """
+
+    points: tuple[ProposedPoint, ...]
+    wall: WallLoop
+    closed: bool
+    wall_side: Literal["left", "right"]
+    pick: WallPick
+    notes: tuple[str, ...] = field(default=())
+    T_base_wobj: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+    @property
+    def z_m(self) -> float:
+        return self.pick.z_m
+
+    @property
+    def all_reachable(self) -> bool:
+        return all(p.reach != "unreachable" for p in self.points)
+
+
+# --- orientation ------------------------------------------------------------------------------
+
+
+def job_tool_rotation(T_base_wobj: np.ndarray, R_tool: np.ndarray | None = None) -> np.ndarray:
+    """The job's tool orientation (base frame): ``R_tool`` re-aimed so its axis (tool z) is
+    -z of the work object, by the smallest rotation; default the example operator's, tool
+    axis straight down and tool x along -y of the base."""
+    from .demo_operator import TOOL_DOWN
+
+    R = TOOL_DOWN if R_tool is None else np.asarray(R_tool, dtype=float)
+    down = -np.asarray(T_base_wobj, dtype=float)[:3, 2]
+    axis = R[:, 2]
+    c = float(np.clip(axis @ down, -1.0, 1.0))
+    v = np.cross(axis, down)
+    s = float(np.linalg.norm(v))
+    if s < 1e-12:
+        if c > 0:
+            return R.copy()
+        perpendicular = np.cross(axis, [1.0, 0.0, 0.0])
+        if np.linalg.norm(perpendicular) < 1e-6:
+            perpendicular = np.cross(axis, [0.0, 1.0, 0.0])
+        v, s, c = perpendicular / np.linalg.norm(perpendicular), 1.0, -1.0
+        K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+        return (np.eye(3) + 2 * K @ K) @ R
+    K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    align = np.eye(3) + K + K @ K * ((1 - c) / (s * s))
+    return align @ R
+
+
+# --- corners ----------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Group:
+    start_m: float  # arc length (in the loop's own coordinates, may exceed its length)
+    end_m: float
+    turn_rad: float  # net turn, left (towards the free side) positive
+    sharpest_outside_rad: float  # the most negative region turn in the group
+
+
+def _corner_groups(loop: WallLoop, shift_m: float) -> tuple[np.ndarray, list[_Group]]:
+    """Corner groups of ``loop`` in arc lengths counted from ``shift_m`` (module docstring)."""
+    n = max(8, int(math.ceil(loop.length_m / SAMPLE_M)))
+    s = np.linspace(0.0, loop.length_m, n, endpoint=not loop.closed)
+    d = loop.point_at(s + shift_m + TURN_WINDOW_M) - loop.point_at(s + shift_m - TURN_WINDOW_M)
+    theta = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
+    curvature = np.gradient(theta, s)
+    corner = np.abs(curvature) > 1.0 / CORNER_RADIUS_M
+    regions: list[tuple[float, float, float]] = []
+    i = 0
+    while i < n:
+        if not corner[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < n and corner[j + 1]:
+            j += 1
+        a, b = max(i - 1, 0), min(j + 1, n - 1)
+        turn = float(theta[b] - theta[a])
+        if abs(turn) >= math.radians(TURN_MIN_DEG):
+            regions.append((float(s[i]), float(s[j]), turn))
+        i = j + 1
+    groups: list[_Group] = []
+    for a, b, turn in regions:
+        if groups and a - groups[-1].end_m < MIN_RUN_M:
+            g = groups[-1]
+            groups[-1] = _Group(g.start_m, b, g.turn_rad + turn, min(g.sharpest_outside_rad, turn))
+        else:
+            groups.append(_Group(a, b, turn, min(0.0, turn)))
+    if loop.closed and len(groups) >= 2:  # the last and the first may be one group round 0
+        first, last = groups[0], groups[-1]
+        if first.start_m + loop.length_m - last.end_m < MIN_RUN_M:
+            groups = groups[1:-1] + [
+                _Group(
+                    last.start_m,
+                    first.end_m + loop.length_m,
+                    last.turn_rad + first.turn_rad,
+                    min(last.sharpest_outside_rad, first.sharpest_outside_rad),
+                )
+            ]
+    return s, groups
+
+
+def _straightest_start(loop: WallLoop) -> float:
+    """Arc length of the middle of the loop's longest stretch without corners (a closed
+    loop is counted from there, so no corner straddles its start)."""
+    _, groups = _corner_groups(loop, 0.0)
+    if not groups:
+        return 0.0
+    ends = [(g.end_m, groups[(k + 1) % len(groups)].start_m) for k, g in enumerate(groups)]
+    runs = [(b - a if b > a else b + loop.length_m - a, a) for a, b in ends]
+    length, a = max(runs)
+    return float(loop.wrap(np.array([a + 0.5 * length]))[0])
+
+
+# --- the wall to follow -----------------------------------------------------------------------
+
+
+def _wall_extent(
+    loop: WallLoop, pick_s: float, tool_radius_m: float, gap_m: float
+) -> tuple[WallLoop, bool, list[_Group], float, list[str]]:
+    """(wall, closed, groups on it, pick's arc length on it, notes): the picked loop, or the
+    piece of it between the slot ends round the pick."""
+    notes: list[str] = []
+    shift = _straightest_start(loop) if loop.closed else 0.0
+    _, groups = _corner_groups(loop, shift)
+    ends = [
+        g
+        for g in groups
+        if g.turn_rad >= math.radians(SLOT_END_DEG) and g.end_m - g.start_m <= SLOT_END_MAX_M
+    ]
+    pick = float(loop.wrap(np.array([pick_s - shift]))[0])
+    if loop.closed and not ends:
+        wall = loop.piece(shift, shift + loop.length_m) if shift else loop
+        if shift:
+            wall = WallLoop(wall.points_m[:-1], wall.z_m, closed=True)
+        return wall, True, groups, pick, notes
+    for g in ends:
+        if g.start_m - 1e-9 <= pick <= g.end_m + 1e-9:
+            raise InvalidInputError(
+                "the picked point is at the end of a slot; pick one of its side walls"
+            )
+    if not ends:
+        a, b = 0.0, loop.length_m
+    else:
+        before = [g for g in ends if g.end_m <= pick]
+        after = [g for g in ends if g.start_m >= pick]
+        if loop.closed:
+            a = (before[-1] if before else ends[-1]).end_m
+            b = (after[0] if after else ends[0]).start_m
+            if b <= a:
+                b += loop.length_m
+        else:
+            a = before[-1].end_m if before else 0.0
+            b = after[0].start_m if after else loop.length_m
+    wall = loop.piece(shift + a, shift + b)
+    kept = [
+        _Group(g.start_m - a, g.end_m - a, g.turn_rad, g.sharpest_outside_rad)
+        for g in groups
+        if g not in ends and a < g.start_m and g.end_m < b
+    ]
+    if loop.closed:  # groups past the loop's end, seen from a piece running over it
+        kept += [
+            _Group(
+                g.start_m + loop.length_m - a,
+                g.end_m + loop.length_m - a,
+                g.turn_rad,
+                g.sharpest_outside_rad,
+            )  # fmt: skip
+            for g in groups
+            if g not in ends and a < g.start_m + loop.length_m and g.end_m + loop.length_m < b
+        ]
+    kept.sort(key=lambda g: g.start_m)
+    notes.append(
+        f"the wall is open: {wall.length_m * 1e3:.0f} mm between the ends of the slot"
+        if ends
+        else f"the wall is open ({wall.length_m * 1e3:.0f} mm)"
+    )
+    pick_on = float(np.clip(pick - a if pick >= a else pick + loop.length_m - a, 0, wall.length_m))
+    return wall, False, kept, pick_on, notes
+
+
+def _initial_points(
+    wall: WallLoop, closed: bool, groups: list[_Group], end_margin_m: float
+) -> list[tuple[float, PointKind]]:
+    """Arc lengths and kinds of the first points: runs, outside corners and wall ends."""
+    out: list[tuple[float, PointKind]] = []
+    if closed and not groups:
+        return [(wall.length_m * f, "run") for f in (0.0, 0.25, 0.5, 0.75)]
+    bounds = [(g.start_m, g.end_m) for g in groups]
+    if closed:
+        runs = [
+            (bounds[k][1], bounds[(k + 1) % len(bounds)][0] + (wall.length_m if k + 1 ==
+                                                              len(bounds) else 0.0))
+            for k in range(len(bounds))
+        ]  # fmt: skip
+    else:
+        edges = [0.0, *[v for ab in bounds for v in ab], wall.length_m]
+        runs = list(zip(edges[0::2], edges[1::2], strict=True))
+        out.append((min(end_margin_m, 0.5 * wall.length_m), "wall end"))
+    for a, b in runs:
+        length = b - a
+        if length >= LONG_RUN_M:
+            out += [(a + 0.2 * length, "run"), (a + 0.8 * length, "run")]
+        elif length >= MIN_RUN_M:
+            out.append((a + 0.5 * length, "run"))
+    for g in groups:
+        if g.turn_rad <= -math.radians(OUTSIDE_CORNER_DEG):
+            out.append((0.5 * (g.start_m + g.end_m), "outside corner"))
+    if not closed:
+        out.append((max(wall.length_m - end_margin_m, 0.5 * wall.length_m), "wall end"))
+    out = [(float(wall.wrap(np.array([s]))[0]) if closed else s, k) for s, k in out]
+    out.sort(key=lambda item: item[0])
+    merged: list[tuple[float, PointKind]] = []
+    for s, kind in out:  # two points on top of each other: keep the corner or end
+        if merged and s - merged[-1][0] < MIN_POINT_SPACING_M:
+            if kind != "run":
+                merged[-1] = (s, kind)
+            continue
+        merged.append((s, kind))
+    return merged
+
+
+class _Placer:
+    """Where the tool stands beside the wall at an arc length (gap off it, on the free side,
+    centred where the free space is narrower than the cutter and two gaps)."""
+
+    def __init__(
+        self, wall: WallLoop, everything: Sequence[WallLoop], radius_m: float, gap_m: float
+    ) -> None:
+        self.wall, self.radius, self.gap = wall, radius_m, gap_m
+        self._placed: dict[float, tuple[np.ndarray, str]] = {}
+        self._all = shapely.MultiLineString(
+            [
+                np.vstack([lp.points_m, lp.points_m[:1]]) if lp.closed else lp.points_m
+                for lp in everything
+            ]  # fmt: skip
+        )
+
+    def __call__(self, s: float) -> tuple[np.ndarray, str]:
+        if s not in self._placed:
+            self._placed[s] = self._place(s)
+        return self._placed[s]
+
+    def _place(self, s: float) -> tuple[np.ndarray, str]:
+        foot = self.wall.point_at(np.array([s]))[0]
+        n = self.wall.free_normal_at(np.array([s]))[0]
+        reach = 3.0 * (self.radius + self.gap) + 0.01
+        ray = shapely.LineString([foot + n * 2e-5, foot + n * reach])
+        hit = ray.intersection(self._all)
+        width = reach
+        if not hit.is_empty:
+            width = float(shapely.distance(shapely.Point(foot), hit))
+        offset = self.radius + self.gap
+        note = ""
+        if width < 2 * offset:
+            offset = 0.5 * width
+            note = f"the free space is {width * 1e3:.1f} mm wide here: the tool is centred in it"
+        if width < 2 * self.radius + 2e-4:
+            note = (
+                f"the free space is {width * 1e3:.1f} mm wide here, too narrow for the "
+                f"{2 * self.radius * 1e3:g} mm cutter"
+            )
+        return foot + n * offset, note
+
+
+def _leg_problem(
+    wall: WallLoop, radius_m: float, pa: np.ndarray, pb: np.ndarray, sa: float, sb: float
+) -> float | None:
+    """Arc length where the leg pa -> pb needs a point of its own (it cuts towards the
+    material, or the wall between sa and sb recedes too far from it), or None."""
+    length = float(np.linalg.norm(pb - pa))
+    n = max(2, int(math.ceil(length / 2.5e-4)))
+    chord = pa + np.linspace(0.0, 1.0, n)[:, None] * (pb - pa)
+    signed = wall.signed_distance(chord)
+    worst = int(np.argmin(signed))
+    if signed[worst] < radius_m + LEG_CLEARANCE_M:
+        return float(wall.project(chord[worst : worst + 1])[0])
+    if sb <= sa:
+        sb += wall.length_m
+    m = max(2, int(math.ceil((sb - sa) / 5e-4)))
+    s = np.linspace(sa, sb, m)
+    pts = wall.point_at(s)
+    d = pb - pa
+    u = np.clip(((pts - pa) @ d) / max(d @ d, 1e-18), 0.0, 1.0)
+    gap = np.linalg.norm(pts - (pa + u[:, None] * d), axis=1)
+    k = int(np.argmax(gap))
+    if gap[k] > MAX_LEG_GAP_M:
+        return float(s[k])
+    return None
+
+
+def _add_points(
+    wall: WallLoop,
+    closed: bool,
+    points: list[tuple[float, PointKind]],
+    place: _Placer,
+    radius_m: float,
+) -> tuple[list[tuple[float, PointKind]], list[str]]:
+    """Points added where a leg cuts towards the wall or leaves it too far (module docstring).
+    A leg is checked once; an added point puts its two new legs on the list."""
+    notes: list[str] = []
+    points = list(points)
+    todo = list(range(len(points) if closed else len(points) - 1))  # leg k: point k -> k + 1
+    added = 0
+    while todo and added < MAX_ADDED:
+        k = todo.pop()
+        j = (k + 1) % len(points)
+        (sa, _), (sb, _) = points[k], points[j]
+        at = _leg_problem(wall, radius_m, place(sa)[0], place(sb)[0], sa, sb)
+        if at is None:
+            continue
+        at = float(wall.wrap(np.array([at]))[0]) if closed else at
+        span = (sb - sa) % wall.length_m if closed else sb - sa
+        offset = (at - sa) % wall.length_m if closed else at - sa
+        if not MIN_POINT_SPACING_M <= offset <= span - MIN_POINT_SPACING_M:
+            notes.append(
+                f"the leg between points {k + 1} and {j + 1} comes close to the wall; move one "
+                "of them"
+            )
+            continue
+        points.insert(k + 1, (at, "added"))
+        added += 1
+        todo = [t + 1 if t > k else t for t in todo] + [k, k + 1]
+    if todo:
+        notes.append(f"stopped adding points after {MAX_ADDED}")
+    if closed:  # the points stay in order along the wall, from the first
+        points.sort(key=lambda item: item[0])
+    return points, notes
+
+
+# --- reachability -----------------------------------------------------------------------------
+
+
+def reach_points(
+    robot: Robot,
+    Ts_base_tcp: Sequence[np.ndarray],
+    *,
+    q_seed: np.ndarray | None = None,
+    supervisor: object | None = None,
+) -> list[tuple[Reach, str, np.ndarray | None]]:
+    """(reach, message, joints) per pose: the inverse kinematics from the previous pose's
+    joints (the first from ``q_seed``), then the supervisor's margins when given."""
+    out: list[tuple[Reach, str, np.ndarray | None]] = []
+    q_prev = None if q_seed is None else np.asarray(q_seed, dtype=float)
+    for k, T in enumerate(Ts_base_tcp):
+        try:
+            q = robot.ik(T, q_prev)
+        except RobomachError as exc:
+            out.append(("unreachable", str(exc), None))
+            continue
+        reach: Reach = "ok"
+        message = ""
+        if q_prev is not None and k > 0 and out and out[-1][2] is not None:
+            jump = np.abs(q - q_prev)
+            if float(jump.max()) > JOINT_JUMP_RAD:
+                axis = int(np.argmax(jump)) + 1
+                reach, message = (
+                    "near",
+                    f"the arm turns axis {axis} by {math.degrees(jump.max()):.0f} deg from the "
+                    "point before (a change of configuration)",
+                )
+        if supervisor is not None:
+            reach, message = _margins(supervisor, q, reach, message)
+        out.append((reach, message, q))
+        q_prev = q
+    return out
+
+
+def _margins(supervisor: object, q: np.ndarray, reach: Reach, message: str) -> tuple[Reach, str]:
+    """The supervisor's verdict at ``q``: inside a stop value is unreachable, inside a slow
+    zone near (the motion there would crawl or stop)."""
+    lim = supervisor.limits  # type: ignore[attr-defined]
+    m = supervisor.describe(q)  # type: ignore[attr-defined]
+    checks = (
+        ("joint_limit_deg", "a joint limit", lim.joint_stop_rad, lim.joint_slow_rad, True),
+        ("wrist_axis5_deg", "the wrist singularity", lim.wrist_stop_rad, lim.wrist_slow_rad, True),
+        ("elbow_axis3_deg", "the elbow singularity", lim.elbow_stop_rad, lim.elbow_slow_rad, True),
+        ("shoulder_mm", "the shoulder singularity", lim.shoulder_stop_m, lim.shoulder_slow_m,
+         False),
+        # The tool works beside the part: its clearance is only checked against the stop.
+        ("clearance_mm", "an obstacle", lim.tool_stop_m, 0.0, False),
+    )  # fmt: skip
+    for key, what, stop, slow, angle in checks:
+        value = m[key]
+        v = math.radians(value) if angle else value * 1e-3
+        shown = f"{value:.1f} {'deg' if angle else 'mm'}"
+        if v <= stop:
+            return "unreachable", f"at {what} ({shown})"
+        if v <= slow * NEAR_LIMIT_FRACTION and reach == "ok":
+            reach, message = "near", f"near {what} ({shown})"
+    return reach, message
+
+
+# --- the public functions ---------------------------------------------------------------------
+
+
+def _pick(workpiece: Workpiece, point_wobj_m: np.ndarray, normal: np.ndarray | None,
+          tool_radius_m: float, settings: ProposalSettings,
+          tool_reach_m: float | None) -> WallPick:  # fmt: skip
+    return pick_wall(
+        workpiece.cad().mesh,
+        point_wobj_m,
+        normal,
+        tool_radius_m=tool_radius_m,
+        gap_m=settings.gap_m,
+        height_above_floor_m=settings.height_above_floor_m,
+        tool_reach_m=tool_reach_m,
+    )
+
+
+def _pose(workpiece: Workpiece, xy: np.ndarray, z: float, R_base: np.ndarray) -> np.ndarray:
+    T_base_wobj = workpiece.cad().T_base_wobj
+    T = np.eye(4)
+    T[:3, :3] = R_base
+    T[:3, 3] = T_base_wobj[:3, :3] @ np.array([xy[0], xy[1], z]) + T_base_wobj[:3, 3]
+    return T
+
+
+def tool_reach(tool: object) -> float:
+    """How deep the tool reaches below its spindle body: cutter and shank [m]."""
+    from .supervision.supervisor import SHANK_LENGTH_M
+
+    return float(tool.flute_length_m) + SHANK_LENGTH_M  # type: ignore[attr-defined]
+
+
+def propose_guide_points(
+    workpiece: Workpiece,
+    robot: Robot,
+    point_wobj_m: np.ndarray,
+    normal: np.ndarray | None = None,
+    *,
+    tool_radius_m: float,
+    settings: ProposalSettings | None = None,
+    tool_rotation: np.ndarray | None = None,
+    q_seed: np.ndarray | None = None,
+    supervisor: object | None = None,
+    tool_reach_m: float | None = 0.020,
+) -> GuideProposal:
+    """Guide points for the whole wall through a picked point (module docstring).
+
+    Args:
+        workpiece: The part (its CAD is used: what the user sees).
+        robot: The arm, for reachability.
+        point_wobj_m: (3,) a point on the wall, work-object frame [m].
+        normal: (3,) its surface normal (out of the material); default the nearest face's.
+        tool_radius_m: Ball cutter radius.
+        settings: Gap and height.
+        tool_rotation: 3x3 tool orientation (base frame) whose axis is re-aimed at -z of the
+            work object (``job_tool_rotation``); default the example operator's.
+        q_seed: Joints to start the inverse kinematics from (the robot's now).
+        supervisor: The cell's ``Supervisor`` for the margins (None: the IK alone).
+        tool_reach_m: How deep the tool reaches below its body (``tool_reach``).
+    """
+    settings = settings or ProposalSettings()
+    pick = _pick(workpiece, point_wobj_m, normal, tool_radius_m, settings, tool_reach_m)
+    wall, closed, groups, pick_s, notes = _wall_extent(
+        pick.loop, pick.s_m, tool_radius_m, settings.gap_m
+    )
+    notes = [*pick.notes, *notes]
+    place = _Placer(wall, (pick.loop, *pick.others), tool_radius_m, settings.gap_m)
+    end_margin = tool_radius_m + settings.gap_m + 5e-4
+    points = _initial_points(wall, closed, groups, end_margin)
+    points, added = _add_points(wall, closed, points, place, tool_radius_m)
+    notes += added
+    if closed:  # start at the point nearest the click: learning begins where the user pointed
+        gaps = [min(abs(s - pick_s), wall.length_m - abs(s - pick_s)) for s, _ in points]
+        first = int(np.argmin(gaps))
+        points = points[first:] + points[:first]
+    R = job_tool_rotation(workpiece.cad().T_base_wobj, tool_rotation)
+    placed = [place(s) for s, _ in points]
+    Ts = [_pose(workpiece, xy, pick.z_m, R) for xy, _ in placed]
+    reach = reach_points(robot, Ts, q_seed=q_seed, supervisor=supervisor)
+    out = []
+    for (s, kind), (xy, note), T, (r, message, q) in zip(points, placed, Ts, reach, strict=True):
+        if note and "too narrow" in note:
+            r, message = "unreachable", note
+        elif note and not message:
+            message = note
+        out.append(ProposedPoint(T, np.array([xy[0], xy[1], pick.z_m]), s, kind, r, message, q))
+    return GuideProposal(
+        tuple(out),
+        wall,
+        closed,
+        "right",
+        pick,
+        tuple(dict.fromkeys(notes)),
+        workpiece.cad().T_base_wobj.copy(),
+    )
+
+
+def teach_point(
+    workpiece: Workpiece,
+    robot: Robot,
+    point_wobj_m: np.ndarray,
+    normal: np.ndarray | None = None,
+    *,
+    tool_radius_m: float,
+    settings: ProposalSettings | None = None,
+    tool_rotation: np.ndarray | None = None,
+    q_seed: np.ndarray | None = None,
+    supervisor: object | None = None,
+    tool_reach_m: float | None = 0.020,
+) -> tuple[ProposedPoint, WallPick]:
+    """The tool's place for one picked point (click to teach): beside the wall at the pick,
+    ``gap`` off it on the free side, at the machining height, in the job's orientation."""
+    settings = settings or ProposalSettings()
+    pick = _pick(workpiece, point_wobj_m, normal, tool_radius_m, settings, tool_reach_m)
+    place = _Placer(pick.loop, (pick.loop, *pick.others), tool_radius_m, settings.gap_m)
+    xy, note = place(pick.s_m)
+    R = job_tool_rotation(workpiece.cad().T_base_wobj, tool_rotation)
+    T = _pose(workpiece, xy, pick.z_m, R)
+    ((r, message, q),) = reach_points(robot, [T], q_seed=q_seed, supervisor=supervisor)
+    if note and "too narrow" in note:
+        r, message = "unreachable", note
+    point = ProposedPoint(
+        T, np.array([xy[0], xy[1], pick.z_m]), pick.s_m, "taught", r, message or note, q
+    )
+    return point, pick
+
+
+def guide_intents(proposal: GuideProposal, *, touch: bool = True) -> list:
+    """The proposal as the scripted operator's intents (``demo_operator.GuideIntent``): it
+    leads the robot to each point by pushes and, with ``touch``, pushes gently towards the
+    wall until it pushes back (as a person touching the wall does), except at outside corners
+    (docs/guide_points.md: no wall push there). Touching makes the points the real wall's
+    when the part is not where its CAD is."""
+    from .demo_operator import GuideIntent
+
+    T_base_wobj = proposal.T_base_wobj
+    out = []
+    for p in proposal.points:
+        normal = None
+        if touch and p.kind != "outside corner":
+            n = proposal.wall.free_normal_at(np.array([p.s_m]))[0]
+            normal = -(T_base_wobj[:3, :3] @ np.array([n[0], n[1], 0.0]))
+        out.append(GuideIntent(p.T_base_tcp[:3, 3].copy(), normal, p.T_base_tcp[:3, :3].copy()))
+    return out
+
+
+def refuse_unreachable(proposal: GuideProposal) -> None:
+    """Raise ``InvalidInputError`` naming the points the arm cannot reach (none: nothing)."""
+    bad = [(k + 1, p) for k, p in enumerate(proposal.points) if p.reach == "unreachable"]
+    if bad:
+        listed = "; ".join(f"G{k} ({p.message})" for k, p in bad[:4])
+        raise InvalidInputError(
+            f"{len(bad)} of the {len(proposal.points)} proposed guide points cannot be reached: "
+            f"{listed}"
+        )
+
+
+def with_points(proposal: GuideProposal, points: Sequence[ProposedPoint]) -> GuideProposal:
+    """The proposal with other points (edited or deleted by the user)."""
+    return replace(proposal, points=tuple(points))
+
+
+def proposal_summary(proposal: GuideProposal) -> dict:
+    """The proposal in mm, for summary.json and the API."""
+    return {
+        "points": len(proposal.points),
+        "closed": proposal.closed,
+        "wall_side": proposal.wall_side,
+        "wall_length_mm": round(proposal.wall.length_m * 1e3, 2),
+        "height_wobj_mm": round(proposal.z_m * 1e3, 3),
+        "floor_wobj_mm": round(proposal.pick.floor_z_m * 1e3, 3),
+        "kinds": {
+            kind: sum(p.kind == kind for p in proposal.points)
+            for kind in dict.fromkeys(p.kind for p in proposal.points)
+        },
+        "reach": {
+            reach: sum(p.reach == reach for p in proposal.points)
+            for reach in dict.fromkeys(p.reach for p in proposal.points)
+        },
+        "notes": list(proposal.notes),
+    }
+
+
+def move_point(
+    proposal: GuideProposal,
+    index: int,
+    point_wobj_m: np.ndarray,
+    robot: Robot,
+    *,
+    tool_radius_m: float,
+    gap_m: float,
+    supervisor: object | None = None,
+) -> GuideProposal:
+    """The proposal with point ``index`` moved to where ``point_wobj_m`` (any point, work-object
+    frame) projects on the wall: dragged along it, it stays ``gap_m`` off the wall."""
+    if not 0 <= index < len(proposal.points):
+        raise InvalidInputError(f"no proposed point G{index + 1}; there are {len(proposal.points)}")
+    xy = np.asarray(point_wobj_m, dtype=float).reshape(-1)[:2]
+    wall = proposal.wall
+    s = float(wall.project(xy[None])[0])
+    place = _Placer(wall, (proposal.pick.loop, *proposal.pick.others), tool_radius_m, gap_m)
+    foot_xy, note = place(s)
+    old = proposal.points[index]
+    T = old.T_base_tcp.copy()
+    T[:3, 3] = (
+        proposal.T_base_wobj[:3, :3] @ np.array([foot_xy[0], foot_xy[1], proposal.z_m])
+        + proposal.T_base_wobj[:3, 3]
+    )
+    seed = next(
+        (p.joints_rad for p in proposal.points[:index][::-1] if p.joints_rad is not None),
+        old.joints_rad,
+    )
+    ((r, message, q),) = reach_points(robot, [T], q_seed=seed, supervisor=supervisor)
+    if note and "too narrow" in note:
+        r, message = "unreachable", note
+    moved = ProposedPoint(
+        T, np.array([foot_xy[0], foot_xy[1], proposal.z_m]), s, old.kind, r, message or note, q
+    )
+    points = list(proposal.points)
+    points[index] = moved
+    return _with_leg_notes(
+        replace(proposal, points=_in_wall_order(points, proposal)), tool_radius_m
+    )
+
+
+def _in_wall_order(points: list[ProposedPoint], proposal: GuideProposal) -> tuple:
+    """The points in order along the wall (a point dragged past its neighbours takes its place
+    among them); a closed wall keeps its first point first."""
+    if not proposal.closed:
+        return tuple(sorted(points, key=lambda p: p.s_m))
+    s0, length = points[0].s_m, proposal.wall.length_m
+    return tuple(sorted(points, key=lambda p: (p.s_m - s0) % length))
+
+
+def delete_point(proposal: GuideProposal, index: int, *, tool_radius_m: float) -> GuideProposal:
+    """The proposal without point ``index`` (its notes say which legs now need a point)."""
+    if not 0 <= index < len(proposal.points):
+        raise InvalidInputError(f"no proposed point G{index + 1}; there are {len(proposal.points)}")
+    if len(proposal.points) <= 2:
+        raise InvalidInputError("a proposal keeps at least 2 points; discard it instead")
+    fewer = replace(proposal, points=proposal.points[:index] + proposal.points[index + 1 :])
+    return _with_leg_notes(fewer, tool_radius_m)
+
+
+def leg_problems(proposal: GuideProposal, tool_radius_m: float) -> list[str]:
+    """A sentence per leg that cuts towards the wall or leaves it too far (after edits)."""
+    wall, pts = proposal.wall, proposal.points
+    out = []
+    legs = len(pts) if proposal.closed else len(pts) - 1
+    for k in range(legs):
+        j = (k + 1) % len(pts)
+        a, b = pts[k], pts[j]
+        at = _leg_problem(
+            wall, tool_radius_m, a.position_wobj_m[:2], b.position_wobj_m[:2], a.s_m, b.s_m
+        )
+        if at is not None:
+            x, y = wall.point_at(np.array([at]))[0] * 1e3
+            out.append(
+                f"the leg G{k + 1}-G{j + 1} leaves the wall near ({x:.1f}, {y:.1f}) mm: add a "
+                "point there or undo the edit"
+            )
+    return out
+
+
+def _with_leg_notes(proposal: GuideProposal, tool_radius_m: float) -> GuideProposal:
+    kept = [n for n in proposal.notes if not n.startswith("the leg G")]
+    return replace(proposal, notes=tuple(kept + leg_problems(proposal, tool_radius_m)))
+
+
+def wall_side_of(positions_base_m: np.ndarray, workpiece: Workpiece) -> str | None:
+    """The wall side ("left"/"right") of guide points taught beside one wall of the part's
+    mesh: "right" when they follow the wall's own direction (material on the right), None
+    when they are not beside one wall at one height or go neither way."""
+    from .wall_section import _off_vertices, section_loops
+
+    cad = workpiece.cad()
+    pts = np.asarray(positions_base_m, dtype=float)
+    if len(pts) < 2:
+        return None
+    T = cad.T_base_wobj
+    wobj = (pts - T[:3, 3]) @ T[:3, :3]
+    z = float(np.median(wobj[:, 2]))
+    if np.ptp(wobj[:, 2]) > 0.005:
+        return None
+    loops = section_loops(cad.mesh, _off_vertices(cad.mesh, z))
+    best = None
+    for loop in loops:
+        d = np.abs(loop.signed_distance(wobj[:, :2]))
+        if d.max() < 0.008 and (best is None or d.mean() < best[1]):
+            best = (loop, float(d.mean()))
+    if best is None:
+        return None
+    loop = best[0]
+    s = loop.project(wobj[:, :2])
+    steps = np.diff(s)
+    if loop.closed:
+        steps = (steps + 0.5 * loop.length_m) % loop.length_m - 0.5 * loop.length_m
+    forward, backward = float(steps[steps > 0].sum()), float(-steps[steps < 0].sum())
+    if max(forward, backward) < 3.0 * min(forward, backward) + 1e-4:
+        return None
+    return "right" if forward > backward else "left"
+
+
+OPEN_EDGE_ENTRY_M = 0.003  # beside an open edge, the operator comes down this far off the wall
+
+
+def robust_intents(intents: Sequence, workpiece: Workpiece, tool_radius_m: float) -> list:
+    """Intents for a part that may not be where its mesh is: each point with a wall push is
+    entered in the middle of the free space beside its wall (a groove's middle; 3 mm off an
+    open edge), so that the cutter comes down clear of the real walls, and the push finds the
+    wall from there (a careful operator does the same when the part may be off its drawing).
+    Points without a push (outside corners) stay where they are."""
+    from dataclasses import replace as _replace
+
+    from .wall_section import _off_vertices, section_loops
+
+    cad = workpiece.cad()
+    T = cad.T_base_wobj
+    walls: dict[float, list[WallLoop]] = {}
+    out = []
+    for intent in intents:
+        if intent.wall_normal is None:
+            out.append(intent)
+            continue
+        p = (np.asarray(intent.position_m) - T[:3, 3]) @ T[:3, :3]
+        z = round(float(p[2]), 5)
+        if z not in walls:
+            walls[z] = section_loops(cad.mesh, _off_vertices(cad.mesh, z))
+        loops = walls[z]
+        if not loops:
+            out.append(intent)
+            continue
+        loop = min(loops, key=lambda lp: abs(lp.signed_distance(p[None, :2])[0]))
+        place = _Placer(loop, loops, tool_radius_m, OPEN_EDGE_ENTRY_M)
+        s = float(loop.project(p[None, :2])[0])
+        xy, note = place(s)
+        if "too narrow" in note:
+            out.append(intent)
+            continue
+        entry = T[:3, :3] @ np.array([xy[0], xy[1], p[2]]) + T[:3, 3]
+        out.append(_replace(intent, position_m=entry))
+    return out

@@ -1,0 +1,126 @@
+"""Teaching by pointing in the session (``app/session/pointing.py``): click-to-teach, the
+proposal and its edits, accepting it, learning from it, and a cell change that drops it."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from app.session import NotFoundError, Session
+from robomach_core.errors import InvalidInputError, UnreachableTargetError
+from robomach_core.real_part import PartDeviation
+from robomach_core.wall_section import section_loops
+
+WOBJ_M = np.array([0.80, 0.16, 0.0])  # the water pump's work object (rotation: identity)
+ON_WALL = np.array([0.0, -0.065, 0.019])  # the groove's outer wall, bottom run (wobj)
+
+
+@pytest.fixture
+def fast() -> Session:
+    s = Session(real_time=False)
+    yield s
+    s.close()
+
+
+def _wait_job(session: Session, job_id: str, timeout_s: float = 300.0):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        info = session.job(job_id)
+        if info.status in ("done", "failed", "cancelled"):
+            return info
+        time.sleep(0.05)
+    raise AssertionError("job did not finish")
+
+
+def test_a_click_on_the_wall_moves_the_tool_beside_it_and_records_the_point(fast: Session):
+    taught = fast.pointing.teach_at_surface(ON_WALL + [0.04, 0, 0])
+    assert taught.entry.index == 0 and taught.arrival.reached and taught.notice == ""
+    p = fast.snapshot().position_m - WOBJ_M
+    assert p == pytest.approx([0.04, -0.063, 0.017], abs=4e-4)
+    assert not fast.snapshot().in_contact
+    (g,) = fast.guide_points()
+    assert np.allclose(g.position_m, fast.snapshot().position_m)
+    # Drag to adjust: the same point taught again further along the wall replaces it.
+    fast.pointing.teach_at_surface(ON_WALL + [0.0, 0, 0])
+    fast.pointing.teach_at_surface(ON_WALL + [-0.04, 0, 0], replace_index=0)
+    first = fast.guide_points()[0].position_m - WOBJ_M
+    assert first[0] == pytest.approx(-0.04, abs=4e-4) and len(fast.guide_points()) == 2
+    with pytest.raises(NotFoundError, match="G5"):
+        fast.pointing.teach_at_surface(ON_WALL, replace_index=4)
+    with pytest.raises(InvalidInputError, match="floor or a top"):
+        fast.pointing.teach_at_surface(np.array([0.0, -0.0625, 0.014]))
+
+
+def test_clicked_points_learn_the_wall_side_from_the_mesh(fast: Session):
+    for x in (-0.04, 0.04):
+        fast.pointing.teach_at_surface(ON_WALL + [x, 0, 0])
+    assert fast.pointing.learning_side() == "right"  # along the wall's own direction
+    fast.clear_guide_points()
+    for x in (0.04, -0.04):
+        fast.pointing.teach_at_surface(ON_WALL + [x, 0, 0])
+    assert fast.pointing.learning_side() == "left"
+    fast.record_guide_point()  # a point recorded by hand: the side is the forces' again
+    assert fast.pointing.learning_side() is None
+
+
+def test_a_proposal_is_shown_edited_and_accepted_then_learned_within_the_wall(fast: Session):
+    proposal = fast.pointing.propose(ON_WALL)
+    assert len(proposal.points) == 14 and proposal.closed
+    assert fast.guide_points() == []  # nothing recorded, nothing moved yet
+    first = proposal.points[0].position_wobj_m
+    assert first[:2] == pytest.approx([0.0, -0.063], abs=1e-3)  # the one nearest the click
+    xy = np.array([p.position_wobj_m[:2] for p in proposal.points])
+    k = int(np.argmin(np.linalg.norm(xy - [-0.084, -0.063], axis=1)))
+    moved = fast.pointing.move_proposed(k, np.array([-0.0845, -0.070, 0.017]))
+    assert moved.points[k].position_wobj_m[:2] == pytest.approx([-0.0845, -0.063], abs=2e-4)
+    # Dragged past its neighbours, a point takes its place among them along the wall.
+    swapped = fast.pointing.move_proposed(1, np.array([-0.020, -0.070, 0.017]))
+    xs = [p.position_wobj_m[0] for p in swapped.points[:3]]
+    assert xs == sorted(xs)
+    moved = fast.pointing.move_proposed(0, np.array([0.0, -0.070, 0.017]))
+    fewer = fast.pointing.delete_proposed(3)
+    assert len(fewer.points) == 13
+    info = _wait_job(fast, fast.pointing.accept())
+    assert info.status == "done", info.error
+    assert fast.pointing.proposal() is None
+    guides = fast.guide_points()
+    assert len(guides) == 13
+    planned = np.array([p.T_base_tcp[:3, 3] for p in fewer.points])
+    recorded = np.array([g.position_m for g in guides])
+    assert np.all(np.linalg.norm(recorded - planned, axis=1) < 3e-3)  # touched the wall
+    assert fast.pointing.learning_side() == "right"
+    info = _wait_job(fast, fast.start_path_learning(10.0, 0.005))
+    assert info.status == "done", info.error
+    assert fast.learning_settings().wall_side == "right"
+    outcome = fast.run_postprocess()
+    assert outcome.score.max_m <= 0.3e-3
+    assert outcome.cad_comparison.learned.max_m <= 0.3e-3
+
+
+def test_a_cell_change_drops_the_proposal_and_unreachable_points_are_refused(fast: Session):
+    fast.pointing.propose(ON_WALL)
+    fast.set_cell(robot="ur3")
+    assert fast.pointing.proposal() is None
+    with pytest.raises(NotFoundError, match="click a wall"):
+        fast.pointing.accept()
+    proposal = fast.pointing.propose(ON_WALL)
+    assert any(p.reach == "unreachable" for p in proposal.points)
+    with pytest.raises(InvalidInputError, match="cannot reach"):
+        fast.pointing.accept()
+    far = ON_WALL + [-0.085, 0, 0]  # the pump's far corner, beyond a UR3
+    with pytest.raises(UnreachableTargetError, match="cannot stand beside the wall"):
+        fast.pointing.teach_at_surface(far)
+
+
+def test_a_realistic_cell_meets_the_real_part_and_teaches_on_the_mesh(fast: Session):
+    fast.set_cell(part_deviation=PartDeviation.realistic(0))
+    assert fast.cell_settings().part_deviation == PartDeviation.realistic(0)
+    assert fast.cad_workpiece.nominal is None and fast.workpiece.nominal is not None
+    real = section_loops(fast.workpiece.scoring_mesh(), 0.017)[1]
+    cad = section_loops(fast.cad_workpiece.mesh, 0.017)[1]
+    assert real.length_m != pytest.approx(cad.length_m, abs=1e-5)
+    proposal = fast.pointing.propose(ON_WALL)
+    xy = np.array([p.position_wobj_m[:2] for p in proposal.points])
+    assert np.allclose(cad.signed_distance(xy), 0.002, atol=1e-4)  # placed on the CAD

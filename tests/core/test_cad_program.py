@@ -1,0 +1,77 @@
+"""The CAD-only program scored beside the learned one against the real wall."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robomach_core.cad_program import compare_with_cad
+from robomach_core.demo_operator import TOOL_DOWN
+from robomach_core.real_part import PartDeviation, fixture_error, real_workpiece
+from robomach_core.transforms import quaternion_from_matrix
+from robomach_core.workpiece import Workpiece, water_pump
+
+R = 0.001
+TOLERANCE = 0.0002
+Z = 0.017
+
+
+def _tool_path(workpiece: Workpiece, z: float, *, into_material_m: float = 0.0) -> np.ndarray:
+    """A 'learned' program exactly on a part's tool path (its wall offset by the radius), or
+    pushed into the material; base frame, every 0.5 mm."""
+    pts = workpiece.wall.offset(R - into_material_m).sample(5e-4)
+    T = workpiece.T_base_wobj
+    return np.column_stack([pts, np.full(len(pts), z)]) @ T[:3, :3].T + T[:3, 3]
+
+
+def _compare(workpiece: Workpiece, positions: np.ndarray, closed: bool = True):
+    quats = np.tile(quaternion_from_matrix(TOOL_DOWN), (len(positions), 1))
+    return compare_with_cad(workpiece, positions, quats, R, TOLERANCE, closed=closed)
+
+
+def test_on_a_part_that_is_its_cad_both_programs_are_within_the_tolerance():
+    pump = water_pump()
+    c = _compare(pump, _tool_path(pump, Z))
+    assert not c.part_deviates and c.closed
+    assert c.learned.max_m < 2e-5
+    assert c.cad_only.max_m == pytest.approx(TOLERANCE, abs=2e-5)  # the chords' sagitta
+    assert 60 < len(c.cad_positions_m) < 200
+    assert c.z_m == pytest.approx(Z)
+
+
+def test_on_the_real_part_the_cad_program_carries_the_fixture_error():
+    pump = water_pump()
+    real = real_workpiece(pump, PartDeviation.realistic(0))
+    c = _compare(real, _tool_path(real, Z))  # a program that found the real wall
+    assert c.part_deviates and "fixture error" in c.deviation_note
+    assert c.learned.max_m < 2e-5
+    fixture = fixture_error(PartDeviation.realistic(0))
+    shift = float(np.hypot(*fixture.shift_m[:2]))
+    assert c.cad_only.max_m > shift  # at least the fixture's shift somewhere ...
+    assert c.cad_only.max_m < shift + 0.135 * abs(fixture.rotation_rad) + 0.5e-3 + TOLERANCE
+    assert c.cad_only.overcut_m > 0.3e-3 and c.cad_only.air_m > 0.3e-3  # ... both ways
+    # The worst place is reported where it is: on the part, at that error.
+    k = int(np.argmax(np.abs(c.cad_only.deviation_m)))
+    T = pump.T_base_wobj
+    worst = (c.cad_only.points_m[k] - T[:3, 3]) @ T[:3, :3]
+    assert c.cad_only.worst_wobj_m == pytest.approx(worst)
+    assert 0.0 <= c.cad_only.worst_fraction <= 1.0
+
+
+def test_a_program_inside_the_material_reads_as_an_overcut():
+    pump = water_pump()
+    c = _compare(pump, _tool_path(pump, Z, into_material_m=0.3e-3))
+    assert c.learned.overcut_m == pytest.approx(0.3e-3, abs=2e-5)
+    assert c.learned.air_m < 1e-5
+    assert np.median(c.learned.deviation_m) == pytest.approx(-0.3e-3, abs=1e-5)
+    summary = c.summary()
+    assert summary["learned"]["overcut_mm"] == pytest.approx(0.3, abs=0.02)
+    assert set(summary["cad_only"]) >= {"max_deviation_mm", "worst_at_wobj_mm"}
+
+
+def test_a_path_away_from_every_wall_has_no_comparison():
+    pump = water_pump()
+    T = pump.T_base_wobj
+    far = np.array([[0.0, 0.0, Z], [0.01, 0.0, Z], [0.02, 0.01, Z]]) @ T[:3, :3].T + T[:3, 3]
+    far[:, 2] += 0.05  # above the part
+    assert _compare(pump, far) is None

@@ -1,0 +1,87 @@
+"""Walls of a mesh at one height, and the wall a picked point belongs to."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from robomach_core.errors import InvalidInputError
+from robomach_core.wall_section import WallLoop, pick_wall, section_loops
+from robomach_core.workpiece import block, water_pump
+
+PICK = {"tool_radius_m": 0.001, "gap_m": 0.001, "height_above_floor_m": 0.003}
+
+
+def test_the_pump_has_three_closed_walls_at_machining_height_the_true_one_among_them():
+    pump = water_pump()
+    loops = section_loops(pump.mesh, 0.017)
+    assert [lp.closed for lp in loops] == [True, True, True]
+    plate, outer, island = loops  # longest first
+    assert plate.length_m == pytest.approx(0.860, abs=1e-6)
+    _, pts = outer.sample(5e-4)
+    assert pump.wall.distance(pts).max() < 1e-5  # the groove's outer wall, exactly
+    # Material on the right: inside the groove is the free side of both groove walls.
+    in_groove = np.array([[0.0, -0.0625]])
+    assert outer.signed_distance(in_groove)[0] == pytest.approx(0.0025, abs=1e-5)
+    assert island.signed_distance(in_groove)[0] == pytest.approx(0.0025, abs=1e-5)
+    assert outer.signed_distance(np.array([[0.0, -0.070]]))[0] < 0  # in the rim's material
+
+
+def test_an_unclosed_surface_gives_an_open_wall():
+    strip = trimesh.Trimesh(
+        [[0, 0, 0], [0.05, 0, 0], [0.05, 0, 0.01], [0, 0, 0.01],
+         [0.08, 0.02, 0], [0.08, 0.02, 0.01]],
+        [[0, 1, 2], [0, 2, 3], [1, 4, 5], [1, 5, 2]],
+    )  # fmt: skip
+    (wall,) = section_loops(strip, 0.005)
+    assert not wall.closed
+    assert wall.length_m == pytest.approx(0.05 + np.hypot(0.03, 0.02), abs=1e-9)
+
+
+def test_a_wall_loop_measures_points_and_pieces():
+    square = WallLoop(np.array([[0, 0], [0, 1], [1, 1], [1, 0]], dtype=float), 0.0, True)
+    # Clockwise square: the material (inside) is on the right.
+    assert square.signed_distance(np.array([[0.5, 0.5]]))[0] == pytest.approx(-0.5, abs=1e-4)
+    assert square.signed_distance(np.array([[-0.2, 0.5]]))[0] == pytest.approx(0.2, abs=1e-4)
+    assert square.free_normal_at(np.array([0.5]))[0] == pytest.approx([-1.0, 0.0])
+    corner = square.free_normal_at(np.array([1.0]))[0]  # the bisector at a sharp corner
+    assert corner == pytest.approx([-(0.5**0.5), 0.5**0.5])
+    piece = square.piece(3.5, 0.5)  # over the start
+    assert not piece.closed and piece.length_m == pytest.approx(1.0)
+
+
+def test_a_pick_on_the_pump_groove_sets_the_height_three_mm_above_the_floor():
+    pick = pick_wall(water_pump().mesh, [0.0, -0.065, 0.019], **PICK)
+    assert pick.floor_z_m == pytest.approx(0.014) and pick.top_z_m == pytest.approx(0.020)
+    assert pick.z_m == pytest.approx(0.017, abs=1e-5)
+    assert pick.loop.length_m == pytest.approx(0.7576, abs=1e-3)
+    assert len(pick.others) == 2 and not pick.notes
+
+
+def test_an_outside_edge_is_worked_where_the_spindle_stays_above_the_part():
+    pick = pick_wall(block().mesh, [0.0, -0.025, 0.035], **PICK, tool_reach_m=0.020)
+    assert pick.floor_z_m == pytest.approx(0.0)  # the table
+    assert pick.z_m == pytest.approx(0.040 - 0.020 + 0.005)
+    assert "spindle" in pick.notes[0]
+
+
+@pytest.mark.parametrize(
+    "point, message",
+    [
+        ([0.0, -0.0625, 0.014], "floor or a top"),  # the groove floor
+        ([0.0, 0.0, 0.020], "floor or a top"),  # the island's top
+        ([0.0, -0.0625, 0.030], "off the part"),  # above it
+        ([0.0, -0.0625, 0.0215], "from the part's surface"),  # in the air above the groove
+    ],
+)
+def test_a_pick_off_a_wall_says_what_to_pick(point, message):
+    with pytest.raises(InvalidInputError, match=message):
+        pick_wall(water_pump().mesh, point, **PICK)
+
+
+def test_a_wall_too_low_for_the_cutter_is_refused():
+    step = trimesh.creation.box(extents=(0.1, 0.1, 0.0015))
+    step.apply_translation([0, 0, 0.00075])
+    with pytest.raises(InvalidInputError, match="too low"):
+        pick_wall(step, [0.0, -0.05, 0.001], **PICK)
