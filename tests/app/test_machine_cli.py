@@ -224,16 +224,23 @@ def test_exit_1_when_the_cell_can_run_nothing_that_completes(tmp_path):
 @pytest.mark.slow
 def test_exit_130_when_interrupted(tmp_path):
     import signal
-    import time
 
     proc = subprocess.Popen(
         [sys.executable, "-m", "app.cli", "machine", "--out", str(tmp_path / "o"),
          "--workpiece", "block", "--no-plot"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
-    time.sleep(6.0)
+    # Interrupt while it works (path learning has begun), not after a fixed time: a fast
+    # machine finished the block's whole run within 6 s.
+    seen = []
+    for line in proc.stderr:
+        seen.append(line)
+        if line.startswith("path learning:"):
+            break
+    assert proc.poll() is None, "".join(seen)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
+    err = "".join(seen) + err
     assert proc.returncode == 130, err
     assert "Traceback" not in err
 
