@@ -88,6 +88,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _interrupted(exc: BaseException) -> bool:
+    """Whether Ctrl-C caused ``exc``: an interrupt inside a compiled (numba) kernel comes out
+    as a ``SystemError`` ("returned a result with an exception set") caused by it."""
+    seen: set[int] = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__  # type: ignore[assignment]
+    return False
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -102,6 +114,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"robomach {args.command}: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:  # a fault no check foresaw: one line, the traceback on request
+        if _interrupted(exc):
+            print(f"robomach {args.command}: interrupted", file=sys.stderr)
+            return 130
         if os.environ.get("ROBOMACH_DEBUG"):
             raise
         from app.session.jobs import describe_unexpected
