@@ -233,6 +233,18 @@ def build_app(settings: ServerSettings, session: Session) -> FastAPI:
     return app
 
 
+def open_session(settings: ServerSettings, data_dir: Path) -> Session:
+    """The session ``serve`` runs: the store of ``data_dir`` (SQLite), its last project, and the
+    settings' upload limits and pacing. The in-process API tests build theirs here too."""
+    return Session(
+        Store.in_data_dir(data_dir),
+        data_dir=data_dir,
+        max_upload_bytes=settings.max_upload_bytes,
+        max_triangles=settings.max_triangles,
+        real_time=settings.real_time,
+    )
+
+
 def serve(settings: ServerSettings) -> int:
     """Run until Ctrl-C or SIGTERM; returns the exit code."""
     import uvicorn
@@ -242,13 +254,7 @@ def serve(settings: ServerSettings) -> int:
         check_port_free(viser_host(settings), settings.viser_port)
     data_dir = settings.data_dir.resolve()
     with data_dir_lock(data_dir):
-        session = Session(
-            Store.in_data_dir(data_dir),
-            data_dir=data_dir,
-            max_upload_bytes=settings.max_upload_bytes,
-            max_triangles=settings.max_triangles,
-            real_time=settings.real_time,
-        )
+        session = open_session(settings, data_dir)
         try:
             app = build_app(settings, session)
             host = _display_host(settings)

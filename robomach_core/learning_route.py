@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import mesh_query
 from .leadthrough import GuidePoint
 from .path_learning import PathLearningSettings
 from .wall_side import (
@@ -68,7 +69,7 @@ def floor_clearances(
     origins = pts_w - axis_w * 2.0 * tool_radius_m
     directions = np.repeat(axis_w[None, :], len(pts_w), axis=0)
     out = np.full(len(pts_w), np.inf)
-    hits, rays, _ = workpiece.mesh.ray.intersects_location(origins, directions)
+    hits, rays, _ = mesh_query.ray_hits(workpiece.mesh, origins, directions)
     for p, k in zip(hits, rays, strict=True):
         along = float((p - origins[k]) @ axis_w) - 2.0 * tool_radius_m  # below the centre
         gap = along - tool_radius_m

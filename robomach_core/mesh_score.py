@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from . import _kernels
+from . import _kernels, mesh_query
 from .arcs import Move, linear_moves, sample_moves, score_sampled_moves
 from .errors import InvalidInputError, WallSideError
 from .leadthrough import GuidePoint
@@ -115,13 +115,13 @@ def mesh_deviation(
     for start in range(0, len(pts_w), MESH_QUERY_CHUNK):
         chunk = pts_w[start : start + MESH_QUERY_CHUNK]
         with np.errstate(divide="ignore", invalid="ignore"):  # degenerate facets in trimesh
-            closest, distance, tri = trimesh.proximity.closest_point(mesh, chunk)
+            closest, distance, tri = mesh_query.closest_point(mesh, chunk)
             distance = np.asarray(distance, dtype=float)
             behind = _inside(mesh, chunk, closest, distance, tri)
             if walls is None:
                 wall_distance = distance
             else:
-                _, wall_distance, _ = trimesh.proximity.closest_point(walls, chunk)
+                _, wall_distance, _ = mesh_query.closest_point(walls, chunk)
         out[start : start + len(chunk)] = np.where(
             behind,
             -(distance + tool_radius_m),

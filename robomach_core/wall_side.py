@@ -30,6 +30,7 @@ from typing import Literal, get_args
 
 import numpy as np
 
+from . import mesh_query
 from .errors import InvalidInputError, WallSideError
 from .leadthrough import GuidePoint
 from .workpiece import Workpiece
@@ -73,9 +74,14 @@ def mean_tool_axis(guides: Sequence[GuidePoint]) -> np.ndarray:
     return u / n if n > 1e-9 else axes[0]
 
 
-def travel_directions(guides: Sequence[GuidePoint], closed: bool, axis: np.ndarray) -> np.ndarray:
+def travel_directions(
+    guides: Sequence[GuidePoint], closed: bool, axis: np.ndarray
+) -> np.ndarray:
     """(n, 3) unit direction of travel at each guide point, across ``axis``: the mean of its
-    incoming and outgoing legs (one leg at the ends of an open route)."""
+    incoming and outgoing legs (one leg at the ends of an open route). Where the two legs
+    nearly reverse (a closed route of points along one side comes back along it), the point
+    keeps the leg that arrives at it (the first point, the leg that leaves it): their mean
+    would point nowhere."""
     pts = np.array([g.position_m for g in guides])
     n = len(pts)
     out = np.zeros((n, 3))
@@ -85,14 +91,18 @@ def travel_directions(guides: Sequence[GuidePoint], closed: bool, axis: np.ndarr
             legs.append(pts[k] - pts[k - 1])
         if k < n - 1 or closed:
             legs.append(pts[(k + 1) % n] - pts[k])
-        d = np.zeros(3)
+        units = []
         for leg in legs:
             leg = leg - axis * (leg @ axis)
             norm = float(np.linalg.norm(leg))
             if norm > 1e-9:
-                d += leg / norm
-        norm = float(np.linalg.norm(d))
-        out[k] = d / norm if norm > 1e-9 else d
+                units.append(leg / norm)
+        if not units:
+            continue
+        d = np.sum(units, axis=0)
+        if len(units) == 2 and float(units[0] @ units[1]) < -0.5:  # a U-turn at this point
+            d = units[1] if k == 0 else units[0]
+        out[k] = d / float(np.linalg.norm(d))
     return out
 
 
@@ -131,8 +141,6 @@ def mesh_wall_gaps(
     Returns:
         (n,) gaps on the right and (n,) on the left.
     """
-    import trimesh
-
     T = workpiece.T_base_wobj
     R, t = T[:3, :3], T[:3, 3]
     axis = mean_tool_axis(guides)
@@ -146,7 +154,7 @@ def mesh_wall_gaps(
     dirs = travel_directions(guides, closed, axis)
     pts_w = (np.array([g.position_m for g in guides]) - t) @ R
     with np.errstate(divide="ignore", invalid="ignore"):
-        closest, dist, _ = trimesh.proximity.closest_point(walls, pts_w)
+        closest, dist, _ = mesh_query.closest_point(walls, pts_w)
     for k in range(n):
         right_w = R.T @ np.cross(axis, dirs[k])
         rel = closest[k] - pts_w[k]
@@ -156,7 +164,7 @@ def mesh_wall_gaps(
         (right_gap if on_right else left_gap)[k] = gap
         # The wall across: a ray the other way, at the point's height.
         other = -right_w if on_right else right_w
-        hits, _, _ = walls.ray.intersects_location(pts_w[k : k + 1], other[None, :])
+        hits, _, _ = mesh_query.ray_hits(walls, pts_w[k : k + 1], other[None, :])
         if len(hits):
             d_other = float(np.min(np.linalg.norm(hits - pts_w[k], axis=1))) - tool_radius_m
             (left_gap if on_right else right_gap)[k] = max(d_other, gap)
@@ -173,8 +181,6 @@ def _wall_point(
 ) -> np.ndarray | None:
     """The nearest wall point (base frame) on the ``side`` (+1 right, -1 left) of ``travel``
     from ``position_m``, across ``axis``; None when none lies within ``reach_m``."""
-    import trimesh
-
     T = workpiece.T_base_wobj
     R, t = T[:3, :3], T[:3, 3]
     axis_w = R.T @ axis
@@ -184,13 +190,13 @@ def _wall_point(
     p_w = R.T @ (np.asarray(position_m, dtype=float) - t)
     towards_side = R.T @ (np.cross(axis, travel) * side)
     with np.errstate(divide="ignore", invalid="ignore"):
-        closest, dist, _ = trimesh.proximity.closest_point(walls, p_w[None, :])
+        closest, dist, _ = mesh_query.closest_point(walls, p_w[None, :])
     rel = closest[0] - p_w
     rel = rel - axis_w * (rel @ axis_w)
     if float(np.linalg.norm(rel)) > 1e-9 and float(rel @ towards_side) > 0.0:
         if dist[0] <= reach_m:
             return R @ closest[0] + t
-    hits, _, _ = walls.ray.intersects_location(p_w[None, :], towards_side[None, :])
+    hits, _, _ = mesh_query.ray_hits(walls, p_w[None, :], towards_side[None, :])
     if len(hits):
         k = int(np.argmin(np.linalg.norm(hits - p_w, axis=1)))
         if float(np.linalg.norm(hits[k] - p_w)) <= reach_m:

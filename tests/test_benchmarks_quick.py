@@ -65,6 +65,14 @@ EXPECTED: dict[str, list[str]] = {
         rf"\d+ listeners, robot moving\s+\d+\s+{NUMBER}\s+{NUMBER}",
         rf"robot events per listener: {NUMBER}/s",
     ],
+    "bench_answer_times.py": [
+        rf"stop during a paced push\s+1\s+{NUMBER}\s+{NUMBER}",
+        rf"refuse a 6 M-face OBJ \(48 MB\)\s+1\s+{NUMBER}",
+        rf"refuse the 5,000-link URDF\s+1\s+{NUMBER}",
+        rf"refuse a project file number out of range\s+1\s+{NUMBER}",
+        rf"refuse a language the arm does not run \(demo\)\s+1\s+{NUMBER}",
+        rf"cut an isolated child hanging past 0.5 s\s+1\s+{NUMBER}",
+    ],
     "bench_browser_pose_rate.py": [
         rf"handle\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
         rf"rest\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
@@ -99,8 +107,25 @@ def test_every_benchmark_has_a_quick_test():
     assert scripts <= set(EXPECTED), f"no quick test for {sorted(scripts - set(EXPECTED))}"
 
 
+# Quick modes that start a server, a process pool or an isolated helper: 10-30 s each.
+SLOW_SCRIPTS = frozenset(
+    {
+        "bench_answer_times.py",
+        "bench_api.py",
+        "bench_events.py",
+        "bench_machining.py",
+        "bench_reads_during_postprocess.py",
+    }
+)
+
+
 @pytest.mark.parametrize(
-    "script", sorted(name for name in EXPECTED if name != "bench_browser_pose_rate.py")
+    "script",
+    [
+        pytest.param(name, marks=[pytest.mark.slow] if name in SLOW_SCRIPTS else [])
+        for name in sorted(EXPECTED)
+        if name != "bench_browser_pose_rate.py"
+    ],
 )
 def test_benchmark_runs_in_quick_mode(script):
     assert_figures(script, run_quick(script))

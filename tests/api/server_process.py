@@ -94,10 +94,25 @@ def start_server(
 
 
 class Api:
-    """An HTTP client with the multi-step moves the tests share (mm, N, s)."""
+    """An HTTP client with the multi-step moves the tests share (mm, N, s).
 
-    def __init__(self, base_url: str, *, headers: dict[str, str] | None = None) -> None:
-        self.http = httpx.Client(base_url=base_url, timeout=60.0, headers=headers)
+    Over a server's URL (a client of its own), or over a given client such as the
+    ``TestClient`` of the in-process app (shared: ``close`` leaves it open).
+    """
+
+    def __init__(
+        self, server: str | httpx.Client, *, headers: dict[str, str] | None = None
+    ) -> None:
+        if isinstance(server, httpx.Client):
+            assert headers is None, "set headers on the shared client's requests"
+            self.http, self._owns_http = server, False
+        else:
+            self.http = httpx.Client(base_url=server, timeout=60.0, headers=headers)
+            self._owns_http = True
+
+    def close(self) -> None:
+        if self._owns_http:
+            self.http.close()
 
     def get(self, path: str, **kw) -> httpx.Response:
         return self.http.get(path, **kw)

@@ -1,5 +1,5 @@
 """CMRR studies over HTTP: run as jobs, summary, plot, settings, cancel, errors, saved to the
-project. The server is the shared real ``robomach serve`` of tests/api/conftest.py."""
+project. The app is the shared in-process one of tests/api/conftest.py."""
 
 from __future__ import annotations
 
@@ -14,7 +14,8 @@ from app.session import Session
 from app.store import Store
 from app.studies import CMRR_EXPORT, MAX_ACTIVE_STUDIES, _clean_failures, studies_for
 from robomach_core.cmrr import CONTROLLER_NAMES, SCENARIO_NAMES
-from tests.api.server_process import Api, ServerProcess
+from tests.api.in_process import InProcessServer
+from tests.api.server_process import Api
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -108,7 +109,7 @@ def test_unknown_scenario_message(api: Api) -> None:
     assert r.status_code == 422 and "milling-steps" in r.json()["detail"]
 
 
-def test_cancel(api: Api, server: ServerProcess) -> None:
+def test_cancel(api: Api, app_server: InProcessServer) -> None:
     body = {"scenario": "lund-df", "controller": "all"}
     job_id = api.ok("POST", "/api/cmrr/studies", 202, json=body)["job_id"]
     deadline = time.monotonic() + 30.0
@@ -120,14 +121,14 @@ def test_cancel(api: Api, server: ServerProcess) -> None:
     job = api.wait_job(job_id)
     assert job["status"] == "cancelled" and "cancelled" in job["error"]
     assert api.get("/api/cmrr/studies/last").status_code == 409  # nothing kept
-    tmp = server.data_dir / "studies" / ".tmp"
+    tmp = app_server.data_dir / "studies" / ".tmp"
     assert not any(tmp.iterdir()), list(tmp.iterdir())  # the run's folder is gone
 
 
-def test_saved_to_project(api: Api, server: ServerProcess) -> None:
+def test_saved_to_project(api: Api, app_server: InProcessServer) -> None:
     project = api.ok("GET", "/api/projects/current")
     run_study(api, {"scenario": "deburr-burrs", "controller": "two-stage", "seed": 7})
-    store = Store.in_data_dir(server.data_dir)  # a second connection, as after a restart
+    store = Store.in_data_dir(app_server.data_dir)  # a second connection, as after a restart
     try:
         files = store.get_export(project["id"], CMRR_EXPORT)
     finally:
@@ -145,7 +146,7 @@ def test_saved_to_project(api: Api, server: ServerProcess) -> None:
     study = api.ok("GET", "/api/cmrr/studies/last")
     assert study["controller"] == "two-stage" and study["seed"] == 7
     assert study["folder"] == f"studies/{project['id']}/cmrr"
-    assert (server.data_dir / study["folder"] / "cmrr.csv").is_file()
+    assert (app_server.data_dir / study["folder"] / "cmrr.csv").is_file()
     assert api.get(study["plot_url"]).content.startswith(PNG_SIGNATURE)
 
 

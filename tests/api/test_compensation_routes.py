@@ -11,17 +11,18 @@ import pytest
 from app.session import Session
 from app.store import Store
 from app.studies import COMPENSATION_EXPORT, studies_for
-from tests.api.server_process import Api, ServerProcess
+from tests.api.in_process import InProcessServer
+from tests.api.server_process import Api
 from tests.api.test_cmrr_routes import PNG_SIGNATURE
 
 
 @pytest.fixture(scope="module")
-def identified(server: ServerProcess) -> int:
+def identified(app_server: InProcessServer) -> int:
     """A project whose last study is a quick identification; returns its id."""
-    api = Api(server.base_url)
+    api = app_server.api()
     project = api.new_project()
     run_study(api, {"study": "identify", "quick": True})
-    api.http.close()
+    api.close()
     return project["id"]
 
 
@@ -96,7 +97,7 @@ def test_bad_input(api: Api, body: dict, field: str) -> None:
     assert r.status_code == 422 and field in r.json()["detail"], r.text
 
 
-def test_cancel(api: Api, server: ServerProcess) -> None:
+def test_cancel(api: Api, app_server: InProcessServer) -> None:
     job_id = api.ok("POST", "/api/compensation/studies", 202, json={"quick": True})["job_id"]
     deadline = time.monotonic() + 30.0
     while (job := api.ok("GET", f"/api/jobs/{job_id}"))["progress"] == 0.0:
@@ -108,12 +109,14 @@ def test_cancel(api: Api, server: ServerProcess) -> None:
     assert api.get("/api/compensation/studies/last").status_code == 409
     r = api.post(f"/api/jobs/{job_id}/cancel")
     assert r.status_code == 409 and "already ended" in r.json()["detail"]
-    tmp = server.data_dir / "studies" / ".tmp"
+    tmp = app_server.data_dir / "studies" / ".tmp"
     assert not any(tmp.iterdir()), list(tmp.iterdir())
 
 
-def test_saved_and_loaded_after_restart(api: Api, server: ServerProcess, identified: int) -> None:
-    store = Store.in_data_dir(server.data_dir)
+def test_saved_and_loaded_after_restart(
+    api: Api, app_server: InProcessServer, identified: int
+) -> None:
+    store = Store.in_data_dir(app_server.data_dir)
     try:
         files = store.get_export(identified, COMPENSATION_EXPORT)
     finally:
@@ -124,7 +127,7 @@ def test_saved_and_loaded_after_restart(api: Api, server: ServerProcess, identif
 
     # A second session on the same data folder, as after a restart, opened on that project.
     api.ok("POST", f"/api/projects/{identified}/open")
-    session = Session(Store.in_data_dir(server.data_dir), data_dir=server.data_dir)
+    session = Session(Store.in_data_dir(app_server.data_dir), data_dir=app_server.data_dir)
     try:
         assert session.current_project().id == identified
         outcome = studies_for(session).compensation_result()

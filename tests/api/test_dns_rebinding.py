@@ -22,6 +22,12 @@ from tests.api.server_process import Api, ServerProcess
 REBOUND = "rebound.example"
 
 
+@pytest.fixture
+def api(http_api: Api) -> Api:
+    """Over real HTTP to ``robomach serve``: the rebound name reaches real sockets."""
+    return http_api
+
+
 def _websocket(port: int, name: str):
     """A websocket to 127.0.0.1:``port`` as a page served under ``name`` opens it."""
     sock = socket.create_connection(("127.0.0.1", port), timeout=10)

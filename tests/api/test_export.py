@@ -9,14 +9,15 @@ import json
 import pytest
 
 from robomach_core.export.rapid_check import check_rapid_module
-from tests.api.server_process import Api, ServerProcess
+from tests.api.in_process import InProcessServer
+from tests.api.server_process import Api
 
 EXPORTS = ("/api/export/rapid", "/api/export/samples.csv", "/api/export/targets.csv")
 
 
 @pytest.fixture(scope="module")
-def processed_project(server: ServerProcess) -> int:
-    client = Api(server.base_url)
+def processed_project(app_server: InProcessServer) -> int:
+    client = app_server.api()
     project = client.new_project()
     client.learn()
     client.ok("POST", "/api/postprocess", json={"tolerance_mm": 0.05})
@@ -80,11 +81,11 @@ def test_csv_and_settings(processed: Api) -> None:
     assert settings["result"]["targets"] == post["targets"]
 
 
-def test_saved_exports_stay_in_the_data_folder(processed: Api, server: ServerProcess) -> None:
+def test_saved_exports_stay_in_the_data_folder(processed: Api, app_server: InProcessServer) -> None:
     saved = processed.ok("POST", "/api/exports", 201, json={"name": "block_v1"})
     assert set(saved["files"]) >= {"program.mod", "samples.csv", "targets.csv", "settings.json"}
-    folder = server.data_dir / saved["folder"]
-    assert folder.resolve().is_relative_to(server.data_dir.resolve())
+    folder = app_server.data_dir / saved["folder"]
+    assert folder.resolve().is_relative_to(app_server.data_dir.resolve())
     assert (folder / "program.mod").read_text().startswith("MODULE block_v1")
     listed = processed.ok("GET", "/api/exports")
     assert [e["name"] for e in listed] == ["block_v1"]
@@ -93,7 +94,7 @@ def test_saved_exports_stay_in_the_data_folder(processed: Api, server: ServerPro
     for bad in ("../evil", "..", "a/b", "/abs", ".hidden", "x" * 65, "", "a\\b", "a..b"):
         r = processed.post("/api/exports", json={"name": bad})
         assert r.status_code == 422 and "export name" in r.json()["detail"], bad
-    assert not (server.data_dir.parent / "evil").exists()
+    assert not (app_server.data_dir.parent / "evil").exists()
     assert processed.get("/api/exports/nope/program.mod").status_code == 404
     assert processed.get("/api/exports/block_v1/passwd").status_code == 404
     assert processed.get("/api/exports/..%2F..%2Fetc/passwd").status_code == 404

@@ -35,6 +35,13 @@ FLAT_STL = (
 BOMB_BYTES = 1 << 30
 
 
+@pytest.fixture
+def api(http_api: Api) -> Api:
+    """Over real HTTP to ``robomach serve``: the process must survive what killed it, and
+    its memory is measured."""
+    return http_api
+
+
 def alive(server: ServerProcess, api: Api) -> None:
     assert server.proc.poll() is None, server.log()[-3000:]
     assert api.get("/api/health").status_code == 200

@@ -124,6 +124,7 @@ def test_stock_profile_and_a_bad_stock_mesh(api: Api) -> None:
     assert api.ok("GET", "/api/machining/settings")["stock_source"] == "profile"
 
 
+@pytest.mark.slow  # the shared block demo run and a `robomach machine` process
 def test_cli_and_rest_write_the_same_program_for_the_same_project(api: Api, tmp_path) -> None:
     demo = block_demo_dir()
     out = tmp_path / "cli"

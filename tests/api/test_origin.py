@@ -28,6 +28,13 @@ endsolid cube
 """
 
 
+@pytest.fixture
+def api(http_api: Api) -> Api:
+    """Over real HTTP to ``robomach serve``: origins, ports and the viser websocket are
+    checked on real sockets."""
+    return http_api
+
+
 def _guide_point_count(api: Api) -> int:
     return len(api.ok("GET", "/api/guide-points"))
 
@@ -106,7 +113,7 @@ def test_an_upload_declaring_more_than_the_limit_is_refused_before_it_is_read(
         "Content-Type: multipart/form-data; boundary=xyz\r\n"
         f"Content-Length: {declared}\r\n\r\n--xyz\r\n"
     )
-    started = time.monotonic()
+    # A server that waited for the body would answer nothing: recv would time out.
     with socket.create_connection((parts.hostname, parts.port), timeout=10.0) as conn:
         conn.sendall(head.encode())
         chunks = []
@@ -115,7 +122,6 @@ def test_an_upload_declaring_more_than_the_limit_is_refused_before_it_is_read(
         reply = b"".join(chunks).decode(errors="replace")
     assert reply.startswith("HTTP/1.1 413"), reply
     assert "limit" in reply and "application/json" in reply, reply
-    assert time.monotonic() - started < 5.0
 
 
 def _viser_socket(server: ServerProcess, origin: str | None):

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from tests.api.server_process import Api, ServerProcess
+from tests.api.in_process import InProcessServer
+from tests.api.server_process import Api
 
 PP = "/api/postprocess"
 
@@ -49,9 +50,9 @@ def test_filters_reduces_and_scores(learned: Api) -> None:
 
 
 @pytest.fixture(scope="module")
-def learned_project(server: ServerProcess) -> int:
+def learned_project(app_server: InProcessServer) -> int:
     """A project with a short recording on the block, made once for this module."""
-    client = Api(server.base_url)
+    client = app_server.api()
     project = client.new_project()
     client.learn()
     return project["id"]

@@ -12,7 +12,8 @@ from app.store import Store
 from robomach_core import project as core
 from robomach_core.cell import Cell, CellConfig
 from robomach_core.export.rapid_check import check_rapid_module
-from tests.api.server_process import Api, ServerProcess
+from tests.api.in_process import InProcessServer
+from tests.api.server_process import Api
 
 STATUS = "/api/projects/current/status"
 
@@ -79,7 +80,9 @@ def _cmrr_and_compensation() -> dict:
     return {"cmrr": cmrr_to_dict(cmrr), "compensation": compensation_to_dict(comp)}
 
 
-def test_rest_export_and_core_writer_give_the_same_bytes(api: Api, server: ServerProcess) -> None:
+def test_rest_export_and_core_writer_give_the_same_bytes(
+    api: Api, app_server: InProcessServer
+) -> None:
     _processed(api)
     chosen = api.ok("PUT", "/api/projects/current/process-settings", json=_cmrr_and_compensation())
     assert chosen["cmrr"]["controller"] == "two-stage"
@@ -100,7 +103,7 @@ def test_rest_export_and_core_writer_give_the_same_bytes(api: Api, server: Serve
 
     # The same project, read back from the server's store file, through the core writer.
     pid = api.ok("GET", "/api/projects/current")["id"]
-    store = Store.in_data_dir(server.data_dir)
+    store = Store.in_data_dir(app_server.data_dir)
     try:
         data = store.load_project(pid)
     finally:

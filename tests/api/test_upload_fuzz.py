@@ -8,9 +8,10 @@ summed) must be under ``PEAK_MEMORY_BYTES``. The isolation helper's forked child
 that sum: each runs under ``RLIMIT_AS`` = the helper's address space + 1 GiB
 (``isolation.DEFAULT_MEMORY_BYTES``).
 
-Counts: the default run sends ``QUICK`` examples of each family (a minute or two); the slow
-run (``-m slow``) sends ``FULL`` (>= 500 meshes, >= 200 URDFs and archives). Hypothesis is
-derandomised: a run is repeatable.
+Counts: ``test_upload_fuzz`` sends ``QUICK`` examples of each family (a minute or two),
+``test_upload_fuzz_full`` sends ``FULL`` (>= 500 meshes, >= 200 URDFs and archives); both are
+slow (a server of their own), the quick one alone: ``-k "upload_fuzz and not full"``.
+Hypothesis is derandomised: a run is repeatable.
 """
 
 from __future__ import annotations
@@ -408,6 +409,7 @@ def _run(fuzzed, bombs, counts: dict[str, int]) -> None:
         assert COUNTS[family] >= n, COUNTS
 
 
+@pytest.mark.slow  # a server of its own and 110 uploads
 def test_upload_fuzz(fuzzed, bombs) -> None:
     _run(fuzzed, bombs, QUICK)
 

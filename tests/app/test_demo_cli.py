@@ -13,6 +13,8 @@ import pytest
 import trimesh
 
 from robomach_core.export import check_rapid_module
+from tests.demo_project import block_demo_dir
+from tests.demo_project import pump_demo as shared_pump_demo
 
 
 def robomach(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
@@ -73,11 +75,9 @@ def test_an_unreachable_guide_point(tmp_path):
 
 
 @pytest.fixture(scope="module")
-def pump_demo(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("pump")
-    proc = robomach("demo", "--out", str(out))
-    assert proc.returncode == 0, proc.stderr
-    return out
+def pump_demo() -> Path:
+    """The README's demo, run once for the whole test run (tests/demo_project.py)."""
+    return shared_pump_demo().folder
 
 
 @pytest.mark.slow
@@ -155,14 +155,12 @@ def test_csv_and_stl_are_in_the_documented_units_and_frame(pump_demo):
 
 @pytest.mark.slow
 def test_same_seed_same_output(tmp_path):
-    outs = []
-    for k in range(2):
-        out = tmp_path / f"run{k}"
-        proc = robomach("demo", "--out", str(out), "--workpiece", "block", "--no-plot")
-        assert proc.returncode == 0, proc.stderr
-        outs.append(out)
+    """A second block demo against the run's shared one (same arguments, seed 0)."""
+    out = tmp_path / "again"
+    proc = robomach("demo", "--out", str(out), "--workpiece", "block", "--no-plot")
+    assert proc.returncode == 0, proc.stderr
     for name in ("program.mod", "samples.csv", "targets.csv"):
-        assert (outs[0] / name).read_bytes() == (outs[1] / name).read_bytes(), name
+        assert (block_demo_dir() / name).read_bytes() == (out / name).read_bytes(), name
 
 
 @pytest.mark.slow

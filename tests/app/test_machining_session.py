@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import time
 
+import pytest
+
 from app.session import Session
 from app.session.machining import machining_for
 from app.session.project_file import import_project
@@ -20,6 +22,7 @@ def _wait(session: Session, job_id: str, timeout_s: float = 300.0) -> None:
     assert session.job(job_id).status == "done", session.job(job_id).error
 
 
+@pytest.mark.slow  # the shared block demo run (tests/demo_project.py)
 def test_settings_choice_and_result_survive_a_restart(tmp_path):
     db = tmp_path / "robomach.sqlite"
     session = Session(Store(db), data_dir=tmp_path)

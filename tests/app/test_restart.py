@@ -32,6 +32,7 @@ def _snapshot(api: Api) -> dict:
     }
 
 
+@pytest.mark.slow  # three real servers, one killed
 def test_state_survives_kill_and_restart(tmp_path: Path) -> None:
     data = tmp_path / "data"
     server = start_server(data)

@@ -1,4 +1,6 @@
-"""``robomach demo`` with the arm, language, arcs, open contours and mesh score (issue 11)."""
+"""``robomach demo`` with the arm, language, arcs, open contours and mesh score (issue 11).
+
+The tests that run a whole demo are slow; the refusals of bad arguments are not."""
 
 from __future__ import annotations
 
@@ -23,6 +25,7 @@ from robomach_core.robot import Robot
 from robomach_core.tool import Tool
 from robomach_core.transforms import make_transform
 from robomach_core.workpiece import builtin_workpiece
+from tests.demo_project import pump_demo
 
 
 def robomach(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
@@ -57,12 +60,14 @@ def irb4400(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def ur10(tmp_path_factory):
-    out = tmp_path_factory.mktemp("ur10")
-    summary, proc = demo(out, "--robot", "ur10")
-    return out, summary, proc
+def ur10():
+    """The README's demo (the UR10 is the default arm), shared with tests/app/test_demo_cli.py."""
+    run = pump_demo()
+    assert run.summary["robot"] == "ur10"
+    return run.folder, run.summary, run
 
 
+@pytest.mark.slow
 def test_irb4400_meets_the_ur10_quality_figures(irb4400):
     out, s = irb4400
     assert s["robot"] == "irb4400"
@@ -75,6 +80,7 @@ def test_irb4400_meets_the_ur10_quality_figures(irb4400):
     assert not (out / "program.script").exists()
 
 
+@pytest.mark.slow
 def test_irb4400_confdata_agrees_with_the_ik_joints_and_rapidchecker_passes(irb4400):
     out, _ = irb4400
     robot = Robot("irb4400", Tool().T_flange_tcp)
@@ -101,6 +107,7 @@ def test_irb4400_confdata_agrees_with_the_ik_joints_and_rapidchecker_passes(irb4
         assert np.linalg.norm(robot.fk(q)[:3, 3] * 1e3 - xyz) < 0.01
 
 
+@pytest.mark.slow
 def test_ur10_writes_program_script_whose_poses_are_the_targets_fk(ur10):
     out, s, proc = ur10
     assert s["program_language"] == "urscript"
@@ -125,6 +132,7 @@ def test_tool_radius_out_of_range_is_refused(tmp_path):
     assert proc.returncode == 2 and "--tool-radius-mm" in proc.stderr and "0.5-5 mm" in proc.stderr
 
 
+@pytest.mark.slow
 def test_arcs_fewer_instructions_scored_like_the_straight_program(tmp_path):
     s, proc = demo(tmp_path, "--arcs", "--robot", "ur10")
     assert s["arcs"] and s["circular_moves"] > 10
@@ -151,6 +159,7 @@ def _guide_csv(path: Path, count: int | None = None) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_open_s_groove_has_no_move_across_the_slot_and_stays_on_its_wall(tmp_path):
     s, _ = demo(tmp_path, "--workpiece", "s_groove", "--open")
     assert s["closed"] is False and s["completed"]
@@ -163,6 +172,7 @@ def test_open_s_groove_has_no_move_across_the_slot_and_stays_on_its_wall(tmp_pat
     assert np.linalg.norm(pts[-1] - pts[0]) > 80.0  # it ends at the slot's far end
 
 
+@pytest.mark.slow
 def test_an_uploaded_part_is_scored_against_its_mesh(tmp_path):
     wp = builtin_workpiece("water_pump", robot="ur10")
     mesh = wp.mesh.copy()
@@ -182,6 +192,7 @@ def test_wobj_with_three_rotations_places_the_program(tmp_path):
     assert proc.returncode == 2 and "3, 4 or 6" in proc.stderr
 
 
+@pytest.mark.slow
 def test_your_own_urdf_runs_the_demo(tmp_path):
     from robomach_core.robot import robot_urdf_path
 

@@ -30,8 +30,9 @@ def _push_to(session: Session, goal_mm: list[float]) -> None:
 
 @pytest.fixture(scope="module")
 def session() -> Iterator[Session]:
-    """A session with two guide points on the block, a short recording and its targets."""
-    s = Session()
+    """A session with two guide points on the block, a short recording and its targets
+    (unpaced: the pushes are a script's, not a person's)."""
+    s = Session(real_time=False)
     s.set_cell(workpiece="block")
     s.set_compliance(["x", "y", "z"], "base")
     _push_to(s, [760.0, 120.0, 80.0])
@@ -238,6 +239,7 @@ def test_post_processing_result_is_dropped_when_its_inputs_changed(
     assert session.status()["postprocess"] == "stale"
 
 
+@pytest.mark.slow  # the example and two path-learning runs around the water pump
 def test_learning_at_20_N_moves_the_force_filter_band_with_it() -> None:
     """The chapter's 20 N on the water pump: the run completes, and the filter band (5-15 N,
     made for 10 N, which would keep almost none of it) follows to 10-30 N; post-processing

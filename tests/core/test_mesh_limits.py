@@ -9,7 +9,6 @@ refused fast and in little memory.
 from __future__ import annotations
 
 import io
-import time
 import tracemalloc
 
 import numpy as np
@@ -117,16 +116,14 @@ def test_ply_faces_come_from_its_header(sphere):
 def test_a_6m_face_obj_is_refused_fast_and_without_parsing_it():
     # 48 MB, the audit's 6.1 M faces: trimesh would build ~1.3 GB of arrays first.
     data = b"v 0 0 0\nv 10 0 0\nv 0 10 0\n" + b"f 1 2 3\n" * 6_000_000
+    # Not parsed: its arrays would take ~1.3 GB. How fast: benchmarks/bench_answer_times.py.
     tracemalloc.start()
     try:
-        started = time.perf_counter()
         with pytest.raises(MeshFileError, match="exceed the limit of 500000"):
             mesh_from_bytes(data, ".obj", max_triangles=500_000)
-        elapsed_s = time.perf_counter() - started
         _, peak_bytes = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()
-    assert elapsed_s < 1.0, f"{elapsed_s:.2f} s"
     assert peak_bytes < 50e6, f"{peak_bytes / 1e6:.0f} MB"
 
 

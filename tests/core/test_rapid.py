@@ -552,6 +552,7 @@ _target = st.tuples(
 )
 
 
+@pytest.mark.slow  # rapidchecker parses each of the 40+ generated modules (~50 ms per line)
 @settings(max_examples=40, deadline=None)
 @given(
     raw=st.lists(_target, min_size=1, max_size=6),

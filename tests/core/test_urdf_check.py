@@ -9,7 +9,6 @@ written to the robot cache and read again at every restart.
 from __future__ import annotations
 
 import io
-import time
 import tracemalloc
 import zipfile
 
@@ -48,10 +47,8 @@ def with_fixed_links(text: str, n: int, *, chained: bool = True, mesh: str | Non
 def test_the_issue_s_5000_link_urdf_is_refused_before_pinocchio():
     text = with_fixed_links(irb4400_text(), 5000)
     assert 650_000 < len(text) < 800_000
-    started = time.perf_counter()
     with pytest.raises(RobotFileError, match="5008 links, more than 500"):
         register_urdf("deep.urdf", text.encode())
-    assert time.perf_counter() - started < 5.0
 
 
 def test_the_isolated_build_refuses_what_crashes_pinocchio():

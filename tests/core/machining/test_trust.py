@@ -134,6 +134,7 @@ def _tiny(program: Targets, count: int = 16) -> Targets:
     compensation=st.sampled_from(COMPENSATION_NAMES),
 )
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@pytest.mark.slow  # a sweep of cuts across the documented ranges
 def test_settings_inside_the_documented_ranges_cut_or_say_why(
     robot, short_program, gain, alpha, beta, limit, controller, compensation
 ):

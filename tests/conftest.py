@@ -1,0 +1,44 @@
+"""Per-test time limits: the default (``timeout`` in pyproject.toml) for every test, a longer
+one for tests marked ``slow`` (full demo runs, browsers, paced servers). A test that hangs fails
+with its stack instead of holding the suite until CI's own limit; a test's own
+``@pytest.mark.timeout`` wins.
+
+Timing asserts do not belong here: speed figures are measured in ``benchmarks/``, and tests
+assert behaviour that holds on a loaded machine too.
+
+Also the run's folder of shared ``robomach demo`` outputs (tests/demo_project.py): made when
+the run starts, before any pytest-xdist worker (they inherit it), removed when it ends.
+"""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from tests import demo_project
+
+# A full demo run takes about a minute on an idle 2-core machine, three on a loaded one; a slow
+# test may start a session fixture of several (a server, a browser, a demo folder).
+SLOW_TIMEOUT_S = 900
+_OWN_DEMOS = pytest.StashKey[object]()
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    for item in items:
+        if item.get_closest_marker("slow") and not item.get_closest_marker("timeout"):
+            item.add_marker(pytest.mark.timeout(SLOW_TIMEOUT_S))
+
+
+def _is_worker(config: pytest.Config) -> bool:
+    return hasattr(config, "workerinput")  # a pytest-xdist worker; its controller owns the run
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    if not _is_worker(config) and demo_project.FOLDER_VARIABLE not in os.environ:
+        config.stash[_OWN_DEMOS] = demo_project.demos_root()
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    if config.stash.get(_OWN_DEMOS, None) is not None:
+        demo_project.remove_demos_root()
