@@ -45,6 +45,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, get_args
 
+from app.session import projects
 from robomach_core.cmrr import CONTROLLER_NAMES, SCENARIO_NAMES
 from robomach_core.cmrr.errors import (
     UnknownControllerError,
@@ -426,7 +427,10 @@ class StudyService:
                 # The cell's arm: the identified stiffness is the one its program compensates
                 # with (``robomach compensate`` runs each paper's arm instead).
                 options = StudyOptions(
-                    robot=self.session.cell.robot.name, seed=seed, mode=mode, quick=bool(quick)
+                    robot=self.session.robot.cell.robot.name,
+                    seed=seed,
+                    mode=mode,
+                    quick=bool(quick),
                 )
                 results = run_studies(
                     study, folder, options, progress=ctx.progress, cancel=ctx.cancelled
@@ -632,7 +636,7 @@ class StudyService:
     def _forget_deleted_projects(self) -> None:
         """Remove the study folders of deleted projects (the store drops their exports)."""
         try:
-            alive = {str(p.id) for p in self.session.projects()}
+            alive = {str(p.id) for p in projects.list_projects(self.session)}
             folders = [p for p in self.root.iterdir() if p.is_dir() and p.name.isdigit()]
         except Exception:
             return

@@ -35,7 +35,7 @@ NearestFace = Literal["wall", "floor", "underside"]
 NEAREST_FACES: tuple[NearestFace, ...] = get_args(NearestFace)
 
 LABELS: dict[str, dict[str, str]] = {
-    "jog_frame": {"base": "base", "tool": "tool", "wobj": "work object"},
+    "jog_frame": {"base": "base", "tool": "tool", "wobj": "work-object"},
     "compliance_frame": {"base": "base frame", "tool": "tool frame"},
     "click_mode": {
         "propose": "propose the wall",

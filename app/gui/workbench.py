@@ -188,7 +188,7 @@ class Workbench:
             self.robot_program.refresh()
             self.pointing.show_comparison()
             self._hide_old_cell_paths(topics)
-        snapshot = self.leadthrough.tick(self.session.snapshot())
+        snapshot = self.leadthrough.tick(self.session.robot.snapshot())
         self.teach.tick(snapshot)
         self._draw_robot(snapshot)
         now = time.monotonic()
@@ -222,7 +222,7 @@ class Workbench:
         self.leadthrough.show_pose(snapshot)
 
     def _show_cell(self) -> None:
-        cell = self.session.cell
+        cell = self.session.robot.cell
         self.scene.set_robot(cell.robot.name)
         self.scene.set_tool(cell.tool)
         self.scene.set_workpiece(cell.workpiece)  # drawn as its mesh (``Workpiece.cad``)
@@ -253,7 +253,7 @@ class Workbench:
                 self._jobs_shown[kind] = job.id
                 panel.show_job(job)
             elif kind in self._jobs_shown:
-                finished = self.session.job(self._jobs_shown.pop(kind))
+                finished = self.session.jobs.get(self._jobs_shown.pop(kind))
                 panel.show_job(finished if kind == "path_learning" else None)
                 if finished.status == "failed":
                     title = JOB_TITLES.get(kind, kind)

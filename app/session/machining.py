@@ -262,13 +262,9 @@ class MachiningService:
 
     def choose(self, controller: str, compensation: str) -> core.MachiningSetup:
         """Save the configuration the exports carry (``project.choose``)."""
-        s = self.session
-        with s._lock:
-            s._project = core.choose(s._project, controller, compensation)
-            self._save()
-            setup = core.machining_setup_of(s._project)
-        s._notify("postprocess", "machining")
-        return setup
+        change = lambda p: core.choose(p, controller, compensation)  # noqa: E731
+        project = self.session.commit(change, "post", topics=("postprocess", "machining"))
+        return core.machining_setup_of(project)
 
     def start(self, kind: JobKind) -> str:
         """Job: run the chosen configuration (``"run"``) or the matrix (``"compare"``), on the
@@ -279,12 +275,11 @@ class MachiningService:
         if kind not in ("run", "compare"):
             raise InvalidInputError(f"machining job kind must be run or compare, got {kind!r}")
         s = self.session
-        with s._lock:
-            project, workpiece = s._project, s._cell.workpiece
-            robot = s._cell.robot
-            core.require_processed(project)
-            if project.machining_settings is None:  # from the CMRR / compensation slots
-                project = core.with_machining_setup(project, core.machining_setup_of(project))
+        view = s.view()
+        project, workpiece, robot = view.project, view.cell.workpiece, view.cell.robot
+        core.require_processed(project)
+        if project.machining_settings is None:  # from the CMRR / compensation slots
+            project = core.with_machining_setup(project, core.machining_setup_of(project))
         controllers = MACHINING_CONTROLLERS if kind == "compare" else None
         compensations = COMPENSATION_NAMES if kind == "compare" else None
 
@@ -302,39 +297,34 @@ class MachiningService:
             )
 
         def done(result: core.MachiningResult) -> None:
-            with s._lock:
-                current = s._project
+            def change(current: core.Project) -> core.Project:
                 if current.machining_settings is None:
                     current = core.with_machining_setup(current, core.machining_setup_of(current))
                 if core.machining_inputs_key(current) != result.inputs:
                     raise ConflictError(
                         "the program or the machining settings changed while it ran; run it again"
                     )
-                s._project = core.with_machining_result(current, result)
-                self._save()
-            s._notify("machining")
+                return core.with_machining_result(current, result)
+
+            s.commit(change, "post", topics=("machining",))
 
         return s.jobs.submit(f"machining_{kind}", work, on_done=done)
 
     # --- internals ---------------------------------------------------------------------------
 
     def _update(self, change) -> core.MachiningSetup:
-        s = self.session
-        with s._lock:
-            setup = change(core.machining_setup_of(s._project))
-            s._project = core.with_machining_setup(s._project, setup)
-            result = s._project.machining
+        def transition(project: core.Project) -> core.Project:
+            project = core.with_machining_setup(project, change(core.machining_setup_of(project)))
+            result = project.machining
             if isinstance(result, core.MachiningResult):
                 # The cell's options decide what is choosable: the same figures, re-chosen.
-                caps = core.capabilities_of(s._project)
+                caps = core.capabilities_of(project)
                 if tuple(sorted(caps.options)) != tuple(result.capabilities):
-                    s._project = replace(s._project, machining=result.for_cell(caps))
-            self._save()
-        s._notify("postprocess", "machining")
-        return setup
+                    project = replace(project, machining=result.for_cell(caps))
+            return project
 
-    def _save(self) -> None:
-        self.session._save("post")
+        project = self.session.commit(transition, "post", topics=("postprocess", "machining"))
+        return core.machining_setup_of(project)
 
 
 # --- persistence (the project's post_json gets "machining") ----------------------------------

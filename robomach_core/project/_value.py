@@ -204,6 +204,11 @@ class Project:
             mesh = (*mesh, *self.robot_urdf)
         return _digest(json.dumps(asdict(self.cell), sort_keys=True), *mesh)
 
+    @property
+    def recording(self) -> Recording | None:
+        """The last path-learning recording, or None."""
+        return None if self.learned is None else self.learned.recording
+
     @cached_property
     def guides_key(self) -> str:
         """Fingerprint of the guide points (poses and joints)."""

@@ -234,7 +234,7 @@ def get_result(session: SessionDep, points: int = PLOT_POINTS) -> MachiningResul
         trace = service.plot_data(max_points=max(10, min(points, 20_000)))
     return MachiningResultPublic(
         status=service.status(),
-        stale_reason=session.stale_reasons().get("machining"),
+        stale_reason=session.project().stale_reasons().get("machining"),
         runs=summary["runs"],
         chosen_by_rule=summary["chosen"],
         choice_rule=summary["choice_rule"],

@@ -225,7 +225,7 @@ class MachiningPanel:
 
     def _cancel(self) -> None:
         if self.job_id is not None:
-            self.session.cancel_job(self.job_id)
+            self.session.jobs.cancel(self.job_id)
 
     def _choose_best(self) -> None:
         from app.session.records import ConflictError
@@ -316,7 +316,7 @@ class MachiningPanel:
         if self.job_id is None:
             return None
         try:
-            return self.session.job(self.job_id)
+            return self.session.jobs.get(self.job_id)
         except KeyError:
             return None
 
@@ -333,7 +333,7 @@ class MachiningPanel:
         if status == "none":
             lines.append("*No machining result yet: run or compare.*")
         elif status == "stale":
-            reason = self.session.stale_reasons().get("machining", "")
+            reason = self.session.project().stale_reasons().get("machining", "")
             lines.append(f"**{OUT_OF_DATE}**: {reason}.")
         return "\n\n".join(lines)
 

@@ -27,7 +27,7 @@ class PostprocessPanel:
     def __init__(self, server: viser.ViserServer, session, scene: CellScene) -> None:
         self.session = session
         self.scene = scene
-        s = session.postprocess_settings()
+        s = session.project().post_settings
         with server.gui.add_folder("Post-processing"):
             self.force_min = server.gui.add_slider(
                 "Fmin (N)",
@@ -75,7 +75,7 @@ class PostprocessPanel:
         try:
             while self._rerun_pending:
                 self._rerun_pending = False
-                self.session.run_postprocess(
+                self.session.learning.run_postprocess(
                     force_min_N=self.force_min.value,
                     force_max_N=self.force_max.value,
                     tolerance_m=self.tolerance.value * 1e-3,
@@ -85,7 +85,7 @@ class PostprocessPanel:
 
     def refresh(self) -> None:
         """Mirror the session's settings and outcome in the sliders, the summary and the scene."""
-        s = self.session.postprocess_settings()
+        s = self.session.project().post_settings
         self.force_min.value = s.force_min_N
         self.force_max.value = s.force_max_N
         self.tolerance.value = round(s.tolerance_m * 1e3, 3)
@@ -93,14 +93,14 @@ class PostprocessPanel:
         self.show_in_scene()
 
     def _summary(self) -> str:
-        outcome = self.session.postprocess_outcome()
+        outcome = self.session.project().processed
         if outcome is None:
-            if self.session.recording() is None:
+            if self.session.project().recording is None:
                 return "*No recording yet.*"
             return "*Not post-processed yet: press Run (or move a slider).*"
         r = outcome.result
         lines = []
-        reason = self.session.stale_reasons().get("postprocess")
+        reason = self.session.project().stale_reasons().get("postprocess")
         if reason is not None:
             lines += [f"**{OUT_OF_DATE}**: {reason}.", ""]
         lines += [
@@ -137,8 +137,8 @@ class PostprocessPanel:
 
     def show_in_scene(self) -> None:
         """Draw raw, filtered and reduced points (coloured by deviation when asked)."""
-        rec = self.session.recording()
-        outcome = self.session.postprocess_outcome()
+        rec = self.session.project().recording
+        outcome = self.session.project().processed
         if rec is None:
             self.scene.set_samples(None)
             return
@@ -150,7 +150,7 @@ class PostprocessPanel:
         targets = r.targets.position_m
         dev_f = dev_t = dense = None
         if self.colour.value:
-            wp, radius = self.session.workpiece, self.session.cell.tool.radius_m
+            wp, radius = self.session.robot.workpiece, self.session.robot.cell.tool.radius_m
             try:
                 dev_f = true_tool_path_distance(wp, radius, filtered)
                 dev_t = true_tool_path_distance(wp, radius, targets)
@@ -167,7 +167,7 @@ class PostprocessPanel:
             targets_deviation_m=dev_t,
             segments_deviation=dense,
             deviation_scale_m=self.scale.value * 1e-3,
-            stale=self.session.status()["postprocess"] == "stale",
+            stale=self.session.project().status()["postprocess"] == "stale",
         )
 
 
