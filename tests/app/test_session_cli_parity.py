@@ -58,9 +58,7 @@ def _session_project(session: Session, stl: Path, pick_mm, robot: str) -> None:
     _wait(session, session.pointing.accept())
     _wait(
         session,
-        session.learning.start_path_learning(
-            FORCE_N, SPEED_MM_S * 1e-3, closed=proposal.closed
-        ),
+        session.learning.start_path_learning(FORCE_N, SPEED_MM_S * 1e-3, closed=proposal.closed),
     )
     session.learning.run_postprocess()
 
