@@ -155,7 +155,8 @@ def register_robot_file(robot: str, robot_urdf: tuple[str, bytes]) -> None:
     from ..robots.custom import RobotFileError, is_custom, register_urdf
 
     name = register_urdf(*robot_urdf)
-    if robot != name and not is_custom(robot):  # a family variant registers on the way
+    variant = robot.startswith(name + "_") and is_custom(robot)  # registers on the way
+    if robot != name and not variant:
         raise RobotFileError(
             f"{robot_urdf[0]}: the project's arm is {robot!r}, the file it holds is {name!r}"
         )
