@@ -56,6 +56,7 @@ from robomach_core.errors import InvalidInputError, RobomachError
 from robomach_core.limits import SEED
 from robomach_core.stiffness.errors import UnknownStudyError
 from robomach_core.stiffness.settings import COMPENSATION_SETTINGS
+from robomach_core.stiffness.studies import StudyName
 
 from .session import ConflictError, JobContext, JobInfo, NotFoundError, Session
 
@@ -65,7 +66,7 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 StudyKind = Literal["cmrr", "compensation"]
-CompensationStudy = Literal["identify", "gravity", "milling", "ilc", "compliance", "all"]
+CompensationStudy = StudyName
 COMPENSATION_STUDIES: tuple[str, ...] = get_args(CompensationStudy)
 CMRR_CONTROLLER_CHOICES: tuple[str, ...] = (*CONTROLLER_NAMES, "all")
 

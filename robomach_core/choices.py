@@ -35,8 +35,13 @@ NearestFace = Literal["wall", "floor", "underside"]
 NEAREST_FACES: tuple[NearestFace, ...] = get_args(NearestFace)
 
 LABELS: dict[str, dict[str, str]] = {
-    "jog_frame": {"base": "base", "tool": "tool", "wobj": "work-object"},
+    "jog_frame": {"base": "base", "tool": "tool", "wobj": "work object"},
     "compliance_frame": {"base": "base frame", "tool": "tool frame"},
+    "cell_option": {
+        "fc_speed_change": "FC SpeedChange",
+        "path_correction": "path correction",
+        "force_mode": "force mode",
+    },
     "click_mode": {
         "propose": "propose the wall",
         "teach": "teach a point",

@@ -89,6 +89,8 @@ JOG_SPEED_MM_S = Range("jog speed", 0.5, 50.0, "mm/s")
 JOG_RATE_DEG_S = Range("jog rate", 0.5, 30.0, "deg/s")
 TOUCH_OFF_FORCE_N = Range("touch-off force", 2.0, 50.0, "N")
 TOUCH_OFF_TRAVEL_MM = Range("touch-off travel", 0.0, 200.0, "mm")  # and more than 0
+# The viser push handle: its offset from the TCP times this spring pushes the tool.
+HANDLE_SPRING_N_MM = Range("handle spring", 0.1, 5.0, "N/mm")
 # Guide points of one project, and samples of one recording (4 ms each: 1 M is 67 min of
 # learning, ~260 MB of arrays; the papers' runs are minutes).
 GUIDE_POINTS_MAX = 200

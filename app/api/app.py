@@ -29,6 +29,7 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 
 from app.api.routes import (
     cell,
+    choices,
     cmrr,
     compensation,
     events,
@@ -69,7 +70,7 @@ MULTIPART_OVERHEAD_BYTES = 64 * 1024
 # guide_proposals before guide_points: its /proposal paths must not be read as an {index}.
 ROUTERS = (state, leadthrough, guide_proposals, guide_points, path_learning, jobs, postprocess,
            export, projects, cell, cmrr, compensation, robot_wiring, machining, project_file,
-           teach, events)  # fmt: skip
+           teach, events, choices)  # fmt: skip
 
 # A service is started in the lifespan and stopped after it (e.g. the viser workbench).
 Service = Callable[[], AbstractContextManager]

@@ -43,6 +43,7 @@ from robomach_core.errors import (
 )
 from robomach_core.leadthrough import (
     AXES,
+    ComplianceFrame,
     ComplianceSelection,
     LeadThrough,
     LeadThroughState,
@@ -69,7 +70,8 @@ PACE_CHUNK_PERIODS = 5
 PUSH_GRACE_S = 0.01  # budget taken at once (20 ms): the stop check still runs every period
 JOG_CONTACT_N = 3.0  # a jog ending against the part with more than this ...
 JOG_SHORT_M = 5e-4  # ... and short of its step by more than this was stopped by contact
-FRAME_NAMES = LABELS["jog_frame"]
+# "along -y (work-object frame)": the menu's words, as a compound adjective
+FRAME_NAMES = {frame: words.replace(" ", "-") for frame, words in LABELS["jog_frame"].items()}
 
 
 class _Stopped(Exception):
@@ -231,7 +233,7 @@ class Teach:
             )
         if direction not in (1, -1):
             raise InvalidInputError("touch-off direction must be +1 or -1")
-        core_frame: Literal["tool", "base"] = "tool" if frame == "tool" else "base"
+        core_frame: ComplianceFrame = "tool" if frame == "tool" else "base"
         asked_axis, asked_direction = axis, direction
         if frame == "wobj":
             axis, direction = _base_axis_of_wobj(self._robot.workpiece.T_base_wobj, axis,

@@ -20,14 +20,18 @@ from robomach_core.limits import (
     MACHINING_PROCESS_GAIN_N,
     MACHINING_VARIATIONS,
 )
+from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
+from robomach_core.machining.choice import OPTION_NAMES
 from robomach_core.machining.stock import MAX_ALLOWANCE_M, MAX_PROFILE_POINTS, MAX_PROFILE_S_MM
+from robomach_core.project._machining import STOCK_SOURCES
 
 router = APIRouter(prefix="/api/machining", tags=["machining"], responses=ERRORS)
 
-Controller = Literal["constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage", "adaptive-lq"]
-Compensation = Literal["off", "offline", "online"]
-StockSource = Literal["builtin", "profile", "mesh"]
-CellOption = Literal["fc_speed_change", "path_correction", "force_mode"]
+# The choices of the core (``robomach_core.choices``), never typed again here.
+Controller = Literal[MACHINING_CONTROLLERS]  # type: ignore[valid-type]
+Compensation = Literal[COMPENSATION_NAMES]  # type: ignore[valid-type]
+StockSource = Literal[STOCK_SOURCES]  # type: ignore[valid-type]
+CellOption = Literal[OPTION_NAMES]  # type: ignore[valid-type]
 UPLOAD_CHUNK_BYTES = 1024 * 1024
 
 

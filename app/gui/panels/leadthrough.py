@@ -14,6 +14,8 @@ import time
 import numpy as np
 import viser
 
+from robomach_core import limits
+from robomach_core.choices import COMPLIANCE_FRAMES
 from robomach_core.leadthrough import AXES
 
 from ..scene import CellScene
@@ -71,7 +73,7 @@ class LeadThroughPanel:
                 for a in AXES
             }
             self.frame = server.gui.add_dropdown(
-                "Compliance frame", ("base", "tool"), initial_value=sel.frame
+                "Compliance frame", COMPLIANCE_FRAMES, initial_value=sel.frame
             )
             self.show_handle = server.gui.add_checkbox(
                 "Show push handle",
@@ -80,8 +82,8 @@ class LeadThroughPanel:
             )
             self.spring = server.gui.add_slider(
                 "Handle spring (N/mm)",
-                0.1,
-                5.0,
+                limits.HANDLE_SPRING_N_MM.min,
+                limits.HANDLE_SPRING_N_MM.max,
                 0.1,
                 0.5,
                 hint="Drag the handle on the tool: its offset from the TCP times this pushes",

@@ -27,6 +27,7 @@ from robomach_core.limits import (
 )
 from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
 from robomach_core.machining.choice import OPTION_NAMES, OPTION_TEXT, RULE_TEXT
+from robomach_core.project._machining import STOCK_SOURCES
 
 from ..scene import deviation_colors
 from .feedback import guarded
@@ -54,7 +55,7 @@ class MachiningPanel:
         with server.gui.add_folder("Machining", expand_by_default=False):
             self.stock = server.gui.add_dropdown(
                 "Stock",
-                ("builtin", "profile", "mesh"),
+                STOCK_SOURCES,
                 initial_value=s["stock_source"],
                 hint="builtin: allowance 0.3-3 mm with burrs from the cell's seed",
             )

@@ -12,6 +12,7 @@ import threading
 import numpy as np
 import viser
 
+from robomach_core import limits
 from robomach_core.errors import RobomachError
 from robomach_core.scoring import true_tool_path_distance
 
@@ -31,24 +32,24 @@ class PostprocessPanel:
         with server.gui.add_folder("Post-processing"):
             self.force_min = server.gui.add_slider(
                 "Fmin (N)",
-                0.0,
-                30.0,
+                limits.FORCE_THRESHOLD_N.min,
+                limits.LEARNING_FORCE_N.max,
                 0.5,
                 s.force_min_N,
                 hint="Samples with less contact force are dropped (lost contact)",
             )
             self.force_max = server.gui.add_slider(
                 "Fmax (N)",
-                1.0,
-                80.0,  # 1.5 x the strongest learning force (50 N): the band that follows it
+                limits.LEARNING_FORCE_N.min,
+                1.5 * limits.LEARNING_FORCE_N.max,  # the band that follows the force
                 0.5,
                 s.force_max_N,
                 hint="Samples with more contact force are dropped (corner spikes)",
             )
             self.tolerance = server.gui.add_slider(
                 "Tolerance (mm)",
-                0.02,
-                2.0,
+                limits.TOLERANCE_MM.min,
+                limits.TOLERANCE_MM.max,
                 0.01,
                 s.tolerance_m * 1e3,
                 hint="Deviation height of the reduction (the chapter: 0.2 mm, ~300 targets)",
