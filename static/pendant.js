@@ -60,7 +60,7 @@ function detailOf(body, status) {
 let choicesLoaded = null;
 function loadChoices() {
   if (!choicesLoaded) {
-    choicesLoaded = api("GET", "/api/choices", undefined, { quiet: true }).catch((err) => {
+    choicesLoaded = api("GET", "/choices", undefined, { quiet: true }).catch((err) => {
       choicesLoaded = null;
       throw err;
     });

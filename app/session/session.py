@@ -9,14 +9,16 @@ STRATEGY  The job is one frozen ``robomach_core.project.Project``, changed only 
           transition runs, the value is replaced and the changed parts are saved in one store
           transaction; listeners then hear the topics. The robot is a ``LiveRobot`` beside it
           under the same lock. The session holds nothing else: teaching (``teach``), pointing
-          (``pointing``), learning and post-processing (``learning``), exports (``exports``),
-          projects (``projects``) and machining (``machining``) work through its public
-          interface; long work computes from a ``view()`` outside the lock and commits a
-          transition that refuses a result whose inputs changed meanwhile.
+          (``pointing``), the robot jobs and post-processing (``learning``), the programs and
+          saved exports (``programs``), projects (``projects``) and machining (``machining``)
+          work through its public interface; long work computes from a ``view()`` outside the
+          lock and commits a transition that refuses a result whose inputs changed meanwhile.
 SOLUTION  Public API (thread-safe):
 
   Reading   project() -> Project; view() -> View (project, cell, epoch, project id, at once);
             current_project() -> ProjectInfo; robot (LiveRobot: snapshot(), pose(), ...)
+  Services  robot, teach (push, jog, touch_off, stop, tool_view), pointing, learning
+            (start_example, start_path_learning, run_postprocess, go_home, force_trace), jobs
   Changing  commit(change, *parts, topics=, idle=, with_robot=) -> Project
             change_cell(change, parsed=) -> Project   a transition that rebuilds the live cell
             set_cell(robot=, tool_radius_m=, workpiece=, part_deviation=) -> CellSettings

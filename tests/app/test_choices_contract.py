@@ -152,6 +152,12 @@ def test_the_pendant_gets_every_choice_and_range_from_an_endpoint(client) -> Non
         limits.LEARNING_FORCE_N.min,
         limits.LEARNING_FORCE_N.max,
     )
+    pendant = (ROOT / "static" / "pendant.js").read_text()
+    api_prefix = re.search(r'const API = "([^"]+)"', pendant).group(1)
+    path = re.search(
+        r'api\("GET", "([^"]+)"[^)]*\)', pendant[pendant.index("function loadChoices") :]
+    )
+    assert api_prefix + path.group(1) == "/api/choices"  # the page asks this very route
     tolerance = body["ranges"]["TOLERANCE_MM"]
     assert (tolerance["min"], tolerance["max"]) == (0.01, 5.0)
 
