@@ -56,7 +56,7 @@ def _reaches(path: Path, private: set[str]) -> list[str]:
 
 
 def _modules(*, besides: Path) -> list[Path]:
-    paths = [*(ROOT / "app").rglob("*.py"), *(ROOT / "tests").rglob("*.py")]
+    paths = [p for d in ("app", "tests", "benchmarks") for p in (ROOT / d).rglob("*.py")]
     return sorted(p for p in paths if p != besides)
 
 
