@@ -30,7 +30,13 @@ import numpy as np
 from . import _kernels
 from .cell import CONTROL_PERIOD_S, Cell, CellState
 from .errors import InvalidInputError, NoContactError
-from .limits import JOG_STEP_MM, JOG_TURN_DEG, TOUCH_OFF_FORCE_N, TOUCH_OFF_TRAVEL_MM
+from .limits import (
+    JOG_STEP_MM,
+    JOG_TURN_DEG,
+    PUSH_DURATION_S,
+    TOUCH_OFF_FORCE_N,
+    TOUCH_OFF_TRAVEL_MM,
+)
 from .sensor import ForceEstimator
 from .supervision import Supervisor, cell_supervisor, interpolate_pose
 from .transforms import quaternion_from_matrix, rotation_about
@@ -265,8 +271,10 @@ class LeadThrough:
         duration_s: float,
     ) -> LeadThroughState:
         """Apply a constant push for ``duration_s`` seconds (supervised like ``step``)."""
-        if not (0 <= duration_s <= 60):
-            raise InvalidInputError(f"push duration {duration_s:g} s is outside 0-60 s")
+        if duration_s not in PUSH_DURATION_S:
+            raise InvalidInputError(
+                f"push duration {duration_s:g} s is outside {PUSH_DURATION_S.text()}"
+            )
         w = np.asarray(push_wrench, dtype=float)
         if w.shape != (6,) or not np.all(np.isfinite(w)):
             raise InvalidInputError("push wrench must be 6 finite values [N, N*m]")
