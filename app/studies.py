@@ -4,8 +4,9 @@ PROBLEM   The GUI and the REST API both start CMRR studies (``robomach_core.cmrr
           stiffness / compensation studies (``robomach_core.stiffness``), watch their progress,
           cancel them, show the last result's numbers and plots, and keep the settings with the
           project so that they survive a restart.
-STRATEGY  One ``StudyService`` per session (``studies_for(session)``) submits each study to the
-          session's ``JobRunner``, so it shows in ``/api/jobs`` and cancels like any job. A run
+STRATEGY  One ``StudyService`` per session, built at start-up and handed to the GUI and the
+          API (``create_app(studies=)``), submits each study to the session's ``JobRunner``,
+          so it shows in ``/api/jobs`` and cancels like any job. A run
           writes the core's files into a fresh folder under ``<data>/studies/.tmp``; when it is
           done, the folder replaces ``<data>/studies/<project id>/<kind>/`` and the summary and
           settings JSON are saved in the project's store as the exports ``_study-cmrr`` and
@@ -160,21 +161,6 @@ class CompensationOutcome:
     plots: dict[str, bytes] = field(default_factory=dict)
     finished_s: float = 0.0
     folder: Path | None = None
-
-
-# --- one service per session -----------------------------------------------------------------
-
-_SERVICES: weakref.WeakKeyDictionary[Session, StudyService] = weakref.WeakKeyDictionary()
-_SERVICES_LOCK = threading.Lock()
-
-
-def studies_for(session: Session) -> StudyService:
-    """The session's ``StudyService``, made on first use: the GUI and the API share it."""
-    with _SERVICES_LOCK:
-        service = _SERVICES.get(session)
-        if service is None:
-            service = _SERVICES[session] = StudyService(session)
-        return service
 
 
 class StudyService:

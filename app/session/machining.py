@@ -1,7 +1,7 @@
 """The workbench's machining: settings, runs and comparisons as jobs, the result, the choice.
 
-One ``MachiningService`` per session (``machining_for``), shared by the viser panel, the REST
-routes and the pendant. It acts on the session's ``Project`` through the core's stage
+One ``MachiningService`` per session, built at start-up and injected into the viser panel,
+the REST routes (and so the pendant). It acts on the session's ``Project`` through the core's stage
 (``robomach_core.project.machine``, ``choose``), so the CLI and the workbench compute and export
 the same way. A run computes from a snapshot of the project outside the lock and is swapped in
 only if the project's machining inputs did not change meanwhile. The traces of the last run
@@ -23,8 +23,6 @@ from __future__ import annotations
 
 import base64
 import os
-import threading
-import weakref
 from dataclasses import replace
 from pathlib import Path
 from typing import Any, Literal
@@ -44,18 +42,6 @@ PLOT_POINTS = 1500
 MAX_STOCK_BYTES = 20_000_000
 # The Dask scheduler the workbench runs its machining cuts on (unset: the local cores).
 CLUSTER_ENV = "ROBOMACH_CLUSTER"
-
-_SERVICES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-_SERVICES_LOCK = threading.Lock()
-
-
-def machining_for(session: Any) -> MachiningService:
-    """The session's ``MachiningService``, made on first use."""
-    with _SERVICES_LOCK:
-        service = _SERVICES.get(session)
-        if service is None:
-            service = _SERVICES[session] = MachiningService(session)
-        return service
 
 
 class MachiningService:

@@ -8,7 +8,7 @@ import time
 import pytest
 
 from app.session import Session, programs
-from app.session.machining import machining_for
+from app.session.machining import MachiningService
 from app.session.project_file import import_project
 from app.store import Store
 from tests.demo_project import block_demo_dir
@@ -28,7 +28,7 @@ def test_settings_choice_and_result_survive_a_restart(tmp_path):
     session = Session(Store(db), data_dir=tmp_path)
     try:
         import_project(session, (block_demo_dir() / "project.npz").read_bytes(), "block")
-        service = machining_for(session)
+        service = MachiningService(session)
         service.set_settings(process_gain_N=25.0, force_limit_N=180.0)
         service.choose("fuzzy", "offline")
         _wait(session, service.start("run"))
@@ -40,7 +40,7 @@ def test_settings_choice_and_result_survive_a_restart(tmp_path):
 
     reopened = Session(Store(db), data_dir=tmp_path)
     try:
-        service = machining_for(reopened)
+        service = MachiningService(reopened)
         s = service.settings_document()
         assert (s["process_gain_N"], s["force_limit_N"]) == (25.0, 180.0)
         assert (s["controller"], s["compensation"]) == ("fuzzy", "offline")

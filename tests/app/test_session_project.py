@@ -15,6 +15,7 @@ import pytest
 
 import robomach_core.project as core
 from app.session import ConflictError, Session, process_settings, programs, projects
+from app.studies import StudyService
 
 
 def _push_to(session: Session, goal_mm: list[float]) -> None:
@@ -71,7 +72,7 @@ def test_changing_guide_points_marks_results_out_of_date_in_the_gui(session: Ses
     try:
         scene = CellScene(server)
         post = PostprocessPanel(server, session, scene)
-        export = ExportPanel(server, session)
+        export = ExportPanel(server, session, StudyService(session))
         learning = PathLearningPanel(server, session)
         learning.show_job(None)
         assert session.project().status()["postprocess"] == "current"
@@ -119,7 +120,7 @@ def test_the_export_panel_shows_what_the_program_carries(session: Session) -> No
 
     server = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
     try:
-        export = ExportPanel(server, session)
+        export = ExportPanel(server, session, StudyService(session))
         assert "CMRR **none**" in export.process.content
         cmrr = cmrr_settings_for(build_scenario("deburr-burrs"), settings_for("two-stage"))
         process_settings.set_process_settings(session, cmrr=cmrr)

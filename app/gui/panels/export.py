@@ -47,8 +47,9 @@ class ExportPanel:
     CSVs and the settings JSON (each straight from the session, so it always matches the last
     result)."""
 
-    def __init__(self, server: viser.ViserServer, session) -> None:
+    def __init__(self, server: viser.ViserServer, session, studies) -> None:
         self.session = session
+        self.studies = studies  # the session's StudyService
         languages = programs.program_languages(session)
         with server.gui.add_folder("Export", expand_by_default=False):
             self.process = server.gui.add_markdown("")
@@ -102,9 +103,8 @@ class ExportPanel:
             process_settings.set_process_settings(self.session, cmrr=None, compensation=None)
             return
         from app.session.process_settings import settings_from_studies
-        from app.studies import studies_for
 
-        studies = studies_for(self.session)
+        studies = self.studies
         has_cmrr = studies.cmrr_result() is not None
         identified = studies.compensation_result()
         has_comp = identified is not None and identified.settings is not None

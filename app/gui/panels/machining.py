@@ -17,7 +17,6 @@ import threading
 import numpy as np
 import viser
 
-from app.session.machining import machining_for
 from robomach_core.limits import (
     MACHINING_DEPTH_EXPONENT,
     MACHINING_FEED_EXPONENT,
@@ -47,10 +46,10 @@ EVENTS = ("job", "machining", "postprocess", "recording", "guide_points", "cell"
 class MachiningPanel:
     """The Machining folder of the sidebar (module docstring)."""
 
-    def __init__(self, server: viser.ViserServer, session) -> None:
+    def __init__(self, server: viser.ViserServer, session, service) -> None:
         self.server = server
         self.session = session
-        self.service = machining_for(session)
+        self.service = service  # the session's MachiningService
         s = self.service.settings_document()
         with server.gui.add_folder("Machining", expand_by_default=False):
             self.stock = server.gui.add_dropdown(
