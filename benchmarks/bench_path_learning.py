@@ -1,10 +1,16 @@
-"""Real-time factor of path learning on the water pump, with the cost of one control step's parts.
+"""Real-time factor of path learning on the water pump, and what one 4 ms period costs.
 
 Run: python benchmarks/bench_path_learning.py [--repeats N] [--quick]
-Prints the simulated seconds per wall second of ``learn_path`` (median over repeats) and, measured
-in the same run as references, the cost of the parts of one 4 ms control step. ``--quick`` leads
-the robot to the first two guide points only and learns that open stretch once (a smoke test,
-not a measurement).
+
+Prints the simulated seconds per wall second of ``learn_path`` (median over repeats), the cost
+of one control period, in microseconds and in units of references measured in the same run
+(a fixed pinocchio workload: ``computeJointJacobians``, frame placements, the TCP's Jacobian
+and pose, whose cost our code does not change; and one ``Cell.step``), so that figures from a
+loaded machine compare; then the period broken down:
+supervision (with the IK step inside it), the cell (kinematics, contact, sensor), the force
+loop (the law and the recording's row) and the recording built at the end, from a run with
+timers around each part. ``--quick`` leads the robot to the first two guide points only and
+learns that open stretch once (a smoke test, not a measurement).
 """
 
 from __future__ import annotations
@@ -12,16 +18,23 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
+from collections import defaultdict
+from collections.abc import Callable
 
+import numba
 import numpy as np
+import pinocchio as pin
 
+from robomach_core import _kernels, path_learning
 from robomach_core.cell import CONTROL_PERIOD_S, Cell
+from robomach_core.contour_following import record_row
 from robomach_core.demo_operator import guide_plan, scripted_leadthrough
 from robomach_core.leadthrough import LeadThrough
 from robomach_core.path_learning import PathLearningSettings, learn_path
+from robomach_core.supervision import cell_supervisor
 
 
-def per_call_us(fn, n: int) -> float:
+def per_call_us(fn: Callable[[], object], n: int) -> float:
     samples = []
     for _ in range(5):
         t = time.perf_counter()
@@ -29,6 +42,81 @@ def per_call_us(fn, n: int) -> float:
             fn()
         samples.append((time.perf_counter() - t) / n * 1e6)
     return statistics.median(samples)
+
+
+@numba.njit(cache=True)
+def _ik_steps(q, T, J, T_target, lower, upper, n):  # noqa: ANN001, ANN202
+    out = q
+    for _ in range(n):
+        out = _kernels.ik_newton_step(q, T, J, T_target, lower, upper, 1e-4)
+    return out
+
+
+@numba.njit(cache=True)
+def _row_writes(reading, T, q, wrench, w, record, n):  # noqa: ANN001, ANN202
+    for i in range(n):
+        record_row(record[i % record.shape[0]], 0.1, q, T, reading, wrench, 10.0, 1.0, w, 2.0)
+    return record
+
+
+def in_kernel_us(fn: Callable[[int], object], n: int) -> float:
+    """Cost of one iteration of a compiled loop (no Python call per iteration)."""
+    fn(1)
+    samples = []
+    for _ in range(5):
+        t = time.perf_counter()
+        fn(n)
+        samples.append((time.perf_counter() - t) / n * 1e6)
+    return statistics.median(samples)
+
+
+class PartTimer:
+    """Timers around the parts of the period (patched on the objects the loop uses), counting
+    each part's own time (a nested part's is its own), from ``start()`` on."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = defaultdict(float)
+        self.calls: dict[str, int] = defaultdict(int)
+        self.active = False
+        self._stack: list[str] = []
+        self._undo: list[Callable[[], None]] = []
+
+    def wrap(self, owner: object, name: str, part: str) -> None:
+        inner = getattr(owner, name)
+        seconds, calls, stack = self.seconds, self.calls, self._stack
+        clock = time.perf_counter
+
+        def timed(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+            if not self.active:
+                return inner(*args, **kwargs)
+            stack.append(part)
+            t = clock()
+            try:
+                return inner(*args, **kwargs)
+            finally:
+                elapsed = clock() - t
+                stack.pop()
+                seconds[part] += elapsed
+                calls[part] += 1
+                if stack:
+                    seconds[stack[-1]] -= elapsed
+
+        had = name in vars(owner)
+        setattr(owner, name, timed)
+        self._undo.append(lambda: setattr(owner, name, inner) if had else delattr(owner, name))
+
+    def restore(self) -> None:
+        for undo in reversed(self._undo):
+            undo()
+
+    @staticmethod
+    def overhead_s() -> float:
+        """What one timed call adds (the wrapper's own cost)."""
+        probe = PartTimer()
+        probe.active = True
+        holder = type("Holder", (), {"f": staticmethod(lambda: None)})
+        probe.wrap(holder, "f", "probe")
+        return max(0.0, per_call_us(holder.f, 20000) - per_call_us(lambda: None, 20000)) * 1e-6
 
 
 def main() -> None:
@@ -54,42 +142,94 @@ def main() -> None:
         f"(x{state.cell.time_s / lead_wall:.1f})"
     )
 
-    factors, per_step = [], []
+    # References, measured between the runs: a fixed pinocchio workload (joint Jacobians and
+    # frame placements, then the TCP's Jacobian and pose) and one cell step.
+    model, data, tcp = cell.robot.model, cell.robot.model.createData(), cell.robot.tcp_frame_id
+    q_ref = state.cell.q_motor.copy()
+
+    def fk_jacobian() -> None:
+        pin.computeJointJacobians(model, data, q_ref)
+        pin.updateFramePlacements(model, data)
+        pin.getFrameJacobian(model, data, tcp, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)
+        _ = data.oMf[tcp].homogeneous
+
+    factors, per_step, fk_us, cell_us = [], [], [], []
     for _ in range(repeats):
+        fk_us.append(per_call_us(fk_jacobian, calls))
         c = Cell()
         t = time.perf_counter()
         rec, end = learn_path(c, state.cell, guides, learning, lt.estimator)
         wall = time.perf_counter() - t
         factors.append(rec.time_s[-1] / wall)
         per_step.append(wall / len(rec) * 1e6)
+        cell_us.append(per_call_us(lambda c=c, end=end: c.step(end, end.q_motor), calls // 3))
+    period, fk, one_cell = (statistics.median(v) for v in (per_step, fk_us, cell_us))
     print(
         f"path learning: {len(rec)} samples, {rec.time_s[-1]:.1f} s simulated; "
         f"real-time factor median x{statistics.median(factors):.1f} "
         f"(runs: {', '.join(f'x{f:.1f}' for f in factors)}); "
-        f"{statistics.median(per_step):.0f} us per {CONTROL_PERIOD_S * 1e3:.0f} ms step"
+        f"{period:.1f} us per {CONTROL_PERIOD_S * 1e3:.0f} ms period"
     )
-    print("  aim: x100 (40 us per step)")
-
-    # References in the same run: the parts of one control step.
-    q = end.q_motor.copy()
-    T = c.robot.fk(q).copy()
-    robot = c.robot
-
-    def fk_jacobian() -> None:
-        robot._cache_key = b""
-        robot.fk_and_jacobian(q)
-
-    v = np.array([0.005, 0.0, 0.0])
-    contact = c.contact_model
-    T_wall = end.T_base_tcp_true.copy()
-    print("per-step parts (median us):")
-    print(f"  pinocchio FK + Jacobian      {per_call_us(fk_jacobian, calls):7.1f}")
-    print(f"  IK step (FK cached)          {per_call_us(lambda: robot.ik_step(q, T), calls):7.1f}")
     print(
-        f"  coal contact evaluation      "
-        f"{per_call_us(lambda: contact.evaluate(T_wall, v, 1e-4, CONTROL_PERIOD_S), calls):7.1f}"
+        f"  one period = {period / fk:.1f} x the pinocchio reference ({fk:.2f} us) "
+        f"= {period / one_cell:.2f} x one whole cell step ({one_cell:.1f} us), measured in this run"
     )
-    print(f"  whole cell step              {per_call_us(lambda: c.step(end, q), calls // 3):7.1f}")
+    print("  aim: x100 real time (40 us per period), x200 (20 us)")
+
+    # The period broken down: one more run with timers around its parts (after the approach).
+    c = Cell()
+    supervisor = cell_supervisor(c)
+    timer = PartTimer()
+    timer.wrap(supervisor, "supervise_increment", "supervision (limits, IK step)")
+    timer.wrap(c, "step", "cell: arm-side deflection, the rest")
+    timer.wrap(c.robot, "fk_and_jacobian", "cell: kinematics (pinocchio FK + Jacobian)")
+    timer.wrap(c.contact_model, "evaluate", "cell: contact (coal, nearest face, force)")
+    timer.wrap(c.sensor, "measure", "cell: F/T sensor reading")
+    timer.wrap(path_learning, "controller_period", "force loop (law, turn, recording row)")
+    timer.wrap(path_learning, "leg_progress", "route progress")
+    timer.wrap(path_learning, "quaternions_from_matrices", "recording (built at the end)")
+    approach = path_learning._approach
+    started: list[float] = []
+
+    def approach_then_time(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+        out = approach(*args, **kwargs)
+        timer.active = True
+        started.append(time.perf_counter())
+        return out
+
+    path_learning._approach = approach_then_time
+    try:
+        rec, end = learn_path(c, state.cell, guides, learning, lt.estimator, supervisor=supervisor)
+        wall = time.perf_counter() - started[0]
+    finally:
+        timer.restore()
+        path_learning._approach = approach
+    overhead = timer.overhead_s()
+    n = len(rec)
+    total = (wall - overhead * sum(timer.calls.values())) / n * 1e6
+    rows = [(p, (timer.seconds[p] - overhead * timer.calls[p]) / n * 1e6) for p in timer.seconds]
+    rows.append(("the loop's own Python (stops, legs)", total - sum(v for _, v in rows)))
+    print(
+        f"one period, by part ({n} periods with timers; {overhead * 1e6:.2f} us per timed call "
+        "taken off):"
+    )
+    for name, value in rows:
+        print(f"  {name:44s} {value:6.2f} us  {value / total * 100:5.1f} %")
+    print(f"  {'total':44s} {total:6.2f} us")
+    # Inside the compiled kernels: the IK step and the recording's row, without a Python call.
+    T_end, J_end = c.robot.fk_and_jacobian(end.q_motor)
+    T_target = T_end.copy()
+    T_target[:3, 3] += 1e-5
+    lo, hi = c.robot.lower_rad, c.robot.upper_rad
+    ik = in_kernel_us(lambda k: _ik_steps(end.q_motor, T_end, J_end, T_target, lo, hi, k), 20000)
+    record = np.zeros((64, path_learning.REC_WIDTH))
+    wrench, w = np.ones(6), np.array([0.0, 1.0, 0.0])
+    row = in_kernel_us(
+        lambda k: _row_writes(end.ft_reading, T_end, end.q_motor, wrench, w, record, k), 20000
+    )
+    print(f"  inside supervision: the IK step (ik_newton_step)    {ik:6.2f} us")
+    print(f"  inside the force loop: the recording's row           {row:6.2f} us")
+    print(f"  whole cell step {one_cell:.1f} us; the pinocchio reference {fk:.2f} us")
 
 
 if __name__ == "__main__":

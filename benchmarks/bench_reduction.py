@@ -24,6 +24,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from robomach_core.clock import CONTROL_PERIOD_S
 from robomach_core.path_learning import Recording
 from robomach_core.postprocess import PostprocessSettings, postprocess, reduce_deviation_height
 from robomach_core.workpiece import water_pump_wall
@@ -31,7 +32,6 @@ from robomach_core.workpiece import water_pump_wall
 N_SAMPLES = 100_000
 TOLERANCE_M = 0.0002
 NOISE_M = 1e-5
-CONTROL_PERIOD_S = 0.004
 DENSE_SPEEDS_MM_S = (5.0, 0.5)
 DENSE_SAMPLES = 311_000  # a water-pump recording learned at 0.5 mm/s
 FORCE_N = 10.0

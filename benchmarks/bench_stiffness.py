@@ -16,13 +16,13 @@ import numpy as np
 
 from robomach_core.joint_compliance import true_joint_compliance
 from robomach_core.robot import Robot
+from robomach_core.sensor import ToolGravity, gravity_reading
 from robomach_core.stiffness.compensation import (
     OnlineCompensationParams,
     OnlineCompensationState,
     compensate_targets,
     online_compensation_step,
 )
-from robomach_core.stiffness.gravity import ToolGravity, gravity_reading
 from robomach_core.stiffness.milling import CHAPTER_END_MILLING
 from robomach_core.stiffness.model import cartesian_compliance, loaded_equilibrium
 from robomach_core.tool import Tool

@@ -20,7 +20,7 @@ from typing import NamedTuple
 import coal
 import numpy as np
 
-from .contact import _bvh_from_mesh
+from .bvh import bvh_from_mesh
 from .tool import Tool
 from .workpiece import Workpiece
 
@@ -44,7 +44,7 @@ class ClearanceProbe:
 
     def __init__(self, tool: Tool, workpiece: Workpiece) -> None:
         self.tool = tool
-        self._bvh = _bvh_from_mesh(workpiece.mesh.vertices, workpiece.mesh.faces)
+        self._bvh = bvh_from_mesh(workpiece.mesh.vertices, workpiece.mesh.faces)
         T = workpiece.T_base_wobj
         self._T_part = coal.Transform3s(T[:3, :3].copy(), T[:3, 3].copy())
         if tool.shape == "ball":

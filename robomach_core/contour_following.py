@@ -23,6 +23,8 @@ STRATEGY  Hybrid force/velocity contour following in the plane across the tool a
 SOLUTION  ``contour_law`` (compiled with numba; its ``py_func`` is the same law in Python, the
           reference the tests compare it with) returns the period's motion and the law's new
           state; ``turn_towards`` turns the tool's orientation towards the leg's, rate-limited.
+          ``controller_period`` is the controller's whole period around them (the measured
+          wrench, the law, the recording's row, the turn) in one compiled call.
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ import math
 import numba
 import numpy as np
 
-from ._kernels import exp3, log3
+from ._kernels import contact_wrench_tcp_base, exp3, log3, mul3, rotate
 
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 
@@ -62,6 +64,19 @@ PARAMETERS = (
     "slowest_at",
     "slowest",
 )
+
+
+# A leg of the route, one row of ``legs``: start a (3), unit direction xp (3), length, the
+# orientation at a (9, row-major), the rotation vector omega to the orientation at its end
+# (3, in a's axes: slerp R_a exp(f omega)), the index of its first guide point.
+LEG_A, LEG_XP, LEG_LENGTH, LEG_RA, LEG_OMEGA, LEG_FIRST = 0, 3, 6, 7, 16, 19
+LEG_SIZE = 20
+# The recording's columns, one row per period (``controller_period``): time, motor-side joints
+# (6), measured TCP position (3) and rotation (9, row-major), sensor reading (6), compensated
+# wrench in the tool frame (6), force normal to the edge, contact flag, wall direction (3), leg.
+REC_TIME, REC_JOINTS, REC_POSITION, REC_ROTATION, REC_SENSOR, REC_TOOL = 0, 1, 7, 10, 19, 25
+REC_NORMAL, REC_CONTACT, REC_YP, REC_SEGMENT = 31, 32, 33, 36
+REC_WIDTH = 37
 
 
 def initial_state() -> np.ndarray:
@@ -227,9 +242,117 @@ def turn_towards(
         + (p[2] - leg_a[2]) * leg_xp[2]
     )
     f = min(max(s / leg_length, 0.0), 1.0)
-    R_goal = R_leg_start @ exp3(omega * f)
-    turn = log3(np.ascontiguousarray(R_ref.T) @ R_goal)
+    turn = log3(mul3(R_ref, mul3(R_leg_start, exp3(omega * f)), True))
     angle = math.sqrt(turn[0] * turn[0] + turn[1] * turn[1] + turn[2] * turn[2])
     if angle > max_turn:
         turn = turn * (max_turn / angle)
     return turn
+
+
+@_jit
+def controller_period(
+    reading: np.ndarray,
+    T_meas: np.ndarray,
+    q_motor: np.ndarray,
+    time_s: float,
+    tool_data: np.ndarray,
+    R_tcp_flange: np.ndarray,
+    leg: np.ndarray,
+    axis: np.ndarray,
+    side: float,
+    T_ref: np.ndarray,
+    w: np.ndarray,
+    state: np.ndarray,
+    params: np.ndarray,
+    max_turn: float,
+    step: np.ndarray,
+    turn: np.ndarray,
+    record: np.ndarray,
+    n: int,
+) -> tuple[float, bool, bool, float, float, float]:
+    """One controller period of path learning: what the controller measures, the law, the
+    recording's row ``n`` and the turn; ``w``, ``state`` (the law's), ``step`` and ``turn``
+    are updated in place.
+
+    The contact wrench is the reading compensated with the controller's tool data
+    (``_kernels.contact_wrench_tcp_base``; ``tool_data``: weight m g (3), centre of mass (3),
+    TCP (3) in the sensor frame, bias (6)); ``contour_law`` moves the reference ``T_ref``'s
+    position by ``step``; ``turn_towards`` turns its orientation towards the ``leg``'s at the
+    new position, at most ``max_turn`` [rad].
+
+    Returns:
+        (|F| [N], touching, ever touched, the law's distance out of contact [m], the
+        reference's distance from the leg's line [m], |step| [m]).
+    """
+    R_meas = T_meas[:3, :3]
+    wrench = contact_wrench_tcp_base(
+        reading, mul3(R_meas, R_tcp_flange), tool_data[:3], tool_data[3:6], tool_data[6:9],
+        tool_data[9:15],
+    )  # fmt: skip
+    f_abs = math.sqrt(wrench[0] * wrench[0] + wrench[1] * wrench[1] + wrench[2] * wrench[2])
+    a, xp, length = leg[LEG_A : LEG_A + 3], leg[LEG_XP : LEG_XP + 3], leg[LEG_LENGTH]
+    p_ref = T_ref[:3, 3].copy()
+    step_new, w_new, state_new, f_n, touching = contour_law(
+        wrench[:3], w, axis, side, a, xp, length, p_ref, state, params
+    )
+    w[:] = w_new
+    state[:] = state_new
+    step[:] = step_new
+    contact = 1.0 if f_abs > params[14] else 0.0
+    record_row(record[n], time_s, q_motor, T_meas, reading, wrench, f_n, contact, w, leg[LEG_FIRST])
+    rel = p_ref - a
+    along = rel @ xp
+    off_route = math.sqrt(max(rel @ rel - along * along, 0.0))
+    turn[:] = turn_towards(
+        T_ref[:3, :3], leg[LEG_RA : LEG_RA + 9].reshape((3, 3)), leg[LEG_OMEGA : LEG_OMEGA + 3],
+        a, xp, length, p_ref + step_new, max_turn,
+    )  # fmt: skip
+    step_len = math.sqrt(step_new @ step_new)
+    ever = state_new[EVER_TOUCHED] > 0.0
+    return f_abs, touching, ever, state_new[OUT_OF_CONTACT], off_route, step_len
+
+
+@_jit
+def record_row(
+    row: np.ndarray,
+    time_s: float,
+    q_motor: np.ndarray,
+    T_meas: np.ndarray,
+    reading: np.ndarray,
+    wrench: np.ndarray,
+    f_n: float,
+    contact: float,
+    w: np.ndarray,
+    leg_first: float,
+) -> None:
+    """Writes one period into the recording's ``row`` (``REC_TIME`` ...): ``wrench`` is the
+    compensated contact wrench at the TCP in base axes, recorded in the tool's axes."""
+    row[REC_TIME] = time_s
+    row[REC_JOINTS : REC_JOINTS + 6] = q_motor
+    for i in range(3):
+        row[REC_POSITION + i] = T_meas[i, 3]
+        for j in range(3):
+            row[REC_ROTATION + 3 * i + j] = T_meas[i, j]
+    row[REC_SENSOR : REC_SENSOR + 6] = reading
+    row[REC_TOOL : REC_TOOL + 3] = rotate(T_meas, wrench, 0, True)
+    row[REC_TOOL + 3 : REC_TOOL + 6] = rotate(T_meas, wrench, 3, True)
+    row[REC_NORMAL] = f_n
+    row[REC_CONTACT] = contact
+    row[REC_YP : REC_YP + 3] = w
+    row[REC_SEGMENT] = leg_first
+
+
+@_jit
+def leg_progress(
+    T_ref: np.ndarray, leg: np.ndarray, first_touch: np.ndarray, axis: np.ndarray
+) -> tuple[float, float]:
+    """The reference's progress along the leg [m], and its distance across ``axis`` from
+    ``first_touch`` [m] (where a closed route closes)."""
+    s = 0.0
+    gap = np.empty(3)
+    for i in range(3):
+        s += (T_ref[i, 3] - leg[LEG_A + i]) * leg[LEG_XP + i]
+        gap[i] = T_ref[i, 3] - first_touch[i]
+    along = gap @ axis
+    gap -= axis * along
+    return s, math.sqrt(gap @ gap)

@@ -18,11 +18,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .cell import CONTROL_PERIOD_S
+from .clock import CONTROL_PERIOD_S
 from .contour import Arc, Line
 from .errors import InvalidInputError, NotEnoughGuidePointsError, UnreachableTargetError
 from .leadthrough import ComplianceSelection, GuidePoint, LeadThrough, LeadThroughState
 from .robot import Robot
+from .tool import TOOL_DOWN as TOOL_DOWN
 from .transforms import matrix_from_quaternion, rotation_log
 from .workpiece import Workpiece
 
@@ -31,7 +32,6 @@ HAND_MAX_N = 15.0  # a comfortable one-hand push
 HAND_MIN_N = 1.5  # a hand pushes firmly enough to get past the admittance's 1 N deadband
 WALL_PUSH_N = 6.0  # the gentle sideways push that finds the wall
 MAX_JOG_TURN_DEG = 45.0  # the largest rotational jog (leadthrough.LeadThrough.jog)
-TOOL_DOWN = np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])  # x_tool = -y_base
 
 
 @dataclass(frozen=True)

@@ -63,7 +63,7 @@ def _task_mesh(payload: dict[str, Any]) -> dict[str, Any]:
     import numpy as np
     import trimesh
 
-    from .contact import _bvh_from_mesh
+    from .bvh import bvh_from_mesh
 
     vertices = np.asarray(payload["vertices"], dtype=float)
     faces = np.asarray(payload["faces"], dtype=np.int64)
@@ -73,7 +73,7 @@ def _task_mesh(payload: dict[str, Any]) -> dict[str, Any]:
     for p in np.asarray(hull_mesh.vertices, dtype=float):
         points.append(p)
     hull = coal.Convex.convexHull(points, False, None)
-    bvh = _bvh_from_mesh(vertices, faces)
+    bvh = bvh_from_mesh(vertices, faces)
     request, result = coal.DistanceRequest(), coal.DistanceResult()
     request.enable_signed_distance = True
     centre = np.asarray(mesh.bounds[1], dtype=float) + 0.01
@@ -339,7 +339,7 @@ def serve() -> None:
     import pinocchio  # noqa: F401
     import trimesh  # noqa: F401
 
-    from . import contact  # noqa: F401
+    from . import bvh  # noqa: F401
 
     stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
     while True:

@@ -28,7 +28,8 @@ from typing import Literal, get_args
 import numpy as np
 
 from . import _kernels
-from .cell import CONTROL_PERIOD_S, Cell, CellState
+from .cell import Cell, CellState
+from .clock import CONTROL_PERIOD_S
 from .errors import InvalidInputError, NoContactError
 from .limits import (
     JOG_STEP_MM,

@@ -43,20 +43,29 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from . import _kernels
-from .cell import CONTROL_PERIOD_S, Cell, CellState
+from .cell import Cell, CellState
+from .clock import CONTROL_PERIOD_S
 from .contour_following import (
-    EVER_TOUCHED,
-    OUT_OF_CONTACT,
-    contour_law,
+    REC_CONTACT,
+    REC_JOINTS,
+    REC_NORMAL,
+    REC_POSITION,
+    REC_ROTATION,
+    REC_SEGMENT,
+    REC_SENSOR,
+    REC_TIME,
+    REC_TOOL,
+    REC_WIDTH,
+    REC_YP,
+    controller_period,
     initial_state,
     law_parameters,
-    turn_towards,
+    leg_progress,
 )
 from .errors import CancelledError, InvalidInputError, NotEnoughGuidePointsError
 from .leadthrough import GuidePoint
 from .limits import FLOOR_CLEARANCE_MM, LEARNING_FORCE_N, LEARNING_SPEED_MM_S
-from .sensor import GRAVITY_M_S2, ForceEstimator
+from .sensor import ForceEstimator
 from .supervision import Supervisor, cell_supervisor
 from .transforms import matrix_from_quaternion, quaternion_from_matrix, quaternions_from_matrices
 from .transforms import slerp as _slerp
@@ -263,6 +272,11 @@ def _segments(guides: Sequence[GuidePoint], closed: bool) -> list[_Segment]:
     return segs
 
 
+def _leg_row(seg: _Segment) -> np.ndarray:
+    """The leg as a row of ``contour_following``'s leg table (``LEG_A`` ...)."""
+    return np.concatenate([seg.a, seg.xp, [seg.length], seg.Ra.ravel(), seg.omega, [seg.first]])
+
+
 def move_linear(
     cell: Cell,
     state: CellState,
@@ -458,6 +472,54 @@ def contour_law_parameters(settings: PathLearningSettings) -> np.ndarray:
     )
 
 
+def _leg_limits(length: float) -> tuple[float, float, float]:
+    """A leg's protections and end: how far the wall may lead the tool off its line, how long
+    its wall may run, and the progress along it where the next leg takes over [m]."""
+    return (
+        max(LOST_WALL_M, ROUTE_WANDER_FRACTION * length),
+        LEG_DETOUR_FACTOR * length + LEG_DETOUR_EXTRA_M,
+        length - min(LEG_END_MARGIN_M, 0.25 * length),
+    )
+
+
+def _protection_stop(
+    settings: PathLearningSettings,
+    f_abs: float,
+    depth: float,
+    penetration_stop: float,
+    searched: float,
+    off_route: float,
+    wander: float,
+    leg_travel: float,
+    leg_length: float,
+) -> tuple[str, str]:
+    """The cause and the message of the protection rule that stops the run (the first of
+    them, in this order)."""
+    if f_abs > settings.force_limit_N:
+        return "protection", (
+            f"protection: contact force {f_abs:.1f} N exceeded the "
+            f"{settings.force_limit_N:g} N limit"
+        )
+    if depth > penetration_stop:
+        return "collision", (
+            f"collision: the cutter went {depth * 1e3:.2f} mm into the part "
+            f"(more than {PENETRATION_STOP_FRACTION:g} of its radius)"
+        )
+    if searched > LOST_WALL_M:
+        return "lost", (
+            f"protection: the tool searched {searched * 1e3:.0f} mm without finding the wall"
+        )
+    if off_route > wander:
+        return "lost", (
+            f"protection: the wall led the tool {off_route * 1e3:.0f} mm off the leg's "
+            "route: a guide point may be on another wall"
+        )
+    return "lost", (
+        f"protection: the wall of this leg ran {leg_travel * 1e3:.0f} mm, far longer "
+        f"than the {leg_length * 1e3:.0f} mm leg: a guide point may be on another wall"
+    )
+
+
 def learn_path(
     cell: Cell,
     state: CellState,
@@ -505,58 +567,26 @@ def learn_path(
         raise NotEnoughGuidePointsError("the guide points coincide; record distinct points")
     decision = wall_side or resolve_wall_side(guides, settings.wall_side, closed=settings.closed)
     side = decision.sign
-    robot = cell.robot
     dt = CONTROL_PERIOD_S
     supervisor = supervisor or cell_supervisor(cell)
     axis = mean_tool_axis(guides)  # Zp: the height axis, into the part
-    ax, ay, az = (float(v) for v in axis)
 
     state = _approach(cell, state, guides, segs[0].a, axis, settings.closed, supervisor=supervisor)
 
     # Room for the run at the speed it may fall to (the slowest advance near the force limit).
     slowest = min(settings.speed_m_s, settings.search_speed_m_s)
     n_max = int(sum(s.length for s in segs) / slowest / dt * 2.0) + 4000
-    cols = {
-        "time_s": np.empty(n_max),
-        "joints_rad": np.empty((n_max, 6)),
-        "position_m": np.empty((n_max, 3)),
-        "rotation": np.empty((n_max, 3, 3)),
-        "wrench_sensor": np.empty((n_max, 6)),
-        "wrench_tool": np.empty((n_max, 6)),
-        "force_normal_N": np.empty(n_max),
-        "in_contact": np.empty(n_max, dtype=bool),
-        "yp": np.empty((n_max, 3)),
-        "segment": np.empty(n_max, dtype=np.int32),
-    }
-    times, joints, positions = cols["time_s"], cols["joints_rad"], cols["position_m"]
-    rotations, sensor, tool = cols["rotation"], cols["wrench_sensor"], cols["wrench_tool"]
-    normal, contact, yps, segment = (
-        cols["force_normal_N"],
-        cols["in_contact"],
-        cols["yp"],
-        cols["segment"],
-    )
+    record = np.empty((n_max, REC_WIDTH))
+    legs = np.array([_leg_row(seg) for seg in segs])
     seg_index = 0
     seg = segs[0]
+    leg = legs[0]
     total = len(segs)
-
-    def leg_frame(seg: _Segment, p: np.ndarray) -> tuple[float, np.ndarray]:
-        """Progress along the leg, and the reference orientation there."""
-        s = float((p - seg.a) @ seg.xp)
-        f = min(max(s / seg.length, 0.0), 1.0)
-        return s, seg.Ra @ _kernels.exp3(seg.omega * f)
-
-    def leg_height(seg: _Segment, s: float) -> float:
-        """Height of the leg at progress ``s`` along the axis (into the part)."""
-        s = min(max(s, 0.0), seg.length)
-        return float((seg.a + s * seg.xp) @ axis)
 
     def across(v: np.ndarray) -> np.ndarray:
         return v - axis * float(v @ axis)
 
-    p_ref = state.T_base_tcp[:3, 3].copy()
-    R_ref = state.T_base_tcp[:3, :3].copy()
-    turn_step = TURN_RATE_RAD_S * dt
+    T_ref = state.T_base_tcp.copy()
     w = across(np.cross(axis, seg.xp) * side)
     pushed = across(-np.asarray(guides[0].force_N, dtype=float))
     if start_towards_wall is not None:
@@ -565,9 +595,10 @@ def learn_path(
         w = pushed
     w /= float(np.linalg.norm(w))
     ever_touched = False
-    first_touch = p_ref.copy()
+    first_touch = T_ref[:3, 3].copy()
     closing_best = math.inf  # closed route: the nearest the last leg came to the first touch
     law = initial_state()
+    step, turn = np.zeros(3), np.zeros(3)
     leg_travel = 0.0
     t0 = state.time_s
     stop_reason = "reached the last guide point"
@@ -575,132 +606,71 @@ def learn_path(
     completed = False
     n = 0
     report_every = max(1, int(1.0 / dt))
-    weight = estimator.mass_kg * GRAVITY_M_S2
-    com, tcp, bias = estimator.com_m, estimator.tcp_m, estimator.bias
-    lower, upper = robot.lower_rad, robot.upper_rad
+    tool_data = estimator.tool_data()
+    R_tcp_flange = cell.tool.T_flange_tcp[:3, :3].T.copy()
     penetration_stop = PENETRATION_STOP_FRACTION * cell.tool.radius_m
     params = contour_law_parameters(settings)
+    max_turn = TURN_RATE_RAD_S * dt
+    force_limit = settings.force_limit_N
+    last_leg = total == 1
+    wander, detour, leg_end = _leg_limits(seg.length)
     while True:
         if n >= n_max:
             stop_reason = "stopped: the run took far longer than the program predicts"
             stop_cause = "timeout"
             break
-        # --- measure (controller side: motor-side pose and the F/T reading); the law ---
-        T_meas = state.T_base_tcp
-        R_meas = T_meas[:3, :3]
-        w_base = _kernels.contact_wrench_tcp_base(
-            state.ft_reading, cell.flange_rotation(T_meas), weight, com, tcp, bias
-        )
-        fx, fy, fz = float(w_base[0]), float(w_base[1]), float(w_base[2])
-        f_abs = math.sqrt(fx * fx + fy * fy + fz * fz)
-        step, w, law, f_n, touching = contour_law(
-            w_base[:3], w, axis, side, seg.a, seg.xp, seg.length, p_ref, law, params
-        )
-        if touching and not ever_touched and law[EVER_TOUCHED] > 0.0:
-            first_touch = T_meas[:3, 3].copy()
-        ever_touched = law[EVER_TOUCHED] > 0.0
-        # --- record ---
-        times[n] = state.time_s - t0
-        joints[n] = state.q_motor
-        positions[n] = T_meas[:3, 3]
-        rotations[n] = R_meas
-        sensor[n] = state.ft_reading
-        tool[n, :3] = R_meas.T @ w_base[:3]
-        tool[n, 3:] = R_meas.T @ w_base[3:]
-        normal[n] = f_n
-        contact[n] = f_abs > CONTACT_FLAG_N
-        yps[n] = w
-        segment[n] = seg.first
+        # --- the controller (measure, the law, record, the turn), compiled ---
+        f_abs, touching, ever, searched, off_route, step_len = controller_period(
+            state.ft_reading, state.T_base_tcp, state.q_motor, state.time_s - t0, tool_data,
+            R_tcp_flange, leg, axis, side, T_ref, w, law, params, max_turn, step, turn, record, n,
+        )  # fmt: skip
+        if touching and not ever_touched and ever:
+            first_touch = state.T_base_tcp[:3, 3].copy()
+        ever_touched = ever
         n += 1
-        if f_abs > settings.force_limit_N:
-            stop_cause = "protection"
-            stop_reason = (
-                f"protection: contact force {f_abs:.1f} N exceeded the "
-                f"{settings.force_limit_N:g} N limit"
-            )
+        depth = state.contact.depth_m
+        if (
+            f_abs > force_limit
+            or depth > penetration_stop
+            or searched > LOST_WALL_M
+            or off_route > wander
+            or leg_travel > detour
+        ):
+            stop_cause, stop_reason = _protection_stop(
+                settings, f_abs, depth, penetration_stop, searched, off_route, wander,
+                leg_travel, seg.length,
+            )  # fmt: skip
             break
-        if state.contact.depth_m > penetration_stop:
-            stop_cause = "collision"
-            stop_reason = (
-                f"collision: the cutter went {state.contact.depth_m * 1e3:.2f} mm into the part "
-                f"(more than {PENETRATION_STOP_FRACTION:g} of its radius)"
-            )
-            break
-        if law[OUT_OF_CONTACT] > LOST_WALL_M:
-            stop_cause = "lost"
-            stop_reason = (
-                f"protection: the tool searched {law[OUT_OF_CONTACT] * 1e3:.0f} mm without "
-                "finding the wall"
-            )
-            break
-        rel = p_ref - seg.a
-        along = float(rel @ seg.xp)
-        off_route = math.sqrt(max(float(rel @ rel) - along * along, 0.0))
-        if off_route > max(LOST_WALL_M, ROUTE_WANDER_FRACTION * seg.length):
-            stop_cause = "lost"
-            stop_reason = (
-                f"protection: the wall led the tool {off_route * 1e3:.0f} mm off the leg's "
-                "route: a guide point may be on another wall"
-            )
-            break
-        if leg_travel > LEG_DETOUR_FACTOR * seg.length + LEG_DETOUR_EXTRA_M:
-            stop_cause = "lost"
-            stop_reason = (
-                f"protection: the wall of this leg ran {leg_travel * 1e3:.0f} mm, far longer "
-                f"than the {seg.length * 1e3:.0f} mm leg: a guide point may be on another wall"
-            )
-            break
-        # The orientation moves towards the route's at the next position, no faster than
-        # TURN_RATE_RAD_S (no jump where one leg hands over to the next).
-        turn = turn_towards(
-            R_ref, seg.Ra, seg.omega, seg.a, seg.xp, seg.length, p_ref + step, turn_step
-        )
-        q_now = state.q_motor
-
-        def propose(
-            scale: float,
-            step: np.ndarray = step,
-            turn: np.ndarray = turn,
-            q_now: np.ndarray = q_now,
-            p0: np.ndarray = p_ref,
-            R0: np.ndarray = R_ref,
-        ) -> tuple[np.ndarray, np.ndarray]:
-            T_ref = np.eye(4)
-            T_ref[:3, :3] = R0 @ _kernels.exp3(turn * scale)
-            T_ref[:3, 3] = p0 + step * scale
-            T_now, J = robot.fk_and_jacobian(q_now)
-            return T_ref, _kernels.ik_newton_step(q_now, T_now, J, T_ref, lower, upper, 1e-4)
-
-        supervised = supervisor.supervise(q_now, propose)
+        # --- supervision (compiled) and the cell ---
+        supervised = supervisor.supervise_increment(state.q_motor, T_ref, step, turn)
         if supervised.stop is not None:
             stop_cause = "supervision"
             stop_reason = f"supervision: {supervised.stop.message}"
             break
-        p_ref = p_ref + step * supervised.scale
-        R_ref = supervised.T_ref[:3, :3].copy()
-        leg_travel += math.sqrt(float(step @ step)) * supervised.scale
+        T_ref = supervised.T_ref
+        leg_travel += step_len * supervised.scale
         state = cell.step(state, supervised.q_next)
-        s_now = float((p_ref - seg.a) @ seg.xp)
-        if seg_index + 1 >= total and settings.closed and ever_touched:
+        s_now, gap = leg_progress(T_ref, leg, first_touch, axis)
+        if last_leg and settings.closed and ever_touched:
             # The loop closes where it first met the wall: past the last leg's half, finish at
             # the nearest approach to that point (no chord across the start).
             if s_now >= 0.5 * seg.length:
-                gap = across(p_ref - first_touch)
-                d = math.sqrt(float(gap @ gap))
-                if d < CLOSE_LOOP_M and d > closing_best:
+                if gap < CLOSE_LOOP_M and gap > closing_best:
                     completed = True
                     break
-                closing_best = min(closing_best, d)
+                closing_best = min(closing_best, gap)
             if s_now >= seg.length + CLOSE_LOOP_OVERRUN_M:
                 completed = True  # the wall did not come back within reach of the start
                 break
-        elif seg_index + 1 >= total:
+        elif last_leg:
             if s_now >= seg.length:  # an open route ends at its last point's plane, not before
                 completed = True
                 break
-        elif s_now >= seg.length - min(LEG_END_MARGIN_M, 0.25 * seg.length):
+        elif s_now >= leg_end:
             seg_index += 1
-            seg = segs[seg_index]
+            seg, leg = segs[seg_index], legs[seg_index]
+            last_leg = seg_index + 1 >= total
+            wander, detour, leg_end = _leg_limits(seg.length)
             leg_travel = 0.0
         if n % report_every == 0:
             if cancelled is not None and cancelled():
@@ -709,25 +679,43 @@ def learn_path(
                 progress(min(1.0, (seg_index + max(0.0, s_now) / seg.length) / total))
     if progress is not None:
         progress(1.0)
+    rec = record[:n]
     stop = None
     if not completed:
-        p_stop = positions[n - 1].copy() if n else state.T_base_tcp[:3, 3].copy()
-        leg = (seg.first + 1, seg.last + 1)
+        p_stop = rec[-1, REC_POSITION : REC_POSITION + 3].copy() if n else T_ref[:3, 3].copy()
+        leg_numbers = (seg.first + 1, seg.last + 1)
+        positions, yps = rec[:, REC_POSITION : REC_POSITION + 3], rec[:, REC_YP : REC_YP + 3]
         wall = _wall_turn(yps, positions, n, side, axis)
-        stop = LearningStop(stop_cause or "stopped", p_stop, leg, leg_travel, wall)
+        stop = LearningStop(stop_cause or "stopped", p_stop, leg_numbers, leg_travel, wall)
         stop_reason = (
-            f"{stop_reason} at t = {times[n - 1] if n else 0.0:.2f} s, "
-            f"{leg_travel * 1e3:.0f} mm along the leg G{leg[0]} -> G{leg[1]}, where {wall}"
+            f"{stop_reason} at t = {rec[-1, REC_TIME] if n else 0.0:.2f} s, "
+            f"{leg_travel * 1e3:.0f} mm along the leg G{leg_numbers[0]} -> G{leg_numbers[1]}, "
+            f"where {wall}"
         )
-    rotations = cols.pop("rotation")[:n]
-    rec = Recording(
-        **{k: v[:n].copy() for k, v in cols.items()},
-        quaternion_wxyz=quaternions_from_matrices(rotations),
-        force_reference_N=np.full(n, settings.force_N),
-        stop_reason=stop_reason,
-        completed=completed,
-        stop=stop,
-        wall_side=decision.side,
-        wall_side_reason=decision.detail,
+
+    def columns(start: int, width: int) -> np.ndarray:
+        return rec[:, start : start + width].copy()
+
+    return (
+        Recording(
+            time_s=rec[:, REC_TIME].copy(),
+            joints_rad=columns(REC_JOINTS, 6),
+            position_m=columns(REC_POSITION, 3),
+            quaternion_wxyz=quaternions_from_matrices(
+                rec[:, REC_ROTATION : REC_ROTATION + 9].reshape(-1, 3, 3)
+            ),
+            wrench_sensor=columns(REC_SENSOR, 6),
+            wrench_tool=columns(REC_TOOL, 6),
+            force_normal_N=rec[:, REC_NORMAL].copy(),
+            force_reference_N=np.full(n, settings.force_N),
+            in_contact=rec[:, REC_CONTACT] > 0.5,
+            yp=columns(REC_YP, 3),
+            segment=rec[:, REC_SEGMENT].astype(np.int32),
+            stop_reason=stop_reason,
+            completed=completed,
+            stop=stop,
+            wall_side=decision.side,
+            wall_side_reason=decision.detail,
+        ),
+        state,
     )
-    return rec, state

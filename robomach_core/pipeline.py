@@ -7,6 +7,7 @@ Each stage is a function of the previous stage's output plus its settings.
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -15,11 +16,12 @@ from typing import Any
 
 import numpy as np
 
-from .cell import CONTROL_PERIOD_S, Cell, CellConfig
+from .cell import Cell, CellConfig
+from .clock import CONTROL_PERIOD_S
 from .demo_operator import intents_from_csv, scripted_leadthrough
 from .errors import InvalidInputError, MeshFileError
 from .export.languages import language
-from .export.program import ReachabilityReport, check_program_reachability
+from .export.reachability import ReachabilityReport, check_program_reachability
 from .leadthrough import GuidePoint, LeadThrough
 from .path_learning import PathLearningSettings, Recording
 from .postprocess import PostprocessResult, PostprocessSettings, Targets
@@ -29,9 +31,8 @@ from .project import (
     build_workpiece,
     learn,
     process,
-    program_files,
+    program_export,
     program_languages,
-    program_targets,
     with_guide_points,
     with_learned,
     with_processed,
@@ -330,10 +331,9 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
     project = with_processed(with_learned(project, learned), processed)
     report("post-processing", 1.0)
     report("export", 0.0)
-    files = program_files(project, workpiece, cell.robot, language=settings.language)
-    targets, _ = program_targets(project, cell.robot)
+    files, targets = program_export(project, workpiece, cell.robot, language=settings.language)
     main = program_languages(cell.robot, settings.language)[0]
-    reach = check_program_reachability(files, main, cell.robot, workpiece, targets.joints_rad[0])
+    reach = check_program_reachability(files, main, cell.robot, workpiece, targets)
     main_files = language(main).file_names()
     report("export", 1.0)
     return DemoResult(
@@ -398,3 +398,29 @@ def compensate_program_targets(
 ) -> tuple[Targets, str]:
     """``project.compensate_program_targets`` on the cell's robot (kept for callers)."""
     return _compensate(cell.robot, recording, targets, compensation)
+
+
+def write_demo_outputs(result: DemoResult, out_dir: str | Path) -> list[Path]:
+    """Write the demo's files into ``out_dir`` (created if needed): the project's program files
+    (``project.program_files``: the program in each language of the arm, e.g. program.mod and
+    program_fc.mod, targets.csv, samples.csv, settings.json), summary.json, project.npz
+    (``project.save_project_file``) and workpiece.stl; returns the paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = dict(result.files)
+    if result.module_text_fc is None:  # no force-controlled variant asked for
+        files = {k: v for k, v in files.items() if not k.startswith("program_fc.")}
+    files["summary.json"] = json.dumps(result.summary(), indent=2) + "\n"
+    written = []
+    for name, text in files.items():
+        path = out / name
+        path.write_text(text)
+        written.append(path)
+    if result.project is not None:  # what `robomach machine --from` and the workbench open
+        from .project import PROJECT_FILE, save_project_file
+
+        written.append(save_project_file(result.project, out / PROJECT_FILE))
+    stl = out / "workpiece.stl"
+    result.workpiece.mesh_in_base().export(stl)
+    written.append(stl)
+    return written

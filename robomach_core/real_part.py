@@ -43,6 +43,7 @@ from .limits import (
     SEED,
     WALL_OFFSET_MM,
 )
+from .transforms import make_transform, rotation_about
 from .workpiece import Workpiece
 
 REFINE_EDGE_M = 0.0005  # wall edges longer than this across (x-y) are split before the warp
@@ -123,11 +124,7 @@ class FixtureError:
     @property
     def transform(self) -> np.ndarray:
         """4x4 pose of the real part in the nominal work-object frame."""
-        c, s = math.cos(self.rotation_rad), math.sin(self.rotation_rad)
-        T = np.eye(4)
-        T[:2, :2] = [[c, -s], [s, c]]
-        T[:3, 3] = self.shift_m
-        return T
+        return make_transform(rotation_about("z", self.rotation_rad), self.shift_m)
 
     def describe(self) -> str:
         x, y, z = self.shift_m * 1e3

@@ -11,7 +11,6 @@ SOLUTION  ``Robot.fk``, ``Robot.fk_and_jacobian``, ``Robot.ik`` and ``Robot.ik_s
 
 from __future__ import annotations
 
-import importlib.metadata
 import threading
 from collections.abc import Iterator, Mapping
 from pathlib import Path
@@ -20,106 +19,56 @@ import numpy as np
 import pinocchio as pin
 
 from . import _kernels
-from .errors import SingularConfigurationError, UnknownNameError, UnreachableTargetError
-from .robots import builtin, custom
-from .robots.builtin import GENERATED_ARMS, JointCoupling
+from .errors import SingularConfigurationError, UnreachableTargetError
+from .robots import builtin, registry
+from .robots.builtin import JointCoupling
+from .robots.registry import robots_directory as robots_directory
 from .transforms import pose_error
 
 # A program language's name (``export.languages``: "rapid", "urscript", "krl", ...).
 ProgramLanguage = str
 
-_UR_URDFS: dict[str, str] = {
-    "ur10": "ur_description/urdf/ur10_robot.urdf",
-    "ur5": "ur_description/urdf/ur5_robot.urdf",
-    "ur3": "ur_description/urdf/ur3_robot.urdf",
-}
-
 
 class _RobotUrdfs(Mapping):
-    """Robot name -> URDF path, relative to ``robots_directory()`` for example-robot-data's arms.
-
-    The ABB and KUKA arms' URDFs are generated (``robots.builtin``) and written into a cache
-    folder when first looked up; their value is that absolute path, so
-    ``robots_directory() / value`` is the file for every arm.
-    """
+    """Robot name -> its URDF file (``registry.Arm.urdf_path``): the built-in arms when
+    iterated; a registered upload is in it too."""
 
     def __getitem__(self, name: str) -> str:
-        if name in _UR_URDFS:
-            return _UR_URDFS[name]
-        if name in GENERATED_ARMS:
-            return str(builtin.generated_urdf_path(name))
-        if isinstance(name, str) and custom.is_custom(name):
-            return str(custom.urdf_file(name))  # a user's file (robots.custom), cached
-        raise KeyError(name)
+        if not isinstance(name, str) or not registry.known(name):
+            raise KeyError(name)
+        return str(registry.arm(name).urdf_path())
 
     def __contains__(self, name: object) -> bool:  # no file is written to answer this
-        return (
-            name in _UR_URDFS
-            or name in GENERATED_ARMS
-            or (isinstance(name, str) and custom.is_custom(name))
-        )
+        return isinstance(name, str) and registry.known(name)
 
     def __iter__(self) -> Iterator[str]:
-        return iter([*_UR_URDFS, *GENERATED_ARMS])
+        return iter(registry.BUILTIN_NAMES)
 
     def __len__(self) -> int:
-        return len(_UR_URDFS) + len(GENERATED_ARMS)
+        return len(registry.BUILTIN_NAMES)
 
 
 ROBOT_URDFS: Mapping[str, str] = _RobotUrdfs()
 # The built-in arms, for every robot choice (CLI, API schema, GUIs): UR, ABB, then KUKA arms.
-ROBOT_NAMES: tuple[str, ...] = (*_UR_URDFS, *GENERATED_ARMS)
-# Whose controller each arm has (``robots.builtin.ARM_FAMILIES``); uploaded arms register too.
-ROBOT_FAMILY: dict[str, str] = {**dict.fromkeys(_UR_URDFS, "ur"), **builtin.ARM_FAMILY}
-# The language a family's controller runs natively (``export.languages`` lists every language
-# and the families it serves).
-FAMILY_LANGUAGE: dict[str, ProgramLanguage] = {"ur": "urscript", "abb": "rapid", "kuka": "krl"}
-# The language of the programs each arm's controller runs.
-ROBOT_PROGRAM_LANGUAGE: dict[str, ProgramLanguage] = {
-    name: FAMILY_LANGUAGE[family] for name, family in ROBOT_FAMILY.items()
-}
+ROBOT_NAMES: tuple[str, ...] = registry.BUILTIN_NAMES
 FLANGE_FRAME = "tool0"
 # A home pose with the tool pointing down above the table in front of the robot (UR arms).
-HOME_JOINTS_RAD = np.array([0.0, -1.7, 1.9, -1.77, -1.5708, 0.0])
-# Home poses per arm: tool pointing down, above the built-in workpiece's placement
-# (``workpiece.default_T_base_wobj``), in the controller's axis zeros and directions (ABB's;
-# KUKA's A1-A6).
-ROBOT_HOME_JOINTS_RAD: dict[str, np.ndarray] = {
-    **dict.fromkeys(_UR_URDFS, HOME_JOINTS_RAD),
-    "irb4400": np.radians([0.0, 22.0, 19.0, 0.0, 49.0, -90.0]),
-    "irb2400": np.radians([0.0, 4.1, 30.2, 0.0, 55.8, -90.0]),
-    "irb6640": np.radians([0.0, 0.0, 41.0, 0.0, 49.0, -90.0]),
-    "kr270": np.radians([0.0, -69.4, 96.9, 0.0, 62.5, 90.0]),
-}
+HOME_JOINTS_RAD = np.array(registry.UR_HOME_JOINTS_RAD)
 # Below this smallest singular value of the 6x6 TCP Jacobian the arm is called singular.
 SINGULAR_VALUE_MIN = 1e-3
-
-
-def robots_directory() -> Path:
-    """Folder of the URDFs that the ``example-robot-data`` wheel installs (it has no module)."""
-    dist = importlib.metadata.distribution("example-robot-data")
-    return Path(str(dist.locate_file("cmeel.prefix/share/example-robot-data/robots")))
+# Damping of the control period's IK step where its Newton step is large (near a singularity).
+IK_STEP_DAMPING = 1e-4
 
 
 def robot_urdf_path(name: str) -> Path:
-    """The URDF file of a robot by name (ABB arms: generated at first use)."""
-    key = name.lower()
-    if key not in ROBOT_URDFS:
-        raise UnknownNameError(
-            f"unknown robot {name!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
-        )
-    return robots_directory() / ROBOT_URDFS[key]
+    """The URDF file of a robot by name (ABB and KUKA arms: generated at first use)."""
+    return registry.arm(name).urdf_path()
 
 
 def program_language(name: str) -> ProgramLanguage:
     """The language the arm's controller runs: ``"rapid"`` (ABB), ``"urscript"`` (UR),
     ``"krl"`` (KUKA)."""
-    try:
-        return ROBOT_PROGRAM_LANGUAGE[name.lower()]
-    except KeyError:
-        raise UnknownNameError(
-            f"unknown robot {name!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
-        ) from None
+    return registry.arm(name).language
 
 
 class Robot:
@@ -133,23 +82,17 @@ class Robot:
     """
 
     def __init__(self, name: str = "ur10", T_flange_tcp: np.ndarray | None = None) -> None:
-        key = name.lower()
-        if key not in ROBOT_URDFS:
-            raise UnknownNameError(
-                f"unknown robot {name!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
-            )
-        self.name = key
-        if key in GENERATED_ARMS:
-            self.model = pin.buildModelFromXML(builtin.generated_urdf_text(key))
-        elif custom.is_custom(key):
-            self.model = pin.buildModelFromXML(custom.urdf_text(key))
+        self.record = record = registry.arm(name)
+        self.name = record.name
+        if record.urdf_file is not None:
+            self.model = pin.buildModelFromUrdf(str(record.urdf_path()))
         else:
-            self.model = pin.buildModelFromUrdf(str(robots_directory() / ROBOT_URDFS[key]))
-        self.home_rad = ROBOT_HOME_JOINTS_RAD[key].copy()
-        self.program_language: ProgramLanguage = ROBOT_PROGRAM_LANGUAGE[key]
-        self.family: str = ROBOT_FAMILY.get(key, "abb")
+            self.model = pin.buildModelFromXML(record.urdf())
+        self.home_rad = np.array(record.home_rad)
+        self.program_language: ProgramLanguage = record.language
+        self.family: str = record.family
         # Limits on combinations of joints (a parallel-bar arm's axis 3 from the horizontal).
-        self.couplings: tuple[JointCoupling, ...] = builtin.joint_couplings(key)
+        self.couplings: tuple[JointCoupling, ...] = builtin.joint_couplings(record.name)
         flange_id = self.model.getFrameId(FLANGE_FRAME)
         flange = self.model.frames[flange_id]
         T = np.eye(4) if T_flange_tcp is None else np.asarray(T_flange_tcp, dtype=float)
@@ -205,17 +148,17 @@ class Robot:
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         """4x4 ``T_base_tcp`` at joints ``q`` (rad)."""
-        with self._lock:
-            self._cache_key = b""  # the data buffer no longer holds the cached Jacobian's pose
-            pin.framesForwardKinematics(self.model, self.data, q)
-            return self.data.oMf[self.tcp_frame_id].homogeneous
+        return self._frame_pose(q, self.tcp_frame_id)
 
     def flange_pose(self, q: np.ndarray) -> np.ndarray:
         """4x4 ``T_base_flange`` at joints ``q`` (rad)."""
+        return self._frame_pose(q, self.flange_frame_id)
+
+    def _frame_pose(self, q: np.ndarray, frame_id: int) -> np.ndarray:
         with self._lock:
-            self._cache_key = b""
-            pin.framesForwardKinematics(self.model, self.data, q)
-            return self.data.oMf[self.flange_frame_id].homogeneous
+            self._cache_key = b""  # the data buffer no longer holds the cached Jacobian's pose
+            pin.forwardKinematics(self.model, self.data, q)
+            return pin.updateFramePlacement(self.model, self.data, frame_id).homogeneous
 
     def fk_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``T_base_tcp`` and the 6x6 TCP Jacobian [v; omega] in base-aligned axes.
@@ -228,17 +171,15 @@ class Robot:
         with self._lock:
             if key == self._cache_key:
                 return self._cache_T, self._cache_J
-            pin.computeJointJacobians(self.model, self.data, q)
-            pin.updateFramePlacements(self.model, self.data)
-            J = pin.getFrameJacobian(
-                self.model, self.data, self.tcp_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+            J = pin.computeFrameJacobian(
+                self.model, self.data, q, self.tcp_frame_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
             )
-            T = self.data.oMf[self.tcp_frame_id].homogeneous
+            T = pin.updateFramePlacement(self.model, self.data, self.tcp_frame_id).homogeneous
             self._cache_key, self._cache_T, self._cache_J = key, T, J
             return T, J
 
     def ik_step(
-        self, q: np.ndarray, T_base_target: np.ndarray, *, damping: float = 1e-4
+        self, q: np.ndarray, T_base_target: np.ndarray, *, damping: float = IK_STEP_DAMPING
     ) -> np.ndarray:
         """One damped-least-squares step towards ``T_base_target``, clamped to the joint limits.
 

@@ -44,10 +44,9 @@ def s_groove_wall() -> Contour:
     return s_groove_centre_line().offset(-S_GROOVE_WIDTH_M / 2)
 
 
-def s_groove(T_base_wobj: np.ndarray | None = None):  # -> workpiece.Workpiece
-    """A cast-iron plate with the open S-slot (``workpiece.builtin_workpiece("s_groove")``)."""
-    from .workpiece import CONTACT_STIFFNESS_N_M, DEFAULT_T_BASE_WOBJ, Workpiece
-
+def s_groove_mesh() -> trimesh.Trimesh:
+    """The cast-iron plate with the open S-slot, wobj frame (the plate's base at z = 0): a
+    block below the slot's floor and the extruded rim around the slot."""
     sx, sy, sz = S_GROOVE_PLATE_SIZE_M
     floor_z = sz - S_GROOVE_DEPTH_M
     centre = s_groove_centre_line().sample(S_GROOVE_SPACING_M)
@@ -57,24 +56,8 @@ def s_groove(T_base_wobj: np.ndarray | None = None):  # -> workpiece.Workpiece
     rim = shapely.geometry.box(-sx / 2, -sy / 2, sx / 2, sy / 2).difference(slot)
     top = trimesh.creation.extrude_polygon(rim, S_GROOVE_DEPTH_M)
     top.apply_translation([0.0, 0.0, floor_z])
-    from .workpiece import solid_mesh
-
-    mesh = trimesh.util.concatenate(
-        [
-            trimesh.creation.box(
-                extents=(sx, sy, floor_z),
-                transform=make_transform(np.eye(3), np.array([0.0, 0.0, floor_z / 2])),
-            ),
-            top,
-        ]
+    base = trimesh.creation.box(
+        extents=(sx, sy, floor_z),
+        transform=make_transform(np.eye(3), np.array([0.0, 0.0, floor_z / 2])),
     )
-    return Workpiece(
-        name="s_groove",
-        mesh=solid_mesh(mesh),
-        T_base_wobj=DEFAULT_T_BASE_WOBJ.copy() if T_base_wobj is None else T_base_wobj,
-        material="cast_iron",
-        contact_stiffness_N_m=CONTACT_STIFFNESS_N_M["cast_iron"],
-        wall=s_groove_wall(),
-        wall_z_m=(floor_z, sz),
-        surface_z_m=sz,
-    )
+    return trimesh.util.concatenate([base, top])

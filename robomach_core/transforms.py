@@ -1,14 +1,19 @@
-"""Homogeneous transforms and scalar-first quaternions (wxyz), numpy only.
+"""Homogeneous transforms and scalar-first quaternions (wxyz); SO(3) from pinocchio.
 
 Conventions (shared/DESIGN.md): ``T_a_b`` maps coordinates in frame b to frame a; quaternions
 are ``[w, x, y, z]`` with ``w >= 0`` after normalisation so that output is deterministic.
+Rotations to and from rotation vectors are pinocchio's ``exp3`` and ``log3`` (the compiled
+loops' copies, ``_kernels.exp3`` and ``_kernels.log3``, are tested equal to them).
 """
 
 from __future__ import annotations
 
 import numpy as np
+import pinocchio as pin
 
 from .errors import InvalidInputError
+
+_AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 
 
 def make_transform(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
@@ -26,15 +31,9 @@ def inverse_transform(T: np.ndarray) -> np.ndarray:
 
 
 def rotation_about(axis: str | np.ndarray, angle_rad: float) -> np.ndarray:
-    """3x3 rotation by ``angle_rad`` about ``"x"``, ``"y"``, ``"z"`` or a (3,) unit axis."""
-    if isinstance(axis, str):
-        axis = {"x": np.array([1.0, 0, 0]), "y": np.array([0, 1.0, 0]), "z": np.array([0, 0, 1.0])}[
-            axis
-        ]
-    axis = np.asarray(axis, dtype=float)
-    axis = axis / np.linalg.norm(axis)
-    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle_rad) * K + (1 - np.cos(angle_rad)) * (K @ K)
+    """3x3 rotation by ``angle_rad`` about ``"x"``, ``"y"``, ``"z"`` or a (3,) axis."""
+    a = np.asarray(_AXES[axis] if isinstance(axis, str) else axis, dtype=float)
+    return pin.exp3(a / np.linalg.norm(a) * float(angle_rad))
 
 
 def canonical_quaternion(q: np.ndarray) -> np.ndarray:
@@ -102,21 +101,7 @@ def matrices_from_quaternions(qs_wxyz: np.ndarray) -> np.ndarray:
 
 def rotation_log(R: np.ndarray) -> np.ndarray:
     """Rotation vector (axis * angle, rad) of a 3x3 rotation matrix."""
-    cos_angle = np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)
-    angle = np.arccos(cos_angle)
-    skew = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])  # 2 sin(t) a
-    if angle < 1e-9:
-        return 0.5 * skew
-    if np.pi - angle < 1e-2:
-        # Near pi the sine is tiny: the axis comes from the symmetric part,
-        # (R + R^T) / 2 - cos(t) I = (1 - cos(t)) a a^T, and its sign from the skew part.
-        B = 0.5 * (R + R.T) - cos_angle * np.eye(3)
-        i = int(np.argmax(np.diag(B)))
-        axis = B[:, i] / np.linalg.norm(B[:, i])
-        if axis @ skew < 0:
-            axis = -axis
-        return axis * angle
-    return angle / (2 * np.sin(angle)) * skew
+    return pin.log3(np.asarray(R, dtype=float))
 
 
 def slerp(q0_wxyz: np.ndarray, q1_wxyz: np.ndarray, fraction: float) -> np.ndarray:
@@ -140,13 +125,6 @@ def pose_error(T_current: np.ndarray, T_target: np.ndarray) -> np.ndarray:
     dp = T_target[:3, 3] - T_current[:3, 3]
     dtheta = rotation_log(T_target[:3, :3] @ T_current[:3, :3].T)
     return np.concatenate([dp, dtheta])
-
-
-def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross product of two (3,) vectors; ~20x faster than ``np.cross`` for single vectors."""
-    return np.array(
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-    )
 
 
 def quaternions_from_matrices(Rs: np.ndarray) -> np.ndarray:

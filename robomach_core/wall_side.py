@@ -74,9 +74,7 @@ def mean_tool_axis(guides: Sequence[GuidePoint]) -> np.ndarray:
     return u / n if n > 1e-9 else axes[0]
 
 
-def travel_directions(
-    guides: Sequence[GuidePoint], closed: bool, axis: np.ndarray
-) -> np.ndarray:
+def travel_directions(guides: Sequence[GuidePoint], closed: bool, axis: np.ndarray) -> np.ndarray:
     """(n, 3) unit direction of travel at each guide point, across ``axis``: the mean of its
     incoming and outgoing legs (one leg at the ends of an open route). Where the two legs
     nearly reverse (a closed route of points along one side comes back along it), the point

@@ -17,6 +17,8 @@ import trimesh
 from .contour import Contour, filleted_polygon
 from .errors import InvalidInputError, MeshFileError, UnknownNameError
 from .mesh_check import check_mesh, check_mesh_bytes
+from .robots import registry
+from .s_groove import S_GROOVE_DEPTH_M, S_GROOVE_PLATE_SIZE_M, s_groove_mesh, s_groove_wall
 from .transforms import make_transform
 
 WORKPIECE_NAMES = ("water_pump", "block", "s_groove")
@@ -27,22 +29,6 @@ MAX_MESH_TRIANGLES = 500_000
 CONTACT_STIFFNESS_N_M = {"cast_iron": 100e3, "aluminium": 143e3, "cibatool": 85e3}
 # The water-pump plate sits on the table in front of a UR10 (metres, base frame).
 DEFAULT_T_BASE_WOBJ = make_transform(np.eye(3), np.array([0.80, 0.16, 0.0]))
-# The big ABB arms stand on the floor: the part sits on a 0.6 m table further out, where the
-# tool-down work pose keeps every axis >= 20 deg inside its range (tests/core/test_abb.py).
-ROBOT_WOBJ_POSITION_M: dict[str, tuple[float, float, float]] = {
-    "irb4400": (1.30, 0.0, 0.60),
-    "irb6640": (1.50, 0.0, 0.60),
-    # The IRB 2400 (1.55 m reach) reaching lower or nearer meets its combined axis-2/3 limit:
-    # at 0.85 m every axis keeps >= 20 deg, the elbow 28 deg from stretched.
-    "irb2400": (0.85, 0.0, 0.60),
-    # The KR 270 (2.7 m reach): every axis >= 44 deg inside its range.
-    "kr270": (1.80, 0.0, 0.60),
-    # The UR5 (850 mm reach) met its elbow singularity at the UR10's 0.8 m; at 0.525 m it learns
-    # the pump within 0.216 mm and the block within 0.204 mm. The UR3 (500 mm) reaches neither
-    # part whole with the tool down: it keeps the default and says so.
-    "ur5": (0.525, 0.0, 0.0),
-}
-
 # Water-pump geometry: plate, groove and the bolt-boss bumps of the groove's outer wall.
 PUMP_PLATE_SIZE_M = (0.250, 0.180, 0.020)
 PUMP_GROOVE_WIDTH_M = 0.005
@@ -248,9 +234,25 @@ def block(T_base_wobj: np.ndarray | None = None) -> Workpiece:
     )
 
 
+def s_groove(T_base_wobj: np.ndarray | None = None) -> Workpiece:
+    """A cast-iron plate with the open S-slot (``s_groove``: its geometry and taught wall)."""
+    sz = S_GROOVE_PLATE_SIZE_M[2]
+    return Workpiece(
+        name="s_groove",
+        mesh=solid_mesh(s_groove_mesh()),
+        T_base_wobj=DEFAULT_T_BASE_WOBJ.copy() if T_base_wobj is None else T_base_wobj,
+        material="cast_iron",
+        contact_stiffness_N_m=CONTACT_STIFFNESS_N_M["cast_iron"],
+        wall=s_groove_wall(),
+        wall_z_m=(sz - S_GROOVE_DEPTH_M, sz),
+        surface_z_m=sz,
+    )
+
+
 def default_T_base_wobj(robot: str | None = None) -> np.ndarray:
-    """The built-in placement of a part in front of ``robot`` (the UR10's when None or a UR)."""
-    position = ROBOT_WOBJ_POSITION_M.get((robot or "").lower())
+    """The built-in placement of a part in front of ``robot`` (``registry.Arm.part_position_m``;
+    the UR10's when None or the arm has none)."""
+    position = registry.arm(robot).part_position_m if robot and registry.known(robot) else None
     if position is None:
         return DEFAULT_T_BASE_WOBJ.copy()
     return make_transform(np.eye(3), np.array(position))
@@ -262,8 +264,6 @@ def builtin_workpiece(
     """A built-in workpiece by name, at ``T_base_wobj`` or the built-in placement for ``robot``."""
     if T_base_wobj is None and robot is not None:
         T_base_wobj = default_T_base_wobj(robot)
-    from .s_groove import s_groove
-
     makers = {"water_pump": water_pump, "block": block, "s_groove": s_groove}
     if name not in makers:
         raise UnknownNameError(

@@ -338,10 +338,14 @@ function reloadScene() {
   }
 }
 
-function connectEvents() {
+// A stream the browser gave up on (an answer other than an event stream, such as the 503 of a
+// server shutting down, closes an EventSource for good) is opened again after this long.
+const EVENTS_REOPEN_MS = 1000;
+
+function connectEvents(lostBefore = false) {
   if (!window.EventSource) return;
   const source = new EventSource(`${API}/events`);
-  let lost = false;
+  let lost = lostBefore;
   source.onopen = () => {
     eventsLive = true;
     setConnected(true);
@@ -356,6 +360,9 @@ function connectEvents() {
     eventsLive = false;
     lost = true;
     setConnected(false);
+    if (source.readyState === EventSource.CLOSED) {
+      setTimeout(() => connectEvents(true), EVENTS_REOPEN_MS);
+    }
   };
   source.addEventListener("robot", (e) => {
     const data = JSON.parse(e.data);

@@ -43,6 +43,16 @@ EXPECTED: dict[str, list[str]] = {
         rf"lead-through: {NUMBER} s simulated",
         rf"path learning: \d+ samples, .*real-time factor median x{NUMBER}",
         rf"whole cell step\s+{NUMBER}",
+        rf"one period = {NUMBER} x the pinocchio reference",
+        *(
+            rf"{part}\s+{NUMBER} us\s+{NUMBER} %"
+            for part in (
+                r"supervision \(limits, IK step\)",
+                r"cell: contact \(coal, nearest face, force\)",
+                r"force loop \(law, turn, recording row\)",
+            )
+        ),
+        rf"inside supervision: the IK step \(ik_newton_step\)\s+{NUMBER} us",
     ],
     "bench_stiffness.py": [
         rf"online compensation step \(fig. 15\)\s+{NUMBER}\s+{NUMBER} %",

@@ -269,9 +269,8 @@ def run(args: argparse.Namespace) -> int:
         )
 
     from robomach_core.errors import SupervisionError
-    from robomach_core.export.outputs import write_demo_outputs
     from robomach_core.guide_proposal import ProposalSettings
-    from robomach_core.pipeline import DemoSettings, default_robot, run_demo
+    from robomach_core.pipeline import DemoSettings, default_robot, run_demo, write_demo_outputs
     from robomach_core.postprocess import PostprocessSettings
     from robomach_core.real_part import PartDeviation
     from robomach_core.tool import Tool

@@ -22,7 +22,7 @@ from viser.extras import ViserUrdf
 
 from robomach_core.robot import ROBOT_URDFS, robots_directory
 from robomach_core.tool import Tool
-from robomach_core.transforms import quaternion_from_matrix
+from robomach_core.transforms import quaternion_from_matrix, rotation_about
 from robomach_core.workpiece import Workpiece
 
 # The example-robot-data URDFs name their meshes package://example-robot-data/robots/...
@@ -120,19 +120,6 @@ def cutter_mesh(tool: Tool) -> trimesh.Trimesh:
     return mesh
 
 
-def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    """3x3 rotation about a unit axis (Rodrigues)."""
-    x, y, z = axis
-    c, s, t = math.cos(angle), math.sin(angle), 1.0 - math.cos(angle)
-    return np.array(
-        [
-            [t * x * x + c, t * x * y - s * z, t * x * z + s * y],
-            [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
-            [t * x * z - s * y, t * y * z + s * x, t * z * z + c],
-        ]
-    )
-
-
 class _RobotPose:
     """Moves a ViserUrdf's joint frames fast: only the revolute joints' orientations.
 
@@ -172,7 +159,7 @@ class _RobotPose:
             return
         for frame, i, R_origin, axis in self._moving:
             if q[i] != self._q[i]:
-                frame.wxyz = quaternion_from_matrix(R_origin @ _axis_rotation(axis, q[i]))
+                frame.wxyz = quaternion_from_matrix(R_origin @ rotation_about(axis, q[i]))
         self._q = q.copy()
 
 

@@ -18,9 +18,8 @@ def import_project(session: Any, data: bytes, name: str) -> ProjectInfo:
         ProjectFileError: not a robomach project file (422).
         ConflictError: the name is taken, or the robot is busy.
     """
-    from .projects import create_project
+    from .projects import Loaded, create_project
     from .robot import build_live_cell
-    from .session import Loaded
 
     project = core.project_from_file_bytes(data)  # parse (and re-process) before touching
     built = build_live_cell(project.cell, project.mesh)

@@ -11,12 +11,12 @@ Functions over a ``Session``: ``open_initial``, ``list_projects``, ``create_proj
 from __future__ import annotations
 
 import shutil
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from typing import TYPE_CHECKING, Any
 
 from robomach_core.errors import RobomachError
 from robomach_core.leadthrough import ComplianceSelection
-from robomach_core.project import CellSettings
+from robomach_core.project import CellSettings, Project
 
 from ..store import Store
 from .persistence import cell_from_doc, project_from_data
@@ -28,10 +28,20 @@ from .records import (
     check_project_name,
     log,
 )
-from .robot import build_live_cell, selection_document, selection_from_document
+from .robot import Built, build_live_cell, selection_document, selection_from_document
 
 if TYPE_CHECKING:
-    from .session import Loaded, Session
+    from .session import Session
+
+
+@dataclass(frozen=True)
+class Loaded:
+    """A project (from the store or a file) with its live cell, ready for ``switch_to``."""
+
+    project_id: int
+    project: Project
+    built: Built
+    selection: ComplianceSelection | None = None
 
 
 def list_projects(session: Session) -> list[ProjectInfo]:
@@ -134,8 +144,6 @@ def open_initial(session: Session, prefer: int | None = -1) -> None:
 def read_project(store: Store, project_id: int) -> Loaded:
     """A stored project and its live cell, built without touching the session (the slow
     part of opening: the mesh, the robot model, the post-processing)."""
-    from .session import Loaded
-
     data = store.load_project(project_id)
     if data is None:
         raise NotFoundError(f"no project with id {project_id}")

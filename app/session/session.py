@@ -44,7 +44,6 @@ from typing import Any
 from robomach_core import project as core
 from robomach_core.cell import Cell
 from robomach_core.errors import InvalidInputError
-from robomach_core.leadthrough import ComplianceSelection
 from robomach_core.project import CellSettings, Project
 from robomach_core.workpiece import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, Workpiece
 
@@ -54,9 +53,10 @@ from .jobs import JobRunner
 from .learning import Learning
 from .persistence import Part, save_kwargs
 from .pointing import Pointing
+from .projects import Loaded
 from .records import ConflictError, GuidePointEntry, ProjectInfo, Topic, log
 from .robot import ROBOT_JOB_KINDS as ROBOT_JOB_KINDS
-from .robot import Built, LiveRobot, build_live_cell
+from .robot import LiveRobot, build_live_cell
 from .teach import Teach
 
 # What a change of the project's inputs makes stale, for the listeners to redraw.
@@ -74,16 +74,6 @@ class View:
     cell: Cell
     epoch: int
     project_id: int
-
-
-@dataclass(frozen=True)
-class Loaded:
-    """A project (from the store or a file) with its live cell, ready for ``switch_to``."""
-
-    project_id: int
-    project: Project
-    built: Built
-    selection: ComplianceSelection | None = None
 
 
 class Session:

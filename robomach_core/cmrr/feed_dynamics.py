@@ -14,9 +14,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 import scipy.signal
 
+from ..clock import zoh
 from .errors import CmrrSettingsError
 
 # Eq. (1), MRR paper: numerator and denominator in descending powers of s.
@@ -61,14 +61,12 @@ class FeedDynamics:
             raise CmrrSettingsError(f"sample time must be positive, got {dt_s}")
         a, b, c = self.state_space()
         n = a.shape[0]
-        # Augmented state [x; s] with s' = C x; one matrix exponential gives Ad and Bd.
-        big = np.zeros((n + 2, n + 2))
-        big[:n, :n] = a
-        big[n, :n] = c
-        big[:n, n + 1] = b
-        phi = scipy.linalg.expm(big * dt_s)
-        c_aug = np.append(c, 0.0)
-        return DiscreteFeedModel(a=phi[: n + 1, : n + 1], b=phi[: n + 1, n + 1], c=c_aug, dt_s=dt_s)
+        # Augmented state [x; s] with s' = C x.
+        a_aug = np.zeros((n + 1, n + 1))
+        a_aug[:n, :n] = a
+        a_aug[n, :n] = c
+        phi, gamma = zoh(a_aug, np.append(b, 0.0), dt_s)
+        return DiscreteFeedModel(a=phi, b=gamma, c=np.append(c, 0.0), dt_s=dt_s)
 
 
 @dataclass(frozen=True, eq=False)

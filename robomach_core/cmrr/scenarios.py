@@ -19,6 +19,7 @@ from typing import Any, Literal, get_args
 
 import numpy as np
 
+from ..clock import CONTROL_PERIOD_S
 from .controllers.base import FEED_REF_M_S, ControlDesign
 from .depth_profiles import (
     Burr,
@@ -41,7 +42,6 @@ from .process import (
 )
 
 MM = 1e-3
-CONTROL_PERIOD_S = 0.004
 
 ScenarioName = Literal["milling-steps", "deburr-burrs", "lund-df", "learned-path"]
 SCENARIO_NAMES: tuple[str, ...] = get_args(ScenarioName)

@@ -1,18 +1,19 @@
-"""From learned targets to a RAPID program, and the check that every target is reachable."""
+"""From learned targets to a RAPID program (``rapid_program``)."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..arcs import Move
-from ..errors import RobomachError
 from ..postprocess import Targets
-from ..robot import Robot
 from ..tool import Tool
-from ..transforms import inverse_transform, make_transform, matrix_from_quaternion
+from ..transforms import (
+    inverse_transform,
+    make_transform,
+    matrix_from_quaternion,
+)
 from ..workpiece import Workpiece
 from .rapid import (
     ForceControlSettings,
@@ -22,7 +23,6 @@ from .rapid import (
     RapidWorkObject,
     SpeedChangeSettings,
 )
-from .rapid_check import check_rapid_module
 
 
 def rapid_program(
@@ -68,65 +68,3 @@ def rapid_program(
         arm=arm,
         moves=moves,
     )
-
-
-@dataclass(frozen=True)
-class ReachabilityReport:
-    """Inverse kinematics of every robtarget of a module.
-
-    Attributes:
-        total: Number of robtargets.
-        reachable: Number with an IK solution inside the joint limits.
-        failures: (name, reason) of each unreachable target.
-    """
-
-    total: int
-    reachable: int
-    failures: tuple[tuple[str, str], ...]
-
-
-def check_reachability(
-    module_text: str, robot: Robot, workpiece: Workpiece, joints_hint: np.ndarray | None = None
-) -> ReachabilityReport:
-    """Parse the module and solve IK for each robtarget (targets in mm, in the wobj frame)."""
-    info = check_rapid_module(module_text)
-    failures = []
-    q = joints_hint
-    for name, (pos_mm, quat, _conf) in info.robtargets.items():
-        T_base = workpiece.T_base_wobj @ make_transform(
-            matrix_from_quaternion(quat), np.asarray(pos_mm) * 1e-3
-        )
-        try:
-            q = robot.ik(T_base, q)
-        except RobomachError as exc:
-            failures.append((name, str(exc)))
-    total = len(info.robtargets)
-    return ReachabilityReport(total, total - len(failures), tuple(failures))
-
-
-def check_program_reachability(
-    files: dict[str, str],
-    language: str,
-    robot: Robot,
-    workpiece: Workpiece,
-    joints_hint: np.ndarray | None = None,
-) -> ReachabilityReport:
-    """Read the motion targets back from a written program (``ProgramLanguage.read_poses``:
-    the checker of its language parses them) and solve the IK of each, as
-    ``check_reachability`` does for a RAPID module."""
-    from .languages import language as language_named
-
-    lang = language_named(language)
-    names = lang.file_names()
-    if lang.read_poses is None or not all(name in files for name in names):
-        return ReachabilityReport(0, 0, ())
-    poses = lang.read_poses(tuple(files[name] for name in names), workpiece)
-    failures = []
-    q = joints_hint
-    for name, T_base in poses:
-        try:
-            q = robot.ik(T_base, q)
-        except RobomachError as exc:
-            failures.append((name, str(exc)))
-    total = len(poses)
-    return ReachabilityReport(total, total - len(failures), tuple(failures))

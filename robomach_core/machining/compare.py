@@ -24,8 +24,8 @@ from .run import (
     CompensationModel,
     MachiningRun,
     ProgressCallback,
-    identify_stiffness,
     run_machining,
+    stiffness_model,
 )
 from .settings import COMPENSATION_NAMES, MACHINING_CONTROLLERS, MachiningSettings
 from .stock import Stock
@@ -165,13 +165,8 @@ def compare_configurations(
     """
     pairs = [(c, m) for c in controllers for m in compensations]
     model = compensation_model
-    if model is None and any(m != "off" for _, m in pairs):
-        model = identify_stiffness(
-            robot.name,
-            seed=settings.seed,
-            poses=settings.identification_poses,
-            cmm_noise_m=settings.cmm_noise_m,
-        ).model
+    if any(m != "off" for _, m in pairs):
+        model = stiffness_model(robot.name, settings, compensation_model)
     runs: list[MachiningRun] = []
     refused: dict[tuple[str, str], str] = {}
     for i, (controller, compensation) in enumerate(pairs):

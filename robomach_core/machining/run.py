@@ -43,7 +43,6 @@ itself.
 
 from __future__ import annotations
 
-import functools
 import math
 import time
 from collections.abc import Callable
@@ -52,6 +51,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from ..clock import CONTROL_PERIOD_S
 from ..cmrr.controllers import ControlDesign, make_controller
 from ..cmrr.controllers._fast import fast_stepper
 from ..cmrr.feed_dynamics import FeedDynamics
@@ -60,20 +60,17 @@ from ..errors import InvalidInputError
 from ..joint_compliance import JointCompliance, true_joint_compliance
 from ..postprocess import Targets
 from ..robot import Robot
-from ..stiffness import (
-    CompensationSettings,
-    StiffnessIdentification,
-    identify_joint_stiffness,
-    sample_workspace_joints,
-    simulate_stiffness_measurements,
-    sphere_tip_transform,
-)
+from ..stiffness import CompensationSettings
+from ..stiffness.identification import identify_stiffness as identify_stiffness
+from ..stiffness.model import cartesian_compliance
 from .design import designed_controller_settings
 from .errors import CancelledError, MachiningSettingsError, SampleLimitError, StockError
 from .offline import densify_targets as densify_targets
 from .path import arc_length_m, check_normals, check_path, path_tangents, project_onto_path
-from .settings import CONTROL_PERIOD_S, MachiningSettings
+from .settings import MachiningSettings
 from .stock import Stock
+from .summary import FinishedWall as FinishedWall
+from .summary import MachiningTrace as MachiningTrace
 from .summary import finished_wall as finished_wall
 from .summary import steady_force_N as steady_force_N
 from .summary import summarize
@@ -107,55 +104,6 @@ CompensationModel = JointCompliance | CompensationSettings
 
 
 @dataclass(frozen=True, eq=False)
-class MachiningTrace:
-    """Per-sample signals, SI units, each shape (n,).
-
-    ``force_N`` is the true process force; ``measured_force_N`` the raw sensor reading (noise
-    added); ``deflection_m`` the arm's bending along the wall normal (positive: off the wall);
-    ``tool_normal_m`` where the tool's edge is along the normal relative to the nominal wall
-    (deflection, minus the compensation's shift); ``wall_error_m`` the finished wall at the
-    tool's station (positive: material left, negative: overcut).
-    """
-
-    time_s: np.ndarray
-    path_m: np.ndarray
-    feed_m_s: np.ndarray
-    commanded_feed_m_s: np.ndarray
-    speed_ratio: np.ndarray
-    depth_m: np.ndarray
-    force_N: np.ndarray
-    measured_force_N: np.ndarray
-    reference_N: np.ndarray
-    limit_N: np.ndarray
-    deflection_m: np.ndarray
-    tool_normal_m: np.ndarray
-    wall_error_m: np.ndarray
-
-    def __len__(self) -> int:
-        return int(self.time_s.size)
-
-
-@dataclass(frozen=True, eq=False)
-class FinishedWall:
-    """The wall after the cut at stations along the path, each shape (k,).
-
-    Attributes:
-        s_m: Arc length of the stations.
-        allowance_m: The stock before the cut.
-        finished_m: The wall after it, relative to the nominal wall along n.
-    """
-
-    s_m: np.ndarray
-    allowance_m: np.ndarray
-    finished_m: np.ndarray
-
-    @property
-    def error_m(self) -> np.ndarray:
-        """Finished minus nominal [m]: positive material left, negative overcut."""
-        return self.finished_m
-
-
-@dataclass(frozen=True, eq=False)
 class MachiningRun:
     """A finished run: settings, the program it executed, trace, finished wall and summary;
     ``controller_settings`` the controller as designed for the cut (None: constant feed);
@@ -171,20 +119,6 @@ class MachiningRun:
     stiffness_model: JointCompliance | None
     controller_settings: Any = None
     nominal: Targets | None = None
-
-
-@functools.lru_cache(maxsize=8)
-def identify_stiffness(
-    robot_name: str, *, seed: int = 0, poses: int = 30, cmm_noise_m: float = 20e-6
-) -> StiffnessIdentification:
-    """Kq identified the chapter's way (section 5.2): a simulated CMM campaign under known loads
-    at ``poses`` random poses, then eq. (23) by least squares. Seeded, so cached."""
-    tip_robot = Robot(robot_name, sphere_tip_transform())
-    joints = sample_workspace_joints(tip_robot, poses, seed=seed)
-    data = simulate_stiffness_measurements(
-        tip_robot, joints, true_joint_compliance(robot_name), cmm_noise_m=cmm_noise_m, seed=seed
-    )
-    return identify_joint_stiffness(tip_robot, data)
 
 
 def _cancel_predicate(cancel: CancelFlag | Callable[[], bool] | None) -> Callable[[], bool] | None:
@@ -215,8 +149,7 @@ def normal_compliance(
     C = J Kq^-1 J^T at each joint vector (chapter eq. 19, translational block)."""
     out = np.empty(len(joints_rad))
     for i, q in enumerate(np.asarray(joints_rad, dtype=float)):
-        _, J = robot.fk_and_jacobian(q)
-        out[i] = normals[i] @ model.cartesian_compliance(J)[:3, :3] @ directions[i]
+        out[i] = normals[i] @ cartesian_compliance(robot, q, model)[:3, :3] @ directions[i]
     return out
 
 
@@ -268,23 +201,32 @@ def predicted_force_N(
     return f
 
 
+def stiffness_model(
+    robot_name: str, settings: MachiningSettings, given: CompensationModel | None = None
+) -> JointCompliance:
+    """The stiffness the compensation uses: ``given`` (a ``JointCompliance`` or the ``model`` of
+    ``CompensationSettings``), else the one the CMM campaign identifies on the arm with the
+    settings' seed, poses and noise (``stiffness.identification.identify_stiffness``)."""
+    if given is None:
+        return identify_stiffness(
+            robot_name,
+            seed=settings.seed,
+            poses=settings.identification_poses,
+            cmm_noise_m=settings.cmm_noise_m,
+        ).model
+    if isinstance(given, CompensationSettings):
+        return given.model
+    if isinstance(given, JointCompliance):
+        return given
+    raise MachiningSettingsError("compensation_model must be a JointCompliance")
+
+
 def _resolve_model(
     robot: Robot, settings: MachiningSettings, compensation_model: CompensationModel | None
 ) -> JointCompliance | None:
     if settings.compensation == "off":
         return None
-    if compensation_model is None:
-        return identify_stiffness(
-            robot.name,
-            seed=settings.seed,
-            poses=settings.identification_poses,
-            cmm_noise_m=settings.cmm_noise_m,
-        ).model
-    if isinstance(compensation_model, CompensationSettings):
-        return compensation_model.model
-    if isinstance(compensation_model, JointCompliance):
-        return compensation_model
-    raise MachiningSettingsError("compensation_model must be a JointCompliance")
+    return stiffness_model(robot.name, settings, compensation_model)
 
 
 def run_machining(

@@ -25,7 +25,6 @@ from ..limits import (
 from .errors import MachiningSettingsError
 
 MM = 1e-3
-CONTROL_PERIOD_S = 0.004
 # Fr as a share of the force limit when not given: room for the overshoot on a burr's flank.
 DEFAULT_REFERENCE_FRACTION = 0.7
 CompensationName = Literal["off", "offline", "online"]

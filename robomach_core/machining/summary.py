@@ -1,20 +1,68 @@
-"""What a machining run leaves: the finished wall the ball cutter swept, and the run's figures
-(cycle, peak force, wall error, removed volume, real-time factor), units in the keys."""
+"""What a machining run leaves: its trace, the finished wall the ball cutter swept, and the
+run's figures (cycle, peak force, wall error, removed volume, real-time factor), units in the
+keys."""
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from ..cmrr.process import PowerLawForceModel
 from .settings import MachiningSettings
 
-if TYPE_CHECKING:
-    from .run import FinishedWall, MachiningTrace
-
 MM = 1e-3
+
+
+@dataclass(frozen=True, eq=False)
+class MachiningTrace:
+    """Per-sample signals, SI units, each shape (n,).
+
+    ``force_N`` is the true process force; ``measured_force_N`` the raw sensor reading (noise
+    added); ``deflection_m`` the arm's bending along the wall normal (positive: off the wall);
+    ``tool_normal_m`` where the tool's edge is along the normal relative to the nominal wall
+    (deflection, minus the compensation's shift); ``wall_error_m`` the finished wall at the
+    tool's station (positive: material left, negative: overcut).
+    """
+
+    time_s: np.ndarray
+    path_m: np.ndarray
+    feed_m_s: np.ndarray
+    commanded_feed_m_s: np.ndarray
+    speed_ratio: np.ndarray
+    depth_m: np.ndarray
+    force_N: np.ndarray
+    measured_force_N: np.ndarray
+    reference_N: np.ndarray
+    limit_N: np.ndarray
+    deflection_m: np.ndarray
+    tool_normal_m: np.ndarray
+    wall_error_m: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.time_s.size)
+
+
+@dataclass(frozen=True, eq=False)
+class FinishedWall:
+    """The wall after the cut at stations along the path, each shape (k,).
+
+    Attributes:
+        s_m: Arc length of the stations.
+        allowance_m: The stock before the cut.
+        finished_m: The wall after it, relative to the nominal wall along n.
+    """
+
+    s_m: np.ndarray
+    allowance_m: np.ndarray
+    finished_m: np.ndarray
+
+    @property
+    def error_m(self) -> np.ndarray:
+        """Finished minus nominal [m]: positive material left, negative overcut."""
+        return self.finished_m
 
 
 def steady_force_N(
@@ -49,8 +97,6 @@ def finished_wall(
         rise = r - math.sqrt(max(r * r - (shift * ds) ** 2, 0.0))
         envelope[shift:] = np.minimum(envelope[shift:], reach[:-shift] + rise)
         envelope[:-shift] = np.minimum(envelope[:-shift], reach[shift:] + rise)
-    from .run import FinishedWall
-
     return FinishedWall(s_st, allowance_m, np.minimum(allowance_m, envelope))
 
 

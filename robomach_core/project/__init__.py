@@ -19,13 +19,13 @@ SOLUTION  Callers replace the value (``dataclasses.replace``) and never mark any
 """
 
 from ._file import PROJECT_FILE as PROJECT_FILE
-from ._file import RECORDING_FIELDS as RECORDING_FIELDS
-from ._file import ProjectFileError as ProjectFileError
 from ._file import load_project_file as load_project_file
 from ._file import project_file_bytes as project_file_bytes
 from ._file import project_from_file_bytes as project_from_file_bytes
 from ._file import register_robot_file as register_robot_file
 from ._file import save_project_file as save_project_file
+from ._file_check import RECORDING_FIELDS as RECORDING_FIELDS
+from ._file_check import ProjectFileError as ProjectFileError
 from ._machining import MachiningResult as MachiningResult
 from ._machining import MachiningSetup as MachiningSetup
 from ._machining import best_row as best_row
@@ -46,10 +46,8 @@ from ._machining import with_machining_setup as with_machining_setup
 from ._stages import build_cell_workpiece as build_cell_workpiece
 from ._stages import build_workpiece as build_workpiece
 from ._stages import cad_comparison_of as cad_comparison_of
-from ._stages import compensate_program_targets as compensate_program_targets
 from ._stages import learn as learn
 from ._stages import process as process
-from ._stages import program_targets as program_targets
 from ._stages import require_processed as require_processed
 from ._stages import wobj_transform as wobj_transform
 from ._transitions import KEEP as KEEP
@@ -80,10 +78,13 @@ from ._value import compensation_document as compensation_document
 from ._value import machining_inputs_key as machining_inputs_key
 from ._value import processed_inputs_key as processed_inputs_key
 from ._value import recording_inputs_key as recording_inputs_key
+from ._writers import compensate_program_targets as compensate_program_targets
 from ._writers import fc_module_name as fc_module_name
 from ._writers import program_context as program_context
+from ._writers import program_export as program_export
 from ._writers import program_files as program_files
 from ._writers import program_languages as program_languages
+from ._writers import program_targets as program_targets
 from ._writers import program_texts as program_texts
 from ._writers import rapid_header as rapid_header
 from ._writers import rapid_text as rapid_text

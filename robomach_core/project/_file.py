@@ -17,11 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InvalidInputError
 from ..leadthrough import GuidePoint
 from ..path_learning import LearningStop, PathLearningSettings, Recording
 from ..postprocess import PostprocessSettings
-from ._file_check import check_project, read_project_arrays
+from ._file_check import RECORDING_FIELDS, ProjectFileError, check_project, read_project_arrays
 from ._machining import (
     MachiningSetup,
     machining_setup_document,
@@ -33,23 +32,6 @@ from ._value import CellSettings, LearnedPath, Project, cmrr_document, compensat
 PROJECT_FILE = "project.npz"
 FORMAT = "robomach-project"
 VERSION = 1
-RECORDING_FIELDS = (
-    "time_s",
-    "joints_rad",
-    "position_m",
-    "quaternion_wxyz",
-    "wrench_sensor",
-    "wrench_tool",
-    "force_normal_N",
-    "force_reference_N",
-    "in_contact",
-    "yp",
-    "segment",
-)
-
-
-class ProjectFileError(InvalidInputError):
-    """A project file is missing, unreadable, or written by an unknown version."""
 
 
 def project_file_bytes(project: Project) -> bytes:

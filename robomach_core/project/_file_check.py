@@ -68,10 +68,26 @@ _BYTES_LIMIT = {
 }
 _COUNT_LIMIT = {N: MAX_RECORDING_SAMPLES, G: MAX_GUIDE_POINTS, "q": MAX_GUIDE_POINTS + 1}
 
+RECORDING_FIELDS = (
+    "time_s",
+    "joints_rad",
+    "position_m",
+    "quaternion_wxyz",
+    "wrench_sensor",
+    "wrench_tool",
+    "force_normal_N",
+    "force_reference_N",
+    "in_contact",
+    "yp",
+    "segment",
+)
+
+
+class ProjectFileError(InvalidInputError):
+    """A project file is missing, unreadable, or written by an unknown version."""
+
 
 def _error(message: str) -> InvalidInputError:
-    from ._file import ProjectFileError
-
     return ProjectFileError(message)
 
 
@@ -108,8 +124,6 @@ def read_project_arrays(data: bytes, name: str) -> dict[str, np.ndarray]:
         ProjectFileError: not a zip, too many entries, an array of a type or shape its name
             does not allow, or a damaged member.
     """
-    from ._file import ProjectFileError
-
     archive = open_zip(
         data, name, ProjectFileError, unreadable="not a robomach project file (not a zip)"
     )
@@ -184,8 +198,6 @@ def _check_guides(doc: dict[str, Any], arrays: dict[str, np.ndarray], name: str)
 
 
 def _check_recording(doc: dict[str, Any], arrays: dict[str, np.ndarray], name: str) -> None:
-    from ._file import RECORDING_FIELDS
-
     present = [f for f in RECORDING_FIELDS if f"rec_{f}" in arrays]
     if doc.get("recording") is None:
         return

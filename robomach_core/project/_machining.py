@@ -9,7 +9,7 @@ STRATEGY  ``MachiningSetup`` (the project's ``machining_settings`` slot) holds t
           controller and compensation) and the stock source. ``machine`` cuts the post-processed
           targets (the nominal program: the run applies its own compensation) along the stock,
           one configuration or the matrix, with the project's identified stiffness when it
-          holds compensation settings, else ``machining.identify_stiffness``. Its result is
+          holds compensation settings, else ``machining.stiffness_model``. Its result is
           stamped with ``machining_inputs_key``, which leaves the controller and compensation
           out (a comparison covers them all), so choosing never makes a result stale.
 SOLUTION  ``choose`` saves the configuration: it sets the machining settings' controller and
@@ -322,17 +322,14 @@ def build_stock(
 
 def compensation_model(project: Project, robot_name: str) -> Any:
     """The identified stiffness: the project's compensation settings when it holds some (on this
-    robot), else the simulated CMM campaign of ``machining.identify_stiffness``."""
+    robot), else the simulated CMM campaign of ``machining.stiffness_model``."""
     from ..joint_compliance import JointCompliance
-    from ..machining import identify_stiffness
+    from ..machining import stiffness_model
 
     comp = project.compensation
     if comp is not None and comp.robot == robot_name:
         return JointCompliance(tuple(comp.joint_stiffness_Nm_rad))
-    s = machining_setup_of(project).settings
-    return identify_stiffness(
-        robot_name, seed=s.seed, poses=s.identification_poses, cmm_noise_m=s.cmm_noise_m
-    ).model
+    return stiffness_model(robot_name, machining_setup_of(project).settings)
 
 
 def machine(
@@ -525,7 +522,7 @@ def choose(project: Project, controller: str, compensation: str) -> Project:
         gravity = comp.tool_gravity
         if mode == "online" and gravity is None:
             # Not identified here: the tool's nominal mass and centre of mass, no sensor bias.
-            from ..stiffness.gravity import ToolGravity
+            from ..sensor import ToolGravity
 
             tool = project.tool()
             gravity = ToolGravity(tool.mass_kg, tuple(float(v) for v in tool.com_m))

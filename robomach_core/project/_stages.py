@@ -1,4 +1,4 @@
-"""The stages: path learning, post-processing and scoring, and the program's targets."""
+"""The stages: path learning, post-processing and scoring, and the CAD comparison."""
 
 from __future__ import annotations
 
@@ -13,9 +13,8 @@ from .. import mesh_query
 from ..cell import Cell, CellState
 from ..errors import InvalidInputError, NotEnoughGuidePointsError
 from ..leadthrough import GuidePoint
-from ..path_learning import PathLearningSettings, Recording, learn_path
+from ..path_learning import PathLearningSettings, learn_path
 from ..postprocess import PostprocessResult, PostprocessSettings, Targets, postprocess
-from ..robot import Robot
 from ..scoring import PathScore, score_path
 from ..sensor import ForceEstimator
 from ..workpiece import Workpiece
@@ -203,80 +202,6 @@ def require_processed(project: Project) -> ProcessedPath:
     if "postprocess" in reasons:
         raise StaleResultError(f"the post-processed path is out of date: {reasons['postprocess']}")
     return project.processed
-
-
-def program_targets(project: Project, robot: Robot) -> tuple[Targets, str | None]:
-    """The targets the program runs: post-processed, their joints the inverse kinematics of
-    each target pose on ``robot`` (``export.target_joints``), corrected for deflection in the
-    offline compensation modes; and the compensation's note for the header (None without)."""
-    from ..export.target_joints import with_target_joints
-
-    processed = require_processed(project)
-    targets = with_target_joints(robot, processed.result.targets)
-    from ._machining import chosen_program
-
-    chosen = chosen_program(project)
-    if chosen is not None:  # offline compensation chosen from a current machining run
-        return chosen
-    if project.compensation is None:
-        return targets, None
-    from ._machining import compensation_for_arm, stale_settings
-
-    compensation = compensation_for_arm(project, robot.name)  # settings of another arm: re-derived
-    corrected, note = compensate_program_targets(
-        robot, project.learned.recording, targets, compensation
-    )
-    stale = stale_settings(project).get("compensation")
-    return corrected, note if stale is None or compensation is project.compensation else (
-        f"{note}; {stale}"
-    )
-
-
-def compensate_program_targets(
-    robot: Robot, recording: Recording, targets: Targets, compensation: Any
-) -> tuple[Targets, str]:
-    """Targets corrected for the contact wrench learned at each one (offline modes), and a note.
-
-    The process wrench the program will meet is the one measured while learning it (the
-    compensated tool-frame wrench at each target's sample, turned into base axes). Online
-    compensation happens in the controller at run time, so it leaves the targets as they are.
-    """
-    from ..stiffness import compensate_targets_and_joints
-    from ..transforms import make_transform, matrix_from_quaternion, quaternions_from_matrices
-
-    if compensation.robot != robot.name:
-        raise InvalidInputError(
-            f"the compensation settings were identified on {compensation.robot}, "
-            f"the cell has {robot.name}"
-        )
-    if compensation.mode in ("off", "online"):
-        return targets, f"deflection compensation: {compensation.mode} (targets as learned)"
-    mode = "linear" if compensation.mode == "offline_linear" else "nonlinear"
-    Ts = np.array(
-        [
-            make_transform(matrix_from_quaternion(q), p)
-            for p, q in zip(targets.position_m, targets.quaternion_wxyz, strict=True)
-        ]
-    )
-    wrenches = np.empty((len(targets), 6))
-    for k, i in enumerate(targets.sample_index):
-        R = matrix_from_quaternion(recording.quaternion_wxyz[i])
-        wrenches[k, :3] = R @ recording.wrench_tool[i, :3]
-        wrenches[k, 3:] = R @ recording.wrench_tool[i, 3:]
-    Ts_c, q_c = compensate_targets_and_joints(
-        robot, Ts, targets.joints_rad, wrenches, compensation.model, mode
-    )
-    corrected = replace(
-        targets,
-        position_m=Ts_c[:, :3, 3].copy(),
-        quaternion_wxyz=quaternions_from_matrices(Ts_c[:, :3, :3]),
-        joints_rad=np.asarray(q_c),
-    )
-    shift = np.linalg.norm(corrected.position_m - targets.position_m, axis=1).max()
-    return corrected, (
-        f"deflection compensation: {compensation.mode}, largest target correction "
-        f"{shift * 1e3:.4f} mm"
-    )
 
 
 # --- the workpiece of a project --------------------------------------------------------------

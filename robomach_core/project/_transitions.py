@@ -8,8 +8,9 @@ PROBLEM   The workbench (viser, REST, pendant) and the CLI change the same ``Pro
 STRATEGY  One function per change, ``Project -> Project``, checking its input and raising the
           core's errors; no I/O, no live state. What a change makes stale is left to the
           fingerprints (``Project.status``).
-SOLUTION  ``with_cell``, ``with_uploaded_mesh`` (``mesh_file_name``), ``with_robot_file``, ``with_guide_points``,
-          ``with_guide_point_added``, ``without_guide_point``, ``with_learned``,
+SOLUTION  ``with_cell``, ``with_uploaded_mesh`` (``mesh_file_name``), ``with_robot_file``,
+          ``with_guide_points``, ``with_guide_point_added``, ``without_guide_point``,
+          ``with_guide_point_at``, ``with_learned``,
           ``post_settings_with``, ``with_processed``, ``with_process_settings``. The session
           applies them under its lock and saves; ``pipeline.run_demo`` applies them in order.
 """

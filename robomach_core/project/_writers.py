@@ -1,13 +1,21 @@
-"""The one writer set: RAPID header and modules, program files, settings.json."""
+"""The one writer set: the targets the program runs, RAPID header and modules, program files,
+settings.json."""
 
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from typing import Any
 
+import numpy as np
+
+from ..errors import InvalidInputError
+from ..path_learning import Recording
+from ..postprocess import Targets
 from ..robot import Robot
 from ..workpiece import Workpiece
-from ._stages import program_targets, require_processed
+from ._machining import chosen_program, compensation_for_arm, stale_settings
+from ._stages import require_processed
 from ._value import (
     DEFAULT_MODULE_NAME,
     Project,
@@ -56,6 +64,79 @@ def fc_module_name(module_name: str) -> str:
     return module_name[:30] + "FC"
 
 
+def program_targets(
+    project: Project, robot: Robot, *, solved: Targets | None = None
+) -> tuple[Targets, str | None]:
+    """The targets the program runs: post-processed, their joints the inverse kinematics of
+    each target pose on ``robot`` (``export.target_joints``; ``solved`` when the caller has
+    them), corrected for deflection in the offline compensation modes; and the compensation's
+    note for the header (None without)."""
+    from ..export.target_joints import with_target_joints
+
+    processed = require_processed(project)
+    targets = solved if solved is not None else with_target_joints(robot, processed.result.targets)
+    chosen = chosen_program(project)
+    if chosen is not None:  # offline compensation chosen from a current machining run
+        return chosen
+    if project.compensation is None:
+        return targets, None
+    compensation = compensation_for_arm(project, robot.name)  # settings of another arm: re-derived
+    corrected, note = compensate_program_targets(
+        robot, project.learned.recording, targets, compensation
+    )
+    stale = stale_settings(project).get("compensation")
+    return corrected, note if stale is None or compensation is project.compensation else (
+        f"{note}; {stale}"
+    )
+
+
+def compensate_program_targets(
+    robot: Robot, recording: Recording, targets: Targets, compensation: Any
+) -> tuple[Targets, str]:
+    """Targets corrected for the contact wrench learned at each one (offline modes), and a note.
+
+    The process wrench the program will meet is the one measured while learning it (the
+    compensated tool-frame wrench at each target's sample, turned into base axes). Online
+    compensation happens in the controller at run time, so it leaves the targets as they are.
+    """
+    from ..stiffness import compensate_targets_and_joints
+    from ..transforms import make_transform, matrix_from_quaternion, quaternions_from_matrices
+
+    if compensation.robot != robot.name:
+        raise InvalidInputError(
+            f"the compensation settings were identified on {compensation.robot}, "
+            f"the cell has {robot.name}"
+        )
+    if compensation.mode in ("off", "online"):
+        return targets, f"deflection compensation: {compensation.mode} (targets as learned)"
+    mode = "linear" if compensation.mode == "offline_linear" else "nonlinear"
+    Ts = np.array(
+        [
+            make_transform(matrix_from_quaternion(q), p)
+            for p, q in zip(targets.position_m, targets.quaternion_wxyz, strict=True)
+        ]
+    )
+    wrenches = np.empty((len(targets), 6))
+    for k, i in enumerate(targets.sample_index):
+        R = matrix_from_quaternion(recording.quaternion_wxyz[i])
+        wrenches[k, :3] = R @ recording.wrench_tool[i, :3]
+        wrenches[k, 3:] = R @ recording.wrench_tool[i, 3:]
+    Ts_c, q_c = compensate_targets_and_joints(
+        robot, Ts, targets.joints_rad, wrenches, compensation.model, mode
+    )
+    corrected = replace(
+        targets,
+        position_m=Ts_c[:, :3, 3].copy(),
+        quaternion_wxyz=quaternions_from_matrices(Ts_c[:, :3, :3]),
+        joints_rad=np.asarray(q_c),
+    )
+    shift = np.linalg.norm(corrected.position_m - targets.position_m, axis=1).max()
+    return corrected, (
+        f"deflection compensation: {compensation.mode}, largest target correction "
+        f"{shift * 1e3:.4f} mm"
+    )
+
+
 def program_context(
     project: Project,
     workpiece: Workpiece,
@@ -63,15 +144,16 @@ def program_context(
     *,
     module_name: str = DEFAULT_MODULE_NAME,
     force_control: bool = False,
+    program: tuple[Targets, str | None] | None = None,
 ) -> Any:
     """The ``export.languages.ProgramContext`` of the project's program: its targets
-    (``program_targets``: IK joints, compensated in the offline modes), the header, the moves,
-    the CMRR speed change (position-controlled program) or the learning force
-    (``force_control``)."""
+    (``program``, else ``program_targets``: IK joints, compensated in the offline modes), the
+    header, the moves, the CMRR speed change (position-controlled program) or the learning
+    force (``force_control``)."""
     from ..export.languages import ProgramContext
 
     processed = require_processed(project)
-    targets, note = program_targets(project, robot)
+    targets, note = program if program is not None else program_targets(project, robot)
     speed_change = None
     if project.cmrr is not None and not force_control:
         from ..cmrr import to_speed_change_settings
@@ -98,10 +180,11 @@ def program_texts(
     *,
     module_name: str = DEFAULT_MODULE_NAME,
     force_control: bool = False,
+    program: tuple[Targets, str | None] | None = None,
 ) -> dict[str, str]:
     """One program of the project in a registered language (``export.languages``): file
     name -> text (``program.mod``; ``program.src`` and ``program.dat``; ``program_fc.*`` for
-    the force-controlled variant).
+    the force-controlled variant); ``program`` the ``program_targets`` when already solved.
 
     Raises:
         StaleResultError: the post-processing is missing or out of date.
@@ -118,8 +201,9 @@ def program_texts(
     if force_control and module_name == DEFAULT_MODULE_NAME:
         module_name = fc_module_name(module_name)
     context = program_context(
-        project, workpiece, robot, module_name=module_name, force_control=force_control
-    )
+        project, workpiece, robot, module_name=module_name, force_control=force_control,
+        program=program,
+    )  # fmt: skip
     texts = lang.write(context)
     return dict(zip(lang.file_names(force_control=force_control), texts, strict=True))
 
@@ -177,29 +261,49 @@ def program_files(
     language of ``program_languages`` its program and, where it has one, its force-controlled
     variant (program.mod and program_fc.mod; program.script and program_fc.script;
     program.src and program.dat), then targets.csv, samples.csv and settings.json."""
+    return program_export(
+        project, workpiece, robot, module_name=module_name, project_name=project_name,
+        compliance=compliance, language=language,
+    )[0]  # fmt: skip
+
+
+def program_export(
+    project: Project,
+    workpiece: Workpiece,
+    robot: Robot,
+    *,
+    module_name: str = DEFAULT_MODULE_NAME,
+    project_name: str | None = None,
+    compliance: dict[str, Any] | None = None,
+    language: str = "auto",
+) -> tuple[dict[str, str], Targets]:
+    """``program_files`` and the targets its programs run: the targets' inverse kinematics is
+    solved once (``export.target_joints``) for every program, its variants and targets.csv."""
     from ..export.languages import language as language_named
-    from ..export.tables import samples_csv
+    from ..export.tables import samples_csv, targets_csv
+    from ..export.target_joints import with_target_joints
 
     processed = require_processed(project)
     languages = program_languages(robot, language)
     doc = settings_document(project, workpiece, project_name=project_name, compliance=compliance)
+    solved = with_target_joints(robot, processed.result.targets)
+    program = program_targets(project, robot, solved=solved)
     files: dict[str, str] = {}
     for name in languages:
-        files |= program_texts(project, workpiece, robot, name, module_name=module_name)
+        files |= program_texts(
+            project, workpiece, robot, name, module_name=module_name, program=program
+        )
         if language_named(name).force_control:
             files |= program_texts(
-                project,
-                workpiece,
-                robot,
-                name,
-                module_name=fc_module_name(module_name),
-                force_control=True,
-            )
-    return files | {
-        "targets.csv": targets_text(project, robot),
+                project, workpiece, robot, name, module_name=fc_module_name(module_name),
+                force_control=True, program=program,
+            )  # fmt: skip
+    files |= {
+        "targets.csv": targets_csv(solved),
         "samples.csv": samples_csv(project.learned.recording, processed.result.keep_mask),
         "settings.json": json.dumps(doc, indent=2) + "\n",
     }
+    return files, program[0]
 
 
 def targets_text(project: Project, robot: Robot) -> str:

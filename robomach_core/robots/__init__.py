@@ -10,7 +10,6 @@ from .abb import arm_spec as arm_spec
 from .abb import urdf_path as urdf_path
 from .abb import urdf_text as urdf_text
 from .builtin import ARM_FAMILIES as ARM_FAMILIES
-from .builtin import ARM_FAMILY as ARM_FAMILY
 from .builtin import GENERATED_ARMS as GENERATED_ARMS
 from .builtin import JointCoupling as JointCoupling
 from .builtin import controller_axes_deg as controller_axes_deg

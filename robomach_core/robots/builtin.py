@@ -18,17 +18,12 @@ from ..errors import UnknownNameError
 from . import abb, kuka
 
 ArmFamily = Literal["ur", "abb", "kuka"]
+# The language a family's controller runs natively (``export.languages`` lists every language
+# and the families it serves).
+FAMILY_LANGUAGE: dict[str, str] = {"ur": "urscript", "abb": "rapid", "kuka": "krl"}
 # Every family a controller can belong to, for choices (CLI, upload form, schemas).
-ARM_FAMILIES: tuple[str, ...] = ("ur", "abb", "kuka")
+ARM_FAMILIES: tuple[str, ...] = tuple(FAMILY_LANGUAGE)
 GENERATED_ARMS: tuple[str, ...] = (*abb.ABB_ARMS, *kuka.KUKA_ARMS)
-ARM_FAMILY: dict[str, str] = {
-    **dict.fromkeys(abb.ABB_ARMS, "abb"),
-    **dict.fromkeys(kuka.KUKA_ARMS, "kuka"),
-}
-ARM_TITLES: dict[str, str] = {
-    **{name: spec.title for name, spec in abb.ABB_ARMS.items()},
-    **{name: spec.title for name, spec in kuka.KUKA_ARMS.items()},
-}
 
 
 @dataclass(frozen=True)

@@ -9,9 +9,9 @@ STRATEGY  ``validate_urdf`` parses the XML (no mesh is loaded), walks the chain 
           link and names the first fault: not XML, no or several root links, a branch, a
           joint of an unsupported type, a revolute joint without limits, not six revolute
           joints. The chain's last link gets a fixed ``tool0`` child when the file has none.
-          ``register_urdf`` registers the arm under a content-addressed name in the tables
-          ``robot.Robot`` reads (URDF text, home, family and program language, part
-          placement, joint stiffness). An arm with a built-in arm's kinematics
+          ``register_urdf`` registers the arm's record (``robots.registry``: URDF text, home,
+          family and program language, part placement, joint stiffness) under a
+          content-addressed name. An arm with a built-in arm's kinematics
           (``robots.recognise``: a UR5 copied out of example-robot-data) is that arm: its
           family (a UR gets URScript), placement, home and stiffness. Any other arm is taken
           for an ABB controller's (RAPID, as before), the part in front of it at 62 % of its
@@ -31,23 +31,20 @@ from __future__ import annotations
 import hashlib
 import re
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import RobomachError
 from ..urdf_check import check_urdf_native, check_urdf_text, read_robot_zip
+from . import registry
 
 MAX_ROBOT_FILE_BYTES = 50 * 1024 * 1024
 ROBOT_FILE_SUFFIXES = (".urdf", ".zip")
 NAME_PREFIX = "urdf_"
 FLANGE_LINK = "tool0"
 HOME_CLEARANCE_M = 0.10  # elbow and wrist joints above the table at home
-
-# name -> normalised URDF text (with tool0), mesh files of the zip (path -> bytes)
-_URDF_TEXT: dict[str, str] = {}
-_MESHES: dict[str, dict[str, bytes]] = {}
 
 
 class RobotFileError(RobomachError, ValueError):
@@ -210,82 +207,22 @@ def robot_name_for(filename: str, data: bytes) -> str:
 def is_custom(name: str) -> bool:
     """True for a registered user arm (a ``_<family>`` variant of a registered one is
     registered on the way)."""
-    key = name.lower()
-    return key in _URDF_TEXT or _family_variant(key) is not None
-
-
-def family_of(name: str) -> str:
-    """The controller family a registered user arm was given (``robots.builtin``)."""
-    from .. import robot as robot_module
-
-    return robot_module.ROBOT_FAMILY[name.lower()]
-
-
-def _family_variant(name: str) -> str | None:
-    """Register ``<base>_<family>`` when ``<base>`` is a registered arm; its name, or None."""
-    from .builtin import ARM_FAMILIES
-
-    base, _, family = name.rpartition("_")
-    if family not in ARM_FAMILIES or base not in _URDF_TEXT:
-        return None
-    return _register_variant(base, family)
-
-
-def _register_variant(base: str, family: str) -> str:
-    """The arm ``base`` with its controller of ``family``: same kinematics, placement, home
-    and stiffness; the family's language."""
-    from .. import joint_compliance, workpiece
-    from .. import robot as robot_module
-
-    if robot_module.ROBOT_FAMILY.get(base) == family:
-        return base
-    name = f"{base}_{family}"
-    if name in _URDF_TEXT:
-        return name
-    _URDF_TEXT[name] = _URDF_TEXT[base]
-    _MESHES[name] = _MESHES.get(base, {})
-    robot_module.ROBOT_FAMILY[name] = family
-    robot_module.ROBOT_PROGRAM_LANGUAGE[name] = robot_module.FAMILY_LANGUAGE[family]
-    robot_module.ROBOT_HOME_JOINTS_RAD[name] = robot_module.ROBOT_HOME_JOINTS_RAD[base]
-    joint_compliance.TRUE_JOINT_STIFFNESS_NM_RAD[name] = (
-        joint_compliance.TRUE_JOINT_STIFFNESS_NM_RAD[base]
-    )
-    if base in workpiece.ROBOT_WOBJ_POSITION_M:
-        workpiece.ROBOT_WOBJ_POSITION_M[name] = workpiece.ROBOT_WOBJ_POSITION_M[base]
-    return name
+    return registry.known(name) and registry.arm(name).uploaded
 
 
 def urdf_text(name: str) -> str:
     """The normalised URDF text of a registered user arm."""
-    return _URDF_TEXT[name.lower()]
+    return registry.arm(name).urdf()
 
 
 def urdf_file(name: str) -> Path:
-    """The registered arm's URDF as a file for viewers (yourdfpy), with the zip's meshes
-    beside it at their paths in the zip; written at first use into the robots cache."""
-    import os
-
-    from ._urdf import cache_directory
-
-    key = name.lower()
-    folder = cache_directory() / key
-    path = folder / "robot.urdf"
-    if not path.is_file():
-        for rel, data in _MESHES.get(key, {}).items():
-            target = (folder / rel).resolve()
-            if folder.resolve() in target.parents:  # no file outside the folder ("../")
-                target.parent.mkdir(parents=True, exist_ok=True)
-                target.write_bytes(data)
-        folder.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(_URDF_TEXT[key], encoding="utf-8")
-        os.replace(tmp, path)
-    return path
+    """The registered arm's URDF as a file for viewers (``Arm.urdf_path``)."""
+    return registry.arm(name).urdf_path()
 
 
 def mesh_files(name: str) -> dict[str, bytes]:
     """The mesh files that came with a registered user arm's zip (path -> bytes)."""
-    return dict(_MESHES.get(name.lower(), {}))
+    return dict(registry.arm(name).meshes)
 
 
 def register_urdf(filename: str, data: bytes, family: str = "auto") -> str:
@@ -307,17 +244,18 @@ def register_urdf(filename: str, data: bytes, family: str = "auto") -> str:
             f"unknown controller family {family!r}; choose auto, {', '.join(ARM_FAMILIES)}"
         )
     name = _register_file(filename, data)
-    return name if family == "auto" else _register_variant(name, family)
+    if family == "auto" or registry.arm(name).family == family:
+        return name
+    return registry.arm(f"{name}_{family}").name
 
 
 def _register_file(filename: str, data: bytes) -> str:
     """``register_urdf`` with the family found from the kinematics."""
-    from .. import joint_compliance, workpiece
     from .. import robot as robot_module
     from .recognise import recognise_arm
 
     name = robot_name_for(filename, data)
-    if name in _URDF_TEXT:
+    if registry.known(name):
         return name
     text, files = urdf_from_file(filename, data)
     check_urdf_text(text, filename, RobotFileError)  # size, links, depth: before any parser
@@ -332,35 +270,29 @@ def _register_file(filename: str, data: bytes) -> str:
         raise RobotFileError(f"{filename}: pinocchio cannot build the model ({exc})") from None
     if model.nq != 6:
         raise RobotFileError(f"{filename}: the model has {model.nq} joints, expected 6")
-    _URDF_TEXT[name] = normalised
-    _MESHES[name] = files
+    lower, upper = model.lowerPositionLimit, model.upperPositionLimit
     same = recognise_arm(model)
     if same is not None:  # a built-in arm's kinematics: its controller, placement, home
-        robot_module.ROBOT_FAMILY[name] = robot_module.ROBOT_FAMILY[same]
-        robot_module.ROBOT_PROGRAM_LANGUAGE[name] = robot_module.ROBOT_PROGRAM_LANGUAGE[same]
-        robot_module.ROBOT_HOME_JOINTS_RAD[name] = np.clip(
-            robot_module.ROBOT_HOME_JOINTS_RAD[same],
-            model.lowerPositionLimit,
-            model.upperPositionLimit,
-        )
-        joint_compliance.TRUE_JOINT_STIFFNESS_NM_RAD[name] = (
-            joint_compliance.TRUE_JOINT_STIFFNESS_NM_RAD[same]
-        )
-        if same in workpiece.ROBOT_WOBJ_POSITION_M:
-            workpiece.ROBOT_WOBJ_POSITION_M[name] = workpiece.ROBOT_WOBJ_POSITION_M[same]
+        twin = registry.arm(same)
+        home = tuple(np.clip(twin.home_rad, lower, upper))
+        registry.register(
+            replace(
+                twin, name=name, home_rad=home, urdf_file=None, urdf_text=normalised,
+                meshes=tuple(files.items()),
+            )
+        )  # fmt: skip
         return name
-    # The tables Robot reads; a placeholder home until the IK below finds one.
-    robot_module.ROBOT_HOME_JOINTS_RAD[name] = np.clip(
-        np.zeros(6), model.lowerPositionLimit, model.upperPositionLimit
-    )
-    robot_module.ROBOT_FAMILY[name] = "abb"
-    robot_module.ROBOT_PROGRAM_LANGUAGE[name] = "rapid"
+    # A placeholder home until the IK below finds one; the stiffness of an arm of its size.
+    record = registry.Arm(
+        name, "abb", tuple(np.clip(np.zeros(6), lower, upper)),
+        registry.arm("ur10").stiffness_Nm_rad, urdf_text=normalised, meshes=tuple(files.items()),
+    )  # fmt: skip
+    registry.register(record)
     arm = robot_module.Robot(name)
     reach = arm.reach_m
     shoulder_z = float(arm.base_to_shoulder_m[2])
-    big = reach > 1.5
-    stiffness = joint_compliance.TRUE_JOINT_STIFFNESS_NM_RAD
-    stiffness[name] = stiffness["irb4400" if big else "ur10"]
+    if reach > 1.5:
+        record = replace(record, stiffness_Nm_rad=registry.arm("irb4400").stiffness_Nm_rad)
     # ``reach_m`` is an upper bound (link lengths summed): nearer placements are tried too.
     for fraction in (0.62, 0.5, 0.4, 0.3):
         wobj = (fraction * reach, 0.0, max(0.0, shoulder_z - 0.1 * reach))
@@ -368,10 +300,9 @@ def _register_file(filename: str, data: bytes) -> str:
             home = _home(name, np.array(wobj))
         except RobomachError:
             continue
-        workpiece.ROBOT_WOBJ_POSITION_M[name] = wobj
-        robot_module.ROBOT_HOME_JOINTS_RAD[name] = home
+        registry.register(replace(record, home_rad=tuple(home), part_position_m=wobj))
         return name
-    _forget(name)
+    registry.forget(name)
     raise RobotFileError(
         f"{filename}: the arm cannot point its tool down above a part placed in front of it "
         f"(tried 30-62 % of its {reach:.2f} m reach)"
@@ -384,8 +315,7 @@ def _home(name: str, wobj_m: np.ndarray) -> np.ndarray:
     import pinocchio as pin
 
     from .. import robot as robot_module
-    from ..demo_operator import TOOL_DOWN
-    from ..tool import Tool
+    from ..tool import TOOL_DOWN, Tool
     from ..transforms import make_transform
 
     arm = robot_module.Robot(name, Tool().T_flange_tcp)
@@ -411,16 +341,5 @@ def _home(name: str, wobj_m: np.ndarray) -> np.ndarray:
 
 
 def _forget(name: str) -> None:
-    from .. import joint_compliance, workpiece
-    from .. import robot as robot_module
-
-    for table in (
-        _URDF_TEXT,
-        _MESHES,
-        robot_module.ROBOT_HOME_JOINTS_RAD,
-        robot_module.ROBOT_PROGRAM_LANGUAGE,
-        robot_module.ROBOT_FAMILY,
-        workpiece.ROBOT_WOBJ_POSITION_M,
-        joint_compliance.TRUE_JOINT_STIFFNESS_NM_RAD,
-    ):
-        table.pop(name, None)
+    """Drops a registered arm's record (as a new process would not know it)."""
+    registry.forget(name.lower())

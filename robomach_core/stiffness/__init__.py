@@ -5,6 +5,10 @@ gravity compensation of the F/T sensor, online and offline deformation compensat
 simulations, iterative learning control, settings JSON and the study runners.
 """
 
+from ..sensor import ToolGravity as ToolGravity
+from ..sensor import compensate_gravity as compensate_gravity
+from ..sensor import wrench_at_tcp_in_base as wrench_at_tcp_in_base
+from ..sensor import wrench_in_tool_frame as wrench_in_tool_frame
 from .compensation import OnlineCompensationParams as OnlineCompensationParams
 from .compensation import OnlineCompensationState as OnlineCompensationState
 from .compensation import compensate_targets as compensate_targets
@@ -15,13 +19,9 @@ from .errors import IdentificationError as IdentificationError
 from .errors import SettingsFileError as SettingsFileError
 from .errors import UnknownStudyError as UnknownStudyError
 from .export import compensated_rapid_program as compensated_rapid_program
-from .gravity import ToolGravity as ToolGravity
 from .gravity import calibration_joints as calibration_joints
-from .gravity import compensate_gravity as compensate_gravity
 from .gravity import identify_tool_gravity as identify_tool_gravity
 from .gravity import simulate_sensor_readings as simulate_sensor_readings
-from .gravity import wrench_at_tcp_in_base as wrench_at_tcp_in_base
-from .gravity import wrench_in_tool_frame as wrench_in_tool_frame
 from .identification import StiffnessIdentification as StiffnessIdentification
 from .identification import StiffnessMeasurements as StiffnessMeasurements
 from .identification import identify_joint_stiffness as identify_joint_stiffness

@@ -22,9 +22,9 @@ import numpy as np
 
 from ..joint_compliance import JointCompliance
 from ..robot import Robot
+from ..sensor import ToolGravity, compensate_gravity, wrench_at_tcp_in_base
 from ..transforms import pose_error
 from .errors import ConvergenceError
-from .gravity import ToolGravity, compensate_gravity, wrench_at_tcp_in_base
 from .model import apply_twist, loaded_equilibrium
 
 CompensationMode = Literal["linear", "nonlinear"]
@@ -37,20 +37,6 @@ NONLINEAR_MAX_ITERATIONS = 30
 # Cut-off of the first-order low-pass on the measured wrench (chapter: "after the force sensor
 # noise is filtrated") [Hz].
 FORCE_FILTER_CUTOFF_HZ = 30.0
-
-
-def _solve_ik_near(robot: Robot, T_target: np.ndarray, q_seed: np.ndarray) -> np.ndarray:
-    """Newton IK from a seed micrometres away (a few steps, no joint-limit clamping)."""
-    q = q_seed.copy()
-    for _ in range(10):
-        T, J = robot.fk_and_jacobian(q)
-        e = pose_error(T, T_target)
-        if np.linalg.norm(e[:3]) <= NONLINEAR_TOLERANCE_M and (
-            np.linalg.norm(e[3:]) <= NONLINEAR_TOLERANCE_RAD
-        ):
-            break
-        q = q + np.linalg.solve(J, e)
-    return q
 
 
 def compensate_targets_and_joints(
@@ -73,6 +59,9 @@ def compensate_targets_and_joints(
     out_T = np.empty_like(Ts)
     out_q = np.empty_like(qs)
     for i, (T, q0, W) in enumerate(zip(Ts, qs, Ws, strict=True)):
+        if not W.any():  # no load, no correction (exactly)
+            out_T[i], out_q[i] = T, q0
+            continue
         T0, J0 = robot.fk_and_jacobian(q0)
         T0 = T0.copy()
         if mode == "linear":
@@ -80,7 +69,12 @@ def compensate_targets_and_joints(
             twist = -(J0 @ theta)
             out_T[i] = apply_twist(T, twist)
             # The controller reaches a corrected robtarget by inverse kinematics of the pose.
-            out_q[i] = _solve_ik_near(robot, apply_twist(T0, twist), q0 - theta)
+            out_q[i] = robot.ik(
+                apply_twist(T0, twist),
+                q0 - theta,
+                tolerance_m=NONLINEAR_TOLERANCE_M,
+                tolerance_rad=NONLINEAR_TOLERANCE_RAD,
+            )
             continue
         # Eq. (32) with the pose update carried to the joints through J, so the commanded pose
         # is always exactly FK(q_F); the desired pose is FK(q_0), which the nominal joints reach.

@@ -1,84 +1,31 @@
-"""Gravity compensation of the wrist F/T sensor and the change to the tool frame (chapter 5.3).
+"""Identification of what the wrist F/T sensor carries, for its gravity compensation (5.3).
 
 PROBLEM   The sensor at the flange reads the contact wrench plus the weight of spindle and tool
-          plus its own bias, in the sensor frame, and the robot is not always wrist-down.
+          plus its own bias, in the sensor frame (the model: ``sensor``), and the robot is not
+          always wrist-down; the compensation needs the mass, centre of mass and bias.
 STRATEGY  Read the sensor at 15 distinct configurations without contact. With g_s = R^T g the
           gravity vector in sensor axes, the readings are linear in the unknowns:
           f = m g_s + f_b and t = c x (m g_s) + t_b = -[g_s]x (m c) + t_b,
           so (m, f_b) and (m c, t_b) follow by least squares; c = (m c) / m.
-SOLUTION  ``identify_tool_gravity`` gives a ``ToolGravity``; ``compensate_gravity`` removes it
-          from any reading; ``wrench_in_tool_frame`` and ``wrench_at_tcp_in_base`` move the
-          compensated wrench to the tool frame or to the TCP in base axes.
+SOLUTION  ``identify_tool_gravity`` gives a ``sensor.ToolGravity``; ``sensor.compensate_gravity``
+          removes it from any reading.
 
-The sensor frame is the flange frame (``Robot.flange_pose``). A sensor wrench is (6,)
-[force (N); torque about the sensor origin (N*m)] in sensor axes.
+The sensor frame is the flange frame (``Robot.flange_pose``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
+import pinocchio as pin
 
 from ..robot import HOME_JOINTS_RAD, Robot
-from ..tool import Tool
+from ..sensor import GRAVITY_M_S2, ToolGravity, gravity_reading
 from .errors import IdentificationError
 
-STANDARD_GRAVITY_M_S2 = 9.81
-GRAVITY_BASE_M_S2 = np.array([0.0, 0.0, -STANDARD_GRAVITY_M_S2])
 CALIBRATION_CONFIGURATIONS = 15
 # Joint spread of the calibration configurations around home [rad]: wide at the wrist, where
 # the sensor orientation comes from, narrow at the arm.
 CALIBRATION_SPREAD_RAD = (0.4, 0.3, 0.3, 1.5, 1.5, np.pi)
-
-
-@dataclass(frozen=True)
-class ToolGravity:
-    """What the sensor carries and its offsets.
-
-    Attributes:
-        mass_kg: Mass below the sensor (spindle + tool).
-        com_m: (3,) centre of mass in the sensor frame.
-        force_bias_N: (3,) sensor force offset.
-        torque_bias_Nm: (3,) sensor torque offset.
-    """
-
-    mass_kg: float
-    com_m: tuple[float, float, float]
-    force_bias_N: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    torque_bias_Nm: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-    @classmethod
-    def from_tool(
-        cls,
-        tool: Tool,
-        *,
-        force_bias_N: tuple[float, float, float] = (0.0, 0.0, 0.0),
-        torque_bias_Nm: tuple[float, float, float] = (0.0, 0.0, 0.0),
-    ) -> ToolGravity:
-        """The true load of ``tool`` on a sensor with the given bias."""
-        return cls(tool.mass_kg, tuple(tool.com_m), force_bias_N, torque_bias_Nm)
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
-def gravity_reading(R_base_sensor: np.ndarray, tool: ToolGravity) -> np.ndarray:
-    """(6,) what the sensor reads with no contact: tool weight plus bias, sensor axes."""
-    f = tool.mass_kg * (np.asarray(R_base_sensor).T @ GRAVITY_BASE_M_S2)
-    t = np.cross(np.asarray(tool.com_m, dtype=float), f)
-    return np.concatenate([f + tool.force_bias_N, t + tool.torque_bias_Nm])
-
-
-def contact_reading(
-    R_base_sensor: np.ndarray, p_sensor_tcp_m: np.ndarray, wrench_base_at_tcp: np.ndarray
-) -> np.ndarray:
-    """(6,) a contact wrench at the TCP (base axes) as the sensor sees it (sensor axes/origin)."""
-    R = np.asarray(R_base_sensor)
-    f = R.T @ wrench_base_at_tcp[:3]
-    t = R.T @ wrench_base_at_tcp[3:] + np.cross(np.asarray(p_sensor_tcp_m, dtype=float), f)
-    return np.concatenate([f, t])
 
 
 def calibration_joints(
@@ -127,10 +74,10 @@ def identify_tool_gravity(R_base_sensor: np.ndarray, wrench_sensor: np.ndarray) 
     W = np.asarray(wrench_sensor, dtype=float)
     if len(Rs) < 3:
         raise IdentificationError("gravity compensation needs at least three configurations")
-    g_s = np.einsum("nji,j->ni", Rs, GRAVITY_BASE_M_S2)
+    g_s = np.einsum("nji,j->ni", Rs, GRAVITY_M_S2)
     eye = np.broadcast_to(np.eye(3), (len(Rs), 3, 3))
     A_f = np.concatenate([g_s[:, :, None], eye], axis=2).reshape(-1, 4)
-    A_t = np.concatenate([-np.array([_skew(g) for g in g_s]), eye], axis=2).reshape(-1, 6)
+    A_t = np.concatenate([-np.array([pin.skew(g) for g in g_s]), eye], axis=2).reshape(-1, 6)
     if np.linalg.matrix_rank(A_f) < 4 or np.linalg.matrix_rank(A_t) < 6:
         raise IdentificationError("the configurations do not vary the sensor orientation enough")
     x_f = np.linalg.lstsq(A_f, W[:, :3].reshape(-1), rcond=None)[0]
@@ -144,28 +91,3 @@ def identify_tool_gravity(R_base_sensor: np.ndarray, wrench_sensor: np.ndarray) 
         force_bias_N=tuple(float(v) for v in x_f[1:]),
         torque_bias_Nm=tuple(float(v) for v in x_t[3:]),
     )
-
-
-def compensate_gravity(
-    wrench_sensor: np.ndarray, R_base_sensor: np.ndarray, tool: ToolGravity
-) -> np.ndarray:
-    """(6,) contact wrench in sensor axes: the reading minus tool weight and bias."""
-    return np.asarray(wrench_sensor, dtype=float) - gravity_reading(R_base_sensor, tool)
-
-
-def wrench_in_tool_frame(wrench_sensor: np.ndarray, T_sensor_tool: np.ndarray) -> np.ndarray:
-    """(6,) a sensor-frame wrench expressed in the tool frame, torque about the TCP."""
-    R = T_sensor_tool[:3, :3]
-    p = T_sensor_tool[:3, 3]
-    f = wrench_sensor[:3]
-    return np.concatenate([R.T @ f, R.T @ (wrench_sensor[3:] - np.cross(p, f))])
-
-
-def wrench_at_tcp_in_base(
-    wrench_sensor: np.ndarray, R_base_sensor: np.ndarray, p_sensor_tcp_m: np.ndarray
-) -> np.ndarray:
-    """(6,) a sensor-frame wrench moved to the TCP in base axes (the stiffness model's input)."""
-    f = wrench_sensor[:3]
-    t = wrench_sensor[3:] - np.cross(np.asarray(p_sensor_tcp_m, dtype=float), f)
-    R = np.asarray(R_base_sensor)
-    return np.concatenate([R @ f, R @ t])

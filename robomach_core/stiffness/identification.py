@@ -8,7 +8,8 @@ STRATEGY  Simulate the chapter's procedure: at many poses, measure the tip with 
           dx = J_v Kq^-1 J^T F = J_v diag(J^T F) c with c = Kq^-1, linear in c, so c follows by
           bounded least squares over all poses and loads.
 SOLUTION  ``simulate_stiffness_measurements``, ``identify_joint_stiffness``,
-          ``sample_workspace_joints`` and ``prediction_errors``.
+          ``sample_workspace_joints`` and ``prediction_errors``; ``stiffness_campaign`` runs the
+          whole campaign on an arm (what the studies and the machining run identify with).
 
 The sphere tip sits off the joint-6 axis (``SPHERE_TIP_OFFSET_M``): a tip on the axis would not
 move when joint 6 twists, and joint 6's stiffness (with the sensor and flange lumped in) would
@@ -17,13 +18,14 @@ be unobservable from translations alone.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import lsq_linear
 
 from ..errors import SingularConfigurationError, UnreachableTargetError
-from ..joint_compliance import JointCompliance
+from ..joint_compliance import JointCompliance, true_joint_compliance
 from ..robot import Robot
 from ..transforms import make_transform, rotation_about
 from .errors import IdentificationError
@@ -227,3 +229,31 @@ def prediction_errors(
         true = loaded_equilibrium(robot, q, W, truth).deflection[:3]
         errors.append(float(np.linalg.norm(predicted - true)))
     return np.array(errors)
+
+
+@functools.lru_cache(maxsize=8)
+def stiffness_campaign(
+    robot_name: str,
+    *,
+    poses: int = 30,
+    seed: int = 0,
+    cmm_noise_m: float = 20e-6,
+    center_m: tuple[float, float, float] = WORKSPACE_CENTER_M,
+) -> tuple[StiffnessMeasurements, StiffnessIdentification]:
+    """The chapter's campaign on the arm ``robot_name`` (section 5.2): the sphere tip measured
+    by the CMM under known loads at ``poses`` random poses around ``center_m``, with the
+    simulator's true stiffness, then eq. (23) by least squares. Seeded, so cached (treat the
+    arrays as read-only)."""
+    tip_robot = Robot(robot_name, sphere_tip_transform())
+    joints = sample_workspace_joints(tip_robot, poses, seed=seed, center_m=center_m)
+    data = simulate_stiffness_measurements(
+        tip_robot, joints, true_joint_compliance(robot_name), cmm_noise_m=cmm_noise_m, seed=seed
+    )
+    return data, identify_joint_stiffness(tip_robot, data)
+
+
+def identify_stiffness(
+    robot_name: str, *, seed: int = 0, poses: int = 30, cmm_noise_m: float = 20e-6
+) -> StiffnessIdentification:
+    """Kq identified by ``stiffness_campaign`` in the default workspace box."""
+    return stiffness_campaign(robot_name, poses=poses, seed=seed, cmm_noise_m=cmm_noise_m)[1]

@@ -26,11 +26,11 @@ from typing import Literal
 import numpy as np
 from scipy import signal
 
+from ..clock import CONTROL_PERIOD_S, zoh, zoh_tf
 from ..errors import CancelledError, InvalidInputError
 
 IlcKind = Literal["arm", "force"]
 
-CONTROL_PERIOD_S = 0.004
 # Zero-phase Q filter cut-off [Hz], just below the 12 Hz arm resonance (the paper: "close to
 # the first eigenfrequency"); at 25 Hz a 10-15 % model error makes the iterations diverge.
 Q_CUTOFF_HZ = 10.0
@@ -64,17 +64,17 @@ class IlcSystem:
     dt: float = CONTROL_PERIOD_S
 
     def _siso(self, num: list[float], den: list[float]) -> tuple[np.ndarray, ...]:
-        A, B, C, D, _ = signal.cont2discrete(signal.tf2ss(num, den), self.dt, method="zoh")
-        return A, B, C, D
+        A, B, C, D = signal.tf2ss(num, den)
+        Phi, Gamma = zoh(A, B, self.dt)
+        return Phi, Gamma, C, D
 
     def robot_tf(self) -> tuple[np.ndarray, np.ndarray]:
         """Discrete (b, a) of G_R, one axis: b[0] = 0, one sample of delay."""
         w = 2 * np.pi * self.servo_bandwidth_hz
         zw = 2 * self.servo_damping * w
-        b, a, _ = signal.cont2discrete(([zw, w**2], [1.0, zw, w**2]), self.dt, method="zoh")
-        b = np.ravel(b)
+        b, a = zoh_tf([zw, w**2], [1.0, zw, w**2], self.dt)
         b[0] = 0.0  # exactly zero for a strictly proper continuous model; drop round-off
-        return b, np.ravel(a)
+        return b, a
 
     def _resonance(self) -> tuple[np.ndarray, ...]:
         w = 2 * np.pi * self.resonance_hz
@@ -108,18 +108,16 @@ class IlcSystem:
     def apply_process(self, y: np.ndarray) -> np.ndarray:
         """G_M y: (N, 3) force [N] from (N, 3) positions [m]."""
         tau = self.process_time_constant_s
-        b, a, _ = signal.cont2discrete(([1.0, 0.0], [tau**2, 2 * tau, 1.0]), self.dt, "zoh")
-        v = signal.lfilter(np.ravel(b), a, y, axis=0)
+        b, a = zoh_tf([1.0, 0.0], [tau**2, 2 * tau, 1.0], self.dt)
+        v = signal.lfilter(b, a, y, axis=0)
         return v @ np.asarray(self.process_gain_Ns_m, dtype=float).T
 
     def apply_compliance(self, f: np.ndarray) -> np.ndarray:
         """G_K f: (N, 3) deflection [m] from (N, 3) force [N]."""
         w = 2 * np.pi * self.resonance_hz
-        b, a, _ = signal.cont2discrete(
-            ([w**2], [1.0, 2 * self.resonance_damping * w, w**2]), self.dt, method="zoh"
-        )
+        b, a = zoh_tf([w**2], [1.0, 2 * self.resonance_damping * w, w**2], self.dt)
         static = f @ np.asarray(self.compliance_m_N, dtype=float).T
-        return signal.lfilter(np.ravel(b), a, static, axis=0)
+        return signal.lfilter(b, a, static, axis=0)
 
     def robot_inverse(self, v: np.ndarray) -> np.ndarray:
         """L~ v = G_R^-1 v, advanced one sample (G_R has one sample of delay)."""

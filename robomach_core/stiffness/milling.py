@@ -28,9 +28,11 @@ from typing import Literal
 
 import numpy as np
 
+from ..clock import CONTROL_PERIOD_S
 from ..errors import CancelledError, InvalidInputError
 from ..joint_compliance import JointCompliance
 from ..robot import Robot
+from ..sensor import ToolGravity, contact_reading, gravity_reading
 from ..transforms import make_transform, pose_error, rotation_about
 from .compensation import (
     OnlineCompensationParams,
@@ -38,14 +40,12 @@ from .compensation import (
     compensate_targets_and_joints,
     online_compensation_step,
 )
-from .gravity import ToolGravity, contact_reading, gravity_reading
 from .model import apply_twist, loaded_equilibrium
 
 MillingCompensation = Literal["none", "online", "offline_linear", "offline_nonlinear"]
 ErrorMeasure = Literal["surface_depth", "path_lateral"]
 MILLING_COMPENSATIONS: tuple[str, ...] = ("none", "online", "offline_linear", "offline_nonlinear")
 
-CONTROL_PERIOD_S = 0.004
 # Grid on which the machined surface is evaluated [m].
 SURFACE_STEP_ALONG_M = 0.0005
 SURFACE_POINTS_ACROSS = 11
@@ -215,19 +215,11 @@ class MillingRun:
 
 
 def _track_ik(robot: Robot, Ts: np.ndarray, q_start: np.ndarray) -> np.ndarray:
-    """Joints along a finely sampled path: Newton steps from the previous solution."""
+    """Joints along a finely sampled path, each pose solved (``Robot.ik``) from the last."""
     qs = np.empty((len(Ts), 6))
-    q = q_start.copy()
+    q = q_start
     for i, T in enumerate(Ts):
-        for _ in range(8):
-            T_now, J = robot.fk_and_jacobian(q)
-            e = pose_error(T_now, T)
-            if np.linalg.norm(e[:3]) <= TRACK_TOLERANCE_M and (
-                np.linalg.norm(e[3:]) <= TRACK_TOLERANCE_RAD
-            ):
-                break
-            q = q + np.linalg.solve(J, e)
-        qs[i] = q
+        q = qs[i] = robot.ik(T, q, tolerance_m=TRACK_TOLERANCE_M, tolerance_rad=TRACK_TOLERANCE_RAD)
     return qs
 
 

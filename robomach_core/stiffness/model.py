@@ -23,10 +23,11 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+import pinocchio as pin
 
 from ..joint_compliance import JointCompliance
 from ..robot import Robot
-from ..transforms import pose_error, rotation_about
+from ..transforms import pose_error
 from .errors import ConvergenceError
 
 ModelKind = Literal["linear", "nonlinear"]
@@ -43,9 +44,8 @@ def apply_twist(T: np.ndarray, twist: np.ndarray) -> np.ndarray:
     """Pose ``T`` moved by a small twist: p + dp, R' = exp(dtheta) R (rotation in base axes)."""
     out = np.array(T, dtype=float, copy=True)
     out[:3, 3] = T[:3, 3] + twist[:3]
-    angle = float(np.linalg.norm(twist[3:]))
-    if angle > 0.0:
-        out[:3, :3] = rotation_about(twist[3:] / angle, angle) @ T[:3, :3]
+    if np.any(twist[3:]):
+        out[:3, :3] = pin.exp3(np.asarray(twist[3:], dtype=float)) @ T[:3, :3]
     return out
 
 
@@ -106,6 +106,8 @@ def loaded_equilibrium(
     c = model.compliance_rad_Nm
     T0, J0 = robot.fk_and_jacobian(q_m)
     T0 = T0.copy()
+    if not W.any():  # no load: the arm where its motors hold it (exactly)
+        return LoadedEquilibrium(q_m.copy(), T0, np.zeros(6), 1)
     theta = c * (J0.T @ W)
     if mode == "linear":
         deflection = J0 @ theta

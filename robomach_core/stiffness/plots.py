@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..clock import CONTROL_PERIOD_S
 from .ilc import IlcResult
 from .milling import MillingRun
 
@@ -146,7 +147,7 @@ def plot_ilc(path: Path, arm: IlcResult, force: IlcResult) -> Path:
     ax2.set_ylim(bottom=0)
     ax2.legend(fontsize=8)
     for ax, result, name in ((ax3, arm, "arm-side"), (ax4, force, "force")):
-        t = np.arange(result.errors_m.shape[1]) * 0.004
+        t = np.arange(result.errors_m.shape[1]) * CONTROL_PERIOD_S
         for k in (0, len(result.errors_m) - 1):
             for axis, color in zip("xyz", ("C0", "C1", "C2"), strict=True):
                 i = "xyz".index(axis)

@@ -23,8 +23,8 @@ from ..limits import (
     TOOL_MASS_KG,
     Range,
 )
+from ..sensor import ToolGravity
 from .errors import SettingsFileError
-from .gravity import ToolGravity
 
 SETTINGS_FORMAT = "robomach.compensation"
 SETTINGS_VERSION = 1

@@ -3,7 +3,6 @@
 See ``supervisor`` for the model; the compiled per-period arithmetic is in ``_kernels``.
 """
 
-from .supervisor import ARM_LINK_RADII_M as ARM_LINK_RADII_M
 from .supervisor import FixtureBox as FixtureBox
 from .supervisor import Supervised as Supervised
 from .supervisor import SupervisionCause as SupervisionCause

@@ -41,12 +41,21 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-from ..cell import CONTROL_PERIOD_S
+from ..clock import CONTROL_PERIOD_S
 from ..errors import InvalidInputError, SupervisionError
-from ..robot import Robot
+from ..robot import IK_STEP_DAMPING, Robot
+from ..robots.registry import DEFAULT_LINK_RADIUS_M
 from ..tool import Tool
 from ..workpiece import Workpiece
-from ._kernels import chain_placements, decide, geometry_margins
+from ._kernels import (
+    MEMORY_MARGINS,
+    chain_placements,
+    decide,
+    increment_proposal,
+    margins_at,
+    pack_model,
+    supervise_increment,
+)
 
 SupervisionCause = Literal[
     "joint limit",
@@ -57,19 +66,11 @@ SupervisionCause = Literal[
     "joint speed",
     "collision",
 ]
-# Link radii of the arm's capsules (upper arm, forearm, wrist 1-3), metres; other arms: default.
-ARM_LINK_RADII_M: dict[str, tuple[float, float, float, float, float]] = {
-    "ur10": (0.075, 0.060, 0.045, 0.045, 0.045),
-    "ur5": (0.060, 0.050, 0.040, 0.040, 0.040),
-    "ur3": (0.045, 0.040, 0.035, 0.035, 0.035),
-}
-DEFAULT_LINK_RADIUS_M = 0.06
 ARM_LINK_NAMES = ("upper arm", "forearm", "wrist 1", "wrist 2", "wrist 3")
 SPINDLE_RADIUS_M = 0.03  # the spindle body the GUIs draw (app/gui/scene.py ``tool_mesh``)
 SHANK_LENGTH_M = 0.01  # between the cutter's flutes and the spindle body
 SHANK_RADIUS_FRACTION = 0.8  # of the cutter radius
 _NO_REFERENCE = np.eye(4)
-_NO_TRACKING = np.array([np.inf, np.inf])
 
 
 @dataclass(frozen=True)
@@ -212,12 +213,6 @@ class _Margin:
     obstacle: int = -1  # -1 the table, then the part's hull (if any), then the fixture boxes
 
 
-@dataclass
-class _Evaluation:
-    margins: np.ndarray
-    T_tcp: np.ndarray
-
-
 def _frame_of(axis: np.ndarray) -> np.ndarray:
     """A rotation whose z column is the unit ``axis`` (for coal's z-aligned capsules)."""
     z = axis
@@ -271,13 +266,16 @@ class Supervisor:
         self.limits = lim = limits or SupervisionLimits()
         self.fixture = tuple(fixture)
         self.dt = dt
-        self._lock = threading.RLock()
-        self._cache: dict[bytes, _Evaluation] = {}
+        self._lock = threading.Lock()  # coal's request and result objects
+        # The latest evaluations (joints' bytes, margins, TCP pose), newest first; replaced
+        # whole, so threads share it without a lock.
+        self._recent: tuple[tuple[bytes, np.ndarray, np.ndarray], ...] = ()
+        # ``supervise_increment``'s own memory of its last step (joints, margins).
+        self._memory_lock = threading.Lock()
         data = model.createData()
         pin.forwardKinematics(model, data, np.zeros(6))
         self._axes = np.array([_joint_axis_local(data, j) for j in range(1, 7)])
         self._placements = np.array([model.jointPlacements[j].homogeneous for j in range(1, 7)])
-        self._limits = np.array([robot.lower_rad, robot.upper_rad])
         tcp_frame = model.frames[robot.tcp_frame_id]
         flange_frame = model.frames[robot.flange_frame_id]
         if tcp_frame.parentJoint != 6 or flange_frame.parentJoint != 6:
@@ -328,18 +326,31 @@ class Supervisor:
             )
         self._couplings = robot.couplings
         self._margin_defs = self._make_margins()
-        self._thresholds = np.array(
-            [[m.stop for m in self._margin_defs], [m.slow for m in self._margin_defs]]
+        pairs = [(m.index, m.obstacle, m.slow) for m in self._margin_defs if m.kind == "collision"]
+        self._model = pack_model(
+            placements=self._placements,
+            axes=self._axes,
+            limits=np.array([robot.lower_rad, robot.upper_rad]),
+            M_tcp=self._M_tcp,
+            step_bound=self._step_bound,
+            tracking=np.array([lim.tracking_stop_m, lim.tracking_stop_rad]),
+            bodies=np.array(
+                [[b.joint - 1, *b.a, *b.b, b.radius, float(b.flat)] for b in self._bodies]
+            ),
+            pairs=np.array(pairs, dtype=float).reshape(-1, 3),
+            obstacles=np.array([o[3] for o in self._obstacles]).reshape(-1, 6),
+            couplings=np.array(
+                [[*c.coefficients, c.lower_rad, c.upper_rad] for c in self._couplings]
+            ).reshape(-1, 8),
+            thresholds=np.array(
+                [[m.stop for m in self._margin_defs], [m.slow for m in self._margin_defs]]
+            ),
+            elbow_to_axis4=self._elbow_to_axis4,
+            table_z=self._table_z,
+            min_scale=lim.min_speed_scale,
+            ik_damping=IK_STEP_DAMPING,
         )
-        self._tracking = np.array([lim.tracking_stop_m, lim.tracking_stop_rad])
-        self._pairs = np.array(
-            [[m.index, m.obstacle, m.slow] for m in self._margin_defs if m.kind == "collision"],
-            dtype=float,
-        ).reshape(-1, 3)
-        self._body_table = np.array(
-            [[b.joint - 1, *b.a, *b.b, b.radius, float(b.flat)] for b in self._bodies]
-        )
-        self._obstacle_boxes = np.array([o[3] for o in self._obstacles]).reshape(-1, 6)
+        self._memory = np.full(MEMORY_MARGINS + len(self._margin_defs), np.nan)
         self._request = coal.DistanceRequest()
         self._result = coal.DistanceResult()
         self._T_capsule = coal.Transform3s()
@@ -348,7 +359,8 @@ class Supervisor:
 
     def _make_bodies(self, flange_in_joint6: np.ndarray) -> list[_Body]:
         model, robot, tool = self.robot.model, self.robot, self.tool
-        radii = ARM_LINK_RADII_M.get(robot.name, (DEFAULT_LINK_RADIUS_M,) * 5)
+        # The arm's capsules (upper arm, forearm, wrists 1-3): its record's radii.
+        radii = robot.record.link_radii_m or (DEFAULT_LINK_RADIUS_M,) * 5
         bodies = []
         for k, name in enumerate(ARM_LINK_NAMES):
             joint = k + 2
@@ -437,51 +449,41 @@ class Supervisor:
 
     # --- evaluation ----------------------------------------------------------------------
 
-    def _evaluate(self, q: np.ndarray) -> _Evaluation:
+    def _evaluate(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(margins, TCP pose) at ``q``; a step's q_now and q_next are remembered."""
         key = q.tobytes()
-        with self._lock:
-            hit = self._cache.get(key)
-            if hit is not None:
-                return hit
-            evaluation = self._compute(q)
-            if len(self._cache) >= 3:  # keep the two latest: a step's q_now and q_next
-                del self._cache[next(iter(self._cache))]
-            self._cache[key] = evaluation
-            return evaluation
+        recent = self._recent
+        for known, margins, T_tcp in recent:
+            if known == key:
+                return margins, T_tcp
+        margins, T_tcp, _, n_near = margins_at(q, self._model)
+        if n_near:
+            self._measure_near(margins, T_tcp, q)
+        self._recent = ((key, margins, T_tcp), *recent[:2])
+        return margins, T_tcp
 
-    def _compute(self, q: np.ndarray) -> _Evaluation:
-        margins, Ts, n_near = geometry_margins(
-            q,
-            self._placements,
-            self._axes,
-            self._limits,
-            self._body_table,
-            self._pairs,
-            self._obstacle_boxes,
-            self._elbow_to_axis4,
-            self._table_z,
-        )
-        # Near an obstacle its bounding box is not enough: coal's exact clearance.
-        for i in np.flatnonzero(np.isnan(margins)) if n_near else ():
-            definition = self._margin_defs[i]
-            body = self._bodies[definition.index]
-            _, shape, T_obstacle, _ = self._obstacles[definition.obstacle]
-            R_body, centre = self._body_frames[definition.index]
-            T_joint = Ts[body.joint - 1]
-            self._T_capsule.setRotation(T_joint[:3, :3] @ R_body)
-            self._T_capsule.setTranslation(T_joint[:3, :3] @ centre + T_joint[:3, 3])
-            self._result.clear()
-            margins[i] = coal.distance(
-                shape,
-                T_obstacle,
-                self._shapes[definition.index],
-                self._T_capsule,
-                self._request,
-                self._result,
-            )
-        if self._couplings:
-            margins = np.concatenate([margins, [c.margin(q) for c in self._couplings]])
-        return _Evaluation(margins, Ts[5] @ self._M_tcp)
+    def _measure_near(self, margins: np.ndarray, T_tcp: np.ndarray, q: np.ndarray) -> None:
+        """Near an obstacle its bounding box is not enough: coal's exact clearance in place of
+        the NaN margins."""
+        Ts = chain_placements(q, self._placements, self._axes)
+        with self._lock:
+            for i in np.flatnonzero(np.isnan(margins)):
+                definition = self._margin_defs[i]
+                body = self._bodies[definition.index]
+                _, shape, T_obstacle, _ = self._obstacles[definition.obstacle]
+                R_body, centre = self._body_frames[definition.index]
+                T_joint = Ts[body.joint - 1]
+                self._T_capsule.setRotation(T_joint[:3, :3] @ R_body)
+                self._T_capsule.setTranslation(T_joint[:3, :3] @ centre + T_joint[:3, 3])
+                self._result.clear()
+                margins[i] = coal.distance(
+                    shape,
+                    T_obstacle,
+                    self._shapes[definition.index],
+                    self._T_capsule,
+                    self._request,
+                    self._result,
+                )
 
     def joint_placements(self, q: np.ndarray) -> np.ndarray:
         """(6, 4, 4) placements of the joint frames in the base frame at ``q`` (rad)."""
@@ -497,7 +499,7 @@ class Supervisor:
         q = np.asarray(q, dtype=float)
         if q.shape != (6,) or not np.all(np.isfinite(q)):
             raise InvalidInputError("joints must be 6 finite values [rad]")
-        return self._evaluate(q).margins.copy()
+        return self._evaluate(q)[0].copy()
 
     def describe(self, q: np.ndarray) -> dict[str, float]:
         """The nearest limits at ``q`` for a display: angles in deg, distances in mm."""
@@ -523,19 +525,12 @@ class Supervisor:
             return 1.0, SupervisionStop(
                 "edge of reach", "edge of reach: the inverse kinematics found no finite solution"
             )
-        e1 = self._evaluate(q1)
+        m1, T_tcp = self._evaluate(q1)
+        track = T_ref is not None
         scale, code, index, value = decide(
-            self._evaluate(q0).margins,
-            e1.margins,
-            self._thresholds,
-            self.limits.min_speed_scale,
-            q0,
-            q1,
-            self._step_bound,
-            _NO_REFERENCE if T_ref is None else T_ref,
-            e1.T_tcp,
-            _NO_TRACKING if T_ref is None else self._tracking,
-        )
+            self._evaluate(q0)[0], m1, q0, q1, T_ref if track else _NO_REFERENCE, T_tcp, track,
+            self._model,
+        )  # fmt: skip
         return scale, None if code == 0 else self._stop_for(code, index, value, q1)
 
     def speed_scale(self, q_now: np.ndarray, q_next: np.ndarray) -> float:
@@ -582,6 +577,32 @@ class Supervisor:
             T_ref, q_next = propose(scale)
             stop = self._judge(q0, q_next, T_ref)[1]
         return Supervised(scale, T_ref, q_next, stop)
+
+    def supervise_increment(
+        self, q_now: np.ndarray, T_ref: np.ndarray, step: np.ndarray, turn: np.ndarray
+    ) -> Supervised:
+        """``supervise`` of a motion that moves the reference ``T_ref`` by ``step`` [m] and
+        turns it by ``turn`` [rad, in its own axes], both scaled together, with one IK step
+        from ``q_now`` (``_kernels.increment_proposal``): compiled whole, as path learning runs
+        it every period; the same result as ``supervise``."""
+        status = -1
+        if self._memory_lock.acquire(blocking=False):  # else another thread runs it: Python
+            try:
+                status, scale, code, index, value, T_next, q_next = supervise_increment(
+                    q_now, T_ref, step, turn, self._model, self._memory
+                )
+            finally:
+                self._memory_lock.release()
+        if status < 0:  # not finite, or near an obstacle: coal's clearance, in Python
+            model = self._model
+            T0, J0 = self.robot.fk_and_jacobian(q_now)
+
+            def propose(scale: float) -> tuple[np.ndarray, np.ndarray]:
+                return increment_proposal(q_now, T0, J0, T_ref, step, turn, scale, model)
+
+            return self.supervise(q_now, propose)
+        stop = None if code == 0 else self._stop_for(code, index, value, q_next)
+        return Supervised(scale, T_next, q_next, stop)
 
     def _stop_for(self, code: int, i: int, value: float, q: np.ndarray) -> SupervisionStop:
         """The stop of a ``decide`` verdict ``code`` (1 joint speed, 2 margin, 3 tracking)."""

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import math
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -13,14 +12,9 @@ import pytest
 import trimesh
 
 from robomach_core.export import check_rapid_module
+from tests.cli import robomach, robomach_here
 from tests.demo_project import block_demo_dir
 from tests.demo_project import pump_demo as shared_pump_demo
-
-
-def robomach(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "app.cli", *args], capture_output=True, text=True, timeout=timeout
-    )
 
 
 def _assert_one_line_error(proc: subprocess.CompletedProcess, *words: str) -> None:
@@ -44,14 +38,14 @@ def _assert_one_line_error(proc: subprocess.CompletedProcess, *words: str) -> No
     ],
 )
 def test_bad_arguments_give_one_line_and_exit_2(tmp_path, args, words):
-    _assert_one_line_error(robomach("demo", "--out", str(tmp_path / "o"), *args), *words)
+    _assert_one_line_error(robomach_here("demo", "--out", str(tmp_path / "o"), *args), *words)
 
 
 def test_a_file_that_is_not_a_mesh(tmp_path):
     bad = tmp_path / "part.stl"
     bad.write_bytes(b"\x00\x01 definitely not an STL")
     _assert_one_line_error(
-        robomach("demo", "--out", str(tmp_path / "o"), "--workpiece", str(bad)), "part"
+        robomach_here("demo", "--out", str(tmp_path / "o"), "--workpiece", str(bad)), "part"
     )
 
 
@@ -59,7 +53,7 @@ def test_fewer_than_two_guide_points(tmp_path):
     csv = tmp_path / "guides.csv"
     csv.write_text("x_mm,y_mm,z_mm\n700,100,40\n")
     _assert_one_line_error(
-        robomach("demo", "--out", str(tmp_path / "o"), "--guide-points", str(csv)),
+        robomach_here("demo", "--out", str(tmp_path / "o"), "--guide-points", str(csv)),
         "at least 2 guide points",
     )
 
@@ -68,7 +62,7 @@ def test_an_unreachable_guide_point(tmp_path):
     csv = tmp_path / "guides.csv"
     csv.write_text("x_mm,y_mm,z_mm\n700,100,40\n4000,0,40\n")
     _assert_one_line_error(
-        robomach("demo", "--out", str(tmp_path / "o"), "--guide-points", str(csv)),
+        robomach_here("demo", "--out", str(tmp_path / "o"), "--guide-points", str(csv)),
         "guide point 2",
         "reach",
     )
@@ -206,10 +200,10 @@ def test_settings_files_are_validated(tmp_path):
     bad = tmp_path / "cmrr.json"
     bad.write_text("[1, 2]")
     _assert_one_line_error(
-        robomach("demo", "--out", str(tmp_path / "o"), "--cmrr-settings", str(bad)), "CMRR"
+        robomach_here("demo", "--out", str(tmp_path / "o"), "--cmrr-settings", str(bad)), "CMRR"
     )
     _assert_one_line_error(
-        robomach(
+        robomach_here(
             "demo",
             "--out",
             str(tmp_path / "o"),
@@ -222,8 +216,8 @@ def test_settings_files_are_validated(tmp_path):
 
 def test_bad_or_unreachable_work_object(tmp_path):
     _assert_one_line_error(
-        robomach("demo", "--out", str(tmp_path / "o"), "--wobj", "800,abc,0"), "--wobj"
+        robomach_here("demo", "--out", str(tmp_path / "o"), "--wobj", "800,abc,0"), "--wobj"
     )
     _assert_one_line_error(
-        robomach("demo", "--out", str(tmp_path / "o"), "--wobj", "800,160"), "x,y,z"
+        robomach_here("demo", "--out", str(tmp_path / "o"), "--wobj", "800,160"), "x,y,z"
     )

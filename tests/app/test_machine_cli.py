@@ -13,6 +13,7 @@ import pytest
 
 from robomach_core.export import check_rapid_module
 from robomach_core.project import load_project_file
+from tests.cli import robomach, robomach_here
 from tests.demo_project import block_demo_dir
 
 SUMMARY_KEYS = {
@@ -36,12 +37,6 @@ CSV_COLUMNS = {
     "deflection_mm",
     "wall_error_mm",
 }
-
-
-def robomach(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "app.cli", *args], capture_output=True, text=True, timeout=timeout
-    )
 
 
 def _assert_one_line_error(proc: subprocess.CompletedProcess, *words: str) -> None:
@@ -165,22 +160,22 @@ def test_offline_compensation_exports_the_corrected_program(tmp_path):
     ],
 )
 def test_bad_arguments_give_one_line_and_exit_2(tmp_path, args, words):
-    _assert_one_line_error(robomach("machine", "--out", str(tmp_path / "o"), *args), *words)
+    _assert_one_line_error(robomach_here("machine", "--out", str(tmp_path / "o"), *args), *words)
 
 
 def test_a_folder_without_a_project(tmp_path):
     (tmp_path / "demo").mkdir()
-    proc = robomach("machine", "--out", str(tmp_path / "o"), "--from", str(tmp_path / "demo"))
+    proc = robomach_here("machine", "--out", str(tmp_path / "o"), "--from", str(tmp_path / "demo"))
     _assert_one_line_error(proc, "project.npz", "robomach demo")
 
 
 def test_an_unwritable_out_is_refused_before_work():
-    proc = robomach("machine", "--out", "/proc/robomach-machine", "--workpiece", "block")
+    proc = robomach_here("machine", "--out", "/proc/robomach-machine", "--workpiece", "block")
     _assert_one_line_error(proc, "--out", "cannot write")
 
 
 def test_help_lists_every_exit_code():
-    proc = robomach("machine", "--help")
+    proc = robomach_here("machine", "--help")
     assert proc.returncode == 0
     for code in ("0 ", "1 ", "2 ", "130"):
         assert f"\n  {code}" in proc.stdout, proc.stdout
@@ -224,16 +219,23 @@ def test_exit_1_when_the_cell_can_run_nothing_that_completes(tmp_path):
 @pytest.mark.slow
 def test_exit_130_when_interrupted(tmp_path):
     import signal
-    import time
 
     proc = subprocess.Popen(
         [sys.executable, "-m", "app.cli", "machine", "--out", str(tmp_path / "o"),
          "--workpiece", "block", "--no-plot"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
-    time.sleep(6.0)
+    # Interrupt while it works (path learning has begun), not after a fixed time: a fast
+    # machine finished the block's whole run within 6 s.
+    seen = []
+    for line in proc.stderr:
+        seen.append(line)
+        if line.startswith("path learning:"):
+            break
+    assert proc.poll() is None, "".join(seen)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
+    err = "".join(seen) + err
     assert proc.returncode == 130, err
     assert "Traceback" not in err
 

@@ -8,7 +8,6 @@ import csv
 import io
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -25,13 +24,8 @@ from robomach_core.robot import Robot
 from robomach_core.tool import Tool
 from robomach_core.transforms import make_transform
 from robomach_core.workpiece import builtin_workpiece
+from tests.cli import robomach, robomach_here
 from tests.demo_project import pump_demo
-
-
-def robomach(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "app.cli", *args], capture_output=True, text=True, timeout=timeout
-    )
 
 
 def demo(out: Path, *args: str) -> tuple[dict, subprocess.CompletedProcess]:
@@ -128,7 +122,9 @@ def test_ur10_writes_program_script_whose_poses_are_the_targets_fk(ur10):
 
 
 def test_tool_radius_out_of_range_is_refused(tmp_path):
-    proc = robomach("demo", "--out", str(tmp_path), "--language", "rapid", "--tool-radius-mm", "9")
+    proc = robomach_here(
+        "demo", "--out", str(tmp_path), "--language", "rapid", "--tool-radius-mm", "9"
+    )
     assert proc.returncode == 2 and "--tool-radius-mm" in proc.stderr and "0.5-5 mm" in proc.stderr
 
 
@@ -188,7 +184,7 @@ def test_an_uploaded_part_is_scored_against_its_mesh(tmp_path):
 
 
 def test_wobj_with_three_rotations_places_the_program(tmp_path):
-    proc = robomach("demo", "--out", str(tmp_path), "--wobj", "800,160,0,0,0")
+    proc = robomach_here("demo", "--out", str(tmp_path), "--wobj", "800,160,0,0,0")
     assert proc.returncode == 2 and "3, 4 or 6" in proc.stderr
 
 
@@ -211,6 +207,6 @@ def test_a_bad_urdf_on_the_command_line_is_one_line(tmp_path):
         '<joint name="j" type="revolute"><parent link="a"/><child link="b"/>'
         '<limit lower="-1" upper="1"/></joint></robot>'
     )
-    proc = robomach("demo", "--out", str(tmp_path / "o"), "--robot", str(urdf))
+    proc = robomach_here("demo", "--out", str(tmp_path / "o"), "--robot", str(urdf))
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert "has 1 revolute joints" in proc.stderr

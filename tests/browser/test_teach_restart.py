@@ -73,3 +73,32 @@ def test_the_pendant_reconnects_after_a_restart(tmp_path: Path, browser) -> None
     finally:
         context.close()
         server.stop(kill_on_timeout=True)
+
+
+def test_the_pendant_reopens_an_event_stream_the_browser_gave_up_on(tmp_path: Path, browser):
+    """A server shutting down may answer the stream with a 503 instead of closing it; the
+    browser then closes the EventSource for good, and the pendant must open it again."""
+    data = tmp_path / "data"
+    server = serve(data, free_port(), free_port(), "server.log")
+    context = browser.new_context(viewport={"width": 1400, "height": 900})
+    page = context.new_page()
+    refused = {"n": 0}
+
+    def answer(route) -> None:
+        if refused["n"] < 2:  # the first stream and the first retry meet a 503
+            refused["n"] += 1
+            route.fulfill(status=503, body='{"detail": "shutting down"}')
+        else:
+            route.continue_()
+
+    try:
+        page.route("**/api/events", answer)
+        page.goto(f"{server.base_url}/pendant/?viser={server.viser_url}")
+        page.wait_for_function("() => window.robomachEvents.readyState === 1", timeout=20_000)
+        assert refused["n"] == 2
+        expect(page.locator("#connection")).to_have_text("online")
+        assert httpx.post(server.base_url + "/api/guide-points", json={}).status_code == 201
+        expect(page.locator("#guide-count")).to_have_text("1", timeout=5_000)
+    finally:
+        context.close()
+        server.stop(kill_on_timeout=True)

@@ -16,13 +16,7 @@ from robomach_core.demo_operator import TOOL_DOWN
 from robomach_core.errors import UnreachableTargetError
 from robomach_core.export.rapid import abb_cfx, abb_wrist_centre_in_arm_plane, confdata_from_joints
 from robomach_core.joint_compliance import true_joint_compliance
-from robomach_core.robot import (
-    ROBOT_PROGRAM_LANGUAGE,
-    ROBOT_URDFS,
-    Robot,
-    program_language,
-    robot_urdf_path,
-)
+from robomach_core.robot import ROBOT_URDFS, Robot, program_language, robot_urdf_path
 from robomach_core.robots import ABB_ARMS, IRB4400, IRB6640, controller_axes_deg, urdf_text
 from robomach_core.supervision import Supervisor
 from robomach_core.tool import Tool
@@ -39,7 +33,7 @@ def arm(request) -> Robot:
 
 def test_every_arm_is_selectable_and_speaks_its_language():
     assert {"ur10", "ur5", "ur3", "irb4400", "irb6640"} <= set(ROBOT_URDFS)
-    assert set(ROBOT_URDFS) <= set(ROBOT_PROGRAM_LANGUAGE)  # uploaded arms register too
+    assert all(program_language(name) for name in ROBOT_URDFS)
     assert program_language("IRB4400") == "rapid"
     assert program_language("ur10") == "urscript"
 

@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from robomach_core.project import program_languages
-from robomach_core.robot import ROBOT_HOME_JOINTS_RAD, Robot, program_language, robots_directory
+from robomach_core.robot import Robot, program_language, robots_directory
 from robomach_core.robots import abb, custom
 from robomach_core.robots.custom import RobotFileError, register_urdf
 from robomach_core.robots.recognise import recognise_arm
-from robomach_core.workpiece import ROBOT_WOBJ_POSITION_M
+from robomach_core.robots.registry import arm
 
 
 @pytest.fixture(scope="module")
@@ -31,9 +31,10 @@ def test_a_ur5_copied_out_of_example_robot_data_is_a_ur5_and_gets_urscript(ur5_f
     assert robot.family == "ur" and program_language(name) == "urscript"
     assert "urscript" in program_languages(robot)
     assert "krl" not in program_languages(robot)
-    # the built-in UR5's placement and home, which learn the pump (robot.py, workpiece.py)
-    assert ROBOT_WOBJ_POSITION_M[name] == ROBOT_WOBJ_POSITION_M["ur5"]
-    np.testing.assert_allclose(ROBOT_HOME_JOINTS_RAD[name], ROBOT_HOME_JOINTS_RAD["ur5"])
+    # the built-in UR5's placement, home and stiffness, which learn the pump (robots.registry)
+    assert arm(name).part_position_m == arm("ur5").part_position_m
+    np.testing.assert_allclose(arm(name).home_rad, arm("ur5").home_rad)
+    assert arm(name).stiffness_Nm_rad == arm("ur5").stiffness_Nm_rad
 
 
 def test_recognition_compares_the_axes_not_the_names():

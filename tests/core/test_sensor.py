@@ -32,20 +32,3 @@ def test_reading_includes_the_tools_weight():
     )
     reading = sensor.measure(np.diag([1.0, -1.0, -1.0]), np.zeros(6))  # tool pointing down
     np.testing.assert_allclose(reading[:3], [0.0, 0.0, 2.0 * 9.81])
-
-
-def test_compiled_arm_side_pose_is_eq_16():
-    """The cell's kernel moves the TCP by J dq with dq = Kq^-1 J^T W (JointCompliance)."""
-    from robomach_core import _kernels
-    from robomach_core.joint_compliance import true_joint_compliance
-    from robomach_core.robot import HOME_JOINTS_RAD, Robot
-
-    robot = Robot("ur10", Tool().T_flange_tcp)
-    compliance = true_joint_compliance("ur10")
-    T, J = robot.fk_and_jacobian(HOME_JOINTS_RAD + 0.2)
-    wrench = np.array([300.0, -300.0, 50.0, 2.0, -1.0, 0.5])
-    T_arm, dq = _kernels.arm_side_pose(T, J, wrench, compliance.compliance_rad_Nm)
-    np.testing.assert_allclose(dq, compliance.joint_deflection(J, wrench), rtol=1e-12)
-    np.testing.assert_allclose(T_arm[:3, 3], T[:3, 3] + (J @ dq)[:3], atol=1e-15)
-    # To first order the arm side is the motor side turned by the deflection.
-    np.testing.assert_allclose(T_arm, robot.fk(HOME_JOINTS_RAD + 0.2 + dq), atol=1e-6)

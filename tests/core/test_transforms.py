@@ -41,16 +41,3 @@ def test_slerp_halfway_is_half_the_rotation():
     np.testing.assert_allclose(
         matrix_from_quaternion(slerp(q0, q1, 0.5)), rotation_about("z", 0.5), atol=1e-12
     )
-
-
-@given(axes, st.floats(np.pi - 0.05, np.pi - 1e-9))
-@settings(max_examples=100, deadline=None)
-def test_compiled_log3_matches_pinocchio_near_pi(axis, angle):
-    import pinocchio as pin
-
-    from robomach_core import _kernels
-
-    a = np.array(axis) / np.linalg.norm(axis)
-    R = rotation_about(a, angle)
-    np.testing.assert_allclose(_kernels.log3(R), pin.log3(R), atol=1e-7)
-    np.testing.assert_allclose(_kernels.exp3(a * angle), R, atol=1e-12)

@@ -26,6 +26,7 @@ from typing import Literal
 import numpy as np
 import scipy.linalg
 
+from ...clock import zoh
 from ..errors import CmrrSettingsError
 from .base import ControlDesign, ControlOutput, Measurement, saturate
 
@@ -154,12 +155,8 @@ class AdaptiveLqController:
     def robot(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Discrete robot model (Phi, Gamma, C), speed in mm/s (the model is unit-free)."""
         a, b, c = self.design.feed_dynamics.state_space()
-        n = a.shape[0]
-        big = np.zeros((n + 1, n + 1))
-        big[:n, :n] = a
-        big[:n, n] = b
-        phi = scipy.linalg.expm(big * self.design.dt_s)
-        return phi[:n, :n], phi[:n, n], c
+        phi, gamma = zoh(a, b, self.design.dt_s)
+        return phi, gamma, c
 
     @cached_property
     def kalman_gain(self) -> np.ndarray:
@@ -176,12 +173,7 @@ class AdaptiveLqController:
         """Discrete state-variable filter H = w^2/(s^2 + 2 z w s + w^2): states (H u, s H u)."""
         w = 2.0 * math.pi * self.settings.derivative_filter_hz
         a = np.array([[0.0, 1.0], [-w * w, -2.0 * 0.7 * w]])
-        b = np.array([0.0, w * w])
-        big = np.zeros((3, 3))
-        big[:2, :2] = a
-        big[:2, 2] = b
-        phi = scipy.linalg.expm(big * self.design.dt_s)
-        return phi[:2, :2], phi[:2, 2]
+        return zoh(a, np.array([0.0, w * w]), self.design.dt_s)
 
     def solve(self, removal_N_s_mm: float) -> LqDesign:
         """LQ gain and feedforward for this Df (eq. (14) via the discrete Riccati equation)."""
@@ -398,11 +390,7 @@ def _solve_lq(
     a[n, :n] = kf * c
     a[n, n] = -kf / removal
     a[n + 1, n] = -1.0
-    big = np.zeros((m + 1, m + 1))
-    big[:m, :m] = a
-    big[:m, m] = b
-    ex = scipy.linalg.expm(big * dt_s)
-    phi_p, gamma_p = ex[:m, :m], ex[:m, m]
+    phi_p, gamma_p = zoh(a, b, dt_s)
     # Delay line: the command reaches the robot ``delay`` samples later.
     size = m + delay
     phi = np.zeros((size, size))

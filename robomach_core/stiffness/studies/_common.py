@@ -45,7 +45,7 @@ PAPER_ARMS: dict[str, str] = {
 }
 # The work pose of the studies on a UR arm: TCP in front of the UR10, tool pointing down [m].
 WORK_POSITION_M = (0.70, 0.10, 0.03)
-# Elsewhere: this far from the built-in part's placement (``workpiece.ROBOT_WOBJ_POSITION_M``).
+# Elsewhere: this far from the built-in part's placement (``registry.Arm.part_position_m``).
 WORK_OFFSET_FROM_PART_M = (0.0, 0.10, 0.03)
 # The sensor's true offsets in the simulated cell.
 SENSOR_FORCE_BIAS_N = (1.5, -0.8, 2.0)
@@ -174,13 +174,12 @@ def study_robot(options: StudyOptions, part: str) -> str:
 def work_position_m(robot_name: str) -> np.ndarray:
     """Where the studies cut and measure, tool down: in front of a UR arm as before
     (``WORK_POSITION_M``), else beside the built-in part's placement for the arm. Shape (3,)."""
-    from ...robot import ROBOT_FAMILY
-    from ...workpiece import ROBOT_WOBJ_POSITION_M
+    from ...robots.registry import arm
 
-    key = robot_name.lower()
-    if ROBOT_FAMILY.get(key) == "ur" or key not in ROBOT_WOBJ_POSITION_M:
+    record = arm(robot_name)
+    if record.family == "ur" or record.part_position_m is None:
         return np.asarray(WORK_POSITION_M, dtype=float)
-    return np.asarray(ROBOT_WOBJ_POSITION_M[key]) + np.asarray(WORK_OFFSET_FROM_PART_M)
+    return np.asarray(record.part_position_m) + np.asarray(WORK_OFFSET_FROM_PART_M)
 
 
 def _work_joints(robot: Robot) -> np.ndarray:

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ...clock import CONTROL_PERIOD_S
 from ...joint_compliance import JointCompliance, true_joint_compliance
 from ...robot import Robot
 from ...tool import Tool
@@ -64,7 +65,6 @@ PAPER_MAX_COMPENSATED_UM = 4.70
 PAPER_MAX_RATIO = PAPER_MAX_COMPENSATED_UM / PAPER_MAX_UNCOMPENSATED_UM
 # How close the simulated ratio must come to the paper's (docs/compensation.md).
 RATIO_TOLERANCE = 0.01
-CONTROL_PERIOD_S = 0.004
 
 
 def _line(robot: Robot, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

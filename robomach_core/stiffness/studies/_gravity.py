@@ -7,19 +7,17 @@ from pathlib import Path
 import numpy as np
 
 from ...robot import Robot
-from ...tool import Tool
-from .. import plots
-from ..gravity import (
+from ...sensor import (
     ToolGravity,
-    calibration_joints,
     compensate_gravity,
     contact_reading,
     gravity_reading,
-    identify_tool_gravity,
-    simulate_sensor_readings,
     wrench_at_tcp_in_base,
     wrench_in_tool_frame,
 )
+from ...tool import Tool
+from .. import plots
+from ..gravity import calibration_joints, identify_tool_gravity, simulate_sensor_readings
 from ..milling import (
     CHAPTER_END_MILLING,
 )

@@ -15,11 +15,9 @@ from .. import plots
 from ..compensation import compensate_targets_and_joints
 from ..identification import (
     DEFAULT_LOADS_N,
-    identify_joint_stiffness,
     prediction_errors,
     sample_workspace_joints,
-    simulate_stiffness_measurements,
-    sphere_tip_transform,
+    stiffness_campaign,
 )
 from ..milling import (
     CHAPTER_END_MILLING,
@@ -55,20 +53,18 @@ def run_identification_study(
     non-linear model next to the linear one."""
     report = progress if isinstance(progress, _Progress) else _Progress(progress, cancel)
     name = study_robot(options, "identify")
-    tip_robot = Robot(name, sphere_tip_transform())  # unknown names fail here
-    tool_robot = Robot(name, Tool().T_flange_tcp)
+    tool_robot = Robot(name, Tool().T_flange_tcp)  # unknown names fail here
     truth = true_joint_compliance(name)
     center = tuple(work_position_m(name) + (0.0, 0.0, CAMPAIGN_HEIGHT_M))
     n_poses = (
         min(options.identification_poses, 12) if options.quick else options.identification_poses
     )
     n_test = min(options.test_poses, 10) if options.quick else options.test_poses
-    poses = sample_workspace_joints(tip_robot, n_poses, seed=options.seed, center_m=center)
     report(0.2)
-    data = simulate_stiffness_measurements(
-        tip_robot, poses, truth, cmm_noise_m=options.cmm_noise_um * 1e-6, seed=options.seed
-    )
-    ident = identify_joint_stiffness(tip_robot, data)
+    data, ident = stiffness_campaign(
+        name, poses=n_poses, seed=options.seed, cmm_noise_m=options.cmm_noise_um * 1e-6,
+        center_m=center,
+    )  # fmt: skip
     report(0.5)
     test_joints = sample_workspace_joints(
         tool_robot, n_test, seed=options.seed + 1, center_m=center

@@ -10,14 +10,12 @@ import numpy as np
 from ...export.rapid import write_rapid_module
 from ...joint_compliance import JointCompliance, true_joint_compliance
 from ...robot import Robot
+from ...sensor import ToolGravity
 from ...tool import Tool
 from ...transforms import quaternion_from_matrix
 from .. import plots
 from ..compensation import compensate_targets_and_joints
 from ..export import compensated_rapid_program
-from ..gravity import (
-    ToolGravity,
-)
 from ..milling import (
     CHAPTER_END_MILLING,
     LUND_FACE_MILLING,

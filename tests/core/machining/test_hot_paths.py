@@ -20,13 +20,13 @@ from robomach_core.machining.run import (
     force_directions,
     normal_compliance,
 )
+from robomach_core.sensor import contact_reading, gravity_reading
 from robomach_core.stiffness import (
     OnlineCompensationParams,
     OnlineCompensationState,
     ToolGravity,
     online_compensation_step,
 )
-from robomach_core.stiffness.gravity import contact_reading, gravity_reading
 
 signals = st.lists(st.floats(-0.05, 0.05), min_size=1, max_size=200)
 

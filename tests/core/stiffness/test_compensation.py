@@ -7,6 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from robomach_core.sensor import ToolGravity, contact_reading, gravity_reading
 from robomach_core.stiffness.compensation import (
     OnlineCompensationParams,
     OnlineCompensationState,
@@ -14,7 +15,6 @@ from robomach_core.stiffness.compensation import (
     compensate_targets_and_joints,
     online_compensation_step,
 )
-from robomach_core.stiffness.gravity import ToolGravity, contact_reading, gravity_reading
 from robomach_core.stiffness.model import loaded_equilibrium
 from robomach_core.transforms import pose_error
 

@@ -7,17 +7,19 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robomach_core.stiffness.errors import IdentificationError
-from robomach_core.stiffness.gravity import (
+from robomach_core.sensor import (
     ToolGravity,
-    calibration_joints,
     compensate_gravity,
     contact_reading,
     gravity_reading,
-    identify_tool_gravity,
-    simulate_sensor_readings,
     wrench_at_tcp_in_base,
     wrench_in_tool_frame,
+)
+from robomach_core.stiffness.errors import IdentificationError
+from robomach_core.stiffness.gravity import (
+    calibration_joints,
+    identify_tool_gravity,
+    simulate_sensor_readings,
 )
 from robomach_core.tool import Tool
 

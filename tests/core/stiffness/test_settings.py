@@ -9,9 +9,9 @@ import pytest
 
 from robomach_core.export.rapid import rapid_module
 from robomach_core.export.rapid_check import check_rapid_module
+from robomach_core.sensor import ToolGravity
 from robomach_core.stiffness.errors import SettingsFileError
 from robomach_core.stiffness.export import compensated_rapid_program
-from robomach_core.stiffness.gravity import ToolGravity
 from robomach_core.stiffness.settings import (
     CompensationSettings,
     load_settings,
