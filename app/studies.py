@@ -4,8 +4,9 @@ PROBLEM   The GUI and the REST API both start CMRR studies (``robomach_core.cmrr
           stiffness / compensation studies (``robomach_core.stiffness``), watch their progress,
           cancel them, show the last result's numbers and plots, and keep the settings with the
           project so that they survive a restart.
-STRATEGY  One ``StudyService`` per session (``studies_for(session)``) submits each study to the
-          session's ``JobRunner``, so it shows in ``/api/jobs`` and cancels like any job. A run
+STRATEGY  One ``StudyService`` per session, built at start-up and handed to the GUI and the
+          API (``create_app(studies=)``), submits each study to the session's ``JobRunner``,
+          so it shows in ``/api/jobs`` and cancels like any job. A run
           writes the core's files into a fresh folder under ``<data>/studies/.tmp``; when it is
           done, the folder replaces ``<data>/studies/<project id>/<kind>/`` and the summary and
           settings JSON are saved in the project's store as the exports ``_study-cmrr`` and
@@ -45,6 +46,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, get_args
 
+from app.session import projects
 from robomach_core.cmrr import CONTROLLER_NAMES, SCENARIO_NAMES
 from robomach_core.cmrr.errors import (
     UnknownControllerError,
@@ -55,6 +57,7 @@ from robomach_core.errors import InvalidInputError, RobomachError
 from robomach_core.limits import SEED
 from robomach_core.stiffness.errors import UnknownStudyError
 from robomach_core.stiffness.settings import COMPENSATION_SETTINGS
+from robomach_core.stiffness.studies import StudyName
 
 from .session import ConflictError, JobContext, JobInfo, NotFoundError, Session
 
@@ -64,7 +67,7 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 StudyKind = Literal["cmrr", "compensation"]
-CompensationStudy = Literal["identify", "gravity", "milling", "ilc", "compliance", "all"]
+CompensationStudy = StudyName
 COMPENSATION_STUDIES: tuple[str, ...] = get_args(CompensationStudy)
 CMRR_CONTROLLER_CHOICES: tuple[str, ...] = (*CONTROLLER_NAMES, "all")
 
@@ -158,21 +161,6 @@ class CompensationOutcome:
     plots: dict[str, bytes] = field(default_factory=dict)
     finished_s: float = 0.0
     folder: Path | None = None
-
-
-# --- one service per session -----------------------------------------------------------------
-
-_SERVICES: weakref.WeakKeyDictionary[Session, StudyService] = weakref.WeakKeyDictionary()
-_SERVICES_LOCK = threading.Lock()
-
-
-def studies_for(session: Session) -> StudyService:
-    """The session's ``StudyService``, made on first use: the GUI and the API share it."""
-    with _SERVICES_LOCK:
-        service = _SERVICES.get(session)
-        if service is None:
-            service = _SERVICES[session] = StudyService(session)
-        return service
 
 
 class StudyService:
@@ -426,7 +414,10 @@ class StudyService:
                 # The cell's arm: the identified stiffness is the one its program compensates
                 # with (``robomach compensate`` runs each paper's arm instead).
                 options = StudyOptions(
-                    robot=self.session.cell.robot.name, seed=seed, mode=mode, quick=bool(quick)
+                    robot=self.session.robot.cell.robot.name,
+                    seed=seed,
+                    mode=mode,
+                    quick=bool(quick),
                 )
                 results = run_studies(
                     study, folder, options, progress=ctx.progress, cancel=ctx.cancelled
@@ -632,7 +623,7 @@ class StudyService:
     def _forget_deleted_projects(self) -> None:
         """Remove the study folders of deleted projects (the store drops their exports)."""
         try:
-            alive = {str(p.id) for p in self.session.projects()}
+            alive = {str(p.id) for p in projects.list_projects(self.session)}
             folders = [p for p in self.root.iterdir() if p.is_dir() and p.name.isdigit()]
         except Exception:
             return

@@ -50,15 +50,15 @@ def stop_latency_s() -> float:
 
     session = Session(real_time=True)
     try:
-        session.set_compliance(["x", "y", "z"], "base")
+        session.robot.select(["x", "y", "z"], "base")
         stopped: list[float] = []
 
         def let_go() -> None:
             stopped.append(time.perf_counter())
-            session.stop_motion()
+            session.teach.stop()
 
         threading.Timer(STOP_AFTER_S, let_go).start()
-        session.push(np.array([-10.0, 0, 0, 0, 0, 0]), 3.0)
+        session.teach.push(np.array([-10.0, 0, 0, 0, 0, 0]), 3.0)
         return time.perf_counter() - stopped[0]
     finally:
         session.close()

@@ -124,7 +124,7 @@ def bench_handle(playwright, seconds: float) -> dict:
     stop = threading.Event()
 
     def circle() -> None:
-        centre = session.snapshot().position_m.copy()
+        centre = session.robot.snapshot().position_m.copy()
         wb.leadthrough.spring.value = 1.0
         t0 = time.monotonic()
         while not stop.is_set():

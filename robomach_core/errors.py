@@ -23,6 +23,17 @@ class UnknownNameError(RobomachError, KeyError):
         return str(self.args[0]) if self.args else "unknown name"
 
 
+class NotFoundError(RobomachError, KeyError):
+    """A guide point, project, job or export with that index or id does not exist."""
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else "not found"
+
+
+class ConflictError(RobomachError, RuntimeError):
+    """The action does not fit the current state (e.g. post-processing before a recording)."""
+
+
 class MeshFileError(RobomachError, ValueError):
     """A mesh file cannot be read, is empty, or exceeds the size limits."""
 

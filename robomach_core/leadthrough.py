@@ -23,7 +23,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -31,6 +31,13 @@ from . import _kernels
 from .cell import Cell, CellState
 from .clock import CONTROL_PERIOD_S
 from .errors import InvalidInputError, NoContactError
+from .limits import (
+    JOG_STEP_MM,
+    JOG_TURN_DEG,
+    PUSH_DURATION_S,
+    TOUCH_OFF_FORCE_N,
+    TOUCH_OFF_TRAVEL_MM,
+)
 from .sensor import ForceEstimator
 from .supervision import Supervisor, cell_supervisor, interpolate_pose
 from .transforms import quaternion_from_matrix, rotation_about
@@ -41,7 +48,6 @@ _IDENTITY = np.eye(3)
 ComplianceFrame = Literal["tool", "base"]
 # A jog slowed by supervision may take this many times its nominal periods to complete.
 JOG_MAX_PERIODS_FACTOR = 20
-TOUCH_OFF_FORCE_RANGE_N = (2.0, 50.0)
 TOUCH_OFF_DETECT_FRACTION = 0.5  # contact: the wall pushes back with half the set force
 TOUCH_OFF_STILL_M_S = 0.0005  # settled: slower than this ...
 TOUCH_OFF_STILL_PERIODS = 25  # ... for 0.1 s
@@ -68,7 +74,7 @@ class ComplianceSelection:
             raise InvalidInputError(
                 f"unknown compliance axes {sorted(unknown)}; use any of {', '.join(AXES)}"
             )
-        if self.frame not in ("tool", "base"):
+        if self.frame not in get_args(ComplianceFrame):
             raise InvalidInputError(
                 f"compliance frame must be 'tool' or 'base', not {self.frame!r}"
             )
@@ -266,8 +272,10 @@ class LeadThrough:
         duration_s: float,
     ) -> LeadThroughState:
         """Apply a constant push for ``duration_s`` seconds (supervised like ``step``)."""
-        if not (0 <= duration_s <= 60):
-            raise InvalidInputError(f"push duration {duration_s:g} s is outside 0-60 s")
+        if duration_s not in PUSH_DURATION_S:
+            raise InvalidInputError(
+                f"push duration {duration_s:g} s is outside {PUSH_DURATION_S.text()}"
+            )
         w = np.asarray(push_wrench, dtype=float)
         if w.shape != (6,) or not np.all(np.isfinite(w)):
             raise InvalidInputError("push wrench must be 6 finite values [N, N*m]")
@@ -300,10 +308,12 @@ class LeadThrough:
         if not math.isfinite(step):
             raise InvalidInputError("jog step must be finite")
         rotational = axis.startswith("r")
-        if rotational and abs(step) > math.radians(45):
-            raise InvalidInputError("a rotational jog step is at most 45 degrees")
-        if not rotational and abs(step) > 0.2:
-            raise InvalidInputError("a translational jog step is at most 200 mm")
+        if rotational and abs(step) > math.radians(JOG_TURN_DEG.max):
+            raise InvalidInputError(
+                f"a rotational jog step is at most {JOG_TURN_DEG.max:g} degrees"
+            )
+        if not rotational and abs(step) > JOG_STEP_MM.max * 1e-3:
+            raise InvalidInputError(f"a translational jog step is at most {JOG_STEP_MM.max:g} mm")
         speed = rate or (math.radians(10.0) if rotational else 0.01)
         n = max(1, int(math.ceil(abs(step) / speed / CONTROL_PERIOD_S)))
         unit = {"x": 0, "y": 1, "z": 2}[axis[-1]]
@@ -355,11 +365,13 @@ class LeadThrough:
             raise InvalidInputError(f"touch-off axis must be x, y or z, not {axis!r}")
         if direction not in (1, -1):
             raise InvalidInputError("touch-off direction must be +1 or -1")
-        lo, hi = TOUCH_OFF_FORCE_RANGE_N
-        if not (math.isfinite(force_N) and lo <= force_N <= hi):
-            raise InvalidInputError(f"touch-off force {force_N:g} N is outside {lo:g}-{hi:g} N")
-        if not (math.isfinite(max_travel_m) and 0.0 < max_travel_m <= 0.2):
-            raise InvalidInputError("touch-off travel must be in (0, 200] mm")
+        if force_N not in TOUCH_OFF_FORCE_N:
+            raise InvalidInputError(
+                f"touch-off force {force_N:g} N is outside {TOUCH_OFF_FORCE_N.text()}"
+            )
+        travel_max_m = TOUCH_OFF_TRAVEL_MM.max * 1e-3
+        if not (math.isfinite(max_travel_m) and 0.0 < max_travel_m <= travel_max_m):
+            raise InvalidInputError(f"touch-off travel must be in (0, {travel_max_m * 1e3:g}] mm")
         index = {"x": 0, "y": 1, "z": 2}[axis]
         R_frame = state.cell.T_base_tcp[:3, :3] if selection.frame == "tool" else _IDENTITY
         u = direction * R_frame[:, index]

@@ -82,10 +82,21 @@ FLOOR_CLEARANCE_MM = Range("floor clearance", 0.0, 5.0, "mm")
 PUSH_FORCE_N = Range("push force", 0.0, 200.0, "N")  # magnitude of the force vector
 PUSH_TORQUE_NM = Range("push torque", 0.0, 20.0, "N*m")  # a hand's twist on a tool handle
 PUSH_DURATION_S = Range("push duration", 0.0, 10.0, "s")
+# Force-control jogging (the admittance's speed limit is 50 mm/s) and the guarded touch-off.
+JOG_STEP_MM = Range("jog step", 0.0, 200.0, "mm")
+JOG_TURN_DEG = Range("jog turn", 0.0, 45.0, "deg")
+JOG_SPEED_MM_S = Range("jog speed", 0.5, 50.0, "mm/s")
+JOG_RATE_DEG_S = Range("jog rate", 0.5, 30.0, "deg/s")
+TOUCH_OFF_FORCE_N = Range("touch-off force", 2.0, 50.0, "N")
+TOUCH_OFF_TRAVEL_MM = Range("touch-off travel", 0.0, 200.0, "mm")  # and more than 0
+# The viser push handle: its offset from the TCP times this spring pushes the tool.
+HANDLE_SPRING_N_MM = Range("handle spring", 0.1, 5.0, "N/mm")
 # Guide points of one project, and samples of one recording (4 ms each: 1 M is 67 min of
 # learning, ~260 MB of arrays; the papers' runs are minutes).
 GUIDE_POINTS_MAX = 200
 RECORDING_SAMPLES_MAX = 1_000_000
+# Points of a force trace sent for a plot (decimated by stride).
+TRACE_POINTS = Range("trace points", 2, 100_000, integer=True)
 
 # --- post-processing (chapter fig. 3: 0.2 mm gave ~300 targets) -----------------------------
 TOLERANCE_MM = Range("deviation-height tolerance", 0.01, 5.0, "mm")
@@ -124,7 +135,7 @@ JOINT_STIFFNESS_STD_NM_RAD = Range("joint stiffness uncertainty", 0.0, 1.0e9, "N
 WOBJ_POSITION_MM = Range("work-object position", -3000.0, 3000.0, "mm")
 WOBJ_ROTATION_DEG = Range("work-object rotation", -360.0, 360.0, "deg")
 
-# Ball cutter radius: the design's 1-5 mm cutters, down to 0.5 mm (tool.TOOL_RADIUS_RANGE_M).
+# Ball cutter radius: the design's 1-5 mm cutters, down to 0.5 mm.
 TOOL_RADIUS_MM = Range("tool radius", 0.5, 5.0, "mm")
 
 # --- machining run (chapter eq. 6: F = 23 d^0.9 f^0.5; the spindle limit ~150-300 N) ----------

@@ -64,7 +64,7 @@ from .contour_following import (
 )
 from .errors import CancelledError, InvalidInputError, NotEnoughGuidePointsError
 from .leadthrough import GuidePoint
-from .limits import FLOOR_CLEARANCE_MM
+from .limits import FLOOR_CLEARANCE_MM, LEARNING_FORCE_N, LEARNING_SPEED_MM_S
 from .sensor import ForceEstimator
 from .supervision import Supervisor, cell_supervisor
 from .transforms import matrix_from_quaternion, quaternion_from_matrix, quaternions_from_matrices
@@ -78,8 +78,8 @@ from .wall_side import (
     resolve_wall_side,
 )
 
-FORCE_RANGE_N = (1.0, 50.0)
-SPEED_RANGE_M_S = (0.0005, 0.05)
+FORCE_RANGE_N = (LEARNING_FORCE_N.min, LEARNING_FORCE_N.max)
+SPEED_RANGE_M_S = (LEARNING_SPEED_MM_S.min * 1e-3, LEARNING_SPEED_MM_S.max * 1e-3)
 CONTACT_FLAG_N = 1.0  # a measured contact force above this counts as contact
 LOST_WALL_M = 0.03  # protection: the tool searched this far without finding the wall
 ROUTE_WANDER_FRACTION = 1.0  # protection: the wall led the tool this far (x leg) off the leg

@@ -33,6 +33,9 @@ from .project import (
     process,
     program_export,
     program_languages,
+    with_guide_points,
+    with_learned,
+    with_processed,
 )
 from .project import compensate_program_targets as _compensate
 from .project import wobj_transform as wobj_transform
@@ -300,7 +303,7 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         intents=intents,
         progress=lambda f: report("lead-through", f),
     )
-    project = replace(project, guide_points=tuple(guides))
+    project = with_guide_points(project, guides)  # the transitions the workbench applies
     t_learn = time.perf_counter()
     learning = PathLearningSettings(
         force_N=settings.force_N,
@@ -325,7 +328,7 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         project.cell.tool_radius_m,
         guides=project.guide_points,
     )
-    project = replace(project, learned=learned, processed=processed)
+    project = with_processed(with_learned(project, learned), processed)
     report("post-processing", 1.0)
     report("export", 0.0)
     files, targets = program_export(project, workpiece, cell.robot, language=settings.language)

@@ -9,11 +9,12 @@ from typing import Literal
 import numpy as np
 
 from .errors import InvalidInputError
+from .limits import TOOL_RADIUS_MM
 from .transforms import make_transform
 
 CutterShape = Literal["ball", "cylinder"]
 
-TOOL_RADIUS_RANGE_M = (0.0005, 0.005)
+TOOL_RADIUS_RANGE_M = (TOOL_RADIUS_MM.min * 1e-3, TOOL_RADIUS_MM.max * 1e-3)
 # The tool pointing straight down, its x along -y of the base (the built-in parts' work pose).
 TOOL_DOWN = np.array([[0.0, -1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 

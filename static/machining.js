@@ -5,18 +5,14 @@
 // carry, and a force / feed plot along the path that opens large.
 "use strict";
 
-const MACHINING_CONTROLLERS = ["constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage",
-  "adaptive-lq"];
-const MACHINING_COMPENSATIONS = ["off", "offline", "online"];
-const CELL_OPTIONS = [["fc_speed_change", "FC SpeedChange"], ["path_correction", "path correction"],
-  ["force_mode", "force mode"]];
 let machiningJob = null;
 let machiningRows = [];
 let machiningSort = { key: null, up: true };
 let machiningTrace = null;
 
-function machiningCard() {
-  const options = (names) => names.map((n) => `<option value="${n}">${n}</option>`).join("");
+// The controllers, compensations, cell options and the bounds come from GET /api/choices.
+function machiningCard(choices) {
+  const options = choices.enums.cell_option;
   const card = document.createElement("fieldset");
   card.className = "card";
   card.id = "machining-card";
@@ -24,21 +20,21 @@ function machiningCard() {
     <legend>Machining <span id="mach-stale" class="pill pill-warn hidden"
       title="the program or the settings changed since: run it again">out of date</span></legend>
     <div class="row">
-      <label>K <input id="mach-gain" type="number" min="0.1" max="10000" step="0.5"> N</label>
-      <label>&alpha; <input id="mach-alpha" type="number" min="0" max="3" step="0.05"></label>
-      <label>&beta; <input id="mach-beta" type="number" min="0.01" max="2" step="0.05"></label>
-      <label>Limit <input id="mach-limit" type="number" min="1.5" max="1400" step="5"> N</label>
+      <label>K <input id="mach-gain" type="number" data-range="MACHINING_PROCESS_GAIN_N" step="0.5"> N</label>
+      <label>&alpha; <input id="mach-alpha" type="number" data-range="MACHINING_DEPTH_EXPONENT" step="0.05"></label>
+      <label>&beta; <input id="mach-beta" type="number" data-range="MACHINING_FEED_EXPONENT" step="0.05"></label>
+      <label>Limit <input id="mach-limit" type="number" data-range="MACHINING_FORCE_LIMIT_N" step="5"> N</label>
     </div>
     <div class="row">
-      <label>Controller <select id="mach-controller">${options(MACHINING_CONTROLLERS)}</select></label>
-      <label>Compensation <select id="mach-compensation">${options(MACHINING_COMPENSATIONS)}</select></label>
+      <label>Controller <select id="mach-controller" data-enum="cmrr_controller"></select></label>
+      <label>Compensation <select id="mach-compensation" data-enum="machining_compensation"></select></label>
       <span class="small">stock: <span id="mach-stock">-</span></span>
     </div>
     <div class="row">
       <span class="small">cell options:</span>
-      ${CELL_OPTIONS.map(([v, t]) => `<label class="small"><input type="checkbox" class="mach-option" value="${v}"> ${t}</label>`).join("")}
+      ${options.values.map((v) => `<label class="small"><input type="checkbox" class="mach-option" value="${v}"> ${options.labels[v]}</label>`).join("")}
       <button id="mach-options-default" class="small">defaults</button>
-      <label>Variations <input id="mach-variations" type="number" min="0" max="1000" step="1"></label>
+      <label>Variations <input id="mach-variations" type="number" data-range="MACHINING_VARIATIONS" step="1"></label>
     </div>
     <div id="mach-notes" class="small"></div>
     <div class="row">
@@ -235,7 +231,9 @@ async function startMachining(kind) {
 async function initMachining() {
   const pendant = document.querySelector("section.pendant");
   const exportCard = $("export-card");
-  pendant.insertBefore(machiningCard(), exportCard);
+  const card = machiningCard(await loadChoices());
+  pendant.insertBefore(card, exportCard);
+  await applyChoices(card);
   for (const id of ["mach-gain", "mach-alpha", "mach-beta", "mach-limit"]) {
     $(id).addEventListener("change", safe(putMachiningSettings));
   }

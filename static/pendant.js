@@ -54,6 +54,44 @@ function detailOf(body, status) {
 }
 
 // fetch + JSON + error reporting; throws after showing the message.
+// Every choice and number range of the core (GET /api/choices, robomach_core.choices): the
+// menus (select[data-enum]) and the number inputs' bounds (input[data-range]) follow it, so the
+// page never accepts what the server refuses, nor refuses what it takes.
+let choicesLoaded = null;
+function loadChoices() {
+  if (!choicesLoaded) {
+    choicesLoaded = api("GET", "/choices", undefined, { quiet: true }).catch((err) => {
+      choicesLoaded = null;
+      throw err;
+    });
+  }
+  return choicesLoaded;
+}
+
+async function applyChoices(root = document) {
+  const choices = await loadChoices();
+  for (const el of root.querySelectorAll("input[data-range]")) {
+    const range = choices.ranges[el.dataset.range];
+    if (!range) continue;
+    el.min = range.min;
+    el.max = range.max;
+    if (!el.title) el.title = `${range.label}: ${range.text}`;
+  }
+  for (const el of root.querySelectorAll("select[data-enum]")) {
+    const choice = choices.enums[el.dataset.enum];
+    if (!choice || el.options.length) continue;
+    for (const value of choice.values) {
+      const option = document.createElement("option");
+      option.value = value;
+      option.textContent = choice.labels[value] || value;
+      el.append(option);
+    }
+    if (el.dataset.default) el.value = el.dataset.default;
+    el.dispatchEvent(new Event("change"));
+  }
+  return choices;
+}
+
 async function api(method, path, body, { text = false, quiet = false } = {}) {
   let response;
   try {
@@ -549,6 +587,7 @@ async function init() {
   const token = $("token");
   token.value = localStorage.getItem(TOKEN_KEY) || "";
   token.addEventListener("change", () => localStorage.setItem(TOKEN_KEY, token.value.trim()));
+  await applyChoices().catch(() => {});  // the menus and bounds; pollState says if it is down
   $("message-close").addEventListener("click", clearMessage);
 
   for (const b of document.querySelectorAll("button.jog")) {

@@ -14,7 +14,6 @@ const GAMEPAD_PERIOD_MS = 100;
 const GAMEPAD_DEADZONE = 0.15;
 const TOOL_PERIOD_MS = 200;
 const GUIDE_FALLBACK_MS = 2000;
-const FRAME_NAMES = { wobj: "work object", base: "base", tool: "tool" };
 const KEY_JOGS = {
   ArrowLeft: ["x", -1], ArrowRight: ["x", 1],
   ArrowDown: ["y", -1], ArrowUp: ["y", 1],
@@ -33,7 +32,8 @@ function jogFrame() {
 
 function showFrame() {
   for (const el of document.querySelectorAll("[data-frame-label]")) {
-    el.textContent = FRAME_NAMES[jogFrame()] || jogFrame();
+    const option = $("jog-frame").selectedOptions[0];  // its words: GET /api/choices
+    el.textContent = option ? option.textContent : jogFrame();
   }
 }
 

@@ -29,6 +29,7 @@ from starlette.types import ASGIApp, Receive, Scope, Send
 
 from app.api.routes import (
     cell,
+    choices,
     cmrr,
     compensation,
     events,
@@ -48,8 +49,9 @@ from app.api.routes import (
 )
 from app.session import ConflictError, NotFoundError, QueueFullError, Session
 from app.session.jobs import describe_unexpected
+from app.session.machining import MachiningService
 from app.settings import MAX_JSON_BODY_BYTES, ServerSettings, is_loopback_name
-from app.studies import StudyQueueFullError
+from app.studies import StudyQueueFullError, StudyService
 from robomach_core.errors import (
     CancelledError,
     ForceLimitError,
@@ -69,7 +71,7 @@ MULTIPART_OVERHEAD_BYTES = 64 * 1024
 # guide_proposals before guide_points: its /proposal paths must not be read as an {index}.
 ROUTERS = (state, leadthrough, guide_proposals, guide_points, path_learning, jobs, postprocess,
            export, projects, cell, cmrr, compensation, robot_wiring, machining, project_file,
-           teach, events)  # fmt: skip
+           teach, events, choices)  # fmt: skip
 
 # A service is started in the lifespan and stopped after it (e.g. the viser workbench).
 Service = Callable[[], AbstractContextManager]
@@ -360,6 +362,8 @@ def create_app(
     *,
     services: Sequence[Service] = (),
     close_session: bool = True,
+    studies: StudyService | None = None,
+    machining: MachiningService | None = None,
 ) -> FastAPI:
     """The REST API over ``session``.
 
@@ -369,6 +373,8 @@ def create_app(
         services: Context-manager factories entered at startup and left at shutdown, in
             reverse order (the viser workbench).
         close_session: Close the session (cancel jobs, close the store) at shutdown.
+        studies, machining: The session's study and machining services, shared with the
+            viser workbench (``server.build_app``); new ones when None.
     """
     settings = settings or ServerSettings(viser_port=None)
 
@@ -400,6 +406,8 @@ def create_app(
         max_body_size=MAX_JSON_BODY_BYTES,
     )
     app.state.session = session
+    app.state.studies = studies or StudyService(session)
+    app.state.machining = machining or MachiningService(session)
     app.state.settings = settings
     for module in ROUTERS:
         app.include_router(module.router)

@@ -24,7 +24,8 @@ from app.session import (
     RobotSnapshot,
 )
 from robomach_core import limits
-from robomach_core.leadthrough import ComplianceSelection
+from robomach_core.choices import JogFrame
+from robomach_core.leadthrough import ComplianceFrame, ComplianceSelection
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import StageStatus
 from robomach_core.wall_side import WallSideSetting
@@ -151,12 +152,12 @@ class ComplianceUpdate(_Request):
     axes: list[Axis] = Field(
         description="compliant axes, any subset of x, y, z, rx, ry, rz (the rest are stiff)"
     )
-    frame: Literal["tool", "base"] = Field(description="frame of the axes")
+    frame: ComplianceFrame = Field(description="frame of the axes")
 
 
 class CompliancePublic(BaseModel):
     axes: list[Axis]
-    frame: Literal["tool", "base"]
+    frame: ComplianceFrame
 
     @classmethod
     def from_selection(cls, s: ComplianceSelection) -> CompliancePublic:
@@ -188,7 +189,7 @@ class JogCreate(_Request):
     step: Finite = Field(
         description="step [mm] along x/y/z (at most 200) or [deg] about rx/ry/rz (at most 45)"
     )
-    frame: Literal["tool", "base", "wobj"] = Field(
+    frame: JogFrame = Field(
         default="tool", description="frame of the axis: tool, robot base or work object"
     )
     speed: Finite | None = Field(

@@ -7,8 +7,8 @@ import sys
 import time
 from pathlib import Path
 
-SCENARIOS = ("milling-steps", "deburr-burrs", "lund-df", "learned-path")
-CONTROLLERS = ("constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage", "adaptive-lq")
+from robomach_core.cmrr import CONTROLLER_NAMES as CONTROLLERS
+from robomach_core.cmrr import SCENARIO_NAMES as SCENARIOS
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

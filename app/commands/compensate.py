@@ -6,9 +6,12 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import get_args
 
-STUDY_CHOICES = ("identify", "gravity", "milling", "ilc", "compliance", "all")
-MODE_CHOICES = ("off", "online", "offline_linear", "offline_nonlinear")
+from robomach_core.stiffness.settings import COMPENSATION_SETTINGS as MODE_CHOICES
+from robomach_core.stiffness.studies import StudyName
+
+STUDY_CHOICES = get_args(StudyName)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

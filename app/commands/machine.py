@@ -16,10 +16,11 @@ import json
 import sys
 from pathlib import Path
 
-CONTROLLER_CHOICES = ("constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage", "adaptive-lq")
-COMPENSATION_CHOICES = ("off", "offline", "online")
+from robomach_core.machining.choice import OPTION_NAMES as CELL_OPTION_CHOICES
+from robomach_core.machining.settings import COMPENSATION_NAMES as COMPENSATION_CHOICES
+from robomach_core.machining.settings import MACHINING_CONTROLLERS as CONTROLLER_CHOICES
+
 MESH_STOCK_SUFFIXES = (".stl", ".obj", ".ply")
-CELL_OPTION_CHOICES = ("fc_speed_change", "path_correction", "force_mode")
 # Exit codes (also in the README and --help).
 EXIT_OK = 0  # the comparison ran and a configuration was chosen and exported (stops included)
 EXIT_NOTHING_CHOSEN = 1  # no configuration the cell can run completed, or it cannot be exported

@@ -58,9 +58,23 @@ class Workbench:
         rate_hz: Updater rate (the robot is redrawn at most this often, only when it moved).
     """
 
-    def __init__(self, server: viser.ViserServer, session, *, rate_hz: float = RATE_HZ) -> None:
+    def __init__(
+        self,
+        server: viser.ViserServer,
+        session,
+        *,
+        rate_hz: float = RATE_HZ,
+        studies=None,
+        machining=None,
+    ) -> None:
+        from app.session.machining import MachiningService
+        from app.studies import StudyService
+
         self.server = server
         self.session = session
+        # The session's services, shared with the API when the server injects them.
+        self.study_service = studies or StudyService(session)
+        self.machining_service = machining or MachiningService(session)
         self.period_s = 1.0 / rate_hz
         server.gui.configure_theme(
             control_width="large",
@@ -80,7 +94,7 @@ class Workbench:
         self.pointing = PointingPanel(server, session, self.scene, self.guide_points)
         self.path_learning = PathLearningPanel(server, session, self.scene)
         self.postprocess = PostprocessPanel(server, session, self.scene)
-        self.export = ExportPanel(server, session)
+        self.export = ExportPanel(server, session, self.study_service)
         self.robot_program = RobotProgramPanel(server, session)
         self.guide_rules = GuideRulesPanel(server, session, self.path_learning.route_settings)
         self.path_learning.on_route_change(lambda: self._on_change("guide_points"))
@@ -109,16 +123,13 @@ class Workbench:
         for panel in self.studies:
             panel.close()
 
-    @staticmethod
-    def _study_panels(server: viser.ViserServer, session) -> list:
+    def _study_panels(self, server: viser.ViserServer, session) -> list:
         """The CMRR and compensation study panels (collapsed, below the pipeline's)."""
         try:
-            from app.studies import studies_for
-
             from .panels.cmrr import CmrrPanel
             from .panels.compensation import CompensationPanel
 
-            service = studies_for(session)
+            service = self.study_service
             return [
                 CmrrPanel(server, session, service),
                 CompensationPanel(server, session, service),
@@ -127,13 +138,12 @@ class Workbench:
             log.exception("the study panels failed to build")
             return []
 
-    @staticmethod
-    def _machining_panel(server: viser.ViserServer, session) -> list:
+    def _machining_panel(self, server: viser.ViserServer, session) -> list:
         """The Machining panel (issue 8), closed with the study panels."""
         try:
             from .panels.machining import MachiningPanel
 
-            return [MachiningPanel(server, session)]
+            return [MachiningPanel(server, session, self.machining_service)]
         except Exception:
             log.exception("the machining panel failed to build")
             return []
@@ -188,7 +198,7 @@ class Workbench:
             self.robot_program.refresh()
             self.pointing.show_comparison()
             self._hide_old_cell_paths(topics)
-        snapshot = self.leadthrough.tick(self.session.snapshot())
+        snapshot = self.leadthrough.tick(self.session.robot.snapshot())
         self.teach.tick(snapshot)
         self._draw_robot(snapshot)
         now = time.monotonic()
@@ -222,7 +232,7 @@ class Workbench:
         self.leadthrough.show_pose(snapshot)
 
     def _show_cell(self) -> None:
-        cell = self.session.cell
+        cell = self.session.robot.cell
         self.scene.set_robot(cell.robot.name)
         self.scene.set_tool(cell.tool)
         self.scene.set_workpiece(cell.workpiece)  # drawn as its mesh (``Workpiece.cad``)
@@ -253,7 +263,7 @@ class Workbench:
                 self._jobs_shown[kind] = job.id
                 panel.show_job(job)
             elif kind in self._jobs_shown:
-                finished = self.session.job(self._jobs_shown.pop(kind))
+                finished = self.session.jobs.get(self._jobs_shown.pop(kind))
                 panel.show_job(finished if kind == "path_learning" else None)
                 if finished.status == "failed":
                     title = JOB_TITLES.get(kind, kind)

@@ -1,7 +1,7 @@
 """The workbench's machining: settings, runs and comparisons as jobs, the result, the choice.
 
-One ``MachiningService`` per session (``machining_for``), shared by the viser panel, the REST
-routes and the pendant. It acts on the session's ``Project`` through the core's stage
+One ``MachiningService`` per session, built at start-up and injected into the viser panel,
+the REST routes (and so the pendant). It acts on the session's ``Project`` through the core's stage
 (``robomach_core.project.machine``, ``choose``), so the CLI and the workbench compute and export
 the same way. A run computes from a snapshot of the project outside the lock and is swapped in
 only if the project's machining inputs did not change meanwhile. The traces of the last run
@@ -23,8 +23,6 @@ from __future__ import annotations
 
 import base64
 import os
-import threading
-import weakref
 from dataclasses import replace
 from pathlib import Path
 from typing import Any, Literal
@@ -44,18 +42,6 @@ PLOT_POINTS = 1500
 MAX_STOCK_BYTES = 20_000_000
 # The Dask scheduler the workbench runs its machining cuts on (unset: the local cores).
 CLUSTER_ENV = "ROBOMACH_CLUSTER"
-
-_SERVICES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-_SERVICES_LOCK = threading.Lock()
-
-
-def machining_for(session: Any) -> MachiningService:
-    """The session's ``MachiningService``, made on first use."""
-    with _SERVICES_LOCK:
-        service = _SERVICES.get(session)
-        if service is None:
-            service = _SERVICES[session] = MachiningService(session)
-        return service
 
 
 class MachiningService:
@@ -262,13 +248,9 @@ class MachiningService:
 
     def choose(self, controller: str, compensation: str) -> core.MachiningSetup:
         """Save the configuration the exports carry (``project.choose``)."""
-        s = self.session
-        with s._lock:
-            s._project = core.choose(s._project, controller, compensation)
-            self._save()
-            setup = core.machining_setup_of(s._project)
-        s._notify("postprocess", "machining")
-        return setup
+        change = lambda p: core.choose(p, controller, compensation)  # noqa: E731
+        project = self.session.commit(change, "post", topics=("postprocess", "machining"))
+        return core.machining_setup_of(project)
 
     def start(self, kind: JobKind) -> str:
         """Job: run the chosen configuration (``"run"``) or the matrix (``"compare"``), on the
@@ -279,12 +261,11 @@ class MachiningService:
         if kind not in ("run", "compare"):
             raise InvalidInputError(f"machining job kind must be run or compare, got {kind!r}")
         s = self.session
-        with s._lock:
-            project, workpiece = s._project, s._cell.workpiece
-            robot = s._cell.robot
-            core.require_processed(project)
-            if project.machining_settings is None:  # from the CMRR / compensation slots
-                project = core.with_machining_setup(project, core.machining_setup_of(project))
+        view = s.view()
+        project, workpiece, robot = view.project, view.cell.workpiece, view.cell.robot
+        core.require_processed(project)
+        if project.machining_settings is None:  # from the CMRR / compensation slots
+            project = core.with_machining_setup(project, core.machining_setup_of(project))
         controllers = MACHINING_CONTROLLERS if kind == "compare" else None
         compensations = COMPENSATION_NAMES if kind == "compare" else None
 
@@ -302,39 +283,34 @@ class MachiningService:
             )
 
         def done(result: core.MachiningResult) -> None:
-            with s._lock:
-                current = s._project
+            def change(current: core.Project) -> core.Project:
                 if current.machining_settings is None:
                     current = core.with_machining_setup(current, core.machining_setup_of(current))
                 if core.machining_inputs_key(current) != result.inputs:
                     raise ConflictError(
                         "the program or the machining settings changed while it ran; run it again"
                     )
-                s._project = core.with_machining_result(current, result)
-                self._save()
-            s._notify("machining")
+                return core.with_machining_result(current, result)
+
+            s.commit(change, "post", topics=("machining",))
 
         return s.jobs.submit(f"machining_{kind}", work, on_done=done)
 
     # --- internals ---------------------------------------------------------------------------
 
     def _update(self, change) -> core.MachiningSetup:
-        s = self.session
-        with s._lock:
-            setup = change(core.machining_setup_of(s._project))
-            s._project = core.with_machining_setup(s._project, setup)
-            result = s._project.machining
+        def transition(project: core.Project) -> core.Project:
+            project = core.with_machining_setup(project, change(core.machining_setup_of(project)))
+            result = project.machining
             if isinstance(result, core.MachiningResult):
                 # The cell's options decide what is choosable: the same figures, re-chosen.
-                caps = core.capabilities_of(s._project)
+                caps = core.capabilities_of(project)
                 if tuple(sorted(caps.options)) != tuple(result.capabilities):
-                    s._project = replace(s._project, machining=result.for_cell(caps))
-            self._save()
-        s._notify("postprocess", "machining")
-        return setup
+                    project = replace(project, machining=result.for_cell(caps))
+            return project
 
-    def _save(self) -> None:
-        self.session._save("post")
+        project = self.session.commit(transition, "post", topics=("postprocess", "machining"))
+        return core.machining_setup_of(project)
 
 
 # --- persistence (the project's post_json gets "machining") ----------------------------------

@@ -21,11 +21,13 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from robomach_core import mesh_query
+from robomach_core import project as core
+from robomach_core.choices import CLICK_MODES, ClickMode
 from robomach_core.errors import InvalidInputError, SupervisionError, UnreachableTargetError
 from robomach_core.guide_proposal import (
     GuideProposal,
@@ -45,13 +47,12 @@ from robomach_core.teach_motion import Arrival
 from robomach_core.wall_section import WallPick
 
 from .records import MAX_GUIDE_POINTS, ConflictError, GuidePointEntry, NotFoundError
+from .robot import ROBOT_JOB_KINDS
 
 if TYPE_CHECKING:
     from .session import Session
 
 SAFE_HEIGHT_M = 0.008  # the tool travels this far above the part's top
-ClickMode = Literal["propose", "teach", "move", "off"]
-CLICK_MODES: tuple[ClickMode, ...] = ("propose", "teach", "move", "off")
 
 
 @dataclass(frozen=True)
@@ -110,7 +111,7 @@ class Pointing:
         if click_mode is not None:
             self.click_mode = click_mode
         if changed:
-            self._session._notify("guide_points")
+            self._session.notify("guide_points")
         return self.settings
 
     # --- click to teach ------------------------------------------------------------------
@@ -124,16 +125,16 @@ class Pointing:
     ) -> TaughtPoint:
         """Put the tool beside the wall at a picked point (work-object frame) and record a
         guide point there: appended, or in place of ``replace_index`` (drag to adjust)."""
-        s = self._session
-        with s._lock:
-            s._require_idle()
-            cell, lt_state = s._cell, s._lt_state
-            count = len(s._project.guide_points)
-            if replace_index is not None and not 0 <= replace_index < count:
-                raise NotFoundError(f"no guide point G{replace_index + 1}; there are {count}")
-            if replace_index is None and count >= MAX_GUIDE_POINTS:
-                raise ConflictError(f"a project holds at most {MAX_GUIDE_POINTS} guide points")
-            supervisor = s._lt.supervisor
+        s, robot = self._session, self._session.robot
+        with robot.lock:
+            robot.require_idle()
+            pose = robot.pose()
+            count = len(s.project().guide_points)
+        if replace_index is not None and not 0 <= replace_index < count:
+            raise NotFoundError(f"no guide point G{replace_index + 1}; there are {count}")
+        if replace_index is None and count >= MAX_GUIDE_POINTS:
+            raise ConflictError(f"a project holds at most {MAX_GUIDE_POINTS} guide points")
+        cell, lt_state, supervisor = pose.cell, pose.state, pose.leadthrough.supervisor
         cad = cell.workpiece.cad()
         with mesh_query.LOCK:  # the mesh's trees answer one thread at a time
             planned, pick = teach_point(
@@ -166,18 +167,16 @@ class Pointing:
             )
             entry = robust.position_m
         arrival = s.teach.move_to(planned.T_base_tcp, safe_z_m=self._safe_z(cad), entry_m=entry)
-        with s._lock:
-            point = s._lt.record(s._lt_state)
-            guides = list(s._project.guide_points)
+        point = robot.record()
+
+        def change(p: core.Project) -> core.Project:
             if replace_index is None:
-                guides.append(point)
-                index = len(guides) - 1
-            else:
-                guides[replace_index] = point
-                index = replace_index
-            s._set_guides(tuple(guides))
-            self._pointed = (s._project.guides_key, None)
-        s._notify("guide_points", "recording", "postprocess")
+                return core.with_guide_point_added(p, point)
+            return core.with_guide_point_at(p, replace_index, point)
+
+        project = s.commit(change, "guides", topics=("guide_points", "recording", "postprocess"))
+        index = len(project.guide_points) - 1 if replace_index is None else replace_index
+        self._pointed = (project.guides_key, None)
         notice = arrival.describe()
         if planned.message:
             notice = f"{notice}; {planned.message}" if notice else planned.message
@@ -190,7 +189,7 @@ class Pointing:
         dragged marker was dropped."""
         from robomach_core.wall_section import _off_vertices, section_loops
 
-        cad = self._session._cell.workpiece.cad()
+        cad = self._session.robot.workpiece.cad()
         p = np.asarray(tcp_wobj_m, dtype=float).reshape(3)
         loops = section_loops(cad.mesh, _off_vertices(cad.mesh, float(p[2])))
         if not loops:
@@ -219,9 +218,9 @@ class Pointing:
         """Propose the guide points for the wall through a picked point (nothing moves); it
         replaces any pending proposal."""
         s = self._session
-        with s._lock:
-            cell, epoch, q = s._cell, s._epoch, s._lt_state.cell.q_motor
-            supervisor = s._lt.supervisor
+        pose = s.robot.pose()
+        cell, epoch, q = pose.cell, pose.epoch, pose.state.cell.q_motor
+        supervisor = pose.leadthrough.supervisor
         with mesh_query.LOCK:
             proposal = propose_guide_points(
                 cell.workpiece.cad(),
@@ -235,23 +234,23 @@ class Pointing:
                 tool_reach_m=tool_reach(cell.tool),
             )
         with self._lock:
-            if epoch != s._epoch:
+            if epoch != s.robot.epoch:
                 raise ConflictError("the cell changed while the guide points were proposed")
             self._proposal = (epoch, proposal)
-        s._notify("guide_points")
+        s.notify("guide_points")
         return proposal
 
     def proposal(self) -> GuideProposal | None:
         """The pending proposal of this cell, or None."""
         with self._lock:
-            if self._proposal is None or self._proposal[0] != self._session._epoch:
+            if self._proposal is None or self._proposal[0] != self._session.robot.epoch:
                 return None
             return self._proposal[1]
 
     def _require(self) -> tuple[int, GuideProposal]:
         with self._lock:
             pending = self._proposal
-        if pending is None or pending[0] != self._session._epoch:
+        if pending is None or pending[0] != self._session.robot.epoch:
             raise NotFoundError("no proposed guide points: click a wall to propose them first")
         return pending
 
@@ -260,13 +259,14 @@ class Pointing:
             if self._proposal is None or self._proposal[0] != epoch:
                 raise ConflictError("the proposal changed meanwhile; look at it again")
             self._proposal = (epoch, proposal)
-        self._session._notify("guide_points")
+        self._session.notify("guide_points")
         return proposal
 
     def move_proposed(self, index: int, point_wobj_m: np.ndarray) -> GuideProposal:
         """Drag proposed point ``index`` along the wall to where ``point_wobj_m`` projects."""
         epoch, proposal = self._require()
-        cell = self._session._cell
+        pose = self._session.robot.pose()
+        cell = pose.cell
         moved = move_point(
             proposal,
             index,
@@ -274,21 +274,21 @@ class Pointing:
             cell.robot,
             tool_radius_m=cell.tool.radius_m,
             gap_m=self.settings.gap_m,
-            supervisor=self._session._lt.supervisor,
+            supervisor=pose.leadthrough.supervisor,
         )
         return self._replace(epoch, moved)
 
     def delete_proposed(self, index: int) -> GuideProposal:
         """Delete proposed point ``index``."""
         epoch, proposal = self._require()
-        radius = self._session._cell.tool.radius_m
+        radius = self._session.robot.cell.tool.radius_m
         return self._replace(epoch, delete_point(proposal, index, tool_radius_m=radius))
 
     def discard(self) -> None:
         """Drop the pending proposal."""
         with self._lock:
             self._proposal = None
-        self._session._notify("guide_points")
+        self._session.notify("guide_points")
 
     def accept(self) -> str:
         """Job: the operator leads the robot by pushes to each proposed point, touches the
@@ -303,19 +303,20 @@ class Pointing:
             raise InvalidInputError(
                 f"the arm cannot reach {listed}: move or delete them before accepting"
             )
-        s = self._session
-        with s._lock:
-            s._require_idle()
-            if epoch != s._epoch:
-                raise ConflictError("the cell changed since the proposal; propose again")
-            cell, estimator, start = s._cell, s._lt.estimator, s._lt_state
-            rng_seed = s._project.cell.seed
+        s, robot = self._session, self._session.robot
+        with robot.lock:
+            robot.require_idle()
+            pose = robot.pose()
+            rng_seed = s.project().cell.seed
+        if epoch != pose.epoch:
+            raise ConflictError("the cell changed since the proposal; propose again")
+        cell, estimator, start = pose.cell, pose.leadthrough.estimator, pose.state
         intents = guide_intents(proposal)
         if cell.workpiece.nominal is not None:  # the real part is not where its mesh is
             intents = robust_intents(intents, cell.workpiece, cell.tool.radius_m)
 
         def work(ctx) -> tuple[LeadThroughState, list[GuidePoint]]:
-            lt = LeadThrough(s._live.tapped(cell, estimator, ctx), estimator=estimator)
+            lt = LeadThrough(robot.tapped(ctx, cell), estimator=estimator)
             try:
                 return scripted_leadthrough(
                     lt,
@@ -330,17 +331,12 @@ class Pointing:
 
         def done(result: tuple[LeadThroughState, list[GuidePoint]]) -> None:
             state, guides = result
-            with s._lock:
-                if epoch != s._epoch:
-                    raise ConflictError("the cell changed while the proposal was accepted")
-                s._lt_state = replace(state, velocity=np.zeros(6))
-                s._set_guides(tuple(guides), with_robot=True)
-                self._pointed = (s._project.guides_key, proposal.wall_side)
+            project = s.learning.land_guides(state, guides, epoch, "the proposal's acceptance")
+            self._pointed = (project.guides_key, proposal.wall_side)
             with self._lock:
                 self._proposal = None
-            s._notify("robot", "guide_points", "recording", "postprocess")
 
-        return s._submit_robot_job("accept", work, done, epoch)
+        return robot.submit(ROBOT_JOB_KINDS[2], work, done, epoch)
 
     # --- what path learning needs ----------------------------------------------------------
 
@@ -349,10 +345,10 @@ class Pointing:
         points are still those; None otherwise (path learning then reads the forces)."""
         s = self._session
         pointed = self._pointed
-        project = s._project
+        project = s.project()
         if pointed is None or pointed[0] != project.guides_key:
             return None
         if pointed[1] is not None:
             return pointed[1]
         positions = np.array([g.position_m for g in project.guide_points])
-        return wall_side_of(positions, s._cell.workpiece)
+        return wall_side_of(positions, s.robot.workpiece)

@@ -67,3 +67,13 @@ def settings_from_studies(
             )
         compensation_settings = settings_from_dict(outcome.settings)
     return cmrr_settings, compensation_settings
+
+
+def set_process_settings(session: Any, *, cmrr: Any = None, compensation: Any = None) -> Any:
+    """Choose the CMRR controller settings (``cmrr.CmrrSettings``) and the compensation
+    settings (``stiffness.CompensationSettings``) the exported program carries
+    (``project.with_process_settings``; None removes one). Returns the project."""
+    from robomach_core import project as core
+
+    change = lambda p: core.with_process_settings(p, cmrr, compensation)  # noqa: E731
+    return session.commit(change, "post", topics=("postprocess",))

@@ -18,15 +18,15 @@ def import_project(session: Any, data: bytes, name: str) -> ProjectInfo:
         ProjectFileError: not a robomach project file (422).
         ConflictError: the name is taken, or the robot is busy.
     """
+    from .projects import Loaded, create_project
+    from .robot import build_live_cell
+
     project = core.project_from_file_bytes(data)  # parse (and re-process) before touching
-    info = session.create_project(name)
-    with session._lock:
-        session._install_cell(project.cell, project.mesh, joints=None)
-        # The machining result is not in the file (re-run it); a stale stamp is not carried.
-        session._project = project
-        session._save("cell", "guides", "recording", "post", with_robot=True)
-    session._notify_all()
-    return info if info.name == name else session.current_project()
+    built = build_live_cell(project.cell, project.mesh)
+    info = create_project(session, name)
+    # The machining result is not in the file (re-run it); a stale stamp is not carried.
+    session.switch_to(Loaded(info.id, project, built), save=True)
+    return session.current_project()
 
 
 def export_project(session: Any) -> bytes:

@@ -10,10 +10,9 @@ from typing import Literal
 
 import numpy as np
 
-from robomach_core.errors import (
-    InvalidInputError,
-    RobomachError,
-)
+from robomach_core.errors import ConflictError as ConflictError
+from robomach_core.errors import InvalidInputError, RobomachError
+from robomach_core.errors import NotFoundError as NotFoundError
 from robomach_core.leadthrough import (
     GuidePoint,
 )
@@ -48,17 +47,6 @@ RECORDING_ARRAYS = RECORDING_FIELDS  # the recording's arrays, saved one by one
 
 
 # --- errors of the session (the API maps them by their builtin base) -------------------------
-
-
-class NotFoundError(RobomachError, KeyError):
-    """A job, guide point, project or export with that id does not exist."""
-
-    def __str__(self) -> str:
-        return str(self.args[0]) if self.args else "not found"
-
-
-class ConflictError(RobomachError, RuntimeError):
-    """The action does not fit the current state (e.g. post-processing before a recording)."""
 
 
 class QueueFullError(RobomachError, RuntimeError):

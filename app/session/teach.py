@@ -13,11 +13,12 @@ STRATEGY  Every motion drives the core's own loop (``LeadThrough.push``, ``jog``
           request that waits longer than ``MOTION_QUEUE_S`` is refused), so a flood of
           requests cannot bank simulated time: over a wall interval T all of them together
           simulate at most T + burst (20 ms).
-SOLUTION  ``Teach(session, real_time=True)``: ``push``, ``jog(axis, step, frame, speed)``,
-          ``touch_off(axis, direction, force_N, max_travel_m, frame)``, ``stop()``, and
-          ``tool_view()`` (gap to the nearest face of the part, contact force, height above the
-          table). A ``SupervisionError`` keeps the robot at ``error.state`` (the last safe
-          state), saves it and is raised again (the API answers 409 with its message).
+SOLUTION  ``Teach(robot, real_time=True)`` over the session's ``LiveRobot``: ``push``,
+          ``jog(axis, step, frame, speed)``, ``touch_off(axis, direction, force_N,
+          max_travel_m, frame)`` and ``move_to`` (each answers the robot's snapshot after it),
+          ``stop()``, and ``tool_view()`` (gap to the nearest face of the part, contact force,
+          height above the table). A ``SupervisionError`` keeps the robot at ``error.state``
+          (the last safe state), saves it and is raised again (the API answers 409).
 """
 
 from __future__ import annotations
@@ -30,8 +31,9 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from robomach_core import mesh_query
+from robomach_core import limits, mesh_query
 from robomach_core.cell import CONTROL_PERIOD_S, CellState
+from robomach_core.choices import JOG_FRAMES, LABELS, TOUCH_AXES, JogFrame, NearestFace, TouchAxis
 from robomach_core.clearance import ClearanceProbe
 from robomach_core.errors import (
     ContactStopError,
@@ -41,6 +43,7 @@ from robomach_core.errors import (
 )
 from robomach_core.leadthrough import (
     AXES,
+    ComplianceFrame,
     ComplianceSelection,
     LeadThrough,
     LeadThroughState,
@@ -50,14 +53,12 @@ from robomach_core.realtime import RealTimePacer
 from robomach_core.teach_motion import Arrival, go_to_point
 
 from .live import TappedCell
-from .records import LIVE_NOTIFY_S, BusyError, ConflictError
+from .records import LIVE_NOTIFY_S, BusyError, ConflictError, RobotSnapshot
 
 if TYPE_CHECKING:
-    from .session import Session
+    from .robot import LiveRobot
 
 Selection = ComplianceSelection
-JogFrame = Literal["base", "tool", "wobj"]
-JOG_FRAMES: tuple[JogFrame, ...] = ("base", "tool", "wobj")
 MOTION_QUEUE_S = 0.25  # a motion request waits at most this long for the one before it
 # The pacer's burst: how far a motion may run ahead of the clock after an idle while. Small, so
 # that back-to-back requests (a held button, two clients) add almost nothing to the held time.
@@ -67,13 +68,10 @@ PACE_CHUNK_PERIODS = 5
 # one before it (another client, a held button's next push) loses the time it waited, beyond
 # this much (the scheduling of the request itself).
 PUSH_GRACE_S = 0.01  # budget taken at once (20 ms): the stop check still runs every period
-JOG_SPEED_RANGE_MM_S = (0.5, 50.0)  # 50 mm/s: the admittance's speed limit
-JOG_RATE_RANGE_DEG_S = (0.5, 30.0)
-DEFAULT_JOG_SPEED_MM_S = 10.0
-DEFAULT_JOG_RATE_DEG_S = 10.0
 JOG_CONTACT_N = 3.0  # a jog ending against the part with more than this ...
 JOG_SHORT_M = 5e-4  # ... and short of its step by more than this was stopped by contact
-FRAME_NAMES = {"base": "base", "tool": "tool", "wobj": "work-object"}
+# "along -y (work-object frame)": the menu's words, as a compound adjective
+FRAME_NAMES = {frame: words.replace(" ", "-") for frame, words in LABELS["jog_frame"].items()}
 
 
 class _Stopped(Exception):
@@ -101,7 +99,7 @@ class ToolView:
     force_N: np.ndarray
     table_gap_m: float
     in_contact: bool
-    face: str = "wall"
+    face: NearestFace = "wall"
     wall_gap_m: float | None = None
 
 
@@ -120,25 +118,34 @@ class Teach:
     """The paced motions of one session (see the module docstring).
 
     Args:
-        session: The session whose robot moves.
+        robot: The session's robot.
         real_time: Pace motions to the wall clock (a person at a pendant); False runs them as
             fast as the simulation allows (scripts and in-process tests).
     """
 
-    def __init__(self, session: Session, *, real_time: bool = True) -> None:
-        self._session = session
+    def __init__(self, robot: LiveRobot, *, real_time: bool = True) -> None:
+        self._robot = robot
         self.pacer = RealTimePacer(burst_s=PACE_BURST_S) if real_time else None
         self._motion = threading.Lock()
         self._stop_generation = 0
         self._probe: tuple[int, ClearanceProbe] | None = None
+        self._walls: dict[int, list] = {}  # wall sections of the mesh by 0.1 mm of height
         # Listeners (the viser scene) redraw in their own thread: never slow the motion down.
-        self._notifier = _Coalescer(lambda: session._notify("robot"))
+        self._notifier = _Coalescer(lambda: robot.notify("robot"))
 
     # --- motions -----------------------------------------------------------------------------
 
-    def push(self, wrench: np.ndarray, duration_s: float) -> None:
-        """A constant push (6,) [N, N*m] at the TCP, base axes, for ``duration_s`` of wall time."""
+    def push(self, wrench: np.ndarray, duration_s: float) -> RobotSnapshot:
+        """A constant push (6,) [N, N*m] at the TCP, base axes, for ``duration_s`` of wall time
+        under admittance control on the compliant axes; the force's and the torque's
+        magnitudes and the duration within ``limits.PUSH_FORCE_N``, ``PUSH_TORQUE_NM`` and
+        ``PUSH_DURATION_S``."""
         w = np.asarray(wrench, dtype=float)
+        if w.shape != (6,) or not np.all(np.isfinite(w)):
+            raise InvalidInputError("a push is 6 finite values: force [N] and torque [N*m]")
+        limits.PUSH_FORCE_N.check(float(np.linalg.norm(w[:3])), "push force magnitude [N]")
+        limits.PUSH_TORQUE_NM.check(float(np.linalg.norm(w[3:])), "push torque magnitude [N*m]")
+        limits.PUSH_DURATION_S.check(duration_s, "push duration [s]")
         arrival = time.monotonic()
 
         def move(lt: LeadThrough, st: LeadThroughState, sel: Selection) -> LeadThroughState:
@@ -147,6 +154,7 @@ class Teach:
             return lt.push(st, w, sel, left_s) if left_s >= CONTROL_PERIOD_S else st
 
         self._run(move)
+        return self._robot.snapshot()
 
     def jog(
         self,
@@ -155,9 +163,10 @@ class Teach:
         *,
         frame: JogFrame = "tool",
         speed: float | None = None,
-    ) -> None:
-        """Move ``step`` [m] along, or [rad] about, an axis of ``frame`` at ``speed`` [m/s or
-        rad/s] (default 10 mm/s, 10 deg/s); the compliant axes keep answering to contact."""
+    ) -> RobotSnapshot:
+        """Force-control jogging: move ``step`` [m] along, or [rad] about, an axis of ``frame``
+        (tool, base or wobj) at ``speed`` [m/s or rad/s] (default 10 mm/s, 10 deg/s); the
+        compliant axes keep answering to the contact force."""
         if axis not in AXES:
             raise InvalidInputError(f"jog axis must be one of {', '.join(AXES)}, not {axis!r}")
         if frame not in JOG_FRAMES:
@@ -166,14 +175,14 @@ class Teach:
             )
         rotational = axis.startswith("r")
         if speed is not None:
-            lo, hi = JOG_RATE_RANGE_DEG_S if rotational else JOG_SPEED_RANGE_MM_S
+            rng = limits.JOG_RATE_DEG_S if rotational else limits.JOG_SPEED_MM_S
             scale = 180.0 / np.pi if rotational else 1e3
-            if not (lo <= speed * scale <= hi):
-                unit = "deg/s" if rotational else "mm/s"
+            if speed * scale not in rng:
                 raise InvalidInputError(
-                    f"jog speed {speed * scale:g} {unit} is outside {lo:g}-{hi:g} {unit}"
+                    f"jog speed {speed * scale:g} {rng.unit} is outside {rng.text()}"
                 )
-        wobj = self._session.cell.workpiece.T_base_wobj
+        wobj = self._robot.workpiece.T_base_wobj
+        step = float(step)
         before: list[np.ndarray] = []
 
         def move(lt: LeadThrough, st: LeadThroughState, sel: Selection) -> LeadThroughState:
@@ -185,19 +194,20 @@ class Teach:
         self._run(move)
         if before and not rotational:
             self._say_if_stopped_by_contact(before[1], before[0] * float(step), axis, frame)
+        return self._robot.snapshot()
 
     def _say_if_stopped_by_contact(
         self, T_before: np.ndarray, delta: np.ndarray, axis: str, frame: JogFrame
     ) -> None:
         """Raise ``ContactStopError`` when a jog ended short of its step against the part
         (the robot stays where it stopped; before, it stopped there silently at 30-50 N)."""
-        snap = self._session.snapshot()
+        snap = self._robot.snapshot()
         force = float(np.linalg.norm(snap.wrench[:3]))
         step = float(np.linalg.norm(delta))
         done = float((snap.position_m - T_before[:3, 3]) @ delta) / step if step > 0 else 1.0
         if force > JOG_CONTACT_N and step - done > JOG_SHORT_M:
             sign = "+" if (delta @ frame_rotation(frame, T_before,
-                           self._session.cell.workpiece.T_base_wobj)[:, "xyz".index(axis)]) > 0 \
+                           self._robot.workpiece.T_base_wobj)[:, "xyz".index(axis)]) > 0 \
                 else "-"  # fmt: skip
             raise ContactStopError(
                 f"the jog along {sign}{axis} ({FRAME_NAMES[frame]} frame) stopped against the "
@@ -207,24 +217,26 @@ class Teach:
 
     def touch_off(
         self,
-        axis: Literal["x", "y", "z"],
+        axis: TouchAxis,
         direction: Literal[1, -1],
         force_N: float,
         max_travel_m: float,
         *,
         frame: JogFrame = "base",
-    ) -> None:
+    ) -> RobotSnapshot:
         """Guarded move along ``axis`` of ``frame`` until the wall pushes back with ``force_N``
         (``LeadThrough.touch_off``); the robot stays there, in contact. A work-object frame is
         taken as the base axis it is aligned with (refused when it is turned otherwise)."""
-        if axis not in ("x", "y", "z"):
-            raise InvalidInputError(f"touch-off axis must be x, y or z, not {axis!r}")
+        if axis not in TOUCH_AXES:
+            raise InvalidInputError(
+                f"touch-off axis must be one of {', '.join(TOUCH_AXES)}, not {axis!r}"
+            )
         if direction not in (1, -1):
             raise InvalidInputError("touch-off direction must be +1 or -1")
-        core_frame: Literal["tool", "base"] = "tool" if frame == "tool" else "base"
+        core_frame: ComplianceFrame = "tool" if frame == "tool" else "base"
         asked_axis, asked_direction = axis, direction
         if frame == "wobj":
-            axis, direction = _base_axis_of_wobj(self._session.cell.workpiece.T_base_wobj, axis,
+            axis, direction = _base_axis_of_wobj(self._robot.workpiece.T_base_wobj, axis,
                                                  direction)  # fmt: skip
         elif frame not in JOG_FRAMES:
             raise InvalidInputError(
@@ -246,6 +258,7 @@ class Teach:
                 f"{'+' if d > 0 else '-'}{a} ({FRAME_NAMES[f]} frame)",
                 state=exc.state,
             ) from None
+        return self._robot.snapshot()
 
     def move_to(
         self, T_base_tcp: np.ndarray, *, safe_z_m: float, entry_m: np.ndarray | None = None
@@ -276,16 +289,15 @@ class Teach:
 
     def tool_view(self) -> ToolView:
         """Gap to the nearest face of the part, contact force and table clearance, now."""
-        s = self._session
-        with s._lock:
-            epoch, cell = s._epoch, s._cell
-        snap = s.snapshot()
+        pose = self._robot.pose()
+        epoch, cell = pose.epoch, pose.cell
+        snap = self._robot.snapshot()
         if self._probe is None or self._probe[0] != epoch:
             # The mesh the user sees (the real part would tell what no real cell knows).
             self._probe = (epoch, ClearanceProbe(cell.tool, cell.workpiece.cad()))
             self._walls = {}
         probe = self._probe[1]
-        table_z = float(s._lt.supervisor.table_z_m)
+        table_z = float(pose.leadthrough.supervisor.table_z_m)
         # The probe's coal objects and the mesh's section serve one thread at a time (the
         # pendant polls this while viser's panel does).
         with mesh_query.LOCK:
@@ -312,12 +324,11 @@ class Teach:
         T = cad.T_base_wobj
         p = (np.asarray(p_base) - T[:3, 3]) @ T[:3, :3]
         key = round(float(p[2]) * 1e4)
-        walls = getattr(self, "_walls", {})
+        walls = self._walls
         if key not in walls:
             if len(walls) > 64:
                 walls.clear()
             walls[key] = section_loops(cad.mesh, _off_vertices(cad.mesh, key * 1e-4))
-            self._walls = walls
         loops = walls[key]
         if not loops:
             return None
@@ -331,17 +342,18 @@ class Teach:
         move: Callable[[LeadThrough, LeadThroughState, ComplianceSelection], LeadThroughState],
     ) -> None:
         """Run ``move`` paced, published and stoppable (one motion at a time)."""
-        s = self._session
+        robot = self._robot
         if not self._motion.acquire(timeout=MOTION_QUEUE_S):
             raise BusyError(
                 "another push, jog or touch-off is still moving the robot; wait for it "
                 "(or let go of the other button)"
             )
         try:
-            with s._lock:
-                s._require_idle()
-                epoch, start, selection, lt = s._epoch, s._lt_state, s._selection, s._lt
+            with robot.lock:
+                robot.require_idle()
+                pose = robot.pose()
                 generation = self._stop_generation
+            epoch, start, selection, lt = pose.epoch, pose.state, pose.selection, pose.leadthrough
             last: list[CellState] = [start.cell]
             credit = 0
             last_notify = time.monotonic()
@@ -349,24 +361,20 @@ class Teach:
             def tap(cell_state: CellState) -> None:
                 nonlocal credit, last_notify
                 last[0] = cell_state
-                if self._stop_generation != generation or s._epoch != epoch or s._closed:
+                if self._stop_generation != generation or robot.epoch != epoch or robot.closed:
                     raise _Stopped
                 if self.pacer is not None:
                     while credit == 0:
                         credit = self.pacer.grant(PACE_CHUNK_PERIODS)
                         if credit == 0:
                             time.sleep(max(self.pacer.wait_s(1), CONTROL_PERIOD_S / 2))
-                            if self._stop_generation != generation or s._epoch != epoch:
+                            if self._stop_generation != generation or robot.epoch != epoch:
                                 raise _Stopped
                     credit -= 1
                 now = time.monotonic()
                 if now - last_notify >= LIVE_NOTIFY_S:
                     last_notify = now
-                    with s._lock:
-                        if s._epoch == epoch:
-                            s._lt_state = LeadThroughState(
-                                cell_state, cell_state.T_base_tcp.copy(), np.zeros(6)
-                            )
+                    robot.show(cell_state, epoch)
                     self._notifier.poke()
 
             tapped = LeadThrough(
@@ -388,15 +396,7 @@ class Teach:
                     else halted(LeadThroughState(last[0], last[0].T_base_tcp, np.zeros(6)))
                 )
                 error = exc
-            with s._lock:
-                if s._epoch != epoch:
-                    raise ConflictError(
-                        "the cell or the project changed while the robot moved; the motion "
-                        "was stopped"
-                    )
-                s._lt_state = end
-                s._save_robot()
-            s._notify("robot")
+            robot.settle(end, epoch)
             if error is not None:
                 raise error
         finally:

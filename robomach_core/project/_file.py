@@ -41,6 +41,7 @@ def project_file_bytes(project: Project) -> bytes:
         "version": VERSION,
         "cell": asdict(project.cell),
         "mesh_name": None if project.mesh is None else project.mesh[0],
+        "robot_urdf_name": None if project.robot_urdf is None else project.robot_urdf[0],
         "guide_times_s": [g.time_s for g in project.guide_points],
         "post_settings": asdict(project.post_settings),
         "processed": project.processed is not None,
@@ -60,6 +61,8 @@ def project_file_bytes(project: Project) -> bytes:
         arrays["guide_force_N"] = np.array([g.force_N for g in project.guide_points])
     if project.mesh is not None:
         arrays["mesh_bytes"] = np.frombuffer(project.mesh[1], dtype=np.uint8)
+    if project.robot_urdf is not None:
+        arrays["robot_urdf_bytes"] = np.frombuffer(project.robot_urdf[1], dtype=np.uint8)
     learned = project.learned
     if learned is not None:
         rec = learned.recording
@@ -123,14 +126,35 @@ def project_from_file_bytes(data: bytes, name: str = "project.npz") -> Project:
         raise ProjectFileError(f"{name}: incomplete or damaged project file ({exc})") from None
 
 
+def register_robot_file(robot: str, robot_urdf: tuple[str, bytes]) -> None:
+    """Register the user's arm a project names (``robots.custom.register_urdf``: a new process
+    knows only the built-in arms), under ``robot``: its file's name, or that name with a
+    controller family (``<name>_<family>``).
+
+    Raises:
+        RobotFileError: the file is not a 6-axis URDF, or not the arm ``robot`` names.
+    """
+    from ..robots.custom import RobotFileError, is_custom, register_urdf
+
+    name = register_urdf(*robot_urdf)
+    variant = robot.startswith(name + "_") and is_custom(robot)  # registers on the way
+    if robot != name and not variant:
+        raise RobotFileError(
+            f"{robot_urdf[0]}: the project's arm is {robot!r}, the file it holds is {name!r}"
+        )
+
+
 def _project(doc: dict[str, Any], arrays: dict[str, np.ndarray]) -> Project:
     cell_doc = dict(doc["cell"])
     if cell_doc.get("wobj_mm_deg") is not None:
         cell_doc["wobj_mm_deg"] = tuple(float(v) for v in cell_doc["wobj_mm_deg"])
     cell = CellSettings(**cell_doc)
-    mesh = None
+    mesh = robot_urdf = None
     if doc.get("mesh_name") is not None:
         mesh = (str(doc["mesh_name"]), arrays["mesh_bytes"].tobytes())
+    if doc.get("robot_urdf_name") is not None:
+        robot_urdf = (str(doc["robot_urdf_name"]), arrays["robot_urdf_bytes"].tobytes())
+        register_robot_file(cell.robot, robot_urdf)
     guides = tuple(
         GuidePoint(T, q, float(t), f)
         for T, q, t, f in zip(
@@ -146,6 +170,7 @@ def _project(doc: dict[str, Any], arrays: dict[str, np.ndarray]) -> Project:
         mesh=mesh,
         guide_points=guides,
         post_settings=PostprocessSettings(**doc["post_settings"]),
+        robot_urdf=robot_urdf,
     )
     if doc.get("cmrr") is not None:
         from ..cmrr import settings_from_dict

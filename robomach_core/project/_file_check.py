@@ -33,6 +33,7 @@ MAX_RECORDING_SAMPLES = limits.RECORDING_SAMPLES_MAX
 MAX_GUIDE_POINTS = limits.GUIDE_POINTS_MAX
 MAX_DOCUMENT_BYTES = 1_000_000
 MAX_MESH_FILE_BYTES = 50 * 1024 * 1024  # workpiece.MAX_MESH_BYTES
+MAX_ROBOT_FILE_BYTES = 50 * 1024 * 1024  # robots.custom.MAX_ROBOT_FILE_BYTES
 MAX_POSITION_M = 10.0  # every pose of the cell is within a few metres of the robot base
 QUATERNION_NORM_TOLERANCE = 1e-3
 N = "n"  # the recording's sample count in a shape
@@ -42,6 +43,7 @@ ARRAYS: dict[str, tuple[str, tuple[Any, ...]]] = {
     "document": ("u", ("bytes",)),
     "mesh_bytes": ("u", ("bytes",)),
     "stock_mesh_bytes": ("u", ("bytes",)),
+    "robot_urdf_bytes": ("u", ("bytes",)),
     "guide_T_base_tcp": ("f", (G, 4, 4)),
     "guide_joints_rad": ("f", (G, 6)),
     "guide_force_N": ("f", (G, 3)),
@@ -62,6 +64,7 @@ _BYTES_LIMIT = {
     "document": MAX_DOCUMENT_BYTES,
     "mesh_bytes": MAX_MESH_FILE_BYTES,
     "stock_mesh_bytes": MAX_MESH_FILE_BYTES,
+    "robot_urdf_bytes": MAX_ROBOT_FILE_BYTES,
 }
 _COUNT_LIMIT = {N: MAX_RECORDING_SAMPLES, G: MAX_GUIDE_POINTS, "q": MAX_GUIDE_POINTS + 1}
 

@@ -71,6 +71,10 @@ class MachiningSetup:
             None: the defaults of the arm's program language.
         variations: Stocks drawn from the part's variation per configuration (0: the one
             stock); the choice then reads the 95th percentiles.
+        campaign_stiffness_Nm_rad: The joint stiffness ``choose`` copied into the project's
+            compensation slot from the simulated CMM campaign, if it did: compensation
+            settings holding it are the campaign, so a result cut with the campaign stays
+            current when they are copied in (``inputs_key``).
     """
 
     settings: Any = None
@@ -79,6 +83,7 @@ class MachiningSetup:
     stock_mesh: tuple[str, bytes] | None = field(default=None, repr=False)
     cell_options: tuple[str, ...] | None = None
     variations: int = 0
+    campaign_stiffness_Nm_rad: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.settings is None:
@@ -134,10 +139,19 @@ class MachiningSetup:
         return h.hexdigest()
 
     def inputs_key(self, project: Project) -> str:
-        """``key`` and the identified stiffness the compensated runs use (the project's, or the
-        simulated campaign's: the same values whether or not ``choose`` copied them in)."""
-        model = compensation_model(project, project.cell.robot)
-        return f"{self.key()}:{json.dumps([float(k) for k in model.stiffness_Nm_rad])}"
+        """``key`` and where the stiffness the compensated runs use comes from: the project's
+        compensation settings, or the simulated campaign (named by its arm and settings, not
+        run: ``Project.status`` stays cheap), the same whether or not ``choose`` copied the
+        campaign's stiffness in."""
+        comp = project.compensation
+        robot = project.cell.robot
+        if comp is not None and comp.robot == robot:
+            own = tuple(float(k) for k in comp.joint_stiffness_Nm_rad)
+            if own != self.campaign_stiffness_Nm_rad:
+                return f"{self.key()}:{json.dumps(own)}"
+        s = self.settings
+        campaign = f"campaign {robot} {s.seed} {s.identification_poses} {s.cmm_noise_m!r}"
+        return f"{self.key()}:{campaign}"
 
 
 @dataclass(frozen=True, eq=False)
@@ -498,11 +512,12 @@ def choose(project: Project, controller: str, compensation: str) -> Project:
         from ..stiffness import CompensationSettings
 
         model = compensation_model(replace(project, compensation=None), project.cell.robot)
+        stiffness = tuple(float(k) for k in model.stiffness_Nm_rad)
         comp = CompensationSettings(
-            robot=project.cell.robot,
-            joint_stiffness_Nm_rad=tuple(float(k) for k in model.stiffness_Nm_rad),
-            mode="off",
+            robot=project.cell.robot, joint_stiffness_Nm_rad=stiffness, mode="off"
         )
+        setup = replace(setup, campaign_stiffness_Nm_rad=stiffness)
+        project = replace(project, machining_settings=setup)
     if comp is not None:
         gravity = comp.tool_gravity
         if mode == "online" and gravity is None:
@@ -587,6 +602,9 @@ def machining_setup_document(setup: MachiningSetup) -> dict[str, Any]:
         "stock_mesh": None if setup.stock_mesh is None else setup.stock_mesh[0],
         "cell_options": None if setup.cell_options is None else list(setup.cell_options),
         "variations": setup.variations,
+        "campaign_stiffness_Nm_rad": None
+        if setup.campaign_stiffness_Nm_rad is None
+        else list(setup.campaign_stiffness_Nm_rad),
     }
 
 
@@ -610,6 +628,9 @@ def machining_setup_from_document(doc: dict[str, Any], mesh: tuple[str, bytes] |
         mesh if source == "mesh" else None,
         cell_options=None if options is None else tuple(str(o) for o in options),
         variations=int(doc.get("variations") or 0),
+        campaign_stiffness_Nm_rad=None
+        if doc.get("campaign_stiffness_Nm_rad") is None
+        else tuple(float(k) for k in doc["campaign_stiffness_Nm_rad"]),
     )
 
 

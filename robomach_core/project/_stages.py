@@ -5,16 +5,17 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .. import mesh_query
 from ..cell import Cell, CellState
 from ..errors import InvalidInputError, NotEnoughGuidePointsError
 from ..leadthrough import GuidePoint
 from ..path_learning import PathLearningSettings, learn_path
-from ..postprocess import PostprocessSettings, Targets, postprocess
-from ..scoring import score_path
+from ..postprocess import PostprocessResult, PostprocessSettings, Targets, postprocess
+from ..scoring import PathScore, score_path
 from ..sensor import ForceEstimator
 from ..workpiece import Workpiece
 from ._value import (
@@ -27,6 +28,9 @@ from ._value import (
     processed_inputs_key,
     recording_inputs_key,
 )
+
+if TYPE_CHECKING:
+    from ..mesh_score import TaughtWallCheck
 
 
 def learn(
@@ -57,12 +61,13 @@ def learn(
         raise NotEnoughGuidePointsError(
             f"path learning needs at least 2 guide points, got {len(guides)}"
         )
-    route = plan_route(
-        guides,
-        settings,
-        workpiece=cad if cad is not None else cell.workpiece.cad(),
-        tool_radius_m=cell.tool.radius_m,
-    )
+    with mesh_query.LOCK:  # the mesh's trees answer one thread at a time (the job's thread)
+        route = plan_route(
+            guides,
+            settings,
+            workpiece=cad if cad is not None else cell.workpiece.cad(),
+            tool_radius_m=cell.tool.radius_m,
+        )
     recording, end = learn_path(
         cell,
         state,
@@ -107,6 +112,35 @@ def process(
         tol = settings.arc_tolerance_m or settings.tolerance_m
         arc_tg, moves = arc_targets(result.targets, result.surface_m, result.keep_mask, tol)
         result = replace(result, targets=arc_tg)
+    with mesh_query.LOCK:  # the scores query the part's trees, one thread at a time
+        score, mesh, taught = _scores(learned, result, moves, workpiece, tool_radius_m, guides)
+    comparison = cad_comparison_of(workpiece, result.targets, tool_radius_m, settings, learned)
+    return ProcessedPath(
+        settings,
+        result,
+        len(rec),
+        score,
+        processed_inputs_key(learned, settings),
+        moves=moves,
+        mesh_score=mesh,
+        straight_targets=straight,
+        taught_wall=taught,
+        completed=rec.completed,
+        cad_comparison=comparison,
+    )
+
+
+def _scores(
+    learned: LearnedPath,
+    result: PostprocessResult,
+    moves: tuple | None,
+    workpiece: Workpiece,
+    tool_radius_m: float,
+    guides: Sequence[GuidePoint] | None,
+) -> tuple[PathScore | None, PathScore | None, TaughtWallCheck | None]:
+    """The program against the true wall (built-in parts), against the mesh, and whether it
+    follows the taught wall (with ``guides``)."""
+    rec = learned.recording
     score = mesh = taught = None
     if len(result.targets) >= 2:
         from ..arcs import score_moves
@@ -132,20 +166,7 @@ def process(
                 moves,
                 closed=learned.settings.closed,
             )
-    comparison = cad_comparison_of(workpiece, result.targets, tool_radius_m, settings, learned)
-    return ProcessedPath(
-        settings,
-        result,
-        len(rec),
-        score,
-        processed_inputs_key(learned, settings),
-        moves=moves,
-        mesh_score=mesh,
-        straight_targets=straight,
-        taught_wall=taught,
-        completed=rec.completed,
-        cad_comparison=comparison,
-    )
+    return score, mesh, taught
 
 
 def cad_comparison_of(
@@ -204,21 +225,31 @@ def wobj_transform(values: Sequence[float]) -> np.ndarray:
 
 
 def build_cell_workpiece(
-    cell: CellSettings, mesh: tuple[str, bytes] | None, *, max_triangles: int | None = None
+    cell: CellSettings,
+    mesh: tuple[str, bytes] | None,
+    *,
+    max_triangles: int | None = None,
+    parsed: Workpiece | None = None,
 ) -> Workpiece:
     """The part the cell's contact meets: ``build_workpiece``'s, made real by the cell's
     ``part_deviation`` (``real_part.real_workpiece``; its ``cad()`` is the mesh the user sees)."""
     from ..real_part import real_workpiece
 
-    cad = build_workpiece(cell, mesh, max_triangles=max_triangles)
+    cad = build_workpiece(cell, mesh, max_triangles=max_triangles, parsed=parsed)
     return real_workpiece(cad, cell.part_deviation)
 
 
 def build_workpiece(
-    cell: CellSettings, mesh: tuple[str, bytes] | None, *, max_triangles: int | None = None
+    cell: CellSettings,
+    mesh: tuple[str, bytes] | None,
+    *,
+    max_triangles: int | None = None,
+    parsed: Workpiece | None = None,
 ) -> Workpiece:
-    """The project's workpiece: built-in by name, or its mesh bytes; placed where the cell's
-    robot reaches it (``workpiece.default_T_base_wobj``), or at ``wobj_mm_deg``."""
+    """The project's workpiece: built-in by name, or its mesh bytes (``parsed``: those bytes
+    already read by ``workpiece.mesh_from_bytes``); placed where the cell's robot reaches it
+    (``workpiece.default_T_base_wobj``), or at ``wobj_mm_deg``. The one placement of a part:
+    the same while the workbench runs, after a reopen and in the CLI."""
     from ..workpiece import (
         MAX_MESH_TRIANGLES,
         builtin_workpiece,
@@ -228,12 +259,17 @@ def build_workpiece(
 
     if mesh is not None and not cell.workpiece_builtin:
         filename, data = mesh
-        workpiece = mesh_from_bytes(
-            data,
-            Path(filename).suffix.lower(),
-            name=Path(filename).stem,
-            T_base_wobj=default_T_base_wobj(cell.robot),
-            max_triangles=max_triangles or MAX_MESH_TRIANGLES,
+        T = default_T_base_wobj(cell.robot)
+        workpiece = (
+            parsed.placed(T)
+            if parsed is not None
+            else mesh_from_bytes(
+                data,
+                Path(filename).suffix.lower(),
+                name=Path(filename).stem,
+                T_base_wobj=T,
+                max_triangles=max_triangles or MAX_MESH_TRIANGLES,
+            )
         )
     else:
         workpiece = builtin_workpiece(cell.workpiece, robot=cell.robot)

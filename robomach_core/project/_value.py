@@ -6,7 +6,7 @@ import hashlib
 import json
 from dataclasses import asdict, dataclass, field
 from functools import cached_property
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -17,6 +17,13 @@ from ..postprocess import PostprocessResult, PostprocessSettings
 from ..real_part import PartDeviation
 from ..scoring import PathScore
 from ..tool import Tool
+
+if TYPE_CHECKING:  # the slots' types; their modules import this one
+    from ..cad_program import CadComparison
+    from ..cmrr import CmrrSettings
+    from ..mesh_score import TaughtWallCheck
+    from ..stiffness import CompensationSettings
+    from ._machining import MachiningResult, MachiningSetup
 
 StageStatus = Literal["none", "current", "stale"]
 STAGE_NAMES = ("guide_points", "recording", "postprocess", "machining")
@@ -130,9 +137,9 @@ class ProcessedPath:
     moves: tuple[Any, ...] | None = None
     mesh_score: PathScore | None = None
     straight_targets: int | None = None
-    taught_wall: Any = None
+    taught_wall: TaughtWallCheck | None = None
     completed: bool = True
-    cad_comparison: Any = None
+    cad_comparison: CadComparison | None = None
 
     def problems(self) -> list[str]:
         """What makes this program unfit to machine with, one line each (empty: none):
@@ -164,12 +171,12 @@ class Project:
         learned: The last path-learning result.
         post_settings: The post-processing settings the user holds now.
         processed: The last post-processing result.
-        cmrr: ``robomach_core.cmrr.CmrrSettings`` of the chosen feed controller, or None: the
-            program's machining moves are wrapped in an FC SpeedChange block.
-        compensation: ``robomach_core.stiffness.CompensationSettings``, or None: in the
-            offline modes each target is corrected for the contact wrench learned at it.
-        machining_settings: Slot for the machining run's settings (``robomach_core.machining``).
-        machining: Slot for the machining run's result.
+        cmrr: The chosen feed controller, or None: the program's machining moves are wrapped
+            in an FC SpeedChange block.
+        compensation: The identified stiffness and mode, or None: in the offline modes each
+            target is corrected for the contact wrench learned at it.
+        machining_settings: The machining run's settings (``MachiningSetup``), or None.
+        machining: The machining run's result, or None.
         machining_inputs: Fingerprint the machining result was computed from
             (``machining_inputs_key`` of the project at the time).
         robot_urdf: (filename, bytes) of the user's own arm (a .urdf, or a .zip with its
@@ -182,10 +189,10 @@ class Project:
     learned: LearnedPath | None = None
     post_settings: PostprocessSettings = field(default_factory=PostprocessSettings)
     processed: ProcessedPath | None = None
-    cmrr: Any = None
-    compensation: Any = None
-    machining_settings: Any = None
-    machining: Any = None
+    cmrr: CmrrSettings | None = None
+    compensation: CompensationSettings | None = None
+    machining_settings: MachiningSetup | None = None
+    machining: MachiningResult | None = None
     machining_inputs: str | None = None
     robot_urdf: tuple[str, bytes] | None = None
 
@@ -196,6 +203,11 @@ class Project:
         if self.robot_urdf is not None:
             mesh = (*mesh, *self.robot_urdf)
         return _digest(json.dumps(asdict(self.cell), sort_keys=True), *mesh)
+
+    @property
+    def recording(self) -> Recording | None:
+        """The last path-learning recording, or None."""
+        return None if self.learned is None else self.learned.recording
 
     @cached_property
     def guides_key(self) -> str:
@@ -260,16 +272,6 @@ def _settings_json(settings: Any) -> str:
     return json.dumps(asdict(settings), sort_keys=True, default=str)
 
 
-def _plain(value: Any) -> Any:
-    """A JSON-able form of a settings value (a dataclass as a dict, else its repr)."""
-    if value is None:
-        return None
-    try:
-        return json.loads(json.dumps(asdict(value), default=str))
-    except TypeError:
-        return repr(value)
-
-
 def _digest(*parts: Any) -> str:
     h = hashlib.blake2b(digest_size=12)
     for part in parts:
@@ -300,12 +302,10 @@ def machining_inputs_key(project: Project) -> str:
     machining, CMRR and compensation settings. Stamp ``Project.machining_inputs`` with it."""
     processed = project.processed.inputs if project.processed is not None else ""
     setup = project.machining_settings
-    own_key = getattr(setup, "inputs_key", None)
-    if callable(own_key):  # a MachiningSetup: its settings, stock and the stiffness it cuts with
-        return _digest(processed, own_key(project))
+    if setup is not None:  # its settings, stock and the stiffness it cuts with
+        return _digest(processed, setup.inputs_key(project))
     return _digest(
         processed,
-        json.dumps(_plain(project.machining_settings), sort_keys=True),
         json.dumps(cmrr_document(project), sort_keys=True),
         json.dumps(compensation_document(project), sort_keys=True),
     )

@@ -66,11 +66,11 @@ def densify(recording: Recording, factor: int) -> Recording:
 
 def _wait(session: Session, job_id: str) -> None:
     deadline = time.monotonic() + JOB_TIMEOUT_S
-    while session.job(job_id).status in ("queued", "running"):
+    while session.jobs.get(job_id).status in ("queued", "running"):
         if time.monotonic() > deadline:
             raise RuntimeError(f"job {job_id} did not end within {JOB_TIMEOUT_S} s")
         time.sleep(0.05)
-    info = session.job(job_id)
+    info = session.jobs.get(job_id)
     if info.status != "done":
         raise RuntimeError(f"job {job_id} ended {info.status}: {info.error}")
 
@@ -83,8 +83,8 @@ def write_dense_project(data_dir: Path, *, speed_mm_s: float = 5.0, factor: int 
     data_dir.mkdir(parents=True, exist_ok=True)
     session = Session(Store.in_data_dir(data_dir), data_dir=data_dir)
     try:
-        _wait(session, session.start_example())
-        _wait(session, session.start_path_learning(LEARNING_FORCE_N, speed_mm_s * 1e-3))
+        _wait(session, session.learning.start_example())
+        _wait(session, session.learning.start_path_learning(LEARNING_FORCE_N, speed_mm_s * 1e-3))
         project = session.project()
         learned = project.learned
         dense = replace(

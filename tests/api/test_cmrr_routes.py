@@ -12,7 +12,7 @@ import pytest
 from app.api.routes import cmrr
 from app.session import Session
 from app.store import Store
-from app.studies import CMRR_EXPORT, MAX_ACTIVE_STUDIES, _clean_failures, studies_for
+from app.studies import CMRR_EXPORT, MAX_ACTIVE_STUDIES, StudyService, _clean_failures
 from robomach_core.cmrr import CONTROLLER_NAMES, SCENARIO_NAMES
 from tests.api.in_process import InProcessServer
 from tests.api.server_process import Api
@@ -217,12 +217,12 @@ def test_a_study_saved_under_the_old_name_is_read_and_moved(tmp_path) -> None:
             "cmrr_summary.json": json.dumps({"scenario": "lund-df"}),
             "cmrr_settings.json": json.dumps({"controller": "adaptive-lq"}),
         })  # fmt: skip
-        outcome = studies_for(session).cmrr_result()
+        outcome = StudyService(session).cmrr_result()
         assert outcome is not None and outcome.seed == 4
         assert session.store.get_export(pid, CMRR_EXPORT)["study.json"] == json.dumps(meta)
         # An export of the program that took the old name is not a study.
         session.store.save_export(pid, "compensation-study", {"program.mod": "MODULE x"})
-        assert studies_for(session).compensation_result() is None
+        assert StudyService(session).compensation_result() is None
     finally:
         session.close()
 

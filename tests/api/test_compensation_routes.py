@@ -10,7 +10,7 @@ import pytest
 
 from app.session import Session
 from app.store import Store
-from app.studies import COMPENSATION_EXPORT, studies_for
+from app.studies import COMPENSATION_EXPORT, StudyService
 from tests.api.in_process import InProcessServer
 from tests.api.server_process import Api
 from tests.api.test_cmrr_routes import PNG_SIGNATURE
@@ -130,7 +130,7 @@ def test_saved_and_loaded_after_restart(
     session = Session(Store.in_data_dir(app_server.data_dir), data_dir=app_server.data_dir)
     try:
         assert session.current_project().id == identified
-        outcome = studies_for(session).compensation_result()
+        outcome = StudyService(session).compensation_result()
         assert outcome is not None and outcome.study == "identify"
         assert outcome.plots["identification"].startswith(PNG_SIGNATURE)
         assert outcome.settings is not None

@@ -83,7 +83,7 @@ def test_each_change_is_serialised_once_for_every_listener(served) -> None:
     ready.wait()
     time.sleep(0.3)
     for _ in range(CHANGES):
-        session._notify("robot")  # what a move notifies
+        session.notify("robot")  # what a move notifies
         time.sleep(0.3)  # apart, so that none is coalesced into the next
     deadline = time.monotonic() + 20
     while time.monotonic() < deadline and any(len(g) < CHANGES for g in got):

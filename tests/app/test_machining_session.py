@@ -7,8 +7,8 @@ import time
 
 import pytest
 
-from app.session import Session
-from app.session.machining import machining_for
+from app.session import Session, programs
+from app.session.machining import MachiningService
 from app.session.project_file import import_project
 from app.store import Store
 from tests.demo_project import block_demo_dir
@@ -16,10 +16,10 @@ from tests.demo_project import block_demo_dir
 
 def _wait(session: Session, job_id: str, timeout_s: float = 300.0) -> None:
     deadline = time.monotonic() + timeout_s
-    while session.job(job_id).status in ("queued", "running"):
+    while session.jobs.get(job_id).status in ("queued", "running"):
         assert time.monotonic() < deadline, "the machining job did not end"
         time.sleep(0.05)
-    assert session.job(job_id).status == "done", session.job(job_id).error
+    assert session.jobs.get(job_id).status == "done", session.jobs.get(job_id).error
 
 
 @pytest.mark.slow  # the shared block demo run (tests/demo_project.py)
@@ -28,26 +28,26 @@ def test_settings_choice_and_result_survive_a_restart(tmp_path):
     session = Session(Store(db), data_dir=tmp_path)
     try:
         import_project(session, (block_demo_dir() / "project.npz").read_bytes(), "block")
-        service = machining_for(session)
+        service = MachiningService(session)
         service.set_settings(process_gain_N=25.0, force_limit_N=180.0)
         service.choose("fuzzy", "offline")
         _wait(session, service.start("run"))
         rows = service.result().rows
-        rapid = session.rapid_module()
+        rapid = programs.rapid_module(session)
         assert "planned from rehearsals of the fuzzy cut" in rapid
     finally:
         session.close()
 
     reopened = Session(Store(db), data_dir=tmp_path)
     try:
-        service = machining_for(reopened)
+        service = MachiningService(reopened)
         s = service.settings_document()
         assert (s["process_gain_N"], s["force_limit_N"]) == (25.0, 180.0)
         assert (s["controller"], s["compensation"]) == ("fuzzy", "offline")
-        assert reopened.status()["machining"] == "current"
+        assert reopened.project().status()["machining"] == "current"
         result = service.result()
         assert [r["cycle_time_s"] for r in result.rows] == [r["cycle_time_s"] for r in rows]
         assert result.runs == ()  # traces are not stored
-        assert reopened.rapid_module() == rapid  # the corrected program came back with it
+        assert programs.rapid_module(reopened) == rapid  # the corrected program came back with it
     finally:
         reopened.close()

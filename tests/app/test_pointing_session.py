@@ -27,7 +27,7 @@ def fast() -> Session:
 def _wait_job(session: Session, job_id: str, timeout_s: float = 300.0):
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
-        info = session.job(job_id)
+        info = session.jobs.get(job_id)
         if info.status in ("done", "failed", "cancelled"):
             return info
         time.sleep(0.05)
@@ -37,16 +37,16 @@ def _wait_job(session: Session, job_id: str, timeout_s: float = 300.0):
 def test_a_click_on_the_wall_moves_the_tool_beside_it_and_records_the_point(fast: Session):
     taught = fast.pointing.teach_at_surface(ON_WALL + [0.04, 0, 0])
     assert taught.entry.index == 0 and taught.arrival.reached and taught.notice == ""
-    p = fast.snapshot().position_m - WOBJ_M
+    p = fast.robot.snapshot().position_m - WOBJ_M
     assert p == pytest.approx([0.04, -0.063, 0.017], abs=4e-4)
-    assert not fast.snapshot().in_contact
-    (g,) = fast.guide_points()
-    assert np.allclose(g.position_m, fast.snapshot().position_m)
+    assert not fast.robot.snapshot().in_contact
+    (g,) = list(fast.project().guide_points)
+    assert np.allclose(g.position_m, fast.robot.snapshot().position_m)
     # Drag to adjust: the same point taught again further along the wall replaces it.
     fast.pointing.teach_at_surface(ON_WALL + [0.0, 0, 0])
     fast.pointing.teach_at_surface(ON_WALL + [-0.04, 0, 0], replace_index=0)
-    first = fast.guide_points()[0].position_m - WOBJ_M
-    assert first[0] == pytest.approx(-0.04, abs=4e-4) and len(fast.guide_points()) == 2
+    first = fast.project().guide_points[0].position_m - WOBJ_M
+    assert first[0] == pytest.approx(-0.04, abs=4e-4) and len(fast.project().guide_points) == 2
     with pytest.raises(NotFoundError, match="G5"):
         fast.pointing.teach_at_surface(ON_WALL, replace_index=4)
     with pytest.raises(InvalidInputError, match="floor or a top"):
@@ -68,7 +68,7 @@ def test_clicked_points_learn_the_wall_side_from_the_mesh(fast: Session):
 def test_a_proposal_is_shown_edited_and_accepted_then_learned_within_the_wall(fast: Session):
     proposal = fast.pointing.propose(ON_WALL)
     assert len(proposal.points) == 14 and proposal.closed
-    assert fast.guide_points() == []  # nothing recorded, nothing moved yet
+    assert list(fast.project().guide_points) == []  # nothing recorded, nothing moved yet
     first = proposal.points[0].position_wobj_m
     assert first[:2] == pytest.approx([0.0, -0.063], abs=1e-3)  # the one nearest the click
     xy = np.array([p.position_wobj_m[:2] for p in proposal.points])
@@ -85,16 +85,16 @@ def test_a_proposal_is_shown_edited_and_accepted_then_learned_within_the_wall(fa
     info = _wait_job(fast, fast.pointing.accept())
     assert info.status == "done", info.error
     assert fast.pointing.proposal() is None
-    guides = fast.guide_points()
+    guides = list(fast.project().guide_points)
     assert len(guides) == 13
     planned = np.array([p.T_base_tcp[:3, 3] for p in fewer.points])
     recorded = np.array([g.position_m for g in guides])
     assert np.all(np.linalg.norm(recorded - planned, axis=1) < 3e-3)  # touched the wall
     assert fast.pointing.learning_side() == "right"
-    info = _wait_job(fast, fast.start_path_learning(10.0, 0.005))
+    info = _wait_job(fast, fast.learning.start_path_learning(10.0, 0.005))
     assert info.status == "done", info.error
-    assert fast.learning_settings().wall_side == "right"
-    outcome = fast.run_postprocess()
+    assert (fast.project().learned and fast.project().learned.settings).wall_side == "right"
+    outcome = fast.learning.run_postprocess()
     assert outcome.score.max_m <= 0.3e-3
     assert outcome.cad_comparison.learned.max_m <= 0.3e-3
 
@@ -116,10 +116,10 @@ def test_a_cell_change_drops_the_proposal_and_unreachable_points_are_refused(fas
 
 def test_a_realistic_cell_meets_the_real_part_and_teaches_on_the_mesh(fast: Session):
     fast.set_cell(part_deviation=PartDeviation.realistic(0))
-    assert fast.cell_settings().part_deviation == PartDeviation.realistic(0)
-    assert fast.cad_workpiece.nominal is None and fast.workpiece.nominal is not None
-    real = section_loops(fast.workpiece.scoring_mesh(), 0.017)[1]
-    cad = section_loops(fast.cad_workpiece.mesh, 0.017)[1]
+    assert fast.project().cell.part_deviation == PartDeviation.realistic(0)
+    assert fast.robot.workpiece.cad().nominal is None and fast.robot.workpiece.nominal is not None
+    real = section_loops(fast.robot.workpiece.scoring_mesh(), 0.017)[1]
+    cad = section_loops(fast.robot.workpiece.cad().mesh, 0.017)[1]
     assert real.length_m != pytest.approx(cad.length_m, abs=1e-5)
     proposal = fast.pointing.propose(ON_WALL)
     xy = np.array([p.position_wobj_m[:2] for p in proposal.points])

@@ -14,17 +14,18 @@ import numpy as np
 import pytest
 
 import robomach_core.project as core
-from app.session import ConflictError, Session
+from app.session import ConflictError, Session, process_settings, programs, projects
+from app.studies import StudyService
 
 
 def _push_to(session: Session, goal_mm: list[float]) -> None:
     """Admittance pushes (damping 500 N*s/m): f = D e / T, as the API tests do."""
     for _ in range(40):
-        err = np.asarray(goal_mm) - session.snapshot().position_m * 1e3
+        err = np.asarray(goal_mm) - session.robot.snapshot().position_m * 1e3
         if np.linalg.norm(err) < 1.0:
             return
         f = np.clip(500.0 * err * 1e-3 / 0.5, -25.0, 25.0)
-        session.push(np.r_[f, 0.0, 0.0, 0.0], 0.5)
+        session.teach.push(np.r_[f, 0.0, 0.0, 0.0], 0.5)
     raise AssertionError(f"could not push the tool to {goal_mm}")
 
 
@@ -34,21 +35,21 @@ def session() -> Iterator[Session]:
     (unpaced: the pushes are a script's, not a person's)."""
     s = Session(real_time=False)
     s.set_cell(workpiece="block")
-    s.set_compliance(["x", "y", "z"], "base")
+    s.robot.select(["x", "y", "z"], "base")
     _push_to(s, [760.0, 120.0, 80.0])
     for x in (760.0, 840.0):
-        s.set_compliance(["x", "y", "z"], "base")
+        s.robot.select(["x", "y", "z"], "base")
         _push_to(s, [x, 131.0, 30.0])
-        s.set_compliance(["x", "y"], "base")
-        s.push(np.array([0.0, 6.0, 0.0, 0.0, 0.0, 0.0]), 1.5)
+        s.robot.select(["x", "y"], "base")
+        s.teach.push(np.array([0.0, 6.0, 0.0, 0.0, 0.0, 0.0]), 1.5)
         s.record_guide_point()
-    s.set_compliance(["x", "y", "z"], "base")
-    job = s.start_path_learning(10.0, 0.02, closed=False)
+    s.robot.select(["x", "y", "z"], "base")
+    job = s.learning.start_path_learning(10.0, 0.02, closed=False)
     deadline = time.monotonic() + 120
-    while s.job(job).status in ("queued", "running") and time.monotonic() < deadline:
+    while s.jobs.get(job).status in ("queued", "running") and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert s.job(job).status == "done", s.job(job)
-    s.run_postprocess(tolerance_m=5e-5)
+    assert s.jobs.get(job).status == "done", s.jobs.get(job)
+    s.learning.run_postprocess(tolerance_m=5e-5)
     yield s
     s.close()
 
@@ -71,10 +72,10 @@ def test_changing_guide_points_marks_results_out_of_date_in_the_gui(session: Ses
     try:
         scene = CellScene(server)
         post = PostprocessPanel(server, session, scene)
-        export = ExportPanel(server, session)
+        export = ExportPanel(server, session, StudyService(session))
         learning = PathLearningPanel(server, session)
         learning.show_job(None)
-        assert session.status()["postprocess"] == "current"
+        assert session.project().status()["postprocess"] == "current"
         assert OUT_OF_DATE not in post.summary.content
         assert export.preview.content.startswith("**RAPID preview**")
         assert OUT_OF_DATE not in learning.status.content
@@ -87,10 +88,10 @@ def test_changing_guide_points_marks_results_out_of_date_in_the_gui(session: Ses
         )
         assert machined.status()["machining"] == "current"
 
-        guides = session.guide_points()
+        guides = list(session.project().guide_points)
         session.delete_guide_point(1)
         try:
-            assert session.status()["postprocess"] == "stale"
+            assert session.project().status()["postprocess"] == "stale"
             assert replace(machined, guide_points=tuple(guides[:1])).status()["machining"] == (
                 "stale"
             )
@@ -102,8 +103,8 @@ def test_changing_guide_points_marks_results_out_of_date_in_the_gui(session: Ses
             assert OUT_OF_DATE in learning.status.content
             assert scene.stale_label.visible  # the scene's path says so too
         finally:  # put the point back: the results are current again (same fingerprint)
-            session._set_guides(tuple(guides))
-        assert session.status()["postprocess"] == "current"
+            session.commit(lambda p: core.with_guide_points(p, guides), "guides")
+        assert session.project().status()["postprocess"] == "current"
         post.refresh()
         assert OUT_OF_DATE not in post.summary.content
         assert not scene.stale_label.visible
@@ -119,17 +120,17 @@ def test_the_export_panel_shows_what_the_program_carries(session: Session) -> No
 
     server = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
     try:
-        export = ExportPanel(server, session)
+        export = ExportPanel(server, session, StudyService(session))
         assert "CMRR **none**" in export.process.content
         cmrr = cmrr_settings_for(build_scenario("deburr-burrs"), settings_for("two-stage"))
-        session.set_process_settings(cmrr=cmrr)
+        process_settings.set_process_settings(session, cmrr=cmrr)
         export.refresh()
         assert "CMRR **two-stage**" in export.process.content
         assert "CMRR: two-stage" in export.preview.content
         assert "FCSpdChgAct" in export.file_text("program.mod")
         assert "FCSpdChgAct" not in export.file_text("program_fc.mod")
     finally:
-        session.set_process_settings()
+        process_settings.set_process_settings(session)
         server.stop()
 
 
@@ -153,39 +154,39 @@ def test_post_processing_runs_outside_the_session_lock(session: Session, gated_p
     entered, gate = gated_process
     out: dict = {}
     worker = threading.Thread(
-        target=lambda: out.setdefault("r", session.run_postprocess(tolerance_m=1e-4))
+        target=lambda: out.setdefault("r", session.learning.run_postprocess(tolerance_m=1e-4))
     )
     worker.start()
     assert entered.wait(30)
     # While it computes, the lock is free: state reads and the robot answer at once.
-    assert session._lock.acquire(timeout=2.0)
-    session._lock.release()
-    session.snapshot()
-    assert session.postprocess_settings().tolerance_m == pytest.approx(5e-5)  # not swapped yet
+    assert session.robot.lock.acquire(timeout=2.0)
+    session.robot.lock.release()
+    session.robot.snapshot()
+    assert session.project().post_settings.tolerance_m == pytest.approx(5e-5)  # not swapped yet
     gate.set()
     worker.join(30)
     assert out["r"].settings.tolerance_m == pytest.approx(1e-4)
-    assert session.postprocess_outcome() is out["r"]
-    session.run_postprocess(tolerance_m=5e-5)
+    assert session.project().processed is out["r"]
+    session.learning.run_postprocess(tolerance_m=5e-5)
 
 
 def test_opening_a_project_post_processes_outside_the_lock(session: Session, gated_process) -> None:
     entered, gate = gated_process
     original = session.current_project().id
-    targets = len(session.postprocess_outcome().result.targets)
-    session.create_project(f"other-{time.monotonic_ns()}")
-    assert session.recording() is None
-    worker = threading.Thread(target=session.open_project, args=(original,))
+    targets = len(session.project().processed.result.targets)
+    projects.create_project(session, f"other-{time.monotonic_ns()}")
+    assert session.project().recording is None
+    worker = threading.Thread(target=projects.open_project, args=(session, original))
     worker.start()
     assert entered.wait(30)  # re-running the stored post-processing
-    assert session._lock.acquire(timeout=2.0)
-    session._lock.release()
-    assert session.recording() is None  # still the other project until it is ready
+    assert session.robot.lock.acquire(timeout=2.0)
+    session.robot.lock.release()
+    assert session.project().recording is None  # still the other project until it is ready
     gate.set()
     worker.join(60)
     assert session.current_project().id == original
-    assert len(session.postprocess_outcome().result.targets) == targets
-    assert session.status()["postprocess"] == "current"
+    assert len(session.project().processed.result.targets) == targets
+    assert session.project().status()["postprocess"] == "current"
 
 
 def test_a_project_saved_before_fingerprints_opens_as_current(
@@ -207,9 +208,9 @@ def test_a_project_saved_before_fingerprints_opens_as_current(
     store.close()
     reopened = Session(Store(tmp_path / "old.sqlite"))
     try:
-        assert reopened.status() == project.status()
-        assert reopened.status()["postprocess"] == "current"
-        assert reopened.rapid_module() == session.rapid_module()
+        assert reopened.project().status() == project.status()
+        assert reopened.project().status()["postprocess"] == "current"
+        assert programs.rapid_module(reopened) == programs.rapid_module(session)
     finally:
         reopened.close()
 
@@ -218,25 +219,25 @@ def test_post_processing_result_is_dropped_when_its_inputs_changed(
     session: Session, gated_process
 ) -> None:
     entered, gate = gated_process
-    before = session.postprocess_outcome()
+    before = session.project().processed
     errors: list[Exception] = []
 
     def run() -> None:
         try:
-            session.run_postprocess(tolerance_m=1e-4)
+            session.learning.run_postprocess(tolerance_m=1e-4)
         except ConflictError as exc:
             errors.append(exc)
 
     worker = threading.Thread(target=run)
     worker.start()
     assert entered.wait(30)
-    cell = session.cell_settings()
+    cell = session.project().cell
     session.set_cell(tool_radius_m=cell.tool_radius_m * 2)  # a new cell while it computes
     gate.set()
     worker.join(30)
     assert errors and "changed while post-processing ran" in str(errors[0])
-    assert session.postprocess_outcome() is before
-    assert session.status()["postprocess"] == "stale"
+    assert session.project().processed is before
+    assert session.project().status()["postprocess"] == "stale"
 
 
 @pytest.mark.slow  # the example and two path-learning runs around the water pump
@@ -249,22 +250,22 @@ def test_learning_at_20_N_moves_the_force_filter_band_with_it() -> None:
 
         def finish(job: str) -> None:
             deadline = time.monotonic() + 300
-            while s.job(job).status in ("queued", "running") and time.monotonic() < deadline:
+            while s.jobs.get(job).status in ("queued", "running") and time.monotonic() < deadline:
                 time.sleep(0.05)
-            assert s.job(job).status == "done", s.job(job)
+            assert s.jobs.get(job).status == "done", s.jobs.get(job)
 
-        finish(s.start_example())
-        finish(s.start_path_learning(20.0, 0.010))
-        assert s.recording().completed, s.recording().stop_reason
-        post = s.postprocess_settings()
+        finish(s.learning.start_example())
+        finish(s.learning.start_path_learning(20.0, 0.010))
+        assert s.project().recording.completed, s.project().recording.stop_reason
+        post = s.project().post_settings
         assert (post.force_min_N, post.force_max_N) == (10.0, 30.0)
-        outcome = s.run_postprocess()
-        assert outcome.result.samples_filtered > 0.98 * len(s.recording())
+        outcome = s.learning.run_postprocess()
+        assert outcome.result.samples_filtered > 0.98 * len(s.project().recording)
         assert outcome.score.max_m < 0.25e-3
         # A band the user chose that holds the force stays as it is.
-        s.run_postprocess(force_min_N=12.0, force_max_N=40.0)
-        finish(s.start_path_learning(15.0, 0.010))
-        post = s.postprocess_settings()
+        s.learning.run_postprocess(force_min_N=12.0, force_max_N=40.0)
+        finish(s.learning.start_path_learning(15.0, 0.010))
+        post = s.project().post_settings
         assert (post.force_min_N, post.force_max_N) == (12.0, 40.0)
     finally:
         s.close()

@@ -17,16 +17,16 @@ def test_an_uploaded_arm_survives_a_restart(tmp_path) -> None:
     first = Session(Store(path), data_dir=tmp_path)
     cell = first.upload_robot(data, "my ur5.urdf")
     assert cell.robot.startswith("urdf_my_ur5_")
-    assert first.cell.robot.name == cell.robot
-    home = first.snapshot().joints_rad.copy()
+    assert first.robot.cell.robot.name == cell.robot
+    home = first.robot.snapshot().joints_rad.copy()
     first.close()
     custom._forget(cell.robot)  # as in a new process
     assert not custom.is_custom(cell.robot)
     second = Session(Store(path), data_dir=tmp_path)
     try:
-        assert second.cell_settings().robot == cell.robot
+        assert second.project().cell.robot == cell.robot
         assert second.project().robot_urdf == ("my ur5.urdf", data)
-        np.testing.assert_allclose(second.snapshot().joints_rad, home, atol=1e-9)
+        np.testing.assert_allclose(second.robot.snapshot().joints_rad, home, atol=1e-9)
     finally:
         second.close()
 
@@ -38,7 +38,7 @@ def test_choosing_a_builtin_arm_drops_the_uploaded_file(tmp_path) -> None:
         s.upload_robot(data, "arm.urdf")
         assert s.project().robot_urdf is not None
         s.set_cell(robot="ur10")
-        assert s.project().robot_urdf is None and s.cell.robot.name == "ur10"
+        assert s.project().robot_urdf is None and s.robot.cell.robot.name == "ur10"
     finally:
         s.close()
 
@@ -49,11 +49,11 @@ def test_the_example_on_an_arm_too_small_for_the_part_says_so() -> None:
     s = Session(real_time=False)
     try:
         s.set_cell(robot="ur3")
-        job = s.start_example()
+        job = s.learning.start_example()
         deadline = time.monotonic() + 60
-        while s.job(job).status in ("queued", "running") and time.monotonic() < deadline:
+        while s.jobs.get(job).status in ("queued", "running") and time.monotonic() < deadline:
             time.sleep(0.05)
-        info = s.job(job)
+        info = s.jobs.get(job)
         assert info.status == "failed"
         assert "edge of reach" in info.error and "larger arm" in info.error, info.error
     finally:

@@ -96,7 +96,7 @@ def test_the_viser_panel_shows_a_run_and_goes_out_of_date(workbench) -> None:
 
     session.delete_guide_point(0)
     wait_for(lambda: "Out of date" in panel.status.content, timeout_s=RUN_TIMEOUT_S)
-    assert session.status()["machining"] == "stale"
+    assert session.project().status()["machining"] == "stale"
 
 
 SHOTS = Path(os.environ.get("ROBOMACH_SHOTS", tempfile.gettempdir()))

@@ -74,7 +74,7 @@ def _open(browser, workbench) -> tuple[Page, object]:
 def _look_at_wall(client, workbench, xy_mm, normal_xy, z_mm=WALL_MID_Z_MM) -> np.ndarray:
     """Orbit the camera to look at a wall point from the free side and above: the user's
     action before a click. Returns the point in the base frame."""
-    T = workbench.session.cad_workpiece.T_base_wobj
+    T = workbench.session.robot.workpiece.cad().T_base_wobj
     p = T[:3, :3] @ np.array([xy_mm[0], xy_mm[1], z_mm]) * 1e-3 + T[:3, 3]
     n = T[:3, :3] @ np.array([normal_xy[0], normal_xy[1], 0.0])
     eye = p + CAMERA_DISTANCE_M * (0.55 * n + 0.83 * np.array([0.0, 0.0, 1.0]))
@@ -110,14 +110,16 @@ def _learn_and_postprocess(page: Page, workbench) -> float:
     """Run path learning and post-processing from the page; the program's max deviation
     from the (true) wall, mm."""
     session = workbench.session
-    learned_before = session.recording()
+    learned_before = session.project().recording
     page.get_by_role("button", name="Run path learning").click()
-    wait_for(lambda: session.recording() is not learned_before and not session.busy(), 300)
-    rec = session.recording()
+    wait_for(
+        lambda: session.project().recording is not learned_before and not session.robot.busy(), 300
+    )
+    rec = session.project().recording
     assert rec.completed, rec.stop_reason
     page.get_by_role("button", name="Run post-processing").click()
-    wait_for(lambda: session.status()["postprocess"] == "current", 120)
-    outcome = session.postprocess_outcome()
+    wait_for(lambda: session.project().status()["postprocess"] == "current", 120)
+    outcome = session.project().processed
     comparison = outcome.cad_comparison
     assert comparison is not None
     return max(comparison.learned.max_m, outcome.score.max_m if outcome.score else 0.0) * 1e3
@@ -135,7 +137,7 @@ def test_click_to_teach_the_pump_then_learn_within_a_third_of_a_mm(browser, work
         started = time.monotonic()
         _click_at(page, client, p)
         actions.count += 1
-        wait_for(lambda k=k: len(session.guide_points()) == k + 1, timeout_s=30)
+        wait_for(lambda k=k: len(session.project().guide_points) == k + 1, timeout_s=30)
         seconds = time.monotonic() - started
         timings.append(seconds)
         print(f"G{k + 1}: {actions.count} actions, {seconds:.1f} s "
@@ -144,8 +146,8 @@ def test_click_to_teach_the_pump_then_learn_within_a_third_of_a_mm(browser, work
         # The first comes from the robot's home, 400 mm away: it may take a little longer.
         limit = MAX_SECONDS_PER_POINT if k > 0 else FIRST_POINT_MAX_SECONDS
         assert seconds <= limit, f"G{k + 1} took {seconds:.1f} s"
-    guides = session.guide_points()
-    T = session.cad_workpiece.T_base_wobj
+    guides = list(session.project().guide_points)
+    T = session.robot.workpiece.cad().T_base_wobj
     for g, (xy, normal) in zip(guides, PUMP_WALL_POINTS, strict=True):
         wobj = (g.position_m - T[:3, 3]) @ T[:3, :3] * 1e3
         expected = np.array(xy) + 2.0 * np.array(normal)  # radius + gap off the wall
@@ -169,8 +171,12 @@ def _propose_accept_learn(page: Page, client, workbench, xy, normal, z_mm) -> fl
     expect(page.get_by_text(f"{len(proposal.points)} proposed points")).to_be_visible()
     page.screenshot(path=str(_shot("proposal")))
     page.get_by_role("button", name="Accept proposal").click()
-    wait_for(lambda: len(session.guide_points()) == len(proposal.points) and not session.busy(),
-             timeout_s=300)  # fmt: skip
+    wait_for(
+        lambda: (
+            len(session.project().guide_points) == len(proposal.points) and not session.robot.busy()
+        ),
+        timeout_s=300,
+    )
     return _learn_and_postprocess(page, workbench)
 
 
@@ -191,7 +197,7 @@ def test_one_click_proposes_an_uploaded_mesh_then_learns_within_a_third_of_a_mm(
     with page.expect_file_chooser() as chooser:
         page.get_by_role("button", name="Upload mesh (STL/OBJ/PLY, mm)").click()
     chooser.value.set_files(str(stl))
-    wait_for(lambda: workbench.session.cad_workpiece.name == "grooved_plate", timeout_s=60)
+    wait_for(lambda: workbench.session.robot.workpiece.cad().name == "grooved_plate", timeout_s=60)
     page.wait_for_timeout(1500)
     x, y, z = part.picks["island"]
     deviation = _propose_accept_learn(page, client, workbench, (x, y), (0, -1), 17.0)
@@ -217,10 +223,10 @@ def test_a_cell_change_leaves_nothing_of_the_old_cell_in_the_scene() -> None:
         session = wb.session
         session.pointing.propose(np.array([0.0, -0.065, 0.019]))
         job = session.pointing.accept()
-        wait_for(lambda: session.job(job).status == "done", timeout_s=300)
-        job = session.start_path_learning(10.0, 0.005)
-        wait_for(lambda: session.job(job).status == "done", timeout_s=300)
-        session.run_postprocess()
+        wait_for(lambda: session.jobs.get(job).status == "done", timeout_s=300)
+        job = session.learning.start_path_learning(10.0, 0.005)
+        wait_for(lambda: session.jobs.get(job).status == "done", timeout_s=300)
+        session.learning.run_postprocess()
         wait_for(lambda: "What learning buys" in wb.pointing.compare.content)
         session.pointing.propose(np.array([0.04, -0.065, 0.019]))
         wait_for(lambda: "P14" in wb.pointing.selected.options)
@@ -230,4 +236,4 @@ def test_a_cell_change_leaves_nothing_of_the_old_cell_in_the_scene() -> None:
         wait_for(lambda: wb.pointing.selected.options == ("none",))
         wait_for(lambda: wb.pointing.compare.content == "")
         assert wb.guide_points.selected.options == ("none",)
-        assert session.status()["recording"] == "stale"  # kept in the project, not drawn
+        assert session.project().status()["recording"] == "stale"  # kept in the project, not drawn

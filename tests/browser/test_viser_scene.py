@@ -84,24 +84,24 @@ def workbench() -> Iterator:
 
 def test_spring_handle_pushes_the_robot(workbench) -> None:
     session, lead = workbench.session, workbench.leadthrough
-    p0 = session.snapshot().position_m.copy()
+    p0 = session.robot.snapshot().position_m.copy()
     lead.spring.value = 2.0  # N/mm: 20 mm of offset push 40 N, the robot follows in ~1 s
     frames = workbench.frames_drawn
     workbench.scene.handle.position = p0 + np.array([0.0, 0.0, 0.020])
     lead.arm()
-    wait_for(lambda: session.snapshot().position_m[2] - p0[2] > 0.005)
+    wait_for(lambda: session.robot.snapshot().position_m[2] - p0[2] > 0.005)
     assert workbench.frames_drawn > frames
     assert lead.push_N is not None and lead.push_N[2] > 0
     # The robot stops at the handle (within the admittance's 1 N deadband: 0.5 mm at 2 N/mm).
-    wait_for(lambda: abs(session.snapshot().position_m[2] - (p0[2] + 0.020)) < 0.002)
-    np.testing.assert_allclose(session.snapshot().position_m[:2], p0[:2], atol=5e-4)
+    wait_for(lambda: abs(session.robot.snapshot().position_m[2] - (p0[2] + 0.020)) < 0.002)
+    np.testing.assert_allclose(session.robot.snapshot().position_m[:2], p0[:2], atol=5e-4)
 
     # A move the spring did not make (a jog, an API push) releases the handle onto the tool.
-    session.jog("z", 0.005)
+    session.teach.jog("z", 0.005)
     wait_for(lambda: lead.push_N is None)
     wait_for(
         lambda: np.allclose(
-            workbench.scene.handle.position, session.snapshot().position_m, atol=1e-6
+            workbench.scene.handle.position, session.robot.snapshot().position_m, atol=1e-6
         )
     )
 
@@ -111,7 +111,7 @@ def test_panels_follow_session_changes(workbench) -> None:
     session.record_guide_point()
     wait_for(lambda: "G1" in workbench.guide_points.selected.options)
     assert "G1" in workbench.guide_points.table.content
-    session.set_compliance(["z", "rx"], "tool")
+    session.robot.select(["z", "rx"], "tool")
     wait_for(lambda: workbench.leadthrough.axes["rx"].value)
     assert not workbench.leadthrough.axes["x"].value
     assert workbench.leadthrough.frame.value == "tool"
@@ -136,8 +136,8 @@ def test_the_pose_readout_shows_where_the_robot_stopped(workbench) -> None:
     readout still catches up with the robot once it stands."""
     session = workbench.session
     for _ in range(2):
-        session.jog("z", 0.004, frame="base")
-    stopped_mm = session.snapshot().position_m * 1e3
+        session.teach.jog("z", 0.004, frame="base")
+    stopped_mm = session.robot.snapshot().position_m * 1e3
     row = f"| mm | {stopped_mm[0]:.2f} | {stopped_mm[1]:.2f} | {stopped_mm[2]:.2f} |"
     wait_for(lambda: row in workbench.leadthrough.pose.content)
 
@@ -147,8 +147,8 @@ def test_the_wall_to_follow_is_shown_before_the_run_and_the_side_is_checked(work
     will follow and why (the pushes), and the scene highlights it; set to the other side, the
     rules panel says every point is nearer the wall on the right."""
     session = workbench.session
-    job = session.start_example()
-    wait_for(lambda: session.job(job).status == "done", timeout_s=180.0)
+    job = session.learning.start_example()
+    wait_for(lambda: session.jobs.get(job).status == "done", timeout_s=180.0)
     panel = workbench.path_learning
     wait_for(lambda: "follows the wall on the right" in panel.wall_note.content)
     assert "pushed back from the right" in panel.wall_note.content

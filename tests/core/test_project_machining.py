@@ -169,3 +169,20 @@ def test_a_result_is_re_chosen_for_another_cell_without_running_again():
     bare = full.for_cell(CellCapabilities())
     assert bare.chosen == 0 and "constant / off" in bare.reason
     assert [r["cycle_time_s"] for r in bare.rows] == [r["cycle_time_s"] for r in rows]
+
+
+def test_status_never_runs_the_stiffness_campaign(monkeypatch):
+    """``Project.status()`` names the simulated CMM campaign a run would cut with (its arm,
+    seed, poses and noise) instead of running it: it is read on every poll."""
+    import robomach_core.machining as machining
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("status() ran the simulated stiffness identification")
+
+    monkeypatch.setattr(machining, "identify_stiffness", refuse)
+    p = core.with_machining_setup(core.Project(), core.MachiningSetup())
+    assert p.status()["machining"] == "none"
+    key = core.machining_inputs_key(p)
+    other_seed = core.MachiningSetup(MachiningSettings(seed=p.cell.seed + 1))
+    assert core.machining_inputs_key(core.with_machining_setup(p, other_seed)) != key
+    assert core.machining_inputs_key(p) == key

@@ -9,8 +9,9 @@ from fastapi import Depends, Request
 
 from app.api.schemas import ErrorPublic
 from app.session import Session
+from app.session.machining import MachiningService
 from app.settings import ServerSettings
-from app.studies import StudyService, studies_for
+from app.studies import StudyService
 
 
 # Async: FastAPI runs a plain ``def`` dependency in a worker thread, a hop that costs every
@@ -23,13 +24,18 @@ async def get_settings(request: Request) -> ServerSettings:
     return request.app.state.settings
 
 
-def get_studies(request: Request) -> StudyService:
-    return studies_for(request.app.state.session)
+async def get_studies(request: Request) -> StudyService:
+    return request.app.state.studies
+
+
+async def get_machining(request: Request) -> MachiningService:
+    return request.app.state.machining
 
 
 SessionDep = Annotated[Session, Depends(get_session)]
 SettingsDep = Annotated[ServerSettings, Depends(get_settings)]
 StudiesDep = Annotated[StudyService, Depends(get_studies)]
+MachiningDep = Annotated[MachiningService, Depends(get_machining)]
 
 # Documented error answers of every route (the handlers in app.api.app produce them).
 ERRORS: dict[int | str, dict] = {

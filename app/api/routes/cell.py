@@ -19,7 +19,7 @@ UPLOAD_BODY_LIMIT_BYTES = MAX_MESH_BYTES + 1024 * 1024
 
 
 def _public(session: SessionDep) -> CellPublic:
-    cell = session.cell_settings()
+    cell = session.project().cell
     uploaded = [] if cell.robot in ROBOT_NAMES else [cell.robot]  # the user's own arm
     return CellPublic.from_settings(cell, [*ROBOT_NAMES, *uploaded], list(WORKPIECE_NAMES))
 
@@ -38,7 +38,7 @@ def put_cell(body: CellUpdate, session: SessionDep) -> CellPublic:
     if body.realistic is not None:
         from robomach_core.real_part import PartDeviation
 
-        seed = session.cell_settings().seed
+        seed = session.project().cell.seed
         extra["part_deviation"] = PartDeviation.realistic(seed) if body.realistic else None
     session.set_cell(
         robot=body.robot,

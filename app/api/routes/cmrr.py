@@ -18,15 +18,13 @@ from app.studies import (
     SEED_MAX,
     CmrrOutcome,
 )
-from robomach_core.cmrr import SCENARIO_NAMES
+from robomach_core.cmrr import CONTROLLER_NAMES, SCENARIO_NAMES
 from robomach_core.cmrr.scenarios import ScenarioName
 from robomach_core.limits import CMRR_COMMAND_SPEED_MM_S, CMRR_REFERENCE_FORCE_N, Range
 
 router = APIRouter(prefix="/api/cmrr", tags=["cmrr"], responses=ERRORS)
 
-ControllerChoice = Literal[
-    "constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage", "adaptive-lq", "all", "default"
-]
+ControllerChoice = Literal[(*CONTROLLER_NAMES, "all", "default")]  # type: ignore[valid-type]
 RANGES = {
     "reference_force_N": CMRR_REFERENCE_FORCE_N,
     "command_speed_mm_s": CMRR_COMMAND_SPEED_MM_S,

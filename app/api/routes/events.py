@@ -43,7 +43,7 @@ def _event(topic: str, session: Session) -> str:
     if topic == "robot":
         status = ProjectStatusPublic.from_project(session.project())
         data["state"] = StatePublic.from_snapshot(
-            session.snapshot(), project_status=status
+            session.robot.snapshot(), project_status=status
         ).model_dump()
     return f"event: {topic}\ndata: {json.dumps(data)}\n\n"
 

@@ -21,6 +21,7 @@ from fastapi import APIRouter, Query, Response, status
 import robomach_core.export.languages as registry
 from app.api.routes import ERRORS, SessionDep, SettingsDep
 from app.api.schemas import ExportCreate, ExportPublic, ProgramLanguagePublic
+from app.session import programs
 from robomach_core.export.rapid import rapid_identifier
 
 MEDIA_TYPES = {
@@ -65,8 +66,8 @@ def program_download(
     from robomach_core.errors import InvalidInputError
 
     lang = registry.language(language)
-    files = session.program_texts(
-        lang.name, force_control=force_control, module_name=rapid_identifier(module_name)
+    files = programs.program_texts(
+        session, lang.name, force_control=force_control, module_name=rapid_identifier(module_name)
     )
     if file is not None:
         if file not in files:
@@ -108,7 +109,7 @@ def make_router() -> APIRouter:
     def list_languages(session: SessionDep) -> list[ProgramLanguagePublic]:
         """Every program language, and whether the cell's arm is offered it (its controller
         runs it): the menus of the workbench and the pendant."""
-        offered = set(session.program_languages())
+        offered = set(programs.program_languages(session))
         return [language_public(lang, lang.name in offered) for lang in registry.languages()]
 
     def export_program(
@@ -154,39 +155,40 @@ def make_router() -> APIRouter:
         """The ABB RAPID module (alias of GET /api/export/program/rapid; text/plain)."""
         name = rapid_identifier(module_name)
         return _download(
-            session.rapid_module(module_name=name, force_control=force_control), f"{name}.mod"
+            programs.rapid_module(session, module_name=name, force_control=force_control),
+            f"{name}.mod",
         )
 
     @router.get("/export/samples.csv", response_class=Response)
     def export_samples(session: SessionDep) -> Response:
         """Every recorded 4 ms sample (mm, N, degrees) with the force filter's verdict."""
-        return _download(session.samples_csv(), "samples.csv")
+        return _download(programs.samples_csv(session.project()), "samples.csv")
 
     @router.get("/export/targets.csv", response_class=Response)
     def export_targets(session: SessionDep) -> Response:
         """The post-processed targets (mm, degrees, mm/s)."""
-        return _download(session.targets_csv(), "targets.csv")
+        return _download(programs.targets_csv(session), "targets.csv")
 
     @router.get("/export/settings.json", response_class=Response)
     def export_settings(session: SessionDep) -> Response:
         """Cell, compliance, path-learning and post-processing settings (mm, N, s)."""
-        return _download(session.settings_json(), "settings.json")
+        return _download(programs.settings_json(session), "settings.json")
 
     @router.post("/exports", status_code=status.HTTP_201_CREATED)
     def save_export(body: ExportCreate, session: SessionDep, settings: SettingsDep) -> ExportPublic:
         """Save every export file under a name, in the project and in the data folder
         (``exports/<project id>/<name>/``); the same name replaces them."""
-        return ExportPublic.from_info(session.save_export(body.name), session.data_dir)
+        return ExportPublic.from_info(programs.save(session, body.name), session.data_dir)
 
     @router.get("/exports")
     def list_exports(session: SessionDep) -> list[ExportPublic]:
         """The open project's saved exports, newest first."""
-        return [ExportPublic.from_info(e, session.data_dir) for e in session.exports()]
+        return [ExportPublic.from_info(e, session.data_dir) for e in programs.saved(session)]
 
     @router.get("/exports/{name}/{filename}", response_class=Response)
     def get_export_file(name: str, filename: str, session: SessionDep) -> Response:
         """One file of a saved export."""
-        return _download(session.export_file(name, filename), filename)
+        return _download(programs.saved_file(session, name, filename), filename)
 
     return router
 

@@ -18,7 +18,7 @@ def list_guide_points(session: SessionDep) -> list[GuidePointPublic]:
     """Every guide point in order."""
     return [
         GuidePointPublic.from_entry(GuidePointEntry(i, p))
-        for i, p in enumerate(session.guide_points())
+        for i, p in enumerate(list(session.project().guide_points))
     ]
 
 
@@ -48,4 +48,4 @@ def delete_all_guide_points(session: SessionDep) -> Response:
 def load_example(session: SessionDep) -> JobCreated:
     """Job: a scripted operator leads the robot by pushes to the example guide points of the
     built-in workpiece (they replace the guide points). Follow it at /api/jobs/{job_id}."""
-    return JobCreated(job_id=session.start_example())
+    return JobCreated(job_id=session.learning.start_example())

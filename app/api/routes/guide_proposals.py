@@ -14,6 +14,7 @@ from pydantic import BaseModel, Field
 
 from app.api.routes import ERRORS, SessionDep
 from app.api.schemas import Finite, GuidePointPublic, JobCreated, Vector3, _floats, _Request
+from robomach_core.choices import ClickMode
 from robomach_core.guide_proposal import GuideProposal, ProposedPoint
 from robomach_core.limits import MACHINING_HEIGHT_MM, WALL_GAP_MM, WOBJ_POSITION_MM
 
@@ -60,7 +61,7 @@ class PointingSettingsUpdate(_Request):
         description="the TCP's height above the floor beside the wall [mm], "
         f"{MACHINING_HEIGHT_MM.text()}",
     )
-    click_mode: Literal["propose", "teach", "move", "off"] | None = Field(
+    click_mode: ClickMode | None = Field(
         default=None,
         description="what a click on the part in the 3-D scene does: propose the wall's guide "
         "points, teach a point, move the selected point there, or nothing",
@@ -70,7 +71,7 @@ class PointingSettingsUpdate(_Request):
 class PointingSettingsPublic(BaseModel):
     gap_mm: float
     height_above_floor_mm: float
-    click_mode: Literal["propose", "teach", "move", "off"]
+    click_mode: ClickMode
 
 
 class ProposedPointPublic(BaseModel):

@@ -19,10 +19,10 @@ def list_jobs(session: SessionDep) -> list[JobPublic]:
 @router.get("/{job_id}")
 def get_job(job_id: str, session: SessionDep) -> JobPublic:
     """Status, progress (0-1) and error of a job."""
-    return JobPublic.from_info(session.job(job_id))
+    return JobPublic.from_info(session.jobs.get(job_id))
 
 
 @router.post("/{job_id}/cancel")
 def cancel_job(job_id: str, session: SessionDep) -> JobPublic:
     """Cancel a queued or running job; the robot stays where the job left it."""
-    return JobPublic.from_info(session.cancel_job(job_id))
+    return JobPublic.from_info(session.jobs.cancel(job_id))

@@ -16,20 +16,20 @@ router = APIRouter(prefix="/api/leadthrough", tags=["lead-through"], responses=E
 @router.get("/compliance")
 def get_compliance(session: SessionDep) -> CompliancePublic:
     """The compliant axes and their frame."""
-    return CompliancePublic.from_selection(session.compliance)
+    return CompliancePublic.from_selection(session.robot.selection)
 
 
 @router.put("/compliance")
 def put_compliance(body: ComplianceUpdate, session: SessionDep) -> CompliancePublic:
     """Select the compliant axes; the others are stiff."""
-    return CompliancePublic.from_selection(session.set_compliance(body.axes, body.frame))
+    return CompliancePublic.from_selection(session.robot.select(body.axes, body.frame))
 
 
 @router.post("/push")
 def push(body: PushCreate, session: SessionDep) -> StatePublic:
     """Push the tool with a constant force (and torque) for a while; answers the new state."""
     wrench = np.array(body.force_N + body.torque_Nm, dtype=float)
-    return StatePublic.from_snapshot(session.push(wrench, body.duration_s))
+    return StatePublic.from_snapshot(session.teach.push(wrench, body.duration_s))
 
 
 @router.post("/jog")
@@ -38,11 +38,11 @@ def jog(body: JogCreate, session: SessionDep) -> StatePublic:
     work-object frame, at wall-clock speed."""
     to_si = math.radians if body.axis.startswith("r") else (lambda v: v * 1e-3)
     speed = None if body.speed is None else to_si(body.speed)
-    snapshot = session.jog(body.axis, to_si(body.step), frame=body.frame, speed=speed)
+    snapshot = session.teach.jog(body.axis, to_si(body.step), frame=body.frame, speed=speed)
     return StatePublic.from_snapshot(snapshot)
 
 
 @router.post("/home")
 def home(session: SessionDep) -> StatePublic:
     """Reset the robot to its home pose (a simulation reset, not a move)."""
-    return StatePublic.from_snapshot(session.go_home())
+    return StatePublic.from_snapshot(session.learning.go_home())

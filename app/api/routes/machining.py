@@ -9,10 +9,10 @@ from fastapi import APIRouter, HTTPException, UploadFile, status
 from pydantic import BaseModel, ConfigDict, Field
 from starlette.concurrency import run_in_threadpool
 
-from app.api.routes import ERRORS, SessionDep
+from app.api.routes import ERRORS, MachiningDep
 from app.api.routes.cmrr import within
 from app.api.schemas import JobCreated
-from app.session.machining import MAX_STOCK_BYTES, PLOT_POINTS, machining_for, markdown_table
+from app.session.machining import MAX_STOCK_BYTES, PLOT_POINTS, markdown_table
 from robomach_core.limits import (
     MACHINING_DEPTH_EXPONENT,
     MACHINING_FEED_EXPONENT,
@@ -20,14 +20,18 @@ from robomach_core.limits import (
     MACHINING_PROCESS_GAIN_N,
     MACHINING_VARIATIONS,
 )
+from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
+from robomach_core.machining.choice import OPTION_NAMES
 from robomach_core.machining.stock import MAX_ALLOWANCE_M, MAX_PROFILE_POINTS, MAX_PROFILE_S_MM
+from robomach_core.project._machining import STOCK_SOURCES
 
 router = APIRouter(prefix="/api/machining", tags=["machining"], responses=ERRORS)
 
-Controller = Literal["constant", "fixed-pi", "adaptive-pi", "fuzzy", "two-stage", "adaptive-lq"]
-Compensation = Literal["off", "offline", "online"]
-StockSource = Literal["builtin", "profile", "mesh"]
-CellOption = Literal["fc_speed_change", "path_correction", "force_mode"]
+# The choices of the core (``robomach_core.choices``), never typed again here.
+Controller = Literal[MACHINING_CONTROLLERS]  # type: ignore[valid-type]
+Compensation = Literal[COMPENSATION_NAMES]  # type: ignore[valid-type]
+StockSource = Literal[STOCK_SOURCES]  # type: ignore[valid-type]
+CellOption = Literal[OPTION_NAMES]  # type: ignore[valid-type]
 UPLOAD_CHUNK_BYTES = 1024 * 1024
 
 
@@ -147,38 +151,37 @@ class ComparisonPublic(BaseModel):
     table_markdown: str
 
 
-def _settings(session: SessionDep) -> MachiningSettingsPublic:
-    service = machining_for(session)
+def _settings(service: MachiningDep) -> MachiningSettingsPublic:
     return MachiningSettingsPublic(**service.settings_document(), status=service.status())
 
 
 @router.get("/settings")
-def get_settings(session: SessionDep) -> MachiningSettingsPublic:
+def get_settings(service: MachiningDep) -> MachiningSettingsPublic:
     """The machining settings, the stock source and the chosen configuration."""
-    return _settings(session)
+    return _settings(service)
 
 
 @router.put("/settings")
-def put_settings(body: MachiningSettingsUpdate, session: SessionDep) -> MachiningSettingsPublic:
+def put_settings(body: MachiningSettingsUpdate, service: MachiningDep) -> MachiningSettingsPublic:
     """Change the process, force limit, controller, compensation or stock source. Process and
     limit changes make the result stale; controller and compensation are the choice."""
-    machining_for(session).set_settings(**body.model_dump(exclude_none=True))
-    return _settings(session)
+    service.set_settings(**body.model_dump(exclude_none=True))
+    return _settings(service)
 
 
 @router.put("/choice")
-def put_choice(body: MachiningChoice, session: SessionDep) -> MachiningSettingsPublic:
+def put_choice(body: MachiningChoice, service: MachiningDep) -> MachiningSettingsPublic:
     """Save the configuration the exports carry: the FC SpeedChange block for a CMRR
     controller, the corrected targets for offline compensation, and both in settings.json."""
-    machining_for(session).choose(body.controller, body.compensation)
-    return _settings(session)
+    service.choose(body.controller, body.compensation)
+    return _settings(service)
 
 
 @router.put("/stock/profile")
-def put_stock_profile(body: StockProfile, session: SessionDep) -> MachiningSettingsPublic:
+def put_stock_profile(body: StockProfile, service: MachiningDep) -> MachiningSettingsPublic:
     """Use an allowance profile as the stock."""
-    machining_for(session).set_stock_profile(body.profile_mm)
-    return _settings(session)
+    service.set_stock_profile(body.profile_mm)
+    return _settings(service)
 
 
 @router.post(
@@ -186,7 +189,7 @@ def put_stock_profile(body: StockProfile, session: SessionDep) -> MachiningSetti
     max_body_size=MAX_STOCK_BYTES + 1024 * 1024,
     responses={413: {"description": "the file is larger than the upload limit"}},
 )
-async def upload_stock(file: UploadFile, session: SessionDep) -> MachiningSettingsPublic:
+async def upload_stock(file: UploadFile, service: MachiningDep) -> MachiningSettingsPublic:
     """Upload a stock mesh (STL, OBJ or PLY in mm, in the workpiece's frame; multipart field
     ``file``): the part before machining, paired with the nominal one."""
     chunks, size = [], 0
@@ -201,32 +204,30 @@ async def upload_stock(file: UploadFile, session: SessionDep) -> MachiningSettin
     data = b"".join(chunks)
     if not data:
         raise HTTPException(status.HTTP_422_UNPROCESSABLE_ENTITY, "the uploaded file is empty")
-    service = machining_for(session)
     await run_in_threadpool(service.upload_stock, data, file.filename or "stock.stl")
-    return _settings(session)
+    return _settings(service)
 
 
 @router.post("/run", status_code=status.HTTP_202_ACCEPTED)
-def start_run(session: SessionDep) -> JobCreated:
+def start_run(service: MachiningDep) -> JobCreated:
     """Job: cut the program with the chosen configuration. Follow and cancel it at
     /api/jobs/{job_id}; 409 without a current post-processed program."""
-    return JobCreated(job_id=machining_for(session).start("run"))
+    return JobCreated(job_id=service.start("run"))
 
 
 @router.post("/compare", status_code=status.HTTP_202_ACCEPTED)
-def start_compare(session: SessionDep) -> JobCreated:
+def start_compare(service: MachiningDep) -> JobCreated:
     """Job: the matrix, the greatest safe constant feed and each CMRR controller with
     compensation off, offline and online (18 runs), on the stock and ``variations`` more
     stocks drawn from the part's variation, on every local core (or the Dask cluster the
     server was started with, ``ROBOMACH_CLUSTER``; a request cannot point the server at
     another address)."""
-    return JobCreated(job_id=machining_for(session).start("compare"))
+    return JobCreated(job_id=service.start("compare"))
 
 
 @router.get("/result")
-def get_result(session: SessionDep, points: int = PLOT_POINTS) -> MachiningResultPublic:
+def get_result(service: MachiningDep, points: int = PLOT_POINTS) -> MachiningResultPublic:
     """The last result (409 without one); ``status`` says whether it is still current."""
-    service = machining_for(session)
     result = service.require_result()
     summary = result.summary()
     trace = None
@@ -234,7 +235,7 @@ def get_result(session: SessionDep, points: int = PLOT_POINTS) -> MachiningResul
         trace = service.plot_data(max_points=max(10, min(points, 20_000)))
     return MachiningResultPublic(
         status=service.status(),
-        stale_reason=session.stale_reasons().get("machining"),
+        stale_reason=service.session.project().stale_reasons().get("machining"),
         runs=summary["runs"],
         chosen_by_rule=summary["chosen"],
         choice_rule=summary["choice_rule"],
@@ -246,9 +247,8 @@ def get_result(session: SessionDep, points: int = PLOT_POINTS) -> MachiningResul
 
 
 @router.get("/comparison")
-def get_comparison(session: SessionDep) -> ComparisonPublic:
+def get_comparison(service: MachiningDep) -> ComparisonPublic:
     """The side-by-side table of the last result (text and markdown)."""
-    service = machining_for(session)
     result = service.require_result()
     return ComparisonPublic(
         status=service.status(),

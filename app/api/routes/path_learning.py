@@ -17,8 +17,10 @@ def start_path_learning(body: PathLearningCreate, session: SessionDep) -> JobCre
     """Job: follow the wall along the guide points at constant contact force and record it.
     Follow it at /api/jobs/{job_id}; the recording replaces the last one when it is done.
     422 when the wall side is "auto" and the guide points do not tell it."""
-    warnings = session.guide_warnings(body.force_N, closed=body.closed, wall_side=body.wall_side)
-    job_id = session.start_path_learning(
+    warnings = session.learning.guide_warnings(
+        body.force_N, closed=body.closed, wall_side=body.wall_side
+    )
+    job_id = session.learning.start_path_learning(
         body.force_N,
         body.speed_mm_s * 1e-3,
         closed=body.closed,
@@ -34,9 +36,9 @@ def get_recording(
     max_points: Annotated[int, Query(ge=2, le=100_000, description="decimate to this")] = 2000,
 ) -> ForceTracePublic:
     """Force against time for plots: live while a job runs, else the last recording."""
-    rec = session.recording()
+    rec = session.project().recording
     return ForceTracePublic.from_trace(
-        session.force_trace(max_points),
+        session.learning.force_trace(max_points),
         rec.stop_reason if rec is not None else None,
         rec.completed if rec is not None else None,
     )

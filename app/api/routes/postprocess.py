@@ -18,7 +18,7 @@ router = APIRouter(prefix="/api/postprocess", tags=["post-processing"], response
 @router.post("")
 def run_postprocess(body: PostprocessUpdate, session: SessionDep) -> PostprocessPublic:
     """Filter and reduce the last recording (omitted settings keep their value)."""
-    outcome = session.run_postprocess(
+    outcome = session.learning.run_postprocess(
         force_min_N=body.force_min_N,
         force_max_N=body.force_max_N,
         tolerance_m=None if body.tolerance_mm is None else body.tolerance_mm * 1e-3,
@@ -31,9 +31,9 @@ def run_postprocess(body: PostprocessUpdate, session: SessionDep) -> Postprocess
 @router.get("")
 def get_postprocess(session: SessionDep) -> PostprocessStatePublic:
     """The settings and the last result (null before any)."""
-    outcome = session.postprocess_outcome()
+    outcome = session.project().processed
     return PostprocessStatePublic(
-        settings=PostprocessSettingsPublic.from_settings(session.postprocess_settings()),
+        settings=PostprocessSettingsPublic.from_settings(session.project().post_settings),
         result=None if outcome is None else PostprocessPublic.from_outcome(outcome),
-        status=session.status()["postprocess"],
+        status=session.project().status()["postprocess"],
     )

@@ -16,6 +16,7 @@ from app.api.schemas import (
     ProjectStatusPublic,
     ProjectUpdate,
 )
+from app.session import process_settings, projects
 from robomach_core import project as core
 
 router = APIRouter(prefix="/api/projects", tags=["projects"], responses=ERRORS)
@@ -26,7 +27,7 @@ ProjectId = Annotated[int, Path(ge=1, le=2**63 - 1, description="the project's i
 @router.get("")
 def list_projects(session: SessionDep) -> list[ProjectPublic]:
     """Every project, most recently changed first."""
-    return [ProjectPublic.from_info(p) for p in session.projects()]
+    return [ProjectPublic.from_info(p) for p in projects.list_projects(session)]
 
 
 @router.get("/current")
@@ -60,7 +61,7 @@ def put_process_settings(body: ProcessSettingsUpdate, session: SessionDep) -> Pr
 
     cmrr = None if body.cmrr is None else cmrr_from_dict(body.cmrr)
     compensation = None if body.compensation is None else compensation_from_dict(body.compensation)
-    project = session.set_process_settings(cmrr=cmrr, compensation=compensation)
+    project = process_settings.set_process_settings(session, cmrr=cmrr, compensation=compensation)
     return ProcessSettingsPublic(
         cmrr=core.cmrr_document(project), compensation=core.compensation_document(project)
     )
@@ -78,7 +79,8 @@ def process_settings_from_studies(
     cmrr, compensation = settings_from_studies(
         studies, controller=body.controller, cmrr=body.cmrr, compensation=body.compensation
     )
-    project = session.set_process_settings(
+    project = process_settings.set_process_settings(
+        session,
         cmrr=cmrr if body.cmrr else project.cmrr,
         compensation=compensation if body.compensation else project.compensation,
     )
@@ -90,13 +92,13 @@ def process_settings_from_studies(
 @router.post("", status_code=status.HTTP_201_CREATED)
 def create_project(body: ProjectCreate, session: SessionDep) -> ProjectPublic:
     """A new project with the default cell; it is opened at once."""
-    return ProjectPublic.from_info(session.create_project(body.name))
+    return ProjectPublic.from_info(projects.create_project(session, body.name))
 
 
 @router.post("/{project_id}/open")
 def open_project(project_id: ProjectId, session: SessionDep) -> ProjectPublic:
     """Open a project: its cell, robot pose, guide points, recording and results."""
-    return ProjectPublic.from_info(session.open_project(project_id))
+    return ProjectPublic.from_info(projects.open_project(session, project_id))
 
 
 @router.patch("/{project_id}")
@@ -104,11 +106,11 @@ def rename_project(
     project_id: ProjectId, body: ProjectUpdate, session: SessionDep
 ) -> ProjectPublic:
     """Rename a project."""
-    return ProjectPublic.from_info(session.rename_project(project_id, body.name))
+    return ProjectPublic.from_info(projects.rename_project(session, project_id, body.name))
 
 
 @router.delete("/{project_id}", status_code=status.HTTP_204_NO_CONTENT)
 def delete_project(project_id: ProjectId, session: SessionDep) -> Response:
     """Delete a project and its saved exports; deleting the open one opens another."""
-    session.delete_project(project_id)
+    projects.delete_project(session, project_id)
     return Response(status_code=status.HTTP_204_NO_CONTENT)

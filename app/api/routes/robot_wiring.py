@@ -86,4 +86,4 @@ def guide_point_warnings(
     that cannot be told, heavy contact, a point nearer another wall, on the floor, a leg
     through the part, a wrist turn axis 6 cannot make; POST /api/path-learning returns the same
     with its job."""
-    return session.guide_warnings(force_N, closed=closed, wall_side=wall_side)
+    return session.learning.guide_warnings(force_N, closed=closed, wall_side=wall_side)

@@ -33,4 +33,4 @@ async def get_state(session: SessionDep) -> StatePublic:
     pendant polls it every 200 ms, 45 readers at once in the audit: while a 311k-sample
     recording post-processed, the thread hops alone pushed its p99 over 100 ms."""
     status = ProjectStatusPublic.from_project(session.project())
-    return StatePublic.from_snapshot(session.snapshot(wait=False), project_status=status)
+    return StatePublic.from_snapshot(session.robot.snapshot(wait=False), project_status=status)

@@ -9,24 +9,29 @@ from pydantic import BaseModel, Field
 
 from app.api.routes import ERRORS, SessionDep
 from app.api.schemas import Finite, ProjectStatusPublic, StatePublic, _floats, _Request
-from robomach_core.leadthrough import TOUCH_OFF_FORCE_RANGE_N
+from robomach_core import limits
+from robomach_core.choices import JogFrame, NearestFace, TouchAxis
 
+TouchDirection = Literal[1, -1]
 router = APIRouter(prefix="/api/leadthrough", tags=["lead-through"], responses=ERRORS)
 
 
 class TouchOffCreate(_Request):
-    axis: Literal["x", "y", "z"] = Field(description="axis of the frame to move along")
-    direction: Literal[1, -1] = Field(description="+1 or -1: which way along the axis")
+    axis: TouchAxis = Field(description="axis of the frame to move along")
+    direction: TouchDirection = Field(description="+1 or -1: which way along the axis")
     force_N: Finite = Field(
         default=10.0,
-        ge=TOUCH_OFF_FORCE_RANGE_N[0],
-        le=TOUCH_OFF_FORCE_RANGE_N[1],
+        ge=limits.TOUCH_OFF_FORCE_N.min,
+        le=limits.TOUCH_OFF_FORCE_N.max,
         description="contact force to stop at [N]",
     )
     max_travel_mm: Finite = Field(
-        default=30.0, gt=0.0, le=200.0, description="give up after this travel [mm]"
+        default=30.0,
+        gt=limits.TOUCH_OFF_TRAVEL_MM.min,
+        le=limits.TOUCH_OFF_TRAVEL_MM.max,
+        description="give up after this travel [mm]",
     )
-    frame: Literal["base", "tool", "wobj"] = Field(
+    frame: JogFrame = Field(
         default="base", description="frame of the axis: robot base, tool or work object"
     )
 
@@ -39,9 +44,7 @@ class ToolViewPublic(BaseModel):
     force_magnitude_N: float = Field(description="|force| [N]")
     table_gap_mm: float = Field(description="height of the cutter above the table [mm]")
     in_contact: bool
-    nearest_face: Literal["wall", "floor", "underside"] = Field(
-        "wall", description="what the nearest face of the part is"
-    )
+    nearest_face: NearestFace = Field("wall", description="what the nearest face of the part is")
     wall_gap_mm: float | None = Field(
         None,
         description="gap of the cutter to the nearest wall at the tool's height [mm] (across, "
@@ -54,7 +57,7 @@ def touch_off(body: TouchOffCreate, session: SessionDep) -> StatePublic:
     """Guarded move: go along an axis until the wall pushes back with ``force_N``, then stay
     there in contact (record the guide point next). 409 when nothing is touched within
     ``max_travel_mm`` or supervision refuses the motion (the message says why)."""
-    snapshot = session.touch_off(
+    snapshot = session.teach.touch_off(
         body.axis, body.direction, body.force_N, body.max_travel_mm * 1e-3, frame=body.frame
     )
     status = ProjectStatusPublic.from_project(session.project())
@@ -64,14 +67,14 @@ def touch_off(body: TouchOffCreate, session: SessionDep) -> StatePublic:
 @router.post("/stop", status_code=204)
 def stop(session: SessionDep) -> None:
     """Let go: the running push, jog or touch-off stops within one control period."""
-    session.stop_motion()
+    session.teach.stop()
 
 
 @router.get("/tool")
 def tool_view(session: SessionDep) -> ToolViewPublic:
     """The gap from the cutter to the nearest face (and which kind it is) and to the nearest
     wall at the tool's height, the contact force and the table clearance."""
-    v = session.tool_view()
+    v = session.teach.tool_view()
     return ToolViewPublic(
         gap_mm=round(v.gap_m * 1e3, 4),
         normal=_floats(v.normal, digits=5),

@@ -23,7 +23,7 @@ class CellPanel:
 
     def __init__(self, server: viser.ViserServer, session) -> None:
         self.session = session
-        s = session.cell_settings()
+        s = session.project().cell
         lo, hi = (r * 1e3 for r in TOOL_RADIUS_RANGE_M)
         max_mb = getattr(session, "max_upload_bytes", MAX_MESH_BYTES) / 1e6
         max_triangles = getattr(session, "max_triangles", MAX_MESH_TRIANGLES)
@@ -69,7 +69,7 @@ class CellPanel:
                     robot=self.robot.value,
                     tool_radius_m=self.tool_radius.value * 1e-3,
                     workpiece=self.workpiece.value,
-                    part_deviation=PartDeviation.realistic(self.session.cell_settings().seed)
+                    part_deviation=PartDeviation.realistic(self.session.project().cell.seed)
                     if self.realistic.value
                     else None,
                 ),
@@ -83,7 +83,7 @@ class CellPanel:
         means the bytes arrived)."""
         name = event.target.value.name
         self.session.upload_workpiece(event.target.value.content, name)
-        wp = self.session.cad_workpiece
+        wp = self.session.robot.workpiece.cad()
         x, y, z = wp.T_base_wobj[:3, 3] * 1e3
         e = wp.mesh.extents * 1e3
         notify_info(
@@ -107,8 +107,8 @@ class CellPanel:
 
     def refresh(self) -> None:
         """Mirror the session's cell (after a change from here, the API or a project load)."""
-        s = self.session.cell_settings()
-        wp = self.session.workpiece
+        s = self.session.project().cell
+        wp = self.session.robot.workpiece
         self.robot.options = self._robot_options(s)
         self.robot.value = s.robot
         self.tool_radius.value = round(s.tool_radius_m * 1e3, 3)

@@ -106,7 +106,7 @@ class StudyJobFollower:
     def cancel(self) -> None:
         """Cancel the job being shown, if any."""
         if self.job_id is not None:
-            self.session.cancel_job(self.job_id)
+            self.session.jobs.cancel(self.job_id)
 
     def close(self) -> None:
         self._stop.set()
@@ -141,7 +141,7 @@ class StudyJobFollower:
             return None
         job_id, self.job_id = self.job_id, None
         try:
-            return self.session.job(job_id)
+            return self.session.jobs.get(job_id)
         except KeyError:  # forgotten by the runner
             return None
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import viser
 
 import robomach_core.export.languages as registry
-from app.session import ConflictError
+from app.session import ConflictError, process_settings, programs
 from robomach_core.errors import RobomachError
 from robomach_core.project import StaleResultError
 
@@ -47,9 +47,10 @@ class ExportPanel:
     CSVs and the settings JSON (each straight from the session, so it always matches the last
     result)."""
 
-    def __init__(self, server: viser.ViserServer, session) -> None:
+    def __init__(self, server: viser.ViserServer, session, studies) -> None:
         self.session = session
-        languages = session.program_languages()
+        self.studies = studies  # the session's StudyService
+        languages = programs.program_languages(session)
         with server.gui.add_folder("Export", expand_by_default=False):
             self.process = server.gui.add_markdown("")
             self.controller = server.gui.add_text(
@@ -86,25 +87,24 @@ class ExportPanel:
     def file_text(self, name: str) -> str:
         """The text of one export file."""
         if name == "samples.csv":
-            return self.session.samples_csv()
+            return programs.samples_csv(self.session.project())
         if name == "targets.csv":
-            return self.session.targets_csv()
+            return programs.targets_csv(self.session)
         if name == "settings.json":
-            return self.session.settings_json()
+            return programs.settings_json(self.session)
         lang, force = language_of(name)
         kwargs = {"module_name": FC_MODULE_NAME} if force else {}
-        return self.session.program_texts(lang.name, force_control=force, **kwargs)[name]
+        return programs.program_texts(self.session, lang.name, force_control=force, **kwargs)[name]
 
     def use_studies(self, use: bool) -> None:
         """Carry the last CMRR study's controller and the identified compensation in the
         program (those that have run), or remove both."""
         if not use:
-            self.session.set_process_settings(cmrr=None, compensation=None)
+            process_settings.set_process_settings(self.session, cmrr=None, compensation=None)
             return
         from app.session.process_settings import settings_from_studies
-        from app.studies import studies_for
 
-        studies = studies_for(self.session)
+        studies = self.studies
         has_cmrr = studies.cmrr_result() is not None
         identified = studies.compensation_result()
         has_comp = identified is not None and identified.settings is not None
@@ -116,7 +116,7 @@ class ExportPanel:
             cmrr=has_cmrr,
             compensation=has_comp,
         )
-        self.session.set_process_settings(cmrr=cmrr, compensation=compensation)
+        process_settings.set_process_settings(self.session, cmrr=cmrr, compensation=compensation)
 
     def _process_text(self) -> str:
         project = self.session.project()
@@ -126,7 +126,7 @@ class ExportPanel:
 
     def _sync_menus(self) -> tuple[str, ...]:
         """The language and file menus for the cell's arm (it may have changed)."""
-        languages = self.session.program_languages()
+        languages = programs.program_languages(self.session)
         options = languages or ("none",)
         if tuple(self.language.options) != options:
             self.language.options = options
@@ -147,7 +147,7 @@ class ExportPanel:
         lang = registry.language(self.language.value)
         main = lang.file_names()[0]
         try:
-            text = self.session.program_texts(lang.name)[main]
+            text = programs.program_texts(self.session, lang.name)[main]
         except StaleResultError as exc:
             self.preview.content = f"**{OUT_OF_DATE}**: {exc}"
             return

@@ -60,7 +60,7 @@ class GuidePointsPanel:
             self.clear = server.gui.add_button("Clear all", icon=viser.Icon.CLEAR_ALL)
             self.table = server.gui.add_markdown("")
         self.record.on_click(guarded("Record", lambda e: self.session.record_guide_point()))
-        self.example.on_click(guarded("Example", lambda e: self.session.start_example()))
+        self.example.on_click(guarded("Example", lambda e: self.session.learning.start_example()))
         self.delete.on_click(guarded("Delete", lambda e: self._delete_selected()))
         self.clear.on_click(guarded("Clear", lambda e: self.session.clear_guide_points()))
         self.selected.on_update(lambda e: self.show_in_scene())
@@ -79,7 +79,7 @@ class GuidePointsPanel:
 
     def refresh(self) -> None:
         """Mirror the session's guide points in the list, the dropdown and the scene."""
-        guides = self.session.guide_points()
+        guides = list(self.session.project().guide_points)
         options = (NO_SELECTION, *(f"G{k + 1}" for k in range(len(guides))))
         keep = self.selected.value if self.selected.value in options else NO_SELECTION
         self.selected.options = options
@@ -88,7 +88,7 @@ class GuidePointsPanel:
         self.show_in_scene(guides)
 
     def show_in_scene(self, guides: list | None = None) -> None:
-        guides = self.session.guide_points() if guides is None else guides
+        guides = list(self.session.project().guide_points) if guides is None else guides
         index = self.selected_index()
         self.scene.set_guide_points(
             [g.T_base_tcp for g in guides], selected=index if index >= 0 else None

@@ -14,6 +14,8 @@ import time
 import numpy as np
 import viser
 
+from robomach_core import limits
+from robomach_core.choices import COMPLIANCE_FRAMES
 from robomach_core.leadthrough import AXES
 
 from ..scene import CellScene
@@ -60,7 +62,7 @@ class LeadThroughPanel:
     def __init__(self, server: viser.ViserServer, session, scene: CellScene) -> None:
         self.session = session
         self.scene = scene
-        sel = session.compliance
+        sel = session.robot.selection
         with server.gui.add_folder("Lead-through"):
             self.axes = {
                 a: server.gui.add_checkbox(
@@ -71,7 +73,7 @@ class LeadThroughPanel:
                 for a in AXES
             }
             self.frame = server.gui.add_dropdown(
-                "Compliance frame", ("base", "tool"), initial_value=sel.frame
+                "Compliance frame", COMPLIANCE_FRAMES, initial_value=sel.frame
             )
             self.show_handle = server.gui.add_checkbox(
                 "Show push handle",
@@ -80,8 +82,8 @@ class LeadThroughPanel:
             )
             self.spring = server.gui.add_slider(
                 "Handle spring (N/mm)",
-                0.1,
-                5.0,
+                limits.HANDLE_SPRING_N_MM.min,
+                limits.HANDLE_SPRING_N_MM.max,
                 0.1,
                 0.5,
                 hint="Drag the handle on the tool: its offset from the TCP times this pushes",
@@ -100,7 +102,7 @@ class LeadThroughPanel:
             box.on_update(
                 guarded(
                     "Compliance",
-                    lambda e: self.session.set_compliance(
+                    lambda e: self.session.robot.select(
                         [a for a, b in self.axes.items() if b.value], self.frame.value
                     ),
                 )
@@ -109,7 +111,7 @@ class LeadThroughPanel:
             group.on_click(
                 guarded(
                     "Push",
-                    lambda e: self.session.push(
+                    lambda e: self.session.teach.push(
                         self._push_wrench(e.target.value), float(self.push_time.value)
                     ),
                 )
@@ -118,13 +120,13 @@ class LeadThroughPanel:
             group.on_click(
                 guarded(
                     "Jog",
-                    lambda e: self.session.jog(
+                    lambda e: self.session.teach.jog(
                         e.target.value[1:].lower(),
                         math.radians(self.jog_step.value) * _sign(e.target.value),
                     ),
                 )
             )
-        self.home.on_click(guarded("Home", lambda e: self.session.go_home()))
+        self.home.on_click(guarded("Home", lambda e: self.session.learning.go_home()))
         self.release.on_click(lambda e: self.disarm())
         self.show_handle.on_update(lambda e: self.set_handle_visible(self.show_handle.value))
         scene.handle.on_update(lambda e: self.arm())
@@ -149,7 +151,7 @@ class LeadThroughPanel:
         """Stop pushing and put the handle back on the tool."""
         self._armed = False
         self.push_N = None
-        self.scene.handle_to(self.session.snapshot().T_base_tcp[:3, 3])
+        self.scene.handle_to(self.session.robot.snapshot().T_base_tcp[:3, 3])
 
     def set_handle_visible(self, visible: bool) -> None:
         """Show or hide the handle (a hidden handle does not push)."""
@@ -194,7 +196,7 @@ class LeadThroughPanel:
             self._spring_time_s = snapshot.time_s
             return snapshot
         try:
-            snapshot = self.session.push(np.concatenate([force, np.zeros(3)]), elapsed)
+            snapshot = self.session.teach.push(np.concatenate([force, np.zeros(3)]), elapsed)
         except Exception:  # busy or out of reach: stop pushing, keep the GUI alive
             self.disarm()
             raise
@@ -203,7 +205,7 @@ class LeadThroughPanel:
 
     def refresh_compliance(self) -> None:
         """Mirror the session's compliance selection (after an API change)."""
-        sel = self.session.compliance
+        sel = self.session.robot.selection
         for a, box in self.axes.items():
             box.value = a in sel.axes
         self.frame.value = sel.frame

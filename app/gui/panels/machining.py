@@ -17,7 +17,6 @@ import threading
 import numpy as np
 import viser
 
-from app.session.machining import machining_for
 from robomach_core.limits import (
     MACHINING_DEPTH_EXPONENT,
     MACHINING_FEED_EXPONENT,
@@ -27,6 +26,7 @@ from robomach_core.limits import (
 )
 from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
 from robomach_core.machining.choice import OPTION_NAMES, OPTION_TEXT, RULE_TEXT
+from robomach_core.project._machining import STOCK_SOURCES
 
 from ..scene import deviation_colors
 from .feedback import guarded
@@ -46,15 +46,15 @@ EVENTS = ("job", "machining", "postprocess", "recording", "guide_points", "cell"
 class MachiningPanel:
     """The Machining folder of the sidebar (module docstring)."""
 
-    def __init__(self, server: viser.ViserServer, session) -> None:
+    def __init__(self, server: viser.ViserServer, session, service) -> None:
         self.server = server
         self.session = session
-        self.service = machining_for(session)
+        self.service = service  # the session's MachiningService
         s = self.service.settings_document()
         with server.gui.add_folder("Machining", expand_by_default=False):
             self.stock = server.gui.add_dropdown(
                 "Stock",
-                ("builtin", "profile", "mesh"),
+                STOCK_SOURCES,
                 initial_value=s["stock_source"],
                 hint="builtin: allowance 0.3-3 mm with burrs from the cell's seed",
             )
@@ -225,7 +225,7 @@ class MachiningPanel:
 
     def _cancel(self) -> None:
         if self.job_id is not None:
-            self.session.cancel_job(self.job_id)
+            self.session.jobs.cancel(self.job_id)
 
     def _choose_best(self) -> None:
         from app.session.records import ConflictError
@@ -316,7 +316,7 @@ class MachiningPanel:
         if self.job_id is None:
             return None
         try:
-            return self.session.job(self.job_id)
+            return self.session.jobs.get(self.job_id)
         except KeyError:
             return None
 
@@ -333,7 +333,7 @@ class MachiningPanel:
         if status == "none":
             lines.append("*No machining result yet: run or compare.*")
         elif status == "stale":
-            reason = self.session.stale_reasons().get("machining", "")
+            reason = self.session.project().stale_reasons().get("machining", "")
             lines.append(f"**{OUT_OF_DATE}**: {reason}.")
         return "\n\n".join(lines)
 

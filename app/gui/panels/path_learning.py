@@ -29,7 +29,7 @@ class PathLearningPanel:
     def __init__(self, server: viser.ViserServer, session, scene=None) -> None:
         self.session = session
         self.scene = scene
-        last = session.learning_settings()
+        last = session.project().learned and session.project().learned.settings
         with server.gui.add_folder("Path learning"):
             self.force = server.gui.add_slider(
                 "Force (N)",
@@ -98,7 +98,7 @@ class PathLearningPanel:
         self.run.on_click(
             guarded(
                 "Path learning",
-                lambda e: self.session.start_path_learning(
+                lambda e: self.session.learning.start_path_learning(
                     self.force.value,
                     self.speed.value * 1e-3,
                     closed=self.closed.value,
@@ -107,7 +107,7 @@ class PathLearningPanel:
                 ),
             )
         )
-        self.cancel.on_click(guarded("Cancel", lambda e: self.session.cancel_job(self.job_id)))
+        self.cancel.on_click(guarded("Cancel", lambda e: self.session.jobs.cancel(self.job_id)))
         self.job_id: str | None = None
         self.refresh_plot()
 
@@ -125,7 +125,7 @@ class PathLearningPanel:
         """Highlight the wall the next run will follow (or say why it cannot tell)."""
         if self.scene is None:
             return
-        points, text = self.session.taught_wall_preview(
+        points, text = self.session.learning.taught_wall_preview(
             self.wall_side.value, closed=self.closed.value
         )
         self.scene.set_taught_wall(points, "" if not points else "wall to follow")
@@ -135,7 +135,7 @@ class PathLearningPanel:
         """Mark where the last run stopped early, if it did."""
         if self.scene is None:
             return
-        rec = self.session.recording()
+        rec = self.session.project().recording
         stop = None if rec is None else rec.stop
         if stop is None:
             self.scene.set_stop(None)
@@ -161,21 +161,21 @@ class PathLearningPanel:
             self.status.content = f"**{job.status}**: {job.error or ''}"
 
     def _recording_summary(self) -> str:
-        rec = self.session.recording()
+        rec = self.session.project().recording
         if rec is None:
             return "*No recording yet.*"
         duration = float(rec.time_s[-1]) if len(rec) else 0.0
         text = f"{len(rec):,} samples over {duration:.1f} s; {rec.stop_reason}" + (
             "" if rec.completed else " (**incomplete**)"
         )
-        reason = self.session.stale_reasons().get("recording")
+        reason = self.session.project().stale_reasons().get("recording")
         if reason is not None:
             text = f"**{OUT_OF_DATE}**: {reason}.\n\n{text}"
         return text
 
     def refresh_plot(self) -> None:
         """Redraw the force plot from the session's force trace."""
-        trace = self.session.force_trace(PLOT_POINTS)
+        trace = self.session.learning.force_trace(PLOT_POINTS)
         if trace.source == "none" or len(trace.time_s) < 2:
             t = np.zeros(2)
             self.plot.data = (t, t, np.full(2, float(self.force.value)), t, t)

@@ -103,8 +103,10 @@ class PointingPanel:
         self.selected.on_update(lambda e: self.refresh())
         self.rich.on_update(lambda e: self._rendering(server))
         self._rendering(server)
-        self.top.on_click(lambda e: e.client and scene.top_view(e.client, session.workpiece))
-        self.part.on_click(lambda e: e.client and scene.part_view(e.client, session.workpiece))
+        self.top.on_click(lambda e: e.client and scene.top_view(e.client, session.robot.workpiece))
+        self.part.on_click(
+            lambda e: e.client and scene.part_view(e.client, session.robot.workpiece)
+        )
         scene.on_part_click(self._clicked)
         self.last_click_s = float("nan")  # how long the last click took (tests read it)
         self.refresh()
@@ -125,7 +127,7 @@ class PointingPanel:
         )
 
     def _undo(self) -> None:
-        n = len(self.session.guide_points())
+        n = len(self.session.project().guide_points)
         if n == 0:
             raise InvalidInputError("no guide point to undo")
         self.session.delete_guide_point(n - 1)
@@ -186,7 +188,7 @@ class PointingPanel:
         """The drag handle released: move the selected point to where it was dropped."""
         if getattr(event, "phase", "end") != "end" or event.client is None:
             return
-        T = self.session.cad_workpiece.T_base_wobj
+        T = self.session.robot.workpiece.cad().T_base_wobj
         p = (np.asarray(self.handle.position) - T[:3, 3]) @ T[:3, :3]
         guarded("Drag", lambda e: self._move_dropped(p))(event)
 
@@ -241,13 +243,13 @@ class PointingPanel:
         self._place_handle(proposal, selected)
 
     def _place_handle(self, proposal, selected: int) -> None:
-        T = self.session.cad_workpiece.T_base_wobj
+        T = self.session.robot.workpiece.cad().T_base_wobj
         position = None
         if proposal is not None and selected >= 0:
             position = proposal.points[selected].T_base_tcp[:3, 3]
         else:
             index = self.guide_points.selected_index()
-            guides = self.session.guide_points()
+            guides = list(self.session.project().guide_points)
             if 0 <= index < len(guides):
                 position = guides[index].position_m
         if position is None:
@@ -261,8 +263,8 @@ class PointingPanel:
 
     def show_comparison(self) -> None:
         """The CAD-only and learned programs against the real wall, drawn and tabled."""
-        outcome = self.session.postprocess_outcome()
-        current = self.session.status()["postprocess"] == "current"
+        outcome = self.session.project().processed
+        current = self.session.project().status()["postprocess"] == "current"
         comparison = getattr(outcome, "cad_comparison", None) if current else None
         self.scene.set_comparison(comparison, COMPARISON_SCALE_MM * 1e-3)
         self.compare.content = comparison_markdown(comparison)

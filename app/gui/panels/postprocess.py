@@ -12,6 +12,7 @@ import threading
 import numpy as np
 import viser
 
+from robomach_core import limits
 from robomach_core.errors import RobomachError
 from robomach_core.scoring import true_tool_path_distance
 
@@ -27,28 +28,28 @@ class PostprocessPanel:
     def __init__(self, server: viser.ViserServer, session, scene: CellScene) -> None:
         self.session = session
         self.scene = scene
-        s = session.postprocess_settings()
+        s = session.project().post_settings
         with server.gui.add_folder("Post-processing"):
             self.force_min = server.gui.add_slider(
                 "Fmin (N)",
-                0.0,
-                30.0,
+                limits.FORCE_THRESHOLD_N.min,
+                limits.LEARNING_FORCE_N.max,
                 0.5,
                 s.force_min_N,
                 hint="Samples with less contact force are dropped (lost contact)",
             )
             self.force_max = server.gui.add_slider(
                 "Fmax (N)",
-                1.0,
-                80.0,  # 1.5 x the strongest learning force (50 N): the band that follows it
+                limits.LEARNING_FORCE_N.min,
+                1.5 * limits.LEARNING_FORCE_N.max,  # the band that follows the force
                 0.5,
                 s.force_max_N,
                 hint="Samples with more contact force are dropped (corner spikes)",
             )
             self.tolerance = server.gui.add_slider(
                 "Tolerance (mm)",
-                0.02,
-                2.0,
+                limits.TOLERANCE_MM.min,
+                limits.TOLERANCE_MM.max,
                 0.01,
                 s.tolerance_m * 1e3,
                 hint="Deviation height of the reduction (the chapter: 0.2 mm, ~300 targets)",
@@ -75,7 +76,7 @@ class PostprocessPanel:
         try:
             while self._rerun_pending:
                 self._rerun_pending = False
-                self.session.run_postprocess(
+                self.session.learning.run_postprocess(
                     force_min_N=self.force_min.value,
                     force_max_N=self.force_max.value,
                     tolerance_m=self.tolerance.value * 1e-3,
@@ -85,7 +86,7 @@ class PostprocessPanel:
 
     def refresh(self) -> None:
         """Mirror the session's settings and outcome in the sliders, the summary and the scene."""
-        s = self.session.postprocess_settings()
+        s = self.session.project().post_settings
         self.force_min.value = s.force_min_N
         self.force_max.value = s.force_max_N
         self.tolerance.value = round(s.tolerance_m * 1e3, 3)
@@ -93,14 +94,14 @@ class PostprocessPanel:
         self.show_in_scene()
 
     def _summary(self) -> str:
-        outcome = self.session.postprocess_outcome()
+        outcome = self.session.project().processed
         if outcome is None:
-            if self.session.recording() is None:
+            if self.session.project().recording is None:
                 return "*No recording yet.*"
             return "*Not post-processed yet: press Run (or move a slider).*"
         r = outcome.result
         lines = []
-        reason = self.session.stale_reasons().get("postprocess")
+        reason = self.session.project().stale_reasons().get("postprocess")
         if reason is not None:
             lines += [f"**{OUT_OF_DATE}**: {reason}.", ""]
         lines += [
@@ -137,8 +138,8 @@ class PostprocessPanel:
 
     def show_in_scene(self) -> None:
         """Draw raw, filtered and reduced points (coloured by deviation when asked)."""
-        rec = self.session.recording()
-        outcome = self.session.postprocess_outcome()
+        rec = self.session.project().recording
+        outcome = self.session.project().processed
         if rec is None:
             self.scene.set_samples(None)
             return
@@ -150,7 +151,7 @@ class PostprocessPanel:
         targets = r.targets.position_m
         dev_f = dev_t = dense = None
         if self.colour.value:
-            wp, radius = self.session.workpiece, self.session.cell.tool.radius_m
+            wp, radius = self.session.robot.workpiece, self.session.robot.cell.tool.radius_m
             try:
                 dev_f = true_tool_path_distance(wp, radius, filtered)
                 dev_t = true_tool_path_distance(wp, radius, targets)
@@ -167,7 +168,7 @@ class PostprocessPanel:
             targets_deviation_m=dev_t,
             segments_deviation=dense,
             deviation_scale_m=self.scale.value * 1e-3,
-            stale=self.session.status()["postprocess"] == "stale",
+            stale=self.session.project().status()["postprocess"] == "stale",
         )
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import viser
 
+from app.session import programs
 from robomach_core.project import result_extras
 from robomach_core.robots.builtin import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
@@ -29,7 +30,7 @@ class RobotProgramPanel:
 
     def __init__(self, server: viser.ViserServer, session) -> None:
         self.session = session
-        s = session.postprocess_settings()
+        s = session.project().post_settings
         with server.gui.add_folder("Robot & program", expand_by_default=False):
             self.family = server.gui.add_dropdown(
                 "Controller",
@@ -59,20 +60,20 @@ class RobotProgramPanel:
             )
         )
         self.arcs.on_update(
-            guarded("Arcs", lambda e: self.session.run_postprocess(arcs=self.arcs.value))
+            guarded("Arcs", lambda e: self.session.learning.run_postprocess(arcs=self.arcs.value))
         )
         self.refresh()
 
     def refresh(self) -> None:
         """The arm and its language, the arcs setting, the moves and the mesh score."""
-        robot = self.session.cell.robot
-        offered = ", ".join(self.session.program_languages()) or "none"
+        robot = self.session.robot.cell.robot
+        offered = ", ".join(programs.program_languages(self.session)) or "none"
         lines = [
             f"Arm **{robot.name}** ({robot.family} controller), program languages "
             f"**{offered}** (downloads in the Export panel)."
         ]
-        self.arcs.value = self.session.postprocess_settings().arcs
-        outcome = self.session.postprocess_outcome()
+        self.arcs.value = self.session.project().post_settings.arcs
+        outcome = self.session.project().processed
         if outcome is not None:
             x = result_extras(outcome)
             lines.append(
@@ -102,7 +103,7 @@ class GuideRulesPanel:
         """Check the current guide points (``guide_check``) with the path-learning panel's
         wall side, and list the findings, refusals first."""
         wall_side, closed = self.settings() if self.settings is not None else ("auto", True)
-        found = self.session.guide_findings(closed=closed, wall_side=wall_side)
+        found = self.session.learning.guide_findings(closed=closed, wall_side=wall_side)
         order = {"refusal": 0, "warning": 1, "info": 2}
         found = sorted(found, key=lambda w: order[w.severity])
         self.warnings.content = (

@@ -13,7 +13,7 @@ import time
 import numpy as np
 import viser
 
-from app.session.teach import JOG_FRAMES
+from robomach_core.choices import JOG_FRAMES
 
 from .feedback import guarded, notify_info
 
@@ -71,13 +71,13 @@ class TeachPanel:
         value = self.step_deg.value if rotational else self.step_mm.value
         step = np.radians(value) if rotational else value * 1e-3
         speed = None if rotational else self.speed.value * 1e-3
-        self.session.jog(
+        self.session.teach.jog(
             axis, float(step) * (1 if sign == "+" else -1), frame=self.frame.value, speed=speed
         )
 
     def _touch(self, event) -> None:
         sign, axis = event.target.value[0], event.target.value[1:].lower()
-        snapshot = self.session.touch_off(
+        snapshot = self.session.teach.touch_off(
             axis,
             1 if sign == "+" else -1,
             float(self.force.value),
@@ -99,7 +99,7 @@ class TeachPanel:
             return
         self._next_view = now + VIEW_PERIOD_S
         try:
-            v = self.session.tool_view()
+            v = self.session.teach.tool_view()
         except Exception:  # a cell being rebuilt: next time
             return
         frame = FRAME_NAMES[self.frame.value]

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 import numpy as np
 
@@ -16,7 +16,7 @@ from ..milling import CHAPTER_END_MILLING
 from ..settings import CompensationSetting
 
 StudyName = Literal["identify", "gravity", "milling", "ilc", "compliance", "all"]
-STUDIES: tuple[str, ...] = ("identify", "gravity", "milling", "ilc", "compliance")
+STUDIES: tuple[str, ...] = tuple(s for s in get_args(StudyName) if s != "all")
 Progress = Callable[[float], None]
 Cancel = Callable[[], bool]
 

@@ -1,0 +1,323 @@
+"""The session's robot jobs and post-processing: the example lead-through, path learning, the
+post-processing run, going home, and the checks of the guide points before a run.
+
+PROBLEM   The jobs that move the robot and the stages that compute from the project lived in
+          the Session and reached into its cell, lead-through state and lock.
+STRATEGY  Each reads a ``Session.view()`` and the robot's ``pose()``, computes outside the lock
+          (the core's ``project.learn`` and ``process``, the same the CLI runs), and lands its
+          result with one core transition through ``Session.commit``, which refuses it when
+          the cell changed meanwhile (the view's epoch).
+SOLUTION  ``Learning(session)``, the session's ``learning``: ``start_example()``,
+          ``start_path_learning(force_N, speed_m_s, closed=, wall_side=, floor_clearance_m=)``
+          -> job id; ``run_postprocess(...)`` -> ``ProcessedPath``; ``go_home()``;
+          ``force_trace(max_points)``; ``guide_findings``, ``guide_warnings``,
+          ``taught_wall_preview``.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from robomach_core import mesh_query
+from robomach_core import project as core
+from robomach_core.cell import Cell, CellState
+from robomach_core.errors import (
+    ConflictError,
+    InvalidInputError,
+    NotEnoughGuidePointsError,
+    SupervisionError,
+)
+from robomach_core.leadthrough import GuidePoint, LeadThrough, LeadThroughState
+from robomach_core.path_learning import PathLearningSettings
+from robomach_core.project import ProcessedPath, Project
+from robomach_core.workpiece import Workpiece
+
+from .jobs import JobContext
+from .records import ForceTrace, RobotSnapshot, Topic
+from .robot import build_live_cell
+
+if TYPE_CHECKING:
+    from .session import Session
+
+EXAMPLE_CLEARANCE_M = 0.008  # the example operator lifts the tool this far above the part
+DOWNSTREAM_TOPICS: tuple[Topic, ...] = ("recording", "postprocess")
+
+
+def _example_intents(cell: Cell, seed: int) -> list | None:
+    """The example operator's points: its own plan (None), or, on a part that is not where its
+    mesh is, the same entered in each groove's middle (``guide_proposal.robust_intents``)."""
+    if cell.workpiece.nominal is None:
+        return None
+    from robomach_core.demo_operator import guide_plan
+    from robomach_core.guide_proposal import robust_intents
+
+    plan = guide_plan(cell.workpiece.cad(), cell.tool.radius_m, np.random.default_rng(seed))
+    return robust_intents(plan, cell.workpiece, cell.tool.radius_m)
+
+
+def _squared(lt: LeadThrough, state: LeadThroughState, cad: Workpiece) -> LeadThroughState:
+    """The tool lifted clear of the part (when below its top) and turned square to it (tool
+    axis down, as the example operator holds it), by supervised jogs of at most 45 degrees."""
+    from robomach_core.demo_operator import TOOL_DOWN
+    from robomach_core.teach_motion import move_by, turn_to
+
+    top = float(cad.mesh_in_base().bounds[1, 2]) + EXAMPLE_CLEARANCE_M
+    z = float(state.cell.T_base_tcp[2, 3])
+    if z < top:
+        state = move_by(lt, state, np.array([0.0, 0.0, top - z]), 0.05)
+    return turn_to(lt, state, TOOL_DOWN)
+
+
+class Learning:
+    """The robot jobs and stages of one session (module docstring)."""
+
+    def __init__(self, session: Session) -> None:
+        self._session = session
+
+    def start_example(self) -> str:
+        """Job: the scripted operator leads the robot by pushes to the example guide points of
+        the built-in workpiece; on success they replace the guide points. Returns the job id."""
+        from robomach_core.demo_operator import scripted_leadthrough
+
+        s, robot = self._session, self._session.robot
+        pose = robot.pose()
+        robot.require_idle()
+        cell, estimator = pose.cell, pose.leadthrough.estimator
+        if cell.workpiece.wall is None:
+            raise InvalidInputError(
+                f"the example lead-through needs a built-in workpiece, not "
+                f"{cell.workpiece.name!r}; click its wall to propose guide points, "
+                "or lead the robot by pushes"
+            )
+        start, seed = pose.state, s.project().cell.seed
+
+        def work(ctx: JobContext) -> tuple[LeadThroughState, list[GuidePoint]]:
+            lt = LeadThrough(robot.tapped(ctx, cell), estimator=estimator)
+            try:
+                # Hand teaching may have left the tool turned and in the part: the operator
+                # first lifts it clear and turns it square in steps (a jog turns 45 deg at
+                # most), as a person would.
+                state = _squared(lt, start, cell.workpiece.cad())
+                return scripted_leadthrough(
+                    lt,
+                    state,
+                    cell.workpiece.cad(),  # the operator plans on the mesh they see
+                    np.random.default_rng(seed),
+                    intents=_example_intents(cell, seed),
+                    progress=ctx.progress,
+                )
+            except SupervisionError as exc:
+                raise exc.with_note(
+                    f"the part may be beyond the {cell.robot.name} arm's reach: choose a "
+                    "larger arm, or press Home first"
+                ) from None
+
+        def done(result: tuple[LeadThroughState, list[GuidePoint]]) -> None:
+            state, guides = result
+            self.land_guides(state, guides, pose.epoch, "the example")
+
+        return robot.submit("example", work, done, pose.epoch)
+
+    def land_guides(
+        self, state: LeadThroughState, guides: list[GuidePoint], epoch: int, what: str
+    ) -> Project:
+        """A job's guide points replace the project's, the robot where the job left it."""
+
+        def change(p: Project) -> Project:
+            self._session.robot.place(state, epoch, what)
+            return core.with_guide_points(p, guides)
+
+        return self._session.commit(
+            change,
+            "guides",
+            topics=("robot", "guide_points", *DOWNSTREAM_TOPICS),
+            with_robot=True,
+        )
+
+    def start_path_learning(
+        self,
+        force_N: float,
+        speed_m_s: float,
+        *,
+        closed: bool = True,
+        wall_side: str = "auto",
+        floor_clearance_m: float | None = None,
+    ) -> str:
+        """Job: learn the path through the guide points at ``force_N`` and ``speed_m_s``
+        (``project.learn``) along the wall on ``wall_side``; on success the recording replaces
+        the last one (``project.with_learned``). "auto" takes the side of guide points taught
+        by pointing at the wall (``pointing.learning_side``) when they are still those.
+        Returns the job id.
+
+        Raises:
+            WallSideError: "auto" and the guide points do not tell the side (before any job).
+        """
+        from robomach_core.wall_side import resolve_wall_side
+
+        s, robot = self._session, self._session.robot
+        if wall_side == "auto":
+            wall_side = s.pointing.learning_side() or "auto"
+        settings = PathLearningSettings(
+            force_N=float(force_N),
+            speed_m_s=float(speed_m_s),
+            closed=bool(closed),
+            wall_side=wall_side,
+            **({} if floor_clearance_m is None else {"floor_clearance_m": floor_clearance_m}),
+        )
+        with robot.lock:
+            robot.require_idle()
+            project, pose = s.project(), robot.pose()
+        if len(project.guide_points) < 2:
+            raise NotEnoughGuidePointsError(
+                f"path learning needs at least 2 guide points, got {len(project.guide_points)}"
+            )
+        cell, estimator = pose.cell, pose.leadthrough.estimator
+        with mesh_query.LOCK:
+            resolve_wall_side(  # refuse now, with the cause, not as a failed job
+                project.guide_points,
+                settings.wall_side,
+                closed=settings.closed,
+                workpiece=cell.workpiece.cad(),  # the mesh the user sees
+                tool_radius_m=project.cell.tool_radius_m,
+            )
+
+        def work(ctx: JobContext) -> tuple[core.LearnedPath, CellState]:
+            path_m = np.array([g.position_m for g in project.guide_points])
+            tapped = robot.tapped(ctx, cell, path_m=path_m, closed=settings.closed)
+            return core.learn(
+                project,
+                tapped,
+                pose.state.cell,
+                settings,
+                estimator,
+                progress=ctx.progress,
+                cancelled=ctx.cancelled,
+            )
+
+        def done(result: tuple[core.LearnedPath, CellState]) -> None:
+            learned, end = result
+            state = LeadThroughState(end, end.T_base_tcp.copy(), np.zeros(6))
+
+            def change(p: Project) -> Project:
+                robot.place(state, pose.epoch, "path learning")
+                return core.with_learned(p, learned)
+
+            s.commit(
+                change, "recording", "post", topics=("robot", *DOWNSTREAM_TOPICS), with_robot=True
+            )
+
+        return robot.submit("path_learning", work, done, pose.epoch)
+
+    def run_postprocess(
+        self,
+        *,
+        force_min_N: float | None = None,
+        force_max_N: float | None = None,
+        tolerance_m: float | None = None,
+        arcs: bool | None = None,
+        arc_tolerance_m: float | None = None,
+    ) -> ProcessedPath:
+        """Filter, reduce and score the last recording (``project.process``); None keeps a
+        setting. It computes outside the lock from a view of the project, so reads never wait
+        for it, and lands the result only if the recording and cell did not change."""
+        s = self._session
+        view = s.view()
+        project = view.project
+        settings = core.post_settings_with(
+            project,
+            force_min_N=force_min_N,
+            force_max_N=force_max_N,
+            tolerance_m=tolerance_m,
+            arcs=arcs,
+            arc_tolerance_m=arc_tolerance_m,
+        )
+        if project.learned is None:
+            raise ConflictError("nothing to post-process yet: run path learning first")
+        outcome = core.process(
+            project.learned,
+            settings,
+            view.cell.workpiece,
+            project.cell.tool_radius_m,
+            guides=project.guide_points,
+        )
+
+        def change(p: Project) -> Project:
+            if p.learned is not project.learned or s.robot.epoch != view.epoch:
+                raise ConflictError(
+                    "the recording or the cell changed while post-processing ran; run it again"
+                )
+            return core.with_processed(p, outcome)
+
+        s.commit(change, "post", topics=("postprocess",))
+        return outcome
+
+    def go_home(self) -> RobotSnapshot:
+        """Put the robot back at its home pose (a reset of the simulation, not a move)."""
+        s, robot = self._session, self._session.robot
+        with robot.lock:
+            robot.require_idle()
+            project = s.project()
+            robot.install(build_live_cell(project.cell, project.mesh))
+            robot.save()
+        s.notify("robot")
+        return robot.snapshot()
+
+    def force_trace(self, max_points: int = 2000) -> ForceTrace:
+        """Force vs time, at most ``max_points`` (>= 2) by stride: live during a job, else the
+        last recording's."""
+        return self._session.robot.force_trace(self._session.project().recording, max_points)
+
+    # --- checks of the guide points before a run ---------------------------------------------
+
+    def guide_findings(
+        self, force_N: float = 10.0, *, closed: bool = True, wall_side: str = "auto"
+    ) -> tuple:
+        """What the operator check finds in the guide points (``guide_check``)."""
+        from robomach_core.guide_check import guide_point_warnings
+
+        view = self._session.view()
+        settings = PathLearningSettings(force_N=force_N, closed=closed, wall_side=wall_side)
+        with mesh_query.LOCK:  # the mesh's nearest-point tree answers one thread at a time
+            return guide_point_warnings(
+                view.project.guide_points,
+                settings,
+                workpiece=view.cell.workpiece.cad(),  # checks use the mesh the user sees
+                tool_radius_m=view.project.cell.tool_radius_m,
+                robot=view.cell.robot,
+            )
+
+    def guide_warnings(
+        self, force_N: float, *, closed: bool = True, wall_side: str = "auto"
+    ) -> list[str]:
+        """The operator check's findings (``guide_findings``) as messages."""
+        found = self.guide_findings(force_N, closed=closed, wall_side=wall_side)
+        return [w.message for w in found]
+
+    def taught_wall_preview(
+        self, wall_side: str = "auto", *, closed: bool = True
+    ) -> tuple[list, str]:
+        """The wall the next run would follow: its point at each guide point (base frame, None
+        where none is near) and one line saying which side and why, or why it cannot tell."""
+        from robomach_core.errors import WallSideError
+        from robomach_core.wall_side import resolve_wall_side, taught_wall_points
+
+        view = self._session.view()
+        workpiece = view.cell.workpiece.cad()
+        guides, radius = view.project.guide_points, view.project.cell.tool_radius_m
+        if len(guides) < 2:
+            return [], ""
+        if wall_side == "auto":  # as start_path_learning decides it
+            wall_side = self._session.pointing.learning_side() or "auto"
+        try:
+            with mesh_query.LOCK:
+                decision = resolve_wall_side(
+                    guides, wall_side, closed=closed, workpiece=workpiece, tool_radius_m=radius
+                )
+                points = taught_wall_points(
+                    guides, decision.side, closed=closed, workpiece=workpiece, tool_radius_m=radius
+                )
+        except WallSideError as exc:
+            return [], f"wall side: {exc}"
+        return points, f"follows the wall on the {decision.side}: {decision.detail}"

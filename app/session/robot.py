@@ -1,0 +1,324 @@
+"""The workbench's robot: the simulated cell, the robot's state in it, the compliance
+selection, and the jobs that move it.
+
+PROBLEM   Teaching (pushes, jogs, touch-offs), pointing, the example and learning jobs and the
+          readers (state, force trace, the tool's view) all act on one robot from several
+          threads, and a job owns the robot until it ends.
+STRATEGY  One ``LiveRobot`` holds the cell, its lead-through, the state and the compliance
+          selection behind the session's lock, with an ``epoch`` that a new cell bumps: a
+          motion starts from a ``Pose`` and ``settle``s where it ended only while the epoch is
+          the same. Robot jobs go through ``submit``: they step the cell through a tap
+          (``live.LiveFeed``), so the state shows while they run, and the robot stays where
+          they left it, whatever their end.
+SOLUTION  Read: ``pose()``, ``snapshot(wait=)``, ``busy()``, ``force_trace``, ``document()``.
+          Act: ``install``, ``show``, ``settle``, ``record``, ``select``, ``submit``,
+          ``tapped``; ``build_live_cell`` makes what ``install`` takes.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from robomach_core import project as core
+from robomach_core.cell import Cell, CellConfig, CellState
+from robomach_core.errors import ConflictError, InvalidInputError, RobomachError
+from robomach_core.leadthrough import (
+    AXES,
+    ComplianceSelection,
+    GuidePoint,
+    LeadThrough,
+    LeadThroughState,
+)
+from robomach_core.path_learning import Recording
+from robomach_core.project import CellSettings
+from robomach_core.workpiece import Workpiece
+
+from .jobs import JobContext, JobRunner
+from .live import LiveFeed, TappedCell
+from .records import BusyError, ForceTrace, JobInfo, RobotSnapshot, log
+
+ROBOT_JOB_KINDS = ("example", "path_learning", "accept_proposal")
+
+Built = tuple[Cell, LeadThrough, LeadThroughState]
+
+
+@dataclass(frozen=True)
+class Pose:
+    """What a motion starts from, taken together under the lock."""
+
+    cell: Cell
+    leadthrough: LeadThrough
+    state: LeadThroughState
+    selection: ComplianceSelection
+    epoch: int
+
+
+def build_live_cell(
+    settings: CellSettings,
+    mesh: tuple[str, bytes] | None,
+    joints: Any = None,
+    *,
+    parsed: Workpiece | None = None,
+) -> Built:
+    """The cell of ``settings`` and its lead-through, the robot at ``joints`` (home when None
+    or not usable); ``parsed`` is ``mesh`` already read (``workpiece.mesh_from_bytes``)."""
+    from robomach_core.robot import ROBOT_URDFS
+
+    if settings.robot not in ROBOT_URDFS:  # an uploaded arm is in once registered
+        raise InvalidInputError(
+            f"unknown robot {settings.robot!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
+        )
+    workpiece = core.build_cell_workpiece(settings, mesh, parsed=parsed)
+    cell = Cell(
+        CellConfig(
+            robot=settings.robot,
+            tool=core.Project(cell=settings).tool(),
+            workpiece=workpiece,
+            seed=settings.seed,
+        )
+    )
+    initial = None
+    if joints is not None:
+        try:
+            initial = cell.initial_state(np.asarray(joints, dtype=float))
+        except RobomachError:
+            log.info("stored joints not usable (limits or contact): starting at home")
+    lt = LeadThrough(cell)
+    return cell, lt, lt.start(initial if initial is not None else cell.initial_state())
+
+
+class LiveRobot:
+    """The robot of one session (module docstring).
+
+    Args:
+        lock: The session's lock, which guards the robot and the project together.
+        jobs: The session's job runner (robot jobs and who else waits on it).
+        save: Saves ``document()`` (called with the lock held).
+        notify: Tells the session's listeners (called with the lock released).
+    """
+
+    def __init__(
+        self,
+        lock: threading.RLock,
+        jobs: JobRunner,
+        *,
+        save: Callable[[], None],
+        notify: Callable[..., None],
+    ) -> None:
+        self.lock = lock
+        self.jobs = jobs
+        self._save = save
+        self.notify = notify  # the session's listeners (call with the lock released)
+        self.live = LiveFeed(on_move=lambda: notify("robot"))
+        self.epoch = 0  # bumped by every new cell: motions and jobs of the old one are dropped
+        self.closed = False
+        self._built: Built | None = None
+        self._selection = ComplianceSelection()
+        self._last_snapshot: RobotSnapshot | None = None  # snapshot(wait=False) while locked
+
+    # --- reading -----------------------------------------------------------------------------
+
+    @property
+    def cell(self) -> Cell:
+        """The simulated cell (read its robot, tool and workpiece; never step it)."""
+        return self._parts()[0]
+
+    @property
+    def workpiece(self) -> Workpiece:
+        """The part the tool meets (the real part when it deviates from its mesh)."""
+        return self.cell.workpiece
+
+    @property
+    def selection(self) -> ComplianceSelection:
+        return self._selection
+
+    def pose(self) -> Pose:
+        """The cell, the lead-through, the state, the selection and the epoch, together."""
+        with self.lock:
+            cell, lt, state = self._parts()
+            return Pose(cell, lt, state, self._selection, self.epoch)
+
+    def busy(self) -> bool:
+        """True while a job owns the robot."""
+        return bool(self.jobs.active(ROBOT_JOB_KINDS))
+
+    def require_idle(self) -> None:
+        """``BusyError`` while a job owns the robot."""
+        active = self.jobs.active(ROBOT_JOB_KINDS)
+        if active:
+            job = active[0]
+            raise BusyError(
+                f"the robot is busy with the {job.kind.replace('_', ' ')} job {job.id} "
+                f"({job.progress:.0%}); wait for it or cancel it first"
+            )
+
+    def snapshot(self, *, wait: bool = True) -> RobotSnapshot:
+        """The robot now (live during a job). ``wait=False`` never waits for the lock: while
+        a change holds it, the answer is the last snapshot taken (``GET /api/state`` answers
+        on the server's event loop, which must never block)."""
+        if not self.lock.acquire(blocking=wait):
+            last = self._last_snapshot
+            if last is not None:  # busy from the job runner: a job that just ended reads so
+                return replace(last, busy=self.busy())
+            self.lock.acquire()
+        try:
+            busy = self.busy()
+            _, lt, state = self._parts()
+            live = self.live.cell_state
+            cs = live if (busy and live is not None) else state.cell
+            snap = RobotSnapshot(
+                float(cs.time_s),
+                cs.q_motor.copy(),
+                cs.T_base_tcp.copy(),
+                lt.measured_wrench(cs),
+                bool(cs.in_contact),
+                busy,
+            )
+            self._last_snapshot = snap
+            return snap
+        finally:
+            self.lock.release()
+
+    def force_trace(self, recording: Recording | None, max_points: int = 2000) -> ForceTrace:
+        """Force vs time, at most ``max_points`` (>= 2): live during a job, else ``recording``'s."""
+        with self.lock:
+            return self.live.force_trace(recording, self.busy(), max_points)
+
+    def document(self) -> dict[str, Any]:
+        """What the store keeps of the robot: its joints and the compliance selection."""
+        with self.lock:
+            built = self._built
+            return {
+                "joints_rad": None if built is None else built[2].cell.q_motor.tolist(),
+                "compliance": selection_document(self._selection),
+            }
+
+    # --- acting ------------------------------------------------------------------------------
+
+    def install(self, built: Built, selection: ComplianceSelection | None = None) -> None:
+        """A new cell (and the robot in it): motions and jobs of the old one are dropped."""
+        with self.lock:
+            self._built = built
+            if selection is not None:
+                self._selection = selection
+            self.epoch += 1
+
+    def show(self, state: CellState, epoch: int) -> None:
+        """Where a running motion is (not saved), while the cell is still ``epoch``'s."""
+        with self.lock:
+            if epoch == self.epoch and self._built is not None:
+                cell, lt, _ = self._built
+                moving = LeadThroughState(state, state.T_base_tcp.copy(), np.zeros(6))
+                self._built = (cell, lt, moving)
+
+    def settle(self, state: LeadThroughState, epoch: int) -> None:
+        """A motion ended at ``state``: the robot stays there (saved, told).
+
+        Raises:
+            ConflictError: the cell changed while it moved (the motion is dropped).
+        """
+        with self.lock:
+            if epoch != self.epoch or self._built is None:
+                raise ConflictError(
+                    "the cell or the project changed while the robot moved; the motion was stopped"
+                )
+            cell, lt, _ = self._built
+            self._built = (cell, lt, replace(state, velocity=np.zeros(6)))
+            self._save()
+        self.notify("robot")
+
+    def place(self, state: LeadThroughState, epoch: int, what: str = "the job") -> None:
+        """A job ended at ``state``: the robot stays there (not saved: the caller saves it with
+        the job's result, under the lock).
+
+        Raises:
+            ConflictError: the cell changed while ``what`` ran (its result is dropped).
+        """
+        with self.lock:
+            if epoch != self.epoch or self._built is None:
+                raise ConflictError(f"the cell changed while {what} ran")
+            cell, lt, _ = self._built
+            self._built = (cell, lt, replace(state, velocity=np.zeros(6)))
+
+    def save(self) -> None:
+        """Save the robot's joints and compliance selection now."""
+        with self.lock:
+            self._save()
+
+    def record(self) -> GuidePoint:
+        """The current pose as a guide point (not yet in the project)."""
+        with self.lock:
+            self.require_idle()
+            _, lt, state = self._parts()
+            return lt.record(state)
+
+    def select(self, axes: Any, frame: str) -> ComplianceSelection:
+        """Make the axes (any of x y z rx ry rz) in the "tool" or "base" frame compliant."""
+        selection = ComplianceSelection(frozenset(axes), frame)  # validates
+        with self.lock:
+            self._selection = selection
+            self._save()
+        self.notify("compliance")
+        return selection
+
+    def tapped(
+        self, ctx: JobContext, cell: Cell, *, path_m: np.ndarray | None = None, closed: bool = False
+    ) -> TappedCell:
+        """``cell`` seen through the live feed of the running job ``ctx`` (``LiveFeed.tapped``)."""
+        return self.live.tapped(cell, self._parts()[1].estimator, ctx, path_m=path_m, closed=closed)
+
+    def submit(
+        self,
+        kind: str,
+        work: Callable[[JobContext], Any],
+        done: Callable[[Any], None],
+        epoch: int,
+    ) -> str:
+        """A job that owns the robot (``kind`` of ``ROBOT_JOB_KINDS``); cancelled or failed,
+        the robot stays where it left it (nothing teleports)."""
+        assert kind in ROBOT_JOB_KINDS, kind
+        with self.lock:
+            self.require_idle()
+            self.live.start(self._parts()[2].cell)
+
+        def end(info: JobInfo) -> None:
+            with self.lock:
+                live = self.live.stop()
+                if info.status != "done" and live is not None and epoch == self.epoch:
+                    cell, lt, _ = self._parts()
+                    state = LeadThroughState(live, live.T_base_tcp.copy(), np.zeros(6))
+                    self._built = (cell, lt, state)
+                    self._save()
+            self.notify("robot")
+
+        return self.jobs.submit(kind, work, on_done=done, on_end=end)
+
+    def close(self) -> None:
+        """Motions stop at their next period; the session is closing."""
+        self.closed = True
+
+    def _parts(self) -> Built:
+        if self._built is None:
+            raise ConflictError("no cell is open yet")
+        return self._built
+
+
+def selection_document(selection: ComplianceSelection) -> dict[str, Any]:
+    """The compliance selection as stored and exported (axes in ``AXES`` order)."""
+    return {"axes": [a for a in AXES if a in selection.axes], "frame": selection.frame}
+
+
+def selection_from_document(doc: dict[str, Any] | None) -> ComplianceSelection:
+    """The stored selection (the default when missing or unreadable)."""
+    doc = doc or {}
+    try:
+        return ComplianceSelection(
+            frozenset(doc.get("axes", ("x", "y", "z"))), doc.get("frame", "base")
+        )
+    except RobomachError:
+        return ComplianceSelection()

@@ -1,0 +1,123 @@
+"""Every named choice and every number range a user meets, gathered for the boundaries.
+
+PROBLEM   The CLI's choices, the REST schemas, the viser widgets and the pendant's page each
+          typed the controller names, the compensation modes, the wall sides and the ranges
+          again, and the copies drifted (the pendant took 10-20 N for learning, the core 1-50;
+          the viser slider 0.02-2 mm for the tolerance, the core 0.01-5).
+STRATEGY  Each enum is defined once where its meaning lives (the CMRR controllers with their
+          settings classes, the program languages in their registry, the wall sides with the
+          wall-side decision, ...), each range once in ``limits``; the few choices that belong
+          to no other module (jog frames, click modes, the tool's nearest face) are defined
+          here. This module names them all, so every boundary derives its list from here.
+SOLUTION  ``enums()`` name -> values, ``LABELS`` the words a menu shows, ``ranges()`` name ->
+          ``limits.Range``, and ``catalogue()`` the JSON document the pendant reads from
+          ``GET /api/choices``. A contract test fails when a boundary types a copy.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal, get_args
+
+from . import limits
+from .leadthrough import AXES, ComplianceFrame
+
+JogFrame = Literal["base", "tool", "wobj"]
+JOG_FRAMES: tuple[JogFrame, ...] = get_args(JogFrame)
+COMPLIANCE_FRAMES: tuple[str, ...] = get_args(ComplianceFrame)
+# A touch-off moves along a translational axis only.
+TouchAxis = Literal[AXES[:3]]  # type: ignore[valid-type]
+TOUCH_AXES: tuple[str, ...] = AXES[:3]
+# What a click on the part does in the 3-D scene (both GUIs follow the same setting).
+ClickMode = Literal["propose", "teach", "move", "off"]
+CLICK_MODES: tuple[ClickMode, ...] = get_args(ClickMode)
+# What the face of the part nearest the tool is: a wall, a floor (faces up) or an underside.
+NearestFace = Literal["wall", "floor", "underside"]
+NEAREST_FACES: tuple[NearestFace, ...] = get_args(NearestFace)
+
+LABELS: dict[str, dict[str, str]] = {
+    "jog_frame": {"base": "base", "tool": "tool", "wobj": "work object"},
+    "compliance_frame": {"base": "base frame", "tool": "tool frame"},
+    "cell_option": {
+        "fc_speed_change": "FC SpeedChange",
+        "path_correction": "path correction",
+        "force_mode": "force mode",
+    },
+    "click_mode": {
+        "propose": "propose the wall",
+        "teach": "teach a point",
+        "move": "move the selected point",
+        "off": "nothing",
+    },
+}
+
+
+def enums() -> dict[str, tuple[str, ...]]:
+    """Every named choice: name -> its values, in the order menus show them."""
+    from .cmrr import CONTROLLER_NAMES, SCENARIO_NAMES
+    from .export.languages import language_choices, language_names
+    from .guide_proposal import PointKind, Reach
+    from .machining import COMPENSATION_NAMES
+    from .machining.choice import OPTION_NAMES
+    from .project import StageStatus
+    from .project._machining import STOCK_SOURCES
+    from .robot import ROBOT_NAMES
+    from .robots.builtin import ARM_FAMILIES
+    from .stiffness.milling import MILLING_COMPENSATIONS
+    from .stiffness.settings import COMPENSATION_SETTINGS
+    from .stiffness.studies import StudyName
+    from .wall_side import WALL_SIDE_CHOICES
+    from .workpiece import WORKPIECE_NAMES
+
+    return {
+        "cmrr_controller": tuple(CONTROLLER_NAMES),
+        "machining_compensation": tuple(COMPENSATION_NAMES),
+        "compensation_mode": tuple(COMPENSATION_SETTINGS),
+        "milling_compensation": tuple(MILLING_COMPENSATIONS),
+        "program_language": tuple(language_names()),
+        "language_choice": tuple(language_choices()),
+        "wall_side": tuple(WALL_SIDE_CHOICES),
+        "arm_family": tuple(ARM_FAMILIES),
+        "robot": tuple(ROBOT_NAMES),
+        "workpiece": tuple(WORKPIECE_NAMES),
+        "jog_frame": JOG_FRAMES,
+        "compliance_frame": COMPLIANCE_FRAMES,
+        "compliance_axis": tuple(AXES),
+        "touch_axis": TOUCH_AXES,
+        "click_mode": CLICK_MODES,
+        "nearest_face": NEAREST_FACES,
+        "cell_option": tuple(OPTION_NAMES),
+        "stock_source": tuple(STOCK_SOURCES),
+        "cmrr_scenario": tuple(SCENARIO_NAMES),
+        "compensation_study": get_args(StudyName),
+        "stage_status": get_args(StageStatus),
+        "proposed_point_kind": get_args(PointKind),
+        "reach": get_args(Reach),
+    }
+
+
+def ranges() -> dict[str, limits.Range]:
+    """Every physical range of ``limits``: its name there -> the range."""
+    return {name: value for name, value in vars(limits).items() if isinstance(value, limits.Range)}
+
+
+def catalogue() -> dict[str, Any]:
+    """The JSON document of every choice and range (``GET /api/choices``): ``enums`` name ->
+    ``{"values": [...], "labels": {value: words}}``, ``ranges`` name -> ``{"label", "min",
+    "max", "unit", "integer", "text"}``."""
+    return {
+        "enums": {
+            name: {"values": list(values), "labels": LABELS.get(name, {v: v for v in values})}
+            for name, values in enums().items()
+        },
+        "ranges": {
+            name: {
+                "label": r.label,
+                "min": r.min,
+                "max": r.max,
+                "unit": r.unit,
+                "integer": r.integer,
+                "text": r.text(),
+            }
+            for name, r in ranges().items()
+        },
+    }

@@ -1,0 +1,117 @@
+"""The workbench and the CLI build the same project (issue 17, item 1).
+
+The same job is done twice: by ``robomach demo`` (in process, through its argument parser) and
+through the Session as a person at the workbench does it (choose the arm, upload the mesh,
+click the wall to propose the guide points, accept them, learn, post-process). Every stage's
+result is compared, on a UR10 and on an IRB 4400 (whose part sits elsewhere: an uploaded mesh
+placed at the UR10's spot while the session ran, at the arm's own after a reopen, was the
+drift), and then both are reopened from their saved form: the CLI's ``project.npz`` (loaded by
+the core, and imported into a workbench) and the workbench's SQLite store.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.cli import main as robomach
+from app.session import Session, programs
+from app.session.project_file import import_project
+from app.store import Store
+from robomach_core import project as core
+from tests.generated_parts import PARTS
+
+SPEED_MM_S = 20.0
+FORCE_N = 10.0
+
+
+def _wait(session: Session, job_id: str, timeout_s: float = 300.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        info = session.jobs.get(job_id)
+        if info.status in ("done", "failed", "cancelled"):
+            assert info.status == "done", info
+            return
+        time.sleep(0.02)
+    raise AssertionError(f"job {job_id} did not finish")
+
+
+def _cli_project(tmp_path: Path, stl: Path, pick_mm, robot: str) -> tuple[core.Project, Path]:
+    out = tmp_path / "cli"
+    x, y, z = pick_mm
+    code = robomach(
+        ["demo", "--out", str(out), "--workpiece", str(stl), "--robot", robot,
+         f"--propose-guide-points={x},{y},{z}", "--speed", str(SPEED_MM_S),
+         "--force", str(FORCE_N), "--no-plot"]
+    )  # fmt: skip
+    assert code == 0
+    return core.load_project_file(out / "project.npz"), out
+
+
+def _session_project(session: Session, stl: Path, pick_mm, robot: str) -> None:
+    session.set_cell(robot=robot)
+    session.upload_workpiece(stl.read_bytes(), stl.name)  # as the browser uploads it
+    proposal = session.pointing.propose(np.asarray(pick_mm, dtype=float) * 1e-3)
+    _wait(session, session.pointing.accept())
+    _wait(
+        session,
+        session.learning.start_path_learning(FORCE_N, SPEED_MM_S * 1e-3, closed=proposal.closed),
+    )
+    session.learning.run_postprocess()
+
+
+def _assert_same_stages(live: core.Project, cli: core.Project) -> None:
+    assert live.cell == cli.cell
+    assert live.mesh == cli.mesh
+    assert len(live.guide_points) == len(cli.guide_points) >= 2
+    for a, b in zip(live.guide_points, cli.guide_points, strict=True):
+        np.testing.assert_allclose(a.T_base_tcp, b.T_base_tcp, atol=1e-9)
+    assert live.learned.settings == cli.learned.settings
+    ra, rb = live.learned.recording, cli.learned.recording
+    assert len(ra) == len(rb) and ra.completed and rb.completed
+    np.testing.assert_allclose(ra.position_m, rb.position_m, atol=1e-9)
+    np.testing.assert_allclose(ra.wrench_tool, rb.wrench_tool, atol=1e-9)
+    assert live.post_settings == cli.post_settings
+    pa, pb = live.processed.result.targets, cli.processed.result.targets
+    np.testing.assert_allclose(pa.position_m, pb.position_m, atol=1e-9)
+    assert live.status() == cli.status()
+    assert all(live.status()[s] == "current" for s in ("recording", "postprocess"))
+
+
+@pytest.mark.parametrize("robot", ["ur10", "irb4400"])
+def test_the_workbench_and_the_cli_build_the_same_project(tmp_path, robot) -> None:
+    part = PARTS["slotted_plate"]()
+    stl = tmp_path / "slotted_plate.stl"
+    stl.write_bytes(part.stl_bytes())
+    pick = part.picks["right side"]
+    cli, out = _cli_project(tmp_path, stl, pick, robot)
+    db = tmp_path / "robomach.sqlite"
+    session = Session(Store(db), data_dir=tmp_path, real_time=False)
+    try:
+        _session_project(session, stl, pick, robot)
+        live = session.project()
+        # The part sits where the arm's own placement puts it, live as after a reopen.
+        cad = core.build_workpiece(cli.cell, cli.mesh)
+        np.testing.assert_allclose(session.robot.workpiece.T_base_wobj, cad.T_base_wobj)
+        _assert_same_stages(live, cli)
+        (language,) = programs.program_languages(session)[:1]
+        live_files = programs.program_texts(session, language)
+        for name, text in live_files.items():
+            assert (out / name).read_text() == text, name  # the CLI's written program
+    finally:
+        session.close()
+
+    # Reopened from their saved forms: the store, and the CLI's project.npz.
+    reopened = Session(Store(db), data_dir=tmp_path, real_time=False)
+    try:
+        _assert_same_stages(reopened.project(), cli)
+        np.testing.assert_allclose(reopened.robot.workpiece.T_base_wobj, cad.T_base_wobj)
+        assert programs.program_texts(reopened, language) == live_files
+        import_project(reopened, (out / "project.npz").read_bytes(), "from the cli")
+        _assert_same_stages(reopened.project(), cli)
+        assert programs.program_texts(reopened, language) == live_files
+    finally:
+        reopened.close()
