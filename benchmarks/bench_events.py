@@ -16,10 +16,6 @@ from __future__ import annotations
 import argparse
 import asyncio
 import multiprocessing
-import os
-import signal
-import socket
-import subprocess
 import sys
 import tempfile
 import time
@@ -29,33 +25,9 @@ import httpx
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
 
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def start_server(data_dir: Path) -> tuple[subprocess.Popen, str]:
-    port = _free_port()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "app.cli", "serve", "--port", str(port), "--viser-port",
-         str(_free_port()), "--data", str(data_dir)],
-        cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        env={k: v for k, v in os.environ.items() if k != "ROBOMACH_TOKEN"},
-    )  # fmt: skip
-    url = f"http://127.0.0.1:{port}"
-    started = time.perf_counter()
-    while time.perf_counter() - started < 60:
-        try:
-            if httpx.get(url + "/api/health", timeout=1).status_code == 200:
-                print(f"server ready in {time.perf_counter() - started:.1f} s")
-                return proc, url
-        except httpx.TransportError:
-            time.sleep(0.05)
-    proc.kill()
-    raise SystemExit("the server did not start")
+from tests.api.server_process import start_server  # noqa: E402
 
 
 async def _listen_all(url: str, n: int, counts, ready) -> None:
@@ -131,7 +103,10 @@ def main() -> None:
     args = parser.parse_args()
     if args.quick:
         args.listeners, args.n = 20, 40
-    proc, url = start_server(Path(tempfile.mkdtemp(prefix="robomach-bench-")) / "data")
+    started = time.perf_counter()
+    server = start_server(Path(tempfile.mkdtemp(prefix="robomach-bench-")) / "data")
+    url = server.base_url
+    print(f"server ready in {time.perf_counter() - started:.1f} s")
     ctx = multiprocessing.get_context("spawn")
     counts = ctx.Array("l", args.listeners, lock=False)
     ready = ctx.Semaphore(0)
@@ -165,11 +140,7 @@ def main() -> None:
         if listeners is not None:
             listeners.terminate()
             listeners.join(10)
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(30)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        server.stop(30.0, kill_on_timeout=True)
 
 
 if __name__ == "__main__":
