@@ -31,7 +31,7 @@ from .fuzzy import (
     STOP,
     TREND_TERMS,
     FuzzyController,
-    _switch_level,
+    _next_stage,
 )
 from .pi import POWER_CAP_EXP, AdaptivePiController, FixedPiController, pi_gains
 
@@ -260,17 +260,9 @@ class _FuzzyStepper:
             return 0.0, True
         internal = self.internal + change * f.max_rate_per_s * d.dt_s
         internal = min(max(internal, stages[0]), stages[-1])
-        stage = self.stage
-        beta = d.nominal_feed_exponent
-        force_now = max(force_N, 0.0)
-        while stage + 1 < len(stages) and internal > _switch_level(stages, stage, +1, f.hysteresis):
-            predicted = force_now * (stages[stage + 1] / stages[stage]) ** beta
-            if predicted >= d.reference_force_N:
-                internal = _switch_level(stages, stage, +1, f.hysteresis)
-                break
-            stage += 1
-        while stage > 0 and internal < _switch_level(stages, stage, -1, f.hysteresis):
-            stage -= 1
+        internal, stage = _next_stage(
+            stages, self.stage, internal, max(force_N, 0.0), d, f.hysteresis
+        )
         self.internal, self.stage = internal, stage
         return stages[stage], False
 

@@ -288,17 +288,9 @@ class FuzzyController:
         stages = f.stages
         internal = state.internal_ratio + change * f.max_rate_per_s * d.dt_s
         internal = min(max(internal, stages[0]), stages[-1])
-        stage = state.stage
-        beta = d.nominal_feed_exponent
-        force_now = max(measurement.force_N, 0.0)
-        while stage + 1 < len(stages) and internal > _switch_level(stages, stage, +1, f.hysteresis):
-            predicted = force_now * (stages[stage + 1] / stages[stage]) ** beta
-            if predicted >= d.reference_force_N:
-                internal = _switch_level(stages, stage, +1, f.hysteresis)
-                break
-            stage += 1
-        while stage > 0 and internal < _switch_level(stages, stage, -1, f.hysteresis):
-            stage -= 1
+        internal, stage = _next_stage(
+            stages, state.stage, internal, max(measurement.force_N, 0.0), d, f.hysteresis
+        )
         new_state = FuzzyState(internal, stage, trend, error, protection, False)
         return new_state, ControlOutput(stages[stage])
 
@@ -311,6 +303,30 @@ class FuzzyController:
             "max_rate_per_s": self.fuzzy.max_rate_per_s,
             "rules": len(RULE_BASE),
         }
+
+
+def _next_stage(
+    stages: tuple[float, ...],
+    stage: int,
+    internal: float,
+    force_now_N: float,
+    design,
+    hysteresis: float,
+) -> tuple[float, int]:
+    """The stage the internal ratio selects, with hysteresis: up while the force the next stage
+    would cause (F * (r_next / r)^beta, the process model) stays below the reference (else the
+    internal ratio is held at the switch level), down past the lower switch level. Returns
+    (internal ratio, stage)."""
+    beta = design.nominal_feed_exponent
+    while stage + 1 < len(stages) and internal > _switch_level(stages, stage, +1, hysteresis):
+        predicted = force_now_N * (stages[stage + 1] / stages[stage]) ** beta
+        if predicted >= design.reference_force_N:
+            internal = _switch_level(stages, stage, +1, hysteresis)
+            break
+        stage += 1
+    while stage > 0 and internal < _switch_level(stages, stage, -1, hysteresis):
+        stage -= 1
+    return internal, stage
 
 
 def _switch_level(
