@@ -9,7 +9,6 @@ import threading
 from collections.abc import Iterator
 from dataclasses import replace
 
-import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
@@ -18,8 +17,7 @@ from app.session import JobRunner, QueueFullError, Session
 from app.session.jobs import MAX_ACTIVE_JOBS, MAX_ACTIVE_JOBS_PER_KIND
 from app.settings import ServerSettings
 from robomach_core import project as core
-from robomach_core.path_learning import PathLearningSettings
-from tests.core.test_project import _guide, _recording
+from tests.core.test_project import learned_block_project
 
 
 def test_the_runner_caps_jobs_per_kind_and_in_all() -> None:
@@ -45,18 +43,10 @@ def test_the_runner_caps_jobs_per_kind_and_in_all() -> None:
 
 def processed_project_bytes() -> bytes:
     """A project on the block with a short synthetic recording, post-processed on import."""
-    project = core.Project(
-        cell=core.CellSettings(workpiece="block"), guide_points=(_guide(0.76), _guide(0.84))
-    )
-    learned = core.LearnedPath(
-        _recording(),
-        np.tile([1.0, 0.0, 0.0, 0.0], (2, 1)),
-        PathLearningSettings(closed=False),
-        core.recording_inputs_key(project),
-    )
+    project = learned_block_project()
     workpiece = core.build_workpiece(project.cell, None)
-    processed = core.process(learned, project.post_settings, workpiece, 0.001)
-    return core.project_file_bytes(replace(project, learned=learned, processed=processed))
+    processed = core.process(project.learned, project.post_settings, workpiece, 0.001)
+    return core.project_file_bytes(replace(project, processed=processed))
 
 
 @pytest.fixture(scope="module")

@@ -50,9 +50,9 @@ def _recording() -> Recording:
     )
 
 
-@pytest.fixture(scope="module")
-def processed() -> tuple[core.Project, object]:
-    workpiece = builtin_workpiece("block")
+def learned_block_project() -> core.Project:
+    """A project on the block: two guide points and a synthetic 400-sample recording, learned
+    (not post-processed). The project, file and API tests start from it."""
     project = core.Project(
         cell=core.CellSettings(workpiece="block"), guide_points=(_guide(0.76), _guide(0.84))
     )
@@ -62,8 +62,17 @@ def processed() -> tuple[core.Project, object]:
         PathLearningSettings(closed=False),
         core.recording_inputs_key(project),
     )
-    result = core.process(learned, project.post_settings, workpiece, project.cell.tool_radius_m)
-    return replace(project, learned=learned, processed=result), workpiece
+    return replace(project, learned=learned)
+
+
+@pytest.fixture(scope="module")
+def processed() -> tuple[core.Project, object]:
+    workpiece = builtin_workpiece("block")
+    project = learned_block_project()
+    result = core.process(
+        project.learned, project.post_settings, workpiece, project.cell.tool_radius_m
+    )
+    return replace(project, processed=result), workpiece
 
 
 def test_status_follows_the_inputs(processed) -> None:

@@ -10,15 +10,12 @@ import io
 import json
 import tracemalloc
 import zipfile
-from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from robomach_core import project as core
-from robomach_core.path_learning import PathLearningSettings
 from robomach_core.project import ProjectFileError, project_file_bytes, project_from_file_bytes
-from tests.core.test_project import _guide, _recording
+from tests.core.test_project import learned_block_project
 
 
 @pytest.fixture(scope="module")
@@ -28,16 +25,7 @@ def good_bytes() -> bytes:
 
 def small_project_bytes() -> bytes:
     """A project file of two guide points and a 400-sample recording on the block."""
-    project = core.Project(
-        cell=core.CellSettings(workpiece="block"), guide_points=(_guide(0.76), _guide(0.84))
-    )
-    learned = core.LearnedPath(
-        _recording(),
-        np.tile([1.0, 0.0, 0.0, 0.0], (2, 1)),
-        PathLearningSettings(closed=False),
-        core.recording_inputs_key(project),
-    )
-    return project_file_bytes(replace(project, learned=learned))
+    return project_file_bytes(learned_block_project())
 
 
 def arrays_of(data: bytes) -> dict[str, np.ndarray]:
