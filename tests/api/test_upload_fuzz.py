@@ -188,16 +188,22 @@ def meshes(draw) -> tuple[str, bytes]:
     return ".obj", "\n".join(lines).encode()
 
 
-def _fuzz_meshes(fuzzed, examples: int) -> None:
-    server, api = fuzzed
-
-    @settings(
+def fuzz_settings(examples: int) -> settings:
+    """Every upload fuzzer's settings: ``examples`` inputs, the same ones every run (derandomized,
+    no example database), no deadline or health check (each input is an HTTP upload)."""
+    return settings(
         max_examples=examples,
         deadline=None,
         derandomize=True,
         database=None,
         suppress_health_check=list(HealthCheck),
     )
+
+
+def _fuzz_meshes(fuzzed, examples: int) -> None:
+    server, api = fuzzed
+
+    @fuzz_settings(examples)
     @given(mesh=meshes())
     def upload(mesh: tuple[str, bytes]) -> None:
         suffix, data = mesh
@@ -271,13 +277,7 @@ def urdfs(draw) -> tuple[str, bytes]:
 def _fuzz_urdfs(fuzzed, examples: int) -> None:
     server, api = fuzzed
 
-    @settings(
-        max_examples=examples,
-        deadline=None,
-        derandomize=True,
-        database=None,
-        suppress_health_check=list(HealthCheck),
-    )
+    @fuzz_settings(examples)
     @given(robot=urdfs())
     def upload(robot: tuple[str, bytes]) -> None:
         filename, data = robot
@@ -368,13 +368,7 @@ def archives(draw, bombs: dict[str, bytes]) -> tuple[str, str, bytes]:
 def _fuzz_archives(fuzzed, bombs, examples: int) -> None:
     server, api = fuzzed
 
-    @settings(
-        max_examples=examples,
-        deadline=None,
-        derandomize=True,
-        database=None,
-        suppress_health_check=list(HealthCheck),
-    )
+    @fuzz_settings(examples)
     @given(archive=archives(bombs))
     def upload(archive: tuple[str, str, bytes]) -> None:
         route, filename, data = archive
