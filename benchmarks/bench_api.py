@@ -12,10 +12,6 @@ from __future__ import annotations
 
 import argparse
 import concurrent.futures
-import os
-import signal
-import socket
-import subprocess
 import sys
 import tempfile
 import time
@@ -25,33 +21,9 @@ import httpx
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
 
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def start_server(data_dir: Path) -> tuple[subprocess.Popen, str]:
-    port = _free_port()
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "app.cli", "serve", "--port", str(port), "--viser-port",
-         str(_free_port()), "--data", str(data_dir)],
-        cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        env={k: v for k, v in os.environ.items() if k != "ROBOMACH_TOKEN"},
-    )  # fmt: skip
-    url = f"http://127.0.0.1:{port}"
-    started = time.perf_counter()
-    while time.perf_counter() - started < 60:
-        try:
-            if httpx.get(url + "/api/health", timeout=1).status_code == 200:
-                print(f"server ready in {time.perf_counter() - started:.1f} s")
-                return proc, url
-        except httpx.TransportError:
-            time.sleep(0.05)
-    proc.kill()
-    raise SystemExit("the server did not start")
+from tests.api.server_process import start_server  # noqa: E402
 
 
 def latencies_ms(client: httpx.Client, n: int) -> np.ndarray:
@@ -77,11 +49,14 @@ def main() -> None:
     args = parser.parse_args()
     if args.quick:
         args.n = 40
-    proc = None
+    server = None
     if args.url:
         url = args.url
     else:
-        proc, url = start_server(Path(tempfile.mkdtemp(prefix="robomach-bench-")) / "data")
+        started = time.perf_counter()
+        server = start_server(Path(tempfile.mkdtemp(prefix="robomach-bench-")) / "data")
+        url = server.base_url
+        print(f"server ready in {time.perf_counter() - started:.1f} s")
     try:
         with httpx.Client(base_url=url, timeout=30) as client:
             latencies_ms(client, min(200, args.n))  # warm up
@@ -105,9 +80,8 @@ def main() -> None:
                 ms = np.concatenate(list(pool.map(reader, range(4))))
             report("4 clients at once (per request)", ms)
     finally:
-        if proc is not None:
-            proc.send_signal(signal.SIGINT)
-            proc.wait(30)
+        if server is not None:
+            server.stop(30.0)
 
 
 if __name__ == "__main__":
