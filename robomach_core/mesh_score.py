@@ -23,7 +23,6 @@ SOLUTION  ``mesh_deviation``, ``score_mesh`` (a ``scoring.PathScore`` with the o
 
 from __future__ import annotations
 
-import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -36,7 +35,6 @@ from .errors import InvalidInputError, WallSideError
 from .leadthrough import GuidePoint
 from .scoring import PathScore
 from .wall_side import (
-    WALL_FACE_MAX_COS,
     mean_tool_axis,
     resolve_wall_side,
     taught_wall_points,
@@ -50,21 +48,6 @@ MESH_SCORE_SPACING_M = 5e-4
 MESH_QUERY_CHUNK = 2000  # points per trimesh query (its memory grows with the points asked)
 TAUGHT_WALL_TOLERANCE_M = 0.001  # the program passes this near every taught wall point
 TAUGHT_WALL_HEIGHT_BAND_M = 0.005  # ... measured across the axis within this height of it
-_WALLS: dict[int, tuple[weakref.ref, tuple[float, ...], trimesh.Trimesh | None]] = {}
-
-
-def _walls_of(mesh: trimesh.Trimesh, axis_wobj: np.ndarray) -> trimesh.Trimesh | None:
-    """The faces of ``mesh`` across ``axis_wobj`` (cached, so its triangle tree is built once)."""
-    key = tuple(np.round(axis_wobj, 3))
-    hit = _WALLS.get(id(mesh))
-    if hit is not None and hit[0]() is mesh and hit[1] == key:
-        return hit[2]
-    keep = np.flatnonzero(np.abs(mesh.face_normals @ axis_wobj) < WALL_FACE_MAX_COS)
-    walls = mesh.submesh([keep], append=True) if len(keep) else None
-    if len(_WALLS) > 16:
-        _WALLS.clear()
-    _WALLS[id(mesh)] = (weakref.ref(mesh), key, walls)
-    return walls
 
 
 def _inside(
@@ -109,8 +92,7 @@ def mesh_deviation(
     pts_w = (pts - t) @ R
     axis_w = np.array([0.0, 0.0, 1.0]) if axis_base is None else R.T @ np.asarray(axis_base)
     mesh = workpiece.mesh
-    with np.errstate(divide="ignore", invalid="ignore"):
-        walls = _walls_of(mesh, axis_w / np.linalg.norm(axis_w))
+    walls = mesh_query.wall_faces(mesh, axis_w)
     out = np.empty(len(pts_w))
     for start in range(0, len(pts_w), MESH_QUERY_CHUNK):
         chunk = pts_w[start : start + MESH_QUERY_CHUNK]

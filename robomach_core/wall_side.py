@@ -43,7 +43,6 @@ MIN_FORCE_VOTES = 2  # clear pushes needed (all of them when fewer guide points)
 MAX_WALL_GAP_M = 0.005  # a wall farther than this from a point is not the one it was taught on
 NEARER_MARGIN_M = 0.00025  # the nearer wall must be nearer by this for a point to vote
 MESH_MAJORITY = 0.75  # of the voting points on one side, and votes from half the points
-WALL_FACE_MAX_COS = math.cos(math.radians(45.0))  # |n . tool axis| below this: a wall face
 
 
 @dataclass(frozen=True)
@@ -116,15 +115,6 @@ def force_votes(guides: Sequence[GuidePoint], closed: bool) -> np.ndarray:
     return votes
 
 
-def _wall_faces(workpiece: Workpiece, axis_wobj: np.ndarray):
-    """The part's faces that are walls for a tool along ``axis_wobj`` (a trimesh submesh)."""
-    mesh = workpiece.mesh
-    keep = np.abs(mesh.face_normals @ axis_wobj) < WALL_FACE_MAX_COS
-    if not keep.any():
-        return None
-    return mesh.submesh([np.flatnonzero(keep)], append=True)
-
-
 def mesh_wall_gaps(
     guides: Sequence[GuidePoint],
     closed: bool,
@@ -143,7 +133,7 @@ def mesh_wall_gaps(
     R, t = T[:3, :3], T[:3, 3]
     axis = mean_tool_axis(guides)
     axis_w = R.T @ axis
-    walls = _wall_faces(workpiece, axis_w)
+    walls = mesh_query.wall_faces(workpiece.mesh, axis_w)
     n = len(guides)
     right_gap = np.full(n, np.inf)
     left_gap = np.full(n, np.inf)
@@ -182,7 +172,7 @@ def _wall_point(
     T = workpiece.T_base_wobj
     R, t = T[:3, :3], T[:3, 3]
     axis_w = R.T @ axis
-    walls = _wall_faces(workpiece, axis_w)
+    walls = mesh_query.wall_faces(workpiece.mesh, axis_w)
     if walls is None:
         return None
     p_w = R.T @ (np.asarray(position_m, dtype=float) - t)
