@@ -48,7 +48,7 @@ def main() -> None:
     parser.add_argument("--variations", type=int, default=None, help="stocks of the sweep")
     args = parser.parse_args()
     repeats = args.repeats or (1 if args.quick else 3)
-    variations = args.variations or (2 if args.quick else 20)
+    variations = args.variations or (1 if args.quick else 20)
 
     tool = Tool()
     robot = Robot("ur10", tool.T_flange_tcp)

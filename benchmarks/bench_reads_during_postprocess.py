@@ -18,8 +18,8 @@ post-processing under 2 s.
 Back to back, the latency is the server's queue: ~``clients`` / its throughput, idle or not;
 the pendant's period measures waiting behind the work, which is what the aim is about.
 
-``--quick``: learned at 10 mm/s, densified 4 times (~62k samples), 8 + 4 clients, 5 runs: a check
-that the script still works, not a measurement. ``--data DIR`` reuses a folder written by an
+``--quick``: learned at 20 mm/s, not densified (~8k samples), 8 + 4 clients, 2 runs, 1 s idle: a
+check that the script still works, not a measurement. ``--data DIR`` reuses a folder written by an
 earlier run (``--speed``, ``--factor``: how it is written).
 """
 
@@ -58,7 +58,7 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="small sizes: a smoke test")
     args = parser.parse_args()
     if args.quick:
-        args.clients, args.health_clients, args.runs, args.speed, args.factor = 8, 4, 5, 10.0, 4
+        args.clients, args.health_clients, args.runs, args.speed, args.factor = 8, 4, 2, 20.0, 1
 
     with tempfile.TemporaryDirectory(prefix="robomach-bench-") as tmp:
         data = args.data or Path(tmp) / "data"
@@ -72,12 +72,15 @@ def main() -> None:
         server = start_server(data)
         try:
             period_s = args.period_ms * 1e-3
-            run(server.base_url, args.clients, args.health_clients, period_s, args.runs)
+            idle_s = 1.0 if args.quick else IDLE_PHASE_S
+            run(server.base_url, args.clients, args.health_clients, period_s, args.runs, idle_s)
         finally:
             server.stop(kill_on_timeout=True)
 
 
-def run(base_url: str, clients: int, health_clients: int, period_s: float, runs: int) -> None:
+def run(
+    base_url: str, clients: int, health_clients: int, period_s: float, runs: int, idle_s: float
+) -> None:
     with httpx.Client(base_url=base_url, timeout=120.0) as poster:
         t = time.perf_counter()
         poster.post("/api/postprocess", json={}).raise_for_status()
@@ -88,8 +91,8 @@ def run(base_url: str, clients: int, health_clients: int, period_s: float, runs:
             Readers(base_url, ("/api/health",), clients=health_clients, period_s=period_s) as hc,
         ):
             time.sleep(0.5)  # every reader under way
-            idle = (time.perf_counter(), time.perf_counter() + IDLE_PHASE_S)
-            time.sleep(IDLE_PHASE_S)
+            idle = (time.perf_counter(), time.perf_counter() + idle_s)
+            time.sleep(idle_s)
             busy_start_s = time.perf_counter()
             for _ in range(runs):
                 t = time.perf_counter()
