@@ -126,10 +126,6 @@ class GuideProposal:
     def z_m(self) -> float:
         return self.pick.z_m
 
-    @property
-    def all_reachable(self) -> bool:
-        return all(p.reach != "unreachable" for p in self.points)
-
 
 # --- orientation ------------------------------------------------------------------------------
 
@@ -660,11 +656,6 @@ def refuse_unreachable(proposal: GuideProposal) -> None:
             f"{len(bad)} of the {len(proposal.points)} proposed guide points cannot be reached: "
             f"{listed}"
         )
-
-
-def with_points(proposal: GuideProposal, points: Sequence[ProposedPoint]) -> GuideProposal:
-    """The proposal with other points (edited or deleted by the user)."""
-    return replace(proposal, points=tuple(points))
 
 
 def proposal_summary(proposal: GuideProposal) -> dict:

@@ -158,12 +158,6 @@ def helper_pid() -> int | None:
     return proc.pid if proc is not None and proc.poll() is None else None
 
 
-def stop_helper() -> None:
-    """Stop the helper process (it is started again at the next ``run_isolated``)."""
-    with _HELPER.lock:
-        _HELPER.stop()
-
-
 def run_isolated(
     task: str,
     payload: dict[str, Any],

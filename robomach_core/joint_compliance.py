@@ -60,10 +60,6 @@ class JointCompliance:
         """(6,) Kq^-1."""
         return 1.0 / np.asarray(self.stiffness_Nm_rad, dtype=float)
 
-    def joint_deflection(self, J: np.ndarray, wrench: np.ndarray) -> np.ndarray:
-        """Arm-side minus motor-side joints, dq = Kq^-1 J^T W (eq. 16). Shapes (6,6), (6,)."""
-        return self.compliance_rad_Nm * (J.T @ wrench)
-
     def cartesian_compliance(self, J: np.ndarray) -> np.ndarray:
         """C = J Kq^-1 J^T (6x6), the Cartesian compliance at the pose of ``J`` (eq. 19)."""
         return (J * self.compliance_rad_Nm) @ J.T

@@ -145,10 +145,6 @@ class LeadThroughState:
     T_ref: np.ndarray
     velocity: np.ndarray  # (6,) [v (m/s), omega (rad/s)] in the selection frame
 
-    @property
-    def contact_force_N(self) -> float:
-        return float(np.linalg.norm(self.cell.contact.wrench[:3]))
-
 
 def halted(state: LeadThroughState) -> LeadThroughState:
     """The state held still where it is: reference at the measured pose, no velocity."""

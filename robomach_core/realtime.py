@@ -70,13 +70,6 @@ class RealTimePacer:
         self._last = now
         self._budget_s = min(self.burst_s, self._budget_s + elapsed)
 
-    @property
-    def budget_s(self) -> float:
-        """Simulated time that may run now, seconds."""
-        with self._lock:
-            self._refill()
-            return self._budget_s
-
     def available(self) -> int:
         """Control periods that may be simulated now."""
         with self._lock:
