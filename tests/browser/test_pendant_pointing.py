@@ -29,7 +29,10 @@ def test_pointing_from_the_pendant(served: Served, api: httpx.Client, page: Page
         expect(page.get_by_label(label)).to_be_visible()
 
     # The click mode is the session's: viser's dropdown follows it.
-    with page.expect_response("**/api/guide-points/pointing"):
+    # The page also GETs this path when it refreshes: wait for the PUT's answer.
+    with page.expect_response(
+        lambda r: r.url.endswith("/api/guide-points/pointing") and r.request.method == "PUT"
+    ):
         page.select_option("#point-mode", "teach")
     assert api.get("/api/guide-points/pointing").json()["click_mode"] == "teach"
 
