@@ -330,7 +330,7 @@ def _initial_points(
     return merged
 
 
-class _Placer:
+class WallPlacer:
     """Where the tool stands beside the wall at an arc length (gap off it, on the free side,
     centred where the free space is narrower than the cutter and two gaps)."""
 
@@ -403,7 +403,7 @@ def _add_points(
     wall: WallLoop,
     closed: bool,
     points: list[tuple[float, PointKind]],
-    place: _Placer,
+    place: WallPlacer,
     radius_m: float,
 ) -> tuple[list[tuple[float, PointKind]], list[str]]:
     """Points added where a leg cuts towards the wall or leaves it too far (module docstring).
@@ -567,7 +567,7 @@ def propose_guide_points(
         pick.loop, pick.s_m, tool_radius_m, settings.gap_m
     )
     notes = [*pick.notes, *notes]
-    place = _Placer(wall, (pick.loop, *pick.others), tool_radius_m, settings.gap_m)
+    place = WallPlacer(wall, (pick.loop, *pick.others), tool_radius_m, settings.gap_m)
     end_margin = tool_radius_m + settings.gap_m + 5e-4
     points = _initial_points(wall, closed, groups, end_margin)
     points, added = _add_points(wall, closed, points, place, tool_radius_m)
@@ -615,7 +615,7 @@ def teach_point(
     ``gap`` off it on the free side, at the machining height, in the job's orientation."""
     settings = settings or ProposalSettings()
     pick = _pick(workpiece, point_wobj_m, normal, tool_radius_m, settings, tool_reach_m)
-    place = _Placer(pick.loop, (pick.loop, *pick.others), tool_radius_m, settings.gap_m)
+    place = WallPlacer(pick.loop, (pick.loop, *pick.others), tool_radius_m, settings.gap_m)
     xy, note = place(pick.s_m)
     R = job_tool_rotation(workpiece.cad().T_base_wobj, tool_rotation)
     T = _pose(workpiece, xy, pick.z_m, R)
@@ -696,7 +696,7 @@ def move_point(
     xy = np.asarray(point_wobj_m, dtype=float).reshape(-1)[:2]
     wall = proposal.wall
     s = float(wall.project(xy[None])[0])
-    place = _Placer(wall, (proposal.pick.loop, *proposal.pick.others), tool_radius_m, gap_m)
+    place = WallPlacer(wall, (proposal.pick.loop, *proposal.pick.others), tool_radius_m, gap_m)
     foot_xy, note = place(s)
     old = proposal.points[index]
     T = old.T_base_tcp.copy()
@@ -763,78 +763,3 @@ def leg_problems(proposal: GuideProposal, tool_radius_m: float) -> list[str]:
 def _with_leg_notes(proposal: GuideProposal, tool_radius_m: float) -> GuideProposal:
     kept = [n for n in proposal.notes if not n.startswith("the leg G")]
     return replace(proposal, notes=tuple(kept + leg_problems(proposal, tool_radius_m)))
-
-
-def wall_side_of(positions_base_m: np.ndarray, workpiece: Workpiece) -> str | None:
-    """The wall side ("left"/"right") of guide points taught beside one wall of the part's
-    mesh: "right" when they follow the wall's own direction (material on the right), None
-    when they are not beside one wall at one height or go neither way."""
-    from .wall_section import _off_vertices, section_loops
-
-    cad = workpiece.cad()
-    pts = np.asarray(positions_base_m, dtype=float)
-    if len(pts) < 2:
-        return None
-    T = cad.T_base_wobj
-    wobj = (pts - T[:3, 3]) @ T[:3, :3]
-    z = float(np.median(wobj[:, 2]))
-    if np.ptp(wobj[:, 2]) > 0.005:
-        return None
-    loops = section_loops(cad.mesh, _off_vertices(cad.mesh, z))
-    best = None
-    for loop in loops:
-        d = np.abs(loop.signed_distance(wobj[:, :2]))
-        if d.max() < 0.008 and (best is None or d.mean() < best[1]):
-            best = (loop, float(d.mean()))
-    if best is None:
-        return None
-    loop = best[0]
-    s = loop.project(wobj[:, :2])
-    steps = np.diff(s)
-    if loop.closed:
-        steps = (steps + 0.5 * loop.length_m) % loop.length_m - 0.5 * loop.length_m
-    forward, backward = float(steps[steps > 0].sum()), float(-steps[steps < 0].sum())
-    if max(forward, backward) < 3.0 * min(forward, backward) + 1e-4:
-        return None
-    return "right" if forward > backward else "left"
-
-
-OPEN_EDGE_ENTRY_M = 0.003  # beside an open edge, the operator comes down this far off the wall
-
-
-def robust_intents(intents: Sequence, workpiece: Workpiece, tool_radius_m: float) -> list:
-    """Intents for a part that may not be where its mesh is: each point with a wall push is
-    entered in the middle of the free space beside its wall (a groove's middle; 3 mm off an
-    open edge), so that the cutter comes down clear of the real walls, and the push finds the
-    wall from there (a careful operator does the same when the part may be off its drawing).
-    Points without a push (outside corners) stay where they are."""
-    from dataclasses import replace as _replace
-
-    from .wall_section import _off_vertices, section_loops
-
-    cad = workpiece.cad()
-    T = cad.T_base_wobj
-    walls: dict[float, list[WallLoop]] = {}
-    out = []
-    for intent in intents:
-        if intent.wall_normal is None:
-            out.append(intent)
-            continue
-        p = (np.asarray(intent.position_m) - T[:3, 3]) @ T[:3, :3]
-        z = round(float(p[2]), 5)
-        if z not in walls:
-            walls[z] = section_loops(cad.mesh, _off_vertices(cad.mesh, z))
-        loops = walls[z]
-        if not loops:
-            out.append(intent)
-            continue
-        loop = min(loops, key=lambda lp: abs(lp.signed_distance(p[None, :2])[0]))
-        place = _Placer(loop, loops, tool_radius_m, OPEN_EDGE_ENTRY_M)
-        s = float(loop.project(p[None, :2])[0])
-        xy, note = place(s)
-        if "too narrow" in note:
-            out.append(intent)
-            continue
-        entry = T[:3, :3] @ np.array([xy[0], xy[1], p[2]]) + T[:3, 3]
-        out.append(_replace(intent, position_m=entry))
-    return out

@@ -285,9 +285,9 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         proposal, intents, settings = _proposed(settings, cad, cell)
     if workpiece.nominal is not None and settings.guide_points_csv is None:
         # The part is not where its mesh is: the operator enters each groove in its middle
-        # and touches the real wall from there (``guide_proposal.robust_intents``).
+        # and touches the real wall from there (``guide_entry.robust_intents``).
         from .demo_operator import guide_plan
-        from .guide_proposal import robust_intents
+        from .guide_entry import robust_intents
 
         planned = intents or guide_plan(
             cad, cell.tool.radius_m, np.random.default_rng(settings.seed)

@@ -47,11 +47,11 @@ DOWNSTREAM_TOPICS: tuple[Topic, ...] = ("recording", "postprocess")
 
 def _example_intents(cell: Cell, seed: int) -> list | None:
     """The example operator's points: its own plan (None), or, on a part that is not where its
-    mesh is, the same entered in each groove's middle (``guide_proposal.robust_intents``)."""
+    mesh is, the same entered in each groove's middle (``guide_entry.robust_intents``)."""
     if cell.workpiece.nominal is None:
         return None
     from robomach_core.demo_operator import guide_plan
-    from robomach_core.guide_proposal import robust_intents
+    from robomach_core.guide_entry import robust_intents
 
     plan = guide_plan(cell.workpiece.cad(), cell.tool.radius_m, np.random.default_rng(seed))
     return robust_intents(plan, cell.workpiece, cell.tool.radius_m)

@@ -29,6 +29,7 @@ from robomach_core import mesh_query
 from robomach_core import project as core
 from robomach_core.choices import CLICK_MODES, ClickMode
 from robomach_core.errors import InvalidInputError, SupervisionError, UnreachableTargetError
+from robomach_core.guide_entry import robust_intents, wall_side_of
 from robomach_core.guide_proposal import (
     GuideProposal,
     ProposalSettings,
@@ -37,10 +38,8 @@ from robomach_core.guide_proposal import (
     guide_intents,
     move_point,
     propose_guide_points,
-    robust_intents,
     teach_point,
     tool_reach,
-    wall_side_of,
 )
 from robomach_core.leadthrough import GuidePoint, LeadThrough, LeadThroughState
 from robomach_core.teach_motion import Arrival
