@@ -19,6 +19,9 @@ from websockets.sync.client import connect
 
 from tests.api.server_process import Api, ServerProcess
 
+# A real server process (sockets, origins, host names): CI runs these, -m 'not slow' does not.
+pytestmark = pytest.mark.slow
+
 REBOUND = "rebound.example"
 
 

@@ -73,6 +73,7 @@ def test_bad_surface_points_say_what_is_wrong(client: TestClient, body, status, 
     assert words in r.json()["detail"]
 
 
+@pytest.mark.slow  # a whole proposal learned and post-processed
 def test_propose_edit_accept_learn_and_compare(client: TestClient) -> None:
     proposal = _ok(client, "POST", f"{GP}/propose", json={"point_mm": ON_WALL_MM})
     assert len(proposal["points"]) == 14 and proposal["closed"] and proposal["wall_side"] == "right"

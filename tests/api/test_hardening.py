@@ -52,6 +52,7 @@ def refused(r, needle: str, status: int = 422) -> None:
     assert re.search(needle, r.json()["detail"]), r.json()["detail"]
 
 
+@pytest.mark.slow  # a real server process (it must survive the input)
 def test_r1_the_flat_stl_is_refused_and_the_server_lives(server: ServerProcess, api: Api):
     r = api.post("/api/cell/workpiece", files={"file": ("flat.stl", FLAT_STL)})
     refused(r, r"flat.stl|flat: the part is 0 mm thick")
@@ -64,6 +65,7 @@ def test_r1_the_flat_stl_is_refused_and_the_server_lives(server: ServerProcess, 
     assert api.ok("GET", "/api/cell")["workpiece"] == "water_pump"  # nothing lost
 
 
+@pytest.mark.slow  # a real server process (it must survive the input)
 def test_r1_a_project_file_holding_the_flat_stl_is_refused(server: ServerProcess, api: Api):
     project = Project(
         cell=CellSettings(workpiece="flat", workpiece_builtin=False), mesh=("flat.stl", FLAT_STL)
@@ -87,6 +89,7 @@ def _deep_urdf(n: int) -> bytes:
     return text.replace("</robot>", "".join(extra) + "</robot>").encode()
 
 
+@pytest.mark.slow  # a real server process (it must survive the input)
 def test_r2_the_5000_link_urdf_is_refused_and_the_server_lives(server: ServerProcess, api: Api):
     r = api.post("/api/cell/robot", files={"file": ("deep.urdf", _deep_urdf(5000))})
     refused(r, "5008 links, more than 500")
@@ -149,6 +152,7 @@ def _memory_bounded(server: ServerProcess, request) -> None:
     assert growth < MEMORY_GROWTH_BOUND_BYTES, f"peak grew {growth / 2**20:.0f} MiB"
 
 
+@pytest.mark.slow  # a real server process, memory measured
 def test_r4_a_robot_zip_bomb_is_refused_in_bounded_memory(
     server: ServerProcess, api: Api, robot_bomb: bytes
 ):
@@ -164,6 +168,7 @@ def test_r4_a_robot_zip_bomb_is_refused_in_bounded_memory(
     assert not any(p.stat().st_size > 50e6 for p in cache.rglob("*.stl"))
 
 
+@pytest.mark.slow  # a real server process, memory measured
 def test_r4_a_project_file_bomb_is_refused_in_bounded_memory(
     server: ServerProcess, api: Api, project_bomb: bytes
 ):

@@ -62,6 +62,7 @@ def client() -> Iterator[TestClient]:
         yield c
 
 
+@pytest.mark.slow  # process pools of queued comparisons
 def test_machining_comparisons_past_the_cap_get_429(client: TestClient) -> None:
     started = []
     try:

@@ -101,6 +101,7 @@ def test_run_result_choice_and_staleness_from_the_guide_points(api: Api) -> None
     assert api.post("/api/machining/run").status_code == 409
 
 
+@pytest.mark.slow  # a process pool's start and a comparison
 def test_a_comparison_can_be_cancelled(api: Api) -> None:
     _processed(api)
     job_id = api.ok("POST", "/api/machining/compare", 202)["job_id"]

@@ -16,6 +16,9 @@ from websockets.sync.client import connect
 from tests.api.conftest import UPLOAD_LIMIT_BYTES
 from tests.api.server_process import Api, ServerProcess
 
+# A real server process (sockets, origins, host names): CI runs these, -m 'not slow' does not.
+pytestmark = pytest.mark.slow
+
 CUBE_STL = b"""solid cube
 facet normal 0 0 -1
 outer loop

@@ -74,6 +74,7 @@ def test_settings_refuse_an_open_bind_without_a_token() -> None:
     assert ServerSettings.from_env({}).loopback
 
 
+@pytest.mark.slow  # a real server process
 def test_cli_refuses_an_open_bind_without_a_token(tmp_path: Path) -> None:
     env = {k: v for k, v in os.environ.items() if k != "ROBOMACH_TOKEN"}
     r = subprocess.run(
@@ -115,6 +116,7 @@ def _reachable(host: str, port: int) -> bool:
         return False
 
 
+@pytest.mark.slow  # a real server process
 def test_with_the_token_beyond_loopback_viser_stays_on_loopback(tmp_path: Path) -> None:
     outward = _outward_address()
     if outward is None:
@@ -133,6 +135,7 @@ def test_with_the_token_beyond_loopback_viser_stays_on_loopback(tmp_path: Path) 
         assert server.stop() in (0, 130)
 
 
+@pytest.mark.slow  # a real server process
 def test_serve_stops_with_one_line_when_the_viser_port_is_taken(tmp_path: Path) -> None:
     with socket.socket() as taken:
         taken.bind(("127.0.0.1", 0))

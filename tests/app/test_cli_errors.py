@@ -97,6 +97,7 @@ def _run_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow  # CLI subprocesses
 def test_r1_and_r2_files_through_the_cli_are_one_line_not_a_crash(tmp_path):
     flat = tmp_path / "flat.stl"
     square = [(0, 0, 0, 100, 0, 0, 100, 100, 0), (0, 0, 0, 100, 100, 0, 0, 100, 0)]

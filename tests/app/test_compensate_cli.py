@@ -22,6 +22,7 @@ REQUIRED_KEYS = (
 )
 
 
+@pytest.mark.slow  # every study, with plots
 def test_all_quick_writes_summary_plots_and_settings(tmp_path, capsys):
     out = tmp_path / "comp"
     assert main(["compensate", "--quick", "--out", str(out), "--seed", "1"]) == 0

@@ -65,6 +65,7 @@ def test_clicked_points_learn_the_wall_side_from_the_mesh(fast: Session):
     assert fast.pointing.learning_side() is None
 
 
+@pytest.mark.slow  # a whole proposal learned
 def test_a_proposal_is_shown_edited_and_accepted_then_learned_within_the_wall(fast: Session):
     proposal = fast.pointing.propose(ON_WALL)
     assert len(proposal.points) == 14 and proposal.closed

@@ -58,6 +58,7 @@ def test_tolerances_below_the_range_are_refused_in_the_core():
         PostprocessSettings(arc_tolerance_m=1e-7)
 
 
+@pytest.mark.slow  # 10 s: a 0.01 mm tolerance on a whole recording
 def test_the_smallest_tolerance_processes_in_bounded_memory():
     project = core.Project(
         cell=core.CellSettings(workpiece="water_pump"), guide_points=(_guide(0.73), _guide(0.87))
