@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg
-import scipy.signal
 
 CONTROL_PERIOD_S = 0.004
 
@@ -34,6 +33,8 @@ def zoh(a: np.ndarray, b: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarr
 
 def zoh_tf(num: np.ndarray, den: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Discrete (b, a) of the transfer function num/den with its input held over ``dt_s``."""
+    import scipy.signal  # here, not at start-up: 0.7 s of every process's start
+
     a, b, c, d = scipy.signal.tf2ss(num, den)
     phi, gamma = zoh(a, b, dt_s)
     b_d, a_d = scipy.signal.ss2tf(phi, gamma, c, d)

@@ -14,7 +14,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.signal
 
 from ..clock import zoh
 from .errors import CmrrSettingsError
@@ -52,6 +51,8 @@ class FeedDynamics:
 
     def state_space(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Continuous (A, B, C) in controllable canonical form; D is zero (strictly proper)."""
+        import scipy.signal  # here, not at start-up: 0.7 s of every process's start
+
         a, b, c, _ = scipy.signal.tf2ss(self.num, self.den)
         return a, b[:, 0], c[0]
 

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 from typing import Literal, Protocol
 
 import numpy as np
-import scipy.signal
 
 from .errors import CmrrSettingsError
 
@@ -171,11 +170,15 @@ class LowPassFilter:
             )
         if order not in (1, 2, 3, 4):
             raise CmrrSettingsError(f"filter order must be 1 to 4, got {order}")
+        import scipy.signal  # here, not at start-up: 0.7 s of every process's start
+
         sos = scipy.signal.butter(order, cutoff_hz, fs=1.0 / dt_s, output="sos")
         return cls(cutoff_hz=cutoff_hz, order=order, dt_s=dt_s, sos=np.asarray(sos))
 
     def initial_state(self, value: float = 0.0) -> tuple[float, ...]:
         """Filter state at rest with a constant input ``value`` (unit DC gain)."""
+        import scipy.signal  # here, not at start-up: 0.7 s of every process's start
+
         zi = scipy.signal.sosfilt_zi(self.sos) * value
         return tuple(float(z) for z in zi.ravel())
 

@@ -9,9 +9,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
-
+from ..plots import agg_figure
 from .run import MachiningRun
 
 MM = 1e-3
@@ -21,8 +19,7 @@ def plot_runs(runs: Sequence[MachiningRun], path: str | Path, *, title: str = ""
     """Force (with reference and limit), feed and finished-wall error against path [mm]."""
     if not runs:
         raise ValueError("plot_runs needs at least one run")
-    fig = Figure(figsize=(10, 8), constrained_layout=True)
-    FigureCanvasAgg(fig)
+    fig = agg_figure(figsize=(10, 8), constrained_layout=True)
     ax_f, ax_v, ax_w = fig.subplots(3, 1, sharex=True)
     for run in runs:
         label = f"{run.controller} / {run.compensation}"

@@ -24,7 +24,6 @@ from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
-from scipy import signal
 
 from ..clock import CONTROL_PERIOD_S, zoh, zoh_tf
 from ..errors import CancelledError, InvalidInputError
@@ -37,6 +36,13 @@ Q_CUTOFF_HZ = 10.0
 LEARNING_GAIN = 1.0
 # Run-to-run force disturbances are low-passed at this frequency [Hz].
 DISTURBANCE_CUTOFF_HZ = 5.0
+
+
+def _signal():
+    """scipy.signal, imported on first use, not at start-up (0.7 s of every process's start)."""
+    from scipy import signal
+
+    return signal
 
 
 @dataclass(frozen=True)
@@ -64,7 +70,7 @@ class IlcSystem:
     dt: float = CONTROL_PERIOD_S
 
     def _siso(self, num: list[float], den: list[float]) -> tuple[np.ndarray, ...]:
-        A, B, C, D = signal.tf2ss(num, den)
+        A, B, C, D = _signal().tf2ss(num, den)
         Phi, Gamma = zoh(A, B, self.dt)
         return Phi, Gamma, C, D
 
@@ -103,13 +109,13 @@ class IlcSystem:
     def apply_robot(self, x: np.ndarray) -> np.ndarray:
         """G_R x for (N, 3) signals starting at rest."""
         b, a = self.robot_tf()
-        return signal.lfilter(b, a, x, axis=0)
+        return _signal().lfilter(b, a, x, axis=0)
 
     def apply_process(self, y: np.ndarray) -> np.ndarray:
         """G_M y: (N, 3) force [N] from (N, 3) positions [m]."""
         tau = self.process_time_constant_s
         b, a = zoh_tf([1.0, 0.0], [tau**2, 2 * tau, 1.0], self.dt)
-        v = signal.lfilter(b, a, y, axis=0)
+        v = _signal().lfilter(b, a, y, axis=0)
         return v @ np.asarray(self.process_gain_Ns_m, dtype=float).T
 
     def apply_compliance(self, f: np.ndarray) -> np.ndarray:
@@ -117,13 +123,13 @@ class IlcSystem:
         w = 2 * np.pi * self.resonance_hz
         b, a = zoh_tf([w**2], [1.0, 2 * self.resonance_damping * w, w**2], self.dt)
         static = f @ np.asarray(self.compliance_m_N, dtype=float).T
-        return signal.lfilter(b, a, static, axis=0)
+        return _signal().lfilter(b, a, static, axis=0)
 
     def robot_inverse(self, v: np.ndarray) -> np.ndarray:
         """L~ v = G_R^-1 v, advanced one sample (G_R has one sample of delay)."""
         b, a = self.robot_tf()
         advanced = np.vstack([v[1:], v[-1:]])
-        return signal.lfilter(a, b[1:], advanced, axis=0)
+        return _signal().lfilter(a, b[1:], advanced, axis=0)
 
 
 def _disturbance_input(system: IlcSystem) -> np.ndarray:
@@ -171,9 +177,9 @@ def simulate_ilc_run(
     noise low-passed at ``DISTURBANCE_CUTOFF_HZ``, standard deviation ``force_disturbance_N``.
     """
     r0 = reference_m[0]
-    b, a = signal.butter(2, DISTURBANCE_CUTOFF_HZ, fs=1.0 / system.dt)
+    b, a = _signal().butter(2, DISTURBANCE_CUTOFF_HZ, fs=1.0 / system.dt)
     raw = rng.normal(0.0, 1.0, reference_m.shape)
-    disturbance = signal.filtfilt(b, a, raw, axis=0)
+    disturbance = _signal().filtfilt(b, a, raw, axis=0)
     disturbance *= force_disturbance_N / max(float(disturbance.std()), 1e-300)
     y_r = system.apply_robot(reference_m - r0 + correction_m)
     w = y_r + np.asarray(offset_m, dtype=float)
@@ -208,8 +214,8 @@ def ilc_update(
     u = correction_m + learning_gain * model.robot_inverse(v)
     if q_cutoff_hz is None:
         return u
-    b, a = signal.butter(2, q_cutoff_hz, fs=1.0 / model.dt)
-    return signal.filtfilt(b, a, u, axis=0)
+    b, a = _signal().butter(2, q_cutoff_hz, fs=1.0 / model.dt)
+    return _signal().filtfilt(b, a, u, axis=0)
 
 
 def square_path(

@@ -7,13 +7,17 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from ..clock import CONTROL_PERIOD_S
+from ..plots import agg_figure
 from .ilc import IlcResult
 from .milling import MillingRun
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 DPI = 110
 MODE_LABELS = {
@@ -40,7 +44,7 @@ def plot_identification(
     bound_mm: float = 0.04,
 ) -> Path:
     """Identified vs true Kq per joint, and the prediction error over the workspace."""
-    fig = Figure(figsize=(10, 4))
+    fig = agg_figure(figsize=(10, 4))
     ax1, ax2 = fig.subplots(1, 2)
     joints = np.arange(1, 7)
     ax1.bar(joints - 0.2, np.asarray(stiffness_true_Nm_rad) / 1e3, 0.4, label="true (hidden)")
@@ -73,7 +77,7 @@ def plot_nonlinear(
     landing_nonlinear_m: np.ndarray,
 ) -> Path:
     """Non-linear minus linear deflection, and the landing error of each compensation."""
-    fig = Figure(figsize=(10, 4))
+    fig = agg_figure(figsize=(10, 4))
     ax1, ax2 = fig.subplots(1, 2)
     ax1.loglog(load_N, np.maximum(model_gap_m, 1e-15) * 1e6, "o-")
     ax1.set_xlabel("load [N]")
@@ -94,7 +98,7 @@ def plot_nonlinear(
 
 def plot_gravity(path: Path, residual_N: np.ndarray, noise_N: float) -> Path:
     """Residual force after gravity compensation at random poses."""
-    fig = Figure(figsize=(6, 4))
+    fig = agg_figure(figsize=(6, 4))
     ax = fig.subplots()
     ax.plot(np.arange(1, len(residual_N) + 1), residual_N, "o")
     ax.axhline(noise_N * np.sqrt(3), color="r", ls="--", label="sensor noise (RMS norm)")
@@ -109,7 +113,7 @@ def plot_milling(
     path: Path, runs: Mapping[str, MillingRun], *, title: str, error_label: str
 ) -> Path:
     """Error along the cut for each compensation mode, and the process force."""
-    fig = Figure(figsize=(10, 6))
+    fig = agg_figure(figsize=(10, 6))
     ax1, ax2 = fig.subplots(2, 1, sharex=False)
     for mode, run in runs.items():
         label = f"{MODE_LABELS.get(mode, mode)}: max {run.error_max_m * 1e6:.0f} µm"
@@ -129,7 +133,7 @@ def plot_milling(
 
 def plot_ilc(path: Path, arm: IlcResult, force: IlcResult) -> Path:
     """Error per iteration for both ILC variants, and the error along the path."""
-    fig = Figure(figsize=(10, 7))
+    fig = agg_figure(figsize=(10, 7))
     (ax1, ax2), (ax3, ax4) = fig.subplots(2, 2)
     it = np.arange(len(arm.error_mean_um))
     ax1.plot(it, arm.error_mean_um, "o-", label="arm-side ILC")
@@ -172,7 +176,7 @@ def plot_compliance_paper(
 ) -> Path:
     """The compliance paper's Figs. 13 and 15: the deviation across the feed over the line,
     uncompensated and compensated, the fully engaged part shaded."""
-    fig = Figure(figsize=(9, 4))
+    fig = agg_figure(figsize=(9, 4))
     ax = fig.subplots()
     labels = {
         "uncompensated": "uncompensated",
