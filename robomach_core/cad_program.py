@@ -328,14 +328,12 @@ _SECTIONS_LOCK = threading.Lock()
 def _sections(mesh, z: float) -> list[WallLoop]:
     """``section_loops`` of a mesh at ``z``, remembered for the last few (mesh, z): a
     post-processing run again with other settings compares at the same height."""
-    from .wall_section import _off_vertices
-
     z = round(float(z), 5)  # 10 um: the walls are the same a few micrometres up or down
     with _SECTIONS_LOCK:
         for m, zz, loops in _SECTIONS:
             if m is mesh and zz == z:
                 return loops
-    loops = section_loops(mesh, _off_vertices(mesh, z))
+    loops = section_loops(mesh, z)
     with _SECTIONS_LOCK:
         _SECTIONS.append((mesh, z, loops))
         del _SECTIONS[:-_SECTIONS_KEPT]

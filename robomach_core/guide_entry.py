@@ -20,7 +20,7 @@ from dataclasses import replace
 import numpy as np
 
 from .guide_proposal import WallPlacer
-from .wall_section import WallLoop, _off_vertices, section_loops
+from .wall_section import WallLoop, section_loops
 from .workpiece import Workpiece
 
 
@@ -37,7 +37,7 @@ def wall_side_of(positions_base_m: np.ndarray, workpiece: Workpiece) -> str | No
     z = float(np.median(wobj[:, 2]))
     if np.ptp(wobj[:, 2]) > 0.005:
         return None
-    loops = section_loops(cad.mesh, _off_vertices(cad.mesh, z))
+    loops = section_loops(cad.mesh, z)
     best = None
     for loop in loops:
         d = np.abs(loop.signed_distance(wobj[:, :2]))
@@ -76,7 +76,7 @@ def robust_intents(intents: Sequence, workpiece: Workpiece, tool_radius_m: float
         p = (np.asarray(intent.position_m) - T[:3, 3]) @ T[:3, :3]
         z = round(float(p[2]), 5)
         if z not in walls:
-            walls[z] = section_loops(cad.mesh, _off_vertices(cad.mesh, z))
+            walls[z] = section_loops(cad.mesh, z)
         loops = walls[z]
         if not loops:
             out.append(intent)

@@ -144,7 +144,9 @@ class WallLoop:
 
 def section_loops(mesh: trimesh.Trimesh, z_m: float) -> list[WallLoop]:
     """Every wall of ``mesh`` (its own frame) at height ``z_m``, oriented with the material on
-    the right (the cut face's normal on the left of travel), longest first."""
+    the right (the cut face's normal on the left of travel), longest first. A height on a
+    vertex is moved off it by a micrometre (a plane through vertices cuts faces edge-on)."""
+    z_m = _off_vertices(mesh, z_m)
     lines, face_index = trimesh.intersections.mesh_plane(
         mesh, [0.0, 0.0, 1.0], [0.0, 0.0, float(z_m)], return_faces=True
     )
@@ -347,7 +349,7 @@ def pick_wall(
             f"the wall at ({_mm(p)}) mm is {(top - floor) * 1e3:.1f} mm high, too low for the "
             f"{tool_radius_m * 1e3:g} mm cutter above its floor"
         )
-    loops = section_loops(mesh, _off_vertices(mesh, z))
+    loops = section_loops(mesh, z)
     if not loops:
         raise InvalidInputError(f"no wall at {z * 1e3:.1f} mm (work-object z)")
     xy = on[:2]

@@ -186,11 +186,11 @@ class Pointing:
     ) -> TaughtPoint:
         """Teach at the wall nearest a TCP position (work-object frame) at its height: where a
         dragged marker was dropped."""
-        from robomach_core.wall_section import _off_vertices, section_loops
+        from robomach_core.wall_section import section_loops
 
         cad = self._session.robot.workpiece.cad()
         p = np.asarray(tcp_wobj_m, dtype=float).reshape(3)
-        loops = section_loops(cad.mesh, _off_vertices(cad.mesh, float(p[2])))
+        loops = section_loops(cad.mesh, float(p[2]))
         if not loops:
             raise InvalidInputError(
                 f"no wall at {p[2] * 1e3:.1f} mm (work object): drop the point beside a wall"

@@ -318,7 +318,7 @@ class Teach:
     def _wall_gap(self, cell, p_base: np.ndarray) -> float | None:
         """The cutter's gap to the nearest wall of the mesh at the TCP's height (the section
         there, kept per 0.1 mm of height)."""
-        from robomach_core.wall_section import _off_vertices, section_loops
+        from robomach_core.wall_section import section_loops
 
         cad = cell.workpiece.cad()
         T = cad.T_base_wobj
@@ -328,7 +328,7 @@ class Teach:
         if key not in walls:
             if len(walls) > 64:
                 walls.clear()
-            walls[key] = section_loops(cad.mesh, _off_vertices(cad.mesh, key * 1e-4))
+            walls[key] = section_loops(cad.mesh, key * 1e-4)
         loops = walls[key]
         if not loops:
             return None
