@@ -97,7 +97,10 @@ def designed_controller_settings(
         kf_design = process.force_gain_N(max_depth_m) if max_depth_m > 0.0 else 0.0
         prior = None
         if kf_design > 0.0:
-            feed_r_mm_s = (settings.reference_N / kf_design) ** (1.0 / process.feed_exponent)
+            try:
+                feed_r_mm_s = (settings.reference_N / kf_design) ** (1.0 / process.feed_exponent)
+            except OverflowError:  # a force that hardly grows with the feed (beta 0.01): no
+                feed_r_mm_s = math.inf  # feed gives the reference, and there is no prior
             if math.isfinite(feed_r_mm_s) and feed_r_mm_s > 0.0:
                 prior = settings.reference_N / feed_r_mm_s
         stiffness = None

@@ -156,6 +156,25 @@ def test_settings_inside_the_documented_ranges_cut_or_say_why(
     assert run.trace.force_N.max() <= 2.0 * limit + 1e-9  # the cell's force supervision
 
 
+def test_the_lq_design_of_a_force_that_hardly_grows_with_the_feed(robot, short_program):
+    """The sweep above found it: a 0.1 N process gain with feed exponent 0.01 and a 1400 N
+    limit raised (Fref / Kf)^(1 / 0.01) past the largest float (OverflowError in the LQ's
+    prior); such a process has no prior, and the cut runs or is refused with a reason."""
+    program = _tiny(short_program)
+    stock = builtin_stock(program.position_m, seed=0)
+    s = MachiningSettings(
+        process_gain_N=0.1, depth_exponent=0.0, feed_exponent=0.01, force_limit_N=1400.0,
+        controller="adaptive-lq", compensation="off", max_samples=60_000,
+    )  # fmt: skip
+    model = identify_stiffness(robot.name, seed=0).model
+    try:
+        run = run_machining(robot, program, None, stock, s, compensation_model=model)
+    except InvalidInputError as exc:  # a physical refusal is fine; an OverflowError is not
+        assert "internal" not in str(exc) and len(str(exc)) > 20
+        return
+    assert np.all(np.isfinite(run.trace.force_N))
+
+
 def test_the_reproducers_of_r5_get_a_result_or_a_physical_message(robot, short_program):
     program = _tiny(short_program)
     stock = builtin_stock(program.position_m, seed=0)
