@@ -58,18 +58,8 @@ def workbench() -> Iterator:
         yield wb
 
 
-@pytest.fixture
-def opened(browser, workbench) -> Iterator[tuple[Page, object]]:
-    """The workbench's page and its viser client; the browser context is closed afterwards (a
-    page left open keeps drawing its scene in software and slows every later test)."""
-    context = browser.new_context(viewport=VIEWPORT)
-    try:
-        yield _open(context, workbench)
-    finally:
-        context.close()
-
-
-def _open(context, workbench) -> tuple[Page, object]:
+def _open(browser, workbench) -> tuple[Page, object]:
+    context = browser.new_context(viewport=VIEWPORT)  # closed after the test (conftest)
     context.set_default_timeout(60_000)
     page = context.new_page()
     page.goto(f"http://127.0.0.1:{workbench.server.get_port()}")
@@ -137,8 +127,8 @@ def _learn_and_postprocess(page: Page, workbench) -> float:
     return max(comparison.learned.max_m, outcome.score.max_m if outcome.score else 0.0) * 1e3
 
 
-def test_click_to_teach_the_pump_then_learn_within_a_third_of_a_mm(opened, workbench):
-    page, client = opened
+def test_click_to_teach_the_pump_then_learn_within_a_third_of_a_mm(browser, workbench):
+    page, client = _open(browser, workbench)
     session = workbench.session
     _choose_mode(page, "teach a point")  # once, before the points
     timings = []
@@ -190,20 +180,20 @@ def _propose_accept_learn(page: Page, client, workbench, xy, normal, z_mm) -> fl
     return _learn_and_postprocess(page, workbench)
 
 
-def test_one_click_proposes_the_pump_groove_then_learns_within_a_third_of_a_mm(opened, workbench):
-    page, client = opened
+def test_one_click_proposes_the_pump_groove_then_learns_within_a_third_of_a_mm(browser, workbench):
+    page, client = _open(browser, workbench)
     deviation = _propose_accept_learn(page, client, workbench, (40.0, 65.0), (0, -1), 17.5)
     print(f"proposed on the pump: learned within {deviation:.3f} mm")
     assert deviation <= MAX_DEVIATION_MM
 
 
 def test_one_click_proposes_an_uploaded_mesh_then_learns_within_a_third_of_a_mm(
-    opened, workbench, tmp_path
+    browser, workbench, tmp_path
 ):
     part = grooved_plate()
     stl = tmp_path / "grooved_plate.stl"
     stl.write_bytes(part.stl_bytes())
-    page, client = opened
+    page, client = _open(browser, workbench)
     with page.expect_file_chooser() as chooser:
         page.get_by_role("button", name="Upload mesh (STL/OBJ/PLY, mm)").click()
     chooser.value.set_files(str(stl))

@@ -49,13 +49,6 @@ def settled_canvas(page: Page) -> np.ndarray:
 
 def test_viser_page_draws_the_robot(served: Served, api: httpx.Client, browser) -> None:
     context = browser.new_context(viewport=SCENE_VIEWPORT)
-    try:
-        _page_draws_the_robot(served, api, context)
-    finally:
-        context.close()  # an open page keeps drawing in software and slows later tests
-
-
-def _page_draws_the_robot(served: Served, api: httpx.Client, context) -> None:
     context.set_default_timeout(60_000)
     page = context.new_page()
     page.goto(served.viser_url)
@@ -75,6 +68,7 @@ def _page_draws_the_robot(served: Served, api: httpx.Client, context) -> None:
         page.wait_for_timeout(1000)  # software WebGL draws about one frame a second here
         moved = max(moved, changed_fraction(before, canvas_pixels(page)))
     assert moved > 0.005, f"the robot did not move on screen ({moved:.2%} of the pixels changed)"
+    context.close()
 
 
 # --- the workbench in-process: spring handle and panels, no browser needed ------------------
