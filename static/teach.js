@@ -42,10 +42,12 @@ function showFrame() {
 async function exclusive(fn) {
   if (moving) return;
   moving = true;
+  document.body.dataset.moving = "";  // for a busy cursor, and for tests to wait on
   try {
     await fn();
   } finally {
     moving = false;
+    delete document.body.dataset.moving;
   }
 }
 

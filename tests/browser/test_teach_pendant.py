@@ -32,19 +32,29 @@ MAX_ACTIONS_PER_POINT = 5
 
 
 class Actions:
-    """The user's actions, counted: each waits for the request it makes to answer."""
+    """The user's actions, counted: each waits for the request it makes to answer.
+
+    A motion key or button is ignored while the page's previous motion is still running (one
+    motion request at a time), as a person's would be; the answer can reach the browser before
+    the page has shown it, so each action first waits for the page to be idle.
+    """
 
     def __init__(self, page: Page) -> None:
         self.page = page
         self.count = 0
 
+    def idle(self) -> None:
+        expect(self.page.locator("body")).not_to_have_attribute("data-moving", re.compile(".*"))
+
     def key(self, key: str, url_part: str) -> None:
         self.count += 1
+        self.idle()
         with self.page.expect_response(lambda r: url_part in r.url and r.request.method == "POST"):
             self.page.keyboard.press(key)
 
     def click(self, selector: str, url_part: str) -> None:
         self.count += 1
+        self.idle()
         with self.page.expect_response(lambda r: url_part in r.url and r.request.method == "POST"):
             self.page.click(selector)
 
