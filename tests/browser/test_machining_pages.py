@@ -37,9 +37,11 @@ def opens_wide(page, element, timeout_s: float = 30.0) -> None:
 
 def test_the_pendant_compares_and_chooses(served: Served, browser) -> None:
     api = Api(served.base_url)
-    api.new_project()
-    api.learn()
-    api.ok("POST", "/api/postprocess", json={"tolerance_mm": 0.05})
+    # The block demo's project, learned and post-processed: teaching it here by paced pushes
+    # took 30 s of the test, and other tests teach on the pendant.
+    data = (block_demo_dir() / "project.npz").read_bytes()
+    api.ok("POST", "/api/projects/import", 201, files={"file": ("project.npz", data)},
+           params={"name": "compare"})  # fmt: skip
     context = browser.new_context(viewport={"width": 1400, "height": 1400})
     page = context.new_page()
     try:
