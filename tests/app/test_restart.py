@@ -35,7 +35,8 @@ def _snapshot(api: Api) -> dict:
 @pytest.mark.slow  # three real servers, one killed
 def test_state_survives_kill_and_restart(tmp_path: Path) -> None:
     data = tmp_path / "data"
-    server = start_server(data)
+    # Unpaced: the guide points are taught by scripted pushes, which pacing made 30 s long.
+    server = start_server(data, env={"ROBOMACH_REAL_TIME": "0"})
     try:
         api = Api(server.base_url)
         first = api.new_project()
