@@ -71,7 +71,10 @@ def test_the_pendant_reconnects_after_a_restart(tmp_path: Path, browser) -> None
         )
         expect(page.locator("#connection")).to_have_text("online")
         assert httpx.post(server.base_url + "/api/guide-points", json={}).status_code == 201
-        expect(page.locator("#guide-count")).to_have_text("1", timeout=2_000)
+        # Only the event stream updates the count (no poll does): it came through the new
+        # server. How soon is benchmarks/bench_events.py's figure; under the suite's load on two
+        # cores it took over 2 s twice, so this bound only catches a stream that is dead.
+        expect(page.locator("#guide-count")).to_have_text("1", timeout=10_000)
         print(f"\nthe server stopped in {stop_s:.1f} s with a pendant connected; both came back")
     finally:
         context.close()
