@@ -45,7 +45,7 @@ def test_the_pendant_compares_and_chooses(served: Served, browser) -> None:
     context = browser.new_context(viewport={"width": 1400, "height": 1400})
     page = context.new_page()
     try:
-        page.goto(f"{served.base_url}/pendant/")
+        page.goto(f"{served.base_url}/pendant/?viser=about:blank")  # the table, not the scene
         expect(page.locator("#machining-card")).to_be_visible()
         expect(page.locator("#mach-controller")).to_have_value("adaptive-pi")
         page.click("#mach-compare")
