@@ -40,6 +40,7 @@ MAX_JOINT_STEP_DEG = 5.0
 SAME_DIRECTION_PUSHES = 30  # random directions, each held for 30 pushes: far enough to meet limits
 EVENT_DEADLINE_S = 10.0  # an event that comes at all comes within this, even on a loaded machine
 
+
 @pytest.fixture(scope="module")
 def paced_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServerProcess]:
     """A paced server (the default): pushes take the wall-clock time a person holds them."""

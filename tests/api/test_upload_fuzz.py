@@ -19,8 +19,8 @@ from __future__ import annotations
 import io
 import json
 import struct
-import zlib
 import zipfile
+import zlib
 from collections import Counter
 from collections.abc import Iterator
 from pathlib import Path
