@@ -72,6 +72,35 @@ def test_state_survives_kill_and_restart(tmp_path: Path) -> None:
         server.stop()
 
 
+def _write_until_killed(server, acked: int, rng: random.Random) -> int:
+    """Add, push and delete guide points from a thread, kill the server (SIGKILL) at a random
+    moment of it; returns how many guide points the server last acknowledged."""
+    api = Api(server.base_url)
+    stop = threading.Event()
+
+    def writer() -> None:
+        nonlocal acked
+        while not stop.is_set():
+            try:
+                r = api.post("/api/guide-points")
+                if r.status_code == 201:
+                    acked = r.json()["index"] + 1
+                api.post("/api/leadthrough/push", json={"force_N": [2, 0, 0], "duration_s": 0.05})
+                if rng.random() < 0.3 and acked:
+                    if api.delete(f"/api/guide-points/{acked - 1}").status_code == 204:
+                        acked -= 1
+            except Exception:  # the server died mid-request
+                return
+
+    thread = threading.Thread(target=writer)
+    thread.start()
+    time.sleep(rng.uniform(0.5, 1.5))
+    server.kill()
+    stop.set()
+    thread.join(10)
+    return acked
+
+
 @pytest.mark.slow
 def test_killing_during_writes_never_corrupts_the_file(tmp_path: Path) -> None:
     """Kill the server at random moments of a stream of writes: the file stays sound and every
@@ -82,39 +111,16 @@ def test_killing_during_writes_never_corrupts_the_file(tmp_path: Path) -> None:
     acked = None
     for round_ in range(3):
         server = start_server(data, log_name=f"round{round_}.log")
-        api = Api(server.base_url)
-        count = len(api.ok("GET", "/api/guide-points"))
-        if acked is not None and not (abs(count - acked) <= 1 and acked > 0):
-            server.stop()  # what the killed server acknowledged must be here
-            raise AssertionError(f"{count} guide points after the kill; {acked} acknowledged")
-        if round_ == 2:
-            server.stop()
-            break
-        acked = count
-        stop = threading.Event()
-
-        def writer(api: Api = api, stop: threading.Event = stop) -> None:
-            nonlocal acked
-            while not stop.is_set():
-                try:
-                    r = api.post("/api/guide-points")
-                    if r.status_code == 201:
-                        acked = r.json()["index"] + 1
-                    api.post(
-                        "/api/leadthrough/push", json={"force_N": [2, 0, 0], "duration_s": 0.05}
-                    )
-                    if rng.random() < 0.3 and acked:
-                        if api.delete(f"/api/guide-points/{acked - 1}").status_code == 204:
-                            acked -= 1
-                except Exception:  # the server died mid-request
-                    return
-
-        thread = threading.Thread(target=writer)
-        thread.start()
-        time.sleep(rng.uniform(0.5, 1.5))
-        server.kill()
-        stop.set()
-        thread.join(10)
+        try:
+            count = len(Api(server.base_url).ok("GET", "/api/guide-points"))
+            if acked is not None:  # what the killed server acknowledged is here
+                assert abs(count - acked) <= 1, (count, acked)
+                assert acked > 0
+            if round_ == 2:
+                break
+            acked = _write_until_killed(server, count, rng)
+        finally:
+            server.stop()  # a killed server has nothing left to stop
 
         with sqlite3.connect(data / DB_FILENAME) as db:
             assert db.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
