@@ -108,12 +108,20 @@ def page(browser):
     context.close()
 
 
-def wait_for(condition: Callable[[], bool], timeout_s: float = 60.0, poll_s: float = 0.02) -> None:
-    """Poll ``condition`` until it holds; fail after ``timeout_s``."""
+def wait_for(
+    condition: Callable[[], bool],
+    timeout_s: float = 60.0,
+    poll_s: float = 0.02,
+    *,
+    describe: Callable[[], str] | None = None,
+) -> None:
+    """Poll ``condition`` until it holds; fail after ``timeout_s``, saying ``describe()`` (what
+    was seen instead) when given."""
     deadline = time.monotonic() + timeout_s
     while not condition():
         if time.monotonic() > deadline:
-            raise AssertionError("condition not met in time")
+            seen = f": {describe()}" if describe is not None else ""
+            raise AssertionError(f"condition not met in {timeout_s:g} s{seen}")
         time.sleep(poll_s)
 
 

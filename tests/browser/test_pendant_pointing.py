@@ -44,10 +44,11 @@ def test_pointing_from_the_pendant(served: Served, api: httpx.Client, page: Page
     # The pose shown comes from the page's state poll (every 200 ms): under load the count's
     # event can arrive before the poll that reads the arrived pose (it read z 17.66 once).
     beside = np.array([40.0, -63.0, 17.0])
-    try:
-        wait_for(lambda: np.allclose(pose_mm(page) - WOBJ_MM, beside, atol=0.6), timeout_s=10)
-    except AssertionError:
-        raise AssertionError(f"the page shows {pose_mm(page) - WOBJ_MM}, not {beside}") from None
+    wait_for(
+        lambda: np.allclose(pose_mm(page) - WOBJ_MM, beside, atol=0.6),
+        timeout_s=10,
+        describe=lambda: f"the page shows {pose_mm(page) - WOBJ_MM}, not {beside}",
+    )
 
     # A whole wall proposed: 14 points, all reachable; one deleted; accepted.
     _fill_point(page, 0, -65, 18)
