@@ -83,6 +83,11 @@ EXPECTED: dict[str, list[str]] = {
         rf"refuse a language the arm does not run \(demo\)\s+1\s+{NUMBER}",
         rf"cut an isolated child hanging past 0.5 s\s+1\s+{NUMBER}",
     ],
+    "bench_pointing.py": [
+        rf"paced \(a person's wait\)\s+3\s+{NUMBER}\s+{NUMBER}\s+{NUMBER}",
+        rf"unpaced \(planning only\)\s+3\s+{NUMBER}\s+{NUMBER}\s+{NUMBER}",
+        r"points within 5 s \(paced\): \d+ of 3",
+    ],
     "bench_browser_pose_rate.py": [
         rf"handle\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
         rf"rest\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
@@ -124,6 +129,7 @@ SLOW_SCRIPTS = frozenset(
         "bench_api.py",
         "bench_events.py",
         "bench_machining.py",
+        "bench_pointing.py",
         "bench_reads_during_postprocess.py",
     }
 )

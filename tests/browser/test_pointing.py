@@ -4,7 +4,8 @@ for an uploaded mesh; each then learns and post-processes within 0.3 mm.
 
 The clicks land on the wall through viser's own picking: the test points the camera at the
 wall (the user's orbit, counted as an action) and clicks where the camera projects a wall point.
-Per point the actions and the seconds from the click to the recorded point are printed (``-s``).
+Per point the actions and the seconds from the click to the recorded point are printed (``-s``);
+the session is unpaced, so a person's wait is measured by benchmarks/bench_pointing.py.
 """
 
 from __future__ import annotations
@@ -24,9 +25,9 @@ pytestmark = pytest.mark.slow
 
 VIEWPORT = {"width": 1400, "height": 900}
 MAX_ACTIONS_PER_POINT = 2
-# Seconds from a click to its recorded point: printed (3-5 s here, the first from home 400 mm
-# away a little more), not asserted tightly: a timed assert fails when the machine is loaded
-# (5.1 s with the test processes on both cores). This bound only catches a click that hangs.
+# The session is unpaced: what a person waits from a click to its recorded point (the paced
+# motion) is measured by benchmarks/bench_pointing.py. This bound only catches a click that
+# hangs.
 CLICK_HANG_S = 30.0
 MAX_DEVIATION_MM = 0.3
 CAMERA_DISTANCE_M = 0.11
@@ -51,10 +52,11 @@ class Actions:
 
 @pytest.fixture
 def workbench() -> Iterator:
-    """The workbench in process over a paced session (a person's motions take their time)."""
+    """The workbench in process over an unpaced session: the clicks, the points they record and
+    what they learn are the subject here; the wall-clock wait is benchmarks/bench_pointing.py's."""
     from app.session import Session
 
-    with workbench_on(Session(real_time=True)) as wb:
+    with workbench_on(Session(real_time=False)) as wb:
         yield wb
 
 
@@ -80,13 +82,22 @@ def _look_at_wall(client, workbench, xy_mm, normal_xy, z_mm=WALL_MID_Z_MM) -> np
     p = T[:3, :3] @ np.array([xy_mm[0], xy_mm[1], z_mm]) * 1e-3 + T[:3, 3]
     n = T[:3, :3] @ np.array([normal_xy[0], normal_xy[1], 0.0])
     eye = p + CAMERA_DISTANCE_M * (0.55 * n + 0.83 * np.array([0.0, 0.0, 1.0]))
-    before = client.camera.update_timestamp
     with client.atomic():
         client.camera.up_direction = (0.0, 0.0, 1.0)
         client.camera.position = tuple(eye)
         client.camera.look_at = tuple(p)
-    # The orbit is done when the browser reports the camera back (it has drawn the new view).
-    wait_for(lambda: client.camera.update_timestamp > before, timeout_s=30)
+    # The setters stamp the camera themselves: the orbit is done when the browser reports this
+    # camera back after that (it has drawn the new view). A late report of the previous orbit
+    # does not count: a click then would pick through the previous view.
+    sent = client.camera.update_timestamp
+    wait_for(
+        lambda: (
+            client.camera.update_timestamp > sent
+            and np.linalg.norm(np.asarray(client.camera.position) - eye) < 1e-4
+        ),
+        timeout_s=30,
+        describe=lambda: f"camera at {client.camera.position}, not {eye}",
+    )
     return p
 
 
