@@ -31,7 +31,7 @@ from tests.api.server_process import ServerProcess, start_server  # noqa: E402
 pytestmark = pytest.mark.slow
 
 MIN_REQUESTS = 1000
-EXAMPLES_PER_MODE = 30  # an operation with parameters gets up to this many of each mode
+EXAMPLES_PER_MODE = 15  # an operation with parameters gets up to this many of each mode
 REQUEST_TIMEOUT_S = 30.0
 CHECKS = [not_a_server_error, response_schema_conformance]
 EVENT_STREAM = "/api/events"
