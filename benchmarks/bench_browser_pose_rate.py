@@ -12,7 +12,7 @@ pushing, each measured for ``--seconds``:
 The browser's websocket frames are decoded (viser's wire format: zstd-compressed msgpack) and a
 frame that moves ``/robot/tcp`` counts as one pose update seen. The page's own draw rate
 (requestAnimationFrame, software WebGL here) is printed for information. ``--quick`` measures
-each mode for 1 s (a smoke test, not a measurement).
+each mode for 1 s after a short settling (a smoke test, not a measurement).
 """
 
 from __future__ import annotations
@@ -81,6 +81,11 @@ class PoseCounter:
         )
 
 
+# Seconds the page is left to settle before measuring: the initial scene (meshes) arriving and
+# parsed, then the pushes getting under way. ``--quick`` shortens both (a smoke test).
+SETTLE_S = {"scene": 3.0, "pushing": 1.0}
+
+
 def open_viewer(playwright, url: str):
     """A headless chromium page on the viser URL; returns (browser, page, counter)."""
     browser = playwright.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)
@@ -94,7 +99,7 @@ def open_viewer(playwright, url: str):
     page.goto(url)
     page.get_by_text("Connected").wait_for(timeout=LOAD_TIMEOUT_S * 1e3)
     page.get_by_text("Lead-through").first.wait_for(timeout=LOAD_TIMEOUT_S * 1e3)
-    page.wait_for_timeout(3000)  # the initial scene (meshes) arrives and is parsed
+    page.wait_for_timeout(SETTLE_S["scene"] * 1e3)  # the initial scene arrives and is parsed
     return browser, page, counter
 
 
@@ -138,7 +143,7 @@ def bench_handle(playwright, seconds: float) -> dict:
         browser, page, counter = open_viewer(playwright, f"http://127.0.0.1:{server.get_port()}/")
         mover = threading.Thread(target=circle, daemon=True)
         mover.start()
-        page.wait_for_timeout(1000)
+        page.wait_for_timeout(SETTLE_S["pushing"] * 1e3)
         result = measure(page, counter, seconds, "handle")
         browser.close()
     finally:
@@ -171,7 +176,7 @@ def bench_rest(playwright, seconds: float) -> dict:
             browser, page, counter = open_viewer(playwright, served.viser_url)
             pusher = threading.Thread(target=hold_push, daemon=True)
             pusher.start()
-            page.wait_for_timeout(1000)
+            page.wait_for_timeout(SETTLE_S["pushing"] * 1e3)
             result = measure(page, counter, seconds, "rest")
             browser.close()
         finally:
@@ -184,10 +189,11 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=10.0, help="measuring window per mode")
     parser.add_argument("--mode", choices=("handle", "rest", "both"), default="both")
-    parser.add_argument("--quick", action="store_true", help="1 s per mode")
+    parser.add_argument("--quick", action="store_true", help="1 s per mode, short settling")
     args = parser.parse_args()
     if args.quick:
         args.seconds = 1.0
+        SETTLE_S.update(scene=0.5, pushing=0.3)
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as p:

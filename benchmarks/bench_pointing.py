@@ -6,7 +6,7 @@ time, as at the pendant) teaches the pump's outer wall at the 14 places of the b
 (tests/browser/test_pointing.py) through ``Pointing.teach_at_surface``, what a click in "teach
 a point" mode calls; then one click proposes the groove and the proposal is accepted. The same
 points on an unpaced Session are the reference: the difference is the motion itself, the rest
-is planning. ``--quick``: the first 3 points, no proposal (a smoke test, not a measurement).
+is planning. ``--quick``: the first point, no proposal (a smoke test, not a measurement).
 
 The browser adds the picking round trip (tens of ms); the browser test checks the clicks
 themselves, unpaced.
@@ -74,9 +74,9 @@ def row(name: str, seconds: list[float]) -> None:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="3 points, no proposal")
+    parser.add_argument("--quick", action="store_true", help="1 point, no proposal")
     args = parser.parse_args()
-    points = PUMP_WALL_POINTS[:3] if args.quick else PUMP_WALL_POINTS
+    points = PUMP_WALL_POINTS[:1] if args.quick else PUMP_WALL_POINTS
     print(f"{'click to recorded point':<30} {'n':>3} {'median s':>8} {'max s':>8} {'first s':>8}")
     paced = teach_points(True, points)
     row("paced (a person's wait)", paced)

@@ -84,9 +84,9 @@ EXPECTED: dict[str, list[str]] = {
         rf"cut an isolated child hanging past 0.5 s\s+1\s+{NUMBER}",
     ],
     "bench_pointing.py": [
-        rf"paced \(a person's wait\)\s+3\s+{NUMBER}\s+{NUMBER}\s+{NUMBER}",
-        rf"unpaced \(planning only\)\s+3\s+{NUMBER}\s+{NUMBER}\s+{NUMBER}",
-        r"points within 5 s \(paced\): \d+ of 3",
+        rf"paced \(a person's wait\)\s+1\s+{NUMBER}\s+{NUMBER}\s+{NUMBER}",
+        rf"unpaced \(planning only\)\s+1\s+{NUMBER}\s+{NUMBER}\s+{NUMBER}",
+        r"points within 5 s \(paced\): \d of 1",
     ],
     "bench_browser_pose_rate.py": [
         rf"handle\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
