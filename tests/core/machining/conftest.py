@@ -1,5 +1,5 @@
-"""Programs to cut: the learned water-pump program (the headless pipeline, once per session)
-and a program along the pump's true wall (fast, for unit tests)."""
+"""Programs to cut: along the water pump's true wall (fast, for unit tests). The learned program
+is the shared demo's (tests/demo_project.py)."""
 
 from __future__ import annotations
 
@@ -31,13 +31,3 @@ def short_program(wall_program: Targets) -> Targets:
     return Targets(
         **{k: np.asarray(getattr(wall_program, k))[keep] for k in wall_program.__dataclass_fields__}
     )
-
-
-@pytest.fixture(scope="session")
-def learned_program() -> Targets:
-    """The water pump's learned program: `robomach demo` with its defaults, seed 0."""
-    try:
-        from robomach_core.pipeline import DemoSettings, run_demo
-    except ImportError:  # the pipeline is moving into robomach_core.project (issue 8, part 1)
-        from robomach_core.project import DemoSettings, run_demo  # type: ignore[no-redef]
-    return run_demo(DemoSettings()).processed.targets

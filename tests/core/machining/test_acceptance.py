@@ -23,6 +23,7 @@ from robomach_core.machining.choice import missing
 from robomach_core.postprocess import Targets
 from robomach_core.robot import Robot
 from robomach_core.transforms import make_transform, matrix_from_quaternion
+from tests.demo_project import pump_demo
 
 pytestmark = pytest.mark.slow
 MM = 1e-3
@@ -31,11 +32,9 @@ ABB_DEFAULT_OPTIONS = ("fc_speed_change",)
 
 @pytest.fixture(scope="module")
 def pump():
-    try:
-        from robomach_core.pipeline import DemoSettings, run_demo
-    except ImportError:  # the pipeline is moving into robomach_core.project
-        from robomach_core.project import DemoSettings, run_demo  # type: ignore[no-redef]
-    project = run_demo(DemoSettings()).project
+    # The README's demo (tests/demo_project.py), run once for the whole test run and reopened
+    # from its project.npz, as ``robomach machine --from`` reopens it.
+    project = core.load_project_file(pump_demo().folder / "project.npz")
     setup = core.MachiningSetup(MachiningSettings(seed=0), cell_options=ABB_DEFAULT_OPTIONS)
     project = core.with_machining_setup(project, setup)
     workpiece = core.build_workpiece(project.cell, project.mesh)
