@@ -55,7 +55,7 @@ def with_cell(
     ``workpiece`` is a built-in name or the uploaded mesh's own. A change clears the guide
     points (poses of the old cell) and a built-in arm drops the uploaded arm's file; the
     results stay, stale by their fingerprints. No change returns ``project`` itself."""
-    from ..robots.custom import is_custom
+    from ..robots.custom import is_custom, uploaded_file
     from ..workpiece import WORKPIECE_NAMES
 
     cur, mesh = project.cell, project.mesh
@@ -75,7 +75,12 @@ def with_cell(
         )
     if new == cur and mesh == project.mesh:
         return project
-    urdf = project.robot_urdf if is_custom(new.robot) else None
+    # A user's arm carries its own file: the project's when the arm stays, else the file that
+    # arm was uploaded from (another upload of this process).
+    urdf = None
+    if is_custom(new.robot):
+        same = new.robot == cur.robot and project.robot_urdf is not None
+        urdf = project.robot_urdf if same else uploaded_file(new.robot)
     return replace(project, cell=new, mesh=mesh, guide_points=(), robot_urdf=urdf)
 
 

@@ -220,6 +220,14 @@ def urdf_file(name: str) -> Path:
     return registry.arm(name).urdf_path()
 
 
+def uploaded_file(name: str) -> tuple[str, bytes]:
+    """The file a registered user arm came from, (filename, bytes), as the user gave it."""
+    source = registry.arm(name).source_file
+    if source is None:
+        raise RobotFileError(f"{name!r} is not an uploaded arm")
+    return source
+
+
 def mesh_files(name: str) -> dict[str, bytes]:
     """The mesh files that came with a registered user arm's zip (path -> bytes)."""
     return dict(registry.arm(name).meshes)
@@ -278,7 +286,7 @@ def _register_file(filename: str, data: bytes) -> str:
         registry.register(
             replace(
                 twin, name=name, home_rad=home, urdf_file=None, urdf_text=normalised,
-                meshes=tuple(files.items()),
+                meshes=tuple(files.items()), source_file=(filename, bytes(data)),
             )
         )  # fmt: skip
         return name
@@ -286,6 +294,7 @@ def _register_file(filename: str, data: bytes) -> str:
     record = registry.Arm(
         name, "abb", tuple(np.clip(np.zeros(6), lower, upper)),
         registry.arm("ur10").stiffness_Nm_rad, urdf_text=normalised, meshes=tuple(files.items()),
+        source_file=(filename, bytes(data)),
     )  # fmt: skip
     registry.register(record)
     arm = robot_module.Robot(name)

@@ -46,6 +46,8 @@ class Arm:
             for the arms built here and the uploads.
         urdf_text: An upload's URDF (with a ``tool0`` flange); None for the built-in arms.
         meshes: The mesh files that came with an upload's zip (path -> bytes).
+        source_file: An upload's file as the user gave it, (filename, bytes): what a project
+            on this arm saves (``Project.robot_urdf``); None for the built-in arms.
     """
 
     name: str
@@ -57,6 +59,7 @@ class Arm:
     urdf_file: str | None = None
     urdf_text: str | None = None
     meshes: tuple[tuple[str, bytes], ...] = ()
+    source_file: tuple[str, bytes] | None = None
 
     @property
     def language(self) -> str:

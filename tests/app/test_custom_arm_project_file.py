@@ -89,3 +89,24 @@ def test_a_file_whose_arm_is_not_the_one_it_names_is_refused(tmp_path) -> None:
     )
     with pytest.raises(core.ProjectFileError, match="the project.s arm is"):
         core.project_from_file_bytes(tampered)
+
+
+def test_switching_between_two_uploaded_arms_keeps_each_arms_own_file(tmp_path) -> None:
+    """Upload arm A, then arm B, then choose A again by name (``set_cell``): the project must
+    carry A's file, not B's, or the saved project cannot be opened again."""
+    a_bytes = robot_urdf_path("ur10").read_bytes()
+    b_bytes = robot_urdf_path("ur5").read_bytes()
+    session = Session(real_time=False)
+    try:
+        a = session.upload_robot(a_bytes, "arm_a.urdf").robot
+        b = session.upload_robot(b_bytes, "arm_b.urdf").robot
+        assert session.project().robot_urdf == ("arm_b.urdf", b_bytes) and a != b
+        session.set_cell(robot=a)
+        assert session.project().cell.robot == a
+        assert session.project().robot_urdf == ("arm_a.urdf", a_bytes)
+        reopened = core.project_from_file_bytes(export_project(session))
+        assert reopened.cell.robot == a and reopened.robot_urdf == ("arm_a.urdf", a_bytes)
+        session.set_cell(robot="ur10")  # a built-in arm carries no file
+        assert session.project().robot_urdf is None
+    finally:
+        session.close()
