@@ -146,6 +146,17 @@ MACHINING_FEED_EXPONENT = Range("feed exponent beta", 0.01, 2.0)
 # the limit's range is that range over 0.7, rounded inwards: every limit here is accepted
 # everywhere (machining.settings.DEFAULT_REFERENCE_FRACTION; a test checks both ends).
 MACHINING_FORCE_LIMIT_N = Range("force limit", 1.5, 1400.0, "N")
+# The run's engine settings (MachiningSettings), set by programs rather than people: the spindle
+# lag of eq. (3), the planner's acceleration, the force's feed share, the cut's height, the
+# sensor's noise, the spacing of the stations where the wall is evaluated and of the offline
+# targets. Its filters' cut-offs take FORCE_FILTER_CUTOFF_HZ, its CMM noise CMM_NOISE_UM.
+MACHINING_TIME_CONSTANT_S = Range("process time constant tau_m", 0.0, 1.0, "s")
+MACHINING_PATH_ACCELERATION_M_S2 = Range("path acceleration", 0.001, 10.0, "m/s^2")
+MACHINING_FEED_FORCE_RATIO = Range("feed to normal force ratio", 0.0, 2.0)
+MACHINING_AXIAL_ENGAGEMENT_MM = Range("axial engagement", 0.1, 50.0, "mm")
+MACHINING_SENSOR_NOISE_N = Range("force sensor noise", 0.0, 50.0, "N")
+MACHINING_STATION_SPACING_MM = Range("station spacing", 0.001, 1.0, "mm")
+MACHINING_TARGET_SPACING_MM = Range("offline target spacing", 0.1, 50.0, "mm")
 # Stocks of a variation sweep per configuration, and local worker processes.
 MACHINING_VARIATIONS = Range("variations", 0, 1000, integer=True)
 MACHINING_WORKERS = Range("workers", 1, 256, integer=True)

@@ -14,13 +14,23 @@ from typing import Any, Literal, get_args
 from ..cmrr.controllers import CONTROLLER_NAMES, ControllerSettings
 from ..cmrr.process import DEFAULT_TAU_M_S, PowerLawForceModel
 from ..limits import (
+    CMM_NOISE_UM,
     CMRR_COMMAND_SPEED_MM_S,
     CMRR_MIN_SPEED_RATIO,
     CMRR_REFERENCE_FORCE_N,
+    FORCE_FILTER_CUTOFF_HZ,
+    MACHINING_AXIAL_ENGAGEMENT_MM,
     MACHINING_DEPTH_EXPONENT,
     MACHINING_FEED_EXPONENT,
+    MACHINING_FEED_FORCE_RATIO,
     MACHINING_FORCE_LIMIT_N,
+    MACHINING_PATH_ACCELERATION_M_S2,
     MACHINING_PROCESS_GAIN_N,
+    MACHINING_SENSOR_NOISE_N,
+    MACHINING_STATION_SPACING_MM,
+    MACHINING_TARGET_SPACING_MM,
+    MACHINING_TIME_CONSTANT_S,
+    Range,
 )
 from .errors import MachiningSettingsError
 
@@ -33,32 +43,45 @@ COMPENSATION_NAMES: tuple[str, ...] = get_args(CompensationName)
 MACHINING_CONTROLLERS: tuple[str, ...] = CONTROLLER_NAMES
 ControllerName = Literal[MACHINING_CONTROLLERS]  # type: ignore[valid-type]
 
-# (field, low, high, low inclusive, unit) of the scalar settings. The ones a user sets at the
-# boundary come from ``limits`` (closed ranges), so an advertised value is never refused here
-# or, through the CMRR settings the choice makes, under another field's name.
-_RANGES: dict[str, tuple[float, float, bool, str]] = {
-    "process_gain_N": (MACHINING_PROCESS_GAIN_N.min, MACHINING_PROCESS_GAIN_N.max, True, "N"),
-    "depth_exponent": (MACHINING_DEPTH_EXPONENT.min, MACHINING_DEPTH_EXPONENT.max, True, ""),
-    "feed_exponent": (MACHINING_FEED_EXPONENT.min, MACHINING_FEED_EXPONENT.max, True, ""),
-    "process_time_constant_s": (0.0, 1.0, True, "s"),
-    "force_limit_N": (MACHINING_FORCE_LIMIT_N.min, MACHINING_FORCE_LIMIT_N.max, True, "N"),
-    "command_speed_cap_m_s": (
-        CMRR_COMMAND_SPEED_MM_S.min * MM,
-        CMRR_COMMAND_SPEED_MM_S.max * MM,
-        True,
-        "m/s",
-    ),  # fmt: skip
-    "path_acceleration_m_s2": (0.0, 10.0, False, "m/s^2"),
-    "min_speed_ratio": (CMRR_MIN_SPEED_RATIO.min, CMRR_MIN_SPEED_RATIO.max, True, ""),
-    "feed_force_ratio": (0.0, 2.0, True, ""),
-    "axial_engagement_m": (0.0, 0.05, False, "m"),
-    "sensor_noise_N": (0.0, 50.0, True, "N"),
-    "sensor_filter_cutoff_hz": (0.0, 100.0, False, "Hz"),
-    "online_filter_cutoff_hz": (0.0, 100.0, False, "Hz"),
-    "station_spacing_m": (1e-6, 1e-3, True, "m"),
-    "offline_target_spacing_m": (1e-4, 0.05, True, "m"),
-    "cmm_noise_m": (0.0, 2e-4, True, "m"),
+# Each scalar setting's range, from ``limits`` (one definition for the API, the GUIs and here),
+# so an advertised value is never refused here or, through the CMRR settings the choice makes,
+# under another field's name. Ranges given in mm, mm/s or um are checked in the field's SI unit.
+_RANGES: dict[str, Range] = {
+    "process_gain_N": MACHINING_PROCESS_GAIN_N,
+    "depth_exponent": MACHINING_DEPTH_EXPONENT,
+    "feed_exponent": MACHINING_FEED_EXPONENT,
+    "process_time_constant_s": MACHINING_TIME_CONSTANT_S,
+    "force_limit_N": MACHINING_FORCE_LIMIT_N,
+    "command_speed_cap_m_s": CMRR_COMMAND_SPEED_MM_S,
+    "path_acceleration_m_s2": MACHINING_PATH_ACCELERATION_M_S2,
+    "min_speed_ratio": CMRR_MIN_SPEED_RATIO,
+    "feed_force_ratio": MACHINING_FEED_FORCE_RATIO,
+    "axial_engagement_m": MACHINING_AXIAL_ENGAGEMENT_MM,
+    "sensor_noise_N": MACHINING_SENSOR_NOISE_N,
+    "sensor_filter_cutoff_hz": FORCE_FILTER_CUTOFF_HZ,
+    "online_filter_cutoff_hz": FORCE_FILTER_CUTOFF_HZ,
+    "station_spacing_m": MACHINING_STATION_SPACING_MM,
+    "offline_target_spacing_m": MACHINING_TARGET_SPACING_MM,
+    "cmm_noise_m": CMM_NOISE_UM,
 }
+_SI_UNIT: dict[str, tuple[str, float]] = {
+    "mm": ("m", 1e-3),
+    "mm/s": ("m/s", 1e-3),
+    "um": ("m", 1e-6),
+}
+
+
+def _check_range(name: str, value: object, limits_range: Range) -> None:
+    """``value`` (in the field's SI unit) inside ``limits_range``, else an error naming the
+    field and its range in that unit."""
+    unit, scale = _SI_UNIT.get(limits_range.unit, (limits_range.unit, 1.0))
+    lo, hi = limits_range.min * scale, limits_range.max * scale
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    slack = 1e-12 * max(abs(lo), abs(hi))  # the unit change's rounding at the ends
+    if not (ok and lo - slack <= value <= hi + slack):
+        raise MachiningSettingsError(
+            f"{name} must be in [{lo:g}, {hi:g}] {unit}".rstrip() + f", got {value!r}"
+        )
 
 
 @dataclass(frozen=True)
@@ -126,16 +149,8 @@ class MachiningSettings:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        for name, (lo, hi, closed, unit) in _RANGES.items():
-            value = getattr(self, name)
-            ok = isinstance(value, (int, float)) and math.isfinite(value)
-            ok = ok and (lo <= value if closed else lo < value) and value <= hi
-            if not ok:
-                bracket = "[" if closed else "("
-                raise MachiningSettingsError(
-                    f"{name} must be in {bracket}{lo:g}, {hi:g}] {unit}".rstrip()
-                    + f", got {value!r}"
-                )
+        for name, limits_range in _RANGES.items():
+            _check_range(name, getattr(self, name), limits_range)
         if self.controller not in MACHINING_CONTROLLERS:
             raise MachiningSettingsError(
                 f"unknown controller {self.controller!r}; choose one of "
