@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import shapely
 
-from tests.app.test_demo_cli import robomach
+from tests.cli import robomach_here as robomach  # in this process: imports paid once
 from tests.generated_parts import PARTS
 
 pytestmark = pytest.mark.slow

@@ -24,12 +24,14 @@ from robomach_core.robot import Robot
 from robomach_core.tool import Tool
 from robomach_core.transforms import make_transform
 from robomach_core.workpiece import builtin_workpiece
-from tests.cli import robomach, robomach_here
+from tests.cli import robomach_here
 from tests.demo_project import pump_demo
 
 
 def demo(out: Path, *args: str) -> tuple[dict, subprocess.CompletedProcess]:
-    proc = robomach("demo", "--out", str(out), "--no-plot", *args)
+    """``robomach demo`` in this process; the shared demos (tests/demo_project.py) run it as a
+    process of its own."""
+    proc = robomach_here("demo", "--out", str(out), "--no-plot", *args)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return json.loads((out / "summary.json").read_text()), proc
 

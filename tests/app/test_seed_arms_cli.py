@@ -8,8 +8,6 @@ import csv
 import io
 import json
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +21,7 @@ from robomach_core.robot import Robot, robots_directory
 from robomach_core.robots import KR270
 from robomach_core.robots.kuka import status_bits, turn_bits
 from robomach_core.tool import Tool
+from tests.cli import robomach_here
 
 pytestmark = pytest.mark.slow
 # The issue's bound on the learned pump path (the UR10's is 0.21-0.23 mm at 0.2 mm tolerance).
@@ -30,12 +29,9 @@ MAX_DEVIATION_MM = 0.22
 
 
 def demo(out: Path, *args: str) -> dict:
-    proc = subprocess.run(
-        [sys.executable, "-m", "app.cli", "demo", "--out", str(out), "--no-plot", *args],
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
+    """``robomach demo`` in this process (``tests.cli.robomach_here``): the shared demos run it
+    as a process of its own."""
+    proc = robomach_here("demo", "--out", str(out), "--no-plot", *args)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return json.loads((out / "summary.json").read_text())
 
