@@ -1,5 +1,6 @@
-"""``robomach machine`` end to end on a block demo project (slow: the shared demo subprocess),
-its exit codes, and its answers to bad input."""
+"""``robomach machine`` end to end (its ``main`` in this process) on a block demo project (slow:
+the shared demo subprocess), its exit codes, and its answers to bad input; the interrupt test
+runs a process of its own."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import pytest
 
 from robomach_core.export import check_rapid_module
 from robomach_core.project import load_project_file
-from tests.cli import robomach, robomach_here
+from tests.cli import robomach_here
 from tests.demo_project import block_demo_dir
 
 SUMMARY_KEYS = {
@@ -52,7 +53,7 @@ def _assert_one_line_error(proc: subprocess.CompletedProcess, *words: str) -> No
 def compared(tmp_path_factory) -> Path:  # exit 0: the matrix
     """constant and adaptive-pi, compensation off and offline, on the block demo's program."""
     out = tmp_path_factory.mktemp("machine")
-    proc = robomach(
+    proc = robomach_here(
         "machine",
         "--out",
         str(out),
@@ -121,7 +122,7 @@ def test_offline_compensation_exports_the_corrected_program(tmp_path):
     profile = tmp_path / "stock.csv"
     profile.write_text("s_mm,allowance_mm\n0,0\n10,1.5\n200,2.5\n")
     out = tmp_path / "o"
-    proc = robomach(
+    proc = robomach_here(
         "machine",
         "--out",
         str(out),
@@ -190,7 +191,7 @@ def test_exit_0_when_some_configurations_stop_and_the_stops_are_shown(tmp_path):
     profile = tmp_path / "stock.csv"
     profile.write_text("s_mm,allowance_mm\n0,0\n5,1\n60,1\n62,12\n70,12\n72,1\n")
     out = tmp_path / "o"
-    proc = robomach(
+    proc = robomach_here(
         "machine", "--out", str(out), "--from", str(block_demo_dir()), "--controller", "all",
         "--stock", str(profile), "--no-plot", "--workers", "1",
     )  # fmt: skip
@@ -205,7 +206,7 @@ def test_exit_0_when_some_configurations_stop_and_the_stops_are_shown(tmp_path):
 @pytest.mark.slow
 def test_exit_1_when_the_cell_can_run_nothing_that_completes(tmp_path):
     out = tmp_path / "o"
-    proc = robomach(
+    proc = robomach_here(
         "machine", "--out", str(out), "--from", str(block_demo_dir()), "--controller",
         "adaptive-pi", "--cell-options", "none", "--no-plot", "--workers", "1",
     )  # fmt: skip
@@ -243,7 +244,7 @@ def test_exit_130_when_interrupted(tmp_path):
 @pytest.mark.slow
 def test_variations_report_percentiles_and_choose_on_them(tmp_path):
     out = tmp_path / "o"
-    proc = robomach(
+    proc = robomach_here(
         "machine", "--out", str(out), "--from", str(block_demo_dir()), "--controller",
         "constant", "--compensation", "off", "--variations", "3", "--workers", "2", "--no-plot",
     )  # fmt: skip
