@@ -12,7 +12,7 @@ import pytest
 import trimesh
 
 from robomach_core.export import check_rapid_module
-from tests.cli import robomach, robomach_here
+from tests.cli import robomach_here
 from tests.demo_project import block_demo_dir
 from tests.demo_project import pump_demo as shared_pump_demo
 
@@ -149,9 +149,10 @@ def test_csv_and_stl_are_in_the_documented_units_and_frame(pump_demo):
 
 @pytest.mark.slow
 def test_same_seed_same_output(tmp_path):
-    """A second block demo against the run's shared one (same arguments, seed 0)."""
+    """A second block demo, in this process, against the run's shared one, a process of its own
+    (same arguments, seed 0)."""
     out = tmp_path / "again"
-    proc = robomach("demo", "--out", str(out), "--workpiece", "block", "--no-plot")
+    proc = robomach_here("demo", "--out", str(out), "--workpiece", "block", "--no-plot")
     assert proc.returncode == 0, proc.stderr
     for name in ("program.mod", "samples.csv", "targets.csv"):
         assert (block_demo_dir() / name).read_bytes() == (out / name).read_bytes(), name
@@ -173,7 +174,7 @@ def test_demo_exports_cmrr_speed_change_and_compensated_targets(tmp_path):
         tmp_path / "comp.json",
     )
     out = tmp_path / "out"
-    proc = robomach(
+    proc = robomach_here(
         "demo",
         "--out",
         str(out),
