@@ -58,6 +58,7 @@ function detailOf(body, status) {
 // menus (select[data-enum]) and the number inputs' bounds (input[data-range]) follow it, so the
 // page never accepts what the server refuses, nor refuses what it takes.
 let choicesLoaded = null;
+const CHOICES_LOADED = "choicesloaded";  // a menu got its options (listen to redraw from them)
 function loadChoices() {
   if (!choicesLoaded) {
     choicesLoaded = api("GET", "/choices", undefined, { quiet: true }).catch((err) => {
@@ -87,7 +88,9 @@ async function applyChoices(root = document) {
       el.append(option);
     }
     if (el.dataset.default) el.value = el.dataset.default;
-    el.dispatchEvent(new Event("change"));
+    // Not "change": that means the user chose, and a menu showing the session's state (the
+    // click mode) would send its first option over the session's value on every page load.
+    el.dispatchEvent(new Event(CHOICES_LOADED));
   }
   return choices;
 }

@@ -396,6 +396,7 @@ function connectEvents(lostBefore = false) {
 
 function initTeach() {
   $("jog-frame").addEventListener("change", showFrame);
+  $("jog-frame").addEventListener(CHOICES_LOADED, showFrame);
   showFrame();
   for (const b of document.querySelectorAll("button.touch")) {
     b.addEventListener("click", () => exclusive(
@@ -414,6 +415,8 @@ function initTeach() {
   $("jog-home").addEventListener("click", () => exclusive(goHome).catch(() => {}));
   $("guide-clear").addEventListener("click", guard(clearGuides));
   refreshProposal().catch(() => {});
+  // The click-mode menu is filled later (GET /api/choices): then show the session's mode.
+  $("point-mode").addEventListener(CHOICES_LOADED, guard(refreshProposal));
   window.addEventListener("gamepadconnected", pollGamepad);
   setInterval(pollGamepad, GAMEPAD_PERIOD_MS);
   setInterval(() => {

@@ -22,6 +22,36 @@ def _fill_point(page: Page, x: float, y: float, z: float) -> None:
         page.fill(f"#point-{axis}", f"{v:g}")
 
 
+def test_opening_the_pendant_leaves_the_sessions_pointing_settings(
+    served: Served, api: httpx.Client, page: Page
+) -> None:
+    """The page filled its click-mode menu and announced it as the user's change: every load
+    sent the menu's first option and the page's gap and height over the session's settings
+    (another user's, in viser)."""
+    chosen = {"click_mode": "teach", "gap_mm": 2.5, "height_above_floor_mm": 4.0}
+    before = api.get("/api/guide-points/pointing").json()
+    assert api.put("/api/guide-points/pointing", json=chosen).status_code == 200
+    try:
+        _open_and_check(served, api, page, chosen)
+    finally:  # the settings are the server's, not the project's: the next test gets its own
+        restored = {k: before[k] for k in chosen}
+        assert api.put("/api/guide-points/pointing", json=restored).status_code == 200
+
+
+def _open_and_check(served: Served, api: httpx.Client, page: Page, chosen: dict) -> None:
+    sent = []
+    page.on("request", lambda r: r.method != "GET" and sent.append(f"{r.method} {r.url}"))
+    page.goto(f"{served.base_url}/pendant/?viser=about:blank")
+    expect(page.locator("#connection")).to_have_text("online")
+    expect(page.locator("#point-mode option")).not_to_have_count(0)  # the choices arrived
+    # Shown from the session after the menu was filled (a GET after the filling's events).
+    expect(page.locator("#point-mode")).to_have_value("teach")
+    expect(page.locator("#point-gap")).to_have_value("2.5")
+    assert sent == [], sent  # loading the page changes nothing
+    now = api.get("/api/guide-points/pointing").json()
+    assert {k: now[k] for k in chosen} == chosen
+
+
 def test_pointing_from_the_pendant(served: Served, api: httpx.Client, page: Page) -> None:
     page.goto(f"{served.base_url}/pendant/?viser=about:blank")
     expect(page.locator("#connection")).to_have_text("online")
