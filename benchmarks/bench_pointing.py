@@ -57,8 +57,11 @@ def propose_and_accept() -> tuple[float, float, int]:
         proposal = session.pointing.propose(click_wobj_m, np.array([0.0, -1.0, 0.0]))
         proposed_s = time.perf_counter() - started
         started = time.perf_counter()
-        session.pointing.accept()
+        job_id = session.pointing.accept()
         while session.robot.busy() or len(session.project().guide_points) < len(proposal.points):
+            job = session.jobs.get(job_id)
+            if job.status in ("failed", "cancelled"):  # no points will come
+                raise SystemExit(f"accepting the proposal ended {job.status}: {job.error}")
             time.sleep(0.05)
         return proposed_s, time.perf_counter() - started, len(proposal.points)
     finally:
