@@ -167,22 +167,32 @@ class LiveRobot:
                 return replace(last, busy=self.busy())
             self.lock.acquire()
         try:
-            busy = self.busy()
-            _, lt, state = self._parts()
-            live = self.live.cell_state
-            cs = live if (busy and live is not None) else state.cell
-            snap = RobotSnapshot(
-                float(cs.time_s),
-                cs.q_motor.copy(),
-                cs.T_base_tcp.copy(),
-                lt.measured_wrench(cs),
-                bool(cs.in_contact),
-                busy,
-            )
-            self._last_snapshot = snap
-            return snap
+            return self._take_snapshot()
         finally:
             self.lock.release()
+
+    def _take_snapshot(self) -> RobotSnapshot:
+        """The robot now, kept as the answer for readers that find the lock held (lock held)."""
+        busy = self.busy()
+        _, lt, state = self._parts()
+        live = self.live.cell_state
+        cs = live if (busy and live is not None) else state.cell
+        snap = RobotSnapshot(
+            float(cs.time_s),
+            cs.q_motor.copy(),
+            cs.T_base_tcp.copy(),
+            lt.measured_wrench(cs),
+            bool(cs.in_contact),
+            busy,
+        )
+        self._last_snapshot = snap
+        return snap
+
+    def _put(self, built: Built) -> None:
+        """The robot is now ``built`` (lock held). The kept snapshot follows at once, so a
+        reader that finds the lock held never sees the robot from before this change."""
+        self._built = built
+        self._take_snapshot()
 
     def force_trace(self, recording: Recording | None, max_points: int = 2000) -> ForceTrace:
         """Force vs time, at most ``max_points`` (>= 2): live during a job, else ``recording``'s."""
@@ -203,10 +213,10 @@ class LiveRobot:
     def install(self, built: Built, selection: ComplianceSelection | None = None) -> None:
         """A new cell (and the robot in it): motions and jobs of the old one are dropped."""
         with self.lock:
-            self._built = built
             if selection is not None:
                 self._selection = selection
             self.epoch += 1
+            self._put(built)
 
     def show(self, state: CellState, epoch: int) -> None:
         """Where a running motion is (not saved), while the cell is still ``epoch``'s."""
@@ -214,7 +224,7 @@ class LiveRobot:
             if epoch == self.epoch and self._built is not None:
                 cell, lt, _ = self._built
                 moving = LeadThroughState(state, state.T_base_tcp.copy(), np.zeros(6))
-                self._built = (cell, lt, moving)
+                self._put((cell, lt, moving))
 
     def settle(self, state: LeadThroughState, epoch: int) -> None:
         """A motion ended at ``state``: the robot stays there (saved, told).
@@ -228,7 +238,7 @@ class LiveRobot:
                     "the cell or the project changed while the robot moved; the motion was stopped"
                 )
             cell, lt, _ = self._built
-            self._built = (cell, lt, replace(state, velocity=np.zeros(6)))
+            self._put((cell, lt, replace(state, velocity=np.zeros(6))))
             self._save()
         self.notify("robot")
 
@@ -243,7 +253,7 @@ class LiveRobot:
             if epoch != self.epoch or self._built is None:
                 raise ConflictError(f"the cell changed while {what} ran")
             cell, lt, _ = self._built
-            self._built = (cell, lt, replace(state, velocity=np.zeros(6)))
+            self._put((cell, lt, replace(state, velocity=np.zeros(6))))
 
     def save(self) -> None:
         """Save the robot's joints and compliance selection now."""
@@ -292,7 +302,7 @@ class LiveRobot:
                 if info.status != "done" and live is not None and epoch == self.epoch:
                     cell, lt, _ = self._parts()
                     state = LeadThroughState(live, live.T_base_tcp.copy(), np.zeros(6))
-                    self._built = (cell, lt, state)
+                    self._put((cell, lt, state))
                     self._save()
             self.notify("robot")
 

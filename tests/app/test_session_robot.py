@@ -58,3 +58,37 @@ def test_the_example_on_an_arm_too_small_for_the_part_says_so() -> None:
         assert "edge of reach" in info.error and "larger arm" in info.error, info.error
     finally:
         s.close()
+
+
+def test_a_read_that_finds_the_robot_busy_shows_the_robot_after_the_last_change() -> None:
+    """``GET /api/state`` never waits for the robot's lock: while another change holds it, the
+    answer is the kept snapshot. That snapshot must follow every change to the robot (here a
+    new cell), not only the last read that waited, or a read after a change shows the old pose."""
+    import threading
+
+    s = Session(real_time=False)
+    try:
+        s.set_cell(workpiece="block")
+        s.robot.select(["x"], "base")
+        pushed = s.teach.push(np.array([20.0, 0, 0, 0, 0, 0]), 0.5).position_m  # kept
+        s.set_cell(workpiece="water_pump")  # a new cell: the robot back at its home
+        held, release = threading.Event(), threading.Event()
+
+        def hold() -> None:
+            with s.robot.lock:
+                held.set()
+                release.wait(10)
+
+        holder = threading.Thread(target=hold)
+        holder.start()
+        try:
+            assert held.wait(10)
+            seen = s.robot.snapshot(wait=False).position_m
+        finally:
+            release.set()
+            holder.join()
+        now = s.robot.snapshot().position_m
+        assert np.linalg.norm(now - pushed) > 5e-3  # the new cell's home is not the pushed pose
+        np.testing.assert_allclose(seen, now, atol=1e-9)
+    finally:
+        s.close()
