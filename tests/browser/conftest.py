@@ -43,9 +43,13 @@ VIEWPORT = {"width": 1400, "height": 900}
 
 @pytest.fixture(scope="session")
 def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Served]:
-    """One server for the browser tests (each test opens its own project)."""
+    """One server for the browser tests (each test opens its own project), unpaced: a page's
+    jogs, pushes and touch-offs answer as soon as they are computed. What the pages show does
+    not depend on the pace; pacing itself is tested through the API (tests/api/test_teach.py)
+    and a person's wait is measured in benchmarks/ (bench_pointing.py, bench_browser.py)."""
     server = start_server(
         tmp_path_factory.mktemp("browser") / "data",
+        env={"ROBOMACH_REAL_TIME": "0"},
         log_name="serve.log",
         start_timeout_s=START_TIMEOUT_S,
     )

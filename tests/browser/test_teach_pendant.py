@@ -3,7 +3,8 @@
 Eight guide points around the water-pump groove, each with at most five user actions (key
 presses, clicks, one typed number), then path learning on the wall the operator names,
 post-processing (within 0.3 mm of the true wall) and the RAPID download, all through the page.
-The actions and seconds per point are printed (``-s``).
+The actions and seconds per point are printed (``-s``); the browser tests' server is unpaced, so
+the seconds are the page's and the server's, without the robot's motion at a person's pace.
 """
 
 from __future__ import annotations
