@@ -114,3 +114,46 @@ def test_touch_off_in_free_air_says_so(started):
         lt.touch_off(state, "q", 1, 10.0, XYZ, 0.005)
     with pytest.raises(InvalidInputError):
         lt.touch_off(state, "x", 1, 500.0, XYZ, 0.005)
+
+
+def test_a_lead_through_period_is_supervised_as_its_interpolated_proposal(cell):
+    """The lead-through supervises its period in one compiled call (``supervise_increment``
+    of the step and turn from the last reference to the admittance's); that is ``supervise``
+    with the proposal it replaced, ``interpolate_pose`` and one IK step: the same scale,
+    reference, joints and verdict, for steps that pass, slow down near a limit or stop."""
+    from robomach_core.supervision import cell_supervisor, interpolate_pose
+
+    supervisor, robot = cell_supervisor(cell), cell.robot
+    rng = np.random.default_rng(3)
+    scales = set()
+    for k in range(60):
+        q = robot.home_rad + rng.normal(size=6) * 0.4
+        if k % 3 == 0:  # near axis 2's limit: slowed, or stopped
+            q[1] = robot.lower_rad[1] + rng.uniform(0.03, 0.2)
+        T0 = robot.fk(q).copy()
+        T1 = T0.copy()
+        T1[:3, 3] += rng.normal(size=3) * 10 ** rng.uniform(-6, -2.5)
+        T1[:3, :3] = T0[:3, :3] @ _rotation(rng.normal(size=3) * 1e-3)
+
+        def propose(scale: float, q=q, T0=T0, T1=T1) -> tuple[np.ndarray, np.ndarray]:
+            T = T1 if scale >= 1.0 else interpolate_pose(T0, T1, scale)
+            return T, robot.ik_step(q, T)
+
+        want = supervisor.supervise(q, propose)
+        supervisor._memory[:] = np.nan  # nothing remembered from another call
+        turn = rotation_log(T0[:3, :3].T @ T1[:3, :3])
+        got = supervisor.supervise_increment(q, T0, T1[:3, 3] - T0[:3, 3], turn)
+        assert got.scale == pytest.approx(want.scale, abs=1e-9)
+        np.testing.assert_allclose(got.T_ref, want.T_ref, atol=1e-12)
+        np.testing.assert_allclose(got.q_next, want.q_next, atol=1e-10)
+        assert (got.stop is None) == (want.stop is None)
+        if got.stop is not None:
+            assert (got.stop.cause, got.stop.axis) == (want.stop.cause, want.stop.axis)
+        scales.add("stopped" if got.stop else "slowed" if got.scale < 1 else "free")
+    assert scales == {"free", "slowed", "stopped"}, scales
+
+
+def _rotation(rotvec: np.ndarray) -> np.ndarray:
+    import pinocchio as pin
+
+    return pin.exp3(rotvec)
