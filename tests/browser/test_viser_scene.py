@@ -126,8 +126,15 @@ def test_panels_follow_session_changes(workbench) -> None:
 
     stl = trimesh.creation.box(extents=(120.0, 80.0, 30.0)).export(file_type="stl")
     session.upload_workpiece(stl, "bracket.stl")
-    wait_for(lambda: "bracket" in workbench.cell.workpiece.options)
-    assert workbench.cell.workpiece.value == "bracket"
+    # The panel fills the choices, then chooses: wait for both (the full suite once read the
+    # value between the two).
+    wait_for(
+        lambda: (
+            "bracket" in workbench.cell.workpiece.options
+            and workbench.cell.workpiece.value == "bracket"
+        ),
+        describe=lambda: f"{workbench.cell.workpiece.value} of {workbench.cell.workpiece.options}",
+    )
     assert "no ground truth" in workbench.cell.info.content
 
 
