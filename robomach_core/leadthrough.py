@@ -40,7 +40,7 @@ from .limits import (
 )
 from .sensor import ForceEstimator
 from .supervision import Supervisor, cell_supervisor, interpolate_pose
-from .transforms import quaternion_from_matrix, rotation_about, rotation_log
+from .transforms import quaternion_from_matrix, rotation_about
 
 Axis = Literal["x", "y", "z", "rx", "ry", "rz"]
 AXES: tuple[Axis, ...] = ("x", "y", "z", "rx", "ry", "rz")
@@ -241,21 +241,12 @@ class LeadThrough:
         )
         q = state.cell.q_motor
         robot = self.cell.robot
-        if robot.couplings:  # the IK step projects onto combined limits: not the kernel's
 
-            def propose(scale: float) -> tuple[np.ndarray, np.ndarray]:
-                T = T_ref if scale >= 1.0 else interpolate_pose(state.T_ref, T_ref, scale)
-                return T, robot.ik_step(q, T)
+        def propose(scale: float) -> tuple[np.ndarray, np.ndarray]:
+            T = T_ref if scale >= 1.0 else interpolate_pose(state.T_ref, T_ref, scale)
+            return T, robot.ik_step(q, T)
 
-            step = self.supervisor.supervise(q, propose)
-        else:  # the same proposal (interpolate_pose's), supervised in one compiled call
-            R0 = state.T_ref[:3, :3]
-            step = self.supervisor.supervise_increment(
-                q,
-                state.T_ref,
-                T_ref[:3, 3] - state.T_ref[:3, 3],
-                rotation_log(R0.T @ T_ref[:3, :3]),
-            )
+        step = self.supervisor.supervise(q, propose)
         if step.stop is not None:
             raise step.stop.error(state=halted(state))
         if step.scale < 1.0:
