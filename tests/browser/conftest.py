@@ -46,7 +46,8 @@ def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Served]:
     """One server for the browser tests (each test opens its own project), unpaced: a page's
     jogs, pushes and touch-offs answer as soon as they are computed. What the pages show does
     not depend on the pace; pacing itself is tested through the API (tests/api/test_teach.py)
-    and a person's wait is measured in benchmarks/ (bench_pointing.py, bench_browser_pose_rate.py)."""
+    and a person's wait is measured in benchmarks/ (bench_pointing.py and
+    bench_browser_pose_rate.py)."""
     server = start_server(
         tmp_path_factory.mktemp("browser") / "data",
         env={"ROBOMACH_REAL_TIME": "0"},
