@@ -8,7 +8,9 @@ STRATEGY  The supervisor's model (kinematic chain, bodies, obstacles, thresholds
           array (``pack_model``) that each kernel reads through views (``_unpack``), so a call
           passes a handful of arrays. ``chain_placements`` is a private copy of pinocchio's
           forward kinematics for a serial chain of revolute joints (a test checks the two
-          agree); the rest is plain geometry.
+          agree); the rest is plain geometry. A body within an obstacle's slow zone gets its
+          exact clearance by GJK over the obstacle's corners (``convex_clearance``: a test
+          checks it against coal); only overlaps go back to Python for coal's depth.
 SOLUTION  ``margins_at`` (the margins of one joint vector), ``decide`` (the speed scale and the
           verdict of one step) and ``supervise_increment``: a whole supervised period of a
           motion that moves the reference by a step and a turn, fused (equal to
@@ -28,7 +30,11 @@ _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 # A margin shrinking by less than this (m or rad) in one period is not approaching its limit:
 # the IK's rounding when sliding along a limit, 100 times below the slowest real approach.
 APPROACH_TOLERANCE = 1e-8
-_HEADER = 8  # bodies, pairs, obstacles, couplings, elbow_to_axis4, table_z, min_scale, damping
+# bodies, pairs, obstacles, couplings, elbow_to_axis4, table_z, min_scale, damping, vertices
+_HEADER = 9
+# GJK (``convex_clearance``) stops when the clearance it has is within this of the true one [m].
+GJK_TOLERANCE_M = 1e-7  # coal agrees to about 1e-6 m; the slow zones are millimetres
+GJK_MAX_ITERATIONS = 64
 
 
 def pack_model(
@@ -42,6 +48,7 @@ def pack_model(
     bodies: np.ndarray,
     pairs: np.ndarray,
     obstacles: np.ndarray,
+    vertices: np.ndarray,
     couplings: np.ndarray,
     thresholds: np.ndarray,
     elbow_to_axis4: bool,
@@ -57,14 +64,16 @@ def pack_model(
         step_bound: (6,) largest joint step of one period. tracking: (2,) largest reference
             error [m, rad]. bodies: (K, 9) per capsule: joint index (0-based), end a (3), end
             b (3) in the joint frame, radius, 1.0 for a flat-ended cylinder. pairs: (P, 3) body
-            index, obstacle index (-1 the table), slow value. obstacles: (O, 6) bounding box
-            lo (3), hi (3). couplings: (C, 8) coefficients (6), lower, upper [rad].
-            thresholds: (2, 9 + P + C) stop and slow values of every margin.
+            index, obstacle index (-1 the table), slow value. obstacles: (O, 8) bounding box
+            lo (3), hi (3), then the first row and the number of rows of its corners in
+            ``vertices``. vertices: (N, 3) the obstacles' corners (each obstacle the convex
+            hull of its own), base frame [m]. couplings: (C, 8) coefficients (6), lower, upper
+            [rad]. thresholds: (2, 9 + P + C) stop and slow values of every margin.
     """
     head = [len(bodies), len(pairs), len(obstacles), len(couplings)]
-    head += [float(elbow_to_axis4), table_z, min_scale, ik_damping]
+    head += [float(elbow_to_axis4), table_z, min_scale, ik_damping, len(vertices)]
     parts = (placements, axes, limits, M_tcp, step_bound, tracking, bodies, pairs, obstacles)
-    parts += (couplings, thresholds)
+    parts += (couplings, thresholds, vertices)
     return np.concatenate([np.asarray(head, dtype=float)] + [np.ravel(p) for p in parts])
 
 
@@ -83,15 +92,18 @@ def _unpack(model: np.ndarray):  # noqa: ANN202 - a tuple of views, in ``pack_mo
     i += 9 * K
     pairs = model[i : i + 3 * P].reshape((P, 3))
     i += 3 * P
-    obstacles = model[i : i + 6 * O].reshape((O, 6))
-    i += 6 * O
+    obstacles = model[i : i + 8 * O].reshape((O, 8))
+    i += 8 * O
     couplings = model[i : i + 8 * C].reshape((C, 8))
     i += 8 * C
     n = 9 + P + C
     thresholds = model[i : i + 2 * n].reshape((2, n))
+    i += 2 * n
+    N = int(model[8])
+    vertices = model[i : i + 3 * N].reshape((N, 3))
     return (
         placements, axes, limits, M_tcp, step_bound, tracking, bodies, pairs, obstacles,
-        couplings, thresholds,
+        couplings, thresholds, vertices,
     )  # fmt: skip
 
 
@@ -167,12 +179,13 @@ def margins_at(
 
     Returns:
         margins (9 + P + C,): joint limits (6), wrist, elbow, shoulder, one clearance per pair
-        (NaN where an obstacle's bounding box is nearer than the slow value, so coal must
-        measure it), the combined joint limits; the 4x4 TCP pose; its (6, 6) Jacobian
+        (where an obstacle's bounding box is nearer than the slow value, the exact clearance
+        by GJK, ``convex_clearance``; NaN where that finds none, overlapping or not converged,
+        so coal must measure it), the combined joint limits; the 4x4 TCP pose; its (6, 6) Jacobian
         (``tcp_jacobian``); how many margins are NaN.
     """
     parts = _unpack(model) if parts is None else parts
-    placements, axes, limits, M_tcp, _, _, bodies, pairs, obstacles, couplings, _ = parts
+    placements, axes, limits, M_tcp, _, _, bodies, pairs, obstacles, couplings, _, vertices = parts
     elbow_to_axis4 = model[4] > 0.5
     table_z = model[5]
     Ts = chain_placements(q, placements, axes)
@@ -241,8 +254,14 @@ def margins_at(
         bound = math.sqrt(gap2)
         if bound >= pairs[i, 2]:
             margins[9 + i] = bound
-        else:
-            margins[9 + i] = np.nan
+            continue
+        first, count = int(obstacles[obstacle, 6]), int(obstacles[obstacle, 7])
+        exact = np.nan
+        if count > 0:
+            corners = vertices[first : first + count]
+            exact = convex_clearance(corners, a, e, radius, bodies[k, 8] > 0.5)
+        margins[9 + i] = exact
+        if math.isnan(exact):
             n_near += 1
     # Combined joint limits: lower <= coefficients . q <= upper.
     for k in range(couplings.shape[0]):
@@ -252,6 +271,141 @@ def margins_at(
         margins[9 + n_pairs + k] = min(value - couplings[k, 6], couplings[k, 7] - value)
     T_tcp = _compose(Ts[5], M_tcp)
     return margins, T_tcp, tcp_jacobian(z, o, T_tcp), n_near
+
+
+@_jit
+def convex_clearance(corners: np.ndarray, a: tuple, e: tuple, radius: float, flat: bool) -> float:
+    """The clearance between the convex hull of ``corners`` (N, 3) and a body (the capsule, or
+    the flat-ended cylinder, of radius ``radius`` around the segment a-e), by GJK (Gilbert,
+    Johnson and Keerthi 1988): the distance of the origin from their Minkowski difference,
+    whose support point in a direction d is the hull's in d minus the body's in -d. Each
+    iteration adds the support point in -v to the simplex and moves v, the simplex's point
+    nearest the origin (``_nearest_on_simplex``), until |v|^2 - v.w <= tol |v| (then |v| is
+    within tol of the clearance). NaN when the two overlap or it does not converge: the caller
+    asks coal."""
+    simplex = np.empty((4, 3))
+    work = np.empty((4, 3))
+    d = (1.0, 0.0, 0.0)
+    w = _difference_support(corners, a, e, radius, flat, d)
+    simplex[0, 0], simplex[0, 1], simplex[0, 2] = w[0], w[1], w[2]
+    n = 1
+    v = w
+    for _ in range(GJK_MAX_ITERATIONS):
+        vv = _dot(v, v)
+        if vv < 1e-24:
+            return np.nan  # touching or overlapping
+        w = _difference_support(corners, a, e, radius, flat, (-v[0], -v[1], -v[2]))
+        if vv - _dot(v, w) <= GJK_TOLERANCE_M * math.sqrt(vv):
+            return math.sqrt(vv)
+        if n == 4:
+            return np.nan  # degenerate: no progress possible
+        simplex[n, 0], simplex[n, 1], simplex[n, 2] = w[0], w[1], w[2]
+        n += 1
+        v, n = _nearest_on_simplex(simplex, n, work)
+    return np.nan
+
+
+@_jit
+def _difference_support(
+    corners: np.ndarray, a: tuple, e: tuple, radius: float, flat: bool, d: tuple
+) -> tuple:
+    """The support point in ``d`` of (hull of ``corners``) minus (the body)."""
+    best, k = -np.inf, 0
+    for i in range(corners.shape[0]):
+        value = corners[i, 0] * d[0] + corners[i, 1] * d[1] + corners[i, 2] * d[2]
+        if value > best:
+            best, k = value, i
+    # The body's support point in -d: its end furthest along -d, then its rim (cylinder) or
+    # its sphere (capsule) towards -d.
+    m = (-d[0], -d[1], -d[2])
+    end = a if _dot(a, m) >= _dot(e, m) else e
+    axis = _axpy(-1.0, a, e)
+    length2 = _dot(axis, axis)
+    full = math.sqrt(_dot(m, m))
+    if flat and length2 > 0.0:
+        along = _dot(m, axis) / length2
+        m = (m[0] - along * axis[0], m[1] - along * axis[1], m[2] - along * axis[2])
+    size = math.sqrt(_dot(m, m))
+    # Along the axis (to rounding) the whole end disc is nearest: its centre serves.
+    k_r = radius / size if size > 1e-9 * full else 0.0
+    return (
+        corners[k, 0] - (end[0] + k_r * m[0]),
+        corners[k, 1] - (end[1] + k_r * m[1]),
+        corners[k, 2] - (end[2] + k_r * m[2]),
+    )
+
+
+@_jit
+def _nearest_on_simplex(simplex: np.ndarray, n: int, work: np.ndarray) -> tuple:
+    """The point of the simplex's first ``n`` rows (1-4 points) nearest the origin, and the
+    simplex reduced to the points whose face holds it (rows moved to the front): of every
+    face whose nearest point on its plane has barycentric weights all >= 0, the nearest.
+    ``work``: (4, 3) scratch."""
+    best_v = (0.0, 0.0, 0.0)
+    best, best_mask = np.inf, 0
+    for mask in range(1, 1 << n):
+        k = 0
+        first = -1
+        for i in range(n):
+            if mask & (1 << i):
+                if first < 0:
+                    first = i
+                else:  # the edges from the first point: D's columns
+                    work[k, 0] = simplex[i, 0] - simplex[first, 0]
+                    work[k, 1] = simplex[i, 1] - simplex[first, 1]
+                    work[k, 2] = simplex[i, 2] - simplex[first, 2]
+                    k += 1
+        p0 = (simplex[first, 0], simplex[first, 1], simplex[first, 2])
+        x = p0
+        if k > 0:
+            # x = p0 + D mu with (D^T D) mu = -D^T p0, by Cramer's rule (k <= 3).
+            d0 = (work[0, 0], work[0, 1], work[0, 2])
+            d1 = (work[1, 0], work[1, 1], work[1, 2]) if k > 1 else d0
+            d2 = (work[2, 0], work[2, 1], work[2, 2]) if k > 2 else d0
+            g00, g01, g02 = _dot(d0, d0), _dot(d0, d1), _dot(d0, d2)
+            g11, g12, g22 = _dot(d1, d1), _dot(d1, d2), _dot(d2, d2)
+            r0, r1, r2 = -_dot(d0, p0), -_dot(d1, p0), -_dot(d2, p0)
+            mu0 = mu1 = mu2 = 0.0
+            if k == 1:
+                if g00 < 1e-30:
+                    continue
+                mu0 = r0 / g00
+            elif k == 2:
+                det = g00 * g11 - g01 * g01
+                if abs(det) < 1e-30:
+                    continue
+                mu0 = (r0 * g11 - g01 * r1) / det
+                mu1 = (g00 * r1 - g01 * r0) / det
+            else:
+                c00 = g11 * g22 - g12 * g12
+                c01 = g02 * g12 - g01 * g22
+                c02 = g01 * g12 - g02 * g11
+                det = g00 * c00 + g01 * c01 + g02 * c02
+                if abs(det) < 1e-36:
+                    continue
+                c11 = g00 * g22 - g02 * g02
+                c12 = g01 * g02 - g00 * g12
+                c22 = g00 * g11 - g01 * g01
+                mu0 = (c00 * r0 + c01 * r1 + c02 * r2) / det
+                mu1 = (c01 * r0 + c11 * r1 + c12 * r2) / det
+                mu2 = (c02 * r0 + c12 * r1 + c22 * r2) / det
+            if min(mu0, mu1, mu2) < -1e-12 or mu0 + mu1 + mu2 > 1.0 + 1e-12:
+                continue
+            x = _axpy(mu0, d0, x)
+            if k > 1:
+                x = _axpy(mu1, d1, x)
+            if k > 2:
+                x = _axpy(mu2, d2, x)
+        norm2 = _dot(x, x)
+        if norm2 < best:
+            best, best_v, best_mask = norm2, x, mask
+    k = 0
+    for i in range(n):  # keep the face's points, in order, at the front
+        if best_mask & (1 << i):
+            work[k, 0], work[k, 1], work[k, 2] = simplex[i, 0], simplex[i, 1], simplex[i, 2]
+            k += 1
+    simplex[:k] = work[:k]
+    return best_v, k
 
 
 @_jit
@@ -303,7 +457,7 @@ def decide(
     when ``track``).
     """
     parts = _unpack(model) if parts is None else parts
-    _, _, _, _, step_bound, tracking, _, _, _, _, thresholds = parts
+    _, _, _, _, step_bound, tracking, _, _, _, _, thresholds, _ = parts
     min_scale = model[6]
     scale = 1.0
     worst_i, worst = -1, np.inf

@@ -67,6 +67,7 @@ SupervisionCause = Literal[
     "collision",
 ]
 ARM_LINK_NAMES = ("upper arm", "forearm", "wrist 1", "wrist 2", "wrist 3")
+GJK_MAX_CORNERS = 500  # a hull with more corners is measured by coal (``_measure_near``)
 SPINDLE_RADIUS_M = 0.03  # the spindle body the GUIs draw (app/gui/scene.py ``tool_mesh``)
 SHANK_LENGTH_M = 0.01  # between the cutter's flutes and the spindle body
 SHANK_RADIUS_FRACTION = 0.8  # of the cutter radius
@@ -303,6 +304,7 @@ class Supervisor:
             table_z_m = float(mesh.bounds[0, 2]) if mesh is not None else 0.0
         self._table_z = float(table_z_m)
         self._obstacles: list[tuple[str, Any, coal.Transform3s, np.ndarray]] = []
+        self._corners: list[np.ndarray] = []  # per obstacle (N_o, 3): it is their convex hull
         if mesh is not None:
             hull_mesh = mesh.convex_hull
             points = coal.StdVec_Vec3s()
@@ -311,11 +313,15 @@ class Supervisor:
             hull = coal.Convex.convexHull(points, False, None)
             box = np.concatenate(hull_mesh.bounds)
             self._obstacles.append(("workpiece", hull, coal.Transform3s(), box))
+            corners = np.asarray(hull_mesh.vertices, dtype=float)
+            # GJK's support point walks every corner; past a few hundred coal's is quicker.
+            self._corners.append(corners if len(corners) <= GJK_MAX_CORNERS else corners[:0])
         for fixture_box in self.fixture:
             T = np.asarray(fixture_box.T_base_box, dtype=float)
             half = 0.5 * np.asarray(fixture_box.size_m, dtype=float)
             signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
             corners = (signs * half) @ T[:3, :3].T + T[:3, 3]
+            self._corners.append(corners)
             self._obstacles.append(
                 (
                     fixture_box.name,
@@ -327,6 +333,7 @@ class Supervisor:
         self._couplings = robot.couplings
         self._margin_defs = self._make_margins()
         pairs = [(m.index, m.obstacle, m.slow) for m in self._margin_defs if m.kind == "collision"]
+        firsts = np.cumsum([0, *(len(c) for c in self._corners)])[:-1]  # each obstacle's corners
         self._model = pack_model(
             placements=self._placements,
             axes=self._axes,
@@ -338,7 +345,13 @@ class Supervisor:
                 [[b.joint - 1, *b.a, *b.b, b.radius, float(b.flat)] for b in self._bodies]
             ),
             pairs=np.array(pairs, dtype=float).reshape(-1, 3),
-            obstacles=np.array([o[3] for o in self._obstacles]).reshape(-1, 6),
+            obstacles=np.array(
+                [
+                    [*o[3], first, len(c)]
+                    for o, c, first in zip(self._obstacles, self._corners, firsts, strict=True)
+                ]
+            ).reshape(-1, 8),
+            vertices=np.concatenate([*self._corners, np.empty((0, 3))]),
             couplings=np.array(
                 [[*c.coefficients, c.lower_rad, c.upper_rad] for c in self._couplings]
             ).reshape(-1, 8),
@@ -463,8 +476,8 @@ class Supervisor:
         return margins, T_tcp
 
     def _measure_near(self, margins: np.ndarray, T_tcp: np.ndarray, q: np.ndarray) -> None:
-        """Near an obstacle its bounding box is not enough: coal's exact clearance in place of
-        the NaN margins."""
+        """Where the kernel left a clearance NaN (the body overlaps the obstacle, or the hull
+        has too many corners for the kernel's GJK): coal's, a penetration depth when negative."""
         Ts = chain_placements(q, self._placements, self._axes)
         with self._lock:
             for i in np.flatnonzero(np.isnan(margins)):

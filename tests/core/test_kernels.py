@@ -23,7 +23,7 @@ from numba.core.registry import CPUDispatcher
 import robomach_core
 from robomach_core import _kernels
 from robomach_core import contour_following as cf
-from robomach_core.cell import Cell
+from robomach_core.cell import Cell, CellConfig
 from robomach_core.contact import ContactModel
 from robomach_core.joint_compliance import true_joint_compliance
 from robomach_core.path_learning import PathLearningSettings, contour_law_parameters
@@ -492,6 +492,10 @@ _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
             "test_decide_and_the_margins_are_their_python_forms",
         ),
         "decide": "test_decide_and_the_margins_are_their_python_forms",
+        **dict.fromkeys(
+            ("convex_clearance", "_difference_support", "_nearest_on_simplex"),
+            "test_the_gjk_clearance_near_the_part_is_coals",
+        ),
         **dict.fromkeys(("increment_proposal", "supervise_increment"), SUPERVISED),
     },
     "robomach_core.cmrr.controllers._fast": dict.fromkeys(
@@ -527,3 +531,65 @@ def test_every_compiled_kernel_has_a_reference_test():
             assert callable(getattr(module, name)), f"{kernel}: no test {test}"
         else:
             assert callable(here.get(test)), f"{kernel}: no test {test}"
+
+
+def test_the_gjk_clearance_of_a_cylinder_and_a_box_is_the_geometry():
+    """``convex_clearance`` on cases whose answer is plain geometry: a unit box and a flat-ended
+    cylinder (or a capsule) above it, beside it, over its edge; overlapping: NaN."""
+    box = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=float)
+    clearance = sk.convex_clearance
+    assert clearance(box, (0.5, 0.5, 1.5), (0.5, 0.5, 3.0), 0.2, True) == pytest.approx(0.5)
+    assert clearance(box, (1.5, 0.5, 0.2), (1.5, 0.5, 0.8), 0.2, True) == pytest.approx(0.3)
+    # The disc overhangs the edge: its flat bottom is nearest, 0.2 above the top face.
+    assert clearance(box, (1.1, 0.5, 1.2), (1.1, 0.5, 2.0), 0.3, True) == pytest.approx(0.2)
+    # A capsule's sphere over the edge: the distance from its centre to the edge, less r.
+    got = clearance(box, (1.1, 0.5, 1.2), (1.1, 0.5, 2.0), 0.1, False)
+    assert got == pytest.approx(math.hypot(0.1, 0.2) - 0.1)
+    assert math.isnan(clearance(box, (0.5, 0.5, 0.9), (0.5, 0.5, 2.0), 0.2, True))
+    assert clearance.py_func(box, (1.1, 0.5, 1.2), (1.3, 0.5, 2.0), 0.3, True) == pytest.approx(
+        clearance(box, (1.1, 0.5, 1.2), (1.3, 0.5, 2.0), 0.3, True), abs=1e-15
+    )
+
+
+@pytest.mark.parametrize("part", ["water_pump", "block"])
+def test_the_gjk_clearance_near_the_part_is_coals(part):
+    """Near an obstacle ``margins_at`` measures the clearance itself (GJK) and leaves NaN for
+    coal only where the two overlap: over tool poses with the spindle near the part's top (over
+    its faces and past its edges, straight and tilted), every clearance it gives is coal's
+    within coal's tolerance, and every one it leaves is an overlap."""
+    import pinocchio as pin
+
+    from robomach_core.demo_operator import TOOL_DOWN
+
+    cell = Cell(CellConfig(workpiece=part))
+    supervisor = cell_supervisor(cell)
+    model = supervisor._model
+    coal_only = model.copy()
+    sk._unpack(coal_only)[8][:, 7] = 0  # no corners per obstacle: every near pair is NaN
+    lo, hi = cell.workpiece.mesh_in_base().bounds
+    rng = np.random.default_rng(11)
+    q, given, left = cell.robot.home_rad, 0, 0
+    for _ in range(300):
+        # The TCP 12-22 mm below the top: the spindle's end 0-10 mm over it (the slow zone is
+        # 5 mm), over the part or past its edges by up to 40 mm.
+        p = rng.uniform(
+            [lo[0] - 0.04, lo[1] - 0.04, hi[2] - 0.022], [*(hi[:2] + 0.04), hi[2] - 0.012]
+        )
+        T = np.eye(4)
+        T[:3, :3] = TOOL_DOWN @ pin.exp3(rng.normal(size=3) * 0.08)
+        T[:3, 3] = p
+        q = cell.robot.ik(T, q)
+        m, T_tcp, _, _ = sk.margins_at(q, model)
+        by_coal, _, _, n_near = sk.margins_at(q, coal_only)
+        if n_near == 0:
+            continue
+        reference = sk.margins_at.py_func(q, model, sk._unpack.py_func(model))[0]
+        np.testing.assert_allclose(m, reference, atol=1e-12, equal_nan=True)
+        near = np.isnan(by_coal)
+        supervisor._measure_near(by_coal, T_tcp, q)
+        measured = near & ~np.isnan(m)
+        np.testing.assert_allclose(m[measured], by_coal[measured], atol=2e-6)
+        assert np.all(by_coal[near & np.isnan(m)] <= 0.0)  # left to coal: overlaps only
+        given += int(measured.sum())
+        left += int((near & np.isnan(m)).sum())
+    assert given > 100, (given, left)
