@@ -9,17 +9,21 @@ and pose, whose cost our code does not change; and one ``Cell.step``), so that f
 loaded machine compare; then the period broken down:
 supervision (with the IK step inside it), the cell (kinematics, contact, sensor), the force
 loop (the law and the recording's row) and the recording built at the end, from a run with
-timers around each part. ``--quick`` leads the robot to the first two guide points only and
-learns that open stretch once (a smoke test, not a measurement).
+timers around each part. Then, off the example: sloppy guide points on the block's outer wall
+(tests/sloppy_guides.py), where the spindle overhangs the part's edge and supervision measures
+its clearance every period. ``--quick`` leads the robot to the first two guide points only and
+learns that open stretch once, and one sloppy set once (a smoke test, not a measurement).
 """
 
 from __future__ import annotations
 
 import argparse
 import statistics
+import sys
 import time
 from collections import defaultdict
 from collections.abc import Callable
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -237,6 +241,37 @@ def main() -> None:
     print(f"  inside supervision: the IK step (ik_newton_step)    {ik:6.2f} us")
     print(f"  inside the force loop: the recording's row           {row:6.2f} us")
     print(f"  whole cell step {one_cell:.1f} us; the pinocchio reference {fk:.2f} us")
+    bench_outer_wall(1 if args.quick else 3, 1 if args.quick else repeats)
+
+
+def bench_outer_wall(sets: int, repeats: int) -> None:
+    """Path learning at 10 mm/s from seeded sloppy points on the block's outer wall (the side
+    given): the spindle over the part's edge keeps the part within its slow zone."""
+    from robomach_core.cell import CellConfig
+    from robomach_core.project import CellSettings, Project, learn
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout's tests/
+    from tests.sloppy_guides import sloppy_guides
+
+    factors = []
+    for seed in range(1, 1 + sets):
+        cell = Cell(CellConfig(workpiece="block", seed=seed))
+        sset = sloppy_guides(cell, np.random.default_rng(1000 + seed), side_mode="given")
+        project = Project(cell=CellSettings(seed=seed), guide_points=tuple(sset.guides))
+        lt = LeadThrough(cell)
+        start = lt.start(cell.initial_state()).cell
+        settings = PathLearningSettings(speed_m_s=0.010, wall_side=sset.wall_side)
+        learn(project, cell, start, settings, lt.estimator)  # the kernels loaded
+        for _ in range(repeats):
+            t = time.perf_counter()
+            learned, _ = learn(project, cell, start, settings, lt.estimator)
+            factors.append(learned.recording.time_s[-1] / (time.perf_counter() - t))
+    print(
+        f"off the example, the block's outer wall from {sets} sloppy set{'s' * (sets > 1)}: "
+        f"real-time factor "
+        f"median x{statistics.median(factors):.1f} "
+        f"(runs: {', '.join(f'x{f:.1f}' for f in factors)})"
+    )
 
 
 if __name__ == "__main__":
