@@ -14,8 +14,10 @@ STRATEGY  Every limit is a margin m(q) >= 0 that shrinks towards it (a distance 
             - shoulder singularity: the distance of the wrist centre from the axis-1 line, in
               the arm plane (UR: sqrt(px^2 + py^2) = d4 in the analytic IK);
             - collisions: capsule clearances of the arm links and the tool (spindle, shank,
-              cutter) to the table plane, the fixture boxes and the part's convex hull (coal,
-              GJK); the cutter against the part is contact, which pushes back (``contact.py``).
+              cutter) to the table plane, the fixture boxes and the part's convex hull (GJK in
+              the compiled period, ``_kernels.convex_clearance``; coal's depth when they
+              overlap); the cutter against the part is contact, which pushes back
+              (``contact.py``).
           A candidate step q -> q+ that shrinks a margin inside its slow zone [stop, slow] is
           scaled by ramp(m) = clip((m - stop) / (slow - stop), min_scale, 1); one that would
           end below ``stop`` while shrinking the margin is refused. Moving away from a limit is
