@@ -246,14 +246,18 @@ def main() -> None:
 
 def bench_outer_wall(sets: int, repeats: int) -> None:
     """Path learning at 10 mm/s from seeded sloppy points on the block's outer wall (the side
-    given): the spindle over the part's edge keeps the part within its slow zone."""
+    given): the spindle over the part's edge keeps the part within its slow zone. Each run is
+    paired with a reference run, interleaved: the supervisor's model without the obstacles'
+    corners, so every near clearance goes back to Python and coal (as before the kernel's GJK,
+    ``supervision._kernels.convex_clearance``)."""
     from robomach_core.cell import CellConfig
     from robomach_core.project import CellSettings, Project, learn
+    from robomach_core.supervision._kernels import _unpack
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout's tests/
     from tests.sloppy_guides import sloppy_guides
 
-    factors = []
+    factors: dict[str, list[float]] = {"gjk": [], "coal": []}
     for seed in range(1, 1 + sets):
         cell = Cell(CellConfig(workpiece="block", seed=seed))
         sset = sloppy_guides(cell, np.random.default_rng(1000 + seed), side_mode="given")
@@ -261,16 +265,27 @@ def bench_outer_wall(sets: int, repeats: int) -> None:
         lt = LeadThrough(cell)
         start = lt.start(cell.initial_state()).cell
         settings = PathLearningSettings(speed_m_s=0.010, wall_side=sset.wall_side)
+        supervisor = cell_supervisor(cell)
+        corner_counts = _unpack(supervisor._model)[8][:, 7]  # a view into the model
+        with_corners = corner_counts.copy()
         learn(project, cell, start, settings, lt.estimator)  # the kernels loaded
         for _ in range(repeats):
-            t = time.perf_counter()
-            learned, _ = learn(project, cell, start, settings, lt.estimator)
-            factors.append(learned.recording.time_s[-1] / (time.perf_counter() - t))
+            for mode in ("gjk", "coal"):
+                corner_counts[:] = with_corners if mode == "gjk" else 0.0
+                supervisor._memory[:] = np.nan  # no step remembered from the other mode
+                t = time.perf_counter()
+                learned, _ = learn(project, cell, start, settings, lt.estimator)
+                factors[mode].append(learned.recording.time_s[-1] / (time.perf_counter() - t))
+        corner_counts[:] = with_corners
+    gjk, coal = (statistics.median(factors[m]) for m in ("gjk", "coal"))
     print(
         f"off the example, the block's outer wall from {sets} sloppy set{'s' * (sets > 1)}: "
-        f"real-time factor "
-        f"median x{statistics.median(factors):.1f} "
-        f"(runs: {', '.join(f'x{f:.1f}' for f in factors)})"
+        f"real-time factor median x{gjk:.1f} "
+        f"(runs: {', '.join(f'x{f:.1f}' for f in factors['gjk'])})"
+    )
+    print(
+        f"  reference, interleaved: every near clearance by coal, median x{coal:.1f}; "
+        f"the kernel's GJK is x{gjk / coal:.2f} as fast"
     )
 
 

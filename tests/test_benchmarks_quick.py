@@ -54,6 +54,7 @@ EXPECTED: dict[str, list[str]] = {
         ),
         rf"inside supervision: the IK step \(ik_newton_step\)\s+{NUMBER} us",
         rf"the block's outer wall from 1 sloppy set: real-time factor median x{NUMBER}",
+        rf"every near clearance by coal, median x{NUMBER}; the kernel's GJK is x{NUMBER} as fast",
     ],
     "bench_stiffness.py": [
         rf"online compensation step \(fig. 15\)\s+{NUMBER}\s+{NUMBER} %",
