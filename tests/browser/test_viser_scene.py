@@ -106,6 +106,18 @@ def test_spring_handle_pushes_the_robot(workbench) -> None:
     )
 
 
+def test_a_drag_is_not_undone_before_it_arms(workbench) -> None:
+    """viser sets the handle's position, then calls ``arm``: a scene tick in between, with the
+    robot standing still, must leave the dragged handle where the user put it (it used to put
+    it back on the tool, and the drag then pushed nothing)."""
+    session, lead = workbench.session, workbench.leadthrough
+    p0 = session.robot.snapshot().position_m.copy()
+    dragged = p0 + np.array([0.0, 0.0, 0.020])
+    workbench.scene.handle.position = dragged
+    lead.tick(session.robot.snapshot())
+    np.testing.assert_allclose(workbench.scene.handle.position, dragged, atol=1e-9)
+
+
 def test_panels_follow_session_changes(workbench) -> None:
     session = workbench.session
     session.record_guide_point()

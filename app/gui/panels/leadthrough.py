@@ -133,6 +133,7 @@ class LeadThroughPanel:
         self._armed = False
         self._last_tick = time.monotonic()
         self._spring_time_s: float | None = None  # sim time after the spring's last push
+        self._tool_followed_m: np.ndarray | None = None  # the TCP the handle was last put on
         self.push_N: np.ndarray | None = None
 
     def _push_wrench(self, direction: str) -> np.ndarray:
@@ -151,7 +152,18 @@ class LeadThroughPanel:
         """Stop pushing and put the handle back on the tool."""
         self._armed = False
         self.push_N = None
-        self.scene.handle_to(self.session.robot.snapshot().T_base_tcp[:3, 3])
+        self._tool_followed_m = self.session.robot.snapshot().T_base_tcp[:3, 3].copy()
+        self.scene.handle_to(self._tool_followed_m)
+
+    def _follow_tool(self, tcp_m: np.ndarray) -> None:
+        """Put the disarmed handle back on the tool when the tool has moved: never while it
+        stands still, so a drag the user has begun (its position set, ``arm`` not yet called)
+        is not undone between the two."""
+        if self._tool_followed_m is None or not np.allclose(
+            tcp_m, self._tool_followed_m, atol=1e-6
+        ):
+            self._tool_followed_m = np.array(tcp_m, dtype=float)
+            self.scene.handle_to(self._tool_followed_m)
 
     def set_handle_visible(self, visible: bool) -> None:
         """Show or hide the handle (a hidden handle does not push)."""
@@ -178,7 +190,7 @@ class LeadThroughPanel:
         self._last_tick = now
         if snapshot.busy:
             self._armed, self.push_N = False, None
-            self.scene.handle_to(snapshot.T_base_tcp[:3, 3])
+            self._follow_tool(snapshot.T_base_tcp[:3, 3])
             return snapshot
         if (
             self._armed
@@ -190,7 +202,7 @@ class LeadThroughPanel:
         self.push_N = force
         if force is None:
             self._spring_time_s = None
-            self.scene.handle_to(snapshot.T_base_tcp[:3, 3])
+            self._follow_tool(snapshot.T_base_tcp[:3, 3])
             return snapshot
         if not np.any(force) or elapsed <= 0:
             self._spring_time_s = snapshot.time_s
