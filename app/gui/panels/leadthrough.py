@@ -133,8 +133,9 @@ class LeadThroughPanel:
         self._armed = False
         self._last_tick = time.monotonic()
         self._spring_time_s: float | None = None  # sim time after the spring's last push
-        self._tool_followed_m: np.ndarray | None = None  # the TCP the handle was last put on
         self.push_N: np.ndarray | None = None
+        self._tool_followed_m = np.zeros(3)  # the TCP the handle was last put on
+        self.disarm()  # the handle starts on the tool
 
     def _push_wrench(self, direction: str) -> np.ndarray:
         w = np.zeros(6)
@@ -159,9 +160,7 @@ class LeadThroughPanel:
         """Put the disarmed handle back on the tool when the tool has moved: never while it
         stands still, so a drag the user has begun (its position set, ``arm`` not yet called)
         is not undone between the two."""
-        if self._tool_followed_m is None or not np.allclose(
-            tcp_m, self._tool_followed_m, atol=1e-6
-        ):
+        if not np.allclose(tcp_m, self._tool_followed_m, rtol=0.0, atol=1e-6):
             self._tool_followed_m = np.array(tcp_m, dtype=float)
             self.scene.handle_to(self._tool_followed_m)
 
