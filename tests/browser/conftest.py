@@ -37,6 +37,47 @@ CHROMIUM_ARGS = [
     "--disable-sync",
     "--no-first-run",
 ]
+# A 3D page redraws its scene in software (SwiftShader) as fast as the machine allows: about
+# six frames a second here, 0.25 s of CPU each, so an open viser page took over a core while
+# the robot moved and chromium was a fifth of the suite's CPU. The tests need each change drawn,
+# not six frames a second: every context they open (``new_context``) lets each animation-frame
+# request wait ``FRAME_INTERVAL_MS`` first, so its pages draw about two frames a second. It is
+# the same page drawn less often, as on a slower machine; what it draws and what a click picks
+# do not change. (benchmarks/bench_browser_pose_rate.py measures the pages unthrottled.)
+FRAME_INTERVAL_MS = 500
+_THROTTLED_FRAMES_JS = f"""
+(() => {{
+  const raf = window.requestAnimationFrame.bind(window);
+  const caf = window.cancelAnimationFrame.bind(window);
+  const pending = new Map();
+  let next = 1;
+  window.requestAnimationFrame = (callback) => {{
+    const id = next++;
+    const entry = {{frame: undefined}};
+    entry.timer = setTimeout(() => {{
+      entry.frame = raf((t) => {{ pending.delete(id); callback(t); }});
+    }}, {FRAME_INTERVAL_MS});
+    pending.set(id, entry);
+    return id;
+  }};
+  window.cancelAnimationFrame = (id) => {{
+    const entry = pending.get(id);
+    if (entry === undefined) return;
+    clearTimeout(entry.timer);
+    if (entry.frame !== undefined) caf(entry.frame);
+    pending.delete(id);
+  }};
+}})();
+"""
+
+
+def new_context(browser, **options):
+    """``browser.new_context(**options)`` whose pages draw about two frames a second (above)."""
+    context = browser.new_context(**options)
+    context.add_init_script(_THROTTLED_FRAMES_JS)
+    return context
+
+
 START_TIMEOUT_S = 90.0
 VIEWPORT = {"width": 1400, "height": 900}
 
@@ -106,7 +147,7 @@ def _close_left_contexts(request: pytest.FixtureRequest) -> Iterator[None]:
 @pytest.fixture
 def page(browser):
     """A fresh browser context (own localStorage, downloads accepted) and page."""
-    context = browser.new_context(viewport=VIEWPORT, accept_downloads=True)
+    context = new_context(browser, viewport=VIEWPORT, accept_downloads=True)
     context.set_default_timeout(30_000)
     pg = context.new_page()
     yield pg

@@ -12,7 +12,7 @@ import httpx
 import pytest
 from playwright.sync_api import expect
 
-from tests.browser.conftest import CHROMIUM, CHROMIUM_ARGS, Served, wait_for
+from tests.browser.conftest import CHROMIUM, CHROMIUM_ARGS, Served, new_context, wait_for
 
 pytestmark = pytest.mark.slow
 
@@ -36,7 +36,7 @@ def test_the_viser_scene_under_a_rebound_name_never_connects(
 ) -> None:
     before = api.get("/api/guide-points").json()
     port = urlsplit(served.viser_url).port
-    context = rebinding_browser.new_context()
+    context = new_context(rebinding_browser)
     page = context.new_page()
     refusal = f"refused a websocket from host '{REBOUND}:{port}'"
     refused_before = served.log().count(refusal)
@@ -52,7 +52,7 @@ def test_the_viser_scene_under_a_rebound_name_never_connects(
     context.close()
     assert api.get("/api/guide-points").json() == before
     # The same browser under a loopback name gets the workbench: the refusal is the name's.
-    context = rebinding_browser.new_context()
+    context = new_context(rebinding_browser)
     page = context.new_page()
     page.goto(f"http://127.0.0.1:{port}/")
     expect(page.get_by_text("Lead-through")).to_be_visible()
@@ -61,7 +61,7 @@ def test_the_viser_scene_under_a_rebound_name_never_connects(
 
 def test_the_pendant_under_a_rebound_name_is_refused(served: Served, rebinding_browser) -> None:
     port = urlsplit(served.base_url).port
-    context = rebinding_browser.new_context()
+    context = new_context(rebinding_browser)
     page = context.new_page()
     response = page.goto(f"http://{REBOUND}:{port}/pendant/")
     assert response is not None and response.status == 403

@@ -14,7 +14,7 @@ import pytest
 from playwright.sync_api import expect
 
 from tests.api.server_process import Api
-from tests.browser.conftest import Served, wait_for, workbench_on
+from tests.browser.conftest import Served, new_context, wait_for, workbench_on
 from tests.demo_project import block_demo_dir
 
 pytestmark = pytest.mark.slow
@@ -42,7 +42,7 @@ def test_the_pendant_compares_and_chooses(served: Served, browser) -> None:
     data = (block_demo_dir() / "project.npz").read_bytes()
     api.ok("POST", "/api/projects/import", 201, files={"file": ("project.npz", data)},
            params={"name": "compare"})  # fmt: skip
-    context = browser.new_context(viewport={"width": 1400, "height": 1400})
+    context = new_context(browser, viewport={"width": 1400, "height": 1400})
     page = context.new_page()
     try:
         page.goto(f"{served.base_url}/pendant/?viser=about:blank")  # the table, not the scene
@@ -177,7 +177,7 @@ def test_the_cmrr_figure_opens_window_wide(served: Served, browser) -> None:
     api.new_project()
     job = api.ok("POST", "/api/cmrr/studies", 202, json={"scenario": "deburr-burrs"})["job_id"]
     assert api.wait_job(job, timeout_s=300.0)["status"] == "done"
-    context = browser.new_context(viewport={"width": 1400, "height": 900})
+    context = new_context(browser, viewport={"width": 1400, "height": 900})
     page = context.new_page()
     try:
         page.goto(served.viser_url)

@@ -18,7 +18,7 @@ import pytest
 from playwright.sync_api import Page, expect
 
 from robomach_core.transforms import matrix_from_quaternion
-from tests.browser.conftest import wait_for, workbench_on
+from tests.browser.conftest import new_context, wait_for, workbench_on
 from tests.generated_parts import grooved_plate
 
 pytestmark = pytest.mark.slow
@@ -61,7 +61,7 @@ def workbench() -> Iterator:
 
 
 def _open(browser, workbench) -> tuple[Page, object]:
-    context = browser.new_context(viewport=VIEWPORT)  # closed after the test (conftest)
+    context = new_context(browser, viewport=VIEWPORT)  # closed after the test (conftest)
     context.set_default_timeout(60_000)
     page = context.new_page()
     page.goto(f"http://127.0.0.1:{workbench.server.get_port()}")

@@ -14,6 +14,7 @@ import pytest
 from playwright.sync_api import expect
 
 from tests.api.server_process import ROOT, ServerProcess, free_port
+from tests.browser.conftest import new_context
 
 pytestmark = pytest.mark.slow
 
@@ -49,7 +50,7 @@ def test_the_pendant_reconnects_after_a_restart(tmp_path: Path, browser) -> None
     data = tmp_path / "data"
     port, viser_port = free_port(), free_port()
     server = serve(data, port, viser_port, "first.log")
-    context = browser.new_context(viewport={"width": 1400, "height": 900})
+    context = new_context(browser, viewport={"width": 1400, "height": 900})
     page = context.new_page()
     try:
         page.goto(f"{server.base_url}/pendant/?viser={server.viser_url}")

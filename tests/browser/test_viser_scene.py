@@ -13,7 +13,7 @@ import pytest
 from PIL import Image
 from playwright.sync_api import Page, expect
 
-from tests.browser.conftest import Served, wait_for, workbench_on
+from tests.browser.conftest import Served, new_context, wait_for, workbench_on
 
 pytestmark = pytest.mark.slow
 
@@ -48,7 +48,7 @@ def settled_canvas(page: Page) -> np.ndarray:
 
 
 def test_viser_page_draws_the_robot(served: Served, api: httpx.Client, browser) -> None:
-    context = browser.new_context(viewport=SCENE_VIEWPORT)
+    context = new_context(browser, viewport=SCENE_VIEWPORT)
     context.set_default_timeout(60_000)
     page = context.new_page()
     page.goto(served.viser_url)
