@@ -13,8 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from rapidchecker.check import check_format
-from rapidchecker.whitespace_checks import check_whitespace
 
 from robomach_core.demo_operator import guide_plan
 from robomach_core.export import check_rapid_module
@@ -26,6 +24,7 @@ from robomach_core.transforms import make_transform
 from robomach_core.workpiece import builtin_workpiece
 from tests.cli import robomach_here
 from tests.demo_project import pump_demo
+from tests.rapid_grammar import rapidchecker_errors
 
 
 def demo(out: Path, *args: str) -> tuple[dict, subprocess.CompletedProcess]:
@@ -42,10 +41,6 @@ def targets_rows(out: Path) -> list[dict]:
 
 def joints_of(row: dict) -> np.ndarray:
     return np.radians([float(row[f"joint{i}_deg"]) for i in range(1, 7)])
-
-
-def rapidchecker_errors(text: str) -> list[str]:
-    return [str(e) for e in check_format(text)] + [str(e) for e in check_whitespace(text)]
 
 
 @pytest.fixture(scope="module")

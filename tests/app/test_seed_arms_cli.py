@@ -12,7 +12,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from rapidchecker.check import check_format
 
 from robomach_core.export import check_rapid_module
 from robomach_core.export.krl_check import check_krl_program
@@ -22,6 +21,7 @@ from robomach_core.robots import KR270
 from robomach_core.robots.kuka import status_bits, turn_bits
 from robomach_core.tool import Tool
 from tests.cli import robomach_here
+from tests.rapid_grammar import rapidchecker_errors
 
 pytestmark = pytest.mark.slow
 # The issue's bound on the learned pump path (the UR10's is 0.21-0.23 mm at 0.2 mm tolerance).
@@ -92,7 +92,7 @@ def test_irb2400_learns_the_pump_with_confdata_of_its_joints(irb2400):
     assert s["max_deviation_mm"] <= MAX_DEVIATION_MM
     assert s["program_language"] == "rapid" and not (out / "program.script").exists()
     text = (out / "program.mod").read_text()
-    assert [str(e) for e in check_format(text)] == []
+    assert rapidchecker_errors(text) == []
     info = check_rapid_module(text)
     robot = Robot("irb2400", Tool().T_flange_tcp)
     for k, q in enumerate(target_joints(out), start=1):

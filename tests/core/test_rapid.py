@@ -12,8 +12,6 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from rapidchecker.check import check_format
-from rapidchecker.whitespace_checks import check_whitespace
 
 from robomach_core.arcs import Move
 from robomach_core.errors import InvalidInputError
@@ -34,6 +32,7 @@ from robomach_core.export import (
 )
 from robomach_core.export import rapid as rapid_export
 from robomach_core.transforms import matrix_from_quaternion
+from tests.rapid_grammar import GRAMMAR_ROBTARGETS, rapidchecker_errors
 
 GOLDEN_DIR = Path(__file__).parent / "golden"
 UPDATE_GOLDEN = os.environ.get("ROBOMACH_UPDATE_GOLDEN") == "1"
@@ -101,21 +100,10 @@ def assert_round_trip(program: RapidProgram) -> None:
         assert tuple(conf) == confdata_from_joints(target.joints_rad, cfx=target.cfx)
 
 
-# rapidchecker's pyparsing grammar takes ~50 ms per line: check each distinct text once, and at
-# most this many per test (a test writes one to three; the Hypothesis property below writes 40+,
-# which took 40 s; the project's own checker and the round trip still see every one of them).
-_RAPIDCHECKER_PASSED: set[str] = set()
+# rapidchecker (tests/rapid_grammar.py) sees at most this many distinct modules per test (a test
+# writes one to three; the Hypothesis property below writes 40+, which took 40 s; the project's
+# own checker and the round trip still see every one of them).
 RAPIDCHECKER_PER_TEST = 10
-
-
-def rapidchecker_errors(text: str) -> list[str]:
-    """The third-party checker's grammar and format errors (rapidchecker on PyPI)."""
-    if text in _RAPIDCHECKER_PASSED:
-        return []
-    errors = [str(e) for e in check_format(text)] + [str(e) for e in check_whitespace(text)]
-    if not errors:
-        _RAPIDCHECKER_PASSED.add(text)
-    return errors
 
 
 @pytest.fixture(autouse=True)
@@ -589,6 +577,20 @@ def test_rapidchecker_sees_a_broken_module() -> None:
     assert rapidchecker_errors(original_text) == []
     broken = text.replace("  ENDPROC\n", "", 1)
     assert rapidchecker_errors(broken)
+
+
+def test_robtargets_past_the_grammars_share_are_held_to_their_exact_shape() -> None:
+    """tests/rapid_grammar.py gives the grammar the first robtargets only; a later one with a
+    number the grammar never saw (nan) or a missing element still fails."""
+    text = rapid_export.rapid_module(make_program(targets=make_arc_targets(12)))
+    assert rapidchecker_errors(text) == []
+    lines = text.splitlines(keepends=True)
+    late = [k for k, line in enumerate(lines) if "CONST robtarget" in line][GRAMMAR_ROBTARGETS + 1]
+    for broken in (re.sub(r"\[\[-?[\d.]+", "[[nan", lines[late], count=1),
+                   lines[late].replace("],[", ",", 1)):  # fmt: skip
+        assert broken != lines[late]
+        errors = rapidchecker_errors("".join(lines[:late] + [broken] + lines[late + 1 :]))
+        assert errors and "expected shape" in errors[0], errors
 
 
 def make_arc_targets(n: int = 5) -> list[RapidTarget]:
