@@ -124,9 +124,12 @@ def _learn_and_postprocess(page: Page, workbench) -> float:
     from the (true) wall, mm."""
     session = workbench.session
     learned_before = session.project().recording
+    wait_for(lambda: not session.jobs.active(), 300)  # the accepted points' moves have ended
     page.get_by_role("button", name="Run path learning").click()
     wait_for(
-        lambda: session.project().recording is not learned_before and not session.robot.busy(), 300
+        lambda: session.project().recording is not learned_before and not session.robot.busy(),
+        300,
+        describe=lambda: f"jobs {[(j.kind, j.status, j.error) for j in session.jobs.list()]}",
     )
     rec = session.project().recording
     assert rec.completed, rec.stop_reason
