@@ -170,12 +170,16 @@ class Pointing:
 
         def change(p: core.Project) -> core.Project:
             if replace_index is None:
-                return core.with_guide_point_added(p, point)
-            return core.with_guide_point_at(p, replace_index, point)
+                new = core.with_guide_point_added(p, point)
+            else:
+                new = core.with_guide_point_at(p, replace_index, point)
+            # Under the session's lock, before the point is seen: a reader who finds it (and
+            # asks to learn on the "auto" side) also finds the points taught by pointing.
+            self._pointed = (new.guides_key, None)
+            return new
 
         project = s.commit(change, "guides", topics=("guide_points", "recording", "postprocess"))
         index = len(project.guide_points) - 1 if replace_index is None else replace_index
-        self._pointed = (project.guides_key, None)
         notice = arrival.describe()
         if planned.message:
             notice = f"{notice}; {planned.message}" if notice else planned.message
