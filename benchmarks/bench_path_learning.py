@@ -252,7 +252,7 @@ def bench_outer_wall(sets: int, repeats: int) -> None:
     ``supervision._kernels.convex_clearance``)."""
     from robomach_core.cell import CellConfig
     from robomach_core.project import CellSettings, Project, learn
-    from robomach_core.supervision._kernels import _unpack
+    from robomach_core.supervision._kernels import obstacle_corner_counts
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout's tests/
     from tests.sloppy_guides import sloppy_guides
@@ -266,7 +266,7 @@ def bench_outer_wall(sets: int, repeats: int) -> None:
         start = lt.start(cell.initial_state()).cell
         settings = PathLearningSettings(speed_m_s=0.010, wall_side=sset.wall_side)
         supervisor = cell_supervisor(cell)
-        corner_counts = _unpack(supervisor._model)[8][:, 7]  # a view into the model
+        corner_counts = obstacle_corner_counts(supervisor._model)  # a view into the model
         with_corners = corner_counts.copy()
         learn(project, cell, start, settings, lt.estimator)  # the kernels loaded
         for _ in range(repeats):

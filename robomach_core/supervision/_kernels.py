@@ -77,6 +77,13 @@ def pack_model(
     return np.concatenate([np.asarray(head, dtype=float)] + [np.ravel(p) for p in parts])
 
 
+def obstacle_corner_counts(model: np.ndarray) -> np.ndarray:
+    """(O,) each obstacle's number of corners in the packed ``model``, as a view into it. Set
+    to 0, the kernels leave that obstacle's near clearances to coal: the reference that the
+    GJK test and ``bench_path_learning.py`` compare with."""
+    return _unpack.py_func(model)[8][:, 7]
+
+
 @_jit
 def _unpack(model: np.ndarray):  # noqa: ANN202 - a tuple of views, in ``pack_model``'s order
     K, P, O, C = int(model[0]), int(model[1]), int(model[2]), int(model[3])

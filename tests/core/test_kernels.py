@@ -565,7 +565,7 @@ def test_the_gjk_clearance_near_the_part_is_coals(part):
     supervisor = cell_supervisor(cell)
     model = supervisor._model
     coal_only = model.copy()
-    sk._unpack(coal_only)[8][:, 7] = 0  # no corners per obstacle: every near pair is NaN
+    sk.obstacle_corner_counts(coal_only)[:] = 0  # every near pair is NaN: coal measures it
     lo, hi = cell.workpiece.mesh_in_base().bounds
     rng = np.random.default_rng(11)
     q, given, left = cell.robot.home_rad, 0, 0
