@@ -4,8 +4,9 @@ read its figures, see its plot and download the controller settings.
 The study runs as a job of the session (``app.studies.StudyService``); when it is done it is
 saved to the open project (as the reserved export ``_study-cmrr``) by the service, so there
 is no save button.
-``StudyJobFollower`` is shared with the compensation panel: session and service events only
-set a flag, and its thread refreshes the panel at most ``REFRESH_HZ`` times a second.
+``StudyPanel`` and its ``StudyJobFollower`` are shared with the compensation panel: session and
+service events only set a flag, and the follower's thread refreshes the panel at most
+``REFRESH_HZ`` times a second.
 """
 
 from __future__ import annotations
@@ -146,7 +147,63 @@ class StudyJobFollower:
             return None
 
 
-class CmrrPanel:
+class StudyPanel:
+    """What the CMRR and compensation panels share: run/cancel/progress/status/figures, the
+    settings download and the job follower. A panel names itself (``NAME``, ``JOB_KIND``,
+    ``SETTINGS_FILE``), submits its job in ``_submit`` and shows a new study in ``_show``."""
+
+    NAME: str
+    JOB_KIND: str
+    SETTINGS_FILE: str
+
+    def _add_run_controls(self, server: viser.ViserServer, run_label: str) -> None:
+        self.run = server.gui.add_button(run_label, icon=viser.Icon.PLAYER_PLAY, color="green")
+        self.cancel = server.gui.add_button(
+            "Cancel", icon=viser.Icon.PLAYER_STOP, color="red", disabled=True
+        )
+        self.progress = server.gui.add_progress_bar(0.0)
+        self.status = server.gui.add_markdown("")
+        self.figures = server.gui.add_markdown("")
+
+    def _follow_jobs(
+        self, session, service: StudyService, result: Callable, settings_json: Callable[[], str]
+    ) -> None:
+        """Wire run, cancel and download, then follow the panel's jobs (refreshing it)."""
+        self._result, self._settings_json = result, settings_json
+        self.run.on_click(guarded(f"{self.NAME} study", lambda e: self.start()))
+        self.cancel.on_click(guarded("Cancel", lambda e: self.follower.cancel()))
+        self.download.on_click(guarded(f"{self.NAME} settings", self._send_settings))
+        self._shown: object = _NOTHING_SHOWN
+        self._show_hint()
+        self.follower = StudyJobFollower(session, service, self.JOB_KIND, self.refresh)
+
+    def _send_settings(self, event) -> None:
+        event.client.send_file_download(
+            self.SETTINGS_FILE, self._settings_json().encode("utf-8"), save_immediately=True
+        )
+
+    def start(self) -> str:
+        """Run the study the panel's controls describe; returns the job id."""
+        job_id = self._submit()
+        self.follower.follow(job_id)
+        return job_id
+
+    def close(self) -> None:
+        """Stop following the session and the service."""
+        self.follower.close()
+
+    def refresh(self, job) -> None:
+        """Show the job's progress (or how it ended) and the project's last study."""
+        show_job_progress(
+            job, run=self.run, cancel=self.cancel, progress=self.progress, status=self.status
+        )
+        outcome = self._result()
+        if outcome is not self._shown:
+            self._shown = outcome
+            self._show(outcome)
+
+
+class CmrrPanel(StudyPanel):
     """Scenario, controller (or all), seed; run, cancel, progress; figures, plot, settings.
 
     Args:
@@ -154,6 +211,8 @@ class CmrrPanel:
         session: The workbench session (its job runner shows the progress).
         service: The study service that runs and keeps the studies.
     """
+
+    NAME, JOB_KIND, SETTINGS_FILE = "CMRR", CMRR_JOB_KIND, "cmrr_settings.json"
 
     def __init__(self, server: viser.ViserServer, session, service: StudyService) -> None:
         self.session = session
@@ -175,15 +234,7 @@ class CmrrPanel:
             self.seed = server.gui.add_number(
                 "Seed", last.seed if last else 0, min=0, max=int(SEED.max), step=1
             )
-            self.run = server.gui.add_button(
-                "Run CMRR study", icon=viser.Icon.PLAYER_PLAY, color="green"
-            )
-            self.cancel = server.gui.add_button(
-                "Cancel", icon=viser.Icon.PLAYER_STOP, color="red", disabled=True
-            )
-            self.progress = server.gui.add_progress_bar(0.0)
-            self.status = server.gui.add_markdown("")
-            self.figures = server.gui.add_markdown("")
+            self._add_run_controls(server, "Run CMRR study")
             self.plot = server.gui.add_image(np.full((2, 2, 3), 255, np.uint8), format="png")
             self.enlarge = server.gui.add_button(
                 "Open the figure large", disabled=last is None, hint="Full size, in a window"
@@ -193,36 +244,12 @@ class CmrrPanel:
             )
         self.enlarge.on_click(guarded("CMRR figure", self._open_large))
         self.scenario.on_update(lambda e: self._show_hint())
-        self.run.on_click(guarded("CMRR study", lambda e: self.start()))
-        self.cancel.on_click(guarded("Cancel", lambda e: self._cancel()))
-        self.download.on_click(
-            guarded(
-                "CMRR settings",
-                lambda e: e.client.send_file_download(
-                    "cmrr_settings.json",
-                    self.service.cmrr_settings_json().encode("utf-8"),
-                    save_immediately=True,
-                ),
-            )
-        )
-        self._shown: CmrrOutcome | None | object = _NOTHING_SHOWN
-        self._show_hint()
-        self.follower = StudyJobFollower(session, service, CMRR_JOB_KIND, self.refresh)
+        self._follow_jobs(session, service, service.cmrr_result, service.cmrr_settings_json)
 
-    def start(self) -> str:
-        """Run the study the panel's controls describe; returns the job id."""
-        job_id = self.service.start_cmrr(
+    def _submit(self) -> str:
+        return self.service.start_cmrr(
             self.scenario.value, self.controller.value, seed=int(self.seed.value)
         )
-        self.follower.follow(job_id)
-        return job_id
-
-    def close(self) -> None:
-        """Stop following the session and the service."""
-        self.follower.close()
-
-    def _cancel(self) -> None:
-        self.follower.cancel()
 
     def _open_large(self, event) -> None:
         """The last study's figure at full size in a wide modal of the user's browser."""
@@ -241,15 +268,7 @@ class CmrrPanel:
     def _show_hint(self) -> None:
         self.run.hint = SCENARIO_HINTS.get(self.scenario.value)
 
-    def refresh(self, job) -> None:
-        """Show the job's progress (or how it ended) and the project's last study."""
-        show_job_progress(
-            job, run=self.run, cancel=self.cancel, progress=self.progress, status=self.status
-        )
-        outcome = self.service.cmrr_result()
-        if outcome is self._shown:
-            return
-        self._shown = outcome
+    def _show(self, outcome: CmrrOutcome | None) -> None:
         self.download.disabled = outcome is None
         self.enlarge.disabled = outcome is None or outcome.plot_png is None
         if outcome is None:

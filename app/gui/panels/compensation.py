@@ -19,8 +19,7 @@ from app.studies import (
 )
 from robomach_core.stiffness.settings import COMPENSATION_SETTINGS
 
-from .cmrr import StudyJobFollower, fmt, png_to_image, show_job_progress
-from .feedback import guarded
+from .cmrr import StudyPanel, fmt, png_to_image
 
 STUDY_HINTS = {
     "identify": "Joint stiffness from CMM measurements under known loads (chapter 5.2)",
@@ -30,10 +29,9 @@ STUDY_HINTS = {
     "all": "Every study in turn; the milling and ILC use the identified model",
 }
 NO_PLOT = "(none)"
-_NOTHING_SHOWN = object()  # the panel has shown no study, not even "none yet"
 
 
-class CompensationPanel:
+class CompensationPanel(StudyPanel):
     """Study, quick preview, compensation mode; run, cancel, progress; figures, plots, settings.
 
     Args:
@@ -41,6 +39,9 @@ class CompensationPanel:
         session: The workbench session (its job runner shows the progress).
         service: The study service that runs and keeps the studies.
     """
+
+    NAME, JOB_KIND = "Compensation", COMPENSATION_JOB_KIND
+    SETTINGS_FILE = "compensation_settings.json"
 
     def __init__(self, server: viser.ViserServer, session, service: StudyService) -> None:
         self.session = session
@@ -61,15 +62,7 @@ class CompensationPanel:
                 initial_value="online",
                 hint="Compensation mode written to the settings (online needs the gravity study)",
             )
-            self.run = server.gui.add_button(
-                "Run compensation study", icon=viser.Icon.PLAYER_PLAY, color="green"
-            )
-            self.cancel = server.gui.add_button(
-                "Cancel", icon=viser.Icon.PLAYER_STOP, color="red", disabled=True
-            )
-            self.progress = server.gui.add_progress_bar(0.0)
-            self.status = server.gui.add_markdown("")
-            self.figures = server.gui.add_markdown("")
+            self._add_run_controls(server, "Run compensation study")
             self.plot_name = server.gui.add_dropdown("Plot", (NO_PLOT,), initial_value=NO_PLOT)
             self.plot = server.gui.add_image(np.full((2, 2, 3), 255, np.uint8), format="png")
             self.download = server.gui.add_button(
@@ -77,49 +70,19 @@ class CompensationPanel:
             )
         self.study.on_update(lambda e: self._show_hint())
         self.plot_name.on_update(lambda e: self._show_plot())
-        self.run.on_click(guarded("Compensation study", lambda e: self.start()))
-        self.cancel.on_click(guarded("Cancel", lambda e: self._cancel()))
-        self.download.on_click(
-            guarded(
-                "Compensation settings",
-                lambda e: e.client.send_file_download(
-                    "compensation_settings.json",
-                    self.service.compensation_settings_json().encode("utf-8"),
-                    save_immediately=True,
-                ),
-            )
+        self._follow_jobs(
+            session, service, service.compensation_result, service.compensation_settings_json
         )
-        self._shown: CompensationOutcome | None | object = _NOTHING_SHOWN
-        self._show_hint()
-        self.follower = StudyJobFollower(session, service, COMPENSATION_JOB_KIND, self.refresh)
 
-    def start(self) -> str:
-        """Run the study the panel's controls describe; returns the job id."""
-        job_id = self.service.start_compensation(
+    def _submit(self) -> str:
+        return self.service.start_compensation(
             self.study.value, quick=bool(self.quick.value), mode=self.mode.value
         )
-        self.follower.follow(job_id)
-        return job_id
-
-    def close(self) -> None:
-        """Stop following the session and the service."""
-        self.follower.close()
-
-    def _cancel(self) -> None:
-        self.follower.cancel()
 
     def _show_hint(self) -> None:
         self.run.hint = STUDY_HINTS.get(self.study.value)
 
-    def refresh(self, job) -> None:
-        """Show the job's progress (or how it ended) and the project's last study."""
-        show_job_progress(
-            job, run=self.run, cancel=self.cancel, progress=self.progress, status=self.status
-        )
-        outcome = self.service.compensation_result()
-        if outcome is self._shown:
-            return
-        self._shown = outcome
+    def _show(self, outcome: CompensationOutcome | None) -> None:
         self.download.disabled = outcome is None or outcome.settings is None
         if outcome is None:
             self.progress.value = 0.0
