@@ -67,8 +67,7 @@ from .leadthrough import GuidePoint
 from .limits import FLOOR_CLEARANCE_MM, LEARNING_FORCE_N, LEARNING_SPEED_MM_S
 from .sensor import ForceEstimator
 from .supervision import Supervisor, cell_supervisor
-from .transforms import matrix_from_quaternion, quaternion_from_matrix, quaternions_from_matrices
-from .transforms import slerp as _slerp
+from .transforms import matrix_from_quaternion, quaternions_from_matrices
 from .wall_side import (
     WALL_FORCE_CLEAR_N,
     WALL_SIDE_CHOICES,
@@ -287,40 +286,33 @@ def move_linear(
 ) -> CellState:
     """Position-controlled straight move (MoveL) of the TCP to ``T_target``; no force control.
 
+    The reference moves by equal increments, (p1 - p0) / n and log3(R0^T R1) / n in its own
+    axes (the slerp's constant rate), over n periods at ``speed_m_s``: the increments path
+    learning's loop runs through ``Supervisor.supervise_increment``, compiled.
+
     Supervised: the move slows near a limit and raises ``SupervisionError`` (carrying the last
     safe cell state) before crossing one.
     """
     supervisor = supervisor or cell_supervisor(cell)
-    T0 = state.T_base_tcp.copy()
-    q0 = quaternion_from_matrix(T0[:3, :3])
-    q1 = quaternion_from_matrix(T_target[:3, :3])
-    dist = float(np.linalg.norm(T_target[:3, 3] - T0[:3, 3]))
+    T_ref = state.T_base_tcp.copy()
+    T_target = np.asarray(T_target, dtype=float)
+    dist = float(np.linalg.norm(T_target[:3, 3] - T_ref[:3, 3]))
     n = max(1, int(math.ceil(dist / speed_m_s / CONTROL_PERIOD_S)))
-    robot = cell.robot
+    step = (T_target[:3, 3] - T_ref[:3, 3]) / n
+    turn = pin.log3(T_ref[:3, :3].T @ T_target[:3, :3]) / n
     progress = 0.0  # periods' worth of motion done (a slowed period counts its scale)
     settle = 0
     for _ in range(MOVE_MAX_PERIODS_FACTOR * n + 10):
         if progress >= n and settle >= 10:
             break
-        base = progress
-        step = min(1.0, n - progress) if progress < n else 0.0
-        q = state.q_motor
-
-        def propose(
-            scale: float, base: float = base, step: float = step, q: np.ndarray = q
-        ) -> tuple[np.ndarray, np.ndarray]:
-            f = min(1.0, (base + scale * step) / n)
-            T = np.eye(4)
-            T[:3, :3] = matrix_from_quaternion(_slerp(q0, q1, f))
-            T[:3, 3] = T0[:3, 3] + f * (T_target[:3, 3] - T0[:3, 3])
-            return T, robot.ik_step(q, T)
-
-        supervised = supervisor.supervise(q, propose)
+        part = min(1.0, n - progress) if progress < n else 0.0
+        supervised = supervisor.supervise_increment(state.q_motor, T_ref, step * part, turn * part)
         if supervised.stop is not None:
             raise supervised.stop.error(state=state)
+        T_ref = supervised.T_ref
         state = cell.step(state, supervised.q_next)
-        progress += supervised.scale * step
-        if step == 0.0:  # at the target: settling periods
+        progress += supervised.scale * part
+        if part == 0.0:  # at the target: settling periods
             settle += 1
     return state
 
