@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
-from fastapi import Depends, Request
+from fastapi import Depends, Request, Response
 
 from app.api.schemas import ErrorPublic
 from app.session import Session
@@ -49,6 +49,23 @@ ERRORS: dict[int | str, dict] = {
 # File answers of the study routes.
 PNG = {200: {"content": {"image/png": {}}, "description": "the figure (PNG)"}}
 JSON_FILE = {200: {"content": {"application/json": {}}, "description": "a JSON file"}}
+MEDIA_TYPES = {
+    ".mod": "text/plain; charset=utf-8",
+    ".csv": "text/csv; charset=utf-8",
+    ".json": "application/json",
+    ".zip": "application/zip",
+    ".npz": "application/octet-stream",
+}
+
+
+def download(content: str | bytes, filename: str, media_type: str | None = None) -> Response:
+    """``content`` as a file download named ``filename`` (media type from its suffix)."""
+    suffix = filename[filename.rfind(".") :]
+    return Response(
+        content,
+        media_type=media_type or MEDIA_TYPES.get(suffix, "text/plain; charset=utf-8"),
+        headers={"Content-Disposition": f'attachment; filename="{filename}"'},
+    )
 
 
 def relative_folder(folder: Path | None, data_dir: Path | None) -> str | None:

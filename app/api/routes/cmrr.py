@@ -10,7 +10,7 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, Query, Response, status
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
-from app.api.routes import ERRORS, JSON_FILE, PNG, StudiesDep, relative_folder
+from app.api.routes import ERRORS, JSON_FILE, PNG, StudiesDep, download, relative_folder
 from app.api.schemas import JobCreated
 from app.session import NotFoundError
 from app.studies import (
@@ -184,8 +184,4 @@ def get_settings(
     with ``robomach cmrr --settings`` or export them with the RAPID program."""
     text = studies.cmrr_settings_json(controller)
     filename = "cmrr_settings.json" if controller is None else f"cmrr_settings_{controller}.json"
-    return Response(
-        text,
-        media_type="application/json",
-        headers={"Content-Disposition": f'attachment; filename="{filename}"'},
-    )
+    return download(text, filename)

@@ -9,7 +9,7 @@ from typing import Any
 from fastapi import APIRouter, Response, status
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.api.routes import ERRORS, JSON_FILE, PNG, StudiesDep, relative_folder
+from app.api.routes import ERRORS, JSON_FILE, PNG, StudiesDep, download, relative_folder
 from app.api.schemas import JobCreated
 from app.studies import SEED_MAX, CompensationOutcome, CompensationStudy
 from robomach_core.stiffness.settings import CompensationSetting
@@ -112,8 +112,4 @@ def get_plot(name: str, studies: StudiesDep) -> Response:
 def get_settings(studies: StudiesDep) -> Response:
     """compensation_settings.json as a download: the identified joint stiffness, the tool's
     gravity parameters and the compensation mode (from the last identify or all study)."""
-    return Response(
-        studies.compensation_settings_json(),
-        media_type="application/json",
-        headers={"Content-Disposition": 'attachment; filename="compensation_settings.json"'},
-    )
+    return download(studies.compensation_settings_json(), "compensation_settings.json")

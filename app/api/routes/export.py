@@ -19,17 +19,11 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Query, Response, status
 
 import robomach_core.export.languages as registry
-from app.api.routes import ERRORS, SessionDep, SettingsDep
+from app.api.routes import ERRORS, SessionDep, SettingsDep, download
 from app.api.schemas import ExportCreate, ExportPublic, ProgramLanguagePublic
 from app.session import programs
 from robomach_core.export.rapid import rapid_identifier
 
-MEDIA_TYPES = {
-    ".mod": "text/plain; charset=utf-8",
-    ".csv": "text/csv; charset=utf-8",
-    ".json": "application/json",
-    ".zip": "application/zip",
-}
 PROGRAM_ANSWERS: dict[int | str, dict[str, Any]] = {
     200: {
         "content": {"text/plain": {}, "application/zip": {}},
@@ -43,15 +37,6 @@ ModuleName = Annotated[
         min_length=1, max_length=64, description="RAPID's MODULE name (other languages: the header)"
     ),  # fmt: skip
 ]
-
-
-def _download(text: str | bytes, filename: str, media_type: str | None = None) -> Response:
-    suffix = filename[filename.rfind(".") :]
-    return Response(
-        text,
-        media_type=media_type or MEDIA_TYPES.get(suffix, "text/plain; charset=utf-8"),
-        headers={"Content-Disposition": f'attachment; filename="{filename}"'},
-    )
 
 
 def program_download(
@@ -74,16 +59,16 @@ def program_download(
             raise InvalidInputError(
                 f"{lang.title} programs have the files {', '.join(files)}, not {file!r}"
             )
-        return _download(files[file], file, lang.media_type)
+        return download(files[file], file, lang.media_type)
     if len(files) == 1:
         name, text = next(iter(files.items()))
-        return _download(text, name, lang.media_type)
+        return download(text, name, lang.media_type)
     buffer = io.BytesIO()
     with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
         for name, text in files.items():
             archive.writestr(name, text)
     stem = "program_fc" if force_control else "program"
-    return _download(buffer.getvalue(), f"{stem}_{lang.name}.zip")
+    return download(buffer.getvalue(), f"{stem}_{lang.name}.zip")
 
 
 def language_public(lang: registry.ProgramLanguage, offered: bool) -> ProgramLanguagePublic:
@@ -154,7 +139,7 @@ def make_router() -> APIRouter:
     ) -> Response:
         """The ABB RAPID module (alias of GET /api/export/program/rapid; text/plain)."""
         name = rapid_identifier(module_name)
-        return _download(
+        return download(
             programs.rapid_module(session, module_name=name, force_control=force_control),
             f"{name}.mod",
         )
@@ -162,17 +147,17 @@ def make_router() -> APIRouter:
     @router.get("/export/samples.csv", response_class=Response)
     def export_samples(session: SessionDep) -> Response:
         """Every recorded 4 ms sample (mm, N, degrees) with the force filter's verdict."""
-        return _download(programs.samples_csv(session.project()), "samples.csv")
+        return download(programs.samples_csv(session.project()), "samples.csv")
 
     @router.get("/export/targets.csv", response_class=Response)
     def export_targets(session: SessionDep) -> Response:
         """The post-processed targets (mm, degrees, mm/s)."""
-        return _download(programs.targets_csv(session), "targets.csv")
+        return download(programs.targets_csv(session), "targets.csv")
 
     @router.get("/export/settings.json", response_class=Response)
     def export_settings(session: SessionDep) -> Response:
         """Cell, compliance, path-learning and post-processing settings (mm, N, s)."""
-        return _download(programs.settings_json(session), "settings.json")
+        return download(programs.settings_json(session), "settings.json")
 
     @router.post("/exports", status_code=status.HTTP_201_CREATED)
     def save_export(body: ExportCreate, session: SessionDep, settings: SettingsDep) -> ExportPublic:
@@ -188,7 +173,7 @@ def make_router() -> APIRouter:
     @router.get("/exports/{name}/{filename}", response_class=Response)
     def get_export_file(name: str, filename: str, session: SessionDep) -> Response:
         """One file of a saved export."""
-        return _download(programs.saved_file(session, name, filename), filename)
+        return download(programs.saved_file(session, name, filename), filename)
 
     return router
 

@@ -8,7 +8,7 @@ from typing import Annotated
 from fastapi import APIRouter, HTTPException, Query, Response, UploadFile, status
 from starlette.concurrency import run_in_threadpool
 
-from app.api.routes import ERRORS, SessionDep
+from app.api.routes import ERRORS, SessionDep, download
 from app.api.schemas import ProjectPublic
 from app.session.project_file import export_project, import_project
 
@@ -51,8 +51,4 @@ async def import_project_file(
 )
 def download_project_file(session: SessionDep) -> Response:
     """The open project as ``project.npz`` (``robomach machine --from`` reads it)."""
-    return Response(
-        export_project(session),
-        media_type="application/octet-stream",
-        headers={"Content-Disposition": 'attachment; filename="project.npz"'},
-    )
+    return download(export_project(session), "project.npz")
