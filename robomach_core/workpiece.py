@@ -8,7 +8,6 @@ a learned path can be scored against the real geometry.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from pathlib import Path
 
 import numpy as np
 import shapely.geometry
@@ -273,39 +272,6 @@ def builtin_workpiece(
     return makers[name](T_base_wobj)
 
 
-def load_mesh_file(
-    path: str | Path,
-    *,
-    T_base_wobj: np.ndarray | None = None,
-    scale: float = 1e-3,
-    max_bytes: int = MAX_MESH_BYTES,
-    max_triangles: int = MAX_MESH_TRIANGLES,
-) -> Workpiece:
-    """A workpiece from an STL, OBJ or PLY file (coordinates in mm by default, ``scale`` to m).
-
-    Raises:
-        MeshFileError: missing file, wrong suffix, too large, unreadable, or no triangles.
-    """
-    p = Path(path)
-    if p.suffix.lower() not in MESH_SUFFIXES:
-        raise MeshFileError(f"{p.name}: not a mesh file (expected {', '.join(MESH_SUFFIXES)})")
-    if not p.is_file():
-        raise MeshFileError(f"{p}: no such file")
-    size = p.stat().st_size
-    if size > max_bytes:
-        raise MeshFileError(
-            f"{p.name}: {size / 1e6:.1f} MB exceeds the {max_bytes / 1e6:.0f} MB limit"
-        )
-    return mesh_from_bytes(
-        p.read_bytes(),
-        p.suffix.lower(),
-        name=p.stem,
-        T_base_wobj=T_base_wobj,
-        scale=scale,
-        max_triangles=max_triangles,
-    )
-
-
 # --- counting triangles before parsing ----------------------------------------------------
 # PROBLEM   trimesh builds a whole mesh before its faces can be counted: a 49 MB OBJ with 6.1 M
 #           faces cost 1.3 GB before it was refused; three uploads at once, ~4 GB.
@@ -408,7 +374,7 @@ def mesh_from_bytes(
     scale: float = 1e-3,
     max_triangles: int = MAX_MESH_TRIANGLES,
 ) -> Workpiece:
-    """A workpiece from the bytes of a mesh file (for uploads); see ``load_mesh_file``. A file
+    """A workpiece from the bytes of a mesh file (uploads, ``pipeline.load_workpiece``). A file
     with more than ``max_triangles`` (or three times as many vertices) is refused from its
     bytes, before it is parsed (``count_mesh_triangles``, ``mesh_check.check_mesh_bytes``);
     the parsed mesh must pass ``mesh_check.check_mesh`` (finite, near its origin, 1-2000 mm,

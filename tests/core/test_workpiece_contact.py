@@ -6,11 +6,11 @@ import pytest
 from robomach_core.contact import ContactModel
 from robomach_core.contour import filleted_polygon
 from robomach_core.errors import MeshFileError, UnknownNameError
+from robomach_core.pipeline import load_workpiece
 from robomach_core.tool import Tool
 from robomach_core.workpiece import (
     block,
     builtin_workpiece,
-    load_mesh_file,
     mesh_from_bytes,
     water_pump,
 )
@@ -106,15 +106,17 @@ def test_unknown_workpiece_names_the_choices():
 def test_mesh_files_load_and_bad_files_give_clear_errors(tmp_path):
     good = tmp_path / "part.stl"
     block().mesh.copy().apply_scale(1000.0).export(good)  # mm on disk
-    wp = load_mesh_file(good)
+    cell, (filename, data) = load_workpiece(str(good))  # what the CLI's --workpiece FILE does
+    assert (cell.workpiece, cell.workpiece_builtin, filename) == ("part", False, "part.stl")
+    wp = mesh_from_bytes(data, ".stl", name=cell.workpiece)
     np.testing.assert_allclose(wp.mesh.extents[:2], [0.150, 0.050], atol=1e-9)
     bad = tmp_path / "notes.stl"
     bad.write_text("this is not a mesh")
     with pytest.raises(MeshFileError):
-        load_mesh_file(bad)
+        mesh_from_bytes(bad.read_bytes(), ".stl", name="notes")
     with pytest.raises(MeshFileError, match="not a mesh file"):
-        load_mesh_file(tmp_path / "x.txt")
+        load_workpiece(str(tmp_path / "x.txt"))
     with pytest.raises(MeshFileError, match="no such file"):
-        load_mesh_file(tmp_path / "missing.stl")
+        load_workpiece(str(tmp_path / "missing.stl"))
     with pytest.raises(MeshFileError, match="exceed the limit"):
         mesh_from_bytes(good.read_bytes(), ".stl", max_triangles=4)
