@@ -167,10 +167,6 @@ class Contour:
                 starts.append(a)
         return np.array(lo), np.array(hi), np.array(starts)
 
-    def curvature_radii(self) -> list[float]:
-        """Radii of the arcs, metres (for reports)."""
-        return [p.radius for p in self.pieces if isinstance(p, Arc)]
-
 
 def filleted_polygon(corners: np.ndarray, radii: np.ndarray) -> Contour:
     """Closed contour through the polygon ``corners`` (n, 2) with a fillet of ``radii[i]`` at each.

@@ -254,12 +254,6 @@ class LeadThrough:
         cell_state = self.cell.step(state.cell, step.q_next, dt)
         return LeadThroughState(cell_state, step.T_ref, v), step.scale
 
-    def hold(
-        self, state: LeadThroughState, selection: ComplianceSelection, duration_s: float
-    ) -> LeadThroughState:
-        """Let the robot settle with no push (contact still pushes back)."""
-        return self.push(state, np.zeros(6), selection, duration_s)
-
     def push(
         self,
         state: LeadThroughState,

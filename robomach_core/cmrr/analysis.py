@@ -74,8 +74,3 @@ def critical_loop_gain(
         if ma < 0.0 <= mb:
             return float(scipy.optimize.brentq(margin, a, b))
     return float("inf")
-
-
-def gain_ratio_at_depth(depth_m: float, design_depth_m: float, alpha: float, beta: float) -> float:
-    """k(d) / k(d0) = (d / d0)^(alpha / beta): how much a fixed PI's loop gain grows with depth."""
-    return (depth_m / design_depth_m) ** (alpha / beta)

@@ -28,7 +28,7 @@ XYZ = ComplianceSelection(frozenset({"x", "y", "z"}), "base")
 def test_no_push_and_no_contact_does_not_drift(started):
     lt, state = started
     p0 = state.cell.T_base_tcp[:3, 3].copy()
-    state = lt.hold(state, XYZ, 2.0)
+    state = lt.push(state, np.zeros(6), XYZ, 2.0)
     assert np.linalg.norm(state.cell.T_base_tcp[:3, 3] - p0) < 1e-5  # the deadband holds it
 
 
@@ -69,7 +69,7 @@ def test_orientation_jog_turns_about_the_tool_axis(started):
 
 def test_guide_point_records_pose_joints_and_time(started):
     lt, state = started
-    state = lt.hold(state, XYZ, 0.1)
+    state = lt.push(state, np.zeros(6), XYZ, 0.1)
     g = lt.record(state)
     np.testing.assert_allclose(g.T_base_tcp, state.cell.T_base_tcp)
     np.testing.assert_allclose(g.joints_rad, state.cell.q_motor)
