@@ -228,11 +228,6 @@ def uploaded_file(name: str) -> tuple[str, bytes]:
     return source
 
 
-def mesh_files(name: str) -> dict[str, bytes]:
-    """The mesh files that came with a registered user arm's zip (path -> bytes)."""
-    return dict(registry.arm(name).meshes)
-
-
 def register_urdf(filename: str, data: bytes, family: str = "auto") -> str:
     """Validate a robot file and register its arm; returns the name ``Robot`` takes.
 
@@ -347,8 +342,3 @@ def _home(name: str, wobj_m: np.ndarray) -> np.ndarray:
         ):
             return q
     raise RobotFileError("no home pose")
-
-
-def _forget(name: str) -> None:
-    """Drops a registered arm's record (as a new process would not know it)."""
-    registry.forget(name.lower())

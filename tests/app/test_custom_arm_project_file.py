@@ -18,7 +18,7 @@ from app.session import Session, programs
 from app.session.project_file import export_project, import_project
 from robomach_core import project as core
 from robomach_core.robot import robot_urdf_path
-from robomach_core.robots import custom
+from robomach_core.robots import custom, registry
 from tests.generated_parts import PARTS
 
 
@@ -58,7 +58,7 @@ def test_a_custom_arm_project_round_trips_through_its_file(tmp_path) -> None:
     program = (out / "program.urscript").read_text() if (out / "program.urscript").exists() \
         else None  # fmt: skip
 
-    custom._forget(arm)  # as in a new process: the arm is unknown
+    registry.forget(arm)  # as in a new process: the arm is unknown
     assert not custom.is_custom(arm)
     reloaded = core.load_project_file(out / core.PROJECT_FILE)  # what machine --from does
     assert custom.is_custom(arm)
@@ -67,7 +67,7 @@ def test_a_custom_arm_project_round_trips_through_its_file(tmp_path) -> None:
         saved.robot_urdf
     )
 
-    custom._forget(arm)
+    registry.forget(arm)
     session = Session(real_time=False)  # what POST /api/projects/import does
     try:
         import_project(session, (out / core.PROJECT_FILE).read_bytes(), "my arm")

@@ -8,7 +8,7 @@ import numpy as np
 from app.session import Session
 from app.store import Store
 from robomach_core.robot import robot_urdf_path
-from robomach_core.robots import custom
+from robomach_core.robots import custom, registry
 
 
 def test_an_uploaded_arm_survives_a_restart(tmp_path) -> None:
@@ -20,7 +20,7 @@ def test_an_uploaded_arm_survives_a_restart(tmp_path) -> None:
     assert first.robot.cell.robot.name == cell.robot
     home = first.robot.snapshot().joints_rad.copy()
     first.close()
-    custom._forget(cell.robot)  # as in a new process
+    registry.forget(cell.robot)  # as in a new process
     assert not custom.is_custom(cell.robot)
     second = Session(Store(path), data_dir=tmp_path)
     try:

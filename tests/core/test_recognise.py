@@ -11,7 +11,7 @@ import pytest
 
 from robomach_core.project import program_languages
 from robomach_core.robot import Robot, program_language, robots_directory
-from robomach_core.robots import abb, custom
+from robomach_core.robots import abb, custom, registry
 from robomach_core.robots.custom import RobotFileError, register_urdf
 from robomach_core.robots.recognise import recognise_arm
 from robomach_core.robots.registry import arm
@@ -62,7 +62,7 @@ def test_the_user_names_the_controller_and_the_choice_is_in_the_name(ur5_file):
     robot = Robot(kuka)
     assert robot.family == "kuka" and program_languages(robot) == ("krl",)
     # a restart registers the file again under its plain name; the chosen one comes back
-    custom._forget(kuka)
+    registry.forget(kuka)
     assert custom.is_custom(kuka) and Robot(kuka).family == "kuka"
     with pytest.raises(RobotFileError, match="unknown controller family"):
         register_urdf("cell_7.urdf", text.encode(), family="fanuc")

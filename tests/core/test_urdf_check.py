@@ -14,8 +14,8 @@ import zipfile
 
 import pytest
 
-from robomach_core.robots import abb
-from robomach_core.robots.custom import RobotFileError, mesh_files, register_urdf
+from robomach_core.robots import abb, registry
+from robomach_core.robots.custom import RobotFileError, register_urdf
 from robomach_core.urdf_check import (
     MAX_URDF_DEPTH,
     UrdfBoundsError,
@@ -148,7 +148,7 @@ def test_files_the_urdf_does_not_reference_are_never_read():
     finally:
         tracemalloc.stop()
     assert peak < 50e6, f"{peak / 1e6:.0f} MB"
-    assert mesh_files(name) == {"arm/meshes/base.stl": stl}
+    assert dict(registry.arm(name).meshes) == {"arm/meshes/base.stl": stl}
 
 
 def test_a_zip_declaring_too_many_entries_is_refused_before_listing():
