@@ -105,7 +105,7 @@ def run_study(
     settings = settings_for(controller) if isinstance(controller, str) else controller
     design = scenario.control_design()
     ctrl = make_controller(settings, design)
-    cancelled = _cancel_predicate(cancel)
+    cancelled = cancel_predicate(cancel)
 
     dt = scenario.dt_s
     vr = scenario.command_speed_m_s
@@ -211,7 +211,8 @@ def run_study(
     return StudyResult(scenario, ctrl.name, settings, trace, summary)
 
 
-def _cancel_predicate(cancel: CancelFlag | Callable[[], bool] | None) -> Callable[[], bool] | None:
+def cancel_predicate(cancel: CancelFlag | Callable[[], bool] | None) -> Callable[[], bool] | None:
+    """``cancel`` as a function that says whether to stop (None: never asked)."""
     if cancel is None:
         return None
     is_set = getattr(cancel, "is_set", None)

@@ -47,7 +47,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
@@ -56,6 +56,9 @@ from ..cmrr.controllers import ControlDesign, make_controller
 from ..cmrr.controllers._fast import fast_stepper
 from ..cmrr.feed_dynamics import FeedDynamics
 from ..cmrr.process import ForceSensorModel, PowerLawForceModel
+from ..cmrr.simulation import CancelFlag as CancelFlag
+from ..cmrr.simulation import ProgressCallback as ProgressCallback
+from ..cmrr.simulation import cancel_predicate
 from ..errors import InvalidInputError
 from ..joint_compliance import JointCompliance, true_joint_compliance
 from ..postprocess import Targets
@@ -93,13 +96,6 @@ FORCE_SUPERVISION_FACTOR = 2.0
 MIN_CONSTANT_FEED_M_S = 0.05 * MM
 
 
-class CancelFlag(Protocol):
-    """Anything with ``is_set()``, e.g. ``threading.Event``."""
-
-    def is_set(self) -> bool: ...
-
-
-ProgressCallback = Callable[[float], None]
 CompensationModel = JointCompliance | CompensationSettings
 
 
@@ -119,17 +115,6 @@ class MachiningRun:
     stiffness_model: JointCompliance | None
     controller_settings: Any = None
     nominal: Targets | None = None
-
-
-def _cancel_predicate(cancel: CancelFlag | Callable[[], bool] | None) -> Callable[[], bool] | None:
-    if cancel is None:
-        return None
-    is_set = getattr(cancel, "is_set", None)
-    if callable(is_set):
-        return is_set
-    if callable(cancel):
-        return cancel
-    raise TypeError("cancel must be a callable or have is_set()")
 
 
 def force_directions(normals: np.ndarray, tangents: np.ndarray, feed_force_ratio: float):
@@ -352,7 +337,7 @@ def cut_program(
     Without it the program is taken along the stock's path, matched to it by projection.
     """
     started = time.perf_counter()
-    cancelled = _cancel_predicate(cancel)
+    cancelled = cancel_predicate(cancel)
     P = check_path(targets.position_m)
     m = len(P)
     if nominal is not None:
