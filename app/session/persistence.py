@@ -17,7 +17,7 @@ import numpy as np
 from robomach_core import project as core
 from robomach_core.errors import RobomachError
 from robomach_core.leadthrough import GuidePoint
-from robomach_core.path_learning import LearningStop, PathLearningSettings, Recording
+from robomach_core.path_learning import PathLearningSettings
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import (
     CellSettings,
@@ -71,17 +71,8 @@ def save_kwargs(project: Project, *parts: Part) -> dict[str, Any]:
 def _recording_doc(learned: LearnedPath | None) -> tuple[dict, dict[str, np.ndarray]] | None:
     if learned is None:
         return None
-    rec = learned.recording
-    info = {
-        "stop_reason": rec.stop_reason,
-        "completed": rec.completed,
-        "stop": None if rec.stop is None else rec.stop.document(),
-        "wall_side": rec.wall_side,
-        "wall_side_reason": rec.wall_side_reason,
-        "learning": asdict(learned.settings),
-        "inputs": learned.inputs,
-    }
-    arrays = {k: getattr(rec, k) for k in RECORDING_ARRAYS}
+    info = core.recording_document(learned)
+    arrays = {k: getattr(learned.recording, k) for k in RECORDING_ARRAYS}
     arrays["guide_quaternions_wxyz"] = learned.guide_quaternions_wxyz
     return info, arrays
 
@@ -149,14 +140,7 @@ def _learned(data: ProjectData, project: Project) -> LearnedPath | None:
         return None
     arrays = data.recording_arrays
     try:
-        recording = Recording(
-            **{k: arrays[k] for k in RECORDING_ARRAYS},
-            stop_reason=str(info["stop_reason"]),
-            completed=bool(info["completed"]),
-            stop=LearningStop.from_document(info.get("stop")),
-            wall_side=str(info.get("wall_side", "")),
-            wall_side_reason=str(info.get("wall_side_reason", "")),
-        )
+        recording = core.recording_from_document(info, {k: arrays[k] for k in RECORDING_ARRAYS})
         return LearnedPath(
             recording,
             arrays["guide_quaternions_wxyz"],

@@ -22,6 +22,8 @@ from ._file import PROJECT_FILE as PROJECT_FILE
 from ._file import load_project_file as load_project_file
 from ._file import project_file_bytes as project_file_bytes
 from ._file import project_from_file_bytes as project_from_file_bytes
+from ._file import recording_document as recording_document
+from ._file import recording_from_document as recording_from_document
 from ._file import register_robot_file as register_robot_file
 from ._file import save_project_file as save_project_file
 from ._file_check import RECORDING_FIELDS as RECORDING_FIELDS

@@ -65,19 +65,10 @@ def project_file_bytes(project: Project) -> bytes:
         arrays["robot_urdf_bytes"] = np.frombuffer(project.robot_urdf[1], dtype=np.uint8)
     learned = project.learned
     if learned is not None:
-        rec = learned.recording
         for name in RECORDING_FIELDS:
-            arrays[f"rec_{name}"] = np.asarray(getattr(rec, name))
+            arrays[f"rec_{name}"] = np.asarray(getattr(learned.recording, name))
         arrays["guide_quaternions_wxyz"] = learned.guide_quaternions_wxyz
-        doc["recording"] = {
-            "stop_reason": rec.stop_reason,
-            "completed": rec.completed,
-            "stop": None if rec.stop is None else rec.stop.document(),
-            "wall_side": rec.wall_side,
-            "wall_side_reason": rec.wall_side_reason,
-            "learning": asdict(learned.settings),
-            "inputs": learned.inputs,
-        }
+        doc["recording"] = recording_document(learned)
     setup = project.machining_settings
     if isinstance(setup, MachiningSetup) and setup.stock_mesh is not None:
         arrays["stock_mesh_bytes"] = np.frombuffer(setup.stock_mesh[1], dtype=np.uint8)
@@ -85,6 +76,33 @@ def project_file_bytes(project: Project) -> bytes:
     buffer = io.BytesIO()
     np.savez_compressed(buffer, **arrays)
     return buffer.getvalue()
+
+
+def recording_document(learned: LearnedPath) -> dict[str, Any]:
+    """A learned path's recording document, JSON-ready (its arrays, ``RECORDING_FIELDS`` and
+    the guide quaternions, are kept apart): the project file's and the workbench store's."""
+    rec = learned.recording
+    return {
+        "stop_reason": rec.stop_reason,
+        "completed": rec.completed,
+        "stop": None if rec.stop is None else rec.stop.document(),
+        "wall_side": rec.wall_side,
+        "wall_side_reason": rec.wall_side_reason,
+        "learning": asdict(learned.settings),
+        "inputs": learned.inputs,
+    }
+
+
+def recording_from_document(info: dict[str, Any], fields: dict[str, np.ndarray]) -> Recording:
+    """The ``Recording`` of a ``recording_document`` and its ``RECORDING_FIELDS`` arrays."""
+    return Recording(
+        **fields,
+        stop_reason=str(info["stop_reason"]),
+        completed=bool(info["completed"]),
+        stop=LearningStop.from_document(info.get("stop")),
+        wall_side=str(info.get("wall_side", "")),
+        wall_side_reason=str(info.get("wall_side_reason", "")),
+    )
 
 
 def save_project_file(project: Project, path: str | Path) -> Path:
@@ -190,13 +208,8 @@ def _project(doc: dict[str, Any], arrays: dict[str, np.ndarray]) -> Project:
     info = doc.get("recording")
     if info is None:
         return project
-    recording = Recording(
-        **{name: arrays[f"rec_{name}"] for name in RECORDING_FIELDS},
-        stop_reason=str(info["stop_reason"]),
-        completed=bool(info["completed"]),
-        stop=LearningStop.from_document(info.get("stop")),
-        wall_side=str(info.get("wall_side", "")),
-        wall_side_reason=str(info.get("wall_side_reason", "")),
+    recording = recording_from_document(
+        info, {name: arrays[f"rec_{name}"] for name in RECORDING_FIELDS}
     )
     learned = LearnedPath(
         recording,
