@@ -120,6 +120,20 @@ def cutter_mesh(tool: Tool) -> trimesh.Trimesh:
     return mesh
 
 
+def _labelled_arrow(scene, name: str, color: tuple[int, int, int], anchor: str) -> tuple:
+    """A hidden arrow at ``/robot/{name}`` and its hidden label (the contact force, the push)."""
+    arrow = scene.add_arrows(
+        f"/robot/{name}",
+        np.zeros((1, 2, 3)),
+        color,
+        shaft_radius=0.002,
+        head_radius=0.005,
+        head_length=0.01,
+        visible=False,
+    )
+    return arrow, scene.add_label(f"/robot/{name}/label", "", anchor=anchor, visible=False)
+
+
 class _RobotPose:
     """Moves a ViserUrdf's joint frames fast: only the revolute joints' orientations.
 
@@ -185,28 +199,8 @@ class CellScene:
         self.robot_root = scene.add_frame("/robot", show_axes=False)
         self.tcp = scene.add_frame("/robot/tcp", axes_length=0.03, axes_radius=0.0015)
         self.tool = scene.add_frame("/robot/tcp/tool", show_axes=False)
-        self.force = scene.add_arrows(
-            "/robot/force",
-            np.zeros((1, 2, 3)),
-            CONTACT_COLOR,
-            shaft_radius=0.002,
-            head_radius=0.005,
-            head_length=0.01,
-            visible=False,
-        )
-        self.force_label = scene.add_label(
-            "/robot/force/label", "", anchor="bottom-left", visible=False
-        )
-        self.push = scene.add_arrows(
-            "/robot/push",
-            np.zeros((1, 2, 3)),
-            PUSH_COLOR,
-            shaft_radius=0.002,
-            head_radius=0.005,
-            head_length=0.01,
-            visible=False,
-        )
-        self.push_label = scene.add_label("/robot/push/label", "", anchor="top-left", visible=False)
+        self.force, self.force_label = _labelled_arrow(scene, "force", CONTACT_COLOR, "bottom-left")
+        self.push, self.push_label = _labelled_arrow(scene, "push", PUSH_COLOR, "top-left")
         self.handle = scene.add_transform_controls(
             "/robot/handle",
             scale=HANDLE_SCALE,
