@@ -12,7 +12,8 @@ pushing, each measured for ``--seconds``:
 The browser's websocket frames are decoded (viser's wire format: zstd-compressed msgpack) and a
 frame that moves ``/robot/tcp`` counts as one pose update seen. The page's own draw rate
 (requestAnimationFrame, software WebGL here) is printed for information. ``--quick`` measures
-each mode for 1 s after a short settling (a smoke test, not a measurement).
+each mode for 1 s after a short settling, on a page drawing two frames a second as the browser
+tests' pages do (a smoke test, not a measurement).
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from tests.api.server_process import free_port, start_server  # noqa: E402
-from tests.browser.conftest import CHROMIUM_ARGS, START_TIMEOUT_S  # noqa: E402
+from tests.browser.conftest import CHROMIUM_ARGS, START_TIMEOUT_S, new_context  # noqa: E402
 
 TCP_NODE = "/robot/tcp"
 LOAD_TIMEOUT_S = 90.0
@@ -84,12 +85,17 @@ class PoseCounter:
 # Seconds the page is left to settle before measuring: the initial scene (meshes) arriving and
 # parsed, then the pushes getting under way. ``--quick`` shortens both (a smoke test).
 SETTLE_S = {"scene": 3.0, "pushing": 1.0}
+THROTTLED = {"frames": False}  # --quick: the pages draw two frames a second (the tests' pace)
 
 
 def open_viewer(playwright, url: str):
     """A headless chromium page on the viser URL; returns (browser, page, counter)."""
     browser = playwright.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)
-    page = browser.new_page(viewport={"width": 960, "height": 640})
+    viewport = {"width": 960, "height": 640}
+    if THROTTLED["frames"]:
+        page = new_context(browser, viewport=viewport).new_page()
+    else:
+        page = browser.new_page(viewport=viewport)
     counter = PoseCounter()
     page.on("websocket", counter.on_websocket)
     page.add_init_script(
@@ -194,6 +200,7 @@ def main() -> int:
     if args.quick:
         args.seconds = 1.0
         SETTLE_S.update(scene=0.5, pushing=0.3)
+        THROTTLED["frames"] = True
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as p:
