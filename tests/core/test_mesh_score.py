@@ -9,6 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from robomach_core.mesh_score import mesh_deviation
 from robomach_core.workpiece import builtin_workpiece
+from tests.mesh_reference import distance_to_every_face
 
 
 def _winding(mesh: trimesh.Trimesh, p: np.ndarray) -> float:
@@ -36,8 +37,8 @@ def test_mesh_deviation_equals_the_distance_to_the_mesh_placed_in_the_base_frame
         [np.flatnonzero(np.abs(placed.face_normals @ T[:3, 2]) < np.cos(np.radians(45)))],
         append=True,
     )
-    _, to_wall, _ = trimesh.proximity.closest_point(walls, pts)
-    _, to_surface, _ = trimesh.proximity.closest_point(placed, pts)
+    to_wall = distance_to_every_face(pts, walls.triangles)
+    to_surface = distance_to_every_face(pts, placed.triangles)
     inside = np.array([_winding(placed, p) > 0.5 for p in pts])
     reference = np.where(inside, -(to_surface + 0.001), to_wall - 0.001)
     got = mesh_deviation(wp, 0.001, pts, axis_base=-T[:3, 2])
