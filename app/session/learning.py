@@ -16,6 +16,7 @@ SOLUTION  ``Learning(session)``, the session's ``learning``: ``start_example()``
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -121,13 +122,24 @@ class Learning:
         return robot.submit("example", work, done, pose.epoch)
 
     def land_guides(
-        self, state: LeadThroughState, guides: list[GuidePoint], epoch: int, what: str
+        self,
+        state: LeadThroughState,
+        guides: list[GuidePoint],
+        epoch: int,
+        what: str,
+        *,
+        with_project: Callable[[Project], None] | None = None,
     ) -> Project:
-        """A job's guide points replace the project's, the robot where the job left it."""
+        """A job's guide points replace the project's, the robot where the job left it.
+        ``with_project(new)`` runs inside the change, under the session's lock: what it marks
+        is there before any reader sees the points."""
 
         def change(p: Project) -> Project:
             self._session.robot.place(state, epoch, what)
-            return core.with_guide_points(p, guides)
+            new = core.with_guide_points(p, guides)
+            if with_project is not None:
+                with_project(new)
+            return new
 
         return self._session.commit(
             change,

@@ -334,8 +334,13 @@ class Pointing:
 
         def done(result: tuple[LeadThroughState, list[GuidePoint]]) -> None:
             state, guides = result
-            project = s.learning.land_guides(state, guides, epoch, "the proposal's acceptance")
-            self._pointed = (project.guides_key, proposal.wall_side)
+
+            def mark(project: core.Project) -> None:  # as a single point's, under the lock
+                self._pointed = (project.guides_key, proposal.wall_side)
+
+            s.learning.land_guides(
+                state, guides, epoch, "the proposal's acceptance", with_project=mark
+            )
             with self._lock:
                 self._proposal = None
 

@@ -83,8 +83,19 @@ def test_a_proposal_is_shown_edited_and_accepted_then_learned_within_the_wall(fa
     moved = fast.pointing.move_proposed(0, np.array([0.0, -0.070, 0.017]))
     fewer = fast.pointing.delete_proposed(3)
     assert len(fewer.points) == 13
+    # A reader told of the new points (as the GUI and the event stream are) finds them taught
+    # by pointing at once: a learn on "auto" then would follow the picked wall, not the forces.
+    seen: list[str | None] = []
+
+    def on_change(topic: str) -> None:
+        if topic == "guide_points" and len(fast.project().guide_points) == 13:
+            seen.append(fast.pointing.learning_side())
+
+    unsubscribe = fast.subscribe(on_change)
     info = _wait_job(fast, fast.pointing.accept())
+    unsubscribe()
     assert info.status == "done", info.error
+    assert seen and set(seen) == {"right"}, seen
     assert fast.pointing.proposal() is None
     guides = list(fast.project().guide_points)
     assert len(guides) == 13
