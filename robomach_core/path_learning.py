@@ -95,6 +95,12 @@ HEIGHT_TIME_S = 0.25  # the height returns to the leg's within about this
 HEIGHT_SPEED_M_S = 0.01
 PENETRATION_STOP_FRACTION = 0.5  # of the cutter radius: deeper is a collision, not a contact
 LEG_END_MARGIN_M = 0.002  # a leg ends this far before its guide point's plane
+# ... or at the tool's nearest approach to its guide point, when that comes within NEAR_END_M
+# (across the tool axis) and recedes by END_PASSED_M: a point a person left beyond an outside
+# corner, whose plane the wall round the corner never reaches (before, the tool went on along
+# the next wall until the protection stopped it 30 mm off the leg).
+NEAR_END_M = 0.006
+END_PASSED_M = 0.0002
 LEG_DETOUR_FACTOR = 4.0  # a leg's wall longer than this x the leg (+ LEG_DETOUR_EXTRA_M): lost
 LEG_DETOUR_EXTRA_M = 0.05
 FIRST_SEARCH_ACROSS_M = 0.006  # the first search goes straight across this far, then also along
@@ -464,6 +470,13 @@ def contour_law_parameters(settings: PathLearningSettings) -> np.ndarray:
     )
 
 
+def _across(p: np.ndarray, q: np.ndarray, axis: np.ndarray) -> float:
+    """Distance from p to q across ``axis`` (a unit vector) [m]."""
+    d = p - q
+    d = d - axis * float(d @ axis)
+    return math.sqrt(float(d @ d))
+
+
 def _leg_limits(length: float) -> tuple[float, float, float]:
     """A leg's protections and end: how far the wall may lead the tool off its line, how long
     its wall may run, and the progress along it where the next leg takes over [m]."""
@@ -589,6 +602,7 @@ def learn_path(
     ever_touched = False
     first_touch = T_ref[:3, 3].copy()
     closing_best = math.inf  # closed route: the nearest the last leg came to the first touch
+    end_best = math.inf  # the nearest the tool came to this leg's guide point (NEAR_END_M)
     law = initial_state()
     step, turn = np.zeros(3), np.zeros(3)
     leg_travel = 0.0
@@ -654,16 +668,24 @@ def learn_path(
             if s_now >= seg.length + CLOSE_LOOP_OVERRUN_M:
                 completed = True  # the wall did not come back within reach of the start
                 break
-        elif last_leg:
-            if s_now >= seg.length:  # an open route ends at its last point's plane, not before
-                completed = True
-                break
-        elif s_now >= leg_end:
-            seg_index += 1
-            seg, leg = segs[seg_index], legs[seg_index]
-            last_leg = seg_index + 1 >= total
-            wander, detour, leg_end = _leg_limits(seg.length)
-            leg_travel = 0.0
+        else:
+            passed = False
+            if s_now >= max(seg.length - NEAR_END_M, 0.5 * seg.length):
+                d_end = _across(T_ref[:3, 3], seg.b, axis)
+                passed = end_best < NEAR_END_M and d_end > end_best + END_PASSED_M
+                end_best = min(end_best, d_end)
+            if last_leg:
+                # An open route ends at its last point's plane, not before (or past the point).
+                if s_now >= seg.length or passed:
+                    completed = True
+                    break
+            elif s_now >= leg_end or passed:
+                seg_index += 1
+                seg, leg = segs[seg_index], legs[seg_index]
+                last_leg = seg_index + 1 >= total
+                wander, detour, leg_end = _leg_limits(seg.length)
+                leg_travel = 0.0
+                end_best = math.inf
         if n % report_every == 0:
             if cancelled is not None and cancelled():
                 raise CancelledError("path learning was cancelled")

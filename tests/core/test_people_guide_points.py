@@ -269,6 +269,20 @@ def test_sloppy_sets_learn_the_taught_wall_or_are_refused(part):
     assert learned >= SETS_PER_PART // 2
 
 
+@pytest.mark.parametrize("seed", [48, 50])
+def test_a_point_left_beyond_an_outside_corner_ends_its_leg_at_the_corner(seed):
+    """Seeds past the 20 above: a point left 2.4 mm off the T-boss beyond the outside corner at
+    the end of its bar (G7 at (48.2, 6.6) mm for seed 48, below the bar's underside), whose
+    plane the wall round the corner never reaches. The leg ends at the tool's nearest approach
+    to it, at the corner; before, the tool went on along the underside until the protection
+    stopped it 30 mm off the leg, a partial program."""
+    cell = _boss_cell(seed)
+    sset = sloppy_guides(cell, np.random.default_rng(1000 + seed), side_mode="given")
+    out = learn_and_score(cell, sset, speed_m_s=0.010)
+    assert out.completed, out.stop_reason
+    assert out.max_m <= 0.3e-3 and not out.problems, (out.max_m, out.problems)
+
+
 # --- the issue's reproducers through the whole pipeline ---------------------------------------
 
 P10_MM = [
