@@ -11,8 +11,13 @@ STRATEGY  With the part's mesh (the CAD the user teaches on, when known): the wa
           tool axis, and the point lifted until the cutter clears it by the machining height
           (``PathLearningSettings.floor_clearance_m``). Without a mesh: the side from the pushes
           alone, and the run's own floor guard (a force along the axis lifts it).
+          And per leg, how far the taught wall between its two points runs from the straight
+          leg (the section at the points' height, followed on the wall's side): the run's
+          protection lets the tool that far off the leg (a leg through the part, whose wall
+          runs round a corner far from it, is not a point on another wall).
 SOLUTION  ``plan_route(guides, settings, *, workpiece, tool_radius_m) -> LearningRoute``: the
-          guide points as learned (lifted where needed), the side and why, and what was lifted.
+          guide points as learned (lifted where needed), the side and why, what was lifted,
+          and the legs' wander allowances.
 """
 
 from __future__ import annotations
@@ -35,6 +40,8 @@ from .wall_side import (
 from .workpiece import Workpiece
 
 FLOOR_SEARCH_M = 0.01  # a floor farther than this below a point is not the one it rests on
+WANDER_MARGIN_M = 0.01  # a leg's wall may lead the tool this much farther off it than the mesh's
+WALL_MATCH_M = 0.006  # a point is on a section's wall within this (its gap, the cutter's radius)
 
 
 @dataclass(frozen=True)
@@ -48,12 +55,15 @@ class LearningRoute:
         lifted_m: (n,) how far each point was lifted [m] (0 where it was clear of the floor).
         start_towards_wall: (3,) from the first point towards the wall it was taught on (the
             mesh's nearest wall face on the wall's side), or None without a mesh.
+        leg_wander_m: {(i, j): m}: how far the wall from guide point i to j (0-based) runs
+            from the leg between them, plus ``WANDER_MARGIN_M``, where the mesh tells it.
     """
 
     guides: tuple[GuidePoint, ...]
     wall_side: WallSideDecision
     lifted_m: np.ndarray
     start_towards_wall: np.ndarray | None = None
+    leg_wander_m: dict[tuple[int, int], float] | None = None
 
 
 def floor_clearances(
@@ -114,4 +124,47 @@ def plan_route(
         out.append(g)
     travel = travel_directions(out, settings.closed, axis)[0]
     start = wall_direction(out[0], travel, decision.sign, workpiece, axis)
-    return LearningRoute(tuple(out), decision, lifted, start)
+    wander = leg_wander(out, settings.closed, decision.side, workpiece, axis)
+    return LearningRoute(tuple(out), decision, lifted, start, wander)
+
+
+def leg_wander(
+    guides: Sequence[GuidePoint],
+    closed: bool,
+    side: str,
+    workpiece: Workpiece,
+    axis: np.ndarray,
+) -> dict[tuple[int, int], float]:
+    """For each leg whose two points stand by the same wall of the part's section at their
+    mean height: the farthest that wall, followed from one to the other on ``side`` (the
+    section's loops run with the material on their right), comes from the leg's line, plus
+    ``WANDER_MARGIN_M``. Empty when the tool axis is not the part's z axis."""
+    from .wall_section import section_loops
+
+    T = workpiece.T_base_wobj
+    R, t = T[:3, :3], T[:3, 3]
+    if abs(float((R.T @ axis)[2])) < 0.99:
+        return {}
+    p = (np.array([g.position_m for g in guides]) - t) @ R
+    loops = [lp for lp in section_loops(workpiece.mesh, float(np.mean(p[:, 2]))) if lp.closed]
+    if not loops:
+        return {}
+    gaps = np.array([np.abs(lp.signed_distance(p[:, :2])) for lp in loops])
+    nearest = np.argmin(gaps, axis=0)
+    out: dict[tuple[int, int], float] = {}
+    order = list(range(len(guides))) + ([0] if closed else [])
+    for i, j in zip(order[:-1], order[1:], strict=True):
+        k = int(nearest[i])
+        if k != nearest[j] or max(gaps[k, i], gaps[k, j]) > WALL_MATCH_M:
+            continue
+        loop = loops[k]
+        s_i, s_j = loop.project(p[[i, j], :2])
+        wall = loop.piece(s_i, s_j) if side == "right" else loop.piece(s_j, s_i)
+        chord = p[j, :2] - p[i, :2]
+        length = float(np.linalg.norm(chord))
+        if length < 1e-4:
+            continue
+        rel = wall.points_m - p[i, :2]
+        off = np.abs(rel[:, 0] * chord[1] - rel[:, 1] * chord[0]) / length
+        out[(i, j)] = float(off.max()) + WANDER_MARGIN_M
+    return out

@@ -477,11 +477,17 @@ def _across(p: np.ndarray, q: np.ndarray, axis: np.ndarray) -> float:
     return math.sqrt(float(d @ d))
 
 
-def _leg_limits(length: float) -> tuple[float, float, float]:
-    """A leg's protections and end: how far the wall may lead the tool off its line, how long
-    its wall may run, and the progress along it where the next leg takes over [m]."""
+def _leg_limits(
+    seg: _Segment, wall_wander: dict[tuple[int, int], float]
+) -> tuple[float, float, float]:
+    """A leg's protections and end: how far the wall may lead the tool off its line (farther
+    where the part's mesh says its wall runs so), how long its wall may run, and the progress
+    along it where the next leg takes over [m]."""
+    length = seg.length
     return (
-        max(LOST_WALL_M, ROUTE_WANDER_FRACTION * length),
+        max(
+            LOST_WALL_M, ROUTE_WANDER_FRACTION * length, wall_wander.get((seg.first, seg.last), 0.0)
+        ),
         LEG_DETOUR_FACTOR * length + LEG_DETOUR_EXTRA_M,
         length - min(LEG_END_MARGIN_M, 0.25 * length),
     )
@@ -537,6 +543,7 @@ def learn_path(
     supervisor: Supervisor | None = None,
     wall_side: WallSideDecision | None = None,
     start_towards_wall: np.ndarray | None = None,
+    leg_wander_m: dict[tuple[int, int], float] | None = None,
 ) -> tuple[Recording, CellState]:
     """Follow the wall along the route through ``guides`` and record it (module docstring).
 
@@ -553,6 +560,9 @@ def learn_path(
         start_towards_wall: (3,) direction from the first guide point to the wall it was taught
             on (from the part's mesh, ``learning_route``); default: the force recorded there
             when it is a push, else across the first leg on the wall's side.
+        leg_wander_m: {(i, j): m} how far the wall of the leg from guide point i to j may lead
+            the tool off it (the part's mesh, ``learning_route.leg_wander``), where more than
+            the default protection allows.
 
     Returns:
         The recording and the cell state at its end.
@@ -619,7 +629,8 @@ def learn_path(
     max_turn = TURN_RATE_RAD_S * dt
     force_limit = settings.force_limit_N
     last_leg = total == 1
-    wander, detour, leg_end = _leg_limits(seg.length)
+    wall_wander = leg_wander_m or {}
+    wander, detour, leg_end = _leg_limits(seg, wall_wander)
     while True:
         if n >= n_max:
             stop_reason = "stopped: the run took far longer than the program predicts"
@@ -683,7 +694,7 @@ def learn_path(
                 seg_index += 1
                 seg, leg = segs[seg_index], legs[seg_index]
                 last_leg = seg_index + 1 >= total
-                wander, detour, leg_end = _leg_limits(seg.length)
+                wander, detour, leg_end = _leg_limits(seg, wall_wander)
                 leg_travel = 0.0
                 end_best = math.inf
         if n % report_every == 0:

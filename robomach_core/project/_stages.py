@@ -78,6 +78,7 @@ def learn(
         cancelled=cancelled,
         wall_side=route.wall_side,
         start_towards_wall=route.start_towards_wall,
+        leg_wander_m=route.leg_wander_m,
     )
     quats = np.array([g.quaternion_wxyz for g in guides]).reshape(-1, 4)
     return LearnedPath(recording, quats, settings, recording_inputs_key(project)), end

@@ -283,6 +283,25 @@ def test_a_point_left_beyond_an_outside_corner_ends_its_leg_at_the_corner(seed):
     assert out.max_m <= 0.3e-3 and not out.problems, (out.max_m, out.problems)
 
 
+def test_a_leg_through_the_part_may_follow_its_wall_as_far_as_the_mesh_says():
+    """T-boss seed 95, six points on "auto": G1 on the bar's top, G2 under it past its end, so
+    the wall from one to the other runs round the bar's end, 29 mm off the leg between them.
+    The route planned with the mesh lets the tool that far off (plus 10 mm); before, the
+    protection stopped it at 30 mm as if a point were on another wall."""
+    cell = _boss_cell(95)
+    sset = sloppy_guides(cell, np.random.default_rng(1095), side_mode="auto")
+    route = plan_route(
+        sset.guides,
+        PathLearningSettings(wall_side="auto"),
+        workpiece=cell.workpiece.cad(),
+        tool_radius_m=cell.tool.radius_m,
+    )
+    assert route.leg_wander_m[(0, 1)] == pytest.approx(0.039, abs=0.002)
+    out = learn_and_score(cell, sset, speed_m_s=0.010)
+    assert out.completed, out.stop_reason
+    assert out.max_m <= 0.3e-3 and not out.problems, (out.max_m, out.problems)
+
+
 # --- the issue's reproducers through the whole pipeline ---------------------------------------
 
 P10_MM = [
