@@ -48,6 +48,8 @@ MESH_SCORE_SPACING_M = 5e-4
 MESH_QUERY_CHUNK = 2000  # points per trimesh query (its memory grows with the points asked)
 TAUGHT_WALL_TOLERANCE_M = 0.001  # the program passes this near every taught wall point
 TAUGHT_WALL_HEIGHT_BAND_M = 0.005  # ... measured across the axis within this height of it
+# (or of the heights of the points either side of it: between points taught at different
+# heights the route's height changes at a bounded rate, and passes the point on its way)
 
 
 def _inside(
@@ -207,11 +209,17 @@ def taught_wall_check(
     axis = mean_tool_axis(guides)
     path_height = path @ axis
     across = path - np.outer(path_height, axis)
+    heights = np.array([g.position_m @ axis for g in guides])
+    n = len(guides)
     checked, missed, worst = [], [], 0.0
     for k, wall_point in enumerate(points):
         if wall_point is None:
             continue
-        near = np.abs(path_height - float(wall_point @ axis)) <= TAUGHT_WALL_HEIGHT_BAND_M
+        around = [j % n for j in (k - 1, k, k + 1) if closed or 0 <= j < n]
+        h = float(wall_point @ axis)
+        low = min(h, *heights[around]) - TAUGHT_WALL_HEIGHT_BAND_M
+        high = max(h, *heights[around]) + TAUGHT_WALL_HEIGHT_BAND_M
+        near = (path_height >= low) & (path_height <= high)
         if not near.any():
             near[:] = True
         w_across = wall_point - axis * float(wall_point @ axis)

@@ -686,8 +686,11 @@ def learn_path(
                 passed = end_best < NEAR_END_M and d_end > end_best + END_PASSED_M
                 end_best = min(end_best, d_end)
             if last_leg:
-                # An open route ends at its last point's plane, not before (or past the point).
-                if s_now >= seg.length or passed:
+                # An open route ends at the tool's nearest approach to its last point: at the
+                # point's plane along a straight wall, farther round a curved one (whose chord's
+                # plane comes first); past the plane by CLOSE_LOOP_OVERRUN_M if the wall never
+                # comes within NEAR_END_M of the point.
+                if passed or s_now >= seg.length + CLOSE_LOOP_OVERRUN_M:
                     completed = True
                     break
             elif s_now >= leg_end or passed:

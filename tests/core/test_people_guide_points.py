@@ -302,6 +302,53 @@ def test_a_leg_through_the_part_may_follow_its_wall_as_far_as_the_mesh_says():
     assert out.max_m <= 0.3e-3 and not out.problems, (out.max_m, out.problems)
 
 
+@pytest.mark.parametrize("seed", [7, 14])
+def test_an_open_stretch_taught_at_heights_far_apart_follows_its_taught_wall(seed):
+    """Open stretches of the block's wall (seeds of a 30-set run by hand), points 24-37 mm high:
+    between two points close together and 10 mm apart in height the route's height lags, so
+    at the lower point the program passes at its neighbour's height. The taught-wall check
+    looks for it within the heights of the points either side; before, it said the program
+    was on another wall (10 sets in 30)."""
+    cell = Cell(CellConfig(workpiece="block", seed=seed))
+    rng = np.random.default_rng(5000 + seed)
+    start = float(rng.uniform(0, 0.5))
+    span = (start, start + float(rng.uniform(0.08, 0.2)))
+    sset = sloppy_guides(
+        cell,
+        rng,
+        closed=False,
+        side_mode="auto" if seed % 2 else "given",
+        count=(4, 9),
+        span_m=span,
+    )
+    heights_mm = [g.position_m[2] * 1e3 for g in sset.guides]
+    assert max(heights_mm) - min(heights_mm) > 5.0
+    out = learn_and_score(cell, sset, speed_m_s=0.010, closed=False)
+    assert out.completed, out.stop_reason
+    assert out.max_m <= 0.3e-3 and not out.problems, (out.max_m, out.problems)
+
+
+def test_an_open_route_ends_at_its_last_point_round_a_curved_wall():
+    """An open stretch of the pump's outer wall (seed 9 of the same run) whose last leg runs
+    99 mm round a rounded corner: the plane of its last point across the leg's chord comes
+    9 mm before the point along the wall. The run ends at the tool's nearest approach to the
+    point instead, within a few mm of it (its gap to the wall and the cutter's radius)."""
+    cell = Cell(CellConfig(seed=9))
+    rng = np.random.default_rng(5009)
+    start = float(rng.uniform(0, 0.5))
+    span = (start, start + float(rng.uniform(0.08, 0.2)))
+    sset = sloppy_guides(cell, rng, closed=False, side_mode="auto", count=(4, 9), span_m=span)
+    lt = LeadThrough(cell)
+    state = lt.start(cell.initial_state())
+    project = Project(cell=CellSettings(seed=9), guide_points=tuple(sset.guides))
+    settings = PathLearningSettings(speed_m_s=0.010, wall_side="auto", closed=False)
+    learned, _ = learn(project, cell, state.cell, settings, lt.estimator)
+    rec = learned.recording
+    assert rec.completed, rec.stop_reason
+    last = sset.guides[-1].position_m
+    assert np.linalg.norm((rec.position_m[-1] - last)[:2]) < 4e-3
+
+
 # --- the issue's reproducers through the whole pipeline ---------------------------------------
 
 P10_MM = [
