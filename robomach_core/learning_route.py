@@ -29,7 +29,7 @@ import numpy as np
 
 from . import mesh_query
 from .leadthrough import GuidePoint
-from .path_learning import PathLearningSettings
+from .path_learning import LEG_DETOUR_EXTRA_M, LEG_DETOUR_FACTOR, PathLearningSettings
 from .wall_side import (
     WallSideDecision,
     mean_tool_axis,
@@ -162,8 +162,8 @@ def leg_wander(
         wall = loop.piece(s_i, s_j) if side == "right" else loop.piece(s_j, s_i)
         chord = p[j, :2] - p[i, :2]
         length = float(np.linalg.norm(chord))
-        if length < 1e-4:
-            continue
+        if length < 1e-4 or wall.length_m > LEG_DETOUR_FACTOR * length + LEG_DETOUR_EXTRA_M:
+            continue  # a wall the run's detour protection stops on anyway: no allowance
         rel = wall.points_m - p[i, :2]
         off = np.abs(rel[:, 0] * chord[1] - rel[:, 1] * chord[0]) / length
         out[(i, j)] = float(off.max()) + WANDER_MARGIN_M
