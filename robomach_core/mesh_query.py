@@ -22,6 +22,8 @@ from __future__ import annotations
 import math
 import threading
 import weakref
+from collections.abc import Callable, Hashable
+from typing import Any
 
 import igl
 import numpy as np
@@ -29,10 +31,22 @@ import trimesh
 
 LOCK = threading.RLock()
 WALL_FACE_MAX_COS = math.cos(math.radians(45.0))  # |n . tool axis| below this: a wall face
-_WALLS_KEPT = 16  # (mesh, axis) pairs whose wall submesh is kept
-_WALLS: dict[tuple[int, tuple[float, ...]], tuple[weakref.ref, trimesh.Trimesh | None]] = {}
-_TREES_KEPT = 16  # meshes whose nearest-point tree is kept
-_TREES: dict[int, tuple[weakref.ref, np.ndarray, np.ndarray, igl.AABB]] = {}
+_KEPT = 16  # entries a table below keeps (a full table starts again)
+_WALLS: dict[tuple[int, tuple[float, ...]], tuple[weakref.ref, Any]] = {}  # wall submeshes
+_TREES: dict[int, tuple[weakref.ref, Any]] = {}  # nearest-point trees
+
+
+def _kept(table: dict, key: Hashable, mesh: trimesh.Trimesh, build: Callable[[], Any]) -> Any:
+    """``build()`` for ``mesh`` under ``key``, made once and kept while ``mesh`` lives (a dead
+    mesh's id may come back for another: its entry is rebuilt). Call under ``LOCK``."""
+    hit = table.get(key)
+    if hit is not None and hit[0]() is mesh:
+        return hit[1]
+    value = build()
+    if len(table) >= _KEPT:
+        table.clear()
+    table[key] = (weakref.ref(mesh), value)
+    return value
 
 
 def wall_faces(mesh: trimesh.Trimesh, axis_wobj: np.ndarray) -> trimesh.Trimesh | None:
@@ -43,18 +57,14 @@ def wall_faces(mesh: trimesh.Trimesh, axis_wobj: np.ndarray) -> trimesh.Trimesh 
     built on its first query, and a new submesh per call rebuilt them every time."""
     axis = np.asarray(axis_wobj, dtype=float)
     axis = axis / np.linalg.norm(axis)
-    key = (id(mesh), tuple(np.round(axis, 3)))
-    with LOCK:
-        hit = _WALLS.get(key)
-        if hit is not None and hit[0]() is mesh:
-            return hit[1]
+
+    def build() -> trimesh.Trimesh | None:
         with np.errstate(divide="ignore", invalid="ignore"):
             keep = np.flatnonzero(np.abs(mesh.face_normals @ axis) < WALL_FACE_MAX_COS)
-        walls = mesh.submesh([keep], append=True) if len(keep) else None
-        if len(_WALLS) >= _WALLS_KEPT:
-            _WALLS.clear()
-        _WALLS[key] = (weakref.ref(mesh), walls)
-        return walls
+        return mesh.submesh([keep], append=True) if len(keep) else None
+
+    with LOCK:
+        return _kept(_WALLS, (id(mesh), tuple(np.round(axis, 3))), mesh, build)
 
 
 def closest_point(
@@ -73,17 +83,15 @@ def closest_point(
 def _tree(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray, igl.AABB]:
     """The mesh's vertices, faces and AABB tree, built on its first query and kept (a tree
     takes a few ms to build; a one-point query on a kept tree, microseconds)."""
-    hit = _TREES.get(id(mesh))
-    if hit is not None and hit[0]() is mesh:
-        return hit[1], hit[2], hit[3]
-    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
-    F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
-    tree = igl.AABB()
-    tree.init(V, F)
-    if len(_TREES) >= _TREES_KEPT:
-        _TREES.clear()
-    _TREES[id(mesh)] = (weakref.ref(mesh), V, F, tree)
-    return V, F, tree
+
+    def build() -> tuple[np.ndarray, np.ndarray, igl.AABB]:
+        V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+        F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+        tree = igl.AABB()
+        tree.init(V, F)
+        return V, F, tree
+
+    return _kept(_TREES, id(mesh), mesh, build)
 
 
 def ray_hits(

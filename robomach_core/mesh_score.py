@@ -222,7 +222,7 @@ def taught_wall_check(
         near = (path_height >= low) & (path_height <= high)
         if not near.any():
             near[:] = True
-        w_across = wall_point - axis * float(wall_point @ axis)
+        w_across = wall_point - axis * h
         gap = float(np.min(np.linalg.norm(across[near] - w_across, axis=1))) - tool_radius_m
         checked.append(k + 1)
         worst = max(worst, gap)

@@ -470,13 +470,6 @@ def contour_law_parameters(settings: PathLearningSettings) -> np.ndarray:
     )
 
 
-def _across(p: np.ndarray, q: np.ndarray, axis: np.ndarray) -> float:
-    """Distance from p to q across ``axis`` (a unit vector) [m]."""
-    d = p - q
-    d = d - axis * float(d @ axis)
-    return math.sqrt(float(d @ d))
-
-
 def _leg_limits(
     seg: _Segment, wall_wander: dict[tuple[int, int], float]
 ) -> tuple[float, float, float]:
@@ -682,7 +675,7 @@ def learn_path(
         else:
             passed = False
             if s_now >= max(seg.length - NEAR_END_M, 0.5 * seg.length):
-                d_end = _across(T_ref[:3, 3], seg.b, axis)
+                d_end = float(np.linalg.norm(across(T_ref[:3, 3] - seg.b)))
                 passed = end_best < NEAR_END_M and d_end > end_best + END_PASSED_M
                 end_best = min(end_best, d_end)
             if last_leg:
