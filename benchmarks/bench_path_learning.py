@@ -29,12 +29,13 @@ import numba
 import numpy as np
 import pinocchio as pin
 
-from robomach_core import _kernels, path_learning
+from robomach_core import _kernels
 from robomach_core.cell import CONTROL_PERIOD_S, Cell
-from robomach_core.contour_following import record_row
-from robomach_core.demo_operator import guide_plan, scripted_leadthrough
 from robomach_core.leadthrough import LeadThrough
-from robomach_core.path_learning import PathLearningSettings, learn_path
+from robomach_core.learning import run as path_learning
+from robomach_core.learning.law import record_row
+from robomach_core.learning.operator import guide_plan, scripted_leadthrough
+from robomach_core.learning.run import PathLearningSettings, learn_path
 from robomach_core.supervision import cell_supervisor
 
 

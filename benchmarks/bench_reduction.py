@@ -25,7 +25,7 @@ from collections.abc import Callable
 import numpy as np
 
 from robomach_core.clock import CONTROL_PERIOD_S
-from robomach_core.path_learning import Recording
+from robomach_core.learning.run import Recording
 from robomach_core.postprocess import PostprocessSettings, postprocess, reduce_deviation_height
 from robomach_core.workpiece import water_pump_wall
 

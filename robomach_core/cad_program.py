@@ -30,8 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
+from .learning.walls import WallLoop, section_loops
 from .postprocess import reduce_deviation_height
-from .wall_section import WallLoop, section_loops
 from .workpiece import Workpiece
 
 # Every 0.1 mm along the moves: between targets the error is a smooth chord sagitta, whose

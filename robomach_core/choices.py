@@ -55,7 +55,8 @@ def enums() -> dict[str, tuple[str, ...]]:
     """Every named choice: name -> its values, in the order menus show them."""
     from .cmrr import CONTROLLER_NAMES, SCENARIO_NAMES
     from .export.languages import language_choices, language_names
-    from .guide_proposal import PointKind, Reach
+    from .learning.planner import PointKind, Reach
+    from .learning.side import WALL_SIDE_CHOICES
     from .machining import COMPENSATION_NAMES
     from .machining.choice import OPTION_NAMES
     from .project import StageStatus
@@ -65,7 +66,6 @@ def enums() -> dict[str, tuple[str, ...]]:
     from .stiffness.milling import MILLING_COMPENSATIONS
     from .stiffness.settings import COMPENSATION_SETTINGS
     from .stiffness.studies import StudyName
-    from .wall_side import WALL_SIDE_CHOICES
     from .workpiece import WORKPIECE_NAMES
 
     return {

@@ -18,12 +18,12 @@ import numpy as np
 
 from .cell import Cell, CellConfig
 from .clock import CONTROL_PERIOD_S
-from .demo_operator import intents_from_csv, scripted_leadthrough
 from .errors import InvalidInputError, MeshFileError
 from .export.languages import language
 from .export.reachability import ReachabilityReport, check_program_reachability
 from .leadthrough import GuidePoint, LeadThrough
-from .path_learning import PathLearningSettings, Recording
+from .learning.operator import intents_from_csv, scripted_leadthrough
+from .learning.run import PathLearningSettings, Recording
 from .postprocess import PostprocessResult, PostprocessSettings, Targets
 from .project import (
     CellSettings,
@@ -194,7 +194,7 @@ class DemoResult:
             ]
             out["closed"] = self.settings.closed
         if self.proposal is not None:
-            from .guide_proposal import proposal_summary
+            from .learning.planner import proposal_summary
 
             out["proposed_guide_points"] = proposal_summary(self.proposal)
         if self.score is not None:
@@ -286,8 +286,8 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
     if workpiece.nominal is not None and settings.guide_points_csv is None:
         # The part is not where its mesh is: the operator enters each groove in its middle
         # and touches the real wall from there (``guide_entry.robust_intents``).
-        from .demo_operator import guide_plan
-        from .guide_entry import robust_intents
+        from .learning.entry import robust_intents
+        from .learning.operator import guide_plan
 
         planned = intents or guide_plan(
             cad, cell.tool.radius_m, np.random.default_rng(settings.seed)
@@ -361,7 +361,7 @@ def _proposed(settings: DemoSettings, cad: Workpiece, cell: Cell) -> tuple[Any, 
     """The guide points proposed along the wall through ``settings.propose_at_m``, the
     operator's intents to lead the robot to them, and the settings with the wall's side and
     whether it is closed."""
-    from .guide_proposal import (
+    from .learning.planner import (
         ProposalSettings,
         guide_intents,
         propose_guide_points,

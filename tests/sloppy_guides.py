@@ -21,9 +21,9 @@ from scipy.spatial.transform import Rotation
 
 from robomach_core.cell import CONTROL_PERIOD_S, Cell
 from robomach_core.contour import Contour
-from robomach_core.demo_operator import TOOL_DOWN
 from robomach_core.errors import RobomachError
 from robomach_core.leadthrough import GuidePoint
+from robomach_core.learning.operator import TOOL_DOWN
 from robomach_core.supervision import cell_supervisor
 from robomach_core.workpiece import Workpiece
 
@@ -248,7 +248,7 @@ def learn_and_score(
     and score it: the project's own stages, as the CLI and the workbench run them."""
     from robomach_core.errors import WallSideError
     from robomach_core.leadthrough import LeadThrough
-    from robomach_core.path_learning import PathLearningSettings
+    from robomach_core.learning.run import PathLearningSettings
     from robomach_core.postprocess import PostprocessSettings
     from robomach_core.project import CellSettings, Project, learn, process
 

@@ -26,9 +26,9 @@ from app.session import (
 from robomach_core import limits
 from robomach_core.choices import JogFrame
 from robomach_core.leadthrough import ComplianceFrame, ComplianceSelection
+from robomach_core.learning.side import WallSideSetting
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import StageStatus
-from robomach_core.wall_side import WallSideSetting
 
 Axis = Literal["x", "y", "z", "rx", "ry", "rz"]
 Finite = Annotated[float, Field(allow_inf_nan=False)]

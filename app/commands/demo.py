@@ -109,7 +109,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "frame (needed for a mesh file); the optional wall direction points from the tool "
         "into the wall (where to push lightly to feel it), see docs/guide_points.md",
     )
-    from robomach_core.wall_side import WALL_SIDE_CHOICES
+    from robomach_core.learning.side import WALL_SIDE_CHOICES
 
     p.add_argument(
         "--propose-guide-points",
@@ -269,7 +269,7 @@ def run(args: argparse.Namespace) -> int:
         )
 
     from robomach_core.errors import SupervisionError
-    from robomach_core.guide_proposal import ProposalSettings
+    from robomach_core.learning.planner import ProposalSettings
     from robomach_core.pipeline import DemoSettings, default_robot, run_demo, write_demo_outputs
     from robomach_core.postprocess import PostprocessSettings
     from robomach_core.real_part import PartDeviation

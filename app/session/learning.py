@@ -31,7 +31,7 @@ from robomach_core.errors import (
     SupervisionError,
 )
 from robomach_core.leadthrough import GuidePoint, LeadThrough, LeadThroughState
-from robomach_core.path_learning import PathLearningSettings
+from robomach_core.learning.run import PathLearningSettings
 from robomach_core.project import ProcessedPath, Project
 from robomach_core.workpiece import Workpiece
 
@@ -51,8 +51,8 @@ def _example_intents(cell: Cell, seed: int) -> list | None:
     mesh is, the same entered in each groove's middle (``guide_entry.robust_intents``)."""
     if cell.workpiece.nominal is None:
         return None
-    from robomach_core.demo_operator import guide_plan
-    from robomach_core.guide_entry import robust_intents
+    from robomach_core.learning.entry import robust_intents
+    from robomach_core.learning.operator import guide_plan
 
     plan = guide_plan(cell.workpiece.cad(), cell.tool.radius_m, np.random.default_rng(seed))
     return robust_intents(plan, cell.workpiece, cell.tool.radius_m)
@@ -61,8 +61,8 @@ def _example_intents(cell: Cell, seed: int) -> list | None:
 def _squared(lt: LeadThrough, state: LeadThroughState, cad: Workpiece) -> LeadThroughState:
     """The tool lifted clear of the part (when below its top) and turned square to it (tool
     axis down, as the example operator holds it), by supervised jogs of at most 45 degrees."""
-    from robomach_core.demo_operator import TOOL_DOWN
-    from robomach_core.teach_motion import move_by, turn_to
+    from robomach_core.learning.motion import move_by, turn_to
+    from robomach_core.learning.operator import TOOL_DOWN
 
     top = float(cad.mesh_in_base().bounds[1, 2]) + EXAMPLE_CLEARANCE_M
     z = float(state.cell.T_base_tcp[2, 3])
@@ -80,7 +80,7 @@ class Learning:
     def start_example(self) -> str:
         """Job: the scripted operator leads the robot by pushes to the example guide points of
         the built-in workpiece; on success they replace the guide points. Returns the job id."""
-        from robomach_core.demo_operator import scripted_leadthrough
+        from robomach_core.learning.operator import scripted_leadthrough
 
         s, robot = self._session, self._session.robot
         pose = robot.pose()
@@ -166,7 +166,7 @@ class Learning:
         Raises:
             WallSideError: "auto" and the guide points do not tell the side (before any job).
         """
-        from robomach_core.wall_side import resolve_wall_side
+        from robomach_core.learning.side import resolve_wall_side
 
         s, robot = self._session, self._session.robot
         if wall_side == "auto":
@@ -287,7 +287,7 @@ class Learning:
         self, force_N: float = 10.0, *, closed: bool = True, wall_side: str = "auto"
     ) -> tuple:
         """What the operator check finds in the guide points (``guide_check``)."""
-        from robomach_core.guide_check import guide_point_warnings
+        from robomach_core.learning.checks import guide_point_warnings
 
         view = self._session.view()
         settings = PathLearningSettings(force_N=force_N, closed=closed, wall_side=wall_side)
@@ -313,7 +313,7 @@ class Learning:
         """The wall the next run would follow: its point at each guide point (base frame, None
         where none is near) and one line saying which side and why, or why it cannot tell."""
         from robomach_core.errors import WallSideError
-        from robomach_core.wall_side import resolve_wall_side, taught_wall_points
+        from robomach_core.learning.side import resolve_wall_side, taught_wall_points
 
         view = self._session.view()
         workpiece = view.cell.workpiece.cad()

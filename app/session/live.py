@@ -16,7 +16,7 @@ import numpy as np
 
 from robomach_core.cell import CONTROL_PERIOD_S, Cell, CellState
 from robomach_core.errors import InvalidInputError
-from robomach_core.path_learning import Recording
+from robomach_core.learning.run import Recording
 from robomach_core.sensor import ForceEstimator
 
 from .jobs import JobContext

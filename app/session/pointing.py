@@ -29,8 +29,10 @@ from robomach_core import mesh_query
 from robomach_core import project as core
 from robomach_core.choices import CLICK_MODES, ClickMode
 from robomach_core.errors import InvalidInputError, SupervisionError, UnreachableTargetError
-from robomach_core.guide_entry import robust_intents, wall_side_of
-from robomach_core.guide_proposal import (
+from robomach_core.leadthrough import GuidePoint, LeadThrough, LeadThroughState
+from robomach_core.learning.entry import robust_intents, wall_side_of
+from robomach_core.learning.motion import Arrival
+from robomach_core.learning.planner import (
     GuideProposal,
     ProposalSettings,
     ProposedPoint,
@@ -41,9 +43,7 @@ from robomach_core.guide_proposal import (
     teach_point,
     tool_reach,
 )
-from robomach_core.leadthrough import GuidePoint, LeadThrough, LeadThroughState
-from robomach_core.teach_motion import Arrival
-from robomach_core.wall_section import WallPick
+from robomach_core.learning.walls import WallPick
 
 from .records import MAX_GUIDE_POINTS, ConflictError, GuidePointEntry, NotFoundError
 from .robot import ROBOT_JOB_KINDS
@@ -155,7 +155,7 @@ class Pointing:
             )
         entry = None
         if cell.workpiece.nominal is not None:  # the real part may be off: enter mid-groove
-            from robomach_core.demo_operator import GuideIntent
+            from robomach_core.learning.operator import GuideIntent
 
             n = pick.loop.free_normal_at(np.array([pick.s_m]))[0]
             towards = -(cad.T_base_wobj[:3, :3] @ np.array([n[0], n[1], 0.0]))
@@ -190,7 +190,7 @@ class Pointing:
     ) -> TaughtPoint:
         """Teach at the wall nearest a TCP position (work-object frame) at its height: where a
         dragged marker was dropped."""
-        from robomach_core.wall_section import section_loops
+        from robomach_core.learning.walls import section_loops
 
         cad = self._session.robot.workpiece.cad()
         p = np.asarray(tcp_wobj_m, dtype=float).reshape(3)
@@ -297,7 +297,7 @@ class Pointing:
         """Job: the operator leads the robot by pushes to each proposed point, touches the
         wall there (not at outside corners) and records it; the points replace the guide
         points, and path learning then follows the proposal's wall side. Returns the job id."""
-        from robomach_core.demo_operator import scripted_leadthrough
+        from robomach_core.learning.operator import scripted_leadthrough
 
         epoch, proposal = self._require()
         bad = [k + 1 for k, p in enumerate(proposal.points) if p.reach == "unreachable"]

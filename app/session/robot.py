@@ -34,7 +34,7 @@ from robomach_core.leadthrough import (
     LeadThrough,
     LeadThroughState,
 )
-from robomach_core.path_learning import Recording
+from robomach_core.learning.run import Recording
 from robomach_core.project import CellSettings
 from robomach_core.workpiece import Workpiece
 

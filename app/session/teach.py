@@ -49,8 +49,8 @@ from robomach_core.leadthrough import (
     LeadThroughState,
     halted,
 )
+from robomach_core.learning.motion import Arrival, go_to_point
 from robomach_core.realtime import RealTimePacer
-from robomach_core.teach_motion import Arrival, go_to_point
 
 from .live import TappedCell
 from .records import LIVE_NOTIFY_S, BusyError, ConflictError, RobotSnapshot
@@ -318,7 +318,7 @@ class Teach:
     def _wall_gap(self, cell, p_base: np.ndarray) -> float | None:
         """The cutter's gap to the nearest wall of the mesh at the TCP's height (the section
         there, kept per 0.1 mm of height)."""
-        from robomach_core.wall_section import section_loops
+        from robomach_core.learning.walls import section_loops
 
         cad = cell.workpiece.cad()
         T = cad.T_base_wobj

@@ -6,7 +6,7 @@ import io
 
 import numpy as np
 
-from ..path_learning import Recording
+from ..learning.run import Recording
 from ..postprocess import Targets
 
 SAMPLE_COLUMNS = (

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..leadthrough import GuidePoint
-from ..path_learning import LearningStop, PathLearningSettings, Recording
+from ..learning.run import LearningStop, PathLearningSettings, Recording
 from ..postprocess import PostprocessSettings
 from ._file_check import RECORDING_FIELDS, ProjectFileError, check_project, read_project_arrays
 from ._machining import (

@@ -13,7 +13,7 @@ from .. import mesh_query
 from ..cell import Cell, CellState
 from ..errors import InvalidInputError, NotEnoughGuidePointsError
 from ..leadthrough import GuidePoint
-from ..path_learning import PathLearningSettings, learn_path
+from ..learning.run import PathLearningSettings, learn_path
 from ..postprocess import PostprocessResult, PostprocessSettings, Targets, postprocess
 from ..scoring import PathScore, score_path
 from ..sensor import ForceEstimator
@@ -30,7 +30,7 @@ from ._value import (
 )
 
 if TYPE_CHECKING:
-    from ..mesh_score import TaughtWallCheck
+    from ..learning.score import TaughtWallCheck
 
 
 def learn(
@@ -54,7 +54,7 @@ def learn(
     Raises:
         WallSideError: the side is "auto" and neither pushes nor the mesh tell it.
     """
-    from ..learning_route import plan_route
+    from ..learning.route import plan_route
 
     guides = list(project.guide_points)
     if len(guides) < 2:
@@ -145,7 +145,7 @@ def _scores(
     score = mesh = taught = None
     if len(result.targets) >= 2:
         from ..arcs import score_moves
-        from ..mesh_score import score_mesh, taught_wall_check
+        from ..learning.score import score_mesh, taught_wall_check
         from ..transforms import matrices_from_quaternions
 
         pos = result.targets.position_m

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import RobomachError
 from ..leadthrough import GuidePoint
-from ..path_learning import PathLearningSettings, Recording
+from ..learning.run import PathLearningSettings, Recording
 from ..postprocess import PostprocessResult, PostprocessSettings
 from ..real_part import PartDeviation
 from ..scoring import PathScore
@@ -21,7 +21,7 @@ from ..tool import Tool
 if TYPE_CHECKING:  # the slots' types; their modules import this one
     from ..cad_program import CadComparison
     from ..cmrr import CmrrSettings
-    from ..mesh_score import TaughtWallCheck
+    from ..learning.score import TaughtWallCheck
     from ..stiffness import CompensationSettings
     from ._machining import MachiningResult, MachiningSetup
 

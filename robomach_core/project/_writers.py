@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidInputError
-from ..path_learning import Recording
+from ..learning.run import Recording
 from ..postprocess import Targets
 from ..robot import Robot
 from ..workpiece import Workpiece

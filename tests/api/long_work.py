@@ -22,7 +22,7 @@ import numpy as np
 from app.session import Session
 from app.session.persistence import save_kwargs
 from app.store import Store
-from robomach_core.path_learning import Recording
+from robomach_core.learning.run import Recording
 
 CONTROL_PERIOD_S = 0.004
 LEARNING_FORCE_N = 10.0

@@ -10,8 +10,8 @@ import pytest
 
 from app.session import NotFoundError, Session
 from robomach_core.errors import InvalidInputError, UnreachableTargetError
+from robomach_core.learning.walls import section_loops
 from robomach_core.real_part import PartDeviation
-from robomach_core.wall_section import section_loops
 
 WOBJ_M = np.array([0.80, 0.16, 0.0])  # the water pump's work object (rotation: identity)
 ON_WALL = np.array([0.0, -0.065, 0.019])  # the groove's outer wall, bottom run (wobj)

@@ -12,7 +12,7 @@ import pytest
 from app.session import Session
 from app.session.live import LiveFeed
 from robomach_core.errors import InvalidInputError, NoContactError, SupervisionError
-from robomach_core.path_learning import Recording
+from robomach_core.learning.run import Recording
 
 WOBJ_M = np.array([0.80, 0.16, 0.0])  # the water pump's work object (rotation: identity)
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from robomach_core.cad_program import compare_with_cad
-from robomach_core.demo_operator import TOOL_DOWN
+from robomach_core.learning.operator import TOOL_DOWN
 from robomach_core.real_part import PartDeviation, fixture_error, real_workpiece
 from robomach_core.transforms import quaternion_from_matrix
 from robomach_core.workpiece import Workpiece, water_pump

@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robomach_core.contour_following import (
+from robomach_core.learning.law import (
     EVER_TOUCHED,
     LIFT,
     PARAMETERS,
@@ -17,7 +17,7 @@ from robomach_core.contour_following import (
     law_parameters,
     turn_towards,
 )
-from robomach_core.path_learning import PathLearningSettings, contour_law_parameters
+from robomach_core.learning.run import PathLearningSettings, contour_law_parameters
 
 AXIS = np.array([0.0, 0.0, -1.0])  # tool straight down, into the part
 

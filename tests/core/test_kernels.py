@@ -22,11 +22,11 @@ from numba.core.registry import CPUDispatcher
 
 import robomach_core
 from robomach_core import _kernels
-from robomach_core import contour_following as cf
 from robomach_core.cell import Cell, CellConfig
 from robomach_core.contact import ContactModel
 from robomach_core.joint_compliance import true_joint_compliance
-from robomach_core.path_learning import PathLearningSettings, contour_law_parameters
+from robomach_core.learning import law as cf
+from robomach_core.learning.run import PathLearningSettings, contour_law_parameters
 from robomach_core.robot import Robot
 from robomach_core.sensor import (
     ForceEstimator,
@@ -474,7 +474,7 @@ _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
         "deviation_height_kept": REDUCTION,
         "_first_failing_end": REDUCTION,
     },
-    "robomach_core.contour_following": {
+    "robomach_core.learning.law": {
         "contour_law": CONTOUR_LAW,
         "speed_ratio": CONTOUR_LAW,
         **dict.fromkeys(
@@ -559,7 +559,7 @@ def test_the_gjk_clearance_near_the_part_is_coals(part):
     within coal's tolerance, and every one it leaves is an overlap."""
     import pinocchio as pin
 
-    from robomach_core.demo_operator import TOOL_DOWN
+    from robomach_core.learning.operator import TOOL_DOWN
 
     cell = Cell(CellConfig(workpiece=part))
     supervisor = cell_supervisor(cell)

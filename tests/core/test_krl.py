@@ -10,7 +10,6 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from robomach_core.arcs import Move
-from robomach_core.demo_operator import TOOL_DOWN
 from robomach_core.export.krl import (
     APPROACH_NAME,
     RETRACT_NAME,
@@ -19,6 +18,7 @@ from robomach_core.export.krl import (
     kuka_rotation,
 )
 from robomach_core.export.krl_check import KrlSyntaxError, check_krl_program
+from robomach_core.learning.operator import TOOL_DOWN
 from robomach_core.postprocess import Targets
 from robomach_core.robot import Robot
 from robomach_core.robots import KR270

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from robomach_core.cell import CONTROL_PERIOD_S, Cell, CellConfig
-from robomach_core.demo_operator import TOOL_DOWN
 from robomach_core.errors import InvalidInputError, NotEnoughGuidePointsError
 from robomach_core.leadthrough import GuidePoint, LeadThrough
-from robomach_core.path_learning import PathLearningSettings, learn_path
+from robomach_core.learning.operator import TOOL_DOWN
+from robomach_core.learning.run import PathLearningSettings, learn_path
 from robomach_core.scoring import true_tool_path_distance
 
 

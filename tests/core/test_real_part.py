@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from robomach_core.errors import InvalidInputError
+from robomach_core.learning.walls import section_loops
 from robomach_core.project import CellSettings, Project, build_cell_workpiece
 from robomach_core.real_part import (
     PartDeviation,
@@ -16,7 +17,6 @@ from robomach_core.real_part import (
     real_workpiece,
     refine_walls,
 )
-from robomach_core.wall_section import section_loops
 from robomach_core.workpiece import block, water_pump
 
 MACHINING_Z_M = 0.017

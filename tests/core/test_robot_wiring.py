@@ -7,12 +7,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from robomach_core.demo_operator import TOOL_DOWN
 from robomach_core.errors import InvalidInputError
-from robomach_core.guide_check import guide_point_warnings
 from robomach_core.leadthrough import GuidePoint
-from robomach_core.mesh_score import score_mesh
-from robomach_core.path_learning import PathLearningSettings
+from robomach_core.learning.checks import guide_point_warnings
+from robomach_core.learning.operator import TOOL_DOWN
+from robomach_core.learning.run import PathLearningSettings
+from robomach_core.learning.score import score_mesh
 from robomach_core.pipeline import default_robot
 from robomach_core.project import wobj_transform
 from robomach_core.robot import Robot, robot_urdf_path
@@ -88,7 +88,7 @@ def test_guide_rules_flag_heavy_contact_a_touch_and_an_untold_wall_side():
 
 def test_mesh_score_agrees_with_the_true_wall_score():
     wp = builtin_workpiece("water_pump")
-    from robomach_core.demo_operator import guide_plan  # noqa: F401 (the wall's frame)
+    from robomach_core.learning.operator import guide_plan  # noqa: F401 (the wall's frame)
 
     T = wp.T_base_wobj
     path = wp.wall.offset(0.001).sample(0.004)[:60]

@@ -10,10 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robomach_core.cell import Cell
-from robomach_core.demo_operator import TOOL_DOWN
 from robomach_core.errors import InvalidInputError, SupervisionError
 from robomach_core.leadthrough import ComplianceSelection, GuidePoint, LeadThrough
-from robomach_core.path_learning import PathLearningSettings, learn_path
+from robomach_core.learning.operator import TOOL_DOWN
+from robomach_core.learning.run import PathLearningSettings, learn_path
 from robomach_core.robot import HOME_JOINTS_RAD
 from robomach_core.supervision import (
     FixtureBox,

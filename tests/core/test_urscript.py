@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from robomach_core.arcs import Move
-from robomach_core.demo_operator import TOOL_DOWN
 from robomach_core.errors import InvalidInputError, UnreachableTargetError
 from robomach_core.export.rapid import confdata_from_joints
 from robomach_core.export.target_joints import configuration, target_joints, with_target_joints
@@ -17,6 +16,7 @@ from robomach_core.export.urscript import (
     script_poses,
     urscript_program,
 )
+from robomach_core.learning.operator import TOOL_DOWN
 from robomach_core.postprocess import Targets
 from robomach_core.robot import Robot
 from robomach_core.tool import Tool

@@ -7,7 +7,7 @@ import pytest
 import trimesh
 
 from robomach_core.errors import InvalidInputError
-from robomach_core.wall_section import WallLoop, pick_wall, section_loops
+from robomach_core.learning.walls import WallLoop, pick_wall, section_loops
 from robomach_core.workpiece import block, water_pump
 
 PICK = {"tool_radius_m": 0.001, "gap_m": 0.001, "height_above_floor_m": 0.003}

@@ -15,7 +15,7 @@ from pydantic import BaseModel, Field
 from app.api.routes import ERRORS, SessionDep
 from app.api.schemas import Finite, GuidePointPublic, JobCreated, Vector3, _floats, _Request
 from robomach_core.choices import ClickMode
-from robomach_core.guide_proposal import GuideProposal, ProposedPoint
+from robomach_core.learning.planner import GuideProposal, ProposedPoint
 from robomach_core.limits import MACHINING_HEIGHT_MM, WALL_GAP_MM, WOBJ_POSITION_MM
 
 router = APIRouter(prefix="/api/guide-points", tags=["guide points"], responses=ERRORS)

@@ -11,9 +11,9 @@ from app.api.routes import ERRORS, SessionDep
 from app.api.routes.cell import UPLOAD_CHUNK_BYTES, _public
 from app.api.routes.export import program_download
 from app.api.schemas import CellPublic
+from robomach_core.learning.side import WallSideSetting
 from robomach_core.robots.builtin import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
-from robomach_core.wall_side import WallSideSetting
 
 # The controller families an uploaded arm may be given (``robots.builtin.ARM_FAMILIES``).
 FamilyChoice = Literal[("auto", *ARM_FAMILIES)]  # type: ignore[valid-type]

@@ -19,9 +19,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from .guide_proposal import WallPlacer
-from .wall_section import WallLoop, section_loops
-from .workpiece import Workpiece
+from ..workpiece import Workpiece
+from .planner import WallPlacer
+from .walls import WallLoop, section_loops
 
 
 def wall_side_of(positions_base_m: np.ndarray, workpiece: Workpiece) -> str | None:

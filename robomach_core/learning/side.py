@@ -30,10 +30,10 @@ from typing import Literal, get_args
 
 import numpy as np
 
-from . import mesh_query
-from .errors import InvalidInputError, WallSideError
-from .leadthrough import GuidePoint
-from .workpiece import Workpiece
+from .. import mesh_query
+from ..errors import InvalidInputError, WallSideError
+from ..leadthrough import GuidePoint
+from ..workpiece import Workpiece
 
 WallSide = Literal["left", "right"]
 WallSideSetting = Literal["auto", "left", "right"]

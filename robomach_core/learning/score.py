@@ -29,17 +29,17 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from . import _kernels, mesh_query
-from .arcs import Move, linear_moves, sample_moves, score_sampled_moves
-from .errors import InvalidInputError, WallSideError
-from .leadthrough import GuidePoint
-from .scoring import PathScore
-from .wall_side import (
+from .. import _kernels, mesh_query
+from ..arcs import Move, linear_moves, sample_moves, score_sampled_moves
+from ..errors import InvalidInputError, WallSideError
+from ..leadthrough import GuidePoint
+from ..scoring import PathScore
+from ..workpiece import Workpiece
+from .side import (
     mean_tool_axis,
     resolve_wall_side,
     taught_wall_points,
 )
-from .workpiece import Workpiece
 
 # 0.5 mm between scored points (~0.2 s for a metre of path on an 8k-triangle mesh; 0.1 mm cost
 # 1 s, most of a workbench post-processing). Between targets the error is a smooth chord sagitta

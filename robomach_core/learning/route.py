@@ -27,17 +27,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import mesh_query
-from .leadthrough import GuidePoint
-from .path_learning import LEG_DETOUR_EXTRA_M, LEG_DETOUR_FACTOR, PathLearningSettings
-from .wall_side import (
+from .. import mesh_query
+from ..leadthrough import GuidePoint
+from ..workpiece import Workpiece
+from .run import LEG_DETOUR_EXTRA_M, LEG_DETOUR_FACTOR, PathLearningSettings
+from .side import (
     WallSideDecision,
     mean_tool_axis,
     resolve_wall_side,
     travel_directions,
     wall_direction,
 )
-from .workpiece import Workpiece
 
 FLOOR_SEARCH_M = 0.01  # a floor farther than this below a point is not the one it rests on
 WANDER_MARGIN_M = 0.01  # a leg's wall may lead the tool this much farther off it than the mesh's
@@ -139,7 +139,7 @@ def leg_wander(
     mean height: the farthest that wall, followed from one to the other on ``side`` (the
     section's loops run with the material on their right), comes from the leg's line, plus
     ``WANDER_MARGIN_M``. Empty when the tool axis is not the part's z axis."""
-    from .wall_section import section_loops
+    from .walls import section_loops
 
     T = workpiece.T_base_wobj
     R, t = T[:3, :3], T[:3, 3]

@@ -43,9 +43,15 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from .cell import Cell, CellState
-from .clock import CONTROL_PERIOD_S
-from .contour_following import (
+from ..cell import Cell, CellState
+from ..clock import CONTROL_PERIOD_S
+from ..errors import CancelledError, InvalidInputError, NotEnoughGuidePointsError
+from ..leadthrough import GuidePoint
+from ..limits import FLOOR_CLEARANCE_MM, LEARNING_FORCE_N, LEARNING_SPEED_MM_S
+from ..sensor import ForceEstimator
+from ..supervision import Supervisor, cell_supervisor
+from ..transforms import matrix_from_quaternion, quaternions_from_matrices
+from .law import (
     REC_CONTACT,
     REC_JOINTS,
     REC_NORMAL,
@@ -62,13 +68,7 @@ from .contour_following import (
     law_parameters,
     leg_progress,
 )
-from .errors import CancelledError, InvalidInputError, NotEnoughGuidePointsError
-from .leadthrough import GuidePoint
-from .limits import FLOOR_CLEARANCE_MM, LEARNING_FORCE_N, LEARNING_SPEED_MM_S
-from .sensor import ForceEstimator
-from .supervision import Supervisor, cell_supervisor
-from .transforms import matrix_from_quaternion, quaternions_from_matrices
-from .wall_side import (
+from .side import (
     WALL_FORCE_CLEAR_N,
     WALL_SIDE_CHOICES,
     WallSideDecision,

@@ -29,8 +29,8 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from .errors import InvalidInputError
-from .mesh_query import closest_point, ray_hits
+from ..errors import InvalidInputError
+from ..mesh_query import closest_point, ray_hits
 
 WALL_NORMAL_Z_MAX = 0.5  # a picked face whose normal has |z| above this is a floor or a top
 MAX_PICK_DISTANCE_M = 0.002  # a picked point farther than this from the surface is refused

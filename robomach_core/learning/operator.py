@@ -18,14 +18,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .clock import CONTROL_PERIOD_S
-from .contour import Arc, Line
-from .errors import InvalidInputError, NotEnoughGuidePointsError, UnreachableTargetError
-from .leadthrough import ComplianceSelection, GuidePoint, LeadThrough, LeadThroughState
-from .robot import Robot
-from .tool import TOOL_DOWN as TOOL_DOWN
-from .transforms import matrix_from_quaternion, rotation_log
-from .workpiece import Workpiece
+from ..clock import CONTROL_PERIOD_S
+from ..contour import Arc, Line
+from ..errors import InvalidInputError, NotEnoughGuidePointsError, UnreachableTargetError
+from ..leadthrough import ComplianceSelection, GuidePoint, LeadThrough, LeadThroughState
+from ..robot import Robot
+from ..tool import TOOL_DOWN as TOOL_DOWN
+from ..transforms import matrix_from_quaternion, rotation_log
+from ..workpiece import Workpiece
 
 HAND_GAIN_N_M = 2000.0  # push per metre of distance to the goal
 HAND_MAX_N = 15.0  # a comfortable one-hand push

@@ -33,11 +33,11 @@ from typing import Literal
 import numpy as np
 import shapely
 
-from .errors import InvalidInputError, RobomachError
-from .limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
-from .robot import Robot
-from .wall_section import WallLoop, WallPick, pick_wall
-from .workpiece import Workpiece
+from ..errors import InvalidInputError, RobomachError
+from ..limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
+from ..robot import Robot
+from ..workpiece import Workpiece
+from .walls import WallLoop, WallPick, pick_wall
 
 CORNER_RADIUS_M = 0.015  # the wall turning faster than this radius is a corner
 TURN_MIN_DEG = 15.0  # a corner region turning less than this is ignored
@@ -134,7 +134,7 @@ def job_tool_rotation(T_base_wobj: np.ndarray, R_tool: np.ndarray | None = None)
     """The job's tool orientation (base frame): ``R_tool`` re-aimed so its axis (tool z) is
     -z of the work object, by the smallest rotation; default the example operator's, tool
     axis straight down and tool x along -y of the base."""
-    from .demo_operator import TOOL_DOWN
+    from .operator import TOOL_DOWN
 
     R = TOOL_DOWN if R_tool is None else np.asarray(R_tool, dtype=float)
     down = -np.asarray(T_base_wobj, dtype=float)[:3, 2]
@@ -528,7 +528,7 @@ def _pose(workpiece: Workpiece, xy: np.ndarray, z: float, R_base: np.ndarray) ->
 
 def tool_reach(tool: object) -> float:
     """How deep the tool reaches below its spindle body: cutter and shank [m]."""
-    from .supervision.supervisor import SHANK_LENGTH_M
+    from ..supervision.supervisor import SHANK_LENGTH_M
 
     return float(tool.flute_length_m) + SHANK_LENGTH_M  # type: ignore[attr-defined]
 
@@ -634,7 +634,7 @@ def guide_intents(proposal: GuideProposal, *, touch: bool = True) -> list:
     wall until it pushes back (as a person touching the wall does), except at outside corners
     (docs/guide_points.md: no wall push there). Touching makes the points the real wall's
     when the part is not where its CAD is."""
-    from .demo_operator import GuideIntent
+    from .operator import GuideIntent
 
     T_base_wobj = proposal.T_base_wobj
     out = []

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .leadthrough import ComplianceSelection, LeadThrough, LeadThroughState
-from .transforms import rotation_log
+from ..leadthrough import ComplianceSelection, LeadThrough, LeadThroughState
+from ..transforms import rotation_log
 
 STIFF = ComplianceSelection(frozenset(), "base")
 FREE = ComplianceSelection(frozenset({"x", "y", "z"}), "base")
@@ -116,7 +116,7 @@ def go_to_point(
     docstring); with ``entry_m`` (base frame), down there first and across to the target (a
     groove entered in its middle, when the part may not be where its mesh is). Supervision
     errors propagate with the last safe state."""
-    from .demo_operator import push_to
+    from .operator import push_to
 
     T = np.asarray(T_target, dtype=float)
     p = state.cell.T_base_tcp[:3, 3]

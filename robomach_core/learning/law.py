@@ -34,7 +34,7 @@ import math
 import numba
 import numpy as np
 
-from ._kernels import contact_wrench_tcp_base, exp3, log3, mul3, rotate
+from .._kernels import contact_wrench_tcp_base, exp3, log3, mul3, rotate
 
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 

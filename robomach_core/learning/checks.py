@@ -27,10 +27,11 @@ from typing import Literal
 
 import numpy as np
 
-from .errors import RobomachError, WallSideError
-from .leadthrough import GuidePoint
-from .path_learning import PathLearningSettings
-from .wall_side import (
+from ..errors import RobomachError, WallSideError
+from ..leadthrough import GuidePoint
+from ..workpiece import Workpiece
+from .run import PathLearningSettings
+from .side import (
     MAX_WALL_GAP_M,
     NEARER_MARGIN_M,
     WALL_FORCE_CLEAR_N,
@@ -38,7 +39,6 @@ from .wall_side import (
     mesh_wall_gaps,
     resolve_wall_side,
 )
-from .workpiece import Workpiece
 
 HEAVY_CONTACT_FRACTION = 0.5  # of the protection limit: already half-way to a stop
 TOUCH_WITHOUT_PUSH_N = 0.8  # a force between this and WALL_FORCE_CLEAR_N: touching, not pushing
@@ -84,7 +84,7 @@ def _leg_through_part(
     """(from, to, length [m]) of the legs whose straight line runs mostly inside the part: a
     leg that cuts a corner is usual (the run follows the wall round it), one that is mostly
     inside the part may join points on different walls."""
-    from .mesh_score import mesh_deviation
+    from .score import mesh_deviation
 
     n = len(guides)
     order = list(range(n)) + ([0] if closed and n > 2 else [])
@@ -195,7 +195,7 @@ def guide_point_warnings(
                 )
             )
     if mesh and n >= 2:
-        from .learning_route import floor_clearances
+        from .route import floor_clearances
 
         right_gap, left_gap = mesh_wall_gaps(guides, closed, workpiece, tool_radius_m)
         floor = floor_clearances(guides, workpiece, tool_radius_m)
