@@ -50,7 +50,12 @@ class NotEnoughGuidePointsError(RobomachError, ValueError):
     """Path learning needs at least two guide points."""
 
 
-class WallSideError(InvalidInputError):
+class RouteRefusedError(InvalidInputError):
+    """The guide points cannot be learned as taught: refused before any motion, saying why and
+    what to do (points on two walls, an open wall taught as a loop, a click between walls)."""
+
+
+class WallSideError(RouteRefusedError):
     """The side of the wall to follow cannot be told from the guide points: set it."""
 
 
