@@ -131,7 +131,8 @@ def test_the_route_height_is_the_surface_plus_the_interpolated_offsets(offsets, 
     leg = _leg(offsets=offsets)
     ref = _plane(0.002, (grad[0], grad[1], 0.0), k)
     p = np.array([f * 0.05, 0.003, 0.0])
-    want = 0.002 + grad[0] * p[0] + grad[1] * p[1] + k * (offsets[0] + (offsets[1] - offsets[0]) * f)
+    offset = offsets[0] + (offsets[1] - offsets[0]) * f
+    want = 0.002 + grad[0] * p[0] + grad[1] * p[1] + k * offset
     assert route_height(leg, ref, p, AXIS) == pytest.approx(want, abs=1e-12)
 
 

@@ -103,8 +103,6 @@ def test_protection_rule_stops_the_run_and_says_why():
 
 def test_fewer_than_two_guide_points_is_refused():
     cell = Cell()
-    lt = LeadThrough(cell)
-    state = lt.start(cell.initial_state())
     with pytest.raises(NotEnoughGuidePointsError, match="at least 2 guide points"):
         plan_route(_guides_on_bottom_run(cell)[:1], PathLearningSettings())
 
