@@ -88,3 +88,23 @@ WRIST_MARGIN_RAD = (
 # --- after learning: is the program on the taught wall -------------------------------------------
 TAUGHT_WALL_TOLERANCE_M = 0.001  # m | the program passes this near every taught wall point (the CAD may differ from the part by this) | fixed
 TAUGHT_WALL_HEIGHT_BAND_M = 0.005  # m | ... measured across the axis among program points within this height of the point or its neighbours | fixed
+
+
+def table_markdown() -> str:
+    """This module's thresholds as the markdown table docs/learning_model.md holds: one row per
+    ``NAME = value  # unit | why | scales with`` line, the value as Python evaluated it."""
+    import re
+    from pathlib import Path
+
+    rows = ["| name | value | unit | why | scales with |", "|---|---|---|---|---|"]
+    pattern = re.compile(r"^([A-Z][A-Z0-9_]*) = .*?  # (.*)$")
+    for line in Path(__file__).read_text().splitlines():
+        m = pattern.match(line)
+        if m:
+            name, (unit, why, scales) = m.group(1), (p.strip() for p in m.group(2).split("|"))
+            rows.append(f"| `{name}` | {globals()[name]:.6g} | {unit} | {why} | {scales} |")
+    return "\n".join(rows) + "\n"
+
+
+if __name__ == "__main__":
+    print(table_markdown(), end="")

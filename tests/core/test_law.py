@@ -204,3 +204,12 @@ def test_the_turn_is_rate_limited_and_reaches_the_leg_orientation():
     np.testing.assert_allclose(
         turn_towards(np.eye(3), *args, np.array([0.05, 0, 0]), 1.0), omega / 2, atol=1e-12
     )
+
+
+def test_the_documented_thresholds_are_the_codes():
+    """docs/learning_model.md's table is the thresholds module's, value for value."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "learning_model.md").read_text()
+    table = doc.split("<!-- thresholds -->\n", 1)[1].split("<!-- /thresholds -->", 1)[0]
+    assert table == th.table_markdown()
