@@ -297,7 +297,7 @@ def controller_period(
 
     Returns:
         (|F| [N], touching, ever touched, the law's distance out of contact [m], the
-        reference's distance from the leg's line [m], |step| [m]).
+        reference's distance from the leg's line [m], the step's advance along the wall [m]).
     """
     R_meas = T_meas[:3, :3]
     wrench = contact_wrench_tcp_base(
@@ -322,9 +322,14 @@ def controller_period(
         T_ref[:3, :3], leg[LEG_RA : LEG_RA + 9].reshape((3, 3)), leg[LEG_OMEGA : LEG_OMEGA + 3],
         a, xp, length, p_ref + step_new, max_turn,
     )  # fmt: skip
-    step_len = math.sqrt(step_new @ step_new)
+    # the advance along the wall (the tangent side * (w x a)): not the force loop's motion
+    # across it nor the height's, which at slow feeds add up to more than the advance itself
+    tx = (w[1] * axis[2] - w[2] * axis[1]) * side
+    ty = (w[2] * axis[0] - w[0] * axis[2]) * side
+    tz = (w[0] * axis[1] - w[1] * axis[0]) * side
+    advance = abs(step_new[0] * tx + step_new[1] * ty + step_new[2] * tz)
     ever = state_new[EVER_TOUCHED] > 0.0
-    return f_abs, touching, ever, state_new[OUT_OF_CONTACT], off_route, step_len
+    return f_abs, touching, ever, state_new[OUT_OF_CONTACT], off_route, advance
 
 
 @_jit

@@ -467,7 +467,7 @@ def learn_path(
             stop_cause = "timeout"
             break
         # --- the controller (measure, the law, record, the turn), compiled ---
-        f_abs, touching, ever, searched, off_route, step_len = controller_period(
+        f_abs, touching, ever, searched, off_route, advance = controller_period(
             state.ft_reading, state.T_base_tcp, state.q_motor, state.time_s - t0, tool_data,
             R_tcp_flange, row, ref, axis, side, T_ref, w, law, params, max_turn, step, turn,
             record, n,
@@ -486,7 +486,7 @@ def learn_path(
             stop_reason = f"supervision: {supervised.stop.message}"
             break
         T_ref = supervised.T_ref
-        travelled = step_len * supervised.scale
+        travelled = advance * supervised.scale
         leg_travel += travelled
         state = cell.step(state, supervised.q_next)
         s_now, _ = leg_progress(T_ref, row, T_ref[:3, 3], axis)
@@ -501,7 +501,9 @@ def learn_path(
             leg_travel = 0.0
         since_ref += travelled
         if since_ref >= th.REFERENCE_SPACING_M:
-            ref, since_ref = heights.at(T_ref[:3, 3], across(step) / max(step_len, 1e-12)), 0.0
+            travel = across(step)
+            travel /= max(float(np.linalg.norm(travel)), 1e-12)
+            ref, since_ref = heights.at(T_ref[:3, 3], travel), 0.0
         if n % report_every == 0:
             if cancelled is not None and cancelled():
                 raise CancelledError("path learning was cancelled")

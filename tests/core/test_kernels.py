@@ -367,6 +367,8 @@ def test_the_controller_period_is_its_parts(cell):
                                     T_ref[:3, 3] + law[0], 0.002)  # fmt: skip
         np.testing.assert_allclose(turn, want_turn, atol=1e-9)
         assert out[0] == pytest.approx(np.linalg.norm(wrench[:3]), abs=1e-9)
+        tangent = np.cross(w, axis)  # side +1: the advance is the step along the wall only
+        assert out[5] == pytest.approx(abs(float(step @ tangent)), abs=1e-15)
         row = record[1]
         assert row[cf.REC_TIME] == 0.5 and row[cf.REC_SEGMENT] == 2.0
         np.testing.assert_array_equal(row[cf.REC_JOINTS : cf.REC_JOINTS + 6], q)
