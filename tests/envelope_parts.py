@@ -109,21 +109,25 @@ class TrueWall:
         dz = np.maximum(0.0, np.maximum(self.floor_mm[i] - p[:, 2], p[:, 2] - self.top_mm))
         return side * np.hypot(d_xy, dz), i
 
-    def stretch(self, s0_mm: float, s1_mm: float) -> np.ndarray:
-        """Vertices between arc lengths ``s0_mm`` and ``s1_mm`` along travel (wrapping on a
-        loop; the whole loop when ``s1 - s0`` is its length or more)."""
+    def stretch(self, span_mm: tuple[float, float] | None, margin_mm: float = 0.0) -> np.ndarray:
+        """Indices of the vertices from arc length ``span_mm[0]`` to ``span_mm[1]`` along
+        travel, ``margin_mm`` in from each end (wrapping on a loop); None: the whole wall."""
         cum = self.cumulative_mm[:-1] if self.closed else self.cumulative_mm
+        if span_mm is None:
+            return np.arange(len(self.xy_mm))
+        s0, s1 = span_mm[0] + margin_mm, span_mm[1] - margin_mm
         if self.closed:
-            if s1_mm - s0_mm >= self.length_mm - 1e-9:
-                return np.arange(len(self.xy_mm))
-            rel = (cum - s0_mm) % self.length_mm
-            return np.flatnonzero(rel <= (s1_mm - s0_mm))
-        return np.flatnonzero((cum >= s0_mm) & (cum <= s1_mm))
+            rel = (cum - s0) % self.length_mm
+            return np.flatnonzero(rel <= (s1 - s0) % self.length_mm)
+        return np.flatnonzero((cum >= s0) & (cum <= s1))
+
+    def nearest(self, xy_mm: np.ndarray) -> np.ndarray:
+        """Index of the nearest vertex for each (n, 2) point."""
+        return self._tree.query(np.atleast_2d(xy_mm))[1]
 
     def project(self, xy_mm: np.ndarray) -> np.ndarray:
         """Arc length of the nearest vertex for each (n, 2) point."""
-        _, i = self._tree.query(np.atleast_2d(xy_mm))
-        return self.cumulative_mm[i]
+        return self.cumulative_mm[self.nearest(xy_mm)]
 
 
 @dataclass(frozen=True)
