@@ -237,20 +237,45 @@ def learn_set(
     post = PostprocessSettings()
     if not post.holds_force(force_N):
         post = post.with_band_for(force_N)
-    base = replace(base, completed=rec.completed, wall_side=rec.wall_side, samples=len(rec))
     try:
         processed = process(learned, post, cell.workpiece, cell.tool.radius_m, guides=pset.guides)
     except RobomachError as exc:
+        outcome = judge(part, cell.workpiece, cell.tool.radius_m, pset, rec, None, base, error=exc)
+        return outcome, None
+    return judge(part, cell.workpiece, cell.tool.radius_m, pset, rec, processed, base), processed
+
+
+def judge(
+    part: EnvelopePart,
+    workpiece: object,
+    tool_radius_m: float,
+    pset: PeopleSet,
+    recording: object,
+    processed: object | None,
+    base: Outcome | None = None,
+    *,
+    error: Exception | None = None,
+) -> Outcome:
+    """The outcome of a learned ``recording`` and its ``processed`` path (None when
+    post-processing raised ``error``): measured and classified (module docstring)."""
+    rec = recording
+    base = replace(
+        base or Outcome("", description=pset.description),
+        completed=rec.completed,
+        wall_side=rec.wall_side,
+        samples=len(rec),
+    )
+    if processed is None:
         kind = "stopped" if not rec.completed else "error"
-        return replace(base, kind=kind, reason=f"{rec.stop_reason}; {exc}"), None
+        return replace(base, kind=kind, reason=f"{rec.stop_reason}; {error}")
     problems = tuple(processed.problems())
     targets = processed.result.targets.position_m
     if len(targets) < 2:
-        return replace(base, kind="stopped", reason=rec.stop_reason, problems=problems), processed
-    m = measure_program(part, cell.workpiece, cell.tool.radius_m, pset, targets)
+        return replace(base, kind="stopped", reason=rec.stop_reason, problems=problems)
+    m = measure_program(part, workpiece, tool_radius_m, pset, targets)
     reason = "" if rec.completed else rec.stop_reason
     kind = classify(m, rec.completed, problems)
-    return replace(base, kind=kind, reason=reason, measure=m, problems=problems), processed
+    return replace(base, kind=kind, reason=reason, measure=m, problems=problems)
 
 
 def example_leadthrough(
@@ -268,13 +293,16 @@ def example_leadthrough(
     state, guides = scripted_leadthrough(
         lt, state, cell.workpiece.cad(), np.random.default_rng(seed), intents=intents
     )
-    pset = _as_set(part, cell, guides, "the example operator", side="auto")
+    pset = as_set(
+        part, cell.workpiece, cell.tool.radius_m, guides, "the example operator", side="auto"
+    )
     return pset, state.cell, lt.estimator
 
 
-def _as_set(
+def as_set(
     part: EnvelopePart,
-    cell: Cell,
+    workpiece: object,
+    tool_radius_m: float,
     guides: list[GuidePoint],
     who: str,
     *,
@@ -286,9 +314,9 @@ def _as_set(
     measured where they are."""
     name = wall or next(iter(part.walls))
     w = part.walls[name]
-    p = part.to_part_mm(cell.workpiece, np.array([g.position_m for g in guides]))
+    p = part.to_part_mm(workpiece, np.array([g.position_m for g in guides]))
     s = w.project(p[:, :2])
-    r_mm = cell.tool.radius_m * 1e3
+    r_mm = tool_radius_m * 1e3
     floors = np.array([w.at(float(si))[2] for si in s])
     heights = np.maximum(p[:, 2], floors + r_mm + 0.5)
     stretch = None if (closed and w.closed) else (float(s[0]), float(s[-1]))
@@ -332,8 +360,8 @@ def proposal_set(
     state, guides = scripted_leadthrough(
         lt, state, cad, np.random.default_rng(seed), intents=guide_intents(proposal)
     )
-    pset = _as_set(
-        part, cell, guides, "a proposal", wall=wall, closed=proposal.closed,
+    pset = as_set(
+        part, cell.workpiece, cell.tool.radius_m, guides, "a proposal", wall=wall, closed=proposal.closed,
         side=proposal.wall_side,
     )  # fmt: skip
     return pset, state.cell, lt.estimator, proposal

@@ -216,7 +216,7 @@ def people_points(
     gap_cap = max_gap_mm
     if w.free_mm is not None:
         gap_cap = min(max_gap_mm, (w.free_mm - 2 * r_mm) / 2 - OTHER_MARGIN_MM)
-    modes = rng.choice(["free", "free", "touch", "push"], n)
+    modes = rng.choice(np.array(["free", "free", "touch", "push"], dtype=object), n)
     gaps = np.where(
         modes == "free",
         rng.uniform(0.0, gap_cap, n),
