@@ -227,9 +227,20 @@ def test_the_wall_side_set_against_the_points_is_followed_and_the_points_named(t
     why = f"{replay(SEED)} (demo seed {seed}): {outcome.line()}"
     _check(not outcome.failure, why)
     _check(outcome.kind in ("learned", "refused"), why)
-    if outcome.kind == "learned":
+    if outcome.kind == "learned":  # the points against the setting are named: in the
+        # summary the CLI prints from, or by the checks the workbench shows before learning
+        from robomach_core.learning.checks import guide_point_warnings
+        from robomach_core.learning.run import PathLearningSettings
+
         texts = _strings(result.summary())
         named = [t for t in texts if re.search(r"\bG\d+\b", t) and "follows the" not in t]
+        found = guide_point_warnings(
+            result.guides,
+            PathLearningSettings(wall_side="left"),
+            workpiece=result.workpiece.cad(),
+            tool_radius_m=result.settings.tool.radius_m,
+        )
+        named += [w.message for w in found if w.point >= 1 and w.severity == "warning"]
         assert named, f"no warning names the points taught at the outer wall: {why}\n{texts}"
 
 
