@@ -302,11 +302,13 @@ def test_an_open_slot_taught_as_a_loop_is_learned_open_or_refused(part_name):
 
 
 @pytest.mark.slow
-def test_points_between_the_two_walls_of_a_narrow_groove_are_refused_naming_both():
-    """Points halfway between the walls of a 3.5 mm groove (the cutter 0.75 mm from each),
-    the side left to "auto": one wall was learned with no word. Now refused before any
-    motion, the message naming both walls."""
-    rng = _rng("between")
+@pytest.mark.parametrize("spread_mm", [0.0, 0.03])
+def test_points_between_the_two_walls_of_a_narrow_groove_are_refused_naming_both(spread_mm):
+    """Points halfway between the walls of a 3.5 mm groove (the cutter 0.75 mm from each,
+    exactly, as a centred click puts it, or within +-0.03 mm of it), the side left to
+    "auto": one wall was learned with no word. Now refused before any motion, the message
+    naming both walls."""
+    rng = _rng("between", spread_mm)
     part = part_named("narrow_groove")
     wall_name = str(rng.choice(list(part.walls)))
     wall = part.walls[wall_name]
@@ -315,7 +317,7 @@ def test_points_between_the_two_walls_of_a_narrow_groove_are_refused_naming_both
     r_mm = cell.tool.radius_m * 1e3
     n = int(rng.integers(6, 11))
     s = (rng.uniform(0, wall.length_mm) + np.arange(n) * wall.length_mm / n) % wall.length_mm
-    gaps = (wall.free_mm - 2 * r_mm) / 2 + rng.uniform(-0.03, 0.03, n)
+    gaps = (wall.free_mm - 2 * r_mm) / 2 + rng.uniform(-spread_mm, spread_mm, n)
     floors = np.array([wall.at(float(x))[2] for x in s])
     heights = rng.uniform(floors + r_mm + 0.5, wall.top_mm - 1.0)
     guides, kept, lines = place_points(
