@@ -22,7 +22,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from tests.envelope_parts import PARTS, EnvelopePart, boss_plate, grooved_plate, tilted
+from tests.envelope_parts import PARTS, EnvelopePart, tilted
 from tests.learning_outcome import (
     FAILURES,
     Outcome,

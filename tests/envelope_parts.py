@@ -200,9 +200,9 @@ class EnvelopePart:
 
     def to_base_m(self, workpiece: Workpiece, points_part_mm: np.ndarray) -> np.ndarray:
         """(n, 3) part-frame points [mm] in the base frame [m]."""
-        wobj_mm = np.atleast_2d(points_part_mm) @ self.T_wobj_part[:3, :3].T + self.T_wobj_part[
-            :3, 3
-        ]
+        wobj_mm = (
+            np.atleast_2d(points_part_mm) @ self.T_wobj_part[:3, :3].T + self.T_wobj_part[:3, 3]
+        )
         T = workpiece.T_base_wobj
         return wobj_mm * 1e-3 @ T[:3, :3].T + T[:3, 3]
 
@@ -474,10 +474,13 @@ def cam_groove(width_mm: float = 4.0) -> EnvelopePart:
     """A groove ``width_mm`` wide round a cam: a 28 mm base circle with a lobe rising 14 mm."""
     theta = np.linspace(0.0, 2 * math.pi, 360, endpoint=False)
     radius = 28.0 + 14.0 * np.maximum(0.0, np.cos(theta)) ** 3
-    cam = shapely.geometry.Polygon(np.column_stack([radius * np.cos(theta), radius * np.sin(theta)]))
-    outer = cam.buffer(width_mm, quad_segs=32)
-    part = _groove_part("cam_groove", outer, width_mm, description=f"uploaded {width_mm:g} mm cam groove")
-    return part
+    cam = shapely.geometry.Polygon(
+        np.column_stack([np.cos(theta), np.sin(theta)]) * radius[:, None]
+    )
+    return _groove_part(
+        "cam_groove", cam.buffer(width_mm, quad_segs=32), width_mm,
+        description=f"uploaded {width_mm:g} mm cam groove",
+    )  # fmt: skip
 
 
 # --- tilting ---------------------------------------------------------------------------------

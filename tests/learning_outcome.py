@@ -361,8 +361,8 @@ def proposal_set(
         lt, state, cad, np.random.default_rng(seed), intents=guide_intents(proposal)
     )
     pset = as_set(
-        part, cell.workpiece, cell.tool.radius_m, guides, "a proposal", wall=wall, closed=proposal.closed,
-        side=proposal.wall_side,
+        part, cell.workpiece, cell.tool.radius_m, guides, "a proposal", wall=wall,
+        closed=proposal.closed, side=proposal.wall_side,
     )  # fmt: skip
     return pset, state.cell, lt.estimator, proposal
 

@@ -252,9 +252,7 @@ def people_points(
         f"{'forward' if forward else 'reversed'}, side {side_mode} ({true_side}), "
         f"{len(guides)} of {n} points"
     )
-    lines = [
-        f"{line} {modes[k]} {notes[k]}" for k, line in zip(kept, lines, strict=True)
-    ]
+    lines = [f"{line} {modes[k]} {notes[k]}" for k, line in zip(kept, lines, strict=True)]
     s_kept = s_all[kept]
     stretch = None
     if not loop and len(s_kept):

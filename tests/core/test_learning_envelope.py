@@ -100,9 +100,7 @@ def test_a_tilted_plate_is_learned_along_all_its_wall_within_a_quarter_mm(how, k
     else:
         s = float(rng.uniform(0.0, part.walls[wall].length_mm))
         pset, state, estimator, _ = proposal_set(part, seed, wall, s_mm=s)
-        outcome, _ = learn_set(
-            part, fresh_cell(part, seed), pset, state=state, estimator=estimator
-        )
+        outcome, _ = learn_set(part, fresh_cell(part, seed), pset, state=state, estimator=estimator)
     m = outcome.measure
     if outcome.kind != "learned" or m.dev_mm > GRID_WITHIN_MM or m.height_mm > HEIGHT_MM:
         pytest.fail(f"{replay(SEED)}: {outcome.line()}\n{pset.description}")

@@ -27,7 +27,6 @@ from tests.envelope import (
     part_named,
     replay,
     run_seed,
-    tilted_part,
 )
 from tests.envelope_parts import tilted
 from tests.learning_outcome import Outcome, as_set, judge, learn_set
@@ -163,7 +162,9 @@ def test_points_resting_on_the_pump_groove_floor_keep_their_height():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("part_name", "side"), [("narrow_groove", "right"), ("cam_groove", "left")])
+@pytest.mark.parametrize(
+    ("part_name", "side"), [("narrow_groove", "right"), ("cam_groove", "left")]
+)
 def test_the_side_the_person_sets_wins_over_points_nearer_the_other_wall(part_name, side):
     """``--wall-side right`` with 8 sloppy points in a 3.5 mm groove, 7 of them nearer the
     other wall: the program followed the right wall within 0.207 mm over all of it, yet was
