@@ -98,7 +98,7 @@ def place_points(
         c, t, floor = wall.at(float(s))
         free = np.array([-t[1], t[0]])
         z = float(heights_mm[k])
-        xy = c + free * (r_mm + gaps_mm[k])
+        xy = _stand_off(wall, c + free * (r_mm + gaps_mm[k]), r_mm + gaps_mm[k])
         T = np.eye(4)
         T[:3, :3] = rotations[k]
         q = None
@@ -131,6 +131,15 @@ def place_points(
             f"|F|={np.linalg.norm(contact.wrench[:3]):.1f} N"
         )
     return guides, kept, lines
+
+
+def _stand_off(wall: TrueWall, xy: np.ndarray, distance_mm: float) -> np.ndarray:
+    """``xy`` moved until the nearest point of the wall is ``distance_mm`` away: in an inside
+    corner tighter than that, the other side of the corner stops the hand too."""
+    for _ in range(8):
+        i = wall.nearest(xy)[0]
+        xy = wall.xy_mm[i] + wall.free_normals[i] * distance_mm
+    return xy
 
 
 def _sloppy_rotations(
