@@ -320,11 +320,29 @@ def as_set(
     floors = np.array([w.at(float(si))[2] for si in s])
     heights = np.maximum(p[:, 2], floors + r_mm + 0.5)
     stretch = None if (closed and w.closed) else (float(s[0]), float(s[-1]))
-    return PeopleSet(
-        list(guides), part.name, name, closed, side, "right", s, heights,
+    gaps = w.signed_distance(p)[0] - r_mm
+    lines = [
         f"{part.name} ({part.description}), wall {name!r}, {len(guides)} points by {who}",
+        *(
+            f"G{k + 1}: s={s[k]:.0f} gap={gaps[k]:.2f} z={p[k, 2] - floors[k]:.1f} above floor "
+            f"(top {w.top_mm - floors[k]:.1f}) |F|={np.linalg.norm(g.force_N):.1f} N"
+            for k, g in enumerate(guides)
+        ),
+    ]
+    return PeopleSet(
+        list(guides), part.name, name, closed, side, "right", s, heights, "\n".join(lines),
         stretch,
     )  # fmt: skip
+
+
+def within_the_wall(pset: PeopleSet, part: EnvelopePart, workpiece: object, r_mm: float) -> list:
+    """The points of ``pset`` that are not beside their wall: below the floor + the cutter,
+    above its top, or farther than 3 mm from it (1-based numbers)."""
+    w = part.walls[pset.wall]
+    p = part.to_part_mm(workpiece, np.array([g.position_m for g in pset.guides]))
+    sd, i = w.signed_distance(p)
+    off = (p[:, 2] < w.floor_mm[i] + r_mm - 0.1) | (p[:, 2] > w.top_mm) | (sd - r_mm > 3.0)
+    return [int(k) + 1 for k in np.flatnonzero(off)]
 
 
 def proposal_set(

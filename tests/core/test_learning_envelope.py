@@ -20,6 +20,7 @@ import zlib
 import numpy as np
 import pytest
 
+from robomach_core.errors import RobomachError
 from tests.envelope import (
     GRID_FORCES_N,
     GRID_PARTS,
@@ -34,7 +35,7 @@ from tests.envelope import (
     set_seeds,
     tilted_part,
 )
-from tests.learning_outcome import fresh_cell, learn_set, proposal_set
+from tests.learning_outcome import fresh_cell, learn_set, proposal_set, within_the_wall
 from tests.people_points import hand_points
 
 SEED = run_seed()
@@ -99,7 +100,15 @@ def test_a_tilted_plate_is_learned_along_all_its_wall_within_a_quarter_mm(how, k
         outcome, _ = learn_set(part, cell, pset)
     else:
         s = float(rng.uniform(0.0, part.walls[wall].length_mm))
-        pset, state, estimator, _ = proposal_set(part, seed, wall, s_mm=s)
+        try:
+            pset, state, estimator, _ = proposal_set(part, seed, wall, s_mm=s)
+        except RobomachError as exc:
+            pytest.fail(f"{replay(SEED)}: pointing at {part.description}: {exc}")
+        off = within_the_wall(pset, part, part.workpiece(seed), 1.0)
+        if off:  # a proposal follows the wall, between its floor and its top
+            pytest.fail(
+                f"{replay(SEED)}: proposed G{off} are not beside the wall\n{pset.description}"
+            )
         outcome, _ = learn_set(part, fresh_cell(part, seed), pset, state=state, estimator=estimator)
     m = outcome.measure
     if outcome.kind != "learned" or m.dev_mm > GRID_WITHIN_MM or m.height_mm > HEIGHT_MM:

@@ -16,7 +16,7 @@ import zlib
 import numpy as np
 import pytest
 
-from robomach_core.errors import RouteRefusedError
+from robomach_core.errors import RobomachError, RouteRefusedError
 from robomach_core.learning.operator import TOOL_DOWN
 from robomach_core.pipeline import DemoSettings, run_demo
 from robomach_core.postprocess import PostprocessSettings
@@ -29,7 +29,7 @@ from tests.envelope import (
     run_seed,
 )
 from tests.envelope_parts import tilted
-from tests.learning_outcome import Outcome, as_set, judge, learn_set
+from tests.learning_outcome import Outcome, as_set, judge, learn_set, within_the_wall
 from tests.people_points import PeopleSet, hand_points, people_points, place_points
 
 SEED = run_seed()
@@ -117,7 +117,15 @@ def test_a_plate_tilted_15_deg_in_the_mesh_is_learned_with_the_tool_vertical(sou
         outcome, _ = learn_set(part, cell, pset)
     else:
         s = float(rng.uniform(0.0, part.walls[wall].length_mm))
-        pset, state, estimator, _ = proposal_set(part, seed, wall, s_mm=s)
+        try:
+            pset, state, estimator, _ = proposal_set(part, seed, wall, s_mm=s)
+        except RobomachError as exc:
+            pytest.fail(f"{replay(SEED)}: pointing at {part.description}: {exc}")
+        off = within_the_wall(pset, part, part.workpiece(seed), 1.0)
+        if off:  # a proposal follows the wall, between its floor and its top
+            pytest.fail(
+                f"{replay(SEED)}: proposed G{off} are not beside the wall\n{pset.description}"
+            )
         outcome, _ = learn_set(part, fresh_cell(part, seed), pset, state=state, estimator=estimator)
     m = outcome.measure
     why = f"{replay(SEED)}: {outcome.line()}\n{pset.description}"
