@@ -107,7 +107,7 @@ def test_a_tilted_plate_is_learned_along_all_its_wall_within_a_quarter_mm(how, k
         off = within_the_wall(pset, part, part.workpiece(seed), 1.0)
         if off:  # a proposal follows the wall, between its floor and its top
             pytest.fail(
-                f"{replay(SEED)}: proposed G{off} are not beside the wall\n{pset.description}"
+                f"{replay(SEED)}: proposed points {off} not beside the wall\n{pset.description}"
             )
         outcome, _ = learn_set(part, fresh_cell(part, seed), pset, state=state, estimator=estimator)
     m = outcome.measure

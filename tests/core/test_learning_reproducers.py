@@ -124,7 +124,7 @@ def test_a_plate_tilted_15_deg_in_the_mesh_is_learned_with_the_tool_vertical(sou
         off = within_the_wall(pset, part, part.workpiece(seed), 1.0)
         if off:  # a proposal follows the wall, between its floor and its top
             pytest.fail(
-                f"{replay(SEED)}: proposed G{off} are not beside the wall\n{pset.description}"
+                f"{replay(SEED)}: proposed points {off} not beside the wall\n{pset.description}"
             )
         outcome, _ = learn_set(part, fresh_cell(part, seed), pset, state=state, estimator=estimator)
     m = outcome.measure
