@@ -27,14 +27,15 @@ FLOOR_SEARCH_M = 0.03  # m | a floor farther than this below the cutter is not t
 PLANE_SPREAD_M = 0.01  # m | without a floor, the points' plane has no slope along a direction they spread less than this over (rms) | fixed
 FLOOR_ABOVE_M = 0.002  # m | the floor is looked for from this far above the cutter's centre (a cutter pressed into it still finds it) | tool radius (added to it)
 WALK_MATCH_M = 0.001  # m | the run takes the floor the walk measured nearest to the tool within this, and measures it itself farther off | fixed
+STEP_LOOKAHEAD_M = 0.003  # m | the floor is also measured this far (+ the cutter's radius) ahead, so a step up is climbed before the cutter meets it | learning speed: enough up to 20 mm/s
 REFERENCE_SPACING_M = 0.001  # m | the floor under the tool is measured anew after this much travel; a plane extrapolates between | fixed: spatial, not timed
 FLOOR_CONE_TAN = math.tan(
     math.radians(37.0)
 )  # 1 | a force along the axis is the floor's only beyond a wall contact's cone: walls up to 20 deg off the axis and friction up to 0.3 (17 deg) | friction and wall tilt
 FLOOR_FORCE_N = 1.5  # N | ... and beyond this (five times the sensor's noise) | sensor noise
 LIFT_DECAY_M = 0.005  # m | a lift off a floor the route did not know fades over this much travel, then the floor is felt again | fixed: spatial
-HEIGHT_TIME_S = 0.25  # s | the height returns to the route's within about this (a position loop; the route's rate is fed forward) | fixed
-HEIGHT_SPEED_M_S = 0.01  # m/s | the fastest the height loop moves the tool along its axis | fixed
+HEIGHT_TIME_S = 0.05  # s | the height returns to the route's within about this (a position loop; the route's rate is fed forward) | fixed
+HEIGHT_SPEED_M_S = 0.05  # m/s | the fastest the height loop moves the tool along its axis (a 2 mm step climbed within 3 mm of travel at 20 mm/s) | fixed
 
 # --- following the wall ---------------------------------------------------------------------------
 CONTACT_FLAG_N = 1.0  # N | a measured contact force above this counts as contact | sensor noise
