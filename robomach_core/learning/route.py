@@ -536,6 +536,7 @@ class LegWalk:
     wander_m: float
     length_m: float
     reached: bool
+    over_top_m: float = 0.0  # walked with the cutter's centre over the wall's top edge
 
 
 def walk_route(
@@ -562,7 +563,7 @@ def walk_route(
         row = leg.row(offsets[k])
         end = LegEnd(leg, axis, last=k == len(legs) - 1, closed=closed)
         limit = th.LEG_DETOUR_FACTOR * leg.length + th.LEG_DETOUR_EXTRA_M
-        pts, towards, walked, reached = [], [], 0.0, False
+        pts, towards, walked, reached, over_top = [], [], 0.0, False, 0.0
         while walked <= limit:
             for _ in range(2):  # onto the wall, then to the route's height
                 c, d = walls.nearest(p[None])
@@ -573,6 +574,8 @@ def walk_route(
                 n = (c[0] - p) / max(float(d[0]), 1e-12)
                 p = c[0] - n * r
                 p = p + axis * (route_height(row, ref, p, axis) - float(p @ axis))
+            if float(n @ axis) > th.OVER_TOP_SIN:  # the wall's nearest point well below the centre
+                over_top += th.WALK_STEP_M
             w = n - axis * float(n @ axis)
             w /= max(float(np.linalg.norm(w)), 1e-12)
             pts.append(p.copy())
@@ -592,7 +595,7 @@ def walk_route(
         rel = arr - leg.a
         along = rel @ leg.xp
         off = np.sqrt(np.maximum(np.einsum("ij,ij->i", rel, rel) - along**2, 0.0))
-        out.append(LegWalk(arr, np.array(towards), float(off.max()), walked, reached))
+        out.append(LegWalk(arr, np.array(towards), float(off.max()), walked, reached, over_top))
         if not reached:
             break
     heights.remember(np.array(measured_at), np.array(measured))
@@ -770,6 +773,14 @@ def plan_route(
                 f"{walks[-1].length_m * 1e3:.0f} mm of wall with no point taught, more than the "
                 f"whole rest of the route ({rest * 1e3:.0f} mm): the wall taught looks open. "
                 "Learn it open (--open, or untick 'closed'), or teach points along the way back"
+            )
+    for leg, walk in zip(legs, walks, strict=False):
+        if not problem and walk.over_top_m > th.OVER_TOP_M:
+            problem = (
+                f"between G{leg.first + 1} and G{leg.last + 1} the route's height takes the "
+                f"cutter over the wall's top for {walk.over_top_m * 1e3:.0f} mm (the wall is lower "
+                "there than at the points, a step in the floor or a lower top): teach these "
+                "points lower on the wall"
             )
     if not problem and not walks[-1].reached:
         problem = _unreached(walks, legs, decision.side, closed)
