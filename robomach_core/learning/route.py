@@ -417,6 +417,7 @@ class HeightReference:
     walls: PartWalls | None = None
     _last: np.ndarray | None = field(default=None, repr=False)
     _walked: tuple | None = field(default=None, repr=False)  # (tree, references) of the walk
+    found: bool = field(default=True, repr=False)  # the last ``at`` measured a floor
 
     def remember(self, points: np.ndarray, references: np.ndarray) -> None:
         """Keep the references the walk measured at ``points``: the run takes the nearest
@@ -457,7 +458,8 @@ class HeightReference:
             usable[k] = towards is not None and self.walls.faces_from_free_side(
                 above, towards, reach
             )
-        if not usable.any():
+        self.found = bool(usable.any())
+        if not self.found:
             return self._last if self._last is not None else self.plane
         k = int(np.argmin(np.where(usable, under_p, np.inf)))  # the highest floor
         ref = np.empty(REF_SIZE)
@@ -537,6 +539,7 @@ class LegWalk:
     length_m: float
     reached: bool
     over_top_m: float = 0.0  # walked with the cutter's centre over the wall's top edge
+    off_floor_m: float = 0.0  # walked with no floor under the tool (floor mode only)
 
 
 def walk_route(
@@ -563,7 +566,7 @@ def walk_route(
         row = leg.row(offsets[k])
         end = LegEnd(leg, axis, last=k == len(legs) - 1, closed=closed)
         limit = th.LEG_DETOUR_FACTOR * leg.length + th.LEG_DETOUR_EXTRA_M
-        pts, towards, walked, reached, over_top = [], [], 0.0, False, 0.0
+        pts, towards, walked, reached, over_top, off_floor = [], [], 0.0, False, 0.0, 0.0
         while walked <= limit:
             for _ in range(2):  # onto the wall, then to the route's height
                 c, d = walls.nearest(p[None])
@@ -589,13 +592,18 @@ def walk_route(
             since_ref += th.WALK_STEP_M
             if since_ref >= th.REFERENCE_SPACING_M:
                 ref, since_ref = heights.at(p, t, w), 0.0
-                measured_at.append(p.copy())
-                measured.append(ref)
+                if heights.mode == "floor" and not heights.found:
+                    off_floor += th.REFERENCE_SPACING_M
+                else:
+                    measured_at.append(p.copy())
+                    measured.append(ref)
         arr = np.array(pts)
         rel = arr - leg.a
         along = rel @ leg.xp
         off = np.sqrt(np.maximum(np.einsum("ij,ij->i", rel, rel) - along**2, 0.0))
-        out.append(LegWalk(arr, np.array(towards), float(off.max()), walked, reached, over_top))
+        out.append(
+            LegWalk(arr, np.array(towards), float(off.max()), walked, reached, over_top, off_floor)
+        )
         if not reached:
             break
     heights.remember(np.array(measured_at), np.array(measured))
@@ -764,17 +772,16 @@ def plan_route(
     )
     walks = walk_route(legs, heights, offsets, decision.sign, walls, start, closed=closed)
     problem = open_wall_return(walks, legs, tool_radius_m) if closed else ""
-    if not problem and closed and walks[-1].reached and len(walks) > 2:
-        rest = sum(w.length_m for w in walks[:-1])
-        if walks[-1].length_m > rest:
-            leg = legs[-1]
-            problem = (
-                f"the leg G{leg.first + 1} -> G{leg.last + 1} that closes the route would follow "
-                f"{walks[-1].length_m * 1e3:.0f} mm of wall with no point taught, more than the "
-                f"whole rest of the route ({rest * 1e3:.0f} mm): the wall taught looks open. "
-                "Learn it open (--open, or untick 'closed'), or teach points along the way back"
-            )
     for leg, walk in zip(legs, walks, strict=False):
+        if not problem and walk.off_floor_m > th.OPEN_RETURN_M:
+            problem = (
+                f"the leg G{leg.first + 1} -> G{leg.last + 1} would follow the wall off the part: "
+                f"for {walk.off_floor_m * 1e3:.0f} mm there is no floor under the tool (the wall "
+                "runs out of the part"
+                + (", so the wall taught is open: learn it open (--open, or untick 'closed')"
+                   if closed and leg is legs[-1] else "")
+                + "); put a point where the route should go, or check the wall side"
+            )  # fmt: skip
         if not problem and walk.over_top_m > th.OVER_TOP_M:
             problem = (
                 f"between G{leg.first + 1} and G{leg.last + 1} the route's height takes the "

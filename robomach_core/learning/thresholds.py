@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+# fmt: off
 # --- the wall: is this point at that wall, and which side ----------------------------------------
 AT_WALL_GAP_M = 0.005  # m | a point whose cutter is farther than this from a wall was not taught on it (people leave points 0-3 mm off) | fixed: the operator's rule "within 1-3 mm"
 NEARER_MARGIN_M = 0.00025  # m | one wall is nearer than another only by more than this (the mesh's facets) | fixed
@@ -79,9 +80,7 @@ APPROACH_CLEARANCE_M = 0.03  # m | the approach travels this far above the first
 WALK_STEP_M = (
     0.0005  # m | the route is walked along the mesh's wall in steps of this, before the run | fixed
 )
-OVER_TOP_SIN = math.sin(
-    math.radians(45.0)
-)  # 1 | the wall met more than 45 deg below the cutter's equator: the cutter rides over the wall's top edge | fixed
+OVER_TOP_SIN = math.sin(math.radians(45.0))  # 1 | the wall met more than 45 deg below the cutter's equator: the cutter rides over the wall's top edge | fixed
 OVER_TOP_M = 0.002  # m | a route whose walk rides over the wall's top this far is refused | fixed
 OPEN_RETURN_M = 0.02  # m | a leg that comes back along the other wall of the same free space this far, with no point there, means an open wall taught as a loop | fixed
 HEAVY_CONTACT_FRACTION = 0.5  # x force limit | a guide point recorded pressing this hard is half-way to a stop | force limit
@@ -94,6 +93,8 @@ WRIST_MARGIN_RAD = (
 # --- after learning: is the program on the taught wall -------------------------------------------
 TAUGHT_WALL_TOLERANCE_M = 0.001  # m | the program passes this near every taught wall point (the CAD may differ from the part by this) | fixed
 TAUGHT_WALL_HEIGHT_BAND_M = 0.005  # m | ... measured across the axis among program points within this height of the point or its neighbours | fixed
+
+# fmt: on
 
 
 def table_markdown() -> str:
