@@ -280,16 +280,18 @@ def taught_wall_check(
     moves: Sequence[Move] | None = None,
     *,
     closed: bool = True,
+    lifted_m: Sequence[float] | None = None,
 ) -> TaughtWallCheck:
     """The program (targets and moves) against the wall points the guide points face on
-    ``side``, the side the route decided and the run followed (module docstring)."""
+    ``side``, the side the route decided and the run followed, at the heights they were
+    learned at (``lifted_m`` off the floor) (module docstring)."""
     if side not in ("left", "right") or len(guides) < 2:
         return TaughtWallCheck(True, (), (), 0.0, "the taught wall is not known")
     axis = mean_tool_axis(guides)
     walls = PartWalls(workpiece, axis, tool_radius_m)
     if walls.walls is None:
         return TaughtWallCheck(True, (), (), 0.0, "no wall found in the part's mesh")
-    points = taught_wall_points(guides, side, closed, walls)
+    points = taught_wall_points(guides, side, closed, walls, lifted_m)
     pts = np.asarray(positions_m, dtype=float)
     moves = linear_moves(len(pts)) if moves is None else tuple(moves)
     path = sample_moves(pts, moves, spacing_m=2.5e-4)

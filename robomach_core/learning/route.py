@@ -269,7 +269,9 @@ class PartWalls:
         if math.isfinite(dist[0]):
             rel = closest[0] - point
             rel = rel - self.axis * float(rel @ self.axis)
-            if float(np.linalg.norm(rel)) > 1e-9 and float(rel @ towards) > 0.0:
+            # the nearest wall, when it lies that way (within FACING_COS of it): else the first
+            # wall straight that way (the nearest may be a step's edge or a corner's other face)
+            if float(rel @ towards) > th.FACING_COS * float(np.linalg.norm(rel)) > 0.0:
                 return closest[0] if dist[0] <= reach_m else None
         d = self.across_ray(point, towards)
         return point + towards * d if d <= reach_m else None
@@ -385,15 +387,24 @@ def resolve_wall_side(
 
 
 def taught_wall_points(
-    guides: Sequence[GuidePoint], side: str, closed: bool, walls: PartWalls
+    guides: Sequence[GuidePoint],
+    side: str,
+    closed: bool,
+    walls: PartWalls,
+    lifted_m: Sequence[float] | None = None,
 ) -> list[np.ndarray | None]:
     """The wall point each guide point was taught on: the nearest wall on its side of travel,
-    within ``AT_WALL_GAP_M`` of the cutter; None where none is."""
+    within ``AT_WALL_GAP_M`` of the cutter, at the height it is learned at (``lifted_m`` above
+    where it was recorded, off the floor); None where none is."""
     axis = mean_tool_axis(guides)
     sign = 1.0 if side == "right" else -1.0
     towards = np.cross(axis, travel_directions(guides, closed, axis)) * sign
     reach = th.AT_WALL_GAP_M + walls.radius
-    return [walls.wall_point(g.position_m, d, reach) for g, d in zip(guides, towards, strict=True)]
+    lift = np.zeros(len(guides)) if lifted_m is None or not len(lifted_m) else lifted_m
+    return [
+        walls.wall_point(g.position_m - axis * float(h), d, reach)
+        for g, d, h in zip(guides, towards, lift, strict=True)
+    ]
 
 
 # --- the height ----------------------------------------------------------------------------------
@@ -443,9 +454,12 @@ class HeightReference:
             if distance <= th.WALK_MATCH_M:
                 return self._walked[1][k]
         r = self.walls.radius
-        probes = np.array([p] if travel is None else [
-            p, p + travel * (r + th.STEP_LOOKAHEAD_M), p - travel * r
-        ])  # fmt: skip
+        probes = [p]
+        if travel is not None:  # the cutter's footprint, and ahead of it along the travel
+            side = _cross(travel, self.axis)
+            probes += [p + travel * (r + th.STEP_LOOKAHEAD_M), p - travel * r]
+            probes += [p + side * r, p - side * r]
+        probes = np.array(probes)
         height, normal = self.walls.floor(probes)
         a = self.axis
         cos = -(normal @ a)
@@ -473,23 +487,30 @@ def plan_heights(
     axis: np.ndarray,
     floor_clearance_m: float,
     walls: PartWalls | None,
+    *,
+    closed: bool,
+    sign: float,
 ) -> tuple[HeightReference, np.ndarray]:
     """The height reference and how far each point was lifted off the floor [m] (module
-    docstring): the floor mode when every point has a floor below it in the mesh."""
+    docstring): the floor mode when every point has a floor below it in the mesh, measured
+    under its whole cutter (a point beside a step up stands on the step's top)."""
     pts = np.array([g.position_m for g in guides])
     heights = pts @ axis
     lifted = np.zeros(len(guides))
-    if walls is not None:
-        floor_h, normals = walls.floor(pts)
-        if np.all(np.isfinite(floor_h)):
-            cos = -(normals @ axis)
-            centre = (floor_h - heights) * cos  # the cutter's centre above the floor
-            need = walls.radius + floor_clearance_m
-            offsets = np.maximum(centre, need)
-            lifted = np.maximum(0.0, (need - centre) / cos)
-            reference = HeightReference("floor", axis, offsets, np.zeros(REF_SIZE), walls)
-            reference.plane = reference.at(pts[0])
-            return reference, lifted
+    if walls is not None and all(np.isfinite(walls.floor(pts)[0])):
+        reference = HeightReference("floor", axis, np.zeros(len(guides)), np.zeros(REF_SIZE), walls)
+        travel = travel_directions(guides, closed, axis)
+        need = walls.radius + floor_clearance_m
+        offsets = np.zeros(len(guides))
+        for k, p in enumerate(pts):  # the highest floor under each point's cutter
+            ref = reference.at(p, travel[k], _cross(axis, travel[k]) * sign)
+            cos = -1.0 / ref[7]
+            centre = (ref[0] - heights[k]) * cos  # the cutter's centre above that floor
+            offsets[k] = max(centre, need)
+            lifted[k] = max(0.0, (need - centre) / cos)
+        reference.offsets_m = offsets
+        reference.plane = reference.at(pts[0])
+        return reference, lifted
     # The points' own plane; a point the floor pushed (beyond a wall's cone) is lifted.
     for k, g in enumerate(guides):
         f = np.asarray(g.force_N, dtype=float)
@@ -559,7 +580,10 @@ def walk_route(
     axis, r = walls.axis, walls.radius
     p = start.copy()
     out: list[LegWalk] = []
-    ref = heights.at(p)
+    c, _ = walls.nearest(p[None])
+    w0 = c[0] - p - axis * float((c[0] - p) @ axis)
+    t0 = sign * _cross(w0 / max(float(np.linalg.norm(w0)), 1e-12), axis)
+    ref = heights.at(p, t0, w0 / max(float(np.linalg.norm(w0)), 1e-12))
     since_ref = 0.0
     measured_at, measured = [p.copy()], [ref]
     for k, leg in enumerate(legs):
@@ -753,23 +777,24 @@ def plan_route(
         if walls.walls is None:
             walls = None
     decision = resolve_wall_side(guides, settings.wall_side, closed=closed, walls=walls)
-    heights, lifted = plan_heights(guides, axis, settings.floor_clearance_m, walls)
+    heights, lifted = plan_heights(
+        guides, axis, settings.floor_clearance_m, walls, closed=closed, sign=decision.sign
+    )
     route = LearningRoute(guides, legs, closed, axis, decision, heights, lifted)
     if walls is None:
         return route
     towards = np.cross(axis, travel_directions(guides, closed, axis)[0]) * decision.sign
-    first_wall = walls.wall_point(guides[0].position_m, towards, 2 * th.AT_WALL_GAP_M)
+    first = guides[0].position_m - axis * lifted[0]  # at the height it is learned at
+    first_wall = walls.wall_point(first, towards, 2 * th.AT_WALL_GAP_M)
     if first_wall is None:
         return route
-    start_dir = first_wall - guides[0].position_m
+    start_dir = first_wall - first
     start_dir -= axis * float(start_dir @ axis)
     if float(np.linalg.norm(start_dir)) < 1e-9:
         return route
     start_dir /= float(np.linalg.norm(start_dir))
     offsets = [route.leg_offsets(leg) for leg in legs]
-    start = guides[0].position_m + start_dir * (
-        float(np.linalg.norm(first_wall - guides[0].position_m)) - tool_radius_m
-    )
+    start = first + start_dir * (float(np.linalg.norm(first_wall - first)) - tool_radius_m)
     walks = walk_route(legs, heights, offsets, decision.sign, walls, start, closed=closed)
     problem = open_wall_return(walks, legs, tool_radius_m) if closed else ""
     for leg, walk in zip(legs, walks, strict=False):

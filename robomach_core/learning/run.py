@@ -120,6 +120,8 @@ class Recording:
         wall_side_reason: What decided the side (the setting, the pushes, the mesh).
         wall_side_source: "setting", "force" or "mesh" ("" for older recordings): a side the
             person set is never overruled by the checks.
+        guide_lift_m: How far the route lifted each guide point off the floor [m] (empty for
+            older recordings): the checks look for each point's wall at the height learned.
     """
 
     time_s: np.ndarray
@@ -139,6 +141,7 @@ class Recording:
     wall_side: str = ""
     wall_side_reason: str = ""
     wall_side_source: str = ""
+    guide_lift_m: tuple[float, ...] = ()
 
     def __len__(self) -> int:
         return len(self.time_s)
@@ -416,21 +419,10 @@ def learn_path(
     guides, legs, axis = route.guides, route.legs, route.axis
     decision = route.wall_side
     side = decision.sign
-    start = legs[0].a.copy()
-    start += axis * (route_height(legs[0].row(route.leg_offsets(legs[0])), route.heights.at(start),
-                                  start, axis) - float(start @ axis))  # fmt: skip
-    state = _approach(cell, state, guides, start, axis, route.closed, supervisor=supervisor)
-
-    # Room for the run at the speed it may fall to (the slowest advance near the force limit).
-    slowest = min(settings.speed_m_s, settings.search_speed_m_s)
-    n_max = int(sum(leg.length for leg in legs) / slowest / dt * 2.0) + 4000
-    record = np.empty((n_max, REC_WIDTH))
-    rows = np.array([leg.row(route.leg_offsets(leg)) for leg in legs])
 
     def across(v: np.ndarray) -> np.ndarray:
         return v - axis * float(v @ axis)
 
-    T_ref = state.T_base_tcp.copy()
     w = across(np.cross(axis, legs[0].xp) * side)
     pushed = across(-np.asarray(guides[0].force_N, dtype=float))
     if route.start_towards_wall is not None:
@@ -439,7 +431,20 @@ def learn_path(
         w = pushed
     w /= float(np.linalg.norm(w))
     heights = route.heights
-    ref = heights.at(T_ref[:3, 3])
+    travel = across(legs[0].xp)
+    travel /= float(np.linalg.norm(travel))
+    start = legs[0].a.copy()
+    ref = heights.at(start, travel, w)  # the floor under the whole cutter, a step included
+    start += axis * (route_height(legs[0].row(route.leg_offsets(legs[0])), ref, start, axis)
+                     - float(start @ axis))  # fmt: skip
+    state = _approach(cell, state, guides, start, axis, route.closed, supervisor=supervisor)
+
+    # Room for the run at the speed it may fall to (the slowest advance near the force limit).
+    slowest = min(settings.speed_m_s, settings.search_speed_m_s)
+    n_max = int(sum(leg.length for leg in legs) / slowest / dt * 2.0) + 4000
+    record = np.empty((n_max, REC_WIDTH))
+    rows = np.array([leg.row(route.leg_offsets(leg)) for leg in legs])
+    T_ref = state.T_base_tcp.copy()
     since_ref = 0.0
     first_touch: np.ndarray | None = None
     law = initial_state()
@@ -551,6 +556,7 @@ def learn_path(
             wall_side=decision.side,
             wall_side_reason=decision.detail,
             wall_side_source=decision.source,
+            guide_lift_m=tuple(float(v) for v in route.lifted_m),
         ),
         state,
     )

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 from dataclasses import asdict, replace
 from pathlib import Path
 from typing import Any
@@ -90,6 +91,7 @@ def recording_document(learned: LearnedPath) -> dict[str, Any]:
         "wall_side": rec.wall_side,
         "wall_side_reason": rec.wall_side_reason,
         "wall_side_source": rec.wall_side_source,
+        "guide_lift_m": list(rec.guide_lift_m),
         "learning": asdict(learned.settings),
         "inputs": learned.inputs,
     }
@@ -105,6 +107,7 @@ def recording_from_document(info: dict[str, Any], fields: dict[str, np.ndarray])
         wall_side=str(info.get("wall_side", "")),
         wall_side_reason=str(info.get("wall_side_reason", "")),
         wall_side_source=str(info.get("wall_side_source", "")),
+        guide_lift_m=_finite_floats(info.get("guide_lift_m")),
     )
 
 
@@ -229,3 +232,13 @@ def _project(doc: dict[str, Any], arrays: dict[str, np.ndarray]) -> Project:
         )
         project = replace(project, processed=processed)
     return project
+
+
+def _finite_floats(value: object) -> tuple[float, ...]:
+    """A list of finite numbers from a project file as a tuple; anything else as none (an
+    older or hand-edited file: the checks then look for the walls at the points' heights)."""
+    if not isinstance(value, list) or not all(
+        isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) for v in value
+    ):
+        return ()
+    return tuple(float(v) for v in value)

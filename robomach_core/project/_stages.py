@@ -168,6 +168,7 @@ def _scores(
                 pos,
                 moves,
                 closed=learned.settings.closed,
+                lifted_m=rec.guide_lift_m,
             )
     return score, mesh, taught
 
