@@ -1,7 +1,9 @@
 """Post-processing of a path-learning recording (chapter section 3.3).
 
 Force-threshold filtering drops samples whose contact force is outside [Fmin, Fmax] (corner
-spikes, lost contact). Deviation-height reduction (the chapter's fig. 3) approximates the contour
+spikes, lost contact), except where the chord bridging the gap would leave them by more than the
+tolerance (``keep_corners``: the tool's arc round a sharp outside corner, out of contact, whose
+chord would cut the corner). Deviation-height reduction (the chapter's fig. 3) approximates the contour
 by straight segments: a chord runs from a start sample to the current sample; the deviation
 height of every intermediate sample is its perpendicular distance from the chord; the current
 sample moves along the contour until some deviation height exceeds the tolerance, and then the
@@ -114,6 +116,29 @@ def force_threshold_mask(force_N: np.ndarray, force_min_N: float, force_max_N: f
     """Boolean mask of the samples whose contact force lies in [force_min_N, force_max_N]."""
     f = np.asarray(force_N, dtype=float)
     return (f >= force_min_N) & (f <= force_max_N)
+
+
+def keep_corners(points: np.ndarray, mask: np.ndarray, tolerance: float) -> np.ndarray:
+    """``mask`` with the dropped samples of a gap kept again where the chord bridging it would
+    leave them by more than ``tolerance``: round a sharp outside corner the tool rolls out of
+    contact (the force filter drops it), and the chord between the samples either side would
+    cut the corner (0.4 mm deep round a 90 deg corner with a 1 mm ball). Leading and trailing
+    samples (before the first contact, after the last) stay dropped. Shape (n,) bool."""
+    out = np.asarray(mask, dtype=bool).copy()
+    kept = np.flatnonzero(out)
+    for i, j in zip(kept[:-1], kept[1:], strict=True):
+        if j - i < 2:
+            continue
+        a, b = points[i], points[j]
+        d = b - a
+        length = float(np.linalg.norm(d))
+        rel = points[i + 1 : j] - a
+        if length > 1e-12:
+            u = d / length
+            rel = rel - np.outer(np.clip(rel @ u, 0.0, length), u)
+        if float(np.max(np.linalg.norm(rel, axis=1))) > tolerance:
+            out[i + 1 : j] = True
+    return out
 
 
 def deviation_heights(points: np.ndarray, start: int, end: int) -> np.ndarray:
@@ -345,6 +370,7 @@ def postprocess(
     surface = surface_positions(
         rec.position_m, rec.wrench_tool, rec.quaternion_wxyz, settings.contact_stiffness_N_m
     )
+    mask = keep_corners(surface, mask, settings.tolerance_m)
     kept = np.nonzero(mask)[0]
     pts = surface[kept]
     local = reduce_deviation_height(pts, settings.tolerance_m)

@@ -267,11 +267,12 @@ class PartWalls:
         None when none is within ``reach_m``."""
         closest, dist = self.nearest(point[None])
         if math.isfinite(dist[0]):
-            rel = closest[0] - point
-            rel = rel - self.axis * float(rel @ self.axis)
-            # the nearest wall, when it lies that way (within FACING_COS of it): else the first
-            # wall straight that way (the nearest may be a step's edge or a corner's other face)
-            if float(rel @ towards) > th.FACING_COS * float(np.linalg.norm(rel)) > 0.0:
+            rel3 = closest[0] - point
+            below = float(rel3 @ self.axis) > th.OVER_TOP_SIN * float(np.linalg.norm(rel3))
+            rel = rel3 - self.axis * float(rel3 @ self.axis)
+            # the nearest wall when it lies that way and not under the cutter (a step's edge
+            # it stands over); else the first wall straight that way
+            if not below and float(np.linalg.norm(rel)) > 1e-9 and float(rel @ towards) > 0.0:
                 return closest[0] if dist[0] <= reach_m else None
         d = self.across_ray(point, towards)
         return point + towards * d if d <= reach_m else None

@@ -19,7 +19,6 @@ MIN_FORCE_VOTES = 2  # points | clear pushes needed to tell the side (all points
 MESH_MAJORITY = (
     0.75  # share | of the points that are nearer one wall, to tell the side from the mesh | fixed
 )
-FACING_COS = math.cos(math.radians(60.0))  # 1 | a point faces the wall whose nearest point lies within 60 deg of its side's direction; else the first wall straight that way | fixed
 WALL_FACE_MAX_COS = math.cos(
     math.radians(45.0)
 )  # 1 | a face whose normal is within 45 deg of across the tool axis is a wall, else a floor or a top | fixed

@@ -147,7 +147,7 @@ class ProcessedPath:
     def problems(self) -> list[str]:
         """What makes this program unfit to machine with, one line each (empty: none):
         learning ended early, another wall than the taught one, or the cutter into the wall
-        beyond the reduction's tolerance."""
+        or off it beyond the reduction's tolerance (+ ``OVERCUT_MARGIN_M``)."""
         out = []
         if not self.completed:
             out.append("path learning ended before the last guide point: the program is partial")
@@ -159,6 +159,12 @@ class ProcessedPath:
             out.append(
                 f"the program cuts {mesh.overcut_m * 1e3:.2f} mm into the part's wall (more "
                 f"than the {self.settings.tolerance_m * 1e3:g} mm tolerance): an overcut"
+            )
+        if mesh is not None and self.completed and mesh.air_m > limit:
+            out.append(
+                f"the program leaves the part's wall by {mesh.air_m * 1e3:.2f} mm (more than the "
+                f"{self.settings.tolerance_m * 1e3:g} mm tolerance): learn slower there, or add a "
+                "guide point where it leaves the wall"
             )
         return out
 

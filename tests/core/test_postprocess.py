@@ -197,3 +197,25 @@ def test_the_force_band_follows_the_learning_force():
     band = default.with_band_for(20.0)
     assert (band.force_min_N, band.force_max_N) == (10.0, 30.0) and band.holds_force(20.0)
     assert band.tolerance_m == default.tolerance_m
+
+
+def test_a_gap_whose_chord_would_cut_a_corner_keeps_its_samples():
+    """Round a sharp outside corner the ball's centre rolls on an arc out of contact (the force
+    filter drops it): bridged by one chord, the program would cut the corner 0.29 mm deep
+    (r (1 - cos 45 deg), r = 1 mm). The gap keeps its samples; a gap on a straight stretch,
+    whose chord stays within the tolerance, is still bridged."""
+    from robomach_core.postprocess import keep_corners
+
+    r = 0.001
+    angles = np.linspace(np.pi / 2, 0.0, 50)  # the arc round the corner at the origin
+    arc = np.column_stack([r * np.cos(angles), r * np.sin(angles), np.zeros(50)])
+    before = np.column_stack([np.linspace(-0.01, 0.0, 20), np.full(20, r), np.zeros(20)])
+    after = np.column_stack([np.full(20, r), np.linspace(0.0, -0.01, 20), np.zeros(20)])
+    pts = np.vstack([before, arc, after])
+    mask = np.ones(len(pts), dtype=bool)
+    mask[20:70] = False  # the arc: out of contact
+    mask[5:8] = False  # a dropped spike on the straight before it
+    kept = keep_corners(pts, mask, 0.0002)
+    assert kept[20:70].all()
+    assert not kept[5:8].any()
+    assert not keep_corners(pts, mask, 0.0005)[20:70].any()  # within a coarse tolerance: bridged
