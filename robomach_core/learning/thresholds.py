@@ -60,7 +60,7 @@ TURN_RATE_RAD_S = (
 # --- legs: where they end ----------------------------------------------------------------------
 LEG_END_MARGIN_M = 0.002  # m | a leg ends this far before its guide point's plane (at most a quarter of the leg) | fixed
 NEAR_END_M = 0.006  # m | ... or at the nearest approach to its guide point, when that comes within this across the axis | gap: twice the farthest a point is left
-END_PASSED_M = 0.0002  # m | ... and recedes by this (past the nearest approach) | fixed
+END_PASSED_M = 0.001  # m | ... and recedes by this (past the nearest approach; a tool backing off an inside corner for a moment does not end it) | fixed
 CLOSE_LOOP_M = 0.001  # m | a closed route ends at its nearest approach to where it first met the wall, within this | fixed
 CLOSE_LOOP_OVERRUN_M = 0.01  # m | ... or this far past the last point's plane | fixed
 
