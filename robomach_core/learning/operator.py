@@ -14,23 +14,28 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..clock import CONTROL_PERIOD_S
-from ..contour import Arc, Line
+from ..contour import Line
 from ..errors import InvalidInputError, NotEnoughGuidePointsError, UnreachableTargetError
 from ..leadthrough import ComplianceSelection, GuidePoint, LeadThrough, LeadThroughState
 from ..robot import Robot
 from ..tool import TOOL_DOWN as TOOL_DOWN
 from ..transforms import matrix_from_quaternion, rotation_log
 from ..workpiece import Workpiece
+from .thresholds import EXAMPLE_BELOW_TOP_M
 
 HAND_GAIN_N_M = 2000.0  # push per metre of distance to the goal
 HAND_MAX_N = 15.0  # a comfortable one-hand push
 HAND_MIN_N = 1.5  # a hand pushes firmly enough to get past the admittance's 1 N deadband
 WALL_PUSH_N = 6.0  # the gentle sideways push that finds the wall
+EXAMPLE_GAP_M = 0.001  # the example's points stand this far off the wall, ...
+EXAMPLE_ALONG_M = 0.0015  # ... off by up to this along it (the operator's eye), ...
+EXAMPLE_OFF_M = 0.0005  # ... and up to this farther from it
+EXAMPLE_WALL_MATCH_M = 1e-4  # the mesh's wall where the example points is the known one
 MAX_JOG_TURN_DEG = 45.0  # the largest rotational jog (leadthrough.LeadThrough.jog)
 
 
@@ -108,45 +113,47 @@ def intents_from_csv(text: str, robot: Robot | None = None) -> list[GuideIntent]
 
 
 def guide_plan(
-    workpiece: Workpiece, tool_radius_m: float, rng: np.random.Generator
+    workpiece: Workpiece,
+    tool_radius_m: float,
+    rng: np.random.Generator,
+    *,
+    robot: Robot | None = None,
 ) -> list[GuideIntent]:
-    """Gross guide points for a built-in workpiece: one in each long straight run of the wall.
-
-    Runs of 40 mm or more get two points (at 20 % and 80 %), so corners are bracketed. Sharp
-    corners that bend around the material (an outside corner, where the chord between the runs'
-    points would cut through the part) get a point of their own, as an operator would place.
+    """The example operator's guide points for a built-in workpiece: the planner's proposal
+    (``planner.propose_guide_points``) for its known wall, pointed at
+    ``EXAMPLE_BELOW_TOP_M`` below the wall's top in the middle of its first straight run, as
+    the operator's imprecise hand places them: each off by up to ``EXAMPLE_ALONG_M`` along
+    the wall and up to ``EXAMPLE_OFF_M`` farther from it (seeded by ``rng``), a push towards
+    the wall at each but the outside corners (``planner.guide_intents``).
     """
-    if workpiece.wall is None:
+    from .planner import ProposalSettings, guide_intents, propose_guide_points
+
+    wall = workpiece.wall
+    if wall is None:
         raise InvalidInputError(
             f"the example lead-through needs a built-in workpiece, not {workpiece.name!r}"
         )
-    T = workpiece.T_base_wobj
-    z_lo, z_hi = workpiece.wall_z_m
-    z = max(z_lo + tool_radius_m + 0.0015, z_hi - 0.003)
-    intents = []
-    for piece in workpiece.wall.pieces:
-        if isinstance(piece, Arc) and piece.sweep < -math.radians(80):
-            # Outside corner (turning towards the material): a point off the corner's middle.
-            mid = piece.start_angle + piece.sweep / 2
-            out = np.array([math.cos(mid), math.sin(mid)])  # from the arc centre, away from metal
-            p = np.asarray(piece.center) + out * (piece.radius + tool_radius_m + 0.001)
-            pos = T[:3, :3] @ np.array([p[0], p[1], z]) + T[:3, 3]
-            # No push towards a sharp corner: the tool would slide off along one face.
-            intents.append(GuideIntent(pos, None))
+    run = next((p for p in wall.pieces if isinstance(p, Line)), wall.pieces[0])
+    a, b = run.point_at(np.array([0.0, run.length]))
+    left = np.array([a[1] - b[1], b[0] - a[0]]) / run.length  # the free side
+    click = np.array([*(0.5 * (a + b)), workpiece.wall_z_m[1] - EXAMPLE_BELOW_TOP_M])
+    proposal = propose_guide_points(
+        workpiece, robot, click, np.array([left[0], left[1], 0.0]),
+        tool_radius_m=tool_radius_m, settings=ProposalSettings(gap_m=EXAMPLE_GAP_M),
+    )  # fmt: skip
+    if wall.distance(proposal.wall.points_m).max() > EXAMPLE_WALL_MATCH_M:
+        raise InvalidInputError(f"{workpiece.name}: its mesh's wall is not its known wall")
+    R = workpiece.T_base_wobj[:3, :3] @ proposal.pick.T_wobj_floor[:3, :3]
+    intents = guide_intents(proposal)
+    for k, (p, intent) in enumerate(zip(proposal.points, intents, strict=True)):
+        if p.kind == "outside corner":  # placed with care: the corner is what it is there for
             continue
-        if not isinstance(piece, Line) or piece.length < 0.012:
-            continue
-        fractions = (0.2, 0.8) if piece.length >= 0.040 else (0.5,)
-        a, b = np.asarray(piece.start), np.asarray(piece.end)
-        t = (b - a) / piece.length
-        right = np.array([t[1], -t[0]])  # the wall material is on the right of travel
-        for f in fractions:
-            p = a + (b - a) * f
-            p = p + t * rng.uniform(-0.0015, 0.0015)  # the operator's imprecision
-            p = p - right * (tool_radius_m + 0.001 + rng.uniform(0.0, 0.0005))
-            pos = T[:3, :3] @ np.array([p[0], p[1], z]) + T[:3, 3]
-            normal = T[:3, :3] @ np.array([right[0], right[1], 0.0])
-            intents.append(GuideIntent(pos, normal))
+        s = np.array([p.s_m])
+        along = proposal.wall.point_at(s + 1e-4)[0] - proposal.wall.point_at(s - 1e-4)[0]
+        off = proposal.wall.free_normal_at(s)[0]
+        shift = along / np.linalg.norm(along) * rng.uniform(-EXAMPLE_ALONG_M, EXAMPLE_ALONG_M)
+        shift = shift + off * rng.uniform(0.0, EXAMPLE_OFF_M)
+        intents[k] = replace(intent, position_m=intent.position_m + R @ [*shift, 0.0])
     return intents
 
 

@@ -14,7 +14,7 @@ from robomach_core.learning.walls import section_loops
 from robomach_core.real_part import PartDeviation
 
 WOBJ_M = np.array([0.80, 0.16, 0.0])  # the water pump's work object (rotation: identity)
-ON_WALL = np.array([0.0, -0.065, 0.019])  # the groove's outer wall, bottom run (wobj)
+ON_WALL = np.array([0.0, -0.065, 0.017])  # the groove's outer wall, 3 mm above its floor (wobj)
 
 
 @pytest.fixture
