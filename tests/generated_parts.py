@@ -137,11 +137,13 @@ class DrawnPlate:
         """(point, normal) in the mesh frame: on ``wall`` at ``along`` (0-1 of its length),
         ``height_m`` above the floor beside it; the normal out of the material."""
         line = self.walls[wall]
-        s = along * line.length
+        s = min(along * line.length, line.length - 2e-5)
         p = np.array(line.interpolate(s).coords[0])
-        q = np.array(line.interpolate(s + 1e-5).coords[0])
-        t = (q - p) / np.linalg.norm(q - p)
-        free = np.array([-t[1], t[0]])  # the walls run with the material on their right
+        t = np.array(line.interpolate(s + 1e-5).coords[0]) - p
+        t /= np.linalg.norm(t)
+        free = np.array([-t[1], t[0]])
+        inward = shapely.contains_xy(shapely.Polygon(line), *(p + free * 1e-4))
+        free = free if inward == (wall == "outer") else -free  # the groove: inside the outer
         beside = p + free * 1e-3
         z = self.floor_z(*beside) + height_m
         R, o = self.T_mesh_plate[:3, :3], self.T_mesh_plate[:3, 3]
@@ -153,11 +155,13 @@ class DrawnPlate:
         return (np.atleast_2d(points_mesh) - o) @ R
 
 
-def drawn_plate(seed: int, kind: str, tilt_deg: float = 0.0) -> DrawnPlate:
+def drawn_plate(
+    seed: int, kind: str, tilt_deg: float = 0.0, *, width_m: float | None = None
+) -> DrawnPlate:
     """A plate drawn from ``seed``: a rounded rectangle 60-130 x 40-80 mm (corners 4-12 mm),
-    as a 5-8 mm wide, 6 mm deep groove round an island in a 20 mm plate, the same with the
-    groove's floor 2 mm higher for x < 0, or standing free 12-20 mm thick (its outside edge);
-    tilted ``tilt_deg`` about a horizontal axis drawn from the seed (0: level)."""
+    as a 5-8 mm wide (or ``width_m``), 6 mm deep groove round an island in a 20 mm plate,
+    the same with the groove's floor 2 mm higher for x < 0, or standing free 12-20 mm thick
+    (its outside edge); tilted ``tilt_deg`` about a horizontal axis drawn from the seed."""
     rng = np.random.default_rng(seed)
     a, b, r = rng.uniform(0.030, 0.065), rng.uniform(0.020, 0.040), rng.uniform(0.004, 0.012)
     outer = shapely.geometry.box(-a, -b, a, b).buffer(-r).buffer(r, quad_segs=16)
@@ -167,7 +171,7 @@ def drawn_plate(seed: int, kind: str, tilt_deg: float = 0.0) -> DrawnPlate:
         walls = {"outline": outer.exterior}
         floor, top, width = (lambda x, y: 0.0), thick, math.inf
     else:
-        width = rng.uniform(0.005, 0.008)
+        width = rng.uniform(0.005, 0.008) if width_m is None else width_m
         island = outer.buffer(-width, quad_segs=16)
         plate = shapely.geometry.box(-a - 0.02, -b - 0.02, a + 0.02, b + 0.02)
         base = _at(0.0, 0.0, 0.006)

@@ -4,11 +4,11 @@ PROBLEM   The workbench knows the part's mesh, so the user can point at the wall
           jogging to it: one click should put the tool beside the wall and record the point,
           another propose the guide points for the whole wall, shown before anything moves, to
           accept, edit or delete. Both GUIs and the REST API do it, on the same session.
-STRATEGY  The core computes (``guide_proposal.teach_point`` / ``propose_guide_points`` on the
+STRATEGY  The core computes (``planner.teach_point`` / ``propose_guide_points`` on the
           part's CAD, ``Workpiece.cad()``); the robot moves by ``Teach.move_to`` (paced and
           supervised like a jog, stopped by the real part when it is not where its mesh is);
           accepting a proposal is a job in which the scripted operator leads the robot by
-          pushes to each point and touches the wall there (``guide_proposal.guide_intents``),
+          pushes to each point and touches the wall there (``planner.guide_intents``),
           as "Load the example" does. The pending proposal belongs to the cell it was made
           in (its epoch): a cell change drops it. The wall side of points taught this way is
           known, and path learning uses it unless told otherwise.
@@ -188,24 +188,26 @@ class Pointing:
     def teach_near(
         self, tcp_wobj_m: np.ndarray, *, replace_index: int | None = None
     ) -> TaughtPoint:
-        """Teach at the wall nearest a TCP position (work-object frame) at its height: where a
-        dragged marker was dropped."""
-        from robomach_core.learning.walls import section_loops
+        """Teach at the wall nearest a TCP position (work-object frame) at its height above
+        the floor: where a dragged marker was dropped."""
+        from robomach_core.learning.walls import walls_near
 
         cad = self._session.robot.workpiece.cad()
         p = np.asarray(tcp_wobj_m, dtype=float).reshape(3)
-        loops = section_loops(cad.mesh, float(p[2]))
+        with mesh_query.LOCK:
+            T, (pf,), loops = walls_near(cad.mesh, p)
         if not loops:
             raise InvalidInputError(
                 f"no wall at {p[2] * 1e3:.1f} mm (work object): drop the point beside a wall"
             )
-        loop = min(loops, key=lambda lp: abs(lp.signed_distance(p[None, :2])[0]))
-        s = float(loop.project(p[None, :2])[0])
+        loop = min(loops, key=lambda lp: abs(lp.signed_distance(pf[None, :2])[0]))
+        s = float(loop.project(pf[None, :2])[0])
         foot = loop.point_at(np.array([s]))[0]
         n = loop.free_normal_at(np.array([s]))[0]
+        R = T[:3, :3]
         return self.teach_at_surface(
-            np.array([foot[0], foot[1], p[2]]),
-            np.array([n[0], n[1], 0.0]),
+            R @ np.array([foot[0], foot[1], pf[2]]),
+            R @ np.array([n[0], n[1], 0.0]),
             replace_index=replace_index,
         )
 

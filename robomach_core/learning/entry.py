@@ -6,8 +6,9 @@ PROBLEM   Teaching uses the part's CAD, the cell meets the real part (``real_par
 STRATEGY  Enter each pushed point in the middle of the free space beside its wall (a groove's
           middle; ``OPEN_EDGE_ENTRY_M`` off an open edge), as a careful operator does, and let
           the push find the real wall from there. Which way points go: project them on the
-          nearest wall loop of the CAD's section at their height and compare the distances
-          travelled forwards and backwards along it.
+          nearest wall loop of the CAD's section at their height above the floor
+          (``walls.walls_near``) and compare the distances travelled forwards and backwards
+          along it.
 SOLUTION  ``robust_intents(intents, workpiece, tool_radius_m)`` and ``wall_side_of(positions,
           workpiece)``.
 """
@@ -21,32 +22,31 @@ import numpy as np
 
 from ..workpiece import Workpiece
 from .planner import WallPlacer
-from .walls import WallLoop, section_loops
+from .thresholds import OPEN_EDGE_ENTRY_M
+from .walls import walls_near
 
 
 def wall_side_of(positions_base_m: np.ndarray, workpiece: Workpiece) -> str | None:
     """The wall side ("left"/"right") of guide points taught beside one wall of the part's
     mesh: "right" when they follow the wall's own direction (material on the right), None
-    when they are not beside one wall at one height or go neither way."""
+    when they are not beside one wall at one height above the floor or go neither way."""
     cad = workpiece.cad()
     pts = np.asarray(positions_base_m, dtype=float)
     if len(pts) < 2:
         return None
     T = cad.T_base_wobj
-    wobj = (pts - T[:3, 3]) @ T[:3, :3]
-    z = float(np.median(wobj[:, 2]))
-    if np.ptp(wobj[:, 2]) > 0.005:
+    _, pf, loops = walls_near(cad.mesh, (pts - T[:3, 3]) @ T[:3, :3])
+    if np.ptp(pf[:, 2]) > 0.005:
         return None
-    loops = section_loops(cad.mesh, z)
     best = None
     for loop in loops:
-        d = np.abs(loop.signed_distance(wobj[:, :2]))
+        d = np.abs(loop.signed_distance(pf[:, :2]))
         if d.max() < 0.008 and (best is None or d.mean() < best[1]):
             best = (loop, float(d.mean()))
     if best is None:
         return None
     loop = best[0]
-    s = loop.project(wobj[:, :2])
+    s = loop.project(pf[:, :2])
     steps = np.diff(s)
     if loop.closed:
         steps = (steps + 0.5 * loop.length_m) % loop.length_m - 0.5 * loop.length_m
@@ -56,38 +56,32 @@ def wall_side_of(positions_base_m: np.ndarray, workpiece: Workpiece) -> str | No
     return "right" if forward > backward else "left"
 
 
-OPEN_EDGE_ENTRY_M = 0.003  # beside an open edge, the operator comes down this far off the wall
-
-
 def robust_intents(intents: Sequence, workpiece: Workpiece, tool_radius_m: float) -> list:
     """Intents for a part that may not be where its mesh is: each point with a wall push is
-    entered in the middle of the free space beside its wall (a groove's middle; 3 mm off an
-    open edge), so that the cutter comes down clear of the real walls, and the push finds the
-    wall from there (a careful operator does the same when the part may be off its drawing).
-    Points without a push (outside corners) stay where they are."""
+    entered in the middle of the free space beside its wall (a groove's middle;
+    ``OPEN_EDGE_ENTRY_M`` off an open edge), so that the cutter comes down clear of the real
+    walls, and the push finds the wall from there (a careful operator does the same when the
+    part may be off its drawing). Points without a push (outside corners) stay where they
+    are."""
     cad = workpiece.cad()
     T = cad.T_base_wobj
-    walls: dict[float, list[WallLoop]] = {}
     out = []
     for intent in intents:
         if intent.wall_normal is None:
             out.append(intent)
             continue
         p = (np.asarray(intent.position_m) - T[:3, 3]) @ T[:3, :3]
-        z = round(float(p[2]), 5)
-        if z not in walls:
-            walls[z] = section_loops(cad.mesh, z)
-        loops = walls[z]
+        T_floor, (pf,), loops = walls_near(cad.mesh, p)
         if not loops:
             out.append(intent)
             continue
-        loop = min(loops, key=lambda lp: abs(lp.signed_distance(p[None, :2])[0]))
-        place = WallPlacer(loop, loops, tool_radius_m, OPEN_EDGE_ENTRY_M)
-        s = float(loop.project(p[None, :2])[0])
-        xy, note = place(s)
+        loop = min(loops, key=lambda lp: abs(lp.signed_distance(pf[None, :2])[0]))
+        xy, note = WallPlacer(loop, loops, tool_radius_m, OPEN_EDGE_ENTRY_M)(
+            float(loop.project(pf[None, :2])[0])
+        )
         if "too narrow" in note:
             out.append(intent)
             continue
-        entry = T[:3, :3] @ np.array([xy[0], xy[1], p[2]]) + T[:3, 3]
+        entry = T[:3, :3] @ T_floor[:3, :3] @ np.array([xy[0], xy[1], pf[2]]) + T[:3, 3]
         out.append(replace(intent, position_m=entry))
     return out

@@ -292,6 +292,7 @@ class WallPick:
 _Z = np.array([0.0, 0.0, 1.0])
 RAY_START_M = 1e-6  # a ray starts this far off the surface it leaves (no hit on it)
 INSIDE_M = 3e-4  # the wall's top is looked for this far inside it
+TOP_PROBES_M = (INSIDE_M, 0.001, 0.003, 0.010)  # and the part's top (an edge's floor) so far in
 SPINDLE_RING = 8  # rays round the spindle's rim (and at half its radius, and on its axis)
 
 
@@ -328,9 +329,9 @@ def floor_frame(
 ) -> np.ndarray:
     """T_wobj_floor: the work object turned so that its z is the normal of the floor beside
     the wall point ``on_m`` (``beside_m`` off it, or the free space's middle when narrower),
-    or of the part's top just inside the wall where nothing is beside it (an outside edge);
-    the identity on a level part, or where no face within ``FLOOR_TILT_MAX_DEG`` of level
-    is found."""
+    or, where nothing floor-like is there (an outside edge), of the part's top nearest inside
+    the wall; the identity on a level part, or where no face within ``FLOOR_TILT_MAX_DEG`` of
+    level is found."""
     up = _Z
     level = math.cos(math.radians(FLOOR_TILT_MAX_DEG))
     span = float(np.linalg.norm(np.ptp(mesh.bounds, axis=0))) + 0.01
@@ -338,13 +339,22 @@ def floor_frame(
         across = _across(normal, up)
         if across is None:
             break
-        beside = on_m + across * min(beside_m, 0.5 * _free_width(mesh, on_m, across))
-        _, face = _below(mesh, beside + up * RAY_START_M, up)
-        if np.isnan(face[0, 0]) or face[0] @ _Z < level:
-            _, face = _below(mesh, on_m - across * INSIDE_M + up * span, up)
-        if np.isnan(face[0, 0]) or face[0] @ _Z < level:
+        beside = min(beside_m, 0.5 * _free_width(mesh, on_m, across))
+        origins = np.vstack(
+            [on_m + across * beside + up * RAY_START_M]
+            + [on_m - across * k + up * span for k in TOP_PROBES_M]
+        )
+        _, faces = _below(mesh, origins, up)
+        floors = [f for f in faces if f @ _Z >= level]  # NaN rows compare False
+        if not floors:
             break
-        up = face[0] / np.linalg.norm(face[0])
+        up = floors[0] / np.linalg.norm(floors[0])
+    return _frame(up)
+
+
+def _frame(up: np.ndarray) -> np.ndarray:
+    """T_wobj_floor whose z is ``up``, its x the work object's turned into the floor (the
+    identity within ``LEVEL_FLOOR_RAD`` of level)."""
     T = np.eye(4)
     if math.acos(min(1.0, float(up @ _Z))) < LEVEL_FLOOR_RAD:
         return T
@@ -352,6 +362,21 @@ def floor_frame(
     x /= np.linalg.norm(x)
     T[:3, :3] = np.column_stack([x, np.cross(up, x), up])
     return T
+
+
+def walls_near(
+    mesh: trimesh.Trimesh, points_wobj_m: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, list[WallLoop]]:
+    """(T_wobj_floor, the points in the floor frame, the walls at their median height there)
+    for TCP positions beside a wall (work-object frame): the frame of the floor under the
+    first point (level where nothing floor-like is under it)."""
+    p = np.atleast_2d(np.asarray(points_wobj_m, dtype=float))
+    _, face = _below(mesh, p[:1], _Z)
+    level = math.cos(math.radians(FLOOR_TILT_MAX_DEG))
+    T = _frame(face[0] / np.linalg.norm(face[0])) if face[0] @ _Z >= level else np.eye(4)
+    pf = p @ T[:3, :3]
+    moved = transformed(mesh, np.linalg.inv(T))
+    return T, pf, section_loops(moved, float(np.median(pf[:, 2])))
 
 
 def pick_wall(
