@@ -35,7 +35,9 @@ from robomach_core.leadthrough import LeadThrough
 from robomach_core.learning import run as path_learning
 from robomach_core.learning.law import record_row
 from robomach_core.learning.operator import guide_plan, scripted_leadthrough
-from robomach_core.learning.run import PathLearningSettings, learn_path
+from robomach_core.learning.route import plan_route
+from robomach_core.learning.run import learn_path
+from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.supervision import cell_supervisor
 
 
@@ -170,7 +172,7 @@ def main() -> None:
         fk_us.append(per_call_us(fk_jacobian, calls))
         c = Cell()
         t = time.perf_counter()
-        rec, end = learn_path(c, state.cell, guides, learning, lt.estimator)
+        rec, end = learn_path(c, state.cell, plan_route(guides, learning), learning, lt.estimator)
         wall = time.perf_counter() - t
         factors.append(rec.time_s[-1] / wall)
         per_step.append(wall / len(rec) * 1e6)
@@ -211,7 +213,14 @@ def main() -> None:
 
     path_learning._approach = approach_then_time
     try:
-        rec, end = learn_path(c, state.cell, guides, learning, lt.estimator, supervisor=supervisor)
+        rec, end = learn_path(
+            c,
+            state.cell,
+            plan_route(guides, learning),
+            learning,
+            lt.estimator,
+            supervisor=supervisor,
+        )
         wall = time.perf_counter() - started[0]
     finally:
         timer.restore()

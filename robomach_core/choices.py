@@ -56,7 +56,7 @@ def enums() -> dict[str, tuple[str, ...]]:
     from .cmrr import CONTROLLER_NAMES, SCENARIO_NAMES
     from .export.languages import language_choices, language_names
     from .learning.planner import PointKind, Reach
-    from .learning.side import WALL_SIDE_CHOICES
+    from .learning.settings import WALL_SIDE_CHOICES
     from .machining import COMPENSATION_NAMES
     from .machining.choice import OPTION_NAMES
     from .project import StageStatus

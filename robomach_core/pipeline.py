@@ -23,7 +23,8 @@ from .export.languages import language
 from .export.reachability import ReachabilityReport, check_program_reachability
 from .leadthrough import GuidePoint, LeadThrough
 from .learning.operator import intents_from_csv, scripted_leadthrough
-from .learning.run import PathLearningSettings, Recording
+from .learning.run import Recording
+from .learning.settings import PathLearningSettings
 from .postprocess import PostprocessResult, PostprocessSettings, Targets
 from .project import (
     CellSettings,

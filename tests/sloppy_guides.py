@@ -248,7 +248,7 @@ def learn_and_score(
     and score it: the project's own stages, as the CLI and the workbench run them."""
     from robomach_core.errors import WallSideError
     from robomach_core.leadthrough import LeadThrough
-    from robomach_core.learning.run import PathLearningSettings
+    from robomach_core.learning.settings import PathLearningSettings
     from robomach_core.postprocess import PostprocessSettings
     from robomach_core.project import CellSettings, Project, learn, process
 

@@ -26,7 +26,7 @@ from app.session import (
 from robomach_core import limits
 from robomach_core.choices import JogFrame
 from robomach_core.leadthrough import ComplianceFrame, ComplianceSelection
-from robomach_core.learning.side import WallSideSetting
+from robomach_core.learning.settings import WallSideSetting
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import StageStatus
 

@@ -109,7 +109,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "frame (needed for a mesh file); the optional wall direction points from the tool "
         "into the wall (where to push lightly to feel it), see docs/guide_points.md",
     )
-    from robomach_core.learning.side import WALL_SIDE_CHOICES
+    from robomach_core.learning.settings import WALL_SIDE_CHOICES
 
     p.add_argument(
         "--propose-guide-points",

@@ -31,7 +31,7 @@ from robomach_core.errors import (
     SupervisionError,
 )
 from robomach_core.leadthrough import GuidePoint, LeadThrough, LeadThroughState
-from robomach_core.learning.run import PathLearningSettings
+from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.project import ProcessedPath, Project
 from robomach_core.workpiece import Workpiece
 
@@ -164,9 +164,9 @@ class Learning:
         Returns the job id.
 
         Raises:
-            WallSideError: "auto" and the guide points do not tell the side (before any job).
+            RouteRefusedError: the route cannot be learned as taught (before any job): the
+                side on "auto" cannot be told, an open wall taught as a loop, ...
         """
-        from robomach_core.learning.side import resolve_wall_side
 
         s, robot = self._session, self._session.robot
         if wall_side == "auto":
@@ -186,14 +186,7 @@ class Learning:
                 f"path learning needs at least 2 guide points, got {len(project.guide_points)}"
             )
         cell, estimator = pose.cell, pose.leadthrough.estimator
-        with mesh_query.LOCK:
-            resolve_wall_side(  # refuse now, with the cause, not as a failed job
-                project.guide_points,
-                settings.wall_side,
-                closed=settings.closed,
-                workpiece=cell.workpiece.cad(),  # the mesh the user sees
-                tool_radius_m=project.cell.tool_radius_m,
-            )
+        route = core.route_of(project, settings, cell.workpiece.cad())  # refuse now, not in a job
 
         def work(ctx: JobContext) -> tuple[core.LearnedPath, CellState]:
             path_m = np.array([g.position_m for g in project.guide_points])
@@ -206,6 +199,7 @@ class Learning:
                 estimator,
                 progress=ctx.progress,
                 cancelled=ctx.cancelled,
+                route=route,
             )
 
         def done(result: tuple[core.LearnedPath, CellState]) -> None:
@@ -312,8 +306,8 @@ class Learning:
     ) -> tuple[list, str]:
         """The wall the next run would follow: its point at each guide point (base frame, None
         where none is near) and one line saying which side and why, or why it cannot tell."""
-        from robomach_core.errors import WallSideError
-        from robomach_core.learning.side import resolve_wall_side, taught_wall_points
+        from robomach_core.errors import RouteRefusedError
+        from robomach_core.learning.route import PartWalls, taught_wall_points
 
         view = self._session.view()
         workpiece = view.cell.workpiece.cad()
@@ -322,14 +316,13 @@ class Learning:
             return [], ""
         if wall_side == "auto":  # as start_path_learning decides it
             wall_side = self._session.pointing.learning_side() or "auto"
+        settings = PathLearningSettings(closed=closed, wall_side=wall_side)
         try:
+            route = core.route_of(view.project, settings, workpiece)
             with mesh_query.LOCK:
-                decision = resolve_wall_side(
-                    guides, wall_side, closed=closed, workpiece=workpiece, tool_radius_m=radius
-                )
-                points = taught_wall_points(
-                    guides, decision.side, closed=closed, workpiece=workpiece, tool_radius_m=radius
-                )
-        except WallSideError as exc:
+                walls = PartWalls(workpiece, route.axis, radius)
+                points = taught_wall_points(guides, route.wall_side.side, closed, walls)
+        except RouteRefusedError as exc:
             return [], f"wall side: {exc}"
+        decision = route.wall_side
         return points, f"follows the wall on the {decision.side}: {decision.detail}"

@@ -17,7 +17,7 @@ import numpy as np
 from robomach_core import project as core
 from robomach_core.errors import RobomachError
 from robomach_core.leadthrough import GuidePoint
-from robomach_core.learning.run import PathLearningSettings
+from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import (
     CellSettings,

@@ -1,2 +1,20 @@
-"""Path learning (chapter section 3.2): the route from the guide points, the law that follows
-the wall by force, the checks before and after, and the guide-point planner."""
+"""Path learning (chapter section 3.2), one model: the route planned from the guide points
+(``plan_route``: the side, the height, the walk on the mesh), the law that follows the wall by
+force (``learn_path``), the checks before and after, the guide-point planner and the scripted
+operator. docs/learning_model.md states the model and every threshold (``thresholds``)."""
+
+from .checks import GuideWarning as GuideWarning
+from .checks import TaughtWallCheck as TaughtWallCheck
+from .checks import guide_point_warnings as guide_point_warnings
+from .checks import taught_wall_check as taught_wall_check
+from .route import LearningRoute as LearningRoute
+from .route import WallSideDecision as WallSideDecision
+from .route import plan_route as plan_route
+from .run import LearningStop as LearningStop
+from .run import Recording as Recording
+from .run import learn_path as learn_path
+from .run import move_joint as move_joint
+from .run import move_linear as move_linear
+from .settings import WALL_SIDE_CHOICES as WALL_SIDE_CHOICES
+from .settings import PathLearningSettings as PathLearningSettings
+from .settings import WallSideSetting as WallSideSetting

@@ -1,21 +1,22 @@
-"""The operator check: what people do with guide points, caught before path learning.
+"""The checks around a run: what the person should know before it, and whether the program is
+on the taught wall after it.
 
 PROBLEM   Path learning follows the wall by force from rough guide points (chapter section 3),
-          but some things it cannot recover from, and some it recovers from in a way the person
-          should know about: the wall side cannot be told (points recorded free, or pushed
-          against walls on both sides), a point in heavy contact is half-way to the protection
-          stop, a point nearer another wall than the one it follows was perhaps meant for that
-          wall, a point resting on the floor will be learned higher, a leg that crosses the
-          part will be followed round it, two points on top of each other give a leg with no
-          direction, and a wrist that must turn further than axis 6 allows cannot run the loop.
-STRATEGY  Look at the guide points as the operator left them: the force recorded at each, the
-          route's legs, and, when the part's mesh is known (the CAD the user teaches on), the
-          walls on both sides of each point, the floor under it and the part along each leg;
-          the arm's inverse kinematics along the route for axis 6.
-SOLUTION  ``guide_point_warnings(guides, settings, *, workpiece, tool_radius_m, robot)`` returns
-          one ``GuideWarning`` per finding (1-based point number, rule, severity, a message with
-          the fix in one line). "refusal" findings stop learning (the API answers 422 with the
-          message); "warning" and "info" are shown, the run starts.
+          but some things it cannot recover from (refused before any motion), and some it
+          recovers from in a way the person should know: a point in heavy contact, a point
+          nearer the other wall than the one followed, a point resting on the floor, a leg that
+          crosses the part, two points on top of each other, a wrist that cannot turn round the
+          loop. After the run, a program must follow the wall the points were taught on, on
+          the side the route decided; a side the person set is never overruled.
+STRATEGY  Before: the route is planned (``route.plan_route``: the side, the height, the walk on
+          the mesh); its refusal is the "refusal" finding, and the findings read the route, so
+          every page tells the same story as the run. After: the wall point each guide point
+          faces on the route's side (``route.taught_wall_points``) must be touched by the
+          program (within ``TAUGHT_WALL_TOLERANCE_M`` across the axis, among the program's
+          points at that height).
+SOLUTION  ``guide_point_warnings(guides, settings, *, workpiece, tool_radius_m, robot)`` ->
+          ``GuideWarning``s (1-based point, rule, severity, one line with the fix);
+          ``taught_wall_check(...)`` -> ``TaughtWallCheck``.
 """
 
 from __future__ import annotations
@@ -27,32 +28,30 @@ from typing import Literal
 
 import numpy as np
 
-from ..errors import RobomachError, WallSideError
+from ..arcs import Move, linear_moves, sample_moves
+from ..errors import RobomachError, RouteRefusedError, WallSideError
 from ..leadthrough import GuidePoint
 from ..workpiece import Workpiece
-from .run import PathLearningSettings
-from .side import (
-    MAX_WALL_GAP_M,
-    NEARER_MARGIN_M,
-    WALL_FORCE_CLEAR_N,
+from . import thresholds as th
+from .route import (
+    LearningRoute,
+    PartWalls,
     mean_tool_axis,
-    mesh_wall_gaps,
-    resolve_wall_side,
+    plan_route,
+    taught_wall_points,
+    travel_directions,
 )
-
-HEAVY_CONTACT_FRACTION = 0.5  # of the protection limit: already half-way to a stop
-TOUCH_WITHOUT_PUSH_N = 0.8  # a force between this and WALL_FORCE_CLEAR_N: touching, not pushing
-MIN_SPACING_M = 0.001  # closer guide points give a leg with no direction
-LEG_SAMPLE_M = 0.001  # legs are checked against the part every millimetre
-LEG_THROUGH_PART_FRACTION = 0.5  # a leg mostly inside the part is reported
+from .run import PathLearningSettings
 
 GuideRule = Literal[
     "wall_side",
+    "route",
     "heavy_contact",
     "touching_without_push",
     "far_from_wall",
     "in_material",
     "nearer_other_wall",
+    "against_setting",
     "on_floor",
     "leg_through_part",
     "too_close",
@@ -78,49 +77,127 @@ class GuideWarning:
     severity: Severity = "warning"
 
 
-def _leg_through_part(
-    guides: Sequence[GuidePoint], closed: bool, workpiece: Workpiece, tool_radius_m: float
-) -> list[tuple[int, int, float]]:
-    """(from, to, length [m]) of the legs whose straight line runs mostly inside the part: a
-    leg that cuts a corner is usual (the run follows the wall round it), one that is mostly
-    inside the part may join points on different walls."""
-    from .score import mesh_deviation
-
-    n = len(guides)
-    order = list(range(n)) + ([0] if closed and n > 2 else [])
-    out = []
-    axis = mean_tool_axis(guides)
-    for i0, i1 in zip(order[:-1], order[1:], strict=True):
-        a, b = guides[i0].position_m, guides[i1].position_m
-        length = float(np.linalg.norm(b - a))
-        k = max(2, int(length / LEG_SAMPLE_M) + 1)
-        pts = a + (b - a) * np.linspace(0.0, 1.0, k)[:, None]
-        inside = mesh_deviation(workpiece, tool_radius_m, pts, axis_base=axis) < -tool_radius_m
-        through = float(inside.sum()) * length / (k - 1)
-        if through > LEG_THROUGH_PART_FRACTION * length:
-            out.append((i0 + 1, i1 + 1, through))
-    return out
-
-
 def _wrist_turn(robot, guides: Sequence[GuidePoint], closed: bool) -> tuple[float, float] | None:
     """(turn the route needs on axis 6, the axis's range) [rad], or None when it fits or the
     route cannot be solved (reachability is checked elsewhere)."""
-    import math as _m
-
     q = np.asarray(guides[0].joints_rad, dtype=float)
     values = [q[5]]
-    order = list(range(1, len(guides))) + ([0] if closed else [])
-    for k in order:
+    for k in list(range(1, len(guides))) + ([0] if closed else []):
         try:
             q_next = robot.ik(guides[k].T_base_tcp, q)
         except RobomachError:
             return None
-        q_next[5] = q[5] + _m.remainder(q_next[5] - q[5], 2 * _m.pi)
+        q_next[5] = q[5] + math.remainder(q_next[5] - q[5], 2 * math.pi)
         values.append(q_next[5])
         q = q_next
     need = max(values) - min(values)
     span = float(robot.upper_rad[5] - robot.lower_rad[5])
-    return (need, span) if need > span - 0.4 else None
+    return (need, span) if need > span - th.WRIST_MARGIN_RAD else None
+
+
+def _point_findings(guides: Sequence[GuidePoint], settings: PathLearningSettings) -> list:
+    out: list[GuideWarning] = []
+    axis = mean_tool_axis(guides)
+    limit = settings.force_limit_N
+    right = np.cross(axis, travel_directions(guides, settings.closed, axis))
+    set_sign = {"right": 1.0, "left": -1.0}.get(settings.wall_side, 0.0)
+    for k, g in enumerate(guides):
+        number = k + 1
+        force = np.asarray(g.force_N, dtype=float)
+        magnitude = float(np.linalg.norm(force))
+        across = float(np.linalg.norm(force - axis * float(force @ axis)))
+        if magnitude > th.HEAVY_CONTACT_FRACTION * limit:
+            out.append(GuideWarning(number, "heavy_contact", (
+                f"G{number} was recorded pressing {magnitude:.0f} N into the part (protection "
+                f"stops at {limit:.0f} N): back off to a light touch and record it again"
+            )))  # fmt: skip
+        elif settings.wall_side == "auto" and (
+            th.TOUCH_WITHOUT_PUSH_N <= across < th.WALL_FORCE_CLEAR_N
+        ):
+            out.append(GuideWarning(number, "touching_without_push", (
+                f"G{number} touches the wall without a push ({across:.1f} N): a light push "
+                f"towards the wall ({th.WALL_FORCE_CLEAR_N:g}-10 N) tells the wall side"
+            ), "info"))  # fmt: skip
+        pushed_from = -float(force @ right[k])  # > 0: the wall pushed from the right
+        if set_sign and abs(pushed_from) >= th.WALL_FORCE_CLEAR_N and pushed_from * set_sign < 0:
+            other = "right" if pushed_from > 0 else "left"
+            out.append(GuideWarning(number, "against_setting", (
+                f"G{number} was pushed by a wall on the {other}, but the wall side is set to "
+                f"{settings.wall_side}: the run follows the {settings.wall_side} wall, as set; "
+                "check the setting if that is not the wall meant"
+            )))  # fmt: skip
+        if k > 0 and np.linalg.norm(g.position_m - guides[k - 1].position_m) < th.MIN_SPACING_M:
+            out.append(GuideWarning(number, "too_close", (
+                f"G{number} is less than {th.MIN_SPACING_M * 1e3:g} mm from G{number - 1}: "
+                "delete one of them"
+            )))  # fmt: skip
+    return out
+
+
+def _mesh_findings(
+    route: LearningRoute | None,
+    guides: Sequence[GuidePoint],
+    settings: PathLearningSettings,
+    workpiece: Workpiece,
+    tool_radius_m: float,
+) -> list[GuideWarning]:
+    from .score import mesh_deviation
+
+    out: list[GuideWarning] = []
+    closed = settings.closed
+    axis = mean_tool_axis(guides)
+    walls = PartWalls(workpiece, axis, tool_radius_m)
+    pts = np.array([g.position_m for g in guides])
+    right = np.cross(axis, travel_directions(guides, closed, axis))
+    right_gap, left_gap = walls.gaps(pts, right)
+    for k in range(len(guides)):
+        number = k + 1
+        nearest = min(right_gap[k], left_gap[k])
+        if nearest < -0.5 * tool_radius_m:
+            out.append(GuideWarning(number, "in_material", (
+                f"G{number} has the cutter {-nearest * 1e3:.1f} mm inside the part: move it out "
+                "to touch the wall"
+            )))  # fmt: skip
+        elif nearest > th.AT_WALL_GAP_M:
+            out.append(GuideWarning(number, "far_from_wall", (
+                f"G{number} is {nearest * 1e3:.1f} mm from the nearest wall: put it within 1-3 "
+                f"mm of the wall (the run searches slowly beyond {th.AT_WALL_GAP_M * 1e3:g} mm)"
+            )))  # fmt: skip
+        if route is not None:
+            side = route.wall_side.side
+            own, other = right_gap[k], left_gap[k]
+            if side == "left":
+                own, other = other, own
+            other_side = "left" if side == "right" else "right"
+            if other + th.NEARER_MARGIN_M < own and other <= th.AT_WALL_GAP_M:
+                chosen = "as set" if route.wall_side.source == "setting" else "as decided"
+                out.append(GuideWarning(number, "nearer_other_wall", (
+                    f"G{number} is nearer the wall on the {other_side} "
+                    f"({max(other, 0.0) * 1e3:.1f} mm) than the one followed on the {side} "
+                    f"({own * 1e3:.1f} mm, {chosen}): the run follows the {side} wall; move "
+                    f"G{number} towards it, or check the wall side"
+                )))  # fmt: skip
+            lifted = float(route.lifted_m[k])
+            if lifted > 1e-6:
+                out.append(GuideWarning(number, "on_floor", (
+                    f"G{number} rests on the floor: it is learned {lifted * 1e3:.1f} mm higher, "
+                    f"the cutter {settings.floor_clearance_m * 1e3:g} mm above the floor"
+                ), "info"))  # fmt: skip
+    order = list(range(len(guides))) + ([0] if closed and len(guides) > 2 else [])
+    for i0, i1 in zip(order[:-1], order[1:], strict=True):
+        a, b = pts[i0], pts[i1]
+        length = float(np.linalg.norm(b - a))
+        n = max(2, int(length / th.MIN_SPACING_M) + 1)
+        line = a + (b - a) * np.linspace(0.0, 1.0, n)[:, None]
+        inside = mesh_deviation(workpiece, tool_radius_m, line, axis_base=axis) < -tool_radius_m
+        through = float(inside.sum()) * length / (n - 1)
+        if through > 0.5 * length:
+            out.append(GuideWarning(i0 + 1, "leg_through_part", (
+                f"the leg G{i0 + 1} -> G{i1 + 1} runs mostly through the part "
+                f"({through * 1e3:.0f} mm): the run follows the wall round it; add a point on the "
+                "wall between them if the route is meant another way"
+            ), "info"))  # fmt: skip
+    return out
 
 
 def guide_point_warnings(
@@ -131,7 +208,8 @@ def guide_point_warnings(
     tool_radius_m: float | None = None,
     robot=None,
 ) -> tuple[GuideWarning, ...]:
-    """What the operator should know before learning (module docstring).
+    """What the operator should know before learning (module docstring): the route's refusal,
+    if any, first.
 
     Args:
         guides: The guide points in order.
@@ -140,140 +218,114 @@ def guide_point_warnings(
         tool_radius_m: Ball cutter radius.
         robot: The arm (``robot.Robot``); the wrist's turn round the route is checked with it.
     """
-    out: list[GuideWarning] = []
-    n = len(guides)
-    if n == 0:
+    if not guides:
         return ()
-    limit = settings.force_limit_N
-    closed = settings.closed
+    out: list[GuideWarning] = []
     mesh = workpiece is not None and tool_radius_m is not None
-    decision = None
-    if n >= 2:
+    route = None
+    if len(guides) >= 2:
         try:
-            decision = resolve_wall_side(
+            route = plan_route(
                 guides,
-                settings.wall_side,
-                closed=closed,
+                settings,
                 workpiece=workpiece if mesh else None,
                 tool_radius_m=tool_radius_m,
             )
-        except WallSideError as exc:
-            out.append(GuideWarning(0, "wall_side", str(exc), "refusal"))
-    axis = mean_tool_axis(guides)
-    for k, g in enumerate(guides):
-        number = k + 1
-        force = np.asarray(g.force_N, dtype=float)
-        magnitude = float(np.linalg.norm(force))
-        across = float(np.linalg.norm(force - axis * float(force @ axis)))
-        if magnitude > HEAVY_CONTACT_FRACTION * limit:
-            out.append(
-                GuideWarning(
-                    number,
-                    "heavy_contact",
-                    f"G{number} was recorded pressing {magnitude:.0f} N into the part "
-                    f"(protection stops at {limit:.0f} N): back off to a light touch and "
-                    "record it again",
-                )
-            )
-        elif settings.wall_side == "auto" and (TOUCH_WITHOUT_PUSH_N <= across < WALL_FORCE_CLEAR_N):
-            out.append(
-                GuideWarning(
-                    number,
-                    "touching_without_push",
-                    f"G{number} touches the wall without a push ({across:.1f} N): a light "
-                    f"push towards the wall ({WALL_FORCE_CLEAR_N:g}-10 N) tells the wall side",
-                    "info",
-                )
-            )
-        if k > 0 and float(np.linalg.norm(g.position_m - guides[k - 1].position_m)) < MIN_SPACING_M:
-            out.append(
-                GuideWarning(
-                    number,
-                    "too_close",
-                    f"G{number} is less than {MIN_SPACING_M * 1e3:g} mm from G{number - 1}: "
-                    "delete one of them",
-                )
-            )
-    if mesh and n >= 2:
-        from .route import floor_clearances
-
-        right_gap, left_gap = mesh_wall_gaps(guides, closed, workpiece, tool_radius_m)
-        floor = floor_clearances(guides, workpiece, tool_radius_m)
-        for k in range(n):
-            number = k + 1
-            nearest = min(right_gap[k], left_gap[k])
-            if nearest < -0.5 * tool_radius_m:
-                out.append(
-                    GuideWarning(
-                        number,
-                        "in_material",
-                        f"G{number} has the cutter {-nearest * 1e3:.1f} mm inside the part: "
-                        "move it out to touch the wall",
-                    )
-                )
-            elif nearest > MAX_WALL_GAP_M:
-                out.append(
-                    GuideWarning(
-                        number,
-                        "far_from_wall",
-                        f"G{number} is {nearest * 1e3:.1f} mm from the nearest wall: put it "
-                        f"within 1-3 mm of the wall (the run searches slowly beyond "
-                        f"{MAX_WALL_GAP_M * 1e3:g} mm)",
-                    )
-                )
-            if decision is not None:
-                own, other = (
-                    (right_gap[k], left_gap[k])
-                    if decision.side == "right"
-                    else (left_gap[k], right_gap[k])
-                )
-                other_side = "left" if decision.side == "right" else "right"
-                if other + NEARER_MARGIN_M < own and other <= MAX_WALL_GAP_M:
-                    out.append(
-                        GuideWarning(
-                            number,
-                            "nearer_other_wall",
-                            f"G{number} is nearer the wall on the {other_side} "
-                            f"({max(other, 0.0) * 1e3:.1f} mm) than the one followed on the "
-                            f"{decision.side} ({own * 1e3:.1f} mm): move it towards the "
-                            f"{decision.side} wall, or check the wall side",
-                        )
-                    )
-            gap = float(floor[k])
-            if math.isfinite(gap) and gap < settings.floor_clearance_m:
-                out.append(
-                    GuideWarning(
-                        number,
-                        "on_floor",
-                        f"G{number} rests on the floor: it is learned "
-                        f"{(settings.floor_clearance_m - gap) * 1e3:.1f} mm higher, the cutter "
-                        f"{settings.floor_clearance_m * 1e3:g} mm above the floor",
-                        "info",
-                    )
-                )
-        for i0, i1, through in _leg_through_part(guides, closed, workpiece, tool_radius_m):
-            out.append(
-                GuideWarning(
-                    i0,
-                    "leg_through_part",
-                    f"the leg G{i0} -> G{i1} runs mostly through the part ({through * 1e3:.0f} "
-                    "mm): the run follows the wall round it; add a point on the wall between "
-                    "them if the route is meant another way",
-                    "info",
-                )
-            )
-    if robot is not None and n >= 2:
-        turn = _wrist_turn(robot, guides, closed)
+        except RouteRefusedError as exc:
+            rule: GuideRule = "wall_side" if isinstance(exc, WallSideError) else "route"
+            out.append(GuideWarning(0, rule, str(exc), "refusal"))
+    out += _point_findings(guides, settings)
+    if mesh and len(guides) >= 2:
+        out += _mesh_findings(route, guides, settings, workpiece, tool_radius_m)
+    if robot is not None and len(guides) >= 2:
+        turn = _wrist_turn(robot, guides, settings.closed)
         if turn is not None:
             need, span = turn
-            out.append(
-                GuideWarning(
-                    0,
-                    "wrist_turn",
-                    f"the tool turns {math.degrees(need):.0f} deg about its axis along the "
-                    f"route, and axis 6 turns {math.degrees(span):.0f} deg at most: keep the "
-                    "tool's turn about its axis the same at every point (a spinning cutter "
-                    "does not mind)",
-                )
-            )
+            out.append(GuideWarning(0, "wrist_turn", (
+                f"the tool turns {math.degrees(need):.0f} deg about its axis along the route, "
+                f"and axis 6 turns {math.degrees(span):.0f} deg at most: keep the tool's turn "
+                "about its axis the same at every point (a spinning cutter does not mind)"
+            )))  # fmt: skip
     return tuple(out)
+
+
+# --- after the run -------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class TaughtWallCheck:
+    """Whether the program follows the wall the guide points were taught on.
+
+    Attributes:
+        follows: True when the program touches the taught wall at every guide point checked.
+        checked: Guide points with a taught wall in the mesh (1-based numbers).
+        missed: The guide points whose taught wall the program does not touch.
+        worst_gap_m: The farthest the program's cutter stays from a taught wall point.
+        message: One line for the user.
+    """
+
+    follows: bool
+    checked: tuple[int, ...]
+    missed: tuple[int, ...]
+    worst_gap_m: float
+    message: str
+
+
+def taught_wall_check(
+    workpiece: Workpiece,
+    tool_radius_m: float,
+    guides: Sequence[GuidePoint],
+    side: str,
+    positions_m: np.ndarray,
+    moves: Sequence[Move] | None = None,
+    *,
+    closed: bool = True,
+) -> TaughtWallCheck:
+    """The program (targets and moves) against the wall points the guide points face on
+    ``side``, the side the route decided and the run followed (module docstring)."""
+    if side not in ("left", "right") or len(guides) < 2:
+        return TaughtWallCheck(True, (), (), 0.0, "the taught wall is not known")
+    axis = mean_tool_axis(guides)
+    walls = PartWalls(workpiece, axis, tool_radius_m)
+    if walls.walls is None:
+        return TaughtWallCheck(True, (), (), 0.0, "no wall found in the part's mesh")
+    points = taught_wall_points(guides, side, closed, walls)
+    pts = np.asarray(positions_m, dtype=float)
+    moves = linear_moves(len(pts)) if moves is None else tuple(moves)
+    path = sample_moves(pts, moves, spacing_m=2.5e-4)
+    # Across the tool axis, among the program's points near the wall point's height: the wall
+    # is what the check is about; between points taught at different heights the route's
+    # height passes through theirs.
+    path_height = path @ axis
+    across = path - np.outer(path_height, axis)
+    heights = np.array([g.position_m @ axis for g in guides])
+    n = len(guides)
+    checked, missed, worst = [], [], 0.0
+    for k, wall_point in enumerate(points):
+        if wall_point is None:
+            continue
+        around = [j % n for j in (k - 1, k, k + 1) if closed or 0 <= j < n]
+        h = float(wall_point @ axis)
+        low = min(h, *heights[around]) - th.TAUGHT_WALL_HEIGHT_BAND_M
+        high = max(h, *heights[around]) + th.TAUGHT_WALL_HEIGHT_BAND_M
+        near = (path_height >= low) & (path_height <= high)
+        if not near.any():
+            near[:] = True
+        gap = float(np.min(np.linalg.norm(across[near] - (wall_point - axis * h), axis=1)))
+        gap -= tool_radius_m
+        checked.append(k + 1)
+        worst = max(worst, gap)
+        if gap > th.TAUGHT_WALL_TOLERANCE_M:
+            missed.append(k + 1)
+    if not checked:
+        return TaughtWallCheck(True, (), (), 0.0, "no taught wall found in the part's mesh")
+    if missed:
+        where = ", ".join(f"G{k}" for k in missed)
+        message = (
+            f"the program does not follow the wall on the {side} taught at {where} (it passes "
+            f"{worst * 1e3:.1f} mm from it): it was learned on another wall, the floor or inside "
+            "the part"
+        )
+    else:
+        message = f"the program follows the wall on the {side} at all {len(checked)} guide points"
+    return TaughtWallCheck(not missed, tuple(checked), tuple(missed), worst, message)

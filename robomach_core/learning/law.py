@@ -1,11 +1,11 @@
 """The control law of path learning, one 4 ms period of it: follow the wall by force.
 
-PROBLEM   Path learning (``path_learning``, chapter section 3.2) must follow the wall from
-          rough guide points, every 4 ms, in a few microseconds of arithmetic: as Python on
-          numpy 3-vectors the law cost more than the simulated cell it drives.
+PROBLEM   Path learning (``run``, chapter section 3.2) must follow the wall from rough guide
+          points, every 4 ms, in a few microseconds of arithmetic: as Python on numpy 3-vectors
+          the law cost more than the simulated cell it drives.
 STRATEGY  Hybrid force/velocity contour following in the plane across the tool axis ``a``
           (the chapter's "constant contact force normal to the edge", with the direction of
-          travel taken from the wall):
+          travel taken from the wall); docs/learning_model.md states the model:
             - the contact force across the axis, F_x = F - (F . a) a, gives the wall direction
               w = -F_x / |F_x|, low-passed (w <- normalise(w + beta (w_meas - w))); a force from
               more than 135 deg off w is the wall behind the tool (F_n = -|F_x|, w kept);
@@ -17,9 +17,15 @@ STRATEGY  Hybrid force/velocity contour following in the plane across the tool a
             - out of contact the tool searches along w at the search speed, advancing no faster
               (not at all before the first touch, until it has searched ``first_across``), and
               after ``search_turn`` without the wall it searches across the leg again;
-            - along the axis the tool holds the leg's height (feedforward of its rate plus a
-              first-order return, time ``height_time``); a push from the floor (-F . a above
-              ``floor_force``) lifts it, and once clear it rises ``clearance`` more.
+            - along the axis the tool holds the height the person taught, relative to the part:
+                  h = H0 + G . (p - P0) + K (o_a + (o_b - o_a) f) - lift,
+              the reference surface (H0, G at P0: the part's floor under the tool, K = -1/cos,
+              or the guide points' plane, K = 1; ``route.HeightReference``) plus the leg's
+              offsets interpolated by the progress f along it; the floor's own push (its part
+              along the axis beyond the friction cone of a wall contact) sets the lift to put
+              the tool ``clearance`` above where the floor pushed, and the lift fades over
+              ``lift_decay`` of travel. Nothing depends on elapsed time or adds up noise: the
+              same points give the same heights at any speed.
 SOLUTION  ``contour_law`` (compiled with numba; its ``py_func`` is the same law in Python, the
           reference the tests compare it with) returns the period's motion and the law's new
           state; ``turn_towards`` turns the tool's orientation towards the leg's, rate-limited.
@@ -39,8 +45,8 @@ from .._kernels import contact_wrench_tcp_base, exp3, log3, mul3, rotate
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 
 # The law's state vector: its entries by name.
-INTEGRAL, LIFT, LIFT_PENDING, H_GOAL_LAST, FOUND_WALL, EVER_TOUCHED, OUT_OF_CONTACT = range(7)
-STATE_SIZE = 7
+INTEGRAL, LIFT, H_GOAL_LAST, FOUND_WALL, EVER_TOUCHED, OUT_OF_CONTACT = range(6)
+STATE_SIZE = 6
 # The law's parameters (``law_parameters``): their order.
 PARAMETERS = (
     "force_N",
@@ -51,9 +57,10 @@ PARAMETERS = (
     "speed_m_s",
     "beta",
     "dt_s",
+    "floor_cone_tan",
     "floor_force_N",
-    "floor_lift_speed_m_s",
     "floor_clearance_m",
+    "lift_decay_m",
     "height_time_s",
     "height_speed_m_s",
     "behind_cos",
@@ -64,13 +71,23 @@ PARAMETERS = (
     "slowest_at",
     "slowest",
 )
+(
+    P_FORCE, P_KP, P_KI, P_VMAX, P_SEARCH, P_SPEED, P_BETA, P_DT, P_CONE, P_FLOOR_N,
+    P_CLEARANCE, P_LIFT_DECAY, P_HEIGHT_TIME, P_HEIGHT_SPEED, P_BEHIND, P_CONTACT, P_FIRST,
+    P_TURN, P_SLOW_FROM, P_SLOWEST_AT, P_SLOWEST,
+) = range(len(PARAMETERS))  # fmt: skip
 
 
 # A leg of the route, one row of ``legs``: start a (3), unit direction xp (3), length, the
 # orientation at a (9, row-major), the rotation vector omega to the orientation at its end
-# (3, in a's axes: slerp R_a exp(f omega)), the index of its first guide point.
-LEG_A, LEG_XP, LEG_LENGTH, LEG_RA, LEG_OMEGA, LEG_FIRST = 0, 3, 6, 7, 16, 19
-LEG_SIZE = 20
+# (3, in a's axes: slerp R_a exp(f omega)), the index of its first guide point, and the height
+# offsets over the reference surface at its two ends (``route.HeightReference``).
+LEG_A, LEG_XP, LEG_LENGTH, LEG_RA, LEG_OMEGA, LEG_FIRST, LEG_OFFSETS = 0, 3, 6, 7, 16, 19, 20
+LEG_SIZE = 22
+# The height reference under the tool (``route.HeightReference.at``): the surface's height
+# along the axis H0 at P0 (3), its gradient G (3) across the axis, and the offsets' factor K.
+REF_H0, REF_G, REF_P0, REF_K = 0, 1, 4, 7
+REF_SIZE = 8
 # The recording's columns, one row per period (``controller_period``): time, motor-side joints
 # (6), measured TCP position (3) and rotation (9, row-major), sensor reading (6), compensated
 # wrench in the tool frame (6), force normal to the edge, contact flag, wall direction (3), leg.
@@ -104,14 +121,27 @@ def speed_ratio(f_n: float, f_ref: float, slow_from: float, slowest_at: float, s
 
 
 @_jit
+def route_height(leg: np.ndarray, ref: np.ndarray, p: np.ndarray, axis: np.ndarray) -> float:
+    """The height the route holds at ``p`` along ``axis`` [m] (module docstring), before lift:
+    the reference surface there plus the leg's offsets interpolated by the progress on it."""
+    s = 0.0
+    dh = 0.0
+    for i in range(3):
+        s += (p[i] - leg[LEG_A + i]) * leg[LEG_XP + i]
+        dh += ref[REF_G + i] * (p[i] - ref[REF_P0 + i])
+    f = min(max(s / leg[LEG_LENGTH], 0.0), 1.0)
+    o_a, o_b = leg[LEG_OFFSETS], leg[LEG_OFFSETS + 1]
+    return ref[REF_H0] + dh + ref[REF_K] * (o_a + (o_b - o_a) * f)
+
+
+@_jit
 def contour_law(
     force: np.ndarray,
     w: np.ndarray,
     axis: np.ndarray,
     side: float,
-    leg_a: np.ndarray,
-    leg_xp: np.ndarray,
-    leg_length: float,
+    leg: np.ndarray,
+    ref: np.ndarray,
     p_ref: np.ndarray,
     state: np.ndarray,
     params: np.ndarray,
@@ -123,7 +153,8 @@ def contour_law(
         w: (3,) the wall direction in use (unit, across ``axis``).
         axis: (3,) the height axis, into the part (unit).
         side: +1 wall on the right of travel, -1 on the left.
-        leg_a, leg_xp, leg_length: the current leg: its start, unit direction, length [m].
+        leg: (LEG_SIZE,) the current leg (``LEG_A`` ...).
+        ref: (REF_SIZE,) the height reference under the tool (``REF_H0`` ...).
         p_ref: (3,) the reference TCP position [m].
         state: (STATE_SIZE,) the law's state (``initial_state``); not modified.
         params: (len(PARAMETERS),) the law's parameters (``law_parameters``).
@@ -131,35 +162,22 @@ def contour_law(
     Returns:
         (step (3,) [m] this period, new w, new state, F_n [N], touching).
     """
-    f_ref, kp, ki, vmax, search, speed = (
-        params[0],
-        params[1],
-        params[2],
-        params[3],
-        params[4],
-        params[5],
-    )  # noqa: E501
-    beta, dt, floor_force, lift_speed = params[6], params[7], params[8], params[9]
-    clearance, height_time, height_speed = params[10], params[11], params[12]
-    behind_cos, contact_flag, first_across, search_turn = (
-        params[13],
-        params[14],
-        params[15],
-        params[16],
-    )  # noqa: E501
+    f_ref, kp, ki, vmax = params[P_FORCE], params[P_KP], params[P_KI], params[P_VMAX]
+    search, speed, beta, dt = params[P_SEARCH], params[P_SPEED], params[P_BETA], params[P_DT]
     out = state.copy()
     w_new = w.copy()
     ax, ay, az = axis[0], axis[1], axis[2]
-    f_axis = force[0] * ax + force[1] * ay + force[2] * az  # < 0: the floor pushes back up
+    leg_xp = leg[LEG_XP : LEG_XP + 3]
+    f_axis = force[0] * ax + force[1] * ay + force[2] * az  # < 0: pushed back up the axis
     px = force[0] - f_axis * ax
     py = force[1] - f_axis * ay
     pz = force[2] - f_axis * az
     f_across = math.sqrt(px * px + py * py + pz * pz)
-    touching = f_across > contact_flag
+    touching = f_across > params[P_CONTACT]
     f_n = f_across
     if touching:
         mx, my, mz = -px / f_across, -py / f_across, -pz / f_across
-        if mx * w[0] + my * w[1] + mz * w[2] < behind_cos:
+        if mx * w[0] + my * w[1] + mz * w[2] < params[P_BEHIND]:
             f_n = -f_across  # the wall behind the tool: move away from it, keep w
         else:
             wx = w[0] + beta * (mx - w[0])
@@ -170,7 +188,7 @@ def contour_law(
             out[FOUND_WALL] = 1.0
             out[EVER_TOUCHED] = 1.0
             out[OUT_OF_CONTACT] = 0.0
-    if not touching and out[FOUND_WALL] > 0.0 and out[OUT_OF_CONTACT] > search_turn:
+    if not touching and out[FOUND_WALL] > 0.0 and out[OUT_OF_CONTACT] > params[P_TURN]:
         # the wall has been lost for a while: search across the leg again
         cx = (ay * leg_xp[2] - az * leg_xp[1]) * side
         cy = (az * leg_xp[0] - ax * leg_xp[2]) * side
@@ -190,31 +208,27 @@ def contour_law(
     out[INTEGRAL] = integral
     v_w = min(max(kp * e + integral, -vmax), limit)
     if touching:
-        v_t = speed * speed_ratio(f_n, f_ref, params[17], params[18], params[19])
-    elif out[EVER_TOUCHED] > 0.0 or out[OUT_OF_CONTACT] > first_across:
+        v_t = speed * speed_ratio(
+            f_n, f_ref, params[P_SLOW_FROM], params[P_SLOWEST_AT], params[P_SLOWEST]
+        )
+    elif out[EVER_TOUCHED] > 0.0 or out[OUT_OF_CONTACT] > params[P_FIRST]:
         v_t = min(speed, search)
     else:
         v_t = 0.0  # the first search: straight across to the wall, nothing skipped
     if not touching:
         out[OUT_OF_CONTACT] += math.sqrt(v_t * v_t + v_w * v_w) * dt
-    if -f_axis > floor_force:  # the floor: lift off it
-        out[LIFT] += lift_speed * dt
-        out[LIFT_PENDING] = 1.0
-    elif out[LIFT_PENDING] > 0.0 and -f_axis < 0.5 * floor_force:
-        out[LIFT] += clearance
-        out[LIFT_PENDING] = 0.0
-    # the leg's height at the progress along it, with its rate as feedforward
-    rx, ry, rz = p_ref[0] - leg_a[0], p_ref[1] - leg_a[1], p_ref[2] - leg_a[2]
-    s = min(max(rx * leg_xp[0] + ry * leg_xp[1] + rz * leg_xp[2], 0.0), leg_length)
-    h_goal = (
-        (leg_a[0] + s * leg_xp[0]) * ax
-        + (leg_a[1] + s * leg_xp[1]) * ay
-        + (leg_a[2] + s * leg_xp[2]) * az
-    ) - out[LIFT]
+    # the height: the route's, lifted where the floor pushed (beyond a wall's friction cone)
+    h_route = route_height(leg, ref, p_ref, axis)
+    h_now = p_ref[0] * ax + p_ref[1] * ay + p_ref[2] * az
+    if -f_axis > params[P_CONE] * f_across + params[P_FLOOR_N]:
+        out[LIFT] = max(out[LIFT], h_route - h_now + params[P_CLEARANCE])
+    else:
+        out[LIFT] *= math.exp(-v_t * dt / params[P_LIFT_DECAY])
+    h_goal = h_route - out[LIFT]
     h_rate = 0.0 if math.isnan(out[H_GOAL_LAST]) else (h_goal - out[H_GOAL_LAST]) / dt
     out[H_GOAL_LAST] = h_goal
-    h_err = h_goal - (p_ref[0] * ax + p_ref[1] * ay + p_ref[2] * az)
-    v_h = min(max(h_rate + h_err / height_time, -height_speed), height_speed)
+    v_h = h_rate + (h_goal - h_now) / params[P_HEIGHT_TIME]
+    v_h = min(max(v_h, -params[P_HEIGHT_SPEED]), params[P_HEIGHT_SPEED])
     step = np.empty(3)
     step[0] = (tx * v_t + w_new[0] * v_w + ax * v_h) * dt
     step[1] = (ty * v_t + w_new[1] * v_w + ay * v_h) * dt
@@ -258,6 +272,7 @@ def controller_period(
     tool_data: np.ndarray,
     R_tcp_flange: np.ndarray,
     leg: np.ndarray,
+    ref: np.ndarray,
     axis: np.ndarray,
     side: float,
     T_ref: np.ndarray,
@@ -282,7 +297,7 @@ def controller_period(
 
     Returns:
         (|F| [N], touching, ever touched, the law's distance out of contact [m], the
-        reference's distance from the leg's line [m], |step| [m]).
+        reference's distance from the leg's line [m], the step's advance along the wall [m]).
     """
     R_meas = T_meas[:3, :3]
     wrench = contact_wrench_tcp_base(
@@ -293,12 +308,12 @@ def controller_period(
     a, xp, length = leg[LEG_A : LEG_A + 3], leg[LEG_XP : LEG_XP + 3], leg[LEG_LENGTH]
     p_ref = T_ref[:3, 3].copy()
     step_new, w_new, state_new, f_n, touching = contour_law(
-        wrench[:3], w, axis, side, a, xp, length, p_ref, state, params
+        wrench[:3], w, axis, side, leg, ref, p_ref, state, params
     )
     w[:] = w_new
     state[:] = state_new
     step[:] = step_new
-    contact = 1.0 if f_abs > params[14] else 0.0
+    contact = 1.0 if f_abs > params[P_CONTACT] else 0.0
     record_row(record[n], time_s, q_motor, T_meas, reading, wrench, f_n, contact, w, leg[LEG_FIRST])
     rel = p_ref - a
     along = rel @ xp
@@ -307,9 +322,14 @@ def controller_period(
         T_ref[:3, :3], leg[LEG_RA : LEG_RA + 9].reshape((3, 3)), leg[LEG_OMEGA : LEG_OMEGA + 3],
         a, xp, length, p_ref + step_new, max_turn,
     )  # fmt: skip
-    step_len = math.sqrt(step_new @ step_new)
+    # the advance along the wall (the tangent side * (w x a)): not the force loop's motion
+    # across it nor the height's, which at slow feeds add up to more than the advance itself
+    tx = (w[1] * axis[2] - w[2] * axis[1]) * side
+    ty = (w[2] * axis[0] - w[0] * axis[2]) * side
+    tz = (w[0] * axis[1] - w[1] * axis[0]) * side
+    advance = abs(step_new[0] * tx + step_new[1] * ty + step_new[2] * tz)
     ever = state_new[EVER_TOUCHED] > 0.0
-    return f_abs, touching, ever, state_new[OUT_OF_CONTACT], off_route, step_len
+    return f_abs, touching, ever, state_new[OUT_OF_CONTACT], off_route, advance
 
 
 @_jit

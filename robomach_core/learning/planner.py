@@ -13,11 +13,11 @@ STRATEGY  The picked wall at the machining height, in the floor's frame (``walls
           faster than ``CORNER_RADIUS_M``; corners closer than ``MIN_RUN_M`` merge into a
           group, and a group that turns back round the free side (``SLOT_END_DEG``, a slot's
           end) ends the wall there, so the wall to follow is open. Each straight run between
-          groups gets one point (two, at ``LONG_RUN_POINTS_AT``, from ``LONG_RUN_M``), each
-          group turning round the material by ``OUTSIDE_CORNER_DEG`` or more a point at its
-          middle. Then every leg is checked against the wall: where its chord comes within
-          ``tool radius + LEG_CLEARANCE_M`` of the material, or the wall recedes more than
-          ``MAX_LEG_GAP_M`` from it, a point is added at the worst place. Each point stands
+          groups gets one point (two, ``LONG_RUN_END_SHARE`` from its ends, from
+          ``LONG_RUN_M``), each group turning round the material by ``OUTSIDE_CORNER_DEG`` or
+          more a point at its middle. Then every leg is checked against the wall: where its
+          chord comes within ``tool radius + LEG_CLEARANCE_M`` of the material, or the wall
+          recedes more than ``MAX_LEG_GAP_M`` from it, a point is added at the worst place. Each point stands
           ``gap`` off the wall on the free side (centred in a groove too narrow for that), at
           the pick's height above the floor under it, with the job's tool orientation.
           Every number is in ``thresholds.py``.
@@ -48,8 +48,8 @@ from .thresholds import (
     CUTTER_FIT_M,
     JOINT_JUMP_DEG,
     LEG_CLEARANCE_M,
+    LONG_RUN_END_SHARE,
     LONG_RUN_M,
-    LONG_RUN_POINTS_AT,
     MAX_ADDED_POINTS,
     MAX_LEG_GAP_M,
     MIN_POINT_SPACING_M,
@@ -323,7 +323,8 @@ def _initial_points(
     for a, b in runs:
         length = b - a
         if length >= LONG_RUN_M:
-            out += [(a + f * length, "run") for f in LONG_RUN_POINTS_AT]
+            f = LONG_RUN_END_SHARE
+            out += [(a + f * length, "run"), (b - f * length, "run")]
         elif length >= MIN_RUN_M:
             out.append((a + 0.5 * length, "run"))
     for g in groups:

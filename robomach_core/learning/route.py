@@ -1,91 +1,647 @@
-"""The route path learning runs, planned from the guide points and the part as the user sees it.
+"""The route path learning runs, planned once from the guide points and the part as the user
+sees it: the legs, the wall side, the height, and a walk along the mesh's wall before any motion.
 
-PROBLEM   The guide points give the route and the tool's orientation; the wall gives the
-          position by force (chapter section 3.1). Two things about the route cannot come from
-          force alone before the run starts: which side of the route the wall is on when the
-          points were recorded free of it, and how high to run where a point rests on the floor
-          of a groove (a touch-off along -Z leaves it there, and dragged along the floor the
-          cutter presses on two faces at once).
-STRATEGY  With the part's mesh (the CAD the user teaches on, when known): the wall side from
-          ``wall_side.resolve_wall_side``; under each point, the floor found by a ray along the
-          tool axis, and the point lifted until the cutter clears it by the machining height
-          (``PathLearningSettings.floor_clearance_m``). Without a mesh: the side from the pushes
-          alone, and the run's own floor guard (a force along the axis lifts it).
-          And per leg, how far the taught wall between its two points runs from the straight
-          leg (the section at the points' height, followed on the wall's side): the run's
-          protection lets the tool that far off the leg (a leg through the part, whose wall
-          runs round a corner far from it, is not a point on another wall).
-SOLUTION  ``plan_route(guides, settings, *, workpiece, tool_radius_m) -> LearningRoute``: the
-          guide points as learned (lifted where needed), the side and why, what was lifted,
-          and the legs' wander allowances.
+PROBLEM   The guide points give the route, the orientation and the height; the wall gives the
+          position by force (chapter section 3.1). Before the robot moves, four things must be
+          settled once, and used by the run, the checks and the scores alike: which side of
+          the route the wall is on (never a guess), what height to hold between the points on
+          any floor (level, tilted, stepped, or none), how far the wall may lead the tool off a
+          leg, and whether the route is one the wall can give at all (a slot taught as a loop
+          would come back along the slot's other wall).
+STRATEGY  - The side: the setting when it is "left" or "right" (it wins); on "auto", clear
+            pushes at the points (at least ``WALL_FORCE_CLEAR_N`` across the leg), else the
+            part's mesh (the points nearer one wall); evidence that disagrees, or none, is
+            refused naming the points (``resolve_wall_side``).
+          - The height (``HeightReference``): along the mean tool axis, the route holds
+            h = surface(p) + offset, the offset interpolated along each leg between its two
+            points. The surface is the floor under the tool in the mesh (measured every
+            ``REFERENCE_SPACING_M`` of travel, under the cutter's centre and a radius either
+            side along the travel) when every point has one below it, else the guide points'
+            own plane. A point resting on the floor is lifted to ``floor_clearance_m`` above it.
+          - The walk (``walk_route``): the ideal run on the mesh, a ball rolled along the wall
+            on the chosen side at the route's heights, leg by leg with the run's own leg ends
+            (``LegEnd``). Each leg's walk says how far its wall runs from the leg (the run's
+            protection lets the tool that far off, + ``WANDER_MARGIN_M``), and a leg that comes
+            back along the other wall of the free space it went along, where no point was
+            taught, is refused: the wall is open.
+SOLUTION  ``plan_route(guides, settings, *, workpiece, tool_radius_m) -> LearningRoute``, raising
+          ``RouteRefusedError`` (``WallSideError`` for the side) with the reason and the fix.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
+import pinocchio as pin
 
 from .. import mesh_query
+from ..errors import InvalidInputError, RouteRefusedError, WallSideError
 from ..leadthrough import GuidePoint
+from ..transforms import matrix_from_quaternion
 from ..workpiece import Workpiece
-from .run import LEG_DETOUR_EXTRA_M, LEG_DETOUR_FACTOR, PathLearningSettings
-from .side import (
-    WallSideDecision,
-    mean_tool_axis,
-    resolve_wall_side,
-    travel_directions,
-    wall_direction,
-)
+from . import thresholds as th
+from .law import LEG_SIZE, REF_SIZE, route_height
+from .settings import WALL_SIDE_CHOICES, PathLearningSettings
 
-FLOOR_SEARCH_M = 0.01  # a floor farther than this below a point is not the one it rests on
-WANDER_MARGIN_M = 0.01  # a leg's wall may lead the tool this much farther off it than the mesh's
-WALL_MATCH_M = 0.006  # a point is on a section's wall within this (its gap, the cutter's radius)
+WallSide = Literal["left", "right"]
+
+
+# --- the legs ------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Leg:
+    """One leg of the route: from guide point ``first`` to ``last`` (0-based)."""
+
+    a: np.ndarray
+    b: np.ndarray
+    length: float
+    xp: np.ndarray
+    Ra: np.ndarray  # orientation at a
+    omega: np.ndarray  # rotation vector from Ra to Rb, in Ra's axes (slerp Ra exp(f omega))
+    first: int
+    last: int
+
+    def row(self, offsets: tuple[float, float]) -> np.ndarray:
+        """The leg as a row of the law's leg table (``law.LEG_A`` ...)."""
+        out = np.concatenate(
+            [self.a, self.xp, [self.length], self.Ra.ravel(), self.omega, [self.first], offsets]
+        )
+        assert len(out) == LEG_SIZE
+        return out
+
+
+def route_legs(guides: Sequence[GuidePoint], closed: bool) -> list[Leg]:
+    """The legs through ``guides`` in order (back to the first when ``closed``); coincident
+    points give no leg."""
+    order = list(range(len(guides))) + ([0] if closed else [])
+    legs = []
+    for i0, i1 in zip(order[:-1], order[1:], strict=True):
+        a, b = guides[i0].position_m.copy(), guides[i1].position_m.copy()
+        length = float(np.linalg.norm(b - a))
+        if length < 1e-4:
+            continue
+        Ra = matrix_from_quaternion(guides[i0].quaternion_wxyz)
+        Rb = matrix_from_quaternion(guides[i1].quaternion_wxyz)
+        legs.append(Leg(a, b, length, (b - a) / length, Ra, pin.log3(Ra.T @ Rb), i0, i1))
+    return legs
+
+
+class LegEnd:
+    """Where a leg ends, the same for the run and the walk: at ``LEG_END_MARGIN_M`` before its
+    guide point's plane, or at the nearest approach to its point (within ``NEAR_END_M``,
+    receding ``END_PASSED_M``); the last leg of a closed route at the nearest approach to where
+    the route first met the wall (within ``CLOSE_LOOP_M``), of an open one at the nearest
+    approach to its last point; either ``CLOSE_LOOP_OVERRUN_M`` past the plane at the latest."""
+
+    def __init__(self, leg: Leg, axis: np.ndarray, *, last: bool, closed: bool) -> None:
+        self.leg, self.axis, self.last, self.closed = leg, axis, last, closed
+        self.end_best = math.inf
+        self.close_best = math.inf
+
+    def _across(self, v: np.ndarray) -> float:
+        return float(np.linalg.norm(v - self.axis * float(v @ self.axis)))
+
+    def reached(self, p: np.ndarray, s: float, start: np.ndarray | None) -> bool:
+        """True when the leg ends at ``p`` (progress ``s`` along it); ``start``: where the
+        route first met the wall (a closed route's last leg closes there), None before."""
+        L = self.leg.length
+        if self.last and self.closed and start is not None:
+            if s >= 0.5 * L:
+                gap = self._across(p - start)
+                if gap < th.CLOSE_LOOP_M and gap > self.close_best:
+                    return True
+                self.close_best = min(self.close_best, gap)
+            return s >= L + th.CLOSE_LOOP_OVERRUN_M
+        passed = False
+        if s >= max(L - th.NEAR_END_M, 0.5 * L):
+            d_end = self._across(p - self.leg.b)
+            passed = self.end_best < th.NEAR_END_M and d_end > self.end_best + th.END_PASSED_M
+            self.end_best = min(self.end_best, d_end)
+        if self.last:
+            return passed or s >= L + th.CLOSE_LOOP_OVERRUN_M
+        return passed or s >= L - min(th.LEG_END_MARGIN_M, 0.25 * L)
+
+
+# --- the side ------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class WallSideDecision:
+    """The side of travel the wall is on, and what decided it.
+
+    Attributes:
+        side: "left" or "right" of travel, looking along the tool axis into the part.
+        source: "setting" (the person's, which wins), "force" or "mesh".
+        detail: One line for the operator (what the evidence was).
+    """
+
+    side: WallSide
+    source: Literal["setting", "force", "mesh"]
+    detail: str
+
+    @property
+    def sign(self) -> float:
+        """+1 for the right, -1 for the left (``Yp = sign * (Zp x Xp)``)."""
+        return 1.0 if self.side == "right" else -1.0
+
+
+def mean_tool_axis(guides: Sequence[GuidePoint]) -> np.ndarray:
+    """Unit mean of the guide points' tool axes (the axis the route's height is measured on)."""
+    axes = np.array([g.T_base_tcp[:3, 2] for g in guides])
+    u = axes.sum(axis=0)
+    n = float(np.linalg.norm(u))
+    return u / n if n > 1e-9 else axes[0]
+
+
+def travel_directions(guides: Sequence[GuidePoint], closed: bool, axis: np.ndarray) -> np.ndarray:
+    """(n, 3) unit direction of travel at each point, across ``axis``: the mean of its incoming
+    and outgoing legs (one at the ends of an open route); at a U-turn, the leg that arrives
+    (the first point: the one that leaves)."""
+    pts = np.array([g.position_m for g in guides])
+    n = len(pts)
+    out = np.zeros((n, 3))
+    for k in range(n):
+        units = []
+        for leg in ([pts[k] - pts[k - 1]] if k > 0 or closed else []) + (
+            [pts[(k + 1) % n] - pts[k]] if k < n - 1 or closed else []
+        ):
+            leg = leg - axis * (leg @ axis)
+            if float(np.linalg.norm(leg)) > 1e-9:
+                units.append(leg / float(np.linalg.norm(leg)))
+        if not units:
+            continue
+        d = np.sum(units, axis=0)
+        if len(units) == 2 and float(units[0] @ units[1]) < -0.5:
+            d = units[1] if k == 0 else units[0]
+        out[k] = d / float(np.linalg.norm(d))
+    return out
+
+
+def _points(numbers: Sequence[int]) -> str:
+    return ", ".join(f"G{k + 1}" for k in numbers)
+
+
+class PartWalls:
+    """The part's walls for one tool axis (the CAD, in the base frame): the nearest wall point
+    on a side, the floor under a point. The one answer to "is this point at that wall"."""
+
+    def __init__(self, workpiece: Workpiece, axis: np.ndarray, tool_radius_m: float) -> None:
+        T = workpiece.T_base_wobj
+        self.R, self.t = T[:3, :3], T[:3, 3]
+        self.axis, self.radius = axis, tool_radius_m
+        self.mesh = workpiece.mesh
+        self.walls = mesh_query.wall_faces(self.mesh, self.R.T @ axis)
+        self._normals = np.asarray(self.mesh.face_normals)  # trimesh checks its cache per read
+        self._corners = np.asarray(self.mesh.vertices)[np.asarray(self.mesh.faces)[:, 0]]
+        self._ray = self.mesh.ray
+
+    def nearest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest wall points (k, 3) and their distances (k,) [m] to ``points`` (k, 3)."""
+        if self.walls is None:
+            k = len(points)
+            return np.full((k, 3), np.nan), np.full(k, np.inf)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            c, d, _ = mesh_query.closest_point(self.walls, (points - self.t) @ self.R)
+        return c @ self.R.T + self.t, np.asarray(d, dtype=float)
+
+    def across_ray(self, point: np.ndarray, direction: np.ndarray) -> float:
+        """Distance [m] from ``point`` to the first wall along ``direction`` (inf: none)."""
+        if self.walls is None:
+            return math.inf
+        hits, _, _ = mesh_query.ray_hits(
+            self.walls, ((point - self.t) @ self.R)[None], (self.R.T @ direction)[None]
+        )
+        if not len(hits):
+            return math.inf
+        return float(np.min(np.linalg.norm(hits @ self.R.T + self.t - point, axis=1)))
+
+    def gaps(self, points: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The cutter's gaps [m] to the nearest wall on the right and on the left of each
+        point (``right``: (k, 3) the right of travel at each); inf where none is in reach."""
+        closest, dist = self.nearest(points)
+        r_gap, l_gap = np.full(len(points), np.inf), np.full(len(points), np.inf)
+        for k, p in enumerate(points):
+            if not math.isfinite(dist[k]):
+                continue
+            rel = closest[k] - p
+            rel = rel - self.axis * float(rel @ self.axis)
+            on_right = float(rel @ right[k]) > 0.0
+            gap = float(dist[k]) - self.radius
+            (r_gap if on_right else l_gap)[k] = gap
+            other = self.across_ray(p, -right[k] if on_right else right[k]) - self.radius
+            (l_gap if on_right else r_gap)[k] = max(other, gap)
+        return r_gap, l_gap
+
+    def wall_point(
+        self, point: np.ndarray, towards: np.ndarray, reach_m: float
+    ) -> np.ndarray | None:
+        """The wall point a point at ``point`` faces in direction ``towards`` (across the
+        axis): its nearest wall point when that lies that way, else the first wall along it;
+        None when none is within ``reach_m``."""
+        closest, dist = self.nearest(point[None])
+        if math.isfinite(dist[0]):
+            rel = closest[0] - point
+            rel = rel - self.axis * float(rel @ self.axis)
+            if float(np.linalg.norm(rel)) > 1e-9 and float(rel @ towards) > 0.0:
+                return closest[0] if dist[0] <= reach_m else None
+        d = self.across_ray(point, towards)
+        return point + towards * d if d <= reach_m else None
+
+    def floor(self, points: np.ndarray) -> list[tuple[float, np.ndarray] | None]:
+        """Per point (k, 3): (height of the floor below it along the axis [m], the floor's unit
+        normal), None where the first face below the cutter is not a floor within
+        ``FLOOR_SEARCH_M``. One ray each, from ``FLOOR_ABOVE_M`` above the cutter."""
+        a = self.axis
+        up = self.radius + th.FLOOR_ABOVE_M
+        origins = (np.asarray(points, dtype=float) - a * up - self.t) @ self.R
+        a_w = self.R.T @ a
+        with mesh_query.LOCK:
+            tri = self._ray.intersects_first(origins, np.repeat(a_w[None], len(origins), 0))
+        out: list[tuple[float, np.ndarray] | None] = [None] * len(origins)
+        normals, corners = self._normals, self._corners
+        for k, f in enumerate(tri):
+            if f < 0:
+                continue
+            n_w = normals[f]
+            facing = float(-(n_w @ a_w))
+            if facing < th.WALL_FACE_MAX_COS:
+                continue  # a wall or an overhang first: no floor the route runs over
+            along = float(n_w @ (corners[f] - origins[k])) / float(n_w @ a_w)
+            if along > up + self.radius + th.FLOOR_SEARCH_M:
+                continue
+            hit = self.R @ (origins[k] + a_w * along) + self.t
+            out[k] = (float(hit @ a), self.R @ n_w)
+        return out
+
+
+def resolve_wall_side(
+    guides: Sequence[GuidePoint],
+    setting: str,
+    *,
+    closed: bool = True,
+    walls: PartWalls | None = None,
+) -> WallSideDecision:
+    """The side of the wall to follow (module docstring): the setting wins.
+
+    Raises:
+        WallSideError: "auto" and no clear, consistent evidence.
+    """
+    if setting in ("left", "right"):
+        return WallSideDecision(setting, "setting", f"the wall is on the {setting} (as set)")
+    if setting != "auto":
+        raise InvalidInputError(f"wall side must be one of {', '.join(WALL_SIDE_CHOICES)}")
+    if len(guides) < 2:
+        raise WallSideError("the wall side needs at least 2 guide points")
+    axis = mean_tool_axis(guides)
+    right = np.cross(axis, travel_directions(guides, closed, axis))
+    forces = np.array([np.asarray(g.force_N, dtype=float) for g in guides])
+    votes = -np.einsum("ij,ij->i", forces, right)  # > 0: the wall pushed from the right
+    clear = np.abs(votes) >= th.WALL_FORCE_CLEAR_N
+    pushed_r = np.flatnonzero(clear & (votes > 0))
+    pushed_l = np.flatnonzero(clear & (votes < 0))
+    if len(pushed_r) and len(pushed_l):
+        raise WallSideError(
+            f"the guide points were pushed against walls on both sides of the route "
+            f"({_points(pushed_r)} on the right, {_points(pushed_l)} on the left): set the "
+            "wall side, or record them again pushing towards the one wall to follow"
+        )
+    needed = min(th.MIN_FORCE_VOTES, len(guides))
+    force_side: WallSide | None = None
+    if len(pushed_r) >= needed:
+        force_side = "right"
+    elif len(pushed_l) >= needed:
+        force_side = "left"
+    mesh_side: WallSide | None = None
+    mesh_detail = ""
+    if walls is not None:
+        r_gap, l_gap = walls.gaps(np.array([g.position_m for g in guides]), right)
+        nearer_r = (r_gap <= th.AT_WALL_GAP_M) & (r_gap + th.NEARER_MARGIN_M < l_gap)
+        nearer_l = (l_gap <= th.AT_WALL_GAP_M) & (l_gap + th.NEARER_MARGIN_M < r_gap)
+        n_r, n_l = int(nearer_r.sum()), int(nearer_l.sum())
+        if n_r + n_l >= math.ceil(len(guides) / 2) and max(n_r, n_l) >= th.MESH_MAJORITY * (
+            n_r + n_l
+        ):
+            mesh_side = "right" if n_r > n_l else "left"
+            mesh_detail = (
+                f"{max(n_r, n_l)} of {len(guides)} points are nearer the wall on the {mesh_side}"
+            )
+        elif n_r and n_l and force_side is None:
+            raise WallSideError(
+                f"the guide points sit nearer walls on both sides of the route "
+                f"({_points(np.flatnonzero(nearer_r))} nearer the right, "
+                f"{_points(np.flatnonzero(nearer_l))} nearer the left): set the wall side, "
+                "or move them nearer the one wall to follow"
+            )
+    if force_side is not None:
+        if mesh_side is not None and mesh_side != force_side:
+            raise WallSideError(
+                f"the guide points were pushed by a wall on the {force_side}, but the part's "
+                f"mesh puts the nearest wall on the {mesh_side}: set the wall side"
+            )
+        pushes = pushed_r if force_side == "right" else pushed_l
+        return WallSideDecision(
+            force_side, "force", f"the wall pushed back from the {force_side} at {_points(pushes)}"
+        )
+    if mesh_side is not None:
+        return WallSideDecision(mesh_side, "mesh", mesh_detail)
+    raise WallSideError(
+        "cannot tell which wall to follow: the guide points were not pushed against a wall "
+        f"(at least {th.WALL_FORCE_CLEAR_N:g} N at {needed} points)"
+        + (" and they are not clearly nearer one wall of the part" if walls is not None else "")
+        + ": set the wall side (left or right of travel, looking along the tool into the "
+        "part), or record the points with a light push towards the wall"
+    )
+
+
+def taught_wall_points(
+    guides: Sequence[GuidePoint], side: str, closed: bool, walls: PartWalls
+) -> list[np.ndarray | None]:
+    """The wall point each guide point was taught on: the nearest wall on its side of travel,
+    within ``AT_WALL_GAP_M`` of the cutter; None where none is."""
+    axis = mean_tool_axis(guides)
+    sign = 1.0 if side == "right" else -1.0
+    towards = np.cross(axis, travel_directions(guides, closed, axis)) * sign
+    reach = th.AT_WALL_GAP_M + walls.radius
+    return [walls.wall_point(g.position_m, d, reach) for g, d in zip(guides, towards, strict=True)]
+
+
+# --- the height ----------------------------------------------------------------------------------
+
+
+@dataclass
+class HeightReference:
+    """The surface the route's height is measured from (module docstring), and each guide
+    point's offset over it.
+
+    ``mode`` "floor": the mesh's floor under the tool; the offset is the cutter's centre's
+    distance from the floor along its normal (radius + clearance), K = -1/cos(floor to axis).
+    ``mode`` "points": the plane of the guide points' heights (h = H0 + G . (p - P0)); the
+    offset is each point's height over it, K = 1.
+    """
+
+    mode: Literal["floor", "points"]
+    axis: np.ndarray
+    offsets_m: np.ndarray
+    plane: np.ndarray  # REF_SIZE: the points' plane, or the last floor measured
+    walls: PartWalls | None = None
+    _last: np.ndarray | None = field(default=None, repr=False)
+
+    def at(self, p: np.ndarray, travel: np.ndarray | None = None) -> np.ndarray:
+        """(REF_SIZE,) the reference under ``p`` for the law (``law.REF_H0`` ...): in floor
+        mode the highest floor under the cutter's centre and a radius either side along
+        ``travel``; where none is below, the last one measured, extended as a plane."""
+        if self.mode == "points" or self.walls is None:
+            return self.plane
+        probes = [p]
+        if travel is not None:
+            r = self.walls.radius
+            probes += [p + travel * r, p - travel * r]
+        ref = None
+        h_centre = float(p @ self.axis)
+        for probe, floor in zip(probes, self.walls.floor(np.array(probes)), strict=True):
+            if floor is None or floor[0] < h_centre:
+                continue  # above the cutter's centre: the top beside it, not a floor under it
+            candidate = _floor_ref(floor, probe, self.axis)
+            h = candidate[0] + candidate[1:4] @ (p - candidate[4:7])  # the plane under p
+            if ref is None or h < ref[0]:  # the higher floor (heights grow into the part)
+                ref = candidate
+                ref[0], ref[4:7] = h, p
+        if ref is None:
+            return self._last if self._last is not None else self.plane
+        self._last = ref
+        return ref
+
+
+def _floor_ref(floor: tuple[float, np.ndarray], p: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """The law's reference for a floor (its height along the axis under ``p``, its normal)."""
+    h, n = floor
+    cos = float(-(n @ axis))
+    n_across = n - axis * float(n @ axis)
+    ref = np.zeros(REF_SIZE)
+    ref[0] = h
+    ref[1:4] = n_across / cos  # dh/dp across the axis: h(p + d) = h + G . d
+    ref[4:7] = p - axis * float(p @ axis) + axis * h
+    ref[7] = -1.0 / cos
+    return ref
+
+
+def plan_heights(
+    guides: Sequence[GuidePoint],
+    axis: np.ndarray,
+    floor_clearance_m: float,
+    walls: PartWalls | None,
+) -> tuple[HeightReference, np.ndarray]:
+    """The height reference and how far each point was lifted off the floor [m] (module
+    docstring): the floor mode when every point has a floor below it in the mesh."""
+    pts = np.array([g.position_m for g in guides])
+    heights = pts @ axis
+    lifted = np.zeros(len(guides))
+    floors = walls.floor(pts) if walls is not None else [None] * len(guides)
+    if walls is not None and all(f is not None for f in floors):
+        offsets = np.zeros(len(guides))
+        for k, (h_floor, n) in enumerate(floors):  # type: ignore[misc]
+            cos = float(-(n @ axis))
+            centre = (h_floor - heights[k]) * cos  # the cutter's centre above the floor
+            need = walls.radius + floor_clearance_m
+            offsets[k] = max(centre, need)
+            lifted[k] = max(0.0, (need - centre) / cos)
+        first = _floor_ref(floors[0], pts[0], axis)  # type: ignore[arg-type]
+        return HeightReference("floor", axis, offsets, first, walls), lifted
+    # The points' own plane; a point the floor pushed (beyond a wall's cone) is lifted.
+    for k, g in enumerate(guides):
+        f = np.asarray(g.force_N, dtype=float)
+        along = float(f @ axis)
+        across = float(np.linalg.norm(f - axis * along))
+        if -along > th.FLOOR_CONE_TAN * across + th.FLOOR_FORCE_N:
+            lifted[k] = floor_clearance_m
+    heights = heights - lifted
+    plane = _points_plane(pts, heights, axis)
+    offsets = heights - np.array([route_height_plane(plane, p) for p in pts])
+    return HeightReference("points", axis, offsets, plane), lifted
+
+
+def route_height_plane(plane: np.ndarray, p: np.ndarray) -> float:
+    return float(plane[0] + plane[1:4] @ (p - plane[4:7]))
+
+
+def _points_plane(pts: np.ndarray, heights: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """The least-squares plane of the points' heights over the plane across ``axis``; no
+    slope along a direction the points do not spread over (``FLOOR_SEARCH_M``)."""
+    across = pts - np.outer(pts @ axis, axis)
+    centre = across.mean(axis=0)
+    _, sv, vt = np.linalg.svd(across - centre, full_matrices=False)
+    spread = sv / math.sqrt(max(len(pts), 1))
+    dirs = [vt[i] for i in range(min(2, len(sv))) if spread[i] > th.PLANE_SPREAD_M]
+    A = np.column_stack([np.ones(len(pts))] + [(across - centre) @ d for d in dirs])
+    coef, *_ = np.linalg.lstsq(A, heights, rcond=None)
+    ref = np.zeros(REF_SIZE)
+    ref[0] = coef[0]
+    ref[1:4] = sum((c * d for c, d in zip(coef[1:], dirs, strict=True)), np.zeros(3))
+    ref[4:7] = centre
+    ref[7] = 1.0
+    return ref
+
+
+# --- the walk: the ideal run on the mesh ---------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LegWalk:
+    """The walk of one leg: its tool-centre points, how far they run from the leg's line, and
+    whether it reached its end."""
+
+    points_m: np.ndarray
+    towards_m: np.ndarray  # (k, 3) unit, across the axis, from each point towards its wall
+    wander_m: float
+    length_m: float
+    reached: bool
+
+
+def walk_route(
+    legs: Sequence[Leg],
+    heights: HeightReference,
+    offsets: Sequence[tuple[float, float]],
+    sign: float,
+    walls: PartWalls,
+    start: np.ndarray,
+    *,
+    closed: bool,
+) -> list[LegWalk]:
+    """A ball of the cutter's radius rolled along the mesh's wall on the side ``sign`` from
+    ``start`` (the first point's wall point's foot), at the route's heights, leg after leg,
+    ending each where the run would (``LegEnd``); a leg whose wall runs past the run's detour
+    protection ends there, not reached."""
+    axis, r = walls.axis, walls.radius
+    p = start.copy()
+    out: list[LegWalk] = []
+    ref = heights.at(p)
+    since_ref = 0.0
+    for k, leg in enumerate(legs):
+        row = leg.row(offsets[k])
+        end = LegEnd(leg, axis, last=k == len(legs) - 1, closed=closed)
+        limit = th.LEG_DETOUR_FACTOR * leg.length + th.LEG_DETOUR_EXTRA_M
+        pts, towards, walked, reached = [], [], 0.0, False
+        while walked <= limit:
+            for _ in range(2):  # onto the wall, then to the route's height
+                c, d = walls.nearest(p[None])
+                if not math.isfinite(d[0]) or d[0] > th.AT_WALL_GAP_M + r:
+                    lost = LegWalk(np.array(pts or [p]), np.array(towards or [np.zeros(3)]),
+                                   math.inf, walked, False)  # fmt: skip
+                    return [*out, lost]
+                n = (c[0] - p) / max(float(d[0]), 1e-12)
+                p = c[0] - n * r
+                p = p + axis * (route_height(row, ref, p, axis) - float(p @ axis))
+            w = n - axis * float(n @ axis)
+            w /= max(float(np.linalg.norm(w)), 1e-12)
+            pts.append(p.copy())
+            towards.append(w)
+            t = sign * _cross(w, axis)
+            if end.reached(p, float((p - leg.a) @ leg.xp), start):
+                reached = True
+                break
+            p = p + t * th.WALK_STEP_M
+            walked += th.WALK_STEP_M
+            since_ref += th.WALK_STEP_M
+            if since_ref >= th.REFERENCE_SPACING_M:
+                ref, since_ref = heights.at(p, t), 0.0
+        arr = np.array(pts)
+        rel = arr - leg.a
+        along = rel @ leg.xp
+        off = np.sqrt(np.maximum(np.einsum("ij,ij->i", rel, rel) - along**2, 0.0))
+        out.append(LegWalk(arr, np.array(towards), float(off.max()), walked, reached))
+        if not reached:
+            break
+    return out
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    return np.array(
+        [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+    )
+
+
+def open_wall_return(walks: Sequence[LegWalk], legs: Sequence[Leg], radius_m: float) -> str:
+    """A sentence when a leg's walk comes back along the other wall of the free space an
+    earlier stretch went along, for ``OPEN_RETURN_M`` or more strictly inside the leg (no
+    guide point there): an open wall (a slot) taught as a loop. "" when none does."""
+    from scipy.spatial import cKDTree
+
+    reach = 2 * radius_m + 2 * th.AT_WALL_GAP_M
+    for k, walk in enumerate(walks):
+        earlier = [j for j, w in enumerate(walks) if j != k and len(w.points_m)]
+        if not earlier or len(walk.points_m) < 3:
+            continue
+        other = np.vstack([walks[j].points_m for j in earlier])
+        other_w = np.vstack([walks[j].towards_m for j in earlier])
+        pts, towards = walk.points_m, walk.towards_m
+        opposite = np.zeros(len(pts), dtype=bool)
+        for i, near in enumerate(cKDTree(other).query_ball_point(pts, reach)):
+            if near:
+                near = np.asarray(near)
+                rel = other[near] - pts[i]
+                # the other wall of the same free space: facing this one, free space between
+                facing = other_w[near] @ towards[i] < -0.5
+                opposite[i] = bool(np.any((rel @ towards[i] < 0) & facing))
+        if not opposite.any():
+            continue
+        idx = np.flatnonzero(opposite)
+        runs = np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1)
+        for run in runs:
+            if run[0] == 0 or run[-1] == len(pts) - 1:
+                continue  # the stretch holds a guide point of the leg: taught there
+            length = len(run) * th.WALK_STEP_M
+            if length >= th.OPEN_RETURN_M:
+                leg = legs[k]
+                return (
+                    f"the leg G{leg.first + 1} -> G{leg.last + 1} would come back along the "
+                    f"other wall of the same groove or slot for {length * 1e3:.0f} mm, where no "
+                    "point was taught: the wall is open. Learn it open (--open, or untick "
+                    "'closed'), or teach points on that wall too"
+                )
+    return ""
+
+
+# --- the route -----------------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
 class LearningRoute:
-    """The route a run follows.
+    """The route a run follows, planned once (module docstring).
 
     Attributes:
-        guides: The guide points as learned: positions lifted off the floor where they rested
-            on it; orientations, joints and forces as recorded.
+        guides: The guide points as recorded.
+        legs: The legs through them.
+        closed: The route returns to its first point.
+        axis: (3,) the mean tool axis, into the part (the height axis, Zp).
         wall_side: The side of the wall and what decided it.
-        lifted_m: (n,) how far each point was lifted [m] (0 where it was clear of the floor).
-        start_towards_wall: (3,) from the first point towards the wall it was taught on (the
-            mesh's nearest wall face on the wall's side), or None without a mesh.
-        leg_wander_m: {(i, j): m}: how far the wall from guide point i to j (0-based) runs
-            from the leg between them, plus ``WANDER_MARGIN_M``, where the mesh tells it.
+        heights: The height reference and the points' offsets over it.
+        lifted_m: (n,) how far each point was lifted off the floor [m].
+        start_towards_wall: (3,) from the first point towards the wall it was taught on, or
+            None without a mesh (the force recorded there, or across the first leg).
+        leg_wander_m: {(i, j): m}: how far the wall of the leg from point i to j may lead the
+            tool off it, where the mesh says more than the default protection.
+        walks: The route walked on the mesh (empty without one).
     """
 
     guides: tuple[GuidePoint, ...]
+    legs: tuple[Leg, ...]
+    closed: bool
+    axis: np.ndarray
     wall_side: WallSideDecision
+    heights: HeightReference
     lifted_m: np.ndarray
     start_towards_wall: np.ndarray | None = None
-    leg_wander_m: dict[tuple[int, int], float] | None = None
+    leg_wander_m: dict[tuple[int, int], float] = field(default_factory=dict)
+    walks: tuple[LegWalk, ...] = ()
 
-
-def floor_clearances(
-    guides: Sequence[GuidePoint], workpiece: Workpiece, tool_radius_m: float
-) -> np.ndarray:
-    """(n,) gap [m] between the cutter and the floor below each point, along the mean tool
-    axis (``inf`` where no floor lies within ``FLOOR_SEARCH_M``; negative: into the floor)."""
-    T = workpiece.T_base_wobj
-    R, t = T[:3, :3], T[:3, 3]
-    axis_w = R.T @ mean_tool_axis(guides)
-    pts_w = (np.array([g.position_m for g in guides]) - t) @ R
-    # From 2 r above the point, along the axis (into the part): the first face met below.
-    origins = pts_w - axis_w * 2.0 * tool_radius_m
-    directions = np.repeat(axis_w[None, :], len(pts_w), axis=0)
-    out = np.full(len(pts_w), np.inf)
-    hits, rays, _ = mesh_query.ray_hits(workpiece.mesh, origins, directions)
-    for p, k in zip(hits, rays, strict=True):
-        along = float((p - origins[k]) @ axis_w) - 2.0 * tool_radius_m  # below the centre
-        gap = along - tool_radius_m
-        if along > -tool_radius_m and gap < FLOOR_SEARCH_M:
-            out[k] = min(out[k], gap)
-    return out
+    def leg_offsets(self, leg: Leg) -> tuple[float, float]:
+        o = self.heights.offsets_m
+        return float(o[leg.first]), float(o[leg.last])
 
 
 def plan_route(
@@ -98,73 +654,54 @@ def plan_route(
     """The route for ``guides`` (module docstring).
 
     Raises:
+        NotEnoughGuidePointsError: fewer than two distinct points.
         WallSideError: the side is "auto" and neither the pushes nor the mesh tell it.
+        RouteRefusedError: the route cannot be learned as taught (an open wall as a loop).
     """
+    from ..errors import NotEnoughGuidePointsError
+
+    closed = settings.closed
     guides = tuple(guides)
-    decision = resolve_wall_side(
-        guides,
-        settings.wall_side,
-        closed=settings.closed,
-        workpiece=workpiece,
-        tool_radius_m=tool_radius_m,
-    )
-    lifted = np.zeros(len(guides))
-    if workpiece is None or tool_radius_m is None or not guides:
-        return LearningRoute(guides, decision, lifted)
-    gaps = floor_clearances(guides, workpiece, tool_radius_m)
+    if len(guides) < 2:
+        raise NotEnoughGuidePointsError(
+            f"path learning needs at least 2 guide points, got {len(guides)}"
+        )
+    legs = tuple(route_legs(guides, closed))
+    if not legs:
+        raise NotEnoughGuidePointsError("the guide points coincide; record distinct points")
     axis = mean_tool_axis(guides)
-    out = []
-    for k, g in enumerate(guides):
-        need = settings.floor_clearance_m - float(gaps[k])
-        if np.isfinite(gaps[k]) and need > 1e-6:
-            T = g.T_base_tcp.copy()
-            T[:3, 3] = T[:3, 3] - axis * need
-            g = GuidePoint(T, g.joints_rad, g.time_s, g.force_N)
-            lifted[k] = need
-        out.append(g)
-    travel = travel_directions(out, settings.closed, axis)[0]
-    start = wall_direction(out[0], travel, decision.sign, workpiece, axis)
-    wander = leg_wander(out, settings.closed, decision.side, workpiece, axis)
-    return LearningRoute(tuple(out), decision, lifted, start, wander)
-
-
-def leg_wander(
-    guides: Sequence[GuidePoint],
-    closed: bool,
-    side: str,
-    workpiece: Workpiece,
-    axis: np.ndarray,
-) -> dict[tuple[int, int], float]:
-    """For each leg whose two points stand by the same wall of the part's section at their
-    mean height: the farthest that wall, followed from one to the other on ``side`` (the
-    section's loops run with the material on their right), comes from the leg's line, plus
-    ``WANDER_MARGIN_M``. Empty when the tool axis is not the part's z axis."""
-    from .walls import section_loops
-
-    T = workpiece.T_base_wobj
-    R, t = T[:3, :3], T[:3, 3]
-    if abs(float((R.T @ axis)[2])) < 0.99:
-        return {}
-    p = (np.array([g.position_m for g in guides]) - t) @ R
-    loops = [lp for lp in section_loops(workpiece.mesh, float(np.mean(p[:, 2]))) if lp.closed]
-    if not loops:
-        return {}
-    gaps = np.array([np.abs(lp.signed_distance(p[:, :2])) for lp in loops])
-    nearest = np.argmin(gaps, axis=0)
-    out: dict[tuple[int, int], float] = {}
-    order = list(range(len(guides))) + ([0] if closed else [])
-    for i, j in zip(order[:-1], order[1:], strict=True):
-        k = int(nearest[i])
-        if k != nearest[j] or max(gaps[k, i], gaps[k, j]) > WALL_MATCH_M:
-            continue
-        loop = loops[k]
-        s_i, s_j = loop.project(p[[i, j], :2])
-        wall = loop.piece(s_i, s_j) if side == "right" else loop.piece(s_j, s_i)
-        chord = p[j, :2] - p[i, :2]
-        length = float(np.linalg.norm(chord))
-        if length < 1e-4 or wall.length_m > LEG_DETOUR_FACTOR * length + LEG_DETOUR_EXTRA_M:
-            continue  # a wall the run's detour protection stops on anyway: no allowance
-        rel = wall.points_m - p[i, :2]
-        off = np.abs(rel[:, 0] * chord[1] - rel[:, 1] * chord[0]) / length
-        out[(i, j)] = float(off.max()) + WANDER_MARGIN_M
-    return out
+    walls = None
+    if workpiece is not None and tool_radius_m is not None:
+        walls = PartWalls(workpiece, axis, tool_radius_m)
+        if walls.walls is None:
+            walls = None
+    decision = resolve_wall_side(guides, settings.wall_side, closed=closed, walls=walls)
+    heights, lifted = plan_heights(guides, axis, settings.floor_clearance_m, walls)
+    route = LearningRoute(guides, legs, closed, axis, decision, heights, lifted)
+    if walls is None:
+        return route
+    towards = np.cross(axis, travel_directions(guides, closed, axis)[0]) * decision.sign
+    first_wall = walls.wall_point(guides[0].position_m, towards, 2 * th.AT_WALL_GAP_M)
+    if first_wall is None:
+        return route
+    start_dir = first_wall - guides[0].position_m
+    start_dir -= axis * float(start_dir @ axis)
+    if float(np.linalg.norm(start_dir)) < 1e-9:
+        return route
+    start_dir /= float(np.linalg.norm(start_dir))
+    offsets = [route.leg_offsets(leg) for leg in legs]
+    start = guides[0].position_m + start_dir * (
+        float(np.linalg.norm(first_wall - guides[0].position_m)) - tool_radius_m
+    )
+    walks = walk_route(legs, heights, offsets, decision.sign, walls, start, closed=closed)
+    problem = open_wall_return(walks, legs, tool_radius_m) if closed else ""
+    if problem:
+        raise RouteRefusedError(problem)
+    wander = {
+        (leg.first, leg.last): walk.wander_m + th.WANDER_MARGIN_M
+        for leg, walk in zip(legs, walks, strict=False)
+        if walk.reached
+    }
+    return LearningRoute(
+        guides, legs, closed, axis, decision, heights, lifted, start_dir, wander, tuple(walks)
+    )

@@ -1,37 +1,19 @@
 """Automatic path learning (chapter section 3.2): follow the wall at constant contact force.
 
 PROBLEM   The test program (straight lines through the guide points) is far from the real
-          contour; the robot must find the contour itself and record it. The chapter's run is
-          compliant only along Yp, across the program line: that follows the wall while it stays
-          near the line, but a person's points are rough. Where a leg skips an outside corner or
-          a boss, the line runs far from the wall (the tool chases it sideways, or meets its far
-          side head on and trips the protection); where a point rests on the groove's floor, the
-          tool is dragged along it.
-STRATEGY  Hybrid force/velocity contour following in the plane across the tool axis (the
-          chapter's "constant contact force normal to the edge", section 3.2, with the path
-          direction taken from the wall instead of the line):
-            - the wall direction w (from the tool towards the wall) is the measured contact force
-              across the axis, reversed and low-passed; before the first contact it is Yp of the
-              first leg (the wall side: ``wall_side``);
-            - the tool advances along the wall's tangent t = side * (w x Zp) at the learning
-              speed, slower where the force climbs (``speed_ratio``), and moves along w under PI
-              force control to the reference:
-                  v_w = Kp e + Ki integral(e),  e = F_ref - F_n,  F_n = |F across Zp|;
-              out of contact it searches along w and advances no faster than it searches, so at
-              an outside corner it turns round the wall instead of heading for the next point;
-            - the guide points give the route: the progress along the current leg (the tool's
-              projection on it) sets the tool orientation (slerp between the legs' guide
-              orientations) and the height (the leg's, along the guide points' mean tool axis),
-              and ends the leg; a force from the floor (along the axis) lifts the run until it is
-              clear of the floor by ``floor_clearance_m``.
-          The law of one period is ``contour_following.contour_law`` (compiled). The controller
-          sees only motor-side joints and the F/T reading; supervision (joint limits,
-          singularities, reach, collisions, and a cutter driven into the part) slows and stops
-          it as for any motion.
-SOLUTION  ``learn_path(...) -> Recording``: every 4 ms the time, motor-side joints, measured TCP
-          pose, sensor and tool-frame wrenches, the force normal to the edge, the reference and a
-          contact flag; the run ends at the last guide point or on a stop, whose ``LearningStop``
-          names the place (leg, position) and the cause.
+          contour; the robot must find the contour itself and record it, from a person's rough
+          points, at any force in 10-20 N and any feed the user may set.
+STRATEGY  The route is planned once before any motion (``route.plan_route``: the legs, the wall
+          side, the height, the protections); then every 4 ms the controller runs the law
+          (``law.controller_period``, compiled: hybrid force/velocity contour following across
+          the tool axis, the height held along it) and supervision, and the leg ends and
+          protections are checked (``route.LegEnd``, ``_protection_stop``). The floor under the
+          tool is measured anew every ``REFERENCE_SPACING_M`` of travel, not of time.
+          docs/learning_model.md is the model: its states, transitions and thresholds.
+SOLUTION  ``learn_path(cell, state, route, settings, estimator) -> (Recording, state)``: every
+          4 ms the time, motor-side joints, measured TCP pose, sensor and tool-frame wrenches,
+          the force normal to the edge, the reference and a contact flag; the run ends at the
+          last guide point or on a stop, whose ``LearningStop`` names the place and the cause.
 """
 
 from __future__ import annotations
@@ -45,12 +27,12 @@ import pinocchio as pin
 
 from ..cell import Cell, CellState
 from ..clock import CONTROL_PERIOD_S
-from ..errors import CancelledError, InvalidInputError, NotEnoughGuidePointsError
+from ..errors import CancelledError
 from ..leadthrough import GuidePoint
-from ..limits import FLOOR_CLEARANCE_MM, LEARNING_FORCE_N, LEARNING_SPEED_MM_S
 from ..sensor import ForceEstimator
 from ..supervision import Supervisor, cell_supervisor
-from ..transforms import matrix_from_quaternion, quaternions_from_matrices
+from ..transforms import quaternions_from_matrices
+from . import thresholds as th
 from .law import (
     REC_CONTACT,
     REC_JOINTS,
@@ -67,98 +49,10 @@ from .law import (
     initial_state,
     law_parameters,
     leg_progress,
+    route_height,
 )
-from .side import (
-    WALL_FORCE_CLEAR_N,
-    WALL_SIDE_CHOICES,
-    WallSideDecision,
-    WallSideSetting,
-    mean_tool_axis,
-    resolve_wall_side,
-)
-
-FORCE_RANGE_N = (LEARNING_FORCE_N.min, LEARNING_FORCE_N.max)
-SPEED_RANGE_M_S = (LEARNING_SPEED_MM_S.min * 1e-3, LEARNING_SPEED_MM_S.max * 1e-3)
-CONTACT_FLAG_N = 1.0  # a measured contact force above this counts as contact
-LOST_WALL_M = 0.03  # protection: the tool searched this far without finding the wall
-ROUTE_WANDER_FRACTION = 1.0  # protection: the wall led the tool this far (x leg) off the leg
-# Force-dependent speed (``contour_following.speed_ratio``): full speed up to 1.25 F_ref,
-# 10 % from 2 F_ref.
-SLOW_FROM, SLOWEST_AT, SLOWEST = 1.25, 2.0, 0.1
-MOVE_MAX_PERIODS_FACTOR = 20  # a MoveL slowed by supervision may take this many times longer
-WALL_DIRECTION_TIME_S = 0.02  # low-pass of the measured wall direction
-# A contact force from more than 135 deg off the wall direction is the wall behind the tool.
-BEHIND_COS = math.cos(math.radians(135.0))
-FLOOR_FORCE_N = 2.0  # a push along the tool axis above this is the floor
-FLOOR_LIFT_SPEED_M_S = 0.002
-HEIGHT_TIME_S = 0.25  # the height returns to the leg's within about this
-HEIGHT_SPEED_M_S = 0.01
-PENETRATION_STOP_FRACTION = 0.5  # of the cutter radius: deeper is a collision, not a contact
-LEG_END_MARGIN_M = 0.002  # a leg ends this far before its guide point's plane
-# ... or at the tool's nearest approach to its guide point, when that comes within NEAR_END_M
-# (across the tool axis) and recedes by END_PASSED_M: a point a person left beyond an outside
-# corner, whose plane the wall round the corner never reaches (before, the tool went on along
-# the next wall until the protection stopped it 30 mm off the leg).
-NEAR_END_M = 0.006
-END_PASSED_M = 0.0002
-LEG_DETOUR_FACTOR = 4.0  # a leg's wall longer than this x the leg (+ LEG_DETOUR_EXTRA_M): lost
-LEG_DETOUR_EXTRA_M = 0.05
-FIRST_SEARCH_ACROSS_M = 0.006  # the first search goes straight across this far, then also along
-SEARCH_TURN_M = 0.006  # out of contact this long after a wall, search along the leg again
-APPROACH_CLEARANCE_M = 0.03  # the approach travels this far above the first point
-CLOSE_LOOP_M = 0.001  # a closed route ends at its nearest approach within this of its start
-CLOSE_LOOP_OVERRUN_M = 0.01  # ... or this far past the first guide point's plane
-TURN_RATE_RAD_S = 0.5  # the tool's orientation follows the route's at most this fast
-
-
-@dataclass(frozen=True)
-class PathLearningSettings:
-    """Settings of a path-learning run (SI units).
-
-    Attributes:
-        force_N: Contact force reference normal to the edge (the chapter: 10-20 N; 10 N on
-            the pump).
-        speed_m_s: Learning speed along the wall (the chapter: 5 mm/s).
-        closed: The contour returns from the last guide point to the first.
-        wall_side: Side of the wall relative to the travel direction, looking along the tool
-            axis into the part; "auto" decides from a clear wall push at the guide points or
-            the part's mesh, and refuses otherwise (``wall_side.resolve_wall_side``).
-        force_limit_N: Protection rule: the run stops when the contact force exceeds this.
-        floor_clearance_m: Height kept above a floor the run meets (and above the floor under
-            a guide point, when the part's mesh is known): the machining height.
-        kp_m_s_N: Proportional gain of the force loop.
-        ki_m_s2_N: Integral gain of the force loop.
-        max_normal_speed_m_s: Speed limit of the force loop.
-        search_speed_m_s: Speed towards the wall, and along it, while out of contact (searching
-            for the wall), so the tool meets it gently instead of at full speed.
-    """
-
-    force_N: float = 10.0
-    speed_m_s: float = 0.005
-    closed: bool = True
-    wall_side: WallSideSetting = "auto"
-    force_limit_N: float = 60.0
-    floor_clearance_m: float = 0.0005
-    kp_m_s_N: float = 1.5e-3
-    ki_m_s2_N: float = 0.03
-    max_normal_speed_m_s: float = 0.025
-    search_speed_m_s: float = 0.005
-
-    def __post_init__(self) -> None:
-        lo, hi = FORCE_RANGE_N
-        if not (lo <= self.force_N <= hi):
-            raise InvalidInputError(f"contact force {self.force_N:g} N is outside {lo:g}-{hi:g} N")
-        lo, hi = SPEED_RANGE_M_S
-        if not (lo <= self.speed_m_s <= hi):
-            raise InvalidInputError(
-                f"learning speed {self.speed_m_s * 1e3:g} mm/s is outside "
-                f"{lo * 1e3:g}-{hi * 1e3:g} mm/s"
-            )
-        if self.force_limit_N <= self.force_N:
-            raise InvalidInputError("the force limit must be above the force reference")
-        if self.wall_side not in WALL_SIDE_CHOICES:
-            raise InvalidInputError(f"wall side must be one of {', '.join(WALL_SIDE_CHOICES)}")
-        FLOOR_CLEARANCE_MM.check(self.floor_clearance_m * 1e3)
+from .route import LearningRoute, LegEnd
+from .settings import PathLearningSettings
 
 
 @dataclass(frozen=True)
@@ -225,6 +119,8 @@ class Recording:
         wall_side: The side of the wall the run followed ("left"/"right" of travel), "" when
             unknown (recordings from before the side was kept).
         wall_side_reason: What decided the side (the setting, the pushes, the mesh).
+        wall_side_source: "setting", "force" or "mesh" ("" for older recordings): a side the
+            person set is never overruled by the checks.
     """
 
     time_s: np.ndarray
@@ -243,43 +139,10 @@ class Recording:
     stop: LearningStop | None = None
     wall_side: str = ""
     wall_side_reason: str = ""
+    wall_side_source: str = ""
 
     def __len__(self) -> int:
         return len(self.time_s)
-
-
-@dataclass
-class _Segment:
-    a: np.ndarray
-    b: np.ndarray
-    length: float
-    xp: np.ndarray
-    Ra: np.ndarray  # orientation at a
-    omega: np.ndarray  # rotation vector from Ra to Rb, in the frame of Ra (slerp = Ra exp(f w))
-    first: int  # 0-based guide index of a
-    last: int  # 0-based guide index of b
-
-
-def _segments(guides: Sequence[GuidePoint], closed: bool) -> list[_Segment]:
-    n = len(guides)
-    order = list(range(n)) + ([0] if closed else [])
-    segs = []
-    for i0, i1 in zip(order[:-1], order[1:], strict=True):
-        g0, g1 = guides[i0], guides[i1]
-        a, b = g0.position_m.copy(), g1.position_m.copy()
-        d = b - a
-        length = float(np.linalg.norm(d))
-        if length < 1e-4:
-            continue  # coincident guide points: nothing to travel
-        Ra = matrix_from_quaternion(g0.quaternion_wxyz)
-        Rb = matrix_from_quaternion(g1.quaternion_wxyz)
-        segs.append(_Segment(a, b, length, d / length, Ra, pin.log3(Ra.T @ Rb), i0, i1))
-    return segs
-
-
-def _leg_row(seg: _Segment) -> np.ndarray:
-    """The leg as a row of ``contour_following``'s leg table (``LEG_A`` ...)."""
-    return np.concatenate([seg.a, seg.xp, [seg.length], seg.Ra.ravel(), seg.omega, [seg.first]])
 
 
 def move_linear(
@@ -308,7 +171,7 @@ def move_linear(
     turn = pin.log3(T_ref[:3, :3].T @ T_target[:3, :3]) / n
     progress = 0.0  # periods' worth of motion done (a slowed period counts its scale)
     settle = 0
-    for _ in range(MOVE_MAX_PERIODS_FACTOR * n + 10):
+    for _ in range(th.MOVE_MAX_PERIODS_FACTOR * n + 10):
         if progress >= n and settle >= 10:
             break
         part = min(1.0, n - progress) if progress < n else 0.0
@@ -339,7 +202,7 @@ def move_joint(
     n = max(1, int(math.ceil(span / speed_rad_s / CONTROL_PERIOD_S)))
     robot = cell.robot
     progress = 0.0
-    for _ in range(MOVE_MAX_PERIODS_FACTOR * n + 10):
+    for _ in range(th.MOVE_MAX_PERIODS_FACTOR * n + 10):
         if progress >= n:
             break
         base = progress
@@ -403,7 +266,7 @@ def _approach(
     robot = cell.robot
     R0 = guides[0].T_base_tcp[:3, :3]
     p_now = state.T_base_tcp[:3, 3]
-    above = start - axis * APPROACH_CLEARANCE_M
+    above = start - axis * th.APPROACH_CLEARANCE_M
     if float((p_now - above) @ axis) > 0.0:  # below the approach plane: straight up first
         T_up = state.T_base_tcp.copy()
         T_up[:3, 3] = p_now - axis * float((p_now - above) @ axis)
@@ -428,9 +291,10 @@ def _approach(
 def _wall_turn(
     yps: np.ndarray, positions: np.ndarray, n: int, side: float, axis: np.ndarray
 ) -> str:
-    """What the wall did over the last ~5 mm before sample ``n``: its turn towards the tool."""
+    """What the wall did over the last ~5 mm before sample ``n`` (its turn towards the tool),
+    as a clause: "the wall runs straight", "the wall turns 80 deg away from the tool ..."."""
     if n < 2:
-        return "no wall found yet"
+        return "no wall had been found yet"
     steps = np.linalg.norm(np.diff(positions[max(0, n - 3000) : n], axis=0), axis=1)
     back = np.cumsum(steps[::-1])
     k = int(np.searchsorted(back, 0.005))
@@ -438,14 +302,14 @@ def _wall_turn(
     w0, w1 = yps[i0], yps[n - 1]
     turn = math.degrees(math.atan2(float(np.cross(w0, w1) @ axis) * side, float(w0 @ w1)))
     if abs(turn) < 15.0:
-        return "a straight stretch of wall"
+        return "the wall runs straight"
     if turn > 0:
         return f"the wall turns {abs(turn):.0f} deg away from the tool (an outside corner)"
     return f"the wall turns {abs(turn):.0f} deg towards the tool (an inside corner or a boss)"
 
 
 def contour_law_parameters(settings: PathLearningSettings) -> np.ndarray:
-    """The parameter vector of ``contour_following.contour_law`` for these settings."""
+    """The parameter vector of ``law.contour_law`` for these settings."""
     return law_parameters(
         force_N=settings.force_N,
         kp_m_s_N=settings.kp_m_s_N,
@@ -453,203 +317,167 @@ def contour_law_parameters(settings: PathLearningSettings) -> np.ndarray:
         max_normal_speed_m_s=settings.max_normal_speed_m_s,
         search_speed_m_s=settings.search_speed_m_s,
         speed_m_s=settings.speed_m_s,
-        beta=min(1.0, CONTROL_PERIOD_S / WALL_DIRECTION_TIME_S),
+        beta=min(1.0, CONTROL_PERIOD_S / th.WALL_DIRECTION_TIME_S),
         dt_s=CONTROL_PERIOD_S,
-        floor_force_N=FLOOR_FORCE_N,
-        floor_lift_speed_m_s=FLOOR_LIFT_SPEED_M_S,
+        floor_cone_tan=th.FLOOR_CONE_TAN,
+        floor_force_N=th.FLOOR_FORCE_N,
         floor_clearance_m=settings.floor_clearance_m,
-        height_time_s=HEIGHT_TIME_S,
-        height_speed_m_s=HEIGHT_SPEED_M_S,
-        behind_cos=BEHIND_COS,
-        contact_flag_N=CONTACT_FLAG_N,
-        first_search_across_m=FIRST_SEARCH_ACROSS_M,
-        search_turn_m=SEARCH_TURN_M,
-        slow_from=SLOW_FROM,
-        slowest_at=SLOWEST_AT,
-        slowest=SLOWEST,
+        lift_decay_m=th.LIFT_DECAY_M,
+        height_time_s=th.HEIGHT_TIME_S,
+        height_speed_m_s=th.HEIGHT_SPEED_M_S,
+        behind_cos=th.BEHIND_COS,
+        contact_flag_N=th.CONTACT_FLAG_N,
+        first_search_across_m=th.FIRST_SEARCH_ACROSS_M,
+        search_turn_m=th.SEARCH_TURN_M,
+        slow_from=th.SLOW_FROM,
+        slowest_at=th.SLOWEST_AT,
+        slowest=th.SLOWEST,
     )
 
 
-def _leg_limits(
-    seg: _Segment, wall_wander: dict[tuple[int, int], float]
-) -> tuple[float, float, float]:
-    """A leg's protections and end: how far the wall may lead the tool off its line (farther
-    where the part's mesh says its wall runs so), how long its wall may run, and the progress
-    along it where the next leg takes over [m]."""
-    length = seg.length
-    return (
-        max(
-            LOST_WALL_M, ROUTE_WANDER_FRACTION * length, wall_wander.get((seg.first, seg.last), 0.0)
-        ),
-        LEG_DETOUR_FACTOR * length + LEG_DETOUR_EXTRA_M,
-        length - min(LEG_END_MARGIN_M, 0.25 * length),
-    )
+@dataclass
+class _Protections:
+    """The protection rules of one leg: the limits a period is checked against, and the first
+    one crossed as (cause, message)."""
 
+    force_limit_N: float
+    penetration_m: float
+    wander_m: float
+    detour_m: float
+    leg_length_m: float
 
-def _protection_stop(
-    settings: PathLearningSettings,
-    f_abs: float,
-    depth: float,
-    penetration_stop: float,
-    searched: float,
-    off_route: float,
-    wander: float,
-    leg_travel: float,
-    leg_length: float,
-) -> tuple[str, str]:
-    """The cause and the message of the protection rule that stops the run (the first of
-    them, in this order)."""
-    if f_abs > settings.force_limit_N:
-        return "protection", (
-            f"protection: contact force {f_abs:.1f} N exceeded the "
-            f"{settings.force_limit_N:g} N limit"
+    @staticmethod
+    def of_leg(route: LearningRoute, k: int, settings: PathLearningSettings, radius_m: float):
+        leg = route.legs[k]
+        return _Protections(
+            settings.force_limit_N,
+            th.PENETRATION_STOP_FRACTION * radius_m,
+            max(
+                th.LOST_WALL_M,
+                th.ROUTE_WANDER_FRACTION * leg.length,
+                route.leg_wander_m.get((leg.first, leg.last), 0.0),
+            ),
+            th.LEG_DETOUR_FACTOR * leg.length + th.LEG_DETOUR_EXTRA_M,
+            leg.length,
         )
-    if depth > penetration_stop:
-        return "collision", (
-            f"collision: the cutter went {depth * 1e3:.2f} mm into the part "
-            f"(more than {PENETRATION_STOP_FRACTION:g} of its radius)"
-        )
-    if searched > LOST_WALL_M:
-        return "lost", (
-            f"protection: the tool searched {searched * 1e3:.0f} mm without finding the wall"
-        )
-    if off_route > wander:
-        return "lost", (
-            f"protection: the wall led the tool {off_route * 1e3:.0f} mm off the leg's "
-            "route: a guide point may be on another wall"
-        )
-    return "lost", (
-        f"protection: the wall of this leg ran {leg_travel * 1e3:.0f} mm, far longer "
-        f"than the {leg_length * 1e3:.0f} mm leg: a guide point may be on another wall"
-    )
+
+    def crossed(
+        self, f_abs: float, depth: float, searched: float, off_route: float, travel: float
+    ) -> tuple[str, str] | None:
+        if f_abs > self.force_limit_N:
+            return "protection", (
+                f"protection: the contact force reached {f_abs:.1f} N, over the "
+                f"{self.force_limit_N:g} N limit"
+            )
+        if depth > self.penetration_m:
+            return "collision", (
+                f"collision: the cutter went {depth * 1e3:.2f} mm into the part (more than "
+                f"{th.PENETRATION_STOP_FRACTION:g} of its radius)"
+            )
+        if searched > th.LOST_WALL_M:
+            return "lost", (
+                f"protection: the tool searched {searched * 1e3:.0f} mm without finding the wall"
+            )
+        if off_route > self.wander_m:
+            return "lost", (
+                f"protection: the wall led the tool {off_route * 1e3:.0f} mm off the leg's "
+                "route, so a guide point may be on another wall"
+            )
+        if travel > self.detour_m:
+            return "lost", (
+                f"protection: the wall of this leg ran {travel * 1e3:.0f} mm, far longer than "
+                f"the {self.leg_length_m * 1e3:.0f} mm leg, so a guide point may be on another "
+                "wall"
+            )
+        return None
 
 
 def learn_path(
     cell: Cell,
     state: CellState,
-    guides: Sequence[GuidePoint],
+    route: LearningRoute,
     settings: PathLearningSettings,
     estimator: ForceEstimator,
     *,
     progress: Callable[[float], None] | None = None,
     cancelled: Callable[[], bool] | None = None,
     supervisor: Supervisor | None = None,
-    wall_side: WallSideDecision | None = None,
-    start_towards_wall: np.ndarray | None = None,
-    leg_wander_m: dict[tuple[int, int], float] | None = None,
 ) -> tuple[Recording, CellState]:
-    """Follow the wall along the route through ``guides`` and record it (module docstring).
+    """Follow the wall along the planned ``route`` and record it (module docstring).
 
     The robot first moves above the first guide point in that point's arm configuration, then
-    down to it; the force-controlled run starts there and is recorded.
-
-    Supervision (joint limits, singularities, reach, collisions) slows the run near a limit;
-    a step that would cross one ends the run there, like the protection rule, with the cause
-    in ``stop_reason`` and the place in ``stop``.
-
-    Args:
-        wall_side: The side already decided (with the part's mesh, ``resolve_wall_side``);
-            default: ``settings.wall_side``, "auto" deciding from the guide points' forces.
-        start_towards_wall: (3,) direction from the first guide point to the wall it was taught
-            on (from the part's mesh, ``learning_route``); default: the force recorded there
-            when it is a push, else across the first leg on the wall's side.
-        leg_wander_m: {(i, j): m} how far the wall of the leg from guide point i to j may lead
-            the tool off it (the part's mesh, ``learning_route.leg_wander``), where more than
-            the default protection allows.
-
-    Returns:
-        The recording and the cell state at its end.
+    down to it; the force-controlled run starts there and is recorded. Supervision slows the
+    run near a limit; a step that would cross one ends the run there, like a protection rule,
+    with the cause in ``stop_reason`` and the place in ``stop``.
 
     Raises:
-        NotEnoughGuidePointsError: fewer than two (distinct) guide points.
-        WallSideError: "auto" and the guide points do not tell the side.
         CancelledError: ``cancelled()`` returned True.
         SupervisionError: the approach to the first guide point crosses a limit.
     """
-    if len(guides) < 2:
-        raise NotEnoughGuidePointsError(
-            f"path learning needs at least 2 guide points, got {len(guides)}"
-        )
-    segs = _segments(guides, settings.closed)
-    if not segs:
-        raise NotEnoughGuidePointsError("the guide points coincide; record distinct points")
-    decision = wall_side or resolve_wall_side(guides, settings.wall_side, closed=settings.closed)
-    side = decision.sign
     dt = CONTROL_PERIOD_S
     supervisor = supervisor or cell_supervisor(cell)
-    axis = mean_tool_axis(guides)  # Zp: the height axis, into the part
-
-    state = _approach(cell, state, guides, segs[0].a, axis, settings.closed, supervisor=supervisor)
+    guides, legs, axis = route.guides, route.legs, route.axis
+    decision = route.wall_side
+    side = decision.sign
+    start = legs[0].a.copy()
+    start += axis * (route_height(legs[0].row(route.leg_offsets(legs[0])), route.heights.at(start),
+                                  start, axis) - float(start @ axis))  # fmt: skip
+    state = _approach(cell, state, guides, start, axis, route.closed, supervisor=supervisor)
 
     # Room for the run at the speed it may fall to (the slowest advance near the force limit).
     slowest = min(settings.speed_m_s, settings.search_speed_m_s)
-    n_max = int(sum(s.length for s in segs) / slowest / dt * 2.0) + 4000
+    n_max = int(sum(leg.length for leg in legs) / slowest / dt * 2.0) + 4000
     record = np.empty((n_max, REC_WIDTH))
-    legs = np.array([_leg_row(seg) for seg in segs])
-    seg_index = 0
-    seg = segs[0]
-    leg = legs[0]
-    total = len(segs)
+    rows = np.array([leg.row(route.leg_offsets(leg)) for leg in legs])
 
     def across(v: np.ndarray) -> np.ndarray:
         return v - axis * float(v @ axis)
 
     T_ref = state.T_base_tcp.copy()
-    w = across(np.cross(axis, seg.xp) * side)
+    w = across(np.cross(axis, legs[0].xp) * side)
     pushed = across(-np.asarray(guides[0].force_N, dtype=float))
-    if start_towards_wall is not None:
-        w = across(np.asarray(start_towards_wall, dtype=float))
-    elif float(np.linalg.norm(pushed)) >= WALL_FORCE_CLEAR_N and float(pushed @ w) > 0.0:
+    if route.start_towards_wall is not None:
+        w = across(np.asarray(route.start_towards_wall, dtype=float))
+    elif float(np.linalg.norm(pushed)) >= th.WALL_FORCE_CLEAR_N and float(pushed @ w) > 0.0:
         w = pushed
     w /= float(np.linalg.norm(w))
-    ever_touched = False
-    first_touch = T_ref[:3, 3].copy()
-    closing_best = math.inf  # closed route: the nearest the last leg came to the first touch
-    end_best = math.inf  # the nearest the tool came to this leg's guide point (NEAR_END_M)
+    heights = route.heights
+    ref = heights.at(T_ref[:3, 3])
+    since_ref = 0.0
+    first_touch: np.ndarray | None = None
     law = initial_state()
     step, turn = np.zeros(3), np.zeros(3)
+    k = 0
+    leg, row = legs[0], rows[0]
+    end = LegEnd(leg, axis, last=len(legs) == 1, closed=route.closed)
+    guard = _Protections.of_leg(route, 0, settings, cell.tool.radius_m)
     leg_travel = 0.0
     t0 = state.time_s
-    stop_reason = "reached the last guide point"
-    stop_cause = ""
-    completed = False
+    stop_reason, stop_cause, completed = "reached the last guide point", "", False
     n = 0
+    s_now = 0.0
     report_every = max(1, int(1.0 / dt))
     tool_data = estimator.tool_data()
     R_tcp_flange = cell.tool.T_flange_tcp[:3, :3].T.copy()
-    penetration_stop = PENETRATION_STOP_FRACTION * cell.tool.radius_m
     params = contour_law_parameters(settings)
-    max_turn = TURN_RATE_RAD_S * dt
-    force_limit = settings.force_limit_N
-    last_leg = total == 1
-    wall_wander = leg_wander_m or {}
-    wander, detour, leg_end = _leg_limits(seg, wall_wander)
+    max_turn = th.TURN_RATE_RAD_S * dt
     while True:
         if n >= n_max:
             stop_reason = "stopped: the run took far longer than the program predicts"
             stop_cause = "timeout"
             break
         # --- the controller (measure, the law, record, the turn), compiled ---
-        f_abs, touching, ever, searched, off_route, step_len = controller_period(
+        f_abs, touching, ever, searched, off_route, advance = controller_period(
             state.ft_reading, state.T_base_tcp, state.q_motor, state.time_s - t0, tool_data,
-            R_tcp_flange, leg, axis, side, T_ref, w, law, params, max_turn, step, turn, record, n,
+            R_tcp_flange, row, ref, axis, side, T_ref, w, law, params, max_turn, step, turn,
+            record, n,
         )  # fmt: skip
-        if touching and not ever_touched and ever:
+        if touching and first_touch is None and ever:
             first_touch = state.T_base_tcp[:3, 3].copy()
-        ever_touched = ever
         n += 1
-        depth = state.contact.depth_m
-        if (
-            f_abs > force_limit
-            or depth > penetration_stop
-            or searched > LOST_WALL_M
-            or off_route > wander
-            or leg_travel > detour
-        ):
-            stop_cause, stop_reason = _protection_stop(
-                settings, f_abs, depth, penetration_stop, searched, off_route, wander,
-                leg_travel, seg.length,
-            )  # fmt: skip
+        crossed = guard.crossed(f_abs, state.contact.depth_m, searched, off_route, leg_travel)
+        if crossed is not None:
+            stop_cause, stop_reason = crossed
             break
         # --- supervision (compiled) and the cell ---
         supervised = supervisor.supervise_increment(state.q_motor, T_ref, step, turn)
@@ -658,60 +486,43 @@ def learn_path(
             stop_reason = f"supervision: {supervised.stop.message}"
             break
         T_ref = supervised.T_ref
-        leg_travel += step_len * supervised.scale
+        travelled = advance * supervised.scale
+        leg_travel += travelled
         state = cell.step(state, supervised.q_next)
-        s_now, gap = leg_progress(T_ref, leg, first_touch, axis)
-        if last_leg and settings.closed and ever_touched:
-            # The loop closes where it first met the wall: past the last leg's half, finish at
-            # the nearest approach to that point (no chord across the start).
-            if s_now >= 0.5 * seg.length:
-                if gap < CLOSE_LOOP_M and gap > closing_best:
-                    completed = True
-                    break
-                closing_best = min(closing_best, gap)
-            if s_now >= seg.length + CLOSE_LOOP_OVERRUN_M:
-                completed = True  # the wall did not come back within reach of the start
+        s_now, _ = leg_progress(T_ref, row, T_ref[:3, 3], axis)
+        if end.reached(T_ref[:3, 3], s_now, first_touch):
+            if end.last:
+                completed = True
                 break
-        else:
-            passed = False
-            if s_now >= max(seg.length - NEAR_END_M, 0.5 * seg.length):
-                d_end = float(np.linalg.norm(across(T_ref[:3, 3] - seg.b)))
-                passed = end_best < NEAR_END_M and d_end > end_best + END_PASSED_M
-                end_best = min(end_best, d_end)
-            if last_leg:
-                # An open route ends at the tool's nearest approach to its last point: at the
-                # point's plane along a straight wall, farther round a curved one (whose chord's
-                # plane comes first); past the plane by CLOSE_LOOP_OVERRUN_M if the wall never
-                # comes within NEAR_END_M of the point.
-                if passed or s_now >= seg.length + CLOSE_LOOP_OVERRUN_M:
-                    completed = True
-                    break
-            elif s_now >= leg_end or passed:
-                seg_index += 1
-                seg, leg = segs[seg_index], legs[seg_index]
-                last_leg = seg_index + 1 >= total
-                wander, detour, leg_end = _leg_limits(seg, wall_wander)
-                leg_travel = 0.0
-                end_best = math.inf
+            k += 1
+            leg, row = legs[k], rows[k]
+            end = LegEnd(leg, axis, last=k + 1 == len(legs), closed=route.closed)
+            guard = _Protections.of_leg(route, k, settings, cell.tool.radius_m)
+            leg_travel = 0.0
+        since_ref += travelled
+        if since_ref >= th.REFERENCE_SPACING_M:
+            travel = across(step)
+            travel /= max(float(np.linalg.norm(travel)), 1e-12)
+            ref, since_ref = heights.at(T_ref[:3, 3], travel), 0.0
         if n % report_every == 0:
             if cancelled is not None and cancelled():
                 raise CancelledError("path learning was cancelled")
             if progress is not None:
-                progress(min(1.0, (seg_index + max(0.0, s_now) / seg.length) / total))
+                progress(min(1.0, (k + max(0.0, s_now) / leg.length) / len(legs)))
     if progress is not None:
         progress(1.0)
     rec = record[:n]
     stop = None
     if not completed:
         p_stop = rec[-1, REC_POSITION : REC_POSITION + 3].copy() if n else T_ref[:3, 3].copy()
-        leg_numbers = (seg.first + 1, seg.last + 1)
+        leg_numbers = (leg.first + 1, leg.last + 1)
         positions, yps = rec[:, REC_POSITION : REC_POSITION + 3], rec[:, REC_YP : REC_YP + 3]
         wall = _wall_turn(yps, positions, n, side, axis)
         stop = LearningStop(stop_cause or "stopped", p_stop, leg_numbers, leg_travel, wall)
         stop_reason = (
-            f"{stop_reason} at t = {rec[-1, REC_TIME] if n else 0.0:.2f} s, "
+            f"{stop_reason}. It stopped at t = {rec[-1, REC_TIME] if n else 0.0:.2f} s, "
             f"{leg_travel * 1e3:.0f} mm along the leg G{leg_numbers[0]} -> G{leg_numbers[1]}, "
-            f"where {wall}"
+            f"where {wall}."
         )
 
     def columns(start: int, width: int) -> np.ndarray:
@@ -737,6 +548,7 @@ def learn_path(
             stop=stop,
             wall_side=decision.side,
             wall_side_reason=decision.detail,
+            wall_side_source=decision.source,
         ),
         state,
     )

@@ -24,22 +24,15 @@ SOLUTION  ``mesh_deviation``, ``score_mesh`` (a ``scoring.PathScore`` with the o
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import trimesh
 
 from .. import _kernels, mesh_query
-from ..arcs import Move, linear_moves, sample_moves, score_sampled_moves
-from ..errors import InvalidInputError, WallSideError
-from ..leadthrough import GuidePoint
+from ..arcs import Move, linear_moves, score_sampled_moves
+from ..errors import InvalidInputError
 from ..scoring import PathScore
 from ..workpiece import Workpiece
-from .side import (
-    mean_tool_axis,
-    resolve_wall_side,
-    taught_wall_points,
-)
 
 # 0.5 mm between scored points (~0.2 s for a metre of path on an 8k-triangle mesh; 0.1 mm cost
 # 1 s, most of a workbench post-processing). Between targets the error is a smooth chord sagitta
@@ -144,99 +137,3 @@ def score_mesh(
         moves,
         spacing_m=spacing_m,
     )
-
-
-@dataclass(frozen=True)
-class TaughtWallCheck:
-    """Whether the program follows the wall the guide points were taught on.
-
-    Attributes:
-        follows: True when the program touches the taught wall at every guide point checked.
-        checked: Guide points with a taught wall in the mesh (1-based numbers).
-        missed: The guide points whose taught wall the program does not touch.
-        worst_gap_m: The farthest the program's cutter stays from a taught wall point.
-        message: One line for the user.
-    """
-
-    follows: bool
-    checked: tuple[int, ...]
-    missed: tuple[int, ...]
-    worst_gap_m: float
-    message: str
-
-
-def taught_wall_check(
-    workpiece: Workpiece,
-    tool_radius_m: float,
-    guides: Sequence[GuidePoint],
-    side: str,
-    positions_m: np.ndarray,
-    moves: Sequence[Move] | None = None,
-    *,
-    closed: bool = True,
-) -> TaughtWallCheck:
-    """The program (targets and moves) against the taught wall points (module docstring).
-
-    ``side`` is the side the run followed. When the guide points themselves tell the side
-    (pushes or nearness, ``wall_side.resolve_wall_side`` on "auto") and it is the other one,
-    the program is on the wrong wall whatever it touches.
-    """
-    if side not in ("left", "right") or len(guides) < 2:
-        return TaughtWallCheck(True, (), (), 0.0, "the taught wall is not known")
-    try:
-        evidence = resolve_wall_side(
-            guides, "auto", closed=closed, workpiece=workpiece, tool_radius_m=tool_radius_m
-        )
-    except WallSideError:
-        evidence = None
-    if evidence is not None and evidence.side != side:
-        return TaughtWallCheck(
-            False,
-            tuple(range(1, len(guides) + 1)),
-            tuple(range(1, len(guides) + 1)),
-            float("inf"),
-            f"the program follows the wall on the {side} of travel, but the guide points were "
-            f"taught on the {evidence.side} ({evidence.detail}): the wrong wall",
-        )
-    points = taught_wall_points(
-        guides, side, closed=closed, workpiece=workpiece, tool_radius_m=tool_radius_m
-    )
-    pts = np.asarray(positions_m, dtype=float)
-    moves = linear_moves(len(pts)) if moves is None else tuple(moves)
-    path = sample_moves(pts, moves, spacing_m=MESH_SCORE_SPACING_M / 2)
-    # Across the tool axis, among the program's points near the wall point's height: the wall
-    # is what the check is about, the height along it is the route's (interpolated).
-    axis = mean_tool_axis(guides)
-    path_height = path @ axis
-    across = path - np.outer(path_height, axis)
-    heights = np.array([g.position_m @ axis for g in guides])
-    n = len(guides)
-    checked, missed, worst = [], [], 0.0
-    for k, wall_point in enumerate(points):
-        if wall_point is None:
-            continue
-        around = [j % n for j in (k - 1, k, k + 1) if closed or 0 <= j < n]
-        h = float(wall_point @ axis)
-        low = min(h, *heights[around]) - TAUGHT_WALL_HEIGHT_BAND_M
-        high = max(h, *heights[around]) + TAUGHT_WALL_HEIGHT_BAND_M
-        near = (path_height >= low) & (path_height <= high)
-        if not near.any():
-            near[:] = True
-        w_across = wall_point - axis * h
-        gap = float(np.min(np.linalg.norm(across[near] - w_across, axis=1))) - tool_radius_m
-        checked.append(k + 1)
-        worst = max(worst, gap)
-        if gap > TAUGHT_WALL_TOLERANCE_M:
-            missed.append(k + 1)
-    if not checked:
-        return TaughtWallCheck(True, (), (), 0.0, "no taught wall found in the part's mesh")
-    if missed:
-        where = ", ".join(f"G{k}" for k in missed)
-        message = (
-            f"the program does not follow the wall taught at {where} (it passes "
-            f"{worst * 1e3:.1f} mm from it): it was learned on another wall, the floor or "
-            "inside the part"
-        )
-    else:
-        message = f"the program follows the taught wall at all {len(checked)} guide points"
-    return TaughtWallCheck(not missed, tuple(checked), tuple(missed), worst, message)

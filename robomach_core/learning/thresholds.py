@@ -1,3 +1,4 @@
+# ruff: noqa: E501 - one line per threshold: the table docs/learning_model.md is checked against
 """Every threshold of path learning, once: value, unit, reason, and how it scales.
 
 docs/learning_model.md holds the same table for people (a test keeps the two equal). Each line
@@ -7,39 +8,131 @@ here; nothing in the learning package writes a bare threshold in a function body
 
 from __future__ import annotations
 
+import math
+
 # --- the wall: is this point at that wall, and which side ----------------------------------------
 AT_WALL_GAP_M = 0.005  # m | a point whose cutter is farther than this from a wall was not taught on it (people leave points 0-3 mm off) | fixed: the operator's rule "within 1-3 mm"
 NEARER_MARGIN_M = 0.00025  # m | one wall is nearer than another only by more than this (the mesh's facets) | fixed
 WALL_FORCE_CLEAR_N = 2.0  # N | a force across the leg this large is a push against the wall, not the sensor's noise (0.3 N rms) | sensor noise
 MIN_FORCE_VOTES = 2  # points | clear pushes needed to tell the side (all points when fewer) | fixed
-MESH_MAJORITY = 0.75  # share | of the points that are nearer one wall, to tell the side from the mesh | fixed
+MESH_MAJORITY = (
+    0.75  # share | of the points that are nearer one wall, to tell the side from the mesh | fixed
+)
+WALL_FACE_MAX_COS = math.cos(
+    math.radians(45.0)
+)  # 1 | a face whose normal is within 45 deg of across the tool axis is a wall, else a floor or a top | fixed
 
-# --- the guide-point planner: walls, heights, corners, points (planner.py, walls.py) -------------
+# --- the height: what the route holds along the tool axis ----------------------------------------
+FLOOR_SEARCH_M = 0.03  # m | a floor farther than this below the cutter is not the one the route runs over | fixed
+PLANE_SPREAD_M = 0.01  # m | without a floor, the points' plane has no slope along a direction they spread less than this over (rms) | fixed
+FLOOR_ABOVE_M = 0.002  # m | the floor is looked for from this far above the cutter's centre (a cutter pressed into it still finds it) | tool radius (added to it)
+REFERENCE_SPACING_M = 0.001  # m | the floor under the tool is measured anew after this much travel; a plane extrapolates between | fixed: spatial, not timed
+FLOOR_CONE_TAN = math.tan(
+    math.radians(37.0)
+)  # 1 | a force along the axis is the floor's only beyond a wall contact's cone: walls up to 20 deg off the axis and friction up to 0.3 (17 deg) | friction and wall tilt
+FLOOR_FORCE_N = 1.5  # N | ... and beyond this (five times the sensor's noise) | sensor noise
+LIFT_DECAY_M = 0.005  # m | a lift off a floor the route did not know fades over this much travel, then the floor is felt again | fixed: spatial
+HEIGHT_TIME_S = 0.25  # s | the height returns to the route's within about this (a position loop; the route's rate is fed forward) | fixed
+HEIGHT_SPEED_M_S = 0.01  # m/s | the fastest the height loop moves the tool along its axis | fixed
+
+# --- following the wall ---------------------------------------------------------------------------
+CONTACT_FLAG_N = 1.0  # N | a measured contact force above this counts as contact | sensor noise
+WALL_DIRECTION_TIME_S = (
+    0.02  # s | low-pass of the measured wall direction (the sensor's noise is per sample) | fixed
+)
+BEHIND_COS = math.cos(
+    math.radians(135.0)
+)  # 1 | a contact force more than 135 deg off the wall direction is the wall behind the tool | fixed
+SLOW_FROM = 1.25  # x F_ref | full learning speed up to this force ... | force reference
+SLOWEST_AT = 2.0  # x F_ref | ... falling to SLOWEST at this force (a wall turning towards the tool) | force reference
+SLOWEST = 0.1  # x speed | the slowest advance, near the force limit | learning speed
+FIRST_SEARCH_ACROSS_M = 0.006  # m | the first search goes straight across this far before it also advances | gap: people leave points 0-3 mm off, twice that
+SEARCH_TURN_M = (
+    0.006  # m | out of contact this long after a wall, the search turns across the leg again | gap
+)
+TURN_RATE_RAD_S = (
+    0.5  # rad/s | the tool's orientation follows the route's at most this fast | fixed
+)
+
+# --- legs: where they end ----------------------------------------------------------------------
+LEG_END_MARGIN_M = 0.002  # m | a leg ends this far before its guide point's plane (at most a quarter of the leg) | fixed
+NEAR_END_M = 0.006  # m | ... or at the nearest approach to its guide point, when that comes within this across the axis | gap: twice the farthest a point is left
+END_PASSED_M = 0.0002  # m | ... and recedes by this (past the nearest approach) | fixed
+CLOSE_LOOP_M = 0.001  # m | a closed route ends at its nearest approach to where it first met the wall, within this | fixed
+CLOSE_LOOP_OVERRUN_M = 0.01  # m | ... or this far past the last point's plane | fixed
+
+# --- protections: stop and say why ---------------------------------------------------------------
+LOST_WALL_M = 0.03  # m | the tool searched this far without finding the wall | fixed
+ROUTE_WANDER_FRACTION = 1.0  # x leg | the wall may lead the tool this far off the leg's line (or what the mesh says it runs, + WANDER_MARGIN_M) | leg length
+WANDER_MARGIN_M = 0.01  # m | the wall may lead the tool this much farther off a leg than the mesh's wall runs | fixed
+LEG_DETOUR_FACTOR = 4.0  # x leg | a leg's wall longer than this (+ LEG_DETOUR_EXTRA_M) is not the wall between its points | leg length
+LEG_DETOUR_EXTRA_M = 0.05  # m | ... | fixed
+PENETRATION_STOP_FRACTION = 0.5  # x tool radius | a cutter deeper than this in the part is a collision, not a contact | tool radius
+MOVE_MAX_PERIODS_FACTOR = (
+    20  # x | a MoveL slowed by supervision may take this many times longer | fixed
+)
+APPROACH_CLEARANCE_M = 0.03  # m | the approach travels this far above the first point | fixed
+
+# --- the route's check before any motion ---------------------------------------------------------
+WALK_STEP_M = (
+    0.0005  # m | the route is walked along the mesh's wall in steps of this, before the run | fixed
+)
+OPEN_RETURN_M = 0.02  # m | a leg that comes back along the other wall of the same free space this far, with no point there, means an open wall taught as a loop | fixed
+HEAVY_CONTACT_FRACTION = 0.5  # x force limit | a guide point recorded pressing this hard is half-way to a stop | force limit
+TOUCH_WITHOUT_PUSH_N = 0.8  # N | a force between this and WALL_FORCE_CLEAR_N touches without telling the side | sensor noise
+MIN_SPACING_M = 0.001  # m | closer guide points give a leg with no direction | fixed
+WRIST_MARGIN_RAD = (
+    0.4  # rad | axis 6's turn round the route must stay this far inside its range | fixed
+)
+
+# --- after learning: is the program on the taught wall -------------------------------------------
+TAUGHT_WALL_TOLERANCE_M = 0.001  # m | the program passes this near every taught wall point (the CAD may differ from the part by this) | fixed
+TAUGHT_WALL_HEIGHT_BAND_M = 0.005  # m | ... measured across the axis among program points within this height of the point or its neighbours | fixed
+
+# --- the guide-point planner: picks, floors, heights, corners, points (planner.py, walls.py) -----
 MAX_PICK_DISTANCE_M = 0.002  # m | a picked point farther than this from the mesh is not on the part | fixed: a click lands on the surface, a typed point within a few tenths
-WALL_NORMAL_Z_MAX = 0.5  # cos | a picked face within 60 deg of the floor's normal is a floor or a top, not a wall | fixed
-FLOOR_TILT_MAX_DEG = 45.0  # deg | a face below the tool tilted less than this from the work object's x-y plane is a floor (the parts' 10-20 deg tilts and more) | fixed
-LEVEL_FLOOR_RAD = 1e-4  # rad | a floor within this of the work object's x-y plane is level: its section is the work object's (0.02 mm over 200 mm) | fixed
-AMBIGUOUS_CLICK_RADII = 1.0  # tool radii | a point whose distances to two walls differ by less than this is between them: refused | tool radius
+LEVEL_FLOOR_RAD = 1e-4  # rad | a floor within this of the work object's x-y plane is level, and its section the work object's (0.02 mm over 200 mm) | fixed
+AMBIGUOUS_CLICK_RADII = 1.0  # x tool radius | a point whose distances to the two walls across the free space differ by less than this is between them: refused | tool radius
 CUTTER_FLOOR_CLEARANCE_M = 0.001  # m | the cutter's lowest point stays this far above the floor (a casting's floor may be 0.5 mm off its mesh) | fixed: the part's deviation
-CONTACT_BELOW_TOP_RADII = 0.5  # tool radii | the TCP (the ball's contact height on a wall) stays this far below the wall's top ... | tool radius
-CONTACT_BELOW_TOP_M = 5e-4  # m | ... and at least this far (a wall's rim is its weakest, burred edge) | fixed
-SPINDLE_CLEARANCE_M = 0.005  # m | the spindle body stays this far above the part within its radius | fixed
-STITCH_M = 2e-5  # m | section chains ending this close are one wall across a crack in the mesh | the mesh's precision
+CONTACT_BELOW_TOP_RADII = 0.5  # x tool radius | the TCP (the ball's contact height on a wall) stays this far below the wall's top ... | tool radius
+CONTACT_BELOW_TOP_M = 5e-4  # m | ... and at least this far below it (a wall's rim is its weakest and burred edge, no place to press on) | fixed
+SPINDLE_CLEARANCE_M = 0.005  # m | the spindle body stays this far above the part within its radius (the supervisor stops a few mm from it) | fixed
+STITCH_M = 2e-5  # m | section chains ending this close to each other are one wall across a crack in the mesh | the mesh's precision
 CORNER_RADIUS_M = 0.015  # m | the wall turning on a tighter radius than this is a corner (the pump's 6 mm corners and 3 mm fillets) | fixed: the parts' fillets
-CORNER_TURN_MIN_DEG = 15.0  # deg | a corner turning less than this needs no point (a leg across it keeps the wall) | fixed
+CORNER_TURN_MIN_DEG = 15.0  # deg | a corner turning less than this needs no point of its own (a leg across it keeps the wall) | fixed
 OUTSIDE_CORNER_DEG = 45.0  # deg | a corner turning round the material this much gets a point at its middle (the chord between its runs would cut the part) | fixed
-SLOT_END_DEG = 150.0  # deg | a corner group turning back round the free side this much ... | fixed
-SLOT_END_MAX_M = 0.025  # m | ... within this length is a slot's end: the wall to follow ends there | slot width
-MIN_RUN_M = 0.011  # m | corners closer than this are one group; a shorter run gets no point | fixed: the pump's 14 mm bosses
-LONG_RUN_M = 0.040  # m | a run this long gets two points, at LONG_RUN_POINTS_AT, bracketing its corners | fixed
-LONG_RUN_POINTS_AT = (0.2, 0.8)  # share of the run | where a long run's two points stand | fixed
-WALL_END_MARGIN_M = 5e-4  # m | an open wall's end points stand radius + gap + this from its ends | fixed
-LEG_CLEARANCE_M = 3e-4  # m | a leg's chord keeps the cutter this far off the wall, else a point is added ... | fixed
-MAX_LEG_GAP_M = 0.012  # m | ... and the wall no farther than this from the chord | fixed
-MIN_POINT_SPACING_M = 0.0015  # m | along the wall, two points closer than this are one | fixed
-MAX_ADDED_POINTS = 200  # points | the planner stops adding points after this many (a wall it cannot bracket) | fixed
+SLOT_END_DEG = 150.0  # deg | a corner group turning back round the free side this much, within SLOT_END_MAX_M, is a slot's end: the wall to follow ends there | fixed
+SLOT_END_MAX_M = 0.025  # m | ... the longest such a group may be (a slot's end cap is its width across, a tight U-turn of the wall) | slot width
+MIN_RUN_M = 0.011  # m | corners closer than this along the wall are one group; a shorter run between groups gets no point | fixed: the pump's 14 mm bosses
+LONG_RUN_M = 0.040  # m | a straight run this long gets two points, LONG_RUN_END_SHARE from its ends, bracketing its corners | fixed
+LONG_RUN_END_SHARE = 0.2  # x run | where a long run's two points stand, from each end (one point in the middle of a shorter run) | fixed
+WALL_END_MARGIN_M = 5e-4  # m | an open wall's end points stand this much more than the tool radius and gap from its ends | fixed
+LEG_CLEARANCE_M = 3e-4  # m | a leg's chord keeps the cutter this far off the wall, else a point is added at the worst place ... | fixed
+MAX_LEG_GAP_M = 0.012  # m | ... and the wall no farther than this from the chord (the route would leave it to a long search) | fixed
+MIN_POINT_SPACING_M = 0.0015  # m | along the wall, two planned points closer than this are one (a corner's or an end's wins over a run's) | fixed
+MAX_ADDED_POINTS = 200  # points | the planner stops adding points after this many and says so (a wall it cannot bracket) | fixed
+ROUND_LOOP_POINTS = 4  # points | a closed wall without any corner (a round boss or pocket) gets this many points, evenly spread | fixed
 JOINT_JUMP_DEG = 60.0  # deg | an axis turning this much between neighbouring points is a change of configuration: "near" | fixed
+CUTTER_FIT_M = 2e-4  # m | free space narrower than the cutter's diameter plus this is too narrow to enter: unreachable | fixed
 OPEN_EDGE_ENTRY_M = 0.003  # m | on a part that may be off its mesh, the operator comes down this far off an open edge (a groove: its middle) | fixed: the fixture error
-EXAMPLE_BELOW_TOP_M = 0.003  # m | the example operator points at the wall this far below its top | fixed
-CUTTER_FIT_M = 2e-4  # m | free space narrower than the cutter's diameter plus this is too narrow to enter | fixed
-ROUND_LOOP_POINTS = 4  # points | a closed wall without corners (a round boss) gets this many, evenly | fixed
+EXAMPLE_BELOW_TOP_M = 0.003  # m | the example operator points at the built-in part's known wall this far below its top | fixed
+
+
+def table_markdown() -> str:
+    """This module's thresholds as the markdown table docs/learning_model.md holds: one row per
+    ``NAME = value  # unit | why | scales with`` line, the value as Python evaluated it."""
+    import re
+    from pathlib import Path
+
+    rows = ["| name | value | unit | why | scales with |", "|---|---|---|---|---|"]
+    pattern = re.compile(r"^([A-Z][A-Z0-9_]*) = .*?  # (.*)$")
+    for line in Path(__file__).read_text().splitlines():
+        m = pattern.match(line)
+        if m:
+            name, (unit, why, scales) = m.group(1), (p.strip() for p in m.group(2).split("|"))
+            rows.append(f"| `{name}` | {globals()[name]:.6g} | {unit} | {why} | {scales} |")
+    return "\n".join(rows) + "\n"
+
+
+if __name__ == "__main__":
+    print(table_markdown(), end="")

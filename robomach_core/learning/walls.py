@@ -38,12 +38,11 @@ from .thresholds import (
     CONTACT_BELOW_TOP_M,
     CONTACT_BELOW_TOP_RADII,
     CUTTER_FLOOR_CLEARANCE_M,
-    FLOOR_TILT_MAX_DEG,
     LEVEL_FLOOR_RAD,
     MAX_PICK_DISTANCE_M,
     SPINDLE_CLEARANCE_M,
     STITCH_M,
-    WALL_NORMAL_Z_MAX,
+    WALL_FACE_MAX_COS,
 )
 
 MERGE_M = 1e-9  # segment ends closer than this are one point of a loop
@@ -330,10 +329,10 @@ def floor_frame(
     """T_wobj_floor: the work object turned so that its z is the normal of the floor beside
     the wall point ``on_m`` (``beside_m`` off it, or the free space's middle when narrower),
     or, where nothing floor-like is there (an outside edge), of the part's top nearest inside
-    the wall; the identity on a level part, or where no face within ``FLOOR_TILT_MAX_DEG`` of
-    level is found."""
+    the wall; the identity on a level part, or where no face within 45 deg of level
+    (``WALL_FACE_MAX_COS``) is found."""
     up = _Z
-    level = math.cos(math.radians(FLOOR_TILT_MAX_DEG))
+    level = WALL_FACE_MAX_COS  # a face nearer level than a wall is a floor
     span = float(np.linalg.norm(np.ptp(mesh.bounds, axis=0))) + 0.01
     for _ in range(2):  # the second pass measures beside the wall along the new floor
         across = _across(normal, up)
@@ -372,7 +371,7 @@ def walls_near(
     first point (level where nothing floor-like is under it)."""
     p = np.atleast_2d(np.asarray(points_wobj_m, dtype=float))
     _, face = _below(mesh, p[:1], _Z)
-    level = math.cos(math.radians(FLOOR_TILT_MAX_DEG))
+    level = WALL_FACE_MAX_COS  # a face nearer level than a wall is a floor
     T = _frame(face[0] / np.linalg.norm(face[0])) if face[0] @ _Z >= level else np.eye(4)
     pf = p @ T[:3, :3]
     moved = transformed(mesh, np.linalg.inv(T))
@@ -442,7 +441,7 @@ def pick_wall(
     R = T[:3, :3]
     mf = transformed(mesh, np.linalg.inv(T))
     pf, onf, nf = p @ R, on @ R, n @ R
-    if abs(nf[2]) > WALL_NORMAL_Z_MAX:
+    if abs(nf[2]) >= WALL_FACE_MAX_COS:
         face = "a floor or a top" if nf[2] > 0 else "an overhang"
         raise InvalidInputError(
             f"the point ({_mm(p)}) mm is on {face} (its surface faces "

@@ -51,6 +51,7 @@ from ._stages import cad_comparison_of as cad_comparison_of
 from ._stages import learn as learn
 from ._stages import process as process
 from ._stages import require_processed as require_processed
+from ._stages import route_of as route_of
 from ._stages import wobj_transform as wobj_transform
 from ._transitions import KEEP as KEEP
 from ._transitions import mesh_file_name as mesh_file_name

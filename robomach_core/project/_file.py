@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 
 from ..leadthrough import GuidePoint
-from ..learning.run import LearningStop, PathLearningSettings, Recording
+from ..learning.run import LearningStop, Recording
+from ..learning.settings import PathLearningSettings
 from ..postprocess import PostprocessSettings
 from ._file_check import RECORDING_FIELDS, ProjectFileError, check_project, read_project_arrays
 from ._machining import (
@@ -88,6 +89,7 @@ def recording_document(learned: LearnedPath) -> dict[str, Any]:
         "stop": None if rec.stop is None else rec.stop.document(),
         "wall_side": rec.wall_side,
         "wall_side_reason": rec.wall_side_reason,
+        "wall_side_source": rec.wall_side_source,
         "learning": asdict(learned.settings),
         "inputs": learned.inputs,
     }
@@ -102,6 +104,7 @@ def recording_from_document(info: dict[str, Any], fields: dict[str, np.ndarray])
         stop=LearningStop.from_document(info.get("stop")),
         wall_side=str(info.get("wall_side", "")),
         wall_side_reason=str(info.get("wall_side_reason", "")),
+        wall_side_source=str(info.get("wall_side_source", "")),
     )
 
 

@@ -11,9 +11,11 @@ import numpy as np
 
 from .. import mesh_query
 from ..cell import Cell, CellState
-from ..errors import InvalidInputError, NotEnoughGuidePointsError
+from ..errors import InvalidInputError
 from ..leadthrough import GuidePoint
-from ..learning.run import PathLearningSettings, learn_path
+from ..learning.route import LearningRoute, plan_route
+from ..learning.run import learn_path
+from ..learning.settings import PathLearningSettings
 from ..postprocess import PostprocessResult, PostprocessSettings, Targets, postprocess
 from ..scoring import PathScore, score_path
 from ..sensor import ForceEstimator
@@ -30,7 +32,7 @@ from ._value import (
 )
 
 if TYPE_CHECKING:
-    from ..learning.score import TaughtWallCheck
+    from ..learning.checks import TaughtWallCheck
 
 
 def learn(
@@ -43,45 +45,44 @@ def learn(
     progress: Callable[[float], None] | None = None,
     cancelled: Callable[[], bool] | None = None,
     cad: Workpiece | None = None,
+    route: LearningRoute | None = None,
 ) -> tuple[LearnedPath, CellState]:
-    """Path learning through the project's guide points (``path_learning.learn_path``) on the
-    route ``learning_route.plan_route`` plans with the part as the user sees it (``cad``,
-    default the cell's part): the wall side decided, points resting on the floor lifted.
+    """Path learning through the project's guide points (``learning.learn_path``) on the route
+    ``learning.plan_route`` plans, before any motion, with the part as the user sees it
+    (``cad``, default the cell's part): the wall side decided once, the height, the checks.
 
     ``cell`` is the project's cell (possibly seen through a proxy that taps each step); returns
-    the learned path and the cell state at the end.
+    the learned path and the cell state at the end. ``route``: the route already planned
+    (``route_of``), so that what was checked before the job is what runs.
 
     Raises:
-        WallSideError: the side is "auto" and neither pushes nor the mesh tell it.
+        RouteRefusedError: the points cannot be learned as taught (``WallSideError`` when the
+            side is "auto" and neither pushes nor the mesh tell it), before any motion.
     """
-    from ..learning.route import plan_route
-
     guides = list(project.guide_points)
-    if len(guides) < 2:
-        raise NotEnoughGuidePointsError(
-            f"path learning needs at least 2 guide points, got {len(guides)}"
-        )
-    with mesh_query.LOCK:  # the mesh's trees answer one thread at a time (the job's thread)
-        route = plan_route(
-            guides,
-            settings,
-            workpiece=cad if cad is not None else cell.workpiece.cad(),
-            tool_radius_m=cell.tool.radius_m,
-        )
+    if route is None:
+        route = route_of(project, settings, cad if cad is not None else cell.workpiece.cad())
     recording, end = learn_path(
-        cell,
-        state,
-        route.guides,
-        settings,
-        estimator,
-        progress=progress,
-        cancelled=cancelled,
-        wall_side=route.wall_side,
-        start_towards_wall=route.start_towards_wall,
-        leg_wander_m=route.leg_wander_m,
+        cell, state, route, settings, estimator, progress=progress, cancelled=cancelled
     )
     quats = np.array([g.quaternion_wxyz for g in guides]).reshape(-1, 4)
     return LearnedPath(recording, quats, settings, recording_inputs_key(project)), end
+
+
+def route_of(project: Project, settings: PathLearningSettings, cad: Workpiece) -> LearningRoute:
+    """The route path learning runs through the project's guide points
+    (``learning.plan_route``), planned with the part as the user sees it (``cad``).
+
+    Raises:
+        RouteRefusedError: the points cannot be learned as taught, with the reason.
+    """
+    with mesh_query.LOCK:  # the mesh's trees answer one thread at a time
+        return plan_route(
+            project.guide_points,
+            settings,
+            workpiece=cad,
+            tool_radius_m=project.cell.tool_radius_m,
+        )
 
 
 def process(
@@ -145,7 +146,8 @@ def _scores(
     score = mesh = taught = None
     if len(result.targets) >= 2:
         from ..arcs import score_moves
-        from ..learning.score import score_mesh, taught_wall_check
+        from ..learning.checks import taught_wall_check
+        from ..learning.score import score_mesh
         from ..transforms import matrices_from_quaternions
 
         pos = result.targets.position_m

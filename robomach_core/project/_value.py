@@ -12,7 +12,8 @@ import numpy as np
 
 from ..errors import RobomachError
 from ..leadthrough import GuidePoint
-from ..learning.run import PathLearningSettings, Recording
+from ..learning.run import Recording
+from ..learning.settings import PathLearningSettings
 from ..postprocess import PostprocessResult, PostprocessSettings
 from ..real_part import PartDeviation
 from ..scoring import PathScore
@@ -21,7 +22,7 @@ from ..tool import Tool
 if TYPE_CHECKING:  # the slots' types; their modules import this one
     from ..cad_program import CadComparison
     from ..cmrr import CmrrSettings
-    from ..learning.score import TaughtWallCheck
+    from ..learning.checks import TaughtWallCheck
     from ..stiffness import CompensationSettings
     from ._machining import MachiningResult, MachiningSetup
 

@@ -20,7 +20,7 @@ from app.session import Session
 from app.settings import ServerSettings
 from robomach_core import project as core
 from robomach_core.export.krl_check import check_krl_program
-from robomach_core.learning.run import PathLearningSettings
+from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.workpiece import builtin_workpiece
 from tests.core.test_project import _guide, _recording
 

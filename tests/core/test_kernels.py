@@ -26,7 +26,8 @@ from robomach_core.cell import Cell, CellConfig
 from robomach_core.contact import ContactModel
 from robomach_core.joint_compliance import true_joint_compliance
 from robomach_core.learning import law as cf
-from robomach_core.learning.run import PathLearningSettings, contour_law_parameters
+from robomach_core.learning.run import contour_law_parameters
+from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.robot import Robot
 from robomach_core.sensor import (
     ForceEstimator,
@@ -341,7 +342,8 @@ def test_the_controller_period_is_its_parts(cell):
     axis = np.array([0.0, 0.0, -1.0])
     Ra = _random_rotation(rng)
     leg = np.concatenate([[0.1, 0.2, 0.0], [1.0, 0.0, 0.0], [0.05], Ra.ravel(),
-                          [0.0, 0.0, 0.3], [2.0]])  # fmt: skip
+                          [0.0, 0.0, 0.3], [2.0], [0.001, -0.002]])  # fmt: skip
+    ref = np.array([0.001, 0.1, -0.2, 0.0, 0.1, 0.2, 0.0, -1.05])
     R_tcp_flange = cell.tool.T_flange_tcp[:3, :3].T.copy()
     for _ in range(20):
         T_meas = np.eye(4)
@@ -353,11 +355,11 @@ def test_the_controller_period_is_its_parts(cell):
         step, turn, record = np.zeros(3), np.zeros(3), np.zeros((2, cf.REC_WIDTH))
         w0, state0 = w.copy(), state.copy()
         out = cf.controller_period(reading, T_meas, q, 0.5, estimator.tool_data(),
-                                   R_tcp_flange, leg, axis, 1.0, T_ref, w, state, params,
+                                   R_tcp_flange, leg, ref, axis, 1.0, T_ref, w, state, params,
                                    0.002, step, turn, record, 1)  # fmt: skip
         wrench = estimator.contact_wrench_tcp_base(reading, T_meas[:3, :3] @ R_tcp_flange)
-        law = cf.contour_law.py_func(wrench[:3], w0, axis, 1.0, leg[:3], leg[3:6], leg[6],
-                                     T_ref[:3, 3].copy(), state0, params)  # fmt: skip
+        law = cf.contour_law.py_func(wrench[:3], w0, axis, 1.0, leg, ref, T_ref[:3, 3].copy(),
+                                     state0, params)  # fmt: skip
         np.testing.assert_allclose(step, law[0], atol=1e-12)
         np.testing.assert_allclose(w, law[1], atol=1e-12)
         np.testing.assert_allclose(state, law[2], atol=1e-12)
@@ -365,6 +367,8 @@ def test_the_controller_period_is_its_parts(cell):
                                     T_ref[:3, 3] + law[0], 0.002)  # fmt: skip
         np.testing.assert_allclose(turn, want_turn, atol=1e-9)
         assert out[0] == pytest.approx(np.linalg.norm(wrench[:3]), abs=1e-9)
+        tangent = np.cross(w, axis)  # side +1: the advance is the step along the wall only
+        assert out[5] == pytest.approx(abs(float(step @ tangent)), abs=1e-15)
         row = record[1]
         assert row[cf.REC_TIME] == 0.5 and row[cf.REC_SEGMENT] == 2.0
         np.testing.assert_array_equal(row[cf.REC_JOINTS : cf.REC_JOINTS + 6], q)
@@ -449,7 +453,7 @@ FAST_COPIES = (
     "test_the_fast_copy_of_each_controller_equals_its_public_step"
 )
 REDUCTION = "tests/core/test_postprocess.py::test_compiled_reduction_equals_the_literal_fig3_scan"
-CONTOUR_LAW = "tests/core/test_contour_following.py::test_the_compiled_law_equals_its_reference"
+CONTOUR_LAW = "tests/core/test_law.py::test_the_compiled_law_equals_its_reference"
 BALL = "test_the_balls_contact_is_the_nearest_face_of_the_whole_part"
 SUPERVISED = "test_the_compiled_supervised_period_is_supervise_with_its_proposal"
 _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
@@ -477,6 +481,7 @@ _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
     "robomach_core.learning.law": {
         "contour_law": CONTOUR_LAW,
         "speed_ratio": CONTOUR_LAW,
+        "route_height": CONTOUR_LAW,
         **dict.fromkeys(
             ("turn_towards", "controller_period", "record_row", "leg_progress"),
             "test_the_controller_period_is_its_parts",

@@ -7,7 +7,9 @@ from robomach_core.cell import CONTROL_PERIOD_S, Cell, CellConfig
 from robomach_core.errors import InvalidInputError, NotEnoughGuidePointsError
 from robomach_core.leadthrough import GuidePoint, LeadThrough
 from robomach_core.learning.operator import TOOL_DOWN
-from robomach_core.learning.run import PathLearningSettings, learn_path
+from robomach_core.learning.route import plan_route
+from robomach_core.learning.run import learn_path
+from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.scoring import true_tool_path_distance
 
 
@@ -32,7 +34,9 @@ def _learn(seed: int = 0, **kwargs):
     lt = LeadThrough(cell)
     state = lt.start(cell.initial_state())
     settings = PathLearningSettings(closed=False, wall_side="right", **kwargs)
-    rec, _ = learn_path(cell, state.cell, _guides_on_bottom_run(cell), settings, lt.estimator)
+    rec, _ = learn_path(
+        cell, state.cell, plan_route(_guides_on_bottom_run(cell), settings), settings, lt.estimator
+    )
     return cell, rec
 
 
@@ -94,17 +98,13 @@ def test_the_wall_is_searched_for_slowly(learned):
 def test_protection_rule_stops_the_run_and_says_why():
     _, rec = _learn(force_limit_N=11.0)
     assert not rec.completed
-    assert rec.stop_reason.startswith("protection: contact force")
+    assert rec.stop_reason.startswith("protection: the contact force reached")
 
 
 def test_fewer_than_two_guide_points_is_refused():
     cell = Cell()
-    lt = LeadThrough(cell)
-    state = lt.start(cell.initial_state())
     with pytest.raises(NotEnoughGuidePointsError, match="at least 2 guide points"):
-        learn_path(
-            cell, state.cell, _guides_on_bottom_run(cell)[:1], PathLearningSettings(), lt.estimator
-        )
+        plan_route(_guides_on_bottom_run(cell)[:1], PathLearningSettings())
 
 
 @pytest.mark.parametrize("kwargs", [{"force_N": 0.5}, {"force_N": 60.0}, {"speed_m_s": 0.2}])
@@ -138,7 +138,9 @@ def test_the_force_normal_to_the_edge_is_held_past_a_boss(force_N, speed_mm_s):
     settings = PathLearningSettings(
         force_N=force_N, speed_m_s=speed_mm_s * 1e-3, closed=False, wall_side="right"
     )
-    rec, _ = learn_path(cell, state.cell, _guides_past_the_boss(cell), settings, lt.estimator)
+    rec, _ = learn_path(
+        cell, state.cell, plan_route(_guides_past_the_boss(cell), settings), settings, lt.estimator
+    )
     assert rec.completed, rec.stop_reason
     settled = _settled(rec)
     planar = np.linalg.norm(rec.wrench_tool[settled, :2], axis=1)

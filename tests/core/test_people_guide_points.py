@@ -16,10 +16,11 @@ import pytest
 from robomach_core.cell import CONTROL_PERIOD_S, Cell, CellConfig
 from robomach_core.errors import WallSideError
 from robomach_core.leadthrough import GuidePoint, LeadThrough
-from robomach_core.learning.route import plan_route
-from robomach_core.learning.run import PathLearningSettings, learn_path
-from robomach_core.learning.score import score_mesh, taught_wall_check
-from robomach_core.learning.side import resolve_wall_side
+from robomach_core.learning.checks import guide_point_warnings, taught_wall_check
+from robomach_core.learning.route import PartWalls, mean_tool_axis, plan_route, resolve_wall_side
+from robomach_core.learning.run import learn_path
+from robomach_core.learning.score import score_mesh
+from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import CellSettings, Project, learn, process
 from robomach_core.workpiece import mesh_from_bytes
@@ -72,9 +73,8 @@ def test_the_mesh_tells_the_side_of_free_points_nearer_one_wall(pump_cell):
     """The same points are 2 mm from the pump's outer wall and 3 mm from the island's: with the
     part's mesh, 'auto' picks the outer wall (on the right of the anticlockwise route)."""
     guides = _points_at(pump_cell, P8_MM)
-    decision = resolve_wall_side(
-        guides, "auto", closed=True, workpiece=pump_cell.workpiece, tool_radius_m=0.001
-    )
+    walls = PartWalls(pump_cell.workpiece, mean_tool_axis(guides), 0.001)
+    decision = resolve_wall_side(guides, "auto", closed=True, walls=walls)
     assert (decision.side, decision.source) == ("right", "mesh")
 
 
@@ -121,7 +121,7 @@ def test_a_cutter_driven_into_the_part_stops_learning_and_says_where():
     lt = LeadThrough(cell)
     state = lt.start(cell.initial_state())
     settings = PathLearningSettings(closed=False, wall_side="right", force_limit_N=1000.0)
-    rec, _ = learn_path(cell, state.cell, guides, settings, lt.estimator)
+    rec, _ = learn_path(cell, state.cell, plan_route(guides, settings), settings, lt.estimator)
     assert not rec.completed
     assert rec.stop is not None and rec.stop.cause == "collision", rec.stop_reason
     assert "along the leg G1 -> G2" in rec.stop_reason
@@ -132,7 +132,7 @@ def test_a_protection_stop_names_the_leg_and_what_the_wall_does(pump_cell):
     lt = LeadThrough(pump_cell)
     state = lt.start(pump_cell.initial_state())
     settings = PathLearningSettings(closed=False, wall_side="right", force_limit_N=12.0)
-    rec, _ = learn_path(pump_cell, state.cell, guides, settings, lt.estimator)
+    rec, _ = learn_path(pump_cell, state.cell, plan_route(guides, settings), settings, lt.estimator)
     assert not rec.completed and rec.stop.cause == "protection"
     assert rec.stop.leg == (1, 2)
     assert "along the leg G1 -> G2" in rec.stop_reason and "where" in rec.stop_reason
@@ -146,11 +146,17 @@ def test_points_resting_on_the_floor_are_lifted_to_the_machining_height(pump_cel
     """A touch-off along -Z leaves the cutter on the groove's floor (z = 14 mm + r); the route
     lifts such points so the cutter clears the floor by the floor clearance."""
     guides = _points_at(pump_cell, [(715, 97, 15.0), (885, 97, 14.95), (885, 223, 17.0)])
-    settings = PathLearningSettings(wall_side="right", floor_clearance_m=0.0005)
-    route = plan_route(guides, settings, workpiece=pump_cell.workpiece, tool_radius_m=0.001)
+    route = plan_route(
+        guides,
+        PathLearningSettings(wall_side="right", floor_clearance_m=0.0005),
+        workpiece=pump_cell.workpiece,
+        tool_radius_m=0.001,
+    )
+    assert route.heights.mode == "floor"
     np.testing.assert_allclose(route.lifted_m[:2] * 1e3, [0.5, 0.55], atol=1e-3)
     assert route.lifted_m[2] == 0.0
-    assert route.guides[0].position_m[2] == pytest.approx(0.0155, abs=1e-6)
+    # held over the floor: the cutter's centre r + clearance above it; the third as taught
+    np.testing.assert_allclose(route.heights.offsets_m * 1e3, [1.5, 1.5, 3.0], atol=1e-3)
 
 
 # --- the signed score and the taught wall ---------------------------------------------------
@@ -187,14 +193,24 @@ def test_the_taught_wall_scores_well(bottom_run):
     assert good.mesh_score.max_m < 0.25e-3 and good.taught_wall.follows
 
 
-def test_a_program_on_the_wrong_wall_is_a_failure(bottom_run):
-    """Learned on the island wall, the program sits exactly r from a wall: the unsigned mesh
-    score called it 0.2 mm, a good program. The taught-wall check fails it."""
-    _, runs = bottom_run
-    wrong = runs["left"]
-    assert wrong.mesh_score.max_m < 0.25e-3  # it does touch a wall...
-    assert not wrong.taught_wall.follows  # ...the wrong one
-    assert any("wrong wall" in p for p in wrong.problems())
+def test_a_side_the_person_set_wins_and_the_points_against_it_are_named(pump_cell, bottom_run):
+    """The same points, pushed by the outer wall (on the right), learned with the side set to
+    "left": the program follows the island wall, as set. It is on the chosen wall, so it is
+    not condemned; the check before learning names the points that say otherwise."""
+    guides, runs = bottom_run
+    chosen = runs["left"]
+    assert chosen.mesh_score.max_m < 0.25e-3  # on a wall...
+    assert chosen.taught_wall.follows, chosen.taught_wall.message  # ...the chosen one
+    assert chosen.problems() == []
+    found = guide_point_warnings(
+        guides,
+        PathLearningSettings(closed=False, wall_side="left"),
+        workpiece=pump_cell.workpiece,
+        tool_radius_m=0.001,
+    )
+    against = [w for w in found if w.rule in ("against_setting", "nearer_other_wall")]
+    assert {w.point for w in against} == {1, 2}, found
+    assert all(w.severity == "warning" for w in against)
 
 
 def test_a_program_inside_the_material_is_an_overcut(pump_cell, bottom_run):

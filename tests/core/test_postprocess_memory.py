@@ -16,7 +16,8 @@ import pytest
 
 from robomach_core import project as core
 from robomach_core.errors import InvalidInputError
-from robomach_core.learning.run import PathLearningSettings, Recording
+from robomach_core.learning.run import Recording
+from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.robot import Robot
 from tests.core.test_project import _guide

@@ -10,7 +10,8 @@ import pytest
 
 from robomach_core import project as core
 from robomach_core.leadthrough import GuidePoint
-from robomach_core.learning.run import PathLearningSettings, Recording
+from robomach_core.learning.run import Recording
+from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.robot import Robot
 from robomach_core.workpiece import builtin_workpiece
 

@@ -11,8 +11,8 @@ from robomach_core.errors import InvalidInputError
 from robomach_core.leadthrough import GuidePoint
 from robomach_core.learning.checks import guide_point_warnings
 from robomach_core.learning.operator import TOOL_DOWN
-from robomach_core.learning.run import PathLearningSettings
 from robomach_core.learning.score import score_mesh
+from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.pipeline import default_robot
 from robomach_core.project import wobj_transform
 from robomach_core.robot import Robot, robot_urdf_path

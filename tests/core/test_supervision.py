@@ -13,7 +13,9 @@ from robomach_core.cell import Cell
 from robomach_core.errors import InvalidInputError, SupervisionError
 from robomach_core.leadthrough import ComplianceSelection, GuidePoint, LeadThrough
 from robomach_core.learning.operator import TOOL_DOWN
-from robomach_core.learning.run import PathLearningSettings, learn_path
+from robomach_core.learning.route import plan_route
+from robomach_core.learning.run import learn_path
+from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.robot import HOME_JOINTS_RAD
 from robomach_core.supervision import (
     FixtureBox,
@@ -265,7 +267,14 @@ def test_path_learning_stops_before_a_clamp_and_says_why():
     lt = LeadThrough(cell, supervisor=supervisor)
     state = lt.start(cell.initial_state())
     settings_ = PathLearningSettings(closed=False, wall_side="right")
-    rec, _ = learn_path(cell, state.cell, guides, settings_, lt.estimator, supervisor=supervisor)
+    rec, _ = learn_path(
+        cell,
+        state.cell,
+        plan_route(guides, settings_),
+        settings_,
+        lt.estimator,
+        supervisor=supervisor,
+    )
     assert not rec.completed
     assert rec.stop_reason.startswith("supervision: collision: tool (spindle) with the clamp")
     assert len(rec) > 200  # it ran, slowed, then stopped

@@ -11,7 +11,7 @@ from app.api.routes import ERRORS, SessionDep
 from app.api.routes.cell import UPLOAD_CHUNK_BYTES, _public
 from app.api.routes.export import program_download
 from app.api.schemas import CellPublic
-from robomach_core.learning.side import WallSideSetting
+from robomach_core.learning.settings import WallSideSetting
 from robomach_core.robots.builtin import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
 

@@ -7,7 +7,7 @@ import viser
 import viser.uplot
 
 from robomach_core import limits
-from robomach_core.learning.side import WALL_SIDE_CHOICES
+from robomach_core.learning.settings import WALL_SIDE_CHOICES
 
 from .feedback import guarded
 from .postprocess import OUT_OF_DATE
