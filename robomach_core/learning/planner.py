@@ -7,20 +7,19 @@ PROBLEM   Teaching is the one step a person does, and with the part's mesh at ha
           each outside corner (docs/guide_points.md), the wall side stated, and every point
           reachable by the arm. The example operator (``operator.guide_plan``) places its
           points by the same rules: this is the one planner.
-STRATEGY  The picked wall at the machining height, in the floor's frame (``walls.pick_wall``:
-          the section parallel to the floor beside the pick, at the pick's height above it) is
-          a loop with the material on its right. Along it, corners are where the wall turns
-          faster than ``CORNER_RADIUS_M``; corners closer than ``MIN_RUN_M`` merge into a
-          group, and a group that turns back round the free side (``SLOT_END_DEG``, a slot's
-          end) ends the wall there, so the wall to follow is open. Each straight run between
-          groups gets one point (two, ``LONG_RUN_END_SHARE`` from its ends, from
-          ``LONG_RUN_M``), each group turning round the material by ``OUTSIDE_CORNER_DEG`` or
-          more a point at its middle. Then every leg is checked against the wall: where its
-          chord comes within ``tool radius + LEG_CLEARANCE_M`` of the material, or the wall
-          recedes more than ``MAX_LEG_GAP_M`` from it, a point is added at the worst place. Each point stands
-          ``gap`` off the wall on the free side (centred in a groove too narrow for that), at
-          the pick's height above the floor under it, with the job's tool orientation.
-          Every number is in ``thresholds.py``.
+STRATEGY  The picked wall at the machining height, in the floor's frame (``walls.pick_wall``: the
+          section parallel to the floor beside the pick, at the pick's height above it) is a loop
+          with the material on its right. Along it, corners are where the wall turns faster than
+          ``CORNER_RADIUS_M``; corners closer than ``MIN_RUN_M`` merge into a group, and a group
+          that turns back round the free side (``SLOT_END_DEG``, a slot's end) ends the wall there,
+          so the wall to follow is open. Each straight run between groups gets one point (two,
+          ``LONG_RUN_END_SHARE`` from its ends, from ``LONG_RUN_M``), each group turning round the
+          material by ``OUTSIDE_CORNER_DEG`` or more a point at its middle. Then every leg is
+          checked against the wall: where its chord comes within ``tool radius + LEG_CLEARANCE_M``
+          of the material, or the wall recedes more than ``MAX_LEG_GAP_M`` from it, a point is added
+          at the worst place. Each point stands ``gap`` off the wall on the free side (centred in a
+          groove too narrow for that), at the pick's height above the floor under it, with the job's
+          tool orientation. Every number is in ``thresholds.py``.
 SOLUTION  ``propose_guide_points(workpiece, robot, point, normal, ...) -> GuideProposal`` and
           ``teach_point(...) -> ProposedPoint`` (one point: click to teach); both say per point
           whether the arm reaches it (inverse kinematics from the previous point, and the
