@@ -172,7 +172,15 @@ def main() -> None:
         fk_us.append(per_call_us(fk_jacobian, calls))
         c = Cell()
         t = time.perf_counter()
-        rec, end = learn_path(c, state.cell, plan_route(guides, learning), learning, lt.estimator)
+        rec, end = learn_path(
+            c,
+            state.cell,
+            plan_route(
+                guides, learning, workpiece=c.workpiece.cad(), tool_radius_m=c.tool.radius_m
+            ),
+            learning,
+            lt.estimator,
+        )
         wall = time.perf_counter() - t
         factors.append(rec.time_s[-1] / wall)
         per_step.append(wall / len(rec) * 1e6)
@@ -216,7 +224,9 @@ def main() -> None:
         rec, end = learn_path(
             c,
             state.cell,
-            plan_route(guides, learning),
+            plan_route(
+                guides, learning, workpiece=c.workpiece.cad(), tool_radius_m=c.tool.radius_m
+            ),
             learning,
             lt.estimator,
             supervisor=supervisor,

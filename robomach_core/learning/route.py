@@ -102,9 +102,13 @@ class LegEnd:
         self.leg, self.axis, self.last, self.closed = leg, axis, last, closed
         self.end_best = math.inf
         self.close_best = math.inf
+        L = leg.length
+        #: the progress along the leg before which ``reached`` is False (the run skips it)
+        self.watch_from_m = 0.5 * L if last and closed else max(L - th.NEAR_END_M, 0.5 * L)
 
     def _across(self, v: np.ndarray) -> float:
-        return float(np.linalg.norm(v - self.axis * float(v @ self.axis)))
+        along = float(v @ self.axis)
+        return math.sqrt(max(float(v @ v) - along * along, 0.0))
 
     def reached(self, p: np.ndarray, s: float, start: np.ndarray | None) -> bool:
         """True when the leg ends at ``p`` (progress ``s`` along it); ``start``: where the
@@ -252,31 +256,26 @@ class PartWalls:
         d = self.across_ray(point, towards)
         return point + towards * d if d <= reach_m else None
 
-    def floor(self, points: np.ndarray) -> list[tuple[float, np.ndarray] | None]:
-        """Per point (k, 3): (height of the floor below it along the axis [m], the floor's unit
-        normal), None where the first face below the cutter is not a floor within
-        ``FLOOR_SEARCH_M``. One ray each, from ``FLOOR_ABOVE_M`` above the cutter."""
+    def floor(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The floor below each point (k, 3): its height along the axis [m] (nan where the
+        first face below the cutter is not a floor within ``FLOOR_SEARCH_M``) and its unit
+        normal (k, 3). One ray each, from ``FLOOR_ABOVE_M`` above the cutter."""
         a = self.axis
         up = self.radius + th.FLOOR_ABOVE_M
         origins = (np.asarray(points, dtype=float) - a * up - self.t) @ self.R
         a_w = self.R.T @ a
         with mesh_query.LOCK:
-            tri = self._ray.intersects_first(origins, np.repeat(a_w[None], len(origins), 0))
-        out: list[tuple[float, np.ndarray] | None] = [None] * len(origins)
-        normals, corners = self._normals, self._corners
-        for k, f in enumerate(tri):
-            if f < 0:
-                continue
-            n_w = normals[f]
-            facing = float(-(n_w @ a_w))
-            if facing < th.WALL_FACE_MAX_COS:
-                continue  # a wall or an overhang first: no floor the route runs over
-            along = float(n_w @ (corners[f] - origins[k])) / float(n_w @ a_w)
-            if along > up + self.radius + th.FLOOR_SEARCH_M:
-                continue
-            hit = self.R @ (origins[k] + a_w * along) + self.t
-            out[k] = (float(hit @ a), self.R @ n_w)
-        return out
+            tri = self._ray.intersects_first(origins, np.broadcast_to(a_w, origins.shape))
+        n_w = self._normals[tri]
+        cos = -(n_w @ a_w)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            along = np.einsum("ij,ij->i", n_w, self._corners[tri] - origins) / -cos
+        floor = (tri >= 0) & (cos >= th.WALL_FACE_MAX_COS)
+        floor &= along <= up + self.radius + th.FLOOR_SEARCH_M
+        height = np.where(
+            floor, (origins + np.outer(along, a_w)) @ (self.R.T @ a) + self.t @ a, np.nan
+        )
+        return height, n_w @ self.R.T
 
 
 def resolve_wall_side(
@@ -393,41 +392,29 @@ class HeightReference:
 
     def at(self, p: np.ndarray, travel: np.ndarray | None = None) -> np.ndarray:
         """(REF_SIZE,) the reference under ``p`` for the law (``law.REF_H0`` ...): in floor
-        mode the highest floor under the cutter's centre and a radius either side along
-        ``travel``; where none is below, the last one measured, extended as a plane."""
+        mode the highest floor under the cutter's centre, a radius behind it and a radius and
+        ``REFERENCE_SPACING_M`` ahead along ``travel`` (a step up is met before the cutter
+        reaches it); where none is below, the last one measured, extended as a plane."""
         if self.mode == "points" or self.walls is None:
             return self.plane
-        probes = [p]
-        if travel is not None:
-            r = self.walls.radius
-            probes += [p + travel * r, p - travel * r]
-        ref = None
-        h_centre = float(p @ self.axis)
-        for probe, floor in zip(probes, self.walls.floor(np.array(probes)), strict=True):
-            if floor is None or floor[0] < h_centre:
-                continue  # above the cutter's centre: the top beside it, not a floor under it
-            candidate = _floor_ref(floor, probe, self.axis)
-            h = candidate[0] + candidate[1:4] @ (p - candidate[4:7])  # the plane under p
-            if ref is None or h < ref[0]:  # the higher floor (heights grow into the part)
-                ref = candidate
-                ref[0], ref[4:7] = h, p
-        if ref is None:
+        r = self.walls.radius
+        probes = np.array([p] if travel is None else [
+            p, p + travel * (r + th.REFERENCE_SPACING_M), p - travel * r
+        ])  # fmt: skip
+        height, normal = self.walls.floor(probes)
+        a = self.axis
+        cos = -(normal @ a)
+        grad = (normal - np.outer(normal @ a, a)) / cos[:, None]  # dh/dp across the axis
+        under_p = height + np.einsum("ij,ij->i", grad, p - probes)  # each floor's plane at p
+        # a floor above the cutter's centre is the top beside it, not a floor under it
+        usable = np.isfinite(height) & (height >= float(p @ a))
+        if not usable.any():
             return self._last if self._last is not None else self.plane
+        k = int(np.argmin(np.where(usable, under_p, np.inf)))  # the highest floor
+        ref = np.empty(REF_SIZE)
+        ref[0], ref[1:4], ref[4:7], ref[7] = under_p[k], grad[k], p, -1.0 / cos[k]
         self._last = ref
         return ref
-
-
-def _floor_ref(floor: tuple[float, np.ndarray], p: np.ndarray, axis: np.ndarray) -> np.ndarray:
-    """The law's reference for a floor (its height along the axis under ``p``, its normal)."""
-    h, n = floor
-    cos = float(-(n @ axis))
-    n_across = n - axis * float(n @ axis)
-    ref = np.zeros(REF_SIZE)
-    ref[0] = h
-    ref[1:4] = n_across / cos  # dh/dp across the axis: h(p + d) = h + G . d
-    ref[4:7] = p - axis * float(p @ axis) + axis * h
-    ref[7] = -1.0 / cos
-    return ref
 
 
 def plan_heights(
@@ -441,17 +428,17 @@ def plan_heights(
     pts = np.array([g.position_m for g in guides])
     heights = pts @ axis
     lifted = np.zeros(len(guides))
-    floors = walls.floor(pts) if walls is not None else [None] * len(guides)
-    if walls is not None and all(f is not None for f in floors):
-        offsets = np.zeros(len(guides))
-        for k, (h_floor, n) in enumerate(floors):  # type: ignore[misc]
-            cos = float(-(n @ axis))
-            centre = (h_floor - heights[k]) * cos  # the cutter's centre above the floor
+    if walls is not None:
+        floor_h, normals = walls.floor(pts)
+        if np.all(np.isfinite(floor_h)):
+            cos = -(normals @ axis)
+            centre = (floor_h - heights) * cos  # the cutter's centre above the floor
             need = walls.radius + floor_clearance_m
-            offsets[k] = max(centre, need)
-            lifted[k] = max(0.0, (need - centre) / cos)
-        first = _floor_ref(floors[0], pts[0], axis)  # type: ignore[arg-type]
-        return HeightReference("floor", axis, offsets, first, walls), lifted
+            offsets = np.maximum(centre, need)
+            lifted = np.maximum(0.0, (need - centre) / cos)
+            reference = HeightReference("floor", axis, offsets, np.zeros(REF_SIZE), walls)
+            reference.plane = reference.at(pts[0])
+            return reference, lifted
     # The points' own plane; a point the floor pushed (beyond a wall's cone) is lifted.
     for k, g in enumerate(guides):
         f = np.asarray(g.force_N, dtype=float)

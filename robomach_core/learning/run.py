@@ -363,7 +363,8 @@ class _Protections:
 
     def crossed(
         self, f_abs: float, depth: float, searched: float, off_route: float, travel: float
-    ) -> tuple[str, str] | None:
+    ) -> tuple[str, str]:
+        """The first rule crossed, in this order, as (cause, message)."""
         if f_abs > self.force_limit_N:
             return "protection", (
                 f"protection: the contact force reached {f_abs:.1f} N, over the "
@@ -383,13 +384,10 @@ class _Protections:
                 f"protection: the wall led the tool {off_route * 1e3:.0f} mm off the leg's "
                 "route, so a guide point may be on another wall"
             )
-        if travel > self.detour_m:
-            return "lost", (
-                f"protection: the wall of this leg ran {travel * 1e3:.0f} mm, far longer than "
-                f"the {self.leg_length_m * 1e3:.0f} mm leg, so a guide point may be on another "
-                "wall"
-            )
-        return None
+        return "lost", (
+            f"protection: the wall of this leg ran {travel * 1e3:.0f} mm, far longer than the "
+            f"{self.leg_length_m * 1e3:.0f} mm leg, so a guide point may be on another wall"
+        )
 
 
 def learn_path(
@@ -475,9 +473,15 @@ def learn_path(
         if touching and first_touch is None and ever:
             first_touch = state.T_base_tcp[:3, 3].copy()
         n += 1
-        crossed = guard.crossed(f_abs, state.contact.depth_m, searched, off_route, leg_travel)
-        if crossed is not None:
-            stop_cause, stop_reason = crossed
+        depth = state.contact.depth_m
+        if (
+            f_abs > guard.force_limit_N
+            or depth > guard.penetration_m
+            or searched > th.LOST_WALL_M
+            or off_route > guard.wander_m
+            or leg_travel > guard.detour_m
+        ):
+            stop_cause, stop_reason = guard.crossed(f_abs, depth, searched, off_route, leg_travel)
             break
         # --- supervision (compiled) and the cell ---
         supervised = supervisor.supervise_increment(state.q_motor, T_ref, step, turn)
@@ -490,7 +494,7 @@ def learn_path(
         leg_travel += travelled
         state = cell.step(state, supervised.q_next)
         s_now, _ = leg_progress(T_ref, row, T_ref[:3, 3], axis)
-        if end.reached(T_ref[:3, 3], s_now, first_touch):
+        if s_now >= end.watch_from_m and end.reached(T_ref[:3, 3], s_now, first_touch):
             if end.last:
                 completed = True
                 break
