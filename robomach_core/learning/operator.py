@@ -8,12 +8,14 @@ part, then for each guide point: over the groove, down into it, a gentle push si
 the wall pushes back, record, back out and up.
 
 The operator's eye is imperfect: each intended position is off by a seeded random amount.
+On a part that may not be where its mesh is, the operator enters each groove in its middle and
+lets the push find the real wall (``robust_intents``).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -26,7 +28,9 @@ from ..robot import Robot
 from ..tool import TOOL_DOWN as TOOL_DOWN
 from ..transforms import matrix_from_quaternion, rotation_log
 from ..workpiece import Workpiece
-from .thresholds import EXAMPLE_BELOW_TOP_M
+from .planner import GuideProposal, ProposalSettings, WallPlacer, propose_guide_points
+from .thresholds import EXAMPLE_BELOW_TOP_M, OPEN_EDGE_ENTRY_M
+from .walls import walls_near
 
 HAND_GAIN_N_M = 2000.0  # push per metre of distance to the goal
 HAND_MAX_N = 15.0  # a comfortable one-hand push
@@ -112,6 +116,23 @@ def intents_from_csv(text: str, robot: Robot | None = None) -> list[GuideIntent]
     return intents
 
 
+def guide_intents(proposal: GuideProposal, *, touch: bool = True) -> list:
+    """The proposal as the scripted operator's intents (``GuideIntent``): it
+    leads the robot to each point by pushes and, with ``touch``, pushes gently towards the
+    wall until it pushes back (as a person touching the wall does), except at outside corners
+    (docs/guide_points.md: no wall push there). Touching makes the points the real wall's
+    when the part is not where its CAD is."""
+    R = proposal.T_base_wobj[:3, :3] @ proposal.pick.T_wobj_floor[:3, :3]
+    out = []
+    for p in proposal.points:
+        normal = None
+        if touch and p.kind != "outside corner":
+            n = proposal.wall.free_normal_at(np.array([p.s_m]))[0]
+            normal = -(R @ np.array([n[0], n[1], 0.0]))
+        out.append(GuideIntent(p.T_base_tcp[:3, 3].copy(), normal, p.T_base_tcp[:3, :3].copy()))
+    return out
+
+
 def guide_plan(
     workpiece: Workpiece,
     tool_radius_m: float,
@@ -124,10 +145,8 @@ def guide_plan(
     ``EXAMPLE_BELOW_TOP_M`` below the wall's top in the middle of its first straight run, as
     the operator's imprecise hand places them: each off by up to ``EXAMPLE_ALONG_M`` along
     the wall and up to ``EXAMPLE_OFF_M`` farther from it (seeded by ``rng``), a push towards
-    the wall at each but the outside corners (``planner.guide_intents``).
+    the wall at each but the outside corners (``guide_intents``).
     """
-    from .planner import ProposalSettings, guide_intents, propose_guide_points
-
     wall = workpiece.wall
     if wall is None:
         raise InvalidInputError(
@@ -155,6 +174,37 @@ def guide_plan(
         shift = shift + off * rng.uniform(0.0, EXAMPLE_OFF_M)
         intents[k] = replace(intent, position_m=intent.position_m + R @ [*shift, 0.0])
     return intents
+
+
+def robust_intents(intents: Sequence, workpiece: Workpiece, tool_radius_m: float) -> list:
+    """Intents for a part that may not be where its mesh is: each point with a wall push is
+    entered in the middle of the free space beside its wall (a groove's middle;
+    ``OPEN_EDGE_ENTRY_M`` off an open edge), so that the cutter comes down clear of the real
+    walls, and the push finds the wall from there (a careful operator does the same when the
+    part may be off its drawing). Points without a push (outside corners) stay where they
+    are."""
+    cad = workpiece.cad()
+    T = cad.T_base_wobj
+    out = []
+    for intent in intents:
+        if intent.wall_normal is None:
+            out.append(intent)
+            continue
+        p = (np.asarray(intent.position_m) - T[:3, 3]) @ T[:3, :3]
+        T_floor, (pf,), loops = walls_near(cad.mesh, p)
+        if not loops:
+            out.append(intent)
+            continue
+        loop = min(loops, key=lambda lp: abs(lp.signed_distance(pf[None, :2])[0]))
+        xy, note = WallPlacer(loop, loops, tool_radius_m, OPEN_EDGE_ENTRY_M)(
+            float(loop.project(pf[None, :2])[0])
+        )
+        if "too narrow" in note:
+            out.append(intent)
+            continue
+        entry = T[:3, :3] @ T_floor[:3, :3] @ np.array([xy[0], xy[1], pf[2]]) + T[:3, 3]
+        out.append(replace(intent, position_m=entry))
+    return out
 
 
 def _hand(goal: np.ndarray, p: np.ndarray, limit: float = HAND_MAX_N) -> np.ndarray:

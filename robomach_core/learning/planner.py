@@ -40,6 +40,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import InvalidInputError, RobomachError
 from ..limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
 from ..robot import Robot
+from ..tool import TOOL_DOWN
 from ..workpiece import Workpiece
 from .thresholds import (
     CORNER_RADIUS_M,
@@ -57,6 +58,7 @@ from .thresholds import (
     ROUND_LOOP_POINTS,
     SLOT_END_DEG,
     SLOT_END_MAX_M,
+    UNEVEN_FLOOR_NOTE_M,
     WALL_END_MARGIN_M,
 )
 from .walls import WallLoop, WallPick, pick_wall
@@ -65,7 +67,6 @@ TURN_WINDOW_M = 5e-4  # the wall's direction is measured over this much of it
 SAMPLE_M = 2e-4  # the wall is looked at every this much for corners
 CHORD_SAMPLE_M = 2.5e-4  # a leg's chord is checked every this much
 WALL_SAMPLE_M = 5e-4  # the wall beside a leg is checked every this much
-STEP_NOTE_M = 1e-4  # points whose heights differ more than this stand on a stepped floor
 
 PointKind = Literal["run", "outside corner", "wall end", "added", "taught"]
 Reach = Literal["ok", "near", "unreachable"]
@@ -160,8 +161,6 @@ def job_tool_rotation(T_base_wobj: np.ndarray, R_tool: np.ndarray | None = None)
     """The job's tool orientation (base frame): ``R_tool`` re-aimed so its axis (tool z) is
     -z of the work object, by the smallest rotation; default the example operator's, tool
     axis straight down and tool x along -y of the base."""
-    from .operator import TOOL_DOWN
-
     R = TOOL_DOWN if R_tool is None else np.asarray(R_tool, dtype=float)
     down = -np.asarray(T_base_wobj, dtype=float)[:3, 2]
     align, _ = Rotation.align_vectors(down[None], R[:, 2][None])
@@ -615,7 +614,7 @@ def propose_guide_points(
     R = job_tool_rotation(T_base_wobj, tool_rotation)
     placed = [place(s) for s, _ in points]
     floor, wobj, Ts = _placed(pick, [xy for xy, _ in placed], T_base_wobj, R)
-    if np.ptp(floor[:, 2]) > STEP_NOTE_M:
+    if np.ptp(floor[:, 2]) > UNEVEN_FLOOR_NOTE_M:
         notes.append(
             f"the floor is not level along the wall: each point stands "
             f"{(pick.z_m - pick.floor_z_m) * 1e3:.1f} mm above the floor under it"
@@ -661,25 +660,6 @@ def teach_point(
     r, message = _verdict(note, r, message)
     message = "; ".join(m for m in (*pick.notes, message) if m)
     return ProposedPoint(T, wobj, pick.s_m, "taught", r, message, q, floor), pick
-
-
-def guide_intents(proposal: GuideProposal, *, touch: bool = True) -> list:
-    """The proposal as the scripted operator's intents (``operator.GuideIntent``): it
-    leads the robot to each point by pushes and, with ``touch``, pushes gently towards the
-    wall until it pushes back (as a person touching the wall does), except at outside corners
-    (docs/guide_points.md: no wall push there). Touching makes the points the real wall's
-    when the part is not where its CAD is."""
-    from .operator import GuideIntent
-
-    R = proposal.T_base_wobj[:3, :3] @ proposal.pick.T_wobj_floor[:3, :3]
-    out = []
-    for p in proposal.points:
-        normal = None
-        if touch and p.kind != "outside corner":
-            n = proposal.wall.free_normal_at(np.array([p.s_m]))[0]
-            normal = -(R @ np.array([n[0], n[1], 0.0]))
-        out.append(GuideIntent(p.T_base_tcp[:3, 3].copy(), normal, p.T_base_tcp[:3, :3].copy()))
-    return out
 
 
 def refuse_unreachable(proposal: GuideProposal) -> None:

@@ -115,6 +115,7 @@ ROUND_LOOP_POINTS = 4  # points | a closed wall without any corner (a round boss
 JOINT_JUMP_DEG = 60.0  # deg | an axis turning this much between neighbouring points is a change of configuration: "near" | fixed
 CUTTER_FIT_M = 2e-4  # m | free space narrower than the cutter's diameter plus this is too narrow to enter: unreachable | fixed
 OPEN_EDGE_ENTRY_M = 0.003  # m | on a part that may be off its mesh, the operator comes down this far off an open edge (a groove: its middle) | fixed: the fixture error
+UNEVEN_FLOOR_NOTE_M = 1e-4  # m | proposed points whose heights differ by more than this stand on a stepped or sloped floor: a note says so | fixed
 EXAMPLE_BELOW_TOP_M = 0.003  # m | the example operator points at the built-in part's known wall this far below its top | fixed
 
 

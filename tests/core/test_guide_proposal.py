@@ -11,10 +11,9 @@ from shapely.geometry import Point
 
 from robomach_core.cell import Cell, CellConfig
 from robomach_core.errors import InvalidInputError
-from robomach_core.learning.operator import guide_plan
+from robomach_core.learning.operator import guide_intents, guide_plan
 from robomach_core.learning.planner import (
     ProposalSettings,
-    guide_intents,
     job_tool_rotation,
     propose_guide_points,
     refuse_unreachable,
