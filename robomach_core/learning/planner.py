@@ -175,18 +175,24 @@ class _Group:
     start_m: float  # arc length (in the loop's own coordinates, may exceed its length)
     end_m: float
     turn_rad: float  # net turn, left (towards the free side) positive
-    sharpest_outside_rad: float  # the most negative region turn in the group
+
+    @property
+    def slot_end(self) -> bool:
+        """Turns back round the free side within a slot's width: the wall ends here."""
+        return (
+            self.turn_rad >= math.radians(SLOT_END_DEG)
+            and self.end_m - self.start_m <= SLOT_END_MAX_M
+        )
 
 
-def _corner_groups(loop: WallLoop, shift_m: float) -> tuple[np.ndarray, list[_Group]]:
+def _corner_groups(loop: WallLoop, shift_m: float = 0.0) -> list[_Group]:
     """Corner groups of ``loop`` in arc lengths counted from ``shift_m`` (module docstring)."""
     n = max(8, int(math.ceil(loop.length_m / SAMPLE_M)))
     s = np.linspace(0.0, loop.length_m, n, endpoint=not loop.closed)
     d = loop.point_at(s + shift_m + TURN_WINDOW_M) - loop.point_at(s + shift_m - TURN_WINDOW_M)
     theta = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
-    curvature = np.gradient(theta, s)
-    corner = np.abs(curvature) > 1.0 / CORNER_RADIUS_M
-    regions: list[tuple[float, float, float]] = []
+    corner = np.abs(np.gradient(theta, s)) > 1.0 / CORNER_RADIUS_M
+    groups: list[_Group] = []
     i = 0
     while i < n:
         if not corner[i]:
@@ -195,41 +201,28 @@ def _corner_groups(loop: WallLoop, shift_m: float) -> tuple[np.ndarray, list[_Gr
         j = i
         while j + 1 < n and corner[j + 1]:
             j += 1
-        a, b = max(i - 1, 0), min(j + 1, n - 1)
-        turn = float(theta[b] - theta[a])
+        turn = float(theta[min(j + 1, n - 1)] - theta[max(i - 1, 0)])
         if abs(turn) >= math.radians(CORNER_TURN_MIN_DEG):
-            regions.append((float(s[i]), float(s[j]), turn))
+            if groups and s[i] - groups[-1].end_m < MIN_RUN_M:  # one group with the last
+                groups[-1] = _Group(groups[-1].start_m, float(s[j]), groups[-1].turn_rad + turn)
+            else:
+                groups.append(_Group(float(s[i]), float(s[j]), turn))
         i = j + 1
-    groups: list[_Group] = []
-    for a, b, turn in regions:
-        if groups and a - groups[-1].end_m < MIN_RUN_M:
-            g = groups[-1]
-            groups[-1] = _Group(g.start_m, b, g.turn_rad + turn, min(g.sharpest_outside_rad, turn))
-        else:
-            groups.append(_Group(a, b, turn, min(0.0, turn)))
-    if loop.closed and len(groups) >= 2:  # the last and the first may be one group round 0
-        first, last = groups[0], groups[-1]
-        if first.start_m + loop.length_m - last.end_m < MIN_RUN_M:
-            groups = groups[1:-1] + [
-                _Group(
-                    last.start_m,
-                    first.end_m + loop.length_m,
-                    last.turn_rad + first.turn_rad,
-                    min(last.sharpest_outside_rad, first.sharpest_outside_rad),
-                )
-            ]
-    return s, groups
+    L = loop.length_m
+    if loop.closed and len(groups) >= 2 and groups[0].start_m + L - groups[-1].end_m < MIN_RUN_M:
+        first, last = groups.pop(0), groups.pop()  # one group round the start
+        groups.append(_Group(last.start_m, first.end_m + L, last.turn_rad + first.turn_rad))
+    return groups
 
 
 def _straightest_start(loop: WallLoop) -> float:
     """Arc length of the middle of the loop's longest stretch without corners (a closed
     loop is counted from there, so no corner straddles its start)."""
-    _, groups = _corner_groups(loop, 0.0)
+    groups = _corner_groups(loop)
     if not groups:
         return 0.0
     ends = [(g.end_m, groups[(k + 1) % len(groups)].start_m) for k, g in enumerate(groups)]
-    runs = [(b - a if b > a else b + loop.length_m - a, a) for a, b in ends]
-    length, a = max(runs)
+    length, a = max(((b - a) % loop.length_m, a) for a, b in ends)
     return float(loop.wrap(np.array([a + 0.5 * length]))[0])
 
 
@@ -241,63 +234,34 @@ def _wall_extent(
 ) -> tuple[WallLoop, bool, list[_Group], float, list[str]]:
     """(wall, closed, groups on it, pick's arc length on it, notes): the picked loop, or the
     piece of it between the slot ends round the pick."""
-    notes: list[str] = []
+    L = loop.length_m
     shift = _straightest_start(loop) if loop.closed else 0.0
-    _, groups = _corner_groups(loop, shift)
-    ends = [
-        g
-        for g in groups
-        if g.turn_rad >= math.radians(SLOT_END_DEG) and g.end_m - g.start_m <= SLOT_END_MAX_M
-    ]
+    groups = _corner_groups(loop, shift)
+    ends = [g for g in groups if g.slot_end]
     pick = float(loop.wrap(np.array([pick_s - shift]))[0])
     if loop.closed and not ends:
-        wall = loop.piece(shift, shift + loop.length_m) if shift else loop
-        if shift:
-            wall = WallLoop(wall.points_m[:-1], wall.z_m, closed=True)
-        return wall, True, groups, pick, notes
-    for g in ends:
-        if g.start_m - 1e-9 <= pick <= g.end_m + 1e-9:
-            raise InvalidInputError(
-                "the picked point is at the end of a slot; pick one of its side walls"
-            )
-    if not ends:
-        a, b = 0.0, loop.length_m
+        wall = WallLoop(loop.piece(shift, shift + L).points_m[:-1], loop.z_m, closed=True)
+        return (wall if shift else loop), True, groups, pick, []
+    if any(g.start_m - 1e-9 <= pick <= g.end_m + 1e-9 for g in ends):
+        raise InvalidInputError(
+            "the picked point is at the end of a slot; pick one of its side walls"
+        )
+    before = [g.end_m for g in ends if g.end_m <= pick]
+    after = [g.start_m for g in ends if g.start_m >= pick]
+    if loop.closed:  # from the slot end before the pick to the one after, maybe over the start
+        a = before[-1] if before else ends[-1].end_m
+        b = after[0] if after else ends[0].start_m
+        b = b + L if b <= a else b
     else:
-        before = [g for g in ends if g.end_m <= pick]
-        after = [g for g in ends if g.start_m >= pick]
-        if loop.closed:
-            a = (before[-1] if before else ends[-1]).end_m
-            b = (after[0] if after else ends[0]).start_m
-            if b <= a:
-                b += loop.length_m
-        else:
-            a = before[-1].end_m if before else 0.0
-            b = after[0].start_m if after else loop.length_m
+        a, b = (before[-1] if before else 0.0), (after[0] if after else L)
     wall = loop.piece(shift + a, shift + b)
-    kept = [
-        _Group(g.start_m - a, g.end_m - a, g.turn_rad, g.sharpest_outside_rad)
-        for g in groups
-        if g not in ends and a < g.start_m and g.end_m < b
-    ]
-    if loop.closed:  # groups past the loop's end, seen from a piece running over it
-        kept += [
-            _Group(
-                g.start_m + loop.length_m - a,
-                g.end_m + loop.length_m - a,
-                g.turn_rad,
-                g.sharpest_outside_rad,
-            )  # fmt: skip
-            for g in groups
-            if g not in ends and a < g.start_m + loop.length_m and g.end_m + loop.length_m < b
-        ]
-    kept.sort(key=lambda g: g.start_m)
-    notes.append(
-        f"the wall is open: {wall.length_m * 1e3:.0f} mm between the ends of the slot"
-        if ends
-        else f"the wall is open ({wall.length_m * 1e3:.0f} mm)"
-    )
-    pick_on = float(np.clip(pick - a if pick >= a else pick + loop.length_m - a, 0, wall.length_m))
-    return wall, False, kept, pick_on, notes
+    kept = [g for g in _corner_groups(wall) if not g.slot_end]
+    length = f"{wall.length_m * 1e3:.0f} mm"
+    note = f"the wall is open: {length} between the ends of the slot" if ends else (
+        f"the wall is open ({length})"
+    )  # fmt: skip
+    pick_on = float(np.clip((pick - a) % L if loop.closed else pick - a, 0.0, wall.length_m))
+    return wall, False, kept, pick_on, [note]
 
 
 def _initial_points(

@@ -295,19 +295,26 @@ TOP_PROBES_M = (INSIDE_M, 0.001, 0.003, 0.010)  # and the part's top (an edge's 
 SPINDLE_RING = 8  # rays round the spindle's rim (and at half its radius, and on its axis)
 
 
-def _below(
-    mesh: trimesh.Trimesh, origins: np.ndarray, up: np.ndarray
+def _hits(
+    mesh: trimesh.Trimesh, origins: np.ndarray, directions: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(points (k, 3), face normals (k, 3)) of the first surface along -``up`` from each
-    origin; NaN rows where there is none."""
+    """(points (k, 3), face normals (k, 3)) of the first surface along each ray (one
+    direction for all, or one each); NaN rows where there is none."""
     origins = np.atleast_2d(origins)
     points = np.full((len(origins), 3), np.nan)
     normals = np.full((len(origins), 3), np.nan)
-    directions = np.tile(-np.asarray(up, dtype=float), (len(origins), 1))
+    directions = np.broadcast_to(np.asarray(directions, dtype=float), origins.shape)
     hits, ray, tri = ray_hits(mesh, origins, directions, multiple_hits=False)
     points[ray] = hits
     normals[ray] = np.asarray(mesh.face_normals)[tri]
     return points, normals
+
+
+def _below(
+    mesh: trimesh.Trimesh, origins: np.ndarray, up: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``_hits`` straight down ``-up`` from each origin."""
+    return _hits(mesh, origins, -np.asarray(up, dtype=float))
 
 
 def _across(normal: np.ndarray, up: np.ndarray) -> np.ndarray | None:
@@ -319,8 +326,8 @@ def _across(normal: np.ndarray, up: np.ndarray) -> np.ndarray | None:
 
 def _free_width(mesh: trimesh.Trimesh, on: np.ndarray, across: np.ndarray) -> float:
     """How far the free space reaches off the wall at ``on`` along ``across`` (inf: open)."""
-    hits, _, _ = ray_hits(mesh, (on + across * 2e-5)[None], across[None], multiple_hits=False)
-    return float(np.linalg.norm(hits[0] - on)) if len(hits) else math.inf
+    (hit, *_), _ = _hits(mesh, on + across * 2e-5, across)
+    return math.inf if np.isnan(hit[0]) else float(np.linalg.norm(hit - on))
 
 
 def floor_frame(
@@ -448,7 +455,15 @@ def pick_wall(
             f"{'up' if nf[2] > 0 else 'down'}); pick a point on a wall"
         )
     across = _across(nf, _Z)
-    _refuse_between(mf, T, p, pf, onf, float(distance[0]), across, tool_radius_m)
+    near, other = float(distance[0]), _free_width(mf, pf, across)  # the wall across the space
+    if other - near < AMBIGUOUS_CLICK_RADII * tool_radius_m:
+        far = pf + across * other
+        raise InvalidInputError(
+            f"the point ({_mm(p)}) mm is between two walls: {near * 1e3:.1f} mm from the wall "
+            f"at ({_mm(R @ onf)}) mm and {other * 1e3:.1f} mm from the wall at ({_mm(R @ far)}) "
+            f"mm (the free space is {(near + other) * 1e3:.1f} mm wide there); pick a point on "
+            "the wall to follow"
+        )
     width = _free_width(mf, onf, across)
     beside = onf + across * min(tool_radius_m + gap_m, 0.5 * width)
     (floor_at, *_), _ = _below(mf, beside + _Z * RAY_START_M, _Z)
@@ -462,7 +477,7 @@ def pick_wall(
     )
     loops = section_loops(mf, z)
     if not loops:
-        raise InvalidInputError(f"no wall at {z * 1e3:.1f} mm (work-object z)")
+        raise InvalidInputError(f"no wall {(z - floor) * 1e3:.1f} mm above the floor there")
     xy = onf[:2]
     distances = [abs(lp.signed_distance(xy[None])[0]) for lp in loops]
     k = int(np.argmin(distances))
@@ -481,35 +496,6 @@ def pick_wall(
     others = tuple(lp for i, lp in enumerate(loops) if i != k)
     notes = (note,) if note else ()
     return WallPick(p, n, loop, s, float(z), floor, float(top), others, notes, T, mf)
-
-
-def _refuse_between(
-    mesh: trimesh.Trimesh,
-    T_wobj_floor: np.ndarray,
-    p: np.ndarray,
-    pf: np.ndarray,
-    onf: np.ndarray,
-    distance_m: float,
-    across: np.ndarray,
-    radius_m: float,
-) -> None:
-    """Refuse a point about as near the wall across the free space as its nearest wall
-    (their distances within ``AMBIGUOUS_CLICK_RADII`` tool radii), naming both."""
-    origin = pf + across * 2e-5
-    hits, _, _ = ray_hits(mesh, origin[None], across[None], multiple_hits=False)
-    if not len(hits):
-        return
-    other = float(np.linalg.norm(hits[0] - pf))
-    if other - distance_m >= AMBIGUOUS_CLICK_RADII * radius_m:
-        return
-    R = T_wobj_floor[:3, :3]
-    near, far = R @ onf, R @ hits[0]
-    raise InvalidInputError(
-        f"the point ({_mm(p)}) mm is between two walls: {distance_m * 1e3:.1f} mm from the "
-        f"wall at ({_mm(near)}) mm and {other * 1e3:.1f} mm from the wall at ({_mm(far)}) mm "
-        f"(the free space is {(distance_m + other) * 1e3:.1f} mm wide there); pick a point on "
-        "the wall to follow"
-    )
 
 
 def _spindle_lowest(
