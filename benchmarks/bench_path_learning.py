@@ -208,7 +208,6 @@ def main() -> None:
     timer.wrap(c.contact_model, "evaluate", "cell: contact (coal, nearest face, force)")
     timer.wrap(c.sensor, "measure", "cell: F/T sensor reading")
     timer.wrap(path_learning, "controller_period", "force loop (law, turn, recording row)")
-    timer.wrap(path_learning, "leg_progress", "route progress")
     timer.wrap(path_learning, "quaternions_from_matrices", "recording (built at the end)")
     approach = path_learning._approach
     started: list[float] = []

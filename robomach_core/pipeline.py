@@ -130,6 +130,7 @@ class DemoResult:
     project: Project | None = None
     files: dict[str, str] = field(default_factory=dict)
     proposal: Any = None  # guide_proposal.GuideProposal
+    findings: tuple = ()  # learning.GuideWarning: the guide-point check before learning
 
     def summary(self) -> dict:
         """The summary.json dictionary (units in key names)."""
@@ -171,6 +172,11 @@ class DemoResult:
             "stop": None if rec.stop is None else rec.stop.document(),
             "wall_side": rec.wall_side,
             "wall_side_reason": rec.wall_side_reason,
+            "wall_side_source": rec.wall_side_source,
+            "guide_point_check": [
+                {"point": w.point, "rule": w.rule, "severity": w.severity, "message": w.message}
+                for w in self.findings
+            ],
             "leadthrough_sim_time_s": self.leadthrough_sim_s,
             "sim_time_s": sim_s,
             "wall_time_s": self.wall_time_s,
@@ -311,6 +317,11 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         wall_side=settings.wall_side,
         closed=settings.closed,
     )
+    from .learning import guide_point_warnings
+
+    findings = guide_point_warnings(  # what the workbench shows before a run; a refusal raises
+        guides, learning, workpiece=cad, tool_radius_m=cell.tool.radius_m, robot=cell.robot
+    )
     learned, _ = learn(
         project,
         cell,
@@ -354,6 +365,7 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         project=project,
         files=files,
         proposal=proposal,
+        findings=findings,
     )
 
 

@@ -354,9 +354,15 @@ def run(args: argparse.Namespace) -> int:
     )
     print(f"targets           {s['targets']} (tolerance {s['tolerance_mm']:g} mm)")
     if s["max_deviation_mm"] is not None:
+        elsewhere = s["max_deviation_mm"] > 1.0 and s.get("wall_side_source") == "setting"
         print(
             f"deviation         max {s['max_deviation_mm']:.3f} mm, RMS "
             f"{s['rms_deviation_mm']:.3f} mm (path vs true wall - tool radius)"
+            + (
+                f": the program follows another wall, the one on the {s['wall_side']} as set"
+                if elsewhere
+                else ""
+            )
         )
     if s.get("arcs"):
         print(
@@ -370,6 +376,8 @@ def run(args: argparse.Namespace) -> int:
             f"{s['mesh_air_mm']:.3f} mm (program vs the part's walls - tool radius)"
         )
     print(f"wall              on the {s['wall_side']} of travel: {s['wall_side_reason']}")
+    for line in _check_lines(s.get("guide_point_check") or ()):
+        print(f"check             {line}")
     if s.get("taught_wall"):
         print(f"taught wall       {s['taught_wall']}")
     comparison = s.get("cad_comparison")
@@ -396,3 +404,18 @@ def run(args: argparse.Namespace) -> int:
     for problem in s.get("problems") or ():
         print(f"NOT FIT TO MACHINE: {problem}", file=sys.stderr)
     return 0 if result.recording.completed and not s.get("problems") else 1
+
+
+def _check_lines(findings: list[dict]) -> list[str]:
+    """The guide-point check for the terminal: one line per rule, its points listed, the
+    first point's message (the workbench and the pendant list them one by one)."""
+    by_rule: dict[str, list[dict]] = {}
+    for finding in findings:
+        by_rule.setdefault(finding["rule"], []).append(finding)
+    lines = []
+    for group in by_rule.values():
+        first = group[0]
+        others = [f"G{f['point']}" for f in group[1:] if f["point"]]
+        also = f" (the same at {', '.join(others)})" if others else ""
+        lines.append(f"{first['severity']}: {first['message']}{also}")
+    return lines

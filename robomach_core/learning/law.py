@@ -284,7 +284,7 @@ def controller_period(
     turn: np.ndarray,
     record: np.ndarray,
     n: int,
-) -> tuple[float, bool, bool, float, float, float]:
+) -> tuple[float, bool, bool, float, float, float, float]:
     """One controller period of path learning: what the controller measures, the law, the
     recording's row ``n`` and the turn; ``w``, ``state`` (the law's), ``step`` and ``turn``
     are updated in place.
@@ -297,7 +297,8 @@ def controller_period(
 
     Returns:
         (|F| [N], touching, ever touched, the law's distance out of contact [m], the
-        reference's distance from the leg's line [m], the step's advance along the wall [m]).
+        reference's distance from the leg's line [m], the step's advance along the wall [m],
+        the reference's progress along the leg [m]).
     """
     R_meas = T_meas[:3, :3]
     wrench = contact_wrench_tcp_base(
@@ -329,7 +330,7 @@ def controller_period(
     tz = (w[0] * axis[1] - w[1] * axis[0]) * side
     advance = abs(step_new[0] * tx + step_new[1] * ty + step_new[2] * tz)
     ever = state_new[EVER_TOUCHED] > 0.0
-    return f_abs, touching, ever, state_new[OUT_OF_CONTACT], off_route, advance
+    return f_abs, touching, ever, state_new[OUT_OF_CONTACT], off_route, advance, along
 
 
 @_jit
@@ -360,19 +361,3 @@ def record_row(
     row[REC_CONTACT] = contact
     row[REC_YP : REC_YP + 3] = w
     row[REC_SEGMENT] = leg_first
-
-
-@_jit
-def leg_progress(
-    T_ref: np.ndarray, leg: np.ndarray, first_touch: np.ndarray, axis: np.ndarray
-) -> tuple[float, float]:
-    """The reference's progress along the leg [m], and its distance across ``axis`` from
-    ``first_touch`` [m] (where a closed route closes)."""
-    s = 0.0
-    gap = np.empty(3)
-    for i in range(3):
-        s += (T_ref[i, 3] - leg[LEG_A + i]) * leg[LEG_XP + i]
-        gap[i] = T_ref[i, 3] - first_touch[i]
-    along = gap @ axis
-    gap -= axis * along
-    return s, math.sqrt(gap @ gap)

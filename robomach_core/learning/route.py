@@ -389,6 +389,15 @@ class HeightReference:
     plane: np.ndarray  # REF_SIZE: the points' plane, or the last floor measured
     walls: PartWalls | None = None
     _last: np.ndarray | None = field(default=None, repr=False)
+    _walked: tuple | None = field(default=None, repr=False)  # (tree, references) of the walk
+
+    def remember(self, points: np.ndarray, references: np.ndarray) -> None:
+        """Keep the references the walk measured at ``points``: the run takes the nearest
+        (within ``WALK_MATCH_M``) instead of measuring the floor again."""
+        from scipy.spatial import cKDTree
+
+        if len(points):
+            self._walked = (cKDTree(points), np.asarray(references))
 
     def at(self, p: np.ndarray, travel: np.ndarray | None = None) -> np.ndarray:
         """(REF_SIZE,) the reference under ``p`` for the law (``law.REF_H0`` ...): in floor
@@ -397,6 +406,10 @@ class HeightReference:
         reaches it); where none is below, the last one measured, extended as a plane."""
         if self.mode == "points" or self.walls is None:
             return self.plane
+        if self._walked is not None:
+            distance, k = self._walked[0].query(p)
+            if distance <= th.WALK_MATCH_M:
+                return self._walked[1][k]
         r = self.walls.radius
         probes = np.array([p] if travel is None else [
             p, p + travel * (r + th.REFERENCE_SPACING_M), p - travel * r
@@ -508,6 +521,7 @@ def walk_route(
     out: list[LegWalk] = []
     ref = heights.at(p)
     since_ref = 0.0
+    measured_at, measured = [p.copy()], [ref]
     for k, leg in enumerate(legs):
         row = leg.row(offsets[k])
         end = LegEnd(leg, axis, last=k == len(legs) - 1, closed=closed)
@@ -536,6 +550,8 @@ def walk_route(
             since_ref += th.WALK_STEP_M
             if since_ref >= th.REFERENCE_SPACING_M:
                 ref, since_ref = heights.at(p, t), 0.0
+                measured_at.append(p.copy())
+                measured.append(ref)
         arr = np.array(pts)
         rel = arr - leg.a
         along = rel @ leg.xp
@@ -543,6 +559,7 @@ def walk_route(
         out.append(LegWalk(arr, np.array(towards), float(off.max()), walked, reached))
         if not reached:
             break
+    heights.remember(np.array(measured_at), np.array(measured))
     return out
 
 

@@ -48,7 +48,6 @@ from .law import (
     controller_period,
     initial_state,
     law_parameters,
-    leg_progress,
     route_height,
 )
 from .route import LearningRoute, LegEnd
@@ -465,7 +464,7 @@ def learn_path(
             stop_cause = "timeout"
             break
         # --- the controller (measure, the law, record, the turn), compiled ---
-        f_abs, touching, ever, searched, off_route, advance = controller_period(
+        f_abs, touching, ever, searched, off_route, advance, s_now = controller_period(
             state.ft_reading, state.T_base_tcp, state.q_motor, state.time_s - t0, tool_data,
             R_tcp_flange, row, ref, axis, side, T_ref, w, law, params, max_turn, step, turn,
             record, n,
@@ -493,7 +492,6 @@ def learn_path(
         travelled = advance * supervised.scale
         leg_travel += travelled
         state = cell.step(state, supervised.q_next)
-        s_now, _ = leg_progress(T_ref, row, T_ref[:3, 3], axis)
         if s_now >= end.watch_from_m and end.reached(T_ref[:3, 3], s_now, first_touch):
             if end.last:
                 completed = True

@@ -26,6 +26,7 @@ WALL_FACE_MAX_COS = math.cos(
 FLOOR_SEARCH_M = 0.03  # m | a floor farther than this below the cutter is not the one the route runs over | fixed
 PLANE_SPREAD_M = 0.01  # m | without a floor, the points' plane has no slope along a direction they spread less than this over (rms) | fixed
 FLOOR_ABOVE_M = 0.002  # m | the floor is looked for from this far above the cutter's centre (a cutter pressed into it still finds it) | tool radius (added to it)
+WALK_MATCH_M = 0.001  # m | the run takes the floor the walk measured nearest to the tool within this, and measures it itself farther off | fixed
 REFERENCE_SPACING_M = 0.001  # m | the floor under the tool is measured anew after this much travel; a plane extrapolates between | fixed: spatial, not timed
 FLOOR_CONE_TAN = math.tan(
     math.radians(37.0)
