@@ -296,25 +296,40 @@ SPINDLE_RING = 8  # rays round the spindle's rim (and at half its radius, and on
 
 
 def _hits(
-    mesh: trimesh.Trimesh, origins: np.ndarray, directions: np.ndarray
+    mesh: trimesh.Trimesh,
+    origins: np.ndarray,
+    directions: np.ndarray,
+    *,
+    floor_up: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(points (k, 3), face normals (k, 3)) of the first surface along each ray (one
-    direction for all, or one each); NaN rows where there is none."""
+    direction for all, or one each), or with ``floor_up`` the first floor-like one (facing
+    within 45 deg of it: past a wall that leans over the ray); NaN rows where none."""
     origins = np.atleast_2d(origins)
     points = np.full((len(origins), 3), np.nan)
     normals = np.full((len(origins), 3), np.nan)
     directions = np.broadcast_to(np.asarray(directions, dtype=float), origins.shape)
-    hits, ray, tri = ray_hits(mesh, origins, directions, multiple_hits=False)
+    hits, ray, tri = ray_hits(mesh, origins, directions, multiple_hits=floor_up is not None)
+    faces = np.asarray(mesh.face_normals)[tri]
+    if floor_up is not None:  # nearest first, floor-like only, one per ray
+        keep = faces @ floor_up >= WALL_FACE_MAX_COS
+        hits, ray, faces = hits[keep], ray[keep], faces[keep]
+        along = np.einsum("ij,ij->i", hits - origins[ray], directions[ray])
+        order = np.lexsort((along, ray))
+        first = order[np.r_[True, np.diff(ray[order]) != 0]] if len(order) else order
+        hits, ray, faces = hits[first], ray[first], faces[first]
     points[ray] = hits
-    normals[ray] = np.asarray(mesh.face_normals)[tri]
+    normals[ray] = faces
     return points, normals
 
 
 def _below(
-    mesh: trimesh.Trimesh, origins: np.ndarray, up: np.ndarray
+    mesh: trimesh.Trimesh, origins: np.ndarray, up: np.ndarray, *, floors: bool = True
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``_hits`` straight down ``-up`` from each origin."""
-    return _hits(mesh, origins, -np.asarray(up, dtype=float))
+    """``_hits`` straight down ``-up`` from each origin: the first floor-like surface (any
+    surface without ``floors``)."""
+    up = np.asarray(up, dtype=float)
+    return _hits(mesh, origins, -up, floor_up=up if floors else None)
 
 
 def _across(normal: np.ndarray, up: np.ndarray) -> np.ndarray | None:
@@ -370,6 +385,26 @@ def _frame(up: np.ndarray) -> np.ndarray:
     return T
 
 
+def floor_under(mesh: trimesh.Trimesh, point_wobj_m: np.ndarray) -> np.ndarray:
+    """T_wobj_floor of the nearest floor under a point (work-object frame), looked for
+    straight down and 30 deg off it (under a wall that leans over the point); level where
+    nothing floor-like is under it."""
+    p = np.asarray(point_wobj_m, dtype=float)
+    directions = np.vstack([-_Z, *(UNDER_CONE @ -_Z for UNDER_CONE in _UNDER_CONES)])
+    hits, faces = _hits(mesh, np.tile(p, (len(directions), 1)), directions, floor_up=_Z)
+    if np.all(np.isnan(hits[:, 0])):
+        return np.eye(4)
+    face = faces[np.nanargmin(np.linalg.norm(hits - p, axis=1))]
+    return _frame(face / np.linalg.norm(face))
+
+
+_UNDER_CONES = [  # rotations by 30 deg about x and y, both ways
+    trimesh.transformations.rotation_matrix(a, axis)[:3, :3]
+    for axis in ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    for a in (math.radians(30.0), -math.radians(30.0))
+]
+
+
 def walls_near(
     mesh: trimesh.Trimesh, points_wobj_m: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, list[WallLoop]]:
@@ -377,9 +412,7 @@ def walls_near(
     for TCP positions beside a wall (work-object frame): the frame of the floor under the
     first point (level where nothing floor-like is under it)."""
     p = np.atleast_2d(np.asarray(points_wobj_m, dtype=float))
-    _, face = _below(mesh, p[:1], _Z)
-    level = WALL_FACE_MAX_COS  # a face nearer level than a wall is a floor
-    T = _frame(face[0] / np.linalg.norm(face[0])) if face[0] @ _Z >= level else np.eye(4)
+    T = floor_under(mesh, p[0])
     pf = p @ T[:3, :3]
     moved = transformed(mesh, np.linalg.inv(T))
     return T, pf, section_loops(moved, float(np.median(pf[:, 2])))
@@ -515,7 +548,7 @@ def _spindle_lowest(
     ring = np.outer(np.cos(angles), e1) + np.outer(np.sin(angles), e2)
     offsets = np.vstack([np.zeros(3), 0.5 * SPINDLE_RADIUS_M * ring, SPINDLE_RADIUS_M * ring])
     span = float(np.linalg.norm(np.ptp(mesh.bounds, axis=0))) + 0.01
-    top, _ = _below(mesh, tcp + offsets + up_tool * (span + reach_m), up_tool)
+    top, _ = _below(mesh, tcp + offsets + up_tool * (span + reach_m), up_tool, floors=False)
     rise = (top - tcp) @ up_tool
     if np.all(np.isnan(rise)):
         return -math.inf
