@@ -52,8 +52,8 @@ from .thresholds import (
     LONG_RUN_M,
     MAX_ADDED_POINTS,
     MAX_LEG_GAP_M,
-    MIN_POINT_SPACING_M,
     MIN_RUN_M,
+    MIN_SPACING_M,
     OUTSIDE_CORNER_DEG,
     ROUND_LOOP_POINTS,
     SLOT_END_DEG,
@@ -175,6 +175,7 @@ class _Group:
     start_m: float  # arc length (in the loop's own coordinates, may exceed its length)
     end_m: float
     turn_rad: float  # net turn, left (towards the free side) positive
+    apex_m: float  # where the wall has turned half its sharpest corner: a sharp corner's tip
 
     @property
     def slot_end(self) -> bool:
@@ -201,17 +202,24 @@ def _corner_groups(loop: WallLoop, shift_m: float = 0.0) -> list[_Group]:
         j = i
         while j + 1 < n and corner[j + 1]:
             j += 1
-        turn = float(theta[min(j + 1, n - 1)] - theta[max(i - 1, 0)])
+        a, b = max(i - 1, 0), min(j + 1, n - 1)
+        turn = float(theta[b] - theta[a])
         if abs(turn) >= math.radians(CORNER_TURN_MIN_DEG):
-            if groups and s[i] - groups[-1].end_m < MIN_RUN_M:  # one group with the last
-                groups[-1] = _Group(groups[-1].start_m, float(s[j]), groups[-1].turn_rad + turn)
+            half = np.sign(turn) * (theta[a : b + 1] - theta[a] - 0.5 * turn)
+            apex = float(np.interp(0.0, half, s[a : b + 1]))  # theta is monotonic here
+            last = groups[-1] if groups else None
+            if last is not None and s[i] - last.end_m < MIN_RUN_M:  # one group with the last
+                apex = apex if abs(turn) > abs(last.turn_rad) else last.apex_m
+                groups[-1] = _Group(last.start_m, float(s[j]), last.turn_rad + turn, apex)
             else:
-                groups.append(_Group(float(s[i]), float(s[j]), turn))
+                groups.append(_Group(float(s[i]), float(s[j]), turn, apex))
         i = j + 1
     L = loop.length_m
     if loop.closed and len(groups) >= 2 and groups[0].start_m + L - groups[-1].end_m < MIN_RUN_M:
         first, last = groups.pop(0), groups.pop()  # one group round the start
-        groups.append(_Group(last.start_m, first.end_m + L, last.turn_rad + first.turn_rad))
+        sharper = first if abs(first.turn_rad) > abs(last.turn_rad) else last
+        apex = sharper.apex_m + (L if sharper is first else 0.0)
+        groups.append(_Group(last.start_m, first.end_m + L, last.turn_rad + first.turn_rad, apex))
     return groups
 
 
@@ -291,14 +299,14 @@ def _initial_points(
             out.append((a + 0.5 * length, "run"))
     for g in groups:
         if g.turn_rad <= -math.radians(OUTSIDE_CORNER_DEG):
-            out.append((0.5 * (g.start_m + g.end_m), "outside corner"))
+            out.append((g.apex_m, "outside corner"))
     if not closed:
         out.append((max(wall.length_m - end_margin_m, 0.5 * wall.length_m), "wall end"))
     out = [(float(wall.wrap(np.array([s]))[0]) if closed else s, k) for s, k in out]
     out.sort(key=lambda item: item[0])
     merged: list[tuple[float, PointKind]] = []
     for s, kind in out:  # two points on top of each other: keep the corner or end
-        if merged and s - merged[-1][0] < MIN_POINT_SPACING_M:
+        if merged and s - merged[-1][0] < MIN_SPACING_M:
             if kind != "run":
                 merged[-1] = (s, kind)
             continue
@@ -350,16 +358,23 @@ class WallPlacer:
 
 
 def _leg_problem(
-    wall: WallLoop, radius_m: float, pa: np.ndarray, pb: np.ndarray, sa: float, sb: float
+    wall: WallLoop,
+    radius_m: float,
+    pa: np.ndarray,
+    pb: np.ndarray,
+    sa: float,
+    sb: float,
+    clearance_m: float = LEG_CLEARANCE_M,
 ) -> float | None:
-    """Arc length where the leg pa -> pb needs a point of its own (it cuts towards the
-    material, or the wall between sa and sb recedes too far from it), or None."""
+    """Arc length where the leg pa -> pb needs a point of its own (its cutter comes within
+    ``clearance_m`` of the material, or the wall between sa and sb recedes too far from it),
+    or None."""
     length = float(np.linalg.norm(pb - pa))
     n = max(2, int(math.ceil(length / CHORD_SAMPLE_M)))
     chord = pa + np.linspace(0.0, 1.0, n)[:, None] * (pb - pa)
     signed = wall.signed_distance(chord)
     worst = int(np.argmin(signed))
-    if signed[worst] < radius_m + LEG_CLEARANCE_M:
+    if signed[worst] < radius_m + clearance_m:
         return float(wall.project(chord[worst : worst + 1])[0])
     if sb <= sa:
         sb += wall.length_m
@@ -382,7 +397,7 @@ def _add_points(
     place: WallPlacer,
     radius_m: float,
 ) -> tuple[list[tuple[float, PointKind]], list[str]]:
-    """Points added where a leg cuts towards the wall or leaves it too far (module docstring).
+    """Points added where a leg comes near the wall or leaves it too far (module docstring).
     A leg is checked once; an added point puts its two new legs on the list."""
     notes: list[str] = []
     points = list(points)
@@ -398,12 +413,8 @@ def _add_points(
         at = float(wall.wrap(np.array([at]))[0]) if closed else at
         span = (sb - sa) % wall.length_m if closed else sb - sa
         offset = (at - sa) % wall.length_m if closed else at - sa
-        if not MIN_POINT_SPACING_M <= offset <= span - MIN_POINT_SPACING_M:
-            notes.append(
-                f"the leg between points {k + 1} and {j + 1} comes close to the wall; move one "
-                "of them"
-            )
-            continue
+        if not MIN_SPACING_M <= offset <= span - MIN_SPACING_M:
+            continue  # no room: ``leg_problems`` says so if the leg cuts into the wall
         points.insert(k + 1, (at, "added"))
         added += 1
         todo = [t + 1 if t > k else t for t in todo] + [k, k + 1]
@@ -590,9 +601,10 @@ def propose_guide_points(
     ):
         r, message = _verdict(note, r, message)
         out.append(ProposedPoint(Ts[k], wobj[k], s, kind, r, message, q, floor[k]))
-    return GuideProposal(
+    proposal = GuideProposal(
         tuple(out), wall, closed, "right", pick, tuple(dict.fromkeys(notes)), T_base_wobj.copy()
     )
+    return _with_leg_notes(proposal, tool_radius_m)
 
 
 def teach_point(
@@ -714,7 +726,8 @@ def delete_point(proposal: GuideProposal, index: int, *, tool_radius_m: float) -
 
 
 def leg_problems(proposal: GuideProposal, tool_radius_m: float) -> list[str]:
-    """A sentence per leg that cuts towards the wall or leaves it too far (after edits)."""
+    """A sentence per leg whose cutter would cut into the wall or that leaves it too far
+    (``MAX_LEG_GAP_M``): after edits, or where the planner had no room for a point."""
     wall, pts = proposal.wall, proposal.points
     out = []
     legs = len(pts) if proposal.closed else len(pts) - 1
@@ -722,7 +735,7 @@ def leg_problems(proposal: GuideProposal, tool_radius_m: float) -> list[str]:
         j = (k + 1) % len(pts)
         a, b = pts[k], pts[j]
         at = _leg_problem(
-            wall, tool_radius_m, a.position_floor_m[:2], b.position_floor_m[:2], a.s_m, b.s_m
+            wall, tool_radius_m, a.position_floor_m[:2], b.position_floor_m[:2], a.s_m, b.s_m, 0.0
         )
         if at is not None:
             x, y, _ = (
@@ -731,7 +744,7 @@ def leg_problems(proposal: GuideProposal, tool_radius_m: float) -> list[str]:
             )
             out.append(
                 f"the leg G{k + 1}-G{j + 1} leaves the wall near ({x:.1f}, {y:.1f}) mm: add a "
-                "point there or undo the edit"
+                "point there (or undo the edit)"
             )
     return out
 

@@ -110,7 +110,6 @@ LONG_RUN_END_SHARE = 0.2  # x run | where a long run's two points stand, from ea
 WALL_END_MARGIN_M = 5e-4  # m | an open wall's end points stand this much more than the tool radius and gap from its ends | fixed
 LEG_CLEARANCE_M = 3e-4  # m | a leg's chord keeps the cutter this far off the wall, else a point is added at the worst place ... | fixed
 MAX_LEG_GAP_M = 0.012  # m | ... and the wall no farther than this from the chord (the route would leave it to a long search) | fixed
-MIN_POINT_SPACING_M = 0.0015  # m | along the wall, two planned points closer than this are one (a corner's or an end's wins over a run's) | fixed
 MAX_ADDED_POINTS = 200  # points | the planner stops adding points after this many and says so (a wall it cannot bracket) | fixed
 ROUND_LOOP_POINTS = 4  # points | a closed wall without any corner (a round boss or pocket) gets this many points, evenly spread | fixed
 JOINT_JUMP_DEG = 60.0  # deg | an axis turning this much between neighbouring points is a change of configuration: "near" | fixed

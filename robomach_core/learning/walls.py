@@ -386,23 +386,14 @@ def _frame(up: np.ndarray) -> np.ndarray:
 
 
 def floor_under(mesh: trimesh.Trimesh, point_wobj_m: np.ndarray) -> np.ndarray:
-    """T_wobj_floor of the nearest floor under a point (work-object frame), looked for
-    straight down and 30 deg off it (under a wall that leans over the point); level where
-    nothing floor-like is under it."""
-    p = np.asarray(point_wobj_m, dtype=float)
-    directions = np.vstack([-_Z, *(UNDER_CONE @ -_Z for UNDER_CONE in _UNDER_CONES)])
-    hits, faces = _hits(mesh, np.tile(p, (len(directions), 1)), directions, floor_up=_Z)
-    if np.all(np.isnan(hits[:, 0])):
-        return np.eye(4)
-    face = faces[np.nanargmin(np.linalg.norm(hits - p, axis=1))]
-    return _frame(face / np.linalg.norm(face))
-
-
-_UNDER_CONES = [  # rotations by 30 deg about x and y, both ways
-    trimesh.transformations.rotation_matrix(a, axis)[:3, :3]
-    for axis in ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
-    for a in (math.radians(30.0), -math.radians(30.0))
-]
+    """T_wobj_floor at a TCP position beside a wall (work-object frame): ``floor_frame`` at
+    the nearest point of the part (its floor's normal when that is a floor)."""
+    p = np.asarray(point_wobj_m, dtype=float).reshape(3)
+    closest, distance, triangle = closest_point(mesh, p[None])
+    n = np.asarray(mesh.face_normals[int(triangle[0])], dtype=float)
+    if n @ _Z >= WALL_FACE_MAX_COS:
+        return _frame(n)
+    return floor_frame(mesh, np.asarray(closest[0], dtype=float), n, float(distance[0]))
 
 
 def walls_near(

@@ -21,6 +21,7 @@ from robomach_core.learning.thresholds import (
     CONTACT_BELOW_TOP_M,
     CONTACT_BELOW_TOP_RADII,
     CUTTER_FLOOR_CLEARANCE_M,
+    MIN_SPACING_M,
 )
 from robomach_core.robot import Robot
 from robomach_core.transforms import make_transform
@@ -86,6 +87,9 @@ def test_a_proposal_follows_the_picked_wall_beside_it_at_the_height_above_the_fl
     )  # fmt: skip
     outline = plate.walls[wall]
     assert proposal.closed
+    assert not [n for n in proposal.notes if "leg" in n], proposal.notes  # every leg bracketed
+    tcp = np.array([p.position_wobj_m for p in proposal.points])
+    assert np.linalg.norm(tcp - np.roll(tcp, 1, axis=0), axis=1).min() >= MIN_SPACING_M
     assert proposal.wall.length_m == pytest.approx(outline.length, rel=1e-3)
     kept = abs(proposal.height_above_floor_m - height) < 1e-6
     assert kept or (tilt == "mesh" and any("spindle" in n for n in proposal.notes)), (
@@ -154,3 +158,43 @@ def test_a_click_keeps_its_height_or_says_why_and_where_the_tool_works(seed, til
         assert f"the tool works {above * 1e3:.1f} mm above the floor instead" in taught.message
         assert ("clear the floor" if h < low else "below its rim") in taught.message
     assert math.isfinite(above)
+
+
+@given(tilt_deg=st.floats(10.0, 20.0), axis_deg=st.floats(0.0, 360.0))
+@settings(max_examples=6, deadline=None)
+def test_an_l_block_tilted_in_its_stl_gets_its_corners_on_their_bisectors(tilt_deg, axis_deg):
+    """Sharp corners from a file (float32 vertices, tilted): a point on each outside corner's
+    bisector, radius + gap off its tip, and no leg that needs a point it cannot get."""
+    import trimesh
+
+    from robomach_core.workpiece import mesh_from_bytes
+    from tests.generated_parts import l_block
+
+    part = l_block()
+    a = math.radians(axis_deg)
+    R = trimesh.transformations.rotation_matrix(
+        math.radians(tilt_deg), [math.cos(a), math.sin(a), 0]
+    )
+    mesh = part.mesh.copy()
+    mesh.apply_transform(R)
+    lift = -mesh.bounds[0, 2]
+    mesh.apply_translation([0.0, 0.0, lift])
+    wp = mesh_from_bytes(
+        mesh.export(file_type="stl"),
+        ".stl",
+        name="l",
+        T_base_wobj=make_transform(np.eye(3), WOBJ_M),
+    )
+    pick = (R[:3, :3] @ np.array(part.picks["outline"]) + [0.0, 0.0, lift]) * 1e-3
+    proposal = propose_guide_points(wp, None, pick, tool_radius_m=1e-3, tool_reach_m=None)
+    assert not proposal.notes, proposal.notes
+    corners = [p for p in proposal.points if p.kind == "outside corner"]
+    assert len(corners) == 5
+    tips = np.array([(50, -35), (50, 0), (0, 35), (-50, 35), (-50, -35)]) * 1e-3
+    inward = np.array([(-1, 1), (-1, -1), (-1, -1), (1, -1), (1, 1)]) / math.sqrt(2)
+    xyz = (np.array([p.position_wobj_m for p in corners]) * 1e3 - [0, 0, lift]) @ R[:3, :3] * 1e-3
+    for tip, into in zip(tips, inward, strict=True):
+        k = int(np.argmin(np.linalg.norm(xyz[:, :2] - tip, axis=1)))
+        off = xyz[k, :2] - tip
+        assert np.linalg.norm(off) == pytest.approx(2e-3, abs=5e-5)  # radius + gap
+        assert off @ into == pytest.approx(-2e-3, abs=5e-5)  # on the bisector, outwards
