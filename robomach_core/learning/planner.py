@@ -64,6 +64,7 @@ from .thresholds import (
 from .walls import WallLoop, WallPick, pick_wall
 
 TURN_WINDOW_M = 5e-4  # the wall's direction is measured over this much of it
+ROOM_STEPS = 3  # an added point may move this many windows off the worst place to find room
 SAMPLE_M = 2e-4  # the wall is looked at every this much for corners
 CHORD_SAMPLE_M = 2.5e-4  # a leg's chord is checked every this much
 WALL_SAMPLE_M = 5e-4  # the wall beside a leg is checked every this much
@@ -407,14 +408,28 @@ def _add_points(
         k = todo.pop()
         j = (k + 1) % len(points)
         (sa, _), (sb, _) = points[k], points[j]
-        at = _leg_problem(wall, radius_m, place(sa)[0], place(sb)[0], sa, sb)
+        pa, pb = place(sa)[0], place(sb)[0]
+        at = _leg_problem(wall, radius_m, pa, pb, sa, sb)
         if at is None:
             continue
-        at = float(wall.wrap(np.array([at]))[0]) if closed else at
-        span = (sb - sa) % wall.length_m if closed else sb - sa
-        offset = (at - sa) % wall.length_m if closed else at - sa
-        if not MIN_SPACING_M <= offset <= span - MIN_SPACING_M:
+        L = wall.length_m
+        span = (sb - sa) % L if closed else sb - sa
+        offset = float(np.clip((at - sa) % L if closed else at - sa, 0.0, span))
+        offset = 0.0 if closed and (at - sa) % L > 0.5 * (span + L) else offset  # just before sa
+        # Room is counted between the tool's places, not the wall's feet (round an outside
+        # corner they stand farther apart); at a corner's tip, the place just past it, where
+        # the wall's own side gives the direction, brackets it.
+        for step in range(ROOM_STEPS + 1):
+            shift = step * TURN_WINDOW_M * (1.0 if offset < 0.5 * span else -1.0)
+            pc = place(float(wall.wrap(np.array([sa + offset + shift]))[0]))[0]
+            if (
+                0.0 < offset + shift < span
+                and min(np.linalg.norm(pc - pa), np.linalg.norm(pc - pb)) >= MIN_SPACING_M
+            ):
+                break
+        else:
             continue  # no room: ``leg_problems`` says so if the leg cuts into the wall
+        at = float(wall.wrap(np.array([sa + offset + shift]))[0]) if closed else sa + offset + shift
         points.insert(k + 1, (at, "added"))
         added += 1
         todo = [t + 1 if t > k else t for t in todo] + [k, k + 1]
