@@ -322,10 +322,13 @@ def taught_wall_check(
     if missed:
         where = ", ".join(f"G{k}" for k in missed)
         message = (
-            f"the program does not follow the wall on the {side} taught at {where} (it passes "
+            f"the program does not follow the wall taught at {where} (on the {side}; it passes "
             f"{worst * 1e3:.1f} mm from it): it was learned on another wall, the floor or inside "
             "the part"
         )
     else:
-        message = f"the program follows the wall on the {side} at all {len(checked)} guide points"
+        message = (
+            f"the program follows the taught wall (on the {side}) at all {len(checked)} guide "
+            "points"
+        )
     return TaughtWallCheck(not missed, tuple(checked), tuple(missed), worst, message)

@@ -213,6 +213,22 @@ class PartWalls:
             c, d, _ = mesh_query.closest_point(self.walls, (points - self.t) @ self.R)
         return c @ self.R.T + self.t, np.asarray(d, dtype=float)
 
+    def faces_from_free_side(self, point: np.ndarray, direction: np.ndarray, reach: float) -> bool:
+        """True when the first wall along ``direction`` from ``point`` is within ``reach`` and
+        met from its free side: ``point`` stands in the free space beside a wall."""
+        if self.walls is None:
+            return False
+        with mesh_query.LOCK:
+            tri = self.walls.ray.intersects_first(
+                ((point - self.t) @ self.R)[None], (self.R.T @ direction)[None]
+            )[0]
+        if tri < 0:
+            return False
+        n = self.R @ self.walls.face_normals[tri]
+        corner = self.R @ self.walls.vertices[self.walls.faces[tri, 0]] + self.t
+        along = float(n @ (corner - point)) / float(n @ direction)
+        return float(n @ direction) < 0.0 and 0.0 <= along <= reach
+
     def across_ray(self, point: np.ndarray, direction: np.ndarray) -> float:
         """Distance [m] from ``point`` to the first wall along ``direction`` (inf: none)."""
         if self.walls is None:
@@ -237,7 +253,9 @@ class PartWalls:
             on_right = float(rel @ right[k]) > 0.0
             gap = float(dist[k]) - self.radius
             (r_gap if on_right else l_gap)[k] = gap
-            other = self.across_ray(p, -right[k] if on_right else right[k]) - self.radius
+            # the wall across: straight away from the nearest one (across a groove, its width)
+            away = -rel / max(float(np.linalg.norm(rel)), 1e-12)
+            other = self.across_ray(p, away) - self.radius
             (l_gap if on_right else r_gap)[k] = max(other, gap)
         return r_gap, l_gap
 
@@ -329,7 +347,16 @@ def resolve_wall_side(
             mesh_detail = (
                 f"{max(n_r, n_l)} of {len(guides)} points are nearer the wall on the {mesh_side}"
             )
-        elif n_r and n_l and force_side is None:
+        between = (np.maximum(r_gap, l_gap) <= th.AT_WALL_GAP_M) & ~nearer_r & ~nearer_l
+        if force_side is None and mesh_side is None and between.sum() * 2 >= len(guides):
+            k = int(np.flatnonzero(between)[0])
+            raise WallSideError(
+                f"the guide points stand between two walls, about as near the wall on the "
+                f"right as the one on the left ({_points(np.flatnonzero(between))}; G{k + 1}: "
+                f"{r_gap[k] * 1e3:.1f} mm to the right, {l_gap[k] * 1e3:.1f} mm to the left): "
+                "set the wall side, or record them with a light push towards the wall to follow"
+            )
+        if mesh_side is None and n_r and n_l and force_side is None:
             raise WallSideError(
                 f"the guide points sit nearer walls on both sides of the route "
                 f"({_points(np.flatnonzero(nearer_r))} nearer the right, "
@@ -390,6 +417,7 @@ class HeightReference:
     walls: PartWalls | None = None
     _last: np.ndarray | None = field(default=None, repr=False)
     _walked: tuple | None = field(default=None, repr=False)  # (tree, references) of the walk
+    found: bool = field(default=True, repr=False)  # the last ``at`` measured a floor
 
     def remember(self, points: np.ndarray, references: np.ndarray) -> None:
         """Keep the references the walk measured at ``points``: the run takes the nearest
@@ -399,11 +427,15 @@ class HeightReference:
         if len(points):
             self._walked = (cKDTree(points), np.asarray(references))
 
-    def at(self, p: np.ndarray, travel: np.ndarray | None = None) -> np.ndarray:
+    def at(
+        self, p: np.ndarray, travel: np.ndarray | None = None, towards: np.ndarray | None = None
+    ) -> np.ndarray:
         """(REF_SIZE,) the reference under ``p`` for the law (``law.REF_H0`` ...): in floor
         mode the highest floor under the cutter's centre, a radius behind it and a radius and
-        ``REFERENCE_SPACING_M`` ahead along ``travel`` (a step up is met before the cutter
-        reaches it); where none is below, the last one measured, extended as a plane."""
+        ``STEP_LOOKAHEAD_M`` ahead along ``travel`` (a step up is climbed before the cutter
+        reaches it); where none is below, the last one measured, extended as a plane. A floor
+        above the cutter's centre counts only where the wall (``towards`` it) still stands
+        beside it: a step up in the groove, not the top of the wall round a corner."""
         if self.mode == "points" or self.walls is None:
             return self.plane
         if self._walked is not None:
@@ -412,16 +444,22 @@ class HeightReference:
                 return self._walked[1][k]
         r = self.walls.radius
         probes = np.array([p] if travel is None else [
-            p, p + travel * (r + th.REFERENCE_SPACING_M), p - travel * r
+            p, p + travel * (r + th.STEP_LOOKAHEAD_M), p - travel * r
         ])  # fmt: skip
         height, normal = self.walls.floor(probes)
         a = self.axis
         cos = -(normal @ a)
         grad = (normal - np.outer(normal @ a, a)) / cos[:, None]  # dh/dp across the axis
         under_p = height + np.einsum("ij,ij->i", grad, p - probes)  # each floor's plane at p
-        # a floor above the cutter's centre is the top beside it, not a floor under it
-        usable = np.isfinite(height) & (height >= float(p @ a))
-        if not usable.any():
+        usable = np.isfinite(height)
+        for k in np.flatnonzero(usable & (height < float(p @ a))):  # above the cutter's centre
+            above = probes[k] + a * (height[k] - float(probes[k] @ a) - th.FLOOR_ABOVE_M)
+            reach = r + th.AT_WALL_GAP_M
+            usable[k] = towards is not None and self.walls.faces_from_free_side(
+                above, towards, reach
+            )
+        self.found = bool(usable.any())
+        if not self.found:
             return self._last if self._last is not None else self.plane
         k = int(np.argmin(np.where(usable, under_p, np.inf)))  # the highest floor
         ref = np.empty(REF_SIZE)
@@ -500,6 +538,8 @@ class LegWalk:
     wander_m: float
     length_m: float
     reached: bool
+    over_top_m: float = 0.0  # walked with the cutter's centre over the wall's top edge
+    off_floor_m: float = 0.0  # walked with no floor under the tool (floor mode only)
 
 
 def walk_route(
@@ -526,7 +566,7 @@ def walk_route(
         row = leg.row(offsets[k])
         end = LegEnd(leg, axis, last=k == len(legs) - 1, closed=closed)
         limit = th.LEG_DETOUR_FACTOR * leg.length + th.LEG_DETOUR_EXTRA_M
-        pts, towards, walked, reached = [], [], 0.0, False
+        pts, towards, walked, reached, over_top, off_floor = [], [], 0.0, False, 0.0, 0.0
         while walked <= limit:
             for _ in range(2):  # onto the wall, then to the route's height
                 c, d = walls.nearest(p[None])
@@ -537,6 +577,8 @@ def walk_route(
                 n = (c[0] - p) / max(float(d[0]), 1e-12)
                 p = c[0] - n * r
                 p = p + axis * (route_height(row, ref, p, axis) - float(p @ axis))
+            if float(n @ axis) > th.OVER_TOP_SIN:  # the wall's nearest point well below the centre
+                over_top += th.WALK_STEP_M
             w = n - axis * float(n @ axis)
             w /= max(float(np.linalg.norm(w)), 1e-12)
             pts.append(p.copy())
@@ -549,14 +591,19 @@ def walk_route(
             walked += th.WALK_STEP_M
             since_ref += th.WALK_STEP_M
             if since_ref >= th.REFERENCE_SPACING_M:
-                ref, since_ref = heights.at(p, t), 0.0
-                measured_at.append(p.copy())
-                measured.append(ref)
+                ref, since_ref = heights.at(p, t, w), 0.0
+                if heights.mode == "floor" and not heights.found:
+                    off_floor += th.REFERENCE_SPACING_M
+                else:
+                    measured_at.append(p.copy())
+                    measured.append(ref)
         arr = np.array(pts)
         rel = arr - leg.a
         along = rel @ leg.xp
         off = np.sqrt(np.maximum(np.einsum("ij,ij->i", rel, rel) - along**2, 0.0))
-        out.append(LegWalk(arr, np.array(towards), float(off.max()), walked, reached))
+        out.append(
+            LegWalk(arr, np.array(towards), float(off.max()), walked, reached, over_top, off_floor)
+        )
         if not reached:
             break
     heights.remember(np.array(measured_at), np.array(measured))
@@ -608,6 +655,32 @@ def open_wall_return(walks: Sequence[LegWalk], legs: Sequence[Leg], radius_m: fl
                     "'closed'), or teach points on that wall too"
                 )
     return ""
+
+
+def _unreached(walks: Sequence[LegWalk], legs: Sequence[Leg], side: str, closed: bool) -> str:
+    """The sentence for a walk that could not follow the wall to the end of a leg: the run
+    would leave the taught wall or stop there."""
+    leg = legs[len(walks) - 1]
+    walk = walks[-1]
+    a, b = leg.first + 1, leg.last + 1
+    if math.isinf(walk.wander_m):
+        how = f"loses the wall {walk.length_m * 1e3:.0f} mm after G{a}"
+    else:
+        how = (
+            f"runs {walk.length_m * 1e3:.0f} mm without coming back to G{b} "
+            f"({leg.length * 1e3:.0f} mm away)"
+        )
+    closing = closed and leg is legs[-1]
+    fix = (
+        "the wall may be open: learn it open (--open, or untick 'closed'), or"
+        if closing
+        else "move"
+    )
+    return (
+        f"the wall on the {side} of the leg G{a} -> G{b} does not lead to G{b}: followed in the "
+        f"part's mesh it {how}. G{b} may be on another wall or on the other side; {fix} "
+        f"put G{b} beside the wall G{a} is on, or check the wall side"
+    )
 
 
 # --- the route -----------------------------------------------------------------------------------
@@ -699,6 +772,25 @@ def plan_route(
     )
     walks = walk_route(legs, heights, offsets, decision.sign, walls, start, closed=closed)
     problem = open_wall_return(walks, legs, tool_radius_m) if closed else ""
+    for leg, walk in zip(legs, walks, strict=False):
+        if not problem and walk.off_floor_m > th.OPEN_RETURN_M:
+            problem = (
+                f"the leg G{leg.first + 1} -> G{leg.last + 1} would follow the wall off the part: "
+                f"for {walk.off_floor_m * 1e3:.0f} mm there is no floor under the tool (the wall "
+                "runs out of the part"
+                + (", so the wall taught is open: learn it open (--open, or untick 'closed')"
+                   if closed and leg is legs[-1] else "")
+                + "); put a point where the route should go, or check the wall side"
+            )  # fmt: skip
+        if not problem and walk.over_top_m > th.OVER_TOP_M:
+            problem = (
+                f"between G{leg.first + 1} and G{leg.last + 1} the route's height takes the "
+                f"cutter over the wall's top for {walk.over_top_m * 1e3:.0f} mm (the wall is lower "
+                "there than at the points, a step in the floor or a lower top): teach these "
+                "points lower on the wall"
+            )
+    if not problem and not walks[-1].reached:
+        problem = _unreached(walks, legs, decision.side, closed)
     if problem:
         raise RouteRefusedError(problem)
     wander = {

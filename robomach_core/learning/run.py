@@ -505,7 +505,7 @@ def learn_path(
         if since_ref >= th.REFERENCE_SPACING_M:
             travel = across(step)
             travel /= max(float(np.linalg.norm(travel)), 1e-12)
-            ref, since_ref = heights.at(T_ref[:3, 3], travel), 0.0
+            ref, since_ref = heights.at(T_ref[:3, 3], travel, w), 0.0
         if n % report_every == 0:
             if cancelled is not None and cancelled():
                 raise CancelledError("path learning was cancelled")

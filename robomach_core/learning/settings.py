@@ -62,5 +62,3 @@ class PathLearningSettings:
         if self.wall_side not in WALL_SIDE_CHOICES:
             raise InvalidInputError(f"wall side must be one of {', '.join(WALL_SIDE_CHOICES)}")
         FLOOR_CLEARANCE_MM.check(self.floor_clearance_m * 1e3)
-
-

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+# fmt: off
 # --- the wall: is this point at that wall, and which side ----------------------------------------
 AT_WALL_GAP_M = 0.005  # m | a point whose cutter is farther than this from a wall was not taught on it (people leave points 0-3 mm off) | fixed: the operator's rule "within 1-3 mm"
 NEARER_MARGIN_M = 0.00025  # m | one wall is nearer than another only by more than this (the mesh's facets) | fixed
@@ -27,14 +28,15 @@ FLOOR_SEARCH_M = 0.03  # m | a floor farther than this below the cutter is not t
 PLANE_SPREAD_M = 0.01  # m | without a floor, the points' plane has no slope along a direction they spread less than this over (rms) | fixed
 FLOOR_ABOVE_M = 0.002  # m | the floor is looked for from this far above the cutter's centre (a cutter pressed into it still finds it) | tool radius (added to it)
 WALK_MATCH_M = 0.001  # m | the run takes the floor the walk measured nearest to the tool within this, and measures it itself farther off | fixed
+STEP_LOOKAHEAD_M = 0.003  # m | the floor is also measured this far (+ the cutter's radius) ahead, so a step up is climbed before the cutter meets it | learning speed: enough up to 20 mm/s
 REFERENCE_SPACING_M = 0.001  # m | the floor under the tool is measured anew after this much travel; a plane extrapolates between | fixed: spatial, not timed
 FLOOR_CONE_TAN = math.tan(
     math.radians(37.0)
 )  # 1 | a force along the axis is the floor's only beyond a wall contact's cone: walls up to 20 deg off the axis and friction up to 0.3 (17 deg) | friction and wall tilt
 FLOOR_FORCE_N = 1.5  # N | ... and beyond this (five times the sensor's noise) | sensor noise
 LIFT_DECAY_M = 0.005  # m | a lift off a floor the route did not know fades over this much travel, then the floor is felt again | fixed: spatial
-HEIGHT_TIME_S = 0.25  # s | the height returns to the route's within about this (a position loop; the route's rate is fed forward) | fixed
-HEIGHT_SPEED_M_S = 0.01  # m/s | the fastest the height loop moves the tool along its axis | fixed
+HEIGHT_TIME_S = 0.05  # s | the height returns to the route's within about this (a position loop; the route's rate is fed forward) | fixed
+HEIGHT_SPEED_M_S = 0.05  # m/s | the fastest the height loop moves the tool along its axis (a 2 mm step climbed within 3 mm of travel at 20 mm/s) | fixed
 
 # --- following the wall ---------------------------------------------------------------------------
 CONTACT_FLAG_N = 1.0  # N | a measured contact force above this counts as contact | sensor noise
@@ -78,6 +80,8 @@ APPROACH_CLEARANCE_M = 0.03  # m | the approach travels this far above the first
 WALK_STEP_M = (
     0.0005  # m | the route is walked along the mesh's wall in steps of this, before the run | fixed
 )
+OVER_TOP_SIN = math.sin(math.radians(45.0))  # 1 | the wall met more than 45 deg below the cutter's equator: the cutter rides over the wall's top edge | fixed
+OVER_TOP_M = 0.002  # m | a route whose walk rides over the wall's top this far is refused | fixed
 OPEN_RETURN_M = 0.02  # m | a leg that comes back along the other wall of the same free space this far, with no point there, means an open wall taught as a loop | fixed
 HEAVY_CONTACT_FRACTION = 0.5  # x force limit | a guide point recorded pressing this hard is half-way to a stop | force limit
 TOUCH_WITHOUT_PUSH_N = 0.8  # N | a force between this and WALL_FORCE_CLEAR_N touches without telling the side | sensor noise
@@ -117,6 +121,7 @@ CUTTER_FIT_M = 2e-4  # m | free space narrower than the cutter's diameter plus t
 OPEN_EDGE_ENTRY_M = 0.003  # m | on a part that may be off its mesh, the operator comes down this far off an open edge (a groove: its middle) | fixed: the fixture error
 UNEVEN_FLOOR_NOTE_M = 1e-4  # m | proposed points whose heights differ by more than this stand on a stepped or sloped floor: a note says so | fixed
 EXAMPLE_BELOW_TOP_M = 0.003  # m | the example operator points at the built-in part's known wall this far below its top | fixed
+# fmt: on
 
 
 def table_markdown() -> str:
