@@ -6,8 +6,9 @@ PROBLEM   With the real part different from its CAD (``real_part``), the program
           (chapter section 3) follows the wall the robot met. Neither number means much alone:
           the user must see both against the same truth, signed (an overcut is not a small
           error) and placed (where the worst error sits).
-STRATEGY  At the learned path's height, the CAD's wall nearest to the learned targets
-          (``wall_section.section_loops``) is offset by the tool radius towards the free side
+STRATEGY  At the learned path's height above the floor (the section parallel to the floor
+          under it, ``walls.floor_under``), the CAD's wall nearest to the learned targets
+          (``walls.section_loops``) is offset by the tool radius towards the free side
           (shapely's exact round joins), over the same stretch as the learned path, sampled
           densely and reduced by the same deviation-height tolerance (chapter fig. 3), with the
           learned orientation at each target; it is placed with the nominal work object, as a
@@ -25,12 +26,13 @@ from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import shapely
 
-from .learning.walls import WallLoop, section_loops
+from .learning.walls import WallLoop, floor_under, section_loops
+from .mesh_query import transformed
 from .postprocess import reduce_deviation_height
 from .workpiece import Workpiece
 
@@ -223,11 +225,13 @@ def cad_only_program(
     start_xy: np.ndarray,
     end_xy: np.ndarray | None = None,
     forward: bool = True,
+    T_base_frame: np.ndarray | None = None,
 ) -> np.ndarray | None:
-    """(m, 3) base-frame targets of the CAD-only program: ``wall`` (the CAD's, work-object
-    frame) offset by the tool radius to its free side, travelled along the wall (against it
-    when not ``forward``), from the point nearest ``start_xy`` (to the one nearest ``end_xy``
-    when open), reduced with ``tolerance_m``."""
+    """(m, 3) base-frame targets of the CAD-only program: ``wall`` (the CAD's, in the
+    work-object frame or ``T_base_frame``, the floor's, where it was cut) offset by the tool
+    radius to its free side, travelled along the wall (against it when not ``forward``), from
+    the point nearest ``start_xy`` (to the one nearest ``end_xy`` when open), reduced with
+    ``tolerance_m``."""
     path = _offset_path(wall, tool_radius_m, closed)
     if path is None or len(path) < 2:
         return None
@@ -253,7 +257,7 @@ def cad_only_program(
     targets = points[kept]
     if closed:
         targets = targets[:-1]  # the program closes the loop itself (as the learned one ends)
-    return _to_base(cad.T_base_wobj, targets)
+    return _to_base(cad.T_base_wobj if T_base_frame is None else T_base_frame, targets)
 
 
 def compare_with_cad(
@@ -271,11 +275,15 @@ def compare_with_cad(
     if len(positions) < 2:
         return None
     cad = workpiece.cad()
-    T = cad.T_base_wobj
-    wobj = _to_wobj(T, positions)
+    # The walls are cut parallel to the floor under the path (``walls.floor_under``; the work
+    # object's x-y on a level part): a part tilted in its mesh has no horizontal wall.
+    T_floor = floor_under(cad.mesh, _to_wobj(cad.T_base_wobj, positions[:1])[0])
+    T = cad.T_base_wobj @ T_floor
+    wobj = _to_wobj(T, positions)  # in the floor's frame
     z = float(np.median(wobj[:, 2]))
-    cad_loops = _sections(cad.mesh, z)
-    real_loops = _sections(workpiece.scoring_mesh(), z)
+    inverse = np.linalg.inv(T_floor)
+    cad_loops = _sections(transformed(cad.mesh, inverse), z)
+    real_loops = _sections(transformed(workpiece.scoring_mesh(), inverse), z)
     found_cad = _nearest_loop(cad_loops, wobj[:, :2])
     found_real = _nearest_loop(real_loops, wobj[:, :2])
     if found_cad is None or found_real is None:
@@ -299,6 +307,7 @@ def compare_with_cad(
         start_xy=wobj[0, :2],
         end_xy=None if closed_program else wobj[-1, :2],
         forward=forward,
+        T_base_frame=T,
     )
     if cad_targets is None or len(cad_targets) < 2:
         return None
@@ -306,8 +315,13 @@ def compare_with_cad(
         np.linalg.norm(cad_targets[:, None, :] - positions[None, :, :], axis=2), axis=1
     )
     quats = np.asarray(quaternions_wxyz, dtype=float)[nearest]
-    learned = score_against_wall(positions, real_wall, T, tool_radius_m)
-    cad_only = score_against_wall(cad_targets, real_wall, T, tool_radius_m, closed=closed_program)
+    learned, cad_only = (
+        replace(score, worst_wobj_m=T_floor[:3, :3] @ score.worst_wobj_m)
+        for score in (
+            score_against_wall(positions, real_wall, T, tool_radius_m),
+            score_against_wall(cad_targets, real_wall, T, tool_radius_m, closed=closed_program),
+        )
+    )
     return CadComparison(
         cad_targets,
         quats,

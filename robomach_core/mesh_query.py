@@ -13,7 +13,8 @@ STRATEGY  Nearest points from libigl's AABB tree (``igl.AABB``: exact point-tria
           (each takes milliseconds); callers that run a longer check on a shared mesh may hold
           ``LOCK`` around it (it is re-entrant).
 SOLUTION  ``closest_point(mesh, points)`` and ``ray_hits(mesh, origins, directions)`` under
-          ``LOCK``; ``wall_faces(mesh, axis)``, a part's walls for a tool axis as one submesh
+          ``LOCK``; ``transformed(mesh, T)``, a mesh in another frame kept per mesh and frame;
+          ``wall_faces(mesh, axis)``, a part's walls for a tool axis as one submesh
           kept per mesh and axis, so that its trees are built once.
 """
 
@@ -34,6 +35,7 @@ WALL_FACE_MAX_COS = math.cos(math.radians(45.0))  # |n . tool axis| below this: 
 _KEPT = 16  # entries a table below keeps (a full table starts again)
 _WALLS: dict[tuple[int, tuple[float, ...]], tuple[weakref.ref, Any]] = {}  # wall submeshes
 _TREES: dict[int, tuple[weakref.ref, Any]] = {}  # nearest-point trees
+_MOVED: dict[tuple[int, tuple[float, ...]], tuple[weakref.ref, Any]] = {}  # meshes in a frame
 
 
 def _kept(table: dict, key: Hashable, mesh: trimesh.Trimesh, build: Callable[[], Any]) -> Any:
@@ -65,6 +67,22 @@ def wall_faces(mesh: trimesh.Trimesh, axis_wobj: np.ndarray) -> trimesh.Trimesh 
 
     with LOCK:
         return _kept(_WALLS, (id(mesh), tuple(np.round(axis, 3))), mesh, build)
+
+
+def transformed(mesh: trimesh.Trimesh, T: np.ndarray) -> trimesh.Trimesh:
+    """``mesh`` moved by the 4x4 ``T`` (itself when ``T`` is the identity), kept per mesh and
+    ``T`` (rounded to 1e-9) so that its trees and ray scene are built once."""
+    T = np.asarray(T, dtype=float)
+    if np.allclose(T, np.eye(4), rtol=0.0, atol=1e-12):
+        return mesh
+
+    def build() -> trimesh.Trimesh:
+        moved = mesh.copy()
+        moved.apply_transform(T)
+        return moved
+
+    with LOCK:
+        return _kept(_MOVED, (id(mesh), tuple(np.round(T, 9).ravel())), mesh, build)
 
 
 def closest_point(

@@ -292,9 +292,8 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         proposal, intents, settings = _proposed(settings, cad, cell)
     if workpiece.nominal is not None and settings.guide_points_csv is None:
         # The part is not where its mesh is: the operator enters each groove in its middle
-        # and touches the real wall from there (``guide_entry.robust_intents``).
-        from .learning.entry import robust_intents
-        from .learning.operator import guide_plan
+        # and touches the real wall from there (``operator.robust_intents``).
+        from .learning.operator import guide_plan, robust_intents
 
         planned = intents or guide_plan(
             cad, cell.tool.radius_m, np.random.default_rng(settings.seed)
@@ -374,9 +373,9 @@ def _proposed(settings: DemoSettings, cad: Workpiece, cell: Cell) -> tuple[Any, 
     """The guide points proposed along the wall through ``settings.propose_at_m``, the
     operator's intents to lead the robot to them, and the settings with the wall's side and
     whether it is closed."""
+    from .learning.operator import guide_intents
     from .learning.planner import (
         ProposalSettings,
-        guide_intents,
         propose_guide_points,
         refuse_unreachable,
         tool_reach,

@@ -6,6 +6,7 @@ a point on it (mm, work-object frame) and a shapely outline of that wall (mm) to
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -103,3 +104,104 @@ def _at(x: float, y: float, z: float) -> np.ndarray:
 
 
 PARTS = {"grooved_plate": grooved_plate, "l_block": l_block, "slotted_plate": slotted_plate}
+
+
+# --- parts drawn from a seed: tilted and stepped plates (SI units, for property tests) ---------
+
+
+@dataclass(frozen=True)
+class DrawnPlate:
+    """A plate drawn from a seed, metres, for the planner's properties.
+
+    Attributes:
+        mesh: The part in its mesh (work-object) frame; tilted when ``T_mesh_plate`` is.
+        T_mesh_plate: 4x4 the plate's own frame (level, its bottom at z = 0) in the mesh.
+        walls: Wall name -> its outline in the plate's x-y plane (metres).
+        floor_z: (x, y) in the plate frame -> the floor's height under it there (the plate's
+            bottom beside an outside edge).
+        top_z_m: The walls' top (plate frame).
+        kind: "groove" (round an island: walls "outer" and "island"), "stepped" (the same,
+            the groove's floor a step higher for x < 0) or "edge" (an outside edge: "outline").
+        width_m: The groove's width (inf for an edge).
+    """
+
+    mesh: trimesh.Trimesh
+    T_mesh_plate: np.ndarray
+    walls: dict[str, shapely.geometry.base.BaseGeometry]
+    floor_z: object
+    top_z_m: float
+    kind: str
+    width_m: float
+
+    def pick(self, wall: str, along: float, height_m: float) -> tuple[np.ndarray, np.ndarray]:
+        """(point, normal) in the mesh frame: on ``wall`` at ``along`` (0-1 of its length),
+        ``height_m`` above the floor beside it; the normal out of the material."""
+        line = self.walls[wall]
+        s = min(along * line.length, line.length - 2e-5)
+        p = np.array(line.interpolate(s).coords[0])
+        t = np.array(line.interpolate(s + 1e-5).coords[0]) - p
+        t /= np.linalg.norm(t)
+        free = np.array([-t[1], t[0]])
+        inward = shapely.contains_xy(shapely.Polygon(line), *(p + free * 1e-4))
+        free = free if inward == (wall == "outer") else -free  # the groove: inside the outer
+        beside = p + free * 1e-3
+        z = self.floor_z(*beside) + height_m
+        R, o = self.T_mesh_plate[:3, :3], self.T_mesh_plate[:3, 3]
+        return R @ [p[0], p[1], z] + o, R @ [free[0], free[1], 0.0]
+
+    def in_plate(self, points_mesh: np.ndarray) -> np.ndarray:
+        """(k, 3) mesh-frame points in the plate frame."""
+        R, o = self.T_mesh_plate[:3, :3], self.T_mesh_plate[:3, 3]
+        return (np.atleast_2d(points_mesh) - o) @ R
+
+
+def drawn_plate(
+    seed: int, kind: str, tilt_deg: float = 0.0, *, width_m: float | None = None
+) -> DrawnPlate:
+    """A plate drawn from ``seed``: a rounded rectangle 60-130 x 40-80 mm (corners 4-12 mm),
+    as a 5-8 mm wide (or ``width_m``), 6 mm deep groove round an island in a 20 mm plate,
+    the same with the groove's floor 2 mm higher for x < 0, or standing free 12-20 mm thick
+    (its outside edge); tilted ``tilt_deg`` about a horizontal axis drawn from the seed."""
+    rng = np.random.default_rng(seed)
+    a, b, r = rng.uniform(0.030, 0.065), rng.uniform(0.020, 0.040), rng.uniform(0.004, 0.012)
+    outer = shapely.geometry.box(-a, -b, a, b).buffer(-r).buffer(r, quad_segs=16)
+    if kind == "edge":
+        thick = rng.uniform(0.012, 0.020)
+        mesh = _extrude(outer, 0.0, thick)
+        walls = {"outline": outer.exterior}
+        floor, top, width = (lambda x, y: 0.0), thick, math.inf
+    else:
+        width = rng.uniform(0.005, 0.008) if width_m is None else width_m
+        island = outer.buffer(-width, quad_segs=16)
+        plate = shapely.geometry.box(-a - 0.02, -b - 0.02, a + 0.02, b + 0.02)
+        base = _at(0.0, 0.0, 0.006)
+        parts = [
+            trimesh.creation.box(extents=(2 * a + 0.04, 2 * b + 0.04, 0.012), transform=base),
+            _extrude(plate.difference(outer), 0.012, 0.008),
+            _extrude(island, 0.012, 0.008),
+        ]  # fmt: skip
+        step = 0.002 if kind == "stepped" else 0.0
+        if kind == "stepped":
+            ring = outer.difference(island).intersection(
+                shapely.geometry.box(-a - 1, -b - 1, 0, b + 1)
+            )
+            parts.append(_extrude(ring, 0.012, step))
+        else:  # the groove's floor at 14 mm, as the grooved plate's
+            parts.append(_extrude(outer.difference(island), 0.012, 0.002))
+        from robomach_core.workpiece import solid_mesh
+
+        mesh = solid_mesh(trimesh.util.concatenate(parts))
+        walls = {"outer": outer.exterior, "island": island.exterior}
+        floor = (
+            (lambda x, y: 0.014) if kind == "groove" else (lambda x, y: 0.014 if x < 0 else 0.012)
+        )
+        top = 0.020
+    T = np.eye(4)
+    if tilt_deg:
+        axis_angle = rng.uniform(0.0, 2 * math.pi)
+        axis = np.array([math.cos(axis_angle), math.sin(axis_angle), 0.0])
+        T[:3, :3] = trimesh.transformations.rotation_matrix(math.radians(tilt_deg), axis)[:3, :3]
+        T[2, 3] = -(mesh.vertices @ T[:3, :3].T)[:, 2].min()  # standing on the table
+        mesh = mesh.copy()
+        mesh.apply_transform(T)
+    return DrawnPlate(mesh, T, walls, floor, top, kind, width)

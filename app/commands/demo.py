@@ -337,9 +337,12 @@ def run(args: argparse.Namespace) -> int:
         shape = "a closed" if proposed["closed"] else "an open"
         print(
             f"proposed          {proposed['points']} guide points along {shape} wall of "
-            f"{proposed['wall_length_mm']:.0f} mm at z = {proposed['height_wobj_mm']:.1f} mm "
-            f"(work object), wall side {proposed['wall_side']}"
+            f"{proposed['wall_length_mm']:.0f} mm, {proposed['height_above_floor_mm']:.1f} mm "
+            f"above the floor (z = {proposed['height_wobj_mm']:.1f} mm at G1, work object), "
+            f"wall side {proposed['wall_side']}"
         )
+        for note in proposed["notes"]:  # a changed height, an open wall, a centred tool
+            print(f"                  {note}")
     print(f"guide points      {s['guide_points']}")
     print(
         f"samples           {s['samples_raw']} raw, {s['samples_filtered']} kept "

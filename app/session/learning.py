@@ -48,11 +48,10 @@ DOWNSTREAM_TOPICS: tuple[Topic, ...] = ("recording", "postprocess")
 
 def _example_intents(cell: Cell, seed: int) -> list | None:
     """The example operator's points: its own plan (None), or, on a part that is not where its
-    mesh is, the same entered in each groove's middle (``guide_entry.robust_intents``)."""
+    mesh is, the same entered in each groove's middle (``operator.robust_intents``)."""
     if cell.workpiece.nominal is None:
         return None
-    from robomach_core.learning.entry import robust_intents
-    from robomach_core.learning.operator import guide_plan
+    from robomach_core.learning.operator import guide_plan, robust_intents
 
     plan = guide_plan(cell.workpiece.cad(), cell.tool.radius_m, np.random.default_rng(seed))
     return robust_intents(plan, cell.workpiece, cell.tool.radius_m)

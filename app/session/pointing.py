@@ -4,11 +4,11 @@ PROBLEM   The workbench knows the part's mesh, so the user can point at the wall
           jogging to it: one click should put the tool beside the wall and record the point,
           another propose the guide points for the whole wall, shown before anything moves, to
           accept, edit or delete. Both GUIs and the REST API do it, on the same session.
-STRATEGY  The core computes (``guide_proposal.teach_point`` / ``propose_guide_points`` on the
+STRATEGY  The core computes (``planner.teach_point`` / ``propose_guide_points`` on the
           part's CAD, ``Workpiece.cad()``); the robot moves by ``Teach.move_to`` (paced and
           supervised like a jog, stopped by the real part when it is not where its mesh is);
           accepting a proposal is a job in which the scripted operator leads the robot by
-          pushes to each point and touches the wall there (``guide_proposal.guide_intents``),
+          pushes to each point and touches the wall there (``operator.guide_intents``),
           as "Load the example" does. The pending proposal belongs to the cell it was made
           in (its epoch): a cell change drops it. The wall side of points taught this way is
           known, and path learning uses it unless told otherwise.
@@ -30,14 +30,13 @@ from robomach_core import project as core
 from robomach_core.choices import CLICK_MODES, ClickMode
 from robomach_core.errors import InvalidInputError, SupervisionError, UnreachableTargetError
 from robomach_core.leadthrough import GuidePoint, LeadThrough, LeadThroughState
-from robomach_core.learning.entry import robust_intents, wall_side_of
 from robomach_core.learning.motion import Arrival
+from robomach_core.learning.operator import guide_intents, robust_intents
 from robomach_core.learning.planner import (
     GuideProposal,
     ProposalSettings,
     ProposedPoint,
     delete_point,
-    guide_intents,
     move_point,
     propose_guide_points,
     teach_point,
@@ -80,7 +79,7 @@ class Pointing:
         self._session = session
         self._lock = threading.Lock()
         self._proposal: tuple[int, GuideProposal] | None = None
-        self._pointed: tuple[str, str | None] | None = None  # (guides_key, side) taught so
+        self._pointed: tuple[str, str] | None = None  # (guides_key, side) of a proposal
         self.settings = ProposalSettings()
         self.click_mode: ClickMode = "propose"  # what a click on the part does (both GUIs)
 
@@ -170,13 +169,8 @@ class Pointing:
 
         def change(p: core.Project) -> core.Project:
             if replace_index is None:
-                new = core.with_guide_point_added(p, point)
-            else:
-                new = core.with_guide_point_at(p, replace_index, point)
-            # Under the session's lock, before the point is seen: a reader who finds it (and
-            # asks to learn on the "auto" side) also finds the points taught by pointing.
-            self._pointed = (new.guides_key, None)
-            return new
+                return core.with_guide_point_added(p, point)
+            return core.with_guide_point_at(p, replace_index, point)
 
         project = s.commit(change, "guides", topics=("guide_points", "recording", "postprocess"))
         index = len(project.guide_points) - 1 if replace_index is None else replace_index
@@ -188,24 +182,26 @@ class Pointing:
     def teach_near(
         self, tcp_wobj_m: np.ndarray, *, replace_index: int | None = None
     ) -> TaughtPoint:
-        """Teach at the wall nearest a TCP position (work-object frame) at its height: where a
-        dragged marker was dropped."""
-        from robomach_core.learning.walls import section_loops
+        """Teach at the wall nearest a TCP position (work-object frame) at its height above
+        the floor: where a dragged marker was dropped."""
+        from robomach_core.learning.walls import walls_near
 
         cad = self._session.robot.workpiece.cad()
         p = np.asarray(tcp_wobj_m, dtype=float).reshape(3)
-        loops = section_loops(cad.mesh, float(p[2]))
+        with mesh_query.LOCK:
+            T, (pf,), loops = walls_near(cad.mesh, p)
         if not loops:
             raise InvalidInputError(
                 f"no wall at {p[2] * 1e3:.1f} mm (work object): drop the point beside a wall"
             )
-        loop = min(loops, key=lambda lp: abs(lp.signed_distance(p[None, :2])[0]))
-        s = float(loop.project(p[None, :2])[0])
+        loop = min(loops, key=lambda lp: abs(lp.signed_distance(pf[None, :2])[0]))
+        s = float(loop.project(pf[None, :2])[0])
         foot = loop.point_at(np.array([s]))[0]
         n = loop.free_normal_at(np.array([s]))[0]
+        R = T[:3, :3]
         return self.teach_at_surface(
-            np.array([foot[0], foot[1], p[2]]),
-            np.array([n[0], n[1], 0.0]),
+            R @ np.array([foot[0], foot[1], pf[2]]),
+            R @ np.array([n[0], n[1], 0.0]),
             replace_index=replace_index,
         )
 
@@ -349,14 +345,11 @@ class Pointing:
     # --- what path learning needs ----------------------------------------------------------
 
     def learning_side(self) -> str | None:
-        """The wall side of guide points taught by pointing ("left"/"right"), when the guide
-        points are still those; None otherwise (path learning then reads the forces)."""
-        s = self._session
+        """The wall side of an accepted proposal's points ("right": the planner's wall runs
+        with the material on its right), while the guide points are still those; None
+        otherwise (path learning decides it, from the pushes or the part's mesh:
+        ``route.resolve_wall_side``)."""
         pointed = self._pointed
-        project = s.project()
-        if pointed is None or pointed[0] != project.guides_key:
+        if pointed is None or pointed[0] != self._session.project().guides_key:
             return None
-        if pointed[1] is not None:
-            return pointed[1]
-        positions = np.array([g.position_m for g in project.guide_points])
-        return wall_side_of(positions, s.robot.workpiece)
+        return pointed[1]

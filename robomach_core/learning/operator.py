@@ -8,29 +8,38 @@ part, then for each guide point: over the groove, down into it, a gentle push si
 the wall pushes back, record, back out and up.
 
 The operator's eye is imperfect: each intended position is off by a seeded random amount.
+On a part that may not be where its mesh is, the operator enters each groove in its middle and
+lets the push find the real wall (``robust_intents``).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..clock import CONTROL_PERIOD_S
-from ..contour import Arc, Line
+from ..contour import Line
 from ..errors import InvalidInputError, NotEnoughGuidePointsError, UnreachableTargetError
 from ..leadthrough import ComplianceSelection, GuidePoint, LeadThrough, LeadThroughState
 from ..robot import Robot
 from ..tool import TOOL_DOWN as TOOL_DOWN
 from ..transforms import matrix_from_quaternion, rotation_log
 from ..workpiece import Workpiece
+from .planner import GuideProposal, ProposalSettings, WallPlacer, propose_guide_points
+from .thresholds import EXAMPLE_BELOW_TOP_M, OPEN_EDGE_ENTRY_M
+from .walls import walls_near
 
 HAND_GAIN_N_M = 2000.0  # push per metre of distance to the goal
 HAND_MAX_N = 15.0  # a comfortable one-hand push
 HAND_MIN_N = 1.5  # a hand pushes firmly enough to get past the admittance's 1 N deadband
 WALL_PUSH_N = 6.0  # the gentle sideways push that finds the wall
+EXAMPLE_GAP_M = 0.001  # the example's points stand this far off the wall, ...
+EXAMPLE_ALONG_M = 0.0015  # ... off by up to this along it (the operator's eye), ...
+EXAMPLE_OFF_M = 0.0005  # ... and up to this farther from it
+EXAMPLE_WALL_MATCH_M = 1e-4  # the mesh's wall where the example points is the known one
 MAX_JOG_TURN_DEG = 45.0  # the largest rotational jog (leadthrough.LeadThrough.jog)
 
 
@@ -107,47 +116,95 @@ def intents_from_csv(text: str, robot: Robot | None = None) -> list[GuideIntent]
     return intents
 
 
-def guide_plan(
-    workpiece: Workpiece, tool_radius_m: float, rng: np.random.Generator
-) -> list[GuideIntent]:
-    """Gross guide points for a built-in workpiece: one in each long straight run of the wall.
+def guide_intents(proposal: GuideProposal, *, touch: bool = True) -> list:
+    """The proposal as the scripted operator's intents (``GuideIntent``): it
+    leads the robot to each point by pushes and, with ``touch``, pushes gently towards the
+    wall until it pushes back (as a person touching the wall does), except at outside corners
+    (docs/guide_points.md: no wall push there). Touching makes the points the real wall's
+    when the part is not where its CAD is."""
+    R = proposal.T_base_wobj[:3, :3] @ proposal.pick.T_wobj_floor[:3, :3]
+    out = []
+    for p in proposal.points:
+        normal = None
+        if touch and p.kind != "outside corner":
+            n = proposal.wall.free_normal_at(np.array([p.s_m]))[0]
+            normal = -(R @ np.array([n[0], n[1], 0.0]))
+        out.append(GuideIntent(p.T_base_tcp[:3, 3].copy(), normal, p.T_base_tcp[:3, :3].copy()))
+    return out
 
-    Runs of 40 mm or more get two points (at 20 % and 80 %), so corners are bracketed. Sharp
-    corners that bend around the material (an outside corner, where the chord between the runs'
-    points would cut through the part) get a point of their own, as an operator would place.
+
+def guide_plan(
+    workpiece: Workpiece,
+    tool_radius_m: float,
+    rng: np.random.Generator,
+    *,
+    robot: Robot | None = None,
+) -> list[GuideIntent]:
+    """The example operator's guide points for a built-in workpiece: the planner's proposal
+    (``planner.propose_guide_points``) for its known wall, pointed at
+    ``EXAMPLE_BELOW_TOP_M`` below the wall's top in the middle of its first straight run, as
+    the operator's imprecise hand places them: each off by up to ``EXAMPLE_ALONG_M`` along
+    the wall and up to ``EXAMPLE_OFF_M`` farther from it (seeded by ``rng``), a push towards
+    the wall at each but the outside corners (``guide_intents``).
     """
-    if workpiece.wall is None:
+    wall = workpiece.wall
+    if wall is None:
         raise InvalidInputError(
             f"the example lead-through needs a built-in workpiece, not {workpiece.name!r}"
         )
-    T = workpiece.T_base_wobj
-    z_lo, z_hi = workpiece.wall_z_m
-    z = max(z_lo + tool_radius_m + 0.0015, z_hi - 0.003)
-    intents = []
-    for piece in workpiece.wall.pieces:
-        if isinstance(piece, Arc) and piece.sweep < -math.radians(80):
-            # Outside corner (turning towards the material): a point off the corner's middle.
-            mid = piece.start_angle + piece.sweep / 2
-            out = np.array([math.cos(mid), math.sin(mid)])  # from the arc centre, away from metal
-            p = np.asarray(piece.center) + out * (piece.radius + tool_radius_m + 0.001)
-            pos = T[:3, :3] @ np.array([p[0], p[1], z]) + T[:3, 3]
-            # No push towards a sharp corner: the tool would slide off along one face.
-            intents.append(GuideIntent(pos, None))
+    run = next((p for p in wall.pieces if isinstance(p, Line)), wall.pieces[0])
+    a, b = run.point_at(np.array([0.0, run.length]))
+    left = np.array([a[1] - b[1], b[0] - a[0]]) / run.length  # the free side
+    click = np.array([*(0.5 * (a + b)), workpiece.wall_z_m[1] - EXAMPLE_BELOW_TOP_M])
+    proposal = propose_guide_points(
+        workpiece, robot, click, np.array([left[0], left[1], 0.0]),
+        tool_radius_m=tool_radius_m, settings=ProposalSettings(gap_m=EXAMPLE_GAP_M),
+    )  # fmt: skip
+    if wall.distance(proposal.wall.points_m).max() > EXAMPLE_WALL_MATCH_M:
+        raise InvalidInputError(f"{workpiece.name}: its mesh's wall is not its known wall")
+    R = workpiece.T_base_wobj[:3, :3] @ proposal.pick.T_wobj_floor[:3, :3]
+    intents = guide_intents(proposal)
+    for k, (p, intent) in enumerate(zip(proposal.points, intents, strict=True)):
+        if p.kind == "outside corner":  # placed with care: the corner is what it is there for
             continue
-        if not isinstance(piece, Line) or piece.length < 0.012:
-            continue
-        fractions = (0.2, 0.8) if piece.length >= 0.040 else (0.5,)
-        a, b = np.asarray(piece.start), np.asarray(piece.end)
-        t = (b - a) / piece.length
-        right = np.array([t[1], -t[0]])  # the wall material is on the right of travel
-        for f in fractions:
-            p = a + (b - a) * f
-            p = p + t * rng.uniform(-0.0015, 0.0015)  # the operator's imprecision
-            p = p - right * (tool_radius_m + 0.001 + rng.uniform(0.0, 0.0005))
-            pos = T[:3, :3] @ np.array([p[0], p[1], z]) + T[:3, 3]
-            normal = T[:3, :3] @ np.array([right[0], right[1], 0.0])
-            intents.append(GuideIntent(pos, normal))
+        s = np.array([p.s_m])
+        along = proposal.wall.point_at(s + 1e-4)[0] - proposal.wall.point_at(s - 1e-4)[0]
+        off = proposal.wall.free_normal_at(s)[0]
+        shift = along / np.linalg.norm(along) * rng.uniform(-EXAMPLE_ALONG_M, EXAMPLE_ALONG_M)
+        shift = shift + off * rng.uniform(0.0, EXAMPLE_OFF_M)
+        intents[k] = replace(intent, position_m=intent.position_m + R @ [*shift, 0.0])
     return intents
+
+
+def robust_intents(intents: Sequence, workpiece: Workpiece, tool_radius_m: float) -> list:
+    """Intents for a part that may not be where its mesh is: each point with a wall push is
+    entered in the middle of the free space beside its wall (a groove's middle;
+    ``OPEN_EDGE_ENTRY_M`` off an open edge), so that the cutter comes down clear of the real
+    walls, and the push finds the wall from there (a careful operator does the same when the
+    part may be off its drawing). Points without a push (outside corners) stay where they
+    are."""
+    cad = workpiece.cad()
+    T = cad.T_base_wobj
+    out = []
+    for intent in intents:
+        if intent.wall_normal is None:
+            out.append(intent)
+            continue
+        p = (np.asarray(intent.position_m) - T[:3, 3]) @ T[:3, :3]
+        T_floor, (pf,), loops = walls_near(cad.mesh, p)
+        if not loops:
+            out.append(intent)
+            continue
+        loop = min(loops, key=lambda lp: abs(lp.signed_distance(pf[None, :2])[0]))
+        xy, note = WallPlacer(loop, loops, tool_radius_m, OPEN_EDGE_ENTRY_M)(
+            float(loop.project(pf[None, :2])[0])
+        )
+        if "too narrow" in note:
+            out.append(intent)
+            continue
+        entry = T[:3, :3] @ T_floor[:3, :3] @ np.array([xy[0], xy[1], pf[2]]) + T[:3, 3]
+        out.append(replace(intent, position_m=entry))
+    return out
 
 
 def _hand(goal: np.ndarray, p: np.ndarray, limit: float = HAND_MAX_N) -> np.ndarray:

@@ -5,18 +5,21 @@ PROBLEM   Teaching is the one step a person does, and with the part's mesh at ha
           be where path learning (chapter section 3.2) works from them: beside the wall with
           the cutter free, off the floor, bracketing every corner, with a point of its own at
           each outside corner (docs/guide_points.md), the wall side stated, and every point
-          reachable by the arm.
-STRATEGY  The picked wall at the machining height (``wall_section.pick_wall``) is a loop with
-          the material on its right. Along it, corners are where the wall turns faster than a
-          15 mm radius; corners closer than ``MIN_RUN_M`` merge into a group, and a group that
-          turns back round the free side (>= 150 deg, a slot's end) ends the wall there, so
-          the wall to follow is open. Each straight run between groups gets one point (two,
-          at 20 % and 80 %, from ``LONG_RUN_M``), each group turning round the material by
-          45 deg or more a point at its middle. Then every leg is checked against the wall:
-          where its chord comes within ``tool radius + LEG_CLEARANCE_M`` of the material, or
-          the wall recedes more than ``MAX_LEG_GAP_M`` from it, a point is added at the worst
-          place. Each point stands ``gap`` off the wall on the free side (centred in a groove
-          too narrow for that), at the machining height, with the job's tool orientation.
+          reachable by the arm. The example operator (``operator.guide_plan``) places its
+          points by the same rules: this is the one planner.
+STRATEGY  The picked wall at the machining height, in the floor's frame (``walls.pick_wall``: the
+          section parallel to the floor beside the pick, at the pick's height above it) is a loop
+          with the material on its right. Along it, corners are where the wall turns faster than
+          ``CORNER_RADIUS_M``; corners closer than ``MIN_RUN_M`` merge into a group, and a group
+          that turns back round the free side (``SLOT_END_DEG``, a slot's end) ends the wall there,
+          so the wall to follow is open. Each straight run between groups gets one point (two,
+          ``LONG_RUN_END_SHARE`` from its ends, from ``LONG_RUN_M``), each group turning round the
+          material by ``OUTSIDE_CORNER_DEG`` or more a point at its middle. Then every leg is
+          checked against the wall: where its chord comes within ``tool radius + LEG_CLEARANCE_M``
+          of the material, or the wall recedes more than ``MAX_LEG_GAP_M`` from it, a point is added
+          at the worst place. Each point stands ``gap`` off the wall on the free side (centred in a
+          groove too narrow for that), at the pick's height above the floor under it, with the job's
+          tool orientation. Every number is in ``thresholds.py``.
 SOLUTION  ``propose_guide_points(workpiece, robot, point, normal, ...) -> GuideProposal`` and
           ``teach_point(...) -> ProposedPoint`` (one point: click to teach); both say per point
           whether the arm reaches it (inverse kinematics from the previous point, and the
@@ -32,28 +35,39 @@ from typing import Literal
 
 import numpy as np
 import shapely
+from scipy.spatial.transform import Rotation
 
 from ..errors import InvalidInputError, RobomachError
 from ..limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
 from ..robot import Robot
+from ..tool import TOOL_DOWN
 from ..workpiece import Workpiece
+from .thresholds import (
+    CORNER_RADIUS_M,
+    CORNER_TURN_MIN_DEG,
+    CUTTER_FIT_M,
+    JOINT_JUMP_DEG,
+    LEG_CLEARANCE_M,
+    LONG_RUN_END_SHARE,
+    LONG_RUN_M,
+    MAX_ADDED_POINTS,
+    MAX_LEG_GAP_M,
+    MIN_RUN_M,
+    MIN_SPACING_M,
+    OUTSIDE_CORNER_DEG,
+    ROUND_LOOP_POINTS,
+    SLOT_END_DEG,
+    SLOT_END_MAX_M,
+    UNEVEN_FLOOR_NOTE_M,
+    WALL_END_MARGIN_M,
+)
 from .walls import WallLoop, WallPick, pick_wall
 
-CORNER_RADIUS_M = 0.015  # the wall turning faster than this radius is a corner
-TURN_MIN_DEG = 15.0  # a corner region turning less than this is ignored
-OUTSIDE_CORNER_DEG = 45.0  # a group turning round the material this much gets its own point
-SLOT_END_DEG = 150.0  # a group turning back round the free side this much ...
-SLOT_END_MAX_M = 0.025  # ... within this length ends the wall (a slot's end)
-MIN_RUN_M = 0.011  # corners closer than this are one group; shorter runs get no point
-LONG_RUN_M = 0.040  # a run this long gets two points (20 % and 80 %)
-LEG_CLEARANCE_M = 3e-4  # a leg's chord keeps the cutter this far off the wall ...
-MAX_LEG_GAP_M = 0.012  # ... and the wall no farther than this from the chord
-MIN_POINT_SPACING_M = 0.0015  # along the wall, between two points
-TURN_WINDOW_M = 5e-4
-SAMPLE_M = 2e-4
-MAX_ADDED = 200
-NEAR_LIMIT_FRACTION = 1.0  # inside the supervisor's slow zone: "near a limit"
-JOINT_JUMP_RAD = math.radians(60.0)  # between neighbouring points: a change of configuration
+TURN_WINDOW_M = 5e-4  # the wall's direction is measured over this much of it
+ROOM_STEPS = 3  # an added point may move this many windows off the worst place to find room
+SAMPLE_M = 2e-4  # the wall is looked at every this much for corners
+CHORD_SAMPLE_M = 2.5e-4  # a leg's chord is checked every this much
+WALL_SAMPLE_M = 5e-4  # the wall beside a leg is checked every this much
 
 PointKind = Literal["run", "outside corner", "wall end", "added", "taught"]
 Reach = Literal["ok", "near", "unreachable"]
@@ -65,8 +79,9 @@ class ProposalSettings:
 
     Attributes:
         gap_m: Gap between the cutter and the wall (default 1 mm; a narrow groove centres it).
-        height_above_floor_m: TCP height above the floor beside the wall (raised where the
-            spindle would meet the part, ``wall_section.pick_wall``).
+        height_above_floor_m: TCP height above the floor where the picked point's own height
+            cannot be kept (the cutter would touch the floor, the spindle the part, or the
+            cutter miss the wall; ``walls.pick_wall``).
     """
 
     gap_m: float = 0.001
@@ -87,8 +102,10 @@ class ProposedPoint:
         s_m: Arc length along the wall of the point's foot.
         kind: Why it is there (``PointKind``).
         reach: ``"ok"``, ``"near"`` (inside a slow zone of the supervisor) or ``"unreachable"``.
-        message: What is wrong or near, for people ("" when ok).
-        joints_rad: (6,) the arm's joints there, None when unreachable.
+        message: What is wrong, near or changed, for people ("" when ok).
+        joints_rad: (6,) the arm's joints there, None when unreachable or not checked.
+        position_floor_m: (3,) TCP position in the floor frame (``WallPick``), where the wall
+            is.
     """
 
     T_base_tcp: np.ndarray
@@ -98,6 +115,7 @@ class ProposedPoint:
     reach: Reach = "ok"
     message: str = ""
     joints_rad: np.ndarray | None = None
+    position_floor_m: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -106,11 +124,11 @@ class GuideProposal:
 
     Attributes:
         points: The points.
-        wall: The wall they follow (work-object frame), open or closed.
+        wall: The wall they follow (the floor frame's x-y), open or closed.
         closed: Learn a closed contour (back to the first point).
         wall_side: Side of the wall for path learning: always ``"right"`` (the wall's
             direction puts the material on the right).
-        pick: The picked wall and the machining height.
+        pick: The picked wall, its floor frame and the machining height.
         notes: What was adjusted or cannot be helped, for people.
     """
 
@@ -124,7 +142,17 @@ class GuideProposal:
 
     @property
     def z_m(self) -> float:
+        """The machining height at the pick (floor frame)."""
         return self.pick.z_m
+
+    @property
+    def height_above_floor_m(self) -> float:
+        return self.pick.z_m - self.pick.floor_z_m
+
+    def wall_wobj_m(self) -> np.ndarray:
+        """(n, 3) the wall at the machining height, work-object frame (for drawing)."""
+        w = self.wall.points_m
+        return self.pick.to_wobj(np.column_stack([w, np.full(len(w), self.wall.z_m)]))
 
 
 # --- orientation ------------------------------------------------------------------------------
@@ -134,26 +162,10 @@ def job_tool_rotation(T_base_wobj: np.ndarray, R_tool: np.ndarray | None = None)
     """The job's tool orientation (base frame): ``R_tool`` re-aimed so its axis (tool z) is
     -z of the work object, by the smallest rotation; default the example operator's, tool
     axis straight down and tool x along -y of the base."""
-    from .operator import TOOL_DOWN
-
     R = TOOL_DOWN if R_tool is None else np.asarray(R_tool, dtype=float)
     down = -np.asarray(T_base_wobj, dtype=float)[:3, 2]
-    axis = R[:, 2]
-    c = float(np.clip(axis @ down, -1.0, 1.0))
-    v = np.cross(axis, down)
-    s = float(np.linalg.norm(v))
-    if s < 1e-12:
-        if c > 0:
-            return R.copy()
-        perpendicular = np.cross(axis, [1.0, 0.0, 0.0])
-        if np.linalg.norm(perpendicular) < 1e-6:
-            perpendicular = np.cross(axis, [0.0, 1.0, 0.0])
-        v, s, c = perpendicular / np.linalg.norm(perpendicular), 1.0, -1.0
-        K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-        return (np.eye(3) + 2 * K @ K) @ R
-    K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    align = np.eye(3) + K + K @ K * ((1 - c) / (s * s))
-    return align @ R
+    align, _ = Rotation.align_vectors(down[None], R[:, 2][None])
+    return align.as_matrix() @ R
 
 
 # --- corners ----------------------------------------------------------------------------------
@@ -164,18 +176,25 @@ class _Group:
     start_m: float  # arc length (in the loop's own coordinates, may exceed its length)
     end_m: float
     turn_rad: float  # net turn, left (towards the free side) positive
-    sharpest_outside_rad: float  # the most negative region turn in the group
+    apex_m: float  # where the wall has turned half its sharpest corner: a sharp corner's tip
+
+    @property
+    def slot_end(self) -> bool:
+        """Turns back round the free side within a slot's width: the wall ends here."""
+        return (
+            self.turn_rad >= math.radians(SLOT_END_DEG)
+            and self.end_m - self.start_m <= SLOT_END_MAX_M
+        )
 
 
-def _corner_groups(loop: WallLoop, shift_m: float) -> tuple[np.ndarray, list[_Group]]:
+def _corner_groups(loop: WallLoop, shift_m: float = 0.0) -> list[_Group]:
     """Corner groups of ``loop`` in arc lengths counted from ``shift_m`` (module docstring)."""
     n = max(8, int(math.ceil(loop.length_m / SAMPLE_M)))
     s = np.linspace(0.0, loop.length_m, n, endpoint=not loop.closed)
     d = loop.point_at(s + shift_m + TURN_WINDOW_M) - loop.point_at(s + shift_m - TURN_WINDOW_M)
     theta = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
-    curvature = np.gradient(theta, s)
-    corner = np.abs(curvature) > 1.0 / CORNER_RADIUS_M
-    regions: list[tuple[float, float, float]] = []
+    corner = np.abs(np.gradient(theta, s)) > 1.0 / CORNER_RADIUS_M
+    groups: list[_Group] = []
     i = 0
     while i < n:
         if not corner[i]:
@@ -186,39 +205,33 @@ def _corner_groups(loop: WallLoop, shift_m: float) -> tuple[np.ndarray, list[_Gr
             j += 1
         a, b = max(i - 1, 0), min(j + 1, n - 1)
         turn = float(theta[b] - theta[a])
-        if abs(turn) >= math.radians(TURN_MIN_DEG):
-            regions.append((float(s[i]), float(s[j]), turn))
+        if abs(turn) >= math.radians(CORNER_TURN_MIN_DEG):
+            half = np.sign(turn) * (theta[a : b + 1] - theta[a] - 0.5 * turn)
+            apex = float(np.interp(0.0, half, s[a : b + 1]))  # theta is monotonic here
+            last = groups[-1] if groups else None
+            if last is not None and s[i] - last.end_m < MIN_RUN_M:  # one group with the last
+                apex = apex if abs(turn) > abs(last.turn_rad) else last.apex_m
+                groups[-1] = _Group(last.start_m, float(s[j]), last.turn_rad + turn, apex)
+            else:
+                groups.append(_Group(float(s[i]), float(s[j]), turn, apex))
         i = j + 1
-    groups: list[_Group] = []
-    for a, b, turn in regions:
-        if groups and a - groups[-1].end_m < MIN_RUN_M:
-            g = groups[-1]
-            groups[-1] = _Group(g.start_m, b, g.turn_rad + turn, min(g.sharpest_outside_rad, turn))
-        else:
-            groups.append(_Group(a, b, turn, min(0.0, turn)))
-    if loop.closed and len(groups) >= 2:  # the last and the first may be one group round 0
-        first, last = groups[0], groups[-1]
-        if first.start_m + loop.length_m - last.end_m < MIN_RUN_M:
-            groups = groups[1:-1] + [
-                _Group(
-                    last.start_m,
-                    first.end_m + loop.length_m,
-                    last.turn_rad + first.turn_rad,
-                    min(last.sharpest_outside_rad, first.sharpest_outside_rad),
-                )
-            ]
-    return s, groups
+    L = loop.length_m
+    if loop.closed and len(groups) >= 2 and groups[0].start_m + L - groups[-1].end_m < MIN_RUN_M:
+        first, last = groups.pop(0), groups.pop()  # one group round the start
+        sharper = first if abs(first.turn_rad) > abs(last.turn_rad) else last
+        apex = sharper.apex_m + (L if sharper is first else 0.0)
+        groups.append(_Group(last.start_m, first.end_m + L, last.turn_rad + first.turn_rad, apex))
+    return groups
 
 
 def _straightest_start(loop: WallLoop) -> float:
     """Arc length of the middle of the loop's longest stretch without corners (a closed
     loop is counted from there, so no corner straddles its start)."""
-    _, groups = _corner_groups(loop, 0.0)
+    groups = _corner_groups(loop)
     if not groups:
         return 0.0
     ends = [(g.end_m, groups[(k + 1) % len(groups)].start_m) for k, g in enumerate(groups)]
-    runs = [(b - a if b > a else b + loop.length_m - a, a) for a, b in ends]
-    length, a = max(runs)
+    length, a = max(((b - a) % loop.length_m, a) for a, b in ends)
     return float(loop.wrap(np.array([a + 0.5 * length]))[0])
 
 
@@ -226,67 +239,38 @@ def _straightest_start(loop: WallLoop) -> float:
 
 
 def _wall_extent(
-    loop: WallLoop, pick_s: float, tool_radius_m: float, gap_m: float
+    loop: WallLoop, pick_s: float
 ) -> tuple[WallLoop, bool, list[_Group], float, list[str]]:
     """(wall, closed, groups on it, pick's arc length on it, notes): the picked loop, or the
     piece of it between the slot ends round the pick."""
-    notes: list[str] = []
+    L = loop.length_m
     shift = _straightest_start(loop) if loop.closed else 0.0
-    _, groups = _corner_groups(loop, shift)
-    ends = [
-        g
-        for g in groups
-        if g.turn_rad >= math.radians(SLOT_END_DEG) and g.end_m - g.start_m <= SLOT_END_MAX_M
-    ]
+    groups = _corner_groups(loop, shift)
+    ends = [g for g in groups if g.slot_end]
     pick = float(loop.wrap(np.array([pick_s - shift]))[0])
     if loop.closed and not ends:
-        wall = loop.piece(shift, shift + loop.length_m) if shift else loop
-        if shift:
-            wall = WallLoop(wall.points_m[:-1], wall.z_m, closed=True)
-        return wall, True, groups, pick, notes
-    for g in ends:
-        if g.start_m - 1e-9 <= pick <= g.end_m + 1e-9:
-            raise InvalidInputError(
-                "the picked point is at the end of a slot; pick one of its side walls"
-            )
-    if not ends:
-        a, b = 0.0, loop.length_m
+        wall = WallLoop(loop.piece(shift, shift + L).points_m[:-1], loop.z_m, closed=True)
+        return (wall if shift else loop), True, groups, pick, []
+    if any(g.start_m - 1e-9 <= pick <= g.end_m + 1e-9 for g in ends):
+        raise InvalidInputError(
+            "the picked point is at the end of a slot; pick one of its side walls"
+        )
+    before = [g.end_m for g in ends if g.end_m <= pick]
+    after = [g.start_m for g in ends if g.start_m >= pick]
+    if loop.closed:  # from the slot end before the pick to the one after, maybe over the start
+        a = before[-1] if before else ends[-1].end_m
+        b = after[0] if after else ends[0].start_m
+        b = b + L if b <= a else b
     else:
-        before = [g for g in ends if g.end_m <= pick]
-        after = [g for g in ends if g.start_m >= pick]
-        if loop.closed:
-            a = (before[-1] if before else ends[-1]).end_m
-            b = (after[0] if after else ends[0]).start_m
-            if b <= a:
-                b += loop.length_m
-        else:
-            a = before[-1].end_m if before else 0.0
-            b = after[0].start_m if after else loop.length_m
+        a, b = (before[-1] if before else 0.0), (after[0] if after else L)
     wall = loop.piece(shift + a, shift + b)
-    kept = [
-        _Group(g.start_m - a, g.end_m - a, g.turn_rad, g.sharpest_outside_rad)
-        for g in groups
-        if g not in ends and a < g.start_m and g.end_m < b
-    ]
-    if loop.closed:  # groups past the loop's end, seen from a piece running over it
-        kept += [
-            _Group(
-                g.start_m + loop.length_m - a,
-                g.end_m + loop.length_m - a,
-                g.turn_rad,
-                g.sharpest_outside_rad,
-            )  # fmt: skip
-            for g in groups
-            if g not in ends and a < g.start_m + loop.length_m and g.end_m + loop.length_m < b
-        ]
-    kept.sort(key=lambda g: g.start_m)
-    notes.append(
-        f"the wall is open: {wall.length_m * 1e3:.0f} mm between the ends of the slot"
-        if ends
-        else f"the wall is open ({wall.length_m * 1e3:.0f} mm)"
-    )
-    pick_on = float(np.clip(pick - a if pick >= a else pick + loop.length_m - a, 0, wall.length_m))
-    return wall, False, kept, pick_on, notes
+    kept = [g for g in _corner_groups(wall) if not g.slot_end]
+    length = f"{wall.length_m * 1e3:.0f} mm"
+    note = f"the wall is open: {length} between the ends of the slot" if ends else (
+        f"the wall is open ({length})"
+    )  # fmt: skip
+    pick_on = float(np.clip((pick - a) % L if loop.closed else pick - a, 0.0, wall.length_m))
+    return wall, False, kept, pick_on, [note]
 
 
 def _initial_points(
@@ -295,7 +279,7 @@ def _initial_points(
     """Arc lengths and kinds of the first points: runs, outside corners and wall ends."""
     out: list[tuple[float, PointKind]] = []
     if closed and not groups:
-        return [(wall.length_m * f, "run") for f in (0.0, 0.25, 0.5, 0.75)]
+        return [(wall.length_m * k / ROUND_LOOP_POINTS, "run") for k in range(ROUND_LOOP_POINTS)]
     bounds = [(g.start_m, g.end_m) for g in groups]
     if closed:
         runs = [
@@ -310,19 +294,20 @@ def _initial_points(
     for a, b in runs:
         length = b - a
         if length >= LONG_RUN_M:
-            out += [(a + 0.2 * length, "run"), (a + 0.8 * length, "run")]
+            f = LONG_RUN_END_SHARE
+            out += [(a + f * length, "run"), (b - f * length, "run")]
         elif length >= MIN_RUN_M:
             out.append((a + 0.5 * length, "run"))
     for g in groups:
         if g.turn_rad <= -math.radians(OUTSIDE_CORNER_DEG):
-            out.append((0.5 * (g.start_m + g.end_m), "outside corner"))
+            out.append((g.apex_m, "outside corner"))
     if not closed:
         out.append((max(wall.length_m - end_margin_m, 0.5 * wall.length_m), "wall end"))
     out = [(float(wall.wrap(np.array([s]))[0]) if closed else s, k) for s, k in out]
     out.sort(key=lambda item: item[0])
     merged: list[tuple[float, PointKind]] = []
     for s, kind in out:  # two points on top of each other: keep the corner or end
-        if merged and s - merged[-1][0] < MIN_POINT_SPACING_M:
+        if merged and s - merged[-1][0] < MIN_SPACING_M:
             if kind != "run":
                 merged[-1] = (s, kind)
             continue
@@ -365,7 +350,7 @@ class WallPlacer:
         if width < 2 * offset:
             offset = 0.5 * width
             note = f"the free space is {width * 1e3:.1f} mm wide here: the tool is centred in it"
-        if width < 2 * self.radius + 2e-4:
+        if width < 2 * self.radius + CUTTER_FIT_M:
             note = (
                 f"the free space is {width * 1e3:.1f} mm wide here, too narrow for the "
                 f"{2 * self.radius * 1e3:g} mm cutter"
@@ -374,20 +359,27 @@ class WallPlacer:
 
 
 def _leg_problem(
-    wall: WallLoop, radius_m: float, pa: np.ndarray, pb: np.ndarray, sa: float, sb: float
+    wall: WallLoop,
+    radius_m: float,
+    pa: np.ndarray,
+    pb: np.ndarray,
+    sa: float,
+    sb: float,
+    clearance_m: float = LEG_CLEARANCE_M,
 ) -> float | None:
-    """Arc length where the leg pa -> pb needs a point of its own (it cuts towards the
-    material, or the wall between sa and sb recedes too far from it), or None."""
+    """Arc length where the leg pa -> pb needs a point of its own (its cutter comes within
+    ``clearance_m`` of the material, or the wall between sa and sb recedes too far from it),
+    or None."""
     length = float(np.linalg.norm(pb - pa))
-    n = max(2, int(math.ceil(length / 2.5e-4)))
+    n = max(2, int(math.ceil(length / CHORD_SAMPLE_M)))
     chord = pa + np.linspace(0.0, 1.0, n)[:, None] * (pb - pa)
     signed = wall.signed_distance(chord)
     worst = int(np.argmin(signed))
-    if signed[worst] < radius_m + LEG_CLEARANCE_M:
+    if signed[worst] < radius_m + clearance_m:
         return float(wall.project(chord[worst : worst + 1])[0])
     if sb <= sa:
         sb += wall.length_m
-    m = max(2, int(math.ceil((sb - sa) / 5e-4)))
+    m = max(2, int(math.ceil((sb - sa) / WALL_SAMPLE_M)))
     s = np.linspace(sa, sb, m)
     pts = wall.point_at(s)
     d = pb - pa
@@ -406,33 +398,43 @@ def _add_points(
     place: WallPlacer,
     radius_m: float,
 ) -> tuple[list[tuple[float, PointKind]], list[str]]:
-    """Points added where a leg cuts towards the wall or leaves it too far (module docstring).
+    """Points added where a leg comes near the wall or leaves it too far (module docstring).
     A leg is checked once; an added point puts its two new legs on the list."""
     notes: list[str] = []
     points = list(points)
     todo = list(range(len(points) if closed else len(points) - 1))  # leg k: point k -> k + 1
     added = 0
-    while todo and added < MAX_ADDED:
+    while todo and added < MAX_ADDED_POINTS:
         k = todo.pop()
         j = (k + 1) % len(points)
         (sa, _), (sb, _) = points[k], points[j]
-        at = _leg_problem(wall, radius_m, place(sa)[0], place(sb)[0], sa, sb)
+        pa, pb = place(sa)[0], place(sb)[0]
+        at = _leg_problem(wall, radius_m, pa, pb, sa, sb)
         if at is None:
             continue
-        at = float(wall.wrap(np.array([at]))[0]) if closed else at
-        span = (sb - sa) % wall.length_m if closed else sb - sa
-        offset = (at - sa) % wall.length_m if closed else at - sa
-        if not MIN_POINT_SPACING_M <= offset <= span - MIN_POINT_SPACING_M:
-            notes.append(
-                f"the leg between points {k + 1} and {j + 1} comes close to the wall; move one "
-                "of them"
-            )
-            continue
+        L = wall.length_m
+        span = (sb - sa) % L if closed else sb - sa
+        offset = float(np.clip((at - sa) % L if closed else at - sa, 0.0, span))
+        offset = 0.0 if closed and (at - sa) % L > 0.5 * (span + L) else offset  # just before sa
+        # Room is counted between the tool's places, not the wall's feet (round an outside
+        # corner they stand farther apart); at a corner's tip, the place just past it, where
+        # the wall's own side gives the direction, brackets it.
+        for step in range(ROOM_STEPS + 1):
+            shift = step * TURN_WINDOW_M * (1.0 if offset < 0.5 * span else -1.0)
+            pc = place(float(wall.wrap(np.array([sa + offset + shift]))[0]))[0]
+            if (
+                0.0 < offset + shift < span
+                and min(np.linalg.norm(pc - pa), np.linalg.norm(pc - pb)) >= MIN_SPACING_M
+            ):
+                break
+        else:
+            continue  # no room: ``leg_problems`` says so if the leg cuts into the wall
+        at = float(wall.wrap(np.array([sa + offset + shift]))[0]) if closed else sa + offset + shift
         points.insert(k + 1, (at, "added"))
         added += 1
         todo = [t + 1 if t > k else t for t in todo] + [k, k + 1]
     if todo:
-        notes.append(f"stopped adding points after {MAX_ADDED}")
+        notes.append(f"stopped adding points after {MAX_ADDED_POINTS}")
     if closed:  # the points stay in order along the wall, from the first
         points.sort(key=lambda item: item[0])
     return points, notes
@@ -462,7 +464,7 @@ def reach_points(
         message = ""
         if q_prev is not None and k > 0 and out and out[-1][2] is not None:
             jump = np.abs(q - q_prev)
-            if float(jump.max()) > JOINT_JUMP_RAD:
+            if float(jump.max()) > math.radians(JOINT_JUMP_DEG):
                 axis = int(np.argmax(jump)) + 1
                 reach, message = (
                     "near",
@@ -496,7 +498,7 @@ def _margins(supervisor: object, q: np.ndarray, reach: Reach, message: str) -> t
         shown = f"{value:.1f} {'deg' if angle else 'mm'}"
         if v <= stop:
             return "unreachable", f"at {what} ({shown})"
-        if v <= slow * NEAR_LIMIT_FRACTION and reach == "ok":
+        if v <= slow and reach == "ok":
             reach, message = "near", f"near {what} ({shown})"
     return reach, message
 
@@ -518,12 +520,22 @@ def _pick(workpiece: Workpiece, point_wobj_m: np.ndarray, normal: np.ndarray | N
     )
 
 
-def _pose(workpiece: Workpiece, xy: np.ndarray, z: float, R_base: np.ndarray) -> np.ndarray:
-    T_base_wobj = workpiece.cad().T_base_wobj
+def _pose(T_base_wobj: np.ndarray, p_wobj: np.ndarray, R_base: np.ndarray) -> np.ndarray:
     T = np.eye(4)
     T[:3, :3] = R_base
-    T[:3, 3] = T_base_wobj[:3, :3] @ np.array([xy[0], xy[1], z]) + T_base_wobj[:3, 3]
+    T[:3, 3] = T_base_wobj[:3, :3] @ p_wobj + T_base_wobj[:3, 3]
     return T
+
+
+def _placed(
+    pick: WallPick, xys: Sequence[np.ndarray], T_base_wobj: np.ndarray, R_base: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    """(floor-frame positions, work-object positions, base poses) of TCPs at floor-frame
+    ``xys``, each at the pick's height above the floor under it."""
+    xy = np.atleast_2d(np.asarray(xys, dtype=float))
+    floor = np.column_stack([xy, pick.heights(xy)])
+    wobj = pick.to_wobj(floor)
+    return floor, wobj, [_pose(T_base_wobj, p, R_base) for p in wobj]
 
 
 def tool_reach(tool: object) -> float:
@@ -533,9 +545,22 @@ def tool_reach(tool: object) -> float:
     return float(tool.flute_length_m) + SHANK_LENGTH_M  # type: ignore[attr-defined]
 
 
+def _reach(robot: Robot | None, Ts: Sequence[np.ndarray], **kw: object) -> list:
+    if robot is None:  # not checked (the example operator's plan: the cell checks the motion)
+        return [("ok", "", None)] * len(Ts)
+    return reach_points(robot, Ts, **kw)  # type: ignore[arg-type]
+
+
+def _verdict(note: str, reach: Reach, message: str) -> tuple[Reach, str]:
+    """A placement's note (a groove too narrow: unreachable) with the arm's verdict."""
+    if note and "too narrow" in note:
+        return "unreachable", note
+    return reach, message or note
+
+
 def propose_guide_points(
     workpiece: Workpiece,
-    robot: Robot,
+    robot: Robot | None,
     point_wobj_m: np.ndarray,
     normal: np.ndarray | None = None,
     *,
@@ -550,11 +575,12 @@ def propose_guide_points(
 
     Args:
         workpiece: The part (its CAD is used: what the user sees).
-        robot: The arm, for reachability.
-        point_wobj_m: (3,) a point on the wall, work-object frame [m].
+        robot: The arm, for reachability (None: not checked).
+        point_wobj_m: (3,) a point on the wall, work-object frame [m]; its height above the
+            floor is the points' (``walls.pick_wall`` says when it cannot be, and why).
         normal: (3,) its surface normal (out of the material); default the nearest face's.
         tool_radius_m: Ball cutter radius.
-        settings: Gap and height.
+        settings: Gap, and the height where the point's own cannot be kept.
         tool_rotation: 3x3 tool orientation (base frame) whose axis is re-aimed at -z of the
             work object (``job_tool_rotation``); default the example operator's.
         q_seed: Joints to start the inverse kinematics from (the robot's now).
@@ -563,12 +589,10 @@ def propose_guide_points(
     """
     settings = settings or ProposalSettings()
     pick = _pick(workpiece, point_wobj_m, normal, tool_radius_m, settings, tool_reach_m)
-    wall, closed, groups, pick_s, notes = _wall_extent(
-        pick.loop, pick.s_m, tool_radius_m, settings.gap_m
-    )
+    wall, closed, groups, pick_s, notes = _wall_extent(pick.loop, pick.s_m)
     notes = [*pick.notes, *notes]
     place = WallPlacer(wall, (pick.loop, *pick.others), tool_radius_m, settings.gap_m)
-    end_margin = tool_radius_m + settings.gap_m + 5e-4
+    end_margin = tool_radius_m + settings.gap_m + WALL_END_MARGIN_M
     points = _initial_points(wall, closed, groups, end_margin)
     points, added = _add_points(wall, closed, points, place, tool_radius_m)
     notes += added
@@ -576,26 +600,26 @@ def propose_guide_points(
         gaps = [min(abs(s - pick_s), wall.length_m - abs(s - pick_s)) for s, _ in points]
         first = int(np.argmin(gaps))
         points = points[first:] + points[:first]
-    R = job_tool_rotation(workpiece.cad().T_base_wobj, tool_rotation)
+    T_base_wobj = workpiece.cad().T_base_wobj
+    R = job_tool_rotation(T_base_wobj, tool_rotation)
     placed = [place(s) for s, _ in points]
-    Ts = [_pose(workpiece, xy, pick.z_m, R) for xy, _ in placed]
-    reach = reach_points(robot, Ts, q_seed=q_seed, supervisor=supervisor)
+    floor, wobj, Ts = _placed(pick, [xy for xy, _ in placed], T_base_wobj, R)
+    if np.ptp(floor[:, 2]) > UNEVEN_FLOOR_NOTE_M:
+        notes.append(
+            f"the floor is not level along the wall: each point stands "
+            f"{(pick.z_m - pick.floor_z_m) * 1e3:.1f} mm above the floor under it"
+        )
+    reach = _reach(robot, Ts, q_seed=q_seed, supervisor=supervisor)
     out = []
-    for (s, kind), (xy, note), T, (r, message, q) in zip(points, placed, Ts, reach, strict=True):
-        if note and "too narrow" in note:
-            r, message = "unreachable", note
-        elif note and not message:
-            message = note
-        out.append(ProposedPoint(T, np.array([xy[0], xy[1], pick.z_m]), s, kind, r, message, q))
-    return GuideProposal(
-        tuple(out),
-        wall,
-        closed,
-        "right",
-        pick,
-        tuple(dict.fromkeys(notes)),
-        workpiece.cad().T_base_wobj.copy(),
+    for k, ((s, kind), (_, note), (r, message, q)) in enumerate(
+        zip(points, placed, reach, strict=True)
+    ):
+        r, message = _verdict(note, r, message)
+        out.append(ProposedPoint(Ts[k], wobj[k], s, kind, r, message, q, floor[k]))
+    proposal = GuideProposal(
+        tuple(out), wall, closed, "right", pick, tuple(dict.fromkeys(notes)), T_base_wobj.copy()
     )
+    return _with_leg_notes(proposal, tool_radius_m)
 
 
 def teach_point(
@@ -612,39 +636,21 @@ def teach_point(
     tool_reach_m: float | None = 0.020,
 ) -> tuple[ProposedPoint, WallPick]:
     """The tool's place for one picked point (click to teach): beside the wall at the pick,
-    ``gap`` off it on the free side, at the machining height, in the job's orientation."""
+    ``gap`` off it on the free side, at the pick's height (or the one ``walls.pick_wall``
+    changes it to, its note in the point's message), in the job's orientation."""
     settings = settings or ProposalSettings()
     pick = _pick(workpiece, point_wobj_m, normal, tool_radius_m, settings, tool_reach_m)
     place = WallPlacer(pick.loop, (pick.loop, *pick.others), tool_radius_m, settings.gap_m)
     xy, note = place(pick.s_m)
-    R = job_tool_rotation(workpiece.cad().T_base_wobj, tool_rotation)
-    T = _pose(workpiece, xy, pick.z_m, R)
+    T_base_wobj = workpiece.cad().T_base_wobj
+    R = job_tool_rotation(T_base_wobj, tool_rotation)
+    floor = np.array([xy[0], xy[1], pick.z_m])
+    wobj = pick.to_wobj(floor)[0]
+    T = _pose(T_base_wobj, wobj, R)
     ((r, message, q),) = reach_points(robot, [T], q_seed=q_seed, supervisor=supervisor)
-    if note and "too narrow" in note:
-        r, message = "unreachable", note
-    point = ProposedPoint(
-        T, np.array([xy[0], xy[1], pick.z_m]), pick.s_m, "taught", r, message or note, q
-    )
-    return point, pick
-
-
-def guide_intents(proposal: GuideProposal, *, touch: bool = True) -> list:
-    """The proposal as the scripted operator's intents (``demo_operator.GuideIntent``): it
-    leads the robot to each point by pushes and, with ``touch``, pushes gently towards the
-    wall until it pushes back (as a person touching the wall does), except at outside corners
-    (docs/guide_points.md: no wall push there). Touching makes the points the real wall's
-    when the part is not where its CAD is."""
-    from .operator import GuideIntent
-
-    T_base_wobj = proposal.T_base_wobj
-    out = []
-    for p in proposal.points:
-        normal = None
-        if touch and p.kind != "outside corner":
-            n = proposal.wall.free_normal_at(np.array([p.s_m]))[0]
-            normal = -(T_base_wobj[:3, :3] @ np.array([n[0], n[1], 0.0]))
-        out.append(GuideIntent(p.T_base_tcp[:3, 3].copy(), normal, p.T_base_tcp[:3, :3].copy()))
-    return out
+    r, message = _verdict(note, r, message)
+    message = "; ".join(m for m in (*pick.notes, message) if m)
+    return ProposedPoint(T, wobj, pick.s_m, "taught", r, message, q, floor), pick
 
 
 def refuse_unreachable(proposal: GuideProposal) -> None:
@@ -658,6 +664,10 @@ def refuse_unreachable(proposal: GuideProposal) -> None:
         )
 
 
+def _counts(values: Sequence[str]) -> dict[str, int]:
+    return {v: list(values).count(v) for v in dict.fromkeys(values)}
+
+
 def proposal_summary(proposal: GuideProposal) -> dict:
     """The proposal in mm, for summary.json and the API."""
     return {
@@ -665,18 +675,14 @@ def proposal_summary(proposal: GuideProposal) -> dict:
         "closed": proposal.closed,
         "wall_side": proposal.wall_side,
         "wall_length_mm": round(proposal.wall.length_m * 1e3, 2),
-        "height_wobj_mm": round(proposal.z_m * 1e3, 3),
-        "floor_wobj_mm": round(proposal.pick.floor_z_m * 1e3, 3),
-        "kinds": {
-            kind: sum(p.kind == kind for p in proposal.points)
-            for kind in dict.fromkeys(p.kind for p in proposal.points)
-        },
-        "reach": {
-            reach: sum(p.reach == reach for p in proposal.points)
-            for reach in dict.fromkeys(p.reach for p in proposal.points)
-        },
+        "height_above_floor_mm": round(proposal.height_above_floor_m * 1e3, 3),
+        "height_wobj_mm": round(float(proposal.points[0].position_wobj_m[2]) * 1e3, 3),
+        "floor_tilt_deg": round(math.degrees(math.acos(
+            min(1.0, float(proposal.pick.T_wobj_floor[2, 2])))), 2),
+        "kinds": _counts([p.kind for p in proposal.points]),
+        "reach": _counts([p.reach for p in proposal.points]),
         "notes": list(proposal.notes),
-    }
+    }  # fmt: skip
 
 
 def move_point(
@@ -690,30 +696,24 @@ def move_point(
     supervisor: object | None = None,
 ) -> GuideProposal:
     """The proposal with point ``index`` moved to where ``point_wobj_m`` (any point, work-object
-    frame) projects on the wall: dragged along it, it stays ``gap_m`` off the wall."""
+    frame) projects on the wall: dragged along it, it stays ``gap_m`` off the wall, at the
+    machining height above the floor under it."""
     if not 0 <= index < len(proposal.points):
         raise InvalidInputError(f"no proposed point G{index + 1}; there are {len(proposal.points)}")
-    xy = np.asarray(point_wobj_m, dtype=float).reshape(-1)[:2]
-    wall = proposal.wall
+    pick, wall = proposal.pick, proposal.wall
+    xy = pick.to_floor(np.asarray(point_wobj_m, dtype=float).reshape(3))[0, :2]
     s = float(wall.project(xy[None])[0])
-    place = WallPlacer(wall, (proposal.pick.loop, *proposal.pick.others), tool_radius_m, gap_m)
+    place = WallPlacer(wall, (pick.loop, *pick.others), tool_radius_m, gap_m)
     foot_xy, note = place(s)
     old = proposal.points[index]
-    T = old.T_base_tcp.copy()
-    T[:3, 3] = (
-        proposal.T_base_wobj[:3, :3] @ np.array([foot_xy[0], foot_xy[1], proposal.z_m])
-        + proposal.T_base_wobj[:3, 3]
-    )
+    floor, wobj, (T,) = _placed(pick, [foot_xy], proposal.T_base_wobj, old.T_base_tcp[:3, :3])
     seed = next(
         (p.joints_rad for p in proposal.points[:index][::-1] if p.joints_rad is not None),
         old.joints_rad,
     )
     ((r, message, q),) = reach_points(robot, [T], q_seed=seed, supervisor=supervisor)
-    if note and "too narrow" in note:
-        r, message = "unreachable", note
-    moved = ProposedPoint(
-        T, np.array([foot_xy[0], foot_xy[1], proposal.z_m]), s, old.kind, r, message or note, q
-    )
+    r, message = _verdict(note, r, message)
+    moved = ProposedPoint(T, wobj[0], s, old.kind, r, message, q, floor[0])
     points = list(proposal.points)
     points[index] = moved
     return _with_leg_notes(
@@ -741,7 +741,8 @@ def delete_point(proposal: GuideProposal, index: int, *, tool_radius_m: float) -
 
 
 def leg_problems(proposal: GuideProposal, tool_radius_m: float) -> list[str]:
-    """A sentence per leg that cuts towards the wall or leaves it too far (after edits)."""
+    """A sentence per leg whose cutter would cut into the wall or that leaves it too far
+    (``MAX_LEG_GAP_M``): after edits, or where the planner had no room for a point."""
     wall, pts = proposal.wall, proposal.points
     out = []
     legs = len(pts) if proposal.closed else len(pts) - 1
@@ -749,13 +750,16 @@ def leg_problems(proposal: GuideProposal, tool_radius_m: float) -> list[str]:
         j = (k + 1) % len(pts)
         a, b = pts[k], pts[j]
         at = _leg_problem(
-            wall, tool_radius_m, a.position_wobj_m[:2], b.position_wobj_m[:2], a.s_m, b.s_m
+            wall, tool_radius_m, a.position_floor_m[:2], b.position_floor_m[:2], a.s_m, b.s_m, 0.0
         )
         if at is not None:
-            x, y = wall.point_at(np.array([at]))[0] * 1e3
+            x, y, _ = (
+                proposal.pick.to_wobj(np.array([*wall.point_at(np.array([at]))[0], wall.z_m]))[0]
+                * 1e3
+            )
             out.append(
                 f"the leg G{k + 1}-G{j + 1} leaves the wall near ({x:.1f}, {y:.1f}) mm: add a "
-                "point there or undo the edit"
+                "point there (or undo the edit)"
             )
     return out
 

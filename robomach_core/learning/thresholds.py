@@ -94,6 +94,33 @@ WRIST_MARGIN_RAD = (
 TAUGHT_WALL_TOLERANCE_M = 0.001  # m | the program passes this near every taught wall point (the CAD may differ from the part by this) | fixed
 TAUGHT_WALL_HEIGHT_BAND_M = 0.005  # m | ... measured across the axis among program points within this height of the point or its neighbours | fixed
 
+# --- the guide-point planner: picks, floors, heights, corners, points (planner.py, walls.py) -----
+MAX_PICK_DISTANCE_M = 0.002  # m | a picked point farther than this from the mesh is not on the part | fixed: a click lands on the surface, a typed point within a few tenths
+LEVEL_FLOOR_RAD = 1e-4  # rad | a floor within this of the work object's x-y plane is level, and its section the work object's (0.02 mm over 200 mm) | fixed
+AMBIGUOUS_CLICK_RADII = 1.0  # x tool radius | a point whose distances to the two walls across the free space differ by less than this is between them: refused | tool radius
+CUTTER_FLOOR_CLEARANCE_M = 0.001  # m | the cutter's lowest point stays this far above the floor (a casting's floor may be 0.5 mm off its mesh) | fixed: the part's deviation
+CONTACT_BELOW_TOP_RADII = 0.5  # x tool radius | the TCP (the ball's contact height on a wall) stays this far below the wall's top ... | tool radius
+CONTACT_BELOW_TOP_M = 5e-4  # m | ... and at least this far below it (a wall's rim is its weakest and burred edge, no place to press on) | fixed
+SPINDLE_CLEARANCE_M = 0.005  # m | the spindle body stays this far above the part within its radius (the supervisor stops a few mm from it) | fixed
+STITCH_M = 2e-5  # m | section chains ending this close to each other are one wall across a crack in the mesh | the mesh's precision
+CORNER_RADIUS_M = 0.015  # m | the wall turning on a tighter radius than this is a corner (the pump's 6 mm corners and 3 mm fillets) | fixed: the parts' fillets
+CORNER_TURN_MIN_DEG = 15.0  # deg | a corner turning less than this needs no point of its own (a leg across it keeps the wall) | fixed
+OUTSIDE_CORNER_DEG = 45.0  # deg | a corner turning round the material this much gets a point at its middle (the chord between its runs would cut the part) | fixed
+SLOT_END_DEG = 150.0  # deg | a corner group turning back round the free side this much, within SLOT_END_MAX_M, is a slot's end: the wall to follow ends there | fixed
+SLOT_END_MAX_M = 0.025  # m | ... the longest such a group may be (a slot's end cap is its width across, a tight U-turn of the wall) | slot width
+MIN_RUN_M = 0.011  # m | corners closer than this along the wall are one group; a shorter run between groups gets no point | fixed: the pump's 14 mm bosses
+LONG_RUN_M = 0.040  # m | a straight run this long gets two points, LONG_RUN_END_SHARE from its ends, bracketing its corners | fixed
+LONG_RUN_END_SHARE = 0.2  # x run | where a long run's two points stand, from each end (one point in the middle of a shorter run) | fixed
+WALL_END_MARGIN_M = 5e-4  # m | an open wall's end points stand this much more than the tool radius and gap from its ends | fixed
+LEG_CLEARANCE_M = 3e-4  # m | a leg's chord keeps the cutter this far off the wall, else a point is added at the worst place ... | fixed
+MAX_LEG_GAP_M = 0.012  # m | ... and the wall no farther than this from the chord (the route would leave it to a long search) | fixed
+MAX_ADDED_POINTS = 200  # points | the planner stops adding points after this many and says so (a wall it cannot bracket) | fixed
+ROUND_LOOP_POINTS = 4  # points | a closed wall without any corner (a round boss or pocket) gets this many points, evenly spread | fixed
+JOINT_JUMP_DEG = 60.0  # deg | an axis turning this much between neighbouring points is a change of configuration: "near" | fixed
+CUTTER_FIT_M = 2e-4  # m | free space narrower than the cutter's diameter plus this is too narrow to enter: unreachable | fixed
+OPEN_EDGE_ENTRY_M = 0.003  # m | on a part that may be off its mesh, the operator comes down this far off an open edge (a groove: its middle) | fixed: the fixture error
+UNEVEN_FLOOR_NOTE_M = 1e-4  # m | proposed points whose heights differ by more than this stand on a stepped or sloped floor: a note says so | fixed
+EXAMPLE_BELOW_TOP_M = 0.003  # m | the example operator points at the built-in part's known wall this far below its top | fixed
 # fmt: on
 
 

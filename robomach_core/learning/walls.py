@@ -1,19 +1,21 @@
-"""Walls of a part's mesh at one height: the loop a picked point belongs to, and where the tool
-goes beside it.
+"""Walls of a part's mesh at one height: the loop a picked point belongs to, the floor's frame
+and the machining height beside it.
 
 PROBLEM   Pointing at the part must give a wall to follow: the picked face alone says nothing
           about where the wall goes, which side is free, how deep the groove is, or where the
-          tool may stand without touching the floor or the other wall of a narrow groove.
-STRATEGY  Cut the mesh with the horizontal plane at the machining height (trimesh's
+          tool may stand without touching the floor or the other wall of a narrow groove. On a
+          part that is not level in its mesh, a horizontal section cuts the walls obliquely.
+STRATEGY  Find the floor beside the picked wall (a ray down beside it; the part's top just
+          inside it on an outside edge) and work in the floor's frame, whose z is the floor's
+          normal. There, cut the mesh with the plane at the machining height (trimesh's
           ``mesh_plane``): each segment comes with the face it cuts, whose normal says which
           side is free, so every segment is oriented with the material on the right (as the
-          built-in walls are) and chained into loops, closed or open. The picked point's
-          face gives the free side; a ray down beside the wall finds the floor and one down
-          just inside the wall its top, which fix the machining height.
-SOLUTION  ``section_loops(mesh, z_m)`` -> ``WallLoop``s (work-object x-y, metres), with arc
-          length, points, free-side normals and a signed distance (+ free side, - material);
-          ``pick_wall(mesh, point, normal, ...)`` -> ``WallPick`` (the loop, the machining
-          height, floor and top, the arc length of the pick).
+          built-in walls are) and chained into loops, closed or open. The machining height is
+          the picked point's own, when the tool can work there (``_machining_height``).
+SOLUTION  ``section_loops(mesh, z_m)`` -> ``WallLoop``s (x-y of the mesh's frame, metres), with
+          arc length, points, free-side normals and a signed distance (+ free side, -
+          material); ``pick_wall(mesh, point, normal, ...)`` -> ``WallPick`` (the floor frame,
+          the loop, the machining height, floor and top, the arc length of the pick, notes).
 """
 
 from __future__ import annotations
@@ -30,14 +32,21 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..errors import InvalidInputError
-from ..mesh_query import closest_point, ray_hits
+from ..mesh_query import closest_point, ray_hits, transformed
+from .thresholds import (
+    AMBIGUOUS_CLICK_RADII,
+    CONTACT_BELOW_TOP_M,
+    CONTACT_BELOW_TOP_RADII,
+    CUTTER_FLOOR_CLEARANCE_M,
+    LEVEL_FLOOR_RAD,
+    MAX_PICK_DISTANCE_M,
+    SPINDLE_CLEARANCE_M,
+    STITCH_M,
+    WALL_FACE_MAX_COS,
+)
 
-WALL_NORMAL_Z_MAX = 0.5  # a picked face whose normal has |z| above this is a floor or a top
-MAX_PICK_DISTANCE_M = 0.002  # a picked point farther than this from the surface is refused
 MERGE_M = 1e-9  # segment ends closer than this are one point of a loop
-STITCH_M = 2e-5  # chains ending this close to each other are one wall across a crack
 NORMAL_WINDOW_M = 5e-4  # the free-side normal is the mean over this much wall either side
-TOOL_REACH_MARGIN_M = 0.005  # the spindle body stays this far above the part's top
 DENSE_M = 2e-5  # wall points this far apart measure distances to it
 
 
@@ -228,18 +237,24 @@ def _stitched(loops: list[WallLoop]) -> list[WallLoop]:
 
 @dataclass(frozen=True)
 class WallPick:
-    """A wall picked at a point, at the machining height.
+    """A wall picked at a point, at the machining height, in the floor's frame.
+
+    The floor frame (``T_wobj_floor``) is the work object's turned so that its z is the
+    normal of the floor beside the pick (the identity on a level part): the section, the
+    heights and the loops are in it, and ``mesh`` is the part there.
 
     Attributes:
-        point_m: (3,) the picked point on the surface (work-object frame).
-        normal: (3,) the surface normal there (out of the material).
+        point_m: (3,) the picked point (work-object frame).
+        normal: (3,) the surface normal there (work-object frame, out of the material).
         loop: The wall at the machining height.
         s_m: Arc length of the picked point along ``loop``.
-        z_m: The machining height (TCP, work-object z).
+        z_m: The machining height: the TCP's z (floor frame).
         floor_z_m: The floor beside the wall (the part's bottom when it stands free).
         top_z_m: The top of the wall.
         others: Every other wall at that height (the groove's other side, islands).
-        notes: What was adjusted, for people (e.g. the height raised for the spindle).
+        notes: What was changed and why, for people (e.g. the height raised for the spindle).
+        T_wobj_floor: 4x4 floor frame in the work object (a rotation about its origin).
+        mesh: The part in the floor frame.
     """
 
     point_m: np.ndarray
@@ -251,13 +266,147 @@ class WallPick:
     top_z_m: float
     others: tuple[WallLoop, ...] = ()
     notes: tuple[str, ...] = field(default=())
+    T_wobj_floor: np.ndarray = field(default_factory=lambda: np.eye(4))
+    mesh: trimesh.Trimesh | None = None
+
+    def to_wobj(self, points_floor_m: np.ndarray) -> np.ndarray:
+        """(k, 3) floor-frame points in the work-object frame."""
+        return np.atleast_2d(points_floor_m) @ self.T_wobj_floor[:3, :3].T
+
+    def to_floor(self, points_wobj_m: np.ndarray) -> np.ndarray:
+        """(k, 3) work-object points in the floor frame."""
+        return np.atleast_2d(points_wobj_m) @ self.T_wobj_floor[:3, :3]
+
+    def heights(self, xy_m: np.ndarray) -> np.ndarray:
+        """(k,) TCP heights (floor frame) at (k, 2) places beside the wall: the pick's height
+        above the floor under each (a stepped or sloped floor; the pick's floor where there
+        is none under it: an outside edge)."""
+        xy = np.atleast_2d(np.asarray(xy_m, dtype=float))
+        origins = np.column_stack([xy, np.full(len(xy), self.z_m + RAY_START_M)])
+        floor, _ = _below(self.mesh, origins, _Z)
+        floor = np.where(np.isnan(floor[:, 2]), self.floor_z_m, floor[:, 2])
+        return floor + (self.z_m - self.floor_z_m)
 
 
-def _first_hit_below(mesh: trimesh.Trimesh, origin: np.ndarray) -> float | None:
-    """z of the highest surface straight below ``origin`` (None: nothing below)."""
-    hits, _, _ = ray_hits(mesh, np.asarray([origin]), np.array([[0.0, 0.0, -1.0]]))
-    below = [h[2] for h in hits if h[2] < origin[2] - 1e-7]
-    return max(below) if below else None
+_Z = np.array([0.0, 0.0, 1.0])
+RAY_START_M = 1e-6  # a ray starts this far off the surface it leaves (no hit on it)
+INSIDE_M = 3e-4  # the wall's top is looked for this far inside it
+TOP_PROBES_M = (INSIDE_M, 0.001, 0.003, 0.010)  # and the part's top (an edge's floor) so far in
+SPINDLE_RING = 8  # rays round the spindle's rim (and at half its radius, and on its axis)
+
+
+def _hits(
+    mesh: trimesh.Trimesh,
+    origins: np.ndarray,
+    directions: np.ndarray,
+    *,
+    floor_up: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(points (k, 3), face normals (k, 3)) of the first surface along each ray (one
+    direction for all, or one each), or with ``floor_up`` the first floor-like one (facing
+    within 45 deg of it: past a wall that leans over the ray); NaN rows where none."""
+    origins = np.atleast_2d(origins)
+    points = np.full((len(origins), 3), np.nan)
+    normals = np.full((len(origins), 3), np.nan)
+    directions = np.broadcast_to(np.asarray(directions, dtype=float), origins.shape)
+    hits, ray, tri = ray_hits(mesh, origins, directions, multiple_hits=floor_up is not None)
+    faces = np.asarray(mesh.face_normals)[tri]
+    if floor_up is not None:  # nearest first, floor-like only, one per ray
+        keep = faces @ floor_up >= WALL_FACE_MAX_COS
+        hits, ray, faces = hits[keep], ray[keep], faces[keep]
+        along = np.einsum("ij,ij->i", hits - origins[ray], directions[ray])
+        order = np.lexsort((along, ray))
+        first = order[np.r_[True, np.diff(ray[order]) != 0]] if len(order) else order
+        hits, ray, faces = hits[first], ray[first], faces[first]
+    points[ray] = hits
+    normals[ray] = faces
+    return points, normals
+
+
+def _below(
+    mesh: trimesh.Trimesh, origins: np.ndarray, up: np.ndarray, *, floors: bool = True
+) -> tuple[np.ndarray, np.ndarray]:
+    """``_hits`` straight down ``-up`` from each origin: the first floor-like surface (any
+    surface without ``floors``)."""
+    up = np.asarray(up, dtype=float)
+    return _hits(mesh, origins, -up, floor_up=up if floors else None)
+
+
+def _across(normal: np.ndarray, up: np.ndarray) -> np.ndarray | None:
+    """The unit direction off the wall parallel to the floor (None: a face parallel to it)."""
+    a = normal - (normal @ up) * up
+    size = float(np.linalg.norm(a))
+    return a / size if size > 1e-9 else None
+
+
+def _free_width(mesh: trimesh.Trimesh, on: np.ndarray, across: np.ndarray) -> float:
+    """How far the free space reaches off the wall at ``on`` along ``across`` (inf: open)."""
+    (hit, *_), _ = _hits(mesh, on + across * 2e-5, across)
+    return math.inf if np.isnan(hit[0]) else float(np.linalg.norm(hit - on))
+
+
+def floor_frame(
+    mesh: trimesh.Trimesh, on_m: np.ndarray, normal: np.ndarray, beside_m: float
+) -> np.ndarray:
+    """T_wobj_floor: the work object turned so that its z is the normal of the floor beside
+    the wall point ``on_m`` (``beside_m`` off it, or the free space's middle when narrower),
+    or, where nothing floor-like is there (an outside edge), of the part's top nearest inside
+    the wall; the identity on a level part, or where no face within 45 deg of level
+    (``WALL_FACE_MAX_COS``) is found."""
+    up = _Z
+    level = WALL_FACE_MAX_COS  # a face nearer level than a wall is a floor
+    span = float(np.linalg.norm(np.ptp(mesh.bounds, axis=0))) + 0.01
+    for _ in range(2):  # the second pass measures beside the wall along the new floor
+        across = _across(normal, up)
+        if across is None:
+            break
+        beside = min(beside_m, 0.5 * _free_width(mesh, on_m, across))
+        origins = np.vstack(
+            [on_m + across * beside + up * RAY_START_M]
+            + [on_m - across * k + up * span for k in TOP_PROBES_M]
+        )
+        _, faces = _below(mesh, origins, up)
+        floors = [f for f in faces if f @ _Z >= level]  # NaN rows compare False
+        if not floors:
+            break
+        up = floors[0] / np.linalg.norm(floors[0])
+    return _frame(up)
+
+
+def _frame(up: np.ndarray) -> np.ndarray:
+    """T_wobj_floor whose z is ``up``, its x the work object's turned into the floor (the
+    identity within ``LEVEL_FLOOR_RAD`` of level)."""
+    T = np.eye(4)
+    if math.acos(min(1.0, float(up @ _Z))) < LEVEL_FLOOR_RAD:
+        return T
+    x = np.array([1.0, 0.0, 0.0]) - up[0] * up
+    x /= np.linalg.norm(x)
+    T[:3, :3] = np.column_stack([x, np.cross(up, x), up])
+    return T
+
+
+def floor_under(mesh: trimesh.Trimesh, point_wobj_m: np.ndarray) -> np.ndarray:
+    """T_wobj_floor at a TCP position beside a wall (work-object frame): ``floor_frame`` at
+    the nearest point of the part (its floor's normal when that is a floor)."""
+    p = np.asarray(point_wobj_m, dtype=float).reshape(3)
+    closest, distance, triangle = closest_point(mesh, p[None])
+    n = np.asarray(mesh.face_normals[int(triangle[0])], dtype=float)
+    if n @ _Z >= WALL_FACE_MAX_COS:
+        return _frame(n)
+    return floor_frame(mesh, np.asarray(closest[0], dtype=float), n, float(distance[0]))
+
+
+def walls_near(
+    mesh: trimesh.Trimesh, points_wobj_m: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, list[WallLoop]]:
+    """(T_wobj_floor, the points in the floor frame, the walls at their median height there)
+    for TCP positions beside a wall (work-object frame): the frame of the floor under the
+    first point (level where nothing floor-like is under it)."""
+    p = np.atleast_2d(np.asarray(points_wobj_m, dtype=float))
+    T = floor_under(mesh, p[0])
+    pf = p @ T[:3, :3]
+    moved = transformed(mesh, np.linalg.inv(T))
+    return T, pf, section_loops(moved, float(np.median(pf[:, 2])))
 
 
 def pick_wall(
@@ -270,7 +419,13 @@ def pick_wall(
     height_above_floor_m: float,
     tool_reach_m: float | None = None,
 ) -> WallPick:
-    """The wall through a picked point (work-object frame) and the machining height beside it.
+    """The wall through a picked point (work-object frame) and the machining height there.
+
+    The point's height above the floor is kept when the cutter clears the floor there, the
+    spindle the part's top and the cutter touches the wall below its top; otherwise the
+    height changes, to ``height_above_floor_m`` above the floor or the nearest height that
+    is clear, and a note says why (``_machining_height``). A point about as near two walls
+    (within ``AMBIGUOUS_CLICK_RADII`` tool radii) is refused with both named.
 
     Args:
         mesh: The part in its work-object frame (the CAD: what the user sees).
@@ -279,13 +434,15 @@ def pick_wall(
             the nearest face.
         tool_radius_m: Ball cutter radius.
         gap_m: Gap between the cutter and the wall where the tool stands.
-        height_above_floor_m: The TCP's height above the floor beside the wall.
-        tool_reach_m: How deep the tool reaches below the spindle body (the height is raised
-            so that the body stays above the part's top); None: no limit.
+        height_above_floor_m: The TCP's height above the floor where the point's own height
+            cannot be kept.
+        tool_reach_m: How deep the tool reaches below the spindle body (along the tool axis,
+            the work object's z); None: no limit.
 
     Raises:
-        InvalidInputError: the point is off the part, on a floor or a top, the wall is too
-            low for the cutter, or no wall is found at the machining height.
+        InvalidInputError: the point is off the part, on a floor or a top, between two walls,
+            the wall is too low for the cutter or too deep for the spindle, or no wall is
+            found at the machining height.
     """
     p = np.asarray(point_m, dtype=float).reshape(3)
     if not np.all(np.isfinite(p)):
@@ -310,65 +467,134 @@ def pick_wall(
         if not (np.all(np.isfinite(n)) and np.linalg.norm(n) > 1e-9):
             raise InvalidInputError("the surface normal must be 3 finite numbers, not all zero")
         n = n / np.linalg.norm(n)
-    if abs(n[2]) > WALL_NORMAL_Z_MAX:
-        face = "a floor or a top" if n[2] > 0 else "an overhang"
+    on = np.asarray(closest[0], dtype=float)
+    T = floor_frame(mesh, on, n, tool_radius_m + gap_m)
+    R = T[:3, :3]
+    mf = transformed(mesh, np.linalg.inv(T))
+    pf, onf, nf = p @ R, on @ R, n @ R
+    if abs(nf[2]) >= WALL_FACE_MAX_COS:
+        face = "a floor or a top" if nf[2] > 0 else "an overhang"
         raise InvalidInputError(
             f"the point ({_mm(p)}) mm is on {face} (its surface faces "
-            f"{'up' if n[2] > 0 else 'down'}); pick a point on a wall"
+            f"{'up' if nf[2] > 0 else 'down'}); pick a point on a wall"
         )
-    n_xy = n[:2] / np.linalg.norm(n[:2])
-    on = np.asarray(closest[0], dtype=float)
-    # The floor beside the wall: straight down from where the tool will stand, or from the
-    # middle of a free space narrower than that (a narrow slot).
-    across = np.array([n_xy[0], n_xy[1], 0.0])
-    hits, _, _ = ray_hits(mesh, (on + across * 2e-5)[None], across[None], multiple_hits=False)
-    width = float(np.linalg.norm(hits[0] - on)) if len(hits) else np.inf
-    beside = on + across * min(tool_radius_m + gap_m, 0.5 * width)
-    bottom = float(mesh.bounds[0, 2])
-    floor = _first_hit_below(mesh, beside + np.array([0.0, 0.0, 1e-6]))
-    floor = bottom if floor is None else floor
-    inside = on.copy()
-    inside[:2] -= n_xy * 3e-4
-    top = _first_hit_below(mesh, np.array([inside[0], inside[1], mesh.bounds[1, 2] + 0.01]))
-    top = on[2] if top is None or top < on[2] - 1e-6 else top
-    notes: list[str] = []
-    z = floor + height_above_floor_m
-    if tool_reach_m is not None:
-        lowest = float(mesh.bounds[1, 2]) - tool_reach_m + TOOL_REACH_MARGIN_M
-        if z < lowest:
-            z = lowest
-            notes.append(
-                f"the machining height is {(z - floor) * 1e3:.1f} mm above the floor, so that "
-                "the spindle stays above the part"
-            )
-    if z > top - max(tool_radius_m * 0.5, 5e-4):
-        z = 0.5 * (floor + top)
-        notes.append(f"the wall is {(top - floor) * 1e3:.1f} mm high: the tool works at its middle")
-    if z < floor + tool_radius_m + 2e-4 or z > top:
+    across = _across(nf, _Z)
+    near, other = float(distance[0]), _free_width(mf, pf, across)  # the wall across the space
+    if other - near < AMBIGUOUS_CLICK_RADII * tool_radius_m:
+        far = pf + across * other
         raise InvalidInputError(
-            f"the wall at ({_mm(p)}) mm is {(top - floor) * 1e3:.1f} mm high, too low for the "
-            f"{tool_radius_m * 1e3:g} mm cutter above its floor"
+            f"the point ({_mm(p)}) mm is between two walls: {near * 1e3:.1f} mm from the wall "
+            f"at ({_mm(R @ onf)}) mm and {other * 1e3:.1f} mm from the wall at ({_mm(R @ far)}) "
+            f"mm (the free space is {(near + other) * 1e3:.1f} mm wide there); pick a point on "
+            "the wall to follow"
         )
-    loops = section_loops(mesh, z)
+    width = _free_width(mf, onf, across)
+    beside = onf + across * min(tool_radius_m + gap_m, 0.5 * width)
+    (floor_at, *_), _ = _below(mf, beside + _Z * RAY_START_M, _Z)
+    floor = float(mf.bounds[0, 2]) if np.isnan(floor_at[2]) else float(floor_at[2])
+    (top_at, *_), _ = _below(mf, onf - across * INSIDE_M + _Z * (mf.bounds[1, 2] + 0.01), _Z)
+    top = onf[2] if np.isnan(top_at[2]) or top_at[2] < onf[2] - 1e-6 else float(top_at[2])
+    tcp = np.array([beside[0], beside[1], pf[2]])
+    spindle = _spindle_lowest(mf, tcp, R[2], tool_reach_m)
+    z, note = _machining_height(
+        float(pf[2]), floor, top, spindle, tool_radius_m, height_above_floor_m, p
+    )
+    loops = section_loops(mf, z)
     if not loops:
-        raise InvalidInputError(f"no wall at {z * 1e3:.1f} mm (work-object z)")
-    xy = on[:2]
+        raise InvalidInputError(f"no wall {(z - floor) * 1e3:.1f} mm above the floor there")
+    xy = onf[:2]
     distances = [abs(lp.signed_distance(xy[None])[0]) for lp in loops]
     k = int(np.argmin(distances))
     if distances[k] > MAX_PICK_DISTANCE_M + tool_radius_m:
         raise InvalidInputError(
             f"the wall through ({_mm(p)}) mm does not reach down to the machining height "
-            f"({z * 1e3:.1f} mm); pick a wall that does"
+            f"({(z - floor) * 1e3:.1f} mm above the floor); pick a wall that does"
         )
     loop = loops[k]
     s = float(loop.project(xy[None])[0])
-    if float(loop.free_normal_at(np.array([s]))[0] @ n_xy) < 0.0:
+    if float(loop.free_normal_at(np.array([s]))[0] @ across[:2]) < 0.0:
         raise InvalidInputError(
             f"the wall at ({_mm(p)}) mm faces the other way at the machining height; pick it "
             "where it is vertical"
         )
     others = tuple(lp for i, lp in enumerate(loops) if i != k)
-    return WallPick(p, n, loop, s, float(z), float(floor), float(top), others, tuple(notes))
+    notes = (note,) if note else ()
+    return WallPick(p, n, loop, s, float(z), floor, float(top), others, notes, T, mf)
+
+
+def _spindle_lowest(
+    mesh: trimesh.Trimesh, tcp: np.ndarray, up_tool: np.ndarray, reach_m: float | None
+) -> float:
+    """The lowest TCP height (floor frame, moving along the floor's normal) at which the
+    spindle body, ``reach_m`` up the tool axis from the TCP, stays ``SPINDLE_CLEARANCE_M``
+    above the part within its radius (rays down the tool axis); -inf without a reach."""
+    if reach_m is None:
+        return -math.inf
+    from ..supervision.supervisor import SPINDLE_RADIUS_M
+
+    e1 = np.cross(up_tool, [1.0, 0.0, 0.0] if abs(up_tool[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(up_tool, e1)
+    angles = np.linspace(0.0, 2 * math.pi, SPINDLE_RING, endpoint=False)
+    ring = np.outer(np.cos(angles), e1) + np.outer(np.sin(angles), e2)
+    offsets = np.vstack([np.zeros(3), 0.5 * SPINDLE_RADIUS_M * ring, SPINDLE_RADIUS_M * ring])
+    span = float(np.linalg.norm(np.ptp(mesh.bounds, axis=0))) + 0.01
+    top, _ = _below(mesh, tcp + offsets + up_tool * (span + reach_m), up_tool, floors=False)
+    rise = (top - tcp) @ up_tool
+    if np.all(np.isnan(rise)):
+        return -math.inf
+    lift = float(np.nanmax(rise)) + SPINDLE_CLEARANCE_M - reach_m
+    return float(tcp[2] + lift / max(float(up_tool[2]), 1e-3))
+
+
+def _machining_height(
+    z_m: float,
+    floor_m: float,
+    top_m: float,
+    spindle_m: float,
+    radius_m: float,
+    fallback_m: float,
+    point_m: np.ndarray,
+) -> tuple[float, str]:
+    """(TCP height, note): the point's own height ``z_m`` when the cutter clears the floor by
+    ``CUTTER_FLOOR_CLEARANCE_M``, the spindle the part (``spindle_m``) and the TCP stays
+    below the wall's top (``CONTACT_BELOW_TOP_*``); otherwise ``fallback_m`` above the floor
+    brought into that range, with a note that says why (floor frame, metres)."""
+    cutter = floor_m + radius_m + CUTTER_FLOOR_CLEARANCE_M
+    low = max(cutter, spindle_m)
+    high = top_m - max(CONTACT_BELOW_TOP_RADII * radius_m, CONTACT_BELOW_TOP_M)
+    if low > high:
+        if spindle_m > high:
+            raise InvalidInputError(
+                f"the wall at ({_mm(point_m)}) mm is too deep for the tool: the spindle "
+                f"would meet the part round it before the cutter reached "
+                f"{(top_m - floor_m) * 1e3:.1f} mm high wall (lower the wall's surroundings "
+                "or use a longer tool)"
+            )
+        raise InvalidInputError(
+            f"the wall at ({_mm(point_m)}) mm is {(top_m - floor_m) * 1e3:.1f} mm high, too "
+            f"low for the {radius_m * 1e3:g} mm cutter above its floor"
+        )
+    if low - 1e-9 <= z_m <= high + 1e-9:
+        return z_m, ""
+    z = float(np.clip(floor_m + fallback_m, low, high))
+    above = f"{(z_m - floor_m) * 1e3:.1f} mm above the floor"
+    if z_m < cutter:
+        why = (
+            f"the point is {above}: the {radius_m * 1e3:g} mm cutter would not clear the "
+            f"floor by {CUTTER_FLOOR_CLEARANCE_M * 1e3:g} mm there"
+        )
+    elif z_m < spindle_m:
+        why = (
+            f"the point is {above}: the spindle would come within "
+            f"{SPINDLE_CLEARANCE_M * 1e3:g} mm of the part"
+        )
+    else:
+        why = (
+            f"the point is {above}, {(top_m - z_m) * 1e3:.1f} mm below the wall's top: the "
+            "cutter would not touch the wall below its rim"
+        )
+    return z, f"{why}; the tool works {(z - floor_m) * 1e3:.1f} mm above the floor instead"
 
 
 def _off_vertices(mesh: trimesh.Trimesh, z: float) -> float:

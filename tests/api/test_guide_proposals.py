@@ -14,7 +14,7 @@ from app.api import create_app
 from app.session import Session
 
 GP = "/api/guide-points"
-ON_WALL_MM = [0.0, -65.0, 19.0]  # the pump groove's outer wall (work object, mm)
+ON_WALL_MM = [0.0, -65.0, 17.0]  # the pump groove's outer wall, 3 mm above its floor (mm)
 WOBJ_MM = np.array([800.0, 160.0, 0.0])
 
 
@@ -44,14 +44,17 @@ def test_from_surface_moves_the_robot_beside_the_wall_and_records(client: TestCl
     taught = _ok(client, "POST", f"{GP}/from-surface", 201,
                  json={"point_mm": [40.0, -65.0, 18.5], "normal": [0, 1, 0]})  # fmt: skip
     assert taught["reached"] and taught["notice"] == ""
-    assert taught["planned"]["position_wobj_mm"] == pytest.approx([40.0, -63.0, 17.0], abs=0.05)
+    assert taught["planned"]["position_wobj_mm"] == pytest.approx([40.0, -63.0, 18.5], abs=0.05)
     state = _ok(client, "GET", "/api/state")
     wobj = np.array(state["tcp"]["position_mm"]) - WOBJ_MM
-    assert wobj == pytest.approx([40.0, -63.0, 17.0], abs=0.4)
+    assert wobj == pytest.approx([40.0, -63.0, 18.5], abs=0.4)  # the click's height
     assert [g["index"] for g in _ok(client, "GET", GP)] == [0]
     moved = _ok(client, "POST", f"{GP}/from-surface", 201,
-                json={"point_mm": [0.0, -65.0, 18.5], "index": 0})  # fmt: skip
+                json={"point_mm": [0.0, -65.0, 14.5], "index": 0})  # fmt: skip
     assert moved["guide_point"]["index"] == 0 and len(_ok(client, "GET", GP)) == 1
+    # Too near the floor for the cutter: worked 3 mm above it, and the answer says why.
+    assert moved["planned"]["position_wobj_mm"][2] == pytest.approx(17.0, abs=0.05)
+    assert "0.5 mm above the floor" in moved["notice"] and "clear the floor" in moved["notice"]
 
 
 @pytest.mark.parametrize(
@@ -78,8 +81,12 @@ def test_propose_edit_accept_learn_and_compare(client: TestClient) -> None:
     proposal = _ok(client, "POST", f"{GP}/propose", json={"point_mm": ON_WALL_MM})
     assert len(proposal["points"]) == 14 and proposal["closed"] and proposal["wall_side"] == "right"
     assert proposal["height_wobj_mm"] == pytest.approx(17.0, abs=0.01)
+    assert proposal["height_above_floor_mm"] == pytest.approx(3.0, abs=0.01)
+    assert proposal["floor_wobj_mm"] == pytest.approx(14.0, abs=0.01)
+    assert proposal["floor_tilt_deg"] == 0.0 and not proposal["notes"]
     assert {p["reach"] for p in proposal["points"]} == {"ok"}
     assert len(proposal["wall_wobj_mm"]) > 100
+    assert {round(p[2], 3) for p in proposal["wall_wobj_mm"]} == {17.0}
     assert _ok(client, "GET", f"{GP}/proposal") == proposal
     moved = _ok(client, "PATCH", f"{GP}/proposal/points/0", json={"point_mm": [5.0, -70.0, 17.0]})
     assert moved["points"][0]["position_wobj_mm"][:2] == pytest.approx([5.0, -63.0], abs=0.2)

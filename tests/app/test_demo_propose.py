@@ -4,6 +4,8 @@ learned program against the picked (real) wall, and the CAD-only program beside 
 from __future__ import annotations
 
 import json
+import random
+import re
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +13,7 @@ import pytest
 import shapely
 
 from tests.cli import robomach_here as robomach  # in this process: imports paid once
-from tests.generated_parts import PARTS
+from tests.generated_parts import PARTS, drawn_plate
 
 pytestmark = pytest.mark.slow
 
@@ -35,19 +37,20 @@ def _deviation_mm(targets: np.ndarray, wall: shapely.Geometry) -> np.ndarray:
 
 
 @pytest.mark.parametrize(
-    "part_name, wall",
+    "part_name, wall, z_mm",
     [
-        ("grooved_plate", "island"),  # a groove: the picked wall, not the other one
-        ("grooved_plate", "outer"),
-        ("l_block", "outline"),  # an outside edge with sharp corners
-        ("slotted_plate", "right side"),  # an open slot
+        ("grooved_plate", "island", None),  # a groove: the picked wall, not the other one
+        ("grooved_plate", "outer", 14.5),  # picked too near the floor: worked 3 mm above it
+        ("l_block", "outline", None),  # an outside edge with sharp corners
+        ("slotted_plate", "right side", None),  # an open slot
     ],
 )
-def test_an_uploaded_part_learns_the_picked_wall_without_a_csv(tmp_path, part_name, wall):
+def test_an_uploaded_part_learns_the_picked_wall_without_a_csv(tmp_path, part_name, wall, z_mm):
     part = PARTS[part_name]()
     stl = tmp_path / f"{part.name}.stl"
     stl.write_bytes(part.stl_bytes())
     x, y, z = part.picks[wall]
+    z = z if z_mm is None else z_mm
     out = tmp_path / "out"
     proc = robomach(
         "demo", "--out", str(out), "--workpiece", str(stl),
@@ -55,6 +58,10 @@ def test_an_uploaded_part_learns_the_picked_wall_without_a_csv(tmp_path, part_na
     )  # fmt: skip
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "proposed" in proc.stdout and "wall side right" in proc.stdout
+    floor = 0.0 if part_name == "l_block" else 14.0
+    said = "the tool works 3.0 mm above the floor instead" in proc.stdout
+    assert said == (z_mm is not None), proc.stdout  # the click's height kept, or why not
+    assert f"{3.0 if said else z - floor:.1f} mm above the floor (z =" in proc.stdout
     summary = json.loads((out / "summary.json").read_text())
     assert summary["completed"], summary["stop_reason"]
     assert summary["closed"] == (wall not in part.open_walls)
@@ -86,3 +93,21 @@ def test_the_realistic_preset_learns_the_real_wall_and_shows_the_cad_program_err
     assert cad["rms_deviation_mm"] > learned["rms_deviation_mm"]
     settings = json.loads((out / "settings.json").read_text())
     assert settings["cell"]["part_deviation"]["seed"] == 0
+
+
+def test_a_point_between_the_walls_of_a_narrow_groove_is_refused_naming_both(tmp_path):
+    plate = drawn_plate(random.randrange(2**32), "groove", width_m=0.0035)
+    mesh = plate.mesh.copy()
+    mesh.apply_scale(1e3)  # a user's file, in mm
+    stl = tmp_path / "narrow.stl"
+    stl.write_bytes(mesh.export(file_type="stl"))
+    on, normal = plate.pick("outer", random.random(), 0.003)
+    x, y, z = (on + normal * 0.00175) * 1e3  # the groove's middle
+    proc = robomach(
+        "demo", "--out", str(tmp_path / "out"), "--workpiece", str(stl),
+        f"--propose-guide-points={x:.2f},{y:.2f},{z:.2f}", "--no-plot",
+    )  # fmt: skip
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert "between two walls" in proc.stderr
+    assert len(re.findall(r"1\.[78] mm from the wall at \(-?\d", proc.stderr)) == 2, proc.stderr
+    assert not (tmp_path / "out" / "summary.json").exists()

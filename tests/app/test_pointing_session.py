@@ -14,7 +14,7 @@ from robomach_core.learning.walls import section_loops
 from robomach_core.real_part import PartDeviation
 
 WOBJ_M = np.array([0.80, 0.16, 0.0])  # the water pump's work object (rotation: identity)
-ON_WALL = np.array([0.0, -0.065, 0.019])  # the groove's outer wall, bottom run (wobj)
+ON_WALL = np.array([0.0, -0.065, 0.017])  # the groove's outer wall, 3 mm above its floor (wobj)
 
 
 @pytest.fixture
@@ -53,16 +53,21 @@ def test_a_click_on_the_wall_moves_the_tool_beside_it_and_records_the_point(fast
         fast.pointing.teach_at_surface(np.array([0.0, -0.0625, 0.014]))
 
 
-def test_clicked_points_learn_the_wall_side_from_the_mesh(fast: Session):
-    for x in (-0.04, 0.04):
-        fast.pointing.teach_at_surface(ON_WALL + [x, 0, 0])
-    assert fast.pointing.learning_side() == "right"  # along the wall's own direction
-    fast.clear_guide_points()
-    for x in (0.04, -0.04):
-        fast.pointing.teach_at_surface(ON_WALL + [x, 0, 0])
-    assert fast.pointing.learning_side() == "left"
-    fast.record_guide_point()  # a point recorded by hand: the side is the forces' again
-    assert fast.pointing.learning_side() is None
+def test_clicked_points_leave_the_wall_side_to_path_learning_which_reads_the_mesh(
+    fast: Session,
+):
+    from robomach_core.learning.route import PartWalls, mean_tool_axis, resolve_wall_side
+
+    cad = fast.robot.workpiece.cad()
+    for order, side in (((-0.04, 0.04), "right"), ((0.04, -0.04), "left")):
+        fast.clear_guide_points()
+        for x in order:
+            fast.pointing.teach_at_surface(ON_WALL + [x, 0, 0])
+        assert fast.pointing.learning_side() is None  # no proposal: decided once, by learning
+        guides = list(fast.project().guide_points)
+        walls = PartWalls(cad, mean_tool_axis(guides), fast.robot.cell.tool.radius_m)
+        decided = resolve_wall_side(guides, "auto", walls=walls)
+        assert decided.side == side, decided  # along the wall's own direction: right
 
 
 @pytest.mark.slow  # a whole proposal learned

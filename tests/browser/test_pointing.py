@@ -166,9 +166,10 @@ def test_click_to_teach_the_pump_then_learn_within_a_third_of_a_mm(browser, work
         wobj = (g.position_m - T[:3, 3]) @ T[:3, :3] * 1e3
         expected = np.array(xy) + 2.0 * np.array(normal)  # radius + gap off the wall
         assert np.linalg.norm(wobj[:2] - expected) < 0.6, (wobj, expected)
-    assert session.pointing.learning_side() == "right"
+    assert session.pointing.learning_side() is None  # path learning decides it, once
     page.screenshot(path=str(_shot("click_to_teach")))
     deviation = _learn_and_postprocess(page, workbench)
+    assert session.project().recording.wall_side == "right"  # from the mesh: beside the wall
     print(f"click-to-teach: {len(guides)} points, mean {np.mean(timings):.1f} s per point, "
           f"learned within {deviation:.3f} mm")  # fmt: skip
     assert deviation <= MAX_DEVIATION_MM
@@ -235,14 +236,14 @@ def test_a_cell_change_leaves_nothing_of_the_old_cell_in_the_scene() -> None:
 
     with workbench_on(Session(real_time=False)) as wb:
         session = wb.session
-        session.pointing.propose(np.array([0.0, -0.065, 0.019]))
+        session.pointing.propose(np.array([0.0, -0.065, 0.017]))
         job = session.pointing.accept()
         wait_for(lambda: session.jobs.get(job).status == "done", timeout_s=300)
         job = session.learning.start_path_learning(10.0, 0.005)
         wait_for(lambda: session.jobs.get(job).status == "done", timeout_s=300)
         session.learning.run_postprocess()
         wait_for(lambda: "What learning buys" in wb.pointing.compare.content)
-        session.pointing.propose(np.array([0.04, -0.065, 0.019]))
+        session.pointing.propose(np.array([0.04, -0.065, 0.017]))
         wait_for(lambda: "P14" in wb.pointing.selected.options)
         assert not wb.scene.paths_hidden
         session.set_cell(workpiece="block")

@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import shapely
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from robomach_core.cad_program import compare_with_cad
 from robomach_core.learning.operator import TOOL_DOWN
 from robomach_core.real_part import PartDeviation, fixture_error, real_workpiece
-from robomach_core.transforms import quaternion_from_matrix
+from robomach_core.transforms import make_transform, quaternion_from_matrix
 from robomach_core.workpiece import Workpiece, water_pump
+from tests.generated_parts import drawn_plate
 
 R = 0.001
 TOLERANCE = 0.0002
@@ -75,3 +79,31 @@ def test_a_path_away_from_every_wall_has_no_comparison():
     far = np.array([[0.0, 0.0, Z], [0.01, 0.0, Z], [0.02, 0.01, Z]]) @ T[:3, :3].T + T[:3, 3]
     far[:, 2] += 0.05  # above the part
     assert _compare(pump, far) is None
+
+
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    tilt_deg=st.floats(10.0, 20.0),
+    wall=st.sampled_from(["outer", "island", "outline"]),
+)
+@settings(max_examples=10, deadline=None)
+def test_on_a_plate_tilted_in_its_mesh_both_programs_follow_the_wall_along_the_floor(
+    seed, tilt_deg, wall
+):
+    """A path on the tool path of a groove's wall or of an outside edge, a few mm above a
+    floor tilted 10-20 deg in the mesh, is within the tolerance, and so is the CAD-only
+    program (cut along the floor, not by a horizontal plane that crosses the wall)."""
+    plate = drawn_plate(seed, "edge" if wall == "outline" else "groove", tilt_deg)
+    outline = plate.walls[wall]
+    free = -R if wall == "outer" else R  # the tool's side: inside the outer wall's ring
+    ring = shapely.Polygon(outline).buffer(free, quad_segs=32).exterior
+    xy = np.array([ring.interpolate(s).coords[0] for s in np.arange(0, ring.length, 5e-4)])
+    height = 0.008 if wall == "outline" else 0.017  # 8 mm up the edge, 3 mm above the floor
+    plate_frame = np.column_stack([xy, np.full(len(xy), height)])
+    T = make_transform(np.eye(3), np.array([0.8, 0.16, 0.0]))
+    wp = Workpiece("tilted", plate.mesh, T)
+    positions = (plate_frame @ plate.T_mesh_plate[:3, :3].T + plate.T_mesh_plate[:3, 3]) + T[:3, 3]
+    c = _compare(wp, positions)
+    assert c is not None
+    assert c.learned.max_m < 5e-5, c.learned.max_m  # the path's and the mesh's own facets
+    assert c.cad_only.max_m <= TOLERANCE + 2e-5, c.cad_only.max_m

@@ -51,17 +51,25 @@ def test_a_wall_loop_measures_points_and_pieces():
     assert not piece.closed and piece.length_m == pytest.approx(1.0)
 
 
-def test_a_pick_on_the_pump_groove_sets_the_height_three_mm_above_the_floor():
+def test_a_pick_on_the_pump_groove_keeps_its_height_or_says_why_not():
     pick = pick_wall(water_pump().mesh, [0.0, -0.065, 0.019], **PICK)
     assert pick.floor_z_m == pytest.approx(0.014) and pick.top_z_m == pytest.approx(0.020)
-    assert pick.z_m == pytest.approx(0.017, abs=1e-5)
+    assert pick.z_m == pytest.approx(0.019, abs=1e-9)  # the click's own height
     assert pick.loop.length_m == pytest.approx(0.7576, abs=1e-3)
     assert len(pick.others) == 2 and not pick.notes
+    assert np.allclose(pick.T_wobj_floor, np.eye(4))  # a level part: the work object's frame
+    low = pick_wall(water_pump().mesh, [0.0, -0.065, 0.0145], **PICK)
+    assert low.z_m == pytest.approx(0.017, abs=1e-9)  # the set 3 mm above the floor
+    assert "0.5 mm above the floor" in low.notes[0] and "clear the floor" in low.notes[0]
+    rim = pick_wall(water_pump().mesh, [0.0, -0.065, 0.0198], **PICK)
+    assert rim.z_m == pytest.approx(0.017, abs=1e-9) and "below its rim" in rim.notes[0]
 
 
 def test_an_outside_edge_is_worked_where_the_spindle_stays_above_the_part():
-    pick = pick_wall(block().mesh, [0.0, -0.025, 0.035], **PICK, tool_reach_m=0.020)
-    assert pick.floor_z_m == pytest.approx(0.0)  # the table
+    kept = pick_wall(block().mesh, [0.0, -0.025, 0.035], **PICK, tool_reach_m=0.020)
+    assert kept.floor_z_m == pytest.approx(0.0)  # the table
+    assert kept.z_m == pytest.approx(0.035) and not kept.notes
+    pick = pick_wall(block().mesh, [0.0, -0.025, 0.010], **PICK, tool_reach_m=0.020)
     assert pick.z_m == pytest.approx(0.040 - 0.020 + 0.005)
     assert "spindle" in pick.notes[0]
 

@@ -58,8 +58,9 @@ class PointingSettingsUpdate(_Request):
         default=None,
         ge=MACHINING_HEIGHT_MM.min,
         le=MACHINING_HEIGHT_MM.max,
-        description="the TCP's height above the floor beside the wall [mm], "
-        f"{MACHINING_HEIGHT_MM.text()}",
+        description="the TCP's height above the floor where a picked point's own height "
+        "cannot be kept (the cutter would touch the floor, the spindle the part, or the "
+        f"cutter miss the wall) [mm], {MACHINING_HEIGHT_MM.text()}",
     )
     click_mode: ClickMode | None = Field(
         default=None,
@@ -107,29 +108,47 @@ class ProposalPublic(BaseModel):
     points: list[ProposedPointPublic]
     closed: bool = Field(description="learn a closed contour (false: an open wall)")
     wall_side: Literal["left", "right"] = Field(description="the side path learning uses")
-    height_wobj_mm: float = Field(description="machining height, work-object z [mm]")
-    floor_wobj_mm: float = Field(description="the floor beside the wall, work-object z [mm]")
+    height_above_floor_mm: float = Field(
+        description="the points' height above the floor under each [mm]: the picked point's "
+        "own, or where the notes say why it changed"
+    )
+    height_wobj_mm: float = Field(description="the TCP's height at G1, work-object z [mm]")
+    floor_wobj_mm: float = Field(description="the floor under G1, work-object z [mm]")
+    floor_tilt_deg: float = Field(
+        description="the floor's tilt from the work object's x-y plane [deg]: the wall is cut "
+        "parallel to the floor"
+    )
     wall_length_mm: float
     wall_wobj_mm: list[list[float]] = Field(
-        description="the wall followed, x-y points in the work-object frame [mm] (decimated)"
+        description="the wall followed at the machining height, x-y-z points in the "
+        "work-object frame [mm] (decimated)"
     )
-    notes: list[str] = Field(description="what was adjusted or needs a look")
+    notes: list[str] = Field(
+        description="what was changed or needs a look: a height that could not be kept and "
+        "why, an open wall, a centred tool, a leg that leaves the wall"
+    )
 
     @classmethod
     def of(cls, p: GuideProposal) -> ProposalPublic:
-        wall = p.wall.points_m
+        from robomach_core.learning.planner import proposal_summary
+
+        wall = p.wall_wobj_m()
         step = max(1, len(wall) // WALL_DRAWN_POINTS)
         drawn = wall[::step]
         if p.closed:
             drawn = np.vstack([drawn, wall[:1]])
+        summary = proposal_summary(p)
+        up = float(p.pick.T_wobj_floor[2, 2])
         return cls(
             points=[ProposedPointPublic.of(k, q) for k, q in enumerate(p.points)],
             closed=p.closed,
             wall_side=p.wall_side,
-            height_wobj_mm=round(p.z_m * 1e3, 3),
-            floor_wobj_mm=round(p.pick.floor_z_m * 1e3, 3),
-            wall_length_mm=round(p.wall.length_m * 1e3, 2),
-            wall_wobj_mm=[_floats(xy, 1e3, 3) for xy in drawn],
+            height_above_floor_mm=summary["height_above_floor_mm"],
+            height_wobj_mm=summary["height_wobj_mm"],
+            floor_wobj_mm=round(summary["height_wobj_mm"] - p.height_above_floor_m * 1e3 * up, 3),
+            floor_tilt_deg=summary["floor_tilt_deg"],
+            wall_length_mm=summary["wall_length_mm"],
+            wall_wobj_mm=[_floats(xyz, 1e3, 3) for xyz in drawn],
             notes=list(p.notes),
         )
 
@@ -140,8 +159,9 @@ class TaughtPointPublic(BaseModel):
     reached: bool = Field(description="the tool stopped at the planned place")
     force_N: float = Field(description="contact force where it stopped [N]")
     notice: str = Field(
-        description="what to know: stopped by contact (the part is not where its mesh is), "
-        "centred in a narrow groove, near a limit; empty when all went as planned"
+        description="what to know: the height changed from the picked point's and why, "
+        "stopped by contact (the part is not where its mesh is), centred in a narrow groove, "
+        "near a limit; empty when all went as planned"
     )
 
 
@@ -152,9 +172,10 @@ def _si(v: list[float] | None) -> np.ndarray | None:
 @router.post("/from-surface", status_code=status.HTTP_201_CREATED)
 def from_surface(body: FromSurfaceCreate, session: SessionDep) -> TaughtPointPublic:
     """Click to teach: the tool goes beside the wall at the picked point (the set gap off it,
-    on the free side, at the machining height above the floor, the job's tool orientation)
-    by a supervised motion, and the point is recorded there (or replaces ``index``). 422 off
-    a wall (a floor, a top, the air), 409 when a limit or the part stops the motion."""
+    on the free side, at the point's height when the tool can work there, else changed with
+    the reason in ``notice``; the job's tool orientation) by a supervised motion, and the
+    point is recorded there (or replaces ``index``). 422 off a wall (a floor, a top, the
+    air) or between two walls (both named), 409 when a limit or the part stops the motion."""
     point = np.asarray(body.point_mm, dtype=float) * 1e-3
     taught = session.pointing.teach_at_surface(point, _si(body.normal), replace_index=body.index)
     from app.session import GuidePointEntry
@@ -173,8 +194,10 @@ def from_surface(body: FromSurfaceCreate, session: SessionDep) -> TaughtPointPub
 def propose(body: SurfacePointCreate, session: SessionDep) -> ProposalPublic:
     """Propose guide points for the whole wall through the picked point (nothing moves):
     fewest that bracket every corner, one at each outside corner, the set gap off the wall at
-    the machining height, each with its reachability. It replaces a pending proposal;
-    accept it with POST /api/guide-points/proposal/accept."""
+    the point's height above the floor under each (the wall is cut parallel to the floor;
+    ``notes`` say when the height changed and why), each with its reachability. 422 off a
+    wall or between two walls. It replaces a pending proposal; accept it with POST
+    /api/guide-points/proposal/accept."""
     point = np.asarray(body.point_mm, dtype=float) * 1e-3
     return ProposalPublic.of(session.pointing.propose(point, _si(body.normal)))
 

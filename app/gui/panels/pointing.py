@@ -159,11 +159,13 @@ class PointingPanel:
             proposal = pointing.propose(point, normal)
             self.selected.value = NO_SELECTION
             shape = "closed" if proposal.closed else "open"
+            notes = "".join(f"; {note}" for note in proposal.notes)  # e.g. a changed height
             notify_info(
                 client,
                 "Proposed",
-                f"{len(proposal.points)} guide points along the {shape} wall at "
-                f"{proposal.z_m * 1e3:.1f} mm; check them, then Accept proposal",
+                f"{len(proposal.points)} guide points along the {shape} wall, "
+                f"{proposal.height_above_floor_m * 1e3:.1f} mm above the floor{notes}; check "
+                "them, then Accept proposal",
             )
         elif mode == MODE_TEACH:
             taught = pointing.teach_at_surface(point, normal)
@@ -226,8 +228,7 @@ class PointingPanel:
             )
         else:
             T = proposal.T_base_wobj
-            wall = np.column_stack([proposal.wall.points_m, np.full(len(proposal.wall.points_m),
-                                                                    proposal.z_m)])  # fmt: skip
+            wall = proposal.wall_wobj_m()
             if proposal.closed:
                 wall = np.vstack([wall, wall[:1]])
             self.scene.set_proposal(
@@ -291,9 +292,10 @@ def proposal_markdown(proposal) -> str:
     kinds = {k: sum(p.kind == k for p in proposal.points) for k in ("outside corner", "added")}
     lines = [
         f"**{n} proposed points** along the {'closed' if proposal.closed else 'open'} wall "
-        f"({proposal.wall.length_m * 1e3:.0f} mm) at z = {proposal.z_m * 1e3:.1f} mm (work "
-        f"object), {proposal.pick.z_m * 1e3 - proposal.pick.floor_z_m * 1e3:.1f} mm above the "
-        f"floor; wall side {proposal.wall_side}.",
+        f"({proposal.wall.length_m * 1e3:.0f} mm), "
+        f"{proposal.height_above_floor_m * 1e3:.1f} mm above the floor (G1 at z = "
+        f"{proposal.points[0].position_wobj_m[2] * 1e3:.1f} mm, work object); wall side "
+        f"{proposal.wall_side}.",
         f"Reach: {reach['ok']} ok (green), {reach['near']} near a limit (orange), "
         f"{reach['unreachable']} unreachable (red); {kinds['outside corner']} at outside "
         f"corners, {kinds['added']} added where a leg would leave the wall.",
