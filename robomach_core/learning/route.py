@@ -609,6 +609,13 @@ def walk_route(
             pts.append(p.copy())
             towards.append(w)
             t = sign * _cross(w, axis)
+            if len(pts) > 1 and float(np.linalg.norm(pts[-1] - pts[-2])) < 0.25 * th.WALK_STEP_M:
+                # held in an inside corner: the wall ahead along t is the one to follow now
+                c, d = walls.nearest((p + t * th.WALK_STEP_M)[None])
+                ahead = c[0] - p - axis * float((c[0] - p) @ axis)
+                if float(np.linalg.norm(ahead)) > 1e-12 and float(ahead @ t) > 0.0:
+                    w = ahead / float(np.linalg.norm(ahead))
+                    t = sign * _cross(w, axis)
             if end.reached(p, float((p - leg.a) @ leg.xp), start):
                 reached = True
                 break
@@ -697,13 +704,13 @@ def _unreached(walks: Sequence[LegWalk], legs: Sequence[Leg], side: str, closed:
         )
     closing = closed and leg is legs[-1]
     fix = (
-        "the wall may be open: learn it open (--open, or untick 'closed'), or"
+        "the wall may be open: learn it open (--open, or untick 'closed'), or "
         if closing
-        else "move"
+        else ""
     )
     return (
         f"the wall on the {side} of the leg G{a} -> G{b} does not lead to G{b}: followed in the "
-        f"part's mesh it {how}. G{b} may be on another wall or on the other side; {fix} "
+        f"part's mesh it {how}. G{b} may be on another wall or on the other side; {fix}"
         f"put G{b} beside the wall G{a} is on, or check the wall side"
     )
 
