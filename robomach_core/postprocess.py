@@ -3,8 +3,8 @@
 Force-threshold filtering drops samples whose contact force is outside [Fmin, Fmax] (corner
 spikes, lost contact), except where the chord bridging the gap would leave them by more than the
 tolerance (``keep_corners``: the tool's arc round a sharp outside corner, out of contact, whose
-chord would cut the corner). Deviation-height reduction (the chapter's fig. 3) approximates the contour
-by straight segments: a chord runs from a start sample to the current sample; the deviation
+chord would cut the corner). Deviation-height reduction (the chapter's fig. 3) approximates the
+contour by straight segments: a chord runs from a start sample to the current sample; the deviation
 height of every intermediate sample is its perpendicular distance from the chord; the current
 sample moves along the contour until some deviation height exceeds the tolerance, and then the
 *previous* sample ends the segment and starts the next. Per-target speeds are slower where the
