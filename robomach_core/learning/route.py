@@ -266,37 +266,58 @@ class PartWalls:
         axis): its nearest wall point when that lies that way, else the first wall along it;
         None when none is within ``reach_m``."""
         closest, dist = self.nearest(point[None])
+        nearest_ok = False
         if math.isfinite(dist[0]):
             rel3 = closest[0] - point
             below = float(rel3 @ self.axis) > th.OVER_TOP_SIN * float(np.linalg.norm(rel3))
             rel = rel3 - self.axis * float(rel3 @ self.axis)
+            nearest_ok = not below and float(np.linalg.norm(rel)) > 1e-9 and dist[0] <= reach_m
             # the nearest wall when it lies that way and not under the cutter (a step's edge
             # it stands over); else the first wall straight that way
-            if not below and float(np.linalg.norm(rel)) > 1e-9 and float(rel @ towards) > 0.0:
-                return closest[0] if dist[0] <= reach_m else None
+            if nearest_ok and float(rel @ towards) > 0.0:
+                return closest[0]
         d = self.across_ray(point, towards)
-        return point + towards * d if d <= reach_m else None
+        if d <= reach_m:
+            return point + towards * d
+        # no wall at all that way (a leg cutting across a concave stretch turns "that way" off
+        # the wall): the wall the point stands by
+        return closest[0] if nearest_ok and math.isinf(d) else None
 
     def floor(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The floor below each point (k, 3): its height along the axis [m] (nan where the
-        first face below the cutter is not a floor within ``FLOOR_SEARCH_M``) and its unit
-        normal (k, 3). One ray each, from ``FLOOR_ABOVE_M`` above the cutter."""
+        """The floor below each point (k, 3): its height along the axis [m] (nan where no
+        floor lies within ``FLOOR_SEARCH_M`` below the cutter) and its unit normal (k, 3). A
+        ray each, from ``FLOOR_ABOVE_M`` above the cutter; where its first face is a wall (a
+        wall leaning over the tool, met from inside), once more from just past it."""
         a = self.axis
+        a_w = self.R.T @ a
         up = self.radius + th.FLOOR_ABOVE_M
         origins = (np.asarray(points, dtype=float) - a * up - self.t) @ self.R
-        a_w = self.R.T @ a
-        with mesh_query.LOCK:
-            tri = self._ray.intersects_first(origins, np.broadcast_to(a_w, origins.shape))
-        n_w = self._normals[tri]
-        cos = -(n_w @ a_w)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            along = np.einsum("ij,ij->i", n_w, self._corners[tri] - origins) / -cos
-        floor = (tri >= 0) & (cos >= th.WALL_FACE_MAX_COS)
-        floor &= along <= up + self.radius + th.FLOOR_SEARCH_M
-        height = np.where(
-            floor, (origins + np.outer(along, a_w)) @ (self.R.T @ a) + self.t @ a, np.nan
-        )
-        return height, n_w @ self.R.T
+        height = np.full(len(origins), np.nan)
+        normal = np.zeros((len(origins), 3))
+        start = np.zeros(len(origins))  # how far along each ray it was cast from
+        todo = np.arange(len(origins))
+        for _ in range(2):
+            with mesh_query.LOCK:
+                tri = self._ray.intersects_first(
+                    origins[todo], np.broadcast_to(a_w, (len(todo), 3))
+                )
+            n_w = self._normals[tri]
+            cos = -(n_w @ a_w)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                along = np.einsum("ij,ij->i", n_w, self._corners[tri] - origins[todo]) / -cos
+            hit = (tri >= 0) & (start[todo] + along <= up + self.radius + th.FLOOR_SEARCH_M)
+            floor = hit & (cos >= th.WALL_FACE_MAX_COS)
+            k = todo[floor]
+            height[k] = (origins[k] + np.outer(along[floor], a_w)) @ a_w + self.t @ a
+            normal[k] = n_w[floor] @ self.R.T
+            again = hit & ~floor  # a wall first: look on from just past it
+            step = along[again] + 1e-6
+            origins[todo[again]] += np.outer(step, a_w)
+            start[todo[again]] += step
+            todo = todo[again]
+            if not len(todo):
+                break
+        return height, normal
 
 
 def resolve_wall_side(
@@ -703,11 +724,7 @@ def _unreached(walks: Sequence[LegWalk], legs: Sequence[Leg], side: str, closed:
             f"({leg.length * 1e3:.0f} mm away)"
         )
     closing = closed and leg is legs[-1]
-    fix = (
-        "the wall may be open: learn it open (--open, or untick 'closed'), or "
-        if closing
-        else ""
-    )
+    fix = "the wall may be open: learn it open (--open, or untick 'closed'), or " if closing else ""
     return (
         f"the wall on the {side} of the leg G{a} -> G{b} does not lead to G{b}: followed in the "
         f"part's mesh it {how}. G{b} may be on another wall or on the other side; {fix}"
@@ -794,8 +811,13 @@ def plan_route(
     towards = np.cross(axis, travel_directions(guides, closed, axis)[0]) * decision.sign
     first = guides[0].position_m - axis * lifted[0]  # at the height it is learned at
     first_wall = walls.wall_point(first, towards, 2 * th.AT_WALL_GAP_M)
-    if first_wall is None:
-        return route
+    if first_wall is None:  # the run would search across the first leg and find nothing
+        raise RouteRefusedError(
+            f"G1 faces no wall on the {decision.side} of its first leg within "
+            f"{2 * th.AT_WALL_GAP_M * 1e3:g} mm (towards G2, the wall is on the other side or "
+            "the leg cuts across the part): move G1 beside the wall to follow, start from "
+            "another point, or check the wall side"
+        )
     start_dir = first_wall - first
     start_dir -= axis * float(start_dir @ axis)
     if float(np.linalg.norm(start_dir)) < 1e-9:
