@@ -23,8 +23,7 @@ from robomach_core.learning.score import score_mesh
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import CellSettings, Project, learn, process
-from robomach_core.workpiece import mesh_from_bytes
-from tests.sloppy_guides import cornered_boss_stl, learn_and_score, sloppy_guides
+from tests.sloppy_guides import sloppy_guides
 
 P8_MM = [
     (715, 97, 17), (885, 97, 17), (898, 110, 17), (898, 210, 17),
@@ -241,158 +240,15 @@ def test_a_program_on_the_floor_off_the_wall_misses_the_taught_wall(pump_cell, b
     assert not check.follows and check.worst_gap_m > 1e-3
 
 
-# --- seeded sets of sloppy points --------------------------------------------------------------
-
-
-def _boss_cell(seed: int) -> Cell:
-    data, wall = cornered_boss_stl()
-    wp = replace(mesh_from_bytes(data, ".stl", name="tboss"), wall=wall, wall_z_m=(0.010, 0.018))
-    return Cell(CellConfig(workpiece=wp, seed=seed))
-
-
-SETS_PER_PART = 20
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("part", ["water_pump", "block", "tboss"])
-def test_sloppy_sets_learn_the_taught_wall_or_are_refused(part):
-    """20 seeded sets per part, as people leave them (6-14 points, 0-3 mm off the wall or
-    touching it, on the floor or up to 1 mm below the top, tilted up to 8 deg, turned up to
-    25 deg, no point of their own at corners or bosses); the side given for even seeds, "auto"
-    for odd ones. Every run learns within 0.3 mm of the true wall with no stop and no problem,
-    or is refused before learning with the cause."""
-    learned, refused, failures = 0, [], []
-    for seed in range(SETS_PER_PART):
-        cell = _boss_cell(seed) if part == "tboss" else Cell(CellConfig(workpiece=part, seed=seed))
-        mode = "given" if seed % 2 == 0 else "auto"
-        sset = sloppy_guides(cell, np.random.default_rng(1000 + seed), side_mode=mode)
-        out = learn_and_score(cell, sset, speed_m_s=0.010)
-        if out.refused is not None:
-            assert mode == "auto", out.refused
-            assert "wall" in out.refused
-            refused.append(seed)
-            continue
-        ok = out.completed and out.max_m <= 0.3e-3 and not out.problems
-        if ok:
-            learned += 1
-        else:
-            failures.append(
-                f"seed {seed} ({mode}): {out.stop_reason}; max {out.max_m * 1e3:.3f} mm; "
-                f"{out.problems}\n{sset.description}"
-            )
-    print(f"{part}: {learned} learned within 0.3 mm, {len(refused)} refused (seeds {refused})")
-    assert not failures, "\n".join(failures)
-    assert learned >= SETS_PER_PART // 2
-
-
-@pytest.mark.parametrize("seed", [48, 50])
-def test_a_point_left_beyond_an_outside_corner_ends_its_leg_at_the_corner(seed):
-    """Seeds past the 20 above: a point left 2.4 mm off the T-boss beyond the outside corner at
-    the end of its bar (G7 at (48.2, 6.6) mm for seed 48, below the bar's underside), whose
-    plane the wall round the corner never reaches. The leg ends at the tool's nearest approach
-    to it, at the corner; before, the tool went on along the underside until the protection
-    stopped it 30 mm off the leg, a partial program."""
-    cell = _boss_cell(seed)
-    sset = sloppy_guides(cell, np.random.default_rng(1000 + seed), side_mode="given")
-    out = learn_and_score(cell, sset, speed_m_s=0.010)
-    assert out.completed, out.stop_reason
-    assert out.max_m <= 0.3e-3 and not out.problems, (out.max_m, out.problems)
-
-
-def test_a_leg_through_the_part_may_follow_its_wall_as_far_as_the_mesh_says():
-    """T-boss seed 95, six points on "auto": G1 on the bar's top, G2 under it past its end, so
-    the wall from one to the other runs round the bar's end, 29 mm off the leg between them.
-    The route planned with the mesh lets the tool that far off (plus 10 mm); before, the
-    protection stopped it at 30 mm as if a point were on another wall."""
-    cell = _boss_cell(95)
-    sset = sloppy_guides(cell, np.random.default_rng(1095), side_mode="auto")
-    route = plan_route(
-        sset.guides,
-        PathLearningSettings(wall_side="auto"),
-        workpiece=cell.workpiece.cad(),
-        tool_radius_m=cell.tool.radius_m,
-    )
-    assert route.leg_wander_m[(0, 1)] == pytest.approx(0.039, abs=0.002)
-    out = learn_and_score(cell, sset, speed_m_s=0.010)
-    assert out.completed, out.stop_reason
-    assert out.max_m <= 0.3e-3 and not out.problems, (out.max_m, out.problems)
-
-
-@pytest.mark.parametrize("seed", [7, 14])
-def test_an_open_stretch_taught_at_heights_far_apart_follows_its_taught_wall(seed):
-    """Open stretches of the block's wall (seeds of a 30-set run by hand), points 24-37 mm high:
-    between two points close together and 10 mm apart in height the route's height lags, so
-    at the lower point the program passes at its neighbour's height. The taught-wall check
-    looks for it within the heights of the points either side; before, it said the program
-    was on another wall (10 sets in 30)."""
-    cell = Cell(CellConfig(workpiece="block", seed=seed))
-    rng = np.random.default_rng(5000 + seed)
-    start = float(rng.uniform(0, 0.5))
-    span = (start, start + float(rng.uniform(0.08, 0.2)))
-    sset = sloppy_guides(
-        cell,
-        rng,
-        closed=False,
-        side_mode="auto" if seed % 2 else "given",
-        count=(4, 9),
-        span_m=span,
-    )
-    heights_mm = [g.position_m[2] * 1e3 for g in sset.guides]
-    assert max(heights_mm) - min(heights_mm) > 5.0
-    out = learn_and_score(cell, sset, speed_m_s=0.010, closed=False)
-    assert out.completed, out.stop_reason
-    assert out.max_m <= 0.3e-3 and not out.problems, (out.max_m, out.problems)
-
-
-def test_an_open_route_ends_at_its_last_point_round_a_curved_wall():
-    """An open stretch of the pump's outer wall (seed 9 of the same run) whose last leg runs
-    99 mm round a rounded corner: the plane of its last point across the leg's chord comes
-    9 mm before the point along the wall. The run ends at the tool's nearest approach to the
-    point instead, within a few mm of it (its gap to the wall and the cutter's radius)."""
-    cell = Cell(CellConfig(seed=9))
-    rng = np.random.default_rng(5009)
-    start = float(rng.uniform(0, 0.5))
-    span = (start, start + float(rng.uniform(0.08, 0.2)))
-    sset = sloppy_guides(cell, rng, closed=False, side_mode="auto", count=(4, 9), span_m=span)
-    lt = LeadThrough(cell)
-    state = lt.start(cell.initial_state())
-    project = Project(cell=CellSettings(seed=9), guide_points=tuple(sset.guides))
-    settings = PathLearningSettings(speed_m_s=0.010, wall_side="auto", closed=False)
-    learned, _ = learn(project, cell, state.cell, settings, lt.estimator)
-    rec = learned.recording
-    assert rec.completed, rec.stop_reason
-    last = sset.guides[-1].position_m
-    assert np.linalg.norm((rec.position_m[-1] - last)[:2]) < 4e-3
+# --- people's points over the whole envelope: tests/core/test_learning_envelope.py ---------------
 
 
 # --- the issue's reproducers through the whole pipeline ---------------------------------------
-
-P10_MM = [
-    (715, 97, 17), (800, 97, 17), (885, 97, 17), (898, 110, 17), (898, 210, 17),
-    (885, 223, 17), (800, 223, 17), (715, 223, 17), (702, 210, 17), (702, 110, 17),
-]  # fmt: skip
-
 
 def _demo(**kwargs):
     from robomach_core.pipeline import DemoSettings, run_demo
 
     return run_demo(DemoSettings(**kwargs))
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("points", [P8_MM, P10_MM], ids=["p8", "p10"])
-def test_the_reproducers_learn_the_outer_wall_for_every_seed(points):
-    """8 or 10 points 2 mm from the pump's outer wall with the cutter free, led to by the
-    scripted operator from a CSV (``robomach demo --guide-points``), seeds 0-5: the noise voted
-    the island wall three runs in seven; now the mesh decides, every seed, within 0.3 mm."""
-    csv = "\n".join(",".join(str(v) for v in p) for p in points)
-    for seed in range(6):
-        result = _demo(guide_points_csv=csv, seed=seed, force_control_variant=False)
-        rec, summary = result.recording, result.summary()
-        assert rec.completed, (seed, rec.stop_reason)
-        assert rec.wall_side == "right", (seed, rec.wall_side_reason)
-        assert result.score.max_m <= 0.3e-3, (seed, result.score.max_m)
-        assert summary["problems"] == [], (seed, summary["problems"])
 
 
 @pytest.mark.slow
