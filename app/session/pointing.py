@@ -54,6 +54,32 @@ if TYPE_CHECKING:
 SAFE_HEIGHT_M = 0.008  # the tool travels this far above the part's top
 
 
+def pointing_document(settings: ProposalSettings, click_mode: ClickMode) -> dict[str, object]:
+    """The pointing settings as stored (mm, and what a click does)."""
+    return {
+        "gap_mm": settings.gap_m * 1e3,
+        "height_above_floor_mm": settings.height_above_floor_m * 1e3,
+        "click_mode": click_mode,
+    }
+
+
+def pointing_from_document(doc: dict | None) -> tuple[ProposalSettings, ClickMode]:
+    """The stored pointing settings; the defaults for what is missing or out of range."""
+    doc = doc if isinstance(doc, dict) else {}
+    try:
+        settings = ProposalSettings(
+            gap_m=float(doc.get("gap_mm", ProposalSettings.gap_m * 1e3)) * 1e-3,
+            height_above_floor_m=float(
+                doc.get("height_above_floor_mm", ProposalSettings.height_above_floor_m * 1e3)
+            )
+            * 1e-3,
+        )
+    except (TypeError, ValueError):
+        settings = ProposalSettings()
+    mode = doc.get("click_mode")
+    return settings, mode if mode in CLICK_MODES else "propose"
+
+
 @dataclass(frozen=True)
 class TaughtPoint:
     """A guide point taught by pointing at the wall.
@@ -105,13 +131,20 @@ class Pointing:
                                         ("height_above_floor_m", height_above_floor_m))
                if v is not None},
         )  # fmt: skip
-        changed = new != self.settings or (click_mode is not None and click_mode != self.click_mode)
-        self.settings = new
-        if click_mode is not None:
-            self.click_mode = click_mode
-        if changed:
-            self._session.notify("guide_points")
+        mode = self.click_mode if click_mode is None else click_mode
+        if new == self.settings and mode == self.click_mode:
+            return self.settings
+        robot = self._session.robot
+        with robot.lock:  # kept with the project's robot document, saved before it applies
+            robot.save({**robot.document(), "pointing": pointing_document(new, mode)})
+            self.settings, self.click_mode = new, mode
+        self._session.notify("guide_points")
         return self.settings
+
+    def document(self) -> dict[str, object]:
+        """The settings as the store keeps them (``robot_json["pointing"]``)."""
+        return pointing_document(self.settings, self.click_mode)
+
 
     # --- click to teach ------------------------------------------------------------------
 

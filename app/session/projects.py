@@ -42,6 +42,7 @@ class Loaded:
     project: Project
     built: Built
     selection: ComplianceSelection | None = None
+    pointing: dict[str, Any] | None = None  # the pointing settings saved with the robot
 
 
 def list_projects(session: Session) -> list[ProjectInfo]:
@@ -151,4 +152,5 @@ def read_project(store: Store, project_id: int) -> Loaded:
     mesh = data.mesh if not cell.workpiece_builtin else None
     built = build_live_cell(cell, mesh, data.robot.get("joints_rad"))
     selection = selection_from_document(data.robot.get("compliance"))
-    return Loaded(project_id, project_from_data(data, built[0].workpiece), built, selection)
+    project = project_from_data(data, built[0].workpiece)
+    return Loaded(project_id, project, built, selection, data.robot.get("pointing"))

@@ -52,7 +52,7 @@ from . import projects
 from .jobs import JobRunner
 from .learning import Learning
 from .persistence import Part, save_kwargs
-from .pointing import Pointing
+from .pointing import Pointing, pointing_document, pointing_from_document
 from .projects import Loaded
 from .records import ConflictError, GuidePointEntry, ProjectInfo, Topic, log
 from .robot import ROBOT_JOB_KINDS as ROBOT_JOB_KINDS
@@ -111,6 +111,7 @@ class Session:
         self.robot = LiveRobot(self._lock, self.jobs, save=self._save_robot, notify=self.notify)
         self.teach = Teach(self.robot, real_time=real_time)
         self.pointing = Pointing(self)
+        self.robot.extras = lambda: {"pointing": self.pointing.document()}
         self.learning = Learning(self)
         projects.open_initial(self)
 
@@ -185,8 +186,10 @@ class Session:
                 self.robot.require_idle()
             new = change(self._project)
             if new is not self._project:
+                # Saved first: a save that fails (a locked database: 503) leaves the session
+                # as it was, so a client that retries does not apply the change twice.
+                self._save(new, *parts, with_robot=with_robot)
                 self._project = new
-                self._save(*parts, with_robot=with_robot)
         self.notify(*topics)
         return new
 
@@ -201,9 +204,10 @@ class Session:
             new = change(self._project)
             if new is self._project:
                 return new
-            self.robot.install(build_live_cell(new.cell, new.mesh, parsed=parsed))
+            built = build_live_cell(new.cell, new.mesh, parsed=parsed)
+            self._save(new, "cell", "guides", robot=self.robot.document(built))
+            self.robot.install(built)
             self._project = new
-            self._save("cell", "guides", with_robot=True)
         self.notify(*CELL_TOPICS)
         return new
 
@@ -287,11 +291,15 @@ class Session:
             self.robot.require_idle()
             if epoch is not None and epoch != self.robot.epoch:
                 raise ConflictError("the cell or project changed while opening; open it again")
-            self.robot.install(loaded.built, loaded.selection)
-            self._project_id, self._project = loaded.project_id, loaded.project
+            pointing = pointing_from_document(loaded.pointing)
             if save:
-                self._save(*ALL_PARTS, with_robot=True)
+                robot = self.robot.document(loaded.built, loaded.selection)
+                robot["pointing"] = pointing_document(*pointing)
+                self._save(loaded.project, *ALL_PARTS, robot=robot, project_id=loaded.project_id)
             self.store.set_last_project(loaded.project_id)
+            self.robot.install(loaded.built, loaded.selection)
+            self.pointing.settings, self.pointing.click_mode = pointing
+            self._project_id, self._project = loaded.project_id, loaded.project
         self.notify(*ALL_TOPICS)
 
     # --- lifecycle ---------------------------------------------------------------------------
@@ -309,11 +317,22 @@ class Session:
 
     # --- internals ---------------------------------------------------------------------------
 
-    def _save(self, *parts: Part, with_robot: bool = False) -> None:
-        kwargs = save_kwargs(self._project, *parts)
+    def _save(
+        self,
+        project: Project,
+        *parts: Part,
+        with_robot: bool = False,
+        robot: dict[str, Any] | None = None,
+        project_id: int | None = None,
+    ) -> None:
+        """Store ``parts`` of ``project`` (and the robot: its document now, ``with_robot``, or
+        the given ``robot``) in one transaction, before the session takes them on."""
+        kwargs = save_kwargs(project, *parts)
         if with_robot:
             kwargs["robot"] = self.robot.document()
-        self.store.save(self._project_id, **kwargs)
+        if robot is not None:
+            kwargs["robot"] = robot
+        self.store.save(self._project_id if project_id is None else project_id, **kwargs)
 
-    def _save_robot(self) -> None:
-        self.store.save(self._project_id, robot=self.robot.document())
+    def _save_robot(self, document: dict[str, Any] | None = None) -> None:
+        self.store.save(self._project_id, robot=document or self.robot.document())
