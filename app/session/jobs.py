@@ -234,13 +234,13 @@ class JobRunner:
                 log.exception("job listener failed")
 
     def _finish(self, job: _Job) -> None:
-        if job.on_end is not None:
+        # What the work captured (a cell, a project, its result) goes, before on_end runs.
+        on_end, job.work, job.on_done, job.on_end = job.on_end, _ended, None, None
+        if on_end is not None:
             try:
-                job.on_end(job.info())
+                on_end(job.info())
             except Exception:
                 log.exception("on_end of job %s failed", job.id)
-        # What the work captured (a cell, a project, its result) goes with it.
-        job.work, job.on_done, job.on_end = _ended, None, None
         self._changed(job)
 
     def _loop(self) -> None:
@@ -263,6 +263,7 @@ class JobRunner:
             result = job.work(JobContext(job))
             if job.on_done is not None:
                 job.on_done(result)
+            del result  # gone before on_end runs (it may give memory back)
         except CancelledError as exc:
             job.status, job.error = "cancelled", str(exc)
         except RobomachError as exc:

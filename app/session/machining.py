@@ -34,6 +34,7 @@ from robomach_core.errors import InvalidInputError
 from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
 from robomach_core.machining.retained import bucket_trace, retained_result
 
+from ..memory import give_back
 from .records import ConflictError, log
 
 MM = 1e-3
@@ -293,7 +294,10 @@ class MachiningService:
             kept = retained_result(result)
             s.commit(change, "post", topics=("machining",))
 
-        return s.jobs.submit(f"machining_{kind}", work, on_done=done)
+        # Once the job let go of the runs' full traces (and of the result it replaced).
+        return s.jobs.submit(
+            f"machining_{kind}", work, on_done=done, on_end=lambda info: give_back()
+        )
 
     # --- internals ---------------------------------------------------------------------------
 

@@ -47,6 +47,7 @@ from robomach_core.errors import InvalidInputError
 from robomach_core.project import CellSettings, Project
 from robomach_core.workpiece import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, Workpiece
 
+from ..memory import give_back
 from ..store import Store
 from . import projects
 from .jobs import JobRunner
@@ -208,7 +209,9 @@ class Session:
             self._save(new, "cell", "guides", robot=self.robot.document(built))
             self.robot.install(built)
             self._project = new
+            del built
         self.notify(*CELL_TOPICS)
+        give_back()  # the old cell (its part's mesh, trees, supervisor) goes back to the OS
         return new
 
     def set_cell(
@@ -301,6 +304,7 @@ class Session:
             self.pointing.settings, self.pointing.click_mode = pointing
             self._project_id, self._project = loaded.project_id, loaded.project
         self.notify(*ALL_TOPICS)
+        give_back()  # the project and the cell it replaced
 
     # --- lifecycle ---------------------------------------------------------------------------
 
