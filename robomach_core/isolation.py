@@ -282,8 +282,12 @@ def _run_forked(task: str, payload: dict[str, Any], memory_bytes: int, timeout_s
     import select
 
     read_fd, write_fd = os.pipe()
+    helper = os.getpid()
     pid = os.fork()
     if pid == 0:  # the child
+        from .lifetime import die_with_parent
+
+        die_with_parent(helper)  # a helper that ends (its server killed) takes the task along
         os.close(read_fd)
         code = 0
         try:
@@ -327,7 +331,11 @@ def _run_forked(task: str, payload: dict[str, Any], memory_bytes: int, timeout_s
 
 
 def serve() -> None:
-    """The helper's loop: read a request from stdin, answer on stdout, until stdin closes."""
+    """The helper's loop: read a request from stdin, answer on stdout, until stdin closes or
+    the process that started it ends (killed: it never closes stdin while a task runs)."""
+    from .lifetime import end_with
+
+    end_with(os.getppid())
     import coal  # noqa: F401 - imported once here, shared by every forked child
     import numpy  # noqa: F401
     import pinocchio  # noqa: F401
