@@ -107,6 +107,7 @@ class Session:
         self._listeners_lock = threading.Lock()
         self._project = Project()
         self._project_id = 0
+        self._notice = ""  # about the open project: its stored arm was refused (``projects``)
         self._closed = False
         self.jobs = JobRunner(on_change=lambda info: self.notify("job"))
         self.robot = LiveRobot(self._lock, self.jobs, save=self._save_robot, notify=self.notify)
@@ -165,7 +166,7 @@ class Session:
     def current_project(self) -> ProjectInfo:
         with self._lock:
             row = self.store.get_project(self._project_id)
-            return ProjectInfo(row.id, row.name, row.created_s, row.updated_s, True)
+            return ProjectInfo(row.id, row.name, row.created_s, row.updated_s, True, self._notice)
 
     # --- changing the project ----------------------------------------------------------------
 
@@ -303,6 +304,7 @@ class Session:
             self.robot.install(loaded.built, loaded.selection)
             self.pointing.settings, self.pointing.click_mode = pointing
             self._project_id, self._project = loaded.project_id, loaded.project
+            self._notice = loaded.notice
         self.notify(*ALL_TOPICS)
         give_back()  # the project and the cell it replaced
 
@@ -331,12 +333,18 @@ class Session:
     ) -> None:
         """Store ``parts`` of ``project`` (and the robot: its document now, ``with_robot``, or
         the given ``robot``) in one transaction, before the session takes them on."""
+        project_id = self._project_id if project_id is None else project_id
+        whole = bool(self._notice) and project_id == self._project_id
+        if whole:  # opened without its refused arm: the first change saves it as it is now
+            parts, with_robot = ALL_PARTS, with_robot or robot is None
         kwargs = save_kwargs(project, *parts)
         if with_robot:
             kwargs["robot"] = self.robot.document()
         if robot is not None:
             kwargs["robot"] = robot
-        self.store.save(self._project_id if project_id is None else project_id, **kwargs)
+        self.store.save(project_id, **kwargs)
+        if whole:
+            self._notice = ""
 
     def _save_robot(self, document: dict[str, Any] | None = None) -> None:
         self.store.save(self._project_id, robot=document or self.robot.document())

@@ -37,7 +37,12 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import RobomachError
-from ..urdf_check import check_urdf_native, check_urdf_text, read_robot_zip
+from ..urdf_check import (
+    check_urdf_native,
+    check_urdf_text,
+    read_package_meshes,
+    read_robot_zip,
+)
 from . import registry
 
 MAX_ROBOT_FILE_BYTES = 50 * 1024 * 1024
@@ -177,7 +182,9 @@ def urdf_from_file(filename: str, data: bytes) -> tuple[str, dict[str, bytes]]:
             f"{MAX_ROBOT_FILE_BYTES / 1e6:.0f} MB limit"
         )
     if suffix == ".urdf":
-        return _decode(filename, data), {}
+        text = _decode(filename, data)
+        check_urdf_text(text, filename, RobotFileError)  # bounded before it is parsed whole
+        return text, read_package_meshes(text, filename, RobotFileError)
     # Declared sizes summed before extraction; only the files the URDF references are read.
     return read_robot_zip(filename, data, RobotFileError)
 

@@ -14,6 +14,7 @@ SOLUTION  ``arm(name) -> Arm``, ``register(arm)``, ``forget(name)``, ``BUILTIN_A
 from __future__ import annotations
 
 import importlib.metadata
+import re
 import threading
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -87,6 +88,20 @@ class Arm:
             return builtin.generated_urdf_path(self.name)
         return _upload_file(self)
 
+    def mesh_path(self, reference: str) -> str:
+        """The file a ``<mesh filename>`` of an upload's URDF names, inside the upload's own
+        folder in the cache (``urdf_check.resolve_reference``): "" (no file) for a reference
+        that names no member of the upload. The scene's loader (yourdfpy) reads meshes through
+        this, so it cannot read a file of the server's disk (issue 32)."""
+        from ..urdf_check import resolve_reference
+
+        member = resolve_reference(reference, [m for m, _ in self.meshes])
+        if member is None or self.urdf_text is None:
+            return ""
+        folder = self.urdf_path().parent.resolve()
+        target = (folder / member).resolve()
+        return str(target) if folder in target.parents and target.is_file() else ""
+
 
 def robots_directory() -> Path:
     """Folder of the URDFs that the ``example-robot-data`` wheel installs (it has no module)."""
@@ -108,12 +123,34 @@ def _upload_file(record: Arm) -> Path:
             target = (folder / rel).resolve()
             if folder.resolve() in target.parents:  # no file outside the folder ("../")
                 target.parent.mkdir(parents=True, exist_ok=True)
-                target.write_bytes(data)
+                target.write_bytes(sanitised_mesh(rel, data))
         folder.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(record.urdf(), encoding="utf-8")
         os.replace(tmp, path)
     return path
+
+
+_OBJ_FILE_LINES = re.compile(rb"^[ \t]*(mtllib|usemtl|maplib|usemap|call|csh)\b.*$", re.M)
+# A COLLADA image's file (1.4: <init_from>file</init_from>, 1.5: <ref>file</ref>): anything
+# holding a dot, a slash or a colon (image ids that effects point at hold none).
+_DAE_FILES = re.compile(rb"<(init_from|ref)>\s*[^<]*[./\\:][^<]*</(init_from|ref)>")
+_MISSING_TEXTURE = b"missing-texture.png"
+
+
+def sanitised_mesh(path: str, data: bytes) -> bytes:
+    """A mesh file as the scene may read it: without its own references to other files (an
+    OBJ's material libraries and commands, a COLLADA file's image files, pointed at a name
+    that is not there: the geometry loads untextured), which trimesh would read from
+    wherever they point. Colours come from the URDF's materials."""
+    kind = Path(path).suffix.lower()
+    if kind == ".obj":
+        return _OBJ_FILE_LINES.sub(b"", data)
+    if kind == ".dae":
+        return _DAE_FILES.sub(
+            lambda m: b"<%s>%s</%s>" % (m.group(1), _MISSING_TEXTURE, m.group(1)), data
+        )
+    return data
 
 
 def _kr270_stiffness() -> tuple[float, ...]:
