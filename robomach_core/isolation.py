@@ -11,10 +11,14 @@ STRATEGY  Before such an input reaches the native code in this process, the same
           address-space limit (``RLIMIT_AS``) and runs the task there. A child that dies of a
           signal, runs out of its memory or overruns its time is reported as an ``IsolatedError``
           and the helper lives on; a helper that dies is started again at the next call. The
-          answer comes back as JSON (a crashed child's output is never unpickled).
+          answer comes back as JSON, and the numeric arrays a task returns (a parsed mesh) as
+          raw bytes described by it, of a plain numeric dtype (a crashed child's output is
+          never unpickled).
 SOLUTION  ``run_isolated(task, payload, memory_bytes=, timeout_s=) -> dict``; the tasks are the
           functions of ``TASKS`` (``mesh`` builds the part's convex hull and BVH as the
-          supervisor and the contact model will; ``urdf`` builds the pinocchio model).
+          supervisor and the contact model will; ``urdf`` builds the pinocchio model;
+          ``workpiece`` reads a mesh file as ``workpiece.mesh_from_bytes`` uses it). A task
+          returns a dict; its ``"arrays"`` entry (name -> numpy array) comes back as arrays.
 """
 
 from __future__ import annotations
@@ -37,7 +41,8 @@ DEFAULT_MEMORY_BYTES = 1 << 30  # what one task may allocate above the helper's 
 DEFAULT_TIMEOUT_S = 60.0
 HELPER_START_TIMEOUT_S = 60.0
 _HEADER = struct.Struct("<Q")
-_MAX_ANSWER_BYTES = 1 << 20
+_MAX_ANSWER_BYTES = 1 << 29  # JSON and arrays (a parsed mesh of 500k triangles: ~20 MB)
+_ARRAY_KINDS = "biuf"  # dtypes an answer's arrays may have (no objects, no pickles)
 
 
 class IsolatedError(RobomachError, ValueError):
@@ -48,9 +53,13 @@ class IsolatedError(RobomachError, ValueError):
             (the helper process could not run it).
     """
 
-    def __init__(self, message: str, *, kind: str = "error") -> None:
+    def __init__(
+        self, message: str, *, kind: str = "error", error_type: str = "", detail: str = ""
+    ) -> None:
         super().__init__(message)
         self.kind = kind
+        self.error_type = error_type  # the class name of what the task raised ("error")
+        self.detail = detail  # its message alone
 
 
 # --- the tasks (they run in the child) -----------------------------------------------------
@@ -111,9 +120,17 @@ def _task_echo(payload: dict[str, Any]) -> dict[str, Any]:
     return {"echo": payload.get("value")}
 
 
+def _task_workpiece(payload: dict[str, Any]) -> dict[str, Any]:
+    """A mesh file read, checked and made one solid (``workpiece.parse_mesh_file``)."""
+    from .workpiece import parse_mesh_file
+
+    return parse_mesh_file(payload)
+
+
 TASKS: dict[str, Callable[[dict[str, Any]], dict[str, Any]]] = {
     "mesh": _task_mesh,
     "urdf": _task_urdf,
+    "workpiece": _task_workpiece,
     "echo": _task_echo,
 }
 
@@ -194,12 +211,62 @@ def run_isolated(
                         f"the isolated {task} check could not run (its helper process stopped)",
                         kind="helper",
                     ) from None
+    answer, arrays = answer
     if answer.get("ok"):
-        return answer["value"]
+        value = answer["value"]
+        if arrays:
+            value["arrays"] = arrays
+        return value
     raise IsolatedError(
         answer.get("error") or f"the isolated {task} check failed",
         kind=str(answer.get("kind", "error")),
+        error_type=str(answer.get("type", "")),
+        detail=str(answer.get("message", "")),
     )
+
+
+def _frame(answer: dict[str, Any], arrays: dict[str, Any] | None = None) -> bytes:
+    """An answer as sent: the JSON's length, the JSON (describing the arrays), the arrays'
+    bytes one after the other."""
+    import numpy as np
+
+    blobs, meta, offset = [], [], 0
+    for name, array in (arrays or {}).items():
+        a = np.ascontiguousarray(array)
+        if a.dtype.kind not in _ARRAY_KINDS:
+            raise TypeError(f"array {name!r} of dtype {a.dtype} cannot be answered")
+        meta.append([str(name), a.dtype.str, list(a.shape), offset, a.nbytes])
+        blobs.append(a.tobytes())
+        offset += a.nbytes
+    head = json.dumps({**answer, "arrays": meta}).encode()
+    return _HEADER.pack(len(head)) + head + b"".join(blobs)
+
+
+def _unframe(data: bytes, *, decode: bool = True) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(the JSON answer, its arrays by name: none unless ``decode``) of ``_frame``'s bytes;
+    ``ValueError`` when they are not such an answer."""
+    import numpy as np
+
+    if len(data) < _HEADER.size:
+        raise ValueError("answer too short")
+    (size,) = _HEADER.unpack_from(data)
+    end = _HEADER.size + size
+    if end > len(data):
+        raise ValueError("answer cut short")
+    answer = json.loads(data[_HEADER.size : end])
+    if not isinstance(answer, dict):
+        raise ValueError("answer is not an object")
+    arrays: dict[str, Any] = {}
+    view = memoryview(data)[end:]
+    for name, dtype, shape, offset, nbytes in answer.pop("arrays", None) or []:
+        kind = np.dtype(dtype)
+        if kind.kind not in _ARRAY_KINDS or offset < 0 or offset + nbytes > len(view):
+            raise ValueError(f"answer array {name!r} is malformed")
+        if not decode:
+            continue
+        flat = np.frombuffer(view[offset : offset + nbytes], dtype=kind)
+        arrays[str(name)] = flat.reshape([int(n) for n in shape]).copy()
+    return answer, arrays
 
 
 def _write(stream: Any, data: bytes) -> None:
@@ -218,7 +285,7 @@ def _read_exact(stream: Any, n: int) -> bytes:
     return b"".join(chunks)
 
 
-def _read(stream: Any, timeout_s: float) -> dict[str, Any]:
+def _read(stream: Any, timeout_s: float) -> tuple[dict[str, Any], dict[str, Any]]:
     import select
 
     ready, _, _ = select.select([stream], [], [], timeout_s)
@@ -227,7 +294,10 @@ def _read(stream: Any, timeout_s: float) -> dict[str, Any]:
     (size,) = _HEADER.unpack(_read_exact(stream, _HEADER.size))
     if size > _MAX_ANSWER_BYTES:
         raise EOFError("answer too large")
-    return json.loads(_read_exact(stream, size))
+    try:
+        return _unframe(_read_exact(stream, size))
+    except ValueError as exc:
+        raise EOFError(f"unreadable answer ({exc})") from None
 
 
 # --- the helper's side --------------------------------------------------------------------
@@ -263,8 +333,11 @@ def _child(task: str, payload: dict[str, Any], memory_bytes: int, out_fd: int) -
     limit = _address_space_bytes() + memory_bytes
     if limit > memory_bytes:
         resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    arrays: dict[str, Any] = {}
     try:
-        answer = {"ok": True, "value": TASKS[task](payload)}
+        value = TASKS[task](payload)
+        arrays = value.pop("arrays", None) or {}
+        answer = {"ok": True, "value": value}
     except MemoryError:
         answer = {
             "ok": False,
@@ -272,13 +345,25 @@ def _child(task: str, payload: dict[str, Any], memory_bytes: int, out_fd: int) -
             "error": f"the {task} check needs more than {memory_bytes / 2**20:.0f} MiB of memory",
         }
     except Exception as exc:  # noqa: BLE001 - reported to the caller as its message
-        answer = {"ok": False, "kind": "error", "error": f"{exc.__class__.__name__}: {exc}"[:2000]}
-    data = json.dumps(answer).encode()
+        answer = {
+            "ok": False,
+            "kind": "error",
+            "error": f"{exc.__class__.__name__}: {exc}"[:2000],
+            "type": exc.__class__.__name__,
+            "message": str(exc)[:2000],
+        }
+    try:
+        data = _frame(answer, arrays)
+    except MemoryError:
+        data = _frame({"ok": False, "kind": "memory",
+                       "error": f"the {task} check's answer does not fit in its memory"})  # fmt: skip
     with os.fdopen(out_fd, "wb") as out:
         out.write(data)
 
 
-def _run_forked(task: str, payload: dict[str, Any], memory_bytes: int, timeout_s: float) -> dict:
+def _run_forked(
+    task: str, payload: dict[str, Any], memory_bytes: int, timeout_s: float
+) -> bytes:
     import select
 
     read_fd, write_fd = os.pipe()
@@ -316,18 +401,20 @@ def _run_forked(task: str, payload: dict[str, Any], memory_bytes: int, timeout_s
         os.kill(pid, signal.SIGKILL)
     _, status = os.waitpid(pid, 0)
     if timed_out:
-        return {
+        return _frame({
             "ok": False,
             "kind": "timeout",
             "error": f"the {task} check took longer than {timeout_s:g} s",
-        }
+        })  # fmt: skip
     data = b"".join(chunks)
     if os.WIFEXITED(status) and os.WEXITSTATUS(status) == 0 and data:
         try:
-            return json.loads(data)
+            _unframe(data, decode=False)
         except ValueError:
             pass
-    return {"ok": False, "kind": "crash", "error": _describe_exit(status, task)}
+        else:
+            return data
+    return _frame({"ok": False, "kind": "crash", "error": _describe_exit(status, task)})
 
 
 def serve() -> None:
@@ -342,6 +429,7 @@ def serve() -> None:
     import trimesh  # noqa: F401
 
     from . import bvh  # noqa: F401
+    from . import workpiece  # noqa: F401 - the workpiece task's module, imported once
 
     stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
     while True:
@@ -350,6 +438,4 @@ def serve() -> None:
             task, payload, memory_bytes, timeout_s = pickle.loads(_read_exact(stdin, size))
         except (EOFError, OSError):
             return
-        answer = _run_forked(task, payload, memory_bytes, timeout_s)
-        data = json.dumps(answer).encode()
-        _write(stdout, data)
+        _write(stdout, _run_forked(task, payload, memory_bytes, timeout_s))
