@@ -24,6 +24,7 @@ import contextlib
 import multiprocessing
 import os
 import signal
+import socket
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -39,6 +40,9 @@ from .stock import Stock
 
 # Seconds between two looks at the cancel flag while tasks run.
 POLL_S = 0.2
+# What a Dask scheduler's address has to answer within, and its handshake's largest length.
+CLUSTER_TIMEOUT_S = 10.0
+MAX_HANDSHAKE_BYTES = 1 << 20
 _ROBOTS: dict[tuple[str, bytes], Any] = {}
 
 
@@ -224,6 +228,45 @@ def run_tasks(
     return results
 
 
+def _probe_scheduler(address: str) -> None:
+    """``InvalidInputError`` unless a ``tcp://`` address answers as a Dask scheduler does: it
+    speaks first (its handshake), a frame whose 8-byte length is a handshake's. An address
+    that answered with something else was reported as "not enough memory" (distributed took
+    an HTTP status line for a length of 3 EiB), and a server that says nothing hung the
+    client for ever (issue 32)."""
+    scheme, _, rest = address.rpartition("://")
+    if scheme not in ("", "tcp"):
+        return  # tls://, ucx://: the client's own checks
+    host, _, port = rest.rpartition(":")
+    try:
+        port_number = int(port)
+    except ValueError:
+        raise InvalidInputError(f"cluster address {address!r}: expected tcp://host:port") from None
+    what = f"the Dask cluster at {address}"
+    try:
+        with socket.create_connection(
+            (host.strip("[]") or "127.0.0.1", port_number), CLUSTER_TIMEOUT_S
+        ) as probe:
+            probe.settimeout(CLUSTER_TIMEOUT_S)
+            head = b""
+            while len(head) < 8:
+                chunk = probe.recv(8 - len(head))
+                if not chunk:
+                    break
+                head += chunk
+    except TimeoutError:
+        raise InvalidInputError(
+            f"{what} said nothing within {CLUSTER_TIMEOUT_S:g} s: it is not a Dask scheduler"
+        ) from None
+    except OSError as exc:
+        raise InvalidInputError(f"cannot reach {what}: {exc.strerror or exc}") from None
+    if len(head) < 8 or int.from_bytes(head, "little") > MAX_HANDSHAKE_BYTES:
+        raise InvalidInputError(
+            f"{what} answered with something else than a Dask scheduler "
+            f"({head[:8]!r}...): check the address and its port"
+        )
+
+
 def _run_on_dask(tasks, address: str, progress, cancel):
     try:
         from distributed import Client, as_completed
@@ -231,10 +274,16 @@ def _run_on_dask(tasks, address: str, progress, cancel):
         raise InvalidInputError(
             "a cluster address needs Dask: pip install 'robomach[cluster]'"
         ) from None
+    _probe_scheduler(address)
     try:
-        client = Client(address, timeout="10s")
+        client = Client(address, timeout=f"{CLUSTER_TIMEOUT_S:g}s")
     except (OSError, TimeoutError, ValueError) as exc:
         raise InvalidInputError(f"cannot reach the Dask cluster at {address}: {exc}") from None
+    except Exception as exc:  # noqa: BLE001 - whatever the peer made distributed do
+        raise InvalidInputError(
+            f"the Dask cluster at {address} did not answer as a Dask scheduler "
+            f"({exc.__class__.__name__})"
+        ) from None
     try:
         futures = client.map(run_cut_task, list(tasks), pure=False)
         index = {f.key: i for i, f in enumerate(futures)}
