@@ -55,7 +55,7 @@ from .learning import Learning
 from .persistence import Part, save_kwargs
 from .pointing import Pointing, pointing_document, pointing_from_document
 from .projects import Loaded
-from .records import ConflictError, GuidePointEntry, ProjectInfo, Topic, log
+from .records import ConflictError, GuidePointEntry, NotFoundError, ProjectInfo, Topic, log
 from .robot import ROBOT_JOB_KINDS as ROBOT_JOB_KINDS
 from .robot import LiveRobot, build_live_cell
 from .teach import Teach
@@ -166,6 +166,8 @@ class Session:
     def current_project(self) -> ProjectInfo:
         with self._lock:
             row = self.store.get_project(self._project_id)
+            if row is None:
+                raise NotFoundError("the open project is no longer in the database")
             return ProjectInfo(row.id, row.name, row.created_s, row.updated_s, True, self._notice)
 
     # --- changing the project ----------------------------------------------------------------
@@ -295,6 +297,10 @@ class Session:
             self.robot.require_idle()
             if epoch is not None and epoch != self.robot.epoch:
                 raise ConflictError("the cell or project changed while opening; open it again")
+            if self.store.get_project(loaded.project_id) is None:
+                # Deleted while it was read (outside the lock): nothing opens. It opened, and
+                # every later read of it answered 503 (issue 32).
+                raise NotFoundError(f"project {loaded.project_id} was deleted while it opened")
             pointing = pointing_from_document(loaded.pointing)
             if save:
                 robot = self.robot.document(loaded.built, loaded.selection)
