@@ -52,6 +52,22 @@ if TYPE_CHECKING:
     from .session import Session
 
 SAFE_HEIGHT_M = 0.008  # the tool travels this far above the part's top
+# Fewest proposed points that make a path: path learning needs two; a closed wall, learned
+# round and back to its first point, three (one point "closed" on itself was offered and
+# accepted, issue 32).
+MIN_PROPOSED_POINTS = {False: 2, True: 3}
+
+
+def _require_enough(proposal: GuideProposal, what: str) -> None:
+    """``InvalidInputError`` when the proposal has too few points to learn from."""
+    need = MIN_PROPOSED_POINTS[bool(proposal.closed)]
+    have = len(proposal.points)
+    if have < need:
+        kind = "a closed wall" if proposal.closed else "an open wall"
+        raise InvalidInputError(
+            f"{what}: {have} guide point{'s' if have != 1 else ''} for {kind}, which needs at "
+            f"least {need}; pick a longer wall, or teach points one by one"
+        )
 
 
 def pointing_document(settings: ProposalSettings, click_mode: ClickMode) -> dict[str, object]:
@@ -269,6 +285,7 @@ class Pointing:
                 supervisor=supervisor,
                 tool_reach_m=tool_reach(cell.tool),
             )
+        _require_enough(proposal, "this wall gives too few points to learn")
         with self._lock:
             if epoch != s.robot.epoch:
                 raise ConflictError("the cell changed while the guide points were proposed")
@@ -333,6 +350,7 @@ class Pointing:
         from robomach_core.demo_operator import scripted_leadthrough
 
         epoch, proposal = self._require()
+        _require_enough(proposal, "the proposal cannot be accepted")
         bad = [k + 1 for k, p in enumerate(proposal.points) if p.reach == "unreachable"]
         if bad:
             listed = ", ".join(f"G{k}" for k in bad[:6])
