@@ -149,8 +149,15 @@ def refuse_foreign_websockets(server: object) -> bool:
         request = getattr(live.get(client_id), "request", None)
         if request is None:
             return
-        origin, host = request.headers.get("Origin"), request.headers.get("Host", "")
-        if not _loopback_host(host):
+        hosts, origins = _all(request.headers, "Host"), _all(request.headers, "Origin")
+        origin = origins[0] if len(origins) == 1 else None
+        host = hosts[0] if len(hosts) == 1 else ""
+        if len(hosts) != 1 or len(origins) > 1:
+            # Two Host (or Origin) headers: which one a proxy or the browser meant cannot be
+            # told, so the connection is refused (reading one raised and logged a traceback).
+            reason = "several Host or Origin headers refused"
+            shown = f"{len(hosts)} Host and {len(origins)} Origin headers"
+        elif not _loopback_host(host):
             # viser listens on loopback only (viser_host): a page under another name that
             # resolves here (DNS rebinding) is "same origin" with itself; refuse its name.
             reason, shown = "a non-loopback Host refused", f"host {host[:200]!r}"
@@ -165,6 +172,16 @@ def refuse_foreign_websockets(server: object) -> bool:
     infra._handle_incoming_message = dispatch_known
     infra.on_client_connect(check_origin)
     return True
+
+
+def _all(headers: object, name: str) -> list[str]:
+    """Every value of header ``name`` (a websockets ``Headers`` raises on ``get`` when there
+    are several)."""
+    get_all = getattr(headers, "get_all", None)
+    if get_all is not None:
+        return [str(v) for v in get_all(name)]
+    value = headers.get(name)  # type: ignore[attr-defined]
+    return [] if value is None else [str(value)]
 
 
 def _loopback_host(host: str) -> bool:
