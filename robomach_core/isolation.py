@@ -355,15 +355,13 @@ def _child(task: str, payload: dict[str, Any], memory_bytes: int, out_fd: int) -
     try:
         data = _frame(answer, arrays)
     except MemoryError:
-        data = _frame({"ok": False, "kind": "memory",
-                       "error": f"the {task} check's answer does not fit in its memory"})  # fmt: skip
+        too_big = f"the {task} check's answer does not fit in its memory"
+        data = _frame({"ok": False, "kind": "memory", "error": too_big})
     with os.fdopen(out_fd, "wb") as out:
         out.write(data)
 
 
-def _run_forked(
-    task: str, payload: dict[str, Any], memory_bytes: int, timeout_s: float
-) -> bytes:
+def _run_forked(task: str, payload: dict[str, Any], memory_bytes: int, timeout_s: float) -> bytes:
     import select
 
     read_fd, write_fd = os.pipe()
@@ -428,8 +426,10 @@ def serve() -> None:
     import pinocchio  # noqa: F401
     import trimesh  # noqa: F401
 
-    from . import bvh  # noqa: F401
-    from . import workpiece  # noqa: F401 - the workpiece task's module, imported once
+    from . import (
+        bvh,  # noqa: F401
+        workpiece,  # noqa: F401 - the workpiece task's module, imported once
+    )
 
     stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
     while True:

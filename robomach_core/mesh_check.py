@@ -9,17 +9,18 @@ STRATEGY  Refuse from the file's bytes what would cost memory to parse (``workpi
           the triangles; here the vertices), then from the parsed mesh what the cell cannot
           use: non-finite coordinates, a mesh far from its own origin (where float32 files
           lose the part), a size outside 1-2000 mm, a part thinner than ``MIN_THICKNESS_M``
-          along its thinnest principal axis (flat, a line, a point). Then the native steps run
-          once in an isolated process (``isolation``, task ``mesh``): a crash there refuses the
-          mesh instead of killing the caller, and the hull's volume it measured is checked.
-          Faces repeated in the same turning order are dropped and a mesh of more than
-          ``MAX_MESH_BODIES`` separate bodies is refused before anything splits it (issue 32).
+          along its thinnest principal axis (flat, a line, a point); faces repeated in the same
+          turning order are dropped and a mesh of more than ``MAX_MESH_BODIES`` separate bodies
+          is refused before anything splits it (issue 32). Then the native steps run once in an
+          isolated process (``isolation``, task ``mesh``): a crash there refuses the mesh
+          instead of killing the caller, and the hull's volume it measured is checked.
 SOLUTION  ``check_mesh_bytes`` before parsing, ``check_mesh(mesh, name)`` after (metres), called
           by ``workpiece.parse_mesh_file`` (in an isolated process, with a time limit) for
-          every mesh that enters: uploads, stock meshes, project files and stored projects. Watertightness is not required: the contact model
-          and the clearance probe work on triangles, the supervisor on the convex hull, and a
-          watertight part written as STL (float32, touching solids) is often not watertight
-          when read back (the built-in water pump is not).
+          every mesh that enters: uploads, stock meshes, project files and stored projects.
+          Watertightness is not required: the contact model and the clearance probe work on
+          triangles, the supervisor on the convex hull, and a watertight part written as STL
+          (float32, touching solids) is often not watertight when read back (the built-in
+          water pump is not).
 """
 
 from __future__ import annotations
@@ -91,9 +92,7 @@ def principal_extents_m(vertices: np.ndarray) -> np.ndarray:
     return np.sort(along.max(axis=0) - along.min(axis=0))[::-1]
 
 
-def check_mesh(
-    mesh: trimesh.Trimesh, name: str, *, native: bool | str = True
-) -> trimesh.Trimesh:
+def check_mesh(mesh: trimesh.Trimesh, name: str, *, native: bool | str = True) -> trimesh.Trimesh:
     """``mesh`` (metres) without its degenerate faces when the cell can use it, else
     ``MeshFileError`` naming what is wrong.
 

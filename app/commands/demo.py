@@ -235,7 +235,9 @@ def read_guide_points_file(path: Path) -> str:
             f"{GUIDE_POINTS_MAX} points, a few kB)"
         )
     text = path.read_text(errors="replace")
-    rows = [line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")]
+    rows = [
+        line for line in text.splitlines() if line.strip() and not line.lstrip().startswith("#")
+    ]
     if rows and rows[0].lstrip()[:1] not in set("0123456789+-."):
         rows = rows[1:]  # a header
     if len(rows) > GUIDE_POINTS_MAX:

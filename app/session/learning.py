@@ -24,13 +24,13 @@ import numpy as np
 from robomach_core import mesh_query
 from robomach_core import project as core
 from robomach_core.cell import Cell, CellState
+from robomach_core.clock import CONTROL_PERIOD_S
 from robomach_core.errors import (
     ConflictError,
     InvalidInputError,
     NotEnoughGuidePointsError,
     SupervisionError,
 )
-from robomach_core.clock import CONTROL_PERIOD_S
 from robomach_core.leadthrough import (
     ComplianceSelection,
     GuidePoint,

@@ -161,7 +161,6 @@ class Pointing:
         """The settings as the store keeps them (``robot_json["pointing"]``)."""
         return pointing_document(self.settings, self.click_mode)
 
-
     # --- click to teach ------------------------------------------------------------------
 
     def teach_at_surface(

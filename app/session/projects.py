@@ -17,7 +17,6 @@ from typing import TYPE_CHECKING, Any
 from robomach_core.errors import RobomachError
 from robomach_core.leadthrough import ComplianceSelection
 from robomach_core.project import CellSettings, Project
-
 from robomach_core.robots.custom import RobotFileError
 
 from ..store import ProjectData, Store

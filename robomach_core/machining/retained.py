@@ -70,7 +70,7 @@ def bucket_trace(trace: MachiningTrace, buckets: int = RETAINED_POINTS) -> Bucke
     n = len(trace)
     if n == 0:
         empty = np.zeros(0)
-        return BucketTrace(**{k: empty for k in _SIGNALS}, samples=np.zeros(0, dtype=np.int64),
+        return BucketTrace(**dict.fromkeys(_SIGNALS, empty), samples=np.zeros(0, dtype=np.int64),
                            force_min_N=empty, force_max_N=empty, feed_min_m_s=empty,
                            feed_max_m_s=empty)  # fmt: skip
     starts = _bounds(n, buckets)

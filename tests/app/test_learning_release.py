@@ -9,7 +9,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import pytest
 
 from app.session import Session
 from robomach_core.path_learning import PathLearningSettings

@@ -62,7 +62,7 @@ def test_100000_loose_tetrahedra_are_refused_before_any_split() -> None:
     rng = np.random.default_rng()
     corners = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], dtype=float)
     vertices = (rng.uniform(0, 400, (n, 1, 3)) + corners).reshape(-1, 3)
-    faces = (np.arange(n)[:, None, None] * 4 + [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    faces = np.arange(n)[:, None, None] * 4 + [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]]
     data = _obj(vertices, faces.reshape(-1, 3))
 
     def read() -> None:

@@ -90,7 +90,8 @@ def test_a_bare_urdf_brings_no_meshes_but_example_robot_data_s(tmp_path: Path) -
     ur5 = (registry.robots_directory() / "ur_description/urdf/ur5_robot.urdf").read_bytes()
     name = register_urdf("my_ur5.urdf", ur5)
     members = dict(registry.arm(name).meshes)
-    assert members and all(m.startswith("example-robot-data/robots/ur_description/") for m in members)
+    assert members
+    assert all(m.startswith("example-robot-data/robots/ur_description/") for m in members)
 
 
 def test_a_mesh_counts_once_per_reference_to_it() -> None:
@@ -98,9 +99,7 @@ def test_a_mesh_counts_once_per_reference_to_it() -> None:
     per_reference = len(stl)
     fits = MAX_ROBOT_UNPACKED_BYTES // per_reference - 10
     refs = ["package://arm/meshes/a.stl"]
-    ok = zipped(
-        {"arm/robot.urdf": arm_with_meshes(refs * fits).encode(), "arm/meshes/a.stl": stl}
-    )
+    ok = zipped({"arm/robot.urdf": arm_with_meshes(refs * fits).encode(), "arm/meshes/a.stl": stl})
     register_urdf("ok.zip", ok)
     too_many = zipped(
         {"arm/robot.urdf": arm_with_meshes(refs * (fits + 20)).encode(), "arm/meshes/a.stl": stl}
@@ -147,7 +146,8 @@ def test_no_reference_resolves_outside_the_upload_s_members(
     if member is not None:
         assert member in members and reference_problem(ref) is None
         assert ".." not in ref.replace("\\", "/").split("/")
-        assert not ref.startswith(("/", "file:", "\\")) and "://" not in ref.replace("package://", "")
+        assert not ref.startswith(("/", "file:", "\\"))
+        assert "://" not in ref.replace("package://", "")
 
 
 def test_a_mesh_s_own_references_to_other_files_are_dropped() -> None:
