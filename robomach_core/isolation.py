@@ -14,11 +14,12 @@ STRATEGY  Before such an input reaches the native code in this process, the same
           answer comes back as JSON, and the numeric arrays a task returns (a parsed mesh) as
           raw bytes described by it, of a plain numeric dtype (a crashed child's output is
           never unpickled).
-SOLUTION  ``run_isolated(task, payload, memory_bytes=, timeout_s=) -> dict``; the tasks are the
-          functions of ``TASKS`` (``mesh`` builds the part's convex hull and BVH as the
-          supervisor and the contact model will; ``urdf`` builds the pinocchio model;
-          ``workpiece`` reads a mesh file as ``workpiece.mesh_from_bytes`` uses it). A task
-          returns a dict; its ``"arrays"`` entry (name -> numpy array) comes back as arrays.
+SOLUTION  ``run_isolated(task, payload, memory_bytes=, timeout_s=, name=) -> dict``; a task is
+          a function of ``TASKS`` (``mesh`` builds the part's convex hull and BVH as the
+          supervisor and the contact model will; ``urdf`` builds the pinocchio model) or a
+          module-level function given itself (pickled by name, its module imported by the
+          helper: ``workpiece.parse_mesh_file`` reads a mesh file). A task returns a dict; its
+          ``"arrays"`` entry (name -> numpy array) comes back as arrays.
 """
 
 from __future__ import annotations
@@ -120,17 +121,9 @@ def _task_echo(payload: dict[str, Any]) -> dict[str, Any]:
     return {"echo": payload.get("value")}
 
 
-def _task_workpiece(payload: dict[str, Any]) -> dict[str, Any]:
-    """A mesh file read, checked and made one solid (``workpiece.parse_mesh_file``)."""
-    from .workpiece import parse_mesh_file
-
-    return parse_mesh_file(payload)
-
-
 TASKS: dict[str, Callable[[dict[str, Any]], dict[str, Any]]] = {
     "mesh": _task_mesh,
     "urdf": _task_urdf,
-    "workpiece": _task_workpiece,
     "echo": _task_echo,
 }
 
@@ -175,28 +168,44 @@ def helper_pid() -> int | None:
     return proc.pid if proc is not None and proc.poll() is None else None
 
 
+Task = str | Callable[[dict[str, Any]], dict[str, Any]]
+
+
+def _task_function(task: Task) -> Callable[[dict[str, Any]], dict[str, Any]]:
+    return TASKS[task] if isinstance(task, str) else task
+
+
+def _task_name(task: Task) -> str:
+    return task if isinstance(task, str) else str(getattr(task, "__name__", "isolated"))
+
+
 def run_isolated(
-    task: str,
+    task: Task,
     payload: dict[str, Any],
     *,
     memory_bytes: int = DEFAULT_MEMORY_BYTES,
     timeout_s: float = DEFAULT_TIMEOUT_S,
+    name: str | None = None,
 ) -> dict[str, Any]:
-    """The answer of ``TASKS[task](payload)`` computed in an isolated child process.
+    """The answer of ``TASKS[task](payload)`` (or ``task(payload)``) computed in an isolated
+    child process.
 
     Args:
-        task: A key of ``TASKS``.
+        task: A key of ``TASKS``, or a module-level function.
         payload: The task's input (pickled to the helper, which this process started).
         memory_bytes: Address space the child may add to the helper's.
         timeout_s: Wall-clock limit of the task.
+        name: What the messages call the task ("the <name> check ..."; default its key or
+            its function's name).
 
     Raises:
         IsolatedError: the task crashed (a signal), ran out of memory or time, or raised (the
             message says which, with the exception's class and text).
     """
-    if task not in TASKS:
+    if isinstance(task, str) and task not in TASKS:
         raise KeyError(task)
-    request = pickle.dumps((task, payload, int(memory_bytes), float(timeout_s)), protocol=5)
+    name = name or _task_name(task)
+    request = pickle.dumps((task, name, payload, int(memory_bytes), float(timeout_s)), protocol=5)
     with _HELPER.lock:
         for attempt in (1, 2):  # a helper that died since the last call is started again
             proc = _HELPER.ensure()
@@ -208,7 +217,7 @@ def run_isolated(
                 _HELPER.stop()
                 if attempt == 2:
                     raise IsolatedError(
-                        f"the isolated {task} check could not run (its helper process stopped)",
+                        f"the isolated {name} check could not run (its helper process stopped)",
                         kind="helper",
                     ) from None
     answer, arrays = answer
@@ -218,7 +227,7 @@ def run_isolated(
             value["arrays"] = arrays
         return value
     raise IsolatedError(
-        answer.get("error") or f"the isolated {task} check failed",
+        answer.get("error") or f"the isolated {name} check failed",
         kind=str(answer.get("kind", "error")),
         error_type=str(answer.get("type", "")),
         detail=str(answer.get("message", "")),
@@ -326,7 +335,7 @@ def _describe_exit(status: int, task: str) -> str:
     return f"the {task} check ended with code {os.WEXITSTATUS(status)} without an answer"
 
 
-def _child(task: str, payload: dict[str, Any], memory_bytes: int, out_fd: int) -> None:
+def _child(task: Task, name: str, payload: dict[str, Any], memory_bytes: int, out_fd: int) -> None:
     """Run one task under the memory limit and write its JSON answer to ``out_fd``."""
     import resource
 
@@ -335,14 +344,14 @@ def _child(task: str, payload: dict[str, Any], memory_bytes: int, out_fd: int) -
         resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
     arrays: dict[str, Any] = {}
     try:
-        value = TASKS[task](payload)
+        value = _task_function(task)(payload)
         arrays = value.pop("arrays", None) or {}
         answer = {"ok": True, "value": value}
     except MemoryError:
         answer = {
             "ok": False,
             "kind": "memory",
-            "error": f"the {task} check needs more than {memory_bytes / 2**20:.0f} MiB of memory",
+            "error": f"the {name} check needs more than {memory_bytes / 2**20:.0f} MiB of memory",
         }
     except Exception as exc:  # noqa: BLE001 - reported to the caller as its message
         answer = {
@@ -355,13 +364,15 @@ def _child(task: str, payload: dict[str, Any], memory_bytes: int, out_fd: int) -
     try:
         data = _frame(answer, arrays)
     except MemoryError:
-        too_big = f"the {task} check's answer does not fit in its memory"
+        too_big = f"the {name} check's answer does not fit in its memory"
         data = _frame({"ok": False, "kind": "memory", "error": too_big})
     with os.fdopen(out_fd, "wb") as out:
         out.write(data)
 
 
-def _run_forked(task: str, payload: dict[str, Any], memory_bytes: int, timeout_s: float) -> bytes:
+def _run_forked(
+    task: Task, name: str, payload: dict[str, Any], memory_bytes: int, timeout_s: float
+) -> bytes:
     import select
 
     read_fd, write_fd = os.pipe()
@@ -374,7 +385,7 @@ def _run_forked(task: str, payload: dict[str, Any], memory_bytes: int, timeout_s
         os.close(read_fd)
         code = 0
         try:
-            _child(task, payload, memory_bytes, write_fd)
+            _child(task, name, payload, memory_bytes, write_fd)
         except BaseException:  # noqa: BLE001 - the child must always _exit
             code = 1
         os._exit(code)
@@ -402,7 +413,7 @@ def _run_forked(task: str, payload: dict[str, Any], memory_bytes: int, timeout_s
         return _frame({
             "ok": False,
             "kind": "timeout",
-            "error": f"the {task} check took longer than {timeout_s:g} s",
+            "error": f"the {name} check took longer than {timeout_s:g} s",
         })  # fmt: skip
     data = b"".join(chunks)
     if os.WIFEXITED(status) and os.WEXITSTATUS(status) == 0 and data:
@@ -412,7 +423,7 @@ def _run_forked(task: str, payload: dict[str, Any], memory_bytes: int, timeout_s
             pass
         else:
             return data
-    return _frame({"ok": False, "kind": "crash", "error": _describe_exit(status, task)})
+    return _frame({"ok": False, "kind": "crash", "error": _describe_exit(status, name)})
 
 
 def serve() -> None:
@@ -426,16 +437,13 @@ def serve() -> None:
     import pinocchio  # noqa: F401
     import trimesh  # noqa: F401
 
-    from . import (
-        bvh,  # noqa: F401
-        workpiece,  # noqa: F401 - the workpiece task's module, imported once
-    )
+    from . import bvh  # noqa: F401
 
     stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
     while True:
         try:
             (size,) = _HEADER.unpack(_read_exact(stdin, _HEADER.size))
-            task, payload, memory_bytes, timeout_s = pickle.loads(_read_exact(stdin, size))
+            task, name, payload, memory_bytes, timeout_s = pickle.loads(_read_exact(stdin, size))
         except (EOFError, OSError):
             return
-        _write(stdout, _run_forked(task, payload, memory_bytes, timeout_s))
+        _write(stdout, _run_forked(task, name, payload, memory_bytes, timeout_s))

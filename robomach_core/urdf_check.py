@@ -23,7 +23,7 @@ STRATEGY  Bound the text (size, XML nesting, element count) while it is read as 
 SOLUTION  ``check_urdf_text(text, filename)``, ``read_robot_zip(filename, data) -> (text,
           files)``, ``read_package_meshes`` (a bare URDF's example-robot-data meshes),
           ``resolve_reference`` and ``check_urdf_native(text, filename)``, called by
-          ``robots.custom`` and ``robots.registry``.
+          ``robots.custom``.
 """
 
 from __future__ import annotations

@@ -400,7 +400,11 @@ def mesh_from_bytes(
                "max_triangles": int(max_triangles)}  # fmt: skip
     try:
         answer = run_isolated(
-            "workpiece", payload, memory_bytes=PARSE_MEMORY_BYTES, timeout_s=PARSE_TIMEOUT_S
+            parse_mesh_file,
+            payload,
+            memory_bytes=PARSE_MEMORY_BYTES,
+            timeout_s=PARSE_TIMEOUT_S,
+            name="mesh reading",
         )
     except IsolatedError as exc:
         if exc.error_type == MeshFileError.__name__:
@@ -419,7 +423,7 @@ def mesh_from_bytes(
 
 
 def parse_mesh_file(payload: dict) -> dict:
-    """The isolated half of ``mesh_from_bytes`` (the ``isolation`` task ``workpiece``): parse
+    """The isolated half of ``mesh_from_bytes`` (run by ``isolation.run_isolated``): parse
     the file, check it (``mesh_check.check_mesh``: duplicate faces dropped, too many bodies
     refused before any split, the native steps run here) and make it one solid. Returns
     ``z_top_m``, ``z_low_m`` and ``arrays`` (``vertices`` (n, 3) m, ``faces`` (m, 3))."""

@@ -222,6 +222,21 @@ def urdf_text(name: str) -> str:
     return registry.arm(name).urdf()
 
 
+def mesh_path(record: registry.Arm, reference: str) -> str:
+    """The file a ``<mesh filename>`` of an upload's URDF names, inside the upload's own folder
+    in the cache (``urdf_check.resolve_reference``): "" (no file) for a reference that names no
+    member of the upload. The scene's loader (yourdfpy) reads an upload's meshes through this,
+    so it cannot read a file of the server's disk (issue 32)."""
+    from ..urdf_check import resolve_reference
+
+    member = resolve_reference(reference, [m for m, _ in record.meshes])
+    if member is None or record.urdf_text is None:
+        return ""
+    folder = record.urdf_path().parent.resolve()
+    target = (folder / member).resolve()
+    return str(target) if folder in target.parents and target.is_file() else ""
+
+
 def urdf_file(name: str) -> Path:
     """The registered arm's URDF as a file for viewers (``Arm.urdf_path``)."""
     return registry.arm(name).urdf_path()

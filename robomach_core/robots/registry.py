@@ -88,20 +88,6 @@ class Arm:
             return builtin.generated_urdf_path(self.name)
         return _upload_file(self)
 
-    def mesh_path(self, reference: str) -> str:
-        """The file a ``<mesh filename>`` of an upload's URDF names, inside the upload's own
-        folder in the cache (``urdf_check.resolve_reference``): "" (no file) for a reference
-        that names no member of the upload. The scene's loader (yourdfpy) reads meshes through
-        this, so it cannot read a file of the server's disk (issue 32)."""
-        from ..urdf_check import resolve_reference
-
-        member = resolve_reference(reference, [m for m, _ in self.meshes])
-        if member is None or self.urdf_text is None:
-            return ""
-        folder = self.urdf_path().parent.resolve()
-        target = (folder / member).resolve()
-        return str(target) if folder in target.parents and target.is_file() else ""
-
 
 def robots_directory() -> Path:
     """Folder of the URDFs that the ``example-robot-data`` wheel installs (it has no module)."""

@@ -20,7 +20,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robomach_core.robots import abb, registry
-from robomach_core.robots.custom import RobotFileError, register_urdf
+from robomach_core.robots.custom import RobotFileError, mesh_path, register_urdf
 from robomach_core.robots.registry import sanitised_mesh
 from robomach_core.urdf_check import (
     MAX_ROBOT_UNPACKED_BYTES,
@@ -116,11 +116,11 @@ def test_the_scene_reads_an_uploads_meshes_from_its_own_folder_only() -> None:
     )  # fmt: skip
     record = registry.arm(register_urdf("scene.zip", data))
     folder = record.urdf_path().parent.resolve()
-    found = Path(record.mesh_path("package://arm/meshes/a.stl"))
+    found = Path(mesh_path(record, "package://arm/meshes/a.stl"))
     assert found.parent.parent.parent == folder and found.read_bytes() == stl
     for other in ("package://arm/meshes/unreferenced.stl", "/etc/passwd", "file:///etc/passwd",
                   "package://arm/../../../../etc/passwd", str(found)):  # fmt: skip
-        assert record.mesh_path(other) == ""
+        assert mesh_path(record, other) == ""
     from app.gui.scene import load_urdf
 
     urdf = load_urdf(record.name)  # yourdfpy through the resolver: the mesh is drawn
