@@ -12,8 +12,10 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
 import tempfile
+import threading
 from pathlib import Path
 
 # The command modules in app/commands, in the order `robomach --help` lists them.
@@ -100,7 +102,39 @@ def _interrupted(exc: BaseException) -> bool:
     return False
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the program is, as Ctrl-C's ``KeyboardInterrupt`` is."""
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise _Terminated
+
+
+def _interrupted_code(exc: BaseException) -> int:
+    """130 after Ctrl-C, 143 after SIGTERM (128 + the signal, as a shell reports it)."""
+    seen: set[int] = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, _Terminated):
+            return 128 + signal.SIGTERM
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__  # type: ignore[assignment]
+    return 130
+
+
 def main(argv: list[str] | None = None) -> int:
+    # SIGTERM stops a command as Ctrl-C does: its cleanup runs (the machining pool's workers
+    # are stopped) instead of the process vanishing and leaving them computing (issue 32).
+    # ``serve`` hands both signals to uvicorn while it runs.
+    if threading.current_thread() is not threading.main_thread():
+        return _main(argv)
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        return _main(argv)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     from robomach_core.errors import RobomachError
@@ -110,13 +144,13 @@ def main(argv: list[str] | None = None) -> int:
     except RobomachError as exc:
         print(f"robomach {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         print(f"robomach {args.command}: interrupted", file=sys.stderr)
-        return 130
+        return _interrupted_code(exc)
     except Exception as exc:  # a fault no check foresaw: one line, the traceback on request
         if _interrupted(exc):
             print(f"robomach {args.command}: interrupted", file=sys.stderr)
-            return 130
+            return _interrupted_code(exc)
         if os.environ.get("ROBOMACH_DEBUG"):
             raise
         from app.session.jobs import describe_unexpected

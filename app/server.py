@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 import os
 import socket
+import sqlite3
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import replace
@@ -23,7 +24,7 @@ from fastapi import FastAPI
 
 from app.session import Session
 from app.settings import ServerSettings, is_loopback_name
-from app.store import Store
+from app.store import DB_FILENAME, Store
 from robomach_core.errors import InvalidInputError
 
 log = logging.getLogger("robomach.server")
@@ -43,19 +44,26 @@ def viser_host(settings: ServerSettings) -> str:
     return settings.host if settings.loopback else LOOPBACK_HOST
 
 
-def check_port_free(host: str, port: int, what: str = "viser port") -> None:
+def check_port_free(
+    host: str, port: int, what: str = "viser port", option: str = "--viser-port"
+) -> None:
     """``InvalidInputError`` when ``port`` on ``host`` is taken (viser would quietly take the
-    next one, and the pendant and ``/api/workbench`` would point at another server)."""
+    next one, and the pendant and ``/api/workbench`` would point at another server; uvicorn
+    exited with code 3 after starting everything else) or ``host`` is no address here."""
     family = socket.AF_INET6 if ":" in host else socket.AF_INET
     with socket.socket(family, socket.SOCK_STREAM) as probe:
         # asyncio's servers set SO_REUSEADDR too: a port in TIME_WAIT is free for viser.
         probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
             probe.bind((host, port))
+        except socket.gaierror as exc:
+            raise InvalidInputError(
+                f"--host {host}: not an address of this machine ({exc.strerror})"
+            ) from None
         except OSError as exc:
             raise InvalidInputError(
                 f"the {what} {port} on {host} is not free ({exc.strerror}): stop the program "
-                "using it or pass another --viser-port"
+                f"using it or pass another {option}"
             ) from None
 
 
@@ -141,8 +149,15 @@ def refuse_foreign_websockets(server: object) -> bool:
         request = getattr(live.get(client_id), "request", None)
         if request is None:
             return
-        origin, host = request.headers.get("Origin"), request.headers.get("Host", "")
-        if not _loopback_host(host):
+        hosts, origins = _all(request.headers, "Host"), _all(request.headers, "Origin")
+        origin = origins[0] if len(origins) == 1 else None
+        host = hosts[0] if len(hosts) == 1 else ""
+        if len(hosts) != 1 or len(origins) > 1:
+            # Two Host (or Origin) headers: which one a proxy or the browser meant cannot be
+            # told, so the connection is refused (reading one raised and logged a traceback).
+            reason = "several Host or Origin headers refused"
+            shown = f"{len(hosts)} Host and {len(origins)} Origin headers"
+        elif not _loopback_host(host):
             # viser listens on loopback only (viser_host): a page under another name that
             # resolves here (DNS rebinding) is "same origin" with itself; refuse its name.
             reason, shown = "a non-loopback Host refused", f"host {host[:200]!r}"
@@ -157,6 +172,16 @@ def refuse_foreign_websockets(server: object) -> bool:
     infra._handle_incoming_message = dispatch_known
     infra.on_client_connect(check_origin)
     return True
+
+
+def _all(headers: object, name: str) -> list[str]:
+    """Every value of header ``name`` (a websockets ``Headers`` raises on ``get`` when there
+    are several)."""
+    get_all = getattr(headers, "get_all", None)
+    if get_all is not None:
+        return [str(v) for v in get_all(name)]
+    value = headers.get(name)  # type: ignore[attr-defined]
+    return [] if value is None else [str(value)]
 
 
 def _loopback_host(host: str) -> bool:
@@ -255,12 +280,21 @@ def serve(settings: ServerSettings) -> int:
     """Run until Ctrl-C or SIGTERM; returns the exit code."""
     import uvicorn
 
+    from app.cli import writable_folder
+
     settings.validate()
+    check_port_free(settings.host, settings.port, "port", "--port")
     if settings.viser_port is not None:
         check_port_free(viser_host(settings), settings.viser_port)
-    data_dir = settings.data_dir.resolve()
+    data_dir = writable_folder(settings.data_dir.resolve(), "--data")
     with data_dir_lock(data_dir):
-        session = open_session(settings, data_dir)
+        try:
+            session = open_session(settings, data_dir)
+        except sqlite3.DatabaseError as exc:  # a user's file, not a fault here: exit 2
+            raise InvalidInputError(
+                f"--data {data_dir}: {DB_FILENAME} there is not a readable robomach database "
+                f"({exc}); move it away or pass another --data"
+            ) from None
         try:
             app = build_app(settings, session)
             host = _display_host(settings)

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import threading
+import weakref
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -334,21 +335,23 @@ def compare_with_cad(
     )
 
 
-_SECTIONS: list[tuple[object, float, list[WallLoop]]] = []
+_SECTIONS: list[tuple[weakref.ref, float, list[WallLoop]]] = []
 _SECTIONS_KEPT = 8
 _SECTIONS_LOCK = threading.Lock()
 
 
 def _sections(mesh, z: float) -> list[WallLoop]:
-    """``section_loops`` of a mesh at ``z``, remembered for the last few (mesh, z): a
-    post-processing run again with other settings compares at the same height."""
+    """``section_loops`` of a mesh at ``z``, remembered for the last few (mesh, z) while the
+    mesh lives: a post-processing run again with other settings compares at the same height.
+    The mesh is held weakly (it held the last eight parts, uploads of 500k triangles too)."""
     z = round(float(z), 5)  # 10 um: the walls are the same a few micrometres up or down
     with _SECTIONS_LOCK:
         for m, zz, loops in _SECTIONS:
-            if m is mesh and zz == z:
+            if m() is mesh and zz == z:
                 return loops
     loops = section_loops(mesh, z)
     with _SECTIONS_LOCK:
-        _SECTIONS.append((mesh, z, loops))
+        _SECTIONS[:] = [entry for entry in _SECTIONS if entry[0]() is not None]
+        _SECTIONS.append((weakref.ref(mesh), z, loops))
         del _SECTIONS[:-_SECTIONS_KEPT]
     return loops

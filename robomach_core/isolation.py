@@ -11,10 +11,15 @@ STRATEGY  Before such an input reaches the native code in this process, the same
           address-space limit (``RLIMIT_AS``) and runs the task there. A child that dies of a
           signal, runs out of its memory or overruns its time is reported as an ``IsolatedError``
           and the helper lives on; a helper that dies is started again at the next call. The
-          answer comes back as JSON (a crashed child's output is never unpickled).
-SOLUTION  ``run_isolated(task, payload, memory_bytes=, timeout_s=) -> dict``; the tasks are the
-          functions of ``TASKS`` (``mesh`` builds the part's convex hull and BVH as the
-          supervisor and the contact model will; ``urdf`` builds the pinocchio model).
+          answer comes back as JSON, and the numeric arrays a task returns (a parsed mesh) as
+          raw bytes described by it, of a plain numeric dtype (a crashed child's output is
+          never unpickled).
+SOLUTION  ``run_isolated(task, payload, memory_bytes=, timeout_s=, name=) -> dict``; a task is
+          a function of ``TASKS`` (``mesh`` builds the part's convex hull and BVH as the
+          supervisor and the contact model will; ``urdf`` builds the pinocchio model) or a
+          module-level function given itself (pickled by name, its module imported by the
+          helper: ``workpiece.parse_mesh_file`` reads a mesh file). A task returns a dict; its
+          ``"arrays"`` entry (name -> numpy array) comes back as arrays.
 """
 
 from __future__ import annotations
@@ -37,7 +42,8 @@ DEFAULT_MEMORY_BYTES = 1 << 30  # what one task may allocate above the helper's 
 DEFAULT_TIMEOUT_S = 60.0
 HELPER_START_TIMEOUT_S = 60.0
 _HEADER = struct.Struct("<Q")
-_MAX_ANSWER_BYTES = 1 << 20
+_MAX_ANSWER_BYTES = 1 << 29  # JSON and arrays (a parsed mesh of 500k triangles: ~20 MB)
+_ARRAY_KINDS = "biuf"  # dtypes an answer's arrays may have (no objects, no pickles)
 
 
 class IsolatedError(RobomachError, ValueError):
@@ -48,9 +54,13 @@ class IsolatedError(RobomachError, ValueError):
             (the helper process could not run it).
     """
 
-    def __init__(self, message: str, *, kind: str = "error") -> None:
+    def __init__(
+        self, message: str, *, kind: str = "error", error_type: str = "", detail: str = ""
+    ) -> None:
         super().__init__(message)
         self.kind = kind
+        self.error_type = error_type  # the class name of what the task raised ("error")
+        self.detail = detail  # its message alone
 
 
 # --- the tasks (they run in the child) -----------------------------------------------------
@@ -158,28 +168,44 @@ def helper_pid() -> int | None:
     return proc.pid if proc is not None and proc.poll() is None else None
 
 
+Task = str | Callable[[dict[str, Any]], dict[str, Any]]
+
+
+def _task_function(task: Task) -> Callable[[dict[str, Any]], dict[str, Any]]:
+    return TASKS[task] if isinstance(task, str) else task
+
+
+def _task_name(task: Task) -> str:
+    return task if isinstance(task, str) else str(getattr(task, "__name__", "isolated"))
+
+
 def run_isolated(
-    task: str,
+    task: Task,
     payload: dict[str, Any],
     *,
     memory_bytes: int = DEFAULT_MEMORY_BYTES,
     timeout_s: float = DEFAULT_TIMEOUT_S,
+    name: str | None = None,
 ) -> dict[str, Any]:
-    """The answer of ``TASKS[task](payload)`` computed in an isolated child process.
+    """The answer of ``TASKS[task](payload)`` (or ``task(payload)``) computed in an isolated
+    child process.
 
     Args:
-        task: A key of ``TASKS``.
+        task: A key of ``TASKS``, or a module-level function.
         payload: The task's input (pickled to the helper, which this process started).
         memory_bytes: Address space the child may add to the helper's.
         timeout_s: Wall-clock limit of the task.
+        name: What the messages call the task ("the <name> check ..."; default its key or
+            its function's name).
 
     Raises:
         IsolatedError: the task crashed (a signal), ran out of memory or time, or raised (the
             message says which, with the exception's class and text).
     """
-    if task not in TASKS:
+    if isinstance(task, str) and task not in TASKS:
         raise KeyError(task)
-    request = pickle.dumps((task, payload, int(memory_bytes), float(timeout_s)), protocol=5)
+    name = name or _task_name(task)
+    request = pickle.dumps((task, name, payload, int(memory_bytes), float(timeout_s)), protocol=5)
     with _HELPER.lock:
         for attempt in (1, 2):  # a helper that died since the last call is started again
             proc = _HELPER.ensure()
@@ -191,15 +217,65 @@ def run_isolated(
                 _HELPER.stop()
                 if attempt == 2:
                     raise IsolatedError(
-                        f"the isolated {task} check could not run (its helper process stopped)",
+                        f"the isolated {name} check could not run (its helper process stopped)",
                         kind="helper",
                     ) from None
+    answer, arrays = answer
     if answer.get("ok"):
-        return answer["value"]
+        value = answer["value"]
+        if arrays:
+            value["arrays"] = arrays
+        return value
     raise IsolatedError(
-        answer.get("error") or f"the isolated {task} check failed",
+        answer.get("error") or f"the isolated {name} check failed",
         kind=str(answer.get("kind", "error")),
+        error_type=str(answer.get("type", "")),
+        detail=str(answer.get("message", "")),
     )
+
+
+def _frame(answer: dict[str, Any], arrays: dict[str, Any] | None = None) -> bytes:
+    """An answer as sent: the JSON's length, the JSON (describing the arrays), the arrays'
+    bytes one after the other."""
+    import numpy as np
+
+    blobs, meta, offset = [], [], 0
+    for name, array in (arrays or {}).items():
+        a = np.ascontiguousarray(array)
+        if a.dtype.kind not in _ARRAY_KINDS:
+            raise TypeError(f"array {name!r} of dtype {a.dtype} cannot be answered")
+        meta.append([str(name), a.dtype.str, list(a.shape), offset, a.nbytes])
+        blobs.append(a.tobytes())
+        offset += a.nbytes
+    head = json.dumps({**answer, "arrays": meta}).encode()
+    return _HEADER.pack(len(head)) + head + b"".join(blobs)
+
+
+def _unframe(data: bytes, *, decode: bool = True) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(the JSON answer, its arrays by name: none unless ``decode``) of ``_frame``'s bytes;
+    ``ValueError`` when they are not such an answer."""
+    import numpy as np
+
+    if len(data) < _HEADER.size:
+        raise ValueError("answer too short")
+    (size,) = _HEADER.unpack_from(data)
+    end = _HEADER.size + size
+    if end > len(data):
+        raise ValueError("answer cut short")
+    answer = json.loads(data[_HEADER.size : end])
+    if not isinstance(answer, dict):
+        raise ValueError("answer is not an object")
+    arrays: dict[str, Any] = {}
+    view = memoryview(data)[end:]
+    for name, dtype, shape, offset, nbytes in answer.pop("arrays", None) or []:
+        kind = np.dtype(dtype)
+        if kind.kind not in _ARRAY_KINDS or offset < 0 or offset + nbytes > len(view):
+            raise ValueError(f"answer array {name!r} is malformed")
+        if not decode:
+            continue
+        flat = np.frombuffer(view[offset : offset + nbytes], dtype=kind)
+        arrays[str(name)] = flat.reshape([int(n) for n in shape]).copy()
+    return answer, arrays
 
 
 def _write(stream: Any, data: bytes) -> None:
@@ -218,7 +294,7 @@ def _read_exact(stream: Any, n: int) -> bytes:
     return b"".join(chunks)
 
 
-def _read(stream: Any, timeout_s: float) -> dict[str, Any]:
+def _read(stream: Any, timeout_s: float) -> tuple[dict[str, Any], dict[str, Any]]:
     import select
 
     ready, _, _ = select.select([stream], [], [], timeout_s)
@@ -227,7 +303,10 @@ def _read(stream: Any, timeout_s: float) -> dict[str, Any]:
     (size,) = _HEADER.unpack(_read_exact(stream, _HEADER.size))
     if size > _MAX_ANSWER_BYTES:
         raise EOFError("answer too large")
-    return json.loads(_read_exact(stream, size))
+    try:
+        return _unframe(_read_exact(stream, size))
+    except ValueError as exc:
+        raise EOFError(f"unreadable answer ({exc})") from None
 
 
 # --- the helper's side --------------------------------------------------------------------
@@ -256,38 +335,57 @@ def _describe_exit(status: int, task: str) -> str:
     return f"the {task} check ended with code {os.WEXITSTATUS(status)} without an answer"
 
 
-def _child(task: str, payload: dict[str, Any], memory_bytes: int, out_fd: int) -> None:
+def _child(task: Task, name: str, payload: dict[str, Any], memory_bytes: int, out_fd: int) -> None:
     """Run one task under the memory limit and write its JSON answer to ``out_fd``."""
     import resource
 
     limit = _address_space_bytes() + memory_bytes
     if limit > memory_bytes:
         resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+    arrays: dict[str, Any] = {}
     try:
-        answer = {"ok": True, "value": TASKS[task](payload)}
+        value = _task_function(task)(payload)
+        arrays = value.pop("arrays", None) or {}
+        answer = {"ok": True, "value": value}
     except MemoryError:
         answer = {
             "ok": False,
             "kind": "memory",
-            "error": f"the {task} check needs more than {memory_bytes / 2**20:.0f} MiB of memory",
+            "error": f"the {name} check needs more than {memory_bytes / 2**20:.0f} MiB of memory",
         }
     except Exception as exc:  # noqa: BLE001 - reported to the caller as its message
-        answer = {"ok": False, "kind": "error", "error": f"{exc.__class__.__name__}: {exc}"[:2000]}
-    data = json.dumps(answer).encode()
+        answer = {
+            "ok": False,
+            "kind": "error",
+            "error": f"{exc.__class__.__name__}: {exc}"[:2000],
+            "type": exc.__class__.__name__,
+            "message": str(exc)[:2000],
+        }
+    try:
+        data = _frame(answer, arrays)
+    except MemoryError:
+        too_big = f"the {name} check's answer does not fit in its memory"
+        data = _frame({"ok": False, "kind": "memory", "error": too_big})
     with os.fdopen(out_fd, "wb") as out:
         out.write(data)
 
 
-def _run_forked(task: str, payload: dict[str, Any], memory_bytes: int, timeout_s: float) -> dict:
+def _run_forked(
+    task: Task, name: str, payload: dict[str, Any], memory_bytes: int, timeout_s: float
+) -> bytes:
     import select
 
     read_fd, write_fd = os.pipe()
+    helper = os.getpid()
     pid = os.fork()
     if pid == 0:  # the child
+        from .lifetime import die_with_parent
+
+        die_with_parent(helper)  # a helper that ends (its server killed) takes the task along
         os.close(read_fd)
         code = 0
         try:
-            _child(task, payload, memory_bytes, write_fd)
+            _child(task, name, payload, memory_bytes, write_fd)
         except BaseException:  # noqa: BLE001 - the child must always _exit
             code = 1
         os._exit(code)
@@ -312,22 +410,28 @@ def _run_forked(task: str, payload: dict[str, Any], memory_bytes: int, timeout_s
         os.kill(pid, signal.SIGKILL)
     _, status = os.waitpid(pid, 0)
     if timed_out:
-        return {
+        return _frame({
             "ok": False,
             "kind": "timeout",
-            "error": f"the {task} check took longer than {timeout_s:g} s",
-        }
+            "error": f"the {name} check took longer than {timeout_s:g} s",
+        })  # fmt: skip
     data = b"".join(chunks)
     if os.WIFEXITED(status) and os.WEXITSTATUS(status) == 0 and data:
         try:
-            return json.loads(data)
+            _unframe(data, decode=False)
         except ValueError:
             pass
-    return {"ok": False, "kind": "crash", "error": _describe_exit(status, task)}
+        else:
+            return data
+    return _frame({"ok": False, "kind": "crash", "error": _describe_exit(status, name)})
 
 
 def serve() -> None:
-    """The helper's loop: read a request from stdin, answer on stdout, until stdin closes."""
+    """The helper's loop: read a request from stdin, answer on stdout, until stdin closes or
+    the process that started it ends (killed: it never closes stdin while a task runs)."""
+    from .lifetime import end_with
+
+    end_with(os.getppid())
     import coal  # noqa: F401 - imported once here, shared by every forked child
     import numpy  # noqa: F401
     import pinocchio  # noqa: F401
@@ -339,9 +443,7 @@ def serve() -> None:
     while True:
         try:
             (size,) = _HEADER.unpack(_read_exact(stdin, _HEADER.size))
-            task, payload, memory_bytes, timeout_s = pickle.loads(_read_exact(stdin, size))
+            task, name, payload, memory_bytes, timeout_s = pickle.loads(_read_exact(stdin, size))
         except (EOFError, OSError):
             return
-        answer = _run_forked(task, payload, memory_bytes, timeout_s)
-        data = json.dumps(answer).encode()
-        _write(stdout, data)
+        _write(stdout, _run_forked(task, name, payload, memory_bytes, timeout_s))

@@ -9,15 +9,18 @@ STRATEGY  Refuse from the file's bytes what would cost memory to parse (``workpi
           the triangles; here the vertices), then from the parsed mesh what the cell cannot
           use: non-finite coordinates, a mesh far from its own origin (where float32 files
           lose the part), a size outside 1-2000 mm, a part thinner than ``MIN_THICKNESS_M``
-          along its thinnest principal axis (flat, a line, a point). Then the native steps run
-          once in an isolated process (``isolation``, task ``mesh``): a crash there refuses the
-          mesh instead of killing the caller, and the hull's volume it measured is checked.
+          along its thinnest principal axis (flat, a line, a point); faces repeated in the same
+          turning order are dropped and a mesh of more than ``MAX_MESH_BODIES`` separate bodies
+          is refused before anything splits it (issue 32). Then the native steps run once in an
+          isolated process (``isolation``, task ``mesh``): a crash there refuses the mesh
+          instead of killing the caller, and the hull's volume it measured is checked.
 SOLUTION  ``check_mesh_bytes`` before parsing, ``check_mesh(mesh, name)`` after (metres), called
-          by ``workpiece.mesh_from_bytes`` for every mesh that enters: uploads, stock meshes,
-          project files and stored projects. Watertightness is not required: the contact model
-          and the clearance probe work on triangles, the supervisor on the convex hull, and a
-          watertight part written as STL (float32, touching solids) is often not watertight
-          when read back (the built-in water pump is not).
+          by ``workpiece.parse_mesh_file`` (in an isolated process, with a time limit) for
+          every mesh that enters: uploads, stock meshes, project files and stored projects.
+          Watertightness is not required: the contact model and the clearance probe work on
+          triangles, the supervisor on the convex hull, and a watertight part written as STL
+          (float32, touching solids) is often not watertight when read back (the built-in
+          water pump is not).
 """
 
 from __future__ import annotations
@@ -42,6 +45,10 @@ VERTICES_PER_TRIANGLE = 3
 # What the isolated native check may allocate, and how long it may take.
 NATIVE_CHECK_MEMORY_BYTES = 1 << 30
 NATIVE_CHECK_TIMEOUT_S = 60.0
+# Separate bodies a workpiece may have (a part and its bosses, a few loose pieces): above it,
+# joining them (``workpiece.solid_mesh``: split, then a boolean union) is the expensive step
+# (100,000 loose tetrahedra: 81 s and 1.7 GB) for a file that is no part.
+MAX_MESH_BODIES = 500
 
 
 def _obj_vertex_lines(data: bytes) -> int:
@@ -85,7 +92,7 @@ def principal_extents_m(vertices: np.ndarray) -> np.ndarray:
     return np.sort(along.max(axis=0) - along.min(axis=0))[::-1]
 
 
-def check_mesh(mesh: trimesh.Trimesh, name: str, *, native: bool = True) -> trimesh.Trimesh:
+def check_mesh(mesh: trimesh.Trimesh, name: str, *, native: bool | str = True) -> trimesh.Trimesh:
     """``mesh`` (metres) without its degenerate faces when the cell can use it, else
     ``MeshFileError`` naming what is wrong.
 
@@ -93,7 +100,8 @@ def check_mesh(mesh: trimesh.Trimesh, name: str, *, native: bool = True) -> trim
         mesh: A parsed mesh, already scaled to metres (changed in place: degenerate faces and
             the vertices no face uses are dropped).
         name: The file's name for messages.
-        native: Also run the native steps once in an isolated process (``isolation``).
+        native: Also run the native steps once in an isolated process (``isolation``);
+            ``"here"``: in this process, which is such a process already.
     """
     vertices = np.asarray(mesh.vertices)
     if len(mesh.faces) == 0 or len(vertices) == 0:
@@ -113,6 +121,13 @@ def check_mesh(mesh: trimesh.Trimesh, name: str, *, native: bool = True) -> trim
         mesh.remove_unreferenced_vertices()
     if len(mesh.faces) == 0:
         raise MeshFileError(f"{name}: every triangle is degenerate (zero area)")
+    drop_duplicate_faces(mesh)
+    bodies = count_bodies(np.asarray(mesh.faces), len(mesh.vertices))
+    if bodies > MAX_MESH_BODIES:
+        raise MeshFileError(
+            f"{name}: the mesh is {bodies} separate bodies, more than {MAX_MESH_BODIES}: a "
+            "workpiece is one part (join its bodies, or leave out the loose ones)"
+        )
     extent = float(np.max(mesh.extents))
     if not (MIN_EXTENT_M <= extent <= MAX_EXTENT_M):
         raise MeshFileError(
@@ -126,22 +141,64 @@ def check_mesh(mesh: trimesh.Trimesh, name: str, *, native: bool = True) -> trim
             f"or a line); a workpiece must be at least {MIN_THICKNESS_M * 1e3:g} mm thick"
         )
     if native:
-        _check_native(mesh, name)
+        _check_native(mesh, name, here=native == "here")
     return mesh
 
 
-def _check_native(mesh: trimesh.Trimesh, name: str) -> None:
-    """The convex hull, BVH and a distance query, built once in an isolated process."""
-    from .isolation import IsolatedError, run_isolated
+def drop_duplicate_faces(mesh: trimesh.Trimesh) -> int:
+    """Drop the faces that repeat another with the same vertices in the same turning order
+    (changed in place); returns how many went. One face written 500,000 times was split
+    into as many bodies (96-126 s, 2.2 GB). A face and its reverse both stay (two bodies
+    touching there)."""
+    faces = np.asarray(mesh.faces)
+    turn = (np.argmin(faces, axis=1)[:, None] + np.arange(3)) % 3
+    canonical = np.take_along_axis(faces, turn, axis=1)
+    _, first = np.unique(canonical, axis=0, return_index=True)
+    dropped = len(faces) - len(first)
+    if dropped:
+        keep = np.zeros(len(faces), dtype=bool)
+        keep[first] = True
+        mesh.update_faces(keep)
+        mesh.remove_unreferenced_vertices()
+    return dropped
 
+
+def count_bodies(faces: np.ndarray, n_vertices: int) -> int:
+    """Separate bodies of a mesh: sets of faces joined through shared vertices (linear
+    time; ``trimesh.split`` builds a mesh per body)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    f = np.asarray(faces, dtype=np.int64)
+    if len(f) == 0:
+        return 0
+    rows = np.concatenate([f[:, 0], f[:, 1]])
+    cols = np.concatenate([f[:, 1], f[:, 2]])
+    graph = coo_matrix((np.ones(len(rows), dtype=bool), (rows, cols)), (n_vertices, n_vertices))
+    _, labels = connected_components(graph, directed=False)
+    return int(len(np.unique(labels[f[:, 0]])))
+
+
+def _check_native(mesh: trimesh.Trimesh, name: str, *, here: bool = False) -> None:
+    """The convex hull, BVH and a distance query, built once in an isolated process (``here``:
+    this process is one already, ``workpiece.parse_mesh_file``)."""
+    from .isolation import TASKS, IsolatedError, run_isolated
+
+    payload = {"vertices": np.asarray(mesh.vertices, dtype=float),
+               "faces": np.asarray(mesh.faces, dtype=np.int64)}  # fmt: skip
     try:
-        answer = run_isolated(
-            "mesh",
-            {"vertices": np.asarray(mesh.vertices, dtype=float),
-             "faces": np.asarray(mesh.faces, dtype=np.int64)},
-            memory_bytes=NATIVE_CHECK_MEMORY_BYTES,
-            timeout_s=NATIVE_CHECK_TIMEOUT_S,
-        )  # fmt: skip
+        if here:
+            try:
+                answer = TASKS["mesh"](payload)
+            except (RuntimeError, ValueError) as exc:  # coal, qhull: refused, not a crash
+                raise IsolatedError(f"{exc.__class__.__name__}: {exc}") from None
+        else:
+            answer = run_isolated(
+                "mesh",
+                payload,
+                memory_bytes=NATIVE_CHECK_MEMORY_BYTES,
+                timeout_s=NATIVE_CHECK_TIMEOUT_S,
+            )
     except IsolatedError as exc:
         raise MeshFileError(f"{name}: the geometry library cannot use this mesh ({exc})") from None
     volume = float(answer.get("hull_volume_m3", 0.0))

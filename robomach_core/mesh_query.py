@@ -45,6 +45,8 @@ def _kept(table: dict, key: Hashable, mesh: trimesh.Trimesh, build: Callable[[],
     if hit is not None and hit[0]() is mesh:
         return hit[1]
     value = build()
+    for old in [k for k, (ref, _) in table.items() if ref() is None]:
+        del table[old]  # a mesh that died (the cell changed): its trees go now, not later
     if len(table) >= _KEPT:
         table.clear()
     table[key] = (weakref.ref(mesh), value)

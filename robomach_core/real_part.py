@@ -28,6 +28,7 @@ from __future__ import annotations
 import hashlib
 import math
 import threading
+import weakref
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
@@ -373,8 +374,11 @@ def real_contour(contour: Contour, warp: CastingWarp, fixture: FixtureError) -> 
     return Contour(lines, closed=contour.closed)
 
 
-_CACHE: list[tuple[str, PartDeviation, Workpiece]] = []
-_CACHE_SIZE = 8
+# Real parts by (CAD fingerprint, deviation), kept while something uses them (the live cell):
+# a list of the last eight held eight parts' meshes, uploads of 500k triangles too (issue 32).
+_CACHE: weakref.WeakValueDictionary[tuple[str, PartDeviation], Workpiece] = (
+    weakref.WeakValueDictionary()
+)
 _CACHE_LOCK = threading.Lock()
 
 
@@ -428,13 +432,12 @@ def real_workpiece(cad: Workpiece, deviation: PartDeviation | None) -> Workpiece
         return cad
     if cad.nominal is not None:
         raise InvalidInputError("the part already deviates from its CAD")
-    key = _part_key(cad)
+    key = (_part_key(cad), deviation)
     with _CACHE_LOCK:
-        for k, dev, real in _CACHE:
-            if k == key and dev == deviation:
-                return real
+        real = _CACHE.get(key)
+    if real is not None:
+        return real
     real = _real(cad, deviation)
     with _CACHE_LOCK:
-        _CACHE.append((key, deviation, real))
-        del _CACHE[:-_CACHE_SIZE]
+        _CACHE[key] = real
     return real

@@ -9,20 +9,32 @@ STRATEGY  Bound the text (size, XML nesting, element count) while it is read as 
           above real arms (the largest URDF of example-robot-data, TIAGo dual: 211 KB, 130 links,
           depth under 20) and far below what the parser survives. A zip is judged by its
           central directory before anything is extracted: how many entries, then the declared
-          sizes of the one URDF and of the mesh files it references, summed; the files the URDF
-          does not reference are never read. Finally the pinocchio model is built once in an
-          isolated process (``isolation``, task ``urdf``) so that a crash left unforeseen here
-          refuses the file instead of killing the caller.
+          sizes of the one URDF and of the mesh files it references, summed once per reference
+          (the scene loads a file again for each ``<mesh>`` that names it: a 31 KB URDF naming
+          one 25 MB mesh from 120 links took a server from 3.1 to 6.2 GB, issue 32); the files
+          the URDF does not reference are never read. Every mesh reference must name a file of
+          the upload (``reference_parts``: no absolute path, ``file://``, other scheme or
+          ``..``; it scene loaded any mesh file of the server's disk) of a type the scene reads
+          without following references of its own further than the sanitised copy
+          (``MESH_REFERENCE_SUFFIXES``); the scene resolves references with
+          ``resolve_reference``, which cannot leave the upload's members. Finally the pinocchio
+          model is built once in an isolated process (``isolation``, task ``urdf``) so that a
+          crash left unforeseen here refuses the file instead of killing the caller.
 SOLUTION  ``check_urdf_text(text, filename)``, ``read_robot_zip(filename, data) -> (text,
-          files)`` and ``check_urdf_native(text, filename)``, called by ``robots.custom``.
+          files)``, ``read_package_meshes`` (a bare URDF's example-robot-data meshes),
+          ``resolve_reference`` and ``check_urdf_native(text, filename)``, called by
+          ``robots.custom``.
 """
 
 from __future__ import annotations
 
 import io
+import math
 import posixpath
 import xml.etree.ElementTree as ET
 import zipfile
+from collections.abc import Iterable
+from pathlib import Path
 
 from .errors import RobomachError
 
@@ -36,6 +48,18 @@ MAX_ZIP_ENTRIES = 10_000
 MAX_ROBOT_MESH_FILES = 200
 MAX_ROBOT_UNPACKED_BYTES = 100_000_000  # the URDF and the mesh files it references, declared
 MAX_ROBOT_MESH_BYTES = 50_000_000  # one mesh file, as the workpiece reader's limit
+# Attributes of URDF elements that hold numbers (origins, axes, limits, shapes, inertia).
+NUMERIC_ATTRIBUTES = frozenset(
+    {"xyz", "rpy", "scale", "size", "radius", "length", "lower", "upper", "effort", "velocity",
+     "value", "ixx", "ixy", "ixz", "iyy", "iyz", "izz", "damping", "friction", "rising",
+     "falling", "soft_lower_limit", "soft_upper_limit", "k_position", "k_velocity",
+     "multiplier", "offset", "rgba"}
+)  # fmt: skip
+MAX_ROBOT_REFERENCED_TRIANGLES = 2_000_000  # summed over the <mesh> references: each loads
+# Mesh types the scene (trimesh, through yourdfpy) reads; their own references to other files
+# (an OBJ's mtllib, a COLLADA file's images) are dropped from the copy the scene reads.
+MESH_REFERENCE_SUFFIXES = (".stl", ".obj", ".ply", ".dae")
+EXAMPLE_ROBOT_DATA_PREFIX = "package://example-robot-data/robots/"
 NATIVE_CHECK_MEMORY_BYTES = 1 << 30
 NATIVE_CHECK_TIMEOUT_S = 60.0
 
@@ -66,6 +90,7 @@ def check_urdf_text(
 def _check_urdf_text(text: str, filename: str) -> None:
     parser = ET.XMLPullParser(events=("start", "end"))
     depth, elements = 0, 0
+    owner = "robot"
     links: list[str] = []
     edges: list[tuple[str, str]] = []
     try:
@@ -87,8 +112,11 @@ def _check_urdf_text(text: str, filename: str) -> None:
                     )
                 if elements > MAX_XML_ELEMENTS:
                     raise UrdfBoundsError(f"{filename}: more than {MAX_XML_ELEMENTS} XML elements")
-                if depth == 2 and element.tag == "link":
-                    links.append(str(element.get("name")))
+                if depth == 2:
+                    owner = f"{element.tag} {element.get('name')!r}"
+                    if element.tag == "link":
+                        links.append(str(element.get("name")))
+                _check_numbers(element, owner if depth >= 2 else "robot", filename)
         parser.close()
     except ET.ParseError:
         return  # validate_urdf reports it as "not valid XML"
@@ -99,6 +127,24 @@ def _check_urdf_text(text: str, filename: str) -> None:
     if len(edges) > MAX_URDF_JOINTS:
         raise UrdfBoundsError(f"{filename}: {len(edges)} joints, more than {MAX_URDF_JOINTS}")
     _check_tree(links, edges, filename)
+
+
+def _check_numbers(element: ET.Element, owner: str, filename: str) -> None:
+    """``UrdfBoundsError`` when a numeric attribute (``NUMERIC_ATTRIBUTES``) holds a number
+    that is not finite: an infinite visual origin was accepted and flooded the log with the
+    viewer's warnings at every frame (issue 32). Text that is not a number is left to the
+    parsers' own messages."""
+    for attribute in NUMERIC_ATTRIBUTES.intersection(element.attrib):
+        text = element.attrib[attribute]
+        try:
+            values = [float(v) for v in text.split()]
+        except ValueError:
+            continue
+        if not all(math.isfinite(v) for v in values):
+            raise UrdfBoundsError(
+                f"{filename}: {owner}: <{element.tag} {attribute}={text[:80]!r}> is not a "
+                "finite number"
+            )
 
 
 def _check_tree(links: list[str], edges: list[tuple[str, str]], filename: str) -> None:
@@ -134,12 +180,13 @@ def _check_tree(links: list[str], edges: list[tuple[str, str]], filename: str) -
 
 
 def mesh_references(text: str) -> list[str]:
-    """The ``filename`` of every ``<mesh>`` of the URDF, as written."""
+    """The ``filename`` of every ``<mesh>`` of the URDF, as written, in order (a file named by
+    several ``<mesh>`` elements is listed each time: each is loaded)."""
     try:
         root = ET.fromstring(text)
     except ET.ParseError:
         return []
-    return [str(m.get("filename")) for m in root.iter("mesh") if m.get("filename")]
+    return [str(m.get("filename")) for m in root.iter("mesh") if m.get("filename") is not None]
 
 
 def _parts(path: str) -> tuple[str, ...]:
@@ -150,6 +197,70 @@ def _parts(path: str) -> tuple[str, ...]:
         path = path[len("file://") :]
     norm = posixpath.normpath(path.replace("\\", "/"))
     return tuple(p for p in norm.split("/") if p not in ("", ".", ".."))
+
+
+def reference_problem(reference: str) -> str | None:
+    """Why a ``<mesh filename>`` cannot name a file of an upload, or None when it can: a
+    relative path or ``package://<package>/<path>`` without ``..``, of a mesh type the scene
+    reads (``MESH_REFERENCE_SUFFIXES``)."""
+    ref = reference.strip()
+    if not ref:
+        return "is empty"
+    if any(ord(ch) < 32 for ch in ref):
+        return "holds control characters"
+    if ref.startswith("file:"):
+        return "is a file:// URL (a file of the server's disk, not of the upload)"
+    scheme = ref.split("://", 1)[0] if "://" in ref else ""
+    if scheme and scheme != "package":
+        return f"is a {scheme}:// URL, not a file of the upload"
+    rest = ref[len("package://") :] if scheme == "package" else ref
+    if scheme == "package" and "/" not in rest.strip("/"):
+        return "names a package but no file in it"
+    path = rest.replace("\\", "/")
+    if scheme == "package":
+        path = path.split("/", 1)[1]
+    if path.startswith("/") or (len(path) > 1 and path[1] == ":"):
+        return "is an absolute path (a file of the server's disk, not of the upload)"
+    if ".." in path.split("/"):
+        return "climbs out of its folder (..)"
+    suffix = posixpath.splitext(path)[1].lower()
+    if suffix not in MESH_REFERENCE_SUFFIXES:
+        return (
+            f"is a {suffix or 'suffix-less'} file; meshes must be "
+            f"{', '.join(s.upper().lstrip('.') for s in MESH_REFERENCE_SUFFIXES)}"
+        )
+    return None
+
+
+def check_references(
+    references: list[str], filename: str, error: type[RobomachError] = UrdfBoundsError
+) -> None:
+    """``error`` naming the first reference that cannot name a file of the upload."""
+    for ref in dict.fromkeys(references):
+        problem = reference_problem(ref)
+        if problem is not None:
+            raise error(f"{filename}: the mesh reference {ref[:200]!r} {problem}")
+
+
+def resolve_reference(reference: str, members: Iterable[str]) -> str | None:
+    """The member of an upload a mesh reference names (``is_referenced``; the member sharing
+    the longest tail with it when several do), or None: a reference ``reference_problem``
+    refuses never resolves, whatever the members."""
+    if reference_problem(reference) is not None:
+        return None
+    theirs = _parts(reference)
+    best, best_k = None, 0
+    for member in members:
+        mine = _parts(member)
+        if not mine or ".." in member.replace("\\", "/").split("/") or member.startswith("/"):
+            continue
+        k = min(len(mine), len(theirs))
+        if not (k and mine[-k:] == theirs[-k:] and (k >= 2 or len(mine) == len(theirs) == 1)):
+            continue
+        shared = next((i for i in range(1, k + 1) if mine[-i] != theirs[-i]), k + 1) - 1
+        if shared > best_k:
+            best, best_k = member, shared
+    return best
 
 
 def is_referenced(member: str, references: list[str]) -> bool:
@@ -163,6 +274,24 @@ def is_referenced(member: str, references: list[str]) -> bool:
         if k and mine[-k:] == theirs[-k:] and (k >= 2 or len(mine) == len(theirs) == 1):
             return True
     return False
+
+
+def _check_reference_cost(
+    references: list[str],
+    sizes: dict[str, int],
+    resolved: dict[str, str],
+    text_bytes: int,
+    filename: str,
+    error: type[RobomachError],
+) -> None:
+    """The bytes the scene reads: the URDF and, for every reference, its file again."""
+    total = text_bytes + sum(sizes[resolved[ref]] for ref in references)
+    if total > MAX_ROBOT_UNPACKED_BYTES:
+        raise error(
+            f"{filename}: the URDF's {len(references)} mesh references load "
+            f"{total / 1e6:.1f} MB (a file is loaded again for each reference to it), more "
+            f"than {MAX_ROBOT_UNPACKED_BYTES / 1e6:g} MB"
+        )
 
 
 def _entry_count(data: bytes) -> int | None:
@@ -226,7 +355,18 @@ def read_robot_zip(
         except UnicodeDecodeError:
             raise error(f"{urdf.filename}: not UTF-8 text") from None
         references = mesh_references(text)
-        wanted = [i for i in infos if i is not urdf and is_referenced(i.filename, references)]
+        check_references(references, filename, error)
+        members = {i.filename: i for i in infos if i is not urdf}
+        resolved = {}
+        for ref in dict.fromkeys(references):
+            member = resolve_reference(ref, members)
+            if member is None:
+                raise error(
+                    f"{filename}: the mesh reference {ref[:200]!r} names no file of the zip; "
+                    "put the meshes the URDF names in the zip beside it"
+                )
+            resolved[ref] = member
+        wanted = [members[m] for m in dict.fromkeys(resolved.values())]
         if len(wanted) > MAX_ROBOT_MESH_FILES:
             raise error(
                 f"{filename}: the URDF references {len(wanted)} files of the zip, more than "
@@ -238,12 +378,8 @@ def read_robot_zip(
                     f"{filename}: {info.filename} declares {info.file_size / 1e6:.1f} MB, more "
                     f"than {MAX_ROBOT_MESH_BYTES / 1e6:g} MB for one mesh"
                 )
-        total = urdf.file_size + sum(i.file_size for i in wanted)
-        if total > MAX_ROBOT_UNPACKED_BYTES:
-            raise error(
-                f"{filename}: the URDF and its meshes unpack to {total / 1e6:.1f} MB, more than "
-                f"{MAX_ROBOT_UNPACKED_BYTES / 1e6:g} MB"
-            )
+        sizes = {i.filename: i.file_size for i in wanted}
+        _check_reference_cost(references, sizes, resolved, urdf.file_size, filename, error)
         files = {i.filename: archive.read(i) for i in wanted}
     except (zipfile.BadZipFile, OSError, EOFError, ValueError, NotImplementedError) as exc:
         if isinstance(exc, RobomachError):
@@ -251,14 +387,60 @@ def read_robot_zip(
         raise error(f"{filename}: a file in the zip is damaged ({exc})") from None
     finally:
         archive.close()
-    _check_meshes(files, filename, error)
+    _check_meshes(files, [resolved[ref] for ref in references], filename, error)
     return text, files
 
 
-def _check_meshes(files: dict[str, bytes], filename: str, error: type[RobomachError]) -> None:
-    """Mesh files the viewer will parse: STL/OBJ/PLY within the workpiece reader's triangles."""
+def read_package_meshes(
+    text: str, filename: str, error: type[RobomachError] = UrdfBoundsError
+) -> dict[str, bytes]:
+    """The mesh files a bare URDF (no zip) references, by member path: only files of the
+    installed example-robot-data (``package://example-robot-data/...``: a UR copied out of
+    it names its meshes so), read from inside its robots folder, bounded like a zip's; any
+    other reference is refused with ``error`` naming it (a .urdf brings no file of its own)."""
+    from .robots.registry import robots_directory
+
+    references = mesh_references(text)
+    check_references(references, filename, error)
+    root = robots_directory().resolve()
+    paths: dict[str, Path] = {}
+    for ref in dict.fromkeys(references):
+        path = None
+        if ref.startswith(EXAMPLE_ROBOT_DATA_PREFIX):
+            candidate = (root / ref[len(EXAMPLE_ROBOT_DATA_PREFIX) :]).resolve()
+            if root in candidate.parents and candidate.is_file():
+                path = candidate
+        if path is None:
+            raise error(
+                f"{filename}: the mesh reference {ref[:200]!r} names no file of the upload; a "
+                ".urdf brings no meshes: upload a .zip of the URDF and the meshes it names"
+            )
+        paths[ref] = path
+    members = {ref: f"example-robot-data/robots/{p.relative_to(root).as_posix()}"
+               for ref, p in paths.items()}  # fmt: skip
+    sizes = {members[ref]: p.stat().st_size for ref, p in paths.items()}
+    for member, size in sizes.items():
+        if size > MAX_ROBOT_MESH_BYTES:
+            raise error(f"{filename}: {member} is {size / 1e6:.1f} MB, more than one mesh may be")
+    size_text = len(text.encode("utf-8", "surrogatepass"))
+    _check_reference_cost(references, sizes, members, size_text, filename, error)
+    files = {members[ref]: p.read_bytes() for ref, p in paths.items()}
+    _check_meshes(files, [members[ref] for ref in references], filename, error)
+    return files
+
+
+def _check_meshes(
+    files: dict[str, bytes],
+    referenced: list[str],
+    filename: str,
+    error: type[RobomachError],
+) -> None:
+    """Mesh files the viewer will parse: STL/OBJ/PLY within the workpiece reader's triangles
+    each, and within ``MAX_ROBOT_REFERENCED_TRIANGLES`` summed over the references (each is
+    loaded)."""
     from .workpiece import MAX_MESH_TRIANGLES, count_mesh_triangles
 
+    triangles: dict[str, int] = {}
     for path, data in files.items():
         kind = posixpath.splitext(path)[1].lower()
         if kind in (".stl", ".obj", ".ply"):
@@ -268,6 +450,13 @@ def _check_meshes(files: dict[str, bytes], filename: str, error: type[RobomachEr
                     f"{filename}: {path} holds {'at least ' if not complete else ''}{count} "
                     f"triangles, more than {MAX_MESH_TRIANGLES}"
                 )
+            triangles[path] = count
+    total = sum(triangles.get(member, 0) for member in referenced)
+    if total > MAX_ROBOT_REFERENCED_TRIANGLES:
+        raise error(
+            f"{filename}: the URDF's mesh references load {total} triangles (a file again for "
+            f"each reference to it), more than {MAX_ROBOT_REFERENCED_TRIANGLES}"
+        )
 
 
 def check_urdf_native(

@@ -24,6 +24,10 @@ WORKPIECE_NAMES = ("water_pump", "block", "s_groove")
 MESH_SUFFIXES = (".stl", ".obj", ".ply")
 MAX_MESH_BYTES = 50 * 1024 * 1024
 MAX_MESH_TRIANGLES = 500_000
+# Reading a mesh file (``parse_mesh_file``, in an isolated process): memory it may take above
+# the helper's own, and time (a good 500k-triangle part reads in about 8 s).
+PARSE_MEMORY_BYTES = 2 << 30
+PARSE_TIMEOUT_S = 60.0
 # Contact stiffness measured in the papers (Cibatool 85 N/mm, aluminium 143 N/mm).
 CONTACT_STIFFNESS_N_M = {"cast_iron": 100e3, "aluminium": 143e3, "cibatool": 85e3}
 # The water-pump plate sits on the table in front of a UR10 (metres, base frame).
@@ -377,9 +381,10 @@ def mesh_from_bytes(
     """A workpiece from the bytes of a mesh file (uploads, ``pipeline.load_workpiece``). A file
     with more than ``max_triangles`` (or three times as many vertices) is refused from its
     bytes, before it is parsed (``count_mesh_triangles``, ``mesh_check.check_mesh_bytes``);
-    the parsed mesh must pass ``mesh_check.check_mesh`` (finite, near its origin, 1-2000 mm,
-    not flat, and the native hull and BVH built once in an isolated process)."""
-    import io
+    it is then read in an isolated process within ``PARSE_MEMORY_BYTES`` and
+    ``PARSE_TIMEOUT_S`` (``parse_mesh_file``: a degenerate file that costs minutes or
+    gigabytes there is refused, the caller unharmed; issue 32)."""
+    from .isolation import IsolatedError, run_isolated
 
     kind = suffix.lower().lstrip(".")
     if f".{kind}" not in MESH_SUFFIXES:
@@ -391,6 +396,41 @@ def mesh_from_bytes(
             f"limit of {max_triangles} (simplify the mesh)"
         )
     check_mesh_bytes(data, kind, name, max_triangles=max_triangles)
+    payload = {"data": bytes(data), "kind": kind, "name": name, "scale": float(scale),
+               "max_triangles": int(max_triangles)}  # fmt: skip
+    try:
+        answer = run_isolated(
+            parse_mesh_file,
+            payload,
+            memory_bytes=PARSE_MEMORY_BYTES,
+            timeout_s=PARSE_TIMEOUT_S,
+            name="mesh reading",
+        )
+    except IsolatedError as exc:
+        if exc.error_type == MeshFileError.__name__:
+            raise MeshFileError(exc.detail) from None
+        raise MeshFileError(f"{name}: this mesh cannot be read ({exc}); simplify it") from None
+    arrays = answer["arrays"]
+    mesh = trimesh.Trimesh(arrays["vertices"], arrays["faces"], process=False)
+    z_top = float(answer["z_top_m"])
+    return Workpiece(
+        name=name,
+        mesh=mesh,
+        T_base_wobj=DEFAULT_T_BASE_WOBJ.copy() if T_base_wobj is None else T_base_wobj,
+        surface_z_m=z_top,
+        wall_z_m=(float(answer["z_low_m"]), z_top),
+    )
+
+
+def parse_mesh_file(payload: dict) -> dict:
+    """The isolated half of ``mesh_from_bytes`` (run by ``isolation.run_isolated``): parse
+    the file, check it (``mesh_check.check_mesh``: duplicate faces dropped, too many bodies
+    refused before any split, the native steps run here) and make it one solid. Returns
+    ``z_top_m``, ``z_low_m`` and ``arrays`` (``vertices`` (n, 3) m, ``faces`` (m, 3))."""
+    import io
+
+    data, kind, name = payload["data"], payload["kind"], payload["name"]
+    max_triangles = payload["max_triangles"]
     try:
         loaded = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=True)
     except Exception as exc:  # trimesh raises many types for corrupt files
@@ -405,14 +445,15 @@ def mesh_from_bytes(
         )
     if not np.all(np.isfinite(loaded.vertices)):
         raise MeshFileError(f"{name}: the mesh has non-finite vertices (NaN or infinity)")
-    loaded.apply_scale(scale)
-    check_mesh(loaded, name)  # size, thickness, far away; native steps in a child process
+    loaded.apply_scale(payload["scale"])
+    check_mesh(loaded, name, native="here")  # size, thickness, bodies, the native steps
     z_top = float(loaded.bounds[1, 2])
     loaded = solid_mesh(loaded)
-    return Workpiece(
-        name=name,
-        mesh=loaded,
-        T_base_wobj=DEFAULT_T_BASE_WOBJ.copy() if T_base_wobj is None else T_base_wobj,
-        surface_z_m=z_top,
-        wall_z_m=(float(loaded.bounds[0, 2]), z_top),
-    )
+    return {
+        "z_top_m": z_top,
+        "z_low_m": float(loaded.bounds[0, 2]),
+        "arrays": {
+            "vertices": np.asarray(loaded.vertices, dtype=np.float64),
+            "faces": np.asarray(loaded.faces, dtype=np.int64),
+        },
+    }

@@ -90,6 +90,11 @@ EXPECTED: dict[str, list[str]] = {
         rf"unpaced \(planning only\)\s+1\s+{NUMBER}\s+{NUMBER}\s+{NUMBER}",
         r"points within 5 s \(paced\): \d of 1",
     ],
+    "bench_soak.py": [
+        rf"soak: {NUMBER} min, \d+ event readers, \d+ rounds",
+        r"done: \d+ comparisons, \d+ uploads, \d+ cell changes; \d+ robot events read",
+        rf"server RSS \d+-\d+ MiB, slope {NUMBER} MiB/min, last minus first {NUMBER} MiB",
+    ],
     "bench_browser_pose_rate.py": [
         rf"handle\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
         rf"rest\s+\d+ pose updates in {NUMBER} s: +{NUMBER} Hz",
@@ -133,6 +138,7 @@ SLOW_SCRIPTS = frozenset(
         "bench_machining.py",
         "bench_pointing.py",
         "bench_reads_during_postprocess.py",
+        "bench_soak.py",
     }
 )
 

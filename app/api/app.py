@@ -459,7 +459,9 @@ def _add_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(sqlite3.Error)
     async def storage_error(request: Request, exc: sqlite3.Error) -> JSONResponse:
-        log.exception("storage error on %s %s", request.method, request.url.path)
+        # An operational condition (another program holds the file's lock), not a fault here:
+        # one line, no traceback. Nothing was applied (the session saves before it applies).
+        log.warning("storage error on %s %s: %s", request.method, request.url.path, exc)
         return JSONResponse(
             {"detail": f"the project database is unavailable ({exc}); try again"}, status_code=503
         )

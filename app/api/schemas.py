@@ -518,12 +518,18 @@ class ProjectPublic(BaseModel):
     created_s: float = Field(description="Unix time")
     updated_s: float = Field(description="Unix time of the last change")
     is_open: bool
+    notice: str = Field(
+        "",
+        description="what the open project's user must know, e.g. that its stored arm was "
+        "refused and it opened on the default arm (empty when nothing)",
+    )
 
     @classmethod
     def from_info(cls, p: ProjectInfo) -> ProjectPublic:
         return cls(
-            id=p.id, name=p.name, created_s=p.created_s, updated_s=p.updated_s, is_open=p.is_open
-        )
+            id=p.id, name=p.name, created_s=p.created_s, updated_s=p.updated_s,
+            is_open=p.is_open, notice=p.notice,
+        )  # fmt: skip
 
 
 # --- cell --------------------------------------------------------------------------------

@@ -70,13 +70,25 @@ def _load_urdf_bytes(robot: str) -> tuple[Path, bytes]:
 
 
 def load_urdf(robot: str):  # -> yourdfpy.URDF
-    """A fresh yourdfpy URDF of ``robot`` with its visual meshes (each ViserUrdf owns one)."""
+    """A fresh yourdfpy URDF of ``robot`` with its visual meshes (each ViserUrdf owns one).
+
+    An uploaded arm's meshes are resolved by ``robots.custom.mesh_path`` inside its own
+    folder only: a reference to any other file loads nothing (an absolute path or ``file://``
+    read the server's disk, issue 32)."""
     import yourdfpy
 
-    path, _ = _load_urdf_bytes(robot)
+    from robomach_core.robots import registry
+    from robomach_core.robots.custom import mesh_path
+
+    record = registry.arm(robot)
+
+    def handler(fname: str) -> str:  # yourdfpy passes the name as ``fname=``
+        return mesh_path(record, fname) if record.uploaded else _mesh_filename(fname)
+
+    path = record.urdf_path() if record.uploaded else _load_urdf_bytes(robot)[0]
     return yourdfpy.URDF.load(
         str(path),
-        filename_handler=_mesh_filename,
+        filename_handler=handler,
         build_collision_scene_graph=False,
         load_collision_meshes=False,
     )

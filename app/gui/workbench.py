@@ -111,6 +111,7 @@ class Workbench:
         self._next_plot = 0.0
         self.frames_drawn = 0  # robot redraws (benchmarks read it)
         self._stop = threading.Event()
+        server.on_client_connect(self._show_notice)  # a project opened before the page was
         self._unsubscribe = session.subscribe(self._on_change)
         self._thread = threading.Thread(target=self._run, name="robomach-scene", daemon=True)
         self._thread.start()
@@ -176,8 +177,21 @@ class Workbench:
             next_tick = max(next_tick + self.period_s, time.monotonic())
             self._stop.wait(max(0.0, next_tick - time.monotonic()))
 
+    def _show_notice(self, client: viser.ClientHandle) -> None:
+        """What the user must know about the open project (its stored arm was refused), as a
+        notification that stays until closed; nothing when there is nothing."""
+        try:
+            notice = self.session.current_project().notice
+        except RobomachError:
+            return
+        if notice:
+            client.add_notification("Project", notice, color="yellow", auto_close_seconds=None)
+
     def _tick(self) -> None:
         topics = self._take_dirty()
+        if "project" in topics:
+            for client in self.server.get_clients().values():
+                self._show_notice(client)
         if "cell" in topics:
             self._show_cell()
             self.cell.refresh()

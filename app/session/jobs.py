@@ -66,7 +66,6 @@ class _Job:
     status: JobStatus = "queued"
     progress: float = 0.0
     error: str | None = None
-    result: Any = None
     created_s: float = field(default_factory=time.time)
     started_s: float | None = None
     finished_s: float | None = None
@@ -88,8 +87,10 @@ class _Job:
 class JobRunner:
     """One worker thread running jobs in order; progress, cancel, bounded history.
 
-    ``submit(kind, work)`` queues ``work(ctx)``; its return value becomes the job's result and
-    is handed to ``on_done`` (still in the worker) before the job reads as done. A
+    ``submit(kind, work)`` queues ``work(ctx)``; its return value is handed to ``on_done``
+    (still in the worker) before the job reads as done. A finished job keeps only its public
+    state: its work, callbacks and result are let go (a comparison's result is about 10-90 MB,
+    and the history remembers ``keep_finished`` jobs; issue 32). A
     ``CancelledError`` makes it cancelled, a ``RobomachError`` failed with its message, any
     other exception failed with ``describe_unexpected`` (logged with its traceback). ``on_end`` runs
     after every outcome. The CMRR and stiffness studies plug in here the same way.
@@ -149,10 +150,6 @@ class JobRunner:
 
     def get(self, job_id: str) -> JobInfo:
         return self._job(job_id).info()
-
-    def result(self, job_id: str) -> Any:
-        """The return value of a done job (None otherwise)."""
-        return self._job(job_id).result
 
     def list(self) -> list[JobInfo]:
         with self._cv:
@@ -237,9 +234,11 @@ class JobRunner:
                 log.exception("job listener failed")
 
     def _finish(self, job: _Job) -> None:
-        if job.on_end is not None:
+        # What the work captured (a cell, a project, its result) goes, before on_end runs.
+        on_end, job.work, job.on_done, job.on_end = job.on_end, _ended, None, None
+        if on_end is not None:
             try:
-                job.on_end(job.info())
+                on_end(job.info())
             except Exception:
                 log.exception("on_end of job %s failed", job.id)
         self._changed(job)
@@ -255,22 +254,32 @@ class JobRunner:
                 job.status = "running"
                 job.started_s = time.time()
             self._changed(job)
-            try:
-                result = job.work(JobContext(job))
-                if job.on_done is not None:
-                    job.on_done(result)
-            except CancelledError as exc:
-                job.status, job.error = "cancelled", str(exc)
-            except RobomachError as exc:
-                job.status, job.error = "failed", str(exc)
-            except Exception as exc:
-                log.exception("job %s (%s) failed", job.id, job.kind)
-                job.status = "failed"
-                job.error = describe_unexpected(exc)
-            else:
-                job.status, job.result, job.progress = "done", result, 1.0
-            job.finished_s = time.time()
-            self._finish(job)
+            self._run(job)
+            del job  # the loop waits for the next job holding nothing of this one
+
+    def _run(self, job: _Job) -> None:
+        """Run one job to its end (its result lives only in this frame)."""
+        try:
+            result = job.work(JobContext(job))
+            if job.on_done is not None:
+                job.on_done(result)
+            del result  # gone before on_end runs (it may give memory back)
+        except CancelledError as exc:
+            job.status, job.error = "cancelled", str(exc)
+        except RobomachError as exc:
+            job.status, job.error = "failed", str(exc)
+        except Exception as exc:
+            log.exception("job %s (%s) failed", job.id, job.kind)
+            job.status = "failed"
+            job.error = describe_unexpected(exc)
+        else:
+            job.status, job.progress = "done", 1.0
+        job.finished_s = time.time()
+        self._finish(job)
+
+
+def _ended(ctx: JobContext) -> None:
+    """The work of a job that has ended (its own was let go)."""
 
 
 def describe_unexpected(exc: BaseException) -> str:

@@ -24,13 +24,19 @@ import numpy as np
 from robomach_core import mesh_query
 from robomach_core import project as core
 from robomach_core.cell import Cell, CellState
+from robomach_core.clock import CONTROL_PERIOD_S
 from robomach_core.errors import (
     ConflictError,
     InvalidInputError,
     NotEnoughGuidePointsError,
     SupervisionError,
 )
-from robomach_core.leadthrough import GuidePoint, LeadThrough, LeadThroughState
+from robomach_core.leadthrough import (
+    ComplianceSelection,
+    GuidePoint,
+    LeadThrough,
+    LeadThroughState,
+)
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.project import ProcessedPath, Project
 from robomach_core.workpiece import Workpiece
@@ -43,6 +49,8 @@ if TYPE_CHECKING:
     from .session import Session
 
 EXAMPLE_CLEARANCE_M = 0.008  # the example operator lifts the tool this far above the part
+RELEASED_BELOW_N = 1.0  # a run's end is released until the contact force is below this ...
+RELEASE_MAX_S = 1.0  # ... or for this long at most
 DOWNSTREAM_TOPICS: tuple[Topic, ...] = ("recording", "postprocess")
 
 
@@ -68,6 +76,30 @@ def _squared(lt: LeadThrough, state: LeadThroughState, cad: Workpiece) -> LeadTh
     if z < top:
         state = move_by(lt, state, np.array([0.0, 0.0, top - z]), 0.05)
     return turn_to(lt, state, TOOL_DOWN)
+
+
+def released(lt: LeadThrough, end: CellState, above_N: float) -> CellState:
+    """The robot where a run left it, backed off the part when it presses on it harder than
+    ``above_N`` (the run's protection limit): admittance on x, y, z with no push, so that the
+    wall's own reaction moves the tool out, until the contact force is below
+    ``RELEASED_BELOW_N`` or ``RELEASE_MAX_S`` passed (supervised; a limit stops it there).
+
+    A learned run on a part far off its mesh (the realistic part at the top of its ranges)
+    ended with the robot pressed into the part at 220-310 N, and it stayed so (issue 32): a
+    controller's protection takes the force off; the recording is unchanged."""
+    if float(np.linalg.norm(lt.measured_wrench(end)[:3])) <= above_N:
+        return end
+    state = LeadThroughState(end, end.T_base_tcp.copy(), np.zeros(6))
+    free = ComplianceSelection(frozenset({"x", "y", "z"}), "base")
+    try:
+        for _ in range(int(round(RELEASE_MAX_S / CONTROL_PERIOD_S))):
+            state = lt.step(state, np.zeros(6), free)
+            if float(np.linalg.norm(lt.measured_wrench(state.cell)[:3])) < RELEASED_BELOW_N:
+                break
+    except SupervisionError as exc:  # a limit on the way out: it stops there, held
+        if exc.state is not None:
+            state = exc.state
+    return state.cell
 
 
 class Learning:
@@ -190,7 +222,7 @@ class Learning:
         def work(ctx: JobContext) -> tuple[core.LearnedPath, CellState]:
             path_m = np.array([g.position_m for g in project.guide_points])
             tapped = robot.tapped(ctx, cell, path_m=path_m, closed=settings.closed)
-            return core.learn(
+            learned, end = core.learn(
                 project,
                 tapped,
                 pose.state.cell,
@@ -200,6 +232,8 @@ class Learning:
                 cancelled=ctx.cancelled,
                 route=route,
             )
+            lt = LeadThrough(tapped, estimator=estimator)
+            return learned, released(lt, end, settings.force_limit_N)
 
         def done(result: tuple[core.LearnedPath, CellState]) -> None:
             learned, end = result

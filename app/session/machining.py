@@ -32,7 +32,9 @@ import numpy as np
 from robomach_core import project as core
 from robomach_core.errors import InvalidInputError
 from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
+from robomach_core.machining.retained import bucket_trace, retained_result
 
+from ..memory import give_back
 from .records import ConflictError, log
 
 MM = 1e-3
@@ -112,7 +114,8 @@ class MachiningService:
     ) -> dict[str, Any]:
         """A run's trace for plots, decimated to ``max_points`` buckets along the path with the
         min/max envelope of force and feed, and the finished-wall error along the path.
-        Defaults to the chosen configuration, else the result's first run."""
+        Defaults to the chosen configuration, else the result's first run. The session keeps
+        ``retained.RETAINED_POINTS`` buckets of each run: no more points than that."""
         result = self.require_result()
         setup = self.setup()
         c = controller or setup.settings.controller
@@ -124,31 +127,25 @@ class MachiningService:
             raise ConflictError(
                 f"no trace of {c} / {m} in memory: run it (traces are not kept across restarts)"
             )
-        tr = run.trace
-        idx = np.linspace(0, len(tr), min(max_points, len(tr)) + 1).astype(int)
-        starts, ends = idx[:-1], idx[1:]
-
-        def bucket(x: np.ndarray, fn) -> list[float]:
-            return [float(fn(x[a:b])) for a, b in zip(starts, ends, strict=True) if b > a]
-
+        tr = bucket_trace(run.trace, max_points)  # buckets of the kept trace (``retained``)
         w_idx = np.linspace(0, len(run.wall.s_m) - 1, min(max_points, len(run.wall.s_m))).astype(
             int
         )
         return {
             "controller": run.controller,
             "compensation": run.compensation,
-            "samples": len(tr),
-            "path_mm": bucket(tr.path_m / MM, np.mean),
-            "time_s": bucket(tr.time_s, np.mean),
-            "force_N": bucket(tr.force_N, np.mean),
-            "force_min_N": bucket(tr.force_N, np.min),
-            "force_max_N": bucket(tr.force_N, np.max),
-            "reference_N": float(tr.reference_N[0]),
-            "limit_N": float(tr.limit_N[0]),
-            "feed_mm_s": bucket(tr.feed_m_s / MM, np.mean),
-            "feed_min_mm_s": bucket(tr.feed_m_s / MM, np.min),
-            "feed_max_mm_s": bucket(tr.feed_m_s / MM, np.max),
-            "depth_mm": bucket(tr.depth_m / MM, np.mean),
+            "samples": tr.samples_total,
+            "path_mm": (tr.path_m / MM).tolist(),
+            "time_s": tr.time_s.tolist(),
+            "force_N": tr.force_N.tolist(),
+            "force_min_N": tr.force_min_N.tolist(),
+            "force_max_N": tr.force_max_N.tolist(),
+            "reference_N": float(run.trace.reference_N[0]),
+            "limit_N": float(run.trace.limit_N[0]),
+            "feed_mm_s": (tr.feed_m_s / MM).tolist(),
+            "feed_min_mm_s": (tr.feed_min_m_s / MM).tolist(),
+            "feed_max_mm_s": (tr.feed_max_m_s / MM).tolist(),
+            "depth_mm": (tr.depth_m / MM).tolist(),
             "wall_s_mm": (run.wall.s_m[w_idx] / MM).tolist(),
             "wall_error_mm": (run.wall.error_m[w_idx] / MM).tolist(),
         }
@@ -290,11 +287,17 @@ class MachiningService:
                     raise ConflictError(
                         "the program or the machining settings changed while it ran; run it again"
                     )
-                return core.with_machining_result(current, result)
+                return core.with_machining_result(current, kept)
 
+            # What the views show of it, not every control period (issue 32: a comparison
+            # kept 54-86 MB of traces).
+            kept = retained_result(result)
             s.commit(change, "post", topics=("machining",))
 
-        return s.jobs.submit(f"machining_{kind}", work, on_done=done)
+        # Once the job let go of the runs' full traces (and of the result it replaced).
+        return s.jobs.submit(
+            f"machining_{kind}", work, on_done=done, on_end=lambda info: give_back()
+        )
 
     # --- internals ---------------------------------------------------------------------------
 

@@ -51,6 +51,48 @@ if TYPE_CHECKING:
     from .session import Session
 
 SAFE_HEIGHT_M = 0.008  # the tool travels this far above the part's top
+# Fewest proposed points that make a path: path learning needs two; a closed wall, learned
+# round and back to its first point, three (one point "closed" on itself was offered and
+# accepted, issue 32).
+MIN_PROPOSED_POINTS = {False: 2, True: 3}
+
+
+def _require_enough(proposal: GuideProposal, what: str) -> None:
+    """``InvalidInputError`` when the proposal has too few points to learn from."""
+    need = MIN_PROPOSED_POINTS[bool(proposal.closed)]
+    have = len(proposal.points)
+    if have < need:
+        kind = "a closed wall" if proposal.closed else "an open wall"
+        raise InvalidInputError(
+            f"{what}: {have} guide point{'s' if have != 1 else ''} for {kind}, which needs at "
+            f"least {need}; pick a longer wall, or teach points one by one"
+        )
+
+
+def pointing_document(settings: ProposalSettings, click_mode: ClickMode) -> dict[str, object]:
+    """The pointing settings as stored (mm, and what a click does)."""
+    return {
+        "gap_mm": settings.gap_m * 1e3,
+        "height_above_floor_mm": settings.height_above_floor_m * 1e3,
+        "click_mode": click_mode,
+    }
+
+
+def pointing_from_document(doc: dict | None) -> tuple[ProposalSettings, ClickMode]:
+    """The stored pointing settings; the defaults for what is missing or out of range."""
+    doc = doc if isinstance(doc, dict) else {}
+    try:
+        settings = ProposalSettings(
+            gap_m=float(doc.get("gap_mm", ProposalSettings.gap_m * 1e3)) * 1e-3,
+            height_above_floor_m=float(
+                doc.get("height_above_floor_mm", ProposalSettings.height_above_floor_m * 1e3)
+            )
+            * 1e-3,
+        )
+    except (TypeError, ValueError):
+        settings = ProposalSettings()
+    mode = doc.get("click_mode")
+    return settings, mode if mode in CLICK_MODES else "propose"
 
 
 @dataclass(frozen=True)
@@ -104,13 +146,19 @@ class Pointing:
                                         ("height_above_floor_m", height_above_floor_m))
                if v is not None},
         )  # fmt: skip
-        changed = new != self.settings or (click_mode is not None and click_mode != self.click_mode)
-        self.settings = new
-        if click_mode is not None:
-            self.click_mode = click_mode
-        if changed:
-            self._session.notify("guide_points")
+        mode = self.click_mode if click_mode is None else click_mode
+        if new == self.settings and mode == self.click_mode:
+            return self.settings
+        robot = self._session.robot
+        with robot.lock:  # kept with the project's robot document, saved before it applies
+            robot.save({**robot.document(), "pointing": pointing_document(new, mode)})
+            self.settings, self.click_mode = new, mode
+        self._session.notify("guide_points")
         return self.settings
+
+    def document(self) -> dict[str, object]:
+        """The settings as the store keeps them (``robot_json["pointing"]``)."""
+        return pointing_document(self.settings, self.click_mode)
 
     # --- click to teach ------------------------------------------------------------------
 
@@ -232,6 +280,7 @@ class Pointing:
                 supervisor=supervisor,
                 tool_reach_m=tool_reach(cell.tool),
             )
+        _require_enough(proposal, "this wall gives too few points to learn")
         with self._lock:
             if epoch != s.robot.epoch:
                 raise ConflictError("the cell changed while the guide points were proposed")
@@ -296,6 +345,7 @@ class Pointing:
         from robomach_core.learning.operator import scripted_leadthrough
 
         epoch, proposal = self._require()
+        _require_enough(proposal, "the proposal cannot be accepted")
         bad = [k + 1 for k, p in enumerate(proposal.points) if p.reach == "unreachable"]
         if bad:
             listed = ", ".join(f"G{k}" for k in bad[:6])

@@ -11,14 +11,15 @@ Functions over a ``Session``: ``open_initial``, ``list_projects``, ``create_proj
 from __future__ import annotations
 
 import shutil
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 from robomach_core.errors import RobomachError
 from robomach_core.leadthrough import ComplianceSelection
 from robomach_core.project import CellSettings, Project
+from robomach_core.robots.custom import RobotFileError
 
-from ..store import Store
+from ..store import ProjectData, Store
 from .persistence import cell_from_doc, project_from_data
 from .records import (
     DEFAULT_PROJECT_NAME,
@@ -42,6 +43,8 @@ class Loaded:
     project: Project
     built: Built
     selection: ComplianceSelection | None = None
+    pointing: dict[str, Any] | None = None  # the pointing settings saved with the robot
+    notice: str = ""  # what the user must know: the stored arm was refused (``read_project``)
 
 
 def list_projects(session: Session) -> list[ProjectInfo]:
@@ -147,8 +150,41 @@ def read_project(store: Store, project_id: int) -> Loaded:
     data = store.load_project(project_id)
     if data is None:
         raise NotFoundError(f"no project with id {project_id}")
-    cell = cell_from_doc(data.cell)
+    notice = ""
+    try:
+        cell = cell_from_doc(data.cell)
+    except RobotFileError as exc:
+        data, notice = _without_refused_arm(data, exc)
+        log.warning("project %s (%s): %s", project_id, data.row.name, notice)
+        cell = cell_from_doc(data.cell)
     mesh = data.mesh if not cell.workpiece_builtin else None
     built = build_live_cell(cell, mesh, data.robot.get("joints_rad"))
     selection = selection_from_document(data.robot.get("compliance"))
-    return Loaded(project_id, project_from_data(data, built[0].workpiece), built, selection)
+    project = project_from_data(data, built[0].workpiece)
+    return Loaded(project_id, project, built, selection, data.robot.get("pointing"), notice)
+
+
+def _without_refused_arm(data: ProjectData, exc: RobotFileError) -> tuple[ProjectData, str]:
+    """The stored project on the default arm, without what belongs to the arm it was saved on
+    (its guide points, recording and results, the robot's joints), and the message saying so.
+
+    A saved arm is checked as an upload is; one this version refuses (a mesh reference outside
+    its zip, issue 32) must not keep the project from opening, nor the server from starting
+    (it reopened the last project at every start). The database keeps the project as it was
+    until the user changes it (``Session`` then saves it whole)."""
+    stored = data.cell.get("robot_urdf") or ["the arm file"]
+    default = CellSettings().robot
+    cell = {k: v for k, v in data.cell.items() if k not in ("robot_urdf", "wobj_mm_deg")}
+    cell["robot"] = default
+    robot = {k: v for k, v in data.robot.items() if k != "joints_rad"}
+    post = {k: v for k, v in data.post.items() if k == "settings"}
+    notice = (
+        f"the project's arm ({stored[0]}) is refused: {exc}. It opened on the "
+        f"{default.upper()} without that arm's guide points, recording and results; the "
+        "database keeps them until you change this project"
+    )
+    return (
+        replace(data, cell=cell, robot=robot, post=post, guide_points=[], recording_info=None,
+                recording_arrays={}),
+        notice,
+    )  # fmt: skip

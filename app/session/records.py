@@ -150,6 +150,7 @@ class ProjectInfo:
     created_s: float
     updated_s: float
     is_open: bool
+    notice: str = ""  # what the user must know about the open project ("" when nothing)
 
 
 @dataclass(frozen=True)

@@ -98,7 +98,7 @@ class LiveRobot:
     Args:
         lock: The session's lock, which guards the robot and the project together.
         jobs: The session's job runner (robot jobs and who else waits on it).
-        save: Saves ``document()`` (called with the lock held).
+        save: Saves a robot document, ``document()`` when None (called with the lock held).
         notify: Tells the session's listeners (called with the lock released).
     """
 
@@ -107,7 +107,7 @@ class LiveRobot:
         lock: threading.RLock,
         jobs: JobRunner,
         *,
-        save: Callable[[], None],
+        save: Callable[..., None],
         notify: Callable[..., None],
     ) -> None:
         self.lock = lock
@@ -120,6 +120,8 @@ class LiveRobot:
         self._built: Built | None = None
         self._selection = ComplianceSelection()
         self._last_snapshot: RobotSnapshot | None = None  # snapshot(wait=False) while locked
+        # More of what the store keeps with the robot (the session adds the pointing settings).
+        self.extras: Callable[[], dict[str, Any]] = dict
 
     # --- reading -----------------------------------------------------------------------------
 
@@ -199,13 +201,18 @@ class LiveRobot:
         with self.lock:
             return self.live.force_trace(recording, self.busy(), max_points)
 
-    def document(self) -> dict[str, Any]:
-        """What the store keeps of the robot: its joints and the compliance selection."""
+    def document(
+        self, built: Built | None = None, selection: ComplianceSelection | None = None
+    ) -> dict[str, Any]:
+        """What the store keeps of the robot: its joints and the compliance selection (of
+        ``built`` and ``selection`` when given: a cell or selection saved before it is taken
+        on)."""
         with self.lock:
-            built = self._built
+            built = self._built if built is None else built
             return {
                 "joints_rad": None if built is None else built[2].cell.q_motor.tolist(),
-                "compliance": selection_document(self._selection),
+                "compliance": selection_document(selection or self._selection),
+                **self.extras(),
             }
 
     # --- acting ------------------------------------------------------------------------------
@@ -255,10 +262,11 @@ class LiveRobot:
             cell, lt, _ = self._built
             self._put((cell, lt, replace(state, velocity=np.zeros(6))))
 
-    def save(self) -> None:
-        """Save the robot's joints and compliance selection now."""
+    def save(self, document: dict[str, Any] | None = None) -> None:
+        """Save the robot's joints and compliance selection now (``document`` in their
+        place: what is about to apply, saved first)."""
         with self.lock:
-            self._save()
+            self._save(document)
 
     def record(self) -> GuidePoint:
         """The current pose as a guide point (not yet in the project)."""
@@ -271,8 +279,8 @@ class LiveRobot:
         """Make the axes (any of x y z rx ry rz) in the "tool" or "base" frame compliant."""
         selection = ComplianceSelection(frozenset(axes), frame)  # validates
         with self.lock:
+            self._save(self.document(selection=selection))  # saved first: a 503 changes nothing
             self._selection = selection
-            self._save()
         self.notify("compliance")
         return selection
 

@@ -47,14 +47,15 @@ from robomach_core.errors import InvalidInputError
 from robomach_core.project import CellSettings, Project
 from robomach_core.workpiece import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, Workpiece
 
+from ..memory import give_back
 from ..store import Store
 from . import projects
 from .jobs import JobRunner
 from .learning import Learning
 from .persistence import Part, save_kwargs
-from .pointing import Pointing
+from .pointing import Pointing, pointing_document, pointing_from_document
 from .projects import Loaded
-from .records import ConflictError, GuidePointEntry, ProjectInfo, Topic, log
+from .records import ConflictError, GuidePointEntry, NotFoundError, ProjectInfo, Topic, log
 from .robot import ROBOT_JOB_KINDS as ROBOT_JOB_KINDS
 from .robot import LiveRobot, build_live_cell
 from .teach import Teach
@@ -106,11 +107,13 @@ class Session:
         self._listeners_lock = threading.Lock()
         self._project = Project()
         self._project_id = 0
+        self._notice = ""  # about the open project: its stored arm was refused (``projects``)
         self._closed = False
         self.jobs = JobRunner(on_change=lambda info: self.notify("job"))
         self.robot = LiveRobot(self._lock, self.jobs, save=self._save_robot, notify=self.notify)
         self.teach = Teach(self.robot, real_time=real_time)
         self.pointing = Pointing(self)
+        self.robot.extras = lambda: {"pointing": self.pointing.document()}
         self.learning = Learning(self)
         projects.open_initial(self)
 
@@ -163,7 +166,9 @@ class Session:
     def current_project(self) -> ProjectInfo:
         with self._lock:
             row = self.store.get_project(self._project_id)
-            return ProjectInfo(row.id, row.name, row.created_s, row.updated_s, True)
+            if row is None:
+                raise NotFoundError("the open project is no longer in the database")
+            return ProjectInfo(row.id, row.name, row.created_s, row.updated_s, True, self._notice)
 
     # --- changing the project ----------------------------------------------------------------
 
@@ -185,8 +190,10 @@ class Session:
                 self.robot.require_idle()
             new = change(self._project)
             if new is not self._project:
+                # Saved first: a save that fails (a locked database: 503) leaves the session
+                # as it was, so a client that retries does not apply the change twice.
+                self._save(new, *parts, with_robot=with_robot)
                 self._project = new
-                self._save(*parts, with_robot=with_robot)
         self.notify(*topics)
         return new
 
@@ -201,10 +208,13 @@ class Session:
             new = change(self._project)
             if new is self._project:
                 return new
-            self.robot.install(build_live_cell(new.cell, new.mesh, parsed=parsed))
+            built = build_live_cell(new.cell, new.mesh, parsed=parsed)
+            self._save(new, "cell", "guides", robot=self.robot.document(built))
+            self.robot.install(built)
             self._project = new
-            self._save("cell", "guides", with_robot=True)
+            del built
         self.notify(*CELL_TOPICS)
+        give_back()  # the old cell (its part's mesh, trees, supervisor) goes back to the OS
         return new
 
     def set_cell(
@@ -287,12 +297,22 @@ class Session:
             self.robot.require_idle()
             if epoch is not None and epoch != self.robot.epoch:
                 raise ConflictError("the cell or project changed while opening; open it again")
-            self.robot.install(loaded.built, loaded.selection)
-            self._project_id, self._project = loaded.project_id, loaded.project
+            if self.store.get_project(loaded.project_id) is None:
+                # Deleted while it was read (outside the lock): nothing opens. It opened, and
+                # every later read of it answered 503 (issue 32).
+                raise NotFoundError(f"project {loaded.project_id} was deleted while it opened")
+            pointing = pointing_from_document(loaded.pointing)
             if save:
-                self._save(*ALL_PARTS, with_robot=True)
+                robot = self.robot.document(loaded.built, loaded.selection)
+                robot["pointing"] = pointing_document(*pointing)
+                self._save(loaded.project, *ALL_PARTS, robot=robot, project_id=loaded.project_id)
             self.store.set_last_project(loaded.project_id)
+            self.robot.install(loaded.built, loaded.selection)
+            self.pointing.settings, self.pointing.click_mode = pointing
+            self._project_id, self._project = loaded.project_id, loaded.project
+            self._notice = loaded.notice
         self.notify(*ALL_TOPICS)
+        give_back()  # the project and the cell it replaced
 
     # --- lifecycle ---------------------------------------------------------------------------
 
@@ -309,11 +329,28 @@ class Session:
 
     # --- internals ---------------------------------------------------------------------------
 
-    def _save(self, *parts: Part, with_robot: bool = False) -> None:
-        kwargs = save_kwargs(self._project, *parts)
+    def _save(
+        self,
+        project: Project,
+        *parts: Part,
+        with_robot: bool = False,
+        robot: dict[str, Any] | None = None,
+        project_id: int | None = None,
+    ) -> None:
+        """Store ``parts`` of ``project`` (and the robot: its document now, ``with_robot``, or
+        the given ``robot``) in one transaction, before the session takes them on."""
+        project_id = self._project_id if project_id is None else project_id
+        whole = bool(self._notice) and project_id == self._project_id
+        if whole:  # opened without its refused arm: the first change saves it as it is now
+            parts, with_robot = ALL_PARTS, with_robot or robot is None
+        kwargs = save_kwargs(project, *parts)
         if with_robot:
             kwargs["robot"] = self.robot.document()
-        self.store.save(self._project_id, **kwargs)
+        if robot is not None:
+            kwargs["robot"] = robot
+        self.store.save(project_id, **kwargs)
+        if whole:
+            self._notice = ""
 
-    def _save_robot(self) -> None:
-        self.store.save(self._project_id, robot=self.robot.document())
+    def _save_robot(self, document: dict[str, Any] | None = None) -> None:
+        self.store.save(self._project_id, robot=document or self.robot.document())

@@ -13,14 +13,20 @@ STRATEGY  One task is one controller on one stock: its compensation modes in ord
           map one to one onto ``concurrent.futures``). The same task function runs in both, so
           the results are the same numbers.
 SOLUTION  ``run_tasks`` returns the tasks' results in order; progress counts finished tasks,
-          cancel stops the pool (or the cluster's futures) and raises ``CancelledError``.
+          cancel stops the pool (or the cluster's futures) and raises ``CancelledError``; an
+          interrupt stops the workers too, and each worker ends with the process that started
+          the pool (``lifetime.end_with``), even when that one is killed.
 """
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import os
-from collections.abc import Callable, Sequence
+import signal
+import socket
+import threading
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from typing import Any
@@ -34,6 +40,9 @@ from .stock import Stock
 
 # Seconds between two looks at the cancel flag while tasks run.
 POLL_S = 0.2
+# What a Dask scheduler's address has to answer within, and its handshake's largest length.
+CLUSTER_TIMEOUT_S = 10.0
+MAX_HANDSHAKE_BYTES = 1 << 20
 _ROBOTS: dict[tuple[str, bytes], Any] = {}
 
 
@@ -96,6 +105,56 @@ def run_cut_task(
     return out
 
 
+def _end_with(pid: int) -> None:
+    """A worker's initializer: end it when the process that started the pool ends (a server
+    killed with SIGKILL left its workers and the forkserver idle under init; issue 32)."""
+    from ..lifetime import end_with
+
+    end_with(pid)
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Stop a pool now: its queued tasks are dropped and its running workers terminated (a
+    cancel, Ctrl-C or SIGTERM must not wait for cuts that nobody will read)."""
+    # Workers first, then the pool: a worker still starting would read its queues' semaphores
+    # after the pool's shutdown removed them, and print a traceback. The thread feeding the
+    # task queue may be blocked writing a task (a stock is larger than a pipe) that no worker
+    # will read: the shutdown must not wait for it (CPython's pool joined it forever).
+    calls = getattr(pool, "_call_queue", None)
+    if calls is not None:
+        calls.cancel_join_thread()
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    for process in processes:
+        if process.is_alive():
+            process.terminate()
+    for process in processes:
+        process.join(5.0)
+        if process.is_alive():
+            process.kill()
+    pool.shutdown(wait=True, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def _interrupts_deferred() -> Iterator[None]:
+    """Ctrl-C and SIGTERM wait until the block ends (main thread; elsewhere no signal handler
+    runs anyway). The pool starts a worker on ``submit`` and lists it only once started: an
+    interrupt in between left a worker nobody stopped, reading semaphores already removed."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+    kinds = (signal.SIGINT, signal.SIGTERM)
+    previous = {sig: signal.signal(sig, lambda signum, frame: caught.append(signum))
+                for sig in kinds}  # fmt: skip
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        for sig in dict.fromkeys(caught):
+            signal.raise_signal(sig)  # now, to the handlers the program had
+
+
 def _pool_context() -> multiprocessing.context.BaseContext:
     """Workers forked from one forkserver that imported the cut's modules once: a spawned
     worker imported them itself (about 3 s of CPU each, for each comparison). Like spawn, and
@@ -145,21 +204,67 @@ def run_tasks(
                 progress((i + 1) / len(tasks))
         return results
     context = _pool_context()
-    pool = ProcessPoolExecutor(max_workers=min(n, len(tasks)), mp_context=context)
+    pool = ProcessPoolExecutor(
+        max_workers=min(n, len(tasks)),
+        mp_context=context,
+        initializer=_end_with,
+        initargs=(os.getpid(),),
+    )
     try:
-        futures = [pool.submit(run_cut_task, task) for task in tasks]
+        with _interrupts_deferred():  # every worker started is one the pool knows, to stop
+            futures = [pool.submit(run_cut_task, task) for task in tasks]
         pending = set(futures)
         while pending:
             done, pending = wait(pending, timeout=POLL_S, return_when=FIRST_COMPLETED)
             if cancel is not None and cancel():
-                for f in pending:
-                    f.cancel()
                 raise CancelledError("machining cancelled")
             if progress is not None and done:
                 progress(1.0 - len(pending) / len(futures))
-        return [f.result() for f in futures]
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        results = [f.result() for f in futures]
+    except BaseException:  # cancelled, interrupted (Ctrl-C, SIGTERM) or a task failed
+        _stop_workers(pool)
+        raise
+    pool.shutdown(wait=True)
+    return results
+
+
+def _probe_scheduler(address: str) -> None:
+    """``InvalidInputError`` unless a ``tcp://`` address answers as a Dask scheduler does: it
+    speaks first (its handshake), a frame whose 8-byte length is a handshake's. An address
+    that answered with something else was reported as "not enough memory" (distributed took
+    an HTTP status line for a length of 3 EiB), and a server that says nothing hung the
+    client for ever (issue 32)."""
+    scheme, _, rest = address.rpartition("://")
+    if scheme not in ("", "tcp"):
+        return  # tls://, ucx://: the client's own checks
+    host, _, port = rest.rpartition(":")
+    try:
+        port_number = int(port)
+    except ValueError:
+        raise InvalidInputError(f"cluster address {address!r}: expected tcp://host:port") from None
+    what = f"the Dask cluster at {address}"
+    try:
+        with socket.create_connection(
+            (host.strip("[]") or "127.0.0.1", port_number), CLUSTER_TIMEOUT_S
+        ) as probe:
+            probe.settimeout(CLUSTER_TIMEOUT_S)
+            head = b""
+            while len(head) < 8:
+                chunk = probe.recv(8 - len(head))
+                if not chunk:
+                    break
+                head += chunk
+    except TimeoutError:
+        raise InvalidInputError(
+            f"{what} said nothing within {CLUSTER_TIMEOUT_S:g} s: it is not a Dask scheduler"
+        ) from None
+    except OSError as exc:
+        raise InvalidInputError(f"cannot reach {what}: {exc.strerror or exc}") from None
+    if len(head) < 8 or int.from_bytes(head, "little") > MAX_HANDSHAKE_BYTES:
+        raise InvalidInputError(
+            f"{what} answered with something else than a Dask scheduler "
+            f"({head[:8]!r}...): check the address and its port"
+        )
 
 
 def _run_on_dask(tasks, address: str, progress, cancel):
@@ -169,10 +274,16 @@ def _run_on_dask(tasks, address: str, progress, cancel):
         raise InvalidInputError(
             "a cluster address needs Dask: pip install 'robomach[cluster]'"
         ) from None
+    _probe_scheduler(address)
     try:
-        client = Client(address, timeout="10s")
+        client = Client(address, timeout=f"{CLUSTER_TIMEOUT_S:g}s")
     except (OSError, TimeoutError, ValueError) as exc:
         raise InvalidInputError(f"cannot reach the Dask cluster at {address}: {exc}") from None
+    except Exception as exc:  # noqa: BLE001 - whatever the peer made distributed do
+        raise InvalidInputError(
+            f"the Dask cluster at {address} did not answer as a Dask scheduler "
+            f"({exc.__class__.__name__})"
+        ) from None
     try:
         futures = client.map(run_cut_task, list(tasks), pure=False)
         index = {f.key: i for i, f in enumerate(futures)}

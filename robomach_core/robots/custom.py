@@ -37,7 +37,12 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import RobomachError
-from ..urdf_check import check_urdf_native, check_urdf_text, read_robot_zip
+from ..urdf_check import (
+    check_urdf_native,
+    check_urdf_text,
+    read_package_meshes,
+    read_robot_zip,
+)
 from . import registry
 
 MAX_ROBOT_FILE_BYTES = 50 * 1024 * 1024
@@ -177,7 +182,9 @@ def urdf_from_file(filename: str, data: bytes) -> tuple[str, dict[str, bytes]]:
             f"{MAX_ROBOT_FILE_BYTES / 1e6:.0f} MB limit"
         )
     if suffix == ".urdf":
-        return _decode(filename, data), {}
+        text = _decode(filename, data)
+        check_urdf_text(text, filename, RobotFileError)  # bounded before it is parsed whole
+        return text, read_package_meshes(text, filename, RobotFileError)
     # Declared sizes summed before extraction; only the files the URDF references are read.
     return read_robot_zip(filename, data, RobotFileError)
 
@@ -213,6 +220,21 @@ def is_custom(name: str) -> bool:
 def urdf_text(name: str) -> str:
     """The normalised URDF text of a registered user arm."""
     return registry.arm(name).urdf()
+
+
+def mesh_path(record: registry.Arm, reference: str) -> str:
+    """The file a ``<mesh filename>`` of an upload's URDF names, inside the upload's own folder
+    in the cache (``urdf_check.resolve_reference``): "" (no file) for a reference that names no
+    member of the upload. The scene's loader (yourdfpy) reads an upload's meshes through this,
+    so it cannot read a file of the server's disk (issue 32)."""
+    from ..urdf_check import resolve_reference
+
+    member = resolve_reference(reference, [m for m, _ in record.meshes])
+    if member is None or record.urdf_text is None:
+        return ""
+    folder = record.urdf_path().parent.resolve()
+    target = (folder / member).resolve()
+    return str(target) if folder in target.parents and target.is_file() else ""
 
 
 def urdf_file(name: str) -> Path:

@@ -14,6 +14,7 @@ SOLUTION  ``arm(name) -> Arm``, ``register(arm)``, ``forget(name)``, ``BUILTIN_A
 from __future__ import annotations
 
 import importlib.metadata
+import re
 import threading
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -108,12 +109,34 @@ def _upload_file(record: Arm) -> Path:
             target = (folder / rel).resolve()
             if folder.resolve() in target.parents:  # no file outside the folder ("../")
                 target.parent.mkdir(parents=True, exist_ok=True)
-                target.write_bytes(data)
+                target.write_bytes(sanitised_mesh(rel, data))
         folder.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(record.urdf(), encoding="utf-8")
         os.replace(tmp, path)
     return path
+
+
+_OBJ_FILE_LINES = re.compile(rb"^[ \t]*(mtllib|usemtl|maplib|usemap|call|csh)\b.*$", re.M)
+# A COLLADA image's file (1.4: <init_from>file</init_from>, 1.5: <ref>file</ref>): anything
+# holding a dot, a slash or a colon (image ids that effects point at hold none).
+_DAE_FILES = re.compile(rb"<(init_from|ref)>\s*[^<]*[./\\:][^<]*</(init_from|ref)>")
+_MISSING_TEXTURE = b"missing-texture.png"
+
+
+def sanitised_mesh(path: str, data: bytes) -> bytes:
+    """A mesh file as the scene may read it: without its own references to other files (an
+    OBJ's material libraries and commands, a COLLADA file's image files, pointed at a name
+    that is not there: the geometry loads untextured), which trimesh would read from
+    wherever they point. Colours come from the URDF's materials."""
+    kind = Path(path).suffix.lower()
+    if kind == ".obj":
+        return _OBJ_FILE_LINES.sub(b"", data)
+    if kind == ".dae":
+        return _DAE_FILES.sub(
+            lambda m: b"<%s>%s</%s>" % (m.group(1), _MISSING_TEXTURE, m.group(1)), data
+        )
+    return data
 
 
 def _kr270_stiffness() -> tuple[float, ...]:

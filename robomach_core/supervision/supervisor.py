@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import math
 import threading
-import weakref
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal, NamedTuple
@@ -700,24 +699,26 @@ class Supervisor:
         )
 
 
-_SUPERVISORS: weakref.WeakKeyDictionary[Robot, tuple[Any, Any, Supervisor]] = (
-    weakref.WeakKeyDictionary()
-)
 _SUPERVISORS_LOCK = threading.Lock()
+# The attribute of a ``Robot`` that keeps its cell's supervisor: (tool, workpiece, supervisor).
+_KEPT_ON_ROBOT = "_cell_supervisor"
 
 
 def cell_supervisor(cell: Any) -> Supervisor:
     """The supervisor of a cell's robot, tool and workpiece (built once per robot, reused).
 
-    ``cell`` is a ``Cell`` or anything with its ``robot``, ``tool`` and ``workpiece``.
+    ``cell`` is a ``Cell`` or anything with its ``robot``, ``tool`` and ``workpiece``. The
+    supervisor is kept on the robot itself, so it goes with the robot when the cell changes:
+    a ``WeakKeyDictionary`` keyed by the robot kept every one, its value (the supervisor)
+    holding its key (issue 32: 60 cell changes kept 61 supervisors and workpieces).
     """
     robot, tool, workpiece = cell.robot, cell.tool, cell.workpiece
     with _SUPERVISORS_LOCK:
-        cached = _SUPERVISORS.get(robot)
+        cached = getattr(robot, _KEPT_ON_ROBOT, None)
         if cached is not None and cached[0] is tool and cached[1] is workpiece:
             return cached[2]
         supervisor = Supervisor(robot, tool, workpiece)
-        _SUPERVISORS[robot] = (tool, workpiece, supervisor)
+        setattr(robot, _KEPT_ON_ROBOT, (tool, workpiece, supervisor))
         return supervisor
 
 

@@ -208,16 +208,29 @@ def _status_kb(pid: int, field: str) -> int:
     return 0
 
 
+def _children(pid: int) -> list[int]:
+    """The children of every thread of ``pid`` (a process started from a worker thread is
+    listed under that thread, not under the main one)."""
+    kids: list[int] = []
+    try:
+        tasks = os.listdir(f"/proc/{pid}/task")
+    except OSError:
+        return kids
+    for task in tasks:
+        try:
+            with open(f"/proc/{pid}/task/{task}/children") as f:
+                kids += [int(k) for k in f.read().split()]
+        except OSError:
+            continue
+    return kids
+
+
 def descendants(pid: int) -> list[int]:
-    """Every live process under ``pid`` (the isolation helper and its children)."""
+    """Every live process under ``pid`` (the isolation helper, the machining pool's
+    forkserver and workers, and their children)."""
     found, frontier = [], [pid]
     while frontier:
-        parent = frontier.pop()
-        try:
-            with open(f"/proc/{parent}/task/{parent}/children") as f:
-                kids = [int(k) for k in f.read().split()]
-        except OSError:
-            kids = []
+        kids = _children(frontier.pop())
         found += kids
         frontier += kids
     return found

@@ -70,6 +70,28 @@ def test_viser_refuses_a_websocket_under_a_rebound_name(server: ServerProcess, a
     assert "refused a websocket from host 'rebound.example" in server.log()
 
 
+def test_viser_refuses_a_websocket_with_two_host_headers(server: ServerProcess, api: Api) -> None:
+    """Issue 32: reading the Host of such a handshake raised, and the server logged a
+    traceback; which of two names was meant cannot be told, so it is refused."""
+    port = urlsplit(server.viser_url).port
+    sock = socket.create_connection(("127.0.0.1", port), timeout=10)
+    try:
+        ws = connect(
+            f"ws://127.0.0.1:{port}/", sock=sock,
+            additional_headers=[("Host", f"{REBOUND}:{port}")],
+            subprotocols=[f"viser-v{viser.__version__}"], open_timeout=10, max_size=None,
+            close_timeout=2,
+        )  # fmt: skip
+    except Exception as exc:  # noqa: BLE001 - a refused handshake is a refusal too
+        assert "1008" in str(exc) or "400" in str(exc) or "403" in str(exc), exc
+    else:
+        with ws:
+            assert _closed_code(ws) == 1008
+    api.ok("GET", "/api/health")
+    assert "Traceback" not in server.log()
+    assert "refused a websocket from 2 Host and 0 Origin headers" in server.log()
+
+
 @pytest.mark.parametrize(
     "path", ["/api/projects/current/project.npz", "/api/state", "/pendant/", "/api/events"]
 )

@@ -137,3 +137,34 @@ def test_pointing_settings_have_ranges(client: TestClient) -> None:
     assert r.status_code == 422 and "gap_mm" in r.text
     taught = _ok(client, "POST", f"{GP}/from-surface", 201, json={"point_mm": [40.0, -65.0, 18.5]})
     assert taught["planned"]["position_wobj_mm"][1] == pytest.approx(-62.5, abs=0.05)
+
+
+def test_a_closed_wall_of_too_few_points_is_neither_offered_nor_accepted(
+    client: TestClient,
+) -> None:
+    """A 4 mm boss's wall was proposed as one point of a closed wall, and accepted (issue 32):
+    a closed wall needs 3 points, an open one 2."""
+    import trimesh
+
+    plate = trimesh.creation.box(extents=(100, 100, 10))
+    plate.apply_translation([0, 0, 5])
+    boss = trimesh.creation.cylinder(radius=2.0, height=8, sections=48)
+    boss.apply_translation([0, 0, 14])
+    part = trimesh.boolean.union([plate, boss], engine="manifold")
+    _ok(client, "POST", "/api/cell/workpiece",
+        files={"file": ("boss.stl", part.export(file_type="stl"))})  # fmt: skip
+    r = client.post(f"{GP}/propose", json={"point_mm": [2.0, 0.0, 14.0], "normal": [1, 0, 0]})
+    assert r.status_code == 422, r.text
+    assert "1 guide point for a closed wall, which needs at least 3" in r.json()["detail"]
+    assert client.get(f"{GP}/proposal").status_code == 404  # nothing offered
+    assert client.post(f"{GP}/proposal/accept").status_code == 404
+
+
+def test_a_closed_proposal_edited_down_to_two_points_is_not_accepted(client: TestClient) -> None:
+    proposal = _ok(client, "POST", f"{GP}/propose", json={"point_mm": ON_WALL_MM})
+    assert proposal["closed"]
+    while len(proposal["points"]) > 2:
+        proposal = _ok(client, "DELETE", f"{GP}/proposal/points/0")
+    r = client.post(f"{GP}/proposal/accept")
+    assert r.status_code == 422 and "2 guide points for a closed wall" in r.json()["detail"]
+    assert _ok(client, "GET", GP) == []  # nothing was recorded

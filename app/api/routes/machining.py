@@ -227,7 +227,9 @@ def start_compare(service: MachiningDep) -> JobCreated:
 
 @router.get("/result")
 def get_result(service: MachiningDep, points: int = PLOT_POINTS) -> MachiningResultPublic:
-    """The last result (409 without one); ``status`` says whether it is still current."""
+    """The last result (409 without one); ``status`` says whether it is still current. The
+    trace has at most ``points`` buckets, and at most 2000: the server keeps each run's trace
+    as 2000 buckets (mean, and min/max of force and feed), not every control period."""
     result = service.require_result()
     summary = result.summary()
     trace = None
