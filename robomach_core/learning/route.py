@@ -811,13 +811,8 @@ def plan_route(
     towards = np.cross(axis, travel_directions(guides, closed, axis)[0]) * decision.sign
     first = guides[0].position_m - axis * lifted[0]  # at the height it is learned at
     first_wall = walls.wall_point(first, towards, 2 * th.AT_WALL_GAP_M)
-    if first_wall is None:  # the run would search across the first leg and find nothing
-        raise RouteRefusedError(
-            f"G1 faces no wall on the {decision.side} of its first leg within "
-            f"{2 * th.AT_WALL_GAP_M * 1e3:g} mm (towards G2, the wall is on the other side or "
-            "the leg cuts across the part): move G1 beside the wall to follow, start from "
-            "another point, or check the wall side"
-        )
+    if first_wall is None:  # the part may not be where its mesh is: the run searches by force
+        return route
     start_dir = first_wall - first
     start_dir -= axis * float(start_dir @ axis)
     if float(np.linalg.norm(start_dir)) < 1e-9:
