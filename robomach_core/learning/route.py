@@ -76,18 +76,21 @@ class Leg:
 
 
 def route_legs(guides: Sequence[GuidePoint], closed: bool) -> list[Leg]:
-    """The legs through ``guides`` in order (back to the first when ``closed``); coincident
-    points give no leg."""
+    """The legs through ``guides`` in order (back to the first when ``closed``). Two points
+    less than ``MIN_SPACING_M`` apart across the tool axis (one above the other) give no leg:
+    the route goes on from the second, at its height."""
+    axis = mean_tool_axis(guides)
     order = list(range(len(guides))) + ([0] if closed else [])
     legs = []
     for i0, i1 in zip(order[:-1], order[1:], strict=True):
         a, b = guides[i0].position_m.copy(), guides[i1].position_m.copy()
-        length = float(np.linalg.norm(b - a))
-        if length < 1e-4:
+        d = b - a
+        if float(np.linalg.norm(d - axis * float(d @ axis))) < th.MIN_SPACING_M:
             continue
+        length = float(np.linalg.norm(d))
         Ra = matrix_from_quaternion(guides[i0].quaternion_wxyz)
         Rb = matrix_from_quaternion(guides[i1].quaternion_wxyz)
-        legs.append(Leg(a, b, length, (b - a) / length, Ra, pin.log3(Ra.T @ Rb), i0, i1))
+        legs.append(Leg(a, b, length, d / length, Ra, pin.log3(Ra.T @ Rb), i0, i1))
     return legs
 
 
@@ -163,26 +166,35 @@ def mean_tool_axis(guides: Sequence[GuidePoint]) -> np.ndarray:
 
 
 def travel_directions(guides: Sequence[GuidePoint], closed: bool, axis: np.ndarray) -> np.ndarray:
-    """(n, 3) unit direction of travel at each point, across ``axis``: the mean of its incoming
-    and outgoing legs (one at the ends of an open route); at a U-turn, the leg that arrives
-    (the first point: the one that leaves)."""
+    """(n, 3) unit direction of travel at each point, across ``axis``: the mean of the
+    directions to the points before and after it, each the nearest one at least
+    ``MIN_SPACING_M`` away across the axis (two points taught one above the other give no
+    direction); one side at the ends of an open route; at a U-turn, the way in (the first
+    point: the way out)."""
     pts = np.array([g.position_m for g in guides])
+    pts = pts - np.outer(pts @ axis, axis)
     n = len(pts)
     out = np.zeros((n, 3))
+
+    def toward(k: int, step: int) -> np.ndarray | None:
+        j = k
+        for _ in range(n - 1):
+            j += step
+            if not closed and not 0 <= j < n:
+                return None
+            d = (pts[j % n] - pts[k]) * step
+            if float(np.linalg.norm(d)) >= th.MIN_SPACING_M:
+                return d / float(np.linalg.norm(d))
+        return None
+
     for k in range(n):
-        units = []
-        for leg in ([pts[k] - pts[k - 1]] if k > 0 or closed else []) + (
-            [pts[(k + 1) % n] - pts[k]] if k < n - 1 or closed else []
-        ):
-            leg = leg - axis * (leg @ axis)
-            if float(np.linalg.norm(leg)) > 1e-9:
-                units.append(leg / float(np.linalg.norm(leg)))
+        units = [u for u in (toward(k, -1), toward(k, 1)) if u is not None]
         if not units:
             continue
         d = np.sum(units, axis=0)
-        if len(units) == 2 and float(units[0] @ units[1]) < -0.5:
+        if len(units) == 2 and float(units[0] @ units[1]) < -0.5:  # a U-turn at this point
             d = units[1] if k == 0 else units[0]
-        out[k] = d / float(np.linalg.norm(d))
+        out[k] = d / max(float(np.linalg.norm(d)), 1e-12)
     return out
 
 
