@@ -31,6 +31,9 @@ from tests.generated_parts import DrawnPlate, drawn_plate
 ROBOT = Robot("ur10")
 WOBJ_M = np.array([0.80, 0.16, 0.0])  # an uploaded part's place in front of a UR10
 TOL_M = 5e-5  # the section's facets and the ray's float32 precision
+# Beside the wall: where a point stands on a rounded corner, its normal is the chord's over
+# +-0.5 mm (walls.NORMAL_WINDOW_M), and the gap comes out up to ~0.06 mm short on a 10 mm radius
+GAP_TOL_M = 1e-4
 seeds = st.integers(0, 2**32 - 1)
 tilts = st.sampled_from(["level", "mesh", "wobj"])
 
@@ -97,7 +100,7 @@ def test_a_proposal_follows_the_picked_wall_beside_it_at_the_height_above_the_fl
     )  # fmt: skip
     xyz = frame.in_plate(np.array([p.position_wobj_m for p in proposal.points]))
     d = shapely.distance(shapely.points(xyz[:, :2]), outline)
-    assert np.all(np.abs(d - (r + gap)) < TOL_M), np.abs(d - (r + gap)).max()
+    assert np.all(np.abs(d - (r + gap)) < GAP_TOL_M), np.abs(d - (r + gap)).max()
     # On the free side: outside the material (an edge's outline, the island) or in the groove.
     inside = shapely.contains_xy(shapely.Polygon(outline), xyz[:, 0], xyz[:, 1])
     assert np.all(inside == (wall == "outer"))
