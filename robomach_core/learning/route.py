@@ -497,8 +497,9 @@ class HeightReference:
         height, normal = self.walls.floor(probes)
         a = self.axis
         cos = -(normal @ a)
-        grad = (normal - np.outer(normal @ a, a)) / cos[:, None]  # dh/dp across the axis
-        under_p = height + np.einsum("ij,ij->i", grad, p - probes)  # each floor's plane at p
+        with np.errstate(divide="ignore", invalid="ignore"):  # no floor: nan, never used
+            grad = (normal - np.outer(normal @ a, a)) / cos[:, None]  # dh/dp across the axis
+            under_p = height + np.einsum("ij,ij->i", grad, p - probes)  # each plane at p
         usable = np.isfinite(height)
         for k in np.flatnonzero(usable & (height < float(p @ a))):  # above the cutter's centre
             above = probes[k] + a * (height[k] - float(probes[k] @ a) - th.FLOOR_ABOVE_M)
