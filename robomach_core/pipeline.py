@@ -22,7 +22,6 @@ from .errors import InvalidInputError, MeshFileError
 from .export.languages import language
 from .export.reachability import ReachabilityReport, check_program_reachability
 from .leadthrough import GuidePoint, LeadThrough
-from .learning.operator import intents_from_csv, scripted_leadthrough
 from .learning.run import Recording
 from .learning.settings import PathLearningSettings
 from .postprocess import PostprocessResult, PostprocessSettings, Targets
@@ -42,6 +41,7 @@ from .project import compensate_program_targets as _compensate
 from .project import wobj_transform as wobj_transform
 from .real_part import real_workpiece
 from .scoring import PathScore
+from .teaching.operator import intents_from_csv, scripted_leadthrough
 from .tool import Tool
 from .workpiece import MAX_MESH_BYTES, MESH_SUFFIXES, Workpiece
 
@@ -293,7 +293,7 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
     if workpiece.nominal is not None and settings.guide_points_csv is None:
         # The part is not where its mesh is: the operator enters each groove in its middle
         # and touches the real wall from there (``operator.robust_intents``).
-        from .learning.operator import guide_plan, robust_intents
+        from .teaching.operator import guide_plan, robust_intents
 
         planned = intents or guide_plan(
             cad, cell.tool.radius_m, np.random.default_rng(settings.seed)
@@ -373,7 +373,6 @@ def _proposed(settings: DemoSettings, cad: Workpiece, cell: Cell) -> tuple[Any, 
     """The guide points proposed along the wall through ``settings.propose_at_m``, the
     operator's intents to lead the robot to them, and the settings with the wall's side and
     whether it is closed."""
-    from .learning.operator import guide_intents
     from .learning.planner import (
         ProposalSettings,
         propose_guide_points,
@@ -381,6 +380,7 @@ def _proposed(settings: DemoSettings, cad: Workpiece, cell: Cell) -> tuple[Any, 
         tool_reach,
     )
     from .supervision import cell_supervisor
+    from .teaching.operator import guide_intents
 
     proposal = propose_guide_points(
         cad,

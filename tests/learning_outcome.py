@@ -281,11 +281,11 @@ def judge(
 def example_leadthrough(
     part: EnvelopePart, seed: int, *, intents: list | None = None
 ) -> tuple[PeopleSet, object, object]:
-    """The scripted operator (``learning.operator.scripted_leadthrough``) leads the robot to
+    """The scripted operator (``teaching.operator.scripted_leadthrough``) leads the robot to
     the example's guide points on a built-in part, or to ``intents``; returns the set (taught
     wall "outer"/"outline"/"right side": the built-in's wall), the cell state at the end and
     the tared estimator."""
-    from robomach_core.learning.operator import scripted_leadthrough
+    from robomach_core.teaching.operator import scripted_leadthrough
 
     cell = part.cell(seed)
     lt = LeadThrough(cell)
@@ -352,7 +352,6 @@ def proposal_set(
     operator lead the robot to the proposed points touching the wall (as ``robomach demo
     --propose-guide-points`` does); returns the set, the end state, the estimator and the
     proposal. The taught side is the proposal's."""
-    from robomach_core.learning.operator import scripted_leadthrough
     from robomach_core.learning.planner import (
         guide_intents,
         propose_guide_points,
@@ -360,6 +359,7 @@ def proposal_set(
         tool_reach,
     )
     from robomach_core.supervision import cell_supervisor
+    from robomach_core.teaching.operator import scripted_leadthrough
 
     cell = part.cell(seed)
     cad = cell.workpiece.cad()

@@ -23,8 +23,8 @@ from robomach_core.cell import CONTROL_PERIOD_S, Cell
 from robomach_core.contour import Contour
 from robomach_core.errors import RobomachError
 from robomach_core.leadthrough import GuidePoint
-from robomach_core.learning.operator import TOOL_DOWN
 from robomach_core.supervision import cell_supervisor
+from robomach_core.teaching.operator import TOOL_DOWN
 from robomach_core.workpiece import Workpiece
 
 SENSOR_NOISE_N = 0.3

@@ -49,8 +49,8 @@ from robomach_core.leadthrough import (
     LeadThroughState,
     halted,
 )
-from robomach_core.learning.motion import Arrival, go_to_point
 from robomach_core.realtime import RealTimePacer
+from robomach_core.teaching.motion import Arrival, go_to_point
 
 from .live import TappedCell
 from .records import LIVE_NOTIFY_S, BusyError, ConflictError, RobotSnapshot

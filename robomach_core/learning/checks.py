@@ -141,7 +141,7 @@ def _mesh_findings(
     workpiece: Workpiece,
     tool_radius_m: float,
 ) -> list[GuideWarning]:
-    from .score import mesh_deviation
+    from ..mesh_score import mesh_deviation
 
     out: list[GuideWarning] = []
     closed = settings.closed

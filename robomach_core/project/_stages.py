@@ -147,7 +147,7 @@ def _scores(
     if len(result.targets) >= 2:
         from ..arcs import score_moves
         from ..learning.checks import taught_wall_check
-        from ..learning.score import score_mesh
+        from ..mesh_score import score_mesh
         from ..transforms import matrices_from_quaternions
 
         pos = result.targets.position_m

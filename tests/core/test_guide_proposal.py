@@ -11,7 +11,6 @@ from shapely.geometry import Point
 
 from robomach_core.cell import Cell, CellConfig
 from robomach_core.errors import InvalidInputError
-from robomach_core.learning.operator import guide_intents, guide_plan
 from robomach_core.learning.planner import (
     ProposalSettings,
     job_tool_rotation,
@@ -21,6 +20,7 @@ from robomach_core.learning.planner import (
 )
 from robomach_core.learning.walls import section_loops
 from robomach_core.supervision import cell_supervisor
+from robomach_core.teaching.operator import guide_intents, guide_plan
 from robomach_core.transforms import make_transform, rotation_about
 from robomach_core.workpiece import Workpiece, block, water_pump
 from tests.generated_parts import grooved_plate, l_block, slotted_plate
@@ -203,7 +203,7 @@ def test_the_tool_axis_follows_a_tilted_work_object_and_the_operator_touches_the
     R_tool = job_tool_rotation(T)
     assert R_tool[:, 2] == pytest.approx(-T[:3, 2])
     flat = make_transform(rotation_about("z", 0.3), np.zeros(3))
-    from robomach_core.learning.operator import TOOL_DOWN
+    from robomach_core.teaching.operator import TOOL_DOWN
 
     assert job_tool_rotation(flat) == pytest.approx(TOOL_DOWN)
     proposal = _propose(block(), (0.0, -25.0, 30.0))

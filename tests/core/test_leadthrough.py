@@ -48,7 +48,7 @@ def test_pushing_into_the_part_is_safe(cell):
     wp = cell.workpiece
     state = lt.start(cell.initial_state())
     over = wp.T_base_wobj[:3, 3] + np.array([0.0, -0.0625, wp.surface_z_m + 0.005])
-    from robomach_core.learning.operator import push_to
+    from robomach_core.teaching.operator import push_to
 
     state = push_to(lt, state, over, XYZ)
     state = push_to(lt, state, over - np.array([0, 0, 0.008]), XYZ)
@@ -86,7 +86,7 @@ def test_bad_axes_and_jogs_are_refused(started):
 
 def test_touch_off_stops_in_contact_at_the_set_force(cell):
     """One action per guide point: from the middle of the groove, -y until the wall pushes back."""
-    from robomach_core.learning.operator import push_to
+    from robomach_core.teaching.operator import push_to
 
     lt = LeadThrough(cell)
     wp = cell.workpiece

@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 from robomach_core.errors import RobomachError, RouteRefusedError
-from robomach_core.learning.operator import TOOL_DOWN
 from robomach_core.pipeline import DemoSettings, run_demo
 from robomach_core.postprocess import PostprocessSettings
+from robomach_core.teaching.operator import TOOL_DOWN
 from tests.envelope import (
     DENSE_SAMPLES,
     GRID_WITHIN_MM,

@@ -7,7 +7,7 @@ import numpy as np
 import trimesh
 from scipy.spatial.transform import Rotation
 
-from robomach_core.learning.score import mesh_deviation
+from robomach_core.mesh_score import mesh_deviation
 from robomach_core.workpiece import builtin_workpiece
 from tests.mesh_reference import distance_to_every_face
 

@@ -19,8 +19,8 @@ from robomach_core.leadthrough import GuidePoint, LeadThrough
 from robomach_core.learning.checks import guide_point_warnings, taught_wall_check
 from robomach_core.learning.route import PartWalls, mean_tool_axis, plan_route, resolve_wall_side
 from robomach_core.learning.run import learn_path
-from robomach_core.learning.score import score_mesh
 from robomach_core.learning.settings import PathLearningSettings
+from robomach_core.mesh_score import score_mesh
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import CellSettings, Project, learn, process
 from tests.sloppy_guides import sloppy_guides
@@ -38,7 +38,7 @@ def _free(guides: list[GuidePoint]) -> list[GuidePoint]:
 
 def _points_at(cell: Cell, positions_mm) -> list[GuidePoint]:
     """Guide points at base-frame positions (mm), tool straight down, joints from the IK."""
-    from robomach_core.learning.operator import TOOL_DOWN
+    from robomach_core.teaching.operator import TOOL_DOWN
 
     out, q = [], cell.robot.home_rad
     for p in positions_mm:
@@ -256,7 +256,7 @@ def test_the_example_points_without_their_push_learn_the_wall():
     """The example operator's 14 points recorded free (no push towards the wall): the first
     sample sat 0.4 mm inside the outer wall and the loop was learned 0.9 mm inside the
     material; now within 0.3 mm, never inside."""
-    from robomach_core.learning import operator as demo_operator
+    from robomach_core.teaching import operator as demo_operator
 
     plan = demo_operator.guide_plan
 

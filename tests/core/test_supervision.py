@@ -12,7 +12,6 @@ from hypothesis import strategies as st
 from robomach_core.cell import Cell
 from robomach_core.errors import InvalidInputError, SupervisionError
 from robomach_core.leadthrough import ComplianceSelection, GuidePoint, LeadThrough
-from robomach_core.learning.operator import TOOL_DOWN
 from robomach_core.learning.route import plan_route
 from robomach_core.learning.run import learn_path
 from robomach_core.learning.settings import PathLearningSettings
@@ -24,6 +23,7 @@ from robomach_core.supervision import (
     Supervisor,
     cell_supervisor,
 )
+from robomach_core.teaching.operator import TOOL_DOWN
 from robomach_core.transforms import make_transform
 
 CAUSES = set(typing.get_args(SupervisionCause))

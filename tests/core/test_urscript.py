@@ -16,9 +16,9 @@ from robomach_core.export.urscript import (
     script_poses,
     urscript_program,
 )
-from robomach_core.learning.operator import TOOL_DOWN
 from robomach_core.postprocess import Targets
 from robomach_core.robot import Robot
+from robomach_core.teaching.operator import TOOL_DOWN
 from robomach_core.tool import Tool
 from robomach_core.transforms import (
     make_transform,

@@ -28,11 +28,11 @@ from collections.abc import Sequence
 import numpy as np
 import trimesh
 
-from .. import _kernels, mesh_query
-from ..arcs import Move, linear_moves, score_sampled_moves
-from ..errors import InvalidInputError
-from ..scoring import PathScore
-from ..workpiece import Workpiece
+from . import _kernels, mesh_query
+from .arcs import Move, linear_moves, score_sampled_moves
+from .errors import InvalidInputError
+from .scoring import PathScore
+from .workpiece import Workpiece
 
 # 0.5 mm between scored points (~0.2 s for a metre of path on an 8k-triangle mesh; 0.1 mm cost
 # 1 s, most of a workbench post-processing). Between targets the error is a smooth chord sagitta
