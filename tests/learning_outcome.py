@@ -353,13 +353,12 @@ def proposal_set(
     --propose-guide-points`` does); returns the set, the end state, the estimator and the
     proposal. The taught side is the proposal's."""
     from robomach_core.learning.planner import (
-        guide_intents,
         propose_guide_points,
         refuse_unreachable,
         tool_reach,
     )
     from robomach_core.supervision import cell_supervisor
-    from robomach_core.teaching.operator import scripted_leadthrough
+    from robomach_core.teaching.operator import guide_intents, scripted_leadthrough
 
     cell = part.cell(seed)
     cad = cell.workpiece.cad()

@@ -157,7 +157,8 @@ def test_a_click_keeps_its_height_or_says_why_and_where_the_tool_works(seed, til
         assert above == pytest.approx(h, abs=1e-6) and taught.message == ""
     else:
         assert low - 1e-9 <= above <= high + 1e-9
-        assert f"{h * 1e3:.1f} mm above the floor" in taught.message
+        said = re.search(r"the point is (-?\d+\.\d) mm above the floor", taught.message)
+        assert said and abs(float(said.group(1)) - h * 1e3) <= 0.051, taught.message  # 0.05 rounds
         assert f"the tool works {above * 1e3:.1f} mm above the floor instead" in taught.message
         assert ("clear the floor" if h < low else "below its rim") in taught.message
     assert math.isfinite(above)
