@@ -30,7 +30,7 @@ import numpy as np
 from ..postprocess import Targets
 from ..robot import Robot
 from ..transforms import make_transform, matrices_from_quaternions, quaternions_from_matrices
-from .path import arc_length_m, path_tangents
+from .path import arc_length_m
 
 # Rehearsals stop when the planned shift moves by no more than this between two of them [m].
 SETTLE_M = 1.0e-6
@@ -72,8 +72,9 @@ def correction_stations(
     s_m: np.ndarray, shift_m: np.ndarray, fixed_m: np.ndarray, *, tolerance_m: float,
     max_spacing_m: float,
 ) -> np.ndarray:  # fmt: skip
-    """Where the corrected program needs targets: the ``fixed_m`` stations (the nominal
-    targets), at most ``max_spacing_m`` apart, and wherever the planned shift between two
+    """Where the corrected program needs targets: the ``fixed_m`` arc lengths (the nominal
+    targets, exactly: the corrected program keeps their corners and their moves' speeds), at
+    most ``max_spacing_m`` apart, and wherever the planned shift between two
     targets departs from a straight line by more than ``tolerance_m`` (the deviation-height
     reduction of chapter fig. 3, applied to the correction: a burr's force transient gets
     targets every few tenths of a millimetre, a steady cut one every few millimetres)."""
@@ -95,7 +96,11 @@ def correction_stations(
             mid = i + 1 + k
             keep[mid] = True
             stack += [(i, mid), (mid, j)]
-    return s_m[keep]
+    fixed = np.asarray(fixed_m, dtype=float)
+    fixed = fixed[(fixed >= s_m[0]) & (fixed <= s_m[-1])]
+    grid = np.union1d(s_m[keep], fixed)
+    # A station within a nanometre of a nominal target stands for it.
+    return grid[np.concatenate([[True], np.diff(grid) > 1e-9])]
 
 
 def program_poses(targets: Targets) -> np.ndarray:
@@ -107,20 +112,18 @@ def program_poses(targets: Targets) -> np.ndarray:
 def corrected_program(
     robot: Robot,
     dense: Targets,
-    normals_m: np.ndarray,
+    directions_m: np.ndarray,
     force_N: np.ndarray,
-    feed_force_ratio: float,
     model,
 ) -> Targets:
     """The dense program with each target moved against the deflection the force ``force_N``
-    (along u = (n - rho t) / |n - rho t|) causes under the identified stiffness ``model``:
-    chapter eq. (32), linear, as ``stiffness.compensate_targets_and_joints`` does it, with the
-    joints moved by -theta (first order: the robot's IK of the corrected pose differs by
-    O(theta^2), nano-radians here), so a rehearsal needs no IK per target."""
+    (along ``directions_m``, u = (n - rho t) / |n - rho t|) causes under the identified
+    stiffness ``model``: chapter eq. (32), linear, as ``stiffness.compensate_targets_and_joints``
+    does it, with the joints moved by -theta (first order: the robot's IK of the corrected pose
+    differs by O(theta^2), nano-radians here), so it needs no IK per target."""
     from ..stiffness.model import apply_twist
 
-    u = normals_m - feed_force_ratio * path_tangents(dense.position_m)
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    u = np.asarray(directions_m, dtype=float)
     force = np.asarray(force_N, dtype=float)
     c = np.asarray(model.compliance_rad_Nm, dtype=float)
     Ts = program_poses(dense)
@@ -159,61 +162,59 @@ def force_met_N(run, s_m: np.ndarray) -> np.ndarray:
 
 
 def offline_compensated_run(
-    cut: Callable[[Targets, Targets, Callable[[float], None] | None], object],
+    rehearse: Callable[[np.ndarray], object],
+    cut: Callable[[Targets, Targets], object],
     robot: Robot,
     nominal: Targets,
     stations_m: np.ndarray,
+    run_stations_m: np.ndarray,
     normal_compliance_m_N: np.ndarray,
     normals_m: np.ndarray,
+    directions_m: np.ndarray,
     first_force_N: np.ndarray,
     *,
-    feed_force_ratio: float,
     model,
     progress: Callable[[float], None] | None = None,
 ):
-    """Rehearse until the corrected targets settle (module docstring).
+    """Rehearse until the corrected targets settle (module docstring), then cut the corrected
+    program of the best rehearsal.
 
     Args:
-        cut: Cuts a program paired with its nominal targets (the simulator with compensation
-            applied by the program alone), with a progress callback; returns the
-            ``MachiningRun``.
-        nominal: The nominal program; ``stations_m`` (k,) a fine grid of arc lengths along it
-            (the run's stations), ``normal_compliance_m_N`` (k,) n^T C_hat u there (for the
-            target placement), ``normals_m`` (k, 3) the wall normals there.
+        rehearse: Cuts the nominal program moved off the stock's path by the given offsets at
+            ``run_stations_m`` (the planned correction's normal part, -n^T C_hat u F, between
+            the corrected targets), returns the ``MachiningRun``.
+        cut: Cuts a corrected program paired with its nominal targets (``cut_program``).
+        nominal: The nominal program; ``stations_m`` (k,) a fine grid of arc lengths along it,
+            ``normal_compliance_m_N`` (k,) n^T C_hat u there (``compliance``), ``normals_m``
+            and ``directions_m`` (k, 3) the wall normals n and the force's directions u there.
         first_force_N: (k,) the force of the first plan at the stations.
 
     Returns:
-        (the last rehearsal's run, its corrected program, its nominal targets, number of
+        (the corrected program's run, the corrected program, its nominal targets, number of
         rehearsals, the last change of the planned shift [m]).
     """
     s_n = arc_length_m(nominal.position_m)
     s_f = np.asarray(stations_m, dtype=float)
+    s_run = np.asarray(run_stations_m, dtype=float)
 
-    def plan(force: np.ndarray) -> tuple[Targets, Targets, np.ndarray]:
+    def plan(force: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The corrected targets' arc lengths and the shift there."""
         shift = normal_compliance_m_N * force
         grid = correction_stations(
             s_f, shift, s_n, tolerance_m=PLACEMENT_TOLERANCE_M, max_spacing_m=MAX_SPACING_M
         )
-        dense = targets_at(nominal, grid)
-        n = np.stack([np.interp(grid, s_f, normals_m[:, i]) for i in range(3)], axis=1)
-        n /= np.linalg.norm(n, axis=1, keepdims=True)
-        f = np.interp(grid, s_f, force)
-        program = corrected_program(robot, dense, n, f, feed_force_ratio, model)
-        return program, dense, shift
+        return grid, np.interp(grid, s_f, shift)
 
     force = np.asarray(first_force_N, dtype=float)
-    program, dense, shift = plan(force)
     change = np.inf
     best = None
     for k in range(MAX_REHEARSALS):
-
-        def sub(fraction: float, k: int = k) -> None:
-            if progress is not None:
-                progress(min((k + fraction) / MAX_REHEARSALS, 1.0))
-
-        run = cut(program, dense, sub)
+        grid, shift = plan(force)
+        run = rehearse(-np.interp(s_run, grid, shift))
+        if progress is not None:
+            progress(min((k + 1) / (MAX_REHEARSALS + 1), 1.0))
         if best is None or _worse(best[0], run):
-            best = (run, program, dense)
+            best = (run, force)
         if not run.summary["completed"]:
             break  # a stopped cut cannot plan the rest of the path
         # ILC on the finished wall (ILC paper, u_{k+1} = u_k + L e_k): the rehearsal's wall
@@ -224,10 +225,15 @@ def offline_compensated_run(
         step = LEARNING_GAIN * error / np.maximum(normal_compliance_m_N, 1e-12)
         force = np.maximum(force + step, 0.0)
         change = float(np.max(np.abs(LEARNING_GAIN * error)))
-        if change <= SETTLE_M or k + 1 == MAX_REHEARSALS:
+        if change <= SETTLE_M:
             break
-        program, dense, shift = plan(force)
-    run, program, dense = best
+    force = best[1]
+    grid, _ = plan(force)
+    dense = targets_at(nominal, grid)
+    u = np.stack([np.interp(grid, s_f, directions_m[:, i]) for i in range(3)], axis=1)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    program = corrected_program(robot, dense, u, np.interp(grid, s_f, force), model)
+    run = cut(program, dense)
     if progress is not None:
         progress(1.0)
     return run, program, dense, k + 1, change
