@@ -46,7 +46,7 @@ from ..workpiece import Workpiece
 
 MODULE_NAME = "program"  # KRL: the DEF / DEFDAT name is the file name (program.src/.dat)
 MAX_IDENTIFIER_LEN = 24
-POSITION_DECIMALS = 3  # mm
+POSITION_DECIMALS = 4  # mm: 0.1 um, as the RAPID module's
 ANGLE_DECIMALS = 4  # deg
 VELOCITY_DECIMALS = 5  # m/s: 0.01 mm/s
 APPROACH_OFFSET_M = 0.020

@@ -34,16 +34,32 @@ OPTION_NAMES: tuple[str, ...] = ("fc_speed_change", "path_correction", "force_mo
 OPTION_TEXT = {
     "fc_speed_change": "FC SpeedChange (ABB Force Control option)",
     "path_correction": "an online path-correction interface",
-    "force_mode": "force mode (UR)",
+    "force_mode": "the UR's force/torque sensing (e-Series: the program runs its own feed loop)",
 }
+# Option -> the arm families whose controllers have it: FC SpeedChange is ABB's (RobotWare
+# Force Control), the UR's built-in F/T sensor with force mode is the UR's; an online path
+# correction exists on all three (ABB Path Offset / CorrWrite, UR path_offset, KUKA RSI).
+OPTION_FAMILIES: dict[str, tuple[str, ...]] = {
+    "fc_speed_change": ("abb",),
+    "force_mode": ("ur",),
+    "path_correction": ("abb", "ur", "kuka"),
+}
+FAMILY_TEXT = {"abb": "ABB (RAPID)", "ur": "UR (URScript)", "kuka": "KUKA (KRL)"}
 # Requirement -> the options that meet it (any one).
 REQUIREMENTS: dict[str, tuple[str, ...]] = {
     "feed_override": ("fc_speed_change", "force_mode"),
     "online_correction": ("path_correction",),
 }
 REQUIREMENT_TEXT = {
-    "feed_override": "a force-driven feed override (FC SpeedChange or force mode)",
+    "feed_override": "a force-driven feed override (ABB: FC SpeedChange; UR: the program's "
+    "own feed loop on its force/torque sensor)",
     "online_correction": "an online path-correction interface",
+}
+# What a family's controller cannot be given by robomach, said where a row needs it.
+FAMILY_LACKS_TEXT = {
+    ("kuka", "feed_override"): "a force-driven feed override: robomach writes none for a KUKA "
+    "controller (KRL has no force-driven override without KUKA.ForceTorqueControl or an RSI "
+    "loop, which robomach does not generate), so only the constant feed runs there",
 }
 # Program language -> the options such a cell has by default (a language not listed: none).
 LANGUAGE_DEFAULT_OPTIONS: dict[str, tuple[str, ...]] = {
@@ -53,11 +69,39 @@ LANGUAGE_DEFAULT_OPTIONS: dict[str, tuple[str, ...]] = {
 }
 
 
+LANGUAGE_FAMILY = {"rapid": "abb", "urscript": "ur", "krl": "kuka"}
+
+
+def options_for_family(family: str | None) -> tuple[str, ...]:
+    """The options an arm family's controller can have (every option for an unknown one)."""
+    if family is None:
+        return OPTION_NAMES
+    return tuple(o for o in OPTION_NAMES if family in OPTION_FAMILIES[o])
+
+
+def check_options_for_arm(options, family: str | None, arm: str) -> None:
+    """Raise ``MachiningSettingsError`` naming the options an arm's controller cannot have."""
+    foreign = [o for o in OPTION_NAMES if o in set(options) and o not in options_for_family(family)]
+    if foreign:
+        from .errors import MachiningSettingsError
+
+        owners = "; ".join(
+            f"{o} is for {', '.join(FAMILY_TEXT.get(f, f) for f in OPTION_FAMILIES[o])} controllers"
+            for o in foreign
+        )
+        offered = ", ".join(options_for_family(family)) or "none"
+        raise MachiningSettingsError(
+            f"the {arm} arm's controller ({FAMILY_TEXT.get(family or '', family)}) cannot have "
+            f"{', '.join(foreign)}: {owners}; its options: {offered}"
+        )
+
+
 @dataclass(frozen=True)
 class CellCapabilities:
-    """The controller options of the cell (``OPTION_NAMES``)."""
+    """The controller options of the cell (``OPTION_NAMES``) and its arm family (None: any)."""
 
     options: frozenset[str] = frozenset()
+    family: str | None = None
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.options) - set(OPTION_NAMES))
@@ -73,7 +117,16 @@ class CellCapabilities:
     @classmethod
     def for_language(cls, language: str) -> CellCapabilities:
         """The default options of a cell programmed in ``language``."""
-        return cls(frozenset(LANGUAGE_DEFAULT_OPTIONS.get(language, ())))
+        return cls(
+            frozenset(LANGUAGE_DEFAULT_OPTIONS.get(language, ())), LANGUAGE_FAMILY.get(language)
+        )
+
+    @classmethod
+    def for_family(cls, family: str | None, options) -> CellCapabilities:
+        """The cell's ``options`` that its arm family's controller can have (others dropped:
+        an arm changed since they were set)."""
+        allowed = options_for_family(family)
+        return cls(frozenset(o for o in options if o in allowed), family)
 
     def describe(self) -> str:
         if not self.options:
@@ -100,6 +153,12 @@ def missing(controller: str, compensation: str, capabilities: CellCapabilities) 
     )
 
 
+def needs_text(requirement: str, capabilities: CellCapabilities) -> str:
+    """What a configuration needs and the cell lacks, in words (the family's reason when its
+    controller cannot be given it)."""
+    return FAMILY_LACKS_TEXT.get((capabilities.family, requirement), REQUIREMENT_TEXT[requirement])
+
+
 def mark_runnable(
     rows: list[dict[str, Any]], capabilities: CellCapabilities
 ) -> list[dict[str, Any]]:
@@ -108,7 +167,11 @@ def mark_runnable(
     for row in rows:
         lacks = missing(row["controller"], row["compensation"], capabilities)
         out.append(
-            dict(row, runnable=not lacks, needs=[REQUIREMENT_TEXT[r] for r in lacks] or None)
+            dict(
+                row,
+                runnable=not lacks,
+                needs=[needs_text(r, capabilities) for r in lacks] or None,
+            )
         )
     return out
 

@@ -76,6 +76,12 @@ from .design import designed_controller_settings
 from .errors import MachiningSettingsError, SampleLimitError, StockError
 from .offline import densify_targets as densify_targets
 from .path import arc_length_m, check_normals, check_path, project_onto_path
+from .program import (
+    check_constant_feed,
+    constant_feed_m_s,
+    design_depth_m,
+    machining_program,
+)
 from .settings import MachiningSettings
 from .stock import Stock
 from .summary import FinishedWall as FinishedWall
@@ -94,8 +100,6 @@ PATH_LENGTH_TOLERANCE_M = 1.0 * MM
 # The cell's force supervision stops the robot at this multiple of the force limit (the
 # spindle's overload trip): a cut that runs away is stopped, not simulated to infinity.
 FORCE_SUPERVISION_FACTOR = 2.0
-# Below this a constant feed rubs rather than cuts (the MRR paper's minimal feed) [m/s].
-MIN_CONSTANT_FEED_M_S = 0.05 * MM
 
 
 CompensationModel = JointCompliance | CompensationSettings
@@ -253,6 +257,10 @@ def run_machining(
     from .offline import force_met_N, offline_compensated_run
 
     model = _resolve_model(robot, settings, compensation_model)
+    # The program this configuration runs, and every exporter writes (``program``).
+    targets = machining_program(
+        targets, settings, design_depth_m=design_depth_m(settings, stock.max_allowance_m)
+    )
     if settings.compensation != "offline":
         return cut_program(
             robot, targets, wall_normals_m, stock, settings,
@@ -307,13 +315,11 @@ def run_machining(
 def _first_plan(
     settings: MachiningSettings, stock: Stock, targets: Targets, s_m: np.ndarray
 ) -> np.ndarray:
-    """Eq. (5) at the stock's depth and the planned feed at arc lengths ``s_m``."""
+    """Eq. (5) at the stock's depth and the planned feed at arc lengths ``s_m`` (``targets``
+    the machining program: its speeds are the feeds it commands)."""
     s_t = arc_length_m(targets.position_m)
     seg = np.clip(np.searchsorted(s_t, s_m, side="left"), 1, len(s_t) - 1)
-    v = np.minimum(np.asarray(targets.speed_m_s, dtype=float)[seg], settings.command_speed_cap_m_s)
-    if settings.controller == "constant":
-        feed = settings.constant_feed_m_s or settings.safe_constant_feed_m_s(stock.max_allowance_m)
-        v = np.minimum(v, feed)
+    v = np.asarray(targets.speed_m_s, dtype=float)[seg]
     planned = np.minimum(v, start_feed_m_s(s_m, s_m, v))
     return predicted_force_N(settings, stock.allowance_m(s_m), planned)
 
@@ -329,8 +335,8 @@ class CutPlan:
         ctrl_settings: the controller's settings as designed for this cut (None: constant).
         controller: the controller (None: constant feed); ``packed`` its kernel form.
         constant_feed_m_s: the constant feed (None for a CMRR controller).
-        d_max: the deepest cut of the stock [m]; ``model`` the identified stiffness the online
-            compensation uses (None without).
+        d_max: the deepest cut the program is designed for [m] (``program.design_depth_m``);
+            ``model`` the identified stiffness the online compensation uses (None without).
     """
 
     settings: MachiningSettings
@@ -414,7 +420,7 @@ def plan_cut(
             "on the program's path"
         )
     process: PowerLawForceModel = settings.process
-    d_max = stock.max_allowance_m
+    d_max = design_depth_m(settings, stock.max_allowance_m)
     truth = true_joint_compliance(robot.name)
     online = settings.compensation == "online"
     if online and model is None:
@@ -448,19 +454,9 @@ def plan_cut(
     )
     offset = np.interp(s_st, s_t, off_t)
     is_constant = settings.controller == "constant"
-    constant_feed = (
-        settings.constant_feed_m_s
-        if settings.constant_feed_m_s is not None
-        else settings.safe_constant_feed_m_s(d_max)
-    )
-    if is_constant and not constant_feed >= MIN_CONSTANT_FEED_M_S:
-        raise MachiningSettingsError(
-            f"no constant feed keeps the {settings.force_limit_N:g} N force limit at the deepest "
-            f"cut ({d_max / MM:.2f} mm): F = {settings.process_gain_N:g} d^"
-            f"{settings.depth_exponent:g} f^{settings.feed_exponent:g} reaches it at "
-            f"{constant_feed / MM:.2g} mm/s, below {MIN_CONSTANT_FEED_M_S / MM:g} mm/s (rubbing, "
-            "not cutting); raise the force limit or check the process K, alpha and beta"
-        )
+    constant_feed = constant_feed_m_s(settings, d_max)
+    if is_constant:
+        check_constant_feed(settings, d_max)
 
     # Feed control, designed for this cut (``design``).
     dt = CONTROL_PERIOD_S
@@ -688,7 +684,7 @@ def cut_planned(
         stop_time_s=result.stop_time_s,
         constant_feed_m_s=plan.constant_feed_m_s,
         wall_time_s=wall_s,
-        max_depth_m=plan.d_max,
+        max_depth_m=plan.stock.max_allowance_m,
     )
     summary["stop_reason"] = result.stop_reason
     ctrl = plan.controller

@@ -224,19 +224,32 @@ class MachiningResult:
 
 
 def capabilities_of(project: Project) -> Any:
-    """The cell's controller options: the machining setup's, else the defaults of the program
-    language of the cell's arm (``machining.choice.LANGUAGE_DEFAULT_OPTIONS``)."""
+    """The cell's controller options: the machining setup's (those the arm's controller can
+    have: ``machining.choice.OPTION_FAMILIES``), else the defaults of the program language of
+    the cell's arm (``machining.choice.LANGUAGE_DEFAULT_OPTIONS``)."""
     from ..machining.choice import CellCapabilities
-    from ..robot import program_language
 
+    family = _arm_family(project.cell.robot)
     setup = project.machining_settings
     if isinstance(setup, MachiningSetup) and setup.cell_options is not None:
-        return CellCapabilities(frozenset(setup.cell_options))
+        return CellCapabilities.for_family(family, setup.cell_options)
     try:
+        from ..robot import program_language
+
         language = program_language(project.cell.robot)
     except Exception:  # an arm not (yet) registered in this process: no options assumed
-        language = ""
+        return CellCapabilities(frozenset(), family)
     return CellCapabilities.for_language(language)
+
+
+def _arm_family(robot_name: str) -> str | None:
+    """The arm's family (``abb``, ``ur``, ``kuka``), None when it is not registered here."""
+    from ..robots import registry
+
+    try:
+        return registry.arm(robot_name).family
+    except Exception:  # an arm not (yet) registered in this process
+        return None
 
 
 def machining_setup_of(project: Project) -> MachiningSetup:
@@ -356,6 +369,7 @@ def machine(
     Raises:
         MissingResultError / StaleResultError: no current post-processed program.
     """
+    from ..export.target_joints import with_target_joints
     from ..machining import format_table
     from ..machining.choice import PEAK_MARGIN, choose, mark_runnable
     from ..machining.compare import comparison_rows
@@ -363,7 +377,10 @@ def machine(
     from ..machining.variation import StockVariation, draw_stocks, variation_rows
 
     processed = require_processed(project)
-    targets = processed.result.targets
+    # The program the robot runs: each target's joints its inverse kinematics, as exported
+    # (the recorded joints reach a point 0.1-0.25 mm off it), and a circular move's via
+    # point at its move's speed.
+    targets = with_move_speeds(with_target_joints(robot, processed.result.targets), processed.moves)
     setup = machining_setup_of(project)
     s = setup.settings
     normals = wall_normals_for_project(project, workpiece, targets)
@@ -480,7 +497,17 @@ def with_machining_result(project: Project, result: MachiningResult) -> Project:
 
 def with_machining_setup(project: Project, setup: MachiningSetup) -> Project:
     """The project with new machining settings; the chosen configuration follows them into the
-    CMRR and compensation slots (``choose``)."""
+    CMRR and compensation slots (``choose``).
+
+    Raises:
+        MachiningSettingsError: a cell option the arm's controller cannot have (FC SpeedChange
+            on a KUKA).
+    """
+    if setup.cell_options is not None:
+        from ..machining.choice import check_options_for_arm
+
+        robot = project.cell.robot
+        check_options_for_arm(setup.cell_options, _arm_family(robot), robot)
     project = replace(project, machining_settings=setup)
     return choose(project, setup.settings.controller, setup.settings.compensation)
 
@@ -562,6 +589,100 @@ def cmrr_for(settings: Any, *, designed: Any = None) -> Any:
         reference_force_N=settings.reference_N,
         command_speed_m_s=settings.command_speed_cap_m_s,
         min_speed_ratio=settings.min_speed_ratio,
+    )
+
+
+def with_move_speeds(targets: Targets, moves: Any) -> Targets:
+    """``targets`` with each circular move's via point at the speed of its move (the speed
+    the MoveC / movec / CIRC is written with)."""
+    if not moves:
+        return targets
+    speeds = np.array(targets.speed_m_s, dtype=float)
+    for move in moves:
+        if move.via is not None:
+            speeds[move.via] = speeds[move.to]
+    return replace(targets, speed_m_s=speeds)
+
+
+def machining_targets(
+    project: Project, targets: Targets, workpiece: Workpiece | None = None
+) -> Targets | None:
+    """``targets`` with the feeds the chosen machining configuration commands
+    (``machining.program.machining_program``: the learned speeds capped at Vr, at the constant
+    feed the stock allows for ``constant``, rounded down to 0.01 mm/s), the program the
+    simulation cut; None when the project holds no machining settings."""
+    if not isinstance(project.machining_settings, MachiningSetup):
+        return None
+    from ..machining.program import design_depth_m, machining_program
+
+    s = machining_setup_of(project).settings
+    targets = with_move_speeds(targets, require_processed(project).moves)
+    depth = s.design_depth_m
+    if depth is None and s.controller == "constant" and s.constant_feed_m_s is None:
+        if workpiece is None:
+            from ._stages import build_workpiece
+
+            workpiece = build_workpiece(project.cell, project.mesh)
+        processed = require_processed(project).result.targets
+        normals = wall_normals_for_project(project, workpiece, processed)
+        depth = build_stock(project, workpiece, processed, normals).max_allowance_m
+    return machining_program(targets, s, design_depth_m=design_depth_m(s, depth or 0.0))
+
+
+def feed_note(project: Project, targets: Targets) -> str:
+    """The header's line on the feeds the program commands."""
+    s = machining_setup_of(project).settings
+    v = np.asarray(targets.speed_m_s, dtype=float) / MM
+    if s.controller == "constant":
+        return (
+            f"feeds as simulated: constant {v.max():.2f} mm/s (the greatest that keeps the "
+            f"{s.force_limit_N:g} N limit at the stock's deepest cut), slower where learned"
+            if v.min() < v.max()
+            else f"feeds as simulated: constant {v.max():.2f} mm/s (the greatest that keeps "
+            f"the {s.force_limit_N:g} N limit at the stock's deepest cut)"
+        )
+    return (
+        f"feeds as simulated: programmed {v.min():.2f}-{v.max():.2f} mm/s (learned, at most "
+        f"{s.command_speed_cap_m_s / MM:g} mm/s), scaled by the {s.controller} feed control "
+        f"holding {s.reference_N:g} N"
+    )
+
+
+def ur_feed_loop(project: Project, workpiece: Workpiece, robot: Robot, targets: Targets) -> Any:
+    """The feed loop a UR program runs for the chosen CMRR controller
+    (``export.urscript_feed``): the controller as the simulation designed it for this program
+    on this stock, its filter and the path acceleration; None for constant feed or without
+    machining settings."""
+    if not isinstance(project.machining_settings, MachiningSetup):
+        return None
+    s = machining_setup_of(project).settings
+    if s.controller == "constant":
+        return None
+    import copy
+
+    from ..export.urscript_feed import UrFeedLoop
+    from ..machining.run import FORCE_SUPERVISION_FACTOR, plan_cut
+
+    processed = require_processed(project).result.targets
+    normals = wall_normals_for_project(project, workpiece, processed)
+    stock = build_stock(project, workpiece, processed, normals)
+    designed = _designed_settings(project, s.controller)
+    if s.controller_settings is None and designed is not None:
+        s = replace(s, controller_settings=designed)
+    plan = plan_cut(robot, targets, None, stock, replace(s, compensation="off"))
+    if plan.packed is NotImplemented:
+        return None
+    i = plan.inputs
+    return UrFeedLoop(
+        controller=s.controller,
+        reference_N=s.reference_N,
+        packed=copy.deepcopy(plan.packed),
+        filter_sos=tuple(float(v) for v in i.filt),
+        filter_z0=(float(i.filt_z[0]), float(i.filt_z[1])),
+        dt_s=i.dt,
+        acceleration_m_s2=s.path_acceleration_m_s2,
+        force_limit_N=s.force_limit_N,
+        supervision_factor=FORCE_SUPERVISION_FACTOR,
     )
 
 
@@ -683,7 +804,7 @@ def _targets_from(doc: dict[str, Any]) -> Targets:
 def machining_note(project: Project) -> str | None:
     """The program header's line on the chosen configuration: what it needs from the cell
     and whether the cell (``capabilities_of``) has it; None without machining settings."""
-    from ..machining.choice import REQUIREMENT_TEXT, missing, requirements
+    from ..machining.choice import missing, needs_text, requirements
 
     if not isinstance(project.machining_settings, MachiningSetup):
         return None
@@ -694,11 +815,24 @@ def machining_note(project: Project) -> str | None:
     head = f"machining: {s.controller} / {s.compensation}"
     if not needs:
         return f"{head}; needs nothing from the cell beyond this program"
-    parts = [
-        f"{REQUIREMENT_TEXT[r]} ({'MISSING in this cell' if r in lacks else 'the cell has it'})"
-        for r in needs
-    ]
+    parts = []
+    for r in needs:
+        if r in lacks:
+            parts.append(f"{needs_text(r, caps)} (MISSING in this cell)")
+        elif r == "feed_override" and caps.family in FEED_OVERRIDE_MEANS:
+            means = FEED_OVERRIDE_MEANS[caps.family]
+            parts.append(f"a force-driven feed override: {means} (the cell has it)")
+        else:
+            parts.append(f"{needs_text(r, caps)} (the cell has it)")
     return f"{head}; the cell must provide " + " and ".join(parts)
+
+
+# How each family's program carries the force-driven feed override.
+FEED_OVERRIDE_MEANS = {
+    "abb": "FC SpeedChange (FCSpdChgAct in the RAPID module)",
+    "ur": "the URScript program runs its own loop on the UR's force/torque sensor (the RAPID "
+    "module carries FC SpeedChange for an ABB controller)",
+}
 
 
 def stale_settings(project: Project) -> dict[str, str]:

@@ -56,8 +56,10 @@ def test_constant_feed_keeps_the_force_limit_and_bends_the_arm_off_the_wall(
     s = run.summary
     assert s["completed"]
     feed = s["constant_feed_mm_s"]
+    # The greatest safe feed, rounded down to the 0.01 mm/s every exported program writes.
     expected = MachiningSettings().safe_constant_feed_m_s(short_stock.max_allowance_m) / MM
-    assert feed == pytest.approx(expected)
+    assert expected - 0.01 < feed <= expected and round(feed * 100) == pytest.approx(feed * 100)
+    assert np.all(run.program.speed_m_s <= feed * MM + 1e-12)
     # The deflection only makes the cut shallower: the limit holds (up to the lag's ripple).
     assert s["force_peak_N"] <= 1.01 * s["force_limit_N"]
     # The force pushes the tool off the wall: material is left, never overcut.
