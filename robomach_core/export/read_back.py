@@ -9,7 +9,7 @@ STRATEGY  Parse each language's files with the project's own checkers (``rapid_c
           along the path (not the approach and retract in the air) in order, a circular move's
           via point before its end point, each with the speed of its move, and turn the
           poses into the robot's base frame.
-SOLUTION  ``read_program(language, files, workpiece) -> ProgramPath`` and
+SOLUTION  ``read_program(language, files) -> ProgramPath`` and
           ``ProgramPath.targets(robot, q_seed)`` (``postprocess.Targets`` with joints by
           inverse kinematics, ready to cut).
 """
@@ -31,6 +31,13 @@ _RAPID_MOVE = re.compile(
 )
 _RAPID_SPEED = re.compile(r"CONST\s+speeddata\s+(\w+)\s*:=\s*\[([-+\d.eE]+),")
 _RAPID_TARGET = re.compile(r"^p\d+$")
+_NUMBERS = r"([-+\d.eE,\s]+)"
+_RAPID_WOBJ = re.compile(
+    r"wobjdata\s+\w+\s*:=\s*\[\s*\w+\s*,\s*\w+\s*,\s*\"[^\"]*\"\s*,"
+    rf"\s*\[\s*\[{_NUMBERS}\]\s*,\s*\[{_NUMBERS}\]\s*\]\s*,"
+    rf"\s*\[\s*\[{_NUMBERS}\]\s*,\s*\[{_NUMBERS}\]\s*\]\s*\]",
+    flags=re.IGNORECASE,
+)
 _KRL_TARGET = re.compile(r"^XP\d+$", flags=re.IGNORECASE)
 
 
@@ -76,14 +83,15 @@ class ProgramPath:
         )
 
 
-def read_program(language: str, files: dict[str, str], workpiece) -> ProgramPath:
-    """The machining path of the program ``files`` (file name -> text) in ``language``.
+def read_program(language: str, files: dict[str, str]) -> ProgramPath:
+    """The machining path of the program ``files`` (file name -> text) in ``language``, in
+    the robot's base frame (through the work object or base frame the files declare).
 
     Raises:
         InvalidInputError: the files do not parse, or hold no path.
     """
     if language == "rapid":
-        return _read_rapid(_one(files, ".mod"), workpiece)
+        return _read_rapid(_one(files, ".mod"))
     if language == "krl":
         return _read_krl(_one(files, ".src"), _one(files, ".dat"))
     if language == "urscript":
@@ -98,10 +106,24 @@ def _one(files: dict[str, str], suffix: str) -> str:
     return files[names[0]]
 
 
-def _read_rapid(text: str, workpiece) -> ProgramPath:
+def _wobj_frame(text: str) -> np.ndarray:
+    """T_base_wobj of the module's (one) work object: user frame x object frame, as written."""
+    found = _RAPID_WOBJ.search(text)
+    if not found:
+        raise InvalidInputError("the module declares no wobjdata to place its targets")
+    u_pos, u_rot, o_pos, o_rot = (
+        np.array([float(v) for v in group.split(",")]) for group in found.groups()
+    )
+    return make_transform(matrix_from_quaternion(u_rot), u_pos * MM) @ make_transform(
+        matrix_from_quaternion(o_rot), o_pos * MM
+    )
+
+
+def _read_rapid(text: str) -> ProgramPath:
     from .rapid_check import check_rapid_module
 
     info = check_rapid_module(text)
+    T_base_wobj = _wobj_frame(text)
     speeds = {name.upper(): float(v) * MM for name, v in _RAPID_SPEED.findall(text)}
     positions, rotations, v = [], [], []
     for line in text.splitlines():
@@ -116,7 +138,7 @@ def _read_rapid(text: str, workpiece) -> ProgramPath:
         speed = speeds[args[len(points)].upper()]
         for name in points:
             pos_mm, quat, _conf = info.robtargets[name]
-            T = workpiece.T_base_wobj @ make_transform(matrix_from_quaternion(quat), pos_mm * MM)
+            T = T_base_wobj @ make_transform(matrix_from_quaternion(quat), pos_mm * MM)
             positions.append(T[:3, 3])
             rotations.append(T[:3, :3])
             v.append(speed)

@@ -12,7 +12,7 @@ STRATEGY  The same inputs as ``program.rapid_program`` (targets in the base fram
           presses along each target's tool y axis (the learned path normal Yp, as RAPID's
           ``\\Fy``) with ``force_mode`` type 2 (task frame taken as given) before every move.
 SOLUTION  ``urscript_program(targets, tool, workpiece, ...) -> str`` and ``script_poses(text)``
-          (the poses of the motion commands, for checks). Fixed decimals: 1e-7 m, 1e-7 rad.
+          (the poses of the motion commands, for checks). Fixed decimals: 1e-8 m, 1e-8 rad.
 
 URScript reference: Universal Robots, "The URScript Programming Language" (movel, movec,
 set_tcp, set_payload, zero_ftsensor, force_mode, end_force_mode).
@@ -35,7 +35,7 @@ from ..workpiece import Workpiece
 from .urscript_feed import UrFeedLoop, feed_loop_lines
 
 PROGRAM_NAME = "learned_path"
-POSE_DECIMALS = 7  # metres and radians: 0.1 um, 0.1 urad (as the RAPID module's)
+POSE_DECIMALS = 8  # metres and radians: the RAPID module's 0.1 um (in the work object) kept
 PATH_ACCELERATION_M_S2 = 0.5
 AIR_SPEED_M_S = 0.1
 AIR_ACCELERATION_M_S2 = 0.5

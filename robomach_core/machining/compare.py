@@ -207,6 +207,7 @@ def run_configuration(
     progress: ProgressCallback | None = None,
     cancel: CancelFlag | Callable[[], bool] | None = None,
     rehearsal: MachiningRun | None = None,
+    program_frame: np.ndarray | None = None,
 ) -> MachiningRun:
     """One configuration of the matrix: ``settings`` with this controller and compensation
     (the settings' own controller settings only for their own controller); ``rehearsal`` (the
@@ -228,6 +229,7 @@ def run_configuration(
         progress=progress,
         cancel=cancel,
         rehearsal_force=rehearsal if compensation == "offline" else None,
+        program_frame=program_frame,
     )
 
 

@@ -236,4 +236,4 @@ def offline_compensated_run(
     run = cut(program, dense)
     if progress is not None:
         progress(1.0)
-    return run, program, dense, k + 1, change
+    return run, run.program, dense, k + 1, change

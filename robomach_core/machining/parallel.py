@@ -47,6 +47,7 @@ class CutTask:
         controller: The controller; ``compensations`` its modes, run in order.
         model: The identified stiffness (``JointCompliance``) or None.
         keep_runs: Return the ``MachiningRun`` values (traces) too, not only the summaries.
+        program_frame: The work object the program files write positions in (``run_machining``).
     """
 
     robot_name: str
@@ -59,6 +60,7 @@ class CutTask:
     compensations: tuple[str, ...]
     model: Any = None
     keep_runs: bool = False
+    program_frame: np.ndarray | None = None
 
 
 def _robot(name: str, T: np.ndarray):
@@ -85,7 +87,7 @@ def run_cut_task(
             run = run_configuration(
                 robot, task.targets, task.wall_normals_m, task.stock, task.settings,
                 task.controller, mode, compensation_model=task.model, cancel=cancel,
-                rehearsal=off,
+                rehearsal=off, program_frame=task.program_frame,
             )  # fmt: skip
         except InvalidInputError as exc:
             out.append((None, None, str(exc)))

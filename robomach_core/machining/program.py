@@ -29,6 +29,9 @@ from .settings import MachiningSettings
 # Every machining program's speeds are multiples of this [m/s] (0.01 mm/s).
 SPEED_QUANTUM_M_S = 1e-5
 MM = 1e-3
+# Every exported program writes its positions to this in the work object's frame [m] (RAPID
+# and KRL: mm with four decimals); the simulation cuts them so (``as_written``).
+POSITION_RESOLUTION_M = 1e-7
 # Below this a constant feed rubs rather than cuts (the MRR paper's minimal feed) [m/s].
 MIN_CONSTANT_FEED_M_S = 0.05 * MM
 
@@ -93,3 +96,17 @@ def machining_program(
             f"is {float(np.min(v)) / MM:g} mm/s); raise the speeds or the force limit"
         )
     return replace(targets, speed_m_s=v)
+
+
+def as_written(targets: Targets, T_base_wobj: np.ndarray | None) -> Targets:
+    """``targets`` with their positions as the program files write them: rounded to
+    ``POSITION_RESOLUTION_M`` in the work object's frame (unchanged without a frame). A
+    compensated cut's wall error is a few micrometres; the files' rounding must not be what
+    moves it."""
+    if T_base_wobj is None:
+        return targets
+    T = np.asarray(T_base_wobj, dtype=float)
+    local = (np.asarray(targets.position_m, dtype=float) - T[:3, 3]) @ T[:3, :3]
+    per_m = round(1.0 / POSITION_RESOLUTION_M)
+    local = np.round(local * per_m) / per_m
+    return replace(targets, position_m=local @ T[:3, :3].T + T[:3, 3])

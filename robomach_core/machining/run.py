@@ -77,6 +77,7 @@ from .errors import MachiningSettingsError, SampleLimitError, StockError
 from .offline import densify_targets as densify_targets
 from .path import arc_length_m, check_normals, check_path, project_onto_path
 from .program import (
+    as_written,
     check_constant_feed,
     constant_feed_m_s,
     design_depth_m,
@@ -226,6 +227,7 @@ def run_machining(
     cancel: CancelFlag | Callable[[], bool] | None = None,
     rehearsal_force: MachiningRun | None = None,
     nominal: Targets | None = None,
+    program_frame: np.ndarray | None = None,
 ) -> MachiningRun:
     """Cut ``stock`` with the program ``targets`` on the compliant ``robot``.
 
@@ -248,6 +250,9 @@ def run_machining(
             stock whose force plans the first correction (``offline``); None plans it from
             eq. (5).
         nominal: The nominal targets ``targets`` correct one for one (``cut_program``).
+        program_frame: The work object ``T_base_wobj`` the program files write positions in:
+            the program (and an offline-corrected one) is cut with its positions as written
+            (``program.as_written``); None cuts them as given.
 
     Raises:
         StockError: the stock does not lie along the program's path.
@@ -258,8 +263,11 @@ def run_machining(
 
     model = _resolve_model(robot, settings, compensation_model)
     # The program this configuration runs, and every exporter writes (``program``).
-    targets = machining_program(
-        targets, settings, design_depth_m=design_depth_m(settings, stock.max_allowance_m)
+    targets = as_written(
+        machining_program(
+            targets, settings, design_depth_m=design_depth_m(settings, stock.max_allowance_m)
+        ),
+        program_frame,
     )
     if settings.compensation != "offline":
         return cut_program(
@@ -294,8 +302,8 @@ def run_machining(
 
     def cut(program: Targets, dense: Targets) -> MachiningRun:
         return cut_program(
-            robot, program, None, stock, settings, model=None, cancel=cancel,
-            compensation_model_for_record=model, nominal=dense,
+            robot, as_written(program, program_frame), None, stock, settings, model=None,
+            cancel=cancel, compensation_model_for_record=model, nominal=dense,
         )  # fmt: skip
 
     run, program, dense, rehearsals, change = offline_compensated_run(
@@ -442,13 +450,12 @@ def plan_cut(
     if not np.all(v_prog > 0.0):
         raise MachiningSettingsError("every programmed speed must be positive")
     N_st, U_st = _station_directions(stock, s_st, s_t, wall_normals_m, settings.feed_force_ratio)
-    c_true = normal_compliance_along(
-        s_t, compliance_blocks(robot, targets.joints_rad, truth), s_st, N_st, U_st
-    )
+    # The arm's pose along the path: a corrected program's nominal joints (a correction moves
+    # them by micro-radians; the compliance does not change with it).
+    joints = (targets if nominal is None else nominal).joints_rad
+    c_true = normal_compliance_along(s_t, compliance_blocks(robot, joints, truth), s_st, N_st, U_st)
     c_hat = (
-        normal_compliance_along(
-            s_t, compliance_blocks(robot, targets.joints_rad, model), s_st, N_st, U_st
-        )
+        normal_compliance_along(s_t, compliance_blocks(robot, joints, model), s_st, N_st, U_st)
         if online
         else np.zeros(n_st)
     )

@@ -416,6 +416,7 @@ def machine(
             modes,
             model,
             keep_runs=i == 0,
+            program_frame=workpiece.T_base_wobj,
         )  # fmt: skip
         for i, st in enumerate(stocks)
         for c in ctrls
@@ -609,24 +610,26 @@ def machining_targets(
 ) -> Targets | None:
     """``targets`` with the feeds the chosen machining configuration commands
     (``machining.program.machining_program``: the learned speeds capped at Vr, at the constant
-    feed the stock allows for ``constant``, rounded down to 0.01 mm/s), the program the
-    simulation cut; None when the project holds no machining settings."""
+    feed the stock allows for ``constant``, rounded down to 0.01 mm/s) and the positions as
+    the files write them (``as_written``): the program the simulation cut; None when the
+    project holds no machining settings."""
     if not isinstance(project.machining_settings, MachiningSetup):
         return None
-    from ..machining.program import design_depth_m, machining_program
+    from ..machining.program import as_written, design_depth_m, machining_program
 
     s = machining_setup_of(project).settings
     targets = with_move_speeds(targets, require_processed(project).moves)
+    if workpiece is None:
+        from ._stages import build_workpiece
+
+        workpiece = build_workpiece(project.cell, project.mesh)
     depth = s.design_depth_m
     if depth is None and s.controller == "constant" and s.constant_feed_m_s is None:
-        if workpiece is None:
-            from ._stages import build_workpiece
-
-            workpiece = build_workpiece(project.cell, project.mesh)
         processed = require_processed(project).result.targets
         normals = wall_normals_for_project(project, workpiece, processed)
         depth = build_stock(project, workpiece, processed, normals).max_allowance_m
-    return machining_program(targets, s, design_depth_m=design_depth_m(s, depth or 0.0))
+    program = machining_program(targets, s, design_depth_m=design_depth_m(s, depth or 0.0))
+    return as_written(program, workpiece.T_base_wobj)
 
 
 def feed_note(project: Project, targets: Targets) -> str:

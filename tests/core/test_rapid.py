@@ -409,8 +409,8 @@ def _mutate(old: str, new: str, text: str | None = None) -> str:
         (lambda: _mutate("MoveL p2, vp5,", "MoveL vp5, vp5,"), "'vp5' is a speeddata, expected"),
         (
             lambda: _mutate(
-                "[0.000000,1.000000,0.000000,0.000000],[0,-2,0,5]",
-                "[0.000000,0.990000,0.000000,0.000000],[0,-2,0,5]",
+                "[0.0000000,1.0000000,0.0000000,0.0000000],[0,-2,0,5]",
+                "[0.0000000,0.9900000,0.0000000,0.0000000],[0,-2,0,5]",
             ),
             "quaternion is not normalized",
         ),

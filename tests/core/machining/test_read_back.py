@@ -64,7 +64,7 @@ def test_every_runnable_configuration_cuts_from_its_files_what_the_table_shows(m
         settings = core.machining_setup_of(chosen).settings
         run = result.run_for(c, m)
         for language in languages_for(robot):
-            path = read_program(language.name, files, workpiece)
+            path = read_program(language.name, files)
             expected = None if c == "constant" else FEED_CONTROL[language.name]
             assert path.feed_control == expected, (arm, c, m, language.name)
             if expected is not None:
@@ -108,6 +108,6 @@ def test_the_constant_feed_is_written_as_cut_and_stays_within_the_limit(machined
     files = core.program_files(core.choose(project, "constant", "off"), workpiece, robot)
     feed = row["constant_feed_mm_s"] * MM
     for language in languages_for(robot):
-        speeds = read_program(language.name, files, workpiece).speed_m_s
+        speeds = read_program(language.name, files).speed_m_s
         assert np.all(speeds <= feed + 1e-12) and np.isclose(speeds.max(), feed)
     assert row["force_peak_N"] <= row["force_limit_N"]
