@@ -446,7 +446,8 @@ else:
       cm_mid = 0.5 * (cm_stages[cm_new] + cm_stages[cm_new + 1])
       cm_lvl = cm_mid + cm_fp[8] * (cm_stages[cm_new + 1] - cm_stages[cm_new])
       if cm_in > cm_lvl:
-        if cm_fnow * pow(cm_stages[cm_new + 1] / cm_stages[cm_new], cm_fp[9]) >= cm_fp[0]:
+        cm_pred = cm_fnow * pow(cm_stages[cm_new + 1] / cm_stages[cm_new], cm_fp[9])
+        if cm_pred >= cm_fp[0] * (1.0 - cm_fp[11]):
           cm_in = cm_lvl
           cm_go = False
         else:

@@ -192,7 +192,7 @@ def _pack_fuzzy(ctrl) -> PackedController:
         [
             d.reference_force_N, e_span, de_span, math.exp(-d.dt_s / f.trend_filter_s), d.dt_s,
             f.stop_strength, f.stop_hold_s, f.max_rate_per_s, f.hysteresis,
-            d.nominal_feed_exponent, f.switch_settle_s,
+            d.nominal_feed_exponent, f.switch_settle_s, f.stage_up_margin,
         ]
     )  # fmt: skip
     fs = np.array(
@@ -460,7 +460,7 @@ def _fuzzy_step(
     force_now = force_N if force_N > 0.0 else 0.0
     while stage + 1 < n and internal > _switch_level(stages, stage, 1, hysteresis):
         predicted = force_now * (stages[stage + 1] / stages[stage]) ** beta
-        if predicted >= fr:
+        if predicted >= fr * (1.0 - fp[11]):
             internal = _switch_level(stages, stage, 1, hysteresis)
             break
         stage += 1

@@ -57,6 +57,11 @@ PROTECTION_MARGIN = 0.95
 # 20 Hz filter settle within it, and at the 10 mm/s speed cap it is at most 1 mm of path, a
 # fraction of a burr's 4-8 mm.
 SWITCH_SETTLE_S = 0.1
+# ... and go a stage up only if the force predicted there stays 5 % under the reference
+# (``FuzzySettings.stage_up_margin``): the sensor's noise no longer decides, and a stretch at
+# the next stage does not come and go with it. Both make the stage switches of a cut
+# repeatable, which offline compensation needs (two-stage: 58-65 % -> 74-81 % over 24 stocks).
+STAGE_UP_MARGIN = 0.05
 # The LQ is re-designed when Df_hat moves 10 % (the Lund paper re-solves "continuously"): a
 # casting's Df spans a factor of ten, and a Riccati solution per 2 % step was 7 s of a 2 s cut.
 LQ_RESOLVE_TOLERANCE = 0.1
@@ -96,7 +101,11 @@ def designed_controller_settings(
         target = min(settings.force_limit_N, PROTECTION_MARGIN * onset)
         ratio = safe_speed_ratio(replace(settings, force_limit_N=target), max_depth_m, speed_m_s)
         low = min(PAPER_LOW_SPEED_RATIO, max(ratio, LOWEST_DESIGN_RATIO))
-        return TwoStageSettings(low_speed_ratio=round(low, 3), switch_settle_s=SWITCH_SETTLE_S)
+        return TwoStageSettings(
+            low_speed_ratio=round(low, 3),
+            switch_settle_s=SWITCH_SETTLE_S,
+            stage_up_margin=STAGE_UP_MARGIN,
+        )
     if name == "adaptive-lq":
         defaults = AdaptiveLqSettings()
         process = settings.process
@@ -121,5 +130,5 @@ def designed_controller_settings(
             stiffness_N_mm=stiffness,
         )
     if name == "fuzzy":
-        return FuzzySettings(switch_settle_s=SWITCH_SETTLE_S)
+        return FuzzySettings(switch_settle_s=SWITCH_SETTLE_S, stage_up_margin=STAGE_UP_MARGIN)
     return settings_for(name)

@@ -225,7 +225,6 @@ def run_machining(
     compensation_model: CompensationModel | None = None,
     progress: ProgressCallback | None = None,
     cancel: CancelFlag | Callable[[], bool] | None = None,
-    rehearsal_force: MachiningRun | None = None,
     nominal: Targets | None = None,
     program_frame: np.ndarray | None = None,
 ) -> MachiningRun:
@@ -246,9 +245,6 @@ def run_machining(
         progress: Called with the fraction of the path done, about every 1 %.
         cancel: A flag (``is_set()``) or a callable; when true the run raises
             ``CancelledError``.
-        rehearsal_force: For offline compensation, a run of the same controller on the same
-            stock whose force plans the first correction (``offline``); None plans it from
-            eq. (5).
         nominal: The nominal targets ``targets`` correct one for one (``cut_program``).
         program_frame: The work object ``T_base_wobj`` the program files write positions in:
             the program (and an offline-corrected one) is cut with its positions as written
@@ -285,14 +281,21 @@ def run_machining(
     c_hat = normal_compliance_along(
         s_t, compliance_blocks(robot, targets.joints_rad, model), s_f, n_f, u_f
     )
-    if rehearsal_force is not None:
-        first = force_met_N(rehearsal_force, s_f)
-    else:
-        first = _first_plan(settings, stock, targets, s_f)
-
     # Every rehearsal cuts the nominal program's plan with the planned correction's offsets;
-    # the last cut is the corrected program itself (what the export carries).
+    # the last cut is the corrected program itself (what the export carries). The first plan
+    # is the force of the cut a working compensation meets: the tool on the nominal wall, the
+    # full allowance cut (``offline``: the stage switches of a staged controller are where
+    # they will be).
     plan = plan_cut(robot, targets, None, stock, settings)
+    on_the_wall = replace(
+        plan, inputs=replace(plan.inputs, c_true=np.zeros_like(plan.inputs.c_true))
+    )
+    ideal = cut_planned(on_the_wall, targets, offset_m=np.zeros_like(plan.inputs.offset))
+    first = (
+        force_met_N(ideal, s_f)
+        if ideal.summary["completed"]
+        else _first_plan(settings, stock, targets, s_f)
+    )
 
     def rehearse(offset_st: np.ndarray) -> MachiningRun:
         return cut_planned(

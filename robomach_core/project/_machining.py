@@ -203,6 +203,7 @@ class MachiningResult:
 
     def for_cell(self, capabilities: Any) -> MachiningResult:
         """The result re-chosen for another cell (rows re-marked; the figures are the same)."""
+        from ..machining import format_table
         from ..machining.choice import choose, mark_runnable
 
         rows = tuple(mark_runnable(list(self.rows), capabilities))
@@ -210,6 +211,7 @@ class MachiningResult:
         return replace(
             self,
             rows=rows,
+            table_text=format_table(rows, chosen=pick.index),
             chosen=pick.index,
             reason=pick.reason,
             capabilities=tuple(sorted(capabilities.options)),
@@ -394,57 +396,65 @@ def machine(
         modes = ("off", *modes)
     pairs = [(c, m) for c in ctrls for m in comps]
     cancelled = _cancel_callable(cancel)
-    stocks = [stock]
+    drawn: list[Any] = []
     variation = None
     if setup.variations:
         spec = StockVariation()
-        stocks += draw_stocks(stock, setup.variations, project.cell.seed, spec)
+        drawn = draw_stocks(stock, setup.variations, project.cell.seed, spec)
         variation = {
-            "stocks": setup.variations,
+            "stocks": setup.variations + 1,
+            "drawn": setup.variations,
             "seed": project.cell.seed,
             "ranges": spec.describe(),
+            "program": "the nominal stock's: its design, constant feed and offline correction",
         }
-    tasks = [
-        CutTask(
-            robot.name,
-            robot.T_flange_tcp,
-            targets,
-            normals,
-            st,
-            s,
-            c,
-            modes,
-            model,
-            keep_runs=i == 0,
-            program_frame=workpiece.T_base_wobj,
+    share = 1.0 / (1 + len(drawn))
+
+    def task(st: Any, c: str, settings: Any, keep: bool, corrected: Any = None) -> Any:
+        return CutTask(
+            robot.name, robot.T_flange_tcp, targets, normals, st, settings, c, modes, model,
+            keep_runs=keep, program_frame=workpiece.T_base_wobj, corrected=corrected,
         )  # fmt: skip
-        for i, st in enumerate(stocks)
-        for c in ctrls
-    ]
-    results = run_tasks(
-        tasks, workers=workers, cluster=cluster, progress=progress, cancel=cancelled
-    )
-    # results[i * len(ctrls) + j][k]: stock i, controller j, mode k.
-    per_stock: list[dict[tuple[str, str], tuple]] = []
-    for i in range(len(stocks)):
-        out = {}
-        for j, c in enumerate(ctrls):
-            for k, m in enumerate(modes):
-                out[c, m] = results[i * len(ctrls) + j][k]
-        per_stock.append(out)
-    nominal = per_stock[0]
+
+    def part(lo: float, hi: float) -> Callable[[float], None] | None:
+        if progress is None:
+            return None
+        return lambda f: progress(lo + (hi - lo) * f)
+
+    # The nominal stock: its runs design the program (constant feed, controllers, offline
+    # correction) every drawn stock is then cut with, as one program meets every casting.
+    first = run_tasks(
+        [task(stock, c, s, True) for c in ctrls], workers=workers, cluster=cluster,
+        progress=part(0.0, share), cancel=cancelled,
+    )  # fmt: skip
+    nominal = {(c, m): first[j][k] for j, c in enumerate(ctrls) for k, m in enumerate(modes)}
     runs = [nominal[p][0] for p in pairs if nominal[p][0] is not None]
     refused = {p: nominal[p][2] for p in pairs if nominal[p][2] is not None}
     rows = comparison_rows(runs, refused=refused, order=pairs)
     rows = [
         _plain_row({**(nominal[p][1] or {}), **row}) for p, row in zip(pairs, rows, strict=True)
     ]
-    if variation is not None:
-        summaries = [[per_stock[i][p][1] for i in range(1, len(stocks))] for p in pairs]
+    if drawn:
+        designed = replace(s, design_depth_m=stock.max_allowance_m)
+        offline = {c: nominal[c, "offline"][0] for c in ctrls if (c, "offline") in nominal}
+        corrected = {c: (run.program, run.nominal) for c, run in offline.items() if run is not None}
+        later = run_tasks(
+            [task(st, c, designed, False, corrected.get(c)) for st in drawn for c in ctrls],
+            workers=workers, cluster=cluster, progress=part(share, 1.0), cancel=cancelled,
+        )  # fmt: skip
+        # later[i * len(ctrls) + j][k]: drawn stock i, controller j, mode k.
+        summaries = [
+            [nominal[p][1]]
+            + [later[i * len(ctrls) + ctrls.index(p[0])][modes.index(p[1])][1]
+               for i in range(len(drawn))]
+            for p in pairs
+        ]  # fmt: skip
         stats = variation_rows(
             summaries, pairs, force_limit_N=s.force_limit_N, peak_margin=PEAK_MARGIN
         )
         rows = [dict(row, **_plain_row(st)) for row, st in zip(rows, stats, strict=True)]
+    elif progress is not None:
+        progress(1.0)
     capabilities = capabilities_of(project)
     rows = mark_runnable(rows, capabilities)
     pick = choose(rows, capabilities)
@@ -455,7 +465,7 @@ def machine(
     }
     return MachiningResult(
         rows=tuple(rows),
-        table_text=format_table(rows),
+        table_text=format_table(rows, chosen=pick.index),
         chosen=pick.index,
         programs=programs,
         runs=tuple(runs),

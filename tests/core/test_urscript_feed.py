@@ -138,7 +138,8 @@ def test_the_written_loop_carries_the_path_the_speeds_and_the_law(robot, short_p
     text = urscript_program(short_program, Tool(), pump, feed_loop=loop)
     path = next(poses for kind, poses in script_poses(text) if kind == "path")
     np.testing.assert_allclose([p[:3] for p in path], short_program.position_m, atol=1e-7)
-    np.testing.assert_allclose(script_numbers(text, "cm_speed"), short_program.speed_m_s, atol=1e-10)
+    speeds = script_numbers(text, "cm_speed")
+    np.testing.assert_allclose(speeds, short_program.speed_m_s, atol=1e-10)
     lines = text.splitlines()
     body = lines[1:-1]
     assert lines[0].startswith("def ") and lines[-1] == "end"

@@ -265,7 +265,7 @@ class _FuzzyStepper:
         internal = self.internal + change * f.max_rate_per_s * d.dt_s
         internal = min(max(internal, stages[0]), stages[-1])
         internal, stage = _next_stage(
-            stages, self.stage, internal, max(force_N, 0.0), d, f.hysteresis
+            stages, self.stage, internal, max(force_N, 0.0), d, f.hysteresis, f.stage_up_margin
         )
         if stage != self.stage:
             self.since = 0.0

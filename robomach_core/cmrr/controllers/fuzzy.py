@@ -112,6 +112,10 @@ class FuzzySettings:
             response, the force lag, the filter) is not a burr coming. 0 (the papers' rule
             base as it is): the trend rules answer the switch, and a force near the reference
             makes the stages hunt, a switch every few tenths of a millimetre.
+        stage_up_margin: a stage up is taken only if the force predicted there stays this
+            fraction under the reference (0, the rule as it was: just under it; then the
+            sensor's noise alone decides whether a cut whose force at the next stage would be
+            about the reference goes up, and a short stretch at the next stage comes and goes).
     """
 
     kind: Literal["fuzzy"] = field(default="fuzzy", init=False)
@@ -126,6 +130,7 @@ class FuzzySettings:
     initial_speed_ratio: float = 1.0
     error_span_fraction: float = 0.3
     switch_settle_s: float = 0.0
+    stage_up_margin: float = 0.0
 
     def __post_init__(self) -> None:
         stages = tuple(float(s) for s in self.stages)
@@ -150,6 +155,8 @@ class FuzzySettings:
             raise CmrrSettingsError("stop strength must be in (0, 1], hold time >= 0")
         if not 0.0 <= self.switch_settle_s <= 10.0:
             raise CmrrSettingsError("switch settle time must be within 0-10 s")
+        if not 0.0 <= self.stage_up_margin < 1.0:
+            raise CmrrSettingsError("stage-up margin must be in [0, 1)")
 
 
 @dataclass(frozen=True)
@@ -173,6 +180,7 @@ class TwoStageSettings:
     stop_hold_s: float = 0.2
     error_span_fraction: float = 0.5
     switch_settle_s: float = 0.0
+    stage_up_margin: float = 0.0
 
     def __post_init__(self) -> None:
         if not 0.0 < self.low_speed_ratio < 1.0:
@@ -192,6 +200,7 @@ class TwoStageSettings:
             stop_strength=self.stop_strength,
             stop_hold_s=self.stop_hold_s,
             switch_settle_s=self.switch_settle_s,
+            stage_up_margin=self.stage_up_margin,
         )
 
 
@@ -306,7 +315,8 @@ class FuzzyController:
         internal = state.internal_ratio + change * f.max_rate_per_s * d.dt_s
         internal = min(max(internal, stages[0]), stages[-1])
         internal, stage = _next_stage(
-            stages, state.stage, internal, max(measurement.force_N, 0.0), d, f.hysteresis
+            stages, state.stage, internal, max(measurement.force_N, 0.0), d, f.hysteresis,
+            f.stage_up_margin,
         )
         if stage != state.stage:
             since = 0.0
@@ -331,15 +341,17 @@ def _next_stage(
     force_now_N: float,
     design,
     hysteresis: float,
+    up_margin: float = 0.0,
 ) -> tuple[float, int]:
     """The stage the internal ratio selects, with hysteresis: up while the force the next stage
-    would cause (F * (r_next / r)^beta, the process model) stays below the reference (else the
-    internal ratio is held at the switch level), down past the lower switch level. Returns
+    would cause (F * (r_next / r)^beta, the process model) stays below the reference less
+    ``up_margin`` of it (else the internal ratio is held at the switch level), down past the
+    lower switch level. Returns
     (internal ratio, stage)."""
     beta = design.nominal_feed_exponent
     while stage + 1 < len(stages) and internal > _switch_level(stages, stage, +1, hysteresis):
         predicted = force_now_N * (stages[stage + 1] / stages[stage]) ** beta
-        if predicted >= design.reference_force_N:
+        if predicted >= design.reference_force_N * (1.0 - up_margin):
             internal = _switch_level(stages, stage, +1, hysteresis)
             break
         stage += 1
