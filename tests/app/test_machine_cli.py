@@ -243,17 +243,24 @@ def test_exit_130_when_interrupted(tmp_path):
 
 @pytest.mark.slow
 def test_variations_report_percentiles_and_choose_on_them(tmp_path):
+    """The sweep cuts the nominal stock's program on three drawn stocks too: the percentiles
+    count all four, and the constant feed designed for the nominal stock's deepest cut passes
+    the limit on a harder or thicker casting, so nothing can be chosen (exit 1, the reason)."""
     out = tmp_path / "o"
     proc = robomach_here(
         "machine", "--out", str(out), "--from", str(block_demo_dir()), "--controller",
         "constant", "--compensation", "off", "--variations", "3", "--workers", "2", "--no-plot",
     )  # fmt: skip
-    assert proc.returncode == 0, proc.stderr
     summary = json.loads((out / "machining_summary.json").read_text())
     (row,) = summary["runs"]
-    assert row["stocks"] == 3 and row["completed_share"] == 1.0
+    assert row["stocks"] == 4 and row["completed_share"] == 1.0
+    over = row["force_peak_p95_N"] > row["force_limit_N"]
+    assert proc.returncode == (1 if over else 0), proc.stderr
+    assert (summary["chosen"] is None) == over
     for key in ("cycle_time", "force_peak", "wall_error_max"):
         unit = {"cycle_time": "s", "force_peak": "N", "wall_error_max": "mm"}[key]
         assert row[f"{key}_p50_{unit}"] <= row[f"{key}_p95_{unit}"]
-    assert summary["variation"]["stocks"] == 3 and "material K" in summary["variation"]["ranges"]
+    variation = summary["variation"]
+    assert variation["stocks"] == 4 and variation["drawn"] == 3
+    assert "material K" in variation["ranges"]
     assert "95th percentiles" in summary["choice_reason"]
