@@ -767,3 +767,37 @@ def lowest_reach(station: np.ndarray, tool_normal: np.ndarray, n_st: int) -> np.
         if tool_normal[k] < reach[i]:
             reach[i] = tool_normal[k]
     return reach
+
+
+@_jit
+def split_by_deviation(s: np.ndarray, shift: np.ndarray, keep: np.ndarray, tol: float) -> None:
+    """``offline.split_by_deviation_reference`` compiled: the deviation-height split of the
+    planned shift between the kept stations, ``keep`` updated in place."""
+    n = s.shape[0]
+    stack_i = np.empty(n, dtype=np.int64)
+    stack_j = np.empty(n, dtype=np.int64)
+    top = 0
+    last = -1
+    for k in range(n):
+        if keep[k]:
+            if last >= 0:
+                stack_i[top] = last
+                stack_j[top] = k
+                top += 1
+            last = k
+    while top > 0:
+        top -= 1
+        i, j = stack_i[top], stack_j[top]
+        if j - i < 2:
+            continue
+        best, at = -1.0, -1
+        for m in range(i + 1, j):
+            t = (s[m] - s[i]) / (s[j] - s[i])
+            dev = abs(shift[m] - (shift[i] + t * (shift[j] - shift[i])))
+            if dev > best:
+                best, at = dev, m
+        if best > tol:
+            keep[at] = True
+            stack_i[top], stack_j[top] = i, at
+            stack_i[top + 1], stack_j[top + 1] = at, j
+            top += 2

@@ -82,11 +82,30 @@ def correction_stations(
     targets departs from a straight line by more than ``tolerance_m`` (the deviation-height
     reduction of chapter fig. 3, applied to the correction: a burr's force transient gets
     targets every few tenths of a millimetre, a steady cut one every few millimetres)."""
+    from ._kernel import split_by_deviation
+
     keep = np.zeros(len(s_m), dtype=bool)
     keep[np.searchsorted(s_m, np.clip(fixed_m, s_m[0], s_m[-1]))] = True
     keep[[0, -1]] = True
     grid = np.arange(0.0, s_m[-1], max_spacing_m)
     keep[np.searchsorted(s_m, grid)] = True
+    split_by_deviation(
+        np.ascontiguousarray(s_m, dtype=float), np.ascontiguousarray(shift_m, dtype=float),
+        keep, float(tolerance_m),
+    )  # fmt: skip
+    fixed = np.asarray(fixed_m, dtype=float)
+    fixed = fixed[(fixed >= s_m[0]) & (fixed <= s_m[-1])]
+    grid = np.union1d(s_m[keep], fixed)
+    # A station within a nanometre of a nominal target stands for it.
+    return grid[np.concatenate([[True], np.diff(grid) > 1e-9])]
+
+
+def split_by_deviation_reference(
+    s_m: np.ndarray, shift_m: np.ndarray, keep: np.ndarray, tolerance_m: float
+) -> None:
+    """``_kernel.split_by_deviation`` in numpy (its reference, tests compare them): between
+    each two kept stations, keep the one the shift departs most from the straight line by,
+    when that is more than ``tolerance_m``, and split there, until no interval needs one."""
     stack = list(zip(np.flatnonzero(keep)[:-1], np.flatnonzero(keep)[1:], strict=True))
     while stack:
         i, j = stack.pop()
@@ -100,11 +119,6 @@ def correction_stations(
             mid = i + 1 + k
             keep[mid] = True
             stack += [(i, mid), (mid, j)]
-    fixed = np.asarray(fixed_m, dtype=float)
-    fixed = fixed[(fixed >= s_m[0]) & (fixed <= s_m[-1])]
-    grid = np.union1d(s_m[keep], fixed)
-    # A station within a nanometre of a nominal target stands for it.
-    return grid[np.concatenate([[True], np.diff(grid) > 1e-9])]
 
 
 def program_poses(targets: Targets) -> np.ndarray:
@@ -125,27 +139,26 @@ def corrected_program(
     stiffness ``model``: chapter eq. (32), linear, as ``stiffness.compensate_targets_and_joints``
     does it, with the joints moved by -theta (first order: the robot's IK of the corrected pose
     differs by O(theta^2), nano-radians here), so it needs no IK per target."""
-    from ..stiffness.model import apply_twist
+    from scipy.spatial.transform import Rotation
 
     u = np.asarray(directions_m, dtype=float)
     force = np.asarray(force_N, dtype=float)
     c = np.asarray(model.compliance_rad_Nm, dtype=float)
-    Ts = program_poses(dense)
     q0 = np.asarray(dense.joints_rad, dtype=float)
-    out_T = np.empty_like(Ts)
-    out_q = np.empty_like(q0)
-    wrench = np.zeros(6)
+    Js = np.empty((len(dense), 6, 6))
     for i in range(len(dense)):
-        _, J = robot.fk_and_jacobian(q0[i])
-        wrench[:3] = force[i] * u[i]
-        theta = c * (J.T @ wrench)
-        out_T[i] = apply_twist(Ts[i], -(J @ theta))
-        out_q[i] = q0[i] - theta
+        Js[i] = robot.fk_and_jacobian(q0[i])[1]
+    # theta = Kq^-1 J^T [F u; 0], the twist J theta (the arm's deflection), applied negated:
+    # p - dp, R' = exp(-dw) R (``stiffness.model.apply_twist``).
+    theta = c * np.einsum("kji,kj->ki", Js[:, :3, :], force[:, None] * u)
+    twist = np.einsum("kij,kj->ki", Js, theta)
+    R = matrices_from_quaternions(np.asarray(dense.quaternion_wxyz, dtype=float))
+    R_c = Rotation.from_rotvec(-twist[:, 3:]).as_matrix() @ R
     return replace(
         dense,
-        position_m=out_T[:, :3, 3].copy(),
-        quaternion_wxyz=quaternions_from_matrices(out_T[:, :3, :3]),
-        joints_rad=out_q,
+        position_m=np.asarray(dense.position_m, dtype=float) - twist[:, :3],
+        quaternion_wxyz=quaternions_from_matrices(R_c),
+        joints_rad=q0 - theta,
     )
 
 

@@ -20,7 +20,7 @@ SOLUTION  ``choose`` saves the configuration: it sets the machining settings' co
           compensation is chosen and the machining result holding it is current.
 
 Choice rule (``machining.choice.choose``, the one the CLI, REST and both GUIs use): among the
-completed runs the cell can run (``capabilities_of``) whose peak force stays within 10 % of the
+completed runs the cell can run (``capabilities_of``) whose peak force stays within the
 limit, those within 5 % of the fastest cycle time; of these the smallest finished-wall max
 error; with a variation sweep (``MachiningSetup.variations``) on the 95th percentiles.
 """

@@ -56,7 +56,7 @@ def test_all_18_complete_within_1_2_x_the_limit_and_never_feed_backwards(pump):
     for run in result.runs:
         assert run.trace.feed_m_s.min() >= 0.0, (run.controller, run.compensation)
     chosen = result.rows[result.chosen]
-    assert chosen["force_peak_N"] <= 1.1 * chosen["force_limit_N"]
+    assert chosen["force_peak_N"] <= chosen["force_limit_N"]  # the limit as documented
 
 
 @pytest.mark.parametrize("controller", MACHINING_CONTROLLERS)

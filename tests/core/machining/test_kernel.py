@@ -83,3 +83,25 @@ def test_the_lq_table_grows_and_the_cut_is_the_same(robot, short_program):
     before = packed.lq_have.copy()
     _same(cut_program(robot, short_program, None, stock, s), fast)
     np.testing.assert_array_equal(packed.lq_have, before)
+
+
+@given(
+    st.lists(st.floats(-2e-4, 2e-4), min_size=3, max_size=400),
+    st.floats(1e-7, 1e-5),
+    st.integers(2, 40),
+)
+@settings(max_examples=60, deadline=None)
+def test_the_compiled_target_placement_equals_its_reference(shift, tolerance, every):
+    """Offline compensation's deviation-height placement of the corrected targets."""
+    from robomach_core.machining._kernel import split_by_deviation
+    from robomach_core.machining.offline import split_by_deviation_reference
+
+    shift = np.asarray(shift)
+    s = np.arange(len(shift)) * 1e-4
+    keep = np.zeros(len(s), dtype=bool)
+    keep[::every] = True
+    keep[[0, -1]] = True
+    reference = keep.copy()
+    split_by_deviation(s, shift, keep, tolerance)
+    split_by_deviation_reference(s, shift, reference, tolerance)
+    np.testing.assert_array_equal(keep, reference)
