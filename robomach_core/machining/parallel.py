@@ -105,7 +105,10 @@ def _pool_context() -> multiprocessing.context.BaseContext:
     unlike fork, the forkserver holds no thread of the server's. It lives as long as this
     process and serves every later pool: the second comparison's workers start at once."""
     context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload([__name__, "robomach_core.machining.compare"])
+    # ``_warm`` loads the compiled kernels once, for every worker forked afterwards.
+    context.set_forkserver_preload(
+        [__name__, "robomach_core.machining.compare", "robomach_core.machining._warm"]
+    )
     return context
 
 
