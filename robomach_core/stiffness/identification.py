@@ -184,9 +184,7 @@ def simulate_stiffness_measurements(
             rows_f.append(f + rng.normal(0.0, force_noise_N, 3))
             rows_d.append(after - before)
     d = np.array(rows_d)
-    return StiffnessMeasurements(
-        np.array(rows_q), np.array(rows_f), d[:, 0, :].copy(), d, offsets
-    )
+    return StiffnessMeasurements(np.array(rows_q), np.array(rows_f), d[:, 0, :].copy(), d, offsets)
 
 
 @dataclass(frozen=True)
@@ -360,9 +358,7 @@ def stiffness_campaign(
     if center_m is not None:
         centre = tuple(float(v) for v in center_m)
     tip_robot = Robot(robot_name, sphere_tip_transform())
-    joints = sample_workspace_joints(
-        tip_robot, poses, seed=seed, center_m=centre, half_size_m=half
-    )
+    joints = sample_workspace_joints(tip_robot, poses, seed=seed, center_m=centre, half_size_m=half)
     loads, tool_loads = campaign_loads_N(robot_name)
     data = simulate_stiffness_measurements(
         tip_robot, joints, true_joint_compliance(robot_name), cmm_noise_m=cmm_noise_m,

@@ -314,9 +314,9 @@ class FuzzyController:
         stages = f.stages
         internal = state.internal_ratio + change * f.max_rate_per_s * d.dt_s
         internal = min(max(internal, stages[0]), stages[-1])
+        force_now = max(measurement.force_N, 0.0)
         internal, stage = _next_stage(
-            stages, state.stage, internal, max(measurement.force_N, 0.0), d, f.hysteresis,
-            f.stage_up_margin,
+            stages, state.stage, internal, force_now, d, f.hysteresis, f.stage_up_margin
         )
         if stage != state.stage:
             since = 0.0
