@@ -173,7 +173,7 @@ def force_met_N(run, s_m: np.ndarray) -> np.ndarray:
     """The process force a run met at arc lengths ``s_m`` along the path [N] (zero beyond
     where a stopped run ended)."""
     tr = run.trace
-    if len(tr) < 2:
+    if len(tr.path_m) < 2:
         return np.zeros(len(s_m))
     return np.interp(s_m, tr.path_m, tr.force_N, right=0.0)
 

@@ -290,18 +290,15 @@ def run_machining(
     on_the_wall = replace(
         plan, inputs=replace(plan.inputs, c_true=np.zeros_like(plan.inputs.c_true))
     )
-    ideal = cut_planned(on_the_wall, targets, offset_m=np.zeros_like(plan.inputs.offset))
+    ideal = rehearsal_cut(on_the_wall, np.zeros_like(plan.inputs.offset), cancel)
     first = (
         force_met_N(ideal, s_f)
         if ideal.summary["completed"]
         else _first_plan(settings, stock, targets, s_f)
     )
 
-    def rehearse(offset_st: np.ndarray) -> MachiningRun:
-        return cut_planned(
-            plan, targets, offset_m=offset_st, cancel=cancel,
-            compensation_model_for_record=model,
-        )  # fmt: skip
+    def rehearse(offset_st: np.ndarray) -> Rehearsal:
+        return rehearsal_cut(plan, offset_st, cancel)
 
     def cut(program: Targets, dense: Targets) -> MachiningRun:
         return cut_program(
@@ -716,6 +713,45 @@ def cut_planned(
         summary=summary,
         stiffness_model=model if model is not None else compensation_model_for_record,
         controller_settings=plan.ctrl_settings,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class Rehearsal:
+    """What a rehearsal of offline compensation needs of its cut: whether it completed, its
+    wall error, the finished wall and the force it met along the path (``summary`` and
+    ``trace`` as a ``MachiningRun`` names them)."""
+
+    summary: dict[str, Any]
+    wall: FinishedWall
+    trace: Any
+
+
+def rehearsal_cut(
+    plan: CutPlan, offset_m: np.ndarray, cancel: CancelFlag | Callable[[], bool] | None
+) -> Rehearsal:
+    """The planned cut with these offsets, without the run's summary (the ILC reads the
+    wall and the force only)."""
+    from types import SimpleNamespace
+
+    inputs = replace(plan.inputs, offset=offset_m)
+    try:
+        result = run_loop(inputs, plan.controller, plan.packed, cancel=cancel_predicate(cancel))
+    except _Diverged as exc:
+        raise MachiningSettingsError(
+            f"the simulated cut diverged at {exc.s_m / MM:.1f} mm along the path"
+        ) from None
+    c = result.columns
+    wall = finished_wall(
+        plan.s_st, inputs.allowance, c["path_m"], c["tool_normal_m"], plan.stock.tool_radius_m
+    )
+    return Rehearsal(
+        {
+            "completed": result.cycle_time_s is not None,
+            "wall_error_max_mm": float(np.max(np.abs(wall.error_m))) / MM,
+        },
+        wall,
+        SimpleNamespace(path_m=c["path_m"], force_N=c["force_N"]),
     )
 
 
