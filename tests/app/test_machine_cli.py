@@ -264,3 +264,36 @@ def test_variations_report_percentiles_and_choose_on_them(tmp_path):
     assert variation["stocks"] == 4 and variation["drawn"] == 3
     assert "material K" in variation["ranges"]
     assert "95th percentiles" in summary["choice_reason"]
+
+
+@pytest.mark.slow
+def test_a_not_fit_program_is_shown_above_the_table_and_not_written(tmp_path):
+    """A project whose learning stopped before its last guide point (a partial program): the
+    comparison runs and is written, its problem is printed above the table, no program is
+    written, and the exit code is 1 (issue 29)."""
+    from dataclasses import replace
+
+    from robomach_core import project as core
+
+    project = load_project_file(block_demo_dir() / "project.npz")
+    rec = replace(project.learned.recording, completed=False, stop_reason="stopped by the test")
+    partial = replace(project, learned=replace(project.learned, recording=rec))
+    demo = tmp_path / "demo"
+    demo.mkdir()
+    core.save_project_file(partial, demo / core.PROJECT_FILE)
+    reopened = load_project_file(demo / core.PROJECT_FILE)
+    assert reopened.status()["postprocess"] == "current" and reopened.processed.problems()
+    out = tmp_path / "o"
+    proc = robomach_here(
+        "machine", "--out", str(out), "--from", str(demo), "--controller", "constant",
+        "--compensation", "off", "--no-plot", "--workers", "1",
+    )  # fmt: skip
+    assert proc.returncode == 1, proc.stderr
+    lines = proc.stdout.splitlines()
+    first = next(k for k, line in enumerate(lines) if line.startswith("NOT FIT TO MACHINE"))
+    header = next(k for k, line in enumerate(lines) if "controller" in line and "cycle" in line)
+    assert first < header and "partial" in lines[first]
+    assert "not fit to machine" in proc.stderr
+    assert not (out / "program.mod").exists()
+    summary = json.loads((out / "machining_summary.json").read_text())
+    assert summary["problems"] and summary["runs"][0]["completed"]
