@@ -13,9 +13,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from robomach_core import project as core
-from robomach_core.machining import MACHINING_CONTROLLERS, MachiningSettings
+from robomach_core.machining import MACHINING_CONTROLLERS, MachiningSettings, run_machining
 from robomach_core.robot import Robot
 from tests.demo_project import pump_demo
 
@@ -92,3 +94,33 @@ def test_the_settled_force_follows_the_process_model_and_cmrr_is_40_percent_fast
     assert abs(residual.mean()) < 0.1 * sigma and 0.9 * sigma < residual.std() < 1.1 * sigma
     pi, constant = _row(result, "adaptive-pi", "off"), _row(result, "constant", "off")
     assert pi["cycle_time_s"] <= 0.6 * constant["cycle_time_s"]
+
+
+@given(st.integers(1, 2**31 - 1))
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+def test_offline_compensation_holds_on_other_castings(pump, stock_seed):
+    """Issue 29 over the part's variation: the same program on another built-in stock. Every
+    controller's offline compensation cuts the wall error by >= 75 %, except the two-stage
+    controller's, which 24 stocks put at 74-95 % (a short stretch at the other stage can come
+    or go with the correction where the force hovers near a threshold): >= 65 % asked here."""
+    from robomach_core.export.target_joints import with_target_joints
+    from robomach_core.machining import builtin_stock
+
+    print(f"stock seed {stock_seed}")
+    project, workpiece, robot, result = pump
+    targets = with_target_joints(robot, core.require_processed(project).result.targets)
+    stock = builtin_stock(
+        result.stock.path_points_m, stock_seed, wall_normals_m=result.stock.wall_normals_m
+    )
+    model = result.run_for("constant", "offline").stiffness_model
+    for controller in MACHINING_CONTROLLERS:
+        cut = {
+            mode: run_machining(
+                robot, targets, None, stock,
+                MachiningSettings(controller=controller, compensation=mode),
+                compensation_model=model,
+            ).summary["wall_error_max_mm"]
+            for mode in ("off", "offline")
+        }  # fmt: skip
+        share = 0.35 if controller == "two-stage" else 0.25
+        assert cut["offline"] <= share * cut["off"], (controller, cut)

@@ -105,3 +105,28 @@ def test_the_compiled_target_placement_equals_its_reference(shift, tolerance, ev
     split_by_deviation(s, shift, keep, tolerance)
     split_by_deviation_reference(s, shift, reference, tolerance)
     np.testing.assert_array_equal(keep, reference)
+
+
+@given(
+    st.lists(st.floats(1e-4, 0.02), min_size=2, max_size=300),
+    st.floats(1e-9, 1e-4),
+    st.lists(st.tuples(st.integers(0, 49), st.floats(-1e-3, 1e-3)), min_size=1, max_size=200),
+)
+@settings(max_examples=60, deadline=None)
+def test_the_stations_kernels_equal_numpy(speeds, step, samples):
+    """The planner's ramp (forward then backward, v^2 <= v0^2 + 2 a ds) and the lowest reach
+    per station (``np.minimum.at``), compiled, against their numpy forms."""
+    from robomach_core.machining._kernel import lowest_reach, speed_profile
+
+    v2 = np.asarray(speeds) ** 2
+    ref = v2.tolist()
+    for i in range(1, len(ref)):
+        ref[i] = min(ref[i], ref[i - 1] + step)
+    for i in range(len(ref) - 2, -1, -1):
+        ref[i] = min(ref[i], ref[i + 1] + step)
+    np.testing.assert_array_equal(speed_profile(v2, step), np.sqrt(ref))
+    station = np.array([k for k, _ in samples], dtype=np.int64)
+    depth = np.array([h for _, h in samples])
+    reach = np.full(50, np.inf)
+    np.minimum.at(reach, station, depth)
+    np.testing.assert_array_equal(lowest_reach(station, depth, 50), reach)
