@@ -416,28 +416,14 @@ def learn_path(
     """
     dt = CONTROL_PERIOD_S
     supervisor = supervisor or cell_supervisor(cell)
-    guides, legs, axis = route.guides, route.legs, route.axis
-    decision = route.wall_side
-    side = decision.sign
+    legs, axis = route.legs, route.axis
+    side = route.wall_side.sign
+    heights = route.heights
 
     def across(v: np.ndarray) -> np.ndarray:
         return v - axis * float(v @ axis)
 
-    w = across(np.cross(axis, legs[0].xp) * side)
-    pushed = across(-np.asarray(guides[0].force_N, dtype=float))
-    if route.start_towards_wall is not None:
-        w = across(np.asarray(route.start_towards_wall, dtype=float))
-    elif float(np.linalg.norm(pushed)) >= th.WALL_FORCE_CLEAR_N and float(pushed @ w) > 0.0:
-        w = pushed
-    w /= float(np.linalg.norm(w))
-    heights = route.heights
-    travel = across(legs[0].xp)
-    travel /= float(np.linalg.norm(travel))
-    start = legs[0].a.copy()
-    ref = heights.at(start, travel, w)  # the floor under the whole cutter, a step included
-    start += axis * (route_height(legs[0].row(route.leg_offsets(legs[0])), ref, start, axis)
-                     - float(start @ axis))  # fmt: skip
-    state = _approach(cell, state, guides, start, axis, route.closed, supervisor=supervisor)
+    state, w, ref = _start(cell, state, route, supervisor)
 
     # Room for the run at the speed it may fall to (the slowest advance near the force limit).
     slowest = min(settings.speed_m_s, settings.search_speed_m_s)
@@ -518,45 +504,83 @@ def learn_path(
                 progress(min(1.0, (k + max(0.0, s_now) / leg.length) / len(legs)))
     if progress is not None:
         progress(1.0)
+    if completed:
+        return _recording(record[:n], route, settings, stop_reason, None), state
     rec = record[:n]
-    stop = None
-    if not completed:
-        p_stop = rec[-1, REC_POSITION : REC_POSITION + 3].copy() if n else T_ref[:3, 3].copy()
-        leg_numbers = (leg.first + 1, leg.last + 1)
-        positions, yps = rec[:, REC_POSITION : REC_POSITION + 3], rec[:, REC_YP : REC_YP + 3]
-        wall = _wall_turn(yps, positions, n, side, axis)
-        stop = LearningStop(stop_cause or "stopped", p_stop, leg_numbers, leg_travel, wall)
-        stop_reason = (
-            f"{stop_reason}. It stopped at t = {rec[-1, REC_TIME] if n else 0.0:.2f} s, "
-            f"{leg_travel * 1e3:.0f} mm along the leg G{leg_numbers[0]} -> G{leg_numbers[1]}, "
-            f"where {wall}."
-        )
+    p_stop = rec[-1, REC_POSITION : REC_POSITION + 3].copy() if n else T_ref[:3, 3].copy()
+    leg_numbers = (leg.first + 1, leg.last + 1)
+    positions, yps = rec[:, REC_POSITION : REC_POSITION + 3], rec[:, REC_YP : REC_YP + 3]
+    wall = _wall_turn(yps, positions, n, side, axis)
+    stop = LearningStop(stop_cause or "stopped", p_stop, leg_numbers, leg_travel, wall)
+    stop_reason = (
+        f"{stop_reason}. It stopped at t = {rec[-1, REC_TIME] if n else 0.0:.2f} s, "
+        f"{leg_travel * 1e3:.0f} mm along the leg G{leg_numbers[0]} -> G{leg_numbers[1]}, "
+        f"where {wall}."
+    )
+    return _recording(rec, route, settings, stop_reason, stop), state
+
+
+def _start(
+    cell: Cell, state: CellState, route: LearningRoute, supervisor: Supervisor
+) -> tuple[CellState, np.ndarray, np.ndarray]:
+    """The run's start: the direction to the wall (the mesh's wall point, else the recorded
+    push, else across the first leg on the wall's side), the floor under the whole cutter
+    there (a step included), and the approach down to the first point at the route's height.
+    Returns (the state there, the wall direction, the height reference)."""
+    legs, axis, guide = route.legs, route.axis, route.guides[0]
+
+    def across(v: np.ndarray) -> np.ndarray:
+        return v - axis * float(v @ axis)
+
+    w = across(np.cross(axis, legs[0].xp) * route.wall_side.sign)
+    pushed = across(-np.asarray(guide.force_N, dtype=float))
+    if route.start_towards_wall is not None:
+        w = across(np.asarray(route.start_towards_wall, dtype=float))
+    elif float(np.linalg.norm(pushed)) >= th.WALL_FORCE_CLEAR_N and float(pushed @ w) > 0.0:
+        w = pushed
+    w /= float(np.linalg.norm(w))
+    travel = across(legs[0].xp)
+    travel /= float(np.linalg.norm(travel))
+    start = legs[0].a.copy()
+    ref = route.heights.at(start, travel, w)
+    row = legs[0].row(route.leg_offsets(legs[0]))
+    start += axis * (route_height(row, ref, start, axis) - float(start @ axis))
+    state = _approach(cell, state, route.guides, start, axis, route.closed, supervisor=supervisor)
+    return state, w, ref
+
+
+def _recording(
+    rec: np.ndarray,
+    route: LearningRoute,
+    settings: PathLearningSettings,
+    stop_reason: str,
+    stop: LearningStop | None,
+) -> Recording:
+    """The ``Recording`` of the run's rows (``law.REC_TIME`` ...)."""
 
     def columns(start: int, width: int) -> np.ndarray:
         return rec[:, start : start + width].copy()
 
-    return (
-        Recording(
-            time_s=rec[:, REC_TIME].copy(),
-            joints_rad=columns(REC_JOINTS, 6),
-            position_m=columns(REC_POSITION, 3),
-            quaternion_wxyz=quaternions_from_matrices(
-                rec[:, REC_ROTATION : REC_ROTATION + 9].reshape(-1, 3, 3)
-            ),
-            wrench_sensor=columns(REC_SENSOR, 6),
-            wrench_tool=columns(REC_TOOL, 6),
-            force_normal_N=rec[:, REC_NORMAL].copy(),
-            force_reference_N=np.full(n, settings.force_N),
-            in_contact=rec[:, REC_CONTACT] > 0.5,
-            yp=columns(REC_YP, 3),
-            segment=rec[:, REC_SEGMENT].astype(np.int32),
-            stop_reason=stop_reason,
-            completed=completed,
-            stop=stop,
-            wall_side=decision.side,
-            wall_side_reason=decision.detail,
-            wall_side_source=decision.source,
-            guide_lift_m=tuple(float(v) for v in route.lifted_m),
+    decision = route.wall_side
+    return Recording(
+        time_s=rec[:, REC_TIME].copy(),
+        joints_rad=columns(REC_JOINTS, 6),
+        position_m=columns(REC_POSITION, 3),
+        quaternion_wxyz=quaternions_from_matrices(
+            rec[:, REC_ROTATION : REC_ROTATION + 9].reshape(-1, 3, 3)
         ),
-        state,
+        wrench_sensor=columns(REC_SENSOR, 6),
+        wrench_tool=columns(REC_TOOL, 6),
+        force_normal_N=rec[:, REC_NORMAL].copy(),
+        force_reference_N=np.full(len(rec), settings.force_N),
+        in_contact=rec[:, REC_CONTACT] > 0.5,
+        yp=columns(REC_YP, 3),
+        segment=rec[:, REC_SEGMENT].astype(np.int32),
+        stop_reason=stop_reason,
+        completed=stop is None,
+        stop=stop,
+        wall_side=decision.side,
+        wall_side_reason=decision.detail,
+        wall_side_source=decision.source,
+        guide_lift_m=tuple(float(v) for v in route.lifted_m),
     )
