@@ -23,7 +23,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 
 from ..cell import Cell, CellState
 from ..clock import CONTROL_PERIOD_S
@@ -31,6 +30,7 @@ from ..errors import CancelledError
 from ..leadthrough import GuidePoint
 from ..sensor import ForceEstimator
 from ..supervision import Supervisor, cell_supervisor
+from ..supervision.moves import move_joint, move_linear
 from ..transforms import quaternions_from_matrices
 from . import thresholds as th
 from .law import (
@@ -145,83 +145,6 @@ class Recording:
 
     def __len__(self) -> int:
         return len(self.time_s)
-
-
-def move_linear(
-    cell: Cell,
-    state: CellState,
-    T_target: np.ndarray,
-    speed_m_s: float = 0.05,
-    *,
-    supervisor: Supervisor | None = None,
-) -> CellState:
-    """Position-controlled straight move (MoveL) of the TCP to ``T_target``; no force control.
-
-    The reference moves by equal increments, (p1 - p0) / n and log3(R0^T R1) / n in its own
-    axes (the slerp's constant rate), over n periods at ``speed_m_s``: the increments path
-    learning's loop runs through ``Supervisor.supervise_increment``, compiled.
-
-    Supervised: the move slows near a limit and raises ``SupervisionError`` (carrying the last
-    safe cell state) before crossing one.
-    """
-    supervisor = supervisor or cell_supervisor(cell)
-    T_ref = state.T_base_tcp.copy()
-    T_target = np.asarray(T_target, dtype=float)
-    dist = float(np.linalg.norm(T_target[:3, 3] - T_ref[:3, 3]))
-    n = max(1, int(math.ceil(dist / speed_m_s / CONTROL_PERIOD_S)))
-    step = (T_target[:3, 3] - T_ref[:3, 3]) / n
-    turn = pin.log3(T_ref[:3, :3].T @ T_target[:3, :3]) / n
-    progress = 0.0  # periods' worth of motion done (a slowed period counts its scale)
-    settle = 0
-    for _ in range(th.MOVE_MAX_PERIODS_FACTOR * n + 10):
-        if progress >= n and settle >= 10:
-            break
-        part = min(1.0, n - progress) if progress < n else 0.0
-        supervised = supervisor.supervise_increment(state.q_motor, T_ref, step * part, turn * part)
-        if supervised.stop is not None:
-            raise supervised.stop.error(state=state)
-        T_ref = supervised.T_ref
-        state = cell.step(state, supervised.q_next)
-        progress += supervised.scale * part
-        if part == 0.0:  # at the target: settling periods
-            settle += 1
-    return state
-
-
-def move_joint(
-    cell: Cell,
-    state: CellState,
-    q_target: np.ndarray,
-    speed_rad_s: float = 0.5,
-    *,
-    supervisor: Supervisor | None = None,
-) -> CellState:
-    """Joint-interpolated move (MoveJ / MoveAbsJ) to ``q_target``, supervised like MoveL."""
-    supervisor = supervisor or cell_supervisor(cell)
-    q0 = state.q_motor.copy()
-    q1 = np.asarray(q_target, dtype=float)
-    span = float(np.max(np.abs(q1 - q0)))
-    n = max(1, int(math.ceil(span / speed_rad_s / CONTROL_PERIOD_S)))
-    robot = cell.robot
-    progress = 0.0
-    for _ in range(th.MOVE_MAX_PERIODS_FACTOR * n + 10):
-        if progress >= n:
-            break
-        base = progress
-        step = min(1.0, n - progress)
-
-        def propose(scale: float, base: float = base, step: float = step):
-            q = q0 + (q1 - q0) * min(1.0, (base + scale * step) / n)
-            return robot.fk(q), q
-
-        supervised = supervisor.supervise(state.q_motor, propose)
-        if supervised.stop is not None:
-            raise supervised.stop.error(state=state)
-        state = cell.step(state, supervised.q_next)
-        progress += supervised.scale * step
-    for _ in range(10):  # settle
-        state = cell.step(state, state.q_motor)
-    return state
 
 
 def _wrist_turns(robot, guides: Sequence[GuidePoint], closed: bool) -> np.ndarray:
