@@ -1,9 +1,11 @@
 """The learning envelope (issue 28), measured: ``python -m tests.envelope [--sets N] [--grid]
-[--seed S] [--one SEED]``.
+[--tilted D] [--seed S] [--one SEED]``.
 
 Runs N generated sloppy sets (default 300) over the parts (``SLOPPY_PARTS``) and, with
 ``--grid``, the force x speed grid (10, 15, 20 N x 0.5, 1, 2, 5, 10, 20 mm/s) on the pump and
-the block from the example operator's points; prints the tally per part and per class
+the block from the example operator's points, and with ``--tilted D`` D draws of each tilted
+plate case (``TILTED_CASES``: tool vertical or normal, groove or outside edge, a careful
+person's points or pointing); prints the tally per part and per class
 (``learning_outcome``), each failure with its seed and description, and the run time. Every
 set has its own seed (printed); ``--one SEED`` replays one set, ``--seed S`` a whole run. The
 property tests (tests/core/test_learning_envelope.py) draw from the same functions, a few per
@@ -16,12 +18,14 @@ import argparse
 import os
 import sys
 import time
+import zlib
 from collections import Counter, defaultdict
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 
+from robomach_core.errors import RobomachError
 from tests.envelope_parts import PARTS, EnvelopePart, tilted
 from tests.learning_outcome import (
     FAILURES,
@@ -29,8 +33,10 @@ from tests.learning_outcome import (
     example_leadthrough,
     fresh_cell,
     learn_set,
+    proposal_set,
+    within_the_wall,
 )
-from tests.people_points import people_points
+from tests.people_points import hand_points, people_points
 
 SEED_VARIABLE = "ROBOMACH_SEED"
 GRID_FORCES_N = (10.0, 15.0, 20.0)
@@ -73,6 +79,57 @@ def tilted_part(kind: str, rng: np.random.Generator, how: str | None = None) -> 
     base = part_named("grooved_plate") if kind == "groove" else part_named("boss_plate")
     how = how or str(rng.choice(["mesh", "wobj"]))
     return tilted(base, float(rng.uniform(10.0, 20.0)), float(rng.uniform(0.0, 360.0)), how)
+
+
+TILTED_CASES = tuple(
+    (how, kind, source)
+    for how in ("mesh", "wobj")
+    for kind in ("groove", "boss")
+    for source in ("hand", "proposal")
+)  # tool vertical / tool normal x groove round an island / outside edge x points / pointing
+
+
+@dataclass(frozen=True)
+class TiltedRun:
+    """One tilted plate learned: what was drawn, the outcome, and what is wrong with it."""
+
+    description: str
+    outcome: Outcome | None
+    problems: list[str]
+
+
+def run_tilted_case(how: str, kind: str, source: str, rng: np.random.Generator) -> TiltedRun:
+    """A plate tilted 10-20 deg (``tilted_part``), a wall of it drawn, taught by a careful
+    person's 14 points (``source="hand"``) or by pointing at the wall ("proposal"), learned;
+    the problems are what the acceptance forbids: not learned whole, farther than 0.25 mm from
+    the true wall, off the taught height, or proposed points not beside the wall."""
+    part = tilted_part(kind, rng, how)
+    wall = str(rng.choice(list(part.walls)))
+    seed = int(rng.integers(2**31))
+    label = f"{part.description}, wall '{wall}', {source}"
+    if source == "hand":
+        cell = part.cell(seed)
+        pset = hand_points(part, cell, rng, wall=wall)
+        outcome, _ = learn_set(part, cell, pset)
+    else:
+        s = float(rng.uniform(0.0, part.walls[wall].length_mm))
+        try:
+            pset, state, estimator, _ = proposal_set(part, seed, wall, s_mm=s)
+        except RobomachError as exc:
+            return TiltedRun(label, None, [f"pointing refused: {exc}"])
+        off = within_the_wall(pset, part, part.workpiece(seed), 1.0)
+        if off:
+            return TiltedRun(label, None, [f"proposed points {off} not beside the wall"])
+        outcome, _ = learn_set(part, fresh_cell(part, seed), pset, state=state, estimator=estimator)
+    m = outcome.measure
+    problems = []
+    if outcome.kind != "learned":
+        problems.append(f"not learned whole ({outcome.kind})")
+    if m.dev_mm > GRID_WITHIN_MM:
+        problems.append(f"{m.dev_mm:.3f} mm from the true wall (> {GRID_WITHIN_MM} mm)")
+    if m.height_mm > HEIGHT_MM:
+        problems.append(f"height off by {m.height_mm:.2f} mm (> {HEIGHT_MM} mm)")
+    return TiltedRun(label + "\n" + pset.description, outcome, problems)
 
 
 def sloppy_part(name: str, rng: np.random.Generator) -> EnvelopePart:
@@ -183,12 +240,53 @@ def _tally(runs: list[SetRun]) -> str:
     return "\n".join(lines)
 
 
+def _tilted(draws: int, seed: int) -> int:
+    """Print every tilted-plate case ``draws`` times and the worst figures; the failures."""
+    print(f"\ntilted plates, {draws} draw(s) of each of {len(TILTED_CASES)} cases:", flush=True)
+    worst_dev, worst_height, failed = 0.0, 0.0, 0
+    for d in range(draws):
+        for how, kind, source in TILTED_CASES:
+            run = run_tilted_case(
+                how,
+                kind,
+                source,
+                np.random.default_rng(
+                    [seed % 2**63, d, zlib.crc32(f"{how} {kind} {source}".encode())]
+                ),
+            )
+            first = run.description.splitlines()[0]
+            if run.outcome is not None:
+                m = run.outcome.measure
+                worst_dev, worst_height = max(worst_dev, m.dev_mm), max(worst_height, m.height_mm)
+                line = f"{run.outcome.kind}, {m.dev_mm:.3f} mm, height {m.height_mm:.2f} mm"
+            else:
+                line = "no run"
+            mark = "FAIL" if run.problems else "ok  "
+            print(f"  {mark} {how:<4} {kind:<6} {source:<8} {line}: {first}", flush=True)
+            if run.problems:
+                failed += 1
+                print(
+                    "    "
+                    + "; ".join(run.problems)
+                    + "\n    "
+                    + run.description.replace("\n", "\n    ")
+                )
+    print(
+        f"tilted plates: {failed} of {draws * len(TILTED_CASES)} failed; worst {worst_dev:.3f} mm "
+        f"from the true wall (acceptance {GRID_WITHIN_MM} mm), height within {worst_height:.2f} mm"
+    )
+    return failed
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tests.envelope", description=__doc__)
     parser.add_argument("--sets", type=int, default=300, help="sloppy sets (default 300)")
     parser.add_argument("--grid", action="store_true", help="also the force x speed grid")
     parser.add_argument("--seed", type=int, default=None, help="the run's seed (default: fresh)")
     parser.add_argument("--one", type=int, default=None, help="replay one set by its seed")
+    parser.add_argument(
+        "--tilted", type=int, default=0, help="draws of each of the 8 tilted-plate cases"
+    )
     args = parser.parse_args(argv)
     started = time.perf_counter()
     if args.one is not None:
@@ -213,6 +311,8 @@ def main(argv: list[str] | None = None) -> int:
                         f"({time.perf_counter() - t:.0f} s)",
                         flush=True,
                     )
+    if args.tilted:
+        bad += _tilted(args.tilted, seed)
     runs: list[SetRun] = []
     if args.sets:
         print(f"\n{args.sets} sloppy sets:", flush=True)

@@ -20,23 +20,18 @@ import zlib
 import numpy as np
 import pytest
 
-from robomach_core.errors import RobomachError
 from tests.envelope import (
     GRID_FORCES_N,
     GRID_PARTS,
     GRID_SPEEDS_MM_S,
-    GRID_WITHIN_MM,
-    HEIGHT_MM,
     grid_problems,
     replay,
     run_grid_cell,
     run_seed,
     run_sloppy_set,
+    run_tilted_case,
     set_seeds,
-    tilted_part,
 )
-from tests.learning_outcome import fresh_cell, learn_set, proposal_set, within_the_wall
-from tests.people_points import hand_points
 
 SEED = run_seed()
 GRID_DRAWS = 3  # the first always the pump at 0.5, 1 or 2 mm/s
@@ -90,29 +85,9 @@ def test_a_tilted_plate_is_learned_along_all_its_wall_within_a_quarter_mm(how, k
     points or from pointing at the wall: 100 % of the wall within 0.25 mm, at the taught
     height relative to the part. (Why 2: 6 % of the wall, and a proposal on a horizontal
     section 207 mm long.)"""
-    rng = _rng("tilted", how, kind, source)
-    part = tilted_part(kind, rng, how)
-    wall = str(rng.choice(list(part.walls)))
-    seed = int(rng.integers(2**31))
-    if source == "hand":
-        cell = part.cell(seed)
-        pset = hand_points(part, cell, rng, wall=wall)
-        outcome, _ = learn_set(part, cell, pset)
-    else:
-        s = float(rng.uniform(0.0, part.walls[wall].length_mm))
-        try:
-            pset, state, estimator, _ = proposal_set(part, seed, wall, s_mm=s)
-        except RobomachError as exc:
-            pytest.fail(f"{replay(SEED)}: pointing at {part.description}: {exc}")
-        off = within_the_wall(pset, part, part.workpiece(seed), 1.0)
-        if off:  # a proposal follows the wall, between its floor and its top
-            pytest.fail(
-                f"{replay(SEED)}: proposed points {off} not beside the wall\n{pset.description}"
-            )
-        outcome, _ = learn_set(part, fresh_cell(part, seed), pset, state=state, estimator=estimator)
-    m = outcome.measure
-    if outcome.kind != "learned" or m.dev_mm > GRID_WITHIN_MM or m.height_mm > HEIGHT_MM:
-        pytest.fail(f"{replay(SEED)}: {outcome.line()}\n{pset.description}")
+    run = run_tilted_case(how, kind, source, _rng("tilted", how, kind, source))
+    if run.problems:
+        pytest.fail(f"{replay(SEED)}: {'; '.join(run.problems)}\n{run.description}")
 
 
 # --- (c) sloppy sets ------------------------------------------------------------------------
