@@ -98,11 +98,16 @@ class LegEnd:
     """Where a leg ends, the same for the run and the walk: at ``LEG_END_MARGIN_M`` before its
     guide point's plane, or at the nearest approach to its point (within ``NEAR_END_M``,
     receding ``END_PASSED_M``); the last leg of a closed route at the nearest approach to where
-    the route first met the wall (within ``CLOSE_LOOP_M``), of an open one at the nearest
-    approach to its last point; either ``CLOSE_LOOP_OVERRUN_M`` past the plane at the latest."""
+    the route first met the wall (within the cutter's radius + ``CLOSE_LOOP_M``: a first touch
+    on a corner is anywhere on the cutter's arc round it, up to a radius off the faces' path),
+    of an open one at the nearest approach to its last point; either ``CLOSE_LOOP_OVERRUN_M``
+    past the plane at the latest."""
 
-    def __init__(self, leg: Leg, axis: np.ndarray, *, last: bool, closed: bool) -> None:
+    def __init__(
+        self, leg: Leg, axis: np.ndarray, *, last: bool, closed: bool, tool_radius_m: float
+    ) -> None:
         self.leg, self.axis, self.last, self.closed = leg, axis, last, closed
+        self.close_within_m = tool_radius_m + th.CLOSE_LOOP_M
         self.end_best = math.inf
         self.close_best = math.inf
         L = leg.length
@@ -120,7 +125,7 @@ class LegEnd:
         if self.last and self.closed and start is not None:
             if s >= 0.5 * L:
                 gap = self._across(p - start)
-                if gap < th.CLOSE_LOOP_M and gap > self.close_best:
+                if gap < self.close_within_m and gap > self.close_best:
                     return True
                 self.close_best = min(self.close_best, gap)
             return s >= L + th.CLOSE_LOOP_OVERRUN_M
@@ -623,7 +628,7 @@ def walk_route(
     measured_at, measured = [p.copy()], [ref]
     for k, leg in enumerate(legs):
         row = leg.row(offsets[k])
-        end = LegEnd(leg, axis, last=k == len(legs) - 1, closed=closed)
+        end = LegEnd(leg, axis, last=k == len(legs) - 1, closed=closed, tool_radius_m=r)
         limit = th.LEG_DETOUR_FACTOR * leg.length + th.LEG_DETOUR_EXTRA_M
         pts, towards, walked, reached, over_top, off_floor = [], [], 0.0, False, 0.0, 0.0
         while walked <= limit:

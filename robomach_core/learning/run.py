@@ -360,7 +360,9 @@ def learn_path(
     step, turn = np.zeros(3), np.zeros(3)
     k = 0
     leg, row = legs[0], rows[0]
-    end = LegEnd(leg, axis, last=len(legs) == 1, closed=route.closed)
+    end = LegEnd(
+        leg, axis, last=len(legs) == 1, closed=route.closed, tool_radius_m=cell.tool.radius_m
+    )
     guard = _Protections.of_leg(route, 0, settings, cell.tool.radius_m)
     leg_travel = 0.0
     t0 = state.time_s
@@ -412,7 +414,13 @@ def learn_path(
                 break
             k += 1
             leg, row = legs[k], rows[k]
-            end = LegEnd(leg, axis, last=k + 1 == len(legs), closed=route.closed)
+            end = LegEnd(
+                leg,
+                axis,
+                last=k + 1 == len(legs),
+                closed=route.closed,
+                tool_radius_m=cell.tool.radius_m,
+            )
             guard = _Protections.of_leg(route, k, settings, cell.tool.radius_m)
             leg_travel = 0.0
         since_ref += travelled
