@@ -4,24 +4,14 @@ the CAD comparison in the post-processing answer. In process (``TestClient``), u
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from app.api import create_app
-from app.session import Session
-
 GP = "/api/guide-points"
 ON_WALL_MM = [0.0, -65.0, 17.0]  # the pump groove's outer wall, 3 mm above its floor (mm)
 WOBJ_MM = np.array([800.0, 160.0, 0.0])
-
-
-@pytest.fixture
-def client() -> Iterator[TestClient]:
-    with TestClient(create_app(Session(real_time=False)), raise_server_exceptions=False) as c:
-        yield c
 
 
 def _ok(client: TestClient, method: str, path: str, status: int = 200, **kw) -> dict:

@@ -17,11 +17,6 @@ import ast
 import re
 from pathlib import Path
 
-import pytest
-from fastapi.testclient import TestClient
-
-from app.api.app import create_app
-from app.session import Session
 from robomach_core import choices, limits
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -134,13 +129,6 @@ def test_no_viser_slider_is_bounded_by_typed_numbers() -> None:
             if label not in DISPLAY_SLIDERS and any(isinstance(b, ast.Constant) for b in bounds):
                 found.append(f"{path.relative_to(ROOT)}:{node.lineno} {label}")
     assert not found, "viser sliders with typed bounds:\n" + "\n".join(found)
-
-
-@pytest.fixture
-def client():
-    session = Session(real_time=False)
-    with TestClient(create_app(session)) as c:
-        yield c
 
 
 def test_the_pendant_gets_every_choice_and_range_from_an_endpoint(client) -> None:
