@@ -73,6 +73,13 @@ class PostprocessSettings:
         lo, hi = FORCE_BAND
         return replace(self, force_min_N=lo * force_N, force_max_N=hi * force_N)
 
+    def for_learning_force(self, force_N: float) -> PostprocessSettings:
+        """The band rule of every path (workbench, REST and CLI, through
+        ``project.with_learned``): these settings when their band holds a recording at
+        ``force_N`` (``holds_force``: a band the user chose wins), else the band moved to
+        ``FORCE_BAND`` x ``force_N``. At 12 N the default 5-15 N band stays."""
+        return self if self.holds_force(force_N) else self.with_band_for(force_N)
+
     def __post_init__(self) -> None:
         # limits.TOLERANCE_MM: below 0.01 mm the reduction keeps nearly every sample (a 311k
         # sample recording took 6.5-7 GB at 0.001 mm; issue 19, R3).

@@ -83,7 +83,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=10.0,
         metavar="N",
         help="contact force reference in N (1-50; the paper used 10-20); the post-processing "
-        "filter keeps samples at 0.5-1.5 times it",
+        "filter keeps samples at 5-15 N, or at 0.5-1.5 times the force where that band would "
+        "not hold it (as the workbench)",
     )
     p.add_argument(
         "--speed",
@@ -333,11 +334,11 @@ def run(args: argparse.Namespace) -> int:
         compensation=compensation,
         wobj_mm_deg=wobj,
         tool=Tool(radius_m=args.tool_radius_mm * 1e-3),
-        # The force filter's band follows --force (5-15 N at the default 10 N).
+        # The force filter's band: the workbench's rule (``for_learning_force``).
         postprocess=PostprocessSettings(
             arcs=args.arcs,
             arc_tolerance_m=None if args.arc_tolerance is None else args.arc_tolerance * 1e-3,
-        ).with_band_for(args.force),
+        ),
         closed=not args.open,
         language=args.language,
         robot_urdf=robot_urdf,
