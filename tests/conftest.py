@@ -48,6 +48,19 @@ def pytest_unconfigure(config: pytest.Config) -> None:
         demo_project.remove_demos_root()
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _no_server_variables() -> Iterator[None]:
+    """The server's ``ROBOMACH_*`` variables of the shell running the tests are not theirs
+    (``ServerSettings`` reads them): a test sets the ones it means (``monkeypatch.setenv``)."""
+    from app.settings import ServerSettings
+
+    names = ["ROBOMACH_DATA"] + [f"ROBOMACH_{f.upper()}" for f in ServerSettings.model_fields]
+    with pytest.MonkeyPatch.context() as mp:
+        for name in names:
+            mp.delenv(name, raising=False)
+        yield
+
+
 @contextmanager
 def app_client(session=None, settings=None, **client_options) -> Iterator:
     """A ``TestClient`` on ``create_app`` over ``session`` (a fresh unpaced one by default) with
