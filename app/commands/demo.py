@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
+
+from app.commands.progress import StageProgress
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -179,42 +180,6 @@ def _point_mm(text: str, option: str) -> tuple[float, float, float]:
     return values[0] * 1e-3, values[1] * 1e-3, values[2] * 1e-3  # type: ignore[return-value]
 
 
-class _ProgressLine:
-    """One terminal line per stage, redrawn in place on a TTY, printed at 25 % steps otherwise."""
-
-    def __init__(self, stream=None) -> None:
-        # sys.stderr now, not when the module was imported (a caller may have replaced it since).
-        self.stream = sys.stderr if stream is None else stream
-        self.tty = self.stream.isatty()
-        self.stage = None
-        self.last_quarter = -1
-        self.started = time.perf_counter()
-
-    def __call__(self, stage: str, fraction: float) -> None:
-        if stage != self.stage:
-            if self.stage is not None and self.tty:
-                self.stream.write("\n")
-            self.stage = stage
-            self.last_quarter = -1
-            self.started = time.perf_counter()
-        if self.tty:
-            bar = "#" * int(fraction * 30)
-            self.stream.write(f"\r{stage:<16} [{bar:<30}] {fraction * 100:5.1f} %")
-            if fraction >= 1.0:
-                self.stream.write(f"  {time.perf_counter() - self.started:.1f} s")
-            self.stream.flush()
-        else:
-            quarter = int(fraction * 4)
-            if quarter > self.last_quarter:
-                self.last_quarter = quarter
-                self.stream.write(f"{stage}: {quarter * 25} %\n")
-                self.stream.flush()
-
-    def close(self) -> None:
-        if self.tty and self.stage is not None:
-            self.stream.write("\n")
-
-
 # A guide-point file holds at most ``limits.GUIDE_POINTS_MAX`` rows of ten numbers: a few kB.
 MAX_GUIDE_POINTS_FILE_BYTES = 1_000_000
 
@@ -346,7 +311,7 @@ def run(args: argparse.Namespace) -> int:
         proposal=ProposalSettings(gap_m=args.gap_mm * 1e-3),
         part_deviation=PartDeviation.realistic(args.seed) if args.realistic else None,
     )
-    bar = _ProgressLine()
+    bar = StageProgress()
     try:
         result = run_demo(settings, progress=bar)
     except SupervisionError as exc:

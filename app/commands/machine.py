@@ -147,7 +147,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from app.cli import writable_folder
-    from app.commands.demo import _ProgressLine
+    from app.commands.progress import StageProgress
     from robomach_core import limits
     from robomach_core.errors import InvalidInputError, RobomachError
 
@@ -166,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
     from robomach_core.machining import MachiningSettings, plot_runs, write_run_csv
     from robomach_core.robot import Robot
 
-    bar = _ProgressLine()
+    bar = StageProgress()
     try:
         project = _project(args, bar)
         settings = MachiningSettings(force_limit_N=args.force_limit_N, seed=args.seed)
