@@ -101,7 +101,8 @@ def ranges() -> dict[str, limits.Range]:
 def catalogue() -> dict[str, Any]:
     """The JSON document of every choice and range (``GET /api/choices``): ``enums`` name ->
     ``{"values": [...], "labels": {value: words}}``, ``ranges`` name -> ``{"label", "min",
-    "max", "unit", "integer", "text"}``."""
+    "max", "unit", "integer", "text", "default"}`` (``default``: null where the user must
+    give the number)."""
     return {
         "enums": {
             name: {"values": list(values), "labels": LABELS.get(name, {v: v for v in values})}
@@ -115,6 +116,7 @@ def catalogue() -> dict[str, Any]:
                 "unit": r.unit,
                 "integer": r.integer,
                 "text": r.text(),
+                "default": r.default,
             }
             for name, r in ranges().items()
         },

@@ -91,9 +91,9 @@ class DemoSettings:
 
     robot: str = "ur10"
     workpiece: str = "water_pump"
-    force_N: float = 10.0
-    speed_m_s: float = 0.005
-    tolerance_m: float = 0.0002
+    force_N: float = PathLearningSettings.force_N
+    speed_m_s: float = PathLearningSettings.speed_m_s
+    tolerance_m: float = PostprocessSettings.tolerance_m
     seed: int = 0
     tool: Tool = field(default_factory=Tool)
     postprocess: PostprocessSettings = field(default_factory=PostprocessSettings)

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from app.commands.progress import StageProgress
+from robomach_core import limits
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -81,25 +82,26 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--force",
         type=float,
-        default=10.0,
+        default=limits.LEARNING_FORCE_N.default,
         metavar="N",
-        help="contact force reference in N (1-50; the paper used 10-20); the post-processing "
+        help="contact force reference in N (1-50, default %(default)g; the paper used 10-20); "
+        "the post-processing "
         "filter keeps samples at 5-15 N, or at 0.5-1.5 times the force where that band would "
         "not hold it (as the workbench)",
     )
     p.add_argument(
         "--speed",
         type=float,
-        default=5.0,
+        default=limits.LEARNING_SPEED_MM_S.default,
         metavar="MM_S",
-        help="learning speed in mm/s (default 5)",
+        help="learning speed in mm/s (default %(default)g)",
     )
     p.add_argument(
         "--tolerance",
         type=float,
-        default=0.2,
+        default=limits.TOLERANCE_MM.default,
         metavar="MM",
-        help="deviation-height tolerance in mm (default 0.2)",
+        help="deviation-height tolerance in mm (default %(default)g)",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of every random element")
     p.add_argument(
@@ -164,7 +166,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def _point_mm(text: str, option: str) -> tuple[float, float, float]:
     """A point x,y,z in mm (work-object frame) as metres, each inside the work-object range."""
-    from robomach_core import limits
     from robomach_core.errors import InvalidInputError
 
     try:
@@ -216,7 +217,6 @@ def read_guide_points_file(path: Path) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from app.cli import settings_file, writable_folder
-    from robomach_core import limits
     from robomach_core.errors import InvalidInputError
 
     limits.TOLERANCE_MM.check(args.tolerance, "--tolerance")
