@@ -7,6 +7,7 @@ a run that ends at its set force against the wall stays there."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from app.session import Session
 from robomach_core.learning.settings import PathLearningSettings
@@ -17,6 +18,7 @@ TOP_OF_RANGES = {"fixture_shift_mm": 5.0, "fixture_rotation_deg": 3.0, "wall_off
                  "burrs": 50, "burr_height_mm": 1.0}  # fmt: skip
 
 
+@pytest.mark.slow  # a proposal and a learning run on the real part: 7 s idle
 def test_the_realistic_part_at_the_top_of_its_ranges_leaves_the_robot_free() -> None:
     session = Session(real_time=False)
     try:

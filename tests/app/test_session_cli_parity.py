@@ -79,6 +79,7 @@ def _assert_same_stages(live: core.Project, cli: core.Project) -> None:
     assert all(live.status()[s] == "current" for s in ("recording", "postprocess"))
 
 
+@pytest.mark.slow  # the CLI's demo and the workbench's run, twice per case: 5-6 s idle
 @pytest.mark.parametrize(("robot", "force_N", "tolerance_mm"), CASES)
 def test_the_workbench_and_the_cli_build_the_same_project(
     tmp_path, robot, force_N, tolerance_mm

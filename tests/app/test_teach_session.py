@@ -151,6 +151,7 @@ def test_the_gap_is_to_the_wall_at_the_tool_and_names_a_nearer_floor(fast: Sessi
     assert view.face == "floor" and view.wall_gap_m == pytest.approx(0.001, abs=5e-4)
 
 
+@pytest.mark.slow  # the example's 14 points and its run: 5 s idle
 def test_the_example_after_hand_teaching_turns_in_steps_and_runs(fast: Session) -> None:
     fast.robot.select([], "tool")
     for _ in range(2):
