@@ -6,6 +6,7 @@ from __future__ import annotations
 import threading
 import time
 import uuid
+import weakref
 from collections.abc import Callable, Iterable
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
@@ -126,6 +127,7 @@ class JobRunner:
         self._lock = threading.Lock()
         self._closed = False
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="robomach-jobs")
+        _RUNNERS.add(self)
 
     def submit(
         self,
@@ -290,6 +292,24 @@ class JobRunner:
             job.status, job.progress = "done", 1.0
         job.finished_s = time.time()
         self._finish(job)
+
+
+# Every live runner, so that a program exiting without closing its sessions cancels their jobs:
+# the executor's worker is not a daemon thread, and the interpreter joins it at exit.
+_RUNNERS: weakref.WeakSet[JobRunner] = weakref.WeakSet()
+
+
+def _cancel_at_exit() -> None:
+    for runner in list(_RUNNERS):
+        with runner._lock:
+            for job in runner._jobs.values():
+                job.cancel.set()
+        runner._executor.shutdown(wait=False, cancel_futures=True)
+
+
+# Called before concurrent.futures joins its workers (registered later, so called first): the
+# hook concurrent.futures itself uses for that join.
+threading._register_atexit(_cancel_at_exit)
 
 
 def _ended(ctx: JobContext) -> None:

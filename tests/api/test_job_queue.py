@@ -74,6 +74,30 @@ def test_wait_returns_each_ending_once_on_end_has_run() -> None:
         runner.close()
 
 
+@pytest.mark.slow  # a Python process of its own
+def test_a_program_that_never_closes_its_runner_exits_while_a_job_runs() -> None:
+    """The executor's worker is joined at interpreter exit: the runner cancels its jobs first,
+    so the program ends now instead of when a 10-minute job would have."""
+    import subprocess
+    import sys
+
+    script = (
+        "import threading, time\n"
+        "from app.session import JobRunner\n"
+        "started = threading.Event()\n"
+        "def work(ctx):\n"
+        "    started.set()\n"
+        "    end = time.monotonic() + 600\n"
+        "    while time.monotonic() < end:\n"
+        "        ctx.check_cancelled()\n"
+        "        time.sleep(0.01)\n"
+        "JobRunner().submit('long', work)\n"
+        "started.wait(30)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], timeout=120, capture_output=True)
+    assert done.returncode == 0, done.stderr.decode()
+
+
 def processed_project_bytes() -> bytes:
     """A project on the block with a short synthetic recording, post-processed on import."""
     project = learned_block_project()
