@@ -219,6 +219,13 @@ class JobRunner:
             except FutureTimeout:
                 log.warning("job %s (%s) still running at close", job.id, job.kind)
 
+    def stop_everything(self) -> None:
+        """Ask every job to stop and start no queued one, without waiting (interpreter exit)."""
+        with self._lock:
+            for job in self._jobs.values():
+                job.cancel.set()
+        self._executor.shutdown(wait=False, cancel_futures=True)
+
     @staticmethod
     def _end_queued(job: _Job, error: str) -> None:
         job.status, job.error, job.finished_s = "cancelled", error, time.time()
@@ -301,10 +308,7 @@ _RUNNERS: weakref.WeakSet[JobRunner] = weakref.WeakSet()
 
 def _cancel_at_exit() -> None:
     for runner in list(_RUNNERS):
-        with runner._lock:
-            for job in runner._jobs.values():
-                job.cancel.set()
-        runner._executor.shutdown(wait=False, cancel_futures=True)
+        runner.stop_everything()
 
 
 # Called before concurrent.futures joins its workers (registered later, so called first): the
