@@ -42,7 +42,8 @@ def is_loopback_name(host: str) -> bool:
 
 
 class ServerSettings(BaseSettings):
-    """How the workbench serves.
+    """How the workbench serves. Built with no arguments it reads the ``ROBOMACH_*`` variables
+    too (pydantic-settings); arguments win over them.
 
     Attributes:
         host: Interface of the REST API and the viser scene. Anything but a loopback address
@@ -85,7 +86,7 @@ class ServerSettings(BaseSettings):
     @classmethod
     def from_env(cls, **overrides: Any) -> ServerSettings:
         """Defaults, then ``ROBOMACH_*`` variables, then the non-None ``overrides``; foreign
-        hosts refused; checked (``validate``). A variable pydantic cannot read as its field's
+        hosts refused; checked (``check``). A variable pydantic cannot read as its field's
         type is an ``InvalidInputError`` naming it."""
         values = {"refuse_foreign_hosts": True}
         values |= {k: v for k, v in overrides.items() if v is not None}
@@ -94,7 +95,7 @@ class ServerSettings(BaseSettings):
         except ValidationError as exc:
             err = exc.errors()[0]
             field = str(err["loc"][0])
-            name = "ROBOMACH_DATA" if field == "data_dir" else f"ROBOMACH_{field.upper()}"
+            name = field if field.startswith("ROBOMACH_") else f"ROBOMACH_{field.upper()}"
             raise InvalidInputError(f"{name}: {err['msg']}, not {err['input']!r}") from None
         settings.check()
         return settings
