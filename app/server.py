@@ -15,7 +15,6 @@ import socket
 import sqlite3
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import replace
 from pathlib import Path
 from typing import IO
 from urllib.parse import urlsplit
@@ -250,7 +249,7 @@ def build_app(settings: ServerSettings, session: Session) -> FastAPI:
         # The routes read the port from the settings: make them say the one viser bound.
         app.state.viser_port = port
         if port != app.state.settings.viser_port:
-            app.state.settings = replace(app.state.settings, viser_port=port)
+            app.state.settings = app.state.settings.model_copy(update={"viser_port": port})
 
     from app.session.machining import MachiningService
     from app.studies import StudyService
@@ -282,7 +281,7 @@ def serve(settings: ServerSettings) -> int:
 
     from app.cli import writable_folder
 
-    settings.validate()
+    settings.check()
     check_port_free(settings.host, settings.port, "port", "--port")
     if settings.viser_port is not None:
         check_port_free(viser_host(settings), settings.viser_port)

@@ -1,19 +1,21 @@
 """Settings of ``robomach serve``: command-line flags over environment variables over defaults.
 
-pydantic-settings is not a dependency, so this is a frozen dataclass with a ``from_env``
-constructor. Environment variables: ``ROBOMACH_HOST``, ``ROBOMACH_PORT``,
-``ROBOMACH_VISER_PORT``, ``ROBOMACH_DATA``, ``ROBOMACH_TOKEN``, ``ROBOMACH_TOKEN_READS``
-(1/0: reads need the token too; default on when binding beyond loopback), and the upload
-limits ``ROBOMACH_MAX_UPLOAD_BYTES`` and ``ROBOMACH_MAX_TRIANGLES`` (at most the mesh reader's).
+A pydantic-settings model: every field reads the ``ROBOMACH_``-prefixed variable of its name,
+typed and checked by pydantic (``ROBOMACH_HOST``, ``ROBOMACH_PORT``, ``ROBOMACH_VISER_PORT``,
+``ROBOMACH_TOKEN``, ``ROBOMACH_TOKEN_READS`` (1/0: reads need the token too; default on when
+binding beyond loopback), ``ROBOMACH_REAL_TIME``, and the upload limits
+``ROBOMACH_MAX_UPLOAD_BYTES`` and ``ROBOMACH_MAX_TRIANGLES`` (at most the mesh reader's);
+the data folder is ``ROBOMACH_DATA``, or ``ROBOMACH_DATA_DIR``). An empty variable is unset.
 """
 
 from __future__ import annotations
 
 import ipaddress
-import os
-from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
+
+from pydantic import Field, ValidationError
+from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from robomach_core.errors import InvalidInputError
 from robomach_core.workpiece import MAX_MESH_BYTES, MAX_MESH_TRIANGLES
@@ -39,9 +41,9 @@ def is_loopback_name(host: str) -> bool:
         return False
 
 
-@dataclass(frozen=True)
-class ServerSettings:
-    """How the workbench serves.
+class ServerSettings(BaseSettings):
+    """How the workbench serves. Built with no arguments it reads the ``ROBOMACH_*`` variables
+    too (pydantic-settings); arguments win over them.
 
     Attributes:
         host: Interface of the REST API and the viser scene. Anything but a loopback address
@@ -65,57 +67,37 @@ class ServerSettings:
             ``from_env`` (the CLI) turns it on; off by default for in-process clients.
     """
 
+    model_config = SettingsConfigDict(
+        env_prefix="ROBOMACH_", env_ignore_empty=True, frozen=True, populate_by_name=True
+    )
+
     host: str = DEFAULT_HOST
     port: int = DEFAULT_PORT
     viser_port: int | None = DEFAULT_VISER_PORT
-    data_dir: Path = DEFAULT_DATA_DIR
+    data_dir: Path = Field(DEFAULT_DATA_DIR, validation_alias="ROBOMACH_DATA")
     token: str | None = None
     max_upload_bytes: int = MAX_MESH_BYTES
     max_triangles: int = MAX_MESH_TRIANGLES
-    static_dir: Path = field(default=STATIC_DIR)
+    static_dir: Path = STATIC_DIR
     real_time: bool = True
     token_reads: bool | None = None
     refuse_foreign_hosts: bool = False
 
     @classmethod
-    def from_env(cls, env: dict[str, str] | None = None, **overrides: Any) -> ServerSettings:
-        """Defaults, then ``ROBOMACH_*`` variables, then the non-None ``overrides``."""
-        env = os.environ if env is None else env
-        values: dict[str, Any] = {}
-        if env.get("ROBOMACH_HOST"):
-            values["host"] = env["ROBOMACH_HOST"]
-        for key, name in (
-            ("port", "ROBOMACH_PORT"),
-            ("viser_port", "ROBOMACH_VISER_PORT"),
-            ("max_upload_bytes", "ROBOMACH_MAX_UPLOAD_BYTES"),
-            ("max_triangles", "ROBOMACH_MAX_TRIANGLES"),
-        ):
-            if env.get(name):
-                try:
-                    values[key] = int(env[name])
-                except ValueError:
-                    raise InvalidInputError(
-                        f"{name} must be an integer, not {env[name]!r}"
-                    ) from None
-        if env.get("ROBOMACH_DATA"):
-            values["data_dir"] = Path(env["ROBOMACH_DATA"])
-        if env.get("ROBOMACH_TOKEN"):
-            values["token"] = env["ROBOMACH_TOKEN"]
-        for key, name in (
-            ("real_time", "ROBOMACH_REAL_TIME"),
-            ("token_reads", "ROBOMACH_TOKEN_READS"),
-        ):
-            if env.get(name):
-                flag = env[name].strip().lower()
-                if flag not in ("0", "1", "on", "off", "true", "false"):
-                    raise InvalidInputError(
-                        f"{name} must be 1/on/true or 0/off/false, not {flag!r}"
-                    )
-                values[key] = flag in ("1", "on", "true")
-        values["refuse_foreign_hosts"] = True
-        values.update({k: v for k, v in overrides.items() if v is not None})
-        settings = replace(cls(), **values)
-        settings.validate()
+    def from_env(cls, **overrides: Any) -> ServerSettings:
+        """Defaults, then ``ROBOMACH_*`` variables, then the non-None ``overrides``; foreign
+        hosts refused; checked (``check``). A variable pydantic cannot read as its field's
+        type is an ``InvalidInputError`` naming it."""
+        values = {"refuse_foreign_hosts": True}
+        values |= {k: v for k, v in overrides.items() if v is not None}
+        try:
+            settings = cls(**values)
+        except ValidationError as exc:
+            err = exc.errors()[0]
+            field = str(err["loc"][0])
+            name = field if field.startswith("ROBOMACH_") else f"ROBOMACH_{field.upper()}"
+            raise InvalidInputError(f"{name}: {err['msg']}, not {err['input']!r}") from None
+        settings.check()
         return settings
 
     @property
@@ -130,7 +112,7 @@ class ServerSettings:
             return False
         return self.token_reads if self.token_reads is not None else not self.loopback
 
-    def validate(self) -> None:
+    def check(self) -> None:
         """Raise ``InvalidInputError`` for settings that must not serve."""
         for name, port in (("port", self.port), ("viser port", self.viser_port)):
             if port is not None and not (1 <= port <= 65535):

@@ -14,8 +14,7 @@ SOLUTION  ``exp3``, ``log3``, ``ik_newton_step``, ``arm_side_pose``, ``sensor_re
 
 The deviation-height reduction of post-processing (``deviation_height_kept``) lives here too: the
 same chord-by-chord scan as ``postprocess.reduce_deviation_height_reference``, with a certificate
-that skips most of the per-end rescans (see its docstring); and the winding number of the mesh
-score (``winding_number``).
+that skips most of the per-end rescans (see its docstring).
 """
 
 from __future__ import annotations
@@ -477,27 +476,6 @@ def boxes_overlapping(
             out[n] = i
             n += 1
     return out[:n].copy()
-
-
-@_jit
-def winding_number(p: np.ndarray, triangles: np.ndarray) -> float:
-    """Generalised winding number of the closed surface ``triangles`` (F, 3, 3) about ``p``:
-    1 inside a closed outward-oriented mesh, 0 outside (the solid angles of the triangles seen
-    from p over 4 pi; Van Oosterom and Strackee, IEEE Trans. Biomed. Eng. 30(2), 1983)."""
-    total = 0.0
-    for f in range(triangles.shape[0]):
-        ax, ay, az = triangles[f, 0, 0] - p[0], triangles[f, 0, 1] - p[1], triangles[f, 0, 2] - p[2]
-        bx, by, bz = triangles[f, 1, 0] - p[0], triangles[f, 1, 1] - p[1], triangles[f, 1, 2] - p[2]
-        cx, cy, cz = triangles[f, 2, 0] - p[0], triangles[f, 2, 1] - p[1], triangles[f, 2, 2] - p[2]
-        la = math.sqrt(ax * ax + ay * ay + az * az)
-        lb = math.sqrt(bx * bx + by * by + bz * bz)
-        lc = math.sqrt(cx * cx + cy * cy + cz * cz)
-        det = ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx)
-        ab = ax * bx + ay * by + az * bz
-        bc = bx * cx + by * cy + bz * cz
-        ca = cx * ax + cy * ay + cz * az
-        total += 2.0 * math.atan2(det, la * lb * lc + ab * lc + bc * la + ca * lb)
-    return total / (4.0 * math.pi)
 
 
 @_jit

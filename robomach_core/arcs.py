@@ -267,12 +267,8 @@ def arc_targets(
     lo = np.clip(pos - 1, 0, len(ref) - 1)
     span = np.where(ref[hi] > ref[lo], ref[hi] - ref[lo], 1)
     f = np.clip((idx - ref[lo]) / span, 0.0, 1.0)
-    quats = np.array(
-        [
-            slerp(targets.quaternion_wxyz[a], targets.quaternion_wxyz[b], float(t))
-            for a, b, t in zip(lo, hi, f, strict=True)
-        ]
-    )
+    q = np.asarray(targets.quaternion_wxyz)
+    quats = slerp(q[lo], q[hi], f)
     nearest = np.where(f < 0.5, lo, hi)
     out = Targets(
         position_m=np.asarray(surface_m)[idx].copy(),

@@ -63,7 +63,6 @@ def enums() -> dict[str, tuple[str, ...]]:
     from .project._machining import STOCK_SOURCES
     from .robot import ROBOT_NAMES
     from .robots.builtin import ARM_FAMILIES
-    from .stiffness.milling import MILLING_COMPENSATIONS
     from .stiffness.settings import COMPENSATION_SETTINGS
     from .stiffness.studies import StudyName
     from .workpiece import WORKPIECE_NAMES
@@ -72,7 +71,6 @@ def enums() -> dict[str, tuple[str, ...]]:
         "cmrr_controller": tuple(CONTROLLER_NAMES),
         "machining_compensation": tuple(COMPENSATION_NAMES),
         "compensation_mode": tuple(COMPENSATION_SETTINGS),
-        "milling_compensation": tuple(MILLING_COMPENSATIONS),
         "program_language": tuple(language_names()),
         "language_choice": tuple(language_choices()),
         "wall_side": tuple(WALL_SIDE_CHOICES),
@@ -103,7 +101,8 @@ def ranges() -> dict[str, limits.Range]:
 def catalogue() -> dict[str, Any]:
     """The JSON document of every choice and range (``GET /api/choices``): ``enums`` name ->
     ``{"values": [...], "labels": {value: words}}``, ``ranges`` name -> ``{"label", "min",
-    "max", "unit", "integer", "text"}``."""
+    "max", "unit", "integer", "text", "default"}`` (``default``: null where the user must
+    give the number)."""
     return {
         "enums": {
             name: {"values": list(values), "labels": LABELS.get(name, {v: v for v in values})}
@@ -117,6 +116,7 @@ def catalogue() -> dict[str, Any]:
                 "unit": r.unit,
                 "integer": r.integer,
                 "text": r.text(),
+                "default": r.default,
             }
             for name, r in ranges().items()
         },

@@ -5,8 +5,8 @@ path learning, the machining run, CMRR, compensation and ILC all step at ``CONTR
 A continuous model x' = A x + B u whose input is held over each period (a zero-order hold)
 samples exactly to x[k+1] = Phi x[k] + Gamma u[k] with Phi = e^{A dt} and
 Gamma = integral_0^dt e^{A s} ds B: the top blocks of the exponential of [[A, B], [0, 0]] dt
-(Van Loan, IEEE Trans. Automat. Control 23(3), 1978), which ``zoh`` computes; ``zoh_tf`` does
-the same for a transfer function (what ``scipy.signal.cont2discrete(..., method="zoh")`` does).
+(Van Loan, IEEE Trans. Automat. Control 23(3), 1978), which ``zoh`` computes; ``zoh_tf`` samples
+a transfer function so, through ``scipy.signal.cont2discrete(..., method="zoh")``.
 """
 
 from __future__ import annotations
@@ -32,10 +32,9 @@ def zoh(a: np.ndarray, b: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarr
 
 
 def zoh_tf(num: np.ndarray, den: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Discrete (b, a) of the transfer function num/den with its input held over ``dt_s``."""
+    """Discrete (b, a) of the transfer function num/den with its input held over ``dt_s``
+    (``scipy.signal.cont2discrete``, method "zoh")."""
     import scipy.signal  # here, not at start-up: 0.7 s of every process's start
 
-    a, b, c, d = scipy.signal.tf2ss(num, den)
-    phi, gamma = zoh(a, b, dt_s)
-    b_d, a_d = scipy.signal.ss2tf(phi, gamma, c, d)
+    b_d, a_d, _ = scipy.signal.cont2discrete((num, den), dt_s, method="zoh")
     return np.ravel(b_d), np.ravel(a_d)

@@ -27,6 +27,8 @@ class Range:
         max: Largest allowed value, in ``unit``.
         unit: Unit of the boundary (mm, N, mm/s, s, um), "" for counts and ratios.
         integer: Only whole numbers (seeds, counts).
+        default: The value a user who gives none gets, in ``unit`` (the one place its number
+            is typed: the settings classes, the CLI and the REST schemas read it here).
     """
 
     label: str
@@ -34,6 +36,7 @@ class Range:
     max: float
     unit: str = ""
     integer: bool = False
+    default: float | None = None
 
     def __contains__(self, value: object) -> bool:
         if isinstance(value, bool) or not isinstance(value, numbers.Real):
@@ -75,10 +78,10 @@ SEED = Range("seed", 0, 2**32 - 1, integer=True)
 PORT = Range("port", 1, 65535, integer=True)
 
 # --- lead-through and path learning (chapter sec. 3: 10-20 N contact, a few mm/s) ---------
-LEARNING_FORCE_N = Range("contact force", 1.0, 50.0, "N")
-LEARNING_SPEED_MM_S = Range("learning speed", 0.5, 50.0, "mm/s")
+LEARNING_FORCE_N = Range("contact force", 1.0, 50.0, "N", default=10.0)
+LEARNING_SPEED_MM_S = Range("learning speed", 0.5, 50.0, "mm/s", default=5.0)
 # The cutter's height above a floor the run meets (a little above: the machining height).
-FLOOR_CLEARANCE_MM = Range("floor clearance", 0.0, 5.0, "mm")
+FLOOR_CLEARANCE_MM = Range("floor clearance", 0.0, 5.0, "mm", default=0.5)
 PUSH_FORCE_N = Range("push force", 0.0, 200.0, "N")  # magnitude of the force vector
 PUSH_TORQUE_NM = Range("push torque", 0.0, 20.0, "N*m")  # a hand's twist on a tool handle
 PUSH_DURATION_S = Range("push duration", 0.0, 10.0, "s")
@@ -99,7 +102,7 @@ RECORDING_SAMPLES_MAX = 1_000_000
 TRACE_POINTS = Range("trace points", 2, 100_000, integer=True)
 
 # --- post-processing (chapter fig. 3: 0.2 mm gave ~300 targets) -----------------------------
-TOLERANCE_MM = Range("deviation-height tolerance", 0.01, 5.0, "mm")
+TOLERANCE_MM = Range("deviation-height tolerance", 0.01, 5.0, "mm", default=0.2)
 # The force filter's band (1.5 x the strongest learning force is 75 N; the F/T sensors of the
 # papers measure a few hundred N), the program's feeds by curvature (the chapter's deburring
 # feeds are a few mm/s; CMRR_COMMAND_SPEED_MM_S allows 500) and the interaction stiffness that

@@ -25,10 +25,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import igl
 import numpy as np
 import trimesh
 
-from . import _kernels, mesh_query
+from . import mesh_query
 from .arcs import Move, linear_moves, score_sampled_moves
 from .errors import InvalidInputError
 from .scoring import PathScore
@@ -54,16 +55,17 @@ def _inside(
 ) -> np.ndarray:
     """(k,) True for points inside the part. Where the nearest point lies inside a face, that
     face's outward normal tells; where it lies on an edge or a corner (the direction to it off
-    the face's normal), the winding number does (``_kernels.winding_number``): ray tests
-    (``trimesh.contains``) gave different answers for the same points in two frames."""
+    the face's normal), the generalised winding number does (libigl's, exact: the solid
+    angles of every face over 4 pi): ray tests (``trimesh.contains``) gave different answers
+    for the same points in two frames."""
     rel = pts - closest
     along = np.einsum("ij,ij->i", rel, mesh.face_normals[tri])
     inside = along < 0.0
     unsure = np.abs(along) < 0.999 * distance
     if unsure.any():
-        triangles = np.ascontiguousarray(mesh.vertices[mesh.faces], dtype=float)
-        for k in np.flatnonzero(unsure):
-            inside[k] = _kernels.winding_number(np.ascontiguousarray(pts[k]), triangles) > 0.5
+        vertices = np.asarray(mesh.vertices, dtype=np.float64)
+        faces = np.asarray(mesh.faces, dtype=np.int64)
+        inside[unsure] = igl.winding_number(vertices, faces, pts[unsure]) > 0.5
     return inside
 
 

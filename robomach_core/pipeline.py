@@ -91,9 +91,9 @@ class DemoSettings:
 
     robot: str = "ur10"
     workpiece: str = "water_pump"
-    force_N: float = 10.0
-    speed_m_s: float = 0.005
-    tolerance_m: float = 0.0002
+    force_N: float = PathLearningSettings.force_N
+    speed_m_s: float = PathLearningSettings.speed_m_s
+    tolerance_m: float = PostprocessSettings.tolerance_m
     seed: int = 0
     tool: Tool = field(default_factory=Tool)
     postprocess: PostprocessSettings = field(default_factory=PostprocessSettings)
@@ -132,6 +132,14 @@ class DemoResult:
     proposal: Any = None  # guide_proposal.GuideProposal
     findings: tuple = ()  # learning.GuideWarning: the guide-point check before learning
 
+    @property
+    def processed_settings(self) -> PostprocessSettings:
+        """The post-processing settings the program was made with (the band after the rule
+        of ``project.with_learned``)."""
+        if self.project is not None:
+            return self.project.post_settings
+        return self.settings.postprocess
+
     def summary(self) -> dict:
         """The summary.json dictionary (units in key names)."""
         rec = self.recording
@@ -149,8 +157,8 @@ class DemoResult:
             "targets": len(self.processed.targets),
             "sample_period_s": CONTROL_PERIOD_S,
             "force_setpoint_N": setpoint,
-            "force_min_N": self.settings.postprocess.force_min_N,
-            "force_max_N": self.settings.postprocess.force_max_N,
+            "force_min_N": self.processed_settings.force_min_N,
+            "force_max_N": self.processed_settings.force_max_N,
             "force_mean_N": float(np.mean(f)),
             "force_abs_error_p95_N": float(np.percentile(np.abs(f - setpoint), 95)),
             "force_within_2N_fraction": float(np.mean(np.abs(f - setpoint) <= 2.0)),
@@ -332,6 +340,7 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
     )
     learning_wall = time.perf_counter() - t_learn
     report("post-processing", 0.0)
+    project = with_learned(project, learned)  # the band rule the workbench applies
     processed = process(
         learned,
         project.post_settings,
@@ -339,7 +348,7 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         project.cell.tool_radius_m,
         guides=project.guide_points,
     )
-    project = with_processed(with_learned(project, learned), processed)
+    project = with_processed(project, processed)
     report("post-processing", 1.0)
     report("export", 0.0)
     files, targets = program_export(project, workpiece, cell.robot, language=settings.language)

@@ -54,7 +54,7 @@ class PostprocessSettings:
 
     force_min_N: float = 5.0
     force_max_N: float = 15.0
-    tolerance_m: float = 0.0002
+    tolerance_m: float = TOLERANCE_MM.default * 1e-3
     speed_mean_m_s: float = 0.010
     speed_min_m_s: float = 0.003
     curvature_ref_1_m: float = 1.0 / 0.010
@@ -72,6 +72,13 @@ class PostprocessSettings:
         """These settings with the filter band ``FORCE_BAND`` x ``force_N`` (5-15 N at 10 N)."""
         lo, hi = FORCE_BAND
         return replace(self, force_min_N=lo * force_N, force_max_N=hi * force_N)
+
+    def for_learning_force(self, force_N: float) -> PostprocessSettings:
+        """The band rule of every path (workbench, REST and CLI, through
+        ``project.with_learned``): these settings when their band holds a recording at
+        ``force_N`` (``holds_force``: a band the user chose wins), else the band moved to
+        ``FORCE_BAND`` x ``force_N``. At 12 N the default 5-15 N band stays."""
+        return self if self.holds_force(force_N) else self.with_band_for(force_N)
 
     def __post_init__(self) -> None:
         # limits.TOLERANCE_MM: below 0.01 mm the reduction keeps nearly every sample (a 311k

@@ -7,12 +7,16 @@ Timing asserts do not belong here: speed figures are measured in ``benchmarks/``
 assert behaviour that holds on a loaded machine too.
 
 Also the run's folder of shared ``robomach demo`` outputs (tests/demo_project.py): made when
-the run starts, before any pytest-xdist worker (they inherit it), removed when it ends.
+the run starts, before any pytest-xdist worker (they inherit it), removed when it ends; and the
+app fixtures: ``client`` (the app on a fresh Session, in process) and ``app_client`` to build
+one with other settings or a project of a test's own.
 """
 
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import pytest
 
@@ -42,3 +46,41 @@ def pytest_configure(config: pytest.Config) -> None:
 def pytest_unconfigure(config: pytest.Config) -> None:
     if config.stash.get(_OWN_DEMOS, None) is not None:
         demo_project.remove_demos_root()
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _no_server_variables() -> Iterator[None]:
+    """The server's ``ROBOMACH_*`` variables of the shell running the tests are not theirs
+    (``ServerSettings`` reads them): a test sets the ones it means (``monkeypatch.setenv``)."""
+    from app.settings import ServerSettings
+
+    names = ["ROBOMACH_DATA"] + [f"ROBOMACH_{f.upper()}" for f in ServerSettings.model_fields]
+    with pytest.MonkeyPatch.context() as mp:
+        for name in names:
+            mp.delenv(name, raising=False)
+        yield
+
+
+@contextmanager
+def app_client(session=None, settings=None, **client_options) -> Iterator:
+    """A ``TestClient`` on ``create_app`` over ``session`` (a fresh unpaced one by default) with
+    ``settings`` (no viser server by default); the app's lifespan closes the session."""
+    from fastapi.testclient import TestClient
+
+    from app.api.app import create_app
+    from app.session import Session
+    from app.settings import ServerSettings
+
+    app = create_app(
+        Session(real_time=False) if session is None else session,
+        ServerSettings(viser_port=None) if settings is None else settings,
+    )
+    with TestClient(app, **client_options) as client:
+        yield client
+
+
+@pytest.fixture
+def client() -> Iterator:
+    """The app on a fresh, unpaced Session, in process; a server error is a 500 response."""
+    with app_client(raise_server_exceptions=False) as c:
+        yield c

@@ -234,9 +234,7 @@ def learn_set(
     except RobomachError as exc:
         return replace(base, kind="error", reason=f"{type(exc).__name__}: {exc}"), None
     rec = learned.recording
-    post = PostprocessSettings()
-    if not post.holds_force(force_N):
-        post = post.with_band_for(force_N)
+    post = PostprocessSettings().for_learning_force(force_N)
     try:
         processed = process(learned, post, cell.workpiece, cell.tool.radius_m, guides=pset.guides)
     except RobomachError as exc:

@@ -279,7 +279,7 @@ class PathLearningCreate(_Request):
         "and is refused (422) when neither tells",
     )
     floor_clearance_mm: Finite = Field(
-        0.5,
+        limits.FLOOR_CLEARANCE_MM.default,
         ge=limits.FLOOR_CLEARANCE_MM.min,
         le=limits.FLOOR_CLEARANCE_MM.max,
         description="machining height: the cutter this far above a floor the run meets or a "

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import sys
-import time
 from pathlib import Path
 
+from app.commands.progress import StageProgress
 from robomach_core.cmrr import CONTROLLER_NAMES as CONTROLLERS
 from robomach_core.cmrr import SCENARIO_NAMES as SCENARIOS
 
@@ -57,24 +56,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--quiet", action="store_true", help="no progress or table on the terminal")
     p.set_defaults(func=run)
-
-
-class _Progress:
-    """A progress line on stderr, redrawn in place on a terminal, silent otherwise."""
-
-    def __init__(self, label: str, enabled: bool) -> None:
-        self.label = label
-        self.enabled = enabled and sys.stderr.isatty()
-        self.started = time.perf_counter()
-
-    def __call__(self, fraction: float) -> None:
-        if not self.enabled:
-            return
-        bar = "#" * int(fraction * 30)
-        sys.stderr.write(f"\r{self.label:<28} [{bar:<30}] {fraction * 100:5.1f} %")
-        if fraction >= 1.0:
-            sys.stderr.write(f"  {time.perf_counter() - self.started:.1f} s\n")
-        sys.stderr.flush()
 
 
 def run(args: argparse.Namespace) -> int:
@@ -132,9 +113,11 @@ def run(args: argparse.Namespace) -> int:
 
     total = len(controllers)
     label = f"{scenario.name}/" + ("all" if total > 1 else controllers[0].kind)
-    progress = _Progress(label, not args.quiet)
+    bar = StageProgress(quiet=args.quiet)
     try:
-        results = compare_controllers(scenario, controllers, seed=args.seed, progress=progress)
+        results = compare_controllers(
+            scenario, controllers, seed=args.seed, progress=bar.for_stage(label)
+        )
     except (ArithmeticError, ValueError, MemoryError) as exc:
         if isinstance(exc, CmrrSettingsError):
             raise
@@ -142,6 +125,8 @@ def run(args: argparse.Namespace) -> int:
         raise CmrrSettingsError(
             f"the simulation failed with these settings ({exc.__class__.__name__}: {exc})"
         ) from None
+    finally:
+        bar.close()
     try:
         paths = write_study_outputs(results, args.out)
     except OSError as exc:

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import sys
-import time
 from pathlib import Path
 from typing import get_args
 
+from app.commands.progress import StageProgress
 from robomach_core.stiffness.settings import COMPENSATION_SETTINGS as MODE_CHOICES
 from robomach_core.stiffness.studies import StudyName
 
@@ -76,43 +75,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="shorter cuts and fewer poses: a preview in a few seconds",
     )
     p.set_defaults(func=run)
-
-
-class _ProgressBar:
-    """One line redrawn in place on a terminal; 10 % steps otherwise."""
-
-    def __init__(self, label: str, stream=None) -> None:
-        self.label = label
-        self.stream = sys.stderr if stream is None else stream
-        self.tty = self.stream.isatty()
-        self.last_step = -1
-        self.started = time.perf_counter()
-
-    def __call__(self, fraction: float) -> None:
-        if self.tty:
-            bar = "#" * int(fraction * 30)
-            self.stream.write(f"\r{self.label} [{bar:<30}] {fraction * 100:5.1f} %")
-            self.stream.flush()
-            return
-        step = int(fraction * 10)
-        if step > self.last_step:
-            self.last_step = step
-            self.stream.write(f"{self.label}: {step * 10} %\n")
-            self.stream.flush()
-
-    def abort(self) -> None:
-        """End the bar's line on a terminal, so that an error message gets a line of its own."""
-        if self.tty:
-            self.stream.write("\n")
-            self.stream.flush()
-
-    def close(self) -> None:
-        elapsed = time.perf_counter() - self.started
-        if self.tty:
-            self.stream.write(f"  {elapsed:.1f} s\n")
-        else:
-            self.stream.write(f"{self.label}: done in {elapsed:.1f} s\n")
-        self.stream.flush()
 
 
 def _report(summary: dict) -> list[str]:
@@ -193,13 +155,13 @@ def run(args: argparse.Namespace) -> int:
         rapid=args.rapid,
         quick=args.quick,
     )
-    bar = _ProgressBar(f"compensate {args.study}")
+    bar = StageProgress(step=0.1)
     try:
-        results = run_studies(args.study, args.out, options, progress=bar)
-    except BaseException:
-        bar.abort()
-        raise
-    bar.close()
+        results = run_studies(
+            args.study, args.out, options, progress=bar.for_stage(f"compensate {args.study}")
+        )
+    finally:
+        bar.close()
     summary: dict = {}
     for result in results.values():
         summary.update(result.summary)

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
+
+from app.commands.progress import StageProgress
+from robomach_core import limits
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -80,24 +82,26 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--force",
         type=float,
-        default=10.0,
+        default=limits.LEARNING_FORCE_N.default,
         metavar="N",
-        help="contact force reference in N (1-50; the paper used 10-20); the post-processing "
-        "filter keeps samples at 0.5-1.5 times it",
+        help="contact force reference in N (1-50, default %(default)g; the paper used 10-20); "
+        "the post-processing "
+        "filter keeps samples at 5-15 N, or at 0.5-1.5 times the force where that band would "
+        "not hold it (as the workbench)",
     )
     p.add_argument(
         "--speed",
         type=float,
-        default=5.0,
+        default=limits.LEARNING_SPEED_MM_S.default,
         metavar="MM_S",
-        help="learning speed in mm/s (default 5)",
+        help="learning speed in mm/s (default %(default)g)",
     )
     p.add_argument(
         "--tolerance",
         type=float,
-        default=0.2,
+        default=limits.TOLERANCE_MM.default,
         metavar="MM",
-        help="deviation-height tolerance in mm (default 0.2)",
+        help="deviation-height tolerance in mm (default %(default)g)",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of every random element")
     p.add_argument(
@@ -162,7 +166,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def _point_mm(text: str, option: str) -> tuple[float, float, float]:
     """A point x,y,z in mm (work-object frame) as metres, each inside the work-object range."""
-    from robomach_core import limits
     from robomach_core.errors import InvalidInputError
 
     try:
@@ -176,42 +179,6 @@ def _point_mm(text: str, option: str) -> tuple[float, float, float]:
     for v in values:
         limits.WOBJ_POSITION_MM.check(v, option)
     return values[0] * 1e-3, values[1] * 1e-3, values[2] * 1e-3  # type: ignore[return-value]
-
-
-class _ProgressLine:
-    """One terminal line per stage, redrawn in place on a TTY, printed at 25 % steps otherwise."""
-
-    def __init__(self, stream=None) -> None:
-        # sys.stderr now, not when the module was imported (a caller may have replaced it since).
-        self.stream = sys.stderr if stream is None else stream
-        self.tty = self.stream.isatty()
-        self.stage = None
-        self.last_quarter = -1
-        self.started = time.perf_counter()
-
-    def __call__(self, stage: str, fraction: float) -> None:
-        if stage != self.stage:
-            if self.stage is not None and self.tty:
-                self.stream.write("\n")
-            self.stage = stage
-            self.last_quarter = -1
-            self.started = time.perf_counter()
-        if self.tty:
-            bar = "#" * int(fraction * 30)
-            self.stream.write(f"\r{stage:<16} [{bar:<30}] {fraction * 100:5.1f} %")
-            if fraction >= 1.0:
-                self.stream.write(f"  {time.perf_counter() - self.started:.1f} s")
-            self.stream.flush()
-        else:
-            quarter = int(fraction * 4)
-            if quarter > self.last_quarter:
-                self.last_quarter = quarter
-                self.stream.write(f"{stage}: {quarter * 25} %\n")
-                self.stream.flush()
-
-    def close(self) -> None:
-        if self.tty and self.stage is not None:
-            self.stream.write("\n")
 
 
 # A guide-point file holds at most ``limits.GUIDE_POINTS_MAX`` rows of ten numbers: a few kB.
@@ -250,7 +217,6 @@ def read_guide_points_file(path: Path) -> str:
 
 def run(args: argparse.Namespace) -> int:
     from app.cli import settings_file, writable_folder
-    from robomach_core import limits
     from robomach_core.errors import InvalidInputError
 
     limits.TOLERANCE_MM.check(args.tolerance, "--tolerance")
@@ -333,11 +299,11 @@ def run(args: argparse.Namespace) -> int:
         compensation=compensation,
         wobj_mm_deg=wobj,
         tool=Tool(radius_m=args.tool_radius_mm * 1e-3),
-        # The force filter's band follows --force (5-15 N at the default 10 N).
+        # The force filter's band: the workbench's rule (``for_learning_force``).
         postprocess=PostprocessSettings(
             arcs=args.arcs,
             arc_tolerance_m=None if args.arc_tolerance is None else args.arc_tolerance * 1e-3,
-        ).with_band_for(args.force),
+        ),
         closed=not args.open,
         language=args.language,
         robot_urdf=robot_urdf,
@@ -345,7 +311,7 @@ def run(args: argparse.Namespace) -> int:
         proposal=ProposalSettings(gap_m=args.gap_mm * 1e-3),
         part_deviation=PartDeviation.realistic(args.seed) if args.realistic else None,
     )
-    bar = _ProgressLine()
+    bar = StageProgress()
     try:
         result = run_demo(settings, progress=bar)
     except SupervisionError as exc:

@@ -19,6 +19,7 @@ from pathlib import Path
 from robomach_core.machining.choice import OPTION_NAMES as CELL_OPTION_CHOICES
 from robomach_core.machining.settings import COMPENSATION_NAMES as COMPENSATION_CHOICES
 from robomach_core.machining.settings import MACHINING_CONTROLLERS as CONTROLLER_CHOICES
+from robomach_core.machining.settings import MachiningSettings
 
 MESH_STOCK_SUFFIXES = (".stl", ".obj", ".ply")
 # Exit codes (also in the README and --help).
@@ -80,24 +81,25 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--controller",
-        default="adaptive-pi",
+        default=MachiningSettings.controller,
         choices=(*CONTROLLER_CHOICES, "all"),
         help="feed control: constant (the greatest safe feed) or a CMRR controller; all "
-        "compares them (default adaptive-pi)",
+        "compares them (default %(default)s)",
     )
     p.add_argument(
         "--compensation",
-        default="off",
+        default=MachiningSettings.compensation,
         choices=(*COMPENSATION_CHOICES, "all"),
-        help="deflection compensation: off (default), offline, online, or all",
+        help="deflection compensation: off, offline, online, or all (default %(default)s)",
     )
     p.add_argument(
         "--force-limit-N",
         dest="force_limit_N",
         type=float,
-        default=150.0,
+        default=MachiningSettings.force_limit_N,
         metavar="N",
-        help="the force the cut must not exceed in N (default 150; CMRR holds 0.7 of it): "
+        help="the force the cut must not exceed in N (default %(default)g; CMRR holds 0.7 of "
+        "it): "
         "only configurations whose peak force stays within it are chosen, none if none does",
     )
     p.add_argument(
@@ -147,7 +149,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from app.cli import writable_folder
-    from app.commands.demo import _ProgressLine
+    from app.commands.progress import StageProgress
     from robomach_core import limits
     from robomach_core.errors import InvalidInputError, RobomachError
 
@@ -166,7 +168,7 @@ def run(args: argparse.Namespace) -> int:
     from robomach_core.machining import MachiningSettings, plot_runs, write_run_csv
     from robomach_core.robot import Robot
 
-    bar = _ProgressLine()
+    bar = StageProgress()
     try:
         project = _project(args, bar)
         settings = MachiningSettings(force_limit_N=args.force_limit_N, seed=args.seed)
@@ -369,9 +371,9 @@ def _project(args: argparse.Namespace, bar):
 
 
 def _figure_runs(result, chosen: dict | None) -> list:
-    """At most four runs for the figure: constant and the self-tuning PI without compensation,
-    the chosen run and the chosen controller without compensation."""
-    wanted = [("constant", "off"), ("adaptive-pi", "off")]
+    """At most four runs for the figure: constant and the default controller (the self-tuning
+    PI) without compensation, the chosen run and the chosen controller without compensation."""
+    wanted = [("constant", "off"), (MachiningSettings.controller, "off")]
     if chosen is not None:
         wanted += [(chosen["controller"], "off"), (chosen["controller"], chosen["compensation"])]
     runs = []

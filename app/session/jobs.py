@@ -1,12 +1,15 @@
-"""The session's background jobs: one worker thread, progress, cancel, a bounded history."""
+"""The session's background jobs: one worker (a ``concurrent.futures`` executor), progress,
+cancel, ``wait``, a bounded history."""
 
 from __future__ import annotations
 
 import threading
 import time
 import uuid
-from collections import deque
+import weakref
 from collections.abc import Callable, Iterable
+from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -29,6 +32,7 @@ from .records import (
 # accepted at once (issue 19, R9). Robot jobs are one at a time anyway (BusyError).
 MAX_ACTIVE_JOBS_PER_KIND = 3
 MAX_ACTIVE_JOBS = 8
+ENDED: tuple[JobStatus, ...] = ("done", "failed", "cancelled")
 
 
 class JobContext:
@@ -70,6 +74,8 @@ class _Job:
     started_s: float | None = None
     finished_s: float | None = None
     cancel: threading.Event = field(default_factory=threading.Event)
+    # Resolved with the final JobInfo once the job has ended and its on_end has run.
+    ended: Future = field(default_factory=Future)
 
     def info(self) -> JobInfo:
         return JobInfo(
@@ -85,7 +91,8 @@ class _Job:
 
 
 class JobRunner:
-    """One worker thread running jobs in order; progress, cancel, bounded history.
+    """Jobs run one at a time, in order, on a one-worker ``ThreadPoolExecutor``; progress,
+    cancel, ``wait``, bounded history.
 
     ``submit(kind, work)`` queues ``work(ctx)``; its return value is handed to ``on_done``
     (still in the worker) before the job reads as done. A finished job keeps only its public
@@ -93,7 +100,8 @@ class JobRunner:
     and the history remembers ``keep_finished`` jobs; issue 32). A
     ``CancelledError`` makes it cancelled, a ``RobomachError`` failed with its message, any
     other exception failed with ``describe_unexpected`` (logged with its traceback). ``on_end`` runs
-    after every outcome. The CMRR and stiffness studies plug in here the same way.
+    after every outcome; ``wait(job_id)`` returns once it has. The CMRR and stiffness studies
+    plug in here the same way.
 
     Args:
         on_change: Called with the ``JobInfo`` after every status or progress change.
@@ -116,11 +124,10 @@ class JobRunner:
         self._max_per_kind = max_active_per_kind
         self._max_active = max_active
         self._jobs: dict[str, _Job] = {}
-        self._queue: deque[_Job] = deque()
-        self._cv = threading.Condition()
+        self._lock = threading.Lock()
         self._closed = False
-        self._thread = threading.Thread(target=self._loop, name="robomach-jobs", daemon=True)
-        self._thread.start()
+        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="robomach-jobs")
+        _RUNNERS.add(self)
 
     def submit(
         self,
@@ -136,78 +143,102 @@ class JobRunner:
             QueueFullError: ``max_active_per_kind`` jobs of this kind, or ``max_active`` of all
                 kinds, are already queued or running.
         """
-        with self._cv:
+        with self._lock:
             if self._closed:
                 raise ConflictError("the server is shutting down")
             self._check_room(kind)
             job = _Job(self, uuid.uuid4().hex[:12], kind, work, on_done, on_end)
             self._jobs[job.id] = job
-            self._queue.append(job)
             self._forget_old()
-            self._cv.notify()
+            self._executor.submit(self._run, job)
         self._changed(job)
         return job.id
 
     def get(self, job_id: str) -> JobInfo:
         return self._job(job_id).info()
 
+    def wait(self, job_id: str, timeout_s: float | None = None) -> JobInfo:
+        """The job's final state once it has ended (and its ``on_end`` has run).
+
+        Raises:
+            TimeoutError: It had not ended after ``timeout_s``.
+        """
+        job = self._job(job_id)
+        try:
+            return job.ended.result(timeout_s)
+        except FutureTimeout:
+            raise TimeoutError(
+                f"job {job_id} ({job.kind}) had not ended after {timeout_s:g} s: {job.info()}"
+            ) from None
+
     def list(self) -> list[JobInfo]:
-        with self._cv:
+        with self._lock:
             return [j.info() for j in self._jobs.values()]
 
     def active(self, kinds: Iterable[str] | None = None) -> list[JobInfo]:
         """Queued and running jobs, optionally of some kinds only."""
         wanted = None if kinds is None else set(kinds)
-        with self._cv:
+        with self._lock:
             return [
                 j.info()
                 for j in self._jobs.values()
-                if j.status in ("queued", "running") and (wanted is None or j.kind in wanted)
+                if j.status not in ENDED and (wanted is None or j.kind in wanted)
             ]
 
     def cancel(self, job_id: str) -> JobInfo:
         """Cancel a queued job now, or ask a running one to stop at its next check."""
         job = self._job(job_id)
-        with self._cv:
-            if job.status in ("done", "failed", "cancelled"):
+        with self._lock:
+            if job.status in ENDED:
                 raise ConflictError(f"job {job_id} has already ended ({job.status})")
             job.cancel.set()
             queued = job.status == "queued"
-            if queued:
-                self._queue.remove(job)
-                job.status = "cancelled"
-                job.error = f"{job.kind.replace('_', ' ')} was cancelled"
-                job.finished_s = time.time()
+            if queued:  # the worker will pass it by (``_run``)
+                self._end_queued(job, f"{job.kind.replace('_', ' ')} was cancelled")
         if queued:
             self._finish(job)
         return job.info()
 
     def close(self, timeout_s: float = 10.0) -> None:
-        """Cancel every job and stop the worker."""
-        with self._cv:
+        """Cancel every job and stop the worker (waiting up to ``timeout_s`` for a running
+        job to notice)."""
+        with self._lock:
             self._closed = True
-            pending = list(self._queue)
-            self._queue.clear()
+            pending = [j for j in self._jobs.values() if j.status == "queued"]
+            running = [j for j in self._jobs.values() if j.status == "running"]
             for job in self._jobs.values():
                 job.cancel.set()
             for job in pending:
-                job.status = "cancelled"
-                job.error = "the server stopped"
-                job.finished_s = time.time()
-            self._cv.notify_all()
+                self._end_queued(job, "the server stopped")
         for job in pending:
             self._finish(job)
-        self._thread.join(timeout_s)
+        self._executor.shutdown(wait=False, cancel_futures=True)
+        for job in running:
+            try:
+                job.ended.result(timeout_s)
+            except FutureTimeout:
+                log.warning("job %s (%s) still running at close", job.id, job.kind)
+
+    def stop_everything(self) -> None:
+        """Ask every job to stop and start no queued one, without waiting (interpreter exit)."""
+        with self._lock:
+            for job in self._jobs.values():
+                job.cancel.set()
+        self._executor.shutdown(wait=False, cancel_futures=True)
+
+    @staticmethod
+    def _end_queued(job: _Job, error: str) -> None:
+        job.status, job.error, job.finished_s = "cancelled", error, time.time()
 
     def _job(self, job_id: str) -> _Job:
-        with self._cv:
+        with self._lock:
             job = self._jobs.get(job_id)
         if job is None:
             raise NotFoundError(f"no job with id {job_id!r}")
         return job
 
     def _check_room(self, kind: str) -> None:
-        active = [j for j in self._jobs.values() if j.status in ("queued", "running")]
+        active = [j for j in self._jobs.values() if j.status not in ENDED]
         same = sum(1 for j in active if j.kind == kind)
         what = kind.replace("_", " ")
         if same >= self._max_per_kind:
@@ -222,7 +253,7 @@ class JobRunner:
             )
 
     def _forget_old(self) -> None:
-        ended = [j for j in self._jobs.values() if j.status in ("done", "failed", "cancelled")]
+        ended = [j for j in self._jobs.values() if j.status in ENDED]
         for job in ended[: max(0, len(ended) - self._keep)]:
             del self._jobs[job.id]
 
@@ -242,23 +273,15 @@ class JobRunner:
             except Exception:
                 log.exception("on_end of job %s failed", job.id)
         self._changed(job)
-
-    def _loop(self) -> None:
-        while True:
-            with self._cv:
-                while not self._queue and not self._closed:
-                    self._cv.wait()
-                if self._closed and not self._queue:
-                    return
-                job = self._queue.popleft()
-                job.status = "running"
-                job.started_s = time.time()
-            self._changed(job)
-            self._run(job)
-            del job  # the loop waits for the next job holding nothing of this one
+        job.ended.set_result(job.info())
 
     def _run(self, job: _Job) -> None:
-        """Run one job to its end (its result lives only in this frame)."""
+        """Run one job to its end, in the worker (its result lives only in this frame)."""
+        with self._lock:
+            if job.status != "queued":  # cancelled while queued
+                return
+            job.status, job.started_s = "running", time.time()
+        self._changed(job)
         try:
             result = job.work(JobContext(job))
             if job.on_done is not None:
@@ -276,6 +299,21 @@ class JobRunner:
             job.status, job.progress = "done", 1.0
         job.finished_s = time.time()
         self._finish(job)
+
+
+# Every live runner, so that a program exiting without closing its sessions cancels their jobs:
+# the executor's worker is not a daemon thread, and the interpreter joins it at exit.
+_RUNNERS: weakref.WeakSet[JobRunner] = weakref.WeakSet()
+
+
+def _cancel_at_exit() -> None:
+    for runner in list(_RUNNERS):
+        runner.stop_everything()
+
+
+# Called before concurrent.futures joins its workers (registered later, so called first): the
+# hook concurrent.futures itself uses for that join.
+threading._register_atexit(_cancel_at_exit)
 
 
 def _ended(ctx: JobContext) -> None:

@@ -311,7 +311,11 @@ class Learning:
     # --- checks of the guide points before a run ---------------------------------------------
 
     def guide_findings(
-        self, force_N: float = 10.0, *, closed: bool = True, wall_side: str = "auto"
+        self,
+        force_N: float = PathLearningSettings.force_N,
+        *,
+        closed: bool = True,
+        wall_side: str = "auto",
     ) -> tuple:
         """What the operator check finds in the guide points (``guide_check``)."""
         from robomach_core.learning.checks import guide_point_warnings

@@ -372,7 +372,7 @@ def machine(
         MissingResultError / StaleResultError: no current post-processed program.
     """
     from ..export.target_joints import with_target_joints
-    from ..machining import format_table
+    from ..machining import COMPENSATION_NAMES, format_table
     from ..machining.choice import PEAK_MARGIN, choose, mark_runnable
     from ..machining.compare import comparison_rows
     from ..machining.parallel import CutTask, run_tasks
@@ -391,7 +391,7 @@ def machine(
     comps = (s.compensation,) if compensations is None else tuple(compensations)
     model = compensation_model(project, robot.name) if any(m != "off" for m in comps) else None
     # A controller's modes run in order in one task: offline rehearses from its off run.
-    modes = tuple(m for m in ("off", "offline", "online") if m in comps)
+    modes = tuple(m for m in COMPENSATION_NAMES if m in comps)  # off, offline, online
     if "offline" in modes and "off" not in modes:
         modes = ("off", *modes)
     pairs = [(c, m) for c in ctrls for m in comps]

@@ -154,11 +154,8 @@ def _check_index(index: int, count: int) -> None:
 def with_learned(project: Project, learned: LearnedPath) -> Project:
     """The recording of a path-learning run replaces the last; the last post-processing stays,
     stale by its fingerprint. A force filter band that would not keep samples at the learning
-    force moves to 0.5-1.5 x that force (``PostprocessSettings.holds_force``)."""
-    post = project.post_settings
-    force_N = learned.settings.force_N
-    if not post.holds_force(force_N):
-        post = post.with_band_for(force_N)
+    force moves to 0.5-1.5 x that force (``PostprocessSettings.for_learning_force``)."""
+    post = project.post_settings.for_learning_force(learned.settings.force_N)
     return replace(project, learned=learned, post_settings=post)
 
 

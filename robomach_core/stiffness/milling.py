@@ -41,10 +41,9 @@ from .compensation import (
     online_compensation_step,
 )
 from .model import apply_twist, loaded_equilibrium
+from .settings import COMPENSATION_SETTINGS, CompensationSetting
 
-MillingCompensation = Literal["none", "online", "offline_linear", "offline_nonlinear"]
 ErrorMeasure = Literal["surface_depth", "path_lateral"]
-MILLING_COMPENSATIONS: tuple[str, ...] = ("none", "online", "offline_linear", "offline_nonlinear")
 
 # Grid on which the machined surface is evaluated [m].
 SURFACE_STEP_ALONG_M = 0.0005
@@ -265,7 +264,7 @@ def simulate_milling(
     scenario: MillingScenario,
     truth: JointCompliance,
     *,
-    compensation: MillingCompensation = "none",
+    compensation: CompensationSetting = "off",
     model: JointCompliance | None = None,
     tool_gravity: ToolGravity | None = None,
     true_tool_gravity: ToolGravity | None = None,
@@ -281,7 +280,7 @@ def simulate_milling(
         robot: The arm with the spindle's TCP.
         scenario: The cut.
         truth: The simulator's joint stiffness (bends the arm).
-        compensation: ``"none"``, ``"online"`` (chapter fig. 15, needs ``model`` and
+        compensation: ``"off"``, ``"online"`` (chapter fig. 15, needs ``model`` and
             ``tool_gravity``), ``"offline_linear"`` or ``"offline_nonlinear"`` (eq. 32, needs
             ``model``; targets every ``TARGET_SPACING_M`` corrected for the predicted wrench).
         model: Identified joint stiffness the controller uses.
@@ -292,10 +291,10 @@ def simulate_milling(
         progress: Called with the completed fraction.
         cancel: Polled each step; True stops the run with ``CancelledError``.
     """
-    if compensation not in MILLING_COMPENSATIONS:
-        choices = ", ".join(MILLING_COMPENSATIONS)
+    if compensation not in COMPENSATION_SETTINGS:
+        choices = ", ".join(COMPENSATION_SETTINGS)
         raise InvalidInputError(f"unknown compensation {compensation!r}; choose one of {choices}")
-    if compensation != "none" and model is None:
+    if compensation != "off" and model is None:
         raise InvalidInputError(f"compensation {compensation!r} needs an identified model")
     if compensation == "online" and tool_gravity is None:
         raise InvalidInputError("online compensation needs the identified tool gravity")

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
 
 DPI = 110
 MODE_LABELS = {
-    "none": "uncompensated",
+    "off": "uncompensated",
     "online": "online (fig. 15)",
     "offline_linear": "offline, linear",
     "offline_nonlinear": "offline, non-linear (eq. 32)",

@@ -44,11 +44,11 @@ class InProcessServer:
 @contextmanager
 def serve_in_process(data_dir: Path, **settings: object) -> Iterator[InProcessServer]:
     """``robomach serve``'s app on ``data_dir``, with ``settings`` over the CLI's defaults (no
-    environment variables: they are the test's to set). The app's lifespan runs on entry and
-    exit: the viser workbench starts and stops, the session closes."""
+    environment variables: they are the test's to set, tests/conftest.py). The app's lifespan
+    runs on entry and exit: the viser workbench starts and stops, the session closes."""
     port = free_port()
     values = {"port": port, "viser_port": free_port(), "data_dir": data_dir, **settings}
-    config = ServerSettings.from_env(env={}, **values)
+    config = ServerSettings.from_env(**values)  # tests/conftest.py cleared the variables
     data_dir = data_dir.resolve()
     with data_dir_lock(data_dir):
         session = open_session(config, data_dir)

@@ -65,12 +65,7 @@ def densify(recording: Recording, factor: int) -> Recording:
 
 
 def _wait(session: Session, job_id: str) -> None:
-    deadline = time.monotonic() + JOB_TIMEOUT_S
-    while session.jobs.get(job_id).status in ("queued", "running"):
-        if time.monotonic() > deadline:
-            raise RuntimeError(f"job {job_id} did not end within {JOB_TIMEOUT_S} s")
-        time.sleep(0.05)
-    info = session.jobs.get(job_id)
+    info = session.jobs.wait(job_id, JOB_TIMEOUT_S)
     if info.status != "done":
         raise RuntimeError(f"job {job_id} ended {info.status}: {info.error}")
 

@@ -6,24 +6,13 @@ than the documented 50 mm/s (the per-axis clip let it reach 86.6 mm/s). In proce
 from __future__ import annotations
 
 import re
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 
-from app.api.app import create_app
-from app.session import Session
-from app.settings import ServerSettings
 from robomach_core import limits
 
 PUSH = "/api/leadthrough/push"
-
-
-@pytest.fixture(scope="module")
-def client() -> Iterator[TestClient]:
-    with TestClient(create_app(Session(real_time=False), ServerSettings(viser_port=None))) as c:
-        yield c
 
 
 @pytest.mark.parametrize("tolerance_mm", [0.001, 0.0099, 5.01, 10.0])

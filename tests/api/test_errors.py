@@ -40,7 +40,7 @@ def failing_app() -> FastAPI:
 
 
 @pytest.fixture(scope="module")
-def client() -> Iterator[TestClient]:
+def failing() -> Iterator[TestClient]:
     with TestClient(failing_app()) as c:
         yield c
 
@@ -54,10 +54,10 @@ def client() -> Iterator[TestClient]:
     ],
 )
 def test_an_unexpected_error_is_a_503_with_a_physical_message(
-    client: TestClient, caplog: pytest.LogCaptureFixture, kind: str, needle: str
+    failing: TestClient, caplog: pytest.LogCaptureFixture, kind: str, needle: str
 ) -> None:
     caplog.set_level(logging.ERROR)
-    r = client.get(f"/api/test/fail/{kind}")
+    r = failing.get(f"/api/test/fail/{kind}")
     assert r.status_code == 503
     assert needle in r.json()["detail"]
     assert r.headers["connection"] == "close"

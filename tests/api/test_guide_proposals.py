@@ -3,41 +3,21 @@ the CAD comparison in the post-processing answer. In process (``TestClient``), u
 
 from __future__ import annotations
 
-import time
-from collections.abc import Iterator
-
 import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
-from app.api import create_app
-from app.session import Session
+from tests.jobs import done
 
 GP = "/api/guide-points"
 ON_WALL_MM = [0.0, -65.0, 17.0]  # the pump groove's outer wall, 3 mm above its floor (mm)
 WOBJ_MM = np.array([800.0, 160.0, 0.0])
 
 
-@pytest.fixture
-def client() -> Iterator[TestClient]:
-    with TestClient(create_app(Session(real_time=False)), raise_server_exceptions=False) as c:
-        yield c
-
-
 def _ok(client: TestClient, method: str, path: str, status: int = 200, **kw) -> dict:
     r = client.request(method, path, **kw)
     assert r.status_code == status, r.text
     return r.json() if r.content else {}
-
-
-def _wait(client: TestClient, job_id: str, timeout_s: float = 300.0) -> dict:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        job = _ok(client, "GET", f"/api/jobs/{job_id}")
-        if job["status"] in ("done", "failed", "cancelled"):
-            return job
-        time.sleep(0.05)
-    raise AssertionError("job did not finish")
 
 
 def test_from_surface_moves_the_robot_beside_the_wall_and_records(client: TestClient) -> None:
@@ -100,11 +80,11 @@ def test_propose_edit_accept_learn_and_compare(client: TestClient) -> None:
     assert len(fewer["points"]) == 13 and not fewer["notes"]
     assert client.delete(f"{GP}/proposal/points/99").status_code == 422
     job = _ok(client, "POST", f"{GP}/proposal/accept", 202)
-    assert _wait(client, job["job_id"])["status"] == "done"
+    done(client.app.state.session, job["job_id"])
     assert len(_ok(client, "GET", GP)) == 13
     assert client.get(f"{GP}/proposal").status_code == 404
     job = _ok(client, "POST", "/api/path-learning", 202, json={"force_N": 10, "speed_mm_s": 5})
-    assert _wait(client, job["job_id"])["status"] == "done"
+    done(client.app.state.session, job["job_id"])
     result = _ok(client, "POST", "/api/postprocess", json={})
     assert result["max_deviation_mm"] <= 0.3
     comparison = result["cad_comparison"]

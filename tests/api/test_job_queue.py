@@ -12,11 +12,10 @@ from dataclasses import replace
 import pytest
 from fastapi.testclient import TestClient
 
-from app.api.app import create_app
-from app.session import JobRunner, QueueFullError, Session
+from app.session import JobRunner, QueueFullError
 from app.session.jobs import MAX_ACTIVE_JOBS, MAX_ACTIVE_JOBS_PER_KIND
-from app.settings import ServerSettings
 from robomach_core import project as core
+from tests.conftest import app_client
 from tests.core.test_project import learned_block_project
 
 
@@ -41,6 +40,64 @@ def test_the_runner_caps_jobs_per_kind_and_in_all() -> None:
         runner.close()
 
 
+def test_wait_returns_each_ending_once_on_end_has_run() -> None:
+    """``JobRunner.wait``: the final state of a job done, failed, cancelled while queued and
+    cancelled while running, after its ``on_end``; a ``TimeoutError`` while it runs."""
+    from robomach_core.errors import InvalidInputError
+
+    release, ends = threading.Event(), []
+    runner = JobRunner()
+    try:
+
+        def held(ctx) -> None:
+            while not release.wait(0.01):
+                ctx.check_cancelled()
+
+        def bad(ctx) -> None:
+            raise InvalidInputError("no such thing")
+
+        running = runner.submit("a", held, on_end=ends.append)
+        queued = runner.submit("b", lambda ctx: 1, on_end=ends.append)
+        with pytest.raises(TimeoutError, match="had not ended after 0.05 s"):
+            runner.wait(running, 0.05)
+        assert runner.cancel(queued).status == "cancelled"
+        assert runner.wait(queued, 5).status == "cancelled"
+        runner.cancel(running)
+        info = runner.wait(running, 5)
+        assert info.status == "cancelled" and "a was cancelled" in info.error
+        failed, ok = runner.submit("c", bad, on_end=ends.append), runner.submit("d", lambda c: 1)
+        assert runner.wait(failed, 5).error == "no such thing"
+        assert runner.wait(ok, 5).status == "done" and runner.get(ok).progress == 1.0
+        assert [e.status for e in ends] == ["cancelled", "cancelled", "failed"]
+    finally:
+        release.set()
+        runner.close()
+
+
+@pytest.mark.slow  # a Python process of its own
+def test_a_program_that_never_closes_its_runner_exits_while_a_job_runs() -> None:
+    """The executor's worker is joined at interpreter exit: the runner cancels its jobs first,
+    so the program ends now instead of when a 10-minute job would have."""
+    import subprocess
+    import sys
+
+    script = (
+        "import threading, time\n"
+        "from app.session import JobRunner\n"
+        "started = threading.Event()\n"
+        "def work(ctx):\n"
+        "    started.set()\n"
+        "    end = time.monotonic() + 600\n"
+        "    while time.monotonic() < end:\n"
+        "        ctx.check_cancelled()\n"
+        "        time.sleep(0.01)\n"
+        "JobRunner().submit('long', work)\n"
+        "started.wait(30)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", script], timeout=120, capture_output=True)
+    assert done.returncode == 0, done.stderr.decode()
+
+
 def processed_project_bytes() -> bytes:
     """A project on the block with a short synthetic recording, post-processed on import."""
     project = learned_block_project()
@@ -50,9 +107,9 @@ def processed_project_bytes() -> bytes:
 
 
 @pytest.fixture(scope="module")
-def client() -> Iterator[TestClient]:
-    session = Session(real_time=False)
-    with TestClient(create_app(session, ServerSettings(viser_port=None))) as c:
+def queued() -> Iterator[TestClient]:
+    """The app on a project imported from a small processed recording."""
+    with app_client() as c:
         r = c.post(
             "/api/projects/import",
             params={"name": "queue"},
@@ -63,17 +120,17 @@ def client() -> Iterator[TestClient]:
 
 
 @pytest.mark.slow  # process pools of queued comparisons
-def test_machining_comparisons_past_the_cap_get_429(client: TestClient) -> None:
+def test_machining_comparisons_past_the_cap_get_429(queued: TestClient) -> None:
     started = []
     try:
         for _ in range(MAX_ACTIVE_JOBS_PER_KIND):
-            r = client.post("/api/machining/compare")
+            r = queued.post("/api/machining/compare")
             assert r.status_code == 202, r.text
             started.append(r.json()["job_id"])
-        r = client.post("/api/machining/compare")
+        r = queued.post("/api/machining/compare")
         assert r.status_code == 429, r.text
         assert "machining compare jobs are already queued or running" in r.json()["detail"]
         assert "/api/jobs" in r.json()["detail"]
     finally:
         for job_id in started:
-            client.post(f"/api/jobs/{job_id}/cancel")
+            queued.post(f"/api/jobs/{job_id}/cancel")

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 
@@ -14,14 +15,12 @@ import pytest
 from fastapi.testclient import TestClient
 
 import robomach_core.export.languages as registry
-from app.api import create_app
 from app.cli import build_parser
-from app.session import Session
-from app.settings import ServerSettings
 from robomach_core import project as core
 from robomach_core.export.krl_check import check_krl_program
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.workpiece import builtin_workpiece
+from tests.conftest import app_client
 from tests.core.test_project import _guide, _recording
 
 TOY = registry.ProgramLanguage(
@@ -91,12 +90,13 @@ def toy() -> Iterator[registry.ProgramLanguage]:
         registry.unregister_language("toy")
 
 
-def _client(project_file: Path) -> TestClient:
-    client = TestClient(create_app(Session(), ServerSettings(viser_port=None)))
-    files = {"file": ("project.npz", project_file.read_bytes())}
-    r = client.post("/api/projects/import", files=files, params={"name": "languages"})
-    assert r.status_code == 201, r.text
-    return client
+@contextmanager
+def _client(project_file: Path) -> Iterator[TestClient]:
+    with app_client() as client:
+        files = {"file": ("project.npz", project_file.read_bytes())}
+        r = client.post("/api/projects/import", files=files, params={"name": "languages"})
+        assert r.status_code == 201, r.text
+        yield client
 
 
 def _language_choices() -> list[str]:
@@ -196,7 +196,7 @@ def ur5_file(tmp_path_factory) -> Path:
 
 def test_upload_over_the_api_offers_the_controllers_languages(ur5_file):
     data = ur5_file.read_bytes()
-    with TestClient(create_app(Session(), ServerSettings(viser_port=None))) as client:
+    with app_client() as client:
         r = client.post("/api/cell/robot", files={"file": (ur5_file.name, data)})
         assert r.status_code == 200, r.text
         assert re.match(r"urdf_my_ur5_[0-9a-f]{8}$", r.json()["robot"])

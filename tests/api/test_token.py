@@ -62,16 +62,39 @@ def test_the_token_opens_them_and_reads_stay_open(guarded: TestClient) -> None:
     assert len(guarded.get("/api/guide-points").json()) == before + 2
 
 
-def test_settings_refuse_an_open_bind_without_a_token() -> None:
+def test_settings_refuse_an_open_bind_without_a_token(monkeypatch) -> None:
     with pytest.raises(InvalidInputError, match="ROBOMACH_TOKEN"):
-        ServerSettings.from_env({}, host="0.0.0.0")
-    with pytest.raises(InvalidInputError, match="at least 16"):
-        ServerSettings.from_env({"ROBOMACH_TOKEN": "short"}, host="0.0.0.0")
+        ServerSettings.from_env(host="0.0.0.0")
     with pytest.raises(InvalidInputError, match="must differ"):
-        ServerSettings.from_env({}, port=8000, viser_port=8000)
-    settings = ServerSettings.from_env({"ROBOMACH_TOKEN": TOKEN, "ROBOMACH_HOST": "0.0.0.0"})
+        ServerSettings.from_env(port=8000, viser_port=8000)
+    assert ServerSettings.from_env().loopback
+    monkeypatch.setenv("ROBOMACH_TOKEN", "short")
+    with pytest.raises(InvalidInputError, match="at least 16"):
+        ServerSettings.from_env(host="0.0.0.0")
+    monkeypatch.setenv("ROBOMACH_TOKEN", TOKEN)
+    monkeypatch.setenv("ROBOMACH_HOST", "0.0.0.0")
+    settings = ServerSettings.from_env()
     assert settings.token == TOKEN and not settings.loopback
-    assert ServerSettings.from_env({}).loopback
+
+
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [("ROBOMACH_PORT", "80x"), ("ROBOMACH_REAL_TIME", "maybe"), ("ROBOMACH_TOKEN_READS", "2")],
+)
+def test_a_variable_of_the_wrong_type_is_named(monkeypatch, name: str, value: str) -> None:
+    monkeypatch.setenv(name, value)
+    with pytest.raises(InvalidInputError, match=f"{name}: .*, not '{value}'"):
+        ServerSettings.from_env()
+
+
+def test_the_variables_are_read_empty_ones_unset(monkeypatch, tmp_path: Path) -> None:
+    for name, value in [("PORT", "8123"), ("VISER_PORT", ""), ("DATA", str(tmp_path)),
+                        ("REAL_TIME", "off"), ("MAX_TRIANGLES", "1000")]:  # fmt: skip
+        monkeypatch.setenv(f"ROBOMACH_{name}", value)
+    s = ServerSettings.from_env(port=8124)  # a flag wins over its variable
+    got = (s.port, s.viser_port, s.data_dir, s.real_time, s.max_triangles)
+    assert got == (8124, 8080, tmp_path, False, 1000)
+    assert s.refuse_foreign_hosts and not ServerSettings().refuse_foreign_hosts
 
 
 @pytest.mark.slow  # a real server process
@@ -221,14 +244,14 @@ def test_a_read_with_the_token_leaves_a_cookie_for_reads_only(beyond_loopback: T
     assert beyond_loopback.get("/api/state").status_code == 401
 
 
-def test_reads_on_loopback_are_open_unless_asked(guarded: TestClient) -> None:
+def test_reads_on_loopback_are_open_unless_asked(guarded: TestClient, monkeypatch) -> None:
     assert guarded.get("/api/projects/current/project.npz").status_code == 200
     settings = ServerSettings(viser_port=None, token=TOKEN, token_reads=True)
     with TestClient(create_app(Session(), settings)) as client:
         assert client.get("/api/state").status_code == 401
     with pytest.raises(InvalidInputError, match="only when ROBOMACH_TOKEN is set"):
-        ServerSettings.from_env({}, token_reads=True)
-    settings = ServerSettings.from_env(
-        {"ROBOMACH_TOKEN": TOKEN, "ROBOMACH_HOST": "0.0.0.0", "ROBOMACH_TOKEN_READS": "0"}
-    )
+        ServerSettings.from_env(token_reads=True)
+    for name, value in [("TOKEN", TOKEN), ("HOST", "0.0.0.0"), ("TOKEN_READS", "0")]:
+        monkeypatch.setenv(f"ROBOMACH_{name}", value)
+    settings = ServerSettings.from_env()
     assert not settings.reads_need_token

@@ -6,34 +6,26 @@ a run that ends at its set force against the wall stays there."""
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
+import pytest
 
 from app.session import Session
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.real_part import PartDeviation
+from tests.jobs import done
 
 TOP_OF_RANGES = {"fixture_shift_mm": 5.0, "fixture_rotation_deg": 3.0, "wall_offset_mm": 2.0,
                  "burrs": 50, "burr_height_mm": 1.0}  # fmt: skip
 
 
-def _wait(session: Session, job_id: str, timeout_s: float = 600.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while session.jobs.get(job_id).status in ("queued", "running"):
-        assert time.monotonic() < deadline, "the job did not end"
-        time.sleep(0.05)
-    job = session.jobs.get(job_id)
-    assert job.status == "done", job.error
-
-
+@pytest.mark.slow  # a proposal and a learning run on the real part: 7 s idle
 def test_the_realistic_part_at_the_top_of_its_ranges_leaves_the_robot_free() -> None:
     session = Session(real_time=False)
     try:
         session.set_cell(workpiece="block", part_deviation=PartDeviation(seed=1, **TOP_OF_RANGES))
         session.pointing.propose(np.array([0.0, 0.025, 0.02]))
-        _wait(session, session.pointing.accept())
-        _wait(session, session.learning.start_path_learning(20.0, 0.02))
+        done(session, session.pointing.accept())
+        done(session, session.learning.start_path_learning(20.0, 0.02))
         force = float(np.linalg.norm(session.robot.snapshot().wrench[:3]))
         assert force <= PathLearningSettings().force_limit_N, f"pressed at {force:.0f} N"
         assert session.project().learned is not None  # the recording is kept as learned

@@ -3,8 +3,6 @@ the project's store (real SQLite); the traces are not, and the result stays curr
 
 from __future__ import annotations
 
-import time
-
 import pytest
 
 from app.session import Session, programs
@@ -12,14 +10,7 @@ from app.session.machining import MachiningService
 from app.session.project_file import import_project
 from app.store import Store
 from tests.demo_project import block_demo_dir
-
-
-def _wait(session: Session, job_id: str, timeout_s: float = 300.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while session.jobs.get(job_id).status in ("queued", "running"):
-        assert time.monotonic() < deadline, "the machining job did not end"
-        time.sleep(0.05)
-    assert session.jobs.get(job_id).status == "done", session.jobs.get(job_id).error
+from tests.jobs import done
 
 
 @pytest.mark.slow  # the shared block demo run (tests/demo_project.py)
@@ -31,7 +22,7 @@ def test_settings_choice_and_result_survive_a_restart(tmp_path):
         service = MachiningService(session)
         service.set_settings(process_gain_N=25.0, force_limit_N=180.0)
         service.choose("fuzzy", "offline")
-        _wait(session, service.start("run"))
+        done(session, service.start("run"))
         rows = service.result().rows
         rapid = programs.rapid_module(session)
         assert "planned from rehearsals of the fuzzy cut" in rapid

@@ -3,8 +3,6 @@ proposal and its edits, accepting it, learning from it, and a cell change that d
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -12,6 +10,7 @@ from app.session import NotFoundError, Session
 from robomach_core.errors import InvalidInputError, UnreachableTargetError
 from robomach_core.learning.walls import section_loops
 from robomach_core.real_part import PartDeviation
+from tests.jobs import finished
 
 WOBJ_M = np.array([0.80, 0.16, 0.0])  # the water pump's work object (rotation: identity)
 ON_WALL = np.array([0.0, -0.065, 0.017])  # the groove's outer wall, 3 mm above its floor (wobj)
@@ -22,16 +21,6 @@ def fast() -> Session:
     s = Session(real_time=False)
     yield s
     s.close()
-
-
-def _wait_job(session: Session, job_id: str, timeout_s: float = 300.0):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        info = session.jobs.get(job_id)
-        if info.status in ("done", "failed", "cancelled"):
-            return info
-        time.sleep(0.05)
-    raise AssertionError("job did not finish")
 
 
 def test_a_click_on_the_wall_moves_the_tool_beside_it_and_records_the_point(fast: Session):
@@ -97,7 +86,7 @@ def test_a_proposal_is_shown_edited_and_accepted_then_learned_within_the_wall(fa
             seen.append(fast.pointing.learning_side())
 
     unsubscribe = fast.subscribe(on_change)
-    info = _wait_job(fast, fast.pointing.accept())
+    info = finished(fast, fast.pointing.accept())
     unsubscribe()
     assert info.status == "done", info.error
     assert seen and set(seen) == {"right"}, seen
@@ -108,7 +97,7 @@ def test_a_proposal_is_shown_edited_and_accepted_then_learned_within_the_wall(fa
     recorded = np.array([g.position_m for g in guides])
     assert np.all(np.linalg.norm(recorded - planned, axis=1) < 3e-3)  # touched the wall
     assert fast.pointing.learning_side() == "right"
-    info = _wait_job(fast, fast.learning.start_path_learning(10.0, 0.005))
+    info = finished(fast, fast.learning.start_path_learning(10.0, 0.005))
     assert info.status == "done", info.error
     assert (fast.project().learned and fast.project().learned.settings).wall_side == "right"
     outcome = fast.learning.run_postprocess()

@@ -16,6 +16,7 @@ import pytest
 import robomach_core.project as core
 from app.session import ConflictError, Session, process_settings, programs, projects
 from app.studies import StudyService
+from tests.jobs import done
 
 
 def _push_to(session: Session, goal_mm: list[float]) -> None:
@@ -44,11 +45,7 @@ def session() -> Iterator[Session]:
         s.teach.push(np.array([0.0, 6.0, 0.0, 0.0, 0.0, 0.0]), 1.5)
         s.record_guide_point()
     s.robot.select(["x", "y", "z"], "base")
-    job = s.learning.start_path_learning(10.0, 0.02, closed=False)
-    deadline = time.monotonic() + 120
-    while s.jobs.get(job).status in ("queued", "running") and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert s.jobs.get(job).status == "done", s.jobs.get(job)
+    done(s, s.learning.start_path_learning(10.0, 0.02, closed=False), 120)
     s.learning.run_postprocess(tolerance_m=5e-5)
     yield s
     s.close()
@@ -247,15 +244,8 @@ def test_learning_at_20_N_moves_the_force_filter_band_with_it() -> None:
     then keeps nearly every sample."""
     s = Session(real_time=False)
     try:
-
-        def finish(job: str) -> None:
-            deadline = time.monotonic() + 300
-            while s.jobs.get(job).status in ("queued", "running") and time.monotonic() < deadline:
-                time.sleep(0.05)
-            assert s.jobs.get(job).status == "done", s.jobs.get(job)
-
-        finish(s.learning.start_example())
-        finish(s.learning.start_path_learning(20.0, 0.010))
+        done(s, s.learning.start_example())
+        done(s, s.learning.start_path_learning(20.0, 0.010))
         assert s.project().recording.completed, s.project().recording.stop_reason
         post = s.project().post_settings
         assert (post.force_min_N, post.force_max_N) == (10.0, 30.0)
@@ -264,7 +254,7 @@ def test_learning_at_20_N_moves_the_force_filter_band_with_it() -> None:
         assert outcome.score.max_m < 0.25e-3
         # A band the user chose that holds the force stays as it is.
         s.learning.run_postprocess(force_min_N=12.0, force_max_N=40.0)
-        finish(s.learning.start_path_learning(15.0, 0.010))
+        done(s, s.learning.start_path_learning(15.0, 0.010))
         post = s.project().post_settings
         assert (post.force_min_N, post.force_max_N) == (12.0, 40.0)
     finally:

@@ -9,6 +9,7 @@ from app.session import Session
 from app.store import Store
 from robomach_core.robot import robot_urdf_path
 from robomach_core.robots import custom, registry
+from tests.jobs import finished
 
 
 def test_an_uploaded_arm_survives_a_restart(tmp_path) -> None:
@@ -44,16 +45,10 @@ def test_choosing_a_builtin_arm_drops_the_uploaded_file(tmp_path) -> None:
 
 
 def test_the_example_on_an_arm_too_small_for_the_part_says_so() -> None:
-    import time
-
     s = Session(real_time=False)
     try:
         s.set_cell(robot="ur3")
-        job = s.learning.start_example()
-        deadline = time.monotonic() + 60
-        while s.jobs.get(job).status in ("queued", "running") and time.monotonic() < deadline:
-            time.sleep(0.05)
-        info = s.jobs.get(job)
+        info = finished(s, s.learning.start_example(), 60)
         assert info.status == "failed"
         assert "edge of reach" in info.error and "larger arm" in info.error, info.error
     finally:

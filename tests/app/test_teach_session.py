@@ -13,6 +13,7 @@ from app.session import Session
 from app.session.live import LiveFeed
 from robomach_core.errors import InvalidInputError, NoContactError, SupervisionError
 from robomach_core.learning.run import Recording
+from tests.jobs import done
 
 WOBJ_M = np.array([0.80, 0.16, 0.0])  # the water pump's work object (rotation: identity)
 
@@ -150,15 +151,11 @@ def test_the_gap_is_to_the_wall_at_the_tool_and_names_a_nearer_floor(fast: Sessi
     assert view.face == "floor" and view.wall_gap_m == pytest.approx(0.001, abs=5e-4)
 
 
+@pytest.mark.slow  # the example's 14 points and its run: 5 s idle
 def test_the_example_after_hand_teaching_turns_in_steps_and_runs(fast: Session) -> None:
     fast.robot.select([], "tool")
     for _ in range(2):
         fast.teach.jog("rz", np.radians(40.0), frame="tool")  # 80 deg off: more than one jog step
     fast.teach.jog("z", -0.15, frame="base", speed=0.05)
-    job = fast.learning.start_example()
-    deadline = time.monotonic() + 300
-    while fast.jobs.get(job).status in ("queued", "running") and time.monotonic() < deadline:
-        time.sleep(0.05)
-    info = fast.jobs.get(job)
-    assert info.status == "done", info.error
+    done(fast, fast.learning.start_example())
     assert len(fast.project().guide_points) == 14

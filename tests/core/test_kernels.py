@@ -288,18 +288,13 @@ def test_the_balls_contact_is_the_nearest_face_of_the_whole_part():
     np.testing.assert_allclose(out[3:6], [0.0, 0.0, model.stiffness_N_m * 1e-4 + 100.0 * 0.025])
 
 
-def test_boxes_overlapping_and_the_winding_number():
+def test_boxes_overlapping():
     rng = np.random.default_rng(3)
     lo = rng.uniform(-1, 1, (200, 3))
     hi = lo + rng.uniform(0, 0.3, (200, 3))
     box_lo, box_hi = np.array([-0.2, -0.3, 0.0]), np.array([0.3, 0.2, 0.4])
     want = np.flatnonzero(np.all((hi >= box_lo) & (lo <= box_hi), axis=1))
     np.testing.assert_array_equal(_kernels.boxes_overlapping(lo, hi, box_lo, box_hi), want)
-    block = builtin_workpiece("block").mesh
-    triangles = np.ascontiguousarray(block.vertices[block.faces])
-    points = rng.uniform(block.bounds[0] - 0.01, block.bounds[1] + 0.01, (100, 3))
-    inside = np.array([_kernels.winding_number(p, triangles) > 0.5 for p in points])
-    np.testing.assert_array_equal(inside, block.contains(points))
 
 
 # --- lead-through and path learning's controller ----------------------------------------------
@@ -470,8 +465,7 @@ _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
         **dict.fromkeys(
             ("ball_contact", "_closest_on_triangle", "penalty_wrench", "_penalty_wrench"), BALL
         ),
-        "boxes_overlapping": "test_boxes_overlapping_and_the_winding_number",
-        "winding_number": "test_boxes_overlapping_and_the_winding_number",
+        "boxes_overlapping": "test_boxes_overlapping",
         "admittance_reference": "test_the_admittance_step_is_its_formula",
         "deviation_height_kept": REDUCTION,
         "_first_failing_end": REDUCTION,

@@ -18,7 +18,6 @@ import pytest
 
 from robomach_core.errors import RobomachError, RouteRefusedError
 from robomach_core.pipeline import DemoSettings, run_demo
-from robomach_core.postprocess import PostprocessSettings
 from robomach_core.teaching.operator import TOOL_DOWN
 from tests.envelope import (
     DENSE_SAMPLES,
@@ -50,13 +49,7 @@ def _demo(part_name: str, wall: str, **kwargs) -> tuple[Outcome, object]:
     """``robomach demo`` (``run_demo``) on a built-in part, judged against ``wall``; a
     refusal before learning is the outcome "refused"."""
     part = part_named(part_name)
-    force = kwargs.get("force_N", 10.0)
-    settings = DemoSettings(
-        workpiece=part_name,
-        force_control_variant=False,
-        postprocess=PostprocessSettings().with_band_for(force),
-        **kwargs,
-    )
+    settings = DemoSettings(workpiece=part_name, force_control_variant=False, **kwargs)
     try:
         result = run_demo(settings)
     except RouteRefusedError as exc:
@@ -68,7 +61,7 @@ def _demo(part_name: str, wall: str, **kwargs) -> tuple[Outcome, object]:
         closed=closed, side=settings.wall_side,
     )  # fmt: skip
     processed = result.project.processed
-    note = f"{force:g} N, {settings.speed_m_s * 1e3:g} mm/s"
+    note = f"{settings.force_N:g} N, {settings.speed_m_s * 1e3:g} mm/s"
     base = Outcome("", settings=note, description=pset.description)
     return judge(part, result.workpiece, r, pset, result.recording, processed, base), result
 

@@ -67,3 +67,25 @@ def test_a_pickled_workpiece_still_measures_distances():
     copy = pickle.loads(pickle.dumps(wp))
     np.testing.assert_allclose(mesh_deviation(copy, 0.001, pts), before)
     assert copy.wall is not None and np.array_equal(copy.T_base_wobj, wp.T_base_wobj)
+
+
+def test_inside_beside_edges_and_corners_is_the_winding_numbers():
+    """Points within a micrometre of the pump's edges and corners, where the nearest face's
+    normal cannot tell (the winding number decides, libigl's): the same side as the reference
+    winding number's, in and out, over fresh points each run."""
+    from robomach_core import mesh_query
+    from robomach_core.mesh_score import _inside
+
+    seed = int(np.random.default_rng().integers(2**32))
+    rng = np.random.default_rng(seed)
+    mesh = builtin_workpiece("water_pump").mesh
+    edges = mesh.edges_unique[rng.choice(len(mesh.edges_unique), 150, replace=False)]
+    f = rng.uniform(0.0, 1.0, (len(edges), 1))
+    on_edges = (1 - f) * mesh.vertices[edges[:, 0]] + f * mesh.vertices[edges[:, 1]]
+    corners = mesh.vertices[rng.choice(len(mesh.vertices), 50, replace=False)]
+    pts = np.vstack([on_edges, corners]) + rng.normal(0.0, 1e-6, (200, 3))
+    closest, distance, tri = mesh_query.closest_point(mesh, pts)
+    got = _inside(mesh, pts, closest, np.asarray(distance), tri)
+    want = np.array([_winding(mesh, p) > 0.5 for p in pts])
+    assert got.any() and (~got).any(), seed
+    np.testing.assert_array_equal(got, want, err_msg=f"seed {seed}")

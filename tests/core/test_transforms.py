@@ -41,3 +41,33 @@ def test_slerp_halfway_is_half_the_rotation():
     np.testing.assert_allclose(
         matrix_from_quaternion(slerp(q0, q1, 0.5)), rotation_about("z", 0.5), atol=1e-12
     )
+
+
+@given(st.integers(0, 2**32 - 1))
+@settings(max_examples=50, deadline=None)
+def test_a_half_turn_with_noise_keeps_its_printed_sign(seed):
+    """A half turn's w is +-1e-17 of noise: the sign is the first larger component's, so the
+    same tool pose prints the same quaternion (SciPy's canonical form keys on w's sign)."""
+    rng = np.random.default_rng(seed)
+    axis = rng.normal(size=3)
+    R = rotation_about(axis, np.pi) @ rotation_about(rng.normal(size=3), rng.choice([0, 1e-15]))
+    q = quaternions_from_matrices(np.stack([R, R.T]))
+    for row in q:
+        assert row[np.argmax(np.abs(row) > 1e-12)] > 0, (seed, row)
+    np.testing.assert_allclose(q[0], q[1], atol=1e-9)
+
+
+@given(st.integers(0, 2**32 - 1))
+@settings(max_examples=50, deadline=None)
+def test_slerp_of_many_pairs_is_scipys_slerp_between_two_keys(seed):
+    from scipy.spatial.transform import Rotation, Slerp
+
+    rng = np.random.default_rng(seed)
+    q0, q1 = rng.normal(size=(2, 20, 4))
+    f = rng.uniform(0.0, 1.0, 20)
+    got = slerp(q0, q1, f)
+    for k in range(20):
+        keys = Rotation.from_quat([q0[k], q1[k]], scalar_first=True)
+        want = Slerp([0.0, 1.0], keys)([f[k]]).as_matrix()[0]
+        np.testing.assert_allclose(matrix_from_quaternion(got[k]), want, atol=1e-12)
+        np.testing.assert_allclose(slerp(q0[k], q1[k], f[k]), got[k], atol=1e-15)

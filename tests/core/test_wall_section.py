@@ -51,6 +51,39 @@ def test_a_wall_loop_measures_points_and_pieces():
     assert not piece.closed and piece.length_m == pytest.approx(1.0)
 
 
+@pytest.mark.parametrize("closed", [True, False])
+def test_a_wall_loop_projects_exactly_onto_its_nearest_point(closed: bool) -> None:
+    """``project`` and ``signed_distance`` (shapely's R-tree over the segments) are the foot
+    of the perpendicular on the nearest of every segment, found by brute force, on random
+    polygons with points near and far, over fresh seeds."""
+    seed = int(np.random.default_rng().integers(2**32))
+    rng = np.random.default_rng(seed)
+    for _ in range(20):
+        n = int(rng.integers(3, 60))
+        angle = np.sort(rng.uniform(0, 2 * np.pi, n))[::-1]  # clockwise: material inside
+        radius = rng.uniform(0.02, 0.1) * rng.uniform(0.6, 1.0, n)
+        wall = WallLoop(
+            np.column_stack([np.cos(angle), np.sin(angle)]) * radius[:, None], 0.0, closed
+        )
+        xy = rng.uniform(-0.12, 0.12, (200, 2))
+        chain = wall.points_m if not closed else np.vstack([wall.points_m, wall.points_m[:1]])
+        a, d = chain[:-1], np.diff(chain, axis=0)
+        u = np.clip(np.einsum("kij,ij->ki", xy[:, None] - a, d) / np.sum(d * d, axis=1), 0, 1)
+        feet = a + u[..., None] * d
+        gap = np.linalg.norm(xy[:, None] - feet, axis=2)
+        best = np.argmin(gap, axis=1)
+        want_s = wall.cumulative_m[best] + u[np.arange(len(xy)), best] * np.linalg.norm(
+            d[best], axis=1
+        )
+        got_s = wall.project(xy)
+        ds = np.abs(got_s - wall.wrap(want_s))
+        ds = np.minimum(ds, wall.length_m - ds) if closed else ds
+        ties = np.sort(gap, axis=1)[:, 1] - gap.min(axis=1) < 1e-12  # two segments as near
+        assert np.all((ds < 1e-12) | ties), f"seed {seed}"
+        np.testing.assert_allclose(np.abs(wall.signed_distance(xy)), gap.min(axis=1), atol=1e-15,
+                                   err_msg=f"seed {seed}")  # fmt: skip
+
+
 def test_a_pick_on_the_pump_groove_keeps_its_height_or_says_why_not():
     pick = pick_wall(water_pump().mesh, [0.0, -0.065, 0.019], **PICK)
     assert pick.floor_z_m == pytest.approx(0.014) and pick.top_z_m == pytest.approx(0.020)

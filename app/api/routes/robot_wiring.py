@@ -11,6 +11,7 @@ from app.api.routes import ERRORS, SessionDep
 from app.api.routes.cell import UPLOAD_CHUNK_BYTES, _public
 from app.api.routes.export import program_download
 from app.api.schemas import CellPublic
+from robomach_core import limits
 from robomach_core.learning.settings import WallSideSetting
 from robomach_core.robots.builtin import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
@@ -76,7 +77,14 @@ def export_urscript(
 @router.get("/path-learning/warnings")
 def guide_point_warnings(
     session: SessionDep,
-    force_N: Annotated[float, Query(ge=1.0, le=50.0, description="contact force [N]")] = 10.0,
+    force_N: Annotated[
+        float,
+        Query(
+            ge=limits.LEARNING_FORCE_N.min,
+            le=limits.LEARNING_FORCE_N.max,
+            description="contact force [N]",
+        ),
+    ] = limits.LEARNING_FORCE_N.default,
     closed: Annotated[bool, Query(description="closed contour")] = True,
     wall_side: Annotated[
         WallSideSetting, Query(description="the wall side to learn with")

@@ -7,7 +7,7 @@ import viser
 import viser.uplot
 
 from robomach_core import limits
-from robomach_core.learning.settings import WALL_SIDE_CHOICES
+from robomach_core.learning.settings import WALL_SIDE_CHOICES, PathLearningSettings
 
 from .feedback import guarded
 from .postprocess import OUT_OF_DATE
@@ -29,31 +29,32 @@ class PathLearningPanel:
     def __init__(self, server: viser.ViserServer, session, scene=None) -> None:
         self.session = session
         self.scene = scene
-        last = session.project().learned and session.project().learned.settings
+        learned = session.project().learned
+        last = learned.settings if learned else PathLearningSettings()  # the defaults, once
         with server.gui.add_folder("Path learning"):
             self.force = server.gui.add_slider(
                 "Force (N)",
                 *FORCE_RANGE_N,
                 0.5,
-                last.force_N if last else 10.0,
+                last.force_N,
                 hint="Contact force reference, normal to the wall (held along Yp)",
             )
             self.speed = server.gui.add_slider(
                 "Speed (mm/s)",
                 *SPEED_RANGE_MM_S,
                 0.5,
-                last.speed_m_s * 1e3 if last else 5.0,
+                last.speed_m_s * 1e3,
                 hint="Learning speed along the path",
             )
             self.closed = server.gui.add_checkbox(
                 "Closed contour",
-                last.closed if last else True,
+                last.closed,
                 hint="Return from the last guide point to the first",
             )
             self.wall_side = server.gui.add_dropdown(
                 "Wall side",
                 WALL_SIDE_CHOICES,
-                initial_value=last.wall_side if last else "auto",
+                initial_value=last.wall_side,
                 hint="The wall to follow: left or right of travel, looking along the tool into "
                 "the part. auto: from a push at the guide points or the part's mesh; refused "
                 "when neither tells (the scene shows the wall it will follow)",
@@ -63,7 +64,7 @@ class PathLearningPanel:
                 limits.FLOOR_CLEARANCE_MM.min,
                 limits.FLOOR_CLEARANCE_MM.max,
                 0.1,
-                last.floor_clearance_m * 1e3 if last else 0.5,
+                last.floor_clearance_m * 1e3,
                 hint="Machining height: the cutter this far above a floor the run meets or a "
                 "guide point rests on",
             )

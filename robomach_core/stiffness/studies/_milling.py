@@ -25,6 +25,7 @@ from ..milling import (
     program_poses,
     simulate_milling,
 )
+from ..settings import COMPENSATION_SETTINGS
 from ._common import (
     DEFAULT_OPTIONS,
     RAPID_FILE,
@@ -120,8 +121,8 @@ def run_milling_study(
     lund = replace(LUND_FACE_MILLING, surface_center_m=tuple(work_position_m(names["lund"])))
     if options.quick:
         chapter, lund = _quick(chapter), _quick(lund)
-    jobs = [(chapter, m) for m in ("none", "online", "offline_linear", "offline_nonlinear")]
-    jobs += [(lund, m) for m in ("none", "online", "offline_linear")]
+    jobs = [(chapter, m) for m in COMPENSATION_SETTINGS]
+    jobs += [(lund, m) for m in COMPENSATION_SETTINGS if m != "offline_nonlinear"]
     runs: dict[str, dict[str, MillingRun]] = {"chapter": {}, "lund": {}}
     width = (1.0 - share) / len(jobs)
     for i, (scenario, mode) in enumerate(jobs):
@@ -150,9 +151,9 @@ def run_milling_study(
         "milling_robot": names["chapter"],
         "face_milling_robot": names["lund"],
         "chapter_scenario": chapter.name,
-        "error_max_uncompensated_um": um(ch["none"].error_max_m),
-        "error_mean_uncompensated_um": um(ch["none"].error_mean_m),
-        "error_std_uncompensated_um": um(ch["none"].error_std_m),
+        "error_max_uncompensated_um": um(ch["off"].error_max_m),
+        "error_mean_uncompensated_um": um(ch["off"].error_mean_m),
+        "error_std_uncompensated_um": um(ch["off"].error_std_m),
         "error_max_compensated_linear_um": um(ch["offline_linear"].error_max_m),
         "error_max_compensated_nonlinear_um": um(ch["offline_nonlinear"].error_max_m),
         "error_max_compensated_online_um": um(ch["online"].error_max_m),
@@ -160,12 +161,12 @@ def run_milling_study(
         "error_std_compensated_um": um(ch["offline_linear"].error_std_m),
         "error_std_compensated_nonlinear_um": um(ch["offline_nonlinear"].error_std_m),
         "error_std_compensated_online_um": um(ch["online"].error_std_m),
-        "error_max_reduction_linear_percent": reduction(ch["none"], ch["offline_linear"]),
-        "error_max_reduction_nonlinear_percent": reduction(ch["none"], ch["offline_nonlinear"]),
-        "error_max_reduction_online_percent": reduction(ch["none"], ch["online"]),
+        "error_max_reduction_linear_percent": reduction(ch["off"], ch["offline_linear"]),
+        "error_max_reduction_nonlinear_percent": reduction(ch["off"], ch["offline_nonlinear"]),
+        "error_max_reduction_online_percent": reduction(ch["off"], ch["online"]),
         "face_scenario": lund.name,
-        "face_error_max_uncompensated_um": um(lu["none"].error_max_m),
-        "face_error_std_uncompensated_um": um(lu["none"].error_std_m),
+        "face_error_max_uncompensated_um": um(lu["off"].error_max_m),
+        "face_error_std_uncompensated_um": um(lu["off"].error_std_m),
         "face_error_max_compensated_um": um(lu["online"].error_max_m),
         "face_error_std_compensated_um": um(lu["online"].error_std_m),
         "face_error_max_compensated_offline_um": um(lu["offline_linear"].error_max_m),
@@ -185,9 +186,7 @@ def run_milling_study(
             _write_csv(
                 out / "milling_chapter_surface.csv",
                 ["u_mm"] + [f"{m}_overcut_um" for m in modes],
-                np.column_stack(
-                    [ch["none"].error_u_m * 1e3] + [ch[m].error_m * 1e6 for m in modes]
-                ),
+                np.column_stack([ch["off"].error_u_m * 1e3] + [ch[m].error_m * 1e6 for m in modes]),
             )
         )
         for mode, run in lu.items():
