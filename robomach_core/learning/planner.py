@@ -46,6 +46,7 @@ from .thresholds import (
     CORNER_RADIUS_M,
     CORNER_TURN_MIN_DEG,
     CUTTER_FIT_M,
+    EQUAL_STRETCH_M,
     JOINT_JUMP_DEG,
     LEG_CLEARANCE_M,
     LONG_RUN_END_SHARE,
@@ -224,15 +225,28 @@ def _corner_groups(loop: WallLoop, shift_m: float = 0.0) -> list[_Group]:
     return groups
 
 
-def _straightest_start(loop: WallLoop) -> float:
+def _straightest_start(loop: WallLoop, pick_s: float) -> float:
     """Arc length of the middle of the loop's longest stretch without corners (a closed
-    loop is counted from there, so no corner straddles its start)."""
+    loop is counted from there, so no corner straddles its start). Stretches as long within
+    ``EQUAL_STRETCH_M`` (a block's two long sides) are told apart by the pick: the one whose
+    middle is nearest it along the loop, so that the proposal never depends on the vertex a
+    section's loop happens to start at."""
     groups = _corner_groups(loop)
     if not groups:
         return 0.0
-    ends = [(g.end_m, groups[(k + 1) % len(groups)].start_m) for k, g in enumerate(groups)]
-    length, a = max(((b - a) % loop.length_m, a) for a, b in ends)
-    return float(loop.wrap(np.array([a + 0.5 * length]))[0])
+    L = loop.length_m
+    stretches = [
+        (a, (groups[(k + 1) % len(groups)].start_m - a) % L)
+        for k, a in ((k, g.end_m) for k, g in enumerate(groups))
+    ]
+    longest = max(length for _, length in stretches)
+    middles = [a + 0.5 * length for a, length in stretches if length > longest - EQUAL_STRETCH_M]
+
+    def from_pick(m: float) -> float:
+        d = (m - pick_s) % L
+        return min(d, L - d)
+
+    return float(loop.wrap(np.array([min(middles, key=from_pick)]))[0])
 
 
 # --- the wall to follow -----------------------------------------------------------------------
@@ -244,7 +258,7 @@ def _wall_extent(
     """(wall, closed, groups on it, pick's arc length on it, notes): the picked loop, or the
     piece of it between the slot ends round the pick."""
     L = loop.length_m
-    shift = _straightest_start(loop) if loop.closed else 0.0
+    shift = _straightest_start(loop, pick_s) if loop.closed else 0.0
     groups = _corner_groups(loop, shift)
     ends = [g for g in groups if g.slot_end]
     pick = float(loop.wrap(np.array([pick_s - shift]))[0])

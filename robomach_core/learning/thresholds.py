@@ -89,6 +89,7 @@ SLOT_END_DEG = 150.0  # deg | a corner group turning back round the free side th
 SLOT_END_MAX_M = 0.025  # m | ... the longest such a group may be (a slot's end cap is its width across, a tight U-turn of the wall) | slot width
 MIN_RUN_M = 0.011  # m | corners closer than this along the wall are one group; a shorter run between groups gets no point | fixed: the pump's 14 mm bosses
 LONG_RUN_M = 0.040  # m | a straight run this long gets two points, LONG_RUN_END_SHARE from its ends, bracketing its corners | fixed
+EQUAL_STRETCH_M = 0.001  # m | two straight stretches this close in length are equally long (a block's two sides): the one nearer the pick starts a closed loop's count | fixed
 LONG_RUN_END_SHARE = 0.2  # x run | where a long run's two points stand, from each end (one point in the middle of a shorter run) | fixed
 WALL_END_MARGIN_M = 5e-4  # m | an open wall's end points stand this much more than the tool radius and gap from its ends | fixed
 LEG_CLEARANCE_M = 3e-4  # m | a leg's chord keeps the cutter this far off the wall, else a point is added at the worst place ... | fixed

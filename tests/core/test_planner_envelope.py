@@ -202,3 +202,46 @@ def test_an_l_block_tilted_in_its_stl_gets_its_corners_on_their_bisectors(tilt_d
         off = xyz[k, :2] - tip
         assert np.linalg.norm(off) == pytest.approx(2e-3, abs=5e-5)  # radius + gap
         assert off @ into == pytest.approx(-2e-3, abs=5e-5)  # on the bisector, outwards
+
+
+def _rectangle_loop(w_m: float, h_m: float, spacing_m: float) -> np.ndarray:
+    """A sharp rectangle's wall sampled every ``spacing_m``, counter-clockwise from a corner."""
+    corners = np.array([[0.0, 0.0], [w_m, 0.0], [w_m, h_m], [0.0, h_m], [0.0, 0.0]])
+    pts = []
+    for a, b in zip(corners[:-1], corners[1:], strict=True):
+        n = max(int(np.ceil(np.linalg.norm(b - a) / spacing_m)), 1)
+        pts.extend(a + (b - a) * t for t in np.arange(n) / n)
+    return np.array(pts)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    seed=seeds,
+    square=st.booleans(),
+)
+def test_a_closed_walls_count_starts_where_the_pick_says_not_where_its_loop_starts(seed, square):
+    """The wall a proposal follows, and where its closed loop is counted from, are the same
+    whichever vertex the section's loop starts at: a block's two equally long sides are told
+    apart by the pick (a section chained by another library started the loop 3 vertices on,
+    and the realistic block's proposal then went over the wall's top)."""
+    from robomach_core.learning.planner import _wall_extent
+    from robomach_core.learning.walls import WallLoop
+
+    rng = np.random.default_rng(seed)
+    w = float(rng.uniform(0.03, 0.2))
+    h = w if square else float(rng.uniform(0.03, 0.2))
+    pts = _rectangle_loop(w, h, float(rng.uniform(0.0005, 0.003)))
+    loop = WallLoop(pts, 0.02, closed=True)
+    pick_xy = loop.point_at(np.array([float(rng.uniform(0.0, loop.length_m))]))[0]
+    starts = []
+    for roll in (0, int(rng.integers(1, len(pts))), int(rng.integers(1, len(pts)))):
+        rolled = WallLoop(np.roll(pts, -roll, axis=0), 0.02, closed=True)
+        s_pick = float(
+            rolled.cumulative_m[np.argmin(np.linalg.norm(rolled.points_m - pick_xy, axis=1))]
+        )
+        wall, closed, _, pick_s, _ = _wall_extent(rolled, s_pick)
+        assert closed
+        starts.append((wall.points_m[0], wall.point_at(np.array([pick_s]))[0]))
+    for start, at_pick in starts[1:]:
+        assert np.linalg.norm(start - starts[0][0]) < 1e-3, f"seed {seed}: count starts elsewhere"
+        assert np.linalg.norm(at_pick - starts[0][1]) < 1e-3, f"seed {seed}: the pick moved"
