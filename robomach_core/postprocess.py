@@ -351,6 +351,25 @@ class PostprocessResult:
         return int(self.keep_mask.sum())
 
 
+def loop_ridge_m(position_m: np.ndarray, tool_radius_m: float) -> float:
+    """The ridge a closed program leaves where its end stops short of its start [m]: 0 when
+    the end reaches or passes the start (along the first move), else the scallop between two
+    cutter positions a gap g apart, r - sqrt(r^2 - (g/2)^2), and the whole radius when the
+    cutters do not overlap. (A loop that closed before the force filter's first sample left
+    3 mm of a wall uncut, and no check said so.)"""
+    p = np.asarray(position_m, dtype=float)
+    if len(p) < 3:
+        return 0.0
+    first = p[1] - p[0]
+    n = float(np.linalg.norm(first))
+    gap = p[-1] - p[0]
+    if n == 0.0 or float(gap @ first) / n >= 0.0:
+        return 0.0
+    half = 0.5 * float(np.linalg.norm(gap))
+    r = tool_radius_m
+    return r if half >= r else r - float(np.sqrt(r * r - half * half))
+
+
 def postprocess(
     recording,
     guide_quaternions_wxyz: np.ndarray,

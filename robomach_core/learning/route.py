@@ -98,10 +98,11 @@ class LegEnd:
     """Where a leg ends, the same for the run and the walk: at ``LEG_END_MARGIN_M`` before its
     guide point's plane, or at the nearest approach to its point (within ``NEAR_END_M``,
     receding ``END_PASSED_M``); the last leg of a closed route at the nearest approach to where
-    the route first met the wall (within the cutter's radius + ``CLOSE_LOOP_M``: a first touch
-    on a corner is anywhere on the cutter's arc round it, up to a radius off the faces' path),
-    of an open one at the nearest approach to its last point; either ``CLOSE_LOOP_OVERRUN_M``
-    past the plane at the latest."""
+    the contact first held the set force (the force filter keeps the recording from about there,
+    so the loop's end overlaps its program's start), within the cutter's radius + ``CLOSE_LOOP_M``
+    (a contact on a corner is anywhere on the cutter's arc round it, up to a radius off the
+    faces' path), of an open one at the nearest approach to its last point; either
+    ``CLOSE_LOOP_OVERRUN_M`` past the plane at the latest."""
 
     def __init__(
         self, leg: Leg, axis: np.ndarray, *, last: bool, closed: bool, tool_radius_m: float
@@ -120,7 +121,7 @@ class LegEnd:
 
     def reached(self, p: np.ndarray, s: float, start: np.ndarray | None) -> bool:
         """True when the leg ends at ``p`` (progress ``s`` along it); ``start``: where the
-        route first met the wall (a closed route's last leg closes there), None before."""
+        contact first held the set force (a closed route's last leg closes there), None before."""
         L = self.leg.length
         if self.last and self.closed and start is not None:
             if s >= 0.5 * L:

@@ -355,7 +355,7 @@ def learn_path(
     rows = np.array([leg.row(route.leg_offsets(leg)) for leg in legs])
     T_ref = state.T_base_tcp.copy()
     since_ref = 0.0
-    first_touch: np.ndarray | None = None
+    settled_at: np.ndarray | None = None
     law = initial_state()
     step, turn = np.zeros(3), np.zeros(3)
     k = 0
@@ -385,8 +385,10 @@ def learn_path(
             R_tcp_flange, row, ref, axis, side, T_ref, w, law, params, max_turn, step, turn,
             record, n,
         )  # fmt: skip
-        if touching and first_touch is None and ever:
-            first_touch = state.T_base_tcp[:3, 3].copy()
+        if touching and settled_at is None and ever and f_abs >= settings.force_N:
+            # a closed loop ends where its contact first held the set force: the recording's
+            # first samples, as the force builds, are below the force filter's band
+            settled_at = state.T_base_tcp[:3, 3].copy()
         n += 1
         depth = state.contact.depth_m
         if (
@@ -408,7 +410,7 @@ def learn_path(
         travelled = advance * supervised.scale
         leg_travel += travelled
         state = cell.step(state, supervised.q_next)
-        if s_now >= end.watch_from_m and end.reached(T_ref[:3, 3], s_now, first_touch):
+        if s_now >= end.watch_from_m and end.reached(T_ref[:3, 3], s_now, settled_at):
             if end.last:
                 completed = True
                 break

@@ -16,7 +16,13 @@ from ..leadthrough import GuidePoint
 from ..learning.route import LearningRoute, plan_route
 from ..learning.run import learn_path
 from ..learning.settings import PathLearningSettings
-from ..postprocess import PostprocessResult, PostprocessSettings, Targets, postprocess
+from ..postprocess import (
+    PostprocessResult,
+    PostprocessSettings,
+    Targets,
+    loop_ridge_m,
+    postprocess,
+)
 from ..scoring import PathScore, score_path
 from ..sensor import ForceEstimator
 from ..workpiece import Workpiece
@@ -129,6 +135,11 @@ def process(
         taught_wall=taught,
         completed=rec.completed,
         cad_comparison=comparison,
+        loop_ridge_m=(
+            loop_ridge_m(result.targets.position_m, tool_radius_m)
+            if learned.settings.closed
+            else None
+        ),
     )
 
 

@@ -130,6 +130,8 @@ class ProcessedPath:
         cad_comparison: The program a CAD/CAM tool would make from the mesh alone and the
             learned one, both scored against the real wall (``cad_program``); None when the
             path follows no wall of the mesh.
+        loop_ridge_m: For a closed loop, the ridge its end leaves short of its start
+            (``postprocess.loop_ridge_m``); None for an open route.
     """
 
     settings: PostprocessSettings
@@ -143,11 +145,13 @@ class ProcessedPath:
     taught_wall: TaughtWallCheck | None = None
     completed: bool = True
     cad_comparison: CadComparison | None = None
+    loop_ridge_m: float | None = None
 
     def problems(self) -> list[str]:
         """What makes this program unfit to machine with, one line each (empty: none):
-        learning ended early, another wall than the taught one, or the cutter into the wall
-        or off it beyond the reduction's tolerance (+ ``OVERCUT_MARGIN_M``)."""
+        learning ended early, another wall than the taught one, the cutter into the wall or
+        off it beyond the reduction's tolerance (+ ``OVERCUT_MARGIN_M``), or a closed loop
+        whose end stops short of its start by more than that."""
         out = []
         if not self.completed:
             out.append("path learning ended before the last guide point: the program is partial")
@@ -165,6 +169,13 @@ class ProcessedPath:
                 f"the program leaves the part's wall by {mesh.air_m * 1e3:.2f} mm (more than the "
                 f"{self.settings.tolerance_m * 1e3:g} mm tolerance): learn slower there, or add a "
                 "guide point where it leaves the wall"
+            )
+        ridge = self.loop_ridge_m
+        if self.completed and ridge is not None and ridge > limit:
+            out.append(
+                f"the loop ends short of its start and leaves a {ridge * 1e3:.2f} mm ridge of "
+                f"wall uncut there (more than the {self.settings.tolerance_m * 1e3:g} mm "
+                "tolerance): learn it again"
             )
         return out
 

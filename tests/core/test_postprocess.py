@@ -219,3 +219,35 @@ def test_a_gap_whose_chord_would_cut_a_corner_keeps_its_samples():
     assert kept[20:70].all()
     assert not kept[5:8].any()
     assert not keep_corners(pts, mask, 0.0005)[20:70].any()  # within a coarse tolerance: bridged
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    radius_m=st.floats(0.02, 0.2),
+    tool_radius_m=st.floats(0.0005, 0.005),
+    end_m=st.floats(-0.01, 0.01),
+    targets=st.integers(8, 200),
+)
+def test_a_loops_ridge_is_the_scallop_between_its_end_and_its_start(
+    radius_m, tool_radius_m, end_m, targets
+):
+    """A closed program round a circle whose last target stops ``-end_m`` short of its first
+    (or passes it by ``end_m``): no ridge when it passes, else r - sqrt(r^2 - (g/2)^2) for the
+    chord g between them, the whole radius once the two cutters no longer overlap."""
+    from robomach_core.postprocess import loop_ridge_m
+
+    L = 2 * np.pi * radius_m
+    s = np.linspace(0.0, L + end_m, targets)
+    p = radius_m * np.column_stack([np.cos(s / radius_m), np.sin(s / radius_m), 0 * s])
+    ridge = loop_ridge_m(p, tool_radius_m)
+    if end_m >= 0:
+        assert ridge == 0.0
+        return
+    g = 2 * radius_m * np.sin(-end_m / (2 * radius_m))
+    half = g / 2
+    want = (
+        tool_radius_m
+        if half >= tool_radius_m
+        else tool_radius_m - np.sqrt(tool_radius_m**2 - half**2)
+    )
+    assert ridge == pytest.approx(want, rel=1e-9, abs=1e-12)
