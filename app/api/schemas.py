@@ -233,6 +233,37 @@ class JobCreated(BaseModel):
     )
 
 
+class FindingPublic(BaseModel):
+    """One finding of the check before a run (``learning.checks``), in the person's words."""
+
+    rule: str = Field(description="the rule (docs/guide_points.md's table)")
+    severity: Literal["refusal", "warning", "info"] = Field(
+        description="refusal: learning will not start; warning: it runs, look first; info: a note"
+    )
+    message: str = Field(description="what was found and what to do, in whole sentences")
+
+    @classmethod
+    def from_finding(cls, w: Any) -> FindingPublic:
+        return cls(rule=w.rule, severity=w.severity, message=w.message)
+
+
+class PlacementPreviewUpdate(_Request):
+    wobj_mm_deg: Annotated[list[Finite], Field(min_length=6, max_length=6)] = Field(
+        description="the work object being tried: x, y, z [mm], rx, ry, rz [deg] about the "
+        "base's fixed x, then y, then z axes (the numbers of robomach demo --wobj)"
+    )
+
+
+class PlacementPreviewPublic(BaseModel):
+    wobj_mm_deg: list[float] | None = Field(
+        description="the work object being tried (x, y, z mm, rx, ry, rz deg), drawn in the 3D "
+        "scene; null: nothing is tried, the part is drawn where it is placed"
+    )
+    placed_wobj_mm_deg: list[float] = Field(
+        description="where the part is placed now (x, y, z mm, rx, ry, rz deg)"
+    )
+
+
 class JobPublic(BaseModel):
     job_id: str
     kind: str = Field(description="example, path_learning, ...")

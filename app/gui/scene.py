@@ -49,7 +49,19 @@ GUIDE_LABEL_LIFT_M = 0.004  # the "G1" label sits just above its marker
 REACH_COLORS = {"ok": (30, 170, 70), "near": (240, 160, 20), "unreachable": (220, 40, 40)}
 PROPOSAL_LINE_COLOR = (120, 120, 200)
 WALL_COLOR = (40, 140, 220)
+# The learned and the CAD-only program, drawn side by side: two colours, the panels' legend.
+COMPARISON_COLORS = {"learned": (0, 160, 110), "cad_only": (170, 60, 220)}
 WOBJ_AXES_M = 0.05
+PICKED_WALL_COLOR = (255, 70, 20)  # the wall a click picked, before anything moves
+OTHER_WALL_COLOR = (150, 150, 160)  # the other walls at that height (a groove's other side)
+PICKED_ARROW_M = 0.008  # from the picked wall to the side the tool stands on
+TABLE_COLOR = (196, 182, 160)
+PART_VIEW_ELEVATION_DEG = 40.0  # View the part: looking down at the walls from beyond the part
+PART_VIEW_FILL = 1.15  # the part's bounding sphere fills the view with this margin
+TABLE_MARGIN_M = 0.08  # the table reaches this far beyond the part
+TABLE_STAND_FROM_M = 0.05  # a part this high stands on a stand from the floor
+TABLE_PLATE_M = 0.02  # else a plate this thick
+TABLE_GAP_M = 0.0002  # the table's top just under the part's bottom (no flicker)
 
 
 def _mesh_filename(fname: str) -> str:
@@ -222,6 +234,10 @@ class CellScene:
         self.workpiece_node: viser.SceneNodeHandle | None = None
         self._guides_node: viser.SceneNodeHandle | None = None
         self.paths_hidden = False  # the drawn paths belong to a cell no longer there
+        self.placement_previewed = False  # the part is drawn where a placement is being tried
+        # Clicks are the scene's (anywhere on the canvas), met against the part's mesh here:
+        # nothing drawn in front of the part takes them (``on_part_click``).
+        scene.on_click()(self._scene_clicked)
 
     # ----------------------------------------------------------------- cell set-up
 
@@ -256,25 +272,66 @@ class CellScene:
 
     def set_workpiece(self, workpiece: Workpiece) -> None:
         """Show the workpiece mesh (as its CAD: what the user teaches on) at its place in the
-        base frame, clickable, with its work-object frame and coordinates."""
+        base frame, with its work-object frame and coordinates, and the table it stands on.
+
+        The mesh is drawn in its work-object frame under a node placed at ``T_base_wobj``, so
+        that a placement being tried (``preview_placement``) moves the part without sending
+        its mesh again."""
         cad = workpiece.cad()
-        mesh = cad.mesh_in_base()
-        self._cad_in_base = mesh
+        self._cad_mesh = cad.mesh  # work-object frame: what a click's ray is met against
         self._T_base_wobj = cad.T_base_wobj.copy()
         self.workpiece_node = self.server.scene.add_mesh_simple(
             "/workpiece",
-            mesh.vertices,
-            mesh.faces,
+            cad.mesh.vertices,
+            cad.mesh.faces,
             color=WORKPIECE_COLOR,
             flat_shading=True,
             side="double",
+            wxyz=quaternion_from_matrix(cad.T_base_wobj[:3, :3]),
+            position=cad.T_base_wobj[:3, 3],
         )
-        self.workpiece_node.on_click(self._part_clicked)
+        self.placement_previewed = False
         self._show_wobj_frame(cad.T_base_wobj)
+        self._show_table(cad.mesh_in_base())
+        self.set_picked_wall(None)
 
-    def _show_wobj_frame(self, T_base_wobj: np.ndarray) -> None:
+    def preview_placement(self, T_base_wobj: np.ndarray | None) -> None:
+        """Draw the part (and its work-object frame and table) at ``T_base_wobj`` while a
+        placement is being tried; None puts it back where the cell has it."""
+        T = self._T_base_wobj if T_base_wobj is None else np.asarray(T_base_wobj, dtype=float)
+        node = self.workpiece_node
+        if node is None:
+            return
+        with self.server.atomic():
+            node.wxyz = quaternion_from_matrix(T[:3, :3])
+            node.position = T[:3, 3]
+            self._show_wobj_frame(T, preview=T_base_wobj is not None)
+            mesh = self._cad_mesh.copy()
+            mesh.apply_transform(T)
+            self._show_table(mesh)
+        self.placement_previewed = T_base_wobj is not None
+
+    def _show_table(self, part_in_base: trimesh.Trimesh) -> None:
+        """The table the part stands on (the supervision's table plane is the part's lowest
+        point): a stand from the floor when the part is raised, else a thin plate."""
+        lo, hi = part_in_base.bounds
+        top = float(lo[2])
+        bottom = 0.0 if top > TABLE_STAND_FROM_M else top - TABLE_PLATE_M
+        size = np.array([*(hi[:2] - lo[:2] + 2 * TABLE_MARGIN_M), max(top - bottom, 1e-3)])
+        centre = np.array([*(0.5 * (lo[:2] + hi[:2])), 0.5 * (top + bottom)])
+        self.server.scene.add_box(
+            "/table",
+            color=TABLE_COLOR,
+            dimensions=tuple(size),
+            position=tuple(centre - np.array([0.0, 0.0, TABLE_GAP_M])),
+            cast_shadow=False,
+            receive_shadow=True,
+        )
+
+    def _show_wobj_frame(self, T_base_wobj: np.ndarray, *, preview: bool = False) -> None:
         """The work-object frame (axes at its origin) and its coordinates in the base frame."""
         x, y, z = T_base_wobj[:3, 3] * 1e3
+        text = f"work object ({x:.0f}, {y:.0f}, {z:.0f}) mm"
         with self.server.atomic():
             self.server.scene.add_frame(
                 "/wobj",
@@ -285,7 +342,7 @@ class CellScene:
             )
             self.server.scene.add_label(
                 "/wobj/label",
-                f"work object ({x:.0f}, {y:.0f}, {z:.0f}) mm",
+                f"{text}: not placed yet" if preview else text,
                 position=(0.0, 0.0, 0.004),
                 anchor="bottom-left",
             )
@@ -294,34 +351,90 @@ class CellScene:
 
     def on_part_click(self, callback) -> None:
         """Call ``callback(point_wobj_m, normal_wobj, client)`` when the user clicks the part
-        (the first surface the click's ray meets, and its normal, in the work-object frame)."""
+        (the first surface the click's ray meets, and its normal, in the work-object frame).
+
+        The click is the scene's, not the part node's: its ray is met against the part's mesh
+        here, so the robot, the translucent spindle, labels and arrows between the camera and
+        the part never take a click meant for it."""
         self._click_callback = callback
 
     def hit_part(
         self, origin: np.ndarray, direction: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray] | None:
         """(point, normal) in the work-object frame where a base-frame ray meets the part."""
-        mesh = getattr(self, "_cad_in_base", None)
-        if mesh is None:
-            return None
+        mesh = getattr(self, "_cad_mesh", None)
+        if mesh is None or self.placement_previewed:
+            return None  # the part drawn is not where the cell has it
         from robomach_core.mesh_query import ray_hits
 
-        hits, _, faces = ray_hits(mesh, np.asarray([origin]), np.asarray([direction]))
+        T = self._T_base_wobj
+        o = (np.asarray(origin, dtype=float) - T[:3, 3]) @ T[:3, :3]
+        d = np.asarray(direction, dtype=float) @ T[:3, :3]
+        hits, _, faces = ray_hits(mesh, o[None, :], d[None, :])
         if len(hits) == 0:
             return None
-        k = int(np.argmin(np.linalg.norm(hits - origin, axis=1)))
-        T = self._T_base_wobj
-        point = (hits[k] - T[:3, 3]) @ T[:3, :3]
-        normal = mesh.face_normals[faces[k]] @ T[:3, :3]
-        return point, normal
+        k = int(np.argmin(np.linalg.norm(hits - o, axis=1)))
+        return hits[k], np.asarray(mesh.face_normals[faces[k]], dtype=float)
 
-    def _part_clicked(self, event) -> None:
+    def _scene_clicked(self, event) -> None:
         callback = getattr(self, "_click_callback", None)
         if callback is None:
             return
         hit = self.hit_part(np.asarray(event.ray_origin), np.asarray(event.ray_direction))
         if hit is not None:
             callback(hit[0], hit[1], event.client)
+
+    def set_picked_wall(self, pick, text: str = "") -> None:
+        """Highlight the wall a click picked (``walls.WallPick``), before anything moves: the
+        wall at the machining height (thick), the other walls there (thin grey: the groove's
+        other side), the clicked point and an arrow to the side the tool stands on; None
+        removes it."""
+        scene = self.server.scene
+        with self.server.atomic():
+            node = getattr(self, "_picked_node", None)
+            if node is not None:
+                node.remove()
+            self._picked_node = scene.add_frame("/path/picked", show_axes=False)
+            if pick is None:
+                return
+            T = self._T_base_wobj @ pick.T_wobj_floor
+
+            def base(loop) -> np.ndarray:
+                xy = np.asarray(loop.points_m, dtype=float)
+                if loop.closed:
+                    xy = np.vstack([xy, xy[:1]])
+                p = np.column_stack([xy, np.full(len(xy), loop.z_m)])
+                return p @ T[:3, :3].T + T[:3, 3]
+
+            wall = base(pick.loop)
+            scene.add_line_segments(
+                "/path/picked/wall", np.stack([wall[:-1], wall[1:]], axis=1), PICKED_WALL_COLOR,
+                thickness=5.0, thickness_units="screen",
+            )  # fmt: skip
+            for k, other in enumerate(pick.others):
+                w = base(other)
+                scene.add_line_segments(
+                    f"/path/picked/other{k}", np.stack([w[:-1], w[1:]], axis=1),
+                    OTHER_WALL_COLOR, thickness=1.5, thickness_units="screen",
+                )  # fmt: skip
+            s = np.array([pick.s_m])
+            foot = np.array([*pick.loop.point_at(s)[0], pick.loop.z_m])
+            free = np.array([*pick.loop.free_normal_at(s)[0], 0.0])
+            at = T[:3, :3] @ foot + T[:3, 3]
+            tip = at + T[:3, :3] @ free * PICKED_ARROW_M
+            scene.add_arrows(
+                "/path/picked/side", np.array([[at, tip]]), PICKED_WALL_COLOR,
+                shaft_radius=0.0008, head_radius=0.002, head_length=0.003,
+            )  # fmt: skip
+            scene.add_icosphere(
+                "/path/picked/point", radius=0.0015, color=PICKED_WALL_COLOR,
+                position=tuple(self._T_base_wobj[:3, :3] @ pick.point_m
+                               + self._T_base_wobj[:3, 3]),
+            )  # fmt: skip
+            scene.add_label(
+                "/path/picked/label", text or "the wall you clicked",
+                position=tuple(tip + np.array([0.0, 0.0, 0.006])), anchor="bottom-center",
+            )  # fmt: skip
 
     def set_proposal(
         self,
@@ -374,10 +487,12 @@ class CellScene:
                     anchor="bottom-center",
                 )
 
-    def set_comparison(self, comparison, scale_m: float = 0.5e-3) -> None:
-        """The CAD-only program and the learned one, each coloured by its error against the
-        real wall (green to red at ``scale_m``), labelled at its worst place; None removes
-        them."""
+    def set_comparison(
+        self, comparison, *, show_learned: bool = True, show_cad_only: bool = True
+    ) -> None:
+        """The learned program and the CAD-only one in two colours (``COMPARISON_COLORS``:
+        the legend the panels show), each labelled at its worst place with its error against
+        the (real) wall; ``show_*`` hides one; None removes them."""
         scene = self.server.scene
         with self.server.atomic():
             node = getattr(self, "_comparison_node", None)
@@ -386,20 +501,19 @@ class CellScene:
             self._comparison_node = scene.add_frame("/path/comparison", show_axes=False)
             if comparison is None:
                 return
-            for name, score, title in (
-                ("cad_only", comparison.cad_only, "CAD-only"),
-                ("learned", comparison.learned, "learned"),
+            for name, score, title, shown in (
+                ("cad_only", comparison.cad_only, "CAD-only", show_cad_only),
+                ("learned", comparison.learned, "learned", show_learned),
             ):
-                pts, dev = score.points_m, np.abs(score.deviation_m)
-                step = max(1, len(pts) // 4000)
-                pts, dev = pts[::step], dev[::step]
-                c = deviation_colors(dev, scale_m)
+                if not shown:
+                    continue
+                pts = score.points_m[:: max(1, len(score.points_m) // 4000)]
                 lift = np.array([0.0, 0.0, 0.0015 if name == "cad_only" else 0.0])
                 scene.add_line_segments(
                     f"/path/comparison/{name}",
                     np.stack([pts[:-1] + lift, pts[1:] + lift], axis=1),
-                    np.stack([c[:-1], c[1:]], axis=1),
-                    thickness=4.0 if name == "cad_only" else 2.5,
+                    COMPARISON_COLORS[name],
+                    thickness=3.5 if name == "cad_only" else 2.5,
                     thickness_units="screen",
                 )
                 k = int(np.argmax(np.abs(score.deviation_m)))
@@ -442,15 +556,25 @@ class CellScene:
             client.camera.look_at = (float(centre[0]), float(centre[1]), float(bounds[1, 2]))
 
     def part_view(self, client, workpiece: Workpiece) -> None:
-        """An oblique view of the part from in front of the robot (its walls visible)."""
+        """An oblique view of the whole part from beyond it, looking back towards the robot:
+        the camera stands on the far side of the part from the robot's base, so the arm is
+        never between it and the part, nor around it."""
         cad = workpiece.cad()
         bounds = cad.mesh_in_base().bounds
         centre = 0.5 * (bounds[0] + bounds[1])
-        span = float(np.max(bounds[1] - bounds[0]))
+        radius = 0.5 * float(np.linalg.norm(bounds[1] - bounds[0]))
+        fov = float(getattr(client.camera, "fov", math.radians(50.0)))
+        distance = PART_VIEW_FILL * radius / math.sin(0.5 * fov)
+        away = centre[:2] / max(float(np.linalg.norm(centre[:2])), 1e-9)  # from the base
+        if not np.linalg.norm(centre[:2]) > 1e-6:
+            away = np.array([1.0, 0.0])
+        el = math.radians(PART_VIEW_ELEVATION_DEG)
+        eye = centre + distance * np.array([away[0] * math.cos(el), away[1] * math.cos(el),
+                                            math.sin(el)])  # fmt: skip
         with client.atomic():
             client.camera.up_direction = (0.0, 0.0, 1.0)
-            client.camera.position = tuple(centre + np.array([-0.9, -0.9, 1.3]) * span)
-            client.camera.look_at = tuple(centre)
+            client.camera.position = tuple(float(v) for v in eye)
+            client.camera.look_at = tuple(float(v) for v in centre)
 
     # ----------------------------------------------------------------- live state
 

@@ -30,6 +30,7 @@ from .panels import (
     PostprocessPanel,
 )
 from .panels.feedback import notify_error
+from .panels.placement import PlacementPanel
 from .panels.pointing import PointingPanel
 from .panels.robot_wiring import GuideRulesPanel, RobotProgramPanel
 from .panels.teach_panel import TeachPanel
@@ -88,6 +89,7 @@ class Workbench:
         self.scene = CellScene(server)
         self._show_cell()
         self.cell = CellPanel(server, session)
+        self.placement = PlacementPanel(server, session)
         self.leadthrough = LeadThroughPanel(server, session, self.scene)
         self.teach = TeachPanel(server, session)
         self.guide_points = GuidePointsPanel(server, session, self.scene)
@@ -195,6 +197,10 @@ class Workbench:
         if "cell" in topics:
             self._show_cell()
             self.cell.refresh()
+            self._frame_part()
+        if topics & {"cell", "placement"}:
+            self.scene.preview_placement(self.session.preview.transform())
+            self.placement.refresh()
         if "compliance" in topics:
             self.leadthrough.refresh_compliance()
         if "guide_points" in topics or "cell" in topics:
@@ -202,8 +208,6 @@ class Workbench:
             self.guide_rules.refresh()
             self.pointing.refresh()
             self.path_learning.refresh_wall()
-        if topics & {"recording", "cell", "project"}:
-            self.path_learning.refresh_stop()
         if topics & {"job", "recording"}:
             self._show_jobs()
         if topics & {"recording", "postprocess", "cell"}:
@@ -212,6 +216,8 @@ class Workbench:
             self.robot_program.refresh()
             self.pointing.show_comparison()
             self._hide_old_cell_paths(topics)
+        if topics & {"recording", "postprocess", "cell", "project"}:
+            self.path_learning.refresh_stop(old_cell=self.scene.paths_hidden)
         snapshot = self.leadthrough.tick(self.session.robot.snapshot())
         self.teach.tick(snapshot)
         self._draw_robot(snapshot)
@@ -251,6 +257,13 @@ class Workbench:
         self.scene.set_tool(cell.tool)
         self.scene.set_workpiece(cell.workpiece)  # drawn as its mesh (``Workpiece.cad``)
         self._last_time_s = float("nan")  # redraw the new robot at once
+
+    def _frame_part(self) -> None:
+        """Every browser's camera on the new part (a cell change: another part, place or
+        robot), from beyond it so that the arm is never in the way."""
+        workpiece = self.session.robot.workpiece
+        for client in self.server.get_clients().values():
+            self.scene.part_view(client, workpiece)
 
     def _hide_old_cell_paths(self, topics: set[str]) -> None:
         """A cell change leaves the old cell's recording in the project (stale), but its paths

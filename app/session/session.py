@@ -18,7 +18,8 @@ SOLUTION  Public API (thread-safe):
   Reading   project() -> Project; view() -> View (project, cell, epoch, project id, at once);
             current_project() -> ProjectInfo; robot (LiveRobot: snapshot(), pose(), ...)
   Services  robot, teach (push, jog, touch_off, stop, tool_view), pointing, learning
-            (start_example, start_path_learning, run_postprocess, go_home, force_trace), jobs
+            (start_example, start_path_learning, run_postprocess, go_home, force_trace), jobs,
+            preview (a work-object placement being tried, not saved)
   Changing  commit(change, *parts, topics=, idle=, with_robot=) -> Project
             change_cell(change, parsed=) -> Project   a transition that rebuilds the live cell
             set_cell(robot=, tool_radius_m=, workpiece=, part_deviation=) -> CellSettings
@@ -54,6 +55,7 @@ from .jobs import JobRunner
 from .learning import Learning
 from .persistence import Part, save_kwargs
 from .pointing import Pointing, pointing_document, pointing_from_document
+from .preview import PlacementPreview
 from .projects import Loaded
 from .records import ConflictError, GuidePointEntry, NotFoundError, ProjectInfo, Topic, log
 from .robot import ROBOT_JOB_KINDS as ROBOT_JOB_KINDS
@@ -113,6 +115,7 @@ class Session:
         self.robot = LiveRobot(self._lock, self.jobs, save=self._save_robot, notify=self.notify)
         self.teach = Teach(self.robot, real_time=real_time)
         self.pointing = Pointing(self)
+        self.preview = PlacementPreview(self)  # a placement being tried (``preview``)
         self.robot.extras = lambda: {"pointing": self.pointing.document()}
         self.learning = Learning(self)
         projects.open_initial(self)
@@ -123,9 +126,10 @@ class Session:
         """Call ``callback(topic)`` after every change; returns a function that unsubscribes.
 
         Topics: robot, compliance, cell, guide_points, recording, postprocess, job, project,
-        exports, machining. The callback runs in the thread that made the change (an API
-        worker, the job thread, a GUI callback) with the session lock released; keep it short,
-        and read what it needs back from the session. Exceptions in it are logged and ignored.
+        exports, machining, placement. The callback runs in the thread that made the change (an
+        API worker, the job thread, a GUI callback) with the session lock released; keep it
+        short, and read what it needs back from the session. Exceptions in it are logged and
+        ignored.
         """
         with self._listeners_lock:
             self._listeners.append(callback)
@@ -236,6 +240,25 @@ class Session:
                 workpiece=workpiece,
                 part_deviation=part_deviation,
             )
+
+        return self.change_cell(change).cell
+
+    def place_workpiece(self, wobj_mm_deg) -> CellSettings:
+        """Place the part at the work object (x, y, z [mm], rx, ry, rz [deg], as ``--wobj``):
+        a cell change (the robot goes home, the guide points are cleared).
+
+        TODO(2025-issue-31): the GUI half's stand-in; issue-31-core's placement replaces it."""
+        from dataclasses import replace
+
+        from robomach_core.project import wobj_transform
+
+        wobj_transform(wobj_mm_deg)  # checked against the ranges
+        values = tuple(float(v) for v in wobj_mm_deg)
+
+        def change(p: Project) -> Project:
+            if p.cell.wobj_mm_deg == values:
+                return p
+            return replace(p, cell=replace(p.cell, wobj_mm_deg=values), guide_points=())
 
         return self.change_cell(change).cell
 

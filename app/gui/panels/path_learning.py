@@ -131,12 +131,13 @@ class PathLearningPanel:
         self.scene.set_taught_wall(points, "" if not points else "wall to follow")
         self.wall_note.content = text
 
-    def refresh_stop(self) -> None:
-        """Mark where the last run stopped early, if it did."""
+    def refresh_stop(self, *, old_cell: bool = False) -> None:
+        """Mark where the last run stopped early, if it did (``old_cell``: the recording
+        belongs to a cell no longer there, and its mark is not drawn over the new part)."""
         if self.scene is None:
             return
         rec = self.session.project().recording
-        stop = None if rec is None else rec.stop
+        stop = None if rec is None or old_cell else rec.stop
         if stop is None:
             self.scene.set_stop(None)
         else:
