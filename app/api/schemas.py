@@ -231,6 +231,10 @@ class JobCreated(BaseModel):
         default_factory=list,
         description="guide points that break an operator rule (docs/guide_points.md)",
     )
+    findings: list[FindingPublic] = Field(
+        default_factory=list,
+        description="the same with each one's rule and severity (GET /api/path-learning/check)",
+    )
 
 
 class FindingPublic(BaseModel):
@@ -245,6 +249,18 @@ class FindingPublic(BaseModel):
     @classmethod
     def from_finding(cls, w: Any) -> FindingPublic:
         return cls(rule=w.rule, severity=w.severity, message=w.message)
+
+
+class GuideCheckPublic(BaseModel):
+    """The check before a run: what the run will do with the guide points, said before it."""
+
+    findings: list[FindingPublic] = Field(
+        description="refusals first, then warnings, then notes (docs/guide_points.md)"
+    )
+    wall_side: str = Field(
+        description="the wall the run will follow and what decided it ('follows the wall on "
+        "the right: ...'), or why it cannot tell; empty with fewer than two guide points"
+    )
 
 
 class PlacementPreviewUpdate(_Request):

@@ -10,7 +10,7 @@ from starlette.concurrency import run_in_threadpool
 from app.api.routes import ERRORS, SessionDep
 from app.api.routes.cell import UPLOAD_CHUNK_BYTES, _public
 from app.api.routes.export import program_download
-from app.api.schemas import CellPublic
+from app.api.schemas import CellPublic, FindingPublic, GuideCheckPublic
 from robomach_core.learning.settings import WallSideSetting
 from robomach_core.robots.builtin import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
@@ -87,3 +87,24 @@ def guide_point_warnings(
     through the part, a wrist turn axis 6 cannot make; POST /api/path-learning returns the same
     with its job."""
     return session.learning.guide_warnings(force_N, closed=closed, wall_side=wall_side)
+
+
+SEVERITY_ORDER = {"refusal": 0, "warning": 1, "info": 2}
+
+
+@router.get("/path-learning/check")
+def guide_point_check(
+    session: SessionDep,
+    force_N: Annotated[float, Query(ge=1.0, le=50.0, description="contact force [N]")] = 10.0,
+    closed: Annotated[bool, Query(description="closed contour")] = True,
+    wall_side: Annotated[
+        WallSideSetting, Query(description="the wall side to learn with")
+    ] = "auto",
+) -> GuideCheckPublic:
+    """The check before a run, as every page shows it: each finding with its rule and
+    severity (refusals first: learning will not start), and the wall the run will follow with
+    what decided it (on "auto": a push at the points or the part's mesh)."""
+    found = session.learning.guide_findings(force_N, closed=closed, wall_side=wall_side)
+    found = sorted(found, key=lambda w: SEVERITY_ORDER[w.severity])
+    _, side = session.learning.taught_wall_preview(wall_side, closed=closed)
+    return GuideCheckPublic(findings=[FindingPublic.from_finding(w) for w in found], wall_side=side)
