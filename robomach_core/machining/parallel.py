@@ -56,6 +56,9 @@ class CutTask:
         controller: The controller; ``compensations`` its modes, run in order.
         model: The identified stiffness (``JointCompliance``) or None.
         keep_runs: Return the ``MachiningRun`` values (traces) too, not only the summaries.
+        program_frame: The work object the program files write positions in (``run_machining``).
+        corrected: (program, its nominal targets) of an offline correction planned on another
+            stock: the offline mode cuts it instead of rehearsing (a sweep over castings).
     """
 
     robot_name: str
@@ -68,6 +71,8 @@ class CutTask:
     compensations: tuple[str, ...]
     model: Any = None
     keep_runs: bool = False
+    program_frame: np.ndarray | None = None
+    corrected: Any = None
 
 
 def _robot(name: str, T: np.ndarray):
@@ -88,19 +93,17 @@ def run_cut_task(
 
     robot = _robot(task.robot_name, task.T_flange_tcp)
     out: list[tuple[Any, dict[str, Any] | None, str | None]] = []
-    off = None
     for mode in task.compensations:
         try:
             run = run_configuration(
                 robot, task.targets, task.wall_normals_m, task.stock, task.settings,
                 task.controller, mode, compensation_model=task.model, cancel=cancel,
-                rehearsal=off,
+                program_frame=task.program_frame,
+                corrected=task.corrected if mode == "offline" else None,
             )  # fmt: skip
         except InvalidInputError as exc:
             out.append((None, None, str(exc)))
             continue
-        if mode == "off":
-            off = run
         out.append((run if task.keep_runs else None, run.summary, None))
     return out
 
@@ -161,7 +164,10 @@ def _pool_context() -> multiprocessing.context.BaseContext:
     unlike fork, the forkserver holds no thread of the server's. It lives as long as this
     process and serves every later pool: the second comparison's workers start at once."""
     context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload([__name__, "robomach_core.machining.compare"])
+    # ``_warm`` loads the compiled kernels once, for every worker forked afterwards.
+    context.set_forkserver_preload(
+        [__name__, "robomach_core.machining.compare", "robomach_core.machining._warm"]
+    )
     return context
 
 
