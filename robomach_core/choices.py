@@ -9,7 +9,8 @@ STRATEGY  Each enum is defined once where its meaning lives (the CMRR controller
           wall-side decision, ...), each range once in ``limits``; the few choices that belong
           to no other module (jog frames, click modes, the tool's nearest face) are defined
           here. This module names them all, so every boundary derives its list from here.
-SOLUTION  ``enums()`` name -> values, ``LABELS`` the words a menu shows, ``ranges()`` name ->
+SOLUTION  ``enums()`` name -> values, ``LABELS`` the words a menu shows, ``TEXTS`` the
+          sentences every page shows alike, ``ranges()`` name ->
           ``limits.Range``, and ``catalogue()`` the JSON document the pendant reads from
           ``GET /api/choices``. A contract test fails when a boundary types a copy.
 """
@@ -48,6 +49,25 @@ LABELS: dict[str, dict[str, str]] = {
         "move": "move the selected point",
         "off": "nothing",
     },
+}
+
+
+# The sentences every page shows the same (the pendant reads them from ``GET /api/choices``):
+# one set of rules in one vocabulary (docs/guide_points.md says them at length).
+TEXTS: dict[str, Any] = {
+    "guide_point_advice": (
+        "A guide point: 1-3 mm from the wall, or touching it with a light push (2-10 N) that "
+        "tells the wall side; the tool axis as it should machine, the same turn about it at "
+        "every point. Corners and bosses need no point of their own: the run follows the wall "
+        "round them by force. Never record in heavy contact. See docs/guide_points.md."
+    ),
+    # How a finding of the check before a run is marked, by its severity.
+    "severity": {
+        "refusal": "refused: learning will not start",
+        "warning": "warning",
+        "info": "note",
+    },
+    "severity_icon": {"refusal": "\u26d4", "warning": "\u26a0", "info": "\u2139"},
 }
 
 
@@ -103,8 +123,10 @@ def ranges() -> dict[str, limits.Range]:
 def catalogue() -> dict[str, Any]:
     """The JSON document of every choice and range (``GET /api/choices``): ``enums`` name ->
     ``{"values": [...], "labels": {value: words}}``, ``ranges`` name -> ``{"label", "min",
-    "max", "unit", "integer", "text"}``."""
+    "max", "unit", "integer", "text"}``, ``texts`` the sentences every page shows alike
+    (``TEXTS``)."""
     return {
+        "texts": TEXTS,
         "enums": {
             name: {"values": list(values), "labels": LABELS.get(name, {v: v for v in values})}
             for name, values in enums().items()

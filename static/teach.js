@@ -145,13 +145,20 @@ function showProposal(p) {
   if (!p.points.some((q) => q.index === selectedProposed)) selectedProposed = null;
 }
 
+// The pointing settings say whether anything is proposed: the proposal itself is asked for
+// only then (no 404 on every guide-point event while there is none).
 async function refreshProposal() {
+  const pointing = await api("GET", "/guide-points/pointing", undefined, { quiet: true });
+  showPointing(pointing);
+  if (!pointing.proposal_points) {
+    showProposal(null);
+    return;
+  }
   try {
     showProposal(await api("GET", "/guide-points/proposal", undefined, { quiet: true }));
   } catch (err) {
-    if (err.status === 404) showProposal(null);
+    if (err.status === 404) showProposal(null);  // dropped meanwhile (a cell change)
   }
-  showPointing(await api("GET", "/guide-points/pointing", undefined, { quiet: true }));
 }
 
 async function proposeTyped() {
@@ -375,6 +382,7 @@ function connectEvents(lostBefore = false) {
     source.addEventListener(topic, () => {
       refreshGuides().catch(() => {});
       refreshProposal().catch(() => {});
+      checkGuides({ quiet: true }).catch(() => {});
       pollState();
       scheduleTool();
     });
@@ -424,6 +432,7 @@ function initTeach() {
   }, GUIDE_FALLBACK_MS);
   connectEvents();
   refreshTool().catch(() => {});
+  checkGuides({ quiet: true }).catch(() => {});
 }
 
 document.addEventListener("DOMContentLoaded", initTeach);

@@ -99,6 +99,8 @@ class Workbench:
         self.export = ExportPanel(server, session, self.study_service)
         self.robot_program = RobotProgramPanel(server, session)
         self.guide_rules = GuideRulesPanel(server, session, self.path_learning.route_settings)
+        self.guide_rules.listeners.append(self.path_learning.show_check)
+        self.path_learning.show_check(self.guide_rules.warnings.content)
         self.path_learning.on_route_change(lambda: self._on_change("guide_points"))
         self.studies = self._study_panels(server, session)
         self.studies += self._machining_panel(server, session)

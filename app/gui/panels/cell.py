@@ -9,7 +9,7 @@ from robomach_core.robot import ROBOT_NAMES
 from robomach_core.tool import TOOL_RADIUS_RANGE_M
 from robomach_core.workpiece import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, WORKPIECE_NAMES
 
-from .feedback import guarded, notify_info
+from .feedback import guarded, notify_info, upload_handled
 
 MESH_MIME_TYPES = ".stl,.obj,.ply,model/stl,model/obj,application/octet-stream"
 
@@ -75,7 +75,7 @@ class CellPanel:
                 ),
             )
         )
-        self.upload.on_upload(guarded("Mesh upload", self._uploaded))
+        self.upload.on_upload(upload_handled(server, "Mesh upload", self._uploaded))
         self.refresh()
 
     def _uploaded(self, event) -> None:

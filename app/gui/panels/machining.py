@@ -29,7 +29,7 @@ from robomach_core.machining.choice import OPTION_NAMES, OPTION_TEXT, RULE_TEXT
 from robomach_core.project._machining import STOCK_SOURCES
 
 from ..scene import deviation_colors
-from .feedback import guarded
+from .feedback import guarded, upload_handled
 from .large import open_large, png_html
 from .machining_table import SORT_KEYS, table_html
 
@@ -184,7 +184,8 @@ class MachiningPanel:
         @self.upload.on_upload
         def _(event) -> None:
             f = self.upload.value
-            guarded("Stock mesh", lambda e: self.service.upload_stock(f.content, f.name))(event)
+            upload = lambda e: self.service.upload_stock(f.content, f.name)  # noqa: E731
+            upload_handled(self.server, "Stock mesh", upload)(event)
 
         def options(_e) -> None:
             chosen = [n for n, box in self.options.items() if box.value]

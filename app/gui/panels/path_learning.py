@@ -68,6 +68,7 @@ class PathLearningPanel:
                 "guide point rests on",
             )
             self.wall_note = server.gui.add_markdown("")
+            self.check = server.gui.add_markdown("")  # the check before the run (its findings)
             self.run = server.gui.add_button(
                 "Run path learning", icon=viser.Icon.PLAYER_PLAY, color="green"
             )
@@ -130,6 +131,10 @@ class PathLearningPanel:
         )
         self.scene.set_taught_wall(points, "" if not points else "wall to follow")
         self.wall_note.content = text
+
+    def show_check(self, findings_markdown: str) -> None:
+        """The check before the run (the Guide-point rules' findings), above Run."""
+        self.check.content = f"**Check before the run**\n\n{findings_markdown}"
 
     def refresh_stop(self, *, old_cell: bool = False) -> None:
         """Mark where the last run stopped early, if it did (``old_cell``: the recording
