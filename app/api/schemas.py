@@ -608,6 +608,11 @@ class CellPublic(BaseModel):
     part_deviation: dict[str, Any] | None = Field(
         None, description="how the part differs from its mesh: fixture and casting (mm, deg)"
     )
+    note: str = Field(
+        "",
+        description="what the last cell change cleared and why (a machining choice the new "
+        "cell's controller cannot run); empty when nothing was",
+    )
 
     @classmethod
     def from_settings(cls, s: CellSettings, robots: list[str], workpieces: list[str]) -> CellPublic:

@@ -200,6 +200,11 @@ class Workbench:
             self._show_cell()
             self.cell.refresh()
             self._frame_part()
+            note = self.session.cell_note()
+            for client in self.server.get_clients().values() if note else ():
+                client.add_notification(
+                    "Machining choice cleared", note, color="yellow", auto_close_seconds=None
+                )
         if topics & {"cell", "placement"}:
             self.scene.preview_placement(self.session.preview.transform())
             self.placement.refresh()

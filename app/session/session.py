@@ -16,7 +16,8 @@ STRATEGY  The job is one frozen ``robomach_core.project.Project``, changed only 
 SOLUTION  Public API (thread-safe):
 
   Reading   project() -> Project; view() -> View (project, cell, epoch, project id, at once);
-            current_project() -> ProjectInfo; robot (LiveRobot: snapshot(), pose(), ...)
+            current_project() -> ProjectInfo; cell_note() (what a cell change cleared);
+            robot (LiveRobot: snapshot(), pose(), ...)
   Services  robot, teach (push, jog, touch_off, stop, tool_view), pointing, learning
             (start_example, start_path_learning, run_postprocess, go_home, force_trace), jobs,
             preview (a work-object placement being tried, not saved)
@@ -110,6 +111,7 @@ class Session:
         self._project = Project()
         self._project_id = 0
         self._notice = ""  # about the open project: its stored arm was refused (``projects``)
+        self._cell_note: tuple[int, str] = (0, "")  # what the last cell change cleared
         self._closed = False
         self.jobs = JobRunner(on_change=lambda info: self.notify("job"))
         self.robot = LiveRobot(self._lock, self.jobs, save=self._save_robot, notify=self.notify)
@@ -167,6 +169,12 @@ class Session:
         with self._lock:
             return View(self._project, self.robot.cell, self.robot.epoch, self._project_id)
 
+    def cell_note(self) -> str:
+        """What the last cell change cleared and why (a machining choice the new controller
+        cannot run), while that cell is the one in use; "" otherwise."""
+        epoch, note = self._cell_note
+        return note if epoch == self.robot.epoch else ""
+
     def current_project(self) -> ProjectInfo:
         with self._lock:
             row = self.store.get_project(self._project_id)
@@ -212,12 +220,16 @@ class Session:
             new = change(self._project)
             if new is self._project:
                 return new
+            # A machining choice the new cell's controller cannot run is cleared, with a note.
+            new, note = core.with_runnable_choice(new)
             built = build_live_cell(new.cell, new.mesh, parsed=parsed)
-            self._save(new, "cell", "guides", robot=self.robot.document(built))
+            parts: tuple[Part, ...] = ("cell", "guides", "post") if note else ("cell", "guides")
+            self._save(new, *parts, robot=self.robot.document(built))
             self.robot.install(built)
             self._project = new
+            self._cell_note = (self.robot.epoch, note)
             del built
-        self.notify(*CELL_TOPICS)
+        self.notify(*CELL_TOPICS, *(("machining",) if note else ()))
         give_back()  # the old cell (its part's mesh, trees, supervisor) goes back to the OS
         return new
 

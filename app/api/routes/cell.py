@@ -21,7 +21,9 @@ UPLOAD_BODY_LIMIT_BYTES = MAX_MESH_BYTES + 1024 * 1024
 def _public(session: SessionDep) -> CellPublic:
     cell = session.project().cell
     uploaded = [] if cell.robot in ROBOT_NAMES else [cell.robot]  # the user's own arm
-    return CellPublic.from_settings(cell, [*ROBOT_NAMES, *uploaded], list(WORKPIECE_NAMES))
+    public = CellPublic.from_settings(cell, [*ROBOT_NAMES, *uploaded], list(WORKPIECE_NAMES))
+    public.note = session.cell_note()
+    return public
 
 
 @router.get("")
