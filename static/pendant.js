@@ -480,7 +480,9 @@ function findingItem(f) {
   const icons = (choicesTexts && choicesTexts.severity_icon) || {};
   const label = document.createElement("b");
   label.textContent = `${icons[finding.severity] || ""} ${texts[finding.severity] || finding.severity}: `;
-  li.append(label, document.createTextNode(finding.message));
+  const also = (finding.also_at || []).map((k) => `G${k}`).join(", ");
+  li.append(label, document.createTextNode(
+    also ? `${finding.message} (the same at ${also})` : finding.message));
   return li;
 }
 

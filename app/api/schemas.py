@@ -233,7 +233,7 @@ class JobCreated(BaseModel):
     )
     findings: list[FindingPublic] = Field(
         default_factory=list,
-        description="the same with each one's rule and severity (GET /api/path-learning/check)",
+        description="the same, one per rule with its severity (as GET /api/path-learning/check)",
     )
 
 
@@ -245,17 +245,30 @@ class FindingPublic(BaseModel):
         description="refusal: learning will not start; warning: it runs, look first; info: a note"
     )
     message: str = Field(description="what was found and what to do, in whole sentences")
+    also_at: list[int] = Field(
+        default_factory=list,
+        description="the other guide points (1-based) where the same rule holds (GET "
+        "/api/path-learning/check lists one finding per rule)",
+    )
 
     @classmethod
     def from_finding(cls, w: Any) -> FindingPublic:
         return cls(rule=w.rule, severity=w.severity, message=w.message)
+
+    @classmethod
+    def from_group(cls, g: Any) -> FindingPublic:
+        """One rule's findings (``learning.findings.FindingGroup``)."""
+        return cls(
+            rule=g.rule, severity=g.severity, message=g.first.message, also_at=list(g.also_at)
+        )
 
 
 class GuideCheckPublic(BaseModel):
     """The check before a run: what the run will do with the guide points, said before it."""
 
     findings: list[FindingPublic] = Field(
-        description="refusals first, then warnings, then notes (docs/guide_points.md)"
+        description="one per rule (its other points in also_at), refusals first, then "
+        "warnings, then notes (docs/guide_points.md)"
     )
     wall_side: str = Field(
         description="the wall the run will follow and what decided it ('follows the wall on "

@@ -125,7 +125,7 @@ def test_the_wall_side_is_set_or_told_never_guessed(api: Api) -> None:
     assert all(f["severity"] != "refusal" for f in check["findings"])
     assert check["wall_side"].startswith("follows the wall on the right")
     started = api.ok("POST", PL, 202, json=body | {"wall_side": "right"})
-    assert [f["message"] for f in started["findings"]] == started["warnings"]
+    assert {f["message"] for f in started["findings"]} <= set(started["warnings"])
     job = api.wait_job(started["job_id"])
     assert job["status"] == "done", job
     post = api.ok("POST", "/api/postprocess", json={})

@@ -8,6 +8,7 @@ from fastapi import APIRouter, Query, status
 
 from app.api.routes import ERRORS, SessionDep
 from app.api.schemas import FindingPublic, ForceTracePublic, JobCreated, PathLearningCreate
+from robomach_core.learning.findings import grouped_findings
 
 router = APIRouter(prefix="/api/path-learning", tags=["path learning"], responses=ERRORS)
 
@@ -30,7 +31,7 @@ def start_path_learning(body: PathLearningCreate, session: SessionDep) -> JobCre
     return JobCreated(
         job_id=job_id,
         warnings=[w.message for w in found],
-        findings=[FindingPublic.from_finding(w) for w in found],
+        findings=[FindingPublic.from_group(g) for g in grouped_findings(found)],
     )
 
 

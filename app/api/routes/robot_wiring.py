@@ -89,9 +89,6 @@ def guide_point_warnings(
     return session.learning.guide_warnings(force_N, closed=closed, wall_side=wall_side)
 
 
-SEVERITY_ORDER = {"refusal": 0, "warning": 1, "info": 2}
-
-
 @router.get("/path-learning/check")
 def guide_point_check(
     session: SessionDep,
@@ -101,10 +98,14 @@ def guide_point_check(
         WallSideSetting, Query(description="the wall side to learn with")
     ] = "auto",
 ) -> GuideCheckPublic:
-    """The check before a run, as every page shows it: each finding with its rule and
-    severity (refusals first: learning will not start), and the wall the run will follow with
-    what decided it (on "auto": a push at the points or the part's mesh)."""
+    """The check before a run, as every page shows it: one finding per rule with its rule,
+    severity and the other points where it holds (refusals first: learning will not start),
+    and the wall the run will follow with what decided it (on "auto": a push at the points
+    or the part's mesh)."""
+    from robomach_core.learning.findings import grouped_findings
+
     found = session.learning.guide_findings(force_N, closed=closed, wall_side=wall_side)
-    found = sorted(found, key=lambda w: SEVERITY_ORDER[w.severity])
     _, side = session.learning.taught_wall_preview(wall_side, closed=closed)
-    return GuideCheckPublic(findings=[FindingPublic.from_finding(w) for w in found], wall_side=side)
+    return GuideCheckPublic(
+        findings=[FindingPublic.from_group(g) for g in grouped_findings(found)], wall_side=side
+    )

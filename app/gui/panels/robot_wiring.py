@@ -109,16 +109,16 @@ class GuideRulesPanel:
 
 
 def findings_markdown(found) -> str:
-    """The check's findings, refusals first, each marked by its severity in the words every
-    page uses (``choices.TEXTS``): a refusal in bold (learning will not start), a warning, a
-    note."""
-    order = {"refusal": 0, "warning": 1, "info": 2}
-    found = sorted(found, key=lambda w: order[w.severity])
+    """The check's findings, one line per rule (``learning.findings``: its other points
+    named), refusals first, each marked by its severity in the words every page uses
+    (``choices.TEXTS``): a refusal in bold (learning will not start), a warning, a note."""
+    from robomach_core.learning.findings import grouped_findings
+
     if not found:
         return "*No guide point breaks a rule.*"
     lines = []
-    for w in found:
-        words = SEVERITY_WORDS[w.severity]
-        label = f"**{words}**" if w.severity == "refusal" else f"*{words}*"
-        lines.append(f"- {SEVERITY_ICON[w.severity]} {label}: {w.message}")
+    for group in grouped_findings(found):
+        words = SEVERITY_WORDS[group.severity]
+        label = f"**{words}**" if group.severity == "refusal" else f"*{words}*"
+        lines.append(f"- {SEVERITY_ICON[group.severity]} {label}: {group.text()}")
     return "\n".join(lines)

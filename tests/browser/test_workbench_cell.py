@@ -1,0 +1,173 @@
+"""The viser workbench around the cell (issue 31), in process (no browser needed): a placement
+tried moves the part in the scene and nothing else, then places it; a cell change frames the
+part from where the arm is not in the way, and leaves nothing of the old cell drawn; the check
+before a run is shown above Run with each finding's severity."""
+
+from __future__ import annotations
+
+import random
+from contextlib import contextmanager
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import trimesh
+
+from app.gui.scene import load_urdf
+from app.session import Session
+from robomach_core.project import wobj_transform
+from robomach_core.robot import ROBOT_NAMES
+from robomach_core.transforms import matrix_from_quaternion
+from tests.browser.conftest import wait_for, workbench_on
+
+pytestmark = pytest.mark.slow  # a viser server and a session per test
+
+
+@pytest.fixture
+def workbench():
+    with workbench_on(Session(real_time=False)) as wb:
+        yield wb
+
+
+def _node_pose(node) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = matrix_from_quaternion(np.asarray(node.wxyz, dtype=float))
+    T[:3, 3] = node.position
+    return T
+
+
+def test_a_placement_tried_moves_the_part_and_nothing_else_until_it_is_placed(workbench):
+    wb, session = workbench, workbench.session
+    session.pointing.propose(np.array([0.0, -0.065, 0.0175]))
+    placed = session.robot.workpiece.cad().T_base_wobj
+    values = (790.0, 150.0, 5.0, 0.0, 0.0, 25.0)
+    for control, v in zip((*wb.placement.position, *wb.placement.angles), values, strict=True):
+        control.value = v
+    wb.placement._try()  # what each widget's update does
+    wait_for(lambda: wb.scene.placement_previewed, timeout_s=10)
+    assert np.allclose(_node_pose(wb.scene.workpiece_node), wobj_transform(values), atol=1e-9)
+    assert np.allclose(session.robot.workpiece.cad().T_base_wobj, placed)  # not applied
+    assert session.pointing.proposal() is not None and not wb.placement.place.disabled
+    assert "Trying the numbers above" in wb.placement.note.content
+    # A click on the part drawn where it is not placed does nothing.
+    assert wb.scene.hit_part(np.array([0.8, 0.16, 0.3]), np.array([0.0, 0.0, -1.0])) is None
+    wb.placement._place()
+    wait_for(lambda: not wb.scene.placement_previewed, timeout_s=10)
+    assert np.allclose(session.robot.workpiece.cad().T_base_wobj, wobj_transform(values))
+    assert session.project().cell.wobj_mm_deg == values
+    assert session.pointing.proposal() is None and len(session.project().guide_points) == 0
+    assert np.allclose(_node_pose(wb.scene.workpiece_node), wobj_transform(values), atol=1e-9)
+    wait_for(lambda: wb.placement.place.disabled and "Trying" not in wb.placement.note.content)
+    # The click meets the part where it now is.
+    hit = wb.scene.hit_part(
+        wobj_transform(values)[:3, 3] + np.array([0.0, 0.0, 0.3]), np.array([0.0, 0.0, -1.0])
+    )
+    assert hit is not None and hit[0][2] == pytest.approx(0.020, abs=1e-6)  # the plate's top
+
+
+class _Camera:
+    fov = np.radians(50.0)
+    position = look_at = up_direction = None
+
+
+@contextmanager
+def _nothing():
+    yield
+
+
+def _robot_meshes(robot: str, joints_rad: np.ndarray) -> trimesh.Trimesh:
+    """The arm's visual meshes at ``joints_rad``, base frame (what the scene draws)."""
+    urdf = load_urdf(robot)
+    urdf.update_cfg(np.asarray(joints_rad, dtype=float))
+    return urdf.scene.to_mesh()
+
+
+def test_view_the_part_frames_it_with_the_arm_out_of_the_way():
+    """Every arm (three drawn per run), every built-in part, placed at random about its default
+    place: the camera stands outside the arm, sees the part's centre past it, and has the
+    whole part in view."""
+    rng = random.Random()
+    seed = rng.randrange(2**32)
+    rng.seed(seed)
+    session = Session(real_time=False)
+    try:
+        for robot in rng.sample(ROBOT_NAMES, 3):
+            for workpiece in ("water_pump", "block", "s_groove"):
+                session.set_cell(robot=robot, workpiece=workpiece)
+                T = session.robot.workpiece.cad().T_base_wobj
+                values = (*(T[:3, 3] * 1e3 + [rng.uniform(-60, 60), rng.uniform(-60, 60), 0]),
+                          0.0, 0.0, rng.uniform(-45, 45))  # fmt: skip
+                session.place_workpiece(values)
+                arm = _robot_meshes(robot, session.robot.snapshot().joints_rad)
+                client = SimpleNamespace(camera=_Camera(), atomic=_nothing)
+                from app.gui.scene import CellScene
+
+                CellScene.part_view(None, client, session.robot.workpiece)
+                eye = np.asarray(client.camera.position)
+                centre = np.asarray(client.camera.look_at)
+                context = f"seed {seed}: {robot}, {workpiece} at {np.round(values, 1)}"
+                assert not arm.contains([eye])[0], context
+                to_centre = centre - eye
+                hits, _, _ = arm.ray.intersects_location(
+                    [eye], [to_centre / np.linalg.norm(to_centre)]
+                )
+                nearer = [h for h in hits if np.linalg.norm(h - eye) < np.linalg.norm(to_centre)]
+                assert not nearer, f"{context}: the arm stands between the camera and the part"
+                bounds = session.robot.workpiece.cad().mesh_in_base().bounds
+                radius = 0.5 * np.linalg.norm(bounds[1] - bounds[0])
+                half_fov = 0.5 * _Camera.fov
+                assert np.linalg.norm(to_centre) * np.sin(half_fov) >= radius, context
+    finally:
+        session.close()
+
+
+def test_a_cell_change_leaves_nothing_of_the_old_cell_drawn_and_says_what_it_cleared(workbench):
+    wb, session = workbench, workbench.session
+    from robomach_core import project as core
+
+    session.commit(lambda p: core.choose(p, "fuzzy", "off"), "post")
+    session.pointing.pick(np.array([0.0, -0.065, 0.0175]), np.array([0.0, 1.0, 0.0]))
+    notes = []
+    client = SimpleNamespace(
+        camera=_Camera(), atomic=_nothing, add_notification=lambda *a, **k: notes.append(a)
+    )
+    wb.server.get_clients = lambda: {0: client}  # one browser, seen by the workbench
+    session.set_cell(robot="kr270")
+    wait_for(lambda: notes, timeout_s=10)
+    assert notes[0][0] == "Machining choice cleared" and "fuzzy / off" in notes[0][1]
+    # The camera framed the new part (on the KR 270's stand, 600 mm up).
+    assert client.camera.look_at[2] > 0.6
+    assert wb.scene.workpiece_node.position[2] == pytest.approx(0.6)
+
+
+def test_each_finding_is_marked_by_its_severity_and_a_refusal_stands_out():
+    from app.gui.panels.robot_wiring import findings_markdown
+    from robomach_core.choices import TEXTS
+    from robomach_core.learning.checks import GuideWarning
+
+    found = [
+        GuideWarning(2, "leg_through_part", "the leg G2 -> G3 runs through the part.", "info"),
+        GuideWarning(0, "wall_side", "auto cannot tell the wall side.", "refusal"),
+        GuideWarning(3, "wrist_turn", "axis 6 cannot turn that far.", "warning"),
+    ]
+    lines = findings_markdown(found).splitlines()
+    assert [line.split(" ")[1] for line in lines] == [
+        TEXTS["severity_icon"][s] for s in ("refusal", "warning", "info")
+    ]  # refusals first
+    assert f"**{TEXTS['severity']['refusal']}**" in lines[0]  # bold: learning will not start
+    assert f"*{TEXTS['severity']['info']}*" in lines[2] and "**" not in lines[2]
+    assert lines[0].endswith("auto cannot tell the wall side.")  # whole sentences, not cut
+
+
+def test_the_check_before_the_run_is_shown_above_run_one_line_per_rule(workbench):
+    wb, session = workbench, workbench.session
+    assert "No guide point breaks a rule" in wb.path_learning.check.content
+    job = session.learning.start_example()
+    wait_for(lambda: session.jobs.get(job).status == "done", timeout_s=300)
+    wb.path_learning.wall_side.value = "left"  # against the example's pushes
+    wb.guide_rules.refresh()  # what the wall side's update does
+    content = wb.path_learning.check.content
+    assert content == f"**Check before the run**\n\n{wb.guide_rules.warnings.content}"
+    lines = [line for line in content.splitlines() if line.startswith("- ")]
+    assert len(lines) == 2  # 28 findings: two rules at 14 points each
+    assert all("(the same at G2, G3" in line and "G14)" in line for line in lines)
