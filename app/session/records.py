@@ -33,6 +33,7 @@ Topic = Literal[
     "project",
     "exports",
     "machining",
+    "calibration",
 ]
 JobStatus = Literal["queued", "running", "done", "failed", "cancelled"]
 
