@@ -29,7 +29,7 @@ COMPLIANCE_FRAMES: tuple[str, ...] = get_args(ComplianceFrame)
 TouchAxis = Literal[AXES[:3]]  # type: ignore[valid-type]
 TOUCH_AXES: tuple[str, ...] = AXES[:3]
 # What a click on the part does in the 3-D scene (both GUIs follow the same setting).
-ClickMode = Literal["propose", "teach", "move", "off"]
+ClickMode = Literal["propose", "teach", "move", "touch", "off"]
 CLICK_MODES: tuple[ClickMode, ...] = get_args(ClickMode)
 # What the face of the part nearest the tool is: a wall, a floor (faces up) or an underside.
 NearestFace = Literal["wall", "floor", "underside"]
@@ -47,6 +47,7 @@ LABELS: dict[str, dict[str, str]] = {
         "propose": "propose the wall",
         "teach": "teach a point",
         "move": "move the selected point",
+        "touch": "touch the face (calibration)",
         "off": "nothing",
     },
 }
@@ -67,7 +68,8 @@ TEXTS: dict[str, Any] = {
         "warning": "warning",
         "info": "note",
     },
-    "severity_icon": {"refusal": "\u26d4", "warning": "\u26a0", "info": "\u2139"},
+    # Glyphs of the fonts every system has (DejaVu: a no-entry sign showed as an empty box).
+    "severity_icon": {"refusal": "\u2716", "warning": "\u26a0", "info": "\u2139"},
 }
 
 

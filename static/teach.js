@@ -435,6 +435,8 @@ function connectEvents(lostBefore = false) {
     });
   }
   window.robomachEvents = source;
+  // Other cards listen on every stream opened (a reconnect makes a new one).
+  for (const hook of window.robomachEventHooks || []) hook(source);
 }
 
 // ---------------------------------------------------------------- wiring

@@ -595,9 +595,28 @@ class ProjectPublic(BaseModel):
 # --- cell --------------------------------------------------------------------------------
 
 
+WobjNumber = Annotated[
+    float,
+    Field(
+        allow_inf_nan=False,
+        ge=min(limits.WOBJ_POSITION_MM.min, limits.WOBJ_ROTATION_DEG.min),
+        le=max(limits.WOBJ_POSITION_MM.max, limits.WOBJ_ROTATION_DEG.max),
+    ),
+]
+
+
 class CellUpdate(_Request):
     robot: str | None = Field(
         None, description="a built-in arm (robots in GET /api/cell) or an uploaded one"
+    )
+    wobj_mm_deg: Annotated[list[WobjNumber], Field(min_length=3, max_length=6)] | None = Field(
+        None,
+        description="where the part is placed: the work-object frame x, y, z [mm] in the robot "
+        f"base frame ({limits.WOBJ_POSITION_MM.text()}), then an optional rz, or rx, ry, rz "
+        f"[deg] ({limits.WOBJ_ROTATION_DEG.text()}) about the fixed base axes x, then y, then "
+        "z (robomach demo --wobj's numbers); 3, 4 or 6 numbers; null: the built-in placement "
+        "in front of the arm. A change moves the part, sends the robot home and clears the "
+        "guide points and the work-object calibration",
     )
     tool_radius_mm: Finite | None = Field(None, description="ball cutter radius [mm], 0.5-5")
     workpiece: str | None = Field(None, description="water_pump, block, or the uploaded mesh")
@@ -607,6 +626,36 @@ class CellUpdate(_Request):
         "fixture error and casting deviations drawn from the cell's seed (teaching uses the "
         "mesh, learning meets the real part); false: the part is its mesh",
     )
+
+
+class WobjPublic(BaseModel):
+    """A work-object frame in the robot base frame: x, y, z [mm], then rotations rx, ry, rz
+    [deg] about the fixed base axes x, then y, then z (R = Rz Ry Rx)."""
+
+    x_mm: float
+    y_mm: float
+    z_mm: float
+    rx_deg: float
+    ry_deg: float
+    rz_deg: float
+
+    @classmethod
+    def of(cls, T_base_wobj: np.ndarray) -> WobjPublic:
+        from robomach_core.registration import mm_deg_from_transform
+
+        v = [round(x, 4) for x in mm_deg_from_transform(T_base_wobj)]
+        return cls(x_mm=v[0], y_mm=v[1], z_mm=v[2], rx_deg=v[3], ry_deg=v[4], rz_deg=v[5])
+
+
+class RegistrationPublic(BaseModel):
+    """An accepted work-object calibration."""
+
+    wobj: WobjPublic = Field(description="the measured work object (the CAD placed there)")
+    wobj_mm_deg: list[float] = Field(description="the same six numbers as a list")
+    touches: int
+    rms_mm: float = Field(description="RMS of the touches' residuals [mm]")
+    max_mm: float = Field(description="largest residual [mm]")
+    method: str = Field(description="the fit: point-to-plane least squares")
 
 
 class CellPublic(BaseModel):
@@ -626,13 +675,46 @@ class CellPublic(BaseModel):
         description="what the last cell change cleared and why (a machining choice the new "
         "cell's controller cannot run); empty when nothing was",
     )
+    wobj_mm_deg: list[float] | None = Field(
+        None,
+        description="the placement as set (3, 4 or 6 numbers, PUT /api/cell's), null for the "
+        "built-in placement",
+    )
+    wobj: WobjPublic | None = Field(
+        None, description="where the part is placed (the built-in placement when not set)"
+    )
+    registration: RegistrationPublic | None = Field(
+        None,
+        description="the accepted work-object calibration: teaching, the checks, learning's "
+        "route and the CAD-only program use the CAD placed there; null: at the placement",
+    )
 
     @classmethod
-    def from_settings(cls, s: CellSettings, robots: list[str], workpieces: list[str]) -> CellPublic:
+    def from_settings(
+        cls,
+        s: CellSettings,
+        robots: list[str],
+        workpieces: list[str],
+        *,
+        T_base_wobj: np.ndarray | None = None,
+    ) -> CellPublic:
         d = s.part_deviation
+        reg = s.registration
         return cls(
             realistic=d is not None,
             part_deviation=None if d is None else d.as_dict(),
+            wobj_mm_deg=None if s.wobj_mm_deg is None else list(s.wobj_mm_deg),
+            wobj=None if T_base_wobj is None else WobjPublic.of(T_base_wobj),
+            registration=None
+            if reg is None
+            else RegistrationPublic(
+                wobj=WobjPublic.of(reg.T_base_wobj),
+                wobj_mm_deg=[round(v, 6) for v in reg.wobj_mm_deg],
+                touches=len(reg.touches),
+                rms_mm=round(reg.rms_mm, 4),
+                max_mm=round(reg.max_mm, 4),
+                method=reg.method,
+            ),
             robot=s.robot,
             tool_radius_mm=round(s.tool_radius_m * 1e3, 9),
             workpiece=s.workpiece,

@@ -130,9 +130,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--realistic",
         action="store_true",
         help="the realistic preset: the part in the cell differs from its mesh by a fixture "
-        "error (0.3-0.6 mm, 0.15-0.3 deg) and casting deviations (walls within +-0.5 mm, burrs), "
+        "error (2-4 mm, 1-2 deg) and casting deviations (walls within +-0.5 mm, burrs), "
         "drawn from --seed; teaching uses the mesh, learning meets the real part, and the "
-        "program a CAD/CAM tool would make from the mesh is scored beside the learned one",
+        "program a CAD/CAM tool would make from the mesh is scored beside the learned one "
+        "(add --calibrate: points taught on a CAD a few mm off land on a groove's rim)",
+    )
+    p.add_argument(
+        "--calibrate",
+        action="store_true",
+        help="before teaching, measure the work object on the real part: the operator touches "
+        "its top face three times and two sides three and two times (guarded touch-offs at "
+        "--force, at least 2 N), the CAD is registered to the touches by a point-to-plane "
+        "least-squares fit (its residual printed), and the guide points, the checks, the "
+        "CAD-only program and the program's work object use the registered CAD",
     )
     p.add_argument(
         "--wall-side",
@@ -300,7 +310,7 @@ def run(args: argparse.Namespace) -> int:
             settings_file(args.compensation_settings, "--compensation-settings")
         )
 
-    from robomach_core.errors import SupervisionError
+    from robomach_core.errors import RobomachError, SupervisionError
     from robomach_core.learning.planner import ProposalSettings
     from robomach_core.pipeline import DemoSettings, default_robot, run_demo, write_demo_outputs
     from robomach_core.postprocess import PostprocessSettings
@@ -344,6 +354,8 @@ def run(args: argparse.Namespace) -> int:
         propose_at_m=propose_at,
         proposal=ProposalSettings(gap_m=args.gap_mm * 1e-3),
         part_deviation=PartDeviation.realistic(args.seed) if args.realistic else None,
+        calibrate=args.calibrate,
+        touch_force_N=max(args.force, limits.TOUCH_OFF_FORCE_N.min),
     )
     bar = _ProgressLine()
     try:
@@ -354,6 +366,14 @@ def run(args: argparse.Namespace) -> int:
             f"the part may be beyond the {robot} arm's reach{where}: place it nearer with "
             "--wobj x,y,z (mm)"
         ) from None
+    except RobomachError as exc:
+        if args.realistic and not args.calibrate:  # the likely cause, which the user chose
+            exc.args = (
+                f"{exc}. The part stands a few mm and a degree or two off its CAD "
+                "(--realistic), so points taught on the CAD miss its walls: measure the work "
+                "object on the part first (--calibrate)",
+            )
+        raise
     finally:
         bar.close()
     paths = write_demo_outputs(result, args.out)
@@ -364,6 +384,8 @@ def run(args: argparse.Namespace) -> int:
     s = result.summary()
     if result.workpiece.deviation_note:
         print(f"real part         {result.workpiece.deviation_note}")
+    if result.calibration is not None:
+        print(f"calibration       {result.calibration.describe()}")
     proposed = s.get("proposed_guide_points")
     if proposed is not None:
         shape = "a closed" if proposed["closed"] else "an open"
@@ -415,7 +437,10 @@ def run(args: argparse.Namespace) -> int:
     comparison = s.get("cad_comparison")
     if comparison is not None:
         title = "vs the real wall" if comparison["part_deviates_from_cad"] else "vs the wall"
-        for label, key in (("learned program", "learned"), ("CAD-only program", "cad_only")):
+        rows = [("learned program", "learned"), ("CAD-only program", "cad_only")]
+        if comparison.get("cad_only_uncalibrated") is not None:
+            rows.append(("CAD-only, uncal.", "cad_only_uncalibrated"))
+        for label, key in rows:
             c = comparison[key]
             x, y, _ = c["worst_at_wobj_mm"]
             print(

@@ -56,6 +56,10 @@ PICKED_WALL_COLOR = (255, 70, 20)  # the wall a click picked, before anything mo
 OTHER_WALL_COLOR = (150, 150, 160)  # the other walls at that height (a groove's other side)
 PICKED_ARROW_M = 0.008  # from the picked wall to the side the tool stands on
 TABLE_COLOR = (196, 182, 160)
+TOUCH_COLOR = (90, 90, 200)  # a calibration's touch before the touches fix a frame
+TOUCH_ARROW_M = 0.008  # the arrow of a touch's move, ending at the ball
+FIT_COLOR = (40, 200, 120)  # the CAD where the calibration's fit places it
+CALIBRATION_SCALE_M = 0.2e-3  # a touch's residual: green at 0, red from 0.2 mm
 PART_VIEW_ELEVATION_DEG = 40.0  # View the part: looking down at the walls from beyond the part
 PART_VIEW_FILL = 1.15  # the part's bounding sphere fills the view with this margin
 TABLE_MARGIN_M = 0.08  # the table reaches this far beyond the part
@@ -486,6 +490,54 @@ class CellScene:
                     position=p + np.array([0.0, 0.0, GUIDE_LABEL_LIFT_M]),
                     anchor="bottom-center",
                 )
+
+    def set_calibration(
+        self,
+        touches: Sequence,
+        residuals_m: np.ndarray | None = None,
+        T_fit: np.ndarray | None = None,
+    ) -> None:
+        """The touches of a work-object calibration (``registration.Touch``: the ball where it
+        stopped, an arrow along its move, "T1" with its residual once fitted, coloured green
+        to red at ``CALIBRATION_SCALE_M``) and, before it is accepted, the CAD where the fit
+        places it (translucent green: where the part really is); nothing for no touches."""
+        scene = self.server.scene
+        with self.server.atomic():
+            node = getattr(self, "_calibration_node", None)
+            if node is not None:
+                node.remove()
+            self._calibration_node = scene.add_frame("/calibration", show_axes=False)
+            for k, touch in enumerate(touches):
+                at = np.asarray(touch.tcp_m, dtype=float)
+                d = np.asarray(touch.direction, dtype=float)
+                res = None if residuals_m is None else float(residuals_m[k])
+                color = (
+                    TOUCH_COLOR
+                    if res is None
+                    else tuple(int(c) for c in deviation_colors([abs(res)], CALIBRATION_SCALE_M)[0])
+                )
+                scene.add_icosphere(
+                    f"/calibration/T{k + 1}", radius=max(touch.tool_radius_m, 5e-4), color=color,
+                    position=tuple(at),
+                )  # fmt: skip
+                scene.add_arrows(
+                    f"/calibration/T{k + 1}/move",
+                    np.array([[-d * TOUCH_ARROW_M, -d * touch.tool_radius_m]]),
+                    color, shaft_radius=0.0005, head_radius=0.0012, head_length=0.002,
+                )  # fmt: skip
+                text = f"T{k + 1}" if res is None else f"T{k + 1} {res * 1e3:+.2f} mm"
+                scene.add_label(
+                    f"/calibration/T{k + 1}/label", text,
+                    position=tuple(-d * TOUCH_ARROW_M + np.array([0.0, 0.0, 0.002])),
+                    anchor="bottom-center",
+                )  # fmt: skip
+            mesh = getattr(self, "_cad_mesh", None)
+            if T_fit is not None and mesh is not None:
+                scene.add_mesh_simple(
+                    "/calibration/fit", mesh.vertices, mesh.faces, color=FIT_COLOR,
+                    opacity=0.35, flat_shading=True, side="double", cast_shadow=False,
+                    wxyz=quaternion_from_matrix(T_fit[:3, :3]), position=T_fit[:3, 3],
+                )  # fmt: skip
 
     def set_comparison(
         self, comparison, *, show_learned: bool = True, show_cad_only: bool = True

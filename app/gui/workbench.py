@@ -29,6 +29,7 @@ from .panels import (
     PathLearningPanel,
     PostprocessPanel,
 )
+from .panels.calibration import CalibrationPanel
 from .panels.feedback import notify_error
 from .panels.placement import PlacementPanel
 from .panels.pointing import PointingPanel
@@ -47,6 +48,7 @@ JOB_TITLES = {
     "example": "Load the example",
     "path_learning": "Path learning",
     "accept_proposal": "Accepting the proposal",
+    "calibration": "Touching the planned features",
 }
 
 
@@ -90,10 +92,12 @@ class Workbench:
         self._show_cell()
         self.cell = CellPanel(server, session)
         self.placement = PlacementPanel(server, session)
+        self.calibration = CalibrationPanel(server, session, self.scene)
         self.leadthrough = LeadThroughPanel(server, session, self.scene)
         self.teach = TeachPanel(server, session)
         self.guide_points = GuidePointsPanel(server, session, self.scene)
         self.pointing = PointingPanel(server, session, self.scene, self.guide_points)
+        self.pointing.on_touch = self.calibration.touch_face
         self.path_learning = PathLearningPanel(server, session, self.scene)
         self.postprocess = PostprocessPanel(server, session, self.scene)
         self.export = ExportPanel(server, session, self.study_service)
@@ -208,6 +212,8 @@ class Workbench:
         if topics & {"cell", "placement"}:
             self.scene.preview_placement(self.session.preview.transform())
             self.placement.refresh()
+        if topics & {"cell", "calibration"}:
+            self.calibration.refresh()
         if "compliance" in topics:
             self.leadthrough.refresh_compliance()
         if "guide_points" in topics or "cell" in topics:
@@ -284,12 +290,13 @@ class Workbench:
     def _show_jobs(self) -> None:
         """Progress of the robot jobs, whoever started them; a job that failed says why in
         every browser, until it is closed."""
-        kinds = ("example", "path_learning", "accept_proposal")
+        kinds = ("example", "path_learning", "accept_proposal", "calibration")
         active = {j.kind: j for j in self.session.jobs.active(kinds)}
         panels = {
             "example": self.guide_points,
             "path_learning": self.path_learning,
             "accept_proposal": self.pointing,
+            "calibration": self.calibration,
         }
         for kind, panel in panels.items():
             job = active.get(kind)

@@ -80,5 +80,8 @@ class PlacementPreview:
         return None if values is None else wobj_transform(values)
 
     def placed(self) -> tuple[float, ...]:
-        """Where the part is placed now (the ``--wobj`` numbers of its work object)."""
-        return wobj_values(self._session.robot.workpiece.cad().T_base_wobj)
+        """Where the part is placed now (the ``--wobj`` numbers of its work object; its
+        placement, not where a calibration registered the CAD)."""
+        part = self._session.robot.workpiece
+        placed = part.unregistered if part.unregistered is not None else part.cad()
+        return wobj_values(placed.T_base_wobj)

@@ -34,6 +34,7 @@ Topic = Literal[
     "exports",
     "machining",
     "placement",
+    "calibration",
 ]
 JobStatus = Literal["queued", "running", "done", "failed", "cancelled"]
 

@@ -18,12 +18,14 @@ SOLUTION  Public API (thread-safe):
   Reading   project() -> Project; view() -> View (project, cell, epoch, project id, at once);
             current_project() -> ProjectInfo; cell_note() (what a cell change cleared);
             robot (LiveRobot: snapshot(), pose(), ...)
-  Services  robot, teach (push, jog, touch_off, stop, tool_view), pointing, learning
+  Services  robot, teach (push, jog, touch_off, touch_along, stop, tool_view), pointing,
+            calibration (touches of the real part, the fit, its acceptance), learning
             (start_example, start_path_learning, run_postprocess, go_home, force_trace), jobs,
             preview (a work-object placement being tried, not saved)
   Changing  commit(change, *parts, topics=, idle=, with_robot=) -> Project
             change_cell(change, parsed=) -> Project   a transition that rebuilds the live cell
-            set_cell(robot=, tool_radius_m=, workpiece=, part_deviation=) -> CellSettings
+            set_cell(robot=, tool_radius_m=, workpiece=, part_deviation=, wobj_mm_deg=)
+                -> CellSettings
             upload_workpiece(data, filename) / upload_robot(data, filename, family=)
             record_guide_point() -> GuidePointEntry; delete_guide_point(i); clear_guide_points()
             switch_to(loaded, epoch=, save=)          another project (``projects``)
@@ -52,6 +54,7 @@ from robomach_core.workpiece import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, Workpiec
 from ..memory import give_back
 from ..store import Store
 from . import projects
+from .calibration import Calibration
 from .jobs import JobRunner
 from .learning import Learning
 from .persistence import Part, save_kwargs
@@ -118,7 +121,11 @@ class Session:
         self.teach = Teach(self.robot, real_time=real_time)
         self.pointing = Pointing(self)
         self.preview = PlacementPreview(self)  # a placement being tried (``preview``)
-        self.robot.extras = lambda: {"pointing": self.pointing.document()}
+        self.calibration = Calibration(self)
+        self.robot.extras = lambda: {
+            "pointing": self.pointing.document(),
+            "calibration": self.calibration.document(),
+        }
         self.learning = Learning(self)
         projects.open_initial(self)
 
@@ -210,10 +217,15 @@ class Session:
         return new
 
     def change_cell(
-        self, change: Callable[[Project], Project], *, parsed: Workpiece | None = None
+        self,
+        change: Callable[[Project], Project],
+        *,
+        parsed: Workpiece | None = None,
+        joints: Any = None,
     ) -> Project:
         """``commit`` a transition that changes the cell: the live cell is rebuilt from the
-        new project (``parsed``: its uploaded mesh, already read) and the robot goes home.
+        new project (``parsed``: its uploaded mesh, already read) and the robot goes home (or
+        stays at ``joints``, when they are usable in the new cell: a calibration accepted).
         No change keeps everything (the robot stays where it is)."""
         with self._lock:
             self.robot.require_idle()
@@ -222,7 +234,7 @@ class Session:
                 return new
             # A machining choice the new cell's controller cannot run is cleared, with a note.
             new, note = core.with_runnable_choice(new)
-            built = build_live_cell(new.cell, new.mesh, parsed=parsed)
+            built = build_live_cell(new.cell, new.mesh, joints, parsed=parsed)
             parts: tuple[Part, ...] = ("cell", "guides", "post") if note else ("cell", "guides")
             self._save(new, *parts, robot=self.robot.document(built))
             self.robot.install(built)
@@ -240,9 +252,13 @@ class Session:
         tool_radius_m: float | None = None,
         workpiece: str | None = None,
         part_deviation: Any = core.KEEP,
+        wobj_mm_deg: Any = core.KEEP,
     ) -> CellSettings:
-        """Change the cell (``project.with_cell``; None keeps a setting): a change puts the
-        robot home and clears the guide points; no change keeps everything."""
+        """Change the cell (``project.with_cell``; None keeps a setting; ``part_deviation``
+        and ``wobj_mm_deg``, the work-object placement x, y, z [mm] with an optional rz or
+        rx, ry, rz [deg], None for the built-in one: ``core.KEEP`` keeps them): a change puts
+        the robot home and clears the guide points (and, moving the part, its calibration);
+        no change keeps everything."""
 
         def change(p: Project) -> Project:
             return core.with_cell(
@@ -251,26 +267,8 @@ class Session:
                 tool_radius_m=tool_radius_m,
                 workpiece=workpiece,
                 part_deviation=part_deviation,
+                wobj_mm_deg=wobj_mm_deg,
             )
-
-        return self.change_cell(change).cell
-
-    def place_workpiece(self, wobj_mm_deg) -> CellSettings:
-        """Place the part at the work object (x, y, z [mm], rx, ry, rz [deg], as ``--wobj``):
-        a cell change (the robot goes home, the guide points are cleared).
-
-        TODO(2025-issue-31): the GUI half's stand-in; issue-31-core's placement replaces it."""
-        from dataclasses import replace
-
-        from robomach_core.project import wobj_transform
-
-        wobj_transform(wobj_mm_deg)  # checked against the ranges
-        values = tuple(float(v) for v in wobj_mm_deg)
-
-        def change(p: Project) -> Project:
-            if p.cell.wobj_mm_deg == values:
-                return p
-            return replace(p, cell=replace(p.cell, wobj_mm_deg=values), guide_points=())
 
         return self.change_cell(change).cell
 
@@ -340,10 +338,12 @@ class Session:
             if save:
                 robot = self.robot.document(loaded.built, loaded.selection)
                 robot["pointing"] = pointing_document(*pointing)
+                robot["calibration"] = loaded.calibration
                 self._save(loaded.project, *ALL_PARTS, robot=robot, project_id=loaded.project_id)
             self.store.set_last_project(loaded.project_id)
             self.robot.install(loaded.built, loaded.selection)
             self.pointing.settings, self.pointing.click_mode = pointing
+            self.calibration.restore(loaded.calibration, loaded.project)
             self._project_id, self._project = loaded.project_id, loaded.project
             self._notice = loaded.notice
         self.notify(*ALL_TOPICS)

@@ -328,6 +328,10 @@ def taught_wall_check(
             f"{worst * 1e3:.1f} mm from it): it was learned on another wall, the floor or inside "
             "the part"
         )
+        message += (
+            ", or the part is not where its CAD is placed (calibrate the work object by "
+            "touching the part)"
+        )
     else:
         message = (
             f"the program follows the taught wall (on the {side}) at all {len(checked)} guide "

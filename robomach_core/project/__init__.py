@@ -65,6 +65,7 @@ from ._transitions import with_guide_points as with_guide_points
 from ._transitions import with_learned as with_learned
 from ._transitions import with_process_settings as with_process_settings
 from ._transitions import with_processed as with_processed
+from ._transitions import with_registration as with_registration
 from ._transitions import with_robot_file as with_robot_file
 from ._transitions import with_uploaded_mesh as with_uploaded_mesh
 from ._transitions import without_guide_point as without_guide_point

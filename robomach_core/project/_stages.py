@@ -161,7 +161,7 @@ def _scores(
         mesh = score_mesh(workpiece, tool_radius_m, pos, moves, axis_base=axis)
         if guides is not None and rec.wall_side:
             taught = taught_wall_check(
-                workpiece,
+                workpiece.cad(),  # the mesh as the controller knows it (registered, when so)
                 tool_radius_m,
                 guides,
                 rec.wall_side,
@@ -236,11 +236,16 @@ def build_cell_workpiece(
     parsed: Workpiece | None = None,
 ) -> Workpiece:
     """The part the cell's contact meets: ``build_workpiece``'s, made real by the cell's
-    ``part_deviation`` (``real_part.real_workpiece``; its ``cad()`` is the mesh the user sees)."""
+    ``part_deviation`` (``real_part.real_workpiece``; its ``cad()`` is the mesh the user sees),
+    its CAD placed where the cell's ``registration`` measured it when there is one."""
     from ..real_part import real_workpiece
+    from ..registration import registered_workpiece
 
     cad = build_workpiece(cell, mesh, max_triangles=max_triangles, parsed=parsed)
-    return real_workpiece(cad, cell.part_deviation)
+    part = real_workpiece(cad, cell.part_deviation)
+    if cell.registration is not None:
+        part = registered_workpiece(part, cell.registration.T_base_wobj)
+    return part
 
 
 def build_workpiece(

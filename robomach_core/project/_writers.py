@@ -451,6 +451,7 @@ def settings_document(
             "seed": c.seed,
             "wobj_mm_deg": None if c.wobj_mm_deg is None else list(c.wobj_mm_deg),
             "part_deviation": None if c.part_deviation is None else c.part_deviation.as_dict(),
+            "registration": None if c.registration is None else c.registration.document(),
         },
         "tool": {
             "name": tool.name,

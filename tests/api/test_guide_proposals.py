@@ -128,6 +128,7 @@ def test_pointing_settings_have_ranges(client: TestClient) -> None:
         "gap_mm": 1.5,
         "height_above_floor_mm": 3.0,
         "click_mode": "propose",
+        "proposal_points": 0,
     }
     assert _ok(client, "PUT", f"{GP}/pointing", json={"click_mode": "teach"})["click_mode"] == (
         "teach"

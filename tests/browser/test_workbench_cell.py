@@ -97,7 +97,7 @@ def test_view_the_part_frames_it_with_the_arm_out_of_the_way():
                 T = session.robot.workpiece.cad().T_base_wobj
                 values = (*(T[:3, 3] * 1e3 + [rng.uniform(-60, 60), rng.uniform(-60, 60), 0]),
                           0.0, 0.0, rng.uniform(-45, 45))  # fmt: skip
-                session.place_workpiece(values)
+                session.set_cell(wobj_mm_deg=values)
                 arm = _robot_meshes(robot, session.robot.snapshot().joints_rad)
                 client = SimpleNamespace(camera=_Camera(), atomic=_nothing)
                 from app.gui.scene import CellScene

@@ -65,7 +65,8 @@ class PointingSettingsUpdate(_Request):
     click_mode: ClickMode | None = Field(
         default=None,
         description="what a click on the part in the 3-D scene does: propose the wall's guide "
-        "points, teach a point, move the selected point there, or nothing",
+        "points, teach a point, move the selected point there, touch the face clicked (work-"
+        "object calibration: /api/cell/calibration), or nothing",
     )
 
 

@@ -86,7 +86,7 @@ class PlacementPanel:
 
     def _place(self) -> None:
         values = self.values()
-        self.session.place_workpiece(values)
+        self.session.set_cell(wobj_mm_deg=values)
         self.session.preview.clear()
 
     def refresh(self) -> None:

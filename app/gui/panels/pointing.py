@@ -14,18 +14,18 @@ import time
 import numpy as np
 import viser
 
+from robomach_core.choices import CLICK_MODES, LABELS
 from robomach_core.errors import InvalidInputError
 from robomach_core.limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
 
 from ..scene import COMPARISON_COLORS, CellScene
 from .feedback import guarded, notify_error, notify_info
 
-MODE_TEACH = "teach a point"
-MODE_PROPOSE = "propose the wall"
-MODE_MOVE = "move the selected point"
-MODE_OFF = "nothing"
-MODES = (MODE_PROPOSE, MODE_TEACH, MODE_MOVE, MODE_OFF)
-MODE_OF = {"propose": MODE_PROPOSE, "teach": MODE_TEACH, "move": MODE_MOVE, "off": MODE_OFF}
+# What a click on the part does, in the words every page uses (``choices.LABELS``).
+MODE_OF = {mode: LABELS["click_mode"][mode] for mode in CLICK_MODES}
+MODE_TEACH, MODE_PROPOSE, MODE_MOVE = MODE_OF["teach"], MODE_OF["propose"], MODE_OF["move"]
+MODE_TOUCH, MODE_OFF = MODE_OF["touch"], MODE_OF["off"]
+MODES = tuple(MODE_OF.values())
 SESSION_MODE = {label: key for key, label in MODE_OF.items()}
 NO_SELECTION = "none"
 GROOVE_WIDTH_SHOWN_M = 0.03  # a wall this near across the click is named in the label
@@ -54,7 +54,8 @@ class PointingPanel:
                 initial_value=MODE_OF[session.pointing.click_mode],
                 hint="propose: guide points for the whole wall you click (nothing moves); "
                 "teach: the robot goes beside the wall where you click and records a point; "
-                "move: the selected point goes where you click",
+                "move: the selected point goes where you click; touch: the robot touches the "
+                "face you click, to calibrate the work object (Calibrate by touch)",
             )
             self.gap = server.gui.add_number(
                 "Gap to wall (mm)", round(s.gap_m * 1e3, 3), min=WALL_GAP_MM.min,
@@ -121,6 +122,7 @@ class PointingPanel:
         scene.on_part_click(self._clicked)
         self.last_click_s = float("nan")  # how long the last click took (tests read it)
         self.picked = None  # the wall the last click picked (``walls.WallPick``)
+        self.on_touch = None  # (point_wobj_m, normal, client) of a click in the touch mode
         self.refresh()
 
     # --- the user's actions ----------------------------------------------------------------
@@ -161,6 +163,11 @@ class PointingPanel:
         if mode == MODE_OFF:
             return
         started = time.monotonic()
+        if mode == MODE_TOUCH:
+            if self.on_touch is not None:
+                self.on_touch(point_wobj_m, normal, client)
+            self.last_click_s = time.monotonic() - started
+            return
         title = {MODE_TEACH: "Teach", MODE_PROPOSE: "Propose", MODE_MOVE: "Move"}[mode]
         if mode != MODE_MOVE:  # the wall it picked, drawn before anything moves
             guarded(title, lambda e: self._show_pick(point_wobj_m, normal))(_Event(client))
