@@ -158,6 +158,36 @@ def _interrupts_deferred() -> Iterator[None]:
             signal.raise_signal(sig)  # now, to the handlers the program had
 
 
+def _submitted(pool: ProcessPoolExecutor, tasks: Sequence[CutTask], cancel) -> list:
+    """The tasks submitted to ``pool``. A pool's first submit waits for its forkserver to start
+    and load the kernels (compiling them when numba's cache is cold: a minute on a loaded
+    machine), so off the main thread (a server's job) it runs beside a loop that keeps
+    looking at the cancel flag: a cancel ends the job at once, and the pool is stopped when
+    its start is over. On the main thread (the CLI), interrupts wait for the submits."""
+    if threading.current_thread() is threading.main_thread() or cancel is None:
+        with _interrupts_deferred():  # every worker started is one the pool knows, to stop
+            return [pool.submit(run_cut_task, task) for task in tasks]
+    futures: list = []
+    starter = threading.Thread(
+        target=lambda: futures.extend(pool.submit(run_cut_task, task) for task in tasks),
+        name="machining-pool-start",
+        daemon=True,
+    )
+    starter.start()
+    while starter.is_alive():
+        starter.join(POLL_S)
+        if starter.is_alive() and cancel():
+            threading.Thread(  # stop the pool once it has started; the job ends now
+                target=lambda: (starter.join(), _stop_workers(pool)), daemon=True
+            ).start()
+            raise _Abandoned("machining cancelled")
+    return futures
+
+
+class _Abandoned(CancelledError):
+    """Cancelled while the pool was starting: another thread stops the pool."""
+
+
 def _pool_context() -> multiprocessing.context.BaseContext:
     """Workers forked from one forkserver that imported the cut's modules once: a spawned
     worker imported them itself (about 3 s of CPU each, for each comparison). Like spawn, and
@@ -217,8 +247,7 @@ def run_tasks(
         initargs=(os.getpid(),),
     )
     try:
-        with _interrupts_deferred():  # every worker started is one the pool knows, to stop
-            futures = [pool.submit(run_cut_task, task) for task in tasks]
+        futures = _submitted(pool, tasks, cancel)
         pending = set(futures)
         while pending:
             done, pending = wait(pending, timeout=POLL_S, return_when=FIRST_COMPLETED)
@@ -227,6 +256,8 @@ def run_tasks(
             if progress is not None and done:
                 progress(1.0 - len(pending) / len(futures))
         results = [f.result() for f in futures]
+    except _Abandoned:
+        raise CancelledError("machining cancelled") from None
     except BaseException:  # cancelled, interrupted (Ctrl-C, SIGTERM) or a task failed
         _stop_workers(pool)
         raise
