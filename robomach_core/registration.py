@@ -320,8 +320,9 @@ class WobjFit:
             listed = ", ".join(str(k + 1) for k in odd)
             worst = float(np.nanmax(np.abs(self.disagreement_m)))
             odd_text = (
-                f"; the touches disagree by up to {worst * 1e3:.2f} mm: one of touches {listed} met something else (the others agree without "
-                "it); touch that face again at more places"
+                f"; the touches disagree by up to {worst * 1e3:.2f} mm: one of touches {listed} "
+                "met something else (the others agree without it); touch that face again at "
+                "more places"
             )
         return (
             f"registered on {len(self.touches)} touches of {faces} faces{extra} by a "

@@ -272,8 +272,9 @@ def test_on_a_casting_the_fit_is_as_good_as_its_walls_and_proposals_stand_beside
     real_mesh = real.scoring_mesh()
     T_real = real.T_base_wobj
     for part, tolerance in ((registered, casting + 0.3e-3), (real.cad(), None)):
-        proposal = propose_guide_points(part, None, np.array([*xy, z]), tool_radius_m=cell.tool.radius_m,
-                                        settings=settings)  # fmt: skip
+        proposal = propose_guide_points(
+            part, None, np.array([*xy, z]), tool_radius_m=cell.tool.radius_m, settings=settings
+        )
         tcp = np.array([p.T_base_tcp[:3, 3] for p in proposal.points])
         with mesh_query.LOCK:
             _, d, _ = mesh_query.closest_point(real_mesh, (tcp - T_real[:3, 3]) @ T_real[:3, :3])
