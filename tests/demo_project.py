@@ -85,3 +85,10 @@ def block_demo_dir() -> Path:
 def pump_demo() -> DemoRun:
     """The README's demo: the water pump on the UR10 (the default arm), seed 0, demo.png."""
     return demo_run()
+
+
+def arm_demo(robot: str) -> DemoRun:
+    """The pump demo on another arm (seed 0, no plot); the UR10's is ``pump_demo``."""
+    if robot == "ur10":
+        return pump_demo()
+    return demo_run("--robot", robot, "--no-plot")

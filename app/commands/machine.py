@@ -23,15 +23,19 @@ from robomach_core.machining.settings import MACHINING_CONTROLLERS as CONTROLLER
 MESH_STOCK_SUFFIXES = (".stl", ".obj", ".ply")
 # Exit codes (also in the README and --help).
 EXIT_OK = 0  # the comparison ran and a configuration was chosen and exported (stops included)
-EXIT_NOTHING_CHOSEN = 1  # no configuration the cell can run completed, or it cannot be exported
+# no configuration the cell can run completed within the force limit, the chosen one cannot
+# be exported, or the project's program is not fit to machine
+EXIT_NOTHING_CHOSEN = 1
 EXIT_BAD_INPUT = 2  # a bad argument, file or setting (one line on stderr, nothing written)
 EXIT_INTERRUPTED = 130  # Ctrl-C
 EXIT_CODES_TEXT = """exit codes:
   0    the comparison ran, a configuration the cell can run was chosen and its program
        written; configurations that stopped (protection rule, force supervision) or were
        refused are rows of the table, not failures
-  1    no configuration the cell can run completed, or the chosen one could not be
-       exported: the table and traces are still written, no program is
+  1    no configuration the cell can run completed within the force limit, the chosen one
+       could not be exported, or the project's program is NOT FIT TO MACHINE (a partial run,
+       the wrong wall, an overcut: printed above the table): the table and traces are still
+       written, no program is
   2    bad input: an argument, file or setting out of range (one line on stderr)
   130  interrupted (Ctrl-C)"""
 
@@ -93,7 +97,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         type=float,
         default=150.0,
         metavar="N",
-        help="the force the cut must not exceed in N (default 150; CMRR holds 0.7 of it)",
+        help="the force the cut must not exceed in N (default 150; CMRR holds 0.7 of it): "
+        "only configurations whose peak force stays within it are chosen, none if none does",
     )
     p.add_argument(
         "--seed",
@@ -116,9 +121,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         type=int,
         default=0,
         metavar="N",
-        help="also cut every configuration on N stocks drawn from the part's variation "
-        "(allowance x0.85-1.15, burrs re-drawn, material K x0.9-1.1; seeded by the project's "
-        "seed) and choose on the 95th percentiles (default 0: the one stock)",
+        help="also cut every configuration's program (designed on the nominal stock: its "
+        "feed, controller design and offline correction) on N stocks drawn from the part's "
+        "variation (allowance x0.85-1.15, burrs re-drawn, material K x0.9-1.1; seeded by the "
+        "project's seed) and choose on the 95th percentiles over the N + 1 stocks (default 0: "
+        "the one stock)",
     )
     p.add_argument(
         "--workers",
@@ -184,12 +191,14 @@ def run(args: argparse.Namespace) -> int:
     finally:
         bar.close()
     project = core.with_machining_result(project, result)
+    problems = core.require_processed(project).problems()
     chosen = None if result.chosen is None else result.rows[result.chosen]
     if chosen is not None:
         project = core.choose(project, chosen["controller"], chosen["compensation"])
     out: Path = args.out
     written = []
     summary = result.summary()
+    summary["problems"] = problems
     summary["settings"] = core.machining_setup_document(core.machining_setup_of(project))
     summary["stock"] = {
         "source": result.stock.source,
@@ -202,7 +211,7 @@ def run(args: argparse.Namespace) -> int:
             write_run_csv(run_, out / f"machining_{run_.controller}_{run_.compensation}.csv")
         )
     export_error = None
-    if chosen is not None:
+    if chosen is not None and not problems:
         try:
             files = core.program_files(project, workpiece, robot)
         except RobomachError as exc:
@@ -222,6 +231,10 @@ def run(args: argparse.Namespace) -> int:
             "none" if chosen is None else f"{chosen['controller']} / {chosen['compensation']}"
         )
         written.append(plot_runs(shown, out / "machining.png", title=title))
+    for problem in problems:
+        print(f"NOT FIT TO MACHINE: {problem}")
+    if problems:
+        print()
     print(result.table_text)
     if chosen is None:
         print(f"\nchosen            none: {result.reason}")
@@ -250,7 +263,14 @@ def run(args: argparse.Namespace) -> int:
         )
     if chosen is None:
         print(f"robomach machine: error: nothing to choose: {result.reason}", file=sys.stderr)
-    return EXIT_NOTHING_CHOSEN if chosen is None or export_error is not None else EXIT_OK
+    if problems:
+        print(
+            "robomach machine: error: the program is not fit to machine (see above); no "
+            "program written: " + "; ".join(problems),
+            file=sys.stderr,
+        )
+    failed = chosen is None or export_error is not None or problems
+    return EXIT_NOTHING_CHOSEN if failed else EXIT_OK
 
 
 def _cell_options(value: str) -> tuple[str, ...] | None:

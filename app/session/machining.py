@@ -358,7 +358,8 @@ def markdown_table(text: str) -> str:
     """The fixed-width comparison table as markdown (columns split on runs of two spaces)."""
     import re
 
-    lines = [re.split(r"\s{2,}", line.strip()) for line in text.splitlines() if line.strip()]
+    table = text.split("\n\n")[0]  # what the cell lacks is said below the table
+    lines = [re.split(r"\s{2,}", line.strip()) for line in table.splitlines() if line.strip()]
     if not lines:
         return ""
     out = ["| " + " | ".join(lines[0]) + " |", "|" + "---|" * len(lines[0])]

@@ -46,8 +46,8 @@ from ..workpiece import Workpiece
 
 MODULE_NAME = "program"  # KRL: the DEF / DEFDAT name is the file name (program.src/.dat)
 MAX_IDENTIFIER_LEN = 24
-POSITION_DECIMALS = 3  # mm
-ANGLE_DECIMALS = 4  # deg
+POSITION_DECIMALS = 4  # mm: 0.1 um, as the RAPID module's
+ANGLE_DECIMALS = 5  # deg: 1.7e-7 rad (BASE_DATA places the path to 0.03 um at 0.2 m)
 VELOCITY_DECIMALS = 5  # m/s: 0.01 mm/s
 APPROACH_OFFSET_M = 0.020
 PTP_PERCENT = 20  # axis speed and acceleration of the PTP to the approach point (BAS)

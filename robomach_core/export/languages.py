@@ -50,6 +50,8 @@ class ProgramContext:
         force_control_N: The force-controlled variant pressing with this force; None for the
             position-controlled program.
         speed_change: ``export.rapid.SpeedChangeSettings`` of a CMRR controller, or None.
+        feed_loop: ``export.urscript_feed.UrFeedLoop`` of a CMRR controller (the feed loop a
+            UR program runs itself), or None.
     """
 
     targets: Any
@@ -61,6 +63,7 @@ class ProgramContext:
     module_name: str
     force_control_N: float | None = None
     speed_change: Any = None
+    feed_loop: Any = None
 
 
 @dataclass(frozen=True)
@@ -239,6 +242,7 @@ def _write_urscript(context: ProgramContext) -> tuple[str, ...]:
             force_control_N=context.force_control_N,
             comment=context.comment,
             arcs=context.moves,
+            feed_loop=None if context.force_control_N else context.feed_loop,
         ),
     )
 
@@ -250,10 +254,11 @@ def _urscript_poses(texts: tuple[str, ...], workpiece: Any) -> list[tuple[str, n
     from .urscript import script_poses
 
     out = []
-    for k, (_kind, poses) in enumerate(script_poses(texts[0])):
+    for k, (kind, poses) in enumerate(script_poses(texts[0])):
         for j, pose in enumerate(poses):
             R = Rotation.from_rotvec(pose[3:]).as_matrix()
-            out.append((f"move{k + 1}.{j + 1}", make_transform(R, pose[:3])))
+            name = f"path{j + 1}" if kind == "path" else f"move{k + 1}.{j + 1}"
+            out.append((name, make_transform(R, pose[:3])))
     return out
 
 

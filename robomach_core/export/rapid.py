@@ -36,9 +36,11 @@ from robomach_core.robots.abb import ABB_ARMS, ArmSpec
 from robomach_core.transforms import quaternion_from_matrix
 
 MAX_IDENTIFIER_LEN = 32
-POSITION_DECIMALS = 3  # mm
-QUATERNION_DECIMALS = 6
-SPEED_DECIMALS = 1  # mm/s; speeds are rounded to this before naming speeddata
+# mm: 0.1 um, so a corrected program's offsets are the simulated ones (a controller's
+# float32 holds about 0.1 um at 2 m).
+POSITION_DECIMALS = 4
+QUATERNION_DECIMALS = 7  # 1e-7: a float32 near 1 holds it; the work object's frame exactly
+SPEED_DECIMALS = 2  # mm/s (0.01 mm/s: a machining program's feeds exactly); speeddata names
 ORTHONORMAL_TOL = 1e-6
 DEFAULT_TOOL_INERTIA_KG_M2 = (0.001, 0.001, 0.001)
 SPEEDDATA_V_ORI_DEG_S = 500.0  # reorientation, linear and rotating external axis speeds of

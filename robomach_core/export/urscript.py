@@ -12,7 +12,7 @@ STRATEGY  The same inputs as ``program.rapid_program`` (targets in the base fram
           presses along each target's tool y axis (the learned path normal Yp, as RAPID's
           ``\\Fy``) with ``force_mode`` type 2 (task frame taken as given) before every move.
 SOLUTION  ``urscript_program(targets, tool, workpiece, ...) -> str`` and ``script_poses(text)``
-          (the poses of the motion commands, for checks). Fixed decimals: 1e-6 m, 1e-6 rad.
+          (the poses of the motion commands, for checks). Fixed decimals: 1e-8 m, 1e-8 rad.
 
 URScript reference: Universal Robots, "The URScript Programming Language" (movel, movec,
 set_tcp, set_payload, zero_ftsensor, force_mode, end_force_mode).
@@ -32,9 +32,10 @@ from ..postprocess import Targets
 from ..tool import Tool
 from ..transforms import make_transform, matrix_from_quaternion, rotation_log
 from ..workpiece import Workpiece
+from .urscript_feed import UrFeedLoop, feed_loop_lines
 
 PROGRAM_NAME = "learned_path"
-POSE_DECIMALS = 6  # metres and radians: 1 um, 1 urad
+POSE_DECIMALS = 8  # metres and radians: the RAPID module's 0.1 um (in the work object) kept
 PATH_ACCELERATION_M_S2 = 0.5
 AIR_SPEED_M_S = 0.1
 AIR_ACCELERATION_M_S2 = 0.5
@@ -48,6 +49,7 @@ FORCE_DEVIATION_LIMIT_M = 0.001
 FORCE_DEVIATION_LIMIT_RAD = 0.017
 _POSE_RE = re.compile(r"p\[([^\]]*)\]")
 _MOTION_RE = re.compile(r"^\s*(movel|movec)\((.*)\)\s*$")
+_PATH_RE = re.compile(r"^\s*cm_path\s*=\s*\[(.*)\]\s*$")
 
 
 def pose_literal(T: np.ndarray) -> str:
@@ -93,6 +95,7 @@ def urscript_program(
     force_control_N: float | None = None,
     comment: Sequence[str] = (),
     arcs: Sequence[Move] | None = None,
+    feed_loop: UrFeedLoop | None = None,
 ) -> str:
     """A URScript program moving through the targets (a ``.script`` file's text).
 
@@ -105,6 +108,9 @@ def urscript_program(
         comment: Header comment lines.
         arcs: Optional move sequence (``robomach_core.arcs``): circular moves become
             ``movec(via, to, ...)``; default a ``movel`` to every target.
+        feed_loop: CMRR (``urscript_feed``): the program runs the force-driven feed loop
+            along the targets in order (a straight line between each two, as the simulated
+            cut), instead of the movel list. Not with ``force_control_N``.
 
     Raises:
         InvalidInputError: no targets, a non-positive speed or force, or a bad move sequence.
@@ -151,6 +157,15 @@ def urscript_program(
         + [_short(FORCE_DEVIATION_LIMIT_M)]
         + [_short(FORCE_DEVIATION_LIMIT_RAD)] * 3
     )
+    if feed_loop is not None and force_control_N is None:
+        body += feed_loop_lines(
+            feed_loop,
+            [pose_literal(T) for T in Ts],
+            speeds,
+            np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0), axis=1))]),
+            fixed=_short,
+        )
+        moves = ()
     for move, radius in zip(moves, _blend_radii(positions, moves), strict=True):
         if force_control_N is not None:
             wrench = f"[0, {_short(force_control_N)}, 0, 0, 0, 0]"
@@ -177,7 +192,8 @@ def urscript_program(
 
 
 def script_poses(text: str) -> list[tuple[str, list[np.ndarray]]]:
-    """The motion commands of a script and their poses: [("movel", [p]), ("movec", [via, to])].
+    """The motion commands of a script and their poses: [("movel", [p]), ("movec", [via, to])],
+    and a feed loop's path (``urscript_feed``) as ("path", [p1, p2, ...]), in file order.
 
     Each pose is a (6,) array x, y, z [m], rx, ry, rz [rad].
 
@@ -187,10 +203,12 @@ def script_poses(text: str) -> list[tuple[str, list[np.ndarray]]]:
     out = []
     for line_no, line in enumerate(text.splitlines(), start=1):
         match = _MOTION_RE.match(line)
-        if not match:
+        path = _PATH_RE.match(line)
+        if not match and not path:
             continue
+        body_text = match.group(2) if match else path.group(1)
         poses = []
-        for body in _POSE_RE.findall(match.group(2)):
+        for body in _POSE_RE.findall(body_text):
             try:
                 values = np.array([float(v) for v in body.split(",")])
             except ValueError:
@@ -198,5 +216,15 @@ def script_poses(text: str) -> list[tuple[str, list[np.ndarray]]]:
             if values.shape != (6,):
                 raise InvalidInputError(f"line {line_no}: a pose has 6 values, got {len(values)}")
             poses.append(values)
-        out.append((match.group(1), poses))
+        out.append((match.group(1) if match else "path", poses))
     return out
+
+
+def script_numbers(text: str, name: str) -> np.ndarray | None:
+    """The numbers of a script's list ``name = [..]`` (the first assignment), or None."""
+    pattern = re.compile(rf"^\s*{re.escape(name)}\s*=\s*\[([^\]]*)\]\s*$")
+    for line in text.splitlines():
+        found = pattern.match(line)
+        if found:
+            return np.array([float(v) for v in found.group(1).split(",") if v.strip()])
+    return None

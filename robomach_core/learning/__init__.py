@@ -13,8 +13,6 @@ from .route import plan_route as plan_route
 from .run import LearningStop as LearningStop
 from .run import Recording as Recording
 from .run import learn_path as learn_path
-from .run import move_joint as move_joint
-from .run import move_linear as move_linear
 from .settings import WALL_SIDE_CHOICES as WALL_SIDE_CHOICES
 from .settings import PathLearningSettings as PathLearningSettings
 from .settings import WallSideSetting as WallSideSetting

@@ -23,7 +23,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 
 from ..cell import Cell, CellState
 from ..clock import CONTROL_PERIOD_S
@@ -31,6 +30,7 @@ from ..errors import CancelledError
 from ..leadthrough import GuidePoint
 from ..sensor import ForceEstimator
 from ..supervision import Supervisor, cell_supervisor
+from ..supervision.moves import move_joint, move_linear
 from ..transforms import quaternions_from_matrices
 from . import thresholds as th
 from .law import (
@@ -145,83 +145,6 @@ class Recording:
 
     def __len__(self) -> int:
         return len(self.time_s)
-
-
-def move_linear(
-    cell: Cell,
-    state: CellState,
-    T_target: np.ndarray,
-    speed_m_s: float = 0.05,
-    *,
-    supervisor: Supervisor | None = None,
-) -> CellState:
-    """Position-controlled straight move (MoveL) of the TCP to ``T_target``; no force control.
-
-    The reference moves by equal increments, (p1 - p0) / n and log3(R0^T R1) / n in its own
-    axes (the slerp's constant rate), over n periods at ``speed_m_s``: the increments path
-    learning's loop runs through ``Supervisor.supervise_increment``, compiled.
-
-    Supervised: the move slows near a limit and raises ``SupervisionError`` (carrying the last
-    safe cell state) before crossing one.
-    """
-    supervisor = supervisor or cell_supervisor(cell)
-    T_ref = state.T_base_tcp.copy()
-    T_target = np.asarray(T_target, dtype=float)
-    dist = float(np.linalg.norm(T_target[:3, 3] - T_ref[:3, 3]))
-    n = max(1, int(math.ceil(dist / speed_m_s / CONTROL_PERIOD_S)))
-    step = (T_target[:3, 3] - T_ref[:3, 3]) / n
-    turn = pin.log3(T_ref[:3, :3].T @ T_target[:3, :3]) / n
-    progress = 0.0  # periods' worth of motion done (a slowed period counts its scale)
-    settle = 0
-    for _ in range(th.MOVE_MAX_PERIODS_FACTOR * n + 10):
-        if progress >= n and settle >= 10:
-            break
-        part = min(1.0, n - progress) if progress < n else 0.0
-        supervised = supervisor.supervise_increment(state.q_motor, T_ref, step * part, turn * part)
-        if supervised.stop is not None:
-            raise supervised.stop.error(state=state)
-        T_ref = supervised.T_ref
-        state = cell.step(state, supervised.q_next)
-        progress += supervised.scale * part
-        if part == 0.0:  # at the target: settling periods
-            settle += 1
-    return state
-
-
-def move_joint(
-    cell: Cell,
-    state: CellState,
-    q_target: np.ndarray,
-    speed_rad_s: float = 0.5,
-    *,
-    supervisor: Supervisor | None = None,
-) -> CellState:
-    """Joint-interpolated move (MoveJ / MoveAbsJ) to ``q_target``, supervised like MoveL."""
-    supervisor = supervisor or cell_supervisor(cell)
-    q0 = state.q_motor.copy()
-    q1 = np.asarray(q_target, dtype=float)
-    span = float(np.max(np.abs(q1 - q0)))
-    n = max(1, int(math.ceil(span / speed_rad_s / CONTROL_PERIOD_S)))
-    robot = cell.robot
-    progress = 0.0
-    for _ in range(th.MOVE_MAX_PERIODS_FACTOR * n + 10):
-        if progress >= n:
-            break
-        base = progress
-        step = min(1.0, n - progress)
-
-        def propose(scale: float, base: float = base, step: float = step):
-            q = q0 + (q1 - q0) * min(1.0, (base + scale * step) / n)
-            return robot.fk(q), q
-
-        supervised = supervisor.supervise(state.q_motor, propose)
-        if supervised.stop is not None:
-            raise supervised.stop.error(state=state)
-        state = cell.step(state, supervised.q_next)
-        progress += supervised.scale * step
-    for _ in range(10):  # settle
-        state = cell.step(state, state.q_motor)
-    return state
 
 
 def _wrist_turns(robot, guides: Sequence[GuidePoint], closed: bool) -> np.ndarray:
@@ -416,28 +339,14 @@ def learn_path(
     """
     dt = CONTROL_PERIOD_S
     supervisor = supervisor or cell_supervisor(cell)
-    guides, legs, axis = route.guides, route.legs, route.axis
-    decision = route.wall_side
-    side = decision.sign
+    legs, axis = route.legs, route.axis
+    side = route.wall_side.sign
+    heights = route.heights
 
     def across(v: np.ndarray) -> np.ndarray:
         return v - axis * float(v @ axis)
 
-    w = across(np.cross(axis, legs[0].xp) * side)
-    pushed = across(-np.asarray(guides[0].force_N, dtype=float))
-    if route.start_towards_wall is not None:
-        w = across(np.asarray(route.start_towards_wall, dtype=float))
-    elif float(np.linalg.norm(pushed)) >= th.WALL_FORCE_CLEAR_N and float(pushed @ w) > 0.0:
-        w = pushed
-    w /= float(np.linalg.norm(w))
-    heights = route.heights
-    travel = across(legs[0].xp)
-    travel /= float(np.linalg.norm(travel))
-    start = legs[0].a.copy()
-    ref = heights.at(start, travel, w)  # the floor under the whole cutter, a step included
-    start += axis * (route_height(legs[0].row(route.leg_offsets(legs[0])), ref, start, axis)
-                     - float(start @ axis))  # fmt: skip
-    state = _approach(cell, state, guides, start, axis, route.closed, supervisor=supervisor)
+    state, w, ref = _start(cell, state, route, supervisor)
 
     # Room for the run at the speed it may fall to (the slowest advance near the force limit).
     slowest = min(settings.speed_m_s, settings.search_speed_m_s)
@@ -518,45 +427,83 @@ def learn_path(
                 progress(min(1.0, (k + max(0.0, s_now) / leg.length) / len(legs)))
     if progress is not None:
         progress(1.0)
+    if completed:
+        return _recording(record[:n], route, settings, stop_reason, None), state
     rec = record[:n]
-    stop = None
-    if not completed:
-        p_stop = rec[-1, REC_POSITION : REC_POSITION + 3].copy() if n else T_ref[:3, 3].copy()
-        leg_numbers = (leg.first + 1, leg.last + 1)
-        positions, yps = rec[:, REC_POSITION : REC_POSITION + 3], rec[:, REC_YP : REC_YP + 3]
-        wall = _wall_turn(yps, positions, n, side, axis)
-        stop = LearningStop(stop_cause or "stopped", p_stop, leg_numbers, leg_travel, wall)
-        stop_reason = (
-            f"{stop_reason}. It stopped at t = {rec[-1, REC_TIME] if n else 0.0:.2f} s, "
-            f"{leg_travel * 1e3:.0f} mm along the leg G{leg_numbers[0]} -> G{leg_numbers[1]}, "
-            f"where {wall}."
-        )
+    p_stop = rec[-1, REC_POSITION : REC_POSITION + 3].copy() if n else T_ref[:3, 3].copy()
+    leg_numbers = (leg.first + 1, leg.last + 1)
+    positions, yps = rec[:, REC_POSITION : REC_POSITION + 3], rec[:, REC_YP : REC_YP + 3]
+    wall = _wall_turn(yps, positions, n, side, axis)
+    stop = LearningStop(stop_cause or "stopped", p_stop, leg_numbers, leg_travel, wall)
+    stop_reason = (
+        f"{stop_reason}. It stopped at t = {rec[-1, REC_TIME] if n else 0.0:.2f} s, "
+        f"{leg_travel * 1e3:.0f} mm along the leg G{leg_numbers[0]} -> G{leg_numbers[1]}, "
+        f"where {wall}."
+    )
+    return _recording(rec, route, settings, stop_reason, stop), state
+
+
+def _start(
+    cell: Cell, state: CellState, route: LearningRoute, supervisor: Supervisor
+) -> tuple[CellState, np.ndarray, np.ndarray]:
+    """The run's start: the direction to the wall (the mesh's wall point, else the recorded
+    push, else across the first leg on the wall's side), the floor under the whole cutter
+    there (a step included), and the approach down to the first point at the route's height.
+    Returns (the state there, the wall direction, the height reference)."""
+    legs, axis, guide = route.legs, route.axis, route.guides[0]
+
+    def across(v: np.ndarray) -> np.ndarray:
+        return v - axis * float(v @ axis)
+
+    w = across(np.cross(axis, legs[0].xp) * route.wall_side.sign)
+    pushed = across(-np.asarray(guide.force_N, dtype=float))
+    if route.start_towards_wall is not None:
+        w = across(np.asarray(route.start_towards_wall, dtype=float))
+    elif float(np.linalg.norm(pushed)) >= th.WALL_FORCE_CLEAR_N and float(pushed @ w) > 0.0:
+        w = pushed
+    w /= float(np.linalg.norm(w))
+    travel = across(legs[0].xp)
+    travel /= float(np.linalg.norm(travel))
+    start = legs[0].a.copy()
+    ref = route.heights.at(start, travel, w)
+    row = legs[0].row(route.leg_offsets(legs[0]))
+    start += axis * (route_height(row, ref, start, axis) - float(start @ axis))
+    state = _approach(cell, state, route.guides, start, axis, route.closed, supervisor=supervisor)
+    return state, w, ref
+
+
+def _recording(
+    rec: np.ndarray,
+    route: LearningRoute,
+    settings: PathLearningSettings,
+    stop_reason: str,
+    stop: LearningStop | None,
+) -> Recording:
+    """The ``Recording`` of the run's rows (``law.REC_TIME`` ...)."""
 
     def columns(start: int, width: int) -> np.ndarray:
         return rec[:, start : start + width].copy()
 
-    return (
-        Recording(
-            time_s=rec[:, REC_TIME].copy(),
-            joints_rad=columns(REC_JOINTS, 6),
-            position_m=columns(REC_POSITION, 3),
-            quaternion_wxyz=quaternions_from_matrices(
-                rec[:, REC_ROTATION : REC_ROTATION + 9].reshape(-1, 3, 3)
-            ),
-            wrench_sensor=columns(REC_SENSOR, 6),
-            wrench_tool=columns(REC_TOOL, 6),
-            force_normal_N=rec[:, REC_NORMAL].copy(),
-            force_reference_N=np.full(n, settings.force_N),
-            in_contact=rec[:, REC_CONTACT] > 0.5,
-            yp=columns(REC_YP, 3),
-            segment=rec[:, REC_SEGMENT].astype(np.int32),
-            stop_reason=stop_reason,
-            completed=completed,
-            stop=stop,
-            wall_side=decision.side,
-            wall_side_reason=decision.detail,
-            wall_side_source=decision.source,
-            guide_lift_m=tuple(float(v) for v in route.lifted_m),
+    decision = route.wall_side
+    return Recording(
+        time_s=rec[:, REC_TIME].copy(),
+        joints_rad=columns(REC_JOINTS, 6),
+        position_m=columns(REC_POSITION, 3),
+        quaternion_wxyz=quaternions_from_matrices(
+            rec[:, REC_ROTATION : REC_ROTATION + 9].reshape(-1, 3, 3)
         ),
-        state,
+        wrench_sensor=columns(REC_SENSOR, 6),
+        wrench_tool=columns(REC_TOOL, 6),
+        force_normal_N=rec[:, REC_NORMAL].copy(),
+        force_reference_N=np.full(len(rec), settings.force_N),
+        in_contact=rec[:, REC_CONTACT] > 0.5,
+        yp=columns(REC_YP, 3),
+        segment=rec[:, REC_SEGMENT].astype(np.int32),
+        stop_reason=stop_reason,
+        completed=stop is None,
+        stop=stop,
+        wall_side=decision.side,
+        wall_side_reason=decision.detail,
+        wall_side_source=decision.source,
+        guide_lift_m=tuple(float(v) for v in route.lifted_m),
     )

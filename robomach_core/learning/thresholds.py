@@ -16,12 +16,8 @@ AT_WALL_GAP_M = 0.005  # m | a point whose cutter is farther than this from a wa
 NEARER_MARGIN_M = 0.00025  # m | one wall is nearer than another only by more than this (the mesh's facets) | fixed
 WALL_FORCE_CLEAR_N = 2.0  # N | a force across the leg this large is a push against the wall, not the sensor's noise (0.3 N rms) | sensor noise
 MIN_FORCE_VOTES = 2  # points | clear pushes needed to tell the side (all points when fewer) | fixed
-MESH_MAJORITY = (
-    0.75  # share | of the points that are nearer one wall, to tell the side from the mesh | fixed
-)
-WALL_FACE_MAX_COS = math.cos(
-    math.radians(45.0)
-)  # 1 | a face whose normal is within 45 deg of across the tool axis is a wall, else a floor or a top | fixed
+MESH_MAJORITY = 0.75  # share | of the points that are nearer one wall, to tell the side from the mesh | fixed
+WALL_FACE_MAX_COS = math.cos(math.radians(45.0))  # 1 | a face whose normal is within 45 deg of across the tool axis is a wall, else a floor or a top | fixed
 
 # --- the height: what the route holds along the tool axis ----------------------------------------
 FLOOR_SEARCH_M = 0.03  # m | a floor farther than this below the cutter is not the one the route runs over | fixed
@@ -30,9 +26,7 @@ FLOOR_ABOVE_M = 0.002  # m | the floor is looked for from this far above the cut
 WALK_MATCH_M = 0.001  # m | the run takes the floor the walk measured nearest to the tool within this, and measures it itself farther off | fixed
 STEP_LOOKAHEAD_M = 0.003  # m | the floor is also measured this far (+ the cutter's radius) ahead, so a step up is climbed before the cutter meets it | learning speed: enough up to 20 mm/s
 REFERENCE_SPACING_M = 0.001  # m | the floor under the tool is measured anew after this much travel; a plane extrapolates between | fixed: spatial, not timed
-FLOOR_CONE_TAN = math.tan(
-    math.radians(37.0)
-)  # 1 | a force along the axis is the floor's only beyond a wall contact's cone: walls up to 20 deg off the axis and friction up to 0.3 (17 deg) | friction and wall tilt
+FLOOR_CONE_TAN = math.tan(math.radians(37.0))  # 1 | a force along the axis is the floor's only beyond a wall contact's cone: walls up to 20 deg off the axis and friction up to 0.3 (17 deg) | friction and wall tilt
 FLOOR_FORCE_N = 1.5  # N | ... and beyond this (five times the sensor's noise) | sensor noise
 LIFT_DECAY_M = 0.005  # m | a lift off a floor the route did not know fades over this much travel, then the floor is felt again | fixed: spatial
 HEIGHT_TIME_S = 0.05  # s | the height returns to the route's within about this (a position loop; the route's rate is fed forward) | fixed
@@ -40,22 +34,14 @@ HEIGHT_SPEED_M_S = 0.05  # m/s | the fastest the height loop moves the tool alon
 
 # --- following the wall ---------------------------------------------------------------------------
 CONTACT_FLAG_N = 1.0  # N | a measured contact force above this counts as contact | sensor noise
-WALL_DIRECTION_TIME_S = (
-    0.02  # s | low-pass of the measured wall direction (the sensor's noise is per sample) | fixed
-)
-BEHIND_COS = math.cos(
-    math.radians(135.0)
-)  # 1 | a contact force more than 135 deg off the wall direction is the wall behind the tool | fixed
+WALL_DIRECTION_TIME_S = 0.02  # s | low-pass of the measured wall direction (the sensor's noise is per sample) | fixed
+BEHIND_COS = math.cos(math.radians(135.0))  # 1 | a contact force more than 135 deg off the wall direction is the wall behind the tool | fixed
 SLOW_FROM = 1.25  # x F_ref | full learning speed up to this force ... | force reference
 SLOWEST_AT = 2.0  # x F_ref | ... falling to SLOWEST at this force (a wall turning towards the tool) | force reference
 SLOWEST = 0.1  # x speed | the slowest advance, near the force limit | learning speed
 FIRST_SEARCH_ACROSS_M = 0.006  # m | the first search goes straight across this far before it also advances | gap: people leave points 0-3 mm off, twice that
-SEARCH_TURN_M = (
-    0.006  # m | out of contact this long after a wall, the search turns across the leg again | gap
-)
-TURN_RATE_RAD_S = (
-    0.5  # rad/s | the tool's orientation follows the route's at most this fast | fixed
-)
+SEARCH_TURN_M = 0.006  # m | out of contact this long after a wall, the search turns across the leg again | gap
+TURN_RATE_RAD_S = 0.5  # rad/s | the tool's orientation follows the route's at most this fast | fixed
 
 # --- legs: where they end ----------------------------------------------------------------------
 LEG_END_MARGIN_M = 0.002  # m | a leg ends this far before its guide point's plane (at most a quarter of the leg) | fixed
@@ -71,24 +57,17 @@ WANDER_MARGIN_M = 0.01  # m | the wall may lead the tool this much farther off a
 LEG_DETOUR_FACTOR = 4.0  # x leg | a leg's wall longer than this (+ LEG_DETOUR_EXTRA_M) is not the wall between its points | leg length
 LEG_DETOUR_EXTRA_M = 0.05  # m | ... | fixed
 PENETRATION_STOP_FRACTION = 0.5  # x tool radius | a cutter deeper than this in the part is a collision, not a contact | tool radius
-MOVE_MAX_PERIODS_FACTOR = (
-    20  # x | a MoveL slowed by supervision may take this many times longer | fixed
-)
 APPROACH_CLEARANCE_M = 0.03  # m | the approach travels this far above the first point | fixed
 
 # --- the route's check before any motion ---------------------------------------------------------
-WALK_STEP_M = (
-    0.0005  # m | the route is walked along the mesh's wall in steps of this, before the run | fixed
-)
+WALK_STEP_M = 0.0005  # m | the route is walked along the mesh's wall in steps of this, before the run | fixed
 OVER_TOP_SIN = math.sin(math.radians(45.0))  # 1 | the wall met more than 45 deg below the cutter's equator: the cutter rides over the wall's top edge | fixed
 OVER_TOP_M = 0.002  # m | a route whose walk rides over the wall's top this far is refused | fixed
 OPEN_RETURN_M = 0.02  # m | a leg that comes back along the other wall of the same free space this far, with no point there, means an open wall taught as a loop | fixed
 HEAVY_CONTACT_FRACTION = 0.5  # x force limit | a guide point recorded pressing this hard is half-way to a stop | force limit
 TOUCH_WITHOUT_PUSH_N = 0.8  # N | a force between this and WALL_FORCE_CLEAR_N touches without telling the side | sensor noise
 MIN_SPACING_M = 0.001  # m | closer guide points give a leg with no direction | fixed
-WRIST_MARGIN_RAD = (
-    0.4  # rad | axis 6's turn round the route must stay this far inside its range | fixed
-)
+WRIST_MARGIN_RAD = 0.4  # rad | axis 6's turn round the route must stay this far inside its range | fixed
 
 # --- after learning: is the program on the taught wall -------------------------------------------
 TAUGHT_WALL_TOLERANCE_M = 0.001  # m | the program passes this near every taught wall point (the CAD may differ from the part by this) | fixed

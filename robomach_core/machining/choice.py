@@ -13,10 +13,11 @@ STRATEGY  The cell states its options (``CellCapabilities``); the defaults follo
           configuration needs a set of requirements (``requirements``), each met by any of a
           set of options. ``choose`` picks among the runnable rows only, and says why.
 SOLUTION  ``choose(rows, capabilities)`` -> ``Choice(index, reason)``; the rule: among the
-          completed runs the cell can run whose peak force stays within 10 % of the limit,
-          those within 5 % of the fastest cycle; of these the smallest finished-wall max
-          error. With variations the same rule reads the 95th percentiles and asks for every
-          stock to complete.
+          completed runs the cell can run whose peak force stays within the limit, those
+          within 5 % of the fastest cycle; of these the smallest finished-wall max error; none
+          when no run keeps the limit (the reason says which came closest). With variations
+          the same rule reads the 95th percentiles (the nominal stock counted) and asks for
+          every stock to complete.
 """
 
 from __future__ import annotations
@@ -24,8 +25,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-# The choice: peak force within this share above the limit, cycle within this of the fastest.
-PEAK_MARGIN = 0.10
+# The choice: peak force within the limit (no margin above it: the limit is "the force the
+# cut must not exceed"), cycle within this of the fastest.
+PEAK_MARGIN = 0.0
 CYCLE_MARGIN = 0.05
 # A configuration must complete on at least this share of the stocks of a variation sweep.
 COMPLETED_SHARE = 1.0
@@ -34,16 +36,32 @@ OPTION_NAMES: tuple[str, ...] = ("fc_speed_change", "path_correction", "force_mo
 OPTION_TEXT = {
     "fc_speed_change": "FC SpeedChange (ABB Force Control option)",
     "path_correction": "an online path-correction interface",
-    "force_mode": "force mode (UR)",
+    "force_mode": "the UR's force/torque sensing (e-Series: the program runs its own feed loop)",
 }
+# Option -> the arm families whose controllers have it: FC SpeedChange is ABB's (RobotWare
+# Force Control), the UR's built-in F/T sensor with force mode is the UR's; an online path
+# correction exists on all three (ABB Path Offset / CorrWrite, UR path_offset, KUKA RSI).
+OPTION_FAMILIES: dict[str, tuple[str, ...]] = {
+    "fc_speed_change": ("abb",),
+    "force_mode": ("ur",),
+    "path_correction": ("abb", "ur", "kuka"),
+}
+FAMILY_TEXT = {"abb": "ABB (RAPID)", "ur": "UR (URScript)", "kuka": "KUKA (KRL)"}
 # Requirement -> the options that meet it (any one).
 REQUIREMENTS: dict[str, tuple[str, ...]] = {
     "feed_override": ("fc_speed_change", "force_mode"),
     "online_correction": ("path_correction",),
 }
 REQUIREMENT_TEXT = {
-    "feed_override": "a force-driven feed override (FC SpeedChange or force mode)",
+    "feed_override": "a force-driven feed override (ABB: FC SpeedChange; UR: the program's "
+    "own feed loop on its force/torque sensor)",
     "online_correction": "an online path-correction interface",
+}
+# What a family's controller cannot be given by robomach, said where a row needs it.
+FAMILY_LACKS_TEXT = {
+    ("kuka", "feed_override"): "a force-driven feed override: robomach writes none for a KUKA "
+    "controller (KRL has no force-driven override without KUKA.ForceTorqueControl or an RSI "
+    "loop, which robomach does not generate), so only the constant feed runs there",
 }
 # Program language -> the options such a cell has by default (a language not listed: none).
 LANGUAGE_DEFAULT_OPTIONS: dict[str, tuple[str, ...]] = {
@@ -53,11 +71,39 @@ LANGUAGE_DEFAULT_OPTIONS: dict[str, tuple[str, ...]] = {
 }
 
 
+LANGUAGE_FAMILY = {"rapid": "abb", "urscript": "ur", "krl": "kuka"}
+
+
+def options_for_family(family: str | None) -> tuple[str, ...]:
+    """The options an arm family's controller can have (every option for an unknown one)."""
+    if family is None:
+        return OPTION_NAMES
+    return tuple(o for o in OPTION_NAMES if family in OPTION_FAMILIES[o])
+
+
+def check_options_for_arm(options, family: str | None, arm: str) -> None:
+    """Raise ``MachiningSettingsError`` naming the options an arm's controller cannot have."""
+    foreign = [o for o in OPTION_NAMES if o in set(options) and o not in options_for_family(family)]
+    if foreign:
+        from .errors import MachiningSettingsError
+
+        owners = "; ".join(
+            f"{o} is for {', '.join(FAMILY_TEXT.get(f, f) for f in OPTION_FAMILIES[o])} controllers"
+            for o in foreign
+        )
+        offered = ", ".join(options_for_family(family)) or "none"
+        raise MachiningSettingsError(
+            f"the {arm} arm's controller ({FAMILY_TEXT.get(family or '', family)}) cannot have "
+            f"{', '.join(foreign)}: {owners}; its options: {offered}"
+        )
+
+
 @dataclass(frozen=True)
 class CellCapabilities:
-    """The controller options of the cell (``OPTION_NAMES``)."""
+    """The controller options of the cell (``OPTION_NAMES``) and its arm family (None: any)."""
 
     options: frozenset[str] = frozenset()
+    family: str | None = None
 
     def __post_init__(self) -> None:
         unknown = sorted(set(self.options) - set(OPTION_NAMES))
@@ -73,7 +119,16 @@ class CellCapabilities:
     @classmethod
     def for_language(cls, language: str) -> CellCapabilities:
         """The default options of a cell programmed in ``language``."""
-        return cls(frozenset(LANGUAGE_DEFAULT_OPTIONS.get(language, ())))
+        return cls(
+            frozenset(LANGUAGE_DEFAULT_OPTIONS.get(language, ())), LANGUAGE_FAMILY.get(language)
+        )
+
+    @classmethod
+    def for_family(cls, family: str | None, options) -> CellCapabilities:
+        """The cell's ``options`` that its arm family's controller can have (others dropped:
+        an arm changed since they were set)."""
+        allowed = options_for_family(family)
+        return cls(frozenset(o for o in options if o in allowed), family)
 
     def describe(self) -> str:
         if not self.options:
@@ -100,6 +155,12 @@ def missing(controller: str, compensation: str, capabilities: CellCapabilities) 
     )
 
 
+def needs_text(requirement: str, capabilities: CellCapabilities) -> str:
+    """What a configuration needs and the cell lacks, in words (the family's reason when its
+    controller cannot be given it)."""
+    return FAMILY_LACKS_TEXT.get((capabilities.family, requirement), REQUIREMENT_TEXT[requirement])
+
+
 def mark_runnable(
     rows: list[dict[str, Any]], capabilities: CellCapabilities
 ) -> list[dict[str, Any]]:
@@ -108,7 +169,11 @@ def mark_runnable(
     for row in rows:
         lacks = missing(row["controller"], row["compensation"], capabilities)
         out.append(
-            dict(row, runnable=not lacks, needs=[REQUIREMENT_TEXT[r] for r in lacks] or None)
+            dict(
+                row,
+                runnable=not lacks,
+                needs=[needs_text(r, capabilities) for r in lacks] or None,
+            )
         )
     return out
 
@@ -156,20 +221,26 @@ def choose(rows: list[dict[str, Any]], capabilities: CellCapabilities) -> Choice
         if not runnable:
             why = f"this cell ({capabilities.describe()}) can run none of the configurations"
         return Choice(None, why)
-    safe = [i for i in done if _figures(rows[i])[1] <= (1 + PEAK_MARGIN) * rows[i]["force_limit_N"]]
-    pool = safe or done
-    fastest = min(_figures(rows[i])[0] for i in pool)
-    quick = [i for i in pool if _figures(rows[i])[0] <= (1 + CYCLE_MARGIN) * fastest]
+    safe = [i for i in done if within_limit(_figures(rows[i])[1], rows[i]["force_limit_N"])]
+    if not safe:
+        low = min(done, key=lambda i: _figures(rows[i])[1])
+        row = rows[low]
+        return Choice(
+            None,
+            f"none of the {len(done)} completed configurations this cell can run keeps the "
+            f"peak force{tag} within the {row['force_limit_N']:g} N limit (the lowest: "
+            f"{_figures(row)[1]:.1f} N, {row['controller']} / {row['compensation']}); raise "
+            "the limit, or lower the CMRR reference force (0.7 of the limit by default)",
+        )
+    fastest = min(_figures(rows[i])[0] for i in safe)
+    quick = [i for i in safe if _figures(rows[i])[0] <= (1 + CYCLE_MARGIN) * fastest]
     pick = min(quick, key=lambda i: (_figures(rows[i])[2], _figures(rows[i])[0]))
     cycle, peak, wall, _ = _figures(rows[pick])
     row = rows[pick]
-    limit = (1 + PEAK_MARGIN) * row["force_limit_N"]
     parts = [
         f"{row['controller']} / {row['compensation']}{tag}: of the {len(done)} completed "
         f"configurations this cell can run ({capabilities.describe()})",
-        f"{len(safe)} keep the peak force within 10 % of the limit ({limit:.0f} N)"
-        if safe
-        else f"none keeps the peak force within {limit:.0f} N, so all {len(done)} are compared",
+        f"{len(safe)} keep the peak force within the {row['force_limit_N']:g} N limit",
         f"{len(quick)} are within 5 % of the fastest cycle ({fastest:.1f} s), and this one "
         f"leaves the smallest wall error ({wall:.3f} mm; cycle {cycle:.1f} s, peak {peak:.1f} N)",
     ]
@@ -178,8 +249,14 @@ def choose(rows: list[dict[str, Any]], capabilities: CellCapabilities) -> Choice
     return Choice(pick, "; ".join(parts) + ".")
 
 
+def within_limit(peak_N: float | None, limit_N: float) -> bool:
+    """The force limit as documented: the peak force may reach it, not pass it."""
+    return peak_N is not None and peak_N <= (1.0 + PEAK_MARGIN) * limit_N
+
+
 RULE_TEXT = (
-    "among the completed configurations the cell can run, those with peak force within 10 % "
-    "of the limit; of those within 5 % of the fastest cycle, the smallest wall max error "
-    "(with variations: the 95th percentiles, every stock completed)"
+    "among the completed configurations the cell can run, those whose peak force stays within "
+    "the force limit; of those within 5 % of the fastest cycle, the smallest wall max error "
+    "(with variations: the 95th percentiles over the nominal stock and the drawn ones, every "
+    "stock completed)"
 )

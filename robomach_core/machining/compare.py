@@ -121,11 +121,21 @@ def comparison_rows(
     return rows
 
 
-def format_table(rows: Sequence[dict[str, Any]]) -> str:
-    """The rows as a fixed-width text table ("stopped" for a cut that did not finish)."""
+# The table's first column ("cell"): the rule's pick, what the cell can and cannot run.
+MARK_CHOSEN = "chosen"
+MARK_RUNNABLE = "can run"
+MARK_NOT_RUNNABLE = "cannot"
+
+
+def format_table(rows: Sequence[dict[str, Any]], *, chosen: int | None = None) -> str:
+    """The rows as a fixed-width text table ("stopped" for a cut that did not finish). When
+    the rows were marked for a cell (``choice.mark_runnable``) or a row is ``chosen``, a first
+    column ("cell") says which is chosen and what the cell can and cannot run; what it lacks
+    is said below the table."""
     columns = TABLE_COLUMNS
     if any("cycle_time_p95_s" in row for row in rows):
         columns = TABLE_COLUMNS[:-1] + VARIATION_TABLE_COLUMNS + TABLE_COLUMNS[-1:]
+    marked = chosen is not None or any("runnable" in row for row in rows)
     header = [h for _, h, _ in columns]
     body = []
     for row in rows:
@@ -138,9 +148,26 @@ def format_table(rows: Sequence[dict[str, Any]]) -> str:
             else:
                 cells.append(fmt.format(value))
         body.append(cells)
+    if marked:
+        header = ["cell", *header]
+        for k, (row, cells) in enumerate(zip(rows, body, strict=True)):
+            mark = MARK_RUNNABLE
+            if k == chosen:
+                mark = MARK_CHOSEN
+            elif row.get("runnable") is False:
+                mark = MARK_NOT_RUNNABLE
+            cells.insert(0, mark)
     widths = [max(len(h), *(len(c[i]) for c in body)) for i, h in enumerate(header)]
     lines = ["  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True))]
     lines += ["  ".join(c.rjust(w) for c, w in zip(cells, widths, strict=True)) for cells in body]
+    lacking = [row for row in rows if row.get("runnable") is False]
+    if lacking:
+        needs = sorted({n for row in lacking for n in row.get("needs") or ()})
+        lines += [
+            "",
+            f"{MARK_NOT_RUNNABLE}: {len(lacking)} of {len(rows)} configurations need what this "
+            f"cell lacks: {'; '.join(needs)}",
+        ]
     return "\n".join(lines)
 
 
@@ -175,15 +202,11 @@ def compare_configurations(
             if progress is not None:
                 progress((i + fraction) / len(pairs))
 
-        rehearsal = next(
-            (r for r in runs if (r.controller, r.compensation) == (controller, "off")), None
-        )
         try:
             runs.append(
                 run_configuration(
                     robot, targets, wall_normals_m, stock, settings, controller, compensation,
                     compensation_model=model, progress=sub_progress, cancel=cancel,
-                    rehearsal=rehearsal,
                 )
             )  # fmt: skip
         except InvalidInputError as exc:
@@ -206,11 +229,12 @@ def run_configuration(
     compensation_model: CompensationModel | None = None,
     progress: ProgressCallback | None = None,
     cancel: CancelFlag | Callable[[], bool] | None = None,
-    rehearsal: MachiningRun | None = None,
+    program_frame: np.ndarray | None = None,
+    corrected: tuple[Targets, Targets] | None = None,
 ) -> MachiningRun:
     """One configuration of the matrix: ``settings`` with this controller and compensation
-    (the settings' own controller settings only for their own controller); ``rehearsal`` (the
-    same controller uncompensated) plans an offline compensation's first correction."""
+    (the settings' own controller settings only for their own controller); ``corrected``
+    (program, nominal targets) is an offline correction already planned: cut as it is."""
     own = settings.controller_settings
     run_settings = replace(
         settings,
@@ -218,6 +242,18 @@ def run_configuration(
         compensation=compensation,
         controller_settings=own if own is not None and own.kind == controller else None,
     )
+    if corrected is not None and compensation == "offline":
+        from .program import as_written
+        from .run import cut_program
+
+        program, nominal = corrected
+        return cut_program(
+            robot, as_written(program, program_frame), None, stock, run_settings,
+            cancel=cancel, progress=progress, nominal=nominal,
+            compensation_model_for_record=stiffness_model(
+                robot.name, run_settings, compensation_model
+            ),
+        )  # fmt: skip
     return run_machining(
         robot,
         targets,
@@ -227,7 +263,7 @@ def run_configuration(
         compensation_model=compensation_model,
         progress=progress,
         cancel=cancel,
-        rehearsal_force=rehearsal if compensation == "offline" else None,
+        program_frame=program_frame,
     )
 
 

@@ -38,6 +38,7 @@ from dataclasses import replace
 from ..cmrr.controllers import (
     AdaptiveLqSettings,
     ControllerSettings,
+    FuzzySettings,
     TwoStageSettings,
     settings_for,
 )
@@ -51,6 +52,16 @@ PAPER_LOW_SPEED_RATIO = 0.5
 LOWEST_DESIGN_RATIO = 0.05
 # The two-stage design keeps the deepest cut this far under the protection rule's onset.
 PROTECTION_MARGIN = 0.95
+# The staged controllers hold their trend input this long after their own stage change
+# (``FuzzySettings.switch_settle_s``): eq. (1)'s slow pole (15 ms), the force lag and the
+# 20 Hz filter settle within it, and at the 10 mm/s speed cap it is at most 1 mm of path, a
+# fraction of a burr's 4-8 mm.
+SWITCH_SETTLE_S = 0.1
+# ... and go a stage up only if the force predicted there stays 5 % under the reference
+# (``FuzzySettings.stage_up_margin``): the sensor's noise no longer decides, and a stretch at
+# the next stage does not come and go with it. Both make the stage switches of a cut
+# repeatable, which offline compensation needs (two-stage: 58-65 % -> 74-81 % over 24 stocks).
+STAGE_UP_MARGIN = 0.05
 # The LQ is re-designed when Df_hat moves 10 % (the Lund paper re-solves "continuously"): a
 # casting's Df spans a factor of ten, and a Riccati solution per 2 % step was 7 s of a 2 s cut.
 LQ_RESOLVE_TOLERANCE = 0.1
@@ -90,7 +101,11 @@ def designed_controller_settings(
         target = min(settings.force_limit_N, PROTECTION_MARGIN * onset)
         ratio = safe_speed_ratio(replace(settings, force_limit_N=target), max_depth_m, speed_m_s)
         low = min(PAPER_LOW_SPEED_RATIO, max(ratio, LOWEST_DESIGN_RATIO))
-        return TwoStageSettings(low_speed_ratio=round(low, 3))
+        return TwoStageSettings(
+            low_speed_ratio=round(low, 3),
+            switch_settle_s=SWITCH_SETTLE_S,
+            stage_up_margin=STAGE_UP_MARGIN,
+        )
     if name == "adaptive-lq":
         defaults = AdaptiveLqSettings()
         process = settings.process
@@ -114,4 +129,6 @@ def designed_controller_settings(
             initial_removal_N_s_mm=prior if prior is not None and 1e-6 < prior < 1e9 else None,
             stiffness_N_mm=stiffness,
         )
+    if name == "fuzzy":
+        return FuzzySettings(switch_settle_s=SWITCH_SETTLE_S, stage_up_margin=STAGE_UP_MARGIN)
     return settings_for(name)

@@ -7,17 +7,20 @@ PROBLEM   Offline compensation moves each target against the deflection the proc
           thin allowance, the controller is still catching a burr, or the tool is entering the
           stock; there the planned correction overcuts, and the error cut by compensation
           stays at 57-74 % instead of >= 75 %.
-STRATEGY  Rehearse the cut: plan the targets for the force the same controller met on the same
-          stock (first the uncompensated run's, when the caller has it, else eq. 5 at the
-          stock's depth and the planned feed), cut the corrected program in the simulator, take
-          the force it met at each target, re-plan, and repeat until no target moves by more
-          than ``SETTLE_M`` between two rehearsals (at most ``MAX_REHEARSALS``). The
-          compensated cut meets a larger depth than the uncompensated one (the tool no longer
-          backs off the wall), so the force, and with a CMRR controller the feed, change with
-          the plan; the iteration is a fixed point of "plan for the force this plan meets".
-SOLUTION  ``offline_compensated_run`` returns the last rehearsal: its program is the corrected
-          program the export carries, and its trace and finished wall are what that program
-          does, so the table shows what the exported program will cut.
+STRATEGY  Rehearse the cut. The first plan is the force of the cut a working compensation
+          meets: the tool held on the nominal wall, the full allowance cut by the same
+          controller (one cut with the deflection left out). Planning from the uncompensated
+          run's force instead under-corrected everywhere (the compensated cut is deeper), and
+          under a staged controller every re-plan moved the stage switches (the force crosses
+          its thresholds at a shallow angle, so 4 % more force moved a switch by millimetres)
+          and the correction chased them: 61 % under the two-stage controller. Then cut the
+          corrected program, correct the plan by the finished wall's error (ILC) and repeat
+          until no target moves by more than ``SETTLE_M`` (at most ``MAX_REHEARSALS``); keep
+          the best rehearsal. Rehearsals cut the nominal program's plan with the planned
+          offsets; the corrected program is built once, from the best plan, and cut.
+SOLUTION  ``offline_compensated_run`` returns the corrected program's cut: its program is the
+          one the export carries, and its trace and finished wall are what that program does,
+          so the table shows what the exported program will cut.
 """
 
 from __future__ import annotations
@@ -30,17 +33,18 @@ import numpy as np
 from ..postprocess import Targets
 from ..robot import Robot
 from ..transforms import make_transform, matrices_from_quaternions, quaternions_from_matrices
-from .path import arc_length_m, path_tangents
+from .path import arc_length_m
 
 # Rehearsals stop when the planned shift moves by no more than this between two of them [m].
 SETTLE_M = 1.0e-6
-MAX_REHEARSALS = 4
+MAX_REHEARSALS = 6
 # The corrected program's targets: where the planned shift departs from a straight line
 # between two targets by more than this, and at most this far apart [m].
 PLACEMENT_TOLERANCE_M = 1.0e-6
 MAX_SPACING_M = 5.0e-3
 # Learning gain of the update from the rehearsal's wall error (ILC paper: 0 < L <= 1); a
-# half step does not chase the ripple a CMRR controller leaves from one rehearsal to the next.
+# half step does not chase the ripple a CMRR controller leaves from one rehearsal to the next
+# (six rehearsals: four left a staged controller's cut 5-10 points short on some stocks).
 LEARNING_GAIN = 0.5
 
 
@@ -72,16 +76,36 @@ def correction_stations(
     s_m: np.ndarray, shift_m: np.ndarray, fixed_m: np.ndarray, *, tolerance_m: float,
     max_spacing_m: float,
 ) -> np.ndarray:  # fmt: skip
-    """Where the corrected program needs targets: the ``fixed_m`` stations (the nominal
-    targets), at most ``max_spacing_m`` apart, and wherever the planned shift between two
+    """Where the corrected program needs targets: the ``fixed_m`` arc lengths (the nominal
+    targets, exactly: the corrected program keeps their corners and their moves' speeds), at
+    most ``max_spacing_m`` apart, and wherever the planned shift between two
     targets departs from a straight line by more than ``tolerance_m`` (the deviation-height
     reduction of chapter fig. 3, applied to the correction: a burr's force transient gets
     targets every few tenths of a millimetre, a steady cut one every few millimetres)."""
+    from ._kernel import split_by_deviation
+
     keep = np.zeros(len(s_m), dtype=bool)
     keep[np.searchsorted(s_m, np.clip(fixed_m, s_m[0], s_m[-1]))] = True
     keep[[0, -1]] = True
     grid = np.arange(0.0, s_m[-1], max_spacing_m)
     keep[np.searchsorted(s_m, grid)] = True
+    split_by_deviation(
+        np.ascontiguousarray(s_m, dtype=float), np.ascontiguousarray(shift_m, dtype=float),
+        keep, float(tolerance_m),
+    )  # fmt: skip
+    fixed = np.asarray(fixed_m, dtype=float)
+    fixed = fixed[(fixed >= s_m[0]) & (fixed <= s_m[-1])]
+    grid = np.union1d(s_m[keep], fixed)
+    # A station within a nanometre of a nominal target stands for it.
+    return grid[np.concatenate([[True], np.diff(grid) > 1e-9])]
+
+
+def split_by_deviation_reference(
+    s_m: np.ndarray, shift_m: np.ndarray, keep: np.ndarray, tolerance_m: float
+) -> None:
+    """``_kernel.split_by_deviation`` in numpy (its reference, tests compare them): between
+    each two kept stations, keep the one the shift departs most from the straight line by,
+    when that is more than ``tolerance_m``, and split there, until no interval needs one."""
     stack = list(zip(np.flatnonzero(keep)[:-1], np.flatnonzero(keep)[1:], strict=True))
     while stack:
         i, j = stack.pop()
@@ -95,7 +119,6 @@ def correction_stations(
             mid = i + 1 + k
             keep[mid] = True
             stack += [(i, mid), (mid, j)]
-    return s_m[keep]
 
 
 def program_poses(targets: Targets) -> np.ndarray:
@@ -107,38 +130,35 @@ def program_poses(targets: Targets) -> np.ndarray:
 def corrected_program(
     robot: Robot,
     dense: Targets,
-    normals_m: np.ndarray,
+    directions_m: np.ndarray,
     force_N: np.ndarray,
-    feed_force_ratio: float,
     model,
 ) -> Targets:
     """The dense program with each target moved against the deflection the force ``force_N``
-    (along u = (n - rho t) / |n - rho t|) causes under the identified stiffness ``model``:
-    chapter eq. (32), linear, as ``stiffness.compensate_targets_and_joints`` does it, with the
-    joints moved by -theta (first order: the robot's IK of the corrected pose differs by
-    O(theta^2), nano-radians here), so a rehearsal needs no IK per target."""
-    from ..stiffness.model import apply_twist
+    (along ``directions_m``, u = (n - rho t) / |n - rho t|) causes under the identified
+    stiffness ``model``: chapter eq. (32), linear, as ``stiffness.compensate_targets_and_joints``
+    does it, with the joints moved by -theta (first order: the robot's IK of the corrected pose
+    differs by O(theta^2), nano-radians here), so it needs no IK per target."""
+    from scipy.spatial.transform import Rotation
 
-    u = normals_m - feed_force_ratio * path_tangents(dense.position_m)
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    u = np.asarray(directions_m, dtype=float)
     force = np.asarray(force_N, dtype=float)
     c = np.asarray(model.compliance_rad_Nm, dtype=float)
-    Ts = program_poses(dense)
     q0 = np.asarray(dense.joints_rad, dtype=float)
-    out_T = np.empty_like(Ts)
-    out_q = np.empty_like(q0)
-    wrench = np.zeros(6)
+    Js = np.empty((len(dense), 6, 6))
     for i in range(len(dense)):
-        _, J = robot.fk_and_jacobian(q0[i])
-        wrench[:3] = force[i] * u[i]
-        theta = c * (J.T @ wrench)
-        out_T[i] = apply_twist(Ts[i], -(J @ theta))
-        out_q[i] = q0[i] - theta
+        Js[i] = robot.fk_and_jacobian(q0[i])[1]
+    # theta = Kq^-1 J^T [F u; 0], the twist J theta (the arm's deflection), applied negated:
+    # p - dp, R' = exp(-dw) R (``stiffness.model.apply_twist``).
+    theta = c * np.einsum("kji,kj->ki", Js[:, :3, :], force[:, None] * u)
+    twist = np.einsum("kij,kj->ki", Js, theta)
+    R = matrices_from_quaternions(np.asarray(dense.quaternion_wxyz, dtype=float))
+    R_c = Rotation.from_rotvec(-twist[:, 3:]).as_matrix() @ R
     return replace(
         dense,
-        position_m=out_T[:, :3, 3].copy(),
-        quaternion_wxyz=quaternions_from_matrices(out_T[:, :3, :3]),
-        joints_rad=out_q,
+        position_m=np.asarray(dense.position_m, dtype=float) - twist[:, :3],
+        quaternion_wxyz=quaternions_from_matrices(R_c),
+        joints_rad=q0 - theta,
     )
 
 
@@ -153,67 +173,65 @@ def force_met_N(run, s_m: np.ndarray) -> np.ndarray:
     """The process force a run met at arc lengths ``s_m`` along the path [N] (zero beyond
     where a stopped run ended)."""
     tr = run.trace
-    if len(tr) < 2:
+    if len(tr.path_m) < 2:
         return np.zeros(len(s_m))
     return np.interp(s_m, tr.path_m, tr.force_N, right=0.0)
 
 
 def offline_compensated_run(
-    cut: Callable[[Targets, Targets, Callable[[float], None] | None], object],
+    rehearse: Callable[[np.ndarray], object],
+    cut: Callable[[Targets, Targets], object],
     robot: Robot,
     nominal: Targets,
     stations_m: np.ndarray,
+    run_stations_m: np.ndarray,
     normal_compliance_m_N: np.ndarray,
     normals_m: np.ndarray,
+    directions_m: np.ndarray,
     first_force_N: np.ndarray,
     *,
-    feed_force_ratio: float,
     model,
     progress: Callable[[float], None] | None = None,
 ):
-    """Rehearse until the corrected targets settle (module docstring).
+    """Rehearse until the corrected targets settle (module docstring), then cut the corrected
+    program of the best rehearsal.
 
     Args:
-        cut: Cuts a program paired with its nominal targets (the simulator with compensation
-            applied by the program alone), with a progress callback; returns the
-            ``MachiningRun``.
-        nominal: The nominal program; ``stations_m`` (k,) a fine grid of arc lengths along it
-            (the run's stations), ``normal_compliance_m_N`` (k,) n^T C_hat u there (for the
-            target placement), ``normals_m`` (k, 3) the wall normals there.
+        rehearse: Cuts the nominal program moved off the stock's path by the given offsets at
+            ``run_stations_m`` (the planned correction's normal part, -n^T C_hat u F, between
+            the corrected targets), returns the ``MachiningRun``.
+        cut: Cuts a corrected program paired with its nominal targets (``cut_program``).
+        nominal: The nominal program; ``stations_m`` (k,) a fine grid of arc lengths along it,
+            ``normal_compliance_m_N`` (k,) n^T C_hat u there (``compliance``), ``normals_m``
+            and ``directions_m`` (k, 3) the wall normals n and the force's directions u there.
         first_force_N: (k,) the force of the first plan at the stations.
 
     Returns:
-        (the last rehearsal's run, its corrected program, its nominal targets, number of
+        (the corrected program's run, the corrected program, its nominal targets, number of
         rehearsals, the last change of the planned shift [m]).
     """
     s_n = arc_length_m(nominal.position_m)
     s_f = np.asarray(stations_m, dtype=float)
+    s_run = np.asarray(run_stations_m, dtype=float)
 
-    def plan(force: np.ndarray) -> tuple[Targets, Targets, np.ndarray]:
+    def plan(force: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The corrected targets' arc lengths and the shift there."""
         shift = normal_compliance_m_N * force
         grid = correction_stations(
             s_f, shift, s_n, tolerance_m=PLACEMENT_TOLERANCE_M, max_spacing_m=MAX_SPACING_M
         )
-        dense = targets_at(nominal, grid)
-        n = np.stack([np.interp(grid, s_f, normals_m[:, i]) for i in range(3)], axis=1)
-        n /= np.linalg.norm(n, axis=1, keepdims=True)
-        f = np.interp(grid, s_f, force)
-        program = corrected_program(robot, dense, n, f, feed_force_ratio, model)
-        return program, dense, shift
+        return grid, np.interp(grid, s_f, shift)
 
     force = np.asarray(first_force_N, dtype=float)
-    program, dense, shift = plan(force)
     change = np.inf
     best = None
     for k in range(MAX_REHEARSALS):
-
-        def sub(fraction: float, k: int = k) -> None:
-            if progress is not None:
-                progress(min((k + fraction) / MAX_REHEARSALS, 1.0))
-
-        run = cut(program, dense, sub)
+        grid, shift = plan(force)
+        run = rehearse(-np.interp(s_run, grid, shift))
+        if progress is not None:
+            progress(min((k + 1) / (MAX_REHEARSALS + 1), 1.0))
         if best is None or _worse(best[0], run):
-            best = (run, program, dense)
+            best = (run, force)
         if not run.summary["completed"]:
             break  # a stopped cut cannot plan the rest of the path
         # ILC on the finished wall (ILC paper, u_{k+1} = u_k + L e_k): the rehearsal's wall
@@ -224,10 +242,15 @@ def offline_compensated_run(
         step = LEARNING_GAIN * error / np.maximum(normal_compliance_m_N, 1e-12)
         force = np.maximum(force + step, 0.0)
         change = float(np.max(np.abs(LEARNING_GAIN * error)))
-        if change <= SETTLE_M or k + 1 == MAX_REHEARSALS:
+        if change <= SETTLE_M:
             break
-        program, dense, shift = plan(force)
-    run, program, dense = best
+    force = best[1]
+    grid, _ = plan(force)
+    dense = targets_at(nominal, grid)
+    u = np.stack([np.interp(grid, s_f, directions_m[:, i]) for i in range(3)], axis=1)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    program = corrected_program(robot, dense, u, np.interp(grid, s_f, force), model)
+    run = cut(program, dense)
     if progress is not None:
         progress(1.0)
-    return run, program, dense, k + 1, change
+    return run, run.program, dense, k + 1, change

@@ -56,6 +56,9 @@ class CutTask:
         controller: The controller; ``compensations`` its modes, run in order.
         model: The identified stiffness (``JointCompliance``) or None.
         keep_runs: Return the ``MachiningRun`` values (traces) too, not only the summaries.
+        program_frame: The work object the program files write positions in (``run_machining``).
+        corrected: (program, its nominal targets) of an offline correction planned on another
+            stock: the offline mode cuts it instead of rehearsing (a sweep over castings).
     """
 
     robot_name: str
@@ -68,6 +71,8 @@ class CutTask:
     compensations: tuple[str, ...]
     model: Any = None
     keep_runs: bool = False
+    program_frame: np.ndarray | None = None
+    corrected: Any = None
 
 
 def _robot(name: str, T: np.ndarray):
@@ -88,19 +93,17 @@ def run_cut_task(
 
     robot = _robot(task.robot_name, task.T_flange_tcp)
     out: list[tuple[Any, dict[str, Any] | None, str | None]] = []
-    off = None
     for mode in task.compensations:
         try:
             run = run_configuration(
                 robot, task.targets, task.wall_normals_m, task.stock, task.settings,
                 task.controller, mode, compensation_model=task.model, cancel=cancel,
-                rehearsal=off,
+                program_frame=task.program_frame,
+                corrected=task.corrected if mode == "offline" else None,
             )  # fmt: skip
         except InvalidInputError as exc:
             out.append((None, None, str(exc)))
             continue
-        if mode == "off":
-            off = run
         out.append((run if task.keep_runs else None, run.summary, None))
     return out
 
@@ -155,13 +158,46 @@ def _interrupts_deferred() -> Iterator[None]:
             signal.raise_signal(sig)  # now, to the handlers the program had
 
 
+def _submitted(pool: ProcessPoolExecutor, tasks: Sequence[CutTask], cancel) -> list:
+    """The tasks submitted to ``pool``. A pool's first submit waits for its forkserver to start
+    and load the kernels (compiling them when numba's cache is cold: a minute on a loaded
+    machine), so off the main thread (a server's job) it runs beside a loop that keeps
+    looking at the cancel flag: a cancel ends the job at once, and the pool is stopped when
+    its start is over. On the main thread (the CLI), interrupts wait for the submits."""
+    if threading.current_thread() is threading.main_thread() or cancel is None:
+        with _interrupts_deferred():  # every worker started is one the pool knows, to stop
+            return [pool.submit(run_cut_task, task) for task in tasks]
+    futures: list = []
+    starter = threading.Thread(
+        target=lambda: futures.extend(pool.submit(run_cut_task, task) for task in tasks),
+        name="machining-pool-start",
+        daemon=True,
+    )
+    starter.start()
+    while starter.is_alive():
+        starter.join(POLL_S)
+        if starter.is_alive() and cancel():
+            threading.Thread(  # stop the pool once it has started; the job ends now
+                target=lambda: (starter.join(), _stop_workers(pool)), daemon=True
+            ).start()
+            raise _Abandoned("machining cancelled")
+    return futures
+
+
+class _Abandoned(CancelledError):
+    """Cancelled while the pool was starting: another thread stops the pool."""
+
+
 def _pool_context() -> multiprocessing.context.BaseContext:
     """Workers forked from one forkserver that imported the cut's modules once: a spawned
     worker imported them itself (about 3 s of CPU each, for each comparison). Like spawn, and
     unlike fork, the forkserver holds no thread of the server's. It lives as long as this
     process and serves every later pool: the second comparison's workers start at once."""
     context = multiprocessing.get_context("forkserver")
-    context.set_forkserver_preload([__name__, "robomach_core.machining.compare"])
+    # ``_warm`` loads the compiled kernels once, for every worker forked afterwards.
+    context.set_forkserver_preload(
+        [__name__, "robomach_core.machining.compare", "robomach_core.machining._warm"]
+    )
     return context
 
 
@@ -211,8 +247,7 @@ def run_tasks(
         initargs=(os.getpid(),),
     )
     try:
-        with _interrupts_deferred():  # every worker started is one the pool knows, to stop
-            futures = [pool.submit(run_cut_task, task) for task in tasks]
+        futures = _submitted(pool, tasks, cancel)
         pending = set(futures)
         while pending:
             done, pending = wait(pending, timeout=POLL_S, return_when=FIRST_COMPLETED)
@@ -221,6 +256,8 @@ def run_tasks(
             if progress is not None and done:
                 progress(1.0 - len(pending) / len(futures))
         results = [f.result() for f in futures]
+    except _Abandoned:
+        raise CancelledError("machining cancelled") from None
     except BaseException:  # cancelled, interrupted (Ctrl-C, SIGTERM) or a task failed
         _stop_workers(pool)
         raise

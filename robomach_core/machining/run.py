@@ -43,6 +43,7 @@ itself.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable
@@ -53,23 +54,35 @@ import numpy as np
 
 from ..clock import CONTROL_PERIOD_S
 from ..cmrr.controllers import ControlDesign, make_controller
-from ..cmrr.controllers._fast import fast_stepper
 from ..cmrr.feed_dynamics import FeedDynamics
 from ..cmrr.process import ForceSensorModel, PowerLawForceModel
 from ..cmrr.simulation import CancelFlag as CancelFlag
 from ..cmrr.simulation import ProgressCallback as ProgressCallback
 from ..cmrr.simulation import cancel_predicate
-from ..errors import InvalidInputError
 from ..joint_compliance import JointCompliance, true_joint_compliance
 from ..postprocess import Targets
 from ..robot import Robot
 from ..stiffness import CompensationSettings
 from ..stiffness.identification import identify_stiffness as identify_stiffness
 from ..stiffness.model import cartesian_compliance
+from ._loop import LoopInputs, _Diverged, run_loop
+from .compliance import (
+    compliance_blocks,
+    normal_compliance_along,
+    path_directions,
+    segment_tangents,
+)
 from .design import designed_controller_settings
-from .errors import CancelledError, MachiningSettingsError, SampleLimitError, StockError
+from .errors import MachiningSettingsError, SampleLimitError, StockError
 from .offline import densify_targets as densify_targets
-from .path import arc_length_m, check_normals, check_path, path_tangents, project_onto_path
+from .path import arc_length_m, check_normals, check_path, project_onto_path
+from .program import (
+    as_written,
+    check_constant_feed,
+    constant_feed_m_s,
+    design_depth_m,
+    machining_program,
+)
 from .settings import MachiningSettings
 from .stock import Stock
 from .summary import FinishedWall as FinishedWall
@@ -79,10 +92,6 @@ from .summary import steady_force_N as steady_force_N
 from .summary import summarize
 
 MM = 1e-3
-# Samples between two checks of the cancel flag.
-CANCEL_CHECK_EVERY = 64
-# Sensor noise is drawn this many samples at a time.
-NOISE_BLOCK = 65_536
 # Simulated time after a controller's protection stop before the run ends [s].
 STOP_TAIL_S = 0.3
 # The controllers are designed for the deepest cut, and no shallower than this [m].
@@ -92,8 +101,6 @@ PATH_LENGTH_TOLERANCE_M = 1.0 * MM
 # The cell's force supervision stops the robot at this multiple of the force limit (the
 # spindle's overload trip): a cut that runs away is stopped, not simulated to infinity.
 FORCE_SUPERVISION_FACTOR = 2.0
-# Below this a constant feed rubs rather than cuts (the MRR paper's minimal feed) [m/s].
-MIN_CONSTANT_FEED_M_S = 0.05 * MM
 
 
 CompensationModel = JointCompliance | CompensationSettings
@@ -142,16 +149,10 @@ def planned_speed_profile(speed_m_s: np.ndarray, ds_m: float, acceleration_m_s2:
     """The path planner's speed along the stations: the programmed speeds with the speed
     changes between moves limited to ``acceleration_m_s2`` (v^2 <= v0^2 + 2 a ds forward, and
     the same backward so the robot slows before a slow move)."""
+    from ._kernel import speed_profile
+
     v2 = np.asarray(speed_m_s, dtype=float) ** 2
-    step = 2.0 * acceleration_m_s2 * ds_m
-    out = v2.tolist()
-    for i in range(1, len(out)):
-        if out[i] > out[i - 1] + step:
-            out[i] = out[i - 1] + step
-    for i in range(len(out) - 2, -1, -1):
-        if out[i] > out[i + 1] + step:
-            out[i] = out[i + 1] + step
-    return np.sqrt(np.asarray(out))
+    return speed_profile(np.ascontiguousarray(v2), 2.0 * acceleration_m_s2 * ds_m)
 
 
 def start_feed_m_s(
@@ -224,8 +225,8 @@ def run_machining(
     compensation_model: CompensationModel | None = None,
     progress: ProgressCallback | None = None,
     cancel: CancelFlag | Callable[[], bool] | None = None,
-    rehearsal_force: MachiningRun | None = None,
     nominal: Targets | None = None,
+    program_frame: np.ndarray | None = None,
 ) -> MachiningRun:
     """Cut ``stock`` with the program ``targets`` on the compliant ``robot``.
 
@@ -244,10 +245,10 @@ def run_machining(
         progress: Called with the fraction of the path done, about every 1 %.
         cancel: A flag (``is_set()``) or a callable; when true the run raises
             ``CancelledError``.
-        rehearsal_force: For offline compensation, a run of the same controller on the same
-            stock whose force plans the first correction (``offline``); None plans it from
-            eq. (5).
         nominal: The nominal targets ``targets`` correct one for one (``cut_program``).
+        program_frame: The work object ``T_base_wobj`` the program files write positions in:
+            the program (and an offline-corrected one) is cut with its positions as written
+            (``program.as_written``); None cuts them as given.
 
     Raises:
         StockError: the stock does not lie along the program's path.
@@ -257,6 +258,13 @@ def run_machining(
     from .offline import force_met_N, offline_compensated_run
 
     model = _resolve_model(robot, settings, compensation_model)
+    # The program this configuration runs, and every exporter writes (``program``).
+    targets = as_written(
+        machining_program(
+            targets, settings, design_depth_m=design_depth_m(settings, stock.max_allowance_m)
+        ),
+        program_frame,
+    )
     if settings.compensation != "offline":
         return cut_program(
             robot, targets, wall_normals_m, stock, settings,
@@ -267,27 +275,40 @@ def run_machining(
     P = check_path(targets.position_m)
     s_t, _, _ = project_onto_path(P, stock.path_points_m, stock.wall_normals_m)
     s_f = np.arange(0.0, float(s_t[-1]), settings.station_spacing_m)
-    n_t = np.stack(
-        [np.interp(s_t, stock.path_s_m, stock.wall_normals_m[:, i]) for i in range(3)], 1
+    n_f, u_f = path_directions(
+        stock.path_points_m, stock.wall_normals_m, s_f, settings.feed_force_ratio
     )
-    n_t /= np.linalg.norm(n_t, axis=1, keepdims=True)
-    U = force_directions(n_t, path_tangents(P), settings.feed_force_ratio)
-    c_hat = np.interp(s_f, s_t, normal_compliance(robot, targets.joints_rad, n_t, U, model))
-    n_f = np.stack([np.interp(s_f, s_t, n_t[:, i]) for i in range(3)], 1)
-    if rehearsal_force is not None:
-        first = force_met_N(rehearsal_force, s_f)
-    else:
-        first = _first_plan(settings, stock, targets, s_f)
+    c_hat = normal_compliance_along(
+        s_t, compliance_blocks(robot, targets.joints_rad, model), s_f, n_f, u_f
+    )
+    # Every rehearsal cuts the nominal program's plan with the planned correction's offsets;
+    # the last cut is the corrected program itself (what the export carries). The first plan
+    # is the force of the cut a working compensation meets: the tool on the nominal wall, the
+    # full allowance cut (``offline``: the stage switches of a staged controller are where
+    # they will be).
+    plan = plan_cut(robot, targets, None, stock, settings)
+    on_the_wall = replace(
+        plan, inputs=replace(plan.inputs, c_true=np.zeros_like(plan.inputs.c_true))
+    )
+    ideal = rehearsal_cut(on_the_wall, np.zeros_like(plan.inputs.offset), cancel)
+    first = (
+        force_met_N(ideal, s_f)
+        if ideal.summary["completed"]
+        else _first_plan(settings, stock, targets, s_f)
+    )
 
-    def cut(program: Targets, dense: Targets, sub: ProgressCallback | None) -> MachiningRun:
+    def rehearse(offset_st: np.ndarray) -> Rehearsal:
+        return rehearsal_cut(plan, offset_st, cancel)
+
+    def cut(program: Targets, dense: Targets) -> MachiningRun:
         return cut_program(
-            robot, program, None, stock, settings, model=None, progress=sub, cancel=cancel,
-            compensation_model_for_record=model, nominal=dense,
+            robot, as_written(program, program_frame), None, stock, settings, model=None,
+            cancel=cancel, compensation_model_for_record=model, nominal=dense,
         )  # fmt: skip
 
     run, program, dense, rehearsals, change = offline_compensated_run(
-        cut, robot, targets, s_f, c_hat, n_f, first,
-        feed_force_ratio=settings.feed_force_ratio, model=model, progress=progress,
+        rehearse, cut, robot, targets, s_f, plan.s_st, c_hat, n_f, u_f, first,
+        model=model, progress=progress,
     )  # fmt: skip
     summary = dict(run.summary)
     summary["rehearsals"] = rehearsals
@@ -302,42 +323,47 @@ def run_machining(
 def _first_plan(
     settings: MachiningSettings, stock: Stock, targets: Targets, s_m: np.ndarray
 ) -> np.ndarray:
-    """Eq. (5) at the stock's depth and the planned feed at arc lengths ``s_m``."""
+    """Eq. (5) at the stock's depth and the planned feed at arc lengths ``s_m`` (``targets``
+    the machining program: its speeds are the feeds it commands)."""
     s_t = arc_length_m(targets.position_m)
     seg = np.clip(np.searchsorted(s_t, s_m, side="left"), 1, len(s_t) - 1)
-    v = np.minimum(np.asarray(targets.speed_m_s, dtype=float)[seg], settings.command_speed_cap_m_s)
-    if settings.controller == "constant":
-        feed = settings.constant_feed_m_s or settings.safe_constant_feed_m_s(stock.max_allowance_m)
-        v = np.minimum(v, feed)
+    v = np.asarray(targets.speed_m_s, dtype=float)[seg]
     planned = np.minimum(v, start_feed_m_s(s_m, s_m, v))
     return predicted_force_N(settings, stock.allowance_m(s_m), planned)
 
 
-def cut_program(
-    robot: Robot,
-    targets: Targets,
-    wall_normals_m: np.ndarray | None,
-    stock: Stock,
-    settings: MachiningSettings,
-    *,
-    model: JointCompliance | None = None,
-    progress: ProgressCallback | None = None,
-    cancel: CancelFlag | Callable[[], bool] | None = None,
-    compensation_model_for_record: JointCompliance | None = None,
-    nominal: Targets | None = None,
-) -> MachiningRun:
-    """One cut of ``targets`` along ``stock`` (module docstring); online compensation with
-    ``model`` when ``settings.compensation == "online"``; the program's own geometry is the
-    rest of the compensation.
+@dataclass(frozen=True, eq=False)
+class CutPlan:
+    """A cut prepared up to its loop: the stations along the stock's path and the controller.
 
-    ``nominal`` are the targets ``targets`` correct, one for one (an offline-compensated
-    program, or one read back from its exported file): each target's offset is its shift
-    from its nominal along the wall normal there, the model's one dimension (the tangential
-    part of a correction answers the tangential deflection, which the cut does not model).
-    Without it the program is taken along the stock's path, matched to it by projection.
+    Attributes:
+        settings, stock: as ``cut_program`` takes them.
+        s_st: (n_st,) arc length of the stations [m].
+        inputs: the loop's inputs (``_loop.LoopInputs``), the program's offset included.
+        ctrl_settings: the controller's settings as designed for this cut (None: constant).
+        controller: the controller (None: constant feed); ``packed`` its kernel form.
+        constant_feed_m_s: the constant feed (None for a CMRR controller).
+        d_max: the deepest cut the program is designed for [m] (``program.design_depth_m``);
+            ``model`` the identified stiffness the online compensation uses (None without).
     """
-    started = time.perf_counter()
-    cancelled = cancel_predicate(cancel)
+
+    settings: MachiningSettings
+    stock: Stock
+    s_st: np.ndarray
+    inputs: Any
+    ctrl_settings: Any
+    controller: Any
+    packed: Any
+    constant_feed_m_s: float | None
+    d_max: float
+    model: JointCompliance | None
+
+
+def _program_offsets(
+    targets: Targets, stock: Stock, nominal: Targets | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(s_t, offset_t, lateral_t) of the program's targets along the stock's path: paired one
+    for one with ``nominal`` when given, else by projection (``cut_program``)."""
     P = check_path(targets.position_m)
     m = len(P)
     if nominal is not None:
@@ -347,13 +373,50 @@ def cut_program(
                 f"the program has {m} targets, its nominal program {len(P0)}: they must pair"
             )
         s_t, _, lateral = project_onto_path(P0, stock.path_points_m, stock.wall_normals_m)
-        n_t = np.stack(
-            [np.interp(s_t, stock.path_s_m, stock.wall_normals_m[:, i]) for i in range(3)], 1
-        )
-        n_t /= np.linalg.norm(n_t, axis=1, keepdims=True)
-        off_t = np.einsum("ij,ij->i", P - P0, n_t)
-    else:
-        s_t, off_t, lateral = project_onto_path(P, stock.path_points_m, stock.wall_normals_m)
+        n_t = _normals_at(stock, s_t)
+        return s_t, np.einsum("ij,ij->i", P - P0, n_t), lateral
+    return project_onto_path(P, stock.path_points_m, stock.wall_normals_m)
+
+
+def _station_directions(
+    stock: Stock,
+    s_st: np.ndarray,
+    s_t: np.ndarray,
+    wall_normals_m: np.ndarray | None,
+    feed_force_ratio: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(n, u) at the stations: the wall normal (the stock's, or ``wall_normals_m`` given at the
+    program's targets at ``s_t``) and the process force's direction with the stock's path
+    tangent (``compliance.path_directions``)."""
+    if wall_normals_m is None:
+        return path_directions(stock.path_points_m, stock.wall_normals_m, s_st, feed_force_ratio)
+    given = check_normals(wall_normals_m, len(s_t))
+    n = np.stack([np.interp(s_st, s_t, given[:, i]) for i in range(3)], axis=1)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    u = n - feed_force_ratio * segment_tangents(stock.path_points_m, s_st)
+    return n, u / np.linalg.norm(u, axis=1, keepdims=True)
+
+
+def _normals_at(stock: Stock, s_m: np.ndarray) -> np.ndarray:
+    """(k, 3) unit wall normals of the stock at arc lengths ``s_m``."""
+    n = np.stack([np.interp(s_m, stock.path_s_m, stock.wall_normals_m[:, i]) for i in range(3)], 1)
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def plan_cut(
+    robot: Robot,
+    targets: Targets,
+    wall_normals_m: np.ndarray | None,
+    stock: Stock,
+    settings: MachiningSettings,
+    *,
+    model: JointCompliance | None = None,
+    nominal: Targets | None = None,
+) -> CutPlan:
+    """Everything ``cut_program`` computes before its loop (its docstring)."""
+    P = check_path(targets.position_m)
+    m = len(P)
+    s_t, off_t, lateral = _program_offsets(targets, stock, nominal)
     L = stock.path_length_m
     own = arc_length_m(P if nominal is None else nominal.position_m)[-1]
     if float(np.max(lateral)) > PATH_LENGTH_TOLERANCE_M or abs(own - L) > max(
@@ -364,27 +427,16 @@ def cut_program(
             f"long and up to {float(np.max(lateral)) / MM:.1f} mm beside it; build the stock "
             "on the program's path"
         )
-    if wall_normals_m is None:
-        N = np.stack(
-            [np.interp(s_t, stock.path_s_m, stock.wall_normals_m[:, i]) for i in range(3)], 1
-        )
-        N /= np.linalg.norm(N, axis=1, keepdims=True)
-    else:
-        N = check_normals(wall_normals_m, m)
     process: PowerLawForceModel = settings.process
-    d_max = stock.max_allowance_m
+    d_max = design_depth_m(settings, stock.max_allowance_m)
     truth = true_joint_compliance(robot.name)
     online = settings.compensation == "online"
     if online and model is None:
         model = _resolve_model(robot, settings, None)
 
-    # Along the program: force direction and normal compliance (true and identified).
-    U = force_directions(N, path_tangents(P), settings.feed_force_ratio)
-    c_true_t = normal_compliance(robot, targets.joints_rad, N, U, truth)
-    c_hat_t = normal_compliance(robot, targets.joints_rad, N, U, model) if online else None
-
     # Stations along the stock's path: allowance, programmed speed (the move's end target's),
-    # compliance, and the program's offset from the path (MoveL between its targets).
+    # the normal compliance (true and identified; ``compliance``), and the program's offset
+    # from the path (MoveL between its targets).
     ds = settings.station_spacing_m
     n_st = int(math.floor(L / ds)) + 2
     s_st = np.arange(n_st) * ds
@@ -397,36 +449,31 @@ def cut_program(
     )
     if not np.all(v_prog > 0.0):
         raise MachiningSettingsError("every programmed speed must be positive")
-    c_true = np.interp(s_st, s_t, c_true_t)
-    c_hat = np.interp(s_st, s_t, c_hat_t) if c_hat_t is not None else np.zeros(n_st)
+    N_st, U_st = _station_directions(stock, s_st, s_t, wall_normals_m, settings.feed_force_ratio)
+    # The arm's pose along the path: a corrected program's nominal joints (a correction moves
+    # them by micro-radians; the compliance does not change with it).
+    joints = (targets if nominal is None else nominal).joints_rad
+    c_true = normal_compliance_along(s_t, compliance_blocks(robot, joints, truth), s_st, N_st, U_st)
+    c_hat = (
+        normal_compliance_along(s_t, compliance_blocks(robot, joints, model), s_st, N_st, U_st)
+        if online
+        else np.zeros(n_st)
+    )
     offset = np.interp(s_st, s_t, off_t)
     is_constant = settings.controller == "constant"
-    constant_feed = (
-        settings.constant_feed_m_s
-        if settings.constant_feed_m_s is not None
-        else settings.safe_constant_feed_m_s(d_max)
-    )
-    if is_constant and not constant_feed >= MIN_CONSTANT_FEED_M_S:
-        raise MachiningSettingsError(
-            f"no constant feed keeps the {settings.force_limit_N:g} N force limit at the deepest "
-            f"cut ({d_max / MM:.2f} mm): F = {settings.process_gain_N:g} d^"
-            f"{settings.depth_exponent:g} f^{settings.feed_exponent:g} reaches it at "
-            f"{constant_feed / MM:.2g} mm/s, below {MIN_CONSTANT_FEED_M_S / MM:g} mm/s (rubbing, "
-            "not cutting); raise the force limit or check the process K, alpha and beta"
-        )
+    constant_feed = constant_feed_m_s(settings, d_max)
+    if is_constant:
+        check_constant_feed(settings, d_max)
 
     # Feed control, designed for this cut (``design``).
     dt = CONTROL_PERIOD_S
-    sensor = ForceSensorModel(
-        noise_std_N=settings.sensor_noise_N, filter_cutoff_hz=settings.sensor_filter_cutoff_hz
-    )
-    sensor_filter = sensor.make_filter(dt)
+    sensor_filter = _sensor_filter(settings.sensor_filter_cutoff_hz, dt)
     v_top = float(v_prog.max())
     ctrl_settings = designed_controller_settings(
         settings,
         max_depth_m=d_max,
         speed_m_s=v_top,
-        interaction_stiffness_N_m=1.0 / float(np.mean(c_true_t)) if np.all(c_true_t > 0) else None,
+        interaction_stiffness_N_m=1.0 / float(np.mean(c_true)) if np.all(c_true > 0) else None,
     )
     design = ControlDesign(
         dt_s=dt,
@@ -455,158 +502,182 @@ def cut_program(
         )
     n_max = min(settings.max_samples, 2 * worst + int(STOP_TAIL_S / dt) + 2)
 
-    robot_model = FeedDynamics().discretize(dt)
+    robot_model = _feed_model(dt)
     if robot_model.a.shape != (4, 4) or len(sensor_filter.sos) != 1:
         raise MachiningSettingsError("the machining loop expects eq. (1) and a 2nd-order filter")
-    rng = np.random.default_rng(settings.seed)
-    noise: list[float] = []  # drawn in blocks as the cut goes (a stalled run may be long)
-
-    # Hot-loop constants as plain floats and lists (scalar Python beats numpy at this size).
-    inv_ds = 1.0 / ds
-    last = n_st - 1
-    a_l = allowance.tolist()
-    v_l = v_prog.tolist()
-    ct_l = c_true.tolist()
-    ch_l = c_hat.tolist()
-    off_l = offset.tolist()
-    # The stock's material: its coefficient scales K of the process the controller was designed for.
-    K = process.gain_N * stock.material_factor
-    alpha_d, beta_f = process.depth_exponent, process.feed_exponent
     tau = process.time_constant_s
-    lag = math.exp(-dt / tau) if tau > 0 else 0.0
-    sigma = settings.sensor_noise_N
     tau_c = 1.0 / (2.0 * math.pi * settings.online_filter_cutoff_hz)
-    alpha_c = dt / (dt + tau_c)  # the first-order filter of online_compensation_step
-    fr = settings.reference_N
-    supervision_N = FORCE_SUPERVISION_FACTOR * settings.force_limit_N
+    typical_feed = (
+        float(np.mean(np.minimum(v_prog, constant_feed)))
+        if is_constant
+        else 0.5 * float(np.mean(v_prog))
+    )
+    inputs = LoopInputs(
+        allowance=allowance,
+        v_prog=v_prog,
+        c_true=c_true,
+        c_hat=c_hat,
+        offset=offset,
+        ds=ds,
+        length=L,
+        dt=dt,
+        constant_feed=float(constant_feed) if is_constant else math.inf,
+        # The stock's material: its coefficient scales K of the process the controller was
+        # designed for.
+        gain_K=process.gain_N * stock.material_factor,
+        alpha_d=process.depth_exponent,
+        beta_f=process.feed_exponent,
+        lag=math.exp(-dt / tau) if tau > 0 else 0.0,
+        sigma=settings.sensor_noise_N,
+        filt=np.ascontiguousarray(sensor_filter.sos[0], dtype=float),
+        filt_z=np.asarray(sensor_filter.initial_state(), dtype=float),
+        feed_a=np.ascontiguousarray(robot_model.a, dtype=float),
+        feed_b=np.ascontiguousarray(robot_model.b, dtype=float),
+        feed_c=np.ascontiguousarray(robot_model.c, dtype=float),
+        online=online,
+        alpha_c=dt / (dt + tau_c),  # the first-order filter of online_compensation_step
+        supervision_N=FORCE_SUPERVISION_FACTOR * settings.force_limit_N,
+        stop_tail_s=STOP_TAIL_S,
+        n_max=n_max,
+        capacity=int(min(n_max, max(4096, 1.3 * L / max(typical_feed, 1e-9) / dt))),
+        seed=settings.seed,
+    )
+    return CutPlan(
+        settings=settings,
+        stock=stock,
+        s_st=s_st,
+        inputs=inputs,
+        ctrl_settings=ctrl_settings,
+        controller=ctrl,
+        packed=_packed(ctrl),
+        constant_feed_m_s=float(constant_feed) if is_constant else None,
+        d_max=d_max,
+        model=model if online else None,
+    )
 
-    rt: list[float] = []
-    rs: list[float] = []
-    rf: list[float] = []
-    rcf: list[float] = []
-    rr: list[float] = []
-    rd: list[float] = []
-    rF: list[float] = []
-    rm: list[float] = []
-    rdef: list[float] = []
-    rh: list[float] = []
-    force = 0.0
-    w_f = 0.0
-    s_held = 0.0
-    filt = _FilterState.start(sensor_filter)
-    x = _FeedState.start(robot_model)
-    control = fast_stepper(ctrl) if ctrl is not None else None
-    first_ratio = ctrl.initial_speed_ratio if ctrl is not None else 1.0
-    pending = [first_ratio]  # one period of control delay
-    stop_time: float | None = None
-    stop_reason: str | None = None
-    cycle_time: float | None = None
-    next_progress = 0.0
-    k = 0
-    s = 0.0
+
+@functools.lru_cache(maxsize=16)
+def _sensor_filter(cutoff_hz: float, dt_s: float) -> Any:
+    """The CMRR feedback's low-pass filter (one design per setting in this process)."""
+    return ForceSensorModel(filter_cutoff_hz=cutoff_hz).make_filter(dt_s)
+
+
+@functools.lru_cache(maxsize=4)
+def _feed_model(dt_s: float) -> Any:
+    """Eq. (1) discretized at ``dt_s`` with the path position (one per period here)."""
+    return FeedDynamics().discretize(dt_s)
+
+
+def _packed(ctrl: Any) -> Any:
+    """The kernel form of ``ctrl`` (``_kernel.pack_controller``); an adaptive LQ's is shared by
+    every cut of this process that designs the same controller, so its table of LQ designs
+    grows once."""
+    from ..cmrr.controllers import AdaptiveLqController
+    from ._kernel import pack_controller
+
+    if not isinstance(ctrl, AdaptiveLqController):
+        return pack_controller(ctrl)
+    d = ctrl.design
+    filt = d.measurement_filter
+    key = (
+        ctrl.settings, ctrl.kf, ctrl.df0, ctrl.vr_mm_s, d.reference_force_N, d.dt_s,
+        d.control_delay_steps, d.min_speed_ratio, d.feed_dynamics,
+        None if filt is None else filt.sos.tobytes(),
+    )  # fmt: skip
+    packed = _LQ_TABLES.get(key)
+    if packed is None:
+        packed = pack_controller(ctrl)
+        if len(_LQ_TABLES) >= 64:
+            _LQ_TABLES.pop(next(iter(_LQ_TABLES)))
+        _LQ_TABLES[key] = packed
+    return packed
+
+
+# Adaptive LQ controllers packed in this process, by their design: their tables of LQ designs
+# grow as cuts meet new Df values, and serve every later cut with the same design.
+_LQ_TABLES: dict[tuple, Any] = {}
+
+
+def cut_program(
+    robot: Robot,
+    targets: Targets,
+    wall_normals_m: np.ndarray | None,
+    stock: Stock,
+    settings: MachiningSettings,
+    *,
+    model: JointCompliance | None = None,
+    progress: ProgressCallback | None = None,
+    cancel: CancelFlag | Callable[[], bool] | None = None,
+    compensation_model_for_record: JointCompliance | None = None,
+    nominal: Targets | None = None,
+    compiled: bool = True,
+) -> MachiningRun:
+    """One cut of ``targets`` along ``stock`` (module docstring); online compensation with
+    ``model`` when ``settings.compensation == "online"``; the program's own geometry is the
+    rest of the compensation.
+
+    ``nominal`` are the targets ``targets`` correct, one for one (an offline-compensated
+    program, or one read back from its exported file): each target's offset is its shift
+    from its nominal along the wall normal there, the model's one dimension (the tangential
+    part of a correction answers the tangential deflection, which the cut does not model).
+    Without it the program is taken along the stock's path, matched to it by projection.
+    ``compiled`` False runs the reference loop instead of the compiled one (tests).
+    """
+    started = time.perf_counter()
+    plan = plan_cut(robot, targets, wall_normals_m, stock, settings, model=model, nominal=nominal)
+    return cut_planned(
+        plan,
+        targets,
+        progress=progress,
+        cancel=cancel,
+        compensation_model_for_record=compensation_model_for_record,
+        started=started,
+        compiled=compiled,
+    )
+
+
+def cut_planned(
+    plan: CutPlan,
+    program: Targets,
+    *,
+    offset_m: np.ndarray | None = None,
+    progress: ProgressCallback | None = None,
+    cancel: CancelFlag | Callable[[], bool] | None = None,
+    compensation_model_for_record: JointCompliance | None = None,
+    started: float | None = None,
+    compiled: bool = True,
+) -> MachiningRun:
+    """The planned cut of ``program``; ``offset_m`` (n_st,) replaces the plan's offsets of the
+    program from the stock's path (a rehearsal of a corrected program)."""
+    started = time.perf_counter() if started is None else started
+    settings = plan.settings
+    inputs = plan.inputs if offset_m is None else replace(plan.inputs, offset=offset_m)
     try:
-        while True:
-            if k >= n_max:
-                raise SampleLimitError(
-                    f"the run did not finish within {n_max} samples ({n_max * dt:.0f} s); the "
-                    "feed stalled"
-                )
-            if cancelled is not None and k % CANCEL_CHECK_EVERY == 0 and cancelled():
-                raise CancelledError(f"machining run {settings.controller} cancelled")
-            t = k * dt
-            # The path interpolator never runs the TCP backwards: eq. (1) is non-minimum phase
-            # and dips before it rises, and the dip below rest is held at rest.
-            s = x.position
-            if s < s_held:
-                s = s_held
-            else:
-                s_held = s
-            j = int(s * inv_ds)
-            if j > last:
-                j = last
-            feed = x.feed()
-            if feed < 0.0:
-                feed = 0.0
-            deflection = ct_l[j] * force
-            h = off_l[j] + deflection - ch_l[j] * w_f
-            depth = a_l[j] - h
-            if depth < 0.0:
-                depth = 0.0
-            if k % NOISE_BLOCK == 0:
-                noise = rng.standard_normal(NOISE_BLOCK).tolist()
-            raw = force + sigma * noise[k % NOISE_BLOCK]
-            measured = filt.step(raw)
-            if control is not None:
-                next_ratio, stop = control(measured, feed)
-                if stop and stop_time is None:
-                    stop_time, stop_reason = t, "protection rule"
-                pending.append(0.0 if stop_time is not None else next_ratio)
-                ratio = pending.pop(0)
-                command = ratio * v_l[j]
-            else:
-                command = constant_feed if constant_feed < v_l[j] else v_l[j]
-                ratio = command / v_l[j]
-            if stop_time is not None:
-                ratio = command = 0.0
-            rt.append(t)
-            rs.append(s)
-            rf.append(feed)
-            rcf.append(command)
-            rr.append(ratio)
-            rd.append(depth)
-            rF.append(force)
-            rm.append(raw)
-            rdef.append(deflection)
-            rh.append(h)
-            k += 1
-            if s >= L:
-                cycle_time = t
-                break
-            if stop_time is not None and t - stop_time >= STOP_TAIL_S:
-                break
-            # Process force, eq. (3): exact first-order lag towards eq. (5) at this depth and feed.
-            if depth > 0.0 and feed > 0.0:
-                target = K * (depth * 1e3) ** alpha_d * (feed * 1e3) ** beta_f
-            else:
-                target = 0.0
-            force = lag * force + (1.0 - lag) * target
-            if force > supervision_N:
-                # The cell's force supervision (the spindle's overload trip) stops the robot.
-                force = supervision_N
-                if stop_time is None:
-                    stop_time, stop_reason = t, "force supervision"
-            if online:
-                w_f += alpha_c * (raw - w_f)
-            x.step(command)  # the robot's feed, eq. (1)
-            if progress is not None and s >= next_progress * L:
-                progress(min(s / L, 1.0))
-                next_progress = s / L + 0.01
-    except (OverflowError, ZeroDivisionError, ValueError) as exc:
-        if isinstance(exc, InvalidInputError):
-            raise
+        result = run_loop(
+            inputs, plan.controller, plan.packed, cancel=cancel_predicate(cancel),
+            compiled=compiled,
+        )  # fmt: skip
+    except _Diverged as exc:
         raise MachiningSettingsError(
-            f"the simulated cut diverged at {s / MM:.1f} mm along the path (force "
-            f"{force:.3g} N): F = {settings.process_gain_N:g} d^{settings.depth_exponent:g} "
+            f"the simulated cut diverged at {exc.s_m / MM:.1f} mm along the path (force "
+            f"{exc.force_N:.3g} N): F = {settings.process_gain_N:g} d^{settings.depth_exponent:g} "
             f"f^{settings.feed_exponent:g} with a {settings.force_limit_N:g} N limit is beyond "
             "what this arm and controller can cut; check the process K, alpha and beta"
         ) from None
     if progress is not None:
         progress(1.0)
     wall_s = time.perf_counter() - started
-
-    names = (
-        "time_s path_m feed_m_s commanded_feed_m_s speed_ratio depth_m force_N "
-        "measured_force_N deflection_m tool_normal_m"
-    ).split()
-    columns = (rt, rs, rf, rcf, rr, rd, rF, rm, rdef, rh)
-    arrays = {name: np.asarray(values) for name, values in zip(names, columns, strict=True)}
+    arrays = result.columns
+    ds = plan.inputs.ds
+    last = len(plan.s_st) - 1
     wall = finished_wall(
-        s_st, allowance, arrays["path_m"], arrays["tool_normal_m"], stock.tool_radius_m
-    )
-    station = np.clip(np.rint(arrays["path_m"] * inv_ds).astype(np.int64), 0, last)
+        plan.s_st, plan.inputs.allowance, arrays["path_m"], arrays["tool_normal_m"],
+        plan.stock.tool_radius_m,
+    )  # fmt: skip
+    station = np.clip(np.rint(arrays["path_m"] / ds).astype(np.int64), 0, last)
     n = len(arrays["time_s"])
     trace = MachiningTrace(
-        reference_N=np.full(n, fr),
+        reference_N=np.full(n, settings.reference_N),
         limit_N=np.full(n, settings.force_limit_N),
         wall_error_m=wall.error_m[station],
         **arrays,
@@ -615,37 +686,78 @@ def cut_program(
         settings,
         trace,
         wall,
-        v_prog=v_prog[station],
-        cycle_time_s=cycle_time,
-        stop_time_s=stop_time,
-        constant_feed_m_s=constant_feed if is_constant else None,
+        v_prog=plan.inputs.v_prog[station],
+        cycle_time_s=result.cycle_time_s,
+        stop_time_s=result.stop_time_s,
+        constant_feed_m_s=plan.constant_feed_m_s,
         wall_time_s=wall_s,
-        max_depth_m=d_max,
+        max_depth_m=plan.stock.max_allowance_m,
     )
-    summary["stop_reason"] = stop_reason
+    summary["stop_reason"] = result.stop_reason
+    ctrl = plan.controller
     summary["controller_design"] = None if ctrl is None else ctrl.describe()
-    if ctrl_settings is not None:
+    if plan.ctrl_settings is not None:
         from ..cmrr.settings import controller_settings_to_dict
 
-        summary["controller_settings"] = controller_settings_to_dict(ctrl_settings)
+        summary["controller_settings"] = controller_settings_to_dict(plan.ctrl_settings)
     else:
         summary["controller_settings"] = None
+    model = plan.model
     return MachiningRun(
         settings=settings,
         controller=settings.controller,
         compensation=settings.compensation,
-        program=targets,
+        program=program,
         trace=trace,
         wall=wall,
         summary=summary,
         stiffness_model=model if model is not None else compensation_model_for_record,
-        controller_settings=ctrl_settings,
+        controller_settings=plan.ctrl_settings,
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class Rehearsal:
+    """What a rehearsal of offline compensation needs of its cut: whether it completed, its
+    wall error, the finished wall and the force it met along the path (``summary`` and
+    ``trace`` as a ``MachiningRun`` names them)."""
+
+    summary: dict[str, Any]
+    wall: FinishedWall
+    trace: Any
+
+
+def rehearsal_cut(
+    plan: CutPlan, offset_m: np.ndarray, cancel: CancelFlag | Callable[[], bool] | None
+) -> Rehearsal:
+    """The planned cut with these offsets, without the run's summary (the ILC reads the
+    wall and the force only)."""
+    from types import SimpleNamespace
+
+    inputs = replace(plan.inputs, offset=offset_m)
+    try:
+        result = run_loop(inputs, plan.controller, plan.packed, cancel=cancel_predicate(cancel))
+    except _Diverged as exc:
+        raise MachiningSettingsError(
+            f"the simulated cut diverged at {exc.s_m / MM:.1f} mm along the path"
+        ) from None
+    c = result.columns
+    wall = finished_wall(
+        plan.s_st, inputs.allowance, c["path_m"], c["tool_normal_m"], plan.stock.tool_radius_m
+    )
+    return Rehearsal(
+        {
+            "completed": result.cycle_time_s is not None,
+            "wall_error_max_mm": float(np.max(np.abs(wall.error_m))) / MM,
+        },
+        wall,
+        SimpleNamespace(path_m=c["path_m"], force_N=c["force_N"]),
     )
 
 
 class _FeedState:
-    """Private scalar copy of ``DiscreteFeedModel.step`` for the 4-state eq. (1) (the hot loop);
-    tests check it equals the public model."""
+    """Private scalar copy of ``DiscreteFeedModel.step`` for the 4-state eq. (1); tests check
+    it equals the public model (the loops of ``_loop`` and ``_kernel`` write it out)."""
 
     __slots__ = ("a", "b", "c", "x0", "x1", "x2", "position")
 
@@ -672,8 +784,8 @@ class _FeedState:
 
 
 class _FilterState:
-    """Private scalar copy of ``LowPassFilter.step`` for one second-order section (the hot
-    loop); tests check it equals the public filter."""
+    """Private scalar copy of ``LowPassFilter.step`` for one second-order section; tests check
+    it equals the public filter."""
 
     __slots__ = ("b0", "b1", "b2", "a1", "a2", "z1", "z2")
 

@@ -37,6 +37,8 @@ from .errors import MachiningSettingsError
 MM = 1e-3
 # Fr as a share of the force limit when not given: room for the overshoot on a burr's flank.
 DEFAULT_REFERENCE_FRACTION = 0.7
+# The deepest cut a design may assume [m] (a stock's allowance is at most 20 mm).
+MAX_DESIGN_DEPTH_M = 0.02
 CompensationName = Literal["off", "offline", "online"]
 COMPENSATION_NAMES: tuple[str, ...] = get_args(CompensationName)
 # The machining run's feed controls are the CMRR controllers (defined with their settings).
@@ -106,6 +108,9 @@ class MachiningSettings:
         controller_settings: Overrides of the controller's defaults (its ``kind`` must match).
         constant_feed_m_s: Feed of the ``constant`` controller; None takes the greatest
             constant feed that keeps the force limit at the deepest cut.
+        design_depth_m: The deepest cut the program (its constant feed) and the controllers
+            are designed for; None: the stock's. A sweep over castings sets the nominal
+            stock's, so every casting is cut by the one program that is exported.
         min_speed_ratio: delta of eq. (13), the lowest speed ratio CMRR may command.
         compensation: ``"off"``, ``"offline"`` (targets corrected before the run) or
             ``"online"`` (joint reference corrected from the measured force).
@@ -134,6 +139,7 @@ class MachiningSettings:
     controller: ControllerName = "adaptive-pi"
     controller_settings: ControllerSettings | None = None
     constant_feed_m_s: float | None = None
+    design_depth_m: float | None = None
     min_speed_ratio: float = 0.1
     compensation: CompensationName = "off"
     feed_force_ratio: float = 0.5
@@ -184,6 +190,13 @@ class MachiningSettings:
             raise MachiningSettingsError(
                 f"constant_feed_m_s must be in (0, {self.command_speed_cap_m_s:g}] m/s "
                 f"(the speed cap), got {cf!r}"
+            )
+        dd = self.design_depth_m
+        if dd is not None and not (
+            isinstance(dd, (int, float)) and math.isfinite(dd) and 0.0 <= dd <= MAX_DESIGN_DEPTH_M
+        ):
+            raise MachiningSettingsError(
+                f"design_depth_m must be in [0, {MAX_DESIGN_DEPTH_M:g}] m, got {dd!r}"
             )
         if not (isinstance(self.identification_poses, int) and 8 <= self.identification_poses):
             raise MachiningSettingsError(

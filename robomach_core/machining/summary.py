@@ -88,9 +88,10 @@ def finished_wall(
     stock (where the tool never reached the stock surface the stock remains)."""
     ds = float(s_st[1] - s_st[0])
     n_st = len(s_st)
+    from ._kernel import lowest_reach
+
     idx = np.clip(np.rint(path_m / ds).astype(np.int64), 0, n_st - 1)
-    reach = np.full(n_st, np.inf)
-    np.minimum.at(reach, idx, tool_normal_m)
+    reach = lowest_reach(idx, np.ascontiguousarray(tool_normal_m, dtype=float), n_st)
     envelope = reach.copy()
     r = tool_radius_m
     for shift in range(1, int(r / ds) + 1):

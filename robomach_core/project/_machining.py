@@ -20,7 +20,7 @@ SOLUTION  ``choose`` saves the configuration: it sets the machining settings' co
           compensation is chosen and the machining result holding it is current.
 
 Choice rule (``machining.choice.choose``, the one the CLI, REST and both GUIs use): among the
-completed runs the cell can run (``capabilities_of``) whose peak force stays within 10 % of the
+completed runs the cell can run (``capabilities_of``) whose peak force stays within the
 limit, those within 5 % of the fastest cycle time; of these the smallest finished-wall max
 error; with a variation sweep (``MachiningSetup.variations``) on the 95th percentiles.
 """
@@ -203,6 +203,7 @@ class MachiningResult:
 
     def for_cell(self, capabilities: Any) -> MachiningResult:
         """The result re-chosen for another cell (rows re-marked; the figures are the same)."""
+        from ..machining import format_table
         from ..machining.choice import choose, mark_runnable
 
         rows = tuple(mark_runnable(list(self.rows), capabilities))
@@ -210,6 +211,7 @@ class MachiningResult:
         return replace(
             self,
             rows=rows,
+            table_text=format_table(rows, chosen=pick.index),
             chosen=pick.index,
             reason=pick.reason,
             capabilities=tuple(sorted(capabilities.options)),
@@ -224,19 +226,32 @@ class MachiningResult:
 
 
 def capabilities_of(project: Project) -> Any:
-    """The cell's controller options: the machining setup's, else the defaults of the program
-    language of the cell's arm (``machining.choice.LANGUAGE_DEFAULT_OPTIONS``)."""
+    """The cell's controller options: the machining setup's (those the arm's controller can
+    have: ``machining.choice.OPTION_FAMILIES``), else the defaults of the program language of
+    the cell's arm (``machining.choice.LANGUAGE_DEFAULT_OPTIONS``)."""
     from ..machining.choice import CellCapabilities
-    from ..robot import program_language
 
+    family = _arm_family(project.cell.robot)
     setup = project.machining_settings
     if isinstance(setup, MachiningSetup) and setup.cell_options is not None:
-        return CellCapabilities(frozenset(setup.cell_options))
+        return CellCapabilities.for_family(family, setup.cell_options)
     try:
+        from ..robot import program_language
+
         language = program_language(project.cell.robot)
     except Exception:  # an arm not (yet) registered in this process: no options assumed
-        language = ""
+        return CellCapabilities(frozenset(), family)
     return CellCapabilities.for_language(language)
+
+
+def _arm_family(robot_name: str) -> str | None:
+    """The arm's family (``abb``, ``ur``, ``kuka``), None when it is not registered here."""
+    from ..robots import registry
+
+    try:
+        return registry.arm(robot_name).family
+    except Exception:  # an arm not (yet) registered in this process
+        return None
 
 
 def machining_setup_of(project: Project) -> MachiningSetup:
@@ -356,6 +371,7 @@ def machine(
     Raises:
         MissingResultError / StaleResultError: no current post-processed program.
     """
+    from ..export.target_joints import with_target_joints
     from ..machining import format_table
     from ..machining.choice import PEAK_MARGIN, choose, mark_runnable
     from ..machining.compare import comparison_rows
@@ -363,7 +379,10 @@ def machine(
     from ..machining.variation import StockVariation, draw_stocks, variation_rows
 
     processed = require_processed(project)
-    targets = processed.result.targets
+    # The program the robot runs: each target's joints its inverse kinematics, as exported
+    # (the recorded joints reach a point 0.1-0.25 mm off it), and a circular move's via
+    # point at its move's speed.
+    targets = with_move_speeds(with_target_joints(robot, processed.result.targets), processed.moves)
     setup = machining_setup_of(project)
     s = setup.settings
     normals = wall_normals_for_project(project, workpiece, targets)
@@ -377,56 +396,65 @@ def machine(
         modes = ("off", *modes)
     pairs = [(c, m) for c in ctrls for m in comps]
     cancelled = _cancel_callable(cancel)
-    stocks = [stock]
+    drawn: list[Any] = []
     variation = None
     if setup.variations:
         spec = StockVariation()
-        stocks += draw_stocks(stock, setup.variations, project.cell.seed, spec)
+        drawn = draw_stocks(stock, setup.variations, project.cell.seed, spec)
         variation = {
-            "stocks": setup.variations,
+            "stocks": setup.variations + 1,
+            "drawn": setup.variations,
             "seed": project.cell.seed,
             "ranges": spec.describe(),
+            "program": "the nominal stock's: its design, constant feed and offline correction",
         }
-    tasks = [
-        CutTask(
-            robot.name,
-            robot.T_flange_tcp,
-            targets,
-            normals,
-            st,
-            s,
-            c,
-            modes,
-            model,
-            keep_runs=i == 0,
+    share = 1.0 / (1 + len(drawn))
+
+    def task(st: Any, c: str, settings: Any, keep: bool, corrected: Any = None) -> Any:
+        return CutTask(
+            robot.name, robot.T_flange_tcp, targets, normals, st, settings, c, modes, model,
+            keep_runs=keep, program_frame=workpiece.T_base_wobj, corrected=corrected,
         )  # fmt: skip
-        for i, st in enumerate(stocks)
-        for c in ctrls
-    ]
-    results = run_tasks(
-        tasks, workers=workers, cluster=cluster, progress=progress, cancel=cancelled
-    )
-    # results[i * len(ctrls) + j][k]: stock i, controller j, mode k.
-    per_stock: list[dict[tuple[str, str], tuple]] = []
-    for i in range(len(stocks)):
-        out = {}
-        for j, c in enumerate(ctrls):
-            for k, m in enumerate(modes):
-                out[c, m] = results[i * len(ctrls) + j][k]
-        per_stock.append(out)
-    nominal = per_stock[0]
+
+    def part(lo: float, hi: float) -> Callable[[float], None] | None:
+        if progress is None:
+            return None
+        return lambda f: progress(lo + (hi - lo) * f)
+
+    # The nominal stock: its runs design the program (constant feed, controllers, offline
+    # correction) every drawn stock is then cut with, as one program meets every casting.
+    first = run_tasks(
+        [task(stock, c, s, True) for c in ctrls], workers=workers, cluster=cluster,
+        progress=part(0.0, share), cancel=cancelled,
+    )  # fmt: skip
+    nominal = {(c, m): first[j][k] for j, c in enumerate(ctrls) for k, m in enumerate(modes)}
     runs = [nominal[p][0] for p in pairs if nominal[p][0] is not None]
     refused = {p: nominal[p][2] for p in pairs if nominal[p][2] is not None}
     rows = comparison_rows(runs, refused=refused, order=pairs)
     rows = [
         _plain_row({**(nominal[p][1] or {}), **row}) for p, row in zip(pairs, rows, strict=True)
     ]
-    if variation is not None:
-        summaries = [[per_stock[i][p][1] for i in range(1, len(stocks))] for p in pairs]
+    if drawn:
+        designed = replace(s, design_depth_m=stock.max_allowance_m)
+        offline = {c: nominal[c, "offline"][0] for c in ctrls if (c, "offline") in nominal}
+        corrected = {c: (run.program, run.nominal) for c, run in offline.items() if run is not None}
+        later = run_tasks(
+            [task(st, c, designed, False, corrected.get(c)) for st in drawn for c in ctrls],
+            workers=workers, cluster=cluster, progress=part(share, 1.0), cancel=cancelled,
+        )  # fmt: skip
+        # later[i * len(ctrls) + j][k]: drawn stock i, controller j, mode k.
+        summaries = [
+            [nominal[p][1]]
+            + [later[i * len(ctrls) + ctrls.index(p[0])][modes.index(p[1])][1]
+               for i in range(len(drawn))]
+            for p in pairs
+        ]  # fmt: skip
         stats = variation_rows(
             summaries, pairs, force_limit_N=s.force_limit_N, peak_margin=PEAK_MARGIN
         )
         rows = [dict(row, **_plain_row(st)) for row, st in zip(rows, stats, strict=True)]
+    elif progress is not None:
+        progress(1.0)
     capabilities = capabilities_of(project)
     rows = mark_runnable(rows, capabilities)
     pick = choose(rows, capabilities)
@@ -437,7 +465,7 @@ def machine(
     }
     return MachiningResult(
         rows=tuple(rows),
-        table_text=format_table(rows),
+        table_text=format_table(rows, chosen=pick.index),
         chosen=pick.index,
         programs=programs,
         runs=tuple(runs),
@@ -480,7 +508,17 @@ def with_machining_result(project: Project, result: MachiningResult) -> Project:
 
 def with_machining_setup(project: Project, setup: MachiningSetup) -> Project:
     """The project with new machining settings; the chosen configuration follows them into the
-    CMRR and compensation slots (``choose``)."""
+    CMRR and compensation slots (``choose``).
+
+    Raises:
+        MachiningSettingsError: a cell option the arm's controller cannot have (FC SpeedChange
+            on a KUKA).
+    """
+    if setup.cell_options is not None:
+        from ..machining.choice import check_options_for_arm
+
+        robot = project.cell.robot
+        check_options_for_arm(setup.cell_options, _arm_family(robot), robot)
     project = replace(project, machining_settings=setup)
     return choose(project, setup.settings.controller, setup.settings.compensation)
 
@@ -562,6 +600,102 @@ def cmrr_for(settings: Any, *, designed: Any = None) -> Any:
         reference_force_N=settings.reference_N,
         command_speed_m_s=settings.command_speed_cap_m_s,
         min_speed_ratio=settings.min_speed_ratio,
+    )
+
+
+def with_move_speeds(targets: Targets, moves: Any) -> Targets:
+    """``targets`` with each circular move's via point at the speed of its move (the speed
+    the MoveC / movec / CIRC is written with)."""
+    if not moves:
+        return targets
+    speeds = np.array(targets.speed_m_s, dtype=float)
+    for move in moves:
+        if move.via is not None:
+            speeds[move.via] = speeds[move.to]
+    return replace(targets, speed_m_s=speeds)
+
+
+def machining_targets(
+    project: Project, targets: Targets, workpiece: Workpiece | None = None
+) -> Targets | None:
+    """``targets`` with the feeds the chosen machining configuration commands
+    (``machining.program.machining_program``: the learned speeds capped at Vr, at the constant
+    feed the stock allows for ``constant``, rounded down to 0.01 mm/s) and the positions as
+    the files write them (``as_written``): the program the simulation cut; None when the
+    project holds no machining settings."""
+    if not isinstance(project.machining_settings, MachiningSetup):
+        return None
+    from ..machining.program import as_written, design_depth_m, machining_program
+
+    s = machining_setup_of(project).settings
+    targets = with_move_speeds(targets, require_processed(project).moves)
+    if workpiece is None:
+        from ._stages import build_workpiece
+
+        workpiece = build_workpiece(project.cell, project.mesh)
+    depth = s.design_depth_m
+    if depth is None and s.controller == "constant" and s.constant_feed_m_s is None:
+        processed = require_processed(project).result.targets
+        normals = wall_normals_for_project(project, workpiece, processed)
+        depth = build_stock(project, workpiece, processed, normals).max_allowance_m
+    program = machining_program(targets, s, design_depth_m=design_depth_m(s, depth or 0.0))
+    return as_written(program, workpiece.T_base_wobj)
+
+
+def feed_note(project: Project, targets: Targets) -> str:
+    """The header's line on the feeds the program commands."""
+    s = machining_setup_of(project).settings
+    v = np.asarray(targets.speed_m_s, dtype=float) / MM
+    if s.controller == "constant":
+        return (
+            f"feeds as simulated: constant {v.max():.2f} mm/s (the greatest that keeps the "
+            f"{s.force_limit_N:g} N limit at the stock's deepest cut), slower where learned"
+            if v.min() < v.max()
+            else f"feeds as simulated: constant {v.max():.2f} mm/s (the greatest that keeps "
+            f"the {s.force_limit_N:g} N limit at the stock's deepest cut)"
+        )
+    return (
+        f"feeds as simulated: programmed {v.min():.2f}-{v.max():.2f} mm/s (learned, at most "
+        f"{s.command_speed_cap_m_s / MM:g} mm/s), scaled by the {s.controller} feed control "
+        f"holding {s.reference_N:g} N"
+    )
+
+
+def ur_feed_loop(project: Project, workpiece: Workpiece, robot: Robot, targets: Targets) -> Any:
+    """The feed loop a UR program runs for the chosen CMRR controller
+    (``export.urscript_feed``): the controller as the simulation designed it for this program
+    on this stock, its filter and the path acceleration; None for constant feed or without
+    machining settings."""
+    if not isinstance(project.machining_settings, MachiningSetup):
+        return None
+    s = machining_setup_of(project).settings
+    if s.controller == "constant":
+        return None
+    import copy
+
+    from ..export.urscript_feed import UrFeedLoop
+    from ..machining.run import FORCE_SUPERVISION_FACTOR, plan_cut
+
+    processed = require_processed(project).result.targets
+    normals = wall_normals_for_project(project, workpiece, processed)
+    stock = build_stock(project, workpiece, processed, normals)
+    designed = _designed_settings(project, s.controller)
+    if s.controller_settings is None and designed is not None:
+        s = replace(s, controller_settings=designed)
+    plan = plan_cut(robot, targets, None, stock, replace(s, compensation="off"))
+    if plan.packed is NotImplemented:
+        return None
+    i = plan.inputs
+    return UrFeedLoop(
+        controller=s.controller,
+        reference_N=s.reference_N,
+        packed=copy.deepcopy(plan.packed),
+        filter_sos=tuple(float(v) for v in i.filt),
+        filter_z0=(float(i.filt_z[0]), float(i.filt_z[1])),
+        dt_s=i.dt,
+        acceleration_m_s2=s.path_acceleration_m_s2,
+        force_limit_N=s.force_limit_N,
+        supervision_factor=FORCE_SUPERVISION_FACTOR,
     )
 
 
@@ -683,7 +817,7 @@ def _targets_from(doc: dict[str, Any]) -> Targets:
 def machining_note(project: Project) -> str | None:
     """The program header's line on the chosen configuration: what it needs from the cell
     and whether the cell (``capabilities_of``) has it; None without machining settings."""
-    from ..machining.choice import REQUIREMENT_TEXT, missing, requirements
+    from ..machining.choice import missing, needs_text, requirements
 
     if not isinstance(project.machining_settings, MachiningSetup):
         return None
@@ -694,11 +828,24 @@ def machining_note(project: Project) -> str | None:
     head = f"machining: {s.controller} / {s.compensation}"
     if not needs:
         return f"{head}; needs nothing from the cell beyond this program"
-    parts = [
-        f"{REQUIREMENT_TEXT[r]} ({'MISSING in this cell' if r in lacks else 'the cell has it'})"
-        for r in needs
-    ]
+    parts = []
+    for r in needs:
+        if r in lacks:
+            parts.append(f"{needs_text(r, caps)} (MISSING in this cell)")
+        elif r == "feed_override" and caps.family in FEED_OVERRIDE_MEANS:
+            means = FEED_OVERRIDE_MEANS[caps.family]
+            parts.append(f"a force-driven feed override: {means} (the cell has it)")
+        else:
+            parts.append(f"{needs_text(r, caps)} (the cell has it)")
     return f"{head}; the cell must provide " + " and ".join(parts)
+
+
+# How each family's program carries the force-driven feed override.
+FEED_OVERRIDE_MEANS = {
+    "abb": "FC SpeedChange (FCSpdChgAct in the RAPID module)",
+    "ur": "the URScript program runs its own loop on the UR's force/torque sensor (the RAPID "
+    "module carries FC SpeedChange for an ABB controller)",
+}
 
 
 def stale_settings(project: Project) -> dict[str, str]:

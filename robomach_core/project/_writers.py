@@ -14,7 +14,14 @@ from ..learning.run import Recording
 from ..postprocess import Targets
 from ..robot import Robot
 from ..workpiece import Workpiece
-from ._machining import chosen_program, compensation_for_arm, stale_settings
+from ._machining import (
+    chosen_program,
+    compensation_for_arm,
+    feed_note,
+    machining_targets,
+    stale_settings,
+    ur_feed_loop,
+)
 from ._stages import require_processed
 from ._value import (
     DEFAULT_MODULE_NAME,
@@ -65,29 +72,40 @@ def fc_module_name(module_name: str) -> str:
 
 
 def program_targets(
-    project: Project, robot: Robot, *, solved: Targets | None = None
+    project: Project,
+    robot: Robot,
+    *,
+    solved: Targets | None = None,
+    workpiece: Workpiece | None = None,
 ) -> tuple[Targets, str | None]:
     """The targets the program runs: post-processed, their joints the inverse kinematics of
     each target pose on ``robot`` (``export.target_joints``; ``solved`` when the caller has
-    them), corrected for deflection in the offline compensation modes; and the compensation's
-    note for the header (None without)."""
+    them), with the feeds the chosen machining configuration commands (``machining_targets``,
+    when the project holds machining settings), corrected for deflection in the offline
+    compensation modes; and the notes for the header (None without)."""
     from ..export.target_joints import with_target_joints
 
     processed = require_processed(project)
     targets = solved if solved is not None else with_target_joints(robot, processed.result.targets)
     chosen = chosen_program(project)
     if chosen is not None:  # offline compensation chosen from a current machining run
-        return chosen
+        program, note = chosen
+        return program, f"{note}; {feed_note(project, program)}"
+    machined = machining_targets(project, targets, workpiece)
+    feeds = None
+    if machined is not None:
+        targets = machined
+        feeds = feed_note(project, targets)
     if project.compensation is None:
-        return targets, None
+        return targets, feeds
     compensation = compensation_for_arm(project, robot.name)  # settings of another arm: re-derived
     corrected, note = compensate_program_targets(
         robot, project.learned.recording, targets, compensation
     )
     stale = stale_settings(project).get("compensation")
-    return corrected, note if stale is None or compensation is project.compensation else (
-        f"{note}; {stale}"
-    )
+    if stale is not None and compensation is not project.compensation:
+        note = f"{note}; {stale}"
+    return corrected, note if feeds is None else f"{note}; {feeds}"
 
 
 def compensate_program_targets(
@@ -153,12 +171,16 @@ def program_context(
     from ..export.languages import ProgramContext
 
     processed = require_processed(project)
-    targets, note = program if program is not None else program_targets(project, robot)
-    speed_change = None
+    targets, note = (
+        program if program is not None else program_targets(project, robot, workpiece=workpiece)
+    )
+    speed_change = feed_loop = None
     if project.cmrr is not None and not force_control:
         from ..cmrr import to_speed_change_settings
 
         speed_change = to_speed_change_settings(project.cmrr)
+        if robot.family == "ur":  # the feed loop its URScript program runs
+            feed_loop = ur_feed_loop(project, workpiece, robot, targets)
     return ProgramContext(
         targets=targets,
         tool=project.tool(),
@@ -169,6 +191,7 @@ def program_context(
         module_name=module_name,
         force_control_N=project.learned.settings.force_N if force_control else None,
         speed_change=speed_change,
+        feed_loop=feed_loop,
     )
 
 
@@ -287,7 +310,7 @@ def program_export(
     languages = program_languages(robot, language)
     doc = settings_document(project, workpiece, project_name=project_name, compliance=compliance)
     solved = with_target_joints(robot, processed.result.targets)
-    program = program_targets(project, robot, solved=solved)
+    program = program_targets(project, robot, solved=solved, workpiece=workpiece)
     files: dict[str, str] = {}
     for name in languages:
         files |= program_texts(

@@ -73,7 +73,8 @@ def test_run_result_choice_and_staleness_from_the_guide_points(api: Api) -> None
     )
     assert len(trace["wall_error_mm"]) == len(trace["wall_s_mm"]) > 10
     table = api.ok("GET", "/api/machining/comparison")
-    assert table["table_markdown"].startswith("| controller |") and "fuzzy" in table["table_text"]
+    assert table["table_markdown"].startswith("| cell | controller |")
+    assert "fuzzy" in table["table_text"]
     # The choice reaches the export: the FC SpeedChange block of the chosen controller.
     rapid = api.get("/api/export/rapid").text
     assert "FCSpdChgAct" in rapid and "CMRR: fuzzy" in rapid

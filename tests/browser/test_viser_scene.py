@@ -124,9 +124,10 @@ def test_panels_follow_session_changes(workbench) -> None:
     wait_for(lambda: "G1" in workbench.guide_points.selected.options)
     assert "G1" in workbench.guide_points.table.content
     session.robot.select(["z", "rx"], "tool")
-    wait_for(lambda: workbench.leadthrough.axes["rx"].value)
+    # the panel sets its widgets one after the other: wait for the last of them
+    wait_for(lambda: workbench.leadthrough.frame.value == "tool")
+    assert workbench.leadthrough.axes["rx"].value
     assert not workbench.leadthrough.axes["x"].value
-    assert workbench.leadthrough.frame.value == "tool"
     session.clear_guide_points()
     wait_for(lambda: workbench.guide_points.selected.options == ("none",))
     session.set_cell(workpiece="block")

@@ -504,6 +504,30 @@ _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
     "robomach_core.cmrr.controllers._fast": dict.fromkeys(
         ("_memberships", "_fuzzy_infer", "_lq_estimate", "_lq_act"), FAST_COPIES
     ),
+    "robomach_core.machining._kernel": {
+        **dict.fromkeys(
+            (
+                "cut_kernel",
+                "_power",
+                "_fixed_pi_step",
+                "_adaptive_pi_step",
+                "_memberships",
+                "_fuzzy_infer",
+                "_switch_level",
+                "_fuzzy_step",
+                "_lq_command",
+                "_matching_integral",
+                "_lq_step",
+            ),
+            "tests/core/machining/test_kernel.py::test_the_compiled_loop_equals_the_reference",
+        ),
+        **dict.fromkeys(
+            ("speed_profile", "lowest_reach"),
+            "tests/core/machining/test_kernel.py::test_the_stations_kernels_equal_numpy",
+        ),
+        "split_by_deviation": "tests/core/machining/test_kernel.py::"
+        "test_the_compiled_target_placement_equals_its_reference",
+    },
 }
 KERNEL_TESTS: dict[str, str] = {
     f"{module}.{name}": test

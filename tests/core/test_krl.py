@@ -133,7 +133,7 @@ def _mutated(src: str, dat: str, where: str, old: str, new: str) -> tuple[str, s
         ("src", "$VEL.CP = 0.1\n", "$VEL.CP = 5\n", "outside (0, 3]"),
         ("src", "  BAS(#INITMOV, 0)\n", "  IF TRUE THEN\n", "unsupported statement"),
         ("dat", "S 2,T", "S 999,T", "S must be an integer"),
-        ("dat", ",C 180.0000,", ",C 181.0000,", "outside [-180, 180]"),
+        ("dat", ",C 180.00000,", ",C 181.00000,", "outside [-180, 180]"),
         ("dat", "DECL E6POS XP2={X", "DECL E6POS XP1={X", "declared twice"),
         ("dat", "DECL E6POS XP4={X", "DECL E6POS XP4_IS_A_VERY_LONG_NAME_XX={X", "longer than 24"),
         ("dat", ",Y ", ",Y {", "unbalanced braces"),

@@ -26,17 +26,25 @@ def _row(controller, compensation, cycle, peak, wall, completed=True):
     }
 
 
-def test_the_rule_takes_the_fastest_safe_runs_then_the_best_wall():
+def test_the_rule_takes_the_fastest_runs_within_the_limit_then_the_best_wall():
     rows = [
         _row("constant", "off", 240.0, 146.0, 0.12),
-        _row("adaptive-pi", "off", 134.0, 156.0, 0.13),
-        _row("adaptive-pi", "online", 136.0, 157.0, 0.011),  # within 5 % of 134 s: best wall
-        _row("adaptive-lq", "off", 130.0, 219.0, 0.001),  # fastest, but 46 % over the limit
+        _row("fuzzy", "off", 140.0, 149.0, 0.13),
+        _row("fuzzy", "online", 142.0, 150.0, 0.011),  # within 5 % of 140 s: best wall
+        _row("adaptive-pi", "online", 136.0, 150.2, 0.010),  # faster, 0.2 N over the limit
+        _row("adaptive-lq", "off", 130.0, 219.0, 0.001),  # fastest, 46 % over the limit
         _row("two-stage", "off", 100.0, 150.0, 0.0, completed=False),  # stopped
     ]
     assert core.best_row(rows) == 2
-    assert core.best_row([rows[0], rows[3]]) == 0
-    assert core.best_row([rows[4]]) is None  # nothing completed: nothing to choose
+    assert core.best_row([rows[0], rows[4]]) == 0
+    assert core.best_row([rows[5]]) is None  # nothing completed: nothing to choose
+    # Nothing within the limit: nothing chosen, and the reason says which came closest.
+    from robomach_core.machining.choice import CellCapabilities, choose
+
+    pick = choose(
+        [rows[3], rows[4]], CellCapabilities(frozenset({"fc_speed_change", "path_correction"}))
+    )
+    assert pick.index is None and "150.2 N, adaptive-pi / online" in pick.reason
 
 
 def test_the_rule_chooses_only_what_the_cell_can_run_and_says_why():
@@ -44,9 +52,9 @@ def test_the_rule_chooses_only_what_the_cell_can_run_and_says_why():
 
     rows = [
         _row("constant", "off", 240.0, 146.0, 0.12),
-        _row("adaptive-pi", "offline", 137.0, 155.0, 0.03),
-        _row("adaptive-pi", "online", 136.0, 157.0, 0.011),  # best, needs path correction
-        _row("fixed-pi", "online", 136.0, 164.0, 0.007),
+        _row("adaptive-pi", "offline", 137.0, 145.0, 0.03),
+        _row("adaptive-pi", "online", 136.0, 147.0, 0.011),  # best, needs path correction
+        _row("fixed-pi", "online", 136.0, 149.0, 0.007),
     ]
     abb = CellCapabilities.for_language("rapid")
     assert abb.options == {"fc_speed_change"}
@@ -56,6 +64,9 @@ def test_the_rule_chooses_only_what_the_cell_can_run_and_says_why():
     marked = mark_runnable(rows, abb)
     assert [r["runnable"] for r in marked] == [True, True, False, False]
     assert marked[2]["needs"] == ["an online path-correction interface"]
+    # A KUKA controller gets no feed override from robomach: the row says so.
+    kuka = CellCapabilities.for_language("krl")
+    assert "robomach writes none for a KUKA" in mark_runnable(rows, kuka)[1]["needs"][0]
     full = CellCapabilities(frozenset({"fc_speed_change", "path_correction"}))
     assert choose(rows, full).index == 3
     # A cell with no option at all can still run the constant feed.
@@ -158,8 +169,8 @@ def test_a_result_is_re_chosen_for_another_cell_without_running_again():
 
     rows = (
         _row("constant", "off", 240.0, 146.0, 0.12),
-        _row("adaptive-pi", "offline", 137.0, 155.0, 0.03),
-        _row("adaptive-pi", "online", 136.0, 157.0, 0.011),
+        _row("adaptive-pi", "offline", 137.0, 145.0, 0.03),
+        _row("adaptive-pi", "online", 136.0, 147.0, 0.011),
     )
     result = core.MachiningResult(rows=rows, table_text="", chosen=None, programs={})
     abb = result.for_cell(CellCapabilities.for_language("rapid"))
@@ -169,6 +180,7 @@ def test_a_result_is_re_chosen_for_another_cell_without_running_again():
     bare = full.for_cell(CellCapabilities())
     assert bare.chosen == 0 and "constant / off" in bare.reason
     assert [r["cycle_time_s"] for r in bare.rows] == [r["cycle_time_s"] for r in rows]
+    assert bare.table_text.splitlines()[1].lstrip().startswith("chosen")  # marked anew
 
 
 def test_status_never_runs_the_stiffness_campaign(monkeypatch):

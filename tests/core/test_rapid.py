@@ -187,7 +187,7 @@ def test_force_control_instructions() -> None:
     text = rapid_module(make_program(force_control=fc, speed_change=SpeedChangeSettings(30.0)))
     body = [line.strip() for line in text.splitlines()]
     assert (
-        "PERS loaddata spindle_load := [2.5,[0.000,0.000,70.000],[1,0,0,0],0.001,0.001,0.001];"
+        "PERS loaddata spindle_load := [2.5,[0.0000,0.0000,70.0000],[1,0,0,0],0.001,0.001,0.001];"
         in body
     )
     order = [
@@ -199,7 +199,7 @@ def test_force_control_instructions() -> None:
         "FCPress1LStart p1, vp5, \\Fy:=10, 90, \\ForceChange:=100, z_path, "
         "spindle\\WObj:=pump_housing;",
         "FCPressL p2, vp5, 10, z_path, spindle\\WObj:=pump_housing;",
-        "FCPressL p3, vp7_3, 10, z_path, spindle\\WObj:=pump_housing;",
+        "FCPressL p3, vp7_25, 10, z_path, spindle\\WObj:=pump_housing;",
         "FCSpdChgDeact;",
         "FCPressEnd p_retract, v_air, spindle\\WObj:=pump_housing;",
     ]
@@ -209,14 +209,15 @@ def test_force_control_instructions() -> None:
 
 def test_speeds_rounded_half_up_and_named_validly() -> None:
     targets = make_targets(3)
-    speeds = [0.06, 12.34, 12.36]
+    # 0.01 mm/s: the machining program's feeds (multiples of it) are written exactly.
+    speeds = [0.006, 12.125, 12.376]  # 12.125 is exact in binary: half up gives 12.13
     targets = [
         RapidTarget(t.T_wobj_target, t.joints_rad, s) for t, s in zip(targets, speeds, strict=True)
     ]
     text = rapid_module(make_program(targets=targets))
-    assert "CONST speeddata vp0_1 := [0.1,500,5000,1000];" in text
-    assert "CONST speeddata vp12_3 := [12.3,500,5000,1000];" in text
-    assert "CONST speeddata vp12_4 := [12.4,500,5000,1000];" in text
+    assert "CONST speeddata vp0_01 := [0.01,500,5000,1000];" in text
+    assert "CONST speeddata vp12_13 := [12.13,500,5000,1000];" in text
+    assert "CONST speeddata vp12_38 := [12.38,500,5000,1000];" in text
     check_rapid_module(text)
 
 
@@ -361,7 +362,7 @@ def _reflection() -> np.ndarray:
         (lambda: RapidTarget(np.eye(4), JOINTS, math.nan), "finite"),
         (lambda: RapidTarget(np.eye(4), JOINTS, 5.0, cfx=8), "cfx"),
         (
-            lambda: rapid_module(make_program(targets=[RapidTarget(np.eye(4), JOINTS, 0.01)])),
+            lambda: rapid_module(make_program(targets=[RapidTarget(np.eye(4), JOINTS, 0.004)])),
             "rounds to 0",
         ),
         (lambda: RapidTool("t", np.eye(4), 0.0, np.zeros(3)), "mass_kg must be > 0"),
@@ -408,8 +409,8 @@ def _mutate(old: str, new: str, text: str | None = None) -> str:
         (lambda: _mutate("MoveL p2, vp5,", "MoveL vp5, vp5,"), "'vp5' is a speeddata, expected"),
         (
             lambda: _mutate(
-                "[0.000000,1.000000,0.000000,0.000000],[0,-2,0,5]",
-                "[0.000000,0.990000,0.000000,0.000000],[0,-2,0,5]",
+                "[0.0000000,1.0000000,0.0000000,0.0000000],[0,-2,0,5]",
+                "[0.0000000,0.9900000,0.0000000,0.0000000],[0,-2,0,5]",
             ),
             "quaternion is not normalized",
         ),
@@ -419,7 +420,10 @@ def _mutate(old: str, new: str, text: str | None = None) -> str:
         (lambda: _mutate(":= [5,500,5000,1000];", ":= [5,500,5000];"), "wrong arity"),
         (lambda: _mutate('[FALSE,TRUE,"",', '[FALSE,"",'), "wrong arity"),
         (lambda: _mutate(":= [FALSE,0.5,", ":= [0.5,"), "wrong arity"),
-        (lambda: _mutate("[[0.000,20.000,0.000]", "[[0.000,20.000,0.000"), "unbalanced brackets"),
+        (
+            lambda: _mutate("[[0.0000,20.0000,0.0000]", "[[0.0000,20.0000,0.0000"),
+            "unbalanced brackets",
+        ),
         (lambda: _mutate("MoveL p2, vp5, z_path", "MoveL p2, vp5), z_path"), "unbalanced brackets"),
         (
             lambda: _mutate("MoveL p2, vp5, z_path, spindle", "MoveL p2, vp5, spindle"),

@@ -236,6 +236,7 @@ class _FuzzyStepper:
         self.internal, self.stage = s0.internal_ratio, s0.stage
         self.trend, self.previous = s0.trend_N_s, s0.previous_error_N
         self.protection, self.stopped = s0.protection_time_s, s0.stopped
+        self.since = s0.since_switch_s
         self.a = math.exp(-self.d.dt_s / self.f.trend_filter_s)
         self.sets = np.ascontiguousarray(OUTPUT_SETS)
         self.universe = np.ascontiguousarray(OUTPUT_UNIVERSE)
@@ -247,6 +248,9 @@ class _FuzzyStepper:
         error = force_N - d.reference_force_N
         raw_trend = (error - self.previous) / d.dt_s
         trend = self.a * self.trend + (1.0 - self.a) * raw_trend
+        self.since += d.dt_s
+        if self.since < f.switch_settle_s:
+            trend = 0.0
         stages = f.stages
         change, stop_strength = _fuzzy_infer(
             error / self.e_span, trend / self.de_span, stages[self.stage], stages[0],
@@ -261,8 +265,10 @@ class _FuzzyStepper:
         internal = self.internal + change * f.max_rate_per_s * d.dt_s
         internal = min(max(internal, stages[0]), stages[-1])
         internal, stage = _next_stage(
-            stages, self.stage, internal, max(force_N, 0.0), d, f.hysteresis
+            stages, self.stage, internal, max(force_N, 0.0), d, f.hysteresis, f.stage_up_margin
         )
+        if stage != self.stage:
+            self.since = 0.0
         self.internal, self.stage = internal, stage
         return stages[stage], False
 

@@ -107,6 +107,15 @@ class FuzzySettings:
         stop_hold_s: how long the protection rule must fire before the stop [s].
         initial_speed_ratio: the stage at the start of the cut.
         error_span_fraction: the default error span as a fraction of Fr.
+        switch_settle_s: after the output stage changes, the trend input is held at zero
+            this long [s]: the force change the controller's own switch causes (eq. 1's feed
+            response, the force lag, the filter) is not a burr coming. 0 (the papers' rule
+            base as it is): the trend rules answer the switch, and a force near the reference
+            makes the stages hunt, a switch every few tenths of a millimetre.
+        stage_up_margin: a stage up is taken only if the force predicted there stays this
+            fraction under the reference (0, the rule as it was: just under it; then the
+            sensor's noise alone decides whether a cut whose force at the next stage would be
+            about the reference goes up, and a short stretch at the next stage comes and goes).
     """
 
     kind: Literal["fuzzy"] = field(default="fuzzy", init=False)
@@ -120,6 +129,8 @@ class FuzzySettings:
     stop_hold_s: float = 0.2
     initial_speed_ratio: float = 1.0
     error_span_fraction: float = 0.3
+    switch_settle_s: float = 0.0
+    stage_up_margin: float = 0.0
 
     def __post_init__(self) -> None:
         stages = tuple(float(s) for s in self.stages)
@@ -142,6 +153,10 @@ class FuzzySettings:
             raise CmrrSettingsError("stage hysteresis must be in [0, 0.5)")
         if not 0.0 < self.stop_strength <= 1.0 or self.stop_hold_s < 0.0:
             raise CmrrSettingsError("stop strength must be in (0, 1], hold time >= 0")
+        if not 0.0 <= self.switch_settle_s <= 10.0:
+            raise CmrrSettingsError("switch settle time must be within 0-10 s")
+        if not 0.0 <= self.stage_up_margin < 1.0:
+            raise CmrrSettingsError("stage-up margin must be in [0, 1)")
 
 
 @dataclass(frozen=True)
@@ -164,6 +179,8 @@ class TwoStageSettings:
     stop_strength: float = 0.5
     stop_hold_s: float = 0.2
     error_span_fraction: float = 0.5
+    switch_settle_s: float = 0.0
+    stage_up_margin: float = 0.0
 
     def __post_init__(self) -> None:
         if not 0.0 < self.low_speed_ratio < 1.0:
@@ -182,12 +199,15 @@ class TwoStageSettings:
             hysteresis=self.hysteresis,
             stop_strength=self.stop_strength,
             stop_hold_s=self.stop_hold_s,
+            switch_settle_s=self.switch_settle_s,
+            stage_up_margin=self.stage_up_margin,
         )
 
 
 @dataclass(frozen=True)
 class FuzzyState:
-    """Internal (continuous) ratio, output stage index, filtered trend, previous error."""
+    """Internal (continuous) ratio, output stage index, filtered trend, previous error, time
+    at high force at the lowest stage, stopped, time since the last stage change."""
 
     internal_ratio: float
     stage: int
@@ -195,6 +215,7 @@ class FuzzyState:
     previous_error_N: float
     protection_time_s: float
     stopped: bool
+    since_switch_s: float = math.inf
 
 
 @dataclass(frozen=True)
@@ -240,7 +261,7 @@ class FuzzyController:
         f = self.fuzzy
         stage = f.stages.index(f.initial_speed_ratio)
         fr = self.design.reference_force_N
-        return FuzzyState(f.initial_speed_ratio, stage, 0.0, -fr, 0.0, False)
+        return FuzzyState(f.initial_speed_ratio, stage, 0.0, -fr, 0.0, False, math.inf)
 
     def infer(self, error_N: float, trend_N_s: float, previous_ratio: float) -> tuple[float, float]:
         """Mamdani inference: (change of speed ratio in [-1, 1], protection-rule strength)."""
@@ -277,21 +298,29 @@ class FuzzyController:
         a = math.exp(-d.dt_s / f.trend_filter_s)
         raw_trend = (error - state.previous_error_N) / d.dt_s
         trend = a * state.trend_N_s + (1.0 - a) * raw_trend
+        since = state.since_switch_s + d.dt_s
+        if since < f.switch_settle_s:
+            trend = 0.0  # the controller's own switch, settling (``switch_settle_s``)
         previous_ratio = f.stages[state.stage]
         change, stop_strength = self.infer(error, trend, previous_ratio)
 
         protection = state.protection_time_s + d.dt_s if stop_strength >= f.stop_strength else 0.0
         if stop_strength >= f.stop_strength and protection >= f.stop_hold_s:
-            stopped = FuzzyState(state.internal_ratio, state.stage, trend, error, protection, True)
+            stopped = FuzzyState(
+                state.internal_ratio, state.stage, trend, error, protection, True, since
+            )
             return stopped, ControlOutput(0.0, engaged=False, stop=True)
 
         stages = f.stages
         internal = state.internal_ratio + change * f.max_rate_per_s * d.dt_s
         internal = min(max(internal, stages[0]), stages[-1])
+        force_now = max(measurement.force_N, 0.0)
         internal, stage = _next_stage(
-            stages, state.stage, internal, max(measurement.force_N, 0.0), d, f.hysteresis
+            stages, state.stage, internal, force_now, d, f.hysteresis, f.stage_up_margin
         )
-        new_state = FuzzyState(internal, stage, trend, error, protection, False)
+        if stage != state.stage:
+            since = 0.0
+        new_state = FuzzyState(internal, stage, trend, error, protection, False, since)
         return new_state, ControlOutput(stages[stage])
 
     def describe(self) -> dict[str, float | str]:
@@ -312,15 +341,17 @@ def _next_stage(
     force_now_N: float,
     design,
     hysteresis: float,
+    up_margin: float = 0.0,
 ) -> tuple[float, int]:
     """The stage the internal ratio selects, with hysteresis: up while the force the next stage
-    would cause (F * (r_next / r)^beta, the process model) stays below the reference (else the
-    internal ratio is held at the switch level), down past the lower switch level. Returns
+    would cause (F * (r_next / r)^beta, the process model) stays below the reference less
+    ``up_margin`` of it (else the internal ratio is held at the switch level), down past the
+    lower switch level. Returns
     (internal ratio, stage)."""
     beta = design.nominal_feed_exponent
     while stage + 1 < len(stages) and internal > _switch_level(stages, stage, +1, hysteresis):
         predicted = force_now_N * (stages[stage + 1] / stages[stage]) ** beta
-        if predicted >= design.reference_force_N:
+        if predicted >= design.reference_force_N * (1.0 - up_margin):
             internal = _switch_level(stages, stage, +1, hysteresis)
             break
         stage += 1

@@ -43,10 +43,6 @@ PAPER_ARMS: dict[str, str] = {
     "ilc": "irb2400",
     "compliance": "kr270",
 }
-# The work pose of the studies on a UR arm: TCP in front of the UR10, tool pointing down [m].
-WORK_POSITION_M = (0.70, 0.10, 0.03)
-# Elsewhere: this far from the built-in part's placement (``registry.Arm.part_position_m``).
-WORK_OFFSET_FROM_PART_M = (0.0, 0.10, 0.03)
 # The sensor's true offsets in the simulated cell.
 SENSOR_FORCE_BIAS_N = (1.5, -0.8, 2.0)
 SENSOR_TORQUE_BIAS_NM = (0.05, 0.10, -0.02)
@@ -172,14 +168,11 @@ def study_robot(options: StudyOptions, part: str) -> str:
 
 
 def work_position_m(robot_name: str) -> np.ndarray:
-    """Where the studies cut and measure, tool down: in front of a UR arm as before
-    (``WORK_POSITION_M``), else beside the built-in part's placement for the arm. Shape (3,)."""
-    from ...robots.registry import arm
+    """Where the studies cut and measure, tool down (``identification.arm_work_position_m``:
+    in front of a UR arm, else beside the built-in part's placement for the arm). Shape (3,)."""
+    from ..identification import arm_work_position_m
 
-    record = arm(robot_name)
-    if record.family == "ur" or record.part_position_m is None:
-        return np.asarray(WORK_POSITION_M, dtype=float)
-    return np.asarray(record.part_position_m) + np.asarray(WORK_OFFSET_FROM_PART_M)
+    return arm_work_position_m(robot_name)
 
 
 def _work_joints(robot: Robot) -> np.ndarray:

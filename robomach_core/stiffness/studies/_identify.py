@@ -15,6 +15,8 @@ from .. import plots
 from ..compensation import compensate_targets_and_joints
 from ..identification import (
     DEFAULT_LOADS_N,
+    DEFAULT_TOOL_LOADS_N,
+    campaign_box,
     prediction_errors,
     sample_workspace_joints,
     stiffness_campaign,
@@ -34,12 +36,7 @@ from ._common import (
     _work_joints,
     _write_csv,
     study_robot,
-    work_position_m,
 )
-
-# The CMM campaign's poses: a box this high above the work position (the UR10's box was
-# centred 0.12 m above its work pose, ``identification.WORKSPACE_CENTER_M``).
-CAMPAIGN_HEIGHT_M = 0.12
 
 
 def run_identification_study(
@@ -55,7 +52,7 @@ def run_identification_study(
     name = study_robot(options, "identify")
     tool_robot = Robot(name, Tool().T_flange_tcp)  # unknown names fail here
     truth = true_joint_compliance(name)
-    center = tuple(work_position_m(name) + (0.0, 0.0, CAMPAIGN_HEIGHT_M))
+    center, half = campaign_box(name)  # above the work position, grown with the arm
     n_poses = (
         min(options.identification_poses, 12) if options.quick else options.identification_poses
     )
@@ -63,11 +60,10 @@ def run_identification_study(
     report(0.2)
     data, ident = stiffness_campaign(
         name, poses=n_poses, seed=options.seed, cmm_noise_m=options.cmm_noise_um * 1e-6,
-        center_m=center,
     )  # fmt: skip
     report(0.5)
     test_joints = sample_workspace_joints(
-        tool_robot, n_test, seed=options.seed + 1, center_m=center
+        tool_robot, n_test, seed=options.seed + 1, center_m=center, half_size_m=half
     )
     wrenches = _chapter_wrenches(n_test, options.seed + 2)
     errors = prediction_errors(tool_robot, test_joints, wrenches, ident.model, truth)
@@ -108,7 +104,8 @@ def run_identification_study(
         "identify_robot": name,
         "cmm_noise_um": options.cmm_noise_um,
         "identification_poses": int(n_poses),
-        "identification_loads": len(DEFAULT_LOADS_N),
+        "identification_loads": len(DEFAULT_LOADS_N) + len(DEFAULT_TOOL_LOADS_N),
+        "identification_spheres": int(data.sphere_offsets_m.shape[0]),
         "stiffness_true_Nm_rad": k_true.tolist(),
         "stiffness_identified_Nm_rad": k_id.tolist(),
         "stiffness_std_Nm_rad": ident.standard_error_Nm_rad.tolist(),

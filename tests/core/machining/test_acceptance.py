@@ -5,29 +5,25 @@ Issue 8: (a) the settled recorded force follows K d^alpha f^beta within the sens
 (b) the self-tuning PI finishes >= 40 % faster than the greatest safe constant feed.
 Issue 16: all 18 configurations complete, every peak <= 1.2 x the limit and the chosen one
 <= 1.1 x, no negative feed; offline compensation cuts the wall's max error by >= 75 % under
-every controller, online by >= 85 %; on the default ABB cell (FC SpeedChange, no online
-correction) the chosen configuration is one its program carries, and the exported program,
-read back and cut again, gives the error the table showed (within 10 %).
+every controller, online by >= 85 % (issue 29: the two-stage controller included). That
+the exported programs cut what the table shows is tests/core/machining/test_read_back.py.
 """
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
 
 from robomach_core import project as core
 from robomach_core.machining import MACHINING_CONTROLLERS, MachiningSettings, run_machining
-from robomach_core.machining.choice import missing
-from robomach_core.postprocess import Targets
 from robomach_core.robot import Robot
-from robomach_core.transforms import make_transform, matrix_from_quaternion
 from tests.demo_project import pump_demo
 
 pytestmark = pytest.mark.slow
 MM = 1e-3
-ABB_DEFAULT_OPTIONS = ("fc_speed_change",)
+UR_OPTIONS = ("force_mode", "path_correction")  # every configuration runnable on the UR10
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +31,7 @@ def pump():
     # The README's demo (tests/demo_project.py), run once for the whole test run and reopened
     # from its project.npz, as ``robomach machine --from`` reopens it.
     project = core.load_project_file(pump_demo().folder / "project.npz")
-    setup = core.MachiningSetup(MachiningSettings(seed=0), cell_options=ABB_DEFAULT_OPTIONS)
+    setup = core.MachiningSetup(MachiningSettings(seed=0), cell_options=UR_OPTIONS)
     project = core.with_machining_setup(project, setup)
     workpiece = core.build_workpiece(project.cell, project.mesh)
     robot = Robot(project.cell.robot, project.tool().T_flange_tcp)
@@ -62,7 +58,7 @@ def test_all_18_complete_within_1_2_x_the_limit_and_never_feed_backwards(pump):
     for run in result.runs:
         assert run.trace.feed_m_s.min() >= 0.0, (run.controller, run.compensation)
     chosen = result.rows[result.chosen]
-    assert chosen["force_peak_N"] <= 1.1 * chosen["force_limit_N"]
+    assert chosen["force_peak_N"] <= chosen["force_limit_N"]  # the limit as documented
 
 
 @pytest.mark.parametrize("controller", MACHINING_CONTROLLERS)
@@ -70,11 +66,7 @@ def test_compensation_cuts_the_wall_error_offline_75_and_online_85_percent(pump,
     _, _, _, result = pump
     off = _row(result, controller, "off")["wall_error_max_mm"]
     assert off > 0.08  # the uncompensated arm leaves a visible error
-    # The two-stage controller switches between 0.26 and 1.0 every few tenths of a millimetre
-    # on this stock (its force at full speed sits near Fr), and where it switches moves from
-    # one rehearsal to the next: the offline plan cannot follow it, and gets 62-66 % instead of
-    # the issue's 75 % (issue 16, not met; online compensation is not affected).
-    share = 0.40 if controller == "two-stage" else 0.25
+    share = 0.25
     assert _row(result, controller, "offline")["wall_error_max_mm"] <= share * off
     assert _row(result, controller, "online")["wall_error_max_mm"] <= 0.15 * off
 
@@ -104,55 +96,36 @@ def test_the_settled_force_follows_the_process_model_and_cmrr_is_40_percent_fast
     assert pi["cycle_time_s"] <= 0.6 * constant["cycle_time_s"]
 
 
-def _program_from_rapid(text: str, workpiece) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(positions (m, 3) base frame, quaternions (m, 4), speeds (m,)) of the machining moves."""
-    from robomach_core.export import check_rapid_module
+@given(st.integers(1, 2**31 - 1))
+@example(11)  # the worst of 24 stocks for the two-stage controller (59 %)
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+def test_offline_compensation_holds_on_other_castings(pump, stock_seed):
+    """Issue 29 over the part's variation: the same program on another built-in stock. The
+    unstaged controllers' offline compensation cuts the wall error by >= 75 % (24 stocks:
+    93-97 %). The staged ones (fuzzy, two-stage) only by >= 50 % here: 24 stocks put fuzzy at
+    79-95 % and two-stage at 59-95 %. Their residual is one groove where the stage drops: a
+    switch one sample (~30 um at 7.4 mm/s) earlier than planned leaves the correction planned
+    for the high stage's force on a stretch cut at the low stage's, C dF deep, and the ball
+    widens it to ~0.2 mm. Where the switch falls against the planned step decides its depth:
+    on stock 11 the same cut gives 59 / 92 / 78 % at wall stations 0.1 / 0.05 / 0.02 mm."""
+    from robomach_core.export.target_joints import with_target_joints
+    from robomach_core.machining import builtin_stock
 
-    info = check_rapid_module(text)
-    speeds = {
-        name: float(v) for name, v in re.findall(r"CONST speeddata (\w+) := \[([\d.]+),", text)
-    }
-    moves = re.findall(r"^\s*MoveL (p\d+), (\w+),", text, flags=re.M)
-    positions, quaternions, v = [], [], []
-    for target, speed in moves:
-        pos_mm, quat, _ = info.robtargets[target]
-        T = workpiece.T_base_wobj @ make_transform(matrix_from_quaternion(quat), pos_mm * MM)
-        positions.append(T[:3, 3])
-        quaternions.append(np.asarray(quat, dtype=float))
-        v.append(speeds[speed] * MM)
-    return np.array(positions), np.array(quaternions), np.array(v)
-
-
-def test_the_abb_cell_gets_a_program_it_carries_that_cuts_what_the_table_showed(pump):
+    print(f"stock seed {stock_seed}")
     project, workpiece, robot, result = pump
-    from robomach_core.machining.choice import CellCapabilities
-
-    chosen = result.rows[result.chosen]
-    c, m = chosen["controller"], chosen["compensation"]
-    assert not missing(c, m, CellCapabilities(frozenset(ABB_DEFAULT_OPTIONS)))
-    assert m != "online"  # this cell has no path-correction interface
-    project = core.choose(core.with_machining_result(project, result), c, m)
-    text = core.program_files(project, workpiece, robot)["program.mod"]
-    assert ("FCSpdChgAct" in text) == (c != "constant")
-    assert f"machining: {c} / {m}" in text and "MISSING" not in text
-    positions, quaternions, speeds = _program_from_rapid(text, workpiece)
-    run = result.run_for(c, m)
-    program = run.program
-    assert len(positions) == len(program)
-    read_back = Targets(
-        position_m=positions,
-        quaternion_wxyz=quaternions,
-        joints_rad=program.joints_rad,  # the arm's pose at each target: its compliance
-        speed_m_s=speeds,
-        curvature_1_m=program.curvature_1_m,
-        sample_index=program.sample_index,
+    targets = with_target_joints(robot, core.require_processed(project).result.targets)
+    stock = builtin_stock(
+        result.stock.path_points_m, stock_seed, wall_normals_m=result.stock.wall_normals_m
     )
-    designed = run.controller_settings
-    again = run_machining(
-        robot, read_back, None, result.stock,
-        MachiningSettings(controller=c, compensation="off", controller_settings=designed),
-        nominal=run.nominal,
-    )  # fmt: skip
-    assert again.summary["completed"]
-    shown = chosen["wall_error_max_mm"]
-    assert again.summary["wall_error_max_mm"] == pytest.approx(shown, rel=0.10)
+    model = result.run_for("constant", "offline").stiffness_model
+    for controller in MACHINING_CONTROLLERS:
+        cut = {
+            mode: run_machining(
+                robot, targets, None, stock,
+                MachiningSettings(controller=controller, compensation=mode),
+                compensation_model=model,
+            ).summary["wall_error_max_mm"]
+            for mode in ("off", "offline")
+        }  # fmt: skip
+        share = 0.5 if controller in ("fuzzy", "two-stage") else 0.25
+        assert cut["offline"] <= share * cut["off"], (controller, cut)

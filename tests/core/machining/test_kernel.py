@@ -1,0 +1,132 @@
+"""The compiled machining loop (``machining._kernel``) equals its Python reference
+(``machining._loop.cut_loop``, the controllers through ``_fast``, itself tested against each
+controller's public step), sample for sample, over generated stocks and settings, including
+the adaptive LQ's growing table of designs, stops and the online compensation."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from robomach_core.machining import (
+    MACHINING_CONTROLLERS,
+    MachiningSettings,
+    builtin_stock,
+    identify_stiffness,
+)
+from robomach_core.machining._kernel import pack_controller
+from robomach_core.machining.run import cut_program, plan_cut
+
+TRACE = ("path_m", "feed_m_s", "speed_ratio", "depth_m", "force_N", "tool_normal_m")
+
+
+def _same(a, b) -> None:
+    assert len(a.trace) == len(b.trace)
+    for name in TRACE:
+        x, y = getattr(a.trace, name), getattr(b.trace, name)
+        np.testing.assert_allclose(x, y, rtol=1e-9, atol=1e-12, err_msg=name)
+    for key in ("completed", "stop_reason", "cycle_time_s", "stop_time_s"):
+        assert a.summary[key] == b.summary[key], key
+    assert a.summary["force_peak_N"] == pytest.approx(b.summary["force_peak_N"], rel=1e-9)
+    assert a.summary["wall_error_max_mm"] == pytest.approx(
+        b.summary["wall_error_max_mm"], rel=1e-9, abs=1e-12
+    )
+
+
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    controller=st.sampled_from(MACHINING_CONTROLLERS),
+    compensation=st.sampled_from(["off", "online"]),
+    limit=st.floats(60.0, 400.0),
+    material=st.floats(0.6, 2.5),
+    noise=st.floats(0.0, 8.0),
+)
+@settings(max_examples=24, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+def test_the_compiled_loop_equals_the_reference(
+    robot, short_program, seed, controller, compensation, limit, material, noise
+):
+    print(f"seed {seed} {controller}/{compensation} limit {limit:g} material {material:g}")
+    stock = replace(builtin_stock(short_program.position_m, seed=seed), material_factor=material)
+    s = MachiningSettings(
+        controller=controller, compensation=compensation, force_limit_N=limit,
+        sensor_noise_N=noise, seed=seed,
+    )  # fmt: skip
+    model = identify_stiffness(robot.name, seed=0).model
+    fast = cut_program(robot, short_program, None, stock, s, model=model)
+    slow = cut_program(robot, short_program, None, stock, s, model=model, compiled=False)
+    _same(fast, slow)
+
+
+def test_the_kernel_covers_every_designed_controller(robot, short_program):
+    """No machining configuration falls back to the reference loop (the speed of a sweep)."""
+    stock = builtin_stock(short_program.position_m, seed=0)
+    for controller in MACHINING_CONTROLLERS:
+        plan = plan_cut(robot, short_program, None, stock, MachiningSettings(controller=controller))
+        assert pack_controller(plan.controller) is not NotImplemented, controller
+
+
+def test_the_lq_table_grows_and_the_cut_is_the_same(robot, short_program):
+    """A casting far harder than designed drives Df_hat across many grid points: the kernel
+    stops at each new one, the design is added, the cut runs again; the result is the
+    reference's, and a second cut needs no new design."""
+    stock = replace(builtin_stock(short_program.position_m, seed=3), material_factor=2.0)
+    s = MachiningSettings(controller="adaptive-lq", force_limit_N=300.0, seed=3)
+    fast = cut_program(robot, short_program, None, stock, s)
+    slow = cut_program(robot, short_program, None, stock, s, compiled=False)
+    _same(fast, slow)
+    packed = plan_cut(robot, short_program, None, stock, s).packed
+    assert int(packed.lq_have.sum()) > 1
+    before = packed.lq_have.copy()
+    _same(cut_program(robot, short_program, None, stock, s), fast)
+    np.testing.assert_array_equal(packed.lq_have, before)
+
+
+@given(
+    st.lists(st.floats(-2e-4, 2e-4), min_size=3, max_size=400),
+    st.floats(1e-7, 1e-5),
+    st.integers(2, 40),
+)
+@settings(max_examples=60, deadline=None)
+def test_the_compiled_target_placement_equals_its_reference(shift, tolerance, every):
+    """Offline compensation's deviation-height placement of the corrected targets."""
+    from robomach_core.machining._kernel import split_by_deviation
+    from robomach_core.machining.offline import split_by_deviation_reference
+
+    shift = np.asarray(shift)
+    s = np.arange(len(shift)) * 1e-4
+    keep = np.zeros(len(s), dtype=bool)
+    keep[::every] = True
+    keep[[0, -1]] = True
+    reference = keep.copy()
+    split_by_deviation(s, shift, keep, tolerance)
+    split_by_deviation_reference(s, shift, reference, tolerance)
+    np.testing.assert_array_equal(keep, reference)
+
+
+@given(
+    st.lists(st.floats(1e-4, 0.02), min_size=2, max_size=300),
+    st.floats(1e-9, 1e-4),
+    st.lists(st.tuples(st.integers(0, 49), st.floats(-1e-3, 1e-3)), min_size=1, max_size=200),
+)
+@settings(max_examples=60, deadline=None)
+def test_the_stations_kernels_equal_numpy(speeds, step, samples):
+    """The planner's ramp (forward then backward, v^2 <= v0^2 + 2 a ds) and the lowest reach
+    per station (``np.minimum.at``), compiled, against their numpy forms."""
+    from robomach_core.machining._kernel import lowest_reach, speed_profile
+
+    v2 = np.asarray(speeds) ** 2
+    ref = v2.tolist()
+    for i in range(1, len(ref)):
+        ref[i] = min(ref[i], ref[i - 1] + step)
+    for i in range(len(ref) - 2, -1, -1):
+        ref[i] = min(ref[i], ref[i + 1] + step)
+    np.testing.assert_array_equal(speed_profile(v2, step), np.sqrt(ref))
+    station = np.array([k for k, _ in samples], dtype=np.int64)
+    depth = np.array([h for _, h in samples])
+    reach = np.full(50, np.inf)
+    np.minimum.at(reach, station, depth)
+    np.testing.assert_array_equal(lowest_reach(station, depth, 50), reach)

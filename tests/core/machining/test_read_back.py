@@ -1,0 +1,113 @@
+"""Issue 29's acceptance: the program that leaves is the cut that was simulated. On the UR10,
+the IRB 4400 and the KR 270 (the pump demo, seed 0), every configuration the cell can run is
+chosen, its program files are written as the CLI writes them, read back in each language of
+the arm (targets, speeds, feed control) and cut again: cycle, peak force and finished-wall
+error within 2 % of the comparison table's. The feed control the program carries is the one
+the configuration needs (FC SpeedChange in RAPID, the feed loop in URScript, none for the
+constant feed); what a KUKA controller cannot be given is not runnable there, and says why.
+(Slow: three demos and three 18-run comparisons.)"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from robomach_core import project as core
+from robomach_core.errors import InvalidInputError
+from robomach_core.export.languages import languages_for
+from robomach_core.export.read_back import read_program
+from robomach_core.machining import MACHINING_CONTROLLERS, MachiningSettings
+from robomach_core.machining.run import cut_program
+from robomach_core.project._machining import compensation_model
+from robomach_core.robot import Robot
+from tests.demo_project import arm_demo
+
+pytestmark = pytest.mark.slow
+MM = 1e-3
+# Every option each arm's controller can have, so every configuration it can run is checked.
+CELLS = {
+    "ur10": ("force_mode", "path_correction"),
+    "irb4400": ("fc_speed_change", "path_correction"),
+    "kr270": ("path_correction",),
+}
+FEED_CONTROL = {"rapid": "FC SpeedChange", "urscript": "URScript feed loop", "krl": None}
+FIGURES = ("cycle_time_s", "force_peak_N", "wall_error_max_mm")
+
+
+@pytest.fixture(scope="module", params=sorted(CELLS))
+def machined(request):
+    arm = request.param
+    project = core.load_project_file(arm_demo(arm).folder / "project.npz")
+    setup = core.MachiningSetup(MachiningSettings(seed=0), cell_options=CELLS[arm])
+    project = core.with_machining_setup(project, setup)
+    workpiece = core.build_workpiece(project.cell, project.mesh)
+    robot = Robot(project.cell.robot, project.tool().T_flange_tcp)
+    result = core.machine(
+        project, workpiece, robot, controllers=MACHINING_CONTROLLERS,
+        compensations=("off", "offline", "online"), workers=None,
+    )  # fmt: skip
+    return arm, core.with_machining_result(project, result), workpiece, robot, result
+
+
+def test_every_runnable_configuration_cuts_from_its_files_what_the_table_shows(machined):
+    arm, project, workpiece, robot, result = machined
+    model = compensation_model(project, robot.name)
+    q0 = core.require_processed(project).result.targets.joints_rad[0]
+    runnable = [row for row in result.rows if row["runnable"]]
+    assert runnable and all(row["completed"] for row in runnable)
+    for row in runnable:
+        c, m = row["controller"], row["compensation"]
+        chosen = core.choose(project, c, m)
+        files = core.program_files(chosen, workpiece, robot)
+        settings = core.machining_setup_of(chosen).settings
+        run = result.run_for(c, m)
+        for language in languages_for(robot):
+            path = read_program(language.name, files)
+            expected = None if c == "constant" else FEED_CONTROL[language.name]
+            assert path.feed_control == expected, (arm, c, m, language.name)
+            if expected is not None:
+                assert path.reference_N == pytest.approx(settings.reference_N)
+            assert path.speed_m_s.max() <= settings.command_speed_cap_m_s + 1e-12
+            cut = cut_program(
+                robot, path.targets(robot, q0), None, result.stock,
+                replace(settings, compensation="online" if m == "online" else "off"),
+                model=model if m == "online" else None,
+                # A corrected program's offsets are measured from the nominal place of each
+                # of its targets (the 1-D cut model's wall normal there).
+                nominal=run.nominal if m == "offline" else None,
+            ).summary  # fmt: skip
+            for key in FIGURES:
+                assert cut[key] == pytest.approx(row[key], rel=0.02), (
+                    arm, c, m, language.name, key, cut[key], row[key],
+                )  # fmt: skip
+
+
+def test_what_a_cell_cannot_run_is_marked_with_the_reason(machined):
+    arm, project, _, _, result = machined
+    for row in result.rows:
+        needs_feed = row["controller"] != "constant"
+        if arm == "kr270" and needs_feed:
+            assert not row["runnable"]
+            assert "robomach writes none for a KUKA controller" in row["needs"][0]
+        else:
+            assert row["runnable"], row
+    if arm == "kr270":
+        with pytest.raises(InvalidInputError, match="fc_speed_change is for ABB"):
+            core.with_machining_setup(
+                project, core.MachiningSetup(cell_options=("fc_speed_change",))
+            )
+
+
+def test_the_constant_feed_is_written_as_cut_and_stays_within_the_limit(machined):
+    arm, project, workpiece, robot, result = machined
+    row = next(
+        r for r in result.rows if (r["controller"], r["compensation"]) == ("constant", "off")
+    )
+    files = core.program_files(core.choose(project, "constant", "off"), workpiece, robot)
+    feed = row["constant_feed_mm_s"] * MM
+    for language in languages_for(robot):
+        speeds = read_program(language.name, files).speed_m_s
+        assert np.all(speeds <= feed + 1e-12) and np.isclose(speeds.max(), feed)
+    assert row["force_peak_N"] <= row["force_limit_N"]
