@@ -47,13 +47,19 @@ from .workpiece import Workpiece
 
 FACING_COS = 0.5  # a touch meets faces whose normal is within 60 deg of against its direction
 MIN_TOUCHES = 6  # a rigid frame has six unknowns
-# A direction of the frame (1 mm of shift, or a turn moving the touches 1 mm) that moves the
-# touches' residuals by less than sqrt(this) mm altogether is not fixed by them.
-WEAK_EIGENVALUE = 0.05
+# A direction of the frame (1 mm of shift, or a turn moving the part's farthest point 1 mm)
+# that moves the touches' residuals by less than sqrt(this) mm altogether (0.03 mm: what a
+# touch resolves, the sensor's noise over the contact stiffness and the arm's bending) is not
+# fixed by them.
+WEAK_EIGENVALUE = 1e-3
 MAX_ICP_ITERATIONS = 40
 CONVERGED_M = 1e-9  # the correspondences settle and a step moves the frame less than this
 DEFAULT_CONTACT_STIFFNESS_N_M = 100e3  # post-processing's default: the papers' 85-143 N/mm
 METHOD = "point-to-plane"
+# A touch that stands this far from where the other touches put its face met something else
+# (a chip, a clamp): a casting's walls are within 0.5 mm of their CAD.
+ODD_TOUCH_M = 1.0e-3
+AGREE_M = 0.3e-3  # ... and the others agree without it within this (RMS)
 
 
 class CalibrationError(InvalidInputError):
@@ -92,9 +98,12 @@ class Touch:
     def __post_init__(self) -> None:
         object.__setattr__(self, "tcp_m", _vector(self.tcp_m, "a touch's position"))
         d = np.asarray(_vector(self.direction, "a touch's direction"))
-        if np.linalg.norm(d) < 1e-9:
+        norm = float(np.linalg.norm(d))
+        if norm < 1e-9:
             raise InvalidInputError("a touch's direction must not be zero")
-        object.__setattr__(self, "direction", _vector(d / np.linalg.norm(d), "direction"))
+        if abs(norm - 1.0) > 1e-12:  # a unit vector stays as it is (a saved touch reads back)
+            d = d / norm
+        object.__setattr__(self, "direction", _vector(d, "direction"))
         if not (math.isfinite(self.force_N) and 0.0 <= self.force_N <= 1000.0):
             raise InvalidInputError("a touch's force must be within 0-1000 N")
         if not (math.isfinite(self.tool_radius_m) and 0.0 < self.tool_radius_m < 0.05):
@@ -220,6 +229,12 @@ class WobjFit:
         iterations: Iterations of the closest-point loop.
         contact_stiffness_N_m: The k the presses were corrected with.
         moved_max_m: The farthest the registration moved a point of the CAD.
+        disagreement_m: (n,) per touch, how far it stands from where the fit of the other
+            touches puts its face (leave-one-out, linearised at the fit); NaN for a touch the
+            frame needs (the others leave a direction free without it).
+        consistent_without: (n,) per touch, True when the other touches agree (RMS within
+            ``AGREE_M``) once it is left out: the candidates for a touch that met something
+            else.
     """
 
     T_base_wobj: np.ndarray
@@ -234,6 +249,8 @@ class WobjFit:
     iterations: int
     contact_stiffness_N_m: float
     moved_max_m: float = 0.0
+    disagreement_m: np.ndarray | None = None
+    consistent_without: np.ndarray | None = None
     method: str = field(default=METHOD)
 
     @property
@@ -290,12 +307,38 @@ class WobjFit:
                 f"; one sigma {self.std_position_m * 1e3:.3f} mm, "
                 f"{math.degrees(self.std_rotation_rad):.3f} deg"
             )
+        odd = self.odd_touches()
+        if not odd:
+            odd_text = ""
+        elif len(odd) == 1:
+            k = odd[0]
+            odd_text = (
+                f"; touch {k + 1} stands {abs(self.disagreement_m[k]) * 1e3:.2f} mm off where "
+                "the others put its face (it met something else): delete it and touch again"
+            )
+        else:
+            listed = ", ".join(str(k + 1) for k in odd)
+            worst = float(np.nanmax(np.abs(self.disagreement_m)))
+            odd_text = (
+                f"; the touches disagree by up to {worst * 1e3:.2f} mm: one of touches {listed} "
+                "met something else (the others agree without it); touch that face again at "
+                "more places"
+            )
         return (
             f"registered on {len(self.touches)} touches of {faces} faces{extra} by a "
             f"{self.method} least-squares fit: the CAD moved up to {self.moved_max_m * 1e3:.2f} "
             f"mm and turned {math.degrees(self.rotation_rad):.2f} deg onto the part; residual RMS "
-            f"{self.rms_m * 1e3:.3f} mm, max {self.max_m * 1e3:.3f} mm{sigma}"
+            f"{self.rms_m * 1e3:.3f} mm, max {self.max_m * 1e3:.3f} mm{sigma}{odd_text}"
         )
+
+    def odd_touches(self) -> list[int]:
+        """When a touch stands more than ``ODD_TOUCH_M`` from where the others put its face:
+        the touches whose leaving out makes the rest agree (one: that one; several on one
+        face: it is one of them, and the touches cannot tell which); else []."""
+        d, agree = self.disagreement_m, self.consistent_without
+        if d is None or agree is None or not np.any(np.abs(np.nan_to_num(d)) > ODD_TOUCH_M):
+            return []
+        return [int(k) for k in np.flatnonzero(agree)]
 
     def document(self) -> dict[str, Any]:
         """The fit at the boundary (mm, deg), for the API and summary.json."""
@@ -318,6 +361,11 @@ class WobjFit:
             else round(math.degrees(self.std_rotation_rad), 4),
             "contact_stiffness_N_mm": round(self.contact_stiffness_N_m * 1e-3, 3),
             "residuals_mm": [round(float(r) * 1e3, 4) for r in self.residuals_m],
+            "disagreement_mm": [
+                None if not np.isfinite(d) else round(float(d) * 1e3, 4)
+                for d in (self.disagreement_m if self.disagreement_m is not None else ())
+            ],
+            "odd_touches": self.odd_touches(),
             "surface_mm": [[round(float(v) * 1e3, 3) for v in p] for p in self.surface_base_m],
             "faces": list(self.faces),
             "message": self.describe(),
@@ -435,14 +483,19 @@ def fit_wobj(
     p, n, faces = found.find(y)
     r = np.einsum("ij,ij->i", n, y - p) - offset
     # The Jacobian of the residuals at the solution (a small turn dw of the touches about their
-    # centroid, scaled to the touches' spread, and a shift dt): dr = ((y - c) x n) . dw + n . dt.
-    J = np.hstack([np.cross(y - centre, n) / spread, n])
+    # centroid, scaled by the part's size so that a unit turn moves its farthest point as far
+    # as a unit shift, and a shift dt): dr = ((y - c) x n) . dw + n . dt.
+    size = max(float(np.max(np.linalg.norm(np.asarray(cad.mesh.vertices) - centre, axis=1))),
+               1e-3)  # fmt: skip
+    J = np.hstack([np.cross(y - centre, n) / size, n])
     _refuse_free_directions(J, R0)
+    JtJ_inv = np.linalg.inv(J.T @ J)
+    disagreement, agree = _left_out(J, r)
     std_p = std_r = None
     if len(touches) > MIN_TOUCHES:
         sigma2 = float(r @ r) / (len(touches) - MIN_TOUCHES)
-        cov = sigma2 * np.linalg.inv(J.T @ J)
-        std_r = float(np.sqrt(np.trace(cov[:3, :3]))) / spread
+        cov = sigma2 * JtJ_inv
+        std_r = float(np.sqrt(np.trace(cov[:3, :3]))) / size
         std_p = float(np.sqrt(np.trace(cov[3:, 3:])))
     # M^-1 y = R (y - c) + c + t, so M y = R^T (y - c - t) + c: the CAD moves by M.
     R = Rotation.from_rotvec(x[:3]).as_matrix()
@@ -464,7 +517,27 @@ def fit_wobj(
         iterations=iterations,
         contact_stiffness_N_m=float(contact_stiffness_N_m),
         moved_max_m=moved,
+        disagreement_m=disagreement,
+        consistent_without=agree,
     )
+
+
+def _left_out(J: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per touch k, the fit of the others (one Gauss-Newton step from the fit, linear in the
+    residuals r with Jacobian J): how far touch k stands from it (NaN when the others leave a
+    direction free), and whether the others agree without it."""
+    n = len(r)
+    out, agree = np.full(n, np.nan), np.zeros(n, dtype=bool)
+    for k in range(n):
+        keep = np.arange(n) != k
+        Jk, rk = J[keep], r[keep]
+        if np.linalg.eigvalsh(Jk.T @ Jk)[0] < WEAK_EIGENVALUE:
+            continue
+        step = np.linalg.lstsq(Jk, rk, rcond=None)[0]
+        out[k] = r[k] - J[k] @ step
+        rest = rk - Jk @ step
+        agree[k] = float(np.sqrt(np.mean(rest**2))) <= AGREE_M
+    return out, agree
 
 
 def _refuse_free_directions(J: np.ndarray, R_base_wobj: np.ndarray) -> None:

@@ -41,7 +41,7 @@ TOUCH_DEPTH_M = 0.008  # a side is touched this far below its top edge (the spin
 TABLE_CLEARANCE_M = 0.002  # ... and at least this far above the part's lowest point
 SAFE_ABOVE_M = 0.03  # the tool travels between touches this far above the part
 TOUCH_FORCE_N = 10.0  # the chapter's lightest contact force
-TOP_TOUCHES = 3
+TOP_TOUCHES = 3  # the corners of the largest triangle on the top face
 SIDE_TOUCHES = 3
 OTHER_SIDE_TOUCHES = 2
 UP_COS = math.cos(math.radians(5.0))  # a face whose normal is this near +z faces up
@@ -186,6 +186,27 @@ def _reachable(robot, start: np.ndarray) -> bool:
     return True
 
 
+def _pick_triangle(points: np.ndarray, starts: np.ndarray, robot) -> list[int]:
+    """Three candidates spanning the largest triangle (in x-y) that the arm reaches: the
+    outermost, the farthest from it, the farthest from the line through both (three points
+    far apart but in a row fix no turn about that row)."""
+
+    def first_reached(order: np.ndarray) -> int | None:
+        return next((int(k) for k in order if _reachable(robot, starts[k])), None)
+
+    xy = points[:, :2]
+    a = first_reached(np.argsort(-np.linalg.norm(xy - xy.mean(axis=0), axis=1)))
+    if a is None:
+        return []
+    b = first_reached(np.argsort(-np.linalg.norm(xy - xy[a], axis=1)))
+    if b is None or b == a:
+        return [a]
+    ab = xy[b] - xy[a]
+    off = np.abs(ab[0] * (xy[:, 1] - xy[a, 1]) - ab[1] * (xy[:, 0] - xy[a, 0]))
+    c = first_reached(np.argsort(-off))
+    return [a, b] if c is None or c in (a, b) else [a, b, c]
+
+
 def _pick(keys: np.ndarray, starts: np.ndarray, count: int, robot) -> list[int]:
     """``count`` candidates far apart (``_spread`` over ``keys``) that the arm reaches."""
     order = _spread(keys, min(len(keys), 8 * count))
@@ -238,7 +259,7 @@ def plan_touches(
         spans = [np.zeros(3)] + [m * margin for m in (a, -a, b, -b, a + b, a - b, b - a, -a - b)]
         ok = _flat(mesh, plane, starts, reach, spans)
         flat_anywhere = flat_anywhere or ok.sum() >= TOP_TOUCHES
-        picked = _pick(pts[ok][:, :2], starts[ok], TOP_TOUCHES, robot)
+        picked = _pick_triangle(pts[ok], starts[ok], robot)
         if len(picked) == TOP_TOUCHES:
             top = (plane, pts[ok][picked], starts[ok][picked])
             break
