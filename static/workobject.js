@@ -160,7 +160,14 @@ async function initWorkObject() {
   $("wobj-back").addEventListener("click", safe(putBack));
   $("calib-mode").addEventListener("click", safe(touchMode));
   $("calib-auto").addEventListener("click", safe(autoCalibration));
-  $("calib-accept").addEventListener("click", safe(() => calibrationCall("POST", "/cell/calibration/accept")));
+  $("calib-accept").addEventListener("click", safe(async () => {
+    await calibrationCall("POST", "/cell/calibration/accept");
+    // The touching is done: a click on the part proposes the wall again.
+    const pointing = await api("GET", "/guide-points/pointing", undefined, { quiet: true });
+    if (pointing.click_mode === "touch") {
+      await api("PUT", "/guide-points/pointing", { click_mode: "propose" });
+    }
+  }));
   $("calib-undo").addEventListener("click", safe(() => calibrationCall("DELETE", "/cell/calibration/touches/last")));
   $("calib-clear").addEventListener("click", safe(() => calibrationCall("DELETE", "/cell/calibration/touches")));
   $("calib-remove").addEventListener("click", safe(() => calibrationCall("DELETE", "/cell/calibration")));

@@ -60,7 +60,10 @@ TOUCH_COLOR = (90, 90, 200)  # a calibration's touch before the touches fix a fr
 TOUCH_ARROW_M = 0.008  # the arrow of a touch's move, ending at the ball
 FIT_COLOR = (40, 200, 120)  # the CAD where the calibration's fit places it
 CALIBRATION_SCALE_M = 0.2e-3  # a touch's residual: green at 0, red from 0.2 mm
-PART_VIEW_ELEVATION_DEG = 40.0  # View the part: looking down at the walls from beyond the part
+# View the part: looking down at the walls from beyond the part (away from the robot's base),
+# else from the first of these directions the arm does not stand in.
+PART_VIEW_ELEVATIONS_DEG = (40.0, 60.0, 25.0, 75.0)
+PART_VIEW_AZIMUTHS_DEG = (0.0, 35.0, -35.0, 70.0, -70.0, 110.0, -110.0, 180.0)
 PART_VIEW_FILL = 1.15  # the part's bounding sphere fills the view with this margin
 TABLE_MARGIN_M = 0.08  # the table reaches this far beyond the part
 TABLE_STAND_FROM_M = 0.05  # a part this high stands on a stand from the floor
@@ -205,6 +208,57 @@ class _RobotPose:
         self._q = q.copy()
 
 
+def part_view_pose(
+    bounds: np.ndarray, fov_rad: float, obstacle: trimesh.Trimesh | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(eye, look-at) framing a part of base-frame ``bounds`` (2, 3): its bounding sphere
+    fills the view (``PART_VIEW_FILL``), looking down ``PART_VIEW_ELEVATIONS_DEG`` from a
+    side ``PART_VIEW_AZIMUTHS_DEG`` off "beyond the part, away from the robot's base"; the
+    first from which no ray to the part's centre or the corners of its top is blocked by
+    ``obstacle`` (the arm and its tool), else the one blocked least."""
+    lo, hi = np.asarray(bounds, dtype=float)
+    centre = 0.5 * (lo + hi)
+    radius = 0.5 * float(np.linalg.norm(hi - lo))
+    distance = PART_VIEW_FILL * radius / math.sin(0.5 * fov_rad)
+    xy = centre[:2]
+    away = xy / np.linalg.norm(xy) if np.linalg.norm(xy) > 1e-6 else np.array([1.0, 0.0])
+    inset = 0.4 * (hi - lo)
+    targets = np.array(
+        [centre]
+        + [[centre[0] + sx * inset[0], centre[1] + sy * inset[1], hi[2]]
+           for sx in (-1, 1) for sy in (-1, 1)]
+    )  # fmt: skip
+    best, fewest = None, None
+    for el_deg in PART_VIEW_ELEVATIONS_DEG:
+        el = math.radians(el_deg)
+        for az_deg in PART_VIEW_AZIMUTHS_DEG:
+            c, s = math.cos(math.radians(az_deg)), math.sin(math.radians(az_deg))
+            horizontal = np.array([c * away[0] - s * away[1], s * away[0] + c * away[1]])
+            eye = centre + distance * np.array([*(horizontal * math.cos(el)), math.sin(el)])
+            blocked = 0 if obstacle is None else _blocked(obstacle, eye, targets)
+            if blocked == 0:
+                return eye, centre
+            if fewest is None or blocked < fewest:
+                best, fewest = eye, blocked
+    return best, centre
+
+
+def _blocked(obstacle: trimesh.Trimesh, eye: np.ndarray, targets: np.ndarray) -> int:
+    """How many of the rays from ``eye`` to ``targets`` meet ``obstacle`` first (or start in
+    it)."""
+    to = targets - eye
+    length = np.linalg.norm(to, axis=1)
+    dirs = to / length[:, None]
+    hits, rays, _ = obstacle.ray.intersects_location(
+        np.repeat(eye[None], len(targets), axis=0), dirs, multiple_hits=True
+    )
+    nearer = np.zeros(len(targets), dtype=bool)
+    for hit, ray in zip(hits, rays, strict=True):
+        if np.linalg.norm(hit - eye) < length[ray] - 1e-3:
+            nearer[ray] = True
+    return int(nearer.sum())
+
+
 class CellScene:
     """Scene nodes of the cell, updated from the session's state.
 
@@ -261,6 +315,7 @@ class CellScene:
     def set_tool(self, tool: Tool) -> None:
         """Draw the spindle and cutter of ``tool`` on the TCP."""
         body = tool_mesh(tool)
+        self._tool_body = body
         cutter = cutter_mesh(tool)
         with self.server.atomic():
             self.server.scene.add_mesh_simple(
@@ -607,26 +662,36 @@ class CellScene:
             )
             client.camera.look_at = (float(centre[0]), float(centre[1]), float(bounds[1, 2]))
 
-    def part_view(self, client, workpiece: Workpiece) -> None:
-        """An oblique view of the whole part from beyond it, looking back towards the robot:
-        the camera stands on the far side of the part from the robot's base, so the arm is
-        never between it and the part, nor around it."""
-        cad = workpiece.cad()
-        bounds = cad.mesh_in_base().bounds
-        centre = 0.5 * (bounds[0] + bounds[1])
-        radius = 0.5 * float(np.linalg.norm(bounds[1] - bounds[0]))
+    def part_view(
+        self,
+        client,
+        workpiece: Workpiece,
+        joints_rad: np.ndarray | None = None,
+        T_base_tcp: np.ndarray | None = None,
+    ) -> None:
+        """Frame the whole part from where the arm (at ``joints_rad``, its tool at
+        ``T_base_tcp``) hides none of it (``part_view_pose``), looking down at its walls."""
+        bounds = workpiece.cad().mesh_in_base().bounds
         fov = float(getattr(client.camera, "fov", math.radians(50.0)))
-        distance = PART_VIEW_FILL * radius / math.sin(0.5 * fov)
-        away = centre[:2] / max(float(np.linalg.norm(centre[:2])), 1e-9)  # from the base
-        if not np.linalg.norm(centre[:2]) > 1e-6:
-            away = np.array([1.0, 0.0])
-        el = math.radians(PART_VIEW_ELEVATION_DEG)
-        eye = centre + distance * np.array([away[0] * math.cos(el), away[1] * math.cos(el),
-                                            math.sin(el)])  # fmt: skip
+        arm = None if joints_rad is None else self.arm_mesh(joints_rad, T_base_tcp)
+        eye, centre = part_view_pose(bounds, fov, arm)
         with client.atomic():
             client.camera.up_direction = (0.0, 0.0, 1.0)
             client.camera.position = tuple(float(v) for v in eye)
             client.camera.look_at = tuple(float(v) for v in centre)
+
+    def arm_mesh(self, joints_rad: np.ndarray, T_base_tcp: np.ndarray | None) -> trimesh.Trimesh:
+        """The arm as drawn at ``joints_rad`` (its visual meshes) with the spindle on its TCP,
+        base frame: what may stand between the camera and the part."""
+        if getattr(self, "_arm_robot", None) != self._robot_name:
+            self._arm_model = load_urdf(self._robot_name)  # its own: the scene's is drawn
+            self._arm_robot = self._robot_name
+        self._arm_model.update_cfg(np.asarray(joints_rad, dtype=float))
+        parts = [self._arm_model.scene.to_mesh()]
+        body = getattr(self, "_tool_body", None)
+        if body is not None and T_base_tcp is not None:
+            parts.append(body.copy().apply_transform(np.asarray(T_base_tcp, dtype=float)))
+        return trimesh.util.concatenate(parts)
 
     # ----------------------------------------------------------------- live state
 

@@ -108,6 +108,7 @@ class Workbench:
         self.path_learning.on_route_change(lambda: self._on_change("guide_points"))
         self.studies = self._study_panels(server, session)
         self.studies += self._machining_panel(server, session)
+        self._framed = self._part_key()  # the cell the cameras were last framed on
         self._dirty: set[str] = {"job"}
         self._dirty_lock = threading.Lock()
         self._jobs_shown: dict[str, str] = {}  # job kind -> id of the job the panel shows
@@ -203,7 +204,10 @@ class Workbench:
         if "cell" in topics:
             self._show_cell()
             self.cell.refresh()
-            self._frame_part()
+            framed = self._part_key()
+            if framed != self._framed:  # not a calibration: the person's view stays
+                self._framed = framed
+                self._frame_part()
             note = self.session.cell_note()
             for client in self.server.get_clients().values() if note else ():
                 client.add_notification(
@@ -271,12 +275,23 @@ class Workbench:
         self.scene.set_workpiece(cell.workpiece)  # drawn as its mesh (``Workpiece.cad``)
         self._last_time_s = float("nan")  # redraw the new robot at once
 
+    def _part_key(self) -> tuple:
+        """What the camera frames: the arm, the part and its placement (a calibration moves
+        the CAD by millimetres onto the real part: the view the person chose stays)."""
+        project = self.session.project()
+        cell, mesh = project.cell, project.mesh
+        mesh_key = None if mesh is None else (mesh[0], len(mesh[1]))
+        return (cell.robot, cell.workpiece, cell.wobj_mm_deg, mesh_key)
+
     def _frame_part(self) -> None:
         """Every browser's camera on the new part (a cell change: another part, place or
         robot), from beyond it so that the arm is never in the way."""
-        workpiece = self.session.robot.workpiece
-        for client in self.server.get_clients().values():
-            self.scene.part_view(client, workpiece)
+        clients = list(self.server.get_clients().values())
+        if not clients:
+            return
+        workpiece, pose = self.session.robot.workpiece, self.session.robot.snapshot()
+        for client in clients:
+            self.scene.part_view(client, workpiece, pose.joints_rad, pose.T_base_tcp)
 
     def _hide_old_cell_paths(self, topics: set[str]) -> None:
         """A cell change leaves the old cell's recording in the project (stale), but its paths

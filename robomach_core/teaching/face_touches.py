@@ -12,9 +12,11 @@ STRATEGY  The face at the pick is the plane of the mesh's face there (normal and
           kept when the mesh's closest point to it, and to each point ``FLAT_MARGIN_M`` around
           it, lies on the same plane (flat over the error the part may have). The kept point
           nearest the pick comes first (the pick itself unless it is near the face's edge),
-          then the kept candidates farthest from the points chosen. How many: what the
-          example operator's plan takes from a face of that kind (three on the top, three and
-          two on two sides: three-two-one and two to spare, ``touches_for_face``).
+          then the kept candidate farthest from it, a third farthest from the line through
+          those two (the tilt across a long face), and more farthest from the points chosen.
+          How many: what the example operator's plan takes from a face of that kind (three on
+          the top, three and two on two sides: three-two-one and two to spare,
+          ``touches_for_face``).
 SOLUTION  ``touches_for_face(up, directions)`` and ``face_touch_points(cad, point, count)``
           -> (k, 3) points of the face (work-object frame) to touch with
           ``Calibration.touch(at_wobj_m=...)``.
@@ -96,12 +98,25 @@ def face_touch_points(
     # The first touch nearest the pick (the pick itself when its face is flat around it).
     chosen = [kept[int(np.argmin(np.linalg.norm(kept - pick, axis=1)))]]
     while len(chosen) < count:
-        gaps = np.min(np.linalg.norm(kept[:, None] - np.asarray(chosen)[None], axis=2), axis=1)
+        gaps = _spread_from(kept, np.asarray(chosen), across=up)
         k = int(np.argmax(gaps))
         if gaps[k] < FLAT_MARGIN_M:
             break
         chosen.append(kept[k])
     return np.asarray(chosen)
+
+
+def _spread_from(points: np.ndarray, chosen: np.ndarray, *, across: bool) -> np.ndarray:
+    """(k,) how far each point stands from those chosen: from the one point, then (on a face
+    spread ``across``, a top) from the line through the first two (a third touch of a long
+    face off that line fixes its tilt across it: farthest from both ends picked one at the
+    end of a bar), then from the nearest chosen point."""
+    if across and len(chosen) == 2:
+        axis = chosen[1] - chosen[0]
+        axis /= max(float(np.linalg.norm(axis)), 1e-12)
+        rel = points - chosen[0]
+        return np.linalg.norm(rel - np.outer(rel @ axis, axis), axis=1)
+    return np.min(np.linalg.norm(points[:, None] - chosen[None], axis=2), axis=1)
 
 
 def _tangents(n: np.ndarray, up: bool) -> list[np.ndarray]:

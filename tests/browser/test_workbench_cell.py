@@ -11,9 +11,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-import trimesh
 
-from app.gui.scene import load_urdf
 from app.session import Session
 from robomach_core.project import wobj_transform
 from robomach_core.robot import ROBOT_NAMES
@@ -75,48 +73,46 @@ def _nothing():
     yield
 
 
-def _robot_meshes(robot: str, joints_rad: np.ndarray) -> trimesh.Trimesh:
-    """The arm's visual meshes at ``joints_rad``, base frame (what the scene draws)."""
-    urdf = load_urdf(robot)
-    urdf.update_cfg(np.asarray(joints_rad, dtype=float))
-    return urdf.scene.to_mesh()
-
-
 def test_view_the_part_frames_it_with_the_arm_out_of_the_way():
-    """Every arm (three drawn per run), every built-in part, placed at random about its default
-    place: the camera stands outside the arm, sees the part's centre past it, and has the
-    whole part in view."""
+    """Arms (three drawn per run) at their home pose, every built-in part and an uploaded
+    plate, placed at random about the default place and turned: the camera stands outside
+    the arm and sees the part's centre and the corners of its top past the arm and its
+    spindle, with the whole part in view."""
+    from app.gui.scene import part_view_pose
+    from tests.generated_parts import cam_plate
+
     rng = random.Random()
     seed = rng.randrange(2**32)
     rng.seed(seed)
     session = Session(real_time=False)
     try:
-        for robot in rng.sample(ROBOT_NAMES, 3):
-            for workpiece in ("water_pump", "block", "s_groove"):
-                session.set_cell(robot=robot, workpiece=workpiece)
-                T = session.robot.workpiece.cad().T_base_wobj
-                values = (*(T[:3, 3] * 1e3 + [rng.uniform(-60, 60), rng.uniform(-60, 60), 0]),
-                          0.0, 0.0, rng.uniform(-45, 45))  # fmt: skip
-                session.set_cell(wobj_mm_deg=values)
-                arm = _robot_meshes(robot, session.robot.snapshot().joints_rad)
-                client = SimpleNamespace(camera=_Camera(), atomic=_nothing)
-                from app.gui.scene import CellScene
+        with workbench_on(session) as wb:
+            for robot in ["ur10", *rng.sample(ROBOT_NAMES, 2)]:
+                for workpiece in ("water_pump", "block", "cam_plate"):
+                    if workpiece == "cam_plate":
+                        session.set_cell(robot=robot, wobj_mm_deg=None)
+                        session.upload_workpiece(cam_plate().stl_bytes(), "cam_plate.stl")
+                    else:
+                        session.set_cell(robot=robot, workpiece=workpiece, wobj_mm_deg=None)
+                    T = session.robot.workpiece.cad().T_base_wobj
+                    values = (*(T[:3, 3] * 1e3 + [rng.uniform(-60, 60), rng.uniform(-60, 60), 0]),
+                              0.0, 0.0, rng.uniform(-45, 45))  # fmt: skip
+                    session.set_cell(wobj_mm_deg=values)
+                    wait_for(lambda r=robot: wb.scene._robot_name == r, timeout_s=30)
+                    pose = session.robot.snapshot()
+                    arm = wb.scene.arm_mesh(pose.joints_rad, pose.T_base_tcp)
+                    bounds = session.robot.workpiece.cad().mesh_in_base().bounds
+                    eye, centre = part_view_pose(bounds, _Camera.fov, arm)
+                    context = f"seed {seed}: {robot}, {workpiece} at {np.round(values, 1)}"
+                    from app.gui.scene import _blocked
 
-                CellScene.part_view(None, client, session.robot.workpiece)
-                eye = np.asarray(client.camera.position)
-                centre = np.asarray(client.camera.look_at)
-                context = f"seed {seed}: {robot}, {workpiece} at {np.round(values, 1)}"
-                assert not arm.contains([eye])[0], context
-                to_centre = centre - eye
-                hits, _, _ = arm.ray.intersects_location(
-                    [eye], [to_centre / np.linalg.norm(to_centre)]
-                )
-                nearer = [h for h in hits if np.linalg.norm(h - eye) < np.linalg.norm(to_centre)]
-                assert not nearer, f"{context}: the arm stands between the camera and the part"
-                bounds = session.robot.workpiece.cad().mesh_in_base().bounds
-                radius = 0.5 * np.linalg.norm(bounds[1] - bounds[0])
-                half_fov = 0.5 * _Camera.fov
-                assert np.linalg.norm(to_centre) * np.sin(half_fov) >= radius, context
+                    corners = [[x, y, bounds[1, 2]] for x in bounds[:, 0] for y in bounds[:, 1]]
+                    inset = centre + 0.8 * (np.array(corners) - centre)
+                    inset[:, 2] = bounds[1, 2]
+                    assert _blocked(arm, eye, np.vstack([centre, inset])) == 0, context
+                    radius = 0.5 * np.linalg.norm(bounds[1] - bounds[0])
+                    to_centre = np.linalg.norm(centre - eye)
+                    assert to_centre * np.sin(0.5 * _Camera.fov) >= radius, context
     finally:
         session.close()
 

@@ -84,7 +84,7 @@ class CalibrationPanel:
         self.auto.on_click(
             guarded("Calibration", lambda e: calibration.start_auto(float(self.force.value)))
         )
-        self.accept.on_click(guarded("Calibration", lambda e: calibration.accept()))
+        self.accept.on_click(guarded("Calibration", lambda e: self._accept()))
         self.undo.on_click(guarded("Calibration", lambda e: calibration.undo()))
         self.clear.on_click(
             guarded("Calibration", lambda e: calibration.clear(force_N=float(self.force.value)))
@@ -92,6 +92,13 @@ class CalibrationPanel:
         self.remove.on_click(guarded("Calibration", lambda e: calibration.remove()))
         self.last_touches: np.ndarray = np.zeros((0, 3))  # the points the last click touched
         self.refresh()
+
+    def _accept(self) -> None:
+        """The fit becomes the work object; a click on the part proposes the wall again (the
+        touching is done)."""
+        self.session.calibration.accept()
+        if self.session.pointing.click_mode == "touch":
+            self.session.pointing.set_settings(click_mode="propose")
 
     # --- a click in the touch mode -----------------------------------------------------------
 

@@ -45,13 +45,14 @@ class PlacementPanel:
                 for i, a in enumerate(AXES)
             ]
             self.angles = [
-                server.gui.add_slider(
+                server.gui.add_number(
                     f"r{a} (deg)",
-                    *ANGLE_RANGE_DEG,
-                    0.5,
                     placed[3 + i],
+                    min=ANGLE_RANGE_DEG[0],
+                    max=ANGLE_RANGE_DEG[1],
+                    step=0.5,
                     hint=f"Turn about the base's fixed {a} axis (applied x, then y, then z)",
-                )  # fmt: skip
+                )
                 for i, a in enumerate(AXES)
             ]
             self.note = server.gui.add_markdown("")

@@ -116,9 +116,7 @@ class PointingPanel:
         self.show_cad_only.on_update(lambda e: self.show_comparison())
         self._rendering(server)
         self.top.on_click(lambda e: e.client and scene.top_view(e.client, session.robot.workpiece))
-        self.part.on_click(
-            lambda e: e.client and scene.part_view(e.client, session.robot.workpiece)
-        )
+        self.part.on_click(lambda e: e.client and self._view_part(e.client))
         scene.on_part_click(self._clicked)
         self.last_click_s = float("nan")  # how long the last click took (tests read it)
         self.picked = None  # the wall the last click picked (``walls.WallPick``)
@@ -126,6 +124,12 @@ class PointingPanel:
         self.refresh()
 
     # --- the user's actions ----------------------------------------------------------------
+
+    def _view_part(self, client) -> None:
+        """The whole part, from where the arm does not stand in the way."""
+        pose = self.session.robot.snapshot()
+        self.scene.part_view(client, self.session.robot.workpiece, pose.joints_rad,
+                             pose.T_base_tcp)  # fmt: skip
 
     def _rendering(self, server: viser.ViserServer) -> None:
         """Shadows and the environment's reflections on or off (for every browser)."""
