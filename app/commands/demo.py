@@ -358,14 +358,25 @@ def run(args: argparse.Namespace) -> int:
         touch_force_N=max(args.force, limits.TOUCH_OFF_FORCE_N.min),
     )
     bar = _ProgressLine()
+
+    def checked(findings: tuple) -> None:
+        """The guide-point check, printed before the run starts (as the workbench shows it)."""
+        bar.close()
+        lines = _check_lines(
+            [
+                {"point": w.point, "rule": w.rule, "severity": w.severity, "message": w.message}
+                for w in findings
+            ]
+        )
+        for line in lines or ["the guide points pass every rule"]:
+            print(f"check             {line}", flush=True)
+        bar.stage = None
+
     try:
-        result = run_demo(settings, progress=bar)
+        result = run_demo(settings, progress=bar, checked=checked)
     except SupervisionError as exc:
-        where = "" if args.wobj is not None else " (the built-in placement)"
-        raise exc.with_note(
-            f"the part may be beyond the {robot} arm's reach{where}: place it nearer with "
-            "--wobj x,y,z (mm)"
-        ) from None
+        where = "" if args.wobj is not None else " (now the built-in placement)"
+        raise exc.with_cause_note(robot, place=f"--wobj x,y,z (mm){where}") from None
     except RobomachError as exc:
         if args.realistic and not args.calibrate:  # the likely cause, which the user chose
             exc.args = (
@@ -430,8 +441,6 @@ def run(args: argparse.Namespace) -> int:
             f"{s['mesh_air_mm']:.3f} mm (program vs the part's walls - tool radius)"
         )
     print(f"wall              on the {s['wall_side']} of travel: {s['wall_side_reason']}")
-    for line in _check_lines(s.get("guide_point_check") or ()):
-        print(f"check             {line}")
     if s.get("taught_wall"):
         print(f"taught wall       {s['taught_wall']}")
     comparison = s.get("cad_comparison")
