@@ -115,7 +115,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--propose-guide-points",
         metavar="X,Y,Z",
         help="propose the guide points along the wall through this point (on the wall, in the "
-        "work-object frame, mm, as a click in the workbench gives it) and lead the robot to "
+        "work-object frame, mm, as a click in the workbench gives it: -12.5,3,4 or -12.5 3 4 "
+        "or '(-12.5, 3, 4)') and lead the robot to "
         "them: no CSV needed, for a mesh file too; the wall decides open or closed and the "
         "wall side",
     )
@@ -172,13 +173,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def _point_mm(text: str, option: str) -> tuple[float, float, float]:
     """A point x,y,z in mm (work-object frame) as metres, each inside the work-object range."""
+    from app.cli import number_parts
     from robomach_core import limits
     from robomach_core.errors import InvalidInputError
 
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise InvalidInputError(f"{option} {text!r}: expected three numbers x,y,z in mm") from None
+    values = tuple(float(v) for v in number_parts(text))
+    if not values:
+        raise InvalidInputError(f"{option} {text!r}: expected three numbers x,y,z in mm")
     if len(values) != 3:
         raise InvalidInputError(
             f"{option} {text!r}: expected three numbers x,y,z in mm, got {len(values)}"
@@ -274,12 +275,13 @@ def run(args: argparse.Namespace) -> int:
 
     wobj = None
     if args.wobj is not None:
-        try:
-            wobj = tuple(float(v) for v in args.wobj.split(","))
-        except ValueError:
+        from app.cli import number_parts
+
+        wobj = tuple(float(v) for v in number_parts(args.wobj))
+        if not wobj:
             raise InvalidInputError(
                 f"--wobj {args.wobj!r}: expected numbers x,y,z[,rz] or x,y,z,rx,ry,rz"
-            ) from None
+            )
         if len(wobj) not in (3, 4, 6):
             raise InvalidInputError(
                 f"--wobj {args.wobj!r}: expected 3, 4 or 6 numbers (x,y,z[,rz] or "
