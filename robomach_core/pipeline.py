@@ -274,8 +274,15 @@ def demo_project(settings: DemoSettings) -> Project:
     )
 
 
-def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> DemoResult:
-    """Run the whole pipeline headless; ``progress(stage, fraction)`` reports as it goes."""
+def run_demo(
+    settings: DemoSettings,
+    *,
+    progress: Progress | None = None,
+    checked: Callable[[tuple], None] | None = None,
+) -> DemoResult:
+    """Run the whole pipeline headless; ``progress(stage, fraction)`` reports as it goes, and
+    ``checked(findings)`` gets the guide-point check before the run starts (a terminal prints
+    it before the run, as the workbench shows it)."""
     started = time.perf_counter()
     report = progress or (lambda stage, fraction: None)
     if settings.robot_urdf is not None:
@@ -341,10 +348,18 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         closed=settings.closed,
     )
     from .learning import guide_point_warnings
+    from .supervision import cell_supervisor
 
     findings = guide_point_warnings(  # what the workbench shows before a run; a refusal raises
-        guides, learning, workpiece=cad, tool_radius_m=cell.tool.radius_m, robot=cell.robot
+        guides,
+        learning,
+        workpiece=cad,
+        tool_radius_m=cell.tool.radius_m,
+        robot=cell.robot,
+        supervisor=cell_supervisor(cell),
     )
+    if checked is not None:
+        checked(findings)
     learned, _ = learn(
         project,
         cell,

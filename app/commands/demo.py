@@ -115,7 +115,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--propose-guide-points",
         metavar="X,Y,Z",
         help="propose the guide points along the wall through this point (on the wall, in the "
-        "work-object frame, mm, as a click in the workbench gives it) and lead the robot to "
+        "work-object frame, mm, as a click in the workbench gives it: -12.5,3,4 or -12.5 3 4 "
+        "or '(-12.5, 3, 4)') and lead the robot to "
         "them: no CSV needed, for a mesh file too; the wall decides open or closed and the "
         "wall side",
     )
@@ -172,13 +173,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def _point_mm(text: str, option: str) -> tuple[float, float, float]:
     """A point x,y,z in mm (work-object frame) as metres, each inside the work-object range."""
+    from app.cli import number_parts
     from robomach_core import limits
     from robomach_core.errors import InvalidInputError
 
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise InvalidInputError(f"{option} {text!r}: expected three numbers x,y,z in mm") from None
+    values = tuple(float(v) for v in number_parts(text))
+    if not values:
+        raise InvalidInputError(f"{option} {text!r}: expected three numbers x,y,z in mm")
     if len(values) != 3:
         raise InvalidInputError(
             f"{option} {text!r}: expected three numbers x,y,z in mm, got {len(values)}"
@@ -274,12 +275,13 @@ def run(args: argparse.Namespace) -> int:
 
     wobj = None
     if args.wobj is not None:
-        try:
-            wobj = tuple(float(v) for v in args.wobj.split(","))
-        except ValueError:
+        from app.cli import number_parts
+
+        wobj = tuple(float(v) for v in number_parts(args.wobj))
+        if not wobj:
             raise InvalidInputError(
                 f"--wobj {args.wobj!r}: expected numbers x,y,z[,rz] or x,y,z,rx,ry,rz"
-            ) from None
+            )
         if len(wobj) not in (3, 4, 6):
             raise InvalidInputError(
                 f"--wobj {args.wobj!r}: expected 3, 4 or 6 numbers (x,y,z[,rz] or "
@@ -358,14 +360,25 @@ def run(args: argparse.Namespace) -> int:
         touch_force_N=max(args.force, limits.TOUCH_OFF_FORCE_N.min),
     )
     bar = _ProgressLine()
+
+    def checked(findings: tuple) -> None:
+        """The guide-point check, printed before the run starts (as the workbench shows it)."""
+        bar.close()
+        lines = _check_lines(
+            [
+                {"point": w.point, "rule": w.rule, "severity": w.severity, "message": w.message}
+                for w in findings
+            ]
+        )
+        for line in lines or ["the guide points pass every rule"]:
+            print(f"check             {line}", flush=True)
+        bar.stage = None
+
     try:
-        result = run_demo(settings, progress=bar)
+        result = run_demo(settings, progress=bar, checked=checked)
     except SupervisionError as exc:
-        where = "" if args.wobj is not None else " (the built-in placement)"
-        raise exc.with_note(
-            f"the part may be beyond the {robot} arm's reach{where}: place it nearer with "
-            "--wobj x,y,z (mm)"
-        ) from None
+        where = "" if args.wobj is not None else " (now the built-in placement)"
+        raise exc.with_cause_note(robot, place=f"--wobj x,y,z (mm){where}") from None
     except RobomachError as exc:
         if args.realistic and not args.calibrate:  # the likely cause, which the user chose
             exc.args = (
@@ -430,8 +443,6 @@ def run(args: argparse.Namespace) -> int:
             f"{s['mesh_air_mm']:.3f} mm (program vs the part's walls - tool radius)"
         )
     print(f"wall              on the {s['wall_side']} of travel: {s['wall_side_reason']}")
-    for line in _check_lines(s.get("guide_point_check") or ()):
-        print(f"check             {line}")
     if s.get("taught_wall"):
         print(f"taught wall       {s['taught_wall']}")
     comparison = s.get("cad_comparison")

@@ -9,7 +9,7 @@ frame; the fit is point-to-plane least squares. Positions in mm, directions unit
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated
 
 import numpy as np
 from fastapi import APIRouter, Path, status
@@ -19,6 +19,7 @@ from app.api.routes import ERRORS, SessionDep
 from app.api.routes.cell import _public as cell_public
 from app.api.schemas import CellPublic, Finite, JobCreated, Vector3, WobjPublic, _Request
 from app.session.calibration import CalibrationState
+from robomach_core.choices import JogFrame
 from robomach_core.limits import TOUCH_OFF_FORCE_N, TOUCH_OFF_TRAVEL_MM, WOBJ_POSITION_MM
 from robomach_core.registration import MIN_TOUCHES, Touch, WobjFit
 
@@ -45,7 +46,7 @@ class TouchCreate(_Request):
         description="touch from where the robot stands along this direction (any length) of "
         "`frame`; or give `at_wobj_mm`",
     )
-    frame: Literal["base", "wobj", "tool"] = Field(
+    frame: JogFrame = Field(
         "base", description="the frame of `direction`: robot base, work object, or tool"
     )
     at_wobj_mm: Annotated[list[Coordinate], Field(min_length=3, max_length=3)] | None = Field(
