@@ -362,7 +362,10 @@ def comparison_markdown(comparison) -> str:
         "| program | max | RMS | overcut | air | worst at (x, y) |",
         "|---|---:|---:|---:|---:|---|",
     ]
-    for name, s in (("learned", comparison.learned), ("CAD-only", comparison.cad_only)):
+    programs = [("learned", comparison.learned), ("CAD-only", comparison.cad_only)]
+    if comparison.cad_only_unregistered is not None:  # what the calibration bought
+        programs.append(("CAD-only, as placed (not calibrated)", comparison.cad_only_unregistered))
+    for name, s in programs:
         x, y, _ = s.worst_wobj_m * 1e3
         rows.append(
             f"| {name} | {s.max_m * 1e3:.2f} | {s.rms_m * 1e3:.2f} | {s.overcut_m * 1e3:.2f} | "
