@@ -207,17 +207,49 @@ def pump_shots(browser, folder: Path) -> None:
         _shot(page, folder, "workbench-cell-change.png", show="Apply cell")
 
 
+def pendant_shot(browser, folder: Path) -> None:
+    """4 the pendant (a real ``robomach serve``): the same check, in the same words, with the
+    wall side; the Work object card beside it."""
+    import httpx
+
+    from tests.api.server_process import start_server
+
+    server = start_server(
+        Path(tempfile.mkdtemp()) / "data", env={"ROBOMACH_REAL_TIME": "0"}, start_timeout_s=120
+    )
+    try:
+        api = httpx.Client(base_url=server.base_url, timeout=120.0)
+        assert api.post("/api/projects", json={"name": "pendant-shot"}).status_code == 201
+        job = api.post("/api/guide-points/example").json()["job_id"]
+        wait_for(lambda: api.get(f"/api/jobs/{job}").json()["status"] == "done", TIMEOUT_S)
+        context = new_context(browser, viewport={"width": 1500, "height": 1000})
+        context.set_default_timeout(120_000)
+        page = context.new_page()
+        page.goto(f"{server.base_url}/pendant/?viser={server.viser_url}")
+        page.select_option("#learn-wall-side", "left")  # against the example's pushes
+        expect(page.locator("#learn-warnings li").first).to_be_visible()
+        page.locator("#learn-card").scroll_into_view_if_needed()
+        page.wait_for_timeout(8000)  # the 3D scene beside it (software WebGL)
+        page.screenshot(path=str(folder / "pendant-check.png"))
+        print(f"  {folder / 'pendant-check.png'}")
+        api.close()
+    finally:
+        server.stop(kill_on_timeout=True)
+
+
 def main() -> None:
     folder = Path(sys.argv[1] if len(sys.argv) > 1 else "docs/images")
     folder.mkdir(parents=True, exist_ok=True)
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
         try:
-            which = sys.argv[2:] or ["cam", "pump"]
+            which = sys.argv[2:] or ["cam", "pump", "pendant"]
             if "cam" in which:
                 cam_plate_shots(browser, folder)
             if "pump" in which:
                 pump_shots(browser, folder)
+            if "pendant" in which:
+                pendant_shot(browser, folder)
         finally:
             browser.close()
 
