@@ -551,11 +551,15 @@ class CellScene:
         touches: Sequence,
         residuals_m: np.ndarray | None = None,
         T_fit: np.ndarray | None = None,
+        *,
+        labelled: bool = True,
     ) -> None:
         """The touches of a work-object calibration (``registration.Touch``: the ball where it
-        stopped, an arrow along its move, "T1" with its residual once fitted, coloured green
-        to red at ``CALIBRATION_SCALE_M``) and, before it is accepted, the CAD where the fit
-        places it (translucent green: where the part really is); nothing for no touches."""
+        stopped, an arrow along its move, "T1" with its residual once fitted unless not
+        ``labelled`` (accepted: the labels would crowd the teaching; the panel lists them),
+        coloured green to red at ``CALIBRATION_SCALE_M``) and, before it is accepted, the CAD
+        where the fit places it (translucent green: where the part really is); nothing for no
+        touches."""
         scene = self.server.scene
         with self.server.atomic():
             node = getattr(self, "_calibration_node", None)
@@ -581,6 +585,8 @@ class CellScene:
                     color, shaft_radius=0.0005, head_radius=0.0012, head_length=0.002,
                 )  # fmt: skip
                 text = f"T{k + 1}" if res is None else f"T{k + 1} {res * 1e3:+.2f} mm"
+                if not labelled:
+                    continue
                 scene.add_label(
                     f"/calibration/T{k + 1}/label", text,
                     position=tuple(-d * TOUCH_ARROW_M + np.array([0.0, 0.0, 0.002])),

@@ -167,3 +167,50 @@ def test_the_check_before_the_run_is_shown_above_run_one_line_per_rule(workbench
     lines = [line for line in content.splitlines() if line.startswith("- ")]
     assert len(lines) == 2  # 28 findings: two rules at 14 points each
     assert all("(the same at G2, G3" in line and "G14)" in line for line in lines)
+
+
+def test_three_clicks_in_the_touch_mode_calibrate_the_part_where_it_really_is():
+    """The cam plate placed at random (turned up to 45 deg) on a realistic part of a fresh seed:
+    three clicks in the touch mode (the top and two sides at a corner, as the panel's intro
+    says) touch 3, 3 and 2 times; the fit drawn in green until it is accepted; accepting it
+    places the CAD on the real part (its corners within 1 mm: the casting's 0.5 mm and the
+    burrs), the click proposes again, the touches' labels go, and the camera stays."""
+    from robomach_core.real_part import PartDeviation, fixture_error
+    from tests.generated_parts import cam_plate
+
+    rng = random.Random()
+    seed = rng.randrange(2**31)
+    rng.seed(seed)
+    placement = (790.0 + rng.uniform(-40, 40), 150.0 + rng.uniform(-40, 40), 0.0,
+                 0.0, 0.0, rng.uniform(-45, 45))  # fmt: skip
+    context = f"seed {seed}: placed at {np.round(placement, 1)}"
+    with workbench_on(Session(real_time=False)) as wb:
+        session = wb.session
+        session.set_cell(part_deviation=PartDeviation.realistic(seed))
+        session.upload_workpiece(cam_plate().stl_bytes(), "cam_plate.stl")
+        session.set_cell(wobj_mm_deg=placement)
+        client = SimpleNamespace(camera=_Camera(), atomic=_nothing, add_notification=print)
+        wb.server.get_clients = lambda: {0: client}
+        session.pointing.set_settings(click_mode="touch")  # what Touch faces does
+        assert session.pointing.click_mode == "touch", context
+        faces = [((120, -70, 20), (0, 0, 1)), ((110, -90, 10), (0, -1, 0)),
+                 ((150, -60, 10), (1, 0, 0))]  # fmt: skip
+        for (point, normal), touches in zip(faces, (3, 6, 8), strict=True):
+            wb.pointing._clicked(np.array(point) * 1e-3, np.array(normal, float), client)
+            assert len(session.calibration.state().touches) == touches, context
+        fit = session.calibration.state().fit
+        assert fit is not None, context
+        wait_for(lambda: wb.scene.server.scene._handle_from_node_name.get("/calibration/fit"))
+        client.camera.position = (9.0, 9.0, 9.0)  # the person's view
+        wb.calibration._accept()  # what Accept the calibration does
+        assert session.pointing.click_mode == "propose", context
+        cad = session.robot.workpiece.cad()
+        truth = wobj_transform(placement) @ fixture_error(PartDeviation.realistic(seed)).transform
+        corners = np.array([[x, y, 0.02, 1.0] for x in (-0.15, 0.15) for y in (-0.09, 0.09)])
+        off = np.linalg.norm((cad.T_base_wobj @ corners.T - truth @ corners.T)[:3], axis=0)
+        assert off.max() < 1e-3, f"{context}: the calibrated CAD is {off.max() * 1e3:.2f} mm off"
+        wait_for(lambda: wb.calibration.remove.disabled is False)
+        nodes = wb.scene.server.scene._handle_from_node_name
+        wait_for(lambda: "/calibration/fit" not in nodes)
+        assert not [n for n in nodes if n.startswith("/calibration/") and n.endswith("/label")]
+        assert client.camera.position == (9.0, 9.0, 9.0), "accepting moved the camera"

@@ -157,6 +157,7 @@ class CalibrationPanel:
             state.touches,
             None if fit is None else fit.residuals_m,
             None if fit is None or state.registration is not None else fit.T_base_wobj,
+            labelled=state.registration is None,
         )
         self.touches.content = touches_markdown(state)
         self.fit.content = fit_markdown(state)
