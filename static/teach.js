@@ -217,14 +217,20 @@ function showCadComparison(r) {
   }
   if (!c) return;
   const rows = [["learned", "learned", c.learned], ["cad_only", "CAD-only", c.cad_only]];
+  if (c.cad_only_uncalibrated) {  // what the work object's calibration bought (not drawn)
+    rows.push([null, "CAD-only, as placed (not calibrated)", c.cad_only_uncalibrated]);
+  }
   const trs = rows.map(([key, name, s]) => {
     const tr = document.createElement("tr");
     const [x, y] = s.worst_at_wobj_mm;
     const first = document.createElement("td");
     const swatch = document.createElement("span");
     swatch.className = "swatch";
-    swatch.style.background = COMPARISON_COLORS[key];
-    first.append(swatch, document.createTextNode(name));
+    if (key) {
+      swatch.style.background = COMPARISON_COLORS[key];
+      first.append(swatch);
+    }
+    first.append(document.createTextNode(name));
     tr.appendChild(first);
     for (const v of [fmt(s.max_deviation_mm, 3), fmt(s.rms_deviation_mm, 3),
       fmt(s.overcut_mm, 3), fmt(s.air_mm, 3), `(${fmt(x, 0)}, ${fmt(y, 0)})`]) {
