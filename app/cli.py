@@ -139,7 +139,8 @@ def main(argv: list[str] | None = None) -> int:
 # "-12.5,3,4" (argparse takes it for an option), "-12.5 3 4" or "(-12.5, 3, 4)" is joined into
 # one "--option=..." before parsing (issue 31).
 NUMBER_LIST_OPTIONS = {"--propose-guide-points": 3, "--wobj": 6}
-_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
+# nan and inf read as numbers, so that the option's range check names the range
+_NUMBER = re.compile(r"^[+-]?((\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|nan|inf|infinity)$", re.I)
 
 
 def number_parts(text: str) -> list[str]:

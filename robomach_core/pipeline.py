@@ -357,6 +357,7 @@ def run_demo(
         tool_radius_m=cell.tool.radius_m,
         robot=cell.robot,
         supervisor=cell_supervisor(cell),
+        tolerance_m=settings.tolerance_m,
     )
     if checked is not None:
         checked(findings)

@@ -326,6 +326,7 @@ class Learning:
                 tool_radius_m=view.project.cell.tool_radius_m,
                 robot=view.cell.robot,
                 supervisor=cell_supervisor(view.cell),
+                tolerance_m=view.project.post_settings.tolerance_m,
             )
 
     def guide_warnings(

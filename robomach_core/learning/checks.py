@@ -61,6 +61,7 @@ GuideRule = Literal[
     "singularity",
     "reach",
     "clearance",
+    "tolerance",
 ]
 Severity = Literal["refusal", "warning", "info"]
 
@@ -195,6 +196,7 @@ def guide_point_warnings(
     tool_radius_m: float | None = None,
     robot=None,
     supervisor=None,
+    tolerance_m: float | None = None,
 ) -> tuple[GuideWarning, ...]:
     """What the operator should know before learning (module docstring): the route's refusal,
     if any, first.
@@ -207,6 +209,10 @@ def guide_point_warnings(
         robot: The arm (``robot.Robot``); the run's motion along the route is checked with it
             (``motion_check``: axis 6's wind-up, the joint ranges, the reach, and with
             ``supervisor``, the cell's ``Supervisor``, the singularities and the clearances).
+        tolerance_m: The post-processing's deviation-height tolerance: beyond
+            ``TAUGHT_WALL_TOLERANCE_M`` the program's moves may cut across the wall by that much,
+            said before the run (issue 31: a 4 mm tolerance was accepted, then blamed on the
+            wall).
     """
     if not guides:
         return ()
@@ -231,6 +237,13 @@ def guide_point_warnings(
         from .motion_check import motion_findings
 
         out += motion_findings(robot, route, supervisor)
+    if tolerance_m is not None and tolerance_m > th.TAUGHT_WALL_TOLERANCE_M:
+        out.append(GuideWarning(0, "tolerance", (
+            f"the deviation-height tolerance is {tolerance_m * 1e3:g} mm: the program's straight "
+            "moves may cut that far across the wall, more than the "
+            f"{th.TAUGHT_WALL_TOLERANCE_M * 1e3:g} mm a program may stray from the taught wall; "
+            "lower it (0.2 mm by default) unless that is meant"
+        )))  # fmt: skip
     return tuple(out)
 
 

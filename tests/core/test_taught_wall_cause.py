@@ -44,3 +44,18 @@ def test_a_wide_tolerance_is_named_as_the_cause_of_a_program_off_the_wall(demo):
             assert "another wall" not in check.message, what
     # the widest a user can set takes the program off the wall, and says why
     assert not check.follows, f"{replay(SEED)}: at {TOLERANCE_MM.max} mm: {check.message}"
+
+
+def test_the_check_before_the_run_names_a_tolerance_past_the_taught_walls_margin(demo):
+    """Before the run (the terminal's and the workbench's check), over the whole range."""
+    from robomach_core.learning.checks import guide_point_warnings
+    from robomach_core.learning.settings import PathLearningSettings
+
+    rng = np.random.default_rng([SEED, 2])
+    for tolerance_mm in [TOLERANCE_MM.min, 1.0, TOLERANCE_MM.max, *rng.uniform(0.01, 5.0, 6)]:
+        found = guide_point_warnings(
+            demo.project.guide_points, PathLearningSettings(), tolerance_m=tolerance_mm * 1e-3
+        )
+        said = [f for f in found if f.rule == "tolerance"]
+        assert bool(said) == (tolerance_mm > 1.0), f"{replay(SEED)}: {tolerance_mm:.3f} mm"
+        assert all(f.severity == "warning" and "cut that far across" in f.message for f in said)
