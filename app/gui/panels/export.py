@@ -147,14 +147,19 @@ class ExportPanel:
     def _process_text(self) -> str:
         """What the program carries, in the Machining panel's words (its controller and
         compensation names: one name for one thing on every page)."""
-        s = machining_setup_of(self.session.project()).settings
+        project = self.session.project()
+        s = machining_setup_of(project).settings
+        comp = project.compensation
+        # Nothing chosen: the files carry a constant feed and no compensation (the setup's
+        # defaults are what the Machining panel would compare, not what is written).
+        controller = "constant" if project.cmrr is None else s.controller
+        compensation = "off" if comp is None else s.compensation
         model = ""
-        comp = self.session.project().compensation
         if comp is not None and comp.mode.startswith("offline_"):
             model = f" ({comp.mode.removeprefix('offline_')} joint-stiffness model)"
         return (
-            f"Program carries: feed control **{s.controller}**, compensation "
-            f"**{s.compensation}**{model} (the Machining panel's choice)"
+            f"Program carries: feed control **{controller}**, compensation "
+            f"**{compensation}**{model} (the Machining panel's choice)"
         )
 
     def _sync_menus(self) -> tuple[str, ...]:
