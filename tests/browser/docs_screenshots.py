@@ -104,6 +104,7 @@ def cam_plate_shots(browser, folder: Path) -> None:
             page.get_by_role("button", name="Upload mesh (STL/OBJ/PLY, mm)").click()
         chooser.value.set_files(str(stl))
         wait_for(lambda: session.robot.workpiece.cad().name == "cam_plate", TIMEOUT_S)
+        expect(page.get_by_text("cam_plate.stl is the workpiece")).to_be_visible()
         _close_notes(page)
         _open_folder(page, "Place the part")
         for k, label in enumerate(PLACEMENT_LABELS):
