@@ -108,7 +108,10 @@ class SupervisionError(RobomachError, RuntimeError):
                 "the same at every point"
             )
         elif self.cause in ("edge of reach", "elbow singularity"):
-            note = f"the part may be beyond the {arm} arm's reach: place it nearer with {place}"
+            note = (
+                f"the part may be beyond the {arm} arm's reach: place it nearer with {place}, or "
+                "choose a larger arm"
+            )
         elif self.cause == "collision":
             note = (
                 f"the arm or the tool would meet what the message names: move the part with "

@@ -142,7 +142,7 @@ class Learning:
                 )
             except SupervisionError as exc:
                 raise exc.with_cause_note(
-                    cell.robot.name, place="the part's placement (the work object)"
+                    cell.robot.name, place="the work object's placement"
                 ) from None
 
         def done(result: tuple[LeadThroughState, list[GuidePoint]]) -> None:
