@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import re
 import signal
 import sys
 import tempfile
@@ -134,9 +135,51 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(signal.SIGTERM, previous)
 
 
+# Options whose value is a list of numbers, and how many at most: a value a person types as
+# "-12.5,3,4" (argparse takes it for an option), "-12.5 3 4" or "(-12.5, 3, 4)" is joined into
+# one "--option=..." before parsing (issue 31).
+NUMBER_LIST_OPTIONS = {"--propose-guide-points": 3, "--wobj": 6}
+# nan and inf read as numbers, so that the option's range check names the range
+_NUMBER = re.compile(r"^[+-]?((\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|nan|inf|infinity)$", re.I)
+
+
+def number_parts(text: str) -> list[str]:
+    """The numbers of a value as typed: separated by commas, semicolons or spaces, in
+    brackets or not; [] when any part is not a number."""
+    parts = [p for p in re.split(r"[,;\s]+", text.strip().strip("()[]").strip()) if p]
+    return parts if parts and all(_NUMBER.match(p) for p in parts) else []
+
+
+def join_number_values(argv: list[str]) -> list[str]:
+    """``argv`` with each ``NUMBER_LIST_OPTIONS`` value as one ``--option=a,b,c`` token."""
+    out, i = [], 0
+    while i < len(argv):
+        token = argv[i]
+        most = NUMBER_LIST_OPTIONS.get(token)
+        if most is None:
+            out.append(token)
+            i += 1
+            continue
+        numbers: list[str] = []
+        j = i + 1
+        while j < len(argv) and len(numbers) < most:
+            parts = number_parts(argv[j])
+            if not parts or len(numbers) + len(parts) > most:
+                break
+            numbers += parts
+            j += 1
+        if numbers:
+            out.append(f"{token}={','.join(numbers)}")
+            i = j
+        else:
+            out.append(token)
+            i += 1
+    return out
+
+
 def _main(argv: list[str] | None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(join_number_values(sys.argv[1:] if argv is None else list(argv)))
     from robomach_core.errors import RobomachError
 
     try:

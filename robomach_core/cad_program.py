@@ -96,6 +96,9 @@ class CadComparison:
         closed: The programs are closed contours.
         part_deviates: The real part differs from its CAD (``real_part``).
         deviation_note: How it differs, for people.
+        cad_only_unregistered: Score of the same CAD-only program written in the work object
+            as it was before the calibration (``registration``; what a calibration buys),
+            None when the work object was not calibrated.
     """
 
     cad_positions_m: np.ndarray
@@ -106,9 +109,13 @@ class CadComparison:
     closed: bool
     part_deviates: bool
     deviation_note: str
+    cad_only_unregistered: WallScore | None = None
 
     def summary(self) -> dict:
-        """summary.json's ``cad_comparison``: both scores and the CAD-only program's size."""
+        """summary.json's ``cad_comparison``: the scores and the CAD-only program's size
+        (``cad_only_uncalibrated``: the CAD-only program in the work object as placed before
+        the calibration, null without one)."""
+        unregistered = self.cad_only_unregistered
         return {
             "part_deviates_from_cad": self.part_deviates,
             "deviation": self.deviation_note,
@@ -116,6 +123,7 @@ class CadComparison:
             "cad_only_targets": len(self.cad_positions_m),
             "learned": self.learned.summary(),
             "cad_only": self.cad_only.summary(),
+            "cad_only_uncalibrated": None if unregistered is None else unregistered.summary(),
         }
 
 
@@ -284,7 +292,10 @@ def compare_with_cad(
     z = float(np.median(wobj[:, 2]))
     inverse = np.linalg.inv(T_floor)
     cad_loops = _sections(transformed(cad.mesh, inverse), z)
-    real_loops = _sections(transformed(workpiece.scoring_mesh(), inverse), z)
+    # The real part's mesh is in its own work object (the placement's); the CAD's may have
+    # been moved onto it by a calibration: both are cut in the CAD's floor frame.
+    real_in_cad = np.linalg.inv(cad.T_base_wobj) @ workpiece.T_base_wobj
+    real_loops = _sections(transformed(workpiece.scoring_mesh(), inverse @ real_in_cad), z)
     found_cad = _nearest_loop(cad_loops, wobj[:, :2])
     found_real = _nearest_loop(real_loops, wobj[:, :2])
     if found_cad is None or found_real is None:
@@ -323,6 +334,12 @@ def compare_with_cad(
             score_against_wall(cad_targets, real_wall, T, tool_radius_m, closed=closed_program),
         )
     )
+    unregistered = None
+    if workpiece.unregistered is not None:  # the same program in the work object as it was
+        M = workpiece.unregistered.T_base_wobj @ np.linalg.inv(cad.T_base_wobj)
+        before = cad_targets @ M[:3, :3].T + M[:3, 3]
+        score = score_against_wall(before, real_wall, T, tool_radius_m, closed=closed_program)
+        unregistered = replace(score, worst_wobj_m=T_floor[:3, :3] @ score.worst_wobj_m)
     return CadComparison(
         cad_targets,
         quats,
@@ -332,6 +349,7 @@ def compare_with_cad(
         closed_program,
         workpiece.nominal is not None,
         workpiece.deviation_note,
+        unregistered,
     )
 
 

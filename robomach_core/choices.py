@@ -9,7 +9,8 @@ STRATEGY  Each enum is defined once where its meaning lives (the CMRR controller
           wall-side decision, ...), each range once in ``limits``; the few choices that belong
           to no other module (jog frames, click modes, the tool's nearest face) are defined
           here. This module names them all, so every boundary derives its list from here.
-SOLUTION  ``enums()`` name -> values, ``LABELS`` the words a menu shows, ``ranges()`` name ->
+SOLUTION  ``enums()`` name -> values, ``LABELS`` the words a menu shows, ``TEXTS`` the
+          sentences every page shows alike, ``ranges()`` name ->
           ``limits.Range``, and ``catalogue()`` the JSON document the pendant reads from
           ``GET /api/choices``. A contract test fails when a boundary types a copy.
 """
@@ -28,7 +29,7 @@ COMPLIANCE_FRAMES: tuple[str, ...] = get_args(ComplianceFrame)
 TouchAxis = Literal[AXES[:3]]  # type: ignore[valid-type]
 TOUCH_AXES: tuple[str, ...] = AXES[:3]
 # What a click on the part does in the 3-D scene (both GUIs follow the same setting).
-ClickMode = Literal["propose", "teach", "move", "off"]
+ClickMode = Literal["propose", "teach", "move", "touch", "off"]
 CLICK_MODES: tuple[ClickMode, ...] = get_args(ClickMode)
 # What the face of the part nearest the tool is: a wall, a floor (faces up) or an underside.
 NearestFace = Literal["wall", "floor", "underside"]
@@ -46,8 +47,29 @@ LABELS: dict[str, dict[str, str]] = {
         "propose": "propose the wall",
         "teach": "teach a point",
         "move": "move the selected point",
+        "touch": "touch the face (calibration)",
         "off": "nothing",
     },
+}
+
+
+# The sentences every page shows the same (the pendant reads them from ``GET /api/choices``):
+# one set of rules in one vocabulary (docs/guide_points.md says them at length).
+TEXTS: dict[str, Any] = {
+    "guide_point_advice": (
+        "A guide point: 1-3 mm from the wall, or touching it with a light push (2-10 N) that "
+        "tells the wall side; the tool axis as it should machine, the same turn about it at "
+        "every point. Corners and bosses need no point of their own: the run follows the wall "
+        "round them by force. Never record in heavy contact. See docs/guide_points.md."
+    ),
+    # How a finding of the check before a run is marked, by its severity.
+    "severity": {
+        "refusal": "refused: learning will not start",
+        "warning": "warning",
+        "info": "note",
+    },
+    # Glyphs of the fonts every system has (DejaVu: a no-entry sign showed as an empty box).
+    "severity_icon": {"refusal": "\u2716", "warning": "\u26a0", "info": "\u2139"},
 }
 
 
@@ -102,8 +124,9 @@ def catalogue() -> dict[str, Any]:
     """The JSON document of every choice and range (``GET /api/choices``): ``enums`` name ->
     ``{"values": [...], "labels": {value: words}}``, ``ranges`` name -> ``{"label", "min",
     "max", "unit", "integer", "text", "default"}`` (``default``: null where the user must
-    give the number)."""
+    give the number), ``texts`` the sentences every page shows alike (``TEXTS``)."""
     return {
+        "texts": TEXTS,
         "enums": {
             name: {"values": list(values), "labels": LABELS.get(name, {v: v for v in values})}
             for name, values in enums().items()

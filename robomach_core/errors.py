@@ -98,6 +98,39 @@ class SupervisionError(RobomachError, RuntimeError):
             f"{self}; {note}", cause=self.cause, axis=self.axis, stop=self.stop, state=self.state
         )
 
+    def with_cause_note(self, arm: str, *, place: str = "the work object") -> SupervisionError:
+        """The refusal with what to do about its own cause (issue 31: a wound-up axis 6 was
+        reported as the part beyond the arm's reach): ``place`` says how the part is moved."""
+        if self.cause == "joint limit" and self.axis == 6:
+            note = (
+                "axis 6 is wound to the end of its range (the tool turned about its own axis): "
+                "press Home or jog axis 6 back a turn, and keep the tool's turn about its axis "
+                "the same at every point"
+            )
+        elif self.cause in ("edge of reach", "elbow singularity"):
+            note = (
+                f"the part may be beyond the {arm} arm's reach: place it nearer with {place}, or "
+                "choose a larger arm"
+            )
+        elif self.cause == "collision":
+            note = (
+                f"the arm or the tool would meet what the message names: move the part with "
+                f"{place}, or lift the tool clear first"
+            )
+        elif self.cause == "joint limit":
+            note = (
+                f"axis {self.axis} is at the end of its range: press Home, or place the part "
+                f"elsewhere with {place}"
+            )
+        elif self.cause in ("wrist singularity", "shoulder singularity"):
+            note = (
+                f"the arm passes a {self.cause}: place the part elsewhere with {place}, or turn "
+                "or tilt the tool"
+            )
+        else:
+            return self
+        return self.with_note(note)
+
 
 class NoContactError(RobomachError, RuntimeError):
     """A guarded move travelled its whole distance without touching anything.

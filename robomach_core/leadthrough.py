@@ -203,13 +203,19 @@ class LeadThrough:
         push_wrench: np.ndarray,
         selection: ComplianceSelection,
         dt: float = CONTROL_PERIOD_S,
+        *,
+        frame_rotation: np.ndarray | None = None,
     ) -> LeadThroughState:
         """One period of admittance control under the push wrench (6,) at the TCP, base axes.
 
         Supervised: near a limit the motion slows down; a step that would cross one raises
         ``SupervisionError`` carrying the last safe state (``error.state``, held still).
+        ``frame_rotation`` (3x3, base frame), when given, is the frame of the selection's axes
+        instead of its ``frame`` (a guarded move along any direction).
         """
-        return self._advance(state, state.T_ref, push_wrench, selection, dt)[0]
+        return self._advance(
+            state, state.T_ref, push_wrench, selection, dt, frame_rotation=frame_rotation
+        )[0]
 
     def _advance(
         self,
@@ -218,12 +224,17 @@ class LeadThrough:
         push_wrench: np.ndarray,
         selection: ComplianceSelection,
         dt: float,
+        *,
+        frame_rotation: np.ndarray | None = None,
     ) -> tuple[LeadThroughState, float]:
         """One supervised period from reference ``T_ref_in`` (``state.T_ref`` moved by a jog).
 
         Returns the next state and the speed scale supervision applied (1.0: none).
         """
-        R = state.cell.T_base_tcp[:3, :3] if selection.frame == "tool" else _IDENTITY
+        if frame_rotation is not None:
+            R = frame_rotation
+        else:
+            R = state.cell.T_base_tcp[:3, :3] if selection.frame == "tool" else _IDENTITY
         w_total = np.asarray(push_wrench, dtype=float) + self.measured_wrench(state.cell)
         # Damping taken implicitly, v+ = (M v + dt W) / (M + D dt): stable against a stiff wall
         # (the contact loop gain k dt^2 / (M + D dt) stays well below 1 at 4 ms).
@@ -355,6 +366,47 @@ class LeadThrough:
             raise InvalidInputError(f"touch-off axis must be x, y or z, not {axis!r}")
         if direction not in (1, -1):
             raise InvalidInputError("touch-off direction must be +1 or -1")
+        self._check_touch(force_N, max_travel_m)
+        index = {"x": 0, "y": 1, "z": 2}[axis]
+        R_frame = state.cell.T_base_tcp[:3, :3] if selection.frame == "tool" else _IDENTITY
+        u = direction * R_frame[:, index]
+        moving = ComplianceSelection(frozenset({axis}), selection.frame)
+        where = f"{'+' if direction > 0 else '-'}{axis} ({selection.frame} frame)"
+        return self._guarded(state, u, force_N, max_travel_m, moving, None, where)
+
+    def touch_off_along(
+        self,
+        state: LeadThroughState,
+        direction: np.ndarray,
+        force_N: float,
+        max_travel_m: float,
+    ) -> LeadThroughState:
+        """``touch_off`` along any direction (3,) of the base frame: compliant along it only
+        (a frame whose x axis is the direction), the rest held. Work-object calibration
+        touches a face along its normal this way, whatever the part's placement.
+
+        Raises:
+            InvalidInputError: a direction that is not a finite non-zero vector, a bad force
+                or travel.
+            NoContactError: nothing touched within ``max_travel_m`` (``error.state``: there).
+            SupervisionError: a limit or an obstacle on the way (``error.state``: before it).
+        """
+        d = np.asarray(direction, dtype=float)
+        norm = float(np.linalg.norm(d)) if d.shape == (3,) else 0.0
+        if not (math.isfinite(norm) and norm > 1e-9):
+            raise InvalidInputError("a touch-off direction is 3 finite numbers, not all zero")
+        self._check_touch(force_N, max_travel_m)
+        u = d / norm
+        helper = np.array([0.0, 0.0, 1.0]) if abs(u[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        y = np.cross(helper, u)
+        y /= np.linalg.norm(y)
+        frame = np.column_stack([u, y, np.cross(u, y)])
+        moving = ComplianceSelection(frozenset({"x"}), "base")
+        where = "({:+.2f}, {:+.2f}, {:+.2f}) (base frame)".format(*u)
+        return self._guarded(state, u, force_N, max_travel_m, moving, frame, where)
+
+    @staticmethod
+    def _check_touch(force_N: float, max_travel_m: float) -> None:
         if force_N not in TOUCH_OFF_FORCE_N:
             raise InvalidInputError(
                 f"touch-off force {force_N:g} N is outside {TOUCH_OFF_FORCE_N.text()}"
@@ -362,10 +414,18 @@ class LeadThrough:
         travel_max_m = TOUCH_OFF_TRAVEL_MM.max * 1e-3
         if not (math.isfinite(max_travel_m) and 0.0 < max_travel_m <= travel_max_m):
             raise InvalidInputError(f"touch-off travel must be in (0, {travel_max_m * 1e3:g}] mm")
-        index = {"x": 0, "y": 1, "z": 2}[axis]
-        R_frame = state.cell.T_base_tcp[:3, :3] if selection.frame == "tool" else _IDENTITY
-        u = direction * R_frame[:, index]
-        moving = ComplianceSelection(frozenset({axis}), selection.frame)
+
+    def _guarded(
+        self,
+        state: LeadThroughState,
+        u: np.ndarray,
+        force_N: float,
+        max_travel_m: float,
+        moving: ComplianceSelection,
+        frame: np.ndarray | None,
+        where: str,
+    ) -> LeadThroughState:
+        """The guarded move of ``touch_off`` along the unit vector ``u`` (base frame)."""
         push = np.concatenate([force_N * u, np.zeros(3)])
         start = state.cell.T_base_tcp[:3, 3].copy()
         speed = max(force_N - self.params.deadband_N, 0.1) / self.params.damping_N_s_m
@@ -374,17 +434,14 @@ class LeadThrough:
         periods += int(TOUCH_OFF_SETTLE_MAX_S / CONTROL_PERIOD_S)
         touched = False
         still = 0
+        missed = f"touch-off: no contact within {max_travel_m * 1e3:.1f} mm along {where}"
         for _ in range(periods):
-            state = self.step(state, push, moving)
+            state = self.step(state, push, moving, frame_rotation=frame)
             f_along = -float(self.measured_wrench(state.cell)[:3] @ u)  # the wall pushes back
             touched = touched or f_along > TOUCH_OFF_DETECT_FRACTION * force_N
             if not touched:
                 if float((state.cell.T_base_tcp[:3, 3] - start) @ u) > max_travel_m:
-                    raise NoContactError(
-                        f"touch-off: no contact within {max_travel_m * 1e3:.1f} mm along "
-                        f"{'+' if direction > 0 else '-'}{axis} ({selection.frame} frame)",
-                        state=halted(state),
-                    )
+                    raise NoContactError(missed, state=halted(state))
                 continue
             speed_now = float(np.linalg.norm(state.velocity[:3]))
             still = still + 1 if speed_now < TOUCH_OFF_STILL_M_S else 0
@@ -392,11 +449,7 @@ class LeadThrough:
                 return state
         if touched:
             return state  # in contact; still settling after TOUCH_OFF_SETTLE_MAX_S
-        raise NoContactError(
-            f"touch-off: no contact within {max_travel_m * 1e3:.1f} mm along "
-            f"{'+' if direction > 0 else '-'}{axis} ({selection.frame} frame)",
-            state=halted(state),
-        )
+        raise NoContactError(missed, state=halted(state))
 
     def record(self, state: LeadThroughState) -> GuidePoint:
         """A guide point at the current measured pose."""

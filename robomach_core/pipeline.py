@@ -36,10 +36,12 @@ from .project import (
     with_guide_points,
     with_learned,
     with_processed,
+    with_registration,
 )
 from .project import compensate_program_targets as _compensate
 from .project import wobj_transform as wobj_transform
 from .real_part import real_workpiece
+from .registration import registered_workpiece
 from .scoring import PathScore
 from .teaching.operator import intents_from_csv, scripted_leadthrough
 from .tool import Tool
@@ -47,7 +49,7 @@ from .workpiece import MAX_MESH_BYTES, MESH_SUFFIXES, Workpiece
 
 # progress(stage, fraction in [0, 1])
 Progress = Callable[[str, float], None]
-STAGES = ("lead-through", "path learning", "post-processing", "export")
+STAGES = ("calibration", "lead-through", "path learning", "post-processing", "export")
 
 
 @dataclass(frozen=True)
@@ -87,6 +89,11 @@ class DemoSettings:
         proposal: Gap and height of the proposed points.
         part_deviation: The real part's deviation from its mesh (``real_part``; the
             ``realistic`` preset is ``PartDeviation.realistic(seed)``); None: none.
+        calibrate: Before teaching, the operator touches the real part
+            (``teaching.calibration``) and the CAD is registered to the touches
+            (``registration.fit_wobj``): the guide points are planned, checked and learned on
+            the registered CAD, and the program written in the measured work object.
+        touch_force_N: The calibration's touch force.
     """
 
     robot: str = "ur10"
@@ -109,6 +116,8 @@ class DemoSettings:
     propose_at_m: tuple[float, float, float] | None = None
     proposal: Any = None  # guide_proposal.ProposalSettings
     part_deviation: Any = None  # real_part.PartDeviation
+    calibrate: bool = False
+    touch_force_N: float = 10.0
 
 
 @dataclass(frozen=True)
@@ -131,6 +140,7 @@ class DemoResult:
     files: dict[str, str] = field(default_factory=dict)
     proposal: Any = None  # guide_proposal.GuideProposal
     findings: tuple = ()  # learning.GuideWarning: the guide-point check before learning
+    calibration: Any = None  # registration.WobjFit: the work object measured by touch
 
     @property
     def processed_settings(self) -> PostprocessSettings:
@@ -208,6 +218,7 @@ class DemoResult:
                 name for name in self.files if name.startswith(("program.", "program_fc."))
             ]
             out["closed"] = self.settings.closed
+        out["calibration"] = None if self.calibration is None else self.calibration.document()
         if self.proposal is not None:
             from .learning.planner import proposal_summary
 
@@ -271,8 +282,15 @@ def demo_project(settings: DemoSettings) -> Project:
     )
 
 
-def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> DemoResult:
-    """Run the whole pipeline headless; ``progress(stage, fraction)`` reports as it goes."""
+def run_demo(
+    settings: DemoSettings,
+    *,
+    progress: Progress | None = None,
+    checked: Callable[[tuple], None] | None = None,
+) -> DemoResult:
+    """Run the whole pipeline headless; ``progress(stage, fraction)`` reports as it goes, and
+    ``checked(findings)`` gets the guide-point check before the run starts (a terminal prints
+    it before the run, as the workbench shows it)."""
     started = time.perf_counter()
     report = progress or (lambda stage, fraction: None)
     if settings.robot_urdf is not None:
@@ -293,6 +311,20 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
             robot=settings.robot, tool=project.tool(), workpiece=workpiece, seed=settings.seed
         )
     )
+    lt = LeadThrough(cell)
+    state = lt.start(cell.initial_state())
+    fit = None
+    if settings.calibrate:
+        fit, state = _calibrated(settings, project, cad, lt, state, report)
+        project = with_registration(project, fit.registration())
+        workpiece = registered_workpiece(workpiece, fit.T_base_wobj)
+        cad = workpiece.cad()
+        cell = Cell(
+            CellConfig(
+                robot=settings.robot, tool=project.tool(), workpiece=workpiece, seed=settings.seed
+            )
+        )
+        lt = LeadThrough(cell, estimator=lt.estimator)  # the sensor stays tared
     intents = proposal = None
     if settings.guide_points_csv is not None:
         intents = intents_from_csv(settings.guide_points_csv, cell.robot)
@@ -307,8 +339,6 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
             cad, cell.tool.radius_m, np.random.default_rng(settings.seed)
         )
         intents = robust_intents(planned, cad, cell.tool.radius_m)
-    lt = LeadThrough(cell)
-    state = lt.start(cell.initial_state())
     state, guides = scripted_leadthrough(
         lt,
         state,
@@ -326,10 +356,19 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         closed=settings.closed,
     )
     from .learning import guide_point_warnings
+    from .supervision import cell_supervisor
 
     findings = guide_point_warnings(  # what the workbench shows before a run; a refusal raises
-        guides, learning, workpiece=cad, tool_radius_m=cell.tool.radius_m, robot=cell.robot
+        guides,
+        learning,
+        workpiece=cad,
+        tool_radius_m=cell.tool.radius_m,
+        robot=cell.robot,
+        supervisor=cell_supervisor(cell),
+        tolerance_m=settings.tolerance_m,
     )
+    if checked is not None:
+        checked(findings)
     learned, _ = learn(
         project,
         cell,
@@ -375,7 +414,33 @@ def run_demo(settings: DemoSettings, *, progress: Progress | None = None) -> Dem
         files=files,
         proposal=proposal,
         findings=findings,
+        calibration=fit,
     )
+
+
+def _calibrated(
+    settings: DemoSettings,
+    project: Project,
+    cad: Workpiece,
+    lt: LeadThrough,
+    state: Any,
+    report: Progress,
+) -> tuple[Any, Any]:
+    """The scripted operator touches the part (``teaching.calibration``) and the CAD is
+    registered to the touches (``registration.fit_wobj``): the fit and the robot's state."""
+    from .registration import fit_wobj
+    from .teaching.calibration import plan_touches, scripted_touches
+
+    plan = plan_touches(cad, lt.cell.tool.radius_m, robot=lt.cell.robot)
+    state, touches = scripted_touches(
+        lt,
+        state,
+        plan,
+        force_N=settings.touch_force_N,
+        progress=lambda f: report("calibration", f),
+    )
+    stiffness = settings.postprocess.contact_stiffness_N_m
+    return fit_wobj(cad, touches, contact_stiffness_N_m=stiffness), state
 
 
 def _proposed(settings: DemoSettings, cad: Workpiece, cell: Cell) -> tuple[Any, list, DemoSettings]:

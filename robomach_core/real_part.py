@@ -4,7 +4,7 @@ PROBLEM   In the simulated cell the part is exactly its mesh, so a program plann
           alone would be perfect and path learning (chapter section 3) would look like a detour.
           A real casting differs from its CAD by tenths of a millimetre (the wall offset varies
           along the contour; burrs stand off it), and its fixture places it a few millimetres
-          and a fraction of a degree off.
+          and a degree or two off.
 STRATEGY  A seeded ``PartDeviation`` (one value of the cell settings) turns the CAD mesh into
           the real one, expressed in the nominal work-object frame (the frame the program is
           written in, so its error is the part's):
@@ -75,8 +75,8 @@ class PartDeviation:
     """
 
     seed: int = 0
-    fixture_shift_mm: float = 0.6
-    fixture_rotation_deg: float = 0.3
+    fixture_shift_mm: float = 4.0
+    fixture_rotation_deg: float = 2.0
     wall_offset_mm: float = 0.5
     burrs: int = 6
     burr_height_mm: float = 0.1
@@ -91,11 +91,11 @@ class PartDeviation:
 
     @classmethod
     def realistic(cls, seed: int = 0) -> PartDeviation:
-        """The ``realistic`` preset: a fixture error of 0.3-0.6 mm and 0.15-0.3 deg, walls within
-        +-0.5 mm of the CAD, six 0.1 mm burrs. Fixture and casting together are what a point
-        taught on the CAD can meet in the water pump's 5 mm groove: the cutter, 1 mm off the
-        wall, still lands in the real groove, clear of its walls (seeds 0-9); a larger error
-        needs the work object measured on the part first."""
+        """The ``realistic`` preset: a fixture error of 2-4 mm and 1-2 deg (a casting in its
+        fixture), walls within +-0.5 mm of the CAD, six 0.1 mm burrs. Points taught on the CAD
+        at its placement land on the rim of the water pump's 5 mm groove: the work object is
+        measured on the part first (``registration``: touches of the real part, the CAD
+        registered to them), as on a real cell."""
         return cls(seed=int(seed))
 
     @classmethod

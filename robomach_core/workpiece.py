@@ -59,6 +59,8 @@ class Workpiece:
         nominal: The CAD this part deviates from (``real_part.real_workpiece``); None when
             the part is its CAD. Teaching, checks and the scene use ``cad()``.
         deviation_note: How the part deviates from its CAD, for people ("" when it does not).
+        unregistered: The CAD where it stood before a work-object calibration moved it to
+            ``cad()`` (``registration.registered_workpiece``); None when not calibrated.
     """
 
     name: str
@@ -73,6 +75,7 @@ class Workpiece:
     reference_mesh: trimesh.Trimesh | None = None
     nominal: Workpiece | None = None
     deviation_note: str = ""
+    unregistered: Workpiece | None = None
 
     def cad(self) -> Workpiece:
         """The part as its CAD: what the user sees and teaches on (itself when it has no
@@ -109,6 +112,10 @@ class Workpiece:
             raise InvalidInputError("work-object pose must be a finite 4x4 transform")
         if not np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-6):
             raise InvalidInputError("work-object rotation is not orthonormal")
+        if self.unregistered is not None:  # a new placement drops the calibration
+            base = self.unregistered
+            nominal = None if base.mesh is self.mesh else base.placed(T)
+            return replace(self, T_base_wobj=T, nominal=nominal, unregistered=None)
         nominal = None if self.nominal is None else self.nominal.placed(T)
         return replace(self, T_base_wobj=T, nominal=nominal)
 

@@ -58,6 +58,7 @@ function detailOf(body, status) {
 // menus (select[data-enum]) and the number inputs' bounds (input[data-range]) follow it, so the
 // page never accepts what the server refuses, nor refuses what it takes.
 let choicesLoaded = null;
+let choicesTexts = null;  // the sentences every page shows alike (choices' "texts")
 const CHOICES_LOADED = "choicesloaded";  // a menu got its options (listen to redraw from them)
 function loadChoices() {
   if (!choicesLoaded) {
@@ -71,6 +72,11 @@ function loadChoices() {
 
 async function applyChoices(root = document) {
   const choices = await loadChoices();
+  choicesTexts = choices.texts || null;
+  for (const el of root.querySelectorAll("[data-text]")) {
+    const text = choicesTexts && choicesTexts[el.dataset.text];
+    if (typeof text === "string") el.textContent = text;
+  }
   for (const el of root.querySelectorAll("input[data-range]")) {
     const range = choices.ranges[el.dataset.range];
     if (!range) continue;
@@ -363,7 +369,7 @@ async function startLearning() {
     floor_clearance_mm: Number($("learn-floor").value),
   };
   const start = await api("POST", "/path-learning", body);
-  showLearnWarnings(start.warnings || []);
+  showLearnWarnings(start.findings || start.warnings || []);
   learnJob = start.job_id ?? start.id;
   $("learn-start").disabled = true;
   $("learn-cancel").disabled = false;
@@ -381,14 +387,16 @@ async function startLearning() {
   }
 }
 
-// The operator check with the card's settings, before learning (refusals come first).
-async function checkGuides() {
+// The check before a run with the card's settings (refusals come first); shown again by itself
+// whenever the guide points or the cell change (quietly: no message bar for a check).
+async function checkGuides({ quiet = false } = {}) {
   const q = new URLSearchParams({
     force_N: $("learn-force").value,
     closed: $("learn-closed").checked,
-    wall_side: $("learn-wall-side").value,
+    wall_side: $("learn-wall-side").value || "auto",  // its menu may not be filled yet
   });
-  showLearnWarnings(await api("GET", `/path-learning/warnings?${q}`));
+  const check = await api("GET", `/path-learning/check?${q}`, undefined, { quiet });
+  showLearnWarnings(check.findings, check.wall_side);
 }
 
 async function cancelLearning() {
@@ -460,17 +468,32 @@ function showPostprocess(r) {
       : `${moves} (${r.circular_moves || 0} circular; straight program ${r.straight_moves})`;
 }
 
-// Guide points that break an operator rule (docs/guide_points.md), from the learning start.
-function showLearnWarnings(warnings) {
+// The check before a run (docs/guide_points.md): each finding marked by its severity, in the
+// words every page uses (GET /api/choices "texts"): a refusal (learning will not start) in red
+// and bold, a warning in amber, a note in grey; and the wall side the run will follow.
+function findingItem(f) {
+  const li = document.createElement("li");
+  const finding = typeof f === "string" ? { severity: "warning", message: f } : f;
+  li.className = `finding finding-${finding.severity}`;
+  li.dataset.severity = finding.severity;
+  const texts = (choicesTexts && choicesTexts.severity) || {};
+  const icons = (choicesTexts && choicesTexts.severity_icon) || {};
+  const label = document.createElement("b");
+  label.textContent = `${icons[finding.severity] || ""} ${texts[finding.severity] || finding.severity}: `;
+  const also = (finding.also_at || []).map((k) => `G${k}`).join(", ");
+  li.append(label, document.createTextNode(
+    also ? `${finding.message} (the same at ${also})` : finding.message));
+  return li;
+}
+
+function showLearnWarnings(findings, wallSide) {
   const list = $("learn-warnings");
-  list.replaceChildren(
-    ...warnings.map((w) => {
-      const li = document.createElement("li");
-      li.textContent = `\u26a0 ${w}`;
-      return li;
-    }),
-  );
-  list.classList.toggle("hidden", warnings.length === 0);
+  list.replaceChildren(...findings.map(findingItem));
+  list.classList.toggle("hidden", findings.length === 0);
+  if (wallSide !== undefined) {
+    $("learn-wall").textContent = wallSide;
+    $("learn-wall").classList.toggle("hidden", !wallSide);
+  }
 }
 
 // ---------------------------------------------------------------- export
@@ -607,8 +630,9 @@ async function init() {
   $("guide-example").addEventListener("click", safe(loadExample));
   $("learn-start").addEventListener("click", safe(startLearning));
   $("learn-cancel").addEventListener("click", safe(cancelLearning));
-  $("learn-check").addEventListener("click", safe(checkGuides));
-  $("learn-wall-side").addEventListener("change", safe(checkGuides));
+  $("learn-check").addEventListener("click", safe(() => checkGuides()));
+  $("learn-wall-side").addEventListener("change", safe(() => checkGuides()));
+  $("learn-closed").addEventListener("change", safe(() => checkGuides({ quiet: true })));
   $("post-run").addEventListener("click", safe(runPostprocess));
   $("export-preview").addEventListener("click", safe(previewProgram));
   $("export-download").addEventListener("click", safe(downloadProgram));

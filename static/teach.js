@@ -145,13 +145,20 @@ function showProposal(p) {
   if (!p.points.some((q) => q.index === selectedProposed)) selectedProposed = null;
 }
 
+// The pointing settings say whether anything is proposed: the proposal itself is asked for
+// only then (no 404 on every guide-point event while there is none).
 async function refreshProposal() {
+  const pointing = await api("GET", "/guide-points/pointing", undefined, { quiet: true });
+  showPointing(pointing);
+  if (!pointing.proposal_points) {
+    showProposal(null);
+    return;
+  }
   try {
     showProposal(await api("GET", "/guide-points/proposal", undefined, { quiet: true }));
   } catch (err) {
-    if (err.status === 404) showProposal(null);
+    if (err.status === 404) showProposal(null);  // dropped meanwhile (a cell change)
   }
-  showPointing(await api("GET", "/guide-points/pointing", undefined, { quiet: true }));
 }
 
 async function proposeTyped() {
@@ -199,15 +206,33 @@ async function discardProposal() {
 }
 
 // The CAD-only program beside the learned one (post-processing's answer).
+// The two programs' colours in the 3D scene (app/gui/scene.py COMPARISON_COLORS): the rows'
+// swatches are the scene's legend.
+const COMPARISON_COLORS = { learned: "rgb(0, 160, 110)", cad_only: "rgb(170, 60, 220)" };
+
 function showCadComparison(r) {
   const c = r && r.cad_comparison;
-  $("compare-table").classList.toggle("hidden", !c);
-  $("compare-note").classList.toggle("hidden", !c);
+  for (const id of ["compare-table", "compare-note", "compare-actions"]) {
+    $(id).classList.toggle("hidden", !c);
+  }
   if (!c) return;
-  const rows = [["learned", c.learned], ["CAD-only", c.cad_only]].map(([name, s]) => {
+  const rows = [["learned", "learned", c.learned], ["cad_only", "CAD-only", c.cad_only]];
+  if (c.cad_only_uncalibrated) {  // what the work object's calibration bought (not drawn)
+    rows.push([null, "CAD-only, as placed (not calibrated)", c.cad_only_uncalibrated]);
+  }
+  const trs = rows.map(([key, name, s]) => {
     const tr = document.createElement("tr");
     const [x, y] = s.worst_at_wobj_mm;
-    for (const v of [name, fmt(s.max_deviation_mm, 3), fmt(s.rms_deviation_mm, 3),
+    const first = document.createElement("td");
+    const swatch = document.createElement("span");
+    swatch.className = "swatch";
+    if (key) {
+      swatch.style.background = COMPARISON_COLORS[key];
+      first.append(swatch);
+    }
+    first.append(document.createTextNode(name));
+    tr.appendChild(first);
+    for (const v of [fmt(s.max_deviation_mm, 3), fmt(s.rms_deviation_mm, 3),
       fmt(s.overcut_mm, 3), fmt(s.air_mm, 3), `(${fmt(x, 0)}, ${fmt(y, 0)})`]) {
       const td = document.createElement("td");
       td.textContent = v;
@@ -215,7 +240,7 @@ function showCadComparison(r) {
     }
     return tr;
   });
-  $("compare-list").replaceChildren(...rows);
+  $("compare-list").replaceChildren(...trs);
   $("compare-note").textContent = c.part_deviates_from_cad
     ? `Against the real wall. Real part: ${c.deviation}.`
     : "Against the wall (the part is its mesh: the CAD-only program is as good).";
@@ -227,6 +252,25 @@ showPostprocess = (r) => {
   showPostprocessNow(r);
   showCadComparison(r);
 };
+
+// The CAD-only program in the Export card's language (GET /api/export/cad-only/{language}).
+async function downloadCadOnly() {
+  await loadLanguages();
+  const lang = exportLanguages.find((l) => l.name === $("export-language").value);
+  if (!lang) throw new Error("this arm's controller runs none of the program languages");
+  const file = lang.files[0];
+  const q = new URLSearchParams({ file });
+  const text = await api("GET", `/export/cad-only/${encodeURIComponent(lang.name)}?${q}`,
+    undefined, { text: true });
+  const url = URL.createObjectURL(new Blob([text], { type: "text/plain" }));
+  const a = document.createElement("a");
+  a.href = url;
+  a.download = `cad_only_${file}`;
+  document.body.appendChild(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 1000);
+}
 
 async function goHome() {
   showMove(await api("POST", "/leadthrough/home", {}));
@@ -375,10 +419,17 @@ function connectEvents(lostBefore = false) {
     source.addEventListener(topic, () => {
       refreshGuides().catch(() => {});
       refreshProposal().catch(() => {});
+      checkGuides({ quiet: true }).catch(() => {});
       pollState();
       scheduleTool();
     });
   }
+  // What a cell change cleared (a machining choice the new controller cannot run), said once.
+  source.addEventListener("cell", () => {
+    api("GET", "/cell", undefined, { quiet: true }).then((cell) => {
+      if (cell.note) showMessage(cell.note, "info");
+    }).catch(() => {});
+  });
   source.addEventListener("compliance", () => {
     api("GET", "/leadthrough/compliance", undefined, { quiet: true })
       .then(showCompliance).catch(() => {});
@@ -390,6 +441,8 @@ function connectEvents(lostBefore = false) {
     });
   }
   window.robomachEvents = source;
+  // Other cards listen on every stream opened (a reconnect makes a new one).
+  for (const hook of window.robomachEventHooks || []) hook(source);
 }
 
 // ---------------------------------------------------------------- wiring
@@ -413,6 +466,7 @@ function initTeach() {
   $("proposal-delete").addEventListener("click", guard(deleteProposed));
   $("proposal-discard").addEventListener("click", guard(discardProposal));
   $("jog-home").addEventListener("click", () => exclusive(goHome).catch(() => {}));
+  $("cad-download").addEventListener("click", guard(downloadCadOnly));
   $("guide-clear").addEventListener("click", guard(clearGuides));
   refreshProposal().catch(() => {});
   // The click-mode menu is filled later (GET /api/choices): then show the session's mode.
@@ -424,6 +478,7 @@ function initTeach() {
   }, GUIDE_FALLBACK_MS);
   connectEvents();
   refreshTool().catch(() => {});
+  checkGuides({ quiet: true }).catch(() => {});
 }
 
 document.addEventListener("DOMContentLoaded", initTeach);

@@ -63,6 +63,30 @@ def grooved_plate() -> GeneratedPart:
     )
 
 
+def cam_plate() -> GeneratedPart:
+    """A 300 x 180 x 20 mm plate with a 6 mm wide, 6 mm deep groove round a cam: a rounded
+    rectangle 220 x 110 mm (25 mm corner radius) with a 30 mm lobe on one long side; two walls,
+    outer and island. Its cell holds it turned: placed at (790, 150, 0) mm, 25 deg about z."""
+    body = shapely.geometry.box(-110, -55, 110, 55).buffer(-25).buffer(25, quad_segs=24)
+    lobe = shapely.geometry.Point(40, 55).buffer(30, quad_segs=24)
+    outer = body.union(lobe).buffer(-8).buffer(8, quad_segs=24)
+    island = outer.buffer(-6, quad_segs=24)
+    plate = shapely.geometry.box(-150, -90, 150, 90)
+    mesh = trimesh.util.concatenate(
+        [
+            trimesh.creation.box(extents=(300, 180, 14), transform=_at(0, 0, 7)),
+            _extrude(plate.difference(outer), 14, 6),
+            _extrude(island, 14, 6),
+        ]
+    )
+    return GeneratedPart(
+        "cam_plate",
+        mesh,
+        picks={"outer": (0.0, -55.0, 17.0), "island": (0.0, -49.0, 18.0)},
+        walls={"outer": outer.exterior, "island": island.exterior},
+    )
+
+
 def l_block() -> GeneratedPart:
     """An L-shaped block, 100 x 70 x 30 mm with a 50 x 35 mm notch: sharp outside corners and
     one inside corner, on the table (an outside edge: no floor but the table)."""

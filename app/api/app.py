@@ -28,6 +28,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from starlette.types import ASGIApp, Receive, Scope, Send
 
 from app.api.routes import (
+    calibration,
     cell,
     choices,
     cmrr,
@@ -40,6 +41,7 @@ from app.api.routes import (
     leadthrough,
     machining,
     path_learning,
+    placement_preview,
     postprocess,
     project_file,
     projects,
@@ -70,8 +72,8 @@ UPLOAD_PATHS = frozenset({"/api/cell/workpiece"})
 MULTIPART_OVERHEAD_BYTES = 64 * 1024
 # guide_proposals before guide_points: its /proposal paths must not be read as an {index}.
 ROUTERS = (state, leadthrough, guide_proposals, guide_points, path_learning, jobs, postprocess,
-           export, projects, cell, cmrr, compensation, robot_wiring, machining, project_file,
-           teach, events, choices)  # fmt: skip
+           export, projects, calibration, cell, cmrr, compensation, robot_wiring, machining,
+           project_file, teach, events, choices, placement_preview)  # fmt: skip
 
 # A service is started in the lifespan and stopped after it (e.g. the viser workbench).
 Service = Callable[[], AbstractContextManager]

@@ -231,6 +231,66 @@ class JobCreated(BaseModel):
         default_factory=list,
         description="guide points that break an operator rule (docs/guide_points.md)",
     )
+    findings: list[FindingPublic] = Field(
+        default_factory=list,
+        description="the same, one per rule with its severity (as GET /api/path-learning/check)",
+    )
+
+
+class FindingPublic(BaseModel):
+    """One finding of the check before a run (``learning.checks``), in the person's words."""
+
+    rule: str = Field(description="the rule (docs/guide_points.md's table)")
+    severity: Literal["refusal", "warning", "info"] = Field(
+        description="refusal: learning will not start; warning: it runs, look first; info: a note"
+    )
+    message: str = Field(description="what was found and what to do, in whole sentences")
+    also_at: list[int] = Field(
+        default_factory=list,
+        description="the other guide points (1-based) where the same rule holds (GET "
+        "/api/path-learning/check lists one finding per rule)",
+    )
+
+    @classmethod
+    def from_finding(cls, w: Any) -> FindingPublic:
+        return cls(rule=w.rule, severity=w.severity, message=w.message)
+
+    @classmethod
+    def from_group(cls, g: Any) -> FindingPublic:
+        """One rule's findings (``learning.findings.FindingGroup``)."""
+        return cls(
+            rule=g.rule, severity=g.severity, message=g.first.message, also_at=list(g.also_at)
+        )
+
+
+class GuideCheckPublic(BaseModel):
+    """The check before a run: what the run will do with the guide points, said before it."""
+
+    findings: list[FindingPublic] = Field(
+        description="one per rule (its other points in also_at), refusals first, then "
+        "warnings, then notes (docs/guide_points.md)"
+    )
+    wall_side: str = Field(
+        description="the wall the run will follow and what decided it ('follows the wall on "
+        "the right: ...'), or why it cannot tell; empty with fewer than two guide points"
+    )
+
+
+class PlacementPreviewUpdate(_Request):
+    wobj_mm_deg: Annotated[list[Finite], Field(min_length=6, max_length=6)] = Field(
+        description="the work object being tried: x, y, z [mm], rx, ry, rz [deg] about the "
+        "base's fixed x, then y, then z axes (the numbers of robomach demo --wobj)"
+    )
+
+
+class PlacementPreviewPublic(BaseModel):
+    wobj_mm_deg: list[float] | None = Field(
+        description="the work object being tried (x, y, z mm, rx, ry, rz deg), drawn in the 3D "
+        "scene; null: nothing is tried, the part is drawn where it is placed"
+    )
+    placed_wobj_mm_deg: list[float] = Field(
+        description="where the part is placed now (x, y, z mm, rx, ry, rz deg)"
+    )
 
 
 class JobPublic(BaseModel):
@@ -535,9 +595,28 @@ class ProjectPublic(BaseModel):
 # --- cell --------------------------------------------------------------------------------
 
 
+WobjNumber = Annotated[
+    float,
+    Field(
+        allow_inf_nan=False,
+        ge=min(limits.WOBJ_POSITION_MM.min, limits.WOBJ_ROTATION_DEG.min),
+        le=max(limits.WOBJ_POSITION_MM.max, limits.WOBJ_ROTATION_DEG.max),
+    ),
+]
+
+
 class CellUpdate(_Request):
     robot: str | None = Field(
         None, description="a built-in arm (robots in GET /api/cell) or an uploaded one"
+    )
+    wobj_mm_deg: Annotated[list[WobjNumber], Field(min_length=3, max_length=6)] | None = Field(
+        None,
+        description="where the part is placed: the work-object frame x, y, z [mm] in the robot "
+        f"base frame ({limits.WOBJ_POSITION_MM.text()}), then an optional rz, or rx, ry, rz "
+        f"[deg] ({limits.WOBJ_ROTATION_DEG.text()}) about the fixed base axes x, then y, then "
+        "z (robomach demo --wobj's numbers); 3, 4 or 6 numbers; null: the built-in placement "
+        "in front of the arm. A change moves the part, sends the robot home and clears the "
+        "guide points and the work-object calibration",
     )
     tool_radius_mm: Finite | None = Field(None, description="ball cutter radius [mm], 0.5-5")
     workpiece: str | None = Field(None, description="water_pump, block, or the uploaded mesh")
@@ -547,6 +626,36 @@ class CellUpdate(_Request):
         "fixture error and casting deviations drawn from the cell's seed (teaching uses the "
         "mesh, learning meets the real part); false: the part is its mesh",
     )
+
+
+class WobjPublic(BaseModel):
+    """A work-object frame in the robot base frame: x, y, z [mm], then rotations rx, ry, rz
+    [deg] about the fixed base axes x, then y, then z (R = Rz Ry Rx)."""
+
+    x_mm: float
+    y_mm: float
+    z_mm: float
+    rx_deg: float
+    ry_deg: float
+    rz_deg: float
+
+    @classmethod
+    def of(cls, T_base_wobj: np.ndarray) -> WobjPublic:
+        from robomach_core.registration import mm_deg_from_transform
+
+        v = [round(x, 4) for x in mm_deg_from_transform(T_base_wobj)]
+        return cls(x_mm=v[0], y_mm=v[1], z_mm=v[2], rx_deg=v[3], ry_deg=v[4], rz_deg=v[5])
+
+
+class RegistrationPublic(BaseModel):
+    """An accepted work-object calibration."""
+
+    wobj: WobjPublic = Field(description="the measured work object (the CAD placed there)")
+    wobj_mm_deg: list[float] = Field(description="the same six numbers as a list")
+    touches: int
+    rms_mm: float = Field(description="RMS of the touches' residuals [mm]")
+    max_mm: float = Field(description="largest residual [mm]")
+    method: str = Field(description="the fit: point-to-plane least squares")
 
 
 class CellPublic(BaseModel):
@@ -561,13 +670,51 @@ class CellPublic(BaseModel):
     part_deviation: dict[str, Any] | None = Field(
         None, description="how the part differs from its mesh: fixture and casting (mm, deg)"
     )
+    note: str = Field(
+        "",
+        description="what the last cell change cleared and why (a machining choice the new "
+        "cell's controller cannot run); empty when nothing was",
+    )
+    wobj_mm_deg: list[float] | None = Field(
+        None,
+        description="the placement as set (3, 4 or 6 numbers, PUT /api/cell's), null for the "
+        "built-in placement",
+    )
+    wobj: WobjPublic | None = Field(
+        None, description="where the part is placed (the built-in placement when not set)"
+    )
+    registration: RegistrationPublic | None = Field(
+        None,
+        description="the accepted work-object calibration: teaching, the checks, learning's "
+        "route and the CAD-only program use the CAD placed there; null: at the placement",
+    )
 
     @classmethod
-    def from_settings(cls, s: CellSettings, robots: list[str], workpieces: list[str]) -> CellPublic:
+    def from_settings(
+        cls,
+        s: CellSettings,
+        robots: list[str],
+        workpieces: list[str],
+        *,
+        T_base_wobj: np.ndarray | None = None,
+    ) -> CellPublic:
         d = s.part_deviation
+        reg = s.registration
         return cls(
             realistic=d is not None,
             part_deviation=None if d is None else d.as_dict(),
+            wobj_mm_deg=None if s.wobj_mm_deg is None else list(s.wobj_mm_deg),
+            wobj=None if T_base_wobj is None else WobjPublic.of(T_base_wobj),
+            registration=None
+            if reg is None
+            else RegistrationPublic(
+                wobj=WobjPublic.of(reg.T_base_wobj),
+                wobj_mm_deg=[round(v, 6) for v in reg.wobj_mm_deg],
+                touches=len(reg.touches),
+                rms_mm=round(reg.rms_mm, 4),
+                max_mm=round(reg.max_mm, 4),
+                method=reg.method,
+            ),
             robot=s.robot,
             tool_radius_mm=round(s.tool_radius_m * 1e3, 9),
             workpiece=s.workpiece,

@@ -119,7 +119,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--propose-guide-points",
         metavar="X,Y,Z",
         help="propose the guide points along the wall through this point (on the wall, in the "
-        "work-object frame, mm, as a click in the workbench gives it) and lead the robot to "
+        "work-object frame, mm, as a click in the workbench gives it: -12.5,3,4 or -12.5 3 4 "
+        "or '(-12.5, 3, 4)') and lead the robot to "
         "them: no CSV needed, for a mesh file too; the wall decides open or closed and the "
         "wall side",
     )
@@ -134,9 +135,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--realistic",
         action="store_true",
         help="the realistic preset: the part in the cell differs from its mesh by a fixture "
-        "error (0.3-0.6 mm, 0.15-0.3 deg) and casting deviations (walls within +-0.5 mm, burrs), "
+        "error (2-4 mm, 1-2 deg) and casting deviations (walls within +-0.5 mm, burrs), "
         "drawn from --seed; teaching uses the mesh, learning meets the real part, and the "
-        "program a CAD/CAM tool would make from the mesh is scored beside the learned one",
+        "program a CAD/CAM tool would make from the mesh is scored beside the learned one "
+        "(add --calibrate: points taught on a CAD a few mm off land on a groove's rim)",
+    )
+    p.add_argument(
+        "--calibrate",
+        action="store_true",
+        help="before teaching, measure the work object on the real part: the operator touches "
+        "its top face three times and two sides three and two times (guarded touch-offs at "
+        "--force, at least 2 N), the CAD is registered to the touches by a point-to-plane "
+        "least-squares fit (its residual printed), and the guide points, the checks, the "
+        "CAD-only program and the program's work object use the registered CAD",
     )
     p.add_argument(
         "--wall-side",
@@ -166,12 +177,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def _point_mm(text: str, option: str) -> tuple[float, float, float]:
     """A point x,y,z in mm (work-object frame) as metres, each inside the work-object range."""
+    from app.cli import number_parts
     from robomach_core.errors import InvalidInputError
 
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise InvalidInputError(f"{option} {text!r}: expected three numbers x,y,z in mm") from None
+    values = tuple(float(v) for v in number_parts(text))
+    if not values:
+        raise InvalidInputError(f"{option} {text!r}: expected three numbers x,y,z in mm")
     if len(values) != 3:
         raise InvalidInputError(
             f"{option} {text!r}: expected three numbers x,y,z in mm, got {len(values)}"
@@ -230,12 +241,13 @@ def run(args: argparse.Namespace) -> int:
 
     wobj = None
     if args.wobj is not None:
-        try:
-            wobj = tuple(float(v) for v in args.wobj.split(","))
-        except ValueError:
+        from app.cli import number_parts
+
+        wobj = tuple(float(v) for v in number_parts(args.wobj))
+        if not wobj:
             raise InvalidInputError(
                 f"--wobj {args.wobj!r}: expected numbers x,y,z[,rz] or x,y,z,rx,ry,rz"
-            ) from None
+            )
         if len(wobj) not in (3, 4, 6):
             raise InvalidInputError(
                 f"--wobj {args.wobj!r}: expected 3, 4 or 6 numbers (x,y,z[,rz] or "
@@ -266,7 +278,7 @@ def run(args: argparse.Namespace) -> int:
             settings_file(args.compensation_settings, "--compensation-settings")
         )
 
-    from robomach_core.errors import SupervisionError
+    from robomach_core.errors import RobomachError, SupervisionError
     from robomach_core.learning.planner import ProposalSettings
     from robomach_core.pipeline import DemoSettings, default_robot, run_demo, write_demo_outputs
     from robomach_core.postprocess import PostprocessSettings
@@ -310,16 +322,37 @@ def run(args: argparse.Namespace) -> int:
         propose_at_m=propose_at,
         proposal=ProposalSettings(gap_m=args.gap_mm * 1e-3),
         part_deviation=PartDeviation.realistic(args.seed) if args.realistic else None,
+        calibrate=args.calibrate,
+        touch_force_N=max(args.force, limits.TOUCH_OFF_FORCE_N.min),
     )
     bar = StageProgress()
+
+    def checked(findings: tuple) -> None:
+        """The guide-point check, printed before the run starts (as the workbench shows it)."""
+        bar.close()
+        lines = _check_lines(
+            [
+                {"point": w.point, "rule": w.rule, "severity": w.severity, "message": w.message}
+                for w in findings
+            ]
+        )
+        for line in lines or ["the guide points pass every rule"]:
+            print(f"check             {line}", flush=True)
+        bar.stage = None
+
     try:
-        result = run_demo(settings, progress=bar)
+        result = run_demo(settings, progress=bar, checked=checked)
     except SupervisionError as exc:
-        where = "" if args.wobj is not None else " (the built-in placement)"
-        raise exc.with_note(
-            f"the part may be beyond the {robot} arm's reach{where}: place it nearer with "
-            "--wobj x,y,z (mm)"
-        ) from None
+        where = "" if args.wobj is not None else " (now the built-in placement)"
+        raise exc.with_cause_note(robot, place=f"--wobj x,y,z (mm){where}") from None
+    except RobomachError as exc:
+        if args.realistic and not args.calibrate:  # the likely cause, which the user chose
+            exc.args = (
+                f"{exc}. The part stands a few mm and a degree or two off its CAD "
+                "(--realistic), so points taught on the CAD miss its walls: measure the work "
+                "object on the part first (--calibrate)",
+            )
+        raise
     finally:
         bar.close()
     paths = write_demo_outputs(result, args.out)
@@ -330,6 +363,8 @@ def run(args: argparse.Namespace) -> int:
     s = result.summary()
     if result.workpiece.deviation_note:
         print(f"real part         {result.workpiece.deviation_note}")
+    if result.calibration is not None:
+        print(f"calibration       {result.calibration.describe()}")
     proposed = s.get("proposed_guide_points")
     if proposed is not None:
         shape = "a closed" if proposed["closed"] else "an open"
@@ -374,14 +409,15 @@ def run(args: argparse.Namespace) -> int:
             f"{s['mesh_air_mm']:.3f} mm (program vs the part's walls - tool radius)"
         )
     print(f"wall              on the {s['wall_side']} of travel: {s['wall_side_reason']}")
-    for line in _check_lines(s.get("guide_point_check") or ()):
-        print(f"check             {line}")
     if s.get("taught_wall"):
         print(f"taught wall       {s['taught_wall']}")
     comparison = s.get("cad_comparison")
     if comparison is not None:
         title = "vs the real wall" if comparison["part_deviates_from_cad"] else "vs the wall"
-        for label, key in (("learned program", "learned"), ("CAD-only program", "cad_only")):
+        rows = [("learned program", "learned"), ("CAD-only program", "cad_only")]
+        if comparison.get("cad_only_uncalibrated") is not None:
+            rows.append(("CAD-only, uncal.", "cad_only_uncalibrated"))
+        for label, key in rows:
             c = comparison[key]
             x, y, _ = c["worst_at_wobj_mm"]
             print(

@@ -49,7 +49,26 @@ GUIDE_LABEL_LIFT_M = 0.004  # the "G1" label sits just above its marker
 REACH_COLORS = {"ok": (30, 170, 70), "near": (240, 160, 20), "unreachable": (220, 40, 40)}
 PROPOSAL_LINE_COLOR = (120, 120, 200)
 WALL_COLOR = (40, 140, 220)
+# The learned and the CAD-only program, drawn side by side: two colours, the panels' legend.
+COMPARISON_COLORS = {"learned": (0, 160, 110), "cad_only": (170, 60, 220)}
 WOBJ_AXES_M = 0.05
+PICKED_WALL_COLOR = (255, 70, 20)  # the wall a click picked, before anything moves
+OTHER_WALL_COLOR = (150, 150, 160)  # the other walls at that height (a groove's other side)
+PICKED_ARROW_M = 0.008  # from the picked wall to the side the tool stands on
+TABLE_COLOR = (196, 182, 160)
+TOUCH_COLOR = (90, 90, 200)  # a calibration's touch before the touches fix a frame
+TOUCH_ARROW_M = 0.008  # the arrow of a touch's move, ending at the ball
+FIT_COLOR = (40, 200, 120)  # the CAD where the calibration's fit places it
+CALIBRATION_SCALE_M = 0.2e-3  # a touch's residual: green at 0, red from 0.2 mm
+# View the part: looking down at the walls from beyond the part (away from the robot's base),
+# else from the first of these directions the arm does not stand in.
+PART_VIEW_ELEVATIONS_DEG = (40.0, 60.0, 25.0, 75.0)
+PART_VIEW_AZIMUTHS_DEG = (0.0, 35.0, -35.0, 70.0, -70.0, 110.0, -110.0, 180.0)
+PART_VIEW_FILL = 1.15  # the part's bounding sphere fills the view with this margin
+TABLE_MARGIN_M = 0.08  # the table reaches this far beyond the part
+TABLE_STAND_FROM_M = 0.05  # a part this high stands on a stand from the floor
+TABLE_PLATE_M = 0.02  # else a plate this thick
+TABLE_GAP_M = 0.0002  # the table's top just under the part's bottom (no flicker)
 
 
 def _mesh_filename(fname: str) -> str:
@@ -189,6 +208,57 @@ class _RobotPose:
         self._q = q.copy()
 
 
+def part_view_pose(
+    bounds: np.ndarray, fov_rad: float, obstacle: trimesh.Trimesh | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(eye, look-at) framing a part of base-frame ``bounds`` (2, 3): its bounding sphere
+    fills the view (``PART_VIEW_FILL``), looking down ``PART_VIEW_ELEVATIONS_DEG`` from a
+    side ``PART_VIEW_AZIMUTHS_DEG`` off "beyond the part, away from the robot's base"; the
+    first from which no ray to the part's centre or the corners of its top is blocked by
+    ``obstacle`` (the arm and its tool), else the one blocked least."""
+    lo, hi = np.asarray(bounds, dtype=float)
+    centre = 0.5 * (lo + hi)
+    radius = 0.5 * float(np.linalg.norm(hi - lo))
+    distance = PART_VIEW_FILL * radius / math.sin(0.5 * fov_rad)
+    xy = centre[:2]
+    away = xy / np.linalg.norm(xy) if np.linalg.norm(xy) > 1e-6 else np.array([1.0, 0.0])
+    inset = 0.4 * (hi - lo)
+    targets = np.array(
+        [centre]
+        + [[centre[0] + sx * inset[0], centre[1] + sy * inset[1], hi[2]]
+           for sx in (-1, 1) for sy in (-1, 1)]
+    )  # fmt: skip
+    best, fewest = None, None
+    for el_deg in PART_VIEW_ELEVATIONS_DEG:
+        el = math.radians(el_deg)
+        for az_deg in PART_VIEW_AZIMUTHS_DEG:
+            c, s = math.cos(math.radians(az_deg)), math.sin(math.radians(az_deg))
+            horizontal = np.array([c * away[0] - s * away[1], s * away[0] + c * away[1]])
+            eye = centre + distance * np.array([*(horizontal * math.cos(el)), math.sin(el)])
+            blocked = 0 if obstacle is None else _blocked(obstacle, eye, targets)
+            if blocked == 0:
+                return eye, centre
+            if fewest is None or blocked < fewest:
+                best, fewest = eye, blocked
+    return best, centre
+
+
+def _blocked(obstacle: trimesh.Trimesh, eye: np.ndarray, targets: np.ndarray) -> int:
+    """How many of the rays from ``eye`` to ``targets`` meet ``obstacle`` first (or start in
+    it)."""
+    to = targets - eye
+    length = np.linalg.norm(to, axis=1)
+    dirs = to / length[:, None]
+    hits, rays, _ = obstacle.ray.intersects_location(
+        np.repeat(eye[None], len(targets), axis=0), dirs, multiple_hits=True
+    )
+    nearer = np.zeros(len(targets), dtype=bool)
+    for hit, ray in zip(hits, rays, strict=True):
+        if np.linalg.norm(hit - eye) < length[ray] - 1e-3:
+            nearer[ray] = True
+    return int(nearer.sum())
+
+
 class CellScene:
     """Scene nodes of the cell, updated from the session's state.
 
@@ -222,6 +292,10 @@ class CellScene:
         self.workpiece_node: viser.SceneNodeHandle | None = None
         self._guides_node: viser.SceneNodeHandle | None = None
         self.paths_hidden = False  # the drawn paths belong to a cell no longer there
+        self.placement_previewed = False  # the part is drawn where a placement is being tried
+        # Clicks are the scene's (anywhere on the canvas), met against the part's mesh here:
+        # nothing drawn in front of the part takes them (``on_part_click``).
+        scene.on_click()(self._scene_clicked)
 
     # ----------------------------------------------------------------- cell set-up
 
@@ -241,6 +315,7 @@ class CellScene:
     def set_tool(self, tool: Tool) -> None:
         """Draw the spindle and cutter of ``tool`` on the TCP."""
         body = tool_mesh(tool)
+        self._tool_body = body
         cutter = cutter_mesh(tool)
         with self.server.atomic():
             self.server.scene.add_mesh_simple(
@@ -256,25 +331,66 @@ class CellScene:
 
     def set_workpiece(self, workpiece: Workpiece) -> None:
         """Show the workpiece mesh (as its CAD: what the user teaches on) at its place in the
-        base frame, clickable, with its work-object frame and coordinates."""
+        base frame, with its work-object frame and coordinates, and the table it stands on.
+
+        The mesh is drawn in its work-object frame under a node placed at ``T_base_wobj``, so
+        that a placement being tried (``preview_placement``) moves the part without sending
+        its mesh again."""
         cad = workpiece.cad()
-        mesh = cad.mesh_in_base()
-        self._cad_in_base = mesh
+        self._cad_mesh = cad.mesh  # work-object frame: what a click's ray is met against
         self._T_base_wobj = cad.T_base_wobj.copy()
         self.workpiece_node = self.server.scene.add_mesh_simple(
             "/workpiece",
-            mesh.vertices,
-            mesh.faces,
+            cad.mesh.vertices,
+            cad.mesh.faces,
             color=WORKPIECE_COLOR,
             flat_shading=True,
             side="double",
+            wxyz=quaternion_from_matrix(cad.T_base_wobj[:3, :3]),
+            position=cad.T_base_wobj[:3, 3],
         )
-        self.workpiece_node.on_click(self._part_clicked)
+        self.placement_previewed = False
         self._show_wobj_frame(cad.T_base_wobj)
+        self._show_table(cad.mesh_in_base())
+        self.set_picked_wall(None)
 
-    def _show_wobj_frame(self, T_base_wobj: np.ndarray) -> None:
+    def preview_placement(self, T_base_wobj: np.ndarray | None) -> None:
+        """Draw the part (and its work-object frame and table) at ``T_base_wobj`` while a
+        placement is being tried; None puts it back where the cell has it."""
+        T = self._T_base_wobj if T_base_wobj is None else np.asarray(T_base_wobj, dtype=float)
+        node = self.workpiece_node
+        if node is None:
+            return
+        with self.server.atomic():
+            node.wxyz = quaternion_from_matrix(T[:3, :3])
+            node.position = T[:3, 3]
+            self._show_wobj_frame(T, preview=T_base_wobj is not None)
+            mesh = self._cad_mesh.copy()
+            mesh.apply_transform(T)
+            self._show_table(mesh)
+        self.placement_previewed = T_base_wobj is not None
+
+    def _show_table(self, part_in_base: trimesh.Trimesh) -> None:
+        """The table the part stands on (the supervision's table plane is the part's lowest
+        point): a stand from the floor when the part is raised, else a thin plate."""
+        lo, hi = part_in_base.bounds
+        top = float(lo[2])
+        bottom = 0.0 if top > TABLE_STAND_FROM_M else top - TABLE_PLATE_M
+        size = np.array([*(hi[:2] - lo[:2] + 2 * TABLE_MARGIN_M), max(top - bottom, 1e-3)])
+        centre = np.array([*(0.5 * (lo[:2] + hi[:2])), 0.5 * (top + bottom)])
+        self.server.scene.add_box(
+            "/table",
+            color=TABLE_COLOR,
+            dimensions=tuple(size),
+            position=tuple(centre - np.array([0.0, 0.0, TABLE_GAP_M])),
+            cast_shadow=False,
+            receive_shadow=True,
+        )
+
+    def _show_wobj_frame(self, T_base_wobj: np.ndarray, *, preview: bool = False) -> None:
         """The work-object frame (axes at its origin) and its coordinates in the base frame."""
         x, y, z = T_base_wobj[:3, 3] * 1e3
+        text = f"work object ({x:.0f}, {y:.0f}, {z:.0f}) mm"
         with self.server.atomic():
             self.server.scene.add_frame(
                 "/wobj",
@@ -285,7 +401,7 @@ class CellScene:
             )
             self.server.scene.add_label(
                 "/wobj/label",
-                f"work object ({x:.0f}, {y:.0f}, {z:.0f}) mm",
+                f"{text}: not placed yet" if preview else text,
                 position=(0.0, 0.0, 0.004),
                 anchor="bottom-left",
             )
@@ -294,34 +410,90 @@ class CellScene:
 
     def on_part_click(self, callback) -> None:
         """Call ``callback(point_wobj_m, normal_wobj, client)`` when the user clicks the part
-        (the first surface the click's ray meets, and its normal, in the work-object frame)."""
+        (the first surface the click's ray meets, and its normal, in the work-object frame).
+
+        The click is the scene's, not the part node's: its ray is met against the part's mesh
+        here, so the robot, the translucent spindle, labels and arrows between the camera and
+        the part never take a click meant for it."""
         self._click_callback = callback
 
     def hit_part(
         self, origin: np.ndarray, direction: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray] | None:
         """(point, normal) in the work-object frame where a base-frame ray meets the part."""
-        mesh = getattr(self, "_cad_in_base", None)
-        if mesh is None:
-            return None
+        mesh = getattr(self, "_cad_mesh", None)
+        if mesh is None or self.placement_previewed:
+            return None  # the part drawn is not where the cell has it
         from robomach_core.mesh_query import ray_hits
 
-        hits, _, faces = ray_hits(mesh, np.asarray([origin]), np.asarray([direction]))
+        T = self._T_base_wobj
+        o = (np.asarray(origin, dtype=float) - T[:3, 3]) @ T[:3, :3]
+        d = np.asarray(direction, dtype=float) @ T[:3, :3]
+        hits, _, faces = ray_hits(mesh, o[None, :], d[None, :])
         if len(hits) == 0:
             return None
-        k = int(np.argmin(np.linalg.norm(hits - origin, axis=1)))
-        T = self._T_base_wobj
-        point = (hits[k] - T[:3, 3]) @ T[:3, :3]
-        normal = mesh.face_normals[faces[k]] @ T[:3, :3]
-        return point, normal
+        k = int(np.argmin(np.linalg.norm(hits - o, axis=1)))
+        return hits[k], np.asarray(mesh.face_normals[faces[k]], dtype=float)
 
-    def _part_clicked(self, event) -> None:
+    def _scene_clicked(self, event) -> None:
         callback = getattr(self, "_click_callback", None)
         if callback is None:
             return
         hit = self.hit_part(np.asarray(event.ray_origin), np.asarray(event.ray_direction))
         if hit is not None:
             callback(hit[0], hit[1], event.client)
+
+    def set_picked_wall(self, pick, text: str = "") -> None:
+        """Highlight the wall a click picked (``walls.WallPick``), before anything moves: the
+        wall at the machining height (thick), the other walls there (thin grey: the groove's
+        other side), the clicked point and an arrow to the side the tool stands on; None
+        removes it."""
+        scene = self.server.scene
+        with self.server.atomic():
+            node = getattr(self, "_picked_node", None)
+            if node is not None:
+                node.remove()
+            self._picked_node = scene.add_frame("/path/picked", show_axes=False)
+            if pick is None:
+                return
+            T = self._T_base_wobj @ pick.T_wobj_floor
+
+            def base(loop) -> np.ndarray:
+                xy = np.asarray(loop.points_m, dtype=float)
+                if loop.closed:
+                    xy = np.vstack([xy, xy[:1]])
+                p = np.column_stack([xy, np.full(len(xy), loop.z_m)])
+                return p @ T[:3, :3].T + T[:3, 3]
+
+            wall = base(pick.loop)
+            scene.add_line_segments(
+                "/path/picked/wall", np.stack([wall[:-1], wall[1:]], axis=1), PICKED_WALL_COLOR,
+                thickness=5.0, thickness_units="screen",
+            )  # fmt: skip
+            for k, other in enumerate(pick.others):
+                w = base(other)
+                scene.add_line_segments(
+                    f"/path/picked/other{k}", np.stack([w[:-1], w[1:]], axis=1),
+                    OTHER_WALL_COLOR, thickness=1.5, thickness_units="screen",
+                )  # fmt: skip
+            s = np.array([pick.s_m])
+            foot = np.array([*pick.loop.point_at(s)[0], pick.loop.z_m])
+            free = np.array([*pick.loop.free_normal_at(s)[0], 0.0])
+            at = T[:3, :3] @ foot + T[:3, 3]
+            tip = at + T[:3, :3] @ free * PICKED_ARROW_M
+            scene.add_arrows(
+                "/path/picked/side", np.array([[at, tip]]), PICKED_WALL_COLOR,
+                shaft_radius=0.0008, head_radius=0.002, head_length=0.003,
+            )  # fmt: skip
+            scene.add_icosphere(
+                "/path/picked/point", radius=0.0015, color=PICKED_WALL_COLOR,
+                position=tuple(self._T_base_wobj[:3, :3] @ pick.point_m
+                               + self._T_base_wobj[:3, 3]),
+            )  # fmt: skip
+            scene.add_label(
+                "/path/picked/label", text or "the wall you clicked",
+                position=tuple(tip + np.array([0.0, 0.0, 0.006])), anchor="bottom-center",
+            )  # fmt: skip
 
     def set_proposal(
         self,
@@ -374,10 +546,66 @@ class CellScene:
                     anchor="bottom-center",
                 )
 
-    def set_comparison(self, comparison, scale_m: float = 0.5e-3) -> None:
-        """The CAD-only program and the learned one, each coloured by its error against the
-        real wall (green to red at ``scale_m``), labelled at its worst place; None removes
-        them."""
+    def set_calibration(
+        self,
+        touches: Sequence,
+        residuals_m: np.ndarray | None = None,
+        T_fit: np.ndarray | None = None,
+        *,
+        labelled: bool = True,
+    ) -> None:
+        """The touches of a work-object calibration (``registration.Touch``: the ball where it
+        stopped, an arrow along its move, "T1" with its residual once fitted unless not
+        ``labelled`` (accepted: the labels would crowd the teaching; the panel lists them),
+        coloured green to red at ``CALIBRATION_SCALE_M``) and, before it is accepted, the CAD
+        where the fit places it (translucent green: where the part really is); nothing for no
+        touches."""
+        scene = self.server.scene
+        with self.server.atomic():
+            node = getattr(self, "_calibration_node", None)
+            if node is not None:
+                node.remove()
+            self._calibration_node = scene.add_frame("/calibration", show_axes=False)
+            for k, touch in enumerate(touches):
+                at = np.asarray(touch.tcp_m, dtype=float)
+                d = np.asarray(touch.direction, dtype=float)
+                res = None if residuals_m is None else float(residuals_m[k])
+                color = (
+                    TOUCH_COLOR
+                    if res is None
+                    else tuple(int(c) for c in deviation_colors([abs(res)], CALIBRATION_SCALE_M)[0])
+                )
+                scene.add_icosphere(
+                    f"/calibration/T{k + 1}", radius=max(touch.tool_radius_m, 5e-4), color=color,
+                    position=tuple(at),
+                )  # fmt: skip
+                scene.add_arrows(
+                    f"/calibration/T{k + 1}/move",
+                    np.array([[-d * TOUCH_ARROW_M, -d * touch.tool_radius_m]]),
+                    color, shaft_radius=0.0005, head_radius=0.0012, head_length=0.002,
+                )  # fmt: skip
+                text = f"T{k + 1}" if res is None else f"T{k + 1} {res * 1e3:+.2f} mm"
+                if not labelled:
+                    continue
+                scene.add_label(
+                    f"/calibration/T{k + 1}/label", text,
+                    position=tuple(-d * TOUCH_ARROW_M + np.array([0.0, 0.0, 0.002])),
+                    anchor="bottom-center",
+                )  # fmt: skip
+            mesh = getattr(self, "_cad_mesh", None)
+            if T_fit is not None and mesh is not None:
+                scene.add_mesh_simple(
+                    "/calibration/fit", mesh.vertices, mesh.faces, color=FIT_COLOR,
+                    opacity=0.35, flat_shading=True, side="double", cast_shadow=False,
+                    wxyz=quaternion_from_matrix(T_fit[:3, :3]), position=T_fit[:3, 3],
+                )  # fmt: skip
+
+    def set_comparison(
+        self, comparison, *, show_learned: bool = True, show_cad_only: bool = True
+    ) -> None:
+        """The learned program and the CAD-only one in two colours (``COMPARISON_COLORS``:
+        the legend the panels show), each labelled at its worst place with its error against
+        the (real) wall; ``show_*`` hides one; None removes them."""
         scene = self.server.scene
         with self.server.atomic():
             node = getattr(self, "_comparison_node", None)
@@ -386,20 +614,19 @@ class CellScene:
             self._comparison_node = scene.add_frame("/path/comparison", show_axes=False)
             if comparison is None:
                 return
-            for name, score, title in (
-                ("cad_only", comparison.cad_only, "CAD-only"),
-                ("learned", comparison.learned, "learned"),
+            for name, score, title, shown in (
+                ("cad_only", comparison.cad_only, "CAD-only", show_cad_only),
+                ("learned", comparison.learned, "learned", show_learned),
             ):
-                pts, dev = score.points_m, np.abs(score.deviation_m)
-                step = max(1, len(pts) // 4000)
-                pts, dev = pts[::step], dev[::step]
-                c = deviation_colors(dev, scale_m)
+                if not shown:
+                    continue
+                pts = score.points_m[:: max(1, len(score.points_m) // 4000)]
                 lift = np.array([0.0, 0.0, 0.0015 if name == "cad_only" else 0.0])
                 scene.add_line_segments(
                     f"/path/comparison/{name}",
                     np.stack([pts[:-1] + lift, pts[1:] + lift], axis=1),
-                    np.stack([c[:-1], c[1:]], axis=1),
-                    thickness=4.0 if name == "cad_only" else 2.5,
+                    COMPARISON_COLORS[name],
+                    thickness=3.5 if name == "cad_only" else 2.5,
                     thickness_units="screen",
                 )
                 k = int(np.argmax(np.abs(score.deviation_m)))
@@ -441,16 +668,36 @@ class CellScene:
             )
             client.camera.look_at = (float(centre[0]), float(centre[1]), float(bounds[1, 2]))
 
-    def part_view(self, client, workpiece: Workpiece) -> None:
-        """An oblique view of the part from in front of the robot (its walls visible)."""
-        cad = workpiece.cad()
-        bounds = cad.mesh_in_base().bounds
-        centre = 0.5 * (bounds[0] + bounds[1])
-        span = float(np.max(bounds[1] - bounds[0]))
+    def part_view(
+        self,
+        client,
+        workpiece: Workpiece,
+        joints_rad: np.ndarray | None = None,
+        T_base_tcp: np.ndarray | None = None,
+    ) -> None:
+        """Frame the whole part from where the arm (at ``joints_rad``, its tool at
+        ``T_base_tcp``) hides none of it (``part_view_pose``), looking down at its walls."""
+        bounds = workpiece.cad().mesh_in_base().bounds
+        fov = float(getattr(client.camera, "fov", math.radians(50.0)))
+        arm = None if joints_rad is None else self.arm_mesh(joints_rad, T_base_tcp)
+        eye, centre = part_view_pose(bounds, fov, arm)
         with client.atomic():
             client.camera.up_direction = (0.0, 0.0, 1.0)
-            client.camera.position = tuple(centre + np.array([-0.9, -0.9, 1.3]) * span)
-            client.camera.look_at = tuple(centre)
+            client.camera.position = tuple(float(v) for v in eye)
+            client.camera.look_at = tuple(float(v) for v in centre)
+
+    def arm_mesh(self, joints_rad: np.ndarray, T_base_tcp: np.ndarray | None) -> trimesh.Trimesh:
+        """The arm as drawn at ``joints_rad`` (its visual meshes) with the spindle on its TCP,
+        base frame: what may stand between the camera and the part."""
+        if getattr(self, "_arm_robot", None) != self._robot_name:
+            self._arm_model = load_urdf(self._robot_name)  # its own: the scene's is drawn
+            self._arm_robot = self._robot_name
+        self._arm_model.update_cfg(np.asarray(joints_rad, dtype=float))
+        parts = [self._arm_model.scene.to_mesh()]
+        body = getattr(self, "_tool_body", None)
+        if body is not None and T_base_tcp is not None:
+            parts.append(body.copy().apply_transform(np.asarray(T_base_tcp, dtype=float)))
+        return trimesh.util.concatenate(parts)
 
     # ----------------------------------------------------------------- live state
 

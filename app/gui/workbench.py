@@ -29,7 +29,9 @@ from .panels import (
     PathLearningPanel,
     PostprocessPanel,
 )
+from .panels.calibration import CalibrationPanel
 from .panels.feedback import notify_error
+from .panels.placement import PlacementPanel
 from .panels.pointing import PointingPanel
 from .panels.robot_wiring import GuideRulesPanel, RobotProgramPanel
 from .panels.teach_panel import TeachPanel
@@ -46,6 +48,7 @@ JOB_TITLES = {
     "example": "Load the example",
     "path_learning": "Path learning",
     "accept_proposal": "Accepting the proposal",
+    "calibration": "Touching the planned features",
 }
 
 
@@ -88,18 +91,24 @@ class Workbench:
         self.scene = CellScene(server)
         self._show_cell()
         self.cell = CellPanel(server, session)
+        self.placement = PlacementPanel(server, session)
+        self.calibration = CalibrationPanel(server, session, self.scene)
         self.leadthrough = LeadThroughPanel(server, session, self.scene)
         self.teach = TeachPanel(server, session)
         self.guide_points = GuidePointsPanel(server, session, self.scene)
         self.pointing = PointingPanel(server, session, self.scene, self.guide_points)
+        self.pointing.on_touch = self.calibration.touch_face
         self.path_learning = PathLearningPanel(server, session, self.scene)
         self.postprocess = PostprocessPanel(server, session, self.scene)
         self.export = ExportPanel(server, session, self.study_service)
         self.robot_program = RobotProgramPanel(server, session)
         self.guide_rules = GuideRulesPanel(server, session, self.path_learning.route_settings)
+        self.guide_rules.listeners.append(self.path_learning.show_check)
+        self.path_learning.show_check(self.guide_rules.warnings.content)
         self.path_learning.on_route_change(lambda: self._on_change("guide_points"))
         self.studies = self._study_panels(server, session)
         self.studies += self._machining_panel(server, session)
+        self._framed = self._part_key()  # the cell the cameras were last framed on
         self._dirty: set[str] = {"job"}
         self._dirty_lock = threading.Lock()
         self._jobs_shown: dict[str, str] = {}  # job kind -> id of the job the panel shows
@@ -195,6 +204,20 @@ class Workbench:
         if "cell" in topics:
             self._show_cell()
             self.cell.refresh()
+            framed = self._part_key()
+            if framed != self._framed:  # not a calibration: the person's view stays
+                self._framed = framed
+                self._frame_part()
+            note = self.session.cell_note()
+            for client in self.server.get_clients().values() if note else ():
+                client.add_notification(
+                    "Machining choice cleared", note, color="yellow", auto_close_seconds=None
+                )
+        if topics & {"cell", "placement"}:
+            self.scene.preview_placement(self.session.preview.transform())
+            self.placement.refresh()
+        if topics & {"cell", "calibration"}:
+            self.calibration.refresh()
         if "compliance" in topics:
             self.leadthrough.refresh_compliance()
         if "guide_points" in topics or "cell" in topics:
@@ -202,8 +225,6 @@ class Workbench:
             self.guide_rules.refresh()
             self.pointing.refresh()
             self.path_learning.refresh_wall()
-        if topics & {"recording", "cell", "project"}:
-            self.path_learning.refresh_stop()
         if topics & {"job", "recording"}:
             self._show_jobs()
         if topics & {"recording", "postprocess", "cell"}:
@@ -212,6 +233,8 @@ class Workbench:
             self.robot_program.refresh()
             self.pointing.show_comparison()
             self._hide_old_cell_paths(topics)
+        if topics & {"recording", "postprocess", "cell", "project"}:
+            self.path_learning.refresh_stop(old_cell=self.scene.paths_hidden)
         snapshot = self.leadthrough.tick(self.session.robot.snapshot())
         self.teach.tick(snapshot)
         self._draw_robot(snapshot)
@@ -252,6 +275,24 @@ class Workbench:
         self.scene.set_workpiece(cell.workpiece)  # drawn as its mesh (``Workpiece.cad``)
         self._last_time_s = float("nan")  # redraw the new robot at once
 
+    def _part_key(self) -> tuple:
+        """What the camera frames: the arm, the part and its placement (a calibration moves
+        the CAD by millimetres onto the real part: the view the person chose stays)."""
+        project = self.session.project()
+        cell, mesh = project.cell, project.mesh
+        mesh_key = None if mesh is None else (mesh[0], len(mesh[1]))
+        return (cell.robot, cell.workpiece, cell.wobj_mm_deg, mesh_key)
+
+    def _frame_part(self) -> None:
+        """Every browser's camera on the new part (a cell change: another part, place or
+        robot), from beyond it so that the arm is never in the way."""
+        clients = list(self.server.get_clients().values())
+        if not clients:
+            return
+        workpiece, pose = self.session.robot.workpiece, self.session.robot.snapshot()
+        for client in clients:
+            self.scene.part_view(client, workpiece, pose.joints_rad, pose.T_base_tcp)
+
     def _hide_old_cell_paths(self, topics: set[str]) -> None:
         """A cell change leaves the old cell's recording in the project (stale), but its paths
         are not drawn through the new part: they stay hidden until the next learning."""
@@ -264,12 +305,13 @@ class Workbench:
     def _show_jobs(self) -> None:
         """Progress of the robot jobs, whoever started them; a job that failed says why in
         every browser, until it is closed."""
-        kinds = ("example", "path_learning", "accept_proposal")
+        kinds = ("example", "path_learning", "accept_proposal", "calibration")
         active = {j.kind: j for j in self.session.jobs.active(kinds)}
         panels = {
             "example": self.guide_points,
             "path_learning": self.path_learning,
             "accept_proposal": self.pointing,
+            "calibration": self.calibration,
         }
         for kind, panel in panels.items():
             job = active.get(kind)

@@ -141,9 +141,8 @@ class Learning:
                     progress=ctx.progress,
                 )
             except SupervisionError as exc:
-                raise exc.with_note(
-                    f"the part may be beyond the {cell.robot.name} arm's reach: choose a "
-                    "larger arm, or press Home first"
+                raise exc.with_cause_note(
+                    cell.robot.name, place="the work object's placement"
                 ) from None
 
         def done(result: tuple[LeadThroughState, list[GuidePoint]]) -> None:
@@ -319,6 +318,7 @@ class Learning:
     ) -> tuple:
         """What the operator check finds in the guide points (``guide_check``)."""
         from robomach_core.learning.checks import guide_point_warnings
+        from robomach_core.supervision import cell_supervisor
 
         view = self._session.view()
         settings = PathLearningSettings(force_N=force_N, closed=closed, wall_side=wall_side)
@@ -329,6 +329,8 @@ class Learning:
                 workpiece=view.cell.workpiece.cad(),  # checks use the mesh the user sees
                 tool_radius_m=view.project.cell.tool_radius_m,
                 robot=view.cell.robot,
+                supervisor=cell_supervisor(view.cell),
+                tolerance_m=view.project.post_settings.tolerance_m,
             )
 
     def guide_warnings(

@@ -12,9 +12,9 @@ STRATEGY  The core computes (``planner.teach_point`` / ``propose_guide_points`` 
           as "Load the example" does. The pending proposal belongs to the cell it was made
           in (its epoch): a cell change drops it. The wall side of points taught this way is
           known, and path learning uses it unless told otherwise.
-SOLUTION  ``Pointing(session)``, the session's ``pointing``: ``teach_at_surface``, ``propose``,
-          ``proposal``, ``move_proposed``, ``delete_proposed``, ``discard``, ``accept``,
-          ``learning_side``; the settings (gap, height above the floor) in ``settings``.
+SOLUTION  ``Pointing(session)``, the session's ``pointing``: ``pick``, ``teach_at_surface``,
+          ``propose``, ``proposal``, ``move_proposed``, ``delete_proposed``, ``discard``,
+          ``accept``, ``learning_side``; the settings (gap, height above the floor) in ``settings``.
 """
 
 from __future__ import annotations
@@ -161,6 +161,25 @@ class Pointing:
         return pointing_document(self.settings, self.click_mode)
 
     # --- click to teach ------------------------------------------------------------------
+
+    def pick(self, point_wobj_m: np.ndarray, normal: np.ndarray | None = None) -> WallPick:
+        """The wall a click at ``point_wobj_m`` (work-object frame) picks, at the machining
+        height, as teaching and proposing pick it (nothing moves): what the GUIs highlight
+        before they act. Raises ``InvalidInputError`` with the reason when nothing is picked
+        (a floor, the middle of a narrow groove)."""
+        from robomach_core.learning.walls import pick_wall
+
+        cell = self._session.robot.cell
+        with mesh_query.LOCK:
+            return pick_wall(
+                cell.workpiece.cad().mesh,
+                np.asarray(point_wobj_m, dtype=float),
+                None if normal is None else np.asarray(normal, dtype=float),
+                tool_radius_m=cell.tool.radius_m,
+                gap_m=self.settings.gap_m,
+                height_above_floor_m=self.settings.height_above_floor_m,
+                tool_reach_m=tool_reach(cell.tool),
+            )
 
     def teach_at_surface(
         self,

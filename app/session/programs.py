@@ -53,6 +53,19 @@ def program_texts(
     )
 
 
+def cad_only_program_texts(session: Session, language: str) -> dict[str, str]:
+    """The CAD-only program (the mesh's wall offset by the tool radius: what a CAD/CAM tool
+    would make, ``project.cad_only_program_texts``) in a language the arm's controller runs:
+    file name -> text. For comparison with the learned program."""
+    from robomach_core.export.languages import resolve_languages
+
+    view = session.view()
+    (lang,) = resolve_languages(view.cell.robot, language)
+    return core.cad_only_program_texts(
+        view.project, view.cell.workpiece, view.cell.robot, lang.name
+    )
+
+
 def rapid_module(
     session: Session, *, module_name: str = core.DEFAULT_MODULE_NAME, force_control: bool = False
 ) -> str:

@@ -45,6 +45,7 @@ class Loaded:
     selection: ComplianceSelection | None = None
     pointing: dict[str, Any] | None = None  # the pointing settings saved with the robot
     notice: str = ""  # what the user must know: the stored arm was refused (``read_project``)
+    calibration: dict[str, Any] | None = None  # the calibration's touches saved with it
 
 
 def list_projects(session: Session) -> list[ProjectInfo]:
@@ -161,7 +162,10 @@ def read_project(store: Store, project_id: int) -> Loaded:
     built = build_live_cell(cell, mesh, data.robot.get("joints_rad"))
     selection = selection_from_document(data.robot.get("compliance"))
     project = project_from_data(data, built[0].workpiece)
-    return Loaded(project_id, project, built, selection, data.robot.get("pointing"), notice)
+    return Loaded(
+        project_id, project, built, selection, data.robot.get("pointing"), notice,
+        data.robot.get("calibration"),
+    )  # fmt: skip
 
 
 def _without_refused_arm(data: ProjectData, exc: RobotFileError) -> tuple[ProjectData, str]:
@@ -174,7 +178,8 @@ def _without_refused_arm(data: ProjectData, exc: RobotFileError) -> tuple[Projec
     until the user changes it (``Session`` then saves it whole)."""
     stored = data.cell.get("robot_urdf") or ["the arm file"]
     default = CellSettings().robot
-    cell = {k: v for k, v in data.cell.items() if k not in ("robot_urdf", "wobj_mm_deg")}
+    dropped = ("robot_urdf", "wobj_mm_deg", "registration")
+    cell = {k: v for k, v in data.cell.items() if k not in dropped}
     cell["robot"] = default
     robot = {k: v for k, v in data.robot.items() if k != "joints_rad"}
     post = {k: v for k, v in data.post.items() if k == "settings"}

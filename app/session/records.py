@@ -33,6 +33,8 @@ Topic = Literal[
     "project",
     "exports",
     "machining",
+    "placement",
+    "calibration",
 ]
 JobStatus = Literal["queued", "running", "done", "failed", "cancelled"]
 

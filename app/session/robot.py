@@ -42,7 +42,7 @@ from .jobs import JobContext, JobRunner
 from .live import LiveFeed, TappedCell
 from .records import BusyError, ForceTrace, JobInfo, RobotSnapshot, log
 
-ROBOT_JOB_KINDS = ("example", "path_learning", "accept_proposal")
+ROBOT_JOB_KINDS = ("example", "path_learning", "accept_proposal", "calibration")
 
 Built = tuple[Cell, LeadThrough, LeadThroughState]
 

@@ -16,12 +16,16 @@ STRATEGY  The job is one frozen ``robomach_core.project.Project``, changed only 
 SOLUTION  Public API (thread-safe):
 
   Reading   project() -> Project; view() -> View (project, cell, epoch, project id, at once);
-            current_project() -> ProjectInfo; robot (LiveRobot: snapshot(), pose(), ...)
-  Services  robot, teach (push, jog, touch_off, stop, tool_view), pointing, learning
-            (start_example, start_path_learning, run_postprocess, go_home, force_trace), jobs
+            current_project() -> ProjectInfo; cell_note() (what a cell change cleared);
+            robot (LiveRobot: snapshot(), pose(), ...)
+  Services  robot, teach (push, jog, touch_off, touch_along, stop, tool_view), pointing,
+            calibration (touches of the real part, the fit, its acceptance), learning
+            (start_example, start_path_learning, run_postprocess, go_home, force_trace), jobs,
+            preview (a work-object placement being tried, not saved)
   Changing  commit(change, *parts, topics=, idle=, with_robot=) -> Project
             change_cell(change, parsed=) -> Project   a transition that rebuilds the live cell
-            set_cell(robot=, tool_radius_m=, workpiece=, part_deviation=) -> CellSettings
+            set_cell(robot=, tool_radius_m=, workpiece=, part_deviation=, wobj_mm_deg=)
+                -> CellSettings
             upload_workpiece(data, filename) / upload_robot(data, filename, family=)
             record_guide_point() -> GuidePointEntry; delete_guide_point(i); clear_guide_points()
             switch_to(loaded, epoch=, save=)          another project (``projects``)
@@ -50,10 +54,12 @@ from robomach_core.workpiece import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, Workpiec
 from ..memory import give_back
 from ..store import Store
 from . import projects
+from .calibration import Calibration
 from .jobs import JobRunner
 from .learning import Learning
 from .persistence import Part, save_kwargs
 from .pointing import Pointing, pointing_document, pointing_from_document
+from .preview import PlacementPreview
 from .projects import Loaded
 from .records import ConflictError, GuidePointEntry, NotFoundError, ProjectInfo, Topic, log
 from .robot import ROBOT_JOB_KINDS as ROBOT_JOB_KINDS
@@ -108,12 +114,18 @@ class Session:
         self._project = Project()
         self._project_id = 0
         self._notice = ""  # about the open project: its stored arm was refused (``projects``)
+        self._cell_note: tuple[int, str] = (0, "")  # what the last cell change cleared
         self._closed = False
         self.jobs = JobRunner(on_change=lambda info: self.notify("job"))
         self.robot = LiveRobot(self._lock, self.jobs, save=self._save_robot, notify=self.notify)
         self.teach = Teach(self.robot, real_time=real_time)
         self.pointing = Pointing(self)
-        self.robot.extras = lambda: {"pointing": self.pointing.document()}
+        self.preview = PlacementPreview(self)  # a placement being tried (``preview``)
+        self.calibration = Calibration(self)
+        self.robot.extras = lambda: {
+            "pointing": self.pointing.document(),
+            "calibration": self.calibration.document(),
+        }
         self.learning = Learning(self)
         projects.open_initial(self)
 
@@ -123,9 +135,10 @@ class Session:
         """Call ``callback(topic)`` after every change; returns a function that unsubscribes.
 
         Topics: robot, compliance, cell, guide_points, recording, postprocess, job, project,
-        exports, machining. The callback runs in the thread that made the change (an API
-        worker, the job thread, a GUI callback) with the session lock released; keep it short,
-        and read what it needs back from the session. Exceptions in it are logged and ignored.
+        exports, machining, placement. The callback runs in the thread that made the change (an
+        API worker, the job thread, a GUI callback) with the session lock released; keep it
+        short, and read what it needs back from the session. Exceptions in it are logged and
+        ignored.
         """
         with self._listeners_lock:
             self._listeners.append(callback)
@@ -163,6 +176,12 @@ class Session:
         with self._lock:
             return View(self._project, self.robot.cell, self.robot.epoch, self._project_id)
 
+    def cell_note(self) -> str:
+        """What the last cell change cleared and why (a machining choice the new controller
+        cannot run), while that cell is the one in use; "" otherwise."""
+        epoch, note = self._cell_note
+        return note if epoch == self.robot.epoch else ""
+
     def current_project(self) -> ProjectInfo:
         with self._lock:
             row = self.store.get_project(self._project_id)
@@ -198,22 +217,31 @@ class Session:
         return new
 
     def change_cell(
-        self, change: Callable[[Project], Project], *, parsed: Workpiece | None = None
+        self,
+        change: Callable[[Project], Project],
+        *,
+        parsed: Workpiece | None = None,
+        joints: Any = None,
     ) -> Project:
         """``commit`` a transition that changes the cell: the live cell is rebuilt from the
-        new project (``parsed``: its uploaded mesh, already read) and the robot goes home.
+        new project (``parsed``: its uploaded mesh, already read) and the robot goes home (or
+        stays at ``joints``, when they are usable in the new cell: a calibration accepted).
         No change keeps everything (the robot stays where it is)."""
         with self._lock:
             self.robot.require_idle()
             new = change(self._project)
             if new is self._project:
                 return new
-            built = build_live_cell(new.cell, new.mesh, parsed=parsed)
-            self._save(new, "cell", "guides", robot=self.robot.document(built))
+            # A machining choice the new cell's controller cannot run is cleared, with a note.
+            new, note = core.with_runnable_choice(new)
+            built = build_live_cell(new.cell, new.mesh, joints, parsed=parsed)
+            parts: tuple[Part, ...] = ("cell", "guides", "post") if note else ("cell", "guides")
+            self._save(new, *parts, robot=self.robot.document(built))
             self.robot.install(built)
             self._project = new
+            self._cell_note = (self.robot.epoch, note)
             del built
-        self.notify(*CELL_TOPICS)
+        self.notify(*CELL_TOPICS, *(("machining",) if note else ()))
         give_back()  # the old cell (its part's mesh, trees, supervisor) goes back to the OS
         return new
 
@@ -224,9 +252,13 @@ class Session:
         tool_radius_m: float | None = None,
         workpiece: str | None = None,
         part_deviation: Any = core.KEEP,
+        wobj_mm_deg: Any = core.KEEP,
     ) -> CellSettings:
-        """Change the cell (``project.with_cell``; None keeps a setting): a change puts the
-        robot home and clears the guide points; no change keeps everything."""
+        """Change the cell (``project.with_cell``; None keeps a setting; ``part_deviation``
+        and ``wobj_mm_deg``, the work-object placement x, y, z [mm] with an optional rz or
+        rx, ry, rz [deg], None for the built-in one: ``core.KEEP`` keeps them): a change puts
+        the robot home and clears the guide points (and, moving the part, its calibration);
+        no change keeps everything."""
 
         def change(p: Project) -> Project:
             return core.with_cell(
@@ -235,6 +267,7 @@ class Session:
                 tool_radius_m=tool_radius_m,
                 workpiece=workpiece,
                 part_deviation=part_deviation,
+                wobj_mm_deg=wobj_mm_deg,
             )
 
         return self.change_cell(change).cell
@@ -305,10 +338,12 @@ class Session:
             if save:
                 robot = self.robot.document(loaded.built, loaded.selection)
                 robot["pointing"] = pointing_document(*pointing)
+                robot["calibration"] = loaded.calibration
                 self._save(loaded.project, *ALL_PARTS, robot=robot, project_id=loaded.project_id)
             self.store.set_last_project(loaded.project_id)
             self.robot.install(loaded.built, loaded.selection)
             self.pointing.settings, self.pointing.click_mode = pointing
+            self.calibration.restore(loaded.calibration, loaded.project)
             self._project_id, self._project = loaded.project_id, loaded.project
             self._notice = loaded.notice
         self.notify(*ALL_TOPICS)

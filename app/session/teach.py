@@ -15,7 +15,8 @@ STRATEGY  Every motion drives the core's own loop (``LeadThrough.push``, ``jog``
           simulate at most T + burst (20 ms).
 SOLUTION  ``Teach(robot, real_time=True)`` over the session's ``LiveRobot``: ``push``,
           ``jog(axis, step, frame, speed)``, ``touch_off(axis, direction, force_N,
-          max_travel_m, frame)`` and ``move_to`` (each answers the robot's snapshot after it),
+          max_travel_m, frame)``, ``touch_along`` (calibration's touches) and ``move_to``
+          (each answers the robot's snapshot after it),
           ``stop()``, and ``tool_view()`` (gap to the nearest face of the part, contact force,
           height above the table). A ``SupervisionError`` keeps the robot at ``error.state``
           (the last safe state), saves it and is raised again (the API answers 409).
@@ -259,6 +260,44 @@ class Teach:
                 state=exc.state,
             ) from None
         return self._robot.snapshot()
+
+    def touch_along(
+        self,
+        direction: np.ndarray,
+        force_N: float,
+        max_travel_m: float,
+        *,
+        back_off: bool = True,
+    ) -> tuple[CellState, np.ndarray]:
+        """Guarded move along ``direction`` (3,) of the base frame until the part pushes back
+        with ``force_N`` (``LeadThrough.touch_off_along``), then, with ``back_off``, back to
+        where it started (a stiff jog). Returns the cell where it touched and the measured
+        contact wrench there (6,), base axes. Work-object calibration touches this way."""
+        from robomach_core.teaching.motion import move_by
+
+        d = np.asarray(direction, dtype=float)
+        if d.shape != (3,) or not np.all(np.isfinite(d)) or np.linalg.norm(d) < 1e-9:
+            raise InvalidInputError("a touch direction is 3 finite numbers, not all zero")
+        limits.TOUCH_OFF_FORCE_N.check(force_N, "touch force [N]")
+        if not (np.isfinite(max_travel_m) and max_travel_m * 1e3 in limits.TOUCH_OFF_TRAVEL_MM
+                and max_travel_m > 0):  # fmt: skip
+            raise InvalidInputError(
+                f"touch travel must be within (0, {limits.TOUCH_OFF_TRAVEL_MM.max:g}] mm"
+            )
+        found: list[tuple[CellState, np.ndarray]] = []
+
+        def move(lt: LeadThrough, st: LeadThroughState, sel: Selection) -> LeadThroughState:
+            start = st.cell.T_base_tcp[:3, 3].copy()
+            st = lt.touch_off_along(st, d, float(force_N), float(max_travel_m))
+            found.append((st.cell, lt.measured_wrench(st.cell)))
+            if back_off:
+                st = move_by(lt, st, start - st.cell.T_base_tcp[:3, 3], 0.02)
+            return st
+
+        self._run(move)
+        if not found:  # let go (or the cell changed) on the way
+            raise ConflictError("the touch was stopped before it met the part")
+        return found[0]
 
     def move_to(
         self, T_base_tcp: np.ndarray, *, safe_z_m: float, entry_m: np.ndarray | None = None

@@ -7,8 +7,11 @@ PROBLEM   A KUKA controller (KR C4, KSS 8) runs KRL: a ``.src`` with the motion 
           target's joints on that arm.
 STRATEGY  The same inputs as the RAPID and URScript writers (targets in the base frame with
           their joint solutions, the tool, the work object, the arc-fitted moves) and the same
-          structure: BASE_DATA[1] from the work object (the part's frame in the robot base,
-          $ROBROOT = $WORLD assumed), TOOL_DATA[1] and LOAD_DATA[1] from the tool; PTP (at
+          structure: $BASE from the work object (the part's frame in the robot base,
+          $ROBROOT = $WORLD assumed), $TOOL and $LOAD from the tool, each from a FRAME / LOAD
+          of the program's own .dat (``RM_WOBJ``, ``RM_TOOL``, ``RM_LOAD``): the controller's
+          BASE_DATA / TOOL_DATA tables, where a cell keeps its measured bases and tools, are
+          left as they are, as a KUKA programmer keeps them; PTP (at
           20 % axis speed) to an approach point 20 mm back along the tool axis; ``LIN`` /
           ``CIRC via, to`` along the path with ``C_DIS`` approximation ($APO.CDIS, the RAPID
           zone's 0.5 mm) and ``$VEL.CP`` [m/s] set before every move whose learned speed
@@ -23,7 +26,7 @@ SOLUTION  ``krl_program(context) -> (src_text, dat_text)``; ``krl_check.check_kr
 
 KRL reference: KUKA System Software 8.x, "Operating and Programming Instructions for System
 Integrators" (DEF/DEFDAT, E6POS, LIN/CIRC/PTP, C_DIS with $APO.CDIS, $VEL.CP in m/s,
-BASE_DATA/TOOL_DATA/LOAD_DATA, BAS(#INITMOV, 0)).
+$BASE/$TOOL/$LOAD from FRAME and LOAD variables, BAS(#INITMOV, 0)).
 """
 
 from __future__ import annotations
@@ -60,6 +63,12 @@ TOOL_INERTIA_KG_M2 = (0.001, 0.001, 0.001)
 ANGLE_NOISE_RAD = 1e-8
 APPROACH_NAME = "XP_APPROACH"
 RETRACT_NAME = "XP_RETRACT"
+# The program's own work object, tool and load, declared in its .dat: the controller's
+# BASE_DATA / TOOL_DATA / LOAD_DATA tables (measured bases and tools other programs use) are
+# never written by the program (issue 31).
+BASE_NAME = "RM_WOBJ"
+TOOL_NAME = "RM_TOOL"
+LOAD_NAME = "RM_LOAD"
 
 
 @dataclass(frozen=True)
@@ -81,6 +90,17 @@ def kuka_abc_deg(R: np.ndarray) -> np.ndarray:
 def kuka_rotation(abc_deg: np.ndarray) -> np.ndarray:
     """The rotation Rz(A) Ry(B) Rx(C) of KUKA's A, B, C [deg]. Shape (3, 3)."""
     return Rotation.from_euler("ZYX", np.asarray(abc_deg, dtype=float), degrees=True).as_matrix()
+
+
+def load_literal(tool: Tool) -> str:
+    """``{M .., CM {X .., ..}, J {X .., Y .., Z ..}}``: the tool's mass [kg], centre of mass
+    [mm] on the flange and inertia [kg m^2]."""
+    cog = np.asarray(tool.com_m, dtype=float) * 1e3
+    inertia = ", ".join(f"{a} {_short(v)}" for a, v in zip("XYZ", TOOL_INERTIA_KG_M2, strict=True))
+    return (
+        f"{{M {_short(tool.mass_kg, 3)}, CM {{X {_fixed(cog[0], 3)}, Y {_fixed(cog[1], 3)}, "
+        f"Z {_fixed(cog[2], 3)}, A 0.0, B 0.0, C 0.0}}, J {{{inertia}}}}}"
+    )
 
 
 def frame_literal(T: np.ndarray) -> str:
@@ -181,9 +201,9 @@ def krl_program(
     Args:
         targets: The program's targets (base frame, SI) with their joint solutions on
             ``robot`` (``export.target_joints``): Status and Turn come from those joints.
-        tool: Its TCP is TOOL_DATA[1] (in KUKA's $FLANGE, the model's tool0), its mass and
-            centre of mass LOAD_DATA[1].
-        workpiece: Its ``T_base_wobj`` is BASE_DATA[1]; the points are in that frame.
+        tool: Its TCP is the .dat's ``RM_TOOL`` (in KUKA's $FLANGE, the model's tool0), its
+            mass and centre of mass ``RM_LOAD``.
+        workpiece: Its ``T_base_wobj`` is the .dat's ``RM_WOBJ``; the points are in that frame.
         robot: The KUKA arm (its model gives Status and the approach/retract joints).
         comment: Header comment lines.
         moves: Move sequence with circular moves (``arcs.arc_targets``); None: LIN to each.
@@ -214,7 +234,15 @@ def krl_program(
     retract = _point(RETRACT_NAME, retract_T, T_wobj_base, _air_st(robot, retract_T, joints[last]))
     src = _src_lines(targets, tool, T_base_wobj, moves, comment, workpiece.name)
     dat = ["&ACCESS RVP", "&REL 1", f"DEFDAT {MODULE_NAME}"]
-    dat.append(f"  ; E6POS in BASE_DATA[1] (work object {_comment(workpiece.name)}): mm, deg")
+    dat.append(
+        f"  ; The work object {_comment(workpiece.name)} in the robot base, the tool on the flange "
+        "and its load: this program's own (the controller's BASE_DATA and TOOL_DATA are not "
+        "written)"
+    )
+    dat.append(f"  DECL FRAME {BASE_NAME}={frame_literal(T_base_wobj)}")
+    dat.append(f"  DECL FRAME {TOOL_NAME}={frame_literal(tool.T_flange_tcp)}")
+    dat.append(f"  DECL LOAD {LOAD_NAME}={load_literal(tool)}")
+    dat.append(f"  ; E6POS in {BASE_NAME} (work object {_comment(workpiece.name)}): mm, deg")
     for point in (approach, *points, retract):
         dat.append(f"  DECL E6POS {point.name}={_point_literal(point)}")
     dat.append("ENDDAT")
@@ -247,19 +275,16 @@ def _src_lines(
         f"tool {_comment(tool.name)}, work object {_comment(workpiece_name)}."
     )
     lines += [f"  ; {_comment(c)}".rstrip() for c in comment]
-    lines.append("  ; $ROBROOT is assumed at $WORLD: BASE_DATA[1] is the part in the robot base.")
+    lines.append(
+        f"  ; $ROBROOT is assumed at $WORLD: {BASE_NAME} (program.dat) is the part in the robot "
+        "base; the controller's BASE_DATA and TOOL_DATA tables are not written."
+    )
     lines += [";FOLD INI", "  BAS(#INITMOV, 0)", ";ENDFOLD (INI)"]
     lines += [f"  BAS(#VEL_PTP, {PTP_PERCENT})", f"  BAS(#ACC_PTP, {PTP_PERCENT})"]
-    cog = np.asarray(tool.com_m, dtype=float) * 1e3
-    inertia = ", ".join(f"{a} {_short(v)}" for a, v in zip("XYZ", TOOL_INERTIA_KG_M2, strict=True))
     lines += [
-        f"  BASE_DATA[1] = {frame_literal(T_base_wobj)}",
-        f"  TOOL_DATA[1] = {frame_literal(tool.T_flange_tcp)}",
-        f"  LOAD_DATA[1] = {{M {_short(tool.mass_kg, 3)}, CM {{X {_fixed(cog[0], 3)}, "
-        f"Y {_fixed(cog[1], 3)}, Z {_fixed(cog[2], 3)}, A 0.0, B 0.0, C 0.0}}, J {{{inertia}}}}}",
-        "  $BASE = BASE_DATA[1]",
-        "  $TOOL = TOOL_DATA[1]",
-        "  $LOAD = LOAD_DATA[1]",
+        f"  $BASE = {BASE_NAME}",
+        f"  $TOOL = {TOOL_NAME}",
+        f"  $LOAD = {LOAD_NAME}",
         f"  $APO.CDIS = {_short(APPROXIMATION_MM)}",
         f"  $VEL.CP = {_velocity_text(AIR_SPEED_M_S)}",
         f"  PTP {APPROACH_NAME}",

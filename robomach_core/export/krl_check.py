@@ -13,9 +13,12 @@ SOLUTION  ``check_krl_program(src, dat) -> KrlProgramInfo`` or ``KrlSyntaxError`
           keyword); aggregates' braces, field names and numbers; every E6POS / POS has X, Y, Z,
           A, B, C (finite; A, B, C in [-180, 180]) and S (0..127), T (0..63); every point a
           motion uses is declared (CIRC: two, the others one); no name declared twice; $BASE and
-          $TOOL assigned before the first motion, $VEL.CP (0 < v <= 3 m/s) before the first
-          LIN / CIRC, $APO.CDIS (>= 0 mm) before a C_DIS; BASE_DATA / TOOL_DATA frames with
-          all six components; END and ENDDAT close their files. Not checked: expressions beyond
+          $TOOL assigned before the first motion (from a FRAME of the .dat with all six
+          components, or one written in place; reading BASE_DATA[n] / TOOL_DATA[n] is a table
+          this checker does not know, and writing them is refused: a program leaves the
+          controller's measured bases and tools alone), $LOAD from a declared LOAD (M >= 0),
+          $VEL.CP (0 < v <= 3 m/s) before the first LIN / CIRC, $APO.CDIS (>= 0 mm) before a
+          C_DIS; END and ENDDAT close their files. Not checked: expressions beyond
           numbers and names, control flow (IF, LOOP, ...: refused), system variables other
           than the ones listed in ``KNOWN_SYSTEM_VARIABLES``.
 """
@@ -115,7 +118,7 @@ class KrlProgramInfo:
         module_name: The DEF / DEFDAT name as written in the .src.
         points: Upper-case name -> ``KrlPose`` of every E6POS / POS / FRAME in the .dat.
         motions: The motion statements in order.
-        base: The last BASE_DATA frame assigned and made $BASE (mm, deg), or None.
+        base: The frame made $BASE (mm, deg), or None.
         tool: The same for $TOOL.
     """
 
@@ -127,7 +130,7 @@ class KrlProgramInfo:
     assignments: dict[str, str] = field(default_factory=dict)
 
     def motion_poses(self) -> list[tuple[str, np.ndarray]]:
-        """(point name, 4x4 T_base_tcp [m] in the robot base: BASE_DATA x point) of every
+        """(point name, 4x4 T_base_tcp [m] in the robot base: $BASE x point) of every
         motion target in order (a CIRC's via point first)."""
         T_base = np.eye(4) if self.base is None else self.base.transform()
         out = []
@@ -237,6 +240,16 @@ def _pose(fields: dict[str, object], file: str, line: int, what: str, *, st: boo
     return KrlPose(xyz, abc, status, turn)
 
 
+def _load(fields: dict[str, object], file: str, line: int, what: str) -> None:
+    """A LOAD aggregate: a mass M >= 0 [kg], and CM a frame when given."""
+    if "M" not in fields or not isinstance(fields["M"], float) or fields["M"] < 0:
+        raise KrlSyntaxError(file, line, f"{what} needs a mass M >= 0")
+    if "CM" in fields:
+        if not isinstance(fields["CM"], dict):
+            raise KrlSyntaxError(file, line, f"{what}: CM must be a frame")
+        _pose(fields["CM"], file, line, f"{what}.CM", st=False)
+
+
 def _parse_dat(dat: str, file: str) -> tuple[str, dict[str, KrlPose], set[str]]:
     try:
         lines = _lines(dat)
@@ -266,6 +279,9 @@ def _parse_dat(dat: str, file: str) -> tuple[str, dict[str, KrlPose], set[str]]:
         if var.upper() in declared:
             raise KrlSyntaxError(file, number, f"{var} is declared twice")
         declared.add(var.upper())
+        if kind == "LOAD":
+            _load(_aggregate(value, file, number), file, number, var)
+            continue
         if kind not in POINT_TYPES:
             raise KrlSyntaxError(file, number, f"{var}: type {kind} is not a point type")
         fields = _aggregate(value, file, number)
@@ -306,7 +322,9 @@ def check_krl_program(src: str, dat: str, *, stem: str | None = None) -> KrlProg
         raise KrlSyntaxError(src_file, number, f"DEF {name} does not name the file {stem}")
     if lines[-1][1].upper() != "END":
         raise KrlSyntaxError(src_file, lines[-1][0], "the .src must end with END")
-    frames: dict[str, KrlPose] = {}
+    # the .dat's FRAMEs (no Status / Turn) may be made $BASE and $TOOL
+    frames: dict[str, KrlPose] = {k: v for k, v in points.items() if v.status is None}
+    loads = declared - set(points)
     state: dict[str, object] = {}
     motions: list[KrlMotion] = []
     assignments: dict[str, str] = {}
@@ -317,7 +335,7 @@ def check_krl_program(src: str, dat: str, *, stem: str | None = None) -> KrlProg
             continue
         if "=" in code:
             target, _, value = (part.strip() for part in code.partition("="))
-            _assignment(target, value, number, src_file, frames, state)
+            _assignment(target, value, number, src_file, frames, state, loads)
             assignments[target.upper()] = value
             continue
         call = re.match(r"([A-Za-z][A-Za-z0-9_]*)\s*\((.*)\)$", code)
@@ -341,16 +359,17 @@ def _assignment(
     file: str,
     frames: dict[str, KrlPose],
     state: dict[str, object],
+    loads: set[str],
 ) -> None:
     key = target.upper().replace(" ", "")
     array = re.match(r"([A-Z_]+)\[(\d+)\]$", key)
     if array and array.group(1) in DATA_ARRAYS:
-        fields = _aggregate(value, file, number)
-        if array.group(1) != "LOAD_DATA":
-            frames[key] = _pose(fields, file, number, key, st=False)
-        elif "M" not in fields or not isinstance(fields["M"], float) or fields["M"] < 0:
-            raise KrlSyntaxError(file, number, f"{key} needs a mass M >= 0")
-        return
+        raise KrlSyntaxError(
+            file,
+            number,
+            f"{target} = ...: a program does not overwrite the controller's {array.group(1)} "
+            "table (its measured bases and tools); declare a FRAME or LOAD in the .dat",
+        )
     if not key.startswith("$"):
         raise KrlSyntaxError(file, number, f"assignment to {target!r}: not a system variable")
     if key not in KNOWN_SYSTEM_VARIABLES:
@@ -365,6 +384,11 @@ def _assignment(
             raise KrlSyntaxError(file, number, f"{key} = {value}: no such frame assigned before")
         return
     if key == "$LOAD":
+        source = value.upper().replace(" ", "")
+        if source.startswith("{"):
+            _load(_aggregate(value, file, number), file, number, key)
+        elif source not in loads and not re.match(r"LOAD_DATA\[\d+\]$", source):
+            raise KrlSyntaxError(file, number, f"$LOAD = {value}: no such LOAD declared")
         state[key] = value
         return
     v = _number(value, file, number, target)

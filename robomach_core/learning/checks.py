@@ -5,23 +5,24 @@ PROBLEM   Path learning follows the wall by force from rough guide points (chapt
           but some things it cannot recover from (refused before any motion), and some it
           recovers from in a way the person should know: a point in heavy contact, a point
           nearer the other wall than the one followed, a point resting on the floor, a leg that
-          crosses the part, two points on top of each other, a wrist that cannot turn round the
-          loop. After the run, a program must follow the wall the points were taught on, on
-          the side the route decided; a side the person set is never overruled.
+          crosses the part, two points on top of each other, and the first limit the run's
+          motion meets (axis 6 wound up, a joint range, the reach, a singularity, a clearance:
+          ``motion_check``). After the run, a program must follow the wall the points were
+          taught on, on the side the route decided; a side the person set is never overruled.
 STRATEGY  Before: the route is planned (``route.plan_route``: the side, the height, the walk on
           the mesh); its refusal is the "refusal" finding, and the findings read the route, so
           every page tells the same story as the run. After: the wall point each guide point
           faces on the route's side (``route.taught_wall_points``) must be touched by the
           program (within ``TAUGHT_WALL_TOLERANCE_M`` across the axis, among the program's
           points at that height).
-SOLUTION  ``guide_point_warnings(guides, settings, *, workpiece, tool_radius_m, robot)`` ->
+SOLUTION  ``guide_point_warnings(guides, settings, *, workpiece, tool_radius_m, robot,
+          supervisor)`` ->
           ``GuideWarning``s (1-based point, rule, severity, one line with the fix);
           ``taught_wall_check(...)`` -> ``TaughtWallCheck``.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
@@ -29,7 +30,7 @@ from typing import Literal
 import numpy as np
 
 from ..arcs import Move, linear_moves, sample_moves
-from ..errors import RobomachError, RouteRefusedError, WallSideError
+from ..errors import RouteRefusedError, WallSideError
 from ..leadthrough import GuidePoint
 from ..workpiece import Workpiece
 from . import thresholds as th
@@ -56,6 +57,11 @@ GuideRule = Literal[
     "leg_through_part",
     "too_close",
     "wrist_turn",
+    "joint_limit",
+    "singularity",
+    "reach",
+    "clearance",
+    "tolerance",
 ]
 Severity = Literal["refusal", "warning", "info"]
 
@@ -75,24 +81,6 @@ class GuideWarning:
     rule: GuideRule
     message: str
     severity: Severity = "warning"
-
-
-def _wrist_turn(robot, guides: Sequence[GuidePoint], closed: bool) -> tuple[float, float] | None:
-    """(turn the route needs on axis 6, the axis's range) [rad], or None when it fits or the
-    route cannot be solved (reachability is checked elsewhere)."""
-    q = np.asarray(guides[0].joints_rad, dtype=float)
-    values = [q[5]]
-    for k in list(range(1, len(guides))) + ([0] if closed else []):
-        try:
-            q_next = robot.ik(guides[k].T_base_tcp, q)
-        except RobomachError:
-            return None
-        q_next[5] = q[5] + math.remainder(q_next[5] - q[5], 2 * math.pi)
-        values.append(q_next[5])
-        q = q_next
-    need = max(values) - min(values)
-    span = float(robot.upper_rad[5] - robot.lower_rad[5])
-    return (need, span) if need > span - th.WRIST_MARGIN_RAD else None
 
 
 def _point_findings(guides: Sequence[GuidePoint], settings: PathLearningSettings) -> list:
@@ -207,6 +195,8 @@ def guide_point_warnings(
     workpiece: Workpiece | None = None,
     tool_radius_m: float | None = None,
     robot=None,
+    supervisor=None,
+    tolerance_m: float | None = None,
 ) -> tuple[GuideWarning, ...]:
     """What the operator should know before learning (module docstring): the route's refusal,
     if any, first.
@@ -216,7 +206,13 @@ def guide_point_warnings(
         settings: The path-learning settings (wall side, force limit, closed, floor clearance).
         workpiece: The part as the user sees it; with ``tool_radius_m``, the mesh checks.
         tool_radius_m: Ball cutter radius.
-        robot: The arm (``robot.Robot``); the wrist's turn round the route is checked with it.
+        robot: The arm (``robot.Robot``); the run's motion along the route is checked with it
+            (``motion_check``: axis 6's wind-up, the joint ranges, the reach, and with
+            ``supervisor``, the cell's ``Supervisor``, the singularities and the clearances).
+        tolerance_m: The post-processing's deviation-height tolerance: beyond
+            ``TAUGHT_WALL_TOLERANCE_M`` the program's moves may cut across the wall by that much,
+            said before the run (issue 31: a 4 mm tolerance was accepted, then blamed on the
+            wall).
     """
     if not guides:
         return ()
@@ -237,15 +233,17 @@ def guide_point_warnings(
     out += _point_findings(guides, settings)
     if mesh and len(guides) >= 2:
         out += _mesh_findings(route, guides, settings, workpiece, tool_radius_m)
-    if robot is not None and len(guides) >= 2:
-        turn = _wrist_turn(robot, guides, settings.closed)
-        if turn is not None:
-            need, span = turn
-            out.append(GuideWarning(0, "wrist_turn", (
-                f"the tool turns {math.degrees(need):.0f} deg about its axis along the route, "
-                f"and axis 6 turns {math.degrees(span):.0f} deg at most: keep the tool's turn "
-                "about its axis the same at every point (a spinning cutter does not mind)"
-            )))  # fmt: skip
+    if robot is not None and route is not None:
+        from .motion_check import motion_findings
+
+        out += motion_findings(robot, route, supervisor)
+    if tolerance_m is not None and tolerance_m > th.TAUGHT_WALL_TOLERANCE_M:
+        out.append(GuideWarning(0, "tolerance", (
+            f"the deviation-height tolerance is {tolerance_m * 1e3:g} mm: the program's straight "
+            "moves may cut that far across the wall, more than the "
+            f"{th.TAUGHT_WALL_TOLERANCE_M * 1e3:g} mm a program may stray from the taught wall; "
+            "lower it (0.2 mm by default) unless that is meant"
+        )))  # fmt: skip
     return tuple(out)
 
 
@@ -281,10 +279,15 @@ def taught_wall_check(
     *,
     closed: bool = True,
     lifted_m: Sequence[float] | None = None,
+    samples_m: np.ndarray | None = None,
+    tolerance_m: float | None = None,
 ) -> TaughtWallCheck:
     """The program (targets and moves) against the wall points the guide points face on
     ``side``, the side the route decided and the run followed, at the heights they were
-    learned at (``lifted_m`` off the floor) (module docstring)."""
+    learned at (``lifted_m`` off the floor) (module docstring). With the learned ``samples_m``
+    (the path the program was reduced from) and the reduction's ``tolerance_m``, a miss the
+    learned path does not share is named as the tolerance's (issue 31: a 4 mm tolerance was
+    reported as a path learned on another wall)."""
     if side not in ("left", "right") or len(guides) < 2:
         return TaughtWallCheck(True, (), (), 0.0, "the taught wall is not known")
     axis = mean_tool_axis(guides)
@@ -321,12 +324,31 @@ def taught_wall_check(
             missed.append(k + 1)
     if not checked:
         return TaughtWallCheck(True, (), (), 0.0, "no taught wall found in the part's mesh")
+    if missed and samples_m is not None and tolerance_m is not None and len(samples_m) >= 2:
+        learned = taught_wall_check(
+            workpiece, tool_radius_m, guides, side, samples_m, closed=closed, lifted_m=lifted_m
+        )
+        if not set(missed) & set(learned.missed):
+            where = ", ".join(f"G{k}" for k in missed)
+            message = (
+                f"the program does not follow the wall taught at {where} (on the {side}; it "
+                f"passes {worst * 1e3:.1f} mm from it), although the learned path does: the "
+                f"deviation-height tolerance of {tolerance_m * 1e3:g} mm lets the program's "
+                "moves cut that far across the wall; lower the tolerance (0.2 mm by default; at "
+                f"most {th.TAUGHT_WALL_TOLERANCE_M * 1e3:g} mm keeps the program on the taught "
+                "wall)"
+            )
+            return TaughtWallCheck(False, tuple(checked), tuple(missed), worst, message)
     if missed:
         where = ", ".join(f"G{k}" for k in missed)
         message = (
             f"the program does not follow the wall taught at {where} (on the {side}; it passes "
             f"{worst * 1e3:.1f} mm from it): it was learned on another wall, the floor or inside "
             "the part"
+        )
+        message += (
+            ", or the part is not where its CAD is placed (calibrate the work object by "
+            "touching the part)"
         )
     else:
         message = (

@@ -147,7 +147,7 @@ class Recording:
         return len(self.time_s)
 
 
-def _wrist_turns(robot, guides: Sequence[GuidePoint], closed: bool) -> np.ndarray:
+def start_joints(robot, guides: Sequence[GuidePoint], closed: bool) -> np.ndarray:
     """Joints to start from: the first guide point's, with axis 6 shifted by whole turns so the
     wrist's turn round the route (the guide points solved in order, each seeded by the last)
     stays inside axis 6's range; the recorded joints when nothing fits better."""
@@ -199,7 +199,7 @@ def _approach(
     T_above = np.eye(4)
     T_above[:3, :3] = R0
     T_above[:3, 3] = above
-    q_start = _wrist_turns(robot, guides, closed)
+    q_start = start_joints(robot, guides, closed)
     try:
         q_above = robot.ik(T_above, q_start)
     except Exception:  # noqa: BLE001 - fall back to a straight move from where the arm is

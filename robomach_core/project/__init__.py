@@ -45,6 +45,7 @@ from ._machining import stale_settings as stale_settings
 from ._machining import wall_normals_for_project as wall_normals_for_project
 from ._machining import with_machining_result as with_machining_result
 from ._machining import with_machining_setup as with_machining_setup
+from ._machining import with_runnable_choice as with_runnable_choice
 from ._stages import build_cell_workpiece as build_cell_workpiece
 from ._stages import build_workpiece as build_workpiece
 from ._stages import cad_comparison_of as cad_comparison_of
@@ -64,6 +65,7 @@ from ._transitions import with_guide_points as with_guide_points
 from ._transitions import with_learned as with_learned
 from ._transitions import with_process_settings as with_process_settings
 from ._transitions import with_processed as with_processed
+from ._transitions import with_registration as with_registration
 from ._transitions import with_robot_file as with_robot_file
 from ._transitions import with_uploaded_mesh as with_uploaded_mesh
 from ._transitions import without_guide_point as without_guide_point
@@ -81,6 +83,9 @@ from ._value import compensation_document as compensation_document
 from ._value import machining_inputs_key as machining_inputs_key
 from ._value import processed_inputs_key as processed_inputs_key
 from ._value import recording_inputs_key as recording_inputs_key
+from ._writers import CAD_ONLY_MODULE_NAME as CAD_ONLY_MODULE_NAME
+from ._writers import cad_only_program_texts as cad_only_program_texts
+from ._writers import cad_only_targets as cad_only_targets
 from ._writers import compensate_program_targets as compensate_program_targets
 from ._writers import fc_module_name as fc_module_name
 from ._writers import program_context as program_context

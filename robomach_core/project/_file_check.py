@@ -247,6 +247,11 @@ def _check_cell(doc: dict[str, Any], name: str) -> None:
         wobj = cell.get("wobj_mm_deg")
         if wobj is not None:
             check_wobj(wobj)
+        registration = cell.get("registration")
+        if registration is not None:
+            if not isinstance(registration, dict):
+                raise InvalidInputError("the work-object registration is not a document")
+            check_wobj(registration.get("wobj_mm_deg"))
     except InvalidInputError as exc:
         raise _error(f"{name}: {exc}") from None
 

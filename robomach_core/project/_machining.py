@@ -840,6 +840,33 @@ def machining_note(project: Project) -> str | None:
     return f"{head}; the cell must provide " + " and ".join(parts)
 
 
+def with_runnable_choice(project: Project) -> tuple[Project, str]:
+    """The project whose machining choice its cell can run: a part of the chosen
+    configuration the cell's controller lacks (after a cell change: a UR10's force-mode feed
+    control in a KUKA cell) goes back to the neutral one (constant feed, no compensation),
+    and a sentence says what was cleared and why ("" when nothing was). A program never
+    carries a choice its controller cannot run (issue 31: the KRL header said "MISSING in
+    this cell")."""
+    from ..machining.choice import REQUIREMENT_TEXT, missing
+
+    if project.cmrr is None and project.compensation is None:
+        return project, ""  # the neutral choice: nothing to clear
+    s = machining_setup_of(project).settings
+    caps = capabilities_of(project)
+    lacks = missing(s.controller, s.compensation, caps)
+    if not lacks:
+        return project, ""
+    controller = "constant" if "feed_override" in lacks else s.controller
+    compensation = "off" if "online_correction" in lacks else s.compensation
+    cleared = choose(project, controller, compensation)
+    why = " and ".join(REQUIREMENT_TEXT[r] for r in lacks)
+    return cleared, (
+        f"The machining choice {s.controller} / {s.compensation} needs {why}, which the "
+        f"{project.cell.robot}'s controller does not have here, so it is now {controller} / "
+        f"{compensation}. Compare the configurations again to choose among those it can run."
+    )
+
+
 # How each family's program carries the force-driven feed override.
 FEED_OVERRIDE_MEANS = {
     "abb": "FC SpeedChange (FCSpdChgAct in the RAPID module)",

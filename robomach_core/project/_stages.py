@@ -121,7 +121,10 @@ def process(
         arc_tg, moves = arc_targets(result.targets, result.surface_m, result.keep_mask, tol)
         result = replace(result, targets=arc_tg)
     with mesh_query.LOCK:  # the scores query the part's trees, one thread at a time
-        score, mesh, taught = _scores(learned, result, moves, workpiece, tool_radius_m, guides)
+        tolerance = max(settings.tolerance_m, settings.arc_tolerance_m or 0.0)
+        score, mesh, taught = _scores(
+            learned, result, moves, workpiece, tool_radius_m, guides, tolerance
+        )
     comparison = cad_comparison_of(workpiece, result.targets, tool_radius_m, settings, learned)
     return ProcessedPath(
         settings,
@@ -150,6 +153,7 @@ def _scores(
     workpiece: Workpiece,
     tool_radius_m: float,
     guides: Sequence[GuidePoint] | None,
+    tolerance_m: float | None = None,
 ) -> tuple[PathScore | None, PathScore | None, TaughtWallCheck | None]:
     """The program against the true wall (built-in parts), against the mesh, and whether it
     follows the taught wall (with ``guides``)."""
@@ -172,7 +176,7 @@ def _scores(
         mesh = score_mesh(workpiece, tool_radius_m, pos, moves, axis_base=axis)
         if guides is not None and rec.wall_side:
             taught = taught_wall_check(
-                workpiece,
+                workpiece.cad(),  # the mesh as the controller knows it (registered, when so)
                 tool_radius_m,
                 guides,
                 rec.wall_side,
@@ -180,6 +184,10 @@ def _scores(
                 moves,
                 closed=learned.settings.closed,
                 lifted_m=rec.guide_lift_m,
+                # the path the program was reduced from, every 10th kept sample (0.2 mm apart
+                # at 5 mm/s): a miss it does not share is the tolerance's
+                samples_m=result.surface_m[result.keep_mask][::10],
+                tolerance_m=tolerance_m,
             )
     return score, mesh, taught
 
@@ -247,11 +255,16 @@ def build_cell_workpiece(
     parsed: Workpiece | None = None,
 ) -> Workpiece:
     """The part the cell's contact meets: ``build_workpiece``'s, made real by the cell's
-    ``part_deviation`` (``real_part.real_workpiece``; its ``cad()`` is the mesh the user sees)."""
+    ``part_deviation`` (``real_part.real_workpiece``; its ``cad()`` is the mesh the user sees),
+    its CAD placed where the cell's ``registration`` measured it when there is one."""
     from ..real_part import real_workpiece
+    from ..registration import registered_workpiece
 
     cad = build_workpiece(cell, mesh, max_triangles=max_triangles, parsed=parsed)
-    return real_workpiece(cad, cell.part_deviation)
+    part = real_workpiece(cad, cell.part_deviation)
+    if cell.registration is not None:
+        part = registered_workpiece(part, cell.registration.T_base_wobj)
+    return part
 
 
 def build_workpiece(

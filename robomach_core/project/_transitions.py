@@ -8,7 +8,8 @@ PROBLEM   The workbench (viser, REST, pendant) and the CLI change the same ``Pro
 STRATEGY  One function per change, ``Project -> Project``, checking its input and raising the
           core's errors; no I/O, no live state. What a change makes stale is left to the
           fingerprints (``Project.status``).
-SOLUTION  ``with_cell``, ``with_uploaded_mesh`` (``mesh_file_name``), ``with_robot_file``,
+SOLUTION  ``with_cell``, ``with_registration``, ``with_uploaded_mesh`` (``mesh_file_name``),
+          ``with_robot_file``,
           ``with_guide_points``, ``with_guide_point_added``, ``without_guide_point``,
           ``with_guide_point_at``, ``with_learned``,
           ``post_settings_with``, ``with_processed``, ``with_process_settings``. The session
@@ -27,6 +28,7 @@ from ..errors import ConflictError, InvalidInputError, NotFoundError
 from ..leadthrough import GuidePoint
 from ..limits import GUIDE_POINTS_MAX
 from ..postprocess import PostprocessSettings
+from ..registration import WobjRegistration
 from ._value import LearnedPath, ProcessedPath, Project, processed_inputs_key
 
 if TYPE_CHECKING:
@@ -49,21 +51,29 @@ def with_cell(
     tool_radius_m: float | None = None,
     workpiece: str | None = None,
     part_deviation: Any = KEEP,
+    wobj_mm_deg: Any = KEEP,
 ) -> Project:
     """The project in another cell; None keeps a setting (``part_deviation``: a
-    ``real_part.PartDeviation``, None for a part that is its mesh; ``KEEP`` keeps it).
-    ``workpiece`` is a built-in name or the uploaded mesh's own. A change clears the guide
-    points (poses of the old cell) and a built-in arm drops the uploaded arm's file; the
-    results stay, stale by their fingerprints. No change returns ``project`` itself."""
+    ``real_part.PartDeviation``, None for a part that is its mesh; ``wobj_mm_deg``: the
+    work-object placement, x, y, z [mm] and an optional rz or rx, ry, rz [deg], None for the
+    built-in placement; ``KEEP`` keeps either). ``workpiece`` is a built-in name or the
+    uploaded mesh's own. A change clears the guide points (poses of the old cell) and a
+    built-in arm drops the uploaded arm's file; a change of arm, part, placement or deviation
+    drops the work-object calibration (it measured the part where it was); the results stay,
+    stale by their fingerprints. No change returns ``project`` itself."""
     from ..robots.custom import is_custom, uploaded_file
     from ..workpiece import WORKPIECE_NAMES
+    from ._file_check import check_wobj
 
     cur, mesh = project.cell, project.mesh
+    if wobj_mm_deg is not KEEP and wobj_mm_deg is not None:
+        wobj_mm_deg = tuple(check_wobj(list(wobj_mm_deg)))
     new = replace(
         cur,
         robot=cur.robot if robot is None else robot.lower(),
         tool_radius_m=cur.tool_radius_m if tool_radius_m is None else float(tool_radius_m),
         part_deviation=cur.part_deviation if part_deviation is KEEP else part_deviation,
+        wobj_mm_deg=cur.wobj_mm_deg if wobj_mm_deg is KEEP else wobj_mm_deg,
     )
     if workpiece in WORKPIECE_NAMES:
         new, mesh = replace(new, workpiece=workpiece, workpiece_builtin=True), None
@@ -75,6 +85,14 @@ def with_cell(
         )
     if new == cur and mesh == project.mesh:
         return project
+    moved = (new.robot, new.workpiece, new.wobj_mm_deg, new.part_deviation) != (
+        cur.robot,
+        cur.workpiece,
+        cur.wobj_mm_deg,
+        cur.part_deviation,
+    ) or mesh != project.mesh
+    if moved:
+        new = replace(new, registration=None)
     # A user's arm carries its own file: the project's when the arm stays, else the file that
     # arm was uploaded from (another upload of this process).
     urdf = None
@@ -105,7 +123,9 @@ def with_uploaded_mesh(project: Project, filename: str, data: bytes) -> Project:
     stem (``mesh_file_name``); the guide points are cleared as by a cell change. Parse the
     bytes first (``workpiece.mesh_from_bytes``): this checks only the file type."""
     name = mesh_file_name(filename)
-    cell = replace(project.cell, workpiece=Path(name).stem, workpiece_builtin=False)
+    cell = replace(
+        project.cell, workpiece=Path(name).stem, workpiece_builtin=False, registration=None
+    )
     return replace(project, cell=cell, mesh=(name, bytes(data)), guide_points=())
 
 
@@ -113,8 +133,20 @@ def with_robot_file(project: Project, filename: str, data: bytes, robot: str) ->
     """The project on the user's own arm, registered as ``robot``
     (``robots.custom.register_urdf``) from ``(filename, data)``, which the project keeps so
     that it opens again anywhere; the guide points are cleared as by a cell change."""
-    cell = replace(project.cell, robot=robot)
+    cell = replace(project.cell, robot=robot, registration=None)
     return replace(project, cell=cell, robot_urdf=(filename, bytes(data)), guide_points=())
+
+
+def with_registration(project: Project, registration: WobjRegistration | None) -> Project:
+    """The project with its work object calibrated (``registration.WobjRegistration``: the
+    CAD placed where touches of the real part found it), or back at its placement (None).
+    The guide points stay (they are where the robot stood); what was learned becomes stale
+    by the cell's fingerprint. No change returns ``project`` itself."""
+    if registration is not None and not isinstance(registration, WobjRegistration):
+        registration = WobjRegistration.from_value(registration)
+    if registration == project.cell.registration:
+        return project
+    return replace(project, cell=replace(project.cell, registration=registration))
 
 
 def with_guide_points(project: Project, guides: Iterable[GuidePoint]) -> Project:

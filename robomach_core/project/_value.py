@@ -16,6 +16,7 @@ from ..learning.run import Recording
 from ..learning.settings import PathLearningSettings
 from ..postprocess import PostprocessResult, PostprocessSettings
 from ..real_part import PartDeviation
+from ..registration import WobjRegistration
 from ..scoring import PathScore
 from ..tool import Tool
 
@@ -56,12 +57,18 @@ class CellSettings:
         workpiece: Built-in name, or the stem of the uploaded mesh file.
         workpiece_builtin: False for an uploaded mesh (the project holds its bytes).
         seed: Seed of the sensor noise and the example operator.
-        wobj_mm_deg: Work-object frame (x, y, z [mm], optional rz [deg]) placing the workpiece;
-            None for the built-in placement.
+        wobj_mm_deg: Work-object frame placing the workpiece (x, y, z [mm] in the robot base
+            frame, then an optional rz, or rx, ry, rz [deg] about the fixed base axes x, then
+            y, then z: ``robomach demo --wobj``'s numbers); None for the built-in placement in
+            front of the arm. Where the part is meant to be; the real part may stand off it
+            (``part_deviation``) until a calibration measures where it is.
         part_deviation: How the part in the cell differs from its mesh (``real_part``: a
             fixture error and casting deviations; ``PartDeviation.realistic()`` is the
             ``realistic`` preset); None: the part is its mesh. A dict (a saved document) is
             read as one.
+        registration: The accepted work-object calibration (``registration``): the CAD is
+            placed where touches of the real part found it, for teaching, the checks and the
+            CAD-only program; None: at ``wobj_mm_deg``. A dict is read as one.
     """
 
     robot: str = "ur10"
@@ -71,12 +78,15 @@ class CellSettings:
     seed: int = 0
     wobj_mm_deg: tuple[float, ...] | None = None
     part_deviation: PartDeviation | None = None
+    registration: WobjRegistration | None = None
 
     def __post_init__(self) -> None:
         if not (self.part_deviation is None or isinstance(self.part_deviation, PartDeviation)):
             object.__setattr__(
                 self, "part_deviation", PartDeviation.from_value(self.part_deviation)
             )
+        if not (self.registration is None or isinstance(self.registration, WobjRegistration)):
+            object.__setattr__(self, "registration", WobjRegistration.from_value(self.registration))
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,7 @@ from ._machining import (
 from ._stages import require_processed
 from ._value import (
     DEFAULT_MODULE_NAME,
+    MissingResultError,
     Project,
     cmrr_document,
     compensation_document,
@@ -231,6 +232,86 @@ def program_texts(
     return dict(zip(lang.file_names(force_control=force_control), texts, strict=True))
 
 
+CAD_ONLY_MODULE_NAME = "CadOnlyPath"
+
+
+def cad_only_targets(project: Project, robot: Robot) -> Targets:
+    """The CAD-only program's targets (``cad_program``: the mesh's wall offset by the tool
+    radius, reduced with the same tolerance, placed with the nominal work object): each with
+    the learned orientation, feed and arm branch of the learned target nearest it, and its
+    own inverse kinematics (``export.target_joints``).
+
+    Raises:
+        StaleResultError: the post-processing is missing or out of date.
+        MissingResultError: the learned path follows no wall of the mesh (no CAD-only program).
+    """
+    from ..export.target_joints import with_target_joints
+
+    processed = require_processed(project)
+    comparison = processed.cad_comparison
+    if comparison is None:
+        raise MissingResultError(
+            "no CAD-only program: the learned path follows no wall of the part's mesh"
+        )
+    learned = processed.result.targets
+    positions = np.asarray(comparison.cad_positions_m, dtype=float)
+    nearest = np.array(
+        [int(np.argmin(np.linalg.norm(learned.position_m - p, axis=1))) for p in positions]
+    )
+    targets = Targets(
+        position_m=positions,
+        quaternion_wxyz=np.asarray(comparison.cad_quaternions_wxyz, dtype=float),
+        joints_rad=learned.joints_rad[nearest],
+        speed_m_s=learned.speed_m_s[nearest],
+        curvature_1_m=learned.curvature_1_m[nearest],
+        sample_index=learned.sample_index[nearest],
+    )
+    return with_target_joints(robot, targets)
+
+
+def cad_only_program_texts(
+    project: Project,
+    workpiece: Workpiece,
+    robot: Robot,
+    language: str,
+    *,
+    module_name: str = CAD_ONLY_MODULE_NAME,
+) -> dict[str, str]:
+    """The CAD-only program (``cad_only_targets``) in a registered language: file name ->
+    text. A position-controlled program of straight moves, its header saying what it is and
+    how far both programs are from the (real) wall: the baseline learning is measured
+    against, not the program to machine with."""
+    from ..export.languages import ProgramContext
+    from ..export.languages import language as language_named
+
+    processed = require_processed(project)
+    comparison = processed.cad_comparison
+    lang = language_named(language)
+    targets = cad_only_targets(project, robot)
+    wall = "the real wall" if comparison.part_deviates else "the wall"
+    c = project.cell
+    comment = (
+        "CAD-ONLY PROGRAM: planned from the mesh alone (the wall offset by the tool radius), "
+        "not learned; for comparison with the learned program",
+        f"against {wall}: max {comparison.cad_only.max_m * 1e3:.3f} mm, overcut "
+        f"{comparison.cad_only.overcut_m * 1e3:.3f} mm (the learned program: max "
+        f"{comparison.learned.max_m * 1e3:.3f} mm)",
+        f"robomach: {c.robot}, {workpiece.name}, tool radius {c.tool_radius_m * 1e3:g} mm, "
+        f"{len(targets)} targets, tolerance {processed.settings.tolerance_m * 1e3:g} mm, feeds "
+        "of the nearest learned targets",
+    )
+    context = ProgramContext(
+        targets=targets,
+        tool=project.tool(),
+        workpiece=workpiece,
+        robot=robot,
+        moves=None,
+        comment=comment,
+        module_name=module_name,
+    )
+    return dict(zip(lang.file_names(), lang.write(context), strict=True))
+
+
 def rapid_text(
     project: Project,
     workpiece: Workpiece,
@@ -370,6 +451,7 @@ def settings_document(
             "seed": c.seed,
             "wobj_mm_deg": None if c.wobj_mm_deg is None else list(c.wobj_mm_deg),
             "part_deviation": None if c.part_deviation is None else c.part_deviation.as_dict(),
+            "registration": None if c.registration is None else c.registration.document(),
         },
         "tool": {
             "name": tool.name,

@@ -515,6 +515,18 @@ class Supervisor:
             raise InvalidInputError("joints must be 6 finite values [rad]")
         return self._evaluate(q)[0].copy()
 
+    def limit_at(self, q: np.ndarray) -> SupervisionStop | None:
+        """The limit a pose at joints ``q`` stands past (the stop a motion into it meets, named
+        as ``supervise`` names it), or None when every margin is above its stop value: the
+        smallest margin relative to its stop when several are crossed."""
+        m = self.margins(q)
+        stops = np.array([d.stop for d in self._margin_defs])
+        over = (m - stops) / np.maximum(stops, 1e-9)
+        i = int(np.argmin(over))
+        if over[i] >= 0.0:
+            return None
+        return self._stop_for(2, i, float(m[i]), np.asarray(q, dtype=float))
+
     def describe(self, q: np.ndarray) -> dict[str, float]:
         """The nearest limits at ``q`` for a display: angles in deg, distances in mm."""
         m = self.margins(q)

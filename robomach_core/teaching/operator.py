@@ -289,6 +289,9 @@ def scripted_leadthrough(
     state = square_up(lt, state, stiff, rotation=intents[0].rotation)
     surface_z = (workpiece.T_base_wobj @ np.array([0, 0, workpiece.surface_z_m, 1.0]))[2]
     safe_z = surface_z + 0.008
+    start = state.cell.T_base_tcp[:3, 3]
+    if start[2] < safe_z:  # beside the part (after a touch of its side): straight up first
+        state = push_to(lt, state, np.array([start[0], start[1], safe_z]), free, tolerance_m=0.0005)
     guides: list[GuidePoint] = []
     for k, intent in enumerate(intents):
         over = intent.position_m.copy()

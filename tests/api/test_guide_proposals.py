@@ -97,7 +97,8 @@ def test_the_realistic_preset_is_a_cell_setting_and_a_cell_change_drops_the_prop
 ) -> None:
     _ok(client, "POST", f"{GP}/propose", json={"point_mm": ON_WALL_MM})
     cell = _ok(client, "PUT", "/api/cell", json={"realistic": True})
-    assert cell["realistic"] and cell["part_deviation"]["fixture_shift_mm"] == 0.6
+    assert cell["realistic"] and cell["part_deviation"]["fixture_shift_mm"] == 4.0  # 2-4 mm
+    assert cell["part_deviation"]["fixture_rotation_deg"] == 2.0  # 1-2 deg
     assert client.get(f"{GP}/proposal").status_code == 404
     assert _ok(client, "GET", "/api/cell")["realistic"]
     assert not _ok(client, "PUT", "/api/cell", json={"realistic": False})["realistic"]
@@ -108,6 +109,7 @@ def test_pointing_settings_have_ranges(client: TestClient) -> None:
         "gap_mm": 1.5,
         "height_above_floor_mm": 3.0,
         "click_mode": "propose",
+        "proposal_points": 0,
     }
     assert _ok(client, "PUT", f"{GP}/pointing", json={"click_mode": "teach"})["click_mode"] == (
         "teach"

@@ -115,7 +115,18 @@ def test_the_wall_side_is_set_or_told_never_guessed(api: Api) -> None:
     assert api.ok("GET", "/api/state")["busy"] is False  # refused before any job
     warnings = api.ok("GET", f"{PL}/warnings", params={"wall_side": "auto", "closed": False})
     assert "both sides" in warnings[0]
-    job = api.wait_job(api.ok("POST", PL, 202, json=body | {"wall_side": "right"})["job_id"])
+    # The check every page shows: the refusal first, marked as one, and why the side is unknown.
+    check = api.ok("GET", f"{PL}/check", params={"wall_side": "auto", "closed": False})
+    assert check["findings"][0]["severity"] == "refusal"
+    assert check["findings"][0]["rule"] == "wall_side"
+    assert check["findings"][0]["message"] == warnings[0]
+    assert "both sides" in check["wall_side"]
+    check = api.ok("GET", f"{PL}/check", params={"wall_side": "right", "closed": False})
+    assert all(f["severity"] != "refusal" for f in check["findings"])
+    assert check["wall_side"].startswith("follows the wall on the right")
+    started = api.ok("POST", PL, 202, json=body | {"wall_side": "right"})
+    assert {f["message"] for f in started["findings"]} <= set(started["warnings"])
+    job = api.wait_job(started["job_id"])
     assert job["status"] == "done", job
     post = api.ok("POST", "/api/postprocess", json={})
     assert post["follows_taught_wall"] is True and post["problems"] == []

@@ -118,11 +118,13 @@ def test_the_export_panel_shows_what_the_program_carries(session: Session) -> No
     server = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
     try:
         export = ExportPanel(server, session, StudyService(session))
-        assert "CMRR **none**" in export.process.content
+        # Nothing chosen: a constant feed, as the files are written (no FC SpeedChange).
+        assert "feed control **constant**, compensation **off**" in export.process.content
+        assert "FCSpdChgAct" not in export.file_text("program.mod")
         cmrr = cmrr_settings_for(build_scenario("deburr-burrs"), settings_for("two-stage"))
         process_settings.set_process_settings(session, cmrr=cmrr)
         export.refresh()
-        assert "CMRR **two-stage**" in export.process.content
+        assert "feed control **two-stage**" in export.process.content
         assert "CMRR: two-stage" in export.preview.content
         assert "FCSpdChgAct" in export.file_text("program.mod")
         assert "FCSpdChgAct" not in export.file_text("program_fc.mod")

@@ -8,6 +8,7 @@ import httpx
 import pytest
 from playwright.sync_api import Page, expect
 
+from robomach_core.choices import TEXTS
 from tests.browser.conftest import Served
 
 pytestmark = pytest.mark.slow
@@ -17,7 +18,8 @@ def test_pendant_hint_arcs_and_urscript(served: Served, api: httpx.Client, page:
     assert api.post("/api/projects", json={"name": "pendant-program"}).status_code == 201
     page.goto(f"{served.base_url}/pendant/?viser=about:blank")
     expect(page.locator("#connection")).to_have_text("online")
-    expect(page.locator("#guide-hint")).to_contain_text("outside corner")
+    # The one advice every page gives (choices.TEXTS; it said "bracket each corner" here).
+    expect(page.locator("#guide-hint")).to_have_text(TEXTS["guide_point_advice"])
     expect(page.locator("#post-arcs")).not_to_be_checked()
     # The UR10 is offered its languages only, URScript among them (GET /api/export/languages).
     expect(page.locator("#export-language option")).to_have_count(2)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -128,7 +129,7 @@ def _mutated(src: str, dat: str, where: str, old: str, new: str) -> tuple[str, s
         ("dat", "\nENDDAT\n", "\n", "must end with ENDDAT"),
         ("src", "LIN XP3 C_DIS", "LIN XP999 C_DIS", "no such point"),
         ("src", "CIRC XP7, XP8", "CIRC XP8", "takes 2 point"),
-        ("src", "  $BASE = BASE_DATA[1]\n", "", "before $BASE is assigned"),
+        ("src", "  $BASE = RM_WOBJ\n", "", "before $BASE is assigned"),
         ("src", "  $APO.CDIS = 0.5\n", "", "C_DIS before $APO.CDIS"),
         ("src", "$VEL.CP = 0.1\n", "$VEL.CP = 5\n", "outside (0, 3]"),
         ("src", "  BAS(#INITMOV, 0)\n", "  IF TRUE THEN\n", "unsupported statement"),
@@ -137,7 +138,15 @@ def _mutated(src: str, dat: str, where: str, old: str, new: str) -> tuple[str, s
         ("dat", "DECL E6POS XP2={X", "DECL E6POS XP1={X", "declared twice"),
         ("dat", "DECL E6POS XP4={X", "DECL E6POS XP4_IS_A_VERY_LONG_NAME_XX={X", "longer than 24"),
         ("dat", ",Y ", ",Y {", "unbalanced braces"),
-        ("src", "BASE_DATA[1] = {X", "BASE_DATA[1] = {Q", "lacks X"),
+        ("dat", "RM_WOBJ={X", "RM_WOBJ={Q", "lacks X"),
+        (
+            "src",
+            "  $BASE = RM_WOBJ\n",
+            "  BASE_DATA[1] = {X 1, Y 2, Z 3, A 0, B 0, C 0}\n",
+            "does not overwrite the controller's BASE_DATA",
+        ),
+        ("src", "  $LOAD = RM_LOAD\n", "  $LOAD = NO_LOAD\n", "no such LOAD"),
+        ("dat", "RM_LOAD={M ", "RM_LOAD={Q ", "needs a mass"),
     ],
 )
 def test_the_checker_refuses_a_broken_pair_naming_the_file_and_line(
@@ -160,3 +169,19 @@ def test_a_move_sequence_must_be_valid(program, arm):
     _, _, targets, pump = program
     with pytest.raises(Exception, match="move"):
         krl_program(targets, Tool(), pump, arm, moves=[Move("linear", 99)])
+
+
+def test_the_program_keeps_its_frames_and_leaves_the_controllers_tables_alone(program):
+    """Issue 31: a KUKA cell keeps its measured bases and tools in BASE_DATA / TOOL_DATA; the
+    program's work object, tool and load are its own FRAME and LOAD in the .dat, made $BASE,
+    $TOOL and $LOAD (and the points read back in the base frame through them)."""
+    src, dat, targets, pump = program
+    for table in ("BASE_DATA", "TOOL_DATA", "LOAD_DATA"):
+        assert not re.search(rf"^\s*{table}\[", src + dat, re.M | re.I), table
+    info = check_krl_program(src, dat, stem="program")
+    np.testing.assert_allclose(info.base.transform(), pump.T_base_wobj, atol=1e-7)
+    np.testing.assert_allclose(info.tool.transform(), Tool().T_flange_tcp, atol=1e-7)
+    assert info.assignments["$LOAD"] == "RM_LOAD"
+    poses = dict(info.motion_poses())
+    for k in range(len(targets)):
+        np.testing.assert_allclose(poses[f"XP{k + 1}"][:3, 3], targets.position_m[k], atol=1e-6)

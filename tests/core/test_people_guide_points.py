@@ -245,6 +245,7 @@ def test_a_program_on_the_floor_off_the_wall_misses_the_taught_wall(pump_cell, b
 
 # --- the reproducers through the whole pipeline ---------------------------------------
 
+
 def _demo(**kwargs):
     from robomach_core.pipeline import DemoSettings, run_demo
 

@@ -1,4 +1,5 @@
-"""The cell: robot, tool radius, workpiece (built-in or an uploaded mesh)."""
+"""The cell: robot, tool radius, workpiece (built-in or an uploaded mesh) and where it is
+placed (the work object); its calibration by touch is ``calibration.py``'s."""
 
 from __future__ import annotations
 
@@ -19,9 +20,16 @@ UPLOAD_BODY_LIMIT_BYTES = MAX_MESH_BYTES + 1024 * 1024
 
 
 def _public(session: SessionDep) -> CellPublic:
-    cell = session.project().cell
+    view = session.view()
+    cell = view.project.cell
     uploaded = [] if cell.robot in ROBOT_NAMES else [cell.robot]  # the user's own arm
-    return CellPublic.from_settings(cell, [*ROBOT_NAMES, *uploaded], list(WORKPIECE_NAMES))
+    part = view.cell.workpiece
+    placed = part.unregistered if part.unregistered is not None else part.cad()
+    public = CellPublic.from_settings(
+        cell, [*ROBOT_NAMES, *uploaded], list(WORKPIECE_NAMES), T_base_wobj=placed.T_base_wobj
+    )
+    public.note = session.cell_note()
+    return public
 
 
 @router.get("")
@@ -32,14 +40,18 @@ def get_cell(session: SessionDep) -> CellPublic:
 
 @router.put("")
 def put_cell(body: CellUpdate, session: SessionDep) -> CellPublic:
-    """Change robot, tool radius, workpiece or the realistic preset (omitted ones stay). The
-    robot goes home and the guide points, recording and post-processing result are cleared."""
+    """Change robot, tool radius, workpiece, its placement (``wobj_mm_deg``; null: the
+    built-in one) or the realistic preset (omitted ones stay). A change sends the robot home
+    and clears the guide points (poses in the old cell); moving or changing the part also
+    drops its work-object calibration. The recording and results stay, marked out of date."""
     extra = {}
     if body.realistic is not None:
         from robomach_core.real_part import PartDeviation
 
         seed = session.project().cell.seed
         extra["part_deviation"] = PartDeviation.realistic(seed) if body.realistic else None
+    if "wobj_mm_deg" in body.model_fields_set:  # null is a value: the built-in placement
+        extra["wobj_mm_deg"] = None if body.wobj_mm_deg is None else tuple(body.wobj_mm_deg)
     session.set_cell(
         robot=body.robot,
         tool_radius_m=None if body.tool_radius_mm is None else body.tool_radius_mm * 1e-3,

@@ -71,6 +71,28 @@ def program_download(
     return download(buffer.getvalue(), f"{stem}_{lang.name}.zip")
 
 
+def cad_only_download(session: Any, language: str, *, file: str | None = None) -> Response:
+    """The CAD-only program's file, or a zip of its files (KRL's .src and .dat)."""
+    from robomach_core.errors import InvalidInputError
+
+    lang = registry.language(language)
+    files = programs.cad_only_program_texts(session, lang.name)
+    if file is not None:
+        if file not in files:
+            raise InvalidInputError(
+                f"{lang.title} programs have the files {', '.join(files)}, not {file!r}"
+            )
+        return download(files[file], f"cad_only_{file}", lang.media_type)
+    if len(files) == 1:
+        name, text = next(iter(files.items()))
+        return download(text, f"cad_only_{name}", lang.media_type)
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+        for name, text in files.items():
+            archive.writestr(name, text)
+    return download(buffer.getvalue(), f"cad_only_{lang.name}.zip")
+
+
 def language_public(lang: registry.ProgramLanguage, offered: bool) -> ProgramLanguagePublic:
     """The schema of one registered language."""
     return ProgramLanguagePublic(
@@ -125,6 +147,27 @@ def make_router() -> APIRouter:
     export_program.__annotations__["language"] = Language
     router.get("/export/program/{language}", response_class=Response, responses=PROGRAM_ANSWERS)(
         export_program
+    )
+
+    def export_cad_only(
+        language: str,
+        session: SessionDep,
+        file: Annotated[
+            str | None,
+            Query(max_length=64, description="one of the program's files (default: all)"),
+        ] = None,
+    ) -> Response:
+        """The CAD-only program in one language the arm's controller runs: what a CAD/CAM tool
+        would make from the mesh alone (its wall offset by the tool radius, reduced with the
+        same tolerance; robomach_core.cad_program), straight moves at the learned feeds, its
+        header saying how far it and the learned program are from the (real) wall. The files
+        are named ``cad_only_<file>``. 409 before post-processing or when the learned path
+        follows no wall of the mesh."""
+        return cad_only_download(session, getattr(language, "value", language), file=file)
+
+    export_cad_only.__annotations__["language"] = Language
+    router.get("/export/cad-only/{language}", response_class=Response, responses=PROGRAM_ANSWERS)(
+        export_cad_only
     )
 
     @router.get(

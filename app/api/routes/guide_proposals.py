@@ -65,7 +65,8 @@ class PointingSettingsUpdate(_Request):
     click_mode: ClickMode | None = Field(
         default=None,
         description="what a click on the part in the 3-D scene does: propose the wall's guide "
-        "points, teach a point, move the selected point there, or nothing",
+        "points, teach a point, move the selected point there, touch the face clicked (work-"
+        "object calibration: /api/cell/calibration), or nothing",
     )
 
 
@@ -73,6 +74,11 @@ class PointingSettingsPublic(BaseModel):
     gap_mm: float
     height_above_floor_mm: float
     click_mode: ClickMode
+    proposal_points: int = Field(
+        0,
+        description="how many guide points are proposed (0: none; GET /proposal answers 404 "
+        "then): a page reads this before it asks for the proposal",
+    )
 
 
 class ProposedPointPublic(BaseModel):
@@ -252,13 +258,15 @@ def accept_proposal(session: SessionDep) -> JobCreated:
 
 @router.get("/pointing")
 def get_pointing(session: SessionDep) -> PointingSettingsPublic:
-    """The gap to the wall and the height above the floor of taught and proposed points, and
-    what a click on the part does."""
+    """The gap to the wall and the height above the floor of taught and proposed points, what
+    a click on the part does, and how many points are proposed."""
     s = session.pointing.settings
+    proposal = session.pointing.proposal()
     return PointingSettingsPublic(
         gap_mm=round(s.gap_m * 1e3, 4),
         height_above_floor_mm=round(s.height_above_floor_m * 1e3, 4),
         click_mode=session.pointing.click_mode,
+        proposal_points=0 if proposal is None else len(proposal.points),
     )
 
 

@@ -7,7 +7,8 @@ from typing import Annotated
 from fastapi import APIRouter, Query, status
 
 from app.api.routes import ERRORS, SessionDep
-from app.api.schemas import ForceTracePublic, JobCreated, PathLearningCreate
+from app.api.schemas import FindingPublic, ForceTracePublic, JobCreated, PathLearningCreate
+from robomach_core.learning.findings import grouped_findings
 
 router = APIRouter(prefix="/api/path-learning", tags=["path learning"], responses=ERRORS)
 
@@ -17,7 +18,7 @@ def start_path_learning(body: PathLearningCreate, session: SessionDep) -> JobCre
     """Job: follow the wall along the guide points at constant contact force and record it.
     Follow it at /api/jobs/{job_id}; the recording replaces the last one when it is done.
     422 when the wall side is "auto" and the guide points do not tell it."""
-    warnings = session.learning.guide_warnings(
+    found = session.learning.guide_findings(
         body.force_N, closed=body.closed, wall_side=body.wall_side
     )
     job_id = session.learning.start_path_learning(
@@ -27,7 +28,11 @@ def start_path_learning(body: PathLearningCreate, session: SessionDep) -> JobCre
         wall_side=body.wall_side,
         floor_clearance_m=body.floor_clearance_mm * 1e-3,
     )
-    return JobCreated(job_id=job_id, warnings=warnings)
+    return JobCreated(
+        job_id=job_id,
+        warnings=[w.message for w in found],
+        findings=[FindingPublic.from_group(g) for g in grouped_findings(found)],
+    )
 
 
 @router.get("/recording")

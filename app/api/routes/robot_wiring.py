@@ -10,7 +10,7 @@ from starlette.concurrency import run_in_threadpool
 from app.api.routes import ERRORS, SessionDep
 from app.api.routes.cell import UPLOAD_CHUNK_BYTES, _public
 from app.api.routes.export import program_download
-from app.api.schemas import CellPublic
+from app.api.schemas import CellPublic, FindingPublic, GuideCheckPublic
 from robomach_core import limits
 from robomach_core.learning.settings import WallSideSetting
 from robomach_core.robots.builtin import ARM_FAMILIES
@@ -95,3 +95,25 @@ def guide_point_warnings(
     through the part, a wrist turn axis 6 cannot make; POST /api/path-learning returns the same
     with its job."""
     return session.learning.guide_warnings(force_N, closed=closed, wall_side=wall_side)
+
+
+@router.get("/path-learning/check")
+def guide_point_check(
+    session: SessionDep,
+    force_N: Annotated[float, Query(ge=1.0, le=50.0, description="contact force [N]")] = 10.0,
+    closed: Annotated[bool, Query(description="closed contour")] = True,
+    wall_side: Annotated[
+        WallSideSetting, Query(description="the wall side to learn with")
+    ] = "auto",
+) -> GuideCheckPublic:
+    """The check before a run, as every page shows it: one finding per rule with its rule,
+    severity and the other points where it holds (refusals first: learning will not start),
+    and the wall the run will follow with what decided it (on "auto": a push at the points
+    or the part's mesh)."""
+    from robomach_core.learning.findings import grouped_findings
+
+    found = session.learning.guide_findings(force_N, closed=closed, wall_side=wall_side)
+    _, side = session.learning.taught_wall_preview(wall_side, closed=closed)
+    return GuideCheckPublic(
+        findings=[FindingPublic.from_group(g) for g in grouped_findings(found)], wall_side=side
+    )

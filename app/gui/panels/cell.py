@@ -9,8 +9,9 @@ from robomach_core.robot import ROBOT_NAMES
 from robomach_core.tool import TOOL_RADIUS_RANGE_M
 from robomach_core.workpiece import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, WORKPIECE_NAMES
 
-from .feedback import guarded, notify_info
+from .feedback import guarded, notify_info, upload_handled
 
+_PRESET = PartDeviation.realistic()  # the preset's ranges, for the hint
 MESH_MIME_TYPES = ".stl,.obj,.ply,model/stl,model/obj,application/octet-stream"
 
 
@@ -45,9 +46,12 @@ class CellPanel:
             self.realistic = server.gui.add_checkbox(
                 "Realistic part",
                 s.part_deviation is not None,
-                hint="The part in the cell differs from its mesh by a fixture error (0.3-0.6 mm, "
-                "0.15-0.3 deg) and casting deviations (+-0.5 mm, burrs), from the cell's seed: "
-                "you teach on the mesh, learning meets the real part",
+                hint=f"The part in the cell differs from its mesh by a fixture error "
+                f"({_PRESET.fixture_shift_mm / 2:g}-{_PRESET.fixture_shift_mm:g} mm, "
+                f"{_PRESET.fixture_rotation_deg / 2:g}-{_PRESET.fixture_rotation_deg:g} deg) and "
+                f"casting deviations (+-{_PRESET.wall_offset_mm:g} mm, burrs), from the cell's "
+                "seed: calibrate the work object by touch (Calibrate by touch), then teach on "
+                "the mesh; learning meets the real part",
             )
             self.apply = server.gui.add_button(
                 "Apply cell",
@@ -75,7 +79,7 @@ class CellPanel:
                 ),
             )
         )
-        self.upload.on_upload(guarded("Mesh upload", self._uploaded))
+        self.upload.on_upload(upload_handled(server, "Mesh upload", self._uploaded))
         self.refresh()
 
     def _uploaded(self, event) -> None:

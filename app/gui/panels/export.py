@@ -10,7 +10,7 @@ import viser
 import robomach_core.export.languages as registry
 from app.session import ConflictError, process_settings, programs
 from robomach_core.errors import RobomachError
-from robomach_core.project import StaleResultError
+from robomach_core.project import StaleResultError, machining_setup_of
 
 from .feedback import guarded
 from .postprocess import OUT_OF_DATE
@@ -30,6 +30,11 @@ def program_file_names(language_names: tuple[str, ...]) -> tuple[str, ...]:
         if lang.force_control:
             names += lang.file_names(force_control=True)
     return tuple(names)
+
+
+def program_file_names_plain(language_names: tuple[str, ...]) -> tuple[str, ...]:
+    """The files of the position-controlled programs in these languages."""
+    return tuple(name for lang in language_names for name in registry.language(lang).file_names())
 
 
 def language_of(filename: str) -> tuple[registry.ProgramLanguage, bool]:
@@ -67,10 +72,26 @@ class ExportPanel:
             self.program = server.gui.add_button_group(
                 "Program", program_file_names(languages) or ("none",)
             )
+            self.cad_only = server.gui.add_button_group(
+                "CAD-only program",
+                program_file_names_plain(languages) or ("none",),
+                hint="What a CAD/CAM tool would make from the mesh alone, in the language "
+                "above: the baseline learning is measured against (What learning buys)",
+            )
             self.tables = server.gui.add_button_group("Tables", TABLE_FILES)
             self.preview = server.gui.add_markdown("")
         self.adopt.on_click(guarded("Export", lambda e: self.use_studies(e.target.value == "Use")))
         self.language.on_update(guarded("Export", lambda _: self.refresh()))
+        self.cad_only.on_click(
+            guarded(
+                "CAD-only program",
+                lambda e: e.client.send_file_download(
+                    f"cad_only_{e.target.value}",
+                    self.cad_only_text(e.target.value).encode("utf-8"),
+                    save_immediately=True,
+                ),
+            )
+        )
         for group in (self.program, self.tables):
             group.on_click(
                 guarded(
@@ -96,6 +117,11 @@ class ExportPanel:
         kwargs = {"module_name": FC_MODULE_NAME} if force else {}
         return programs.program_texts(self.session, lang.name, force_control=force, **kwargs)[name]
 
+    def cad_only_text(self, name: str) -> str:
+        """One file of the CAD-only program (``programs.cad_only_program_texts``)."""
+        lang, _ = language_of(name)
+        return programs.cad_only_program_texts(self.session, lang.name)[name]
+
     def use_studies(self, use: bool) -> None:
         """Carry the last CMRR study's controller and the identified compensation in the
         program (those that have run), or remove both."""
@@ -119,10 +145,22 @@ class ExportPanel:
         process_settings.set_process_settings(self.session, cmrr=cmrr, compensation=compensation)
 
     def _process_text(self) -> str:
+        """What the program carries, in the Machining panel's words (its controller and
+        compensation names: one name for one thing on every page)."""
         project = self.session.project()
-        cmrr = "none" if project.cmrr is None else project.cmrr.controller.kind
-        comp = "none" if project.compensation is None else project.compensation.mode
-        return f"Program carries: CMRR **{cmrr}**, deflection compensation **{comp}**"
+        s = machining_setup_of(project).settings
+        comp = project.compensation
+        # Nothing chosen: the files carry a constant feed and no compensation (the setup's
+        # defaults are what the Machining panel would compare, not what is written).
+        controller = "constant" if project.cmrr is None else s.controller
+        compensation = "off" if comp is None else s.compensation
+        model = ""
+        if comp is not None and comp.mode.startswith("offline_"):
+            model = f" ({comp.mode.removeprefix('offline_')} joint-stiffness model)"
+        return (
+            f"Program carries: feed control **{controller}**, compensation "
+            f"**{compensation}**{model} (the Machining panel's choice)"
+        )
 
     def _sync_menus(self) -> tuple[str, ...]:
         """The language and file menus for the cell's arm (it may have changed)."""
@@ -135,6 +173,9 @@ class ExportPanel:
         files = program_file_names(languages) or ("none",)
         if tuple(self.program.options) != files:
             self.program.options = files
+        plain = program_file_names_plain(languages) or ("none",)
+        if tuple(self.cad_only.options) != plain:
+            self.cad_only.options = plain
         return languages
 
     def refresh(self) -> None:

@@ -49,3 +49,34 @@ def guarded(title: str, callback: Callable[[E], Any]) -> Callable[[E], None]:
             notify_error(client, title, describe_unexpected(exc))
 
     return run
+
+
+def upload_handled(
+    server: viser.ViserServer, title: str, callback: Callable[[E], Any]
+) -> Callable[[E], None]:
+    """``guarded`` for an upload button's callback, which then forgets the upload's progress:
+    viser keeps each transfer's last progress message for browsers that connect later, and a
+    browser opened after an upload showed its "uploaded" note again (issue 31)."""
+    run = guarded(title, callback)
+
+    @functools.wraps(callback)
+    def handled(event: E) -> None:
+        try:
+            run(event)
+        finally:
+            forget_upload_progress(server)
+
+    return handled
+
+
+def forget_upload_progress(server: viser.ViserServer) -> None:
+    """Drop the finished uploads' progress messages from what a new browser is sent first
+    (viser's broadcast buffer; nothing when viser's internals differ)."""
+    from viser._messages import FileTransferPartAck
+
+    try:
+        buffer = server._websock_server.get_message_buffer()
+    except AttributeError:  # another viser: its buffer is not where this one keeps it
+        log.warning("cannot drop the upload progress of viser %s", viser.__version__)
+        return
+    buffer.remove_from_buffer(lambda message: isinstance(message, FileTransferPartAck))

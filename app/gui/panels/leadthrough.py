@@ -75,10 +75,14 @@ class LeadThroughPanel:
             self.frame = server.gui.add_dropdown(
                 "Compliance frame", COMPLIANCE_FRAMES, initial_value=sel.frame
             )
+            # Off by default: the handle's gizmo stands on the tool, and a gizmo takes every
+            # click on it, so it took the clicks meant for the wall beside the tool (3 of 22,
+            # issue 31). The rest of the robot lets clicks through to the part.
             self.show_handle = server.gui.add_checkbox(
                 "Show push handle",
-                True,
-                hint="The handle is heavy to draw without a GPU: hide it on slow machines",
+                False,
+                hint="Drag the handle to push the tool. While it shows, it takes the clicks on "
+                "the part near the tool; and it is heavy to draw without a GPU",
             )
             self.spring = server.gui.add_slider(
                 "Handle spring (N/mm)",
@@ -136,6 +140,7 @@ class LeadThroughPanel:
         self.push_N: np.ndarray | None = None
         self._tool_followed_m = np.zeros(3)  # the TCP the handle was last put on
         self.disarm()  # the handle starts on the tool
+        self.scene.handle.visible = self.show_handle.value
 
     def _push_wrench(self, direction: str) -> np.ndarray:
         w = np.zeros(6)

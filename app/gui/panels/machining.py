@@ -29,7 +29,7 @@ from robomach_core.machining.choice import OPTION_NAMES, OPTION_TEXT, RULE_TEXT
 from robomach_core.project._machining import STOCK_SOURCES
 
 from ..scene import deviation_colors
-from .feedback import guarded
+from .feedback import guarded, upload_handled
 from .large import open_large, png_html
 from .machining_table import SORT_KEYS, table_html
 
@@ -40,6 +40,8 @@ REFRESH_HZ = 4.0
 PLOT_POINTS = 800
 WALL_SCALE_MM = 0.2  # red at and above this finished-wall error
 STOCK_COLOR = (200, 140, 60)
+FORCE_TITLE = "Force along the path"
+FEED_TITLE = "Feed along the path"
 EVENTS = ("job", "machining", "postprocess", "recording", "guide_points", "cell", "project")
 
 
@@ -125,7 +127,7 @@ class MachiningPanel:
                 "Open the table and figure large", icon=viser.Icon.ARROWS_MAXIMIZE, disabled=True
             )
             self.force_plot = server.gui.add_uplot(
-                *_empty_force(), title="Force along the path", aspect=1.6,
+                *_empty_force(), title=FORCE_TITLE, aspect=1.6,
                 scales={"x": viser.uplot.Scale(time=False, auto=True)},
                 legend=viser.uplot.Legend(show=True),
             )  # fmt: skip
@@ -137,7 +139,7 @@ class MachiningPanel:
                     viser.uplot.Series(label="min", stroke="#a8dadc", width=0.8),
                     viser.uplot.Series(label="max", stroke="#a8dadc", width=0.8),
                 ),
-                title="Feed along the path",
+                title=FEED_TITLE,
                 scales={"x": viser.uplot.Scale(time=False, auto=True)},
                 legend=viser.uplot.Legend(show=True),
                 aspect=1.6,
@@ -145,6 +147,8 @@ class MachiningPanel:
         self._wire()
         self.job_id: str | None = None
         self._shown_result: object = None
+        self._shown_key: object = None
+        self._result_epoch = session.robot.epoch
         self._nodes: dict[str, object] = {}
         self._dirty = threading.Event()
         self._stop = threading.Event()
@@ -184,7 +188,8 @@ class MachiningPanel:
         @self.upload.on_upload
         def _(event) -> None:
             f = self.upload.value
-            guarded("Stock mesh", lambda e: self.service.upload_stock(f.content, f.name))(event)
+            upload = lambda e: self.service.upload_stock(f.content, f.name)  # noqa: E731
+            upload_handled(self.server, "Stock mesh", upload)(event)
 
         def options(_e) -> None:
             chosen = [n for n, box in self.options.items() if box.value]
@@ -265,7 +270,9 @@ class MachiningPanel:
         if not runs:
             return None
         with tempfile.TemporaryDirectory() as folder:
-            path = plot_runs(runs, Path(folder) / "machining.png", title="machining runs")
+            chosen = f"{setup.controller} / {setup.compensation}"
+            title = f"machining runs of this result (chosen: {chosen})"
+            path = plot_runs(runs, Path(folder) / "machining.png", title=title)
             return path.read_bytes()
 
     # --- refresh -----------------------------------------------------------------------------
@@ -351,12 +358,25 @@ class MachiningPanel:
         result = self.service.result()
         self.choose_best.disabled = result is None or result.chosen is None
         self.enlarge.disabled = result is None
-        if result is self._shown_result:
+        epoch = self.session.robot.epoch
+        if result is not self._shown_result:
+            self._result_epoch = epoch  # the cell the result was first shown in
+        # A result of a cell no longer there (another robot, part or place) is not drawn over
+        # the new one: its path stood on the old cell's table.
+        old_cell = result is not None and self._result_epoch != epoch
+        key = (result, old_cell, self.service.status())
+        if key == self._shown_key:
             return
-        self._shown_result = result
+        self._shown_result, self._shown_key = result, key
         self._show_table()
-        if result is None:
+        if result is None or old_cell:
             self.force_plot.data = _empty_force()[0]
+            self.force_plot.title = self.feed_plot.title = (
+                FORCE_TITLE
+                if result is None
+                else f"{FORCE_TITLE}: the last run was in another cell"
+            )
+            self.feed_plot.title = FEED_TITLE
             for node in self._nodes.values():
                 node.remove()
             self._nodes.clear()
@@ -378,7 +398,20 @@ class MachiningPanel:
                 np.asarray(d["feed_min_mm_s"]),
                 np.asarray(d["feed_max_mm_s"]),
             )
+            which = self._which_run(d["controller"], d["compensation"])
+            self.force_plot.title = f"{FORCE_TITLE}: {which}"
+            self.feed_plot.title = f"{FEED_TITLE}: {which}"
         self._show_scene()
+
+    def _which_run(self, controller: str, compensation: str) -> str:
+        """Which run a plot shows, in words: its configuration, whether it is the chosen one,
+        and whether it is out of date."""
+        s = self.service.setup().settings
+        chosen = (controller, compensation) == (s.controller, s.compensation)
+        note = "the chosen configuration" if chosen else "the chosen one was not run"
+        if self.service.status() == "stale":
+            note += ", out of date"
+        return f"{controller} / {compensation} ({note})"
 
     def _show_scene(self) -> None:
         ribbon = self.service.stock_ribbon()

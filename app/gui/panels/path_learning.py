@@ -69,6 +69,7 @@ class PathLearningPanel:
                 "guide point rests on",
             )
             self.wall_note = server.gui.add_markdown("")
+            self.check = server.gui.add_markdown("")  # the check before the run (its findings)
             self.run = server.gui.add_button(
                 "Run path learning", icon=viser.Icon.PLAYER_PLAY, color="green"
             )
@@ -132,12 +133,17 @@ class PathLearningPanel:
         self.scene.set_taught_wall(points, "" if not points else "wall to follow")
         self.wall_note.content = text
 
-    def refresh_stop(self) -> None:
-        """Mark where the last run stopped early, if it did."""
+    def show_check(self, findings_markdown: str) -> None:
+        """The check before the run (the Guide-point rules' findings), above Run."""
+        self.check.content = f"**Check before the run**\n\n{findings_markdown}"
+
+    def refresh_stop(self, *, old_cell: bool = False) -> None:
+        """Mark where the last run stopped early, if it did (``old_cell``: the recording
+        belongs to a cell no longer there, and its mark is not drawn over the new part)."""
         if self.scene is None:
             return
         rec = self.session.project().recording
-        stop = None if rec is None else rec.stop
+        stop = None if rec is None or old_cell else rec.stop
         if stop is None:
             self.scene.set_stop(None)
         else:

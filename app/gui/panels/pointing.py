@@ -14,21 +14,21 @@ import time
 import numpy as np
 import viser
 
+from robomach_core.choices import CLICK_MODES, LABELS
 from robomach_core.errors import InvalidInputError
 from robomach_core.limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
 
-from ..scene import CellScene
+from ..scene import COMPARISON_COLORS, CellScene
 from .feedback import guarded, notify_error, notify_info
 
-MODE_TEACH = "teach a point"
-MODE_PROPOSE = "propose the wall"
-MODE_MOVE = "move the selected point"
-MODE_OFF = "nothing"
-MODES = (MODE_PROPOSE, MODE_TEACH, MODE_MOVE, MODE_OFF)
-MODE_OF = {"propose": MODE_PROPOSE, "teach": MODE_TEACH, "move": MODE_MOVE, "off": MODE_OFF}
+# What a click on the part does, in the words every page uses (``choices.LABELS``).
+MODE_OF = {mode: LABELS["click_mode"][mode] for mode in CLICK_MODES}
+MODE_TEACH, MODE_PROPOSE, MODE_MOVE = MODE_OF["teach"], MODE_OF["propose"], MODE_OF["move"]
+MODE_TOUCH, MODE_OFF = MODE_OF["touch"], MODE_OF["off"]
+MODES = tuple(MODE_OF.values())
 SESSION_MODE = {label: key for key, label in MODE_OF.items()}
 NO_SELECTION = "none"
-COMPARISON_SCALE_MM = 1.0  # the CAD-only and learned paths: green at 0, red at 1 mm
+GROOVE_WIDTH_SHOWN_M = 0.03  # a wall this near across the click is named in the label
 
 
 class PointingPanel:
@@ -54,7 +54,8 @@ class PointingPanel:
                 initial_value=MODE_OF[session.pointing.click_mode],
                 hint="propose: guide points for the whole wall you click (nothing moves); "
                 "teach: the robot goes beside the wall where you click and records a point; "
-                "move: the selected point goes where you click",
+                "move: the selected point goes where you click; touch: the robot touches the "
+                "face you click, to calibrate the work object (Calibrate by touch)",
             )
             self.gap = server.gui.add_number(
                 "Gap to wall (mm)", round(s.gap_m * 1e3, 3), min=WALL_GAP_MM.min,
@@ -84,6 +85,15 @@ class PointingPanel:
                 "so clicks on the part answer at once",
             )
             self.compare = server.gui.add_markdown("")
+            self.legend = server.gui.add_html(comparison_legend_html(), visible=False)
+            self.show_learned = server.gui.add_checkbox(
+                "Show the learned program", True, visible=False,
+                hint="The program path learning made, drawn in the scene (legend above)",
+            )  # fmt: skip
+            self.show_cad_only = server.gui.add_checkbox(
+                "Show the CAD-only program", True, visible=False,
+                hint="The program a CAD/CAM tool would make from the mesh alone (legend above)",
+            )  # fmt: skip
         self.handle = server.scene.add_transform_controls(
             "/path/adjust",
             scale=0.03,
@@ -102,16 +112,24 @@ class PointingPanel:
         self.discard.on_click(guarded("Discard", lambda e: self.session.pointing.discard()))
         self.selected.on_update(lambda e: self.refresh())
         self.rich.on_update(lambda e: self._rendering(server))
+        self.show_learned.on_update(lambda e: self.show_comparison())
+        self.show_cad_only.on_update(lambda e: self.show_comparison())
         self._rendering(server)
         self.top.on_click(lambda e: e.client and scene.top_view(e.client, session.robot.workpiece))
-        self.part.on_click(
-            lambda e: e.client and scene.part_view(e.client, session.robot.workpiece)
-        )
+        self.part.on_click(lambda e: e.client and self._view_part(e.client))
         scene.on_part_click(self._clicked)
         self.last_click_s = float("nan")  # how long the last click took (tests read it)
+        self.picked = None  # the wall the last click picked (``walls.WallPick``)
+        self.on_touch = None  # (point_wobj_m, normal, client) of a click in the touch mode
         self.refresh()
 
     # --- the user's actions ----------------------------------------------------------------
+
+    def _view_part(self, client) -> None:
+        """The whole part, from where the arm does not stand in the way."""
+        pose = self.session.robot.snapshot()
+        self.scene.part_view(client, self.session.robot.workpiece, pose.joints_rad,
+                             pose.T_base_tcp)  # fmt: skip
 
     def _rendering(self, server: viser.ViserServer) -> None:
         """Shadows and the environment's reflections on or off (for every browser)."""
@@ -149,9 +167,28 @@ class PointingPanel:
         if mode == MODE_OFF:
             return
         started = time.monotonic()
+        if mode == MODE_TOUCH:
+            if self.on_touch is not None:
+                self.on_touch(point_wobj_m, normal, client)
+            self.last_click_s = time.monotonic() - started
+            return
         title = {MODE_TEACH: "Teach", MODE_PROPOSE: "Propose", MODE_MOVE: "Move"}[mode]
+        if mode != MODE_MOVE:  # the wall it picked, drawn before anything moves
+            guarded(title, lambda e: self._show_pick(point_wobj_m, normal))(_Event(client))
+            if self.picked is None:
+                return
         guarded(title, lambda e: self._act(mode, point_wobj_m, normal, client))(_Event(client))
         self.last_click_s = time.monotonic() - started
+
+    def _show_pick(self, point_wobj_m: np.ndarray, normal: np.ndarray) -> None:
+        """Highlight the wall the click picked (the same pick the teaching or the proposal
+        then makes), before anything moves; a refused pick (a floor, the middle of a narrow
+        groove) raises with the reason and highlights nothing."""
+        self.picked = None
+        self.scene.set_picked_wall(None)
+        pick = self.session.pointing.pick(point_wobj_m, normal)
+        self.picked = pick
+        self.scene.set_picked_wall(pick, picked_wall_text(pick))
 
     def _act(self, mode: str, point: np.ndarray, normal: np.ndarray, client) -> None:
         pointing = self.session.pointing
@@ -263,12 +300,19 @@ class PointingPanel:
         self.handle.visible = True
 
     def show_comparison(self) -> None:
-        """The CAD-only and learned programs against the real wall, drawn and tabled."""
+        """The CAD-only and learned programs against the real wall, drawn (two colours, a
+        legend, a toggle each) and tabled."""
         outcome = self.session.project().processed
         current = self.session.project().status()["postprocess"] == "current"
         comparison = getattr(outcome, "cad_comparison", None) if current else None
-        self.scene.set_comparison(comparison, COMPARISON_SCALE_MM * 1e-3)
+        self.scene.set_comparison(
+            comparison,
+            show_learned=self.show_learned.value,
+            show_cad_only=self.show_cad_only.value,
+        )
         self.compare.content = comparison_markdown(comparison)
+        for control in (self.legend, self.show_learned, self.show_cad_only):
+            control.visible = comparison is not None
 
     def show_job(self, job) -> None:
         """Progress of a running accept job (None hides the bar)."""
@@ -318,7 +362,10 @@ def comparison_markdown(comparison) -> str:
         "| program | max | RMS | overcut | air | worst at (x, y) |",
         "|---|---:|---:|---:|---:|---|",
     ]
-    for name, s in (("learned", comparison.learned), ("CAD-only", comparison.cad_only)):
+    programs = [("learned", comparison.learned), ("CAD-only", comparison.cad_only)]
+    if comparison.cad_only_unregistered is not None:  # what the calibration bought
+        programs.append(("CAD-only, as placed (not calibrated)", comparison.cad_only_unregistered))
+    for name, s in programs:
         x, y, _ = s.worst_wobj_m * 1e3
         rows.append(
             f"| {name} | {s.max_m * 1e3:.2f} | {s.rms_m * 1e3:.2f} | {s.overcut_m * 1e3:.2f} | "
@@ -327,3 +374,34 @@ def comparison_markdown(comparison) -> str:
     if comparison.deviation_note:
         rows += ["", f"*Real part: {comparison.deviation_note}.*"]
     return "\n".join(rows)
+
+
+def picked_wall_text(pick) -> str:
+    """The label at the wall a click picked: which wall, and how far the one across is (in a
+    groove, the two walls the click could have meant)."""
+    s = np.array([pick.s_m])
+    foot = pick.loop.point_at(s)[0]
+    across = [abs(float(o.signed_distance(foot[None])[0])) for o in pick.others]
+    near = min(across, default=float("inf"))
+    if near < GROOVE_WIDTH_SHOWN_M:
+        return f"this wall (the other one is {near * 1e3:.1f} mm across)"
+    return "this wall"
+
+
+def comparison_legend_html() -> str:
+    """The legend of the two programs drawn in the scene (their colours, ``COMPARISON_COLORS``)."""
+
+    def swatch(name: str, text: str) -> str:
+        r, g, b = COMPARISON_COLORS[name]
+        return (
+            f'<span style="display:inline-block;width:1.6em;height:0.35em;margin:0 0.4em '
+            f'0.2em 0;background:rgb({r},{g},{b});vertical-align:middle"></span>{text}'
+        )
+
+    return (
+        '<div style="font-size:0.85em;line-height:1.6;padding:0 0.5em">'
+        + swatch("learned", "learned program (what path learning met)")
+        + "<br>"
+        + swatch("cad_only", "CAD-only program (from the mesh alone)")
+        + "</div>"
+    )

@@ -7,21 +7,18 @@ from __future__ import annotations
 import viser
 
 from app.session import programs
+from robomach_core.choices import TEXTS
 from robomach_core.project import result_extras
 from robomach_core.robots.builtin import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
 
-from .feedback import guarded
+from .feedback import guarded, upload_handled
 
 ROBOT_MIME_TYPES = ".urdf,.zip,application/xml,application/zip,application/octet-stream"
 FAMILY_CHOICES = ("auto", *ARM_FAMILIES)
-GUIDE_HINT = (
-    "A guide point: **1-3 mm from the wall**, or touching it with a **light push** (2-10 N) "
-    "that tells the wall side; the tool axis as it should machine, the same turn about it at "
-    "every point. Corners and bosses need no point of their own: the run follows the wall "
-    "round them by force. Never record in heavy contact. See docs/guide_points.md."
-)
-SEVERITY_ICON = {"refusal": "\u26d4", "warning": "\u26a0", "info": "\u2139"}
+GUIDE_HINT = TEXTS["guide_point_advice"]
+SEVERITY_ICON = TEXTS["severity_icon"]
+SEVERITY_WORDS = TEXTS["severity"]
 
 
 class RobotProgramPanel:
@@ -52,7 +49,8 @@ class RobotProgramPanel:
             )
             self.summary = server.gui.add_markdown("")
         self.upload.on_upload(
-            guarded(
+            upload_handled(
+                server,
                 "Robot upload",
                 lambda e: self.session.upload_robot(
                     e.target.value.content, e.target.value.name, family=self.family.value
@@ -94,6 +92,7 @@ class GuideRulesPanel:
     def __init__(self, server: viser.ViserServer, session, settings=None) -> None:
         self.session = session
         self.settings = settings  # () -> (wall_side, closed) of the path-learning panel
+        self.listeners: list = []  # called with the findings' markdown after each check
         with server.gui.add_folder("Guide-point rules", expand_by_default=False):
             server.gui.add_markdown(GUIDE_HINT)
             self.warnings = server.gui.add_markdown("")
@@ -104,10 +103,22 @@ class GuideRulesPanel:
         wall side, and list the findings, refusals first."""
         wall_side, closed = self.settings() if self.settings is not None else ("auto", True)
         found = self.session.learning.guide_findings(closed=closed, wall_side=wall_side)
-        order = {"refusal": 0, "warning": 1, "info": 2}
-        found = sorted(found, key=lambda w: order[w.severity])
-        self.warnings.content = (
-            "\n".join(f"- {SEVERITY_ICON[w.severity]} {w.message}" for w in found)
-            if found
-            else "*No guide point breaks a rule.*"
-        )
+        self.warnings.content = findings_markdown(found)
+        for listener in self.listeners:
+            listener(self.warnings.content)
+
+
+def findings_markdown(found) -> str:
+    """The check's findings, one line per rule (``learning.findings``: its other points
+    named), refusals first, each marked by its severity in the words every page uses
+    (``choices.TEXTS``): a refusal in bold (learning will not start), a warning, a note."""
+    from robomach_core.learning.findings import grouped_findings
+
+    if not found:
+        return "*No guide point breaks a rule.*"
+    lines = []
+    for group in grouped_findings(found):
+        words = SEVERITY_WORDS[group.severity]
+        label = f"**{words}**" if group.severity == "refusal" else f"*{words}*"
+        lines.append(f"- {SEVERITY_ICON[group.severity]} {label}: {group.text()}")
+    return "\n".join(lines)

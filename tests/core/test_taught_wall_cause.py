@@ -1,0 +1,61 @@
+"""A program off the taught wall is named by its cause (issue 31, point 6): the demo's path is
+learned once, then reduced with fresh tolerances over the whole range a user can set (a fresh
+seed each run; ``ROBOMACH_SEED`` replays one). Where the learned path follows the taught wall
+and the program does not, the deviation-height tolerance is named, never "another wall"."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robomach_core.limits import TOLERANCE_MM
+from robomach_core.pipeline import DemoSettings, run_demo
+from robomach_core.postprocess import PostprocessSettings
+from robomach_core.project import process
+from tests.envelope import replay, run_seed
+
+SEED = run_seed()
+
+
+@pytest.fixture(scope="module")
+def demo():
+    return run_demo(DemoSettings(seed=int(SEED % 1000)))
+
+
+@pytest.mark.slow
+def test_a_wide_tolerance_is_named_as_the_cause_of_a_program_off_the_wall(demo):
+    project = demo.project
+    rng = np.random.default_rng(SEED)
+    tolerances_mm = [0.2, *rng.uniform(1.0, TOLERANCE_MM.max, 2), TOLERANCE_MM.max]
+    for tolerance_mm in tolerances_mm:
+        processed = process(
+            project.learned,
+            PostprocessSettings(tolerance_m=tolerance_mm * 1e-3),
+            demo.workpiece,
+            project.cell.tool_radius_m,
+            guides=project.guide_points,
+        )
+        check = processed.taught_wall
+        what = f"{replay(SEED)}: tolerance {tolerance_mm:.2f} mm: {check.message}"
+        if tolerance_mm <= 0.2:
+            assert check.follows, what
+        if not check.follows:
+            assert "deviation-height tolerance of" in check.message, what
+            assert "another wall" not in check.message, what
+    # the widest a user can set takes the program off the wall, and says why
+    assert not check.follows, f"{replay(SEED)}: at {TOLERANCE_MM.max} mm: {check.message}"
+
+
+def test_the_check_before_the_run_names_a_tolerance_past_the_taught_walls_margin(demo):
+    """Before the run (the terminal's and the workbench's check), over the whole range."""
+    from robomach_core.learning.checks import guide_point_warnings
+    from robomach_core.learning.settings import PathLearningSettings
+
+    rng = np.random.default_rng([SEED, 2])
+    for tolerance_mm in [TOLERANCE_MM.min, 1.0, TOLERANCE_MM.max, *rng.uniform(0.01, 5.0, 6)]:
+        found = guide_point_warnings(
+            demo.project.guide_points, PathLearningSettings(), tolerance_m=tolerance_mm * 1e-3
+        )
+        said = [f for f in found if f.rule == "tolerance"]
+        assert bool(said) == (tolerance_mm > 1.0), f"{replay(SEED)}: {tolerance_mm:.3f} mm"
+        assert all(f.severity == "warning" and "cut that far across" in f.message for f in said)
