@@ -269,6 +269,28 @@ class TaughtWallCheck:
     message: str
 
 
+def _across_the_end(across: np.ndarray, end: int, foot: np.ndarray, gap: float) -> float:
+    """The distance from an open route's end point's wall point ``foot`` to the line of the
+    program's first (``end`` 0) or last move, when the program ends short of it by at most
+    ``OPEN_END_SHORT_M`` (the force builds over the first mm of a run; the program starts at
+    its first sample in the force filter's band): a program that starts late on the taught
+    wall is on it, not beside it. ``gap`` otherwise."""
+    step = 1 if end == 0 else -1
+    p0 = across[end]
+    for j in range(end + step, end + step * len(across), step):
+        t = across[j] - p0
+        n = float(np.linalg.norm(t))
+        if n > 1e-6:
+            break
+    else:
+        return gap
+    t /= n
+    along = float((foot - p0) @ t)
+    if along > 0.0 or -along > th.OPEN_END_SHORT_M:  # beside the program, or short by more
+        return gap
+    return float(np.linalg.norm((foot - p0) - along * t))
+
+
 def taught_wall_check(
     workpiece: Workpiece,
     tool_radius_m: float,
@@ -316,7 +338,13 @@ def taught_wall_check(
         near = (path_height >= low) & (path_height <= high)
         if not near.any():
             near[:] = True
-        gap = float(np.min(np.linalg.norm(across[near] - (wall_point - axis * h), axis=1)))
+        foot = wall_point - axis * h
+        d = np.linalg.norm(across - foot, axis=1)
+        d[~near] = np.inf
+        nearest = int(np.argmin(d))
+        gap = float(d[nearest])
+        if not closed and k in (0, n - 1) and nearest in (0, len(across) - 1):
+            gap = _across_the_end(across, nearest, foot, gap)
         gap -= tool_radius_m
         checked.append(k + 1)
         worst = max(worst, gap)

@@ -72,6 +72,7 @@ MOTION_CHECK_STEP_M = 0.002  # m | the check before a run solves the arm's pose 
 
 # --- after learning: is the program on the taught wall -------------------------------------------
 TAUGHT_WALL_TOLERANCE_M = 0.001  # m | the program passes this near every taught wall point (the CAD may differ from the part by this) | fixed
+OPEN_END_SHORT_M = 0.006  # m | an open route's program may start (end) this far short of its first (last) point's wall point: the force builds over the first mm of a run | gap: as NEAR_END_M
 TAUGHT_WALL_HEIGHT_BAND_M = 0.005  # m | ... measured across the axis among program points within this height of the point or its neighbours | fixed
 
 # --- the guide-point planner: picks, floors, heights, corners, points (planner.py, walls.py) -----

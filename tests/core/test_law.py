@@ -216,3 +216,34 @@ def test_the_documented_thresholds_are_the_codes():
     # every threshold is a row: none written over several lines, where the table misses it
     names = [n for n in vars(th) if n.isupper() and not n.startswith("_")]
     assert sorted(names) == sorted(row.split("`")[1] for row in table.splitlines()[2:])
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    start_mm=st.floats(0.0, 10.0),
+    across_mm=st.floats(-3.0, 3.0),
+    heading=st.floats(0.0, 2 * np.pi),
+    end=st.sampled_from([0, -1]),
+)
+def test_an_open_routes_end_is_measured_across_the_wall_when_the_program_starts_late(
+    start_mm, across_mm, heading, end
+):
+    """A program that starts ``start_mm`` after its first point's wall point (the force
+    builds first) is measured across the line of its first move, up to OPEN_END_SHORT_M
+    short; farther short, or beside the program rather than before it, the distance stands."""
+    from robomach_core.learning.checks import _across_the_end
+
+    t = np.array([np.cos(heading), np.sin(heading), 0.0])
+    n = np.array([-t[1], t[0], 0.0])
+    s = np.linspace(0.0, 0.05, 200)
+    path = np.outer(s, t)  # starts at the origin along t; or, reversed, ends there along -t
+    if end == -1:
+        path = path[::-1]
+    foot = -start_mm * 1e-3 * t + across_mm * 1e-3 * n
+    idx = 0 if end == 0 else len(path) - 1
+    gap = float(np.linalg.norm(foot - path[idx]))
+    got = _across_the_end(path, idx, foot, gap)
+    if start_mm * 1e-3 <= th.OPEN_END_SHORT_M:
+        assert got == pytest.approx(abs(across_mm) * 1e-3, abs=1e-9)
+    else:
+        assert got == gap
