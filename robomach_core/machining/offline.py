@@ -38,6 +38,7 @@ SOLUTION  ``offline_compensated_run`` returns the corrected program's cut: its p
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -53,6 +54,9 @@ SETTLE_M = 1.0e-6
 # Eight: six left a staged controller's plan unsettled on some stocks (two-stage 82 % at worst
 # over ten UR10 stocks, 88 % with eight).
 MAX_REHEARSALS = 8
+# A corrected program's cut stands for its rehearsal within this fraction of the wall error;
+# beyond it the cut is hedged once more (``offline_compensated_run``).
+PROXY_TOLERANCE = 0.1
 # The corrected program's targets: where the planned shift departs from a straight line
 # between two targets by more than this, and at most this far apart [m].
 PLACEMENT_TOLERANCE_M = 1.0e-6
@@ -173,11 +177,36 @@ def corrected_program(
     )
 
 
-def _worse(a, b) -> bool:
-    """Whether run ``a`` is worse than run ``b``: not completed, or a larger wall error."""
+def _worse(a, b, *, tolerance: float = 0.0, slack_m: float = 0.0) -> bool:
+    """Whether run ``a`` is worse than run ``b``: not completed, or a wall error larger by
+    more than the fraction ``tolerance`` and ``slack_m``."""
     if a.summary["completed"] != b.summary["completed"]:
         return not a.summary["completed"]
-    return a.summary["wall_error_max_mm"] > b.summary["wall_error_max_mm"]
+    ea, eb = a.summary["wall_error_max_mm"] * 1e-3, b.summary["wall_error_max_mm"] * 1e-3
+    return ea > (1.0 + tolerance) * eb and ea > eb + slack_m
+
+
+def _ranking(tried: list) -> Callable[[int, int], int]:
+    """Order of the rehearsals, best first (``_worse``), the earlier of two equal ones first."""
+
+    def compare(i: int, j: int) -> int:
+        if _worse(tried[i][0], tried[j][0]):
+            return 1
+        if _worse(tried[j][0], tried[i][0]):
+            return -1
+        return i - j
+
+    return compare
+
+
+def _program_cut(cut, robot: Robot, nominal: Targets, plan, s_f, directions_m, force, model):
+    """(the cut of the program corrected for ``force`` at the stations ``s_f``, its nominal)."""
+    grid, _ = plan(force)
+    dense = targets_at(nominal, grid)
+    u = np.stack([np.interp(grid, s_f, directions_m[:, i]) for i in range(3)], axis=1)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    program = corrected_program(robot, dense, u, np.interp(grid, s_f, force), model)
+    return cut(program, dense), dense
 
 
 def force_met_N(run, s_m: np.ndarray) -> np.ndarray:
@@ -247,29 +276,46 @@ def offline_compensated_run(
     force = np.asarray(first_force_N, dtype=float)
     met = [force]
     change = np.inf
-    best = None
+    tried: list[tuple[object, np.ndarray]] = []
     for k in range(MAX_REHEARSALS):
         grid, shift = plan(force)
         run = rehearse(-np.interp(s_run, grid, shift))
         if progress is not None:
             progress(min((k + 1) / (MAX_REHEARSALS + 1), 1.0))
-        if best is None or _worse(best[0], run):
-            best = (run, force)
+        tried.append((run, force))
         if not run.summary["completed"]:
-            break  # a stopped cut cannot plan the rest of the path
+            # A stopped cut (a controller's protection rule, the force supervision) cannot
+            # plan the rest of the path, and the mean that planned it would stop it again: the
+            # next plan is the force the last completed cut met, alone.
+            if len(met) < 2:
+                break  # the first plan's own cut stops
+            force, met = met[-1], [met[-1]]
+            continue
         met = [met[-1], force_met_N(run, s_f)]
         following = 0.5 * (met[0] + met[1])
         change = float(np.max(np.abs(normal_compliance_m_N * (following - force))))
         force = following
         if change <= SETTLE_M:
             break
-    force = best[1]
-    grid, _ = plan(force)
-    dense = targets_at(nominal, grid)
-    u = np.stack([np.interp(grid, s_f, directions_m[:, i]) for i in range(3)], axis=1)
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
-    program = corrected_program(robot, dense, u, np.interp(grid, s_f, force), model)
-    run = cut(program, dense)
+    # The corrected program of the best rehearsal is cut. A rehearsal stands for that cut up to
+    # the program's rounding (0.1 um as written) and its first-order correction, and a change
+    # that small can move a stage switch as a re-plan does (measured: 0.3 um at 42 mm moved one
+    # at 464 mm). When the program's cut is worse than its rehearsal by more than
+    # ``PROXY_TOLERANCE`` (and a micrometre), it is one more rehearsal: the program planned
+    # from the mean of the two forces met is cut too, and the better program is kept.
+    ranked = sorted(range(len(tried)), key=functools.cmp_to_key(_ranking(tried)))
+    rehearsal, force = tried[ranked[0]]
+    final = _program_cut(cut, robot, nominal, plan, s_f, directions_m, force, model)
+    if (
+        rehearsal.summary["completed"]
+        and final[0].summary["completed"]
+        and _worse(final[0], rehearsal, tolerance=PROXY_TOLERANCE, slack_m=SETTLE_M)
+    ):
+        hedged = 0.5 * (force_met_N(rehearsal, s_f) + force_met_N(final[0], s_f))
+        candidate = _program_cut(cut, robot, nominal, plan, s_f, directions_m, hedged, model)
+        if _worse(final[0], candidate[0]):
+            final = candidate
+    run, dense = final
     if progress is not None:
         progress(1.0)
     return run, run.program, dense, k + 1, change
