@@ -26,11 +26,12 @@ STRATEGY  Rehearse the cut, and plan each station's correction from the force th
           six rehearsals left a groove). The force met is local to its station, and the mean of
           two rehearsals hedges a switch that moved between them: half a stage step either way,
           where a plan for one of them leaves a whole one.
-          Repeat until the plan moves no target by more than ``SETTLE_M`` (at most
-          ``MAX_REHEARSALS``); keep the best rehearsal. Rehearsals cut the nominal program's
-          plan with the planned offsets; the corrected program is built once, from the best
-          plan, and cut. The identified stiffness turns the force into the correction; the
-          rehearsals only predict the force (they never learn the arm's true compliance).
+          Repeat until the plan moves no target by more than ``SETTLE_M`` or a rehearsal
+          leaves the wall within ``WALL_TOLERANCE_FRACTION`` of the largest planned correction
+          (at most ``MAX_REHEARSALS``); keep the best rehearsal. Rehearsals cut the nominal
+          program's plan with the planned offsets; the corrected program is built from the
+          best plan and cut. The identified stiffness turns the force into the correction;
+          the rehearsals only predict the force (they never learn the arm's true compliance).
 SOLUTION  ``offline_compensated_run`` returns the corrected program's cut: its program is the
           one the export carries, and its trace and finished wall are what that program does,
           so the table shows what the exported program will cut.
@@ -57,6 +58,10 @@ MAX_REHEARSALS = 8
 # A corrected program's cut stands for its rehearsal within this fraction of the wall error;
 # beyond it the cut is hedged once more (``offline_compensated_run``).
 PROXY_TOLERANCE = 0.1
+# Rehearsals also stop when one leaves the wall within this fraction of the largest deflection
+# the first plan corrects (95 % of it removed, the chapter asks 75 %): further rehearsals only
+# redraw the stage switches.
+WALL_TOLERANCE_FRACTION = 0.05
 # The corrected program's targets: where the planned shift departs from a straight line
 # between two targets by more than this, and at most this far apart [m].
 PLACEMENT_TOLERANCE_M = 1.0e-6
@@ -277,6 +282,7 @@ def offline_compensated_run(
     met = [force]
     change = np.inf
     tried: list[tuple[object, np.ndarray]] = []
+    good_m = WALL_TOLERANCE_FRACTION * float(np.max(normal_compliance_m_N * force, initial=0.0))
     for k in range(MAX_REHEARSALS):
         grid, shift = plan(force)
         run = rehearse(-np.interp(s_run, grid, shift))
@@ -291,6 +297,8 @@ def offline_compensated_run(
                 break  # the first plan's own cut stops
             force, met = met[-1], [met[-1]]
             continue
+        if run.summary["wall_error_max_mm"] * 1e-3 <= good_m:
+            break
         met = [met[-1], force_met_N(run, s_f)]
         following = 0.5 * (met[0] + met[1])
         change = float(np.max(np.abs(normal_compliance_m_N * (following - force))))
