@@ -115,12 +115,18 @@ def test_offline_compensation_holds_on_other_castings(pump, stock_seed):
     )
     model = result.run_for("constant", "offline").stiffness_model
     for controller in MACHINING_CONTROLLERS:
-        cut = {
+        runs = {
             mode: run_machining(
                 robot, targets, None, stock,
                 MachiningSettings(controller=controller, compensation=mode),
                 compensation_model=model,
-            ).summary["wall_error_max_mm"]
+            ).summary
             for mode in ("off", "offline")
         }  # fmt: skip
+        if not runs["off"]["completed"]:
+            # A burr the controller's protection rule stops at even on the yielding arm: the
+            # wall error is the stock left, not a deflection to compensate.
+            print(f"stock seed {stock_seed}: {controller} stops uncompensated, not compared")
+            continue
+        cut = {mode: summary["wall_error_max_mm"] for mode, summary in runs.items()}
         assert cut["offline"] <= 0.25 * cut["off"], (stock_seed, controller, cut)
