@@ -7,17 +7,31 @@ PROBLEM   Offline compensation moves each target against the deflection the proc
           thin allowance, the controller is still catching a burr, or the tool is entering the
           stock; there the planned correction overcuts, and the error cut by compensation
           stays at 57-74 % instead of >= 75 %.
-STRATEGY  Rehearse the cut. The first plan is the force of the cut a working compensation
-          meets: the tool held on the nominal wall, the full allowance cut by the same
-          controller (one cut with the deflection left out). Planning from the uncompensated
-          run's force instead under-corrected everywhere (the compensated cut is deeper), and
-          under a staged controller every re-plan moved the stage switches (the force crosses
-          its thresholds at a shallow angle, so 4 % more force moved a switch by millimetres)
-          and the correction chased them: 61 % under the two-stage controller. Then cut the
-          corrected program, correct the plan by the finished wall's error (ILC) and repeat
-          until no target moves by more than ``SETTLE_M`` (at most ``MAX_REHEARSALS``); keep
-          the best rehearsal. Rehearsals cut the nominal program's plan with the planned
-          offsets; the corrected program is built once, from the best plan, and cut.
+STRATEGY  Rehearse the cut, and plan each station's correction from the force the rehearsals
+          met there. The first plan is the force of the cut a working compensation meets: the
+          tool held on the nominal wall, the full allowance cut by the same controller (one cut
+          with the deflection left out). Each rehearsal cuts the program corrected by the plan;
+          the force it met at a station is the least force over the stretch that station's
+          correction governs (the loop holds a station's offset from s_i to s_i + ds, and the
+          wall there is the tool's lowest reach: a correction for the least force never
+          overcuts, and a sub-station transient above it leaves a strip the ball shaves). The
+          next plan is the mean of the forces the last two rehearsals met.
+          Why not the finished wall's error (ILC on the wall, as before): a staged controller
+          (fuzzy, two-stage) drops its force by half within a sample at a stage switch, and a
+          switch lands where the noise and sub-micrometre depth changes put it, a sample to a
+          millimetre from one rehearsal to the next. Where it landed before the planned step,
+          the wall has a groove C dF deep that the ball widens to ~0.6 mm; the wall's error there
+          moved the plan of every station under the groove, not only the one that met the low
+          force, and the plan chased the switches (two-stage 59-95 % over 24 stocks, four of
+          six rehearsals left a groove). The force met is local to its station, and the mean of
+          two rehearsals hedges a switch that moved between them: half a stage step either way,
+          where a plan for one of them leaves a whole one.
+          Repeat until the plan moves no target by more than ``SETTLE_M`` or a rehearsal
+          leaves the wall within ``WALL_TOLERANCE_FRACTION`` of the largest planned correction
+          (at most ``MAX_REHEARSALS``); keep the best rehearsal. Rehearsals cut the nominal
+          program's plan with the planned offsets; the corrected program is built from the
+          best plan and cut. The identified stiffness turns the force into the correction;
+          the rehearsals only predict the force (they never learn the arm's true compliance).
 SOLUTION  ``offline_compensated_run`` returns the corrected program's cut: its program is the
           one the export carries, and its trace and finished wall are what that program does,
           so the table shows what the exported program will cut.
@@ -25,6 +39,7 @@ SOLUTION  ``offline_compensated_run`` returns the corrected program's cut: its p
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -37,15 +52,20 @@ from .path import arc_length_m
 
 # Rehearsals stop when the planned shift moves by no more than this between two of them [m].
 SETTLE_M = 1.0e-6
-MAX_REHEARSALS = 6
+# Eight: six left a staged controller's plan unsettled on some stocks (two-stage 82 % at worst
+# over ten UR10 stocks, 88 % with eight).
+MAX_REHEARSALS = 8
+# A corrected program's cut stands for its rehearsal within this fraction of the wall error;
+# beyond it the cut is hedged once more (``offline_compensated_run``).
+PROXY_TOLERANCE = 0.1
+# Rehearsals also stop when one leaves the wall within this fraction of the largest deflection
+# the first plan corrects (95 % of it removed, the chapter asks 75 %): further rehearsals only
+# redraw the stage switches.
+WALL_TOLERANCE_FRACTION = 0.05
 # The corrected program's targets: where the planned shift departs from a straight line
 # between two targets by more than this, and at most this far apart [m].
 PLACEMENT_TOLERANCE_M = 1.0e-6
 MAX_SPACING_M = 5.0e-3
-# Learning gain of the update from the rehearsal's wall error (ILC paper: 0 < L <= 1); a
-# half step does not chase the ripple a CMRR controller leaves from one rehearsal to the next
-# (six rehearsals: four left a staged controller's cut 5-10 points short on some stocks).
-LEARNING_GAIN = 0.5
 
 
 def densify_targets(targets: Targets, spacing_m: float) -> Targets:
@@ -162,20 +182,56 @@ def corrected_program(
     )
 
 
-def _worse(a, b) -> bool:
-    """Whether run ``a`` is worse than run ``b``: not completed, or a larger wall error."""
+def _worse(a, b, *, tolerance: float = 0.0, slack_m: float = 0.0) -> bool:
+    """Whether run ``a`` is worse than run ``b``: not completed, or a wall error larger by
+    more than the fraction ``tolerance`` and ``slack_m``."""
     if a.summary["completed"] != b.summary["completed"]:
         return not a.summary["completed"]
-    return a.summary["wall_error_max_mm"] > b.summary["wall_error_max_mm"]
+    ea, eb = a.summary["wall_error_max_mm"] * 1e-3, b.summary["wall_error_max_mm"] * 1e-3
+    return ea > (1.0 + tolerance) * eb and ea > eb + slack_m
+
+
+def _ranking(tried: list) -> Callable[[int, int], int]:
+    """Order of the rehearsals, best first (``_worse``), the earlier of two equal ones first."""
+
+    def compare(i: int, j: int) -> int:
+        if _worse(tried[i][0], tried[j][0]):
+            return 1
+        if _worse(tried[j][0], tried[i][0]):
+            return -1
+        return i - j
+
+    return compare
+
+
+def _program_cut(cut, robot: Robot, nominal: Targets, plan, s_f, directions_m, force, model):
+    """(the cut of the program corrected for ``force`` at the stations ``s_f``, its nominal)."""
+    grid, _ = plan(force)
+    dense = targets_at(nominal, grid)
+    u = np.stack([np.interp(grid, s_f, directions_m[:, i]) for i in range(3)], axis=1)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    program = corrected_program(robot, dense, u, np.interp(grid, s_f, force), model)
+    return cut(program, dense), dense
 
 
 def force_met_N(run, s_m: np.ndarray) -> np.ndarray:
-    """The process force a run met at arc lengths ``s_m`` along the path [N] (zero beyond
-    where a stopped run ended)."""
+    """The least process force a run met over each station's stretch [s_i, s_i + ds) [N]
+    (``s_m`` the stations, every ds from 0: the loop holds station i's offset over that
+    stretch); a station no sample fell in takes its neighbours' (interpolated), and stations
+    beyond where a stopped run ended meet none (zero)."""
+    from ._kernel import lowest_reach
+
+    s = np.asarray(s_m, dtype=float)
     tr = run.trace
-    if len(tr.path_m) < 2:
-        return np.zeros(len(s_m))
-    return np.interp(s_m, tr.path_m, tr.force_N, right=0.0)
+    if len(tr.path_m) < 2 or len(s) < 2:
+        return np.zeros(len(s))
+    ds = float(s[1] - s[0])
+    station = np.clip(np.floor(tr.path_m / ds).astype(np.int64), 0, len(s) - 1)
+    least = lowest_reach(station, np.ascontiguousarray(tr.force_N, dtype=float), len(s))
+    met = np.isfinite(least)
+    out = np.interp(s, s[met], least[met])
+    out[s > float(tr.path_m[-1])] = 0.0
+    return out
 
 
 def offline_compensated_run(
@@ -223,34 +279,51 @@ def offline_compensated_run(
         return grid, np.interp(grid, s_f, shift)
 
     force = np.asarray(first_force_N, dtype=float)
+    met = [force]
     change = np.inf
-    best = None
+    tried: list[tuple[object, np.ndarray]] = []
+    good_m = WALL_TOLERANCE_FRACTION * float(np.max(normal_compliance_m_N * force, initial=0.0))
     for k in range(MAX_REHEARSALS):
         grid, shift = plan(force)
         run = rehearse(-np.interp(s_run, grid, shift))
         if progress is not None:
             progress(min((k + 1) / (MAX_REHEARSALS + 1), 1.0))
-        if best is None or _worse(best[0], run):
-            best = (run, force)
+        tried.append((run, force))
         if not run.summary["completed"]:
-            break  # a stopped cut cannot plan the rest of the path
-        # ILC on the finished wall (ILC paper, u_{k+1} = u_k + L e_k): the rehearsal's wall
-        # error, as the force whose deflection it equals, corrects the plan. It answers what
-        # the force alone cannot: the wall is the lowest reach of the ball over the passes,
-        # so where the force ripples faster than a tool radius the wall follows its minima.
-        error = np.interp(s_f, run.wall.s_m, run.wall.error_m)
-        step = LEARNING_GAIN * error / np.maximum(normal_compliance_m_N, 1e-12)
-        force = np.maximum(force + step, 0.0)
-        change = float(np.max(np.abs(LEARNING_GAIN * error)))
+            # A stopped cut (a controller's protection rule, the force supervision) cannot
+            # plan the rest of the path, and the mean that planned it would stop it again: the
+            # next plan is the force the last completed cut met, alone.
+            if len(met) < 2:
+                break  # the first plan's own cut stops
+            force, met = met[-1], [met[-1]]
+            continue
+        if run.summary["wall_error_max_mm"] * 1e-3 <= good_m:
+            break
+        met = [met[-1], force_met_N(run, s_f)]
+        following = 0.5 * (met[0] + met[1])
+        change = float(np.max(np.abs(normal_compliance_m_N * (following - force))))
+        force = following
         if change <= SETTLE_M:
             break
-    force = best[1]
-    grid, _ = plan(force)
-    dense = targets_at(nominal, grid)
-    u = np.stack([np.interp(grid, s_f, directions_m[:, i]) for i in range(3)], axis=1)
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
-    program = corrected_program(robot, dense, u, np.interp(grid, s_f, force), model)
-    run = cut(program, dense)
+    # The corrected program of the best rehearsal is cut. A rehearsal stands for that cut up to
+    # the program's rounding (0.1 um as written) and its first-order correction, and a change
+    # that small can move a stage switch as a re-plan does (measured: 0.3 um at 42 mm moved one
+    # at 464 mm). When the program's cut is worse than its rehearsal by more than
+    # ``PROXY_TOLERANCE`` (and a micrometre), it is one more rehearsal: the program planned
+    # from the mean of the two forces met is cut too, and the better program is kept.
+    ranked = sorted(range(len(tried)), key=functools.cmp_to_key(_ranking(tried)))
+    rehearsal, force = tried[ranked[0]]
+    final = _program_cut(cut, robot, nominal, plan, s_f, directions_m, force, model)
+    if (
+        rehearsal.summary["completed"]
+        and final[0].summary["completed"]
+        and _worse(final[0], rehearsal, tolerance=PROXY_TOLERANCE, slack_m=SETTLE_M)
+    ):
+        hedged = 0.5 * (force_met_N(rehearsal, s_f) + force_met_N(final[0], s_f))
+        candidate = _program_cut(cut, robot, nominal, plan, s_f, directions_m, hedged, model)
+        if _worse(final[0], candidate[0]):
+            final = candidate
+    run, dense = final
     if progress is not None:
         progress(1.0)
     return run, run.program, dense, k + 1, change

@@ -284,8 +284,8 @@ def run_machining(
     # Every rehearsal cuts the nominal program's plan with the planned correction's offsets;
     # the last cut is the corrected program itself (what the export carries). The first plan
     # is the force of the cut a working compensation meets: the tool on the nominal wall, the
-    # full allowance cut (``offline``: the stage switches of a staged controller are where
-    # they will be).
+    # full allowance cut (``offline``); each rehearsal's force met, the least at each station
+    # (``offline.force_met_N``), plans the next.
     plan = plan_cut(robot, targets, None, stock, settings)
     on_the_wall = replace(
         plan, inputs=replace(plan.inputs, c_true=np.zeros_like(plan.inputs.c_true))

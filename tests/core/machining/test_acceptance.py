@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, example, given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from robomach_core import project as core
@@ -97,17 +97,16 @@ def test_the_settled_force_follows_the_process_model_and_cmrr_is_40_percent_fast
 
 
 @given(st.integers(1, 2**31 - 1))
-@example(11)  # the worst of 24 stocks for the two-stage controller (59 %)
 @settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 def test_offline_compensation_holds_on_other_castings(pump, stock_seed):
-    """Issue 29 over the part's variation: the same program on another built-in stock. The
-    unstaged controllers' offline compensation cuts the wall error by >= 75 % (24 stocks:
-    93-97 %). The staged ones (fuzzy, two-stage) only by >= 50 % here: 24 stocks put fuzzy at
-    79-95 % and two-stage at 59-95 %. Their residual is one groove where the stage drops: a
-    switch one sample (~30 um at 7.4 mm/s) earlier than planned leaves the correction planned
-    for the high stage's force on a stretch cut at the low stage's, C dF deep, and the ball
-    widens it to ~0.2 mm. Where the switch falls against the planned step decides its depth:
-    on stock 11 the same cut gives 59 / 92 / 78 % at wall stations 0.1 / 0.05 / 0.02 mm."""
+    """Issue 29 over the part's variation: the same program on another built-in stock, offline
+    compensation cuts the wall error by >= 75 % under the unstaged controllers (100 stocks on
+    each of the UR10, IRB 4400 and KR 270: 92.5 % at worst). The staged ones (fuzzy, two-stage) move
+    their stage switches from one rehearsal to the next; the plan from the force each station
+    met, the mean of the last two rehearsals, hedges them (``machining.offline``): median
+    93-96 %, >= 75 % on 598 of 600 staged runs, 70.2 % (UR10 stock 485402004, two-stage) and
+    73.9 % (KR 270 stock 314516579, fuzzy) the two below, where the rehearsals did not settle.
+    So >= 65 % here: a 75 % claim would fail about one run in fifty."""
     from robomach_core.export.target_joints import with_target_joints
     from robomach_core.machining import builtin_stock
 
@@ -119,13 +118,19 @@ def test_offline_compensation_holds_on_other_castings(pump, stock_seed):
     )
     model = result.run_for("constant", "offline").stiffness_model
     for controller in MACHINING_CONTROLLERS:
-        cut = {
+        runs = {
             mode: run_machining(
                 robot, targets, None, stock,
                 MachiningSettings(controller=controller, compensation=mode),
                 compensation_model=model,
-            ).summary["wall_error_max_mm"]
+            ).summary
             for mode in ("off", "offline")
         }  # fmt: skip
-        share = 0.5 if controller in ("fuzzy", "two-stage") else 0.25
-        assert cut["offline"] <= share * cut["off"], (controller, cut)
+        if not runs["off"]["completed"]:
+            # A burr the controller's protection rule stops at even on the yielding arm: the
+            # wall error is the stock left, not a deflection to compensate.
+            print(f"stock seed {stock_seed}: {controller} stops uncompensated, not compared")
+            continue
+        cut = {mode: summary["wall_error_max_mm"] for mode, summary in runs.items()}
+        share = 0.35 if controller in ("fuzzy", "two-stage") else 0.25
+        assert cut["offline"] <= share * cut["off"], (stock_seed, controller, cut)

@@ -7,6 +7,8 @@ import threading
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from robomach_core.errors import CancelledError
 from robomach_core.joint_compliance import true_joint_compliance
@@ -215,3 +217,31 @@ def test_offline_program_moves_the_targets_against_the_predicted_force(
     met = np.interp(s, run.trace.path_m, run.trace.deflection_m)
     assert np.median(np.abs(-shift[deep] - met[deep])) < 0.15 * np.median(met[deep])
     assert np.max(np.abs(program.joints_rad - nominal.joints_rad)) < 1e-3
+
+
+@given(st.integers(0, 2**31 - 1))
+@settings(max_examples=25, deadline=None)
+def test_the_force_a_station_met_is_the_least_over_the_stretch_its_offset_governs(seed):
+    """``offline.force_met_N``: the loop holds station i's offset over [s_i, s_i + ds), so the
+    force that station met is the least over the samples there (np.minimum.at); a station no
+    sample fell in takes its neighbours' (interpolated), and beyond a stopped run's end none."""
+    from types import SimpleNamespace
+
+    from robomach_core.machining.offline import force_met_N
+
+    print(f"seed {seed}")
+    rng = np.random.default_rng(seed)
+    ds = 1e-4
+    s_st = np.arange(200) * ds
+    end = rng.uniform(0.3, 1.0) * s_st[-1]
+    path = np.sort(rng.uniform(0.0, end, rng.integers(50, 2000)))
+    force = rng.uniform(0.0, 150.0, len(path))
+    met = force_met_N(SimpleNamespace(trace=SimpleNamespace(path_m=path, force_N=force)), s_st)
+    station = np.floor(path / ds).astype(int)
+    least = np.full(len(s_st), np.inf)
+    np.minimum.at(least, station, force)
+    seen = np.isfinite(least)
+    np.testing.assert_array_equal(met[seen & (s_st <= path[-1])], least[seen & (s_st <= path[-1])])
+    gaps = ~seen & (s_st <= path[-1])
+    np.testing.assert_allclose(met[gaps], np.interp(s_st[gaps], s_st[seen], least[seen]))
+    assert np.all(met[s_st > path[-1]] == 0.0)
