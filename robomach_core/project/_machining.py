@@ -255,8 +255,8 @@ def _arm_family(robot_name: str) -> str | None:
 
 
 def machining_setup_of(project: Project) -> MachiningSetup:
-    """The project's machining setup (defaults when it holds none), its controller and
-    compensation read from the project's CMRR and compensation slots: those are what the
+    """The project's machining setup (defaults when it holds none), its controller, reference
+    force and compensation read from the project's CMRR and compensation slots: those are what the
     exports carry, so the machining choice and the CMRR settings cannot disagree (a CMRR
     controller set another way, e.g. from a study, is the machining controller)."""
     setup = project.machining_settings
@@ -268,7 +268,12 @@ def machining_setup_of(project: Project) -> MachiningSetup:
     comp = project.compensation
     compensation = "off" if comp is None else EXPORT_MODE_CHOICES.get(comp.mode, "off")
     s = setup.settings
-    if (s.controller, s.compensation) == (controller, compensation):
+    # the CMRR's reference force (set by a study, say) is the machining's: only when it differs,
+    # so that a choice made from this setup keeps its result current
+    reference = {}
+    if project.cmrr is not None and abs(project.cmrr.reference_force_N - s.reference_N) > 1e-9:
+        reference = {"reference_force_N": project.cmrr.reference_force_N}
+    if (s.controller, s.compensation) == (controller, compensation) and not reference:
         return setup
     own = s.controller_settings
     s = replace(
@@ -276,6 +281,7 @@ def machining_setup_of(project: Project) -> MachiningSetup:
         controller=controller,
         compensation=compensation,
         controller_settings=own if own is not None and own.kind == controller else None,
+        **reference,
     )
     return replace(setup, settings=s)
 
@@ -664,9 +670,11 @@ def feed_note(project: Project, targets: Targets) -> str:
 def ur_feed_loop(project: Project, workpiece: Workpiece, robot: Robot, targets: Targets) -> Any:
     """The feed loop a UR program runs for the chosen CMRR controller
     (``export.urscript_feed``): the controller as the simulation designed it for this program
-    on this stock, its filter and the path acceleration; None for constant feed or without
-    machining settings."""
-    if not isinstance(project.machining_settings, MachiningSetup):
+    on this stock, its filter and the path acceleration; None for constant feed. Without
+    machining settings, the defaults' (``machining_setup_of``) with the project's CMRR: a UR
+    program of a project with CMRR settings said "CMRR: two-stage" in its header and ran plain
+    moves at the learned feeds."""
+    if project.cmrr is None and not isinstance(project.machining_settings, MachiningSetup):
         return None
     s = machining_setup_of(project).settings
     if s.controller == "constant":

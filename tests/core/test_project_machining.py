@@ -198,3 +198,21 @@ def test_status_never_runs_the_stiffness_campaign(monkeypatch):
     other_seed = core.MachiningSetup(MachiningSettings(seed=p.cell.seed + 1))
     assert core.machining_inputs_key(core.with_machining_setup(p, other_seed)) != key
     assert core.machining_inputs_key(p) == key
+
+
+@pytest.mark.slow  # the shared block demo run (tests/demo_project.py)
+@pytest.mark.parametrize("kind", ["fixed-pi", "fuzzy", "two-stage"])
+def test_a_ur_program_runs_the_cmrr_its_header_names_without_a_machining_setup(block_project, kind):
+    """A UR project with CMRR settings (``robomach demo --cmrr-settings``) but no machining
+    choice: its program.script said "CMRR: <controller>" and ran plain moves at the learned
+    feeds. It now runs the controller's feed loop (issue 29: feed control written, or
+    refused)."""
+    from robomach_core.robot import Robot
+
+    p = replace(block_project, cmrr=CmrrSettings(settings_for(kind), 80.0, 0.01, 0.1))
+    assert p.machining_settings is None and p.cell.robot.startswith("ur")
+    workpiece = core.build_workpiece(p.cell, p.mesh)
+    robot = Robot(p.cell.robot, p.tool().T_flange_tcp)
+    script = core.program_texts(p, workpiece, robot, "urscript")["program.script"]
+    assert f"# CMRR: {kind} holding 80" in script
+    assert "get_tcp_force()" in script
