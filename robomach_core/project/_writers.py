@@ -33,11 +33,16 @@ from ._value import (
 
 
 def rapid_header(
-    project: Project, workpiece_name: str, *, note: str | None = None
+    project: Project,
+    workpiece_name: str,
+    *,
+    note: str | None = None,
+    cmrr_in_program: bool = True,
 ) -> tuple[str, ...]:
     """The program's comment lines: cell, learning, reduction, CMRR and compensation; first, a
     banner for each problem that makes the program unfit to machine with (a partial run, the
-    wrong wall, an overcut: ``ProcessedPath.problems``)."""
+    wrong wall, an overcut: ``ProcessedPath.problems``). ``cmrr_in_program`` False: the
+    language carries no feed control, and the CMRR line says so instead of naming it."""
     c = project.cell
     processed = require_processed(project)
     learning = project.learned.settings
@@ -54,9 +59,15 @@ def rapid_header(
         f"{processed.settings.tolerance_m * 1e3:g} mm",
     ]
     if project.cmrr is not None:
-        lines.append(
+        cmrr = (
             f"CMRR: {project.cmrr.controller.kind}, reference {project.cmrr.reference_force_N:g} N"
         )
+        if not cmrr_in_program:
+            cmrr += (
+                " is NOT in this program: it has no force-driven feed override (its feeds are "
+                "constant per move); the position-controlled RAPID or URScript program has it"
+            )
+        lines.append(cmrr)
     if note is not None:
         lines.append(note)
     from ._machining import machining_note  # what the chosen configuration needs from the cell
@@ -65,6 +76,9 @@ def rapid_header(
     if needs is not None:
         lines.append(needs)
     return tuple(lines)
+
+
+FEEDLESS = ("krl",)  # languages robomach writes no force-driven feed control for
 
 
 def fc_module_name(module_name: str) -> str:
@@ -164,11 +178,13 @@ def program_context(
     module_name: str = DEFAULT_MODULE_NAME,
     force_control: bool = False,
     program: tuple[Targets, str | None] | None = None,
+    language: str | None = None,
 ) -> Any:
     """The ``export.languages.ProgramContext`` of the project's program: its targets
     (``program``, else ``program_targets``: IK joints, compensated in the offline modes), the
     header, the moves, the CMRR speed change (position-controlled program) or the learning
-    force (``force_control``)."""
+    force (``force_control``); ``language``: the one it is written in (KRL carries no CMRR,
+    and its header says so)."""
     from ..export.languages import ProgramContext
 
     processed = require_processed(project)
@@ -188,7 +204,16 @@ def program_context(
         workpiece=workpiece,
         robot=robot,
         moves=processed.moves,
-        comment=rapid_header(project, workpiece.name, note=note),
+        comment=rapid_header(
+            project,
+            workpiece.name,
+            note=note,
+            cmrr_in_program=not (
+                force_control
+                or language in FEEDLESS
+                or (language == "urscript" and feed_loop is None)
+            ),
+        ),
         module_name=module_name,
         force_control_N=project.learned.settings.force_N if force_control else None,
         speed_change=speed_change,
@@ -226,7 +251,7 @@ def program_texts(
         module_name = fc_module_name(module_name)
     context = program_context(
         project, workpiece, robot, module_name=module_name, force_control=force_control,
-        program=program,
+        program=program, language=lang.name,
     )  # fmt: skip
     texts = lang.write(context)
     return dict(zip(lang.file_names(force_control=force_control), texts, strict=True))

@@ -216,3 +216,25 @@ def test_a_ur_program_runs_the_cmrr_its_header_names_without_a_machining_setup(b
     script = core.program_texts(p, workpiece, robot, "urscript")["program.script"]
     assert f"# CMRR: {kind} holding 80" in script
     assert "get_tcp_force()" in script
+
+
+@pytest.mark.slow  # the shared block demo run (tests/demo_project.py)
+def test_a_program_that_carries_no_cmrr_says_so_in_its_header(block_project):
+    """The header's CMRR line named the controller in every file, also in KRL (no feed
+    control written) and in the force-controlled variant (none either): those say it is not
+    in the program; RAPID and URScript, which run it, name it."""
+    from robomach_core.robot import Robot
+
+    p = replace(block_project, cmrr=CmrrSettings(settings_for("fuzzy"), 80.0, 0.01, 0.1))
+    workpiece = core.build_workpiece(p.cell, p.mesh)
+    for arm, language, fc, carried in (
+        ("ur10", "urscript", False, True),
+        ("ur10", "urscript", True, False),
+        ("ur10", "rapid", False, True),
+        ("ur10", "krl", False, False),  # the header is the language's, not the arm's
+    ):
+        robot = Robot(arm, p.tool().T_flange_tcp)
+        texts = core.program_texts(p, workpiece, robot, language, force_control=fc)
+        text = "\n".join(texts.values())
+        line = next(ln for ln in text.splitlines() if "CMRR: fuzzy, reference 80 N" in ln)
+        assert ("NOT in this program" not in line) == carried, (arm, language, fc, line)
