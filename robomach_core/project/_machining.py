@@ -269,10 +269,16 @@ def machining_setup_of(project: Project) -> MachiningSetup:
     compensation = "off" if comp is None else EXPORT_MODE_CHOICES.get(comp.mode, "off")
     s = setup.settings
     # the CMRR's reference force (set by a study, say) is the machining's: only when it differs,
-    # so that a choice made from this setup keeps its result current
+    # so that a choice made from this setup keeps its result current; a reference over the
+    # limit brings the limit the default fraction pairs with it (a study's 200 N: 286 N)
     reference = {}
     if project.cmrr is not None and abs(project.cmrr.reference_force_N - s.reference_N) > 1e-9:
-        reference = {"reference_force_N": project.cmrr.reference_force_N}
+        f_ref = project.cmrr.reference_force_N
+        reference = {"reference_force_N": f_ref}
+        if f_ref > s.force_limit_N:
+            from ..machining.settings import DEFAULT_REFERENCE_FRACTION
+
+            reference["force_limit_N"] = f_ref / DEFAULT_REFERENCE_FRACTION
     if (s.controller, s.compensation) == (controller, compensation) and not reference:
         return setup
     own = s.controller_settings
