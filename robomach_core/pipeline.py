@@ -486,11 +486,35 @@ def compensate_program_targets(
     return _compensate(cell.robot, recording, targets, compensation)
 
 
+def _write_cad_only(project: Any, workpiece: Workpiece, out: Path) -> list[Path]:
+    """The CAD-only program's files in the languages of the learned one (none when the learned
+    path follows no wall of the mesh)."""
+    from .project import MissingResultError, cad_only_program_texts, program_languages
+    from .robot import Robot
+
+    if project.processed is None or project.processed.cad_comparison is None:
+        return []
+    robot = Robot(project.cell.robot, project.tool().T_flange_tcp)
+    written = []
+    for name_of_language in program_languages(robot):
+        try:
+            texts = cad_only_program_texts(project, workpiece, robot, name_of_language)
+        except MissingResultError:
+            return written
+        out.mkdir(exist_ok=True)
+        for name, text in texts.items():
+            (out / name).write_text(text)
+            written.append(out / name)
+    return written
+
+
 def write_demo_outputs(result: DemoResult, out_dir: str | Path) -> list[Path]:
     """Write the demo's files into ``out_dir`` (created if needed): the project's program files
     (``project.program_files``: the program in each language of the arm, e.g. program.mod and
     program_fc.mod, targets.csv, samples.csv, settings.json), summary.json, project.npz
-    (``project.save_project_file``) and workpiece.stl; returns the paths."""
+    (``project.save_project_file``), workpiece.stl and, when the learned path follows a wall
+    of the mesh, the CAD-only program in the same languages under ``cad_only/`` (the baseline
+    it is compared with, ``project.cad_only_program_texts``); returns the paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     files = dict(result.files)
@@ -506,6 +530,7 @@ def write_demo_outputs(result: DemoResult, out_dir: str | Path) -> list[Path]:
         from .project import PROJECT_FILE, save_project_file
 
         written.append(save_project_file(result.project, out / PROJECT_FILE))
+        written += _write_cad_only(result.project, result.workpiece, out / "cad_only")
     stl = out / "workpiece.stl"
     result.workpiece.mesh_in_base().export(stl)
     written.append(stl)

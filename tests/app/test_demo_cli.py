@@ -222,3 +222,22 @@ def test_bad_or_unreachable_work_object(tmp_path):
     _assert_one_line_error(
         robomach_here("demo", "--out", str(tmp_path / "o"), "--wobj", "800,160"), "x,y,z"
     )
+
+
+@pytest.mark.slow
+def test_demo_writes_the_cad_only_program_it_scored(pump_demo):
+    """The CAD-only program is written beside the learned one (issue 31: it was scored but
+    never written), in the same languages, and read back it is the program the comparison
+    scored: its targets are the comparison's CAD positions."""
+    from robomach_core.export.read_back import read_program
+    from robomach_core.project import load_project_file
+
+    folder = pump_demo / "cad_only"
+    project = load_project_file(pump_demo / "project.npz")
+    cad = np.asarray(project.processed.cad_comparison.cad_positions_m)
+    for language, suffix in (("rapid", ".mod"), ("urscript", ".script")):
+        files = {p.name: p.read_text() for p in folder.glob(f"*{suffix}")}
+        assert files, f"no CAD-only {language} program in {sorted(folder.iterdir())}"
+        path = read_program(language, files)
+        assert len(path) == len(cad)
+        assert np.abs(path.position_m - cad).max() < 1e-6, language
