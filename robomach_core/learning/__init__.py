@@ -3,10 +3,10 @@
 force (``learn_path``), the checks before and after, the guide-point planner and the scripted
 operator. docs/learning_model.md states the model and every threshold (``thresholds``)."""
 
-from .checks import GuideWarning as GuideWarning
 from .checks import TaughtWallCheck as TaughtWallCheck
 from .checks import guide_point_warnings as guide_point_warnings
 from .checks import taught_wall_check as taught_wall_check
+from .findings import GuideWarning as GuideWarning
 from .route import LearningRoute as LearningRoute
 from .route import WallSideDecision as WallSideDecision
 from .route import plan_route as plan_route

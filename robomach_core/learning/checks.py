@@ -25,7 +25,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 
@@ -34,6 +33,7 @@ from ..errors import RouteRefusedError, WallSideError
 from ..leadthrough import GuidePoint
 from ..workpiece import Workpiece
 from . import thresholds as th
+from .findings import GuideRule, GuideWarning
 from .route import (
     LearningRoute,
     PartWalls,
@@ -43,44 +43,6 @@ from .route import (
     travel_directions,
 )
 from .run import PathLearningSettings
-
-GuideRule = Literal[
-    "wall_side",
-    "route",
-    "heavy_contact",
-    "touching_without_push",
-    "far_from_wall",
-    "in_material",
-    "nearer_other_wall",
-    "against_setting",
-    "on_floor",
-    "leg_through_part",
-    "too_close",
-    "wrist_turn",
-    "joint_limit",
-    "singularity",
-    "reach",
-    "clearance",
-    "tolerance",
-]
-Severity = Literal["refusal", "warning", "info"]
-
-
-@dataclass(frozen=True)
-class GuideWarning:
-    """One finding about the guide points.
-
-    Attributes:
-        point: 1-based guide point number (as the GUIs list them); 0 for the whole route.
-        rule: Which rule (``GuideRule``).
-        message: What is wrong and what to do, for the operator.
-        severity: "refusal" (learning will not start), "warning" or "info".
-    """
-
-    point: int
-    rule: GuideRule
-    message: str
-    severity: Severity = "warning"
 
 
 def _point_findings(guides: Sequence[GuidePoint], settings: PathLearningSettings) -> list:

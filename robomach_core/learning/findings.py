@@ -1,4 +1,5 @@
-"""The check's findings as every page shows them: one line per rule, its other points named.
+"""The check's findings (``GuideWarning``: a point, its rule, the message and a severity) and
+how every page shows them: one line per rule, its other points named.
 
 The check before a run (``checks.guide_point_warnings``) finds one thing per guide point; the
 same rule broken at 14 points read as 14 lines. Every page (the workbench, the pendant, the
@@ -10,8 +11,46 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Literal
 
-from .checks import GuideWarning
+GuideRule = Literal[
+    "wall_side",
+    "route",
+    "heavy_contact",
+    "touching_without_push",
+    "far_from_wall",
+    "in_material",
+    "nearer_other_wall",
+    "against_setting",
+    "on_floor",
+    "leg_through_part",
+    "too_close",
+    "wrist_turn",
+    "joint_limit",
+    "singularity",
+    "reach",
+    "clearance",
+    "tolerance",
+]
+Severity = Literal["refusal", "warning", "info"]
+
+
+@dataclass(frozen=True)
+class GuideWarning:
+    """One finding about the guide points.
+
+    Attributes:
+        point: 1-based guide point number (as the GUIs list them); 0 for the whole route.
+        rule: Which rule (``GuideRule``).
+        message: What is wrong and what to do, for the operator.
+        severity: "refusal" (learning will not start), "warning" or "info".
+    """
+
+    point: int
+    rule: GuideRule
+    message: str
+    severity: Severity = "warning"
+
 
 SEVERITY_ORDER = {"refusal": 0, "warning": 1, "info": 2}
 

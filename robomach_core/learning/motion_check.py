@@ -30,7 +30,7 @@ import pinocchio as pin
 
 from ..errors import RobomachError
 from . import thresholds as th
-from .checks import GuideRule, GuideWarning
+from .findings import GuideRule, GuideWarning
 from .route import LearningRoute, Leg
 from .run import start_joints
 

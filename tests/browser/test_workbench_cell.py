@@ -139,7 +139,7 @@ def test_a_cell_change_leaves_nothing_of_the_old_cell_drawn_and_says_what_it_cle
 def test_each_finding_is_marked_by_its_severity_and_a_refusal_stands_out():
     from app.gui.panels.robot_wiring import findings_markdown
     from robomach_core.choices import TEXTS
-    from robomach_core.learning.checks import GuideWarning
+    from robomach_core.learning.findings import GuideWarning
 
     found = [
         GuideWarning(2, "leg_through_part", "the leg G2 -> G3 runs through the part.", "info"),
