@@ -229,8 +229,9 @@ def _straightest_start(loop: WallLoop, pick_s: float) -> float:
     """Arc length of the middle of the loop's longest stretch without corners (a closed
     loop is counted from there, so no corner straddles its start). Stretches as long within
     ``EQUAL_STRETCH_M`` (a block's two long sides) are told apart by the pick: the one whose
-    middle is nearest it along the loop, so that the proposal never depends on the vertex a
-    section's loop happens to start at."""
+    middle is nearest it along the loop, and of those as near (a pick midway between them), the
+    one whose middle comes first by x, then y; so that the proposal never depends on the
+    vertex a section's loop happens to start at."""
     groups = _corner_groups(loop)
     if not groups:
         return 0.0
@@ -246,7 +247,13 @@ def _straightest_start(loop: WallLoop, pick_s: float) -> float:
         d = (m - pick_s) % L
         return min(d, L - d)
 
-    return float(loop.wrap(np.array([min(middles, key=from_pick)]))[0])
+    nearest = min(from_pick(m) for m in middles)
+    tied = [m for m in middles if from_pick(m) <= nearest + EQUAL_STRETCH_M]
+    xy = loop.point_at(np.array(tied))
+    for axis in (0, 1):  # the least x (within EQUAL_STRETCH_M: the sampling), then y
+        keep = xy[:, axis] <= xy[:, axis].min() + EQUAL_STRETCH_M
+        tied, xy = [m for m, k in zip(tied, keep, strict=True) if k], xy[keep]
+    return float(loop.wrap(np.array([tied[0]]))[0])
 
 
 # --- the wall to follow -----------------------------------------------------------------------

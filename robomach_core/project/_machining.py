@@ -255,10 +255,11 @@ def _arm_family(robot_name: str) -> str | None:
 
 
 def machining_setup_of(project: Project) -> MachiningSetup:
-    """The project's machining setup (defaults when it holds none), its controller, reference
-    force and compensation read from the project's CMRR and compensation slots: those are what the
+    """The project's machining setup (defaults when it holds none), its controller and
+    compensation read from the project's CMRR and compensation slots: those are what the
     exports carry, so the machining choice and the CMRR settings cannot disagree (a CMRR
-    controller set another way, e.g. from a study, is the machining controller)."""
+    controller set another way, e.g. from a study, is the machining controller; without
+    machining settings, its reference force too)."""
     setup = project.machining_settings
     if not isinstance(setup, MachiningSetup):
         setup = MachiningSetup()
@@ -268,11 +269,16 @@ def machining_setup_of(project: Project) -> MachiningSetup:
     comp = project.compensation
     compensation = "off" if comp is None else EXPORT_MODE_CHOICES.get(comp.mode, "off")
     s = setup.settings
-    # the CMRR's reference force (set by a study, say) is the machining's: only when it differs,
-    # so that a choice made from this setup keeps its result current; a reference over the
-    # limit brings the limit the default fraction pairs with it (a study's 200 N: 286 N)
+    # without machining settings, the CMRR's reference force (a study's, --cmrr-settings) is the
+    # machining's; a reference over the limit brings the limit the default fraction pairs with
+    # it (a study's 200 N: 286 N). With them, their reference rules (a choice copies it).
     reference = {}
-    if project.cmrr is not None and abs(project.cmrr.reference_force_N - s.reference_N) > 1e-9:
+    own_settings = isinstance(project.machining_settings, MachiningSetup)
+    if (
+        project.cmrr is not None
+        and not own_settings
+        and abs(project.cmrr.reference_force_N - s.reference_N) > 1e-9
+    ):
         f_ref = project.cmrr.reference_force_N
         reference = {"reference_force_N": f_ref}
         if f_ref > s.force_limit_N:
