@@ -434,7 +434,9 @@ def run(args: argparse.Namespace) -> int:
         f"run               {s['stop_reason']}; {s['sim_time_s']:.1f} s simulated in "
         f"{s['learning_wall_time_s']:.1f} s (x{s['realtime_factor']:.0f} real time)"
     )
-    print(f"wrote             {', '.join(p.name for p in paths)} in {args.out}")
+    out = Path(args.out)
+    names = [p.relative_to(out).as_posix() if p.is_relative_to(out) else p.name for p in paths]
+    print(f"wrote             {', '.join(names)} in {args.out}")
     for problem in s.get("problems") or ():
         print(f"NOT FIT TO MACHINE: {problem}", file=sys.stderr)
     return 0 if result.recording.completed and not s.get("problems") else 1
