@@ -15,8 +15,10 @@ one with other settings or a project of a test's own.
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 import pytest
 
@@ -41,6 +43,13 @@ def _is_worker(config: pytest.Config) -> bool:
 def pytest_configure(config: pytest.Config) -> None:
     if not _is_worker(config) and demo_project.FOLDER_VARIABLE not in os.environ:
         config.stash[_OWN_DEMOS] = demo_project.demos_root()
+    if _is_worker(config) and "numba" not in sys.modules:
+        # Each worker its own numba cache (its subprocesses share it): two workers compiling
+        # the same kernel at once wrote its cache index and data as two files, and a cold run
+        # twice read one worker's index with the other's data ("NRT_adapt_ndarray_to_python:
+        # 'descr' is NULL" in test_kernels; numba issue 10128). Kept between runs.
+        base = Path(os.environ.get("NUMBA_CACHE_DIR") or Path(__file__).parents[1] / ".numba-cache")
+        os.environ["NUMBA_CACHE_DIR"] = str(base / config.workerinput["workerid"])
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
