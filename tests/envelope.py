@@ -103,7 +103,12 @@ def run_tilted_case(how: str, kind: str, source: str, rng: np.random.Generator) 
     person's 14 points (``source="hand"``) or by pointing at the wall ("proposal"), learned;
     the problems are what the acceptance forbids: not learned whole, farther than 0.25 mm from
     the true wall, off the taught height, or proposed points not beside the wall."""
-    part = tilted_part(kind, rng, how)
+    return learn_tilted(tilted_part(kind, rng, how), source, rng)
+
+
+def learn_tilted(part: EnvelopePart, source: str, rng: np.random.Generator) -> TiltedRun:
+    """A wall of the tilted ``part`` drawn, taught by hand ("hand") or by pointing
+    ("proposal") and learned (``run_tilted_case``)."""
     wall = str(rng.choice(list(part.walls)))
     seed = int(rng.integers(2**31))
     label = f"{part.description}, wall '{wall}', {source}"

@@ -16,7 +16,7 @@ import zlib
 import numpy as np
 import pytest
 
-from robomach_core.errors import RobomachError, RouteRefusedError
+from robomach_core.errors import RouteRefusedError
 from robomach_core.pipeline import DemoSettings, run_demo
 from robomach_core.teaching.operator import TOOL_DOWN
 from tests.envelope import (
@@ -28,8 +28,8 @@ from tests.envelope import (
     run_seed,
 )
 from tests.envelope_parts import tilted
-from tests.learning_outcome import Outcome, as_set, judge, learn_set, within_the_wall
-from tests.people_points import PeopleSet, hand_points, people_points, place_points
+from tests.learning_outcome import Outcome, as_set, judge, learn_set
+from tests.people_points import PeopleSet, people_points, place_points
 
 SEED = run_seed()
 BOTH_WALLS = re.compile(r"\bboth\b|\btwo walls\b|\bbetween\b", re.IGNORECASE)
@@ -98,32 +98,12 @@ def test_a_plate_tilted_15_deg_in_the_mesh_is_learned_with_the_tool_vertical(sou
     with 14 points: it stopped 27 mm into the second leg (6 % of the wall); pointing at it
     proposed 11 points on a horizontal section and stopped 35 mm off. Now: 100 % of the wall
     within 0.25 mm, at the taught height (the tilt's azimuth and the start drawn per run)."""
-    from tests.learning_outcome import fresh_cell, proposal_set
+    from tests.envelope import learn_tilted
 
     rng = _rng("tilted 15", source)
     part = tilted(part_named("grooved_plate"), 15.0, float(rng.uniform(0, 360)), "mesh")
-    wall = str(rng.choice(["outer", "island"]))
-    seed = int(rng.integers(2**31))
-    if source == "14 points":
-        cell = part.cell(seed)
-        pset = hand_points(part, cell, rng, wall=wall, n=14)
-        outcome, _ = learn_set(part, cell, pset)
-    else:
-        s = float(rng.uniform(0.0, part.walls[wall].length_mm))
-        try:
-            pset, state, estimator, _ = proposal_set(part, seed, wall, s_mm=s)
-        except RobomachError as exc:
-            pytest.fail(f"{replay(SEED)}: pointing at {part.description}: {exc}")
-        off = within_the_wall(pset, part, part.workpiece(seed), 1.0)
-        if off:  # a proposal follows the wall, between its floor and its top
-            pytest.fail(
-                f"{replay(SEED)}: proposed points {off} not beside the wall\n{pset.description}"
-            )
-        outcome, _ = learn_set(part, fresh_cell(part, seed), pset, state=state, estimator=estimator)
-    m = outcome.measure
-    why = f"{replay(SEED)}: {outcome.line()}\n{pset.description}"
-    _check(outcome.kind == "learned", why)
-    _check(m.dev_mm <= GRID_WITHIN_MM and m.height_mm <= HEIGHT_MM, why)
+    run = learn_tilted(part, "hand" if source == "14 points" else "proposal", rng)
+    _check(not run.problems, f"{replay(SEED)}: {'; '.join(run.problems)}\n{run.description}")
 
 
 # --- why 3: points resting on the floor ------------------------------------------------------
