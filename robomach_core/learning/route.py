@@ -247,6 +247,19 @@ class PartWalls:
         along = float(n @ (corner - point)) / float(n @ direction)
         return float(n @ direction) < 0.0 and 0.0 <= along <= reach
 
+    def along_floor(self, point: np.ndarray, direction: np.ndarray) -> np.ndarray:
+        """``direction`` (across the axis) turned into the plane of the floor under ``point``:
+        the way the cutter moves there. On a tilted floor a ray straight across the axis
+        leaves the groove through its floor, under the walls it was cast at; unchanged where
+        no floor is below."""
+        _, normal = self.floor(point[None])
+        n = normal[0]
+        cos = float(n @ self.axis)
+        if abs(cos) < th.WALL_FACE_MAX_COS:  # no floor (zero normal)
+            return direction
+        tilted = direction - self.axis * (float(direction @ n) / cos)
+        return tilted / float(np.linalg.norm(tilted))
+
     def across_ray(self, point: np.ndarray, direction: np.ndarray) -> float:
         """Distance [m] from ``point`` to the first wall along ``direction`` (inf: none)."""
         if self.walls is None:
@@ -294,9 +307,10 @@ class PartWalls:
             # it stands over); else the first wall straight that way
             if nearest_ok and float(rel @ towards) > 0.0:
                 return closest[0]
-        d = self.across_ray(point, towards)
+        way = self.along_floor(point, towards)
+        d = self.across_ray(point, way)
         if d <= reach_m:
-            return point + towards * d
+            return point + way * d
         # no wall at all that way (a leg cutting across a concave stretch turns "that way" off
         # the wall): the wall the point stands by
         return closest[0] if nearest_ok and math.isinf(d) else None
