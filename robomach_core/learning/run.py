@@ -50,7 +50,7 @@ from .law import (
     law_parameters,
     route_height,
 )
-from .route import LearningRoute, LegEnd
+from .route import LearningRoute, Leg, LegEnd
 from .settings import PathLearningSettings
 
 
@@ -360,10 +360,7 @@ def learn_path(
     step, turn = np.zeros(3), np.zeros(3)
     k = 0
     leg, row = legs[0], rows[0]
-    end = LegEnd(
-        leg, axis, last=len(legs) == 1, closed=route.closed, tool_radius_m=cell.tool.radius_m
-    )
-    guard = _Protections.of_leg(route, 0, settings, cell.tool.radius_m)
+    end, guard = _leg_watch(route, 0, settings, cell.tool.radius_m)
     leg_travel = 0.0
     t0 = state.time_s
     stop_reason, stop_cause, completed = "reached the last guide point", "", False
@@ -416,14 +413,7 @@ def learn_path(
                 break
             k += 1
             leg, row = legs[k], rows[k]
-            end = LegEnd(
-                leg,
-                axis,
-                last=k + 1 == len(legs),
-                closed=route.closed,
-                tool_radius_m=cell.tool.radius_m,
-            )
-            guard = _Protections.of_leg(route, k, settings, cell.tool.radius_m)
+            end, guard = _leg_watch(route, k, settings, cell.tool.radius_m)
             leg_travel = 0.0
         since_ref += travelled
         if since_ref >= th.REFERENCE_SPACING_M:
@@ -439,18 +429,45 @@ def learn_path(
         progress(1.0)
     if completed:
         return _recording(record[:n], route, settings, stop_reason, None), state
-    rec = record[:n]
+    stop, stop_reason = _stop_at(
+        record[:n], T_ref, leg, leg_travel, route, stop_cause or "stopped", stop_reason
+    )
+    return _recording(record[:n], route, settings, stop_reason, stop), state
+
+
+def _leg_watch(
+    route: LearningRoute, k: int, settings: PathLearningSettings, tool_radius_m: float
+) -> tuple[LegEnd, _Protections]:
+    """Leg ``k``'s end rule and protections, watched from its start."""
+    last = k + 1 == len(route.legs)
+    end = LegEnd(
+        route.legs[k], route.axis, last=last, closed=route.closed, tool_radius_m=tool_radius_m
+    )
+    return end, _Protections.of_leg(route, k, settings, tool_radius_m)
+
+
+def _stop_at(
+    rec: np.ndarray,
+    T_ref: np.ndarray,
+    leg: Leg,
+    leg_travel_m: float,
+    route: LearningRoute,
+    cause: str,
+    reason: str,
+) -> tuple[LearningStop, str]:
+    """Where and why a run that did not reach its last guide point stopped: the place, the
+    leg, how far along it, and what the wall does there, said after the ``reason``."""
+    n = len(rec)
     p_stop = rec[-1, REC_POSITION : REC_POSITION + 3].copy() if n else T_ref[:3, 3].copy()
     leg_numbers = (leg.first + 1, leg.last + 1)
     positions, yps = rec[:, REC_POSITION : REC_POSITION + 3], rec[:, REC_YP : REC_YP + 3]
-    wall = _wall_turn(yps, positions, n, side, axis)
-    stop = LearningStop(stop_cause or "stopped", p_stop, leg_numbers, leg_travel, wall)
-    stop_reason = (
-        f"{stop_reason}. It stopped at t = {rec[-1, REC_TIME] if n else 0.0:.2f} s, "
-        f"{leg_travel * 1e3:.0f} mm along the leg G{leg_numbers[0]} -> G{leg_numbers[1]}, "
+    wall = _wall_turn(yps, positions, n, route.wall_side.sign, route.axis)
+    stop = LearningStop(cause, p_stop, leg_numbers, leg_travel_m, wall)
+    return stop, (
+        f"{reason}. It stopped at t = {rec[-1, REC_TIME] if n else 0.0:.2f} s, "
+        f"{leg_travel_m * 1e3:.0f} mm along the leg G{leg_numbers[0]} -> G{leg_numbers[1]}, "
         f"where {wall}."
     )
-    return _recording(rec, route, settings, stop_reason, stop), state
 
 
 def _start(
