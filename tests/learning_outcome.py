@@ -7,11 +7,13 @@ between them) is then measured against the part's true walls in the part's own f
 
 Classes:
     learned         completed, every program point within 0.3 mm of the taught wall, the whole
-                    taught stretch covered, and no problem (fine)
+                    taught stretch covered, at each guide point within 3 mm of its taught
+                    height, and no problem (fine)
     refused         ``RouteRefusedError`` (a ``WallSideError`` is one) from ``learn``, before
                     any motion, with a reason (fine)
     stopped         learning ended early (the program is partial and says so)
-    off wall, flagged  completed but off the taught wall, and NOT FIT says so
+    off wall, flagged  completed but off the taught wall (or its height at a point), and NOT
+                    FIT says so
     error           another error from a stage
     wrong passed    FAILURE: off the taught wall (or not covering it) with no problem: a wrong
                     program that passes (another wall, the floor, a slot's closing leg)
@@ -39,6 +41,9 @@ from tests.envelope_parts import EnvelopePart, TrueWall
 from tests.people_points import PeopleSet
 
 WITHIN_MM = 0.3  # the acceptance: within 0.3 mm of the taught wall
+AT_POINT_HEIGHT_MM = 3.0  # ... at each guide point within this of its taught height (a floor
+# step of 2 mm the route climbs ahead of its riser, + margin): the taught wall is where it was
+# taught, not the same wall 7 mm higher
 COVER_MM = 0.6  # a wall vertex is covered when a program point is within r + this (across)
 END_MARGIN_MM = 2.0  # an open stretch's ends (a point's foot, the run's start) are not scored
 SAMPLE_MM = 0.05  # program points along each move
@@ -55,6 +60,8 @@ class Measure:
         coverage: Fraction of the taught stretch's wall within r + COVER_MM of the program.
         height_mm: Largest height error against the points' heights interpolated along the
             wall (part frame), over the program points on the taught stretch.
+        at_points_mm: Largest height error at the guide points themselves: the program's
+            height where its foot on the wall is nearest each point's, against the point's.
         nearest: The wall the program runs along (smallest median |distance - r|) and its
             largest deviation.
         worst_at_mm: Part-frame position of the worst point (x, y, z).
@@ -65,6 +72,7 @@ class Measure:
     height_mm: float
     nearest: tuple[str, float]
     worst_at_mm: tuple[float, float, float]
+    at_points_mm: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -97,7 +105,8 @@ class Outcome:
             out.append(
                 f"{m.dev_mm:.3f} mm from the taught wall (worst at "
                 f"{', '.join(f'{v:.1f}' for v in m.worst_at_mm)}), {m.coverage:.1%} covered, "
-                f"height within {m.height_mm:.2f} mm, runs along {m.nearest[0]!r} "
+                f"height within {m.height_mm:.2f} mm ({m.at_points_mm:.2f} mm at the points), "
+                f"runs along {m.nearest[0]!r} "
                 f"({m.nearest[1]:.3f} mm)"
             )
         if self.wall_side:
@@ -147,6 +156,7 @@ def measure_program(
     else:
         coverage = 1.0
     height = _height_error(wall, pset, p, stretch)
+    at_points = _height_at_points(wall, pset, p)
     medians = {
         name: float(np.median(np.abs(w.signed_distance(p)[0] - r_mm)))
         for name, w in part.walls.items()
@@ -159,6 +169,7 @@ def measure_program(
         height,
         (nearest, nearest_dev),
         tuple(float(v) for v in p[worst]),
+        at_points,
     )
 
 
@@ -182,11 +193,31 @@ def _height_error(wall: TrueWall, pset: PeopleSet, p: np.ndarray, stretch: np.nd
     return float(np.max(np.abs(p[on, 2] - h)))
 
 
+def _height_at_points(wall: TrueWall, pset: PeopleSet, p: np.ndarray) -> float:
+    """Largest |program height - taught height| at the guide points: at each point's foot on
+    the wall, the program point whose foot is nearest along the wall (0: no points)."""
+    if not len(pset.s_mm):
+        return 0.0
+    s_prog = wall.cumulative_mm[wall.nearest(p[:, :2])]
+    worst = 0.0
+    for s_k, h_k in zip(pset.s_mm, pset.heights_mm, strict=True):
+        gap = np.abs(s_prog - s_k)
+        if wall.closed:
+            gap = np.minimum(gap, wall.length_mm - gap)
+        near = gap <= gap.min() + SAMPLE_MM
+        worst = max(worst, float(np.min(np.abs(p[near, 2] - h_k))))
+    return worst
+
+
 def classify(measure: Measure, completed: bool, problems: tuple[str, ...]) -> str:
     """The class of a learned program (module docstring)."""
     if not completed:
         return "stopped" if problems else "wrong passed"
-    within = measure.dev_mm <= WITHIN_MM and measure.coverage >= 1.0
+    within = (
+        measure.dev_mm <= WITHIN_MM
+        and measure.coverage >= 1.0
+        and measure.at_points_mm <= AT_POINT_HEIGHT_MM
+    )
     if within:
         return "good condemned" if problems else "learned"
     return "off wall, flagged" if problems else "wrong passed"

@@ -296,24 +296,64 @@ class PartWalls:
         """The wall point a point at ``point`` faces in direction ``towards`` (across the
         axis): its nearest wall point when that lies that way, else the first wall along it;
         None when none is within ``reach_m``."""
-        closest, dist = self.nearest(point[None])
+        closest, dist, face = self._nearest_on_walls(point)
         nearest_ok = False
-        if math.isfinite(dist[0]):
-            rel3 = closest[0] - point
-            below = float(rel3 @ self.axis) > th.OVER_TOP_SIN * float(np.linalg.norm(rel3))
+        if math.isfinite(dist):
+            rel3 = closest - point
             rel = rel3 - self.axis * float(rel3 @ self.axis)
-            nearest_ok = not below and float(np.linalg.norm(rel)) > 1e-9 and dist[0] <= reach_m
-            # the nearest wall when it lies that way and not under the cutter (a step's edge
-            # it stands over); else the first wall straight that way
+            # the foot on a wall face: a wall standing at the point's height, not the edge of
+            # one below it (a floor step's riser) nor a corner's
+            on_face = -float(rel3 @ face) >= th.FOOT_ON_FACE_COS * float(np.linalg.norm(rel3))
+            nearest_ok = on_face and float(np.linalg.norm(rel)) > 1e-9 and dist <= reach_m
+            # the nearest wall when it lies that way; else the first wall that way
             if nearest_ok and float(rel @ towards) > 0.0:
-                return closest[0]
-        way = self.along_floor(point, towards)
-        d = self.across_ray(point, way)
+                return closest
+        hit, d = self._first_wall_that_way(point, towards)
         if d <= reach_m:
-            return point + way * d
+            return hit
         # no wall at all that way (a leg cutting across a concave stretch turns "that way" off
         # the wall): the wall the point stands by
-        return closest[0] if nearest_ok and math.isinf(d) else None
+        return closest if nearest_ok and math.isinf(d) else None
+
+    def _first_wall_that_way(
+        self, point: np.ndarray, towards: np.ndarray
+    ) -> tuple[np.ndarray, float]:
+        """The nearest wall point met by a fan of rays within ``FAN_HALF_ANGLE_RAD`` of
+        ``towards``, each along the floor, on a wall facing back across ``towards``, and its
+        distance [m] (inf: none). One ray straight
+        that way misses the wall where the travel is a chord round a corner (an open route's
+        first point: the way to the next point, round the corner, turns "that way" along the
+        groove)."""
+        if self.walls is None:
+            return np.full(3, np.nan), math.inf
+        way = self.along_floor(point, towards)
+        side = np.cross(self.axis, way)
+        angles = np.linspace(-th.FAN_HALF_ANGLE_RAD, th.FAN_HALF_ANGLE_RAD, th.FAN_RAYS)
+        fan = np.cos(angles)[:, None] * way + np.sin(angles)[:, None] * side
+        fan = np.array([self.along_floor(point, f) for f in fan]) if len(fan) > 1 else fan
+        hits, _, tri = mesh_query.ray_hits(
+            self.walls, np.repeat(((point - self.t) @ self.R)[None], len(fan), 0), fan @ self.R
+        )
+        # a wall on that side faces back across it (its normal against ``towards``): the wall
+        # across the groove, met by a ray swung towards it, faces the other way
+        normals = np.asarray(self.walls.face_normals)[tri] @ self.R.T
+        hits = hits[normals @ towards < 0.0]
+        if not len(hits):
+            return np.full(3, np.nan), math.inf
+        hits = hits @ self.R.T + self.t
+        d = np.linalg.norm(hits - point, axis=1)
+        k = int(np.argmin(d))
+        return hits[k], float(d[k])
+
+    def _nearest_on_walls(self, point: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+        """The nearest wall point to ``point``, its distance [m] (inf: no walls) and the unit
+        normal of the wall face it lies on (base frame)."""
+        if self.walls is None:
+            return np.full(3, np.nan), math.inf, np.zeros(3)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            c, d, tri = mesh_query.closest_point(self.walls, ((point - self.t) @ self.R)[None])
+        normal = self.R @ np.asarray(self.walls.face_normals)[tri[0]]
+        return c[0] @ self.R.T + self.t, float(d[0]), normal
 
     def floor(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The floor below each point (k, 3): its height along the axis [m] (nan where no
