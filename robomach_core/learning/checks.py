@@ -290,6 +290,7 @@ def taught_wall_check(
     heights = np.array([g.position_m @ axis for g in guides])
     n = len(guides)
     checked, missed, worst = [], [], 0.0
+    off_height: dict[int, float] = {}  # missed points the program passes at another height
     for k, wall_point in enumerate(points):
         if wall_point is None:
             continue
@@ -312,6 +313,10 @@ def taught_wall_check(
         worst = max(worst, gap)
         if gap > th.TAUGHT_WALL_TOLERANCE_M:
             missed.append(k + 1)
+            d_any = np.linalg.norm(across - foot, axis=1)
+            j = int(np.argmin(d_any))
+            if d_any[j] - tool_radius_m <= th.TAUGHT_WALL_TOLERANCE_M:
+                off_height[k + 1] = float(h - path_height[j])  # > 0: above (axis into part)
     if not checked:
         return TaughtWallCheck(True, (), (), 0.0, "no taught wall found in the part's mesh")
     if missed and samples_m is not None and tolerance_m is not None and len(samples_m) >= 2:
@@ -329,7 +334,17 @@ def taught_wall_check(
                 "wall)"
             )
             return TaughtWallCheck(False, tuple(checked), tuple(missed), worst, message)
-    if missed:
+    if missed and set(missed) <= set(off_height):
+        k = max(missed, key=lambda m: abs(off_height[m]))
+        where = ", ".join(f"G{m}" for m in missed)
+        up = "above" if off_height[k] > 0 else "below"
+        message = (
+            f"the program passes the wall taught at {where} (on the {side}) at another height: "
+            f"{abs(off_height[k]) * 1e3:.1f} mm {up} the height taught at G{k}; a point "
+            "taught much higher or lower than its neighbours close by asks for a climb the run "
+            "takes late: teach it nearer their height, or farther from them"
+        )
+    elif missed:
         where = ", ".join(f"G{k}" for k in missed)
         message = (
             f"the program does not follow the wall taught at {where} (on the {side}; it passes "

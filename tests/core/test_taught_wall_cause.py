@@ -59,3 +59,33 @@ def test_the_check_before_the_run_names_a_tolerance_past_the_taught_walls_margin
         said = [f for f in found if f.rule == "tolerance"]
         assert bool(said) == (tolerance_mm > 1.0), f"{replay(SEED)}: {tolerance_mm:.3f} mm"
         assert all(f.severity == "warning" and "cut that far across" in f.message for f in said)
+
+
+def test_a_program_on_the_taught_wall_at_another_height_is_named_so(demo):
+    """A program that passes a guide point's wall point across the axis, but well above the
+    height taught there (a steep climb the run took late), is not "another wall": the check
+    says the height, by how much and at which point (a fresh point and lift each run)."""
+    from robomach_core.learning.checks import taught_wall_check
+
+    project = demo.project
+    rng = np.random.default_rng([SEED, 3])
+    guides = project.guide_points
+    k = int(rng.integers(1, len(guides) - 1))
+    lift_m = float(rng.uniform(0.006, 0.009))  # past the 5 mm band the check measures in
+    pos = np.array(project.processed.result.targets.position_m, dtype=float)
+    near = np.linalg.norm(pos[:, :2] - guides[k].position_m[:2], axis=1) < 0.02
+    pos[near, 2] += lift_m
+    check = taught_wall_check(
+        demo.workpiece,
+        project.cell.tool_radius_m,
+        guides,
+        project.learned.recording.wall_side,
+        pos,
+        closed=project.learned.settings.closed,
+        lifted_m=project.learned.recording.guide_lift_m,
+    )
+    where = f"{replay(SEED)}: G{k + 1} lifted {lift_m * 1e3:.1f} mm: {check.message}"
+    assert not check.follows and k + 1 in check.missed, where
+    assert "at another height" in check.message and "another wall" not in check.message, where
+    said = float(check.message.split(" mm above")[0].rsplit(" ", 1)[1])
+    assert abs(said - lift_m * 1e3) < 1.0, where
