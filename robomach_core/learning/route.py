@@ -76,21 +76,25 @@ class Leg:
 
 
 def route_legs(guides: Sequence[GuidePoint], closed: bool) -> list[Leg]:
-    """The legs through ``guides`` in order (back to the first when ``closed``). Two points
-    less than ``MIN_SPACING_M`` apart across the tool axis (one above the other) give no leg:
-    the route goes on from the second, at its height."""
+    """The legs through ``guides`` in order (back to the first when ``closed``), each measured
+    across the tool axis (its direction and length: the progress along a leg, which sets the
+    route's height, must not move with the tool's own height; along a leg steeper than it is
+    long, progress measured in 3D held the tool at whatever height it had). Two points less
+    than ``MIN_SPACING_M`` apart across the axis (one above the other) give no leg: the route
+    goes on from the second, at its height."""
     axis = mean_tool_axis(guides)
     order = list(range(len(guides))) + ([0] if closed else [])
     legs = []
     for i0, i1 in zip(order[:-1], order[1:], strict=True):
         a, b = guides[i0].position_m.copy(), guides[i1].position_m.copy()
         d = b - a
-        if float(np.linalg.norm(d - axis * float(d @ axis))) < th.MIN_SPACING_M:
+        across = d - axis * float(d @ axis)
+        length = float(np.linalg.norm(across))
+        if length < th.MIN_SPACING_M:
             continue
-        length = float(np.linalg.norm(d))
         Ra = matrix_from_quaternion(guides[i0].quaternion_wxyz)
         Rb = matrix_from_quaternion(guides[i1].quaternion_wxyz)
-        legs.append(Leg(a, b, length, d / length, Ra, pin.log3(Ra.T @ Rb), i0, i1))
+        legs.append(Leg(a, b, length, across / length, Ra, pin.log3(Ra.T @ Rb), i0, i1))
     return legs
 
 
