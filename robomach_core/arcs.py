@@ -15,8 +15,8 @@ SOLUTION  ``fit_arcs(points, tolerance) -> tuple[Piece, ...]`` in sample indices
           ``arc_targets(targets, surface_m, keep_mask, tolerance)`` turns them into a program:
           new ``Targets`` at the pieces' ends and via points, and the ``Move`` sequence that
           both ``export.rapid`` and ``export.urscript`` emit. ``sample_moves`` draws the moves
-          and ``score_moves`` scores them against the true wall as ``scoring.score_path``
-          scores the straight program.
+          (``scoring.score_moves`` scores them against the true wall as ``scoring.score_path``
+          scores the straight program).
 
 Measured on the water pump (UR10 demo, seed 0, 31073 filtered samples; the straight program
 at 0.2 mm has 126 MoveL, 0.226 mm max and 0.119 mm RMS from the true tool path): arc
@@ -28,7 +28,7 @@ has 60 fillets joined by 60 lines, so a program that stays within 0.1 mm needs a
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -36,9 +36,7 @@ import numpy as np
 
 from .errors import InvalidInputError
 from .postprocess import Targets
-from .scoring import SCORE_SPACING_M, PathScore, true_tool_path_distance
 from .transforms import slerp
-from .workpiece import Workpiece
 
 MAX_SWEEP_DEG = 180.0  # ABB: keep a MoveC well under 240 deg with the via point near the middle
 MIN_ARC_SAMPLES = 5  # fewer samples cannot tell an arc from a chord
@@ -319,45 +317,3 @@ def _arc_points(a: np.ndarray, via: np.ndarray, b: np.ndarray, spacing_m: float)
     n = max(2, int(math.ceil(radius * sweep / spacing_m)) + 1)
     angle = np.linspace(0.0, sweep, n)[1:]
     return centre + radius * (np.cos(angle)[:, None] * x_axis + np.sin(angle)[:, None] * y_axis)
-
-
-def score_moves(
-    workpiece: Workpiece, tool_radius_m: float, positions_m: np.ndarray, moves: Sequence[Move]
-) -> PathScore:
-    """Deviation of the moved path (lines and arcs) from the true tool path, like
-    ``scoring.score_path`` for the straight program (built-in parts with a known wall)."""
-    return score_sampled_moves(
-        lambda points: true_tool_path_distance(workpiece, tool_radius_m, points),
-        positions_m,
-        moves,
-        spacing_m=SCORE_SPACING_M,
-    )
-
-
-def score_sampled_moves(
-    deviation: Callable[[np.ndarray], np.ndarray],
-    positions_m: np.ndarray,
-    moves: Sequence[Move],
-    *,
-    spacing_m: float,
-) -> PathScore:
-    """Score a move sequence by ``deviation`` (points (k, 3) [m] -> (k,) [m], signed or not)
-    of its path sampled every ``spacing_m`` and of the targets it uses (the truth is the
-    caller's: the known wall, or the mesh). Max and RMS are of the deviation's size; a signed
-    deviation's most negative value is the overcut, its most positive the air."""
-    pts = np.asarray(positions_m, dtype=float)
-    path = sample_moves(pts, moves, spacing_m=spacing_m)
-    dev = deviation(path)
-    used = sorted({m.to for m in moves} | {m.via for m in moves if m.via is not None})
-    at_targets = deviation(pts[used])
-    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
-    return PathScore(
-        max_m=float(np.abs(dev).max()),
-        rms_m=float(np.sqrt(np.mean(dev**2))),
-        targets_max_m=float(np.abs(at_targets).max()),
-        targets_rms_m=float(np.sqrt(np.mean(at_targets**2))),
-        along_s_m=along,
-        deviation_m=dev,
-        overcut_m=float(max(0.0, -dev.min())),
-        air_m=float(max(0.0, dev.max())),
-    )

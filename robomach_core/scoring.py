@@ -8,10 +8,12 @@ where the built-in walls are vertical.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from .arcs import Move, sample_moves
 from .errors import InvalidInputError
 from .workpiece import Workpiece
 
@@ -89,4 +91,46 @@ def score_path(
         along_s_m=np.concatenate(along),
         deviation_m=dev,
         air_m=float(dev.max()),
+    )
+
+
+def score_moves(
+    workpiece: Workpiece, tool_radius_m: float, positions_m: np.ndarray, moves: Sequence[Move]
+) -> PathScore:
+    """Deviation of the moved path (lines and arcs) from the true tool path, like
+    ``scoring.score_path`` for the straight program (built-in parts with a known wall)."""
+    return score_sampled_moves(
+        lambda points: true_tool_path_distance(workpiece, tool_radius_m, points),
+        positions_m,
+        moves,
+        spacing_m=SCORE_SPACING_M,
+    )
+
+
+def score_sampled_moves(
+    deviation: Callable[[np.ndarray], np.ndarray],
+    positions_m: np.ndarray,
+    moves: Sequence[Move],
+    *,
+    spacing_m: float,
+) -> PathScore:
+    """Score a move sequence by ``deviation`` (points (k, 3) [m] -> (k,) [m], signed or not)
+    of its path sampled every ``spacing_m`` and of the targets it uses (the truth is the
+    caller's: the known wall, or the mesh). Max and RMS are of the deviation's size; a signed
+    deviation's most negative value is the overcut, its most positive the air."""
+    pts = np.asarray(positions_m, dtype=float)
+    path = sample_moves(pts, moves, spacing_m=spacing_m)
+    dev = deviation(path)
+    used = sorted({m.to for m in moves} | {m.via for m in moves if m.via is not None})
+    at_targets = deviation(pts[used])
+    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    return PathScore(
+        max_m=float(np.abs(dev).max()),
+        rms_m=float(np.sqrt(np.mean(dev**2))),
+        targets_max_m=float(np.abs(at_targets).max()),
+        targets_rms_m=float(np.sqrt(np.mean(at_targets**2))),
+        along_s_m=along,
+        deviation_m=dev,
+        overcut_m=float(max(0.0, -dev.min())),
+        air_m=float(max(0.0, dev.max())),
     )

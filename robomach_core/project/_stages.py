@@ -160,9 +160,9 @@ def _scores(
     rec = learned.recording
     score = mesh = taught = None
     if len(result.targets) >= 2:
-        from ..arcs import score_moves
         from ..learning.checks import taught_wall_check
         from ..mesh_score import score_mesh
+        from ..scoring import score_moves
         from ..transforms import matrices_from_quaternions
 
         pos = result.targets.position_m

@@ -165,8 +165,7 @@ def test_bad_input_is_a_clear_error():
 
 
 def test_score_moves_of_the_straight_program_is_score_path():
-    from robomach_core.arcs import score_moves
-    from robomach_core.scoring import score_path
+    from robomach_core.scoring import score_moves, score_path
 
     pump = builtin_workpiece("water_pump")
     xy = pump.wall.offset(0.001).sample(0.004)[:40]
