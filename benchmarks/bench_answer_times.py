@@ -111,7 +111,8 @@ def event_latencies_s(repeats: int) -> list[float]:
 
 
 def big_obj_refusal() -> None:
-    from robomach_core.workpiece import MeshFileError, mesh_from_bytes
+    from robomach_core.part import mesh_from_bytes
+    from robomach_core.part.workpiece import MeshFileError
 
     data = b"v 0 0 0\nv 10 0 0\nv 0 10 0\n" + b"f 1 2 3\n" * 6_000_000
     with contextlib.suppress(MeshFileError):

@@ -41,9 +41,9 @@ from robomach_core.machining import (  # noqa: E402
 )
 from robomach_core.machining.parallel import default_workers  # noqa: E402
 from robomach_core.machining.run import cut_program  # noqa: E402
+from robomach_core.part import builtin_workpiece  # noqa: E402
 from robomach_core.robot import Robot  # noqa: E402
 from robomach_core.tool import Tool  # noqa: E402
-from robomach_core.workpiece import builtin_workpiece  # noqa: E402
 
 
 def main() -> None:

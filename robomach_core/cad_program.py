@@ -33,9 +33,9 @@ import numpy as np
 import shapely
 
 from .learning.walls import WallLoop, floor_under, section_loops
-from .mesh_query import transformed
+from .part import Workpiece
+from .part.mesh_query import transformed
 from .postprocess import reduce_deviation_height
-from .workpiece import Workpiece
 
 # Every 0.1 mm along the moves: between targets the error is a smooth chord sagitta, whose
 # maximum a 0.1 mm sampling misses by well under a micrometre on millimetre-long chords.

@@ -81,13 +81,13 @@ def enums() -> dict[str, tuple[str, ...]]:
     from .learning.settings import WALL_SIDE_CHOICES
     from .machining import COMPENSATION_NAMES
     from .machining.choice import OPTION_NAMES
+    from .part import WORKPIECE_NAMES
     from .project import StageStatus
     from .project._machining import STOCK_SOURCES
     from .robot import ROBOT_NAMES
     from .robots.builtin import ARM_FAMILIES
     from .stiffness.settings import COMPENSATION_SETTINGS
     from .stiffness.studies import StudyName
-    from .workpiece import WORKPIECE_NAMES
 
     return {
         "cmrr_controller": tuple(CONTROLLER_NAMES),

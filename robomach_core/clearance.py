@@ -20,9 +20,8 @@ from typing import NamedTuple
 import coal
 import numpy as np
 
-from .bvh import bvh_from_mesh
+from .part import Workpiece, bvh_from_mesh
 from .tool import Tool
-from .workpiece import Workpiece
 
 
 class Gap(NamedTuple):

@@ -29,9 +29,8 @@ import coal
 import numpy as np
 
 from . import _kernels
-from .bvh import bvh_from_mesh
+from .part import Workpiece, bvh_from_mesh
 from .tool import Tool
-from .workpiece import Workpiece
 
 CONTACT_DAMPING_N_S_M = 100.0
 MAX_CONTACTS = 64  # triangles coal reports per query (a wall of 0.4 mm facets: ~10 at once)

@@ -24,6 +24,7 @@ from .export.reachability import ReachabilityReport, check_program_reachability
 from .leadthrough import GuidePoint, LeadThrough
 from .learning.run import Recording
 from .learning.settings import PathLearningSettings
+from .part import MAX_MESH_BYTES, MESH_SUFFIXES, Workpiece, real_workpiece
 from .postprocess import PostprocessResult, PostprocessSettings, Targets
 from .project import (
     CellSettings,
@@ -40,12 +41,10 @@ from .project import (
 )
 from .project import compensate_program_targets as _compensate
 from .project import wobj_transform as wobj_transform
-from .real_part import real_workpiece
 from .registration import registered_workpiece
 from .scoring import PathScore
 from .teaching.operator import intents_from_csv, scripted_leadthrough
 from .tool import Tool
-from .workpiece import MAX_MESH_BYTES, MESH_SUFFIXES, Workpiece
 
 # progress(stage, fraction in [0, 1])
 Progress = Callable[[str, float], None]

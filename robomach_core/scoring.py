@@ -15,7 +15,7 @@ import numpy as np
 
 from .arcs import Move, sample_moves
 from .errors import InvalidInputError
-from .workpiece import Workpiece
+from .part import Workpiece
 
 SCORE_SPACING_M = 2e-5  # points every 0.02 mm along each segment
 

@@ -438,7 +438,7 @@ def _check_meshes(
     """Mesh files the viewer will parse: STL/OBJ/PLY within the workpiece reader's triangles
     each, and within ``MAX_ROBOT_REFERENCED_TRIANGLES`` summed over the references (each is
     loaded)."""
-    from .workpiece import MAX_MESH_TRIANGLES, count_mesh_triangles
+    from .part import MAX_MESH_TRIANGLES, count_mesh_triangles
 
     triangles: dict[str, int] = {}
     for path, data in files.items():

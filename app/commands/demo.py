@@ -280,9 +280,9 @@ def run(args: argparse.Namespace) -> int:
 
     from robomach_core.errors import RobomachError, SupervisionError
     from robomach_core.learning.planner import ProposalSettings
+    from robomach_core.part import PartDeviation
     from robomach_core.pipeline import DemoSettings, default_robot, run_demo, write_demo_outputs
     from robomach_core.postprocess import PostprocessSettings
-    from robomach_core.real_part import PartDeviation
     from robomach_core.tool import Tool
 
     robot, robot_urdf = args.robot or default_robot(args.language), None

@@ -31,10 +31,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from robomach_core import limits, mesh_query
+from robomach_core import limits
 from robomach_core import project as core
 from robomach_core.errors import InvalidInputError, RobomachError
 from robomach_core.leadthrough import LeadThrough, LeadThroughState
+from robomach_core.part import Workpiece, mesh_query
 from robomach_core.project import CellSettings, Project
 from robomach_core.registration import (
     MIN_TOUCHES,
@@ -52,7 +53,6 @@ from robomach_core.teaching.calibration import (
     scripted_touches,
     touch_at,
 )
-from robomach_core.workpiece import Workpiece
 
 from .records import ConflictError, NotFoundError
 

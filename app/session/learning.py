@@ -21,7 +21,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from robomach_core import mesh_query
 from robomach_core import project as core
 from robomach_core.cell import Cell, CellState
 from robomach_core.clock import CONTROL_PERIOD_S
@@ -38,8 +37,8 @@ from robomach_core.leadthrough import (
     LeadThroughState,
 )
 from robomach_core.learning.settings import PathLearningSettings
+from robomach_core.part import Workpiece, mesh_query
 from robomach_core.project import ProcessedPath, Project
-from robomach_core.workpiece import Workpiece
 
 from .jobs import JobContext
 from .records import ForceTrace, RobotSnapshot, Topic

@@ -25,7 +25,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from robomach_core import mesh_query
 from robomach_core import project as core
 from robomach_core.choices import CLICK_MODES, ClickMode
 from robomach_core.errors import InvalidInputError, SupervisionError, UnreachableTargetError
@@ -41,6 +40,7 @@ from robomach_core.learning.planner import (
     tool_reach,
 )
 from robomach_core.learning.walls import WallPick
+from robomach_core.part import mesh_query
 from robomach_core.teaching.motion import Arrival
 from robomach_core.teaching.operator import guide_intents, robust_intents
 

@@ -35,8 +35,8 @@ from robomach_core.leadthrough import (
     LeadThroughState,
 )
 from robomach_core.learning.run import Recording
+from robomach_core.part import Workpiece
 from robomach_core.project import CellSettings
-from robomach_core.workpiece import Workpiece
 
 from .jobs import JobContext, JobRunner
 from .live import LiveFeed, TappedCell

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from robomach_core import limits, mesh_query
+from robomach_core import limits
 from robomach_core.cell import CONTROL_PERIOD_S, CellState
 from robomach_core.choices import JOG_FRAMES, LABELS, TOUCH_AXES, JogFrame, NearestFace, TouchAxis
 from robomach_core.clearance import ClearanceProbe
@@ -50,6 +50,7 @@ from robomach_core.leadthrough import (
     LeadThroughState,
     halted,
 )
+from robomach_core.part import mesh_query
 from robomach_core.realtime import RealTimePacer
 from robomach_core.teaching.motion import Arrival, go_to_point
 

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..arcs import Move
+from ..part import Workpiece
 from ..postprocess import Targets
 from ..tool import Tool
 from ..transforms import (
@@ -14,7 +15,6 @@ from ..transforms import (
     make_transform,
     matrix_from_quaternion,
 )
-from ..workpiece import Workpiece
 from .rapid import (
     ForceControlSettings,
     RapidProgram,

@@ -28,10 +28,10 @@ import numpy as np
 
 from ..arcs import Move, linear_moves, validate_moves
 from ..errors import InvalidInputError
+from ..part import Workpiece
 from ..postprocess import Targets
 from ..tool import Tool
 from ..transforms import make_transform, matrix_from_quaternion, rotation_log
-from ..workpiece import Workpiece
 from .urscript_feed import UrFeedLoop, feed_loop_lines
 
 PROGRAM_NAME = "learned_path"

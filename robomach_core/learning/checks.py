@@ -31,7 +31,7 @@ import numpy as np
 from ..arcs import Move, linear_moves, sample_moves
 from ..errors import RouteRefusedError, WallSideError
 from ..leadthrough import GuidePoint
-from ..workpiece import Workpiece
+from ..part import Workpiece
 from . import thresholds as th
 from .findings import GuideRule, GuideWarning
 from .route import (

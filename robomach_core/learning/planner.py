@@ -39,9 +39,9 @@ from scipy.spatial.transform import Rotation
 
 from ..errors import InvalidInputError, RobomachError
 from ..limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
+from ..part import Workpiece
 from ..robot import Robot
 from ..tool import TOOL_DOWN
-from ..workpiece import Workpiece
 from .thresholds import (
     CORNER_RADIUS_M,
     CORNER_TURN_MIN_DEG,

@@ -32,7 +32,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..errors import InvalidInputError
-from ..mesh_query import closest_point, ray_hits, transformed
+from ..part.mesh_query import closest_point, ray_hits, transformed
 from .thresholds import (
     AMBIGUOUS_CLICK_RADII,
     CONTACT_BELOW_TOP_M,

@@ -37,9 +37,9 @@ from typing import Any
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..part import Workpiece
 from ..postprocess import Targets
 from ..robot import Robot
-from ..workpiece import Workpiece
 from ._stages import require_processed
 from ._value import Project, machining_inputs_key
 
@@ -343,7 +343,7 @@ def build_stock(
     if setup.stock_source == "mesh":
         from pathlib import Path
 
-        from ..workpiece import mesh_from_bytes
+        from ..part import mesh_from_bytes
 
         name, data = setup.stock_mesh
         mesh = mesh_from_bytes(data, Path(name).suffix.lower(), name=Path(name).stem).mesh

@@ -9,13 +9,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .. import mesh_query
 from ..cell import Cell, CellState
 from ..errors import InvalidInputError
 from ..leadthrough import GuidePoint
 from ..learning.route import LearningRoute, plan_route
 from ..learning.run import learn_path
 from ..learning.settings import PathLearningSettings
+from ..part import Workpiece, mesh_query
 from ..postprocess import (
     PostprocessResult,
     PostprocessSettings,
@@ -25,7 +25,6 @@ from ..postprocess import (
 )
 from ..scoring import PathScore, score_path
 from ..sensor import ForceEstimator
-from ..workpiece import Workpiece
 from ._value import (
     CellSettings,
     LearnedPath,
@@ -257,7 +256,7 @@ def build_cell_workpiece(
     """The part the cell's contact meets: ``build_workpiece``'s, made real by the cell's
     ``part_deviation`` (``real_part.real_workpiece``; its ``cad()`` is the mesh the user sees),
     its CAD placed where the cell's ``registration`` measured it when there is one."""
-    from ..real_part import real_workpiece
+    from ..part import real_workpiece
     from ..registration import registered_workpiece
 
     cad = build_workpiece(cell, mesh, max_triangles=max_triangles, parsed=parsed)
@@ -278,12 +277,7 @@ def build_workpiece(
     already read by ``workpiece.mesh_from_bytes``); placed where the cell's robot reaches it
     (``workpiece.default_T_base_wobj``), or at ``wobj_mm_deg``. The one placement of a part:
     the same while the workbench runs, after a reopen and in the CLI."""
-    from ..workpiece import (
-        MAX_MESH_TRIANGLES,
-        builtin_workpiece,
-        default_T_base_wobj,
-        mesh_from_bytes,
-    )
+    from ..part import MAX_MESH_TRIANGLES, builtin_workpiece, default_T_base_wobj, mesh_from_bytes
 
     if mesh is not None and not cell.workpiece_builtin:
         filename, data = mesh

@@ -14,8 +14,8 @@ from ..errors import RobomachError
 from ..leadthrough import GuidePoint
 from ..learning.run import Recording
 from ..learning.settings import PathLearningSettings
+from ..part import PartDeviation
 from ..postprocess import PostprocessResult, PostprocessSettings
-from ..real_part import PartDeviation
 from ..registration import WobjRegistration
 from ..scoring import PathScore
 from ..tool import Tool

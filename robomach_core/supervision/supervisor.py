@@ -44,10 +44,10 @@ import pinocchio as pin
 
 from ..clock import CONTROL_PERIOD_S
 from ..errors import InvalidInputError, SupervisionError
+from ..part import Workpiece
 from ..robot import IK_STEP_DAMPING, Robot
 from ..robots.registry import DEFAULT_LINK_RADIUS_M
 from ..tool import Tool
-from ..workpiece import Workpiece
 from ._kernels import (
     MEMORY_MARGINS,
     chain_placements,

@@ -19,7 +19,7 @@ from app.cli import build_parser
 from robomach_core import project as core
 from robomach_core.export.krl_check import check_krl_program
 from robomach_core.learning.settings import PathLearningSettings
-from robomach_core.workpiece import builtin_workpiece
+from robomach_core.part import builtin_workpiece
 from tests.conftest import app_client
 from tests.core.test_project import _guide, _recording
 
@@ -40,8 +40,8 @@ def processed_project_file(folder: Path, robot: str = "ur10") -> Path:
     block, moved to where the block sits for ``robot``, its joints that arm's) as
     project.npz."""
     from robomach_core.leadthrough import GuidePoint
+    from robomach_core.part import default_T_base_wobj
     from robomach_core.robot import Robot
-    from robomach_core.workpiece import default_T_base_wobj
 
     shift = default_T_base_wobj(robot)[:3, 3] - default_T_base_wobj("ur10")[:3, 3]
     recording = _recording()

@@ -17,11 +17,11 @@ import trimesh
 from robomach_core.export import check_rapid_module
 from robomach_core.export.rapid import confdata_from_joints
 from robomach_core.export.urscript import script_poses
+from robomach_core.part import builtin_workpiece
 from robomach_core.robot import Robot
 from robomach_core.teaching.operator import guide_plan
 from robomach_core.tool import Tool
 from robomach_core.transforms import make_transform
-from robomach_core.workpiece import builtin_workpiece
 from tests.cli import robomach_here
 from tests.demo_project import pump_demo
 from tests.rapid_grammar import rapidchecker_errors

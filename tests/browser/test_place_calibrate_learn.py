@@ -30,7 +30,8 @@ from playwright.sync_api import Page, expect
 from app.session import Session
 from robomach_core.export.read_back import read_program
 from robomach_core.learning.walls import section_loops
-from robomach_core.real_part import PartDeviation, fixture_error
+from robomach_core.part import PartDeviation
+from robomach_core.part.real_part import fixture_error
 from tests.browser.conftest import new_context, wait_for, workbench_on
 from tests.browser.test_pointing import _click_at
 from tests.generated_parts import cam_plate

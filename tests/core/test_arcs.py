@@ -18,8 +18,8 @@ from robomach_core.arcs import (
     sample_moves,
 )
 from robomach_core.errors import InvalidInputError
+from robomach_core.part import builtin_workpiece, water_pump_wall
 from robomach_core.postprocess import Targets, reduce_deviation_height
-from robomach_core.workpiece import builtin_workpiece, water_pump_wall
 
 
 def line_arc_line(spacing: float = 2e-5, radius: float = 0.005) -> np.ndarray:

@@ -6,10 +6,10 @@ import coal
 import numpy as np
 import trimesh
 
-from robomach_core.bvh import bvh_from_mesh
 from robomach_core.clearance import ClearanceProbe
+from robomach_core.part import bvh_from_mesh
+from robomach_core.part.workpiece import block
 from robomach_core.tool import Tool
-from robomach_core.workpiece import block
 
 
 def _point_distance(bvh: coal.BVHModelOBBRSS, point: np.ndarray) -> float:

@@ -7,8 +7,8 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robomach_core.contour import DISTANCE_RUN, Contour
-from robomach_core.workpiece import water_pump_wall
+from robomach_core.part import Contour, water_pump_wall
+from robomach_core.part.contour import DISTANCE_RUN
 
 WALL = water_pump_wall()
 

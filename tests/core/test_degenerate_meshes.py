@@ -16,10 +16,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from robomach_core import workpiece
 from robomach_core.errors import MeshFileError
-from robomach_core.mesh_check import MAX_MESH_BODIES, count_bodies, drop_duplicate_faces
-from robomach_core.workpiece import mesh_from_bytes
+from robomach_core.part import mesh_from_bytes, workpiece
+from robomach_core.part.mesh_check import MAX_MESH_BODIES, count_bodies, drop_duplicate_faces
 
 CALLER_MEMORY_BOUND_BYTES = 100e6
 

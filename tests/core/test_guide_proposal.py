@@ -19,10 +19,11 @@ from robomach_core.learning.planner import (
     teach_point,
 )
 from robomach_core.learning.walls import section_loops
+from robomach_core.part import Workpiece
+from robomach_core.part.workpiece import block, water_pump
 from robomach_core.supervision import cell_supervisor
 from robomach_core.teaching.operator import guide_intents, guide_plan
 from robomach_core.transforms import make_transform, rotation_about
-from robomach_core.workpiece import Workpiece, block, water_pump
 from tests.generated_parts import grooved_plate, l_block, slotted_plate
 
 R = 0.001  # tool radius
@@ -34,7 +35,8 @@ def _cell(workpiece: Workpiece, robot: str = "ur10") -> Cell:
 
 
 def _uploaded(part) -> Workpiece:
-    from robomach_core.workpiece import DEFAULT_T_BASE_WOBJ, mesh_from_bytes
+    from robomach_core.part import mesh_from_bytes
+    from robomach_core.part.workpiece import DEFAULT_T_BASE_WOBJ
 
     return mesh_from_bytes(
         part.stl_bytes(), ".stl", name=part.name, T_base_wobj=DEFAULT_T_BASE_WOBJ

@@ -28,6 +28,7 @@ from robomach_core.joint_compliance import true_joint_compliance
 from robomach_core.learning import law as cf
 from robomach_core.learning.run import contour_law_parameters
 from robomach_core.learning.settings import PathLearningSettings
+from robomach_core.part import builtin_workpiece
 from robomach_core.robot import Robot
 from robomach_core.sensor import (
     ForceEstimator,
@@ -42,7 +43,6 @@ from robomach_core.supervision import _kernels as sk
 from robomach_core.supervision import cell_supervisor
 from robomach_core.tool import Tool
 from robomach_core.transforms import pose_error
-from robomach_core.workpiece import builtin_workpiece
 
 vectors = st.lists(st.floats(-3.0, 3.0), min_size=3, max_size=3).map(np.array)
 unit_axes = vectors.filter(lambda v: np.linalg.norm(v) > 1e-3).map(lambda v: v / np.linalg.norm(v))

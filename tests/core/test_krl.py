@@ -19,6 +19,7 @@ from robomach_core.export.krl import (
     kuka_rotation,
 )
 from robomach_core.export.krl_check import KrlSyntaxError, check_krl_program
+from robomach_core.part import builtin_workpiece
 from robomach_core.postprocess import Targets
 from robomach_core.robot import Robot
 from robomach_core.robots import KR270
@@ -26,7 +27,6 @@ from robomach_core.robots.kuka import status_bits, turn_bits
 from robomach_core.teaching.operator import TOOL_DOWN
 from robomach_core.tool import Tool
 from robomach_core.transforms import make_transform, quaternion_from_matrix, rotation_about
-from robomach_core.workpiece import builtin_workpiece
 
 
 @pytest.fixture(scope="module")

@@ -17,13 +17,13 @@ import pytest
 import trimesh
 
 from robomach_core.errors import MeshFileError
-from robomach_core.mesh_check import (
+from robomach_core.part import mesh_from_bytes
+from robomach_core.part.mesh_check import (
     MIN_THICKNESS_M,
     _check_native,
     check_mesh,
     principal_extents_m,
 )
-from robomach_core.workpiece import mesh_from_bytes
 
 
 def binary_stl(triangles: list[tuple[float, ...]]) -> bytes:

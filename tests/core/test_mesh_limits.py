@@ -18,7 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robomach_core.errors import MeshFileError
-from robomach_core.workpiece import count_mesh_triangles, mesh_from_bytes
+from robomach_core.part import count_mesh_triangles, mesh_from_bytes
 
 LIMIT = 1000
 

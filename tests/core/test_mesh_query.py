@@ -9,9 +9,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from robomach_core import mesh_query
 from robomach_core._kernels import _closest_on_triangle
-from robomach_core.workpiece import mesh_from_bytes
+from robomach_core.part import mesh_from_bytes, mesh_query
 from tests.mesh_reference import distance_to_every_face
 from tests.sloppy_guides import cornered_boss_stl
 

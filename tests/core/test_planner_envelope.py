@@ -23,9 +23,9 @@ from robomach_core.learning.thresholds import (
     CUTTER_FLOOR_CLEARANCE_M,
     MIN_SPACING_M,
 )
+from robomach_core.part import Workpiece
 from robomach_core.robot import Robot
 from robomach_core.transforms import make_transform
-from robomach_core.workpiece import Workpiece
 from tests.generated_parts import DrawnPlate, drawn_plate
 
 ROBOT = Robot("ur10")
@@ -171,7 +171,7 @@ def test_an_l_block_tilted_in_its_stl_gets_its_corners_on_their_bisectors(tilt_d
     bisector, radius + gap off its tip, and no leg that needs a point it cannot get."""
     import trimesh
 
-    from robomach_core.workpiece import mesh_from_bytes
+    from robomach_core.part import mesh_from_bytes
     from tests.generated_parts import l_block
 
     part = l_block()

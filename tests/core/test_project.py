@@ -12,8 +12,8 @@ from robomach_core import project as core
 from robomach_core.leadthrough import GuidePoint
 from robomach_core.learning.run import Recording
 from robomach_core.learning.settings import PathLearningSettings
+from robomach_core.part import builtin_workpiece
 from robomach_core.robot import Robot
-from robomach_core.workpiece import builtin_workpiece
 
 N = 400  # samples: 1.6 s at 4 ms
 

@@ -10,14 +10,10 @@ import pytest
 
 from robomach_core.errors import InvalidInputError
 from robomach_core.learning.walls import section_loops
+from robomach_core.part import PartDeviation, real_workpiece
+from robomach_core.part.real_part import fixture_error, refine_walls
+from robomach_core.part.workpiece import block, water_pump
 from robomach_core.project import CellSettings, Project, build_cell_workpiece
-from robomach_core.real_part import (
-    PartDeviation,
-    fixture_error,
-    real_workpiece,
-    refine_walls,
-)
-from robomach_core.workpiece import block, water_pump
 
 MACHINING_Z_M = 0.017
 

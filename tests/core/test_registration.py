@@ -16,11 +16,12 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from robomach_core import mesh_query
 from robomach_core.cell import Cell, CellConfig
 from robomach_core.leadthrough import LeadThrough
 from robomach_core.learning.planner import ProposalSettings, propose_guide_points
-from robomach_core.real_part import PartDeviation, fixture_error, real_workpiece
+from robomach_core.part import PartDeviation, builtin_workpiece, mesh_query, real_workpiece
+from robomach_core.part.real_part import fixture_error
+from robomach_core.part.workpiece import block
 from robomach_core.registration import (
     ODD_TOUCH_M,
     CalibrationError,
@@ -34,7 +35,6 @@ from robomach_core.registration import (
 from robomach_core.teaching.calibration import plan_touches, scripted_touches, touch_at
 from robomach_core.tool import Tool
 from robomach_core.transforms import make_transform, rotation_about
-from robomach_core.workpiece import block, builtin_workpiece
 from tests.envelope import replay, run_seed
 
 SEED = run_seed()

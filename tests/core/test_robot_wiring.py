@@ -12,6 +12,7 @@ from robomach_core.leadthrough import GuidePoint
 from robomach_core.learning.checks import guide_point_warnings
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.mesh_score import score_mesh
+from robomach_core.part import builtin_workpiece
 from robomach_core.pipeline import default_robot
 from robomach_core.project import wobj_transform
 from robomach_core.robot import Robot, robot_urdf_path
@@ -19,7 +20,6 @@ from robomach_core.robots.custom import RobotFileError, register_urdf, validate_
 from robomach_core.scoring import score_path
 from robomach_core.teaching.operator import TOOL_DOWN
 from robomach_core.transforms import make_transform, rotation_about
-from robomach_core.workpiece import builtin_workpiece
 
 
 def test_wobj_forms():

@@ -16,6 +16,7 @@ from robomach_core.export.urscript import (
     script_poses,
     urscript_program,
 )
+from robomach_core.part import builtin_workpiece
 from robomach_core.postprocess import Targets
 from robomach_core.robot import Robot
 from robomach_core.teaching.operator import TOOL_DOWN
@@ -26,7 +27,6 @@ from robomach_core.transforms import (
     rotation_about,
     rotation_log,
 )
-from robomach_core.workpiece import builtin_workpiece
 
 TOOL = Tool()
 

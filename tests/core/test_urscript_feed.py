@@ -25,10 +25,10 @@ from robomach_core.export.urscript_feed import (
 from robomach_core.machining import MachiningSettings, builtin_stock, targets_along_wall
 from robomach_core.machining import _kernel as K
 from robomach_core.machining.run import plan_cut
+from robomach_core.part import builtin_workpiece
 from robomach_core.postprocess import Targets
 from robomach_core.robot import Robot
 from robomach_core.tool import Tool
-from robomach_core.workpiece import builtin_workpiece
 
 KINDS = ("fixed-pi", "adaptive-pi", "fuzzy", "two-stage", "adaptive-lq")
 

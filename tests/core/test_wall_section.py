@@ -8,7 +8,7 @@ import trimesh
 
 from robomach_core.errors import InvalidInputError
 from robomach_core.learning.walls import WallLoop, pick_wall, section_loops
-from robomach_core.workpiece import block, water_pump
+from robomach_core.part.workpiece import block, water_pump
 
 PICK = {"tool_radius_m": 0.001, "gap_m": 0.001, "height_above_floor_m": 0.003}
 

@@ -13,12 +13,12 @@ import numpy as np
 import shapely.geometry
 import trimesh
 
+from ..errors import InvalidInputError, MeshFileError, UnknownNameError
+from ..robots import registry
+from ..transforms import make_transform
 from .contour import Contour, filleted_polygon
-from .errors import InvalidInputError, MeshFileError, UnknownNameError
 from .mesh_check import check_mesh, check_mesh_bytes
-from .robots import registry
 from .s_groove import S_GROOVE_DEPTH_M, S_GROOVE_PLATE_SIZE_M, s_groove_mesh, s_groove_wall
-from .transforms import make_transform
 
 WORKPIECE_NAMES = ("water_pump", "block", "s_groove")
 MESH_SUFFIXES = (".stl", ".obj", ".ply")
@@ -391,7 +391,7 @@ def mesh_from_bytes(
     it is then read in an isolated process within ``PARSE_MEMORY_BYTES`` and
     ``PARSE_TIMEOUT_S`` (``parse_mesh_file``: a degenerate file that costs minutes or
     gigabytes there is refused, the caller unharmed; issue 32)."""
-    from .isolation import IsolatedError, run_isolated
+    from ..isolation import IsolatedError, run_isolated
 
     kind = suffix.lower().lstrip(".")
     if f".{kind}" not in MESH_SUFFIXES:

@@ -15,8 +15,8 @@ import numpy as np
 import shapely.geometry
 import trimesh
 
+from ..transforms import make_transform
 from .contour import Arc, Contour, Line
-from .transforms import make_transform
 
 S_GROOVE_PLATE_SIZE_M = (0.180, 0.110, 0.020)
 S_GROOVE_WIDTH_M = 0.006

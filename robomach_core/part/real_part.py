@@ -34,9 +34,8 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 import trimesh
 
-from .contour import Arc, Contour, Line
-from .errors import InvalidInputError
-from .limits import (
+from ..errors import InvalidInputError
+from ..limits import (
     BURR_COUNT,
     BURR_HEIGHT_MM,
     FIXTURE_ROTATION_DEG,
@@ -44,7 +43,8 @@ from .limits import (
     SEED,
     WALL_OFFSET_MM,
 )
-from .transforms import make_transform, rotation_about
+from ..transforms import make_transform, rotation_about
+from .contour import Arc, Contour, Line
 from .workpiece import Workpiece
 
 REFINE_EDGE_M = 0.0005  # wall edges longer than this across (x-y) are split before the warp

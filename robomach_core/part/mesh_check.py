@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from .errors import MeshFileError
+from ..errors import MeshFileError
 
 # The part's size after scaling (the workbench's parts are 1-2000 mm across).
 MIN_EXTENT_M = 1e-3
@@ -182,7 +182,7 @@ def count_bodies(faces: np.ndarray, n_vertices: int) -> int:
 def _check_native(mesh: trimesh.Trimesh, name: str, *, here: bool = False) -> None:
     """The convex hull, BVH and a distance query, built once in an isolated process (``here``:
     this process is one already, ``workpiece.parse_mesh_file``)."""
-    from .isolation import TASKS, IsolatedError, run_isolated
+    from ..isolation import TASKS, IsolatedError, run_isolated
 
     payload = {"vertices": np.asarray(mesh.vertices, dtype=float),
                "faces": np.asarray(mesh.faces, dtype=np.int64)}  # fmt: skip
