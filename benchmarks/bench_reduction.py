@@ -24,7 +24,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from robomach_core.clock import CONTROL_PERIOD_S
+from robomach_core.cell import CONTROL_PERIOD_S
 from robomach_core.learning.run import Recording
 from robomach_core.part import water_pump_wall
 from robomach_core.postprocess import PostprocessSettings, postprocess, reduce_deviation_height

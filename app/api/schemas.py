@@ -24,8 +24,8 @@ from app.session import (
     RobotSnapshot,
 )
 from robomach_core import limits
+from robomach_core.cell import ComplianceFrame, ComplianceSelection
 from robomach_core.choices import JogFrame
-from robomach_core.leadthrough import ComplianceFrame, ComplianceSelection
 from robomach_core.learning.settings import WallSideSetting
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import StageStatus

@@ -20,9 +20,8 @@ import trimesh
 import viser
 from viser.extras import ViserUrdf
 
+from robomach_core.cell import ROBOT_URDFS, Tool, robots_directory
 from robomach_core.part import Workpiece
-from robomach_core.robot import ROBOT_URDFS, robots_directory
-from robomach_core.tool import Tool
 from robomach_core.transforms import quaternion_from_matrix, rotation_about
 
 # The example-robot-data URDFs name their meshes package://example-robot-data/robots/...

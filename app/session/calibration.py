@@ -33,8 +33,8 @@ import numpy as np
 
 from robomach_core import limits
 from robomach_core import project as core
+from robomach_core.cell import LeadThrough, LeadThroughState
 from robomach_core.errors import InvalidInputError, RobomachError
-from robomach_core.leadthrough import LeadThrough, LeadThroughState
 from robomach_core.part import Workpiece, mesh_query
 from robomach_core.project import CellSettings, Project
 from robomach_core.registration import (
@@ -194,7 +194,7 @@ class Calibration:
         return touch
 
     def _go_to_start(self, planned: PlannedTouch, cad: Workpiece) -> None:
-        from robomach_core.tool import TOOL_DOWN
+        from robomach_core.cell import TOOL_DOWN
 
         T = np.eye(4)
         T[:3, :3], T[:3, 3] = TOOL_DOWN, planned.start_m

@@ -22,19 +22,20 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from robomach_core import project as core
-from robomach_core.cell import Cell, CellState
-from robomach_core.clock import CONTROL_PERIOD_S
+from robomach_core.cell import (
+    CONTROL_PERIOD_S,
+    Cell,
+    CellState,
+    ComplianceSelection,
+    GuidePoint,
+    LeadThrough,
+    LeadThroughState,
+)
 from robomach_core.errors import (
     ConflictError,
     InvalidInputError,
     NotEnoughGuidePointsError,
     SupervisionError,
-)
-from robomach_core.leadthrough import (
-    ComplianceSelection,
-    GuidePoint,
-    LeadThrough,
-    LeadThroughState,
 )
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.part import Workpiece, mesh_query
@@ -316,8 +317,8 @@ class Learning:
         wall_side: str = "auto",
     ) -> tuple:
         """What the operator check finds in the guide points (``guide_check``)."""
+        from robomach_core.cell import cell_supervisor
         from robomach_core.learning.checks import guide_point_warnings
-        from robomach_core.supervision import cell_supervisor
 
         view = self._session.view()
         settings = PathLearningSettings(force_N=force_N, closed=closed, wall_side=wall_side)

@@ -15,8 +15,8 @@ from typing import Any, Literal
 import numpy as np
 
 from robomach_core import project as core
+from robomach_core.cell import GuidePoint
 from robomach_core.errors import RobomachError
-from robomach_core.leadthrough import GuidePoint
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.part import Workpiece
 from robomach_core.postprocess import PostprocessSettings

@@ -26,9 +26,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from robomach_core import project as core
+from robomach_core.cell import GuidePoint, LeadThrough, LeadThroughState
 from robomach_core.choices import CLICK_MODES, ClickMode
 from robomach_core.errors import InvalidInputError, SupervisionError, UnreachableTargetError
-from robomach_core.leadthrough import GuidePoint, LeadThrough, LeadThroughState
 from robomach_core.learning.planner import (
     GuideProposal,
     ProposalSettings,

@@ -33,25 +33,26 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from robomach_core import limits
-from robomach_core.cell import CONTROL_PERIOD_S, CellState
+from robomach_core.cell import (
+    AXES,
+    CONTROL_PERIOD_S,
+    CellState,
+    ClearanceProbe,
+    ComplianceFrame,
+    ComplianceSelection,
+    LeadThrough,
+    LeadThroughState,
+    RealTimePacer,
+    halted,
+)
 from robomach_core.choices import JOG_FRAMES, LABELS, TOUCH_AXES, JogFrame, NearestFace, TouchAxis
-from robomach_core.clearance import ClearanceProbe
 from robomach_core.errors import (
     ContactStopError,
     InvalidInputError,
     NoContactError,
     SupervisionError,
 )
-from robomach_core.leadthrough import (
-    AXES,
-    ComplianceFrame,
-    ComplianceSelection,
-    LeadThrough,
-    LeadThroughState,
-    halted,
-)
 from robomach_core.part import mesh_query
-from robomach_core.realtime import RealTimePacer
 from robomach_core.teaching.motion import Arrival, go_to_point
 
 from .live import TappedCell

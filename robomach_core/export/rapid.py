@@ -255,7 +255,7 @@ class RapidProgram:
         if isinstance(n, bool) or not isinstance(n, int) or n < 1:
             raise InvalidInputError(f"max_moves_per_proc must be an integer >= 1, got {n!r}")
         if self.arm is not None:
-            from robomach_core.robot import ROBOT_URDFS
+            from robomach_core.cell import ROBOT_URDFS
 
             if self.arm.lower() not in ROBOT_URDFS:
                 raise InvalidInputError(

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..arcs import Move, linear_moves, sample_moves
+from ..cell import GuidePoint
 from ..errors import RouteRefusedError, WallSideError
-from ..leadthrough import GuidePoint
 from ..part import Workpiece
 from . import thresholds as th
 from .findings import GuideRule, GuideWarning

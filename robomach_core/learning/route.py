@@ -38,8 +38,8 @@ from typing import Literal
 import numpy as np
 import pinocchio as pin
 
+from ..cell import GuidePoint
 from ..errors import InvalidInputError, RouteRefusedError, WallSideError
-from ..leadthrough import GuidePoint
 from ..part import Workpiece, mesh_query
 from ..transforms import matrix_from_quaternion
 from . import thresholds as th

@@ -9,9 +9,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..cell import Cell, CellState
+from ..cell import Cell, CellState, ForceEstimator, GuidePoint
 from ..errors import InvalidInputError
-from ..leadthrough import GuidePoint
 from ..learning.route import LearningRoute, plan_route
 from ..learning.run import learn_path
 from ..learning.settings import PathLearningSettings
@@ -24,7 +23,6 @@ from ..postprocess import (
     postprocess,
 )
 from ..scoring import PathScore, score_path
-from ..sensor import ForceEstimator
 from ._value import (
     CellSettings,
     LearnedPath,

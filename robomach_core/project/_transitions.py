@@ -24,8 +24,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..cell import GuidePoint
 from ..errors import ConflictError, InvalidInputError, NotFoundError
-from ..leadthrough import GuidePoint
 from ..limits import GUIDE_POINTS_MAX
 from ..postprocess import PostprocessSettings
 from ..registration import WobjRegistration

@@ -10,15 +10,14 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
+from ..cell import GuidePoint, Tool
 from ..errors import RobomachError
-from ..leadthrough import GuidePoint
 from ..learning.run import Recording
 from ..learning.settings import PathLearningSettings
 from ..part import PartDeviation
 from ..postprocess import PostprocessResult, PostprocessSettings
 from ..registration import WobjRegistration
 from ..scoring import PathScore
-from ..tool import Tool
 
 if TYPE_CHECKING:  # the slots' types; their modules import this one
     from ..cad_program import CadComparison

@@ -276,7 +276,7 @@ def register_urdf(filename: str, data: bytes, family: str = "auto") -> str:
 
 def _register_file(filename: str, data: bytes) -> str:
     """``register_urdf`` with the family found from the kinematics."""
-    from .. import robot as robot_module
+    from ..cell import robot as robot_module
     from .recognise import recognise_arm
 
     name = robot_name_for(filename, data)
@@ -340,8 +340,8 @@ def _home(name: str, wobj_m: np.ndarray) -> np.ndarray:
     the elbow and wrist at least ``HOME_CLEARANCE_M`` above the part's base (the table)."""
     import pinocchio as pin
 
-    from .. import robot as robot_module
-    from ..tool import TOOL_DOWN, Tool
+    from ..cell import TOOL_DOWN, Tool
+    from ..cell import robot as robot_module
     from ..transforms import make_transform
 
     arm = robot_module.Robot(name, Tool().T_flange_tcp)

@@ -27,11 +27,10 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
+from ..cell import TOOL_DOWN, LeadThrough, LeadThroughState
 from ..errors import InvalidInputError, NoContactError, RobomachError
-from ..leadthrough import LeadThrough, LeadThroughState
 from ..part import Workpiece, mesh_query
 from ..registration import CalibrationError, Touch
-from ..tool import TOOL_DOWN
 from .motion import go_to_point, move_by
 
 EXPECTED_ERROR_M = 0.01  # the part may stand this far off its CAD at a touch (a few mm and 2 deg)

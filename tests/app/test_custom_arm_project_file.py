@@ -17,7 +17,7 @@ from app.cli import main as robomach
 from app.session import Session, programs
 from app.session.project_file import export_project, import_project
 from robomach_core import project as core
-from robomach_core.robot import robot_urdf_path
+from robomach_core.cell.robot import robot_urdf_path
 from robomach_core.robots import custom, registry
 from tests.generated_parts import PARTS
 

@@ -20,7 +20,7 @@ from playwright.sync_api import Page, expect, sync_playwright
 
 from app.session import Session
 from robomach_core import project as core
-from robomach_core.leadthrough import GuidePoint
+from robomach_core.cell import GuidePoint
 from robomach_core.part import PartDeviation
 from robomach_core.teaching.operator import TOOL_DOWN
 from robomach_core.transforms import rotation_about

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from app.session import Session
+from robomach_core.cell import ROBOT_NAMES
 from robomach_core.project import wobj_transform
-from robomach_core.robot import ROBOT_NAMES
 from robomach_core.transforms import matrix_from_quaternion
 from tests.browser.conftest import wait_for, workbench_on
 

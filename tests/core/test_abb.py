@@ -11,16 +11,22 @@ import yourdfpy
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robomach_core.cell import Cell, CellConfig
+from robomach_core.cell import (
+    ROBOT_URDFS,
+    Cell,
+    CellConfig,
+    Robot,
+    Supervisor,
+    Tool,
+    program_language,
+    true_joint_compliance,
+)
+from robomach_core.cell.robot import robot_urdf_path
 from robomach_core.errors import UnreachableTargetError
 from robomach_core.export.rapid import abb_cfx, abb_wrist_centre_in_arm_plane, confdata_from_joints
-from robomach_core.joint_compliance import true_joint_compliance
 from robomach_core.part import builtin_workpiece, default_T_base_wobj
-from robomach_core.robot import ROBOT_URDFS, Robot, program_language, robot_urdf_path
 from robomach_core.robots import ABB_ARMS, IRB4400, IRB6640, controller_axes_deg, urdf_text
-from robomach_core.supervision import Supervisor
 from robomach_core.teaching.operator import TOOL_DOWN
-from robomach_core.tool import Tool
 from robomach_core.transforms import rotation_about
 
 ABB = sorted(ABB_ARMS)

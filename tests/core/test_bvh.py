@@ -6,10 +6,9 @@ import coal
 import numpy as np
 import trimesh
 
-from robomach_core.clearance import ClearanceProbe
+from robomach_core.cell import ClearanceProbe, Tool
 from robomach_core.part import bvh_from_mesh
 from robomach_core.part.workpiece import block
-from robomach_core.tool import Tool
 
 
 def _point_distance(bvh: coal.BVHModelOBBRSS, point: np.ndarray) -> float:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.signal
 
-from robomach_core.clock import CONTROL_PERIOD_S, zoh, zoh_tf
+from robomach_core.cell import CONTROL_PERIOD_S, zoh, zoh_tf
 
 
 @pytest.mark.parametrize("trial", range(5))

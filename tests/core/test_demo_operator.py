@@ -3,9 +3,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robomach_core.cell import Cell
+from robomach_core.cell import Cell, LeadThrough
 from robomach_core.errors import InvalidInputError, NotEnoughGuidePointsError
-from robomach_core.leadthrough import LeadThrough
 from robomach_core.teaching.operator import guide_plan, intents_from_csv, scripted_leadthrough
 
 

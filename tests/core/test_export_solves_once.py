@@ -8,7 +8,7 @@ from dataclasses import replace
 import pytest
 
 from robomach_core import project as core
-from robomach_core.robot import Robot
+from robomach_core.cell import Robot
 from tests.core.test_project import _compensation, processed  # noqa: F401 (the fixture)
 
 

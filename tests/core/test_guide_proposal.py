@@ -9,7 +9,7 @@ import pytest
 import trimesh
 from shapely.geometry import Point
 
-from robomach_core.cell import Cell, CellConfig
+from robomach_core.cell import Cell, CellConfig, cell_supervisor
 from robomach_core.errors import InvalidInputError
 from robomach_core.learning.planner import (
     ProposalSettings,
@@ -21,7 +21,6 @@ from robomach_core.learning.planner import (
 from robomach_core.learning.walls import section_loops
 from robomach_core.part import Workpiece
 from robomach_core.part.workpiece import block, water_pump
-from robomach_core.supervision import cell_supervisor
 from robomach_core.teaching.operator import guide_intents, guide_plan
 from robomach_core.transforms import make_transform, rotation_about
 from tests.generated_parts import grooved_plate, l_block, slotted_plate

@@ -22,26 +22,27 @@ from numba.core.registry import CPUDispatcher
 
 import robomach_core
 from robomach_core import _kernels
-from robomach_core.cell import Cell, CellConfig
-from robomach_core.contact import ContactModel
-from robomach_core.joint_compliance import true_joint_compliance
+from robomach_core.cell import (
+    Cell,
+    CellConfig,
+    ForceEstimator,
+    Robot,
+    Tool,
+    ToolGravity,
+    cell_supervisor,
+    compensate_gravity,
+    contact_reading,
+    gravity_reading,
+    true_joint_compliance,
+    wrench_at_tcp_in_base,
+)
+from robomach_core.cell.contact import ContactModel
+from robomach_core.cell.supervision import _kernels as sk
 from robomach_core.learning import law as cf
 from robomach_core.learning.run import contour_law_parameters
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.part import builtin_workpiece
-from robomach_core.robot import Robot
-from robomach_core.sensor import (
-    ForceEstimator,
-    ToolGravity,
-    compensate_gravity,
-    contact_reading,
-    gravity_reading,
-    wrench_at_tcp_in_base,
-)
 from robomach_core.stiffness.model import loaded_equilibrium
-from robomach_core.supervision import _kernels as sk
-from robomach_core.supervision import cell_supervisor
-from robomach_core.tool import Tool
 from robomach_core.transforms import pose_error
 
 vectors = st.lists(st.floats(-3.0, 3.0), min_size=3, max_size=3).map(np.array)
@@ -479,7 +480,7 @@ _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
             "test_the_controller_period_is_its_parts",
         ),
     },
-    "robomach_core.supervision._kernels": {
+    "robomach_core.cell.supervision._kernels": {
         **dict.fromkeys(
             ("chain_placements", "tcp_jacobian", "_compose"),
             "test_the_chains_pose_and_jacobian_are_pinocchios",

@@ -11,6 +11,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from robomach_core.arcs import Move
+from robomach_core.cell import Robot, Tool
 from robomach_core.export.krl import (
     APPROACH_NAME,
     RETRACT_NAME,
@@ -21,11 +22,9 @@ from robomach_core.export.krl import (
 from robomach_core.export.krl_check import KrlSyntaxError, check_krl_program
 from robomach_core.part import builtin_workpiece
 from robomach_core.postprocess import Targets
-from robomach_core.robot import Robot
 from robomach_core.robots import KR270
 from robomach_core.robots.kuka import status_bits, turn_bits
 from robomach_core.teaching.operator import TOOL_DOWN
-from robomach_core.tool import Tool
 from robomach_core.transforms import make_transform, quaternion_from_matrix, rotation_about
 
 

@@ -11,15 +11,20 @@ import yourdfpy
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from robomach_core.cell import Cell, CellConfig
+from robomach_core.cell import (
+    Cell,
+    CellConfig,
+    Robot,
+    Tool,
+    program_language,
+    true_joint_compliance,
+)
+from robomach_core.cell.robot import robot_urdf_path
 from robomach_core.export.krl import status_turn
-from robomach_core.joint_compliance import true_joint_compliance
 from robomach_core.part import builtin_workpiece, default_T_base_wobj
-from robomach_core.robot import Robot, program_language, robot_urdf_path
 from robomach_core.robots import KR270, controller_axes_deg
 from robomach_core.robots.kuka import status_bits, turn_bits, urdf_text, wrist_root_point_a1
 from robomach_core.teaching.operator import TOOL_DOWN
-from robomach_core.tool import Tool
 
 TABLE1_DEG = (90.0, -50.0, 120.0, 180.0, 25.0, 180.0)
 

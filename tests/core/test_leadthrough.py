@@ -5,9 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from robomach_core.cell import Cell
+from robomach_core.cell import Cell, ComplianceSelection, LeadThrough
 from robomach_core.errors import InvalidInputError, NoContactError
-from robomach_core.leadthrough import ComplianceSelection, LeadThrough
 from robomach_core.transforms import rotation_log
 
 

@@ -3,9 +3,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robomach_core.cell import CONTROL_PERIOD_S, Cell, CellConfig
+from robomach_core.cell import Cell, CellConfig, GuidePoint, LeadThrough
+from robomach_core.cell.simulator import CONTROL_PERIOD_S
 from robomach_core.errors import InvalidInputError, NotEnoughGuidePointsError
-from robomach_core.leadthrough import GuidePoint, LeadThrough
 from robomach_core.learning.route import plan_route
 from robomach_core.learning.run import learn_path
 from robomach_core.learning.settings import PathLearningSettings

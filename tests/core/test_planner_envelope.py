@@ -15,6 +15,7 @@ import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from robomach_core.cell import Robot
 from robomach_core.errors import InvalidInputError
 from robomach_core.learning.planner import ProposalSettings, propose_guide_points, teach_point
 from robomach_core.learning.thresholds import (
@@ -24,7 +25,6 @@ from robomach_core.learning.thresholds import (
     MIN_SPACING_M,
 )
 from robomach_core.part import Workpiece
-from robomach_core.robot import Robot
 from robomach_core.transforms import make_transform
 from tests.generated_parts import DrawnPlate, drawn_plate
 

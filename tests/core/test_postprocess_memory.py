@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from robomach_core import project as core
+from robomach_core.cell import Robot
 from robomach_core.errors import InvalidInputError
 from robomach_core.learning.run import Recording
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.postprocess import PostprocessSettings
-from robomach_core.robot import Robot
 from tests.core.test_project import _guide
 
 SAMPLES = 20_000

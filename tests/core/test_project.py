@@ -9,11 +9,10 @@ import numpy as np
 import pytest
 
 from robomach_core import project as core
-from robomach_core.leadthrough import GuidePoint
+from robomach_core.cell import GuidePoint, Robot
 from robomach_core.learning.run import Recording
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.part import builtin_workpiece
-from robomach_core.robot import Robot
 
 N = 400  # samples: 1.6 s at 4 ms
 
@@ -133,7 +132,7 @@ def test_writers_refuse_stale_and_missing_results(processed) -> None:
 
 
 def _compensation():
-    from robomach_core.joint_compliance import TRUE_JOINT_STIFFNESS_NM_RAD
+    from robomach_core.cell.joint_compliance import TRUE_JOINT_STIFFNESS_NM_RAD
     from robomach_core.stiffness import CompensationSettings
 
     return CompensationSettings("ur10", TRUE_JOINT_STIFFNESS_NM_RAD["ur10"], mode="offline_linear")

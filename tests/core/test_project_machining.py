@@ -91,7 +91,7 @@ def block_project() -> core.Project:
 
 @pytest.mark.slow  # the shared block demo run (tests/demo_project.py)
 def test_the_project_file_reopens_current_with_the_same_program(block_project):
-    from robomach_core.robot import Robot
+    from robomach_core.cell import Robot
 
     p = block_project
     assert p.status() == {
@@ -145,7 +145,7 @@ def test_compensation_settings_of_another_arm_are_re_derived_not_blocking_the_ex
     """Issue 16: after switching the arm, the old arm's compensation settings blocked the
     export ("identified on ur10, the cell has irb4400"); they are stale, re-derived for the
     cell's arm, and the program says so in its header."""
-    from robomach_core.robot import Robot
+    from robomach_core.cell import Robot
     from robomach_core.stiffness import CompensationSettings
 
     p = core.with_machining_setup(block_project, core.MachiningSetup())
@@ -207,7 +207,7 @@ def test_a_ur_program_runs_the_cmrr_its_header_names_without_a_machining_setup(b
     choice: its program.script said "CMRR: <controller>" and ran plain moves at the learned
     feeds. It now runs the controller's feed loop (issue 29: feed control written, or
     refused)."""
-    from robomach_core.robot import Robot
+    from robomach_core.cell import Robot
 
     p = replace(block_project, cmrr=CmrrSettings(settings_for(kind), 80.0, 0.01, 0.1))
     assert p.machining_settings is None and p.cell.robot.startswith("ur")
@@ -223,7 +223,7 @@ def test_a_program_that_carries_no_cmrr_says_so_in_its_header(block_project):
     """The header's CMRR line named the controller in every file, also in KRL (no feed
     control written) and in the force-controlled variant (none either): those say it is not
     in the program; RAPID and URScript, which run it, name it."""
-    from robomach_core.robot import Robot
+    from robomach_core.cell import Robot
 
     p = replace(block_project, cmrr=CmrrSettings(settings_for("fuzzy"), 80.0, 0.01, 0.1))
     workpiece = core.build_workpiece(p.cell, p.mesh)

@@ -3,10 +3,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robomach_core.cell import CONTROL_PERIOD_S, Cell
+from robomach_core.cell import Cell, ComplianceSelection, LeadThrough, RealTimePacer
+from robomach_core.cell.simulator import CONTROL_PERIOD_S
 from robomach_core.errors import InvalidInputError
-from robomach_core.leadthrough import ComplianceSelection, LeadThrough
-from robomach_core.realtime import RealTimePacer
 
 
 class FakeClock:

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from robomach_core.cell import Robot, program_language, robots_directory
 from robomach_core.project import program_languages
-from robomach_core.robot import Robot, program_language, robots_directory
 from robomach_core.robots import abb, custom, registry
 from robomach_core.robots.custom import RobotFileError, register_urdf
 from robomach_core.robots.recognise import recognise_arm

@@ -16,8 +16,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from robomach_core.cell import Cell, CellConfig
-from robomach_core.leadthrough import LeadThrough
+from robomach_core.cell import Cell, CellConfig, LeadThrough, Tool
 from robomach_core.learning.planner import ProposalSettings, propose_guide_points
 from robomach_core.part import PartDeviation, builtin_workpiece, mesh_query, real_workpiece
 from robomach_core.part.real_part import fixture_error
@@ -33,7 +32,6 @@ from robomach_core.registration import (
     transform_from_mm_deg,
 )
 from robomach_core.teaching.calibration import plan_touches, scripted_touches, touch_at
-from robomach_core.tool import Tool
 from robomach_core.transforms import make_transform, rotation_about
 from tests.envelope import replay, run_seed
 

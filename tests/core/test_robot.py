@@ -5,9 +5,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from robomach_core.cell import HOME_JOINTS_RAD, Robot, Tool
 from robomach_core.errors import UnknownNameError, UnreachableTargetError
-from robomach_core.robot import HOME_JOINTS_RAD, Robot
-from robomach_core.tool import Tool
 from robomach_core.transforms import rotation_about
 
 

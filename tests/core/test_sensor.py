@@ -2,8 +2,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from robomach_core.sensor import ForceEstimator, ForceTorqueSensor, SensorParams
-from robomach_core.tool import Tool
+from robomach_core.cell import ForceEstimator, Tool
+from robomach_core.cell.sensor import ForceTorqueSensor, SensorParams
 from robomach_core.transforms import rotation_about
 
 

@@ -9,20 +9,20 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robomach_core.cell import Cell
-from robomach_core.errors import InvalidInputError, SupervisionError
-from robomach_core.leadthrough import ComplianceSelection, GuidePoint, LeadThrough
-from robomach_core.learning.route import plan_route
-from robomach_core.learning.run import learn_path
-from robomach_core.learning.settings import PathLearningSettings
-from robomach_core.robot import HOME_JOINTS_RAD
-from robomach_core.supervision import (
-    FixtureBox,
-    SupervisionCause,
-    SupervisionLimits,
+from robomach_core.cell import (
+    HOME_JOINTS_RAD,
+    Cell,
+    ComplianceSelection,
+    GuidePoint,
+    LeadThrough,
     Supervisor,
     cell_supervisor,
 )
+from robomach_core.cell.supervision import FixtureBox, SupervisionCause, SupervisionLimits
+from robomach_core.errors import InvalidInputError, SupervisionError
+from robomach_core.learning.route import plan_route
+from robomach_core.learning.run import learn_path
+from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.teaching.operator import TOOL_DOWN
 from robomach_core.transforms import make_transform
 

@@ -80,7 +80,7 @@ def test_bounds_name_what_is_exceeded(text: str, needle: str):
 
 
 def test_real_urdfs_pass_the_bounds():
-    from robomach_core.robot import robot_urdf_path
+    from robomach_core.cell.robot import robot_urdf_path
 
     for name in ("ur5", "ur10"):
         check_urdf_text(robot_urdf_path(name).read_text(), f"{name}.urdf")

@@ -13,6 +13,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from robomach_core.cell import Robot, Tool
 from robomach_core.export.urscript import script_numbers, script_poses, urscript_program
 from robomach_core.export.urscript_feed import (
     LAW_BEGIN,
@@ -27,8 +28,6 @@ from robomach_core.machining import _kernel as K
 from robomach_core.machining.run import plan_cut
 from robomach_core.part import builtin_workpiece
 from robomach_core.postprocess import Targets
-from robomach_core.robot import Robot
-from robomach_core.tool import Tool
 
 KINDS = ("fixed-pi", "adaptive-pi", "fuzzy", "two-stage", "adaptive-lq")
 

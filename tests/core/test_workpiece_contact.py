@@ -3,13 +3,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robomach_core.contact import ContactModel
+from robomach_core.cell import Tool
+from robomach_core.cell.contact import ContactModel
 from robomach_core.errors import MeshFileError, UnknownNameError
 from robomach_core.part import Arc, builtin_workpiece, mesh_from_bytes
 from robomach_core.part.contour import filleted_polygon
 from robomach_core.part.workpiece import block, water_pump
 from robomach_core.pipeline import load_workpiece
-from robomach_core.tool import Tool
 
 TOOL_DOWN = np.diag([1.0, -1.0, -1.0])
 

@@ -8,8 +8,8 @@ from starlette.concurrency import run_in_threadpool
 
 from app.api.routes import ERRORS, SessionDep, SettingsDep
 from app.api.schemas import CellPublic, CellUpdate
+from robomach_core.cell import ROBOT_NAMES
 from robomach_core.part import MAX_MESH_BYTES, WORKPIECE_NAMES
-from robomach_core.robot import ROBOT_NAMES
 
 router = APIRouter(prefix="/api/cell", tags=["cell"], responses=ERRORS)
 

@@ -129,8 +129,8 @@ class CalibrationPanel:
     def _reachable(self, cad):
         """(point_wobj) -> whether the arm stands over it with the tool down, a little above
         (where a touch of that face starts)."""
+        from robomach_core.cell import TOOL_DOWN
         from robomach_core.errors import RobomachError
-        from robomach_core.tool import TOOL_DOWN
 
         robot = self.session.robot.cell.robot
         T_wobj = cad.T_base_wobj

@@ -23,8 +23,8 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 
+from ..errors import InvalidInputError
 from .clock import CONTROL_PERIOD_S
-from .errors import InvalidInputError
 
 DEFAULT_BURST_S = 0.1  # a held push stops within this of its release
 

@@ -28,8 +28,8 @@ from typing import NamedTuple
 import coal
 import numpy as np
 
-from . import _kernels
-from .part import Workpiece, bvh_from_mesh
+from .. import _kernels
+from ..part import Workpiece, bvh_from_mesh
 from .tool import Tool
 
 CONTACT_DAMPING_N_S_M = 100.0

@@ -24,7 +24,7 @@ import math
 import numba
 import numpy as np
 
-from .._kernels import exp3, ik_newton_step, mul3, rotate_about
+from ..._kernels import exp3, ik_newton_step, mul3, rotate_about
 
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 # A margin shrinking by less than this (m or rad) in one period is not approaching its limit:

@@ -18,12 +18,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import _kernels
+from .. import _kernels
+from ..errors import InvalidInputError
+from ..part import Workpiece, builtin_workpiece
 from .clock import CONTROL_PERIOD_S as CONTROL_PERIOD_S
 from .contact import NO_CONTACT, ContactModel, ContactResult
-from .errors import InvalidInputError
 from .joint_compliance import JointCompliance, true_joint_compliance
-from .part import Workpiece, builtin_workpiece
 from .robot import Robot
 from .sensor import ForceEstimator, ForceTorqueSensor, SensorParams
 from .tool import Tool

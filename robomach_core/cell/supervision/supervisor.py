@@ -42,11 +42,11 @@ import coal
 import numpy as np
 import pinocchio as pin
 
+from ...errors import InvalidInputError, SupervisionError
+from ...part import Workpiece
+from ...robots.registry import DEFAULT_LINK_RADIUS_M
 from ..clock import CONTROL_PERIOD_S
-from ..errors import InvalidInputError, SupervisionError
-from ..part import Workpiece
 from ..robot import IK_STEP_DAMPING, Robot
-from ..robots.registry import DEFAULT_LINK_RADIUS_M
 from ..tool import Tool
 from ._kernels import (
     MEMORY_MARGINS,

@@ -18,12 +18,12 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from . import _kernels
-from .errors import SingularConfigurationError, UnreachableTargetError
-from .robots import builtin, registry
-from .robots.builtin import JointCoupling
-from .robots.registry import robots_directory as robots_directory
-from .transforms import pose_error
+from .. import _kernels
+from ..errors import SingularConfigurationError, UnreachableTargetError
+from ..robots import builtin, registry
+from ..robots.builtin import JointCoupling
+from ..robots.registry import robots_directory as robots_directory
+from ..transforms import pose_error
 
 # A program language's name (``export.languages``: "rapid", "urscript", "krl", ...).
 ProgramLanguage = str

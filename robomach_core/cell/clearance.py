@@ -20,7 +20,7 @@ from typing import NamedTuple
 import coal
 import numpy as np
 
-from .part import Workpiece, bvh_from_mesh
+from ..part import Workpiece, bvh_from_mesh
 from .tool import Tool
 
 

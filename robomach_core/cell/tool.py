@@ -8,9 +8,9 @@ from typing import Literal
 
 import numpy as np
 
-from .errors import InvalidInputError
-from .limits import TOOL_RADIUS_MM
-from .transforms import make_transform
+from ..errors import InvalidInputError
+from ..limits import TOOL_RADIUS_MM
+from ..transforms import make_transform
 
 CutterShape = Literal["ball", "cylinder"]
 

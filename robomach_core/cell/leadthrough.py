@@ -27,20 +27,20 @@ from typing import Literal, get_args
 
 import numpy as np
 
-from . import _kernels
-from .cell import Cell, CellState
-from .clock import CONTROL_PERIOD_S
-from .errors import InvalidInputError, NoContactError
-from .limits import (
+from .. import _kernels
+from ..errors import InvalidInputError, NoContactError
+from ..limits import (
     JOG_STEP_MM,
     JOG_TURN_DEG,
     PUSH_DURATION_S,
     TOUCH_OFF_FORCE_N,
     TOUCH_OFF_TRAVEL_MM,
 )
+from ..transforms import quaternion_from_matrix, rotation_about
+from .clock import CONTROL_PERIOD_S
 from .sensor import ForceEstimator
+from .simulator import Cell, CellState
 from .supervision import Supervisor, cell_supervisor, interpolate_pose
-from .transforms import quaternion_from_matrix, rotation_about
 
 Axis = Literal["x", "y", "z", "rx", "ry", "rz"]
 AXES: tuple[Axis, ...] = ("x", "y", "z", "rx", "ry", "rz")

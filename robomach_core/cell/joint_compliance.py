@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InvalidInputError
-from .robots import registry
+from ..errors import InvalidInputError
+from ..robots import registry
 
 
 class _TrueStiffness(Mapping):

@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pinocchio as pin
 
-from ..cell import Cell, CellState
 from ..clock import CONTROL_PERIOD_S
+from ..simulator import Cell, CellState
 from .supervisor import Supervisor, cell_supervisor
 
 MOVE_MAX_PERIODS_FACTOR = 20  # a move slowed by supervision may take this many times longer

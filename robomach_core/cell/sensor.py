@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _kernels
+from .. import _kernels
 from .tool import Tool
 
 STANDARD_GRAVITY_M_S2 = 9.81
