@@ -85,7 +85,7 @@ def enums() -> dict[str, tuple[str, ...]]:
     from .part import WORKPIECE_NAMES
     from .project import StageStatus
     from .project._machining import STOCK_SOURCES
-    from .robots.builtin import ARM_FAMILIES
+    from .robots import ARM_FAMILIES
     from .stiffness.settings import COMPENSATION_SETTINGS
     from .stiffness.studies import StudyName
 

@@ -32,7 +32,7 @@ import numpy as np
 
 from robomach_core.arcs import Move, linear_moves, validate_moves
 from robomach_core.errors import InvalidInputError
-from robomach_core.robots.abb import ABB_ARMS, ArmSpec
+from robomach_core.robots import ABB_ARMS, ArmSpec
 from robomach_core.transforms import quaternion_from_matrix
 
 MAX_IDENTIFIER_LEN = 32

@@ -37,13 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import RobomachError
-from ..urdf_check import (
-    check_urdf_native,
-    check_urdf_text,
-    read_package_meshes,
-    read_robot_zip,
-)
 from . import registry
+from .urdf_check import check_urdf_native, check_urdf_text, read_package_meshes, read_robot_zip
 
 MAX_ROBOT_FILE_BYTES = 50 * 1024 * 1024
 ROBOT_FILE_SUFFIXES = (".urdf", ".zip")
@@ -227,7 +222,7 @@ def mesh_path(record: registry.Arm, reference: str) -> str:
     in the cache (``urdf_check.resolve_reference``): "" (no file) for a reference that names no
     member of the upload. The scene's loader (yourdfpy) reads an upload's meshes through this,
     so it cannot read a file of the server's disk (issue 32)."""
-    from ..urdf_check import resolve_reference
+    from .urdf_check import resolve_reference
 
     member = resolve_reference(reference, [m for m, _ in record.meshes])
     if member is None or record.urdf_text is None:

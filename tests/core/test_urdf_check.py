@@ -16,7 +16,7 @@ import pytest
 
 from robomach_core.robots import abb, registry
 from robomach_core.robots.custom import RobotFileError, register_urdf
-from robomach_core.urdf_check import (
+from robomach_core.robots.urdf_check import (
     MAX_URDF_DEPTH,
     UrdfBoundsError,
     check_urdf_native,

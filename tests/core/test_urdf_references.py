@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 from robomach_core.robots import abb, registry
 from robomach_core.robots.custom import RobotFileError, mesh_path, register_urdf
 from robomach_core.robots.registry import sanitised_mesh
-from robomach_core.urdf_check import (
+from robomach_core.robots.urdf_check import (
     MAX_ROBOT_UNPACKED_BYTES,
     check_urdf_text,
     reference_problem,

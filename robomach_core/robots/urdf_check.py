@@ -36,7 +36,7 @@ import zipfile
 from collections.abc import Iterable
 from pathlib import Path
 
-from .errors import RobomachError
+from ..errors import RobomachError
 
 MAX_URDF_BYTES = 2_000_000
 MAX_XML_NESTING = 32  # a URDF nests 4-6 deep (robot/link/visual/geometry/mesh)
@@ -398,7 +398,7 @@ def read_package_meshes(
     installed example-robot-data (``package://example-robot-data/...``: a UR copied out of
     it names its meshes so), read from inside its robots folder, bounded like a zip's; any
     other reference is refused with ``error`` naming it (a .urdf brings no file of its own)."""
-    from .robots.registry import robots_directory
+    from .registry import robots_directory
 
     references = mesh_references(text)
     check_references(references, filename, error)
@@ -438,7 +438,7 @@ def _check_meshes(
     """Mesh files the viewer will parse: STL/OBJ/PLY within the workpiece reader's triangles
     each, and within ``MAX_ROBOT_REFERENCED_TRIANGLES`` summed over the references (each is
     loaded)."""
-    from .part import MAX_MESH_TRIANGLES, count_mesh_triangles
+    from ..part import MAX_MESH_TRIANGLES, count_mesh_triangles
 
     triangles: dict[str, int] = {}
     for path, data in files.items():
@@ -466,7 +466,7 @@ def check_urdf_native(
     blow-up or a hang there becomes ``error``; a model pinocchio refuses with an exception
     passes (the caller's own build reports it). Returns the child's answer (``nq``,
     ``njoints``, ``nframes``; empty when pinocchio refused)."""
-    from .isolation import IsolatedError, run_isolated
+    from ..isolation import IsolatedError, run_isolated
 
     try:
         return run_isolated(
