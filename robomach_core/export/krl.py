@@ -39,11 +39,10 @@ import numpy as np
 import pinocchio as pin
 from scipy.spatial.transform import Rotation
 
-from ..arcs import Move, linear_moves, validate_moves
 from ..cell import Robot, Tool
 from ..errors import InvalidInputError, RobomachError
 from ..part import Workpiece
-from ..postprocess import Targets
+from ..postprocess import Move, Targets, linear_moves, validate_moves
 from ..transforms import inverse_transform, make_transform, matrix_from_quaternion
 
 MODULE_NAME = "program"  # KRL: the DEF / DEFDAT name is the file name (program.src/.dat)

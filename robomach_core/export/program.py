@@ -6,10 +6,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..arcs import Move
 from ..cell import Tool
 from ..part import Workpiece
-from ..postprocess import Targets
+from ..postprocess import Move, Targets
 from ..transforms import (
     inverse_transform,
     make_transform,

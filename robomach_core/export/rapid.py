@@ -30,8 +30,8 @@ from typing import Literal
 
 import numpy as np
 
-from robomach_core.arcs import Move, linear_moves, validate_moves
 from robomach_core.errors import InvalidInputError
+from robomach_core.postprocess import Move, linear_moves, validate_moves
 from robomach_core.robots import ABB_ARMS, ArmSpec
 from robomach_core.transforms import quaternion_from_matrix
 

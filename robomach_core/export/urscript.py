@@ -26,11 +26,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..arcs import Move, linear_moves, validate_moves
 from ..cell import Tool
 from ..errors import InvalidInputError
 from ..part import Workpiece
-from ..postprocess import Targets
+from ..postprocess import Move, Targets, linear_moves, validate_moves
 from ..transforms import make_transform, matrix_from_quaternion, rotation_log
 from .urscript_feed import UrFeedLoop, feed_loop_lines
 

@@ -28,10 +28,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..arcs import Move, linear_moves, sample_moves
 from ..cell import GuidePoint
 from ..errors import RouteRefusedError, WallSideError
 from ..part import Workpiece
+from ..postprocess import Move, linear_moves, sample_moves
 from . import thresholds as th
 from .findings import GuideRule, GuideWarning
 from .route import (

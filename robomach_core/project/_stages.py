@@ -15,13 +15,7 @@ from ..learning.route import LearningRoute, plan_route
 from ..learning.run import learn_path
 from ..learning.settings import PathLearningSettings
 from ..part import Workpiece, mesh_query
-from ..postprocess import (
-    PostprocessResult,
-    PostprocessSettings,
-    Targets,
-    loop_ridge_m,
-    postprocess,
-)
+from ..postprocess import PostprocessResult, PostprocessSettings, Targets, loop_ridge_m, postprocess
 from ..scoring import PathScore, score_path
 from ._value import (
     CellSettings,
@@ -111,7 +105,7 @@ def process(
         raise InvalidInputError(f"{exc}: path learning ended early ({rec.stop_reason})") from None
     moves = straight = None
     if settings.arcs and len(result.targets) >= 2:
-        from ..arcs import arc_targets
+        from ..postprocess import arc_targets
 
         straight = len(result.targets)
         tol = settings.arc_tolerance_m or settings.tolerance_m

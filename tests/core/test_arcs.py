@@ -9,17 +9,17 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robomach_core.arcs import (
-    Move,
-    arc_targets,
-    circle_through,
-    fit_arcs,
-    linear_moves,
-    sample_moves,
-)
 from robomach_core.errors import InvalidInputError
 from robomach_core.part import builtin_workpiece, water_pump_wall
-from robomach_core.postprocess import Targets, reduce_deviation_height
+from robomach_core.postprocess import (
+    Move,
+    Targets,
+    arc_targets,
+    linear_moves,
+    reduce_deviation_height,
+    sample_moves,
+)
+from robomach_core.postprocess.arcs import circle_through, fit_arcs
 
 
 def line_arc_line(spacing: float = 2e-5, radius: float = 0.005) -> np.ndarray:

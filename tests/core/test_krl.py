@@ -10,7 +10,6 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from robomach_core.arcs import Move
 from robomach_core.cell import Robot, Tool
 from robomach_core.export.krl import (
     APPROACH_NAME,
@@ -21,7 +20,7 @@ from robomach_core.export.krl import (
 )
 from robomach_core.export.krl_check import KrlSyntaxError, check_krl_program
 from robomach_core.part import builtin_workpiece
-from robomach_core.postprocess import Targets
+from robomach_core.postprocess import Move, Targets
 from robomach_core.robots import KR270
 from robomach_core.robots.kuka import status_bits, turn_bits
 from robomach_core.teaching.operator import TOOL_DOWN

@@ -10,11 +10,13 @@ from robomach_core.errors import InvalidInputError
 from robomach_core.postprocess import (
     PostprocessSettings,
     curvature_along,
+    reduce_deviation_height,
+    speeds_by_curvature,
+)
+from robomach_core.postprocess.targets import (
     deviation_heights,
     force_threshold_mask,
-    reduce_deviation_height,
     reduce_deviation_height_reference,
-    speeds_by_curvature,
 )
 
 walks = arrays(
@@ -204,7 +206,7 @@ def test_a_gap_whose_chord_would_cut_a_corner_keeps_its_samples():
     filter drops it): bridged by one chord, the program would cut the corner 0.29 mm deep
     (r (1 - cos 45 deg), r = 1 mm). The gap keeps its samples; a gap on a straight stretch,
     whose chord stays within the tolerance, is still bridged."""
-    from robomach_core.postprocess import keep_corners
+    from robomach_core.postprocess.targets import keep_corners
 
     r = 0.001
     angles = np.linspace(np.pi / 2, 0.0, 50)  # the arc round the corner at the origin

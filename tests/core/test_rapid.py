@@ -13,7 +13,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robomach_core.arcs import Move
 from robomach_core.errors import InvalidInputError
 from robomach_core.export import (
     ForceControlSettings,
@@ -31,6 +30,7 @@ from robomach_core.export import (
     write_rapid_module,
 )
 from robomach_core.export import rapid as rapid_export
+from robomach_core.postprocess import Move
 from robomach_core.transforms import matrix_from_quaternion
 from tests.rapid_grammar import GRAMMAR_ROBTARGETS, rapidchecker_errors
 

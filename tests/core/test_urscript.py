@@ -7,7 +7,6 @@ import re
 import numpy as np
 import pytest
 
-from robomach_core.arcs import Move
 from robomach_core.cell import Robot, Tool
 from robomach_core.errors import InvalidInputError, UnreachableTargetError
 from robomach_core.export.rapid import confdata_from_joints
@@ -18,7 +17,7 @@ from robomach_core.export.urscript import (
     urscript_program,
 )
 from robomach_core.part import builtin_workpiece
-from robomach_core.postprocess import Targets
+from robomach_core.postprocess import Move, Targets
 from robomach_core.teaching.operator import TOOL_DOWN
 from robomach_core.transforms import (
     make_transform,

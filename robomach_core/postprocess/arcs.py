@@ -34,9 +34,9 @@ from typing import Literal
 
 import numpy as np
 
-from .errors import InvalidInputError
-from .postprocess import Targets
-from .transforms import slerp
+from ..errors import InvalidInputError
+from ..transforms import slerp
+from .targets import Targets
 
 MAX_SWEEP_DEG = 180.0  # ABB: keep a MoveC well under 240 deg with the via point near the middle
 MIN_ARC_SAMPLES = 5  # fewer samples cannot tell an arc from a chord

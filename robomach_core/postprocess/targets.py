@@ -17,9 +17,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import _kernels
-from .errors import InvalidInputError
-from .limits import (
+from .. import _kernels
+from ..errors import InvalidInputError
+from ..limits import (
     CONTACT_STIFFNESS_N_MM,
     CURVATURE_REFERENCE_1_M,
     FORCE_THRESHOLD_N,
@@ -297,7 +297,7 @@ def surface_positions(
     force, without its component along the tool axis, points from the wall to the tool; adding
     F / k moves each sample out of the wall. k = 0 leaves the samples as recorded.
     """
-    from .transforms import matrices_from_quaternions
+    from ..transforms import matrices_from_quaternions
 
     p = np.asarray(position_m, dtype=float)
     if contact_stiffness_N_m <= 0:
