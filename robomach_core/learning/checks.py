@@ -91,7 +91,7 @@ def _mesh_findings(
     workpiece: Workpiece,
     tool_radius_m: float,
 ) -> list[GuideWarning]:
-    from ..mesh_score import mesh_deviation
+    from ..scoring.mesh_score import mesh_deviation
 
     out: list[GuideWarning] = []
     closed = settings.closed

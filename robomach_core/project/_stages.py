@@ -152,8 +152,7 @@ def _scores(
     score = mesh = taught = None
     if len(result.targets) >= 2:
         from ..learning.checks import taught_wall_check
-        from ..mesh_score import score_mesh
-        from ..scoring import score_moves
+        from ..scoring import score_mesh, score_moves
         from ..transforms import matrices_from_quaternions
 
         pos = result.targets.position_m
@@ -194,7 +193,7 @@ def cad_comparison_of(
     (``cad_program.compare_with_cad``); None for fewer than 2 targets or no wall followed."""
     if len(targets) < 2:
         return None
-    from ..cad_program import compare_with_cad
+    from ..scoring import compare_with_cad
 
     return compare_with_cad(
         workpiece,

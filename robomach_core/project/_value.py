@@ -20,9 +20,9 @@ from ..registration import WobjRegistration
 from ..scoring import PathScore
 
 if TYPE_CHECKING:  # the slots' types; their modules import this one
-    from ..cad_program import CadComparison
     from ..cmrr import CmrrSettings
     from ..learning.checks import TaughtWallCheck
+    from ..scoring import CadComparison
     from ..stiffness import CompensationSettings
     from ._machining import MachiningResult, MachiningSetup
 

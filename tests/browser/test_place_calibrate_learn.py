@@ -142,7 +142,7 @@ def _real_wall_error_mm(session, program_text: str, filename: str) -> float:
     """The downloaded program's largest error from the real part's wall [mm]: its moves read
     back (base frame), sampled every 0.1 mm, against the real part's section (the casting
     without its burrs) at the program's height: the ball's centre distance minus its radius."""
-    from robomach_core.cad_program import score_against_wall
+    from robomach_core.scoring.cad_program import score_against_wall
 
     path = read_program("urscript", {filename: program_text})
     real = session.robot.workpiece  # the part in the cell (its own mesh, where it really is)

@@ -7,8 +7,8 @@ import numpy as np
 import trimesh
 from scipy.spatial.transform import Rotation
 
-from robomach_core.mesh_score import mesh_deviation
 from robomach_core.part import builtin_workpiece
+from robomach_core.scoring import mesh_deviation
 from tests.mesh_reference import distance_to_every_face
 
 
@@ -73,8 +73,8 @@ def test_inside_beside_edges_and_corners_is_the_winding_numbers():
     """Points within a micrometre of the pump's edges and corners, where the nearest face's
     normal cannot tell (the winding number decides, libigl's): the same side as the reference
     winding number's, in and out, over fresh points each run."""
-    from robomach_core.mesh_score import _inside
     from robomach_core.part import mesh_query
+    from robomach_core.scoring.mesh_score import _inside
 
     seed = int(np.random.default_rng().integers(2**32))
     rng = np.random.default_rng(seed)

@@ -20,9 +20,9 @@ from robomach_core.learning.checks import guide_point_warnings, taught_wall_chec
 from robomach_core.learning.route import PartWalls, mean_tool_axis, plan_route, resolve_wall_side
 from robomach_core.learning.run import learn_path
 from robomach_core.learning.settings import PathLearningSettings
-from robomach_core.mesh_score import score_mesh
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import CellSettings, Project, learn, process
+from robomach_core.scoring import score_mesh
 from tests.sloppy_guides import sloppy_guides
 
 P8_MM = [

@@ -12,12 +12,11 @@ from robomach_core.cell.robot import robot_urdf_path
 from robomach_core.errors import InvalidInputError
 from robomach_core.learning.checks import guide_point_warnings
 from robomach_core.learning.settings import PathLearningSettings
-from robomach_core.mesh_score import score_mesh
 from robomach_core.part import builtin_workpiece
 from robomach_core.pipeline import default_robot
 from robomach_core.project import wobj_transform
 from robomach_core.robots.custom import RobotFileError, register_urdf, validate_urdf
-from robomach_core.scoring import score_path
+from robomach_core.scoring import score_mesh, score_path
 from robomach_core.teaching.operator import TOOL_DOWN
 from robomach_core.transforms import make_transform, rotation_about
 

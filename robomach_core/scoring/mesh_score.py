@@ -29,10 +29,10 @@ import igl
 import numpy as np
 import trimesh
 
-from .errors import InvalidInputError
-from .part import Workpiece, mesh_query
-from .postprocess import Move, linear_moves
-from .scoring import PathScore, score_sampled_moves
+from ..errors import InvalidInputError
+from ..part import Workpiece, mesh_query
+from ..postprocess import Move, linear_moves
+from .true_wall import PathScore, score_sampled_moves
 
 # 0.5 mm between scored points (~0.2 s for a metre of path on an 8k-triangle mesh; 0.1 mm cost
 # 1 s, most of a workbench post-processing). Between targets the error is a smooth chord sagitta

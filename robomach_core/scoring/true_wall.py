@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InvalidInputError
-from .part import Workpiece
-from .postprocess import Move, sample_moves
+from ..errors import InvalidInputError
+from ..part import Workpiece
+from ..postprocess import Move, sample_moves
 
 SCORE_SPACING_M = 2e-5  # points every 0.02 mm along each segment
 

@@ -32,10 +32,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 import shapely
 
-from .learning.walls import WallLoop, floor_under, section_loops
-from .part import Workpiece
-from .part.mesh_query import transformed
-from .postprocess import reduce_deviation_height
+from ..learning.walls import WallLoop, floor_under, section_loops
+from ..part import Workpiece
+from ..part.mesh_query import transformed
+from ..postprocess import reduce_deviation_height
 
 # Every 0.1 mm along the moves: between targets the error is a smooth chord sagitta, whose
 # maximum a 0.1 mm sampling misses by well under a micrometre on millimetre-long chords.
