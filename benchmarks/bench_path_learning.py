@@ -36,7 +36,7 @@ from robomach_core.learning.law import record_row
 from robomach_core.learning.route import plan_route
 from robomach_core.learning.run import learn_path
 from robomach_core.learning.settings import PathLearningSettings
-from robomach_core.teaching.operator import guide_plan, scripted_leadthrough
+from robomach_core.teaching import guide_plan, scripted_leadthrough
 
 
 def per_call_us(fn: Callable[[], object], n: int) -> float:

@@ -39,9 +39,8 @@ from .project import (
 )
 from .project import compensate_program_targets as _compensate
 from .project import wobj_transform as wobj_transform
-from .registration import registered_workpiece
 from .scoring import PathScore
-from .teaching.operator import intents_from_csv, scripted_leadthrough
+from .teaching import intents_from_csv, registered_workpiece, scripted_leadthrough
 
 # progress(stage, fraction in [0, 1])
 Progress = Callable[[str, float], None]
@@ -329,7 +328,7 @@ def run_demo(
     if workpiece.nominal is not None and settings.guide_points_csv is None:
         # The part is not where its mesh is: the operator enters each groove in its middle
         # and touches the real wall from there (``operator.robust_intents``).
-        from .teaching.operator import guide_plan, robust_intents
+        from .teaching import guide_plan, robust_intents
 
         planned = intents or guide_plan(
             cad, cell.tool.radius_m, np.random.default_rng(settings.seed)
@@ -424,8 +423,7 @@ def _calibrated(
 ) -> tuple[Any, Any]:
     """The scripted operator touches the part (``teaching.calibration``) and the CAD is
     registered to the touches (``registration.fit_wobj``): the fit and the robot's state."""
-    from .registration import fit_wobj
-    from .teaching.calibration import plan_touches, scripted_touches
+    from .teaching import fit_wobj, plan_touches, scripted_touches
 
     plan = plan_touches(cad, lt.cell.tool.radius_m, robot=lt.cell.robot)
     state, touches = scripted_touches(
@@ -450,7 +448,7 @@ def _proposed(settings: DemoSettings, cad: Workpiece, cell: Cell) -> tuple[Any, 
         refuse_unreachable,
         tool_reach,
     )
-    from .teaching.operator import guide_intents
+    from .teaching import guide_intents
 
     proposal = propose_guide_points(
         cad,

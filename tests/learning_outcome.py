@@ -282,7 +282,7 @@ def example_leadthrough(
     the example's guide points on a built-in part, or to ``intents``; returns the set (taught
     wall "outer"/"outline"/"right side": the built-in's wall), the cell state at the end and
     the tared estimator."""
-    from robomach_core.teaching.operator import scripted_leadthrough
+    from robomach_core.teaching import scripted_leadthrough
 
     cell = part.cell(seed)
     lt = LeadThrough(cell)
@@ -355,7 +355,7 @@ def proposal_set(
         refuse_unreachable,
         tool_reach,
     )
-    from robomach_core.teaching.operator import guide_intents, scripted_leadthrough
+    from robomach_core.teaching import guide_intents, scripted_leadthrough
 
     cell = part.cell(seed)
     cad = cell.workpiece.cad()

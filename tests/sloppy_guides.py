@@ -19,11 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from robomach_core.cell import Cell, GuidePoint, cell_supervisor
+from robomach_core.cell import TOOL_DOWN, Cell, GuidePoint, cell_supervisor
 from robomach_core.cell.simulator import CONTROL_PERIOD_S
 from robomach_core.errors import RobomachError
 from robomach_core.part import Contour, Workpiece
-from robomach_core.teaching.operator import TOOL_DOWN
 
 SENSOR_NOISE_N = 0.3
 CLEARANCE_M = 0.003  # the spindle and shank stay this far from the part (supervision slows)

@@ -37,18 +37,16 @@ from robomach_core.cell import LeadThrough, LeadThroughState
 from robomach_core.errors import InvalidInputError, RobomachError
 from robomach_core.part import Workpiece, mesh_query
 from robomach_core.project import CellSettings, Project
-from robomach_core.registration import (
+from robomach_core.teaching import (
     MIN_TOUCHES,
+    TOUCH_FORCE_N,
     CalibrationError,
+    PlannedTouch,
     Touch,
+    TouchPlan,
     WobjFit,
     WobjRegistration,
     fit_wobj,
-)
-from robomach_core.teaching.calibration import (
-    TOUCH_FORCE_N,
-    PlannedTouch,
-    TouchPlan,
     plan_touches,
     scripted_touches,
     touch_at,

@@ -248,7 +248,7 @@ def build_cell_workpiece(
     ``part_deviation`` (``real_part.real_workpiece``; its ``cad()`` is the mesh the user sees),
     its CAD placed where the cell's ``registration`` measured it when there is one."""
     from ..part import real_workpiece
-    from ..registration import registered_workpiece
+    from ..teaching import registered_workpiece
 
     cad = build_workpiece(cell, mesh, max_triangles=max_triangles, parsed=parsed)
     part = real_workpiece(cad, cell.part_deviation)

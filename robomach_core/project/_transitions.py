@@ -28,7 +28,7 @@ from ..cell import GuidePoint
 from ..errors import ConflictError, InvalidInputError, NotFoundError
 from ..limits import GUIDE_POINTS_MAX
 from ..postprocess import PostprocessSettings
-from ..registration import WobjRegistration
+from ..teaching import WobjRegistration
 from ._value import LearnedPath, ProcessedPath, Project, processed_inputs_key
 
 if TYPE_CHECKING:

@@ -16,8 +16,8 @@ from ..learning.run import Recording
 from ..learning.settings import PathLearningSettings
 from ..part import PartDeviation
 from ..postprocess import PostprocessResult, PostprocessSettings
-from ..registration import WobjRegistration
 from ..scoring import PathScore
+from ..teaching import WobjRegistration
 
 if TYPE_CHECKING:  # the slots' types; their modules import this one
     from ..cmrr import CmrrSettings

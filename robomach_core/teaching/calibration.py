@@ -30,8 +30,8 @@ import shapely
 from ..cell import TOOL_DOWN, LeadThrough, LeadThroughState
 from ..errors import InvalidInputError, NoContactError, RobomachError
 from ..part import Workpiece, mesh_query
-from ..registration import CalibrationError, Touch
 from .motion import go_to_point, move_by
+from .registration import CalibrationError, Touch
 
 EXPECTED_ERROR_M = 0.01  # the part may stand this far off its CAD at a touch (a few mm and 2 deg)
 TOP_STANDOFF_M = 0.008  # a touch down starts this far above the face

@@ -19,7 +19,7 @@ from robomach_core.export import check_rapid_module
 from robomach_core.export.rapid import confdata_from_joints
 from robomach_core.export.urscript import script_poses
 from robomach_core.part import builtin_workpiece
-from robomach_core.teaching.operator import guide_plan
+from robomach_core.teaching import guide_plan
 from robomach_core.transforms import make_transform
 from tests.cli import robomach_here
 from tests.demo_project import pump_demo

@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 from robomach_core.cell import (
     ROBOT_URDFS,
+    TOOL_DOWN,
     Cell,
     CellConfig,
     Robot,
@@ -26,7 +27,6 @@ from robomach_core.errors import UnreachableTargetError
 from robomach_core.export.rapid import abb_cfx, abb_wrist_centre_in_arm_plane, confdata_from_joints
 from robomach_core.part import builtin_workpiece, default_T_base_wobj
 from robomach_core.robots import ABB_ARMS, IRB4400, IRB6640, controller_axes_deg, urdf_text
-from robomach_core.teaching.operator import TOOL_DOWN
 from robomach_core.transforms import rotation_about
 
 ABB = sorted(ABB_ARMS)

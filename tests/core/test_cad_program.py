@@ -8,11 +8,11 @@ import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from robomach_core.cell import TOOL_DOWN
 from robomach_core.part import PartDeviation, Workpiece, real_workpiece
 from robomach_core.part.real_part import fixture_error
 from robomach_core.part.workpiece import water_pump
 from robomach_core.scoring import compare_with_cad
-from robomach_core.teaching.operator import TOOL_DOWN
 from robomach_core.transforms import make_transform, quaternion_from_matrix
 from tests.generated_parts import drawn_plate
 

@@ -5,7 +5,7 @@ import pytest
 
 from robomach_core.cell import Cell, LeadThrough
 from robomach_core.errors import InvalidInputError, NotEnoughGuidePointsError
-from robomach_core.teaching.operator import guide_plan, intents_from_csv, scripted_leadthrough
+from robomach_core.teaching import guide_plan, intents_from_csv, scripted_leadthrough
 
 
 @pytest.fixture(scope="module")

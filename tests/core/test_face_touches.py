@@ -12,7 +12,8 @@ import numpy as np
 import trimesh
 
 from robomach_core.part import mesh_from_bytes
-from robomach_core.teaching.face_touches import FLAT_MARGIN_M, ON_FACE_M, face_touch_points
+from robomach_core.teaching import face_touch_points
+from robomach_core.teaching.face_touches import FLAT_MARGIN_M, ON_FACE_M
 
 
 def _block(rng: random.Random) -> tuple[np.ndarray, object]:

@@ -21,7 +21,7 @@ from robomach_core.learning.planner import (
 from robomach_core.learning.walls import section_loops
 from robomach_core.part import Workpiece
 from robomach_core.part.workpiece import block, water_pump
-from robomach_core.teaching.operator import guide_intents, guide_plan
+from robomach_core.teaching import guide_intents, guide_plan
 from robomach_core.transforms import make_transform, rotation_about
 from tests.generated_parts import grooved_plate, l_block, slotted_plate
 
@@ -204,7 +204,7 @@ def test_the_tool_axis_follows_a_tilted_work_object_and_the_operator_touches_the
     R_tool = job_tool_rotation(T)
     assert R_tool[:, 2] == pytest.approx(-T[:3, 2])
     flat = make_transform(rotation_about("z", 0.3), np.zeros(3))
-    from robomach_core.teaching.operator import TOOL_DOWN
+    from robomach_core.cell import TOOL_DOWN
 
     assert job_tool_rotation(flat) == pytest.approx(TOOL_DOWN)
     proposal = _propose(block(), (0.0, -25.0, 30.0))

@@ -581,7 +581,7 @@ def test_the_gjk_clearance_near_the_part_is_coals(part):
     within coal's tolerance, and every one it leaves is an overlap."""
     import pinocchio as pin
 
-    from robomach_core.teaching.operator import TOOL_DOWN
+    from robomach_core.cell import TOOL_DOWN
 
     cell = Cell(CellConfig(workpiece=part))
     supervisor = cell_supervisor(cell)

@@ -10,7 +10,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from robomach_core.cell import Robot, Tool
+from robomach_core.cell import TOOL_DOWN, Robot, Tool
 from robomach_core.export.krl import (
     APPROACH_NAME,
     RETRACT_NAME,
@@ -23,7 +23,6 @@ from robomach_core.part import builtin_workpiece
 from robomach_core.postprocess import Move, Targets
 from robomach_core.robots import KR270
 from robomach_core.robots.kuka import status_bits, turn_bits
-from robomach_core.teaching.operator import TOOL_DOWN
 from robomach_core.transforms import make_transform, quaternion_from_matrix, rotation_about
 
 

@@ -12,6 +12,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from robomach_core.cell import (
+    TOOL_DOWN,
     Cell,
     CellConfig,
     Robot,
@@ -24,7 +25,6 @@ from robomach_core.export.krl import status_turn
 from robomach_core.part import builtin_workpiece, default_T_base_wobj
 from robomach_core.robots import KR270, controller_axes_deg
 from robomach_core.robots.kuka import status_bits, turn_bits, urdf_text, wrist_root_point_a1
-from robomach_core.teaching.operator import TOOL_DOWN
 
 TABLE1_DEG = (90.0, -50.0, 120.0, 180.0, 25.0, 180.0)
 

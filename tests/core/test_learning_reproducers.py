@@ -16,9 +16,9 @@ import zlib
 import numpy as np
 import pytest
 
+from robomach_core.cell import TOOL_DOWN
 from robomach_core.errors import RouteRefusedError
 from robomach_core.pipeline import DemoSettings, run_demo
-from robomach_core.teaching.operator import TOOL_DOWN
 from tests.envelope import (
     DENSE_SAMPLES,
     GRID_WITHIN_MM,

@@ -12,14 +12,13 @@ import zlib
 import numpy as np
 import pytest
 
-from robomach_core.cell import Cell, CellConfig, GuidePoint, LeadThrough, cell_supervisor
+from robomach_core.cell import TOOL_DOWN, Cell, CellConfig, GuidePoint, LeadThrough, cell_supervisor
 from robomach_core.errors import SupervisionError
 from robomach_core.learning.checks import guide_point_warnings
 from robomach_core.learning.route import plan_route
 from robomach_core.learning.run import learn_path
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.part import builtin_workpiece
-from robomach_core.teaching.operator import TOOL_DOWN
 from robomach_core.transforms import make_transform, rotation_about
 from tests.envelope import replay, run_seed
 

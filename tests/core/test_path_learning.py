@@ -3,14 +3,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robomach_core.cell import Cell, CellConfig, GuidePoint, LeadThrough
+from robomach_core.cell import TOOL_DOWN, Cell, CellConfig, GuidePoint, LeadThrough
 from robomach_core.cell.simulator import CONTROL_PERIOD_S
 from robomach_core.errors import InvalidInputError, NotEnoughGuidePointsError
 from robomach_core.learning.route import plan_route
 from robomach_core.learning.run import learn_path
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.scoring import true_tool_path_distance
-from robomach_core.teaching.operator import TOOL_DOWN
 
 
 def _guides_on_bottom_run(cell: Cell) -> list[GuidePoint]:

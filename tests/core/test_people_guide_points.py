@@ -38,7 +38,7 @@ def _free(guides: list[GuidePoint]) -> list[GuidePoint]:
 
 def _points_at(cell: Cell, positions_mm) -> list[GuidePoint]:
     """Guide points at base-frame positions (mm), tool straight down, joints from the IK."""
-    from robomach_core.teaching.operator import TOOL_DOWN
+    from robomach_core.cell import TOOL_DOWN
 
     out, q = [], cell.robot.home_rad
     for p in positions_mm:

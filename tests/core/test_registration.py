@@ -21,17 +21,18 @@ from robomach_core.learning.planner import ProposalSettings, propose_guide_point
 from robomach_core.part import PartDeviation, builtin_workpiece, mesh_query, real_workpiece
 from robomach_core.part.real_part import fixture_error
 from robomach_core.part.workpiece import block
-from robomach_core.registration import (
-    ODD_TOUCH_M,
+from robomach_core.teaching import (
     CalibrationError,
     Touch,
     WobjRegistration,
     fit_wobj,
     mm_deg_from_transform,
+    plan_touches,
     registered_workpiece,
-    transform_from_mm_deg,
+    scripted_touches,
+    touch_at,
 )
-from robomach_core.teaching.calibration import plan_touches, scripted_touches, touch_at
+from robomach_core.teaching.registration import ODD_TOUCH_M, transform_from_mm_deg
 from robomach_core.transforms import make_transform, rotation_about
 from tests.envelope import replay, run_seed
 

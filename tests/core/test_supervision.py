@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 
 from robomach_core.cell import (
     HOME_JOINTS_RAD,
+    TOOL_DOWN,
     Cell,
     ComplianceSelection,
     GuidePoint,
@@ -23,7 +24,6 @@ from robomach_core.errors import InvalidInputError, SupervisionError
 from robomach_core.learning.route import plan_route
 from robomach_core.learning.run import learn_path
 from robomach_core.learning.settings import PathLearningSettings
-from robomach_core.teaching.operator import TOOL_DOWN
 from robomach_core.transforms import make_transform
 
 CAUSES = set(typing.get_args(SupervisionCause))

@@ -7,7 +7,7 @@ import re
 import numpy as np
 import pytest
 
-from robomach_core.cell import Robot, Tool
+from robomach_core.cell import TOOL_DOWN, Robot, Tool
 from robomach_core.errors import InvalidInputError, UnreachableTargetError
 from robomach_core.export.rapid import confdata_from_joints
 from robomach_core.export.target_joints import configuration, target_joints, with_target_joints
@@ -18,7 +18,6 @@ from robomach_core.export.urscript import (
 )
 from robomach_core.part import builtin_workpiece
 from robomach_core.postprocess import Move, Targets
-from robomach_core.teaching.operator import TOOL_DOWN
 from robomach_core.transforms import (
     make_transform,
     quaternions_from_matrices,

@@ -18,8 +18,7 @@ import numpy as np
 import viser
 
 from robomach_core import limits
-from robomach_core.registration import MIN_TOUCHES
-from robomach_core.teaching.face_touches import UP_COS, face_touch_points, touches_for_face
+from robomach_core.teaching import MIN_TOUCHES, UP_COS, face_touch_points, touches_for_face
 
 from ..scene import CellScene
 from .feedback import guarded, notify_error

@@ -40,9 +40,9 @@ import numpy as np
 import scipy.optimize
 from scipy.spatial.transform import Rotation
 
-from .errors import InvalidInputError
-from .part import Workpiece, mesh_query
-from .transforms import inverse_transform, make_transform
+from ..errors import InvalidInputError
+from ..part import Workpiece, mesh_query
+from ..transforms import inverse_transform, make_transform
 
 FACING_COS = 0.5  # a touch meets faces whose normal is within 60 deg of against its direction
 MIN_TOUCHES = 6  # a rigid frame has six unknowns
