@@ -216,7 +216,7 @@ class RapidProgram:
         comment: header comment lines (generator, settings, ...).
         arm: the ABB arm whose geometry gives cfx (``confdata_from_joints``); None keeps the
             UR-branch rule.
-        moves: optional motion sequence over the targets (``robomach_core.arcs.Move``): a
+        moves: optional motion sequence over the targets (``robomach_core.postprocess.Move``): a
             circular move to target k through via target j emits ``MoveC pj, pk``; None moves
             linearly to every target in order.
     """

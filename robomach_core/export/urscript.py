@@ -105,7 +105,7 @@ def urscript_program(
         force_control_N: When given, the path is pressed with this force along each target's
             tool y axis (``force_mode``), between ``zero_ftsensor()`` and ``end_force_mode()``.
         comment: Header comment lines.
-        arcs: Optional move sequence (``robomach_core.arcs``): circular moves become
+        arcs: Optional move sequence (``robomach_core.postprocess.arcs``): circular moves become
             ``movec(via, to, ...)``; default a ``movel`` to every target.
         feed_loop: CMRR (``urscript_feed``): the program runs the force-driven feed loop
             along the targets in order (a straight line between each two, as the simulated

@@ -1,4 +1,4 @@
-"""The one coal BVH of a part (robomach_core.bvh) and the clearance probe that queries it."""
+"""The one coal BVH of a part (robomach_core.part.bvh) and the clearance probe that queries it."""
 
 from __future__ import annotations
 
