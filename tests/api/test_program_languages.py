@@ -21,7 +21,7 @@ from robomach_core.export.krl_check import check_krl_program
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.part import builtin_workpiece
 from tests.conftest import app_client
-from tests.core.test_project import _guide, _recording
+from tests.core.project.test_project import _guide, _recording
 
 TOY = registry.ProgramLanguage(
     name="toy",
@@ -36,7 +36,7 @@ TOY = registry.ProgramLanguage(
 
 
 def processed_project_file(folder: Path, robot: str = "ur10") -> Path:
-    """A processed project (the synthetic straight pass of tests/core/test_project on the
+    """A processed project (the synthetic straight pass of tests/core/project/test_project on the
     block, moved to where the block sits for ``robot``, its joints that arm's) as
     project.npz."""
     from robomach_core.cell import GuidePoint, Robot

@@ -446,8 +446,11 @@ FAST_COPIES = (
     "tests/core/machining/test_trust.py::"
     "test_the_fast_copy_of_each_controller_equals_its_public_step"
 )
-REDUCTION = "tests/core/test_postprocess.py::test_compiled_reduction_equals_the_literal_fig3_scan"
-CONTOUR_LAW = "tests/core/test_law.py::test_the_compiled_law_equals_its_reference"
+REDUCTION = (
+    "tests/core/postprocess/test_postprocess.py::"
+    "test_compiled_reduction_equals_the_literal_fig3_scan"
+)
+CONTOUR_LAW = "tests/core/learning/test_law.py::test_the_compiled_law_equals_its_reference"
 BALL = "test_the_balls_contact_is_the_nearest_face_of_the_whole_part"
 SUPERVISED = "test_the_compiled_supervised_period_is_supervise_with_its_proposal"
 _TESTS_BY_MODULE: dict[str, dict[str, str]] = {

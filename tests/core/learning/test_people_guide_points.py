@@ -240,7 +240,7 @@ def test_a_program_on_the_floor_off_the_wall_misses_the_taught_wall(pump_cell, b
     assert not check.follows and check.worst_gap_m > 1e-3
 
 
-# --- people's points over the whole envelope: tests/core/test_learning_envelope.py ---------------
+# --- people's points over the whole envelope: tests/core/learning/test_learning_envelope.py ---
 
 
 # --- the reproducers through the whole pipeline ---------------------------------------

@@ -20,7 +20,7 @@ from robomach_core.errors import InvalidInputError
 from robomach_core.learning.run import Recording
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.postprocess import PostprocessSettings
-from tests.core.test_project import _guide
+from tests.core.project.test_project import _guide
 
 SAMPLES = 20_000
 PEAK_BYTES = 150e6

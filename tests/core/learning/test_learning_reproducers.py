@@ -185,7 +185,7 @@ def test_the_s_slot_taught_without_open_is_learned_open_or_refused():
 P10_MM = [
     (715, 97, 17), (800, 97, 17), (885, 97, 17), (898, 110, 17), (898, 210, 17),
     (885, 223, 17), (800, 223, 17), (715, 223, 17), (702, 210, 17), (702, 110, 17),
-]  # fmt: skip  # the pump's outer wall, 2 mm off (tests/core/test_people_guide_points.py)
+]  # fmt: skip  # the pump's outer wall, 2 mm off (tests/core/learning/test_people_guide_points.py)
 
 
 @pytest.mark.slow

@@ -9,7 +9,7 @@ import pytest
 
 from robomach_core import project as core
 from robomach_core.cell import Robot
-from tests.core.test_project import _compensation, processed  # noqa: F401 (the fixture)
+from tests.core.project.test_project import _compensation, processed  # noqa: F401 (the fixture)
 
 
 @pytest.mark.parametrize("compensated", [False, True], ids=["plain", "offline-compensated"])

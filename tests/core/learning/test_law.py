@@ -210,7 +210,7 @@ def test_the_documented_thresholds_are_the_codes():
     """docs/learning_model.md's table is the thresholds module's, value for value."""
     from pathlib import Path
 
-    doc = (Path(__file__).resolve().parents[2] / "docs" / "learning_model.md").read_text()
+    doc = (Path(__file__).resolve().parents[3] / "docs" / "learning_model.md").read_text()
     table = doc.split("<!-- thresholds -->\n", 1)[1].split("<!-- /thresholds -->", 1)[0]
     assert table == th.table_markdown()
     # every threshold is a row: none written over several lines, where the table misses it

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from robomach_core.project import ProjectFileError, project_file_bytes, project_from_file_bytes
-from tests.core.test_project import learned_block_project
+from tests.core.project.test_project import learned_block_project
 
 
 @pytest.fixture(scope="module")
