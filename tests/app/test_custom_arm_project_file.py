@@ -1,7 +1,7 @@
 """A project on the user's own arm (a URDF file) round-trips through ``project.npz``.
 
 The file keeps the arm's URDF beside the mesh; a new process knows only the built-in arms, so
-loading it registers the arm again (``project.register_robot_file``). ``robomach machine
+loading it registers the arm again (``project._file.register_robot_file``). ``robomach machine
 --from`` and ``POST /api/projects/import`` read the file this way; before, they could not open
 such a project at all.
 """

@@ -13,6 +13,7 @@ from robomach_core.cell import GuidePoint, Robot
 from robomach_core.learning.run import Recording
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.part import builtin_workpiece
+from robomach_core.project._writers import rapid_header, rapid_text
 
 N = 400  # samples: 1.6 s at 4 ms
 
@@ -126,7 +127,7 @@ def test_writers_refuse_stale_and_missing_results(processed) -> None:
         core.require_processed(replace(project, processed=None))
     stale = replace(project, guide_points=project.guide_points[:1])
     with pytest.raises(core.StaleResultError, match="out of date"):
-        core.rapid_text(stale, workpiece, robot=None)
+        rapid_text(stale, workpiece, robot=None)
     doc = core.settings_document(stale, workpiece)
     assert doc["status"]["postprocess"] == "stale"
 
@@ -163,7 +164,7 @@ def test_one_settings_document_and_one_header(processed) -> None:
     assert doc["result"]["targets"] == len(carried.processed.result.targets)
     program = files["program.mod"]
     check_rapid_module(program)
-    header = "\n".join(core.rapid_header(carried, workpiece.name))
+    header = "\n".join(rapid_header(carried, workpiece.name))
     assert all(f"! {line}" in program for line in header.splitlines())
     assert "FCSpdChgAct" in program and "CMRR: two-stage" in program
     # Zero learned wrench: compensation moves nothing (zero at zero load).

@@ -11,6 +11,7 @@ from robomach_core import project as core
 from robomach_core.cmrr import CmrrSettings
 from robomach_core.cmrr.controllers import settings_for
 from robomach_core.machining import MachiningSettings
+from robomach_core.project._machining import best_row
 from tests.demo_project import block_demo_dir
 
 
@@ -35,9 +36,9 @@ def test_the_rule_takes_the_fastest_runs_within_the_limit_then_the_best_wall():
         _row("adaptive-lq", "off", 130.0, 219.0, 0.001),  # fastest, 46 % over the limit
         _row("two-stage", "off", 100.0, 150.0, 0.0, completed=False),  # stopped
     ]
-    assert core.best_row(rows) == 2
-    assert core.best_row([rows[0], rows[4]]) == 0
-    assert core.best_row([rows[5]]) is None  # nothing completed: nothing to choose
+    assert best_row(rows) == 2
+    assert best_row([rows[0], rows[4]]) == 0
+    assert best_row([rows[5]]) is None  # nothing completed: nothing to choose
     # Nothing within the limit: nothing chosen, and the reason says which came closest.
     from robomach_core.machining.choice import CellCapabilities, choose
 
