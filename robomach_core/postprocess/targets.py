@@ -47,7 +47,7 @@ class PostprocessSettings:
         contact_stiffness_N_m: Interaction stiffness used to move each sample back to the
             unloaded surface (sample + F / k); 0 disables this compensation.
         arcs: Fit circular moves (MoveC / movec) where the contour is an arc within the arc
-            tolerance (``robomach_core.arcs.arc_targets``) instead of the straight program.
+            tolerance (``robomach_core.postprocess.arc_targets``) instead of the straight program.
         arc_tolerance_m: Largest distance of a filtered sample from its line or arc; None uses
             ``tolerance_m``.
     """
