@@ -111,7 +111,8 @@ def event_latencies_s(repeats: int) -> list[float]:
 
 
 def big_obj_refusal() -> None:
-    from robomach_core.workpiece import MeshFileError, mesh_from_bytes
+    from robomach_core.part import mesh_from_bytes
+    from robomach_core.part.workpiece import MeshFileError
 
     data = b"v 0 0 0\nv 10 0 0\nv 0 10 0\n" + b"f 1 2 3\n" * 6_000_000
     with contextlib.suppress(MeshFileError):
@@ -121,7 +122,7 @@ def big_obj_refusal() -> None:
 
 def deep_urdf_refusal() -> None:
     from robomach_core.robots.custom import RobotFileError, register_urdf
-    from tests.core.test_urdf_check import irb4400_text, with_fixed_links
+    from tests.core.robots.test_urdf_check import irb4400_text, with_fixed_links
 
     text = with_fixed_links(irb4400_text(), 5000).encode()
     with contextlib.suppress(RobotFileError):
@@ -131,7 +132,7 @@ def deep_urdf_refusal() -> None:
 
 def project_range_refusal() -> Callable[[], None]:
     from robomach_core.project import ProjectFileError, project_from_file_bytes
-    from tests.core.test_project_file_check import small_project_bytes, with_document
+    from tests.core.project.test_project_file_check import small_project_bytes, with_document
 
     data = with_document(
         small_project_bytes(), lambda d: d["cell"].update(wobj_mm_deg=[1e308, 0, 0])

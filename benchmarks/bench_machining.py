@@ -29,6 +29,10 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from robomach_core import project as core  # noqa: E402
+from robomach_core.cell import (
+    Robot,  # noqa: E402
+    Tool,  # noqa: E402
+)
 from robomach_core.machining import (  # noqa: E402
     COMPENSATION_NAMES,
     MACHINING_CONTROLLERS,
@@ -41,9 +45,7 @@ from robomach_core.machining import (  # noqa: E402
 )
 from robomach_core.machining.parallel import default_workers  # noqa: E402
 from robomach_core.machining.run import cut_program  # noqa: E402
-from robomach_core.robot import Robot  # noqa: E402
-from robomach_core.tool import Tool  # noqa: E402
-from robomach_core.workpiece import builtin_workpiece  # noqa: E402
+from robomach_core.part import builtin_workpiece  # noqa: E402
 
 
 def main() -> None:

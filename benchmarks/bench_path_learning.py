@@ -30,15 +30,13 @@ import numpy as np
 import pinocchio as pin
 
 from robomach_core import _kernels
-from robomach_core.cell import CONTROL_PERIOD_S, Cell
-from robomach_core.leadthrough import LeadThrough
+from robomach_core.cell import CONTROL_PERIOD_S, Cell, LeadThrough, cell_supervisor
 from robomach_core.learning import run as path_learning
 from robomach_core.learning.law import record_row
 from robomach_core.learning.route import plan_route
 from robomach_core.learning.run import learn_path
 from robomach_core.learning.settings import PathLearningSettings
-from robomach_core.supervision import cell_supervisor
-from robomach_core.teaching.operator import guide_plan, scripted_leadthrough
+from robomach_core.teaching import guide_plan, scripted_leadthrough
 
 
 def per_call_us(fn: Callable[[], object], n: int) -> float:
@@ -265,8 +263,8 @@ def bench_outer_wall(sets: int, repeats: int) -> None:
     corners, so every near clearance goes back to Python and coal (as before the kernel's GJK,
     ``supervision._kernels.convex_clearance``)."""
     from robomach_core.cell import CellConfig
+    from robomach_core.cell.supervision._kernels import obstacle_corner_counts
     from robomach_core.project import CellSettings, Project, learn
-    from robomach_core.supervision._kernels import obstacle_corner_counts
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the checkout's tests/
     from tests.sloppy_guides import sloppy_guides

@@ -24,10 +24,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from robomach_core.clock import CONTROL_PERIOD_S
+from robomach_core.cell import CONTROL_PERIOD_S
 from robomach_core.learning.run import Recording
+from robomach_core.part import water_pump_wall
 from robomach_core.postprocess import PostprocessSettings, postprocess, reduce_deviation_height
-from robomach_core.workpiece import water_pump_wall
 
 N_SAMPLES = 100_000
 TOLERANCE_M = 0.0002

@@ -14,9 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from robomach_core.joint_compliance import true_joint_compliance
-from robomach_core.robot import Robot
-from robomach_core.sensor import ToolGravity, gravity_reading
+from robomach_core.cell import Robot, Tool, ToolGravity, gravity_reading, true_joint_compliance
 from robomach_core.stiffness.compensation import (
     OnlineCompensationParams,
     OnlineCompensationState,
@@ -25,7 +23,6 @@ from robomach_core.stiffness.compensation import (
 )
 from robomach_core.stiffness.milling import CHAPTER_END_MILLING
 from robomach_core.stiffness.model import cartesian_compliance, loaded_equilibrium
-from robomach_core.tool import Tool
 from robomach_core.transforms import make_transform
 
 CONTROL_PERIOD_US = 4000.0

@@ -20,7 +20,7 @@ from __future__ import annotations
 from typing import Any, Literal, get_args
 
 from . import limits
-from .leadthrough import AXES, ComplianceFrame
+from .cell import AXES, ComplianceFrame
 
 JogFrame = Literal["base", "tool", "wobj"]
 JOG_FRAMES: tuple[JogFrame, ...] = get_args(JogFrame)
@@ -75,19 +75,19 @@ TEXTS: dict[str, Any] = {
 
 def enums() -> dict[str, tuple[str, ...]]:
     """Every named choice: name -> its values, in the order menus show them."""
+    from .cell import ROBOT_NAMES
     from .cmrr import CONTROLLER_NAMES, SCENARIO_NAMES
     from .export.languages import language_choices, language_names
     from .learning.planner import PointKind, Reach
     from .learning.settings import WALL_SIDE_CHOICES
     from .machining import COMPENSATION_NAMES
     from .machining.choice import OPTION_NAMES
+    from .part import WORKPIECE_NAMES
     from .project import StageStatus
     from .project._machining import STOCK_SOURCES
-    from .robot import ROBOT_NAMES
-    from .robots.builtin import ARM_FAMILIES
+    from .robots import ARM_FAMILIES
     from .stiffness.settings import COMPENSATION_SETTINGS
     from .stiffness.studies import StudyName
-    from .workpiece import WORKPIECE_NAMES
 
     return {
         "cmrr_controller": tuple(CONTROLLER_NAMES),

@@ -73,7 +73,7 @@ def _task_mesh(payload: dict[str, Any]) -> dict[str, Any]:
     import numpy as np
     import trimesh
 
-    from .bvh import bvh_from_mesh
+    from .part.bvh import bvh_from_mesh
 
     vertices = np.asarray(payload["vertices"], dtype=float)
     faces = np.asarray(payload["faces"], dtype=np.int64)
@@ -437,7 +437,7 @@ def serve() -> None:
     import pinocchio  # noqa: F401
     import trimesh  # noqa: F401
 
-    from . import bvh  # noqa: F401
+    from .part import bvh  # noqa: F401
 
     stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
     while True:

@@ -16,14 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from .cell import Cell, CellConfig
-from .clock import CONTROL_PERIOD_S
+from .cell import CONTROL_PERIOD_S, Cell, CellConfig, GuidePoint, LeadThrough, Tool
 from .errors import InvalidInputError, MeshFileError
 from .export.languages import language
 from .export.reachability import ReachabilityReport, check_program_reachability
-from .leadthrough import GuidePoint, LeadThrough
 from .learning.run import Recording
 from .learning.settings import PathLearningSettings
+from .part import MAX_MESH_BYTES, MESH_SUFFIXES, Workpiece, real_workpiece
 from .postprocess import PostprocessResult, PostprocessSettings, Targets
 from .project import (
     CellSettings,
@@ -40,12 +39,8 @@ from .project import (
 )
 from .project import compensate_program_targets as _compensate
 from .project import wobj_transform as wobj_transform
-from .real_part import real_workpiece
-from .registration import registered_workpiece
 from .scoring import PathScore
-from .teaching.operator import intents_from_csv, scripted_leadthrough
-from .tool import Tool
-from .workpiece import MAX_MESH_BYTES, MESH_SUFFIXES, Workpiece
+from .teaching import intents_from_csv, registered_workpiece, scripted_leadthrough
 
 # progress(stage, fraction in [0, 1])
 Progress = Callable[[str, float], None]
@@ -211,7 +206,7 @@ class DemoResult:
             from .project import result_extras
 
             out |= result_extras(self.project.processed)
-            from .robot import program_language
+            from .cell import program_language
 
             out["program_language"] = program_language(self.settings.robot)
             out["program_files"] = [
@@ -333,7 +328,7 @@ def run_demo(
     if workpiece.nominal is not None and settings.guide_points_csv is None:
         # The part is not where its mesh is: the operator enters each groove in its middle
         # and touches the real wall from there (``operator.robust_intents``).
-        from .teaching.operator import guide_plan, robust_intents
+        from .teaching import guide_plan, robust_intents
 
         planned = intents or guide_plan(
             cad, cell.tool.radius_m, np.random.default_rng(settings.seed)
@@ -355,8 +350,8 @@ def run_demo(
         wall_side=settings.wall_side,
         closed=settings.closed,
     )
+    from .cell import cell_supervisor
     from .learning import guide_point_warnings
-    from .supervision import cell_supervisor
 
     findings = guide_point_warnings(  # what the workbench shows before a run; a refusal raises
         guides,
@@ -428,8 +423,7 @@ def _calibrated(
 ) -> tuple[Any, Any]:
     """The scripted operator touches the part (``teaching.calibration``) and the CAD is
     registered to the touches (``registration.fit_wobj``): the fit and the robot's state."""
-    from .registration import fit_wobj
-    from .teaching.calibration import plan_touches, scripted_touches
+    from .teaching import fit_wobj, plan_touches, scripted_touches
 
     plan = plan_touches(cad, lt.cell.tool.radius_m, robot=lt.cell.robot)
     state, touches = scripted_touches(
@@ -447,14 +441,14 @@ def _proposed(settings: DemoSettings, cad: Workpiece, cell: Cell) -> tuple[Any, 
     """The guide points proposed along the wall through ``settings.propose_at_m``, the
     operator's intents to lead the robot to them, and the settings with the wall's side and
     whether it is closed."""
+    from .cell import cell_supervisor
     from .learning.planner import (
         ProposalSettings,
         propose_guide_points,
         refuse_unreachable,
         tool_reach,
     )
-    from .supervision import cell_supervisor
-    from .teaching.operator import guide_intents
+    from .teaching import guide_intents
 
     proposal = propose_guide_points(
         cad,
@@ -489,8 +483,8 @@ def compensate_program_targets(
 def _write_cad_only(project: Any, workpiece: Workpiece, out: Path) -> list[Path]:
     """The CAD-only program's files in the languages of the learned one (none when the learned
     path follows no wall of the mesh)."""
+    from .cell import Robot
     from .project import MissingResultError, cad_only_program_texts, program_languages
-    from .robot import Robot
 
     if project.processed is None or project.processed.cad_comparison is None:
         return []

@@ -8,8 +8,8 @@ plate case (``TILTED_CASES``: tool vertical or normal, groove or outside edge, a
 person's points or pointing); prints the tally per part and per class
 (``learning_outcome``), each failure with its seed and description, and the run time. Every
 set has its own seed (printed); ``--one SEED`` replays one set, ``--seed S`` a whole run. The
-property tests (tests/core/test_learning_envelope.py) draw from the same functions, a few per
-run, with the run's seed from ``ROBOMACH_SEED`` or fresh from ``os.urandom``.
+property tests (tests/core/learning/test_learning_envelope.py) draw from the same functions, a
+few per run, with the run's seed from ``ROBOMACH_SEED`` or fresh from ``os.urandom``.
 """
 
 from __future__ import annotations

@@ -32,8 +32,8 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from robomach_core.cell import Cell, CellConfig
+from robomach_core.part import Workpiece, default_T_base_wobj
 from robomach_core.project import CellSettings, build_cell_workpiece
-from robomach_core.workpiece import Workpiece, default_T_base_wobj
 
 WALL_SPACING_MM = 0.05  # the true walls' polylines, dense enough that a vertex is the foot
 PLATE_MM = (160.0, 110.0)  # the generated plates' footprint
@@ -333,7 +333,8 @@ def _groove_part(
 
 def water_pump() -> EnvelopePart:
     """The built-in pump: its groove's outer wall (the taught one of the example) and island."""
-    from robomach_core.workpiece import PUMP_GROOVE_WIDTH_M, PUMP_WALL_SPACING_M, water_pump_wall
+    from robomach_core.part import water_pump_wall
+    from robomach_core.part.workpiece import PUMP_GROOVE_WIDTH_M, PUMP_WALL_SPACING_M
 
     outer = shapely.geometry.Polygon(water_pump_wall().sample(PUMP_WALL_SPACING_M) * 1e3)
     island = outer.buffer(-PUMP_GROOVE_WIDTH_M * 1e3, join_style="round", quad_segs=16)
@@ -361,7 +362,7 @@ def block() -> EnvelopePart:
 
 def s_groove() -> EnvelopePart:
     """The built-in open S-slot (flat ends): its right side (the taught wall) and left side."""
-    from robomach_core.s_groove import S_GROOVE_WIDTH_M, s_groove_centre_line
+    from robomach_core.part.s_groove import S_GROOVE_WIDTH_M, s_groove_centre_line
 
     centre = shapely.geometry.LineString(s_groove_centre_line().sample(0.0001) * 1e3)
     half = S_GROOVE_WIDTH_M * 1e3 / 2

@@ -212,7 +212,7 @@ def drawn_plate(
             parts.append(_extrude(ring, 0.012, step))
         else:  # the groove's floor at 14 mm, as the grooved plate's
             parts.append(_extrude(outer.difference(island), 0.012, 0.002))
-        from robomach_core.workpiece import solid_mesh
+        from robomach_core.part.workpiece import solid_mesh
 
         mesh = solid_mesh(trimesh.util.concatenate(parts))
         walls = {"outer": outer.exterior, "island": island.exterior}

@@ -31,9 +31,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.spatial import cKDTree
 
-from robomach_core.cell import Cell, CellConfig
+from robomach_core.cell import Cell, CellConfig, GuidePoint, LeadThrough
 from robomach_core.errors import RobomachError, RouteRefusedError
-from robomach_core.leadthrough import GuidePoint, LeadThrough
 from robomach_core.learning.run import PathLearningSettings
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import Project, learn, process
@@ -320,7 +319,7 @@ def example_leadthrough(
     the example's guide points on a built-in part, or to ``intents``; returns the set (taught
     wall "outer"/"outline"/"right side": the built-in's wall), the cell state at the end and
     the tared estimator."""
-    from robomach_core.teaching.operator import scripted_leadthrough
+    from robomach_core.teaching import scripted_leadthrough
 
     cell = part.cell(seed)
     lt = LeadThrough(cell)
@@ -387,13 +386,13 @@ def proposal_set(
     operator lead the robot to the proposed points touching the wall (as ``robomach demo
     --propose-guide-points`` does); returns the set, the end state, the estimator and the
     proposal. The taught side is the proposal's."""
+    from robomach_core.cell import cell_supervisor
     from robomach_core.learning.planner import (
         propose_guide_points,
         refuse_unreachable,
         tool_reach,
     )
-    from robomach_core.supervision import cell_supervisor
-    from robomach_core.teaching.operator import guide_intents, scripted_leadthrough
+    from robomach_core.teaching import guide_intents, scripted_leadthrough
 
     cell = part.cell(seed)
     cad = cell.workpiece.cad()

@@ -21,11 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from robomach_core.cell import CONTROL_PERIOD_S, Cell
+from robomach_core.cell import TOOL_DOWN, Cell, GuidePoint, cell_supervisor
+from robomach_core.cell.simulator import CONTROL_PERIOD_S
 from robomach_core.errors import RobomachError
-from robomach_core.leadthrough import GuidePoint
-from robomach_core.supervision import cell_supervisor
-from robomach_core.tool import TOOL_DOWN
 from tests.envelope_parts import EnvelopePart, TrueWall
 
 SENSOR_NOISE_N = 0.3

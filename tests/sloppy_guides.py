@@ -19,13 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from robomach_core.cell import CONTROL_PERIOD_S, Cell
-from robomach_core.contour import Contour
+from robomach_core.cell import TOOL_DOWN, Cell, GuidePoint, cell_supervisor
+from robomach_core.cell.simulator import CONTROL_PERIOD_S
 from robomach_core.errors import RobomachError
-from robomach_core.leadthrough import GuidePoint
-from robomach_core.supervision import cell_supervisor
-from robomach_core.teaching.operator import TOOL_DOWN
-from robomach_core.workpiece import Workpiece
+from robomach_core.part import Contour, Workpiece
 
 SENSOR_NOISE_N = 0.3
 CLEARANCE_M = 0.003  # the spindle and shank stay this far from the part (supervision slows)
@@ -201,7 +198,7 @@ def cornered_boss_stl() -> tuple[bytes, Contour]:
     import shapely.geometry
     import trimesh
 
-    from robomach_core.contour import filleted_polygon
+    from robomach_core.part.contour import filleted_polygon
 
     # Clockwise outline of the T (metres); its corners' fillets: sharp outside, 3 mm inside.
     corners = np.array(

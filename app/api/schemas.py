@@ -24,8 +24,8 @@ from app.session import (
     RobotSnapshot,
 )
 from robomach_core import limits
+from robomach_core.cell import ComplianceFrame, ComplianceSelection
 from robomach_core.choices import JogFrame
-from robomach_core.leadthrough import ComplianceFrame, ComplianceSelection
 from robomach_core.learning.settings import WallSideSetting
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import StageStatus
@@ -641,7 +641,7 @@ class WobjPublic(BaseModel):
 
     @classmethod
     def of(cls, T_base_wobj: np.ndarray) -> WobjPublic:
-        from robomach_core.registration import mm_deg_from_transform
+        from robomach_core.teaching import mm_deg_from_transform
 
         v = [round(x, 4) for x in mm_deg_from_transform(T_base_wobj)]
         return cls(x_mm=v[0], y_mm=v[1], z_mm=v[2], rx_deg=v[3], ry_deg=v[4], rz_deg=v[5])

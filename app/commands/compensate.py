@@ -36,7 +36,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=Path("compensation"),
         help="output folder, created if missing (default ./compensation)",
     )
-    from robomach_core.robot import ROBOT_NAMES
+    from robomach_core.cell import ROBOT_NAMES
     from robomach_core.stiffness.studies import PAPER_ARMS
 
     papers = ", ".join(f"{study} {arm}" for study, arm in PAPER_ARMS.items())

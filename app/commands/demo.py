@@ -23,7 +23,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         ),
     )
     p.add_argument("--out", required=True, type=Path, help="output folder (created if missing)")
-    from robomach_core.robot import ROBOT_NAMES
+    from robomach_core.cell import ROBOT_NAMES
 
     p.add_argument(
         "--robot",
@@ -278,12 +278,12 @@ def run(args: argparse.Namespace) -> int:
             settings_file(args.compensation_settings, "--compensation-settings")
         )
 
+    from robomach_core.cell import Tool
     from robomach_core.errors import RobomachError, SupervisionError
     from robomach_core.learning.planner import ProposalSettings
+    from robomach_core.part import PartDeviation
     from robomach_core.pipeline import DemoSettings, default_robot, run_demo, write_demo_outputs
     from robomach_core.postprocess import PostprocessSettings
-    from robomach_core.real_part import PartDeviation
-    from robomach_core.tool import Tool
 
     robot, robot_urdf = args.robot or default_robot(args.language), None
     if robot.lower().endswith(".urdf"):
@@ -293,8 +293,8 @@ def run(args: argparse.Namespace) -> int:
         robot = register_urdf(*robot_urdf)
 
     # A language the arm's controller does not run is refused now, not after learning.
+    from robomach_core.cell import Robot
     from robomach_core.export.languages import resolve_languages
-    from robomach_core.robot import Robot
 
     resolve_languages(Robot(robot), args.language)
 

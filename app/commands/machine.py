@@ -165,8 +165,8 @@ def run(args: argparse.Namespace) -> int:
     writable_folder(args.out)
 
     from robomach_core import project as core
+    from robomach_core.cell import Robot
     from robomach_core.machining import MachiningSettings, plot_runs, write_run_csv
-    from robomach_core.robot import Robot
 
     bar = StageProgress()
     try:

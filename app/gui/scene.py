@@ -20,10 +20,9 @@ import trimesh
 import viser
 from viser.extras import ViserUrdf
 
-from robomach_core.robot import ROBOT_URDFS, robots_directory
-from robomach_core.tool import Tool
+from robomach_core.cell import ROBOT_URDFS, Tool, robots_directory
+from robomach_core.part import Workpiece
 from robomach_core.transforms import quaternion_from_matrix, rotation_about
-from robomach_core.workpiece import Workpiece
 
 # The example-robot-data URDFs name their meshes package://example-robot-data/robots/...
 _PACKAGE_PREFIXES = ("package://example-robot-data/robots/", "package://")
@@ -424,7 +423,7 @@ class CellScene:
         mesh = getattr(self, "_cad_mesh", None)
         if mesh is None or self.placement_previewed:
             return None  # the part drawn is not where the cell has it
-        from robomach_core.mesh_query import ray_hits
+        from robomach_core.part.mesh_query import ray_hits
 
         T = self._T_base_wobj
         o = (np.asarray(origin, dtype=float) - T[:3, 3]) @ T[:3, :3]

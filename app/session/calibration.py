@@ -31,28 +31,26 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from robomach_core import limits, mesh_query
+from robomach_core import limits
 from robomach_core import project as core
+from robomach_core.cell import LeadThrough, LeadThroughState
 from robomach_core.errors import InvalidInputError, RobomachError
-from robomach_core.leadthrough import LeadThrough, LeadThroughState
+from robomach_core.part import Workpiece, mesh_query
 from robomach_core.project import CellSettings, Project
-from robomach_core.registration import (
+from robomach_core.teaching import (
     MIN_TOUCHES,
+    TOUCH_FORCE_N,
     CalibrationError,
+    PlannedTouch,
     Touch,
+    TouchPlan,
     WobjFit,
     WobjRegistration,
     fit_wobj,
-)
-from robomach_core.teaching.calibration import (
-    TOUCH_FORCE_N,
-    PlannedTouch,
-    TouchPlan,
     plan_touches,
     scripted_touches,
     touch_at,
 )
-from robomach_core.workpiece import Workpiece
 
 from .records import ConflictError, NotFoundError
 
@@ -194,7 +192,7 @@ class Calibration:
         return touch
 
     def _go_to_start(self, planned: PlannedTouch, cad: Workpiece) -> None:
-        from robomach_core.tool import TOOL_DOWN
+        from robomach_core.cell import TOOL_DOWN
 
         T = np.eye(4)
         T[:3, :3], T[:3, 3] = TOOL_DOWN, planned.start_m

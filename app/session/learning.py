@@ -21,25 +21,25 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from robomach_core import mesh_query
 from robomach_core import project as core
-from robomach_core.cell import Cell, CellState
-from robomach_core.clock import CONTROL_PERIOD_S
+from robomach_core.cell import (
+    CONTROL_PERIOD_S,
+    Cell,
+    CellState,
+    ComplianceSelection,
+    GuidePoint,
+    LeadThrough,
+    LeadThroughState,
+)
 from robomach_core.errors import (
     ConflictError,
     InvalidInputError,
     NotEnoughGuidePointsError,
     SupervisionError,
 )
-from robomach_core.leadthrough import (
-    ComplianceSelection,
-    GuidePoint,
-    LeadThrough,
-    LeadThroughState,
-)
 from robomach_core.learning.settings import PathLearningSettings
+from robomach_core.part import Workpiece, mesh_query
 from robomach_core.project import ProcessedPath, Project
-from robomach_core.workpiece import Workpiece
 
 from .jobs import JobContext
 from .records import ForceTrace, RobotSnapshot, Topic
@@ -59,7 +59,7 @@ def _example_intents(cell: Cell, seed: int) -> list | None:
     mesh is, the same entered in each groove's middle (``operator.robust_intents``)."""
     if cell.workpiece.nominal is None:
         return None
-    from robomach_core.teaching.operator import guide_plan, robust_intents
+    from robomach_core.teaching import guide_plan, robust_intents
 
     plan = guide_plan(cell.workpiece.cad(), cell.tool.radius_m, np.random.default_rng(seed))
     return robust_intents(plan, cell.workpiece, cell.tool.radius_m)
@@ -68,8 +68,8 @@ def _example_intents(cell: Cell, seed: int) -> list | None:
 def _squared(lt: LeadThrough, state: LeadThroughState, cad: Workpiece) -> LeadThroughState:
     """The tool lifted clear of the part (when below its top) and turned square to it (tool
     axis down, as the example operator holds it), by supervised jogs of at most 45 degrees."""
-    from robomach_core.teaching.motion import move_by, turn_to
-    from robomach_core.teaching.operator import TOOL_DOWN
+    from robomach_core.cell import TOOL_DOWN
+    from robomach_core.teaching import move_by, turn_to
 
     top = float(cad.mesh_in_base().bounds[1, 2]) + EXAMPLE_CLEARANCE_M
     z = float(state.cell.T_base_tcp[2, 3])
@@ -111,7 +111,7 @@ class Learning:
     def start_example(self) -> str:
         """Job: the scripted operator leads the robot by pushes to the example guide points of
         the built-in workpiece; on success they replace the guide points. Returns the job id."""
-        from robomach_core.teaching.operator import scripted_leadthrough
+        from robomach_core.teaching import scripted_leadthrough
 
         s, robot = self._session, self._session.robot
         pose = robot.pose()
@@ -317,8 +317,8 @@ class Learning:
         wall_side: str = "auto",
     ) -> tuple:
         """What the operator check finds in the guide points (``guide_check``)."""
+        from robomach_core.cell import cell_supervisor
         from robomach_core.learning.checks import guide_point_warnings
-        from robomach_core.supervision import cell_supervisor
 
         view = self._session.view()
         settings = PathLearningSettings(force_N=force_N, closed=closed, wall_side=wall_side)

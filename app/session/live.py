@@ -14,10 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from robomach_core.cell import CONTROL_PERIOD_S, Cell, CellState
+from robomach_core.cell import CONTROL_PERIOD_S, Cell, CellState, ForceEstimator
 from robomach_core.errors import InvalidInputError
 from robomach_core.learning.run import Recording
-from robomach_core.sensor import ForceEstimator
 
 from .jobs import JobContext
 from .records import LIVE_NOTIFY_S, LIVE_TRACE_EVERY, LIVE_TRACE_MAX, ForceTrace

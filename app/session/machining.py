@@ -231,7 +231,7 @@ class MachiningService:
 
     def upload_stock(self, data: bytes, filename: str) -> core.MachiningSetup:
         """Use a stock mesh (STL/OBJ/PLY, mm, the workpiece's frame) as the stock."""
-        from robomach_core.workpiece import mesh_from_bytes
+        from robomach_core.part import mesh_from_bytes
 
         if len(data) > MAX_STOCK_BYTES:
             raise InvalidInputError(

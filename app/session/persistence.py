@@ -15,9 +15,10 @@ from typing import Any, Literal
 import numpy as np
 
 from robomach_core import project as core
+from robomach_core.cell import GuidePoint
 from robomach_core.errors import RobomachError
-from robomach_core.leadthrough import GuidePoint
 from robomach_core.learning.settings import PathLearningSettings
+from robomach_core.part import Workpiece
 from robomach_core.postprocess import PostprocessSettings
 from robomach_core.project import (
     CellSettings,
@@ -27,7 +28,6 @@ from robomach_core.project import (
     compensation_document,
     recording_inputs_key,
 )
-from robomach_core.workpiece import Workpiece
 
 from ..store import GuidePointRow, ProjectData
 from .machining import machining_document, machining_from_document

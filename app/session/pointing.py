@@ -25,11 +25,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from robomach_core import mesh_query
 from robomach_core import project as core
+from robomach_core.cell import GuidePoint, LeadThrough, LeadThroughState
 from robomach_core.choices import CLICK_MODES, ClickMode
 from robomach_core.errors import InvalidInputError, SupervisionError, UnreachableTargetError
-from robomach_core.leadthrough import GuidePoint, LeadThrough, LeadThroughState
 from robomach_core.learning.planner import (
     GuideProposal,
     ProposalSettings,
@@ -41,8 +40,8 @@ from robomach_core.learning.planner import (
     tool_reach,
 )
 from robomach_core.learning.walls import WallPick
-from robomach_core.teaching.motion import Arrival
-from robomach_core.teaching.operator import guide_intents, robust_intents
+from robomach_core.part import mesh_query
+from robomach_core.teaching import Arrival, guide_intents, robust_intents
 
 from .records import MAX_GUIDE_POINTS, ConflictError, GuidePointEntry, NotFoundError
 from .robot import ROBOT_JOB_KINDS
@@ -221,7 +220,7 @@ class Pointing:
             )
         entry = None
         if cell.workpiece.nominal is not None:  # the real part may be off: enter mid-groove
-            from robomach_core.teaching.operator import GuideIntent
+            from robomach_core.teaching import GuideIntent
 
             n = pick.loop.free_normal_at(np.array([pick.s_m]))[0]
             towards = -(cad.T_base_wobj[:3, :3] @ np.array([n[0], n[1], 0.0]))
@@ -361,7 +360,7 @@ class Pointing:
         """Job: the operator leads the robot by pushes to each proposed point, touches the
         wall there (not at outside corners) and records it; the points replace the guide
         points, and path learning then follows the proposal's wall side. Returns the job id."""
-        from robomach_core.teaching.operator import scripted_leadthrough
+        from robomach_core.teaching import scripted_leadthrough
 
         epoch, proposal = self._require()
         _require_enough(proposal, "the proposal cannot be accepted")

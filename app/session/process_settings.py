@@ -3,7 +3,7 @@
 A CMRR study (``app.studies``) ends with ``cmrr_settings.json`` (one controller, or a list when
 it compared them all); an identification study ends with ``compensation_settings.json``. The
 project adopts them on request, so its RAPID export gets the FC SpeedChange block and the
-compensated targets (``robomach_core.project.rapid_text``).
+compensated targets (``robomach_core.project._writers.rapid_text``).
 """
 
 from __future__ import annotations

@@ -69,7 +69,7 @@ def cad_only_program_texts(session: Session, language: str) -> dict[str, str]:
 def rapid_module(
     session: Session, *, module_name: str = core.DEFAULT_MODULE_NAME, force_control: bool = False
 ) -> str:
-    """The RAPID module of the project (``project.rapid_text``): the FC SpeedChange block
+    """The RAPID module of the project (``project._writers.rapid_text``): the FC SpeedChange block
     with a CMRR controller, compensated targets in the offline compensation modes, or the
     FC pressure variant. Refused on an arm whose controller does not run RAPID."""
     files = program_texts(session, "rapid", module_name=module_name, force_control=force_control)

@@ -14,8 +14,8 @@ import shutil
 from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING, Any
 
+from robomach_core.cell import ComplianceSelection
 from robomach_core.errors import RobomachError
-from robomach_core.leadthrough import ComplianceSelection
 from robomach_core.project import CellSettings, Project
 from robomach_core.robots.custom import RobotFileError
 

@@ -10,12 +10,10 @@ from typing import Literal
 
 import numpy as np
 
+from robomach_core.cell import GuidePoint
 from robomach_core.errors import ConflictError as ConflictError
 from robomach_core.errors import InvalidInputError, RobomachError
 from robomach_core.errors import NotFoundError as NotFoundError
-from robomach_core.leadthrough import (
-    GuidePoint,
-)
 from robomach_core.project import RECORDING_FIELDS, ProcessedPath
 from robomach_core.project import CellSettings as CellSettings
 from robomach_core.transforms import quaternion_from_matrix

@@ -25,18 +25,20 @@ from typing import Any
 import numpy as np
 
 from robomach_core import project as core
-from robomach_core.cell import Cell, CellConfig, CellState
-from robomach_core.errors import ConflictError, InvalidInputError, RobomachError
-from robomach_core.leadthrough import (
+from robomach_core.cell import (
     AXES,
+    Cell,
+    CellConfig,
+    CellState,
     ComplianceSelection,
     GuidePoint,
     LeadThrough,
     LeadThroughState,
 )
+from robomach_core.errors import ConflictError, InvalidInputError, RobomachError
 from robomach_core.learning.run import Recording
+from robomach_core.part import Workpiece
 from robomach_core.project import CellSettings
-from robomach_core.workpiece import Workpiece
 
 from .jobs import JobContext, JobRunner
 from .live import LiveFeed, TappedCell
@@ -67,7 +69,7 @@ def build_live_cell(
 ) -> Built:
     """The cell of ``settings`` and its lead-through, the robot at ``joints`` (home when None
     or not usable); ``parsed`` is ``mesh`` already read (``workpiece.mesh_from_bytes``)."""
-    from robomach_core.robot import ROBOT_URDFS
+    from robomach_core.cell import ROBOT_URDFS
 
     if settings.robot not in ROBOT_URDFS:  # an uploaded arm is in once registered
         raise InvalidInputError(

@@ -48,8 +48,8 @@ from typing import Any
 from robomach_core import project as core
 from robomach_core.cell import Cell
 from robomach_core.errors import InvalidInputError
+from robomach_core.part import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, Workpiece
 from robomach_core.project import CellSettings, Project
-from robomach_core.workpiece import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, Workpiece
 
 from ..memory import give_back
 from ..store import Store
@@ -275,7 +275,7 @@ class Session:
     def upload_workpiece(self, data: bytes, filename: str) -> CellSettings:
         """Use a mesh file (STL/OBJ/PLY, mm) as the workpiece, within ``max_upload_bytes`` and
         ``max_triangles``. Clears the guide points like a ``set_cell`` change."""
-        from robomach_core.workpiece import mesh_from_bytes
+        from robomach_core.part import mesh_from_bytes
 
         if len(data) > self.max_upload_bytes:
             raise InvalidInputError(

@@ -32,26 +32,28 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from robomach_core import limits, mesh_query
-from robomach_core.cell import CONTROL_PERIOD_S, CellState
+from robomach_core import limits
+from robomach_core.cell import (
+    AXES,
+    CONTROL_PERIOD_S,
+    CellState,
+    ClearanceProbe,
+    ComplianceFrame,
+    ComplianceSelection,
+    LeadThrough,
+    LeadThroughState,
+    RealTimePacer,
+    halted,
+)
 from robomach_core.choices import JOG_FRAMES, LABELS, TOUCH_AXES, JogFrame, NearestFace, TouchAxis
-from robomach_core.clearance import ClearanceProbe
 from robomach_core.errors import (
     ContactStopError,
     InvalidInputError,
     NoContactError,
     SupervisionError,
 )
-from robomach_core.leadthrough import (
-    AXES,
-    ComplianceFrame,
-    ComplianceSelection,
-    LeadThrough,
-    LeadThroughState,
-    halted,
-)
-from robomach_core.realtime import RealTimePacer
-from robomach_core.teaching.motion import Arrival, go_to_point
+from robomach_core.part import mesh_query
+from robomach_core.teaching import Arrival, go_to_point
 
 from .live import TappedCell
 from .records import LIVE_NOTIFY_S, BusyError, ConflictError, RobotSnapshot
@@ -273,7 +275,7 @@ class Teach:
         with ``force_N`` (``LeadThrough.touch_off_along``), then, with ``back_off``, back to
         where it started (a stiff jog). Returns the cell where it touched and the measured
         contact wrench there (6,), base axes. Work-object calibration touches this way."""
-        from robomach_core.teaching.motion import move_by
+        from robomach_core.teaching import move_by
 
         d = np.asarray(direction, dtype=float)
         if d.shape != (3,) or not np.all(np.isfinite(d)) or np.linalg.norm(d) < 1e-9:

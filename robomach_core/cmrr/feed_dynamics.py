@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..clock import zoh
+from ..cell import zoh
 from .errors import CmrrSettingsError
 
 # Eq. (1), MRR paper: numerator and denominator in descending powers of s.

@@ -19,7 +19,7 @@ from typing import Any, Literal, get_args
 
 import numpy as np
 
-from ..clock import CONTROL_PERIOD_S
+from ..cell import CONTROL_PERIOD_S
 from .controllers.base import FEED_REF_M_S, ControlDesign
 from .depth_profiles import (
     Burr,

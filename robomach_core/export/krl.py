@@ -39,13 +39,11 @@ import numpy as np
 import pinocchio as pin
 from scipy.spatial.transform import Rotation
 
-from ..arcs import Move, linear_moves, validate_moves
+from ..cell import Robot, Tool
 from ..errors import InvalidInputError, RobomachError
-from ..postprocess import Targets
-from ..robot import Robot
-from ..tool import Tool
+from ..part import Workpiece
+from ..postprocess import Move, Targets, linear_moves, validate_moves
 from ..transforms import inverse_transform, make_transform, matrix_from_quaternion
-from ..workpiece import Workpiece
 
 MODULE_NAME = "program"  # KRL: the DEF / DEFDAT name is the file name (program.src/.dat)
 MAX_IDENTIFIER_LEN = 24

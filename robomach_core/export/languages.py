@@ -197,7 +197,7 @@ def default_arm(choice: str, fallback: str = "ur10") -> str:
 
 
 def _write_rapid(context: ProgramContext) -> tuple[str, ...]:
-    from ..robots.abb import ABB_ARMS
+    from ..robots import ABB_ARMS
     from .program import rapid_program
     from .rapid import rapid_module
 

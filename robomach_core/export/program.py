@@ -6,15 +6,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..arcs import Move
-from ..postprocess import Targets
-from ..tool import Tool
+from ..cell import Tool
+from ..part import Workpiece
+from ..postprocess import Move, Targets
 from ..transforms import (
     inverse_transform,
     make_transform,
     matrix_from_quaternion,
 )
-from ..workpiece import Workpiece
 from .rapid import (
     ForceControlSettings,
     RapidProgram,

@@ -30,9 +30,9 @@ from typing import Literal
 
 import numpy as np
 
-from robomach_core.arcs import Move, linear_moves, validate_moves
 from robomach_core.errors import InvalidInputError
-from robomach_core.robots.abb import ABB_ARMS, ArmSpec
+from robomach_core.postprocess import Move, linear_moves, validate_moves
+from robomach_core.robots import ABB_ARMS, ArmSpec
 from robomach_core.transforms import quaternion_from_matrix
 
 MAX_IDENTIFIER_LEN = 32
@@ -216,7 +216,7 @@ class RapidProgram:
         comment: header comment lines (generator, settings, ...).
         arm: the ABB arm whose geometry gives cfx (``confdata_from_joints``); None keeps the
             UR-branch rule.
-        moves: optional motion sequence over the targets (``robomach_core.arcs.Move``): a
+        moves: optional motion sequence over the targets (``robomach_core.postprocess.Move``): a
             circular move to target k through via target j emits ``MoveC pj, pk``; None moves
             linearly to every target in order.
     """
@@ -255,7 +255,7 @@ class RapidProgram:
         if isinstance(n, bool) or not isinstance(n, int) or n < 1:
             raise InvalidInputError(f"max_moves_per_proc must be an integer >= 1, got {n!r}")
         if self.arm is not None:
-            from robomach_core.robot import ROBOT_URDFS
+            from robomach_core.cell import ROBOT_URDFS
 
             if self.arm.lower() not in ROBOT_URDFS:
                 raise InvalidInputError(

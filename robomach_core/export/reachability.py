@@ -7,11 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..cell import Robot
 from ..errors import RobomachError
+from ..part import Workpiece
 from ..postprocess import Targets
-from ..robot import Robot
 from ..transforms import matrices_from_quaternions, rotation_log
-from ..workpiece import Workpiece
 from .languages import language as language_named
 
 

@@ -21,9 +21,9 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..cell import Robot
 from ..errors import RobomachError, UnreachableTargetError
 from ..postprocess import Targets
-from ..robot import Robot
 from ..transforms import make_transform, matrix_from_quaternion
 from .rapid import confdata_from_joints
 

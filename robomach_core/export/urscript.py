@@ -26,12 +26,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..arcs import Move, linear_moves, validate_moves
+from ..cell import Tool
 from ..errors import InvalidInputError
-from ..postprocess import Targets
-from ..tool import Tool
+from ..part import Workpiece
+from ..postprocess import Move, Targets, linear_moves, validate_moves
 from ..transforms import make_transform, matrix_from_quaternion, rotation_log
-from ..workpiece import Workpiece
 from .urscript_feed import UrFeedLoop, feed_loop_lines
 
 PROGRAM_NAME = "learned_path"
@@ -106,7 +105,7 @@ def urscript_program(
         force_control_N: When given, the path is pressed with this force along each target's
             tool y axis (``force_mode``), between ``zero_ftsensor()`` and ``end_force_mode()``.
         comment: Header comment lines.
-        arcs: Optional move sequence (``robomach_core.arcs``): circular moves become
+        arcs: Optional move sequence (``robomach_core.postprocess.arcs``): circular moves become
             ``movec(via, to, ...)``; default a ``movel`` to every target.
         feed_loop: CMRR (``urscript_feed``): the program runs the force-driven feed loop
             along the targets in order (a straight line between each two, as the simulated

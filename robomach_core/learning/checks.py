@@ -28,10 +28,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..arcs import Move, linear_moves, sample_moves
+from ..cell import GuidePoint
 from ..errors import RouteRefusedError, WallSideError
-from ..leadthrough import GuidePoint
-from ..workpiece import Workpiece
+from ..part import Workpiece
+from ..postprocess import Move, linear_moves, sample_moves
 from . import thresholds as th
 from .findings import GuideRule, GuideWarning
 from .route import (
@@ -91,7 +91,7 @@ def _mesh_findings(
     workpiece: Workpiece,
     tool_radius_m: float,
 ) -> list[GuideWarning]:
-    from ..mesh_score import mesh_deviation
+    from ..scoring.mesh_score import mesh_deviation
 
     out: list[GuideWarning] = []
     closed = settings.closed

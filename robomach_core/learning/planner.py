@@ -37,11 +37,10 @@ import numpy as np
 import shapely
 from scipy.spatial.transform import Rotation
 
+from ..cell import TOOL_DOWN, Robot
 from ..errors import InvalidInputError, RobomachError
 from ..limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
-from ..robot import Robot
-from ..tool import TOOL_DOWN
-from ..workpiece import Workpiece
+from ..part import Workpiece
 from .thresholds import (
     CORNER_RADIUS_M,
     CORNER_TURN_MIN_DEG,
@@ -561,7 +560,7 @@ def _placed(
 
 def tool_reach(tool: object) -> float:
     """How deep the tool reaches below its spindle body: cutter and shank [m]."""
-    from ..supervision.supervisor import SHANK_LENGTH_M
+    from ..cell.supervision.supervisor import SHANK_LENGTH_M
 
     return float(tool.flute_length_m) + SHANK_LENGTH_M  # type: ignore[attr-defined]
 

@@ -38,11 +38,10 @@ from typing import Literal
 import numpy as np
 import pinocchio as pin
 
-from .. import mesh_query
+from ..cell import GuidePoint
 from ..errors import InvalidInputError, RouteRefusedError, WallSideError
-from ..leadthrough import GuidePoint
+from ..part import Workpiece, mesh_query
 from ..transforms import matrix_from_quaternion
-from ..workpiece import Workpiece
 from . import thresholds as th
 from .law import LEG_SIZE, REF_SIZE, route_height
 from .settings import WALL_SIDE_CHOICES, PathLearningSettings

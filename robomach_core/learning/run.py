@@ -24,13 +24,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..cell import Cell, CellState
-from ..clock import CONTROL_PERIOD_S
+from ..cell import (
+    CONTROL_PERIOD_S,
+    Cell,
+    CellState,
+    ForceEstimator,
+    GuidePoint,
+    Supervisor,
+    cell_supervisor,
+)
+from ..cell.supervision.moves import move_joint, move_linear
 from ..errors import CancelledError
-from ..leadthrough import GuidePoint
-from ..sensor import ForceEstimator
-from ..supervision import Supervisor, cell_supervisor
-from ..supervision.moves import move_joint, move_linear
 from ..transforms import quaternions_from_matrices
 from . import thresholds as th
 from .law import (

@@ -32,7 +32,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..errors import InvalidInputError
-from ..mesh_query import closest_point, ray_hits, transformed
+from ..part.mesh_query import closest_point, ray_hits, transformed
 from .thresholds import (
     AMBIGUOUS_CLICK_RADII,
     CONTACT_BELOW_TOP_M,
@@ -531,7 +531,7 @@ def _spindle_lowest(
     above the part within its radius (rays down the tool axis); -inf without a reach."""
     if reach_m is None:
         return -math.inf
-    from ..supervision.supervisor import SPINDLE_RADIUS_M
+    from ..cell.supervision.supervisor import SPINDLE_RADIUS_M
 
     e1 = np.cross(up_tool, [1.0, 0.0, 0.0] if abs(up_tool[0]) < 0.9 else [0.0, 1.0, 0.0])
     e1 /= np.linalg.norm(e1)

@@ -14,8 +14,8 @@ import numpy as np
 def warm() -> None:
     """A short offline-compensated cut and a fuzzy one on a synthetic 20 mm path: every kernel
     of a machining run is called once with its real argument types."""
+    from ..cell import Robot
     from ..postprocess import Targets
-    from ..robot import Robot
     from .compare import run_configuration
     from .settings import MachiningSettings
     from .stock import stock_from_profile
@@ -36,7 +36,7 @@ def warm() -> None:
     normals = np.tile([0.0, 1.0, 0.0], (n, 1))
     stock = stock_from_profile(points, ((0.0, 0.5), (20.0, 0.8)), wall_normals_m=normals)
     settings = MachiningSettings(identification_poses=8)
-    from ..joint_compliance import true_joint_compliance
+    from ..cell import true_joint_compliance
 
     model = true_joint_compliance(robot.name)
     for controller, compensation in (("constant", "offline"), ("fuzzy", "off")):

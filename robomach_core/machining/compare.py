@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
+from ..cell import Robot
 from ..errors import InvalidInputError
 from ..postprocess import Targets
-from ..robot import Robot
 from .run import (
     CancelFlag,
     CompensationModel,

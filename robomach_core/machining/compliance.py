@@ -22,8 +22,7 @@ import hashlib
 
 import numpy as np
 
-from ..joint_compliance import JointCompliance
-from ..robot import Robot
+from ..cell import JointCompliance, Robot
 
 # Blocks of the programs cut lately in this process, by arm, tool, joints and stiffness.
 _BLOCKS: dict[tuple, np.ndarray] = {}

@@ -45,8 +45,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..cell import Robot
 from ..postprocess import Targets
-from ..robot import Robot
 from ..transforms import make_transform, matrices_from_quaternions, quaternions_from_matrices
 from .path import arc_length_m
 

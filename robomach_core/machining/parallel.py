@@ -76,7 +76,7 @@ class CutTask:
 
 
 def _robot(name: str, T: np.ndarray):
-    from ..robot import Robot
+    from ..cell import Robot
 
     key = (name, np.asarray(T, dtype=float).tobytes())
     robot = _ROBOTS.get(key)

@@ -12,10 +12,10 @@ from typing import Literal
 
 import numpy as np
 
+from ..cell import Robot
+from ..part import Workpiece
 from ..postprocess import Targets, curvature_along, speeds_by_curvature
-from ..robot import Robot
 from ..transforms import make_transform, quaternions_from_matrices
-from ..workpiece import Workpiece
 from .errors import StockError
 
 WallSide = Literal["left", "right"]

@@ -52,16 +52,14 @@ from typing import Any
 
 import numpy as np
 
-from ..clock import CONTROL_PERIOD_S
+from ..cell import CONTROL_PERIOD_S, JointCompliance, Robot, true_joint_compliance
 from ..cmrr.controllers import ControlDesign, make_controller
 from ..cmrr.feed_dynamics import FeedDynamics
 from ..cmrr.process import ForceSensorModel, PowerLawForceModel
 from ..cmrr.simulation import CancelFlag as CancelFlag
 from ..cmrr.simulation import ProgressCallback as ProgressCallback
 from ..cmrr.simulation import cancel_predicate
-from ..joint_compliance import JointCompliance, true_joint_compliance
 from ..postprocess import Targets
-from ..robot import Robot
 from ..stiffness import CompensationSettings
 from ..stiffness.identification import identify_stiffness as identify_stiffness
 from ..stiffness.model import cartesian_compliance

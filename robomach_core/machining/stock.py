@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
-from ..tool import Tool
+from ..cell import Tool
 from .errors import StockError
 from .path import arc_length_m, check_normals, check_path, wall_normals_from_path
 

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..leadthrough import GuidePoint
+from ..cell import GuidePoint
 from ..learning.run import LearningStop, Recording
 from ..learning.settings import PathLearningSettings
 from ..postprocess import PostprocessSettings

@@ -27,7 +27,7 @@ import numpy as np
 
 from .. import limits
 from ..errors import InvalidInputError
-from ..urdf_check import open_zip
+from ..robots import open_zip
 
 MAX_RECORDING_SAMPLES = limits.RECORDING_SAMPLES_MAX
 MAX_GUIDE_POINTS = limits.GUIDE_POINTS_MAX

@@ -36,10 +36,10 @@ from typing import Any
 
 import numpy as np
 
+from ..cell import Robot
 from ..errors import InvalidInputError
+from ..part import Workpiece
 from ..postprocess import Targets
-from ..robot import Robot
-from ..workpiece import Workpiece
 from ._stages import require_processed
 from ._value import Project, machining_inputs_key
 
@@ -236,7 +236,7 @@ def capabilities_of(project: Project) -> Any:
     if isinstance(setup, MachiningSetup) and setup.cell_options is not None:
         return CellCapabilities.for_family(family, setup.cell_options)
     try:
-        from ..robot import program_language
+        from ..cell import program_language
 
         language = program_language(project.cell.robot)
     except Exception:  # an arm not (yet) registered in this process: no options assumed
@@ -343,7 +343,7 @@ def build_stock(
     if setup.stock_source == "mesh":
         from pathlib import Path
 
-        from ..workpiece import mesh_from_bytes
+        from ..part import mesh_from_bytes
 
         name, data = setup.stock_mesh
         mesh = mesh_from_bytes(data, Path(name).suffix.lower(), name=Path(name).stem).mesh
@@ -356,7 +356,7 @@ def build_stock(
 def compensation_model(project: Project, robot_name: str) -> Any:
     """The identified stiffness: the project's compensation settings when it holds some (on this
     robot), else the simulated CMM campaign of ``machining.stiffness_model``."""
-    from ..joint_compliance import JointCompliance
+    from ..cell import JointCompliance
     from ..machining import stiffness_model
 
     comp = project.compensation
@@ -578,7 +578,7 @@ def choose(project: Project, controller: str, compensation: str) -> Project:
         gravity = comp.tool_gravity
         if mode == "online" and gravity is None:
             # Not identified here: the tool's nominal mass and centre of mass, no sensor bias.
-            from ..sensor import ToolGravity
+            from ..cell import ToolGravity
 
             tool = project.tool()
             gravity = ToolGravity(tool.mass_kg, tuple(float(v) for v in tool.com_m))

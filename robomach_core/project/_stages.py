@@ -9,23 +9,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .. import mesh_query
-from ..cell import Cell, CellState
+from ..cell import Cell, CellState, ForceEstimator, GuidePoint
 from ..errors import InvalidInputError
-from ..leadthrough import GuidePoint
 from ..learning.route import LearningRoute, plan_route
 from ..learning.run import learn_path
 from ..learning.settings import PathLearningSettings
-from ..postprocess import (
-    PostprocessResult,
-    PostprocessSettings,
-    Targets,
-    loop_ridge_m,
-    postprocess,
-)
+from ..part import Workpiece, mesh_query
+from ..postprocess import PostprocessResult, PostprocessSettings, Targets, loop_ridge_m, postprocess
 from ..scoring import PathScore, score_path
-from ..sensor import ForceEstimator
-from ..workpiece import Workpiece
 from ._value import (
     CellSettings,
     LearnedPath,
@@ -114,7 +105,7 @@ def process(
         raise InvalidInputError(f"{exc}: path learning ended early ({rec.stop_reason})") from None
     moves = straight = None
     if settings.arcs and len(result.targets) >= 2:
-        from ..arcs import arc_targets
+        from ..postprocess import arc_targets
 
         straight = len(result.targets)
         tol = settings.arc_tolerance_m or settings.tolerance_m
@@ -160,9 +151,8 @@ def _scores(
     rec = learned.recording
     score = mesh = taught = None
     if len(result.targets) >= 2:
-        from ..arcs import score_moves
         from ..learning.checks import taught_wall_check
-        from ..mesh_score import score_mesh
+        from ..scoring import score_mesh, score_moves
         from ..transforms import matrices_from_quaternions
 
         pos = result.targets.position_m
@@ -203,7 +193,7 @@ def cad_comparison_of(
     (``cad_program.compare_with_cad``); None for fewer than 2 targets or no wall followed."""
     if len(targets) < 2:
         return None
-    from ..cad_program import compare_with_cad
+    from ..scoring import compare_with_cad
 
     return compare_with_cad(
         workpiece,
@@ -257,8 +247,8 @@ def build_cell_workpiece(
     """The part the cell's contact meets: ``build_workpiece``'s, made real by the cell's
     ``part_deviation`` (``real_part.real_workpiece``; its ``cad()`` is the mesh the user sees),
     its CAD placed where the cell's ``registration`` measured it when there is one."""
-    from ..real_part import real_workpiece
-    from ..registration import registered_workpiece
+    from ..part import real_workpiece
+    from ..teaching import registered_workpiece
 
     cad = build_workpiece(cell, mesh, max_triangles=max_triangles, parsed=parsed)
     part = real_workpiece(cad, cell.part_deviation)
@@ -278,12 +268,7 @@ def build_workpiece(
     already read by ``workpiece.mesh_from_bytes``); placed where the cell's robot reaches it
     (``workpiece.default_T_base_wobj``), or at ``wobj_mm_deg``. The one placement of a part:
     the same while the workbench runs, after a reopen and in the CLI."""
-    from ..workpiece import (
-        MAX_MESH_TRIANGLES,
-        builtin_workpiece,
-        default_T_base_wobj,
-        mesh_from_bytes,
-    )
+    from ..part import MAX_MESH_TRIANGLES, builtin_workpiece, default_T_base_wobj, mesh_from_bytes
 
     if mesh is not None and not cell.workpiece_builtin:
         filename, data = mesh

@@ -24,11 +24,11 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..cell import GuidePoint
 from ..errors import ConflictError, InvalidInputError, NotFoundError
-from ..leadthrough import GuidePoint
 from ..limits import GUIDE_POINTS_MAX
 from ..postprocess import PostprocessSettings
-from ..registration import WobjRegistration
+from ..teaching import WobjRegistration
 from ._value import LearnedPath, ProcessedPath, Project, processed_inputs_key
 
 if TYPE_CHECKING:
@@ -61,8 +61,8 @@ def with_cell(
     built-in arm drops the uploaded arm's file; a change of arm, part, placement or deviation
     drops the work-object calibration (it measured the part where it was); the results stay,
     stale by their fingerprints. No change returns ``project`` itself."""
+    from ..part import WORKPIECE_NAMES
     from ..robots.custom import is_custom, uploaded_file
-    from ..workpiece import WORKPIECE_NAMES
     from ._file_check import check_wobj
 
     cur, mesh = project.cell, project.mesh
@@ -108,7 +108,7 @@ def mesh_file_name(filename: str) -> str:
     Raises:
         InvalidInputError: not a mesh type the workbench reads (STL, OBJ, PLY).
     """
-    from ..workpiece import MESH_SUFFIXES
+    from ..part import MESH_SUFFIXES
 
     suffix = Path(filename).suffix.lower()
     if suffix not in MESH_SUFFIXES:

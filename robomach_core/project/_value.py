@@ -10,20 +10,19 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
+from ..cell import GuidePoint, Tool
 from ..errors import RobomachError
-from ..leadthrough import GuidePoint
 from ..learning.run import Recording
 from ..learning.settings import PathLearningSettings
+from ..part import PartDeviation
 from ..postprocess import PostprocessResult, PostprocessSettings
-from ..real_part import PartDeviation
-from ..registration import WobjRegistration
 from ..scoring import PathScore
-from ..tool import Tool
+from ..teaching import WobjRegistration
 
 if TYPE_CHECKING:  # the slots' types; their modules import this one
-    from ..cad_program import CadComparison
     from ..cmrr import CmrrSettings
     from ..learning.checks import TaughtWallCheck
+    from ..scoring import CadComparison
     from ..stiffness import CompensationSettings
     from ._machining import MachiningResult, MachiningSetup
 

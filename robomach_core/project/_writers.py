@@ -9,11 +9,11 @@ from typing import Any
 
 import numpy as np
 
+from ..cell import Robot
 from ..errors import InvalidInputError
 from ..learning.run import Recording
+from ..part import Workpiece
 from ..postprocess import Targets
-from ..robot import Robot
-from ..workpiece import Workpiece
 from ._machining import (
     chosen_program,
     compensation_for_arm,

@@ -1,5 +1,6 @@
 """Robot arm definitions built from published kinematics (example-robot-data has no ABB or
-KUKA arm), and the user's own arms (``robots.custom``)."""
+KUKA arm), the user's own arms (``robots.custom``) and the bounds on a robot file before
+pinocchio parses it (``urdf_check``)."""
 
 from .abb import ABB_ARMS as ABB_ARMS
 from .abb import IRB2400 as IRB2400
@@ -17,3 +18,4 @@ from .builtin import joint_couplings as joint_couplings
 from .kuka import KR270 as KR270
 from .kuka import KUKA_ARMS as KUKA_ARMS
 from .kuka import KukaArmSpec as KukaArmSpec
+from .urdf_check import open_zip as open_zip

@@ -37,13 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import RobomachError
-from ..urdf_check import (
-    check_urdf_native,
-    check_urdf_text,
-    read_package_meshes,
-    read_robot_zip,
-)
 from . import registry
+from .urdf_check import check_urdf_native, check_urdf_text, read_package_meshes, read_robot_zip
 
 MAX_ROBOT_FILE_BYTES = 50 * 1024 * 1024
 ROBOT_FILE_SUFFIXES = (".urdf", ".zip")
@@ -227,7 +222,7 @@ def mesh_path(record: registry.Arm, reference: str) -> str:
     in the cache (``urdf_check.resolve_reference``): "" (no file) for a reference that names no
     member of the upload. The scene's loader (yourdfpy) reads an upload's meshes through this,
     so it cannot read a file of the server's disk (issue 32)."""
-    from ..urdf_check import resolve_reference
+    from .urdf_check import resolve_reference
 
     member = resolve_reference(reference, [m for m, _ in record.meshes])
     if member is None or record.urdf_text is None:
@@ -276,7 +271,7 @@ def register_urdf(filename: str, data: bytes, family: str = "auto") -> str:
 
 def _register_file(filename: str, data: bytes) -> str:
     """``register_urdf`` with the family found from the kinematics."""
-    from .. import robot as robot_module
+    from ..cell import robot as robot_module
     from .recognise import recognise_arm
 
     name = robot_name_for(filename, data)
@@ -340,8 +335,8 @@ def _home(name: str, wobj_m: np.ndarray) -> np.ndarray:
     the elbow and wrist at least ``HOME_CLEARANCE_M`` above the part's base (the table)."""
     import pinocchio as pin
 
-    from .. import robot as robot_module
-    from ..tool import TOOL_DOWN, Tool
+    from ..cell import TOOL_DOWN, Tool
+    from ..cell import robot as robot_module
     from ..transforms import make_transform
 
     arm = robot_module.Robot(name, Tool().T_flange_tcp)

@@ -60,7 +60,7 @@ def same_kinematics(a: pin.Model, b: pin.Model, *, seed: int = 0) -> bool:
 
 def recognise_arm(model: pin.Model) -> str | None:
     """The built-in arm (``robot.ROBOT_NAMES``) with the same kinematics, or None."""
-    from .. import robot as robot_module
+    from ..cell import robot as robot_module
 
     for name in robot_module.ROBOT_NAMES:
         if same_kinematics(model, robot_module.Robot(name).model):

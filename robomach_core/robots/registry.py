@@ -153,7 +153,7 @@ def _deg(*values: float) -> tuple[float, ...]:
 # the range of industrial arms (the chapter: "usually less than 1 N/um"; under the chapter's
 # 300 N feed + 300 N cutting + 50 N normal load the TCP moves about 0.3 mm). The big ABB arms:
 # 1.2-3.5 N/um (IRB 4400) and 1.3-6 N/um (IRB 6640) over the translation directions with the
-# tool down at their built-in work pose (tests/core/test_abb.py checks the softest one is
+# tool down at their built-in work pose (tests/core/robots/test_abb.py checks the softest one is
 # 1-3.5 N/um), stiffer than the UR10 and the chapter's IRB 6400 (~0.5 N/um); the Lund papers'
 # IRB 2400 (no joint stiffness published) between the UR10 and the IRB 4400.
 # Placements: the big arms stand on the floor, the part on a 0.6 m table further out, where

@@ -5,10 +5,10 @@ gravity compensation of the F/T sensor, online and offline deformation compensat
 simulations, iterative learning control, settings JSON and the study runners.
 """
 
-from ..sensor import ToolGravity as ToolGravity
-from ..sensor import compensate_gravity as compensate_gravity
-from ..sensor import wrench_at_tcp_in_base as wrench_at_tcp_in_base
-from ..sensor import wrench_in_tool_frame as wrench_in_tool_frame
+from ..cell import ToolGravity as ToolGravity
+from ..cell import compensate_gravity as compensate_gravity
+from ..cell import wrench_at_tcp_in_base as wrench_at_tcp_in_base
+from ..cell import wrench_in_tool_frame as wrench_in_tool_frame
 from .compensation import OnlineCompensationParams as OnlineCompensationParams
 from .compensation import OnlineCompensationState as OnlineCompensationState
 from .compensation import compensate_targets as compensate_targets

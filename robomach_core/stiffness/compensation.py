@@ -20,9 +20,7 @@ from typing import Literal
 
 import numpy as np
 
-from ..joint_compliance import JointCompliance
-from ..robot import Robot
-from ..sensor import ToolGravity, compensate_gravity, wrench_at_tcp_in_base
+from ..cell import JointCompliance, Robot, ToolGravity, compensate_gravity, wrench_at_tcp_in_base
 from ..transforms import pose_error
 from .errors import ConvergenceError
 from .model import apply_twist, loaded_equilibrium

@@ -9,10 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..cell import JointCompliance, Robot, Tool
 from ..export.rapid import RapidProgram, RapidTarget, RapidTool, RapidWorkObject
-from ..joint_compliance import JointCompliance
-from ..robot import Robot
-from ..tool import Tool
 from .compensation import CompensationMode, compensate_targets_and_joints
 
 

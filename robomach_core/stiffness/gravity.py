@@ -18,8 +18,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from ..robot import HOME_JOINTS_RAD, Robot
-from ..sensor import GRAVITY_M_S2, ToolGravity, gravity_reading
+from ..cell import GRAVITY_M_S2, HOME_JOINTS_RAD, Robot, ToolGravity, gravity_reading
 from .errors import IdentificationError
 
 CALIBRATION_CONFIGURATIONS = 15

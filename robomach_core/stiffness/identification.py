@@ -32,9 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..cell import JointCompliance, Robot, true_joint_compliance
 from ..errors import SingularConfigurationError, UnreachableTargetError
-from ..joint_compliance import JointCompliance, true_joint_compliance
-from ..robot import Robot
 from ..transforms import make_transform, rotation_about
 from .errors import IdentificationError
 from .model import loaded_equilibrium

@@ -25,7 +25,7 @@ from typing import Literal
 
 import numpy as np
 
-from ..clock import CONTROL_PERIOD_S, zoh, zoh_tf
+from ..cell import CONTROL_PERIOD_S, zoh, zoh_tf
 from ..errors import CancelledError, InvalidInputError
 
 IlcKind = Literal["arm", "force"]

@@ -28,11 +28,15 @@ from typing import Literal
 
 import numpy as np
 
-from ..clock import CONTROL_PERIOD_S
+from ..cell import (
+    CONTROL_PERIOD_S,
+    JointCompliance,
+    Robot,
+    ToolGravity,
+    contact_reading,
+    gravity_reading,
+)
 from ..errors import CancelledError, InvalidInputError
-from ..joint_compliance import JointCompliance
-from ..robot import Robot
-from ..sensor import ToolGravity, contact_reading, gravity_reading
 from ..transforms import make_transform, pose_error, rotation_about
 from .compensation import (
     OnlineCompensationParams,

@@ -25,8 +25,7 @@ from typing import Literal
 import numpy as np
 import pinocchio as pin
 
-from ..joint_compliance import JointCompliance
-from ..robot import Robot
+from ..cell import JointCompliance, Robot
 from ..transforms import pose_error
 from .errors import ConvergenceError
 

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..clock import CONTROL_PERIOD_S
+from ..cell import CONTROL_PERIOD_S
 from ..plots import agg_figure
 from .ilc import IlcResult
 from .milling import MillingRun

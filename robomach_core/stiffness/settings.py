@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, get_args
 
-from ..joint_compliance import JointCompliance
+from ..cell import JointCompliance, ToolGravity
 from ..limits import (
     FORCE_FILTER_CUTOFF_HZ,
     JOINT_STIFFNESS_NM_RAD,
@@ -23,7 +23,6 @@ from ..limits import (
     TOOL_MASS_KG,
     Range,
 )
-from ..sensor import ToolGravity
 from .errors import SettingsFileError
 
 SETTINGS_FORMAT = "robomach.compensation"

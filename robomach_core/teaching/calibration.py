@@ -27,13 +27,11 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from .. import mesh_query
+from ..cell import TOOL_DOWN, LeadThrough, LeadThroughState
 from ..errors import InvalidInputError, NoContactError, RobomachError
-from ..leadthrough import LeadThrough, LeadThroughState
-from ..registration import CalibrationError, Touch
-from ..tool import TOOL_DOWN
-from ..workpiece import Workpiece
+from ..part import Workpiece, mesh_query
 from .motion import go_to_point, move_by
+from .registration import CalibrationError, Touch
 
 EXPECTED_ERROR_M = 0.01  # the part may stand this far off its CAD at a touch (a few mm and 2 deg)
 TOP_STANDOFF_M = 0.008  # a touch down starts this far above the face

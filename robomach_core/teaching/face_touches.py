@@ -29,9 +29,8 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from .. import mesh_query
 from ..errors import InvalidInputError
-from ..workpiece import Workpiece
+from ..part import Workpiece, mesh_query
 from .calibration import OTHER_SIDE_TOUCHES, SIDE_TOUCHES, TOP_TOUCHES
 
 CANDIDATES = 400  # points drawn on the face to choose its touches from

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..leadthrough import ComplianceSelection, LeadThrough, LeadThroughState
+from ..cell import ComplianceSelection, LeadThrough, LeadThroughState
 from ..transforms import rotation_log
 
 STIFF = ComplianceSelection(frozenset(), "base")

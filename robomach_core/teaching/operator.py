@@ -20,17 +20,21 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..clock import CONTROL_PERIOD_S
-from ..contour import Line
+from ..cell import (
+    CONTROL_PERIOD_S,
+    ComplianceSelection,
+    GuidePoint,
+    LeadThrough,
+    LeadThroughState,
+    Robot,
+)
+from ..cell import TOOL_DOWN as TOOL_DOWN
 from ..errors import InvalidInputError, NotEnoughGuidePointsError, UnreachableTargetError
-from ..leadthrough import ComplianceSelection, GuidePoint, LeadThrough, LeadThroughState
 from ..learning.planner import GuideProposal, ProposalSettings, WallPlacer, propose_guide_points
 from ..learning.thresholds import EXAMPLE_BELOW_TOP_M, OPEN_EDGE_ENTRY_M
 from ..learning.walls import walls_near
-from ..robot import Robot
-from ..tool import TOOL_DOWN as TOOL_DOWN
+from ..part import Line, Workpiece
 from ..transforms import matrix_from_quaternion, rotation_log
-from ..workpiece import Workpiece
 
 HAND_GAIN_N_M = 2000.0  # push per metre of distance to the goal
 HAND_MAX_N = 15.0  # a comfortable one-hand push

@@ -91,8 +91,8 @@ def test_a_realistic_part_is_calibrated_over_http_and_proposals_then_stand_on_it
     reg = cell["registration"]
     assert reg["touches"] == 8 and reg["wobj_mm_deg"] == pytest.approx(fit["wobj_mm_deg"], abs=1e-3)
     assert cell["wobj_mm_deg"] == [790, 150, 0, 25]  # the placement stays as set
-    # Proposals now stand on the registered CAD (tests/core/test_registration.py measures them
-    # against the real wall): the whole groove is proposed and every point is reached.
+    # Proposals now stand on the registered CAD (tests/core/teaching/test_registration.py
+    # measures them against the real wall): the whole groove is proposed and every point is reached.
     wall_mm = [0.0, -65.0, 17.0]
     proposal = api.ok("POST", "/api/guide-points/propose", json={"point_mm": wall_mm})
     assert proposal["closed"] and proposal["wall_side"] == "right", proposal["notes"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 import trimesh
 
-from robomach_core.robot import ROBOT_NAMES
+from robomach_core.cell import ROBOT_NAMES
 from tests.api.conftest import TRIANGLE_LIMIT, UPLOAD_LIMIT_BYTES
 from tests.api.server_process import Api
 

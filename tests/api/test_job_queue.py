@@ -16,7 +16,7 @@ from app.session import JobRunner, QueueFullError
 from app.session.jobs import MAX_ACTIVE_JOBS, MAX_ACTIVE_JOBS_PER_KIND
 from robomach_core import project as core
 from tests.conftest import app_client
-from tests.core.test_project import learned_block_project
+from tests.core.project.test_project import learned_block_project
 
 
 def test_the_runner_caps_jobs_per_kind_and_in_all() -> None:

@@ -19,9 +19,9 @@ from app.cli import build_parser
 from robomach_core import project as core
 from robomach_core.export.krl_check import check_krl_program
 from robomach_core.learning.settings import PathLearningSettings
-from robomach_core.workpiece import builtin_workpiece
+from robomach_core.part import builtin_workpiece
 from tests.conftest import app_client
-from tests.core.test_project import _guide, _recording
+from tests.core.project.test_project import _guide, _recording
 
 TOY = registry.ProgramLanguage(
     name="toy",
@@ -36,12 +36,11 @@ TOY = registry.ProgramLanguage(
 
 
 def processed_project_file(folder: Path, robot: str = "ur10") -> Path:
-    """A processed project (the synthetic straight pass of tests/core/test_project on the
+    """A processed project (the synthetic straight pass of tests/core/project/test_project on the
     block, moved to where the block sits for ``robot``, its joints that arm's) as
     project.npz."""
-    from robomach_core.leadthrough import GuidePoint
-    from robomach_core.robot import Robot
-    from robomach_core.workpiece import default_T_base_wobj
+    from robomach_core.cell import GuidePoint, Robot
+    from robomach_core.part import default_T_base_wobj
 
     shift = default_T_base_wobj(robot)[:3, 3] - default_T_base_wobj("ur10")[:3, 3]
     recording = _recording()
@@ -188,7 +187,7 @@ def ur5_file(tmp_path_factory) -> Path:
     """ur5_robot.urdf copied out of example-robot-data, as a user would."""
     import shutil
 
-    from robomach_core.robot import robots_directory
+    from robomach_core.cell import robots_directory
 
     source = robots_directory() / "ur_description/urdf/ur5_robot.urdf"
     return Path(shutil.copy(source, tmp_path_factory.mktemp("upload") / "my_ur5.urdf"))

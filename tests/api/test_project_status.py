@@ -69,9 +69,9 @@ def test_a_cell_update_that_changes_nothing_keeps_all_work(api: Api) -> None:
 
 
 def _cmrr_and_compensation() -> dict:
+    from robomach_core.cell.joint_compliance import TRUE_JOINT_STIFFNESS_NM_RAD
     from robomach_core.cmrr import build_scenario, cmrr_settings_for, settings_for
     from robomach_core.cmrr import settings_to_dict as cmrr_to_dict
-    from robomach_core.joint_compliance import TRUE_JOINT_STIFFNESS_NM_RAD
     from robomach_core.stiffness import CompensationSettings
     from robomach_core.stiffness.settings import settings_to_dict as compensation_to_dict
 

@@ -1,7 +1,7 @@
 """Safe, real-time lead-through (issue 9's acceptance tests).
 
 Where a push goes does not depend on pacing (the pacer only waits for the wall clock,
-``robomach_core/realtime.py``), so the walks that look for flips, refusals and the table (300
+``robomach_core/cell/realtime.py``), so the walks that look for flips, refusals and the table (300
 random pushes, 200 leaning down, pushing up and down, touch-off) run on the suite's unpaced
 in-process app. What is about time (a held push, a stop, events, pushes racing reads) runs over
 real HTTP on a paced server of its own (``paced``), as a person's pendant would.

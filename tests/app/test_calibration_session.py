@@ -13,8 +13,9 @@ import pytest
 from app.session import NotFoundError, Session
 from app.store import Store
 from robomach_core.errors import InvalidInputError, NoContactError
-from robomach_core.real_part import PartDeviation, fixture_error
-from robomach_core.registration import CalibrationError
+from robomach_core.part import PartDeviation
+from robomach_core.part.real_part import fixture_error
+from robomach_core.teaching import CalibrationError
 from tests.envelope import replay, run_seed
 
 SEED = run_seed()

@@ -21,8 +21,8 @@ from robomach_core import project as core
 from robomach_core.export.read_back import read_program
 from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
 from robomach_core.machining.choice import missing
+from robomach_core.part import PartDeviation
 from robomach_core.project import capabilities_of, machining_note, machining_setup_of
-from robomach_core.real_part import PartDeviation
 
 pytestmark = pytest.mark.slow  # path learning on the pump (about 10 s unpaced)
 

@@ -22,7 +22,7 @@ import pytest
 from app.cli import main
 from tests.api.test_hardening import _deep_urdf
 from tests.app.test_cli_hardening import _one_line_error
-from tests.core.test_project_file_check import arrays_of, npz, small_project_bytes
+from tests.core.project.test_project_file_check import arrays_of, npz, small_project_bytes
 
 ROOT = Path(__file__).resolve().parents[2]
 BINARY = bytes(range(256)) * 4

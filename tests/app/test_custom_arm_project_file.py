@@ -1,7 +1,7 @@
 """A project on the user's own arm (a URDF file) round-trips through ``project.npz``.
 
 The file keeps the arm's URDF beside the mesh; a new process knows only the built-in arms, so
-loading it registers the arm again (``project.register_robot_file``). ``robomach machine
+loading it registers the arm again (``project._file.register_robot_file``). ``robomach machine
 --from`` and ``POST /api/projects/import`` read the file this way; before, they could not open
 such a project at all.
 """
@@ -17,7 +17,7 @@ from app.cli import main as robomach
 from app.session import Session, programs
 from app.session.project_file import export_project, import_project
 from robomach_core import project as core
-from robomach_core.robot import robot_urdf_path
+from robomach_core.cell.robot import robot_urdf_path
 from robomach_core.robots import custom, registry
 from tests.generated_parts import PARTS
 

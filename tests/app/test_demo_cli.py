@@ -160,8 +160,8 @@ def test_same_seed_same_output(tmp_path):
 
 @pytest.mark.slow
 def test_demo_exports_cmrr_speed_change_and_compensated_targets(tmp_path):
+    from robomach_core.cell.joint_compliance import TRUE_JOINT_STIFFNESS_NM_RAD
     from robomach_core.cmrr import build_scenario, cmrr_settings_for, save_settings, settings_for
-    from robomach_core.joint_compliance import TRUE_JOINT_STIFFNESS_NM_RAD
     from robomach_core.stiffness import CompensationSettings
     from robomach_core.stiffness import save_settings as save_compensation
 

@@ -11,7 +11,7 @@ import pytest
 
 from app.session import Session
 from robomach_core.learning.settings import PathLearningSettings
-from robomach_core.real_part import PartDeviation
+from robomach_core.part import PartDeviation
 from tests.jobs import done
 
 TOP_OF_RANGES = {"fixture_shift_mm": 5.0, "fixture_rotation_deg": 3.0, "wall_offset_mm": 2.0,

@@ -9,7 +9,7 @@ import pytest
 from app.session import NotFoundError, Session
 from robomach_core.errors import InvalidInputError, UnreachableTargetError
 from robomach_core.learning.walls import section_loops
-from robomach_core.real_part import PartDeviation
+from robomach_core.part import PartDeviation
 from tests.jobs import finished
 
 WOBJ_M = np.array([0.80, 0.16, 0.0])  # the water pump's work object (rotation: identity)

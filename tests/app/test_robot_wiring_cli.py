@@ -14,14 +14,13 @@ import numpy as np
 import pytest
 import trimesh
 
+from robomach_core.cell import Robot, Tool
 from robomach_core.export import check_rapid_module
 from robomach_core.export.rapid import confdata_from_joints
 from robomach_core.export.urscript import script_poses
-from robomach_core.robot import Robot
-from robomach_core.teaching.operator import guide_plan
-from robomach_core.tool import Tool
+from robomach_core.part import builtin_workpiece
+from robomach_core.teaching import guide_plan
 from robomach_core.transforms import make_transform
-from robomach_core.workpiece import builtin_workpiece
 from tests.cli import robomach_here
 from tests.demo_project import pump_demo
 from tests.rapid_grammar import rapidchecker_errors
@@ -187,7 +186,7 @@ def test_wobj_with_three_rotations_places_the_program(tmp_path):
 
 @pytest.mark.slow
 def test_your_own_urdf_runs_the_demo(tmp_path):
-    from robomach_core.robot import robot_urdf_path
+    from robomach_core.cell.robot import robot_urdf_path
 
     urdf = tmp_path / "my_arm.urdf"
     urdf.write_bytes(robot_urdf_path("ur10").read_bytes())

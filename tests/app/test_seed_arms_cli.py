@@ -13,13 +13,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from robomach_core.cell import Robot, Tool, robots_directory
 from robomach_core.export import check_rapid_module
 from robomach_core.export.krl_check import check_krl_program
 from robomach_core.export.rapid import confdata_from_joints
-from robomach_core.robot import Robot, robots_directory
 from robomach_core.robots import KR270
 from robomach_core.robots.kuka import status_bits, turn_bits
-from robomach_core.tool import Tool
 from tests.cli import robomach_here
 from tests.rapid_grammar import rapidchecker_errors
 

@@ -7,7 +7,7 @@ import numpy as np
 
 from app.session import Session
 from app.store import Store
-from robomach_core.robot import robot_urdf_path
+from robomach_core.cell.robot import robot_urdf_path
 from robomach_core.robots import custom, registry
 from tests.jobs import finished
 

@@ -20,9 +20,8 @@ from playwright.sync_api import Page, expect, sync_playwright
 
 from app.session import Session
 from robomach_core import project as core
-from robomach_core.leadthrough import GuidePoint
-from robomach_core.real_part import PartDeviation
-from robomach_core.teaching.operator import TOOL_DOWN
+from robomach_core.cell import TOOL_DOWN, GuidePoint
+from robomach_core.part import PartDeviation
 from robomach_core.transforms import rotation_about
 from tests.browser.conftest import CHROMIUM, CHROMIUM_ARGS, new_context, wait_for, workbench_on
 from tests.browser.test_place_calibrate_learn import (

@@ -30,7 +30,8 @@ from playwright.sync_api import Page, expect
 from app.session import Session
 from robomach_core.export.read_back import read_program
 from robomach_core.learning.walls import section_loops
-from robomach_core.real_part import PartDeviation, fixture_error
+from robomach_core.part import PartDeviation
+from robomach_core.part.real_part import fixture_error
 from tests.browser.conftest import new_context, wait_for, workbench_on
 from tests.browser.test_pointing import _click_at
 from tests.generated_parts import cam_plate
@@ -141,7 +142,7 @@ def _real_wall_error_mm(session, program_text: str, filename: str) -> float:
     """The downloaded program's largest error from the real part's wall [mm]: its moves read
     back (base frame), sampled every 0.1 mm, against the real part's section (the casting
     without its burrs) at the program's height: the ball's centre distance minus its radius."""
-    from robomach_core.cad_program import score_against_wall
+    from robomach_core.scoring.cad_program import score_against_wall
 
     path = read_program("urscript", {filename: program_text})
     real = session.robot.workpiece  # the part in the cell (its own mesh, where it really is)

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from app.session import Session
+from robomach_core.cell import ROBOT_NAMES
 from robomach_core.project import wobj_transform
-from robomach_core.robot import ROBOT_NAMES
 from robomach_core.transforms import matrix_from_quaternion
 from tests.browser.conftest import wait_for, workbench_on
 
@@ -175,7 +175,8 @@ def test_three_clicks_in_the_touch_mode_calibrate_the_part_where_it_really_is():
     says) touch 3, 3 and 2 times; the fit drawn in green until it is accepted; accepting it
     places the CAD on the real part (its corners within 1 mm: the casting's 0.5 mm and the
     burrs), the click proposes again, the touches' labels go, and the camera stays."""
-    from robomach_core.real_part import PartDeviation, fixture_error
+    from robomach_core.part import PartDeviation
+    from robomach_core.part.real_part import fixture_error
     from tests.generated_parts import cam_plate
 
     rng = random.Random()

@@ -20,10 +20,10 @@ import zlib
 import numpy as np
 import pytest
 
+from robomach_core.part import PartDeviation, builtin_workpiece
+from robomach_core.part.real_part import fixture_error
 from robomach_core.pipeline import DemoSettings, run_demo
 from robomach_core.postprocess import PostprocessSettings
-from robomach_core.real_part import PartDeviation, fixture_error
-from robomach_core.workpiece import builtin_workpiece
 from tests.envelope import replay, run_seed
 
 SEED = run_seed()

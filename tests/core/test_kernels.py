@@ -22,27 +22,28 @@ from numba.core.registry import CPUDispatcher
 
 import robomach_core
 from robomach_core import _kernels
-from robomach_core.cell import Cell, CellConfig
-from robomach_core.contact import ContactModel
-from robomach_core.joint_compliance import true_joint_compliance
-from robomach_core.learning import law as cf
-from robomach_core.learning.run import contour_law_parameters
-from robomach_core.learning.settings import PathLearningSettings
-from robomach_core.robot import Robot
-from robomach_core.sensor import (
+from robomach_core.cell import (
+    Cell,
+    CellConfig,
     ForceEstimator,
+    Robot,
+    Tool,
     ToolGravity,
+    cell_supervisor,
     compensate_gravity,
     contact_reading,
     gravity_reading,
+    true_joint_compliance,
     wrench_at_tcp_in_base,
 )
+from robomach_core.cell.contact import ContactModel
+from robomach_core.cell.supervision import _kernels as sk
+from robomach_core.learning import law as cf
+from robomach_core.learning.run import contour_law_parameters
+from robomach_core.learning.settings import PathLearningSettings
+from robomach_core.part import builtin_workpiece
 from robomach_core.stiffness.model import loaded_equilibrium
-from robomach_core.supervision import _kernels as sk
-from robomach_core.supervision import cell_supervisor
-from robomach_core.tool import Tool
 from robomach_core.transforms import pose_error
-from robomach_core.workpiece import builtin_workpiece
 
 vectors = st.lists(st.floats(-3.0, 3.0), min_size=3, max_size=3).map(np.array)
 unit_axes = vectors.filter(lambda v: np.linalg.norm(v) > 1e-3).map(lambda v: v / np.linalg.norm(v))
@@ -445,8 +446,11 @@ FAST_COPIES = (
     "tests/core/machining/test_trust.py::"
     "test_the_fast_copy_of_each_controller_equals_its_public_step"
 )
-REDUCTION = "tests/core/test_postprocess.py::test_compiled_reduction_equals_the_literal_fig3_scan"
-CONTOUR_LAW = "tests/core/test_law.py::test_the_compiled_law_equals_its_reference"
+REDUCTION = (
+    "tests/core/postprocess/test_postprocess.py::"
+    "test_compiled_reduction_equals_the_literal_fig3_scan"
+)
+CONTOUR_LAW = "tests/core/learning/test_law.py::test_the_compiled_law_equals_its_reference"
 BALL = "test_the_balls_contact_is_the_nearest_face_of_the_whole_part"
 SUPERVISED = "test_the_compiled_supervised_period_is_supervise_with_its_proposal"
 _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
@@ -479,7 +483,7 @@ _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
             "test_the_controller_period_is_its_parts",
         ),
     },
-    "robomach_core.supervision._kernels": {
+    "robomach_core.cell.supervision._kernels": {
         **dict.fromkeys(
             ("chain_placements", "tcp_jacobian", "_compose"),
             "test_the_chains_pose_and_jacobian_are_pinocchios",
@@ -580,7 +584,7 @@ def test_the_gjk_clearance_near_the_part_is_coals(part):
     within coal's tolerance, and every one it leaves is an overlap."""
     import pinocchio as pin
 
-    from robomach_core.teaching.operator import TOOL_DOWN
+    from robomach_core.cell import TOOL_DOWN
 
     cell = Cell(CellConfig(workpiece=part))
     supervisor = cell_supervisor(cell)

@@ -7,19 +7,17 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from robomach_core.cell import TOOL_DOWN, GuidePoint, Robot
+from robomach_core.cell.robot import robot_urdf_path
 from robomach_core.errors import InvalidInputError
-from robomach_core.leadthrough import GuidePoint
 from robomach_core.learning.checks import guide_point_warnings
 from robomach_core.learning.settings import PathLearningSettings
-from robomach_core.mesh_score import score_mesh
+from robomach_core.part import builtin_workpiece
 from robomach_core.pipeline import default_robot
 from robomach_core.project import wobj_transform
-from robomach_core.robot import Robot, robot_urdf_path
 from robomach_core.robots.custom import RobotFileError, register_urdf, validate_urdf
-from robomach_core.scoring import score_path
-from robomach_core.teaching.operator import TOOL_DOWN
+from robomach_core.scoring import score_mesh, score_path
 from robomach_core.transforms import make_transform, rotation_about
-from robomach_core.workpiece import builtin_workpiece
 
 
 def test_wobj_forms():
@@ -88,7 +86,7 @@ def test_guide_rules_flag_heavy_contact_a_touch_and_an_untold_wall_side():
 
 def test_mesh_score_agrees_with_the_true_wall_score():
     wp = builtin_workpiece("water_pump")
-    from robomach_core.teaching.operator import guide_plan  # noqa: F401 (the wall's frame)
+    from robomach_core.teaching import guide_plan  # noqa: F401 (the wall's frame)
 
     T = wp.T_base_wobj
     path = wp.wall.offset(0.001).sample(0.004)[:60]

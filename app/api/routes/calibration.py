@@ -21,7 +21,7 @@ from app.api.schemas import CellPublic, Finite, JobCreated, Vector3, WobjPublic,
 from app.session.calibration import CalibrationState
 from robomach_core.choices import JogFrame
 from robomach_core.limits import TOUCH_OFF_FORCE_N, TOUCH_OFF_TRAVEL_MM, WOBJ_POSITION_MM
-from robomach_core.registration import MIN_TOUCHES, Touch, WobjFit
+from robomach_core.teaching import MIN_TOUCHES, Touch, WobjFit
 
 router = APIRouter(prefix="/api/cell/calibration", tags=["calibration"], responses=ERRORS)
 

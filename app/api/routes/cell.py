@@ -8,8 +8,8 @@ from starlette.concurrency import run_in_threadpool
 
 from app.api.routes import ERRORS, SessionDep, SettingsDep
 from app.api.schemas import CellPublic, CellUpdate
-from robomach_core.robot import ROBOT_NAMES
-from robomach_core.workpiece import MAX_MESH_BYTES, WORKPIECE_NAMES
+from robomach_core.cell import ROBOT_NAMES
+from robomach_core.part import MAX_MESH_BYTES, WORKPIECE_NAMES
 
 router = APIRouter(prefix="/api/cell", tags=["cell"], responses=ERRORS)
 
@@ -46,7 +46,7 @@ def put_cell(body: CellUpdate, session: SessionDep) -> CellPublic:
     drops its work-object calibration. The recording and results stay, marked out of date."""
     extra = {}
     if body.realistic is not None:
-        from robomach_core.real_part import PartDeviation
+        from robomach_core.part import PartDeviation
 
         seed = session.project().cell.seed
         extra["part_deviation"] = PartDeviation.realistic(seed) if body.realistic else None

@@ -159,7 +159,7 @@ def make_router() -> APIRouter:
     ) -> Response:
         """The CAD-only program in one language the arm's controller runs: what a CAD/CAM tool
         would make from the mesh alone (its wall offset by the tool radius, reduced with the
-        same tolerance; robomach_core.cad_program), straight moves at the learned feeds, its
+        same tolerance; robomach_core.scoring.cad_program), straight moves at the learned feeds, its
         header saying how far it and the learned program are from the (real) wall. The files
         are named ``cad_only_<file>``. 409 before post-processing or when the learned path
         follows no wall of the mesh."""

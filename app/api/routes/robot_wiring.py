@@ -13,7 +13,7 @@ from app.api.routes.export import program_download
 from app.api.schemas import CellPublic, FindingPublic, GuideCheckPublic
 from robomach_core import limits
 from robomach_core.learning.settings import WallSideSetting
-from robomach_core.robots.builtin import ARM_FAMILIES
+from robomach_core.robots import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
 
 # The controller families an uploaded arm may be given (``robots.builtin.ARM_FAMILIES``).

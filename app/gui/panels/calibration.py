@@ -18,8 +18,7 @@ import numpy as np
 import viser
 
 from robomach_core import limits
-from robomach_core.registration import MIN_TOUCHES
-from robomach_core.teaching.face_touches import UP_COS, face_touch_points, touches_for_face
+from robomach_core.teaching import MIN_TOUCHES, UP_COS, face_touch_points, touches_for_face
 
 from ..scene import CellScene
 from .feedback import guarded, notify_error
@@ -129,8 +128,8 @@ class CalibrationPanel:
     def _reachable(self, cad):
         """(point_wobj) -> whether the arm stands over it with the tool down, a little above
         (where a touch of that face starts)."""
+        from robomach_core.cell import TOOL_DOWN
         from robomach_core.errors import RobomachError
-        from robomach_core.tool import TOOL_DOWN
 
         robot = self.session.robot.cell.robot
         T_wobj = cad.T_base_wobj

@@ -4,10 +4,8 @@ from __future__ import annotations
 
 import viser
 
-from robomach_core.real_part import PartDeviation
-from robomach_core.robot import ROBOT_NAMES
-from robomach_core.tool import TOOL_RADIUS_RANGE_M
-from robomach_core.workpiece import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, WORKPIECE_NAMES
+from robomach_core.cell import ROBOT_NAMES, TOOL_RADIUS_RANGE_M
+from robomach_core.part import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, WORKPIECE_NAMES, PartDeviation
 
 from .feedback import guarded, notify_info, upload_handled
 

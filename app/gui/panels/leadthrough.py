@@ -15,8 +15,8 @@ import numpy as np
 import viser
 
 from robomach_core import limits
+from robomach_core.cell import AXES
 from robomach_core.choices import COMPLIANCE_FRAMES
-from robomach_core.leadthrough import AXES
 
 from ..scene import CellScene
 from .feedback import guarded

@@ -9,7 +9,7 @@ import viser
 from app.session import programs
 from robomach_core.choices import TEXTS
 from robomach_core.project import result_extras
-from robomach_core.robots.builtin import ARM_FAMILIES
+from robomach_core.robots import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
 
 from .feedback import guarded, upload_handled

@@ -26,7 +26,7 @@ from typing import Literal
 import numpy as np
 import scipy.linalg
 
-from ...clock import zoh
+from ...cell import zoh
 from ..errors import CmrrSettingsError
 from .base import ControlDesign, ControlOutput, Measurement, saturate
 

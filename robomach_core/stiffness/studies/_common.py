@@ -9,8 +9,8 @@ from typing import Any, Literal, get_args
 
 import numpy as np
 
+from ...cell import Robot
 from ...errors import CancelledError
-from ...robot import Robot
 from ...transforms import make_transform, rotation_about
 from ..milling import CHAPTER_END_MILLING
 from ..settings import CompensationSetting

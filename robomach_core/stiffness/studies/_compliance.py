@@ -30,10 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...clock import CONTROL_PERIOD_S
-from ...joint_compliance import JointCompliance, true_joint_compliance
-from ...robot import Robot
-from ...tool import Tool
+from ...cell import CONTROL_PERIOD_S, JointCompliance, Robot, Tool, true_joint_compliance
 from ...transforms import pose_error
 from .. import plots
 from ..compensation import compensate_targets_and_joints

@@ -6,8 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ...robot import Robot
-from ...sensor import (
+from ...cell import (
+    Robot,
+    Tool,
     ToolGravity,
     compensate_gravity,
     contact_reading,
@@ -15,7 +16,6 @@ from ...sensor import (
     wrench_at_tcp_in_base,
     wrench_in_tool_frame,
 )
-from ...tool import Tool
 from .. import plots
 from ..gravity import calibration_joints, identify_tool_gravity, simulate_sensor_readings
 from ..milling import (

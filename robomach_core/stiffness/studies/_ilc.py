@@ -6,9 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...joint_compliance import JointCompliance, true_joint_compliance
-from ...robot import Robot
-from ...tool import Tool
+from ...cell import JointCompliance, Robot, Tool, true_joint_compliance
 from .. import plots
 from ..ilc import IlcSystem, milling_process_gain, perturbed, run_ilc, square_path
 from ..model import cartesian_compliance

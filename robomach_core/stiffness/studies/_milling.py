@@ -7,11 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ...cell import JointCompliance, Robot, Tool, ToolGravity, true_joint_compliance
 from ...export.rapid import write_rapid_module
-from ...joint_compliance import JointCompliance, true_joint_compliance
-from ...robot import Robot
-from ...sensor import ToolGravity
-from ...tool import Tool
 from ...transforms import quaternion_from_matrix
 from .. import plots
 from ..compensation import compensate_targets_and_joints

@@ -6,11 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from robomach_core.cell import Robot, Tool
 from robomach_core.machining import targets_along_wall
+from robomach_core.part import builtin_workpiece
 from robomach_core.postprocess import Targets
-from robomach_core.robot import Robot
-from robomach_core.tool import Tool
-from robomach_core.workpiece import builtin_workpiece
 
 
 @pytest.fixture(scope="session")

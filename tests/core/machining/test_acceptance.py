@@ -17,8 +17,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from robomach_core import project as core
+from robomach_core.cell import Robot
 from robomach_core.machining import MACHINING_CONTROLLERS, MachiningSettings, run_machining
-from robomach_core.robot import Robot
 from tests.demo_project import pump_demo
 
 pytestmark = pytest.mark.slow

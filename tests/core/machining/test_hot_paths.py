@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from robomach_core.cell import contact_reading, gravity_reading
 from robomach_core.cmrr.controllers.rls import RlsState, rls_update
 from robomach_core.cmrr.feed_dynamics import FeedDynamics
 from robomach_core.cmrr.process import ForceSensorModel
@@ -20,7 +21,6 @@ from robomach_core.machining.run import (
     force_directions,
     normal_compliance,
 )
-from robomach_core.sensor import contact_reading, gravity_reading
 from robomach_core.stiffness import (
     OnlineCompensationParams,
     OnlineCompensationState,

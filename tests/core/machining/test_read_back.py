@@ -15,13 +15,13 @@ import numpy as np
 import pytest
 
 from robomach_core import project as core
+from robomach_core.cell import Robot
 from robomach_core.errors import InvalidInputError
 from robomach_core.export.languages import languages_for
 from robomach_core.export.read_back import read_program
 from robomach_core.machining import MACHINING_CONTROLLERS, MachiningSettings
 from robomach_core.machining.run import cut_program
 from robomach_core.project._machining import compensation_model
-from robomach_core.robot import Robot
 from tests.demo_project import arm_demo
 
 pytestmark = pytest.mark.slow

@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from robomach_core.cell import true_joint_compliance
 from robomach_core.errors import CancelledError
-from robomach_core.joint_compliance import true_joint_compliance
 from robomach_core.machining import (
     MachiningSettings,
     SampleLimitError,

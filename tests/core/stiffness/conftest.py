@@ -5,9 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robomach_core.joint_compliance import JointCompliance, true_joint_compliance
-from robomach_core.robot import Robot
-from robomach_core.tool import Tool
+from robomach_core.cell import JointCompliance, Robot, Tool, true_joint_compliance
 from robomach_core.transforms import make_transform
 
 WORK_POSITION_M = (0.70, 0.10, 0.03)

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robomach_core.sensor import ToolGravity, contact_reading, gravity_reading
+from robomach_core.cell import ToolGravity, contact_reading, gravity_reading
 from robomach_core.stiffness.compensation import (
     OnlineCompensationParams,
     OnlineCompensationState,

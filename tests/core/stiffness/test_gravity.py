@@ -7,7 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robomach_core.sensor import (
+from robomach_core.cell import (
+    Tool,
     ToolGravity,
     compensate_gravity,
     contact_reading,
@@ -21,7 +22,6 @@ from robomach_core.stiffness.gravity import (
     identify_tool_gravity,
     simulate_sensor_readings,
 )
-from robomach_core.tool import Tool
 
 TRUE_TOOL = ToolGravity(3.2, (0.004, -0.002, 0.08), (1.5, -0.8, 2.0), (0.05, 0.1, -0.02))
 

@@ -7,8 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robomach_core.joint_compliance import JointCompliance, true_joint_compliance
-from robomach_core.robot import Robot
+from robomach_core.cell import JointCompliance, Robot, true_joint_compliance
 from robomach_core.stiffness.errors import IdentificationError
 from robomach_core.stiffness.identification import (
     CALIBRATION_SPHERES_M,

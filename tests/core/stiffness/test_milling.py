@@ -7,8 +7,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from robomach_core.cell import ToolGravity
 from robomach_core.errors import CancelledError, InvalidInputError
-from robomach_core.sensor import ToolGravity
 from robomach_core.stiffness.milling import (
     CHAPTER_END_MILLING,
     LUND_FACE_MILLING,

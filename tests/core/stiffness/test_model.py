@@ -6,7 +6,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from robomach_core.joint_compliance import JointCompliance
+from robomach_core.cell import JointCompliance
 from robomach_core.stiffness.model import (
     apply_twist,
     cartesian_compliance,

@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
+from robomach_core.cell import Tool, ToolGravity
 from robomach_core.export.rapid import rapid_module
 from robomach_core.export.rapid_check import check_rapid_module
-from robomach_core.sensor import ToolGravity
 from robomach_core.stiffness.errors import SettingsFileError
 from robomach_core.stiffness.export import compensated_rapid_program
 from robomach_core.stiffness.settings import (
@@ -19,7 +19,6 @@ from robomach_core.stiffness.settings import (
     settings_from_dict,
     settings_to_dict,
 )
-from robomach_core.tool import Tool
 from robomach_core.transforms import make_transform
 
 SETTINGS = CompensationSettings(
