@@ -32,7 +32,7 @@ import json
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from functools import cached_property
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -43,12 +43,19 @@ from ..workpiece import Workpiece
 from ._stages import require_processed
 from ._value import Project, machining_inputs_key
 
+if TYPE_CHECKING:
+    from ..stiffness.settings import CompensationSetting
+
 MM = 1e-3
 STOCK_SOURCES = ("builtin", "profile", "mesh")
 # Stocks of a variation sweep (0: the one stock only).
 MAX_VARIATIONS = 1000
 # compensation choice -> the compensation settings' mode of the exported program.
-EXPORT_COMPENSATION_MODES = {"off": "off", "offline": "offline_linear", "online": "online"}
+EXPORT_COMPENSATION_MODES: dict[str, CompensationSetting] = {
+    "off": "off",
+    "offline": "offline_linear",
+    "online": "online",
+}
 EXPORT_MODE_CHOICES = {
     "off": "off",
     "offline_linear": "offline",
@@ -581,7 +588,7 @@ def choose(project: Project, controller: str, compensation: str) -> Project:
             from ..sensor import ToolGravity
 
             tool = project.tool()
-            gravity = ToolGravity(tool.mass_kg, tuple(float(v) for v in tool.com_m))
+            gravity = ToolGravity.from_tool(tool)
         comp = replace(comp, mode=mode, tool_gravity=gravity)
     return replace(project, compensation=comp)
 
