@@ -317,7 +317,9 @@ def wall_normals_for_project(
 
     if workpiece.wall is not None:
         return wall_normals_for_workpiece(workpiece, targets.position_m)
-    rec = project.learned.recording
+    from ._stages import require_learned
+
+    rec = require_learned(project).recording
     forces = np.array(
         [
             matrix_from_quaternion(rec.quaternion_wxyz[i]) @ rec.wrench_tool[i, :3]
@@ -344,6 +346,7 @@ def build_stock(
     r = project.cell.tool_radius_m
     p = targets.position_m
     if setup.stock_source == "profile":
+        assert setup.stock_profile_mm is not None  # MachiningSetup requires it for "profile"
         return stock_from_profile(
             p, setup.stock_profile_mm, wall_normals_m=normals, tool_radius_m=r
         )
@@ -352,6 +355,7 @@ def build_stock(
 
         from ..workpiece import mesh_from_bytes
 
+        assert setup.stock_mesh is not None  # MachiningSetup requires it for "mesh"
         name, data = setup.stock_mesh
         mesh = mesh_from_bytes(data, Path(name).suffix.lower(), name=Path(name).stem).mesh
         mesh = mesh.copy()
@@ -454,7 +458,7 @@ def machine(
     )  # fmt: skip
     nominal = {(c, m): first[j][k] for j, c in enumerate(ctrls) for k, m in enumerate(modes)}
     runs = [nominal[p][0] for p in pairs if nominal[p][0] is not None]
-    refused = {p: nominal[p][2] for p in pairs if nominal[p][2] is not None}
+    refused = {p: why for p in pairs if (why := nominal[p][2]) is not None}
     rows = comparison_rows(runs, refused=refused, order=pairs)
     rows = [
         _plain_row({**(nominal[p][1] or {}), **row}) for p, row in zip(pairs, rows, strict=True)
