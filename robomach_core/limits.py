@@ -48,6 +48,12 @@ class Range:
             return False
         return self.min <= number <= self.max
 
+    def default_value(self) -> float:
+        """``default`` of a range that has one (the settings classes' defaults read it)."""
+        if self.default is None:
+            raise ValueError(f"the {self.label} range has no default")
+        return self.default
+
     def text(self) -> str:
         """The range as people write it: ``"1-50 N"``, ``"0-4294967295"``, ``"-360 to 360
         deg"``."""
