@@ -23,7 +23,7 @@ from .export.languages import language
 from .export.reachability import ReachabilityReport, check_program_reachability
 from .leadthrough import GuidePoint, LeadThrough
 from .learning.run import Recording
-from .learning.settings import PathLearningSettings
+from .learning.settings import PathLearningSettings, WallSideSetting
 from .postprocess import PostprocessResult, PostprocessSettings, Targets
 from .project import (
     CellSettings,
@@ -106,7 +106,7 @@ class DemoSettings:
     postprocess: PostprocessSettings = field(default_factory=PostprocessSettings)
     force_control_variant: bool = True
     guide_points_csv: str | None = None
-    wall_side: str = "auto"
+    wall_side: WallSideSetting = "auto"
     wobj_mm_deg: tuple[float, ...] | None = None
     cmrr: Any = None  # robomach_core.cmrr.CmrrSettings
     compensation: Any = None  # robomach_core.stiffness.CompensationSettings
@@ -495,7 +495,7 @@ def _write_cad_only(project: Any, workpiece: Workpiece, out: Path) -> list[Path]
     if project.processed is None or project.processed.cad_comparison is None:
         return []
     robot = Robot(project.cell.robot, project.tool().T_flange_tcp)
-    written = []
+    written: list[Path] = []
     for name_of_language in program_languages(robot):
         try:
             texts = cad_only_program_texts(project, workpiece, robot, name_of_language)

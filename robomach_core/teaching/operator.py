@@ -23,7 +23,7 @@ import numpy as np
 from ..clock import CONTROL_PERIOD_S
 from ..contour import Line
 from ..errors import InvalidInputError, NotEnoughGuidePointsError, UnreachableTargetError
-from ..leadthrough import ComplianceSelection, GuidePoint, LeadThrough, LeadThroughState
+from ..leadthrough import AXES, ComplianceSelection, GuidePoint, LeadThrough, LeadThroughState
 from ..learning.planner import GuideProposal, ProposalSettings, WallPlacer, propose_guide_points
 from ..learning.thresholds import EXAMPLE_BELOW_TOP_M, OPEN_EDGE_ENTRY_M
 from ..learning.walls import walls_near
@@ -72,7 +72,7 @@ def intents_from_csv(text: str, robot: Robot | None = None) -> list[GuideIntent]
         InvalidInputError: malformed rows or fewer than two points.
         UnreachableTargetError: a point the robot cannot reach (says which).
     """
-    rows = []
+    rows: list[tuple[int, list[float]]] = []
     for line_no, line in enumerate(text.splitlines(), start=1):
         cells = [c.strip() for c in line.split(",")]
         if not line.strip() or line.lstrip().startswith("#"):
@@ -255,7 +255,7 @@ def square_up(
         R = state.cell.T_base_tcp[:3, :3]
         err_tool = R.T @ rotation_log(goal @ R.T)  # rotation to do, in tool axes
         moved = False
-        for i, axis in enumerate(("rx", "ry", "rz")):
+        for i, axis in enumerate(AXES[3:]):  # rx, ry, rz
             steps = round(math.degrees(err_tool[i]) / step_deg)
             while steps:  # a jog turns at most MAX_JOG_TURN_DEG, as the pendant's joystick
                 now = max(-max_steps, min(max_steps, steps))
