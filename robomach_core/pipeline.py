@@ -12,7 +12,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,7 +23,7 @@ from .export.languages import language
 from .export.reachability import ReachabilityReport, check_program_reachability
 from .leadthrough import GuidePoint, LeadThrough
 from .learning.run import Recording
-from .learning.settings import PathLearningSettings, WallSideSetting
+from .learning.settings import PathLearningSettings
 from .postprocess import PostprocessResult, PostprocessSettings, Targets
 from .project import (
     CellSettings,
@@ -46,6 +46,9 @@ from .scoring import PathScore
 from .teaching.operator import intents_from_csv, scripted_leadthrough
 from .tool import Tool
 from .workpiece import MAX_MESH_BYTES, MESH_SUFFIXES, Workpiece
+
+if TYPE_CHECKING:
+    from .learning.settings import WallSideSetting
 
 # progress(stage, fraction in [0, 1])
 Progress = Callable[[str, float], None]

@@ -23,7 +23,7 @@ import numpy as np
 from ..clock import CONTROL_PERIOD_S
 from ..contour import Line
 from ..errors import InvalidInputError, NotEnoughGuidePointsError, UnreachableTargetError
-from ..leadthrough import AXES, ComplianceSelection, GuidePoint, LeadThrough, LeadThroughState
+from ..leadthrough import ComplianceSelection, GuidePoint, LeadThrough, LeadThroughState
 from ..learning.planner import GuideProposal, ProposalSettings, WallPlacer, propose_guide_points
 from ..learning.thresholds import EXAMPLE_BELOW_TOP_M, OPEN_EDGE_ENTRY_M
 from ..learning.walls import walls_near
@@ -249,6 +249,8 @@ def square_up(
     than a jog allows (45 deg) is made in several jogs (the example failed from wherever a
     person left the tool: "a rotational jog step is at most 45 degrees").
     """
+    from ..choices import AXES  # the lead-through's jog axes, typed
+
     max_steps = max(1, int(MAX_JOG_TURN_DEG / step_deg))
     goal = TOOL_DOWN if rotation is None else rotation
     for _ in range(3):
