@@ -220,17 +220,17 @@ def run_isolated(
                         f"the isolated {name} check could not run (its helper process stopped)",
                         kind="helper",
                     ) from None
-    answer, arrays = answer
-    if answer.get("ok"):
-        value = answer["value"]
+    reply, arrays = answer
+    if reply.get("ok"):
+        value = reply["value"]
         if arrays:
             value["arrays"] = arrays
         return value
     raise IsolatedError(
-        answer.get("error") or f"the isolated {name} check failed",
-        kind=str(answer.get("kind", "error")),
-        error_type=str(answer.get("type", "")),
-        detail=str(answer.get("message", "")),
+        reply.get("error") or f"the isolated {name} check failed",
+        kind=str(reply.get("kind", "error")),
+        error_type=str(reply.get("type", "")),
+        detail=str(reply.get("message", "")),
     )
 
 

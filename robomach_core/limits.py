@@ -41,11 +41,18 @@ class Range:
     def __contains__(self, value: object) -> bool:
         if isinstance(value, bool) or not isinstance(value, numbers.Real):
             return False
-        if not isinstance(value, numbers.Integral):  # floats, numpy floats
-            value = float(value)
-            if not math.isfinite(value) or (self.integer and not value.is_integer()):
-                return False
-        return self.min <= value <= self.max  # int against float compares exactly
+        if isinstance(value, numbers.Integral):  # ints, numpy ints
+            return self.min <= int(value) <= self.max  # int against float compares exactly
+        number = float(value)  # floats, numpy floats
+        if not math.isfinite(number) or (self.integer and not number.is_integer()):
+            return False
+        return self.min <= number <= self.max
+
+    def default_value(self) -> float:
+        """``default`` of a range that has one (the settings classes' defaults read it)."""
+        if self.default is None:
+            raise ValueError(f"the {self.label} range has no default")
+        return self.default
 
     def text(self) -> str:
         """The range as people write it: ``"1-50 N"``, ``"0-4294967295"``, ``"-360 to 360
@@ -70,7 +77,11 @@ class Range:
             kind = "an integer" if self.integer else "a number"
             shown = f"{value:g}" if isinstance(value, float) else repr(value)
             raise error(f"{name or self.label} must be {kind} within {self.text()}, got {shown}")
-        return int(value) if self.integer else float(value)
+        assert isinstance(value, numbers.Real)  # ``in self`` admits real numbers only
+        if not self.integer:
+            return float(value)
+        # An integral float (``in self`` checked it) converts exactly through float.
+        return int(value) if isinstance(value, numbers.Integral) else int(float(value))
 
 
 # --- every run ----------------------------------------------------------------------------

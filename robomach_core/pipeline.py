@@ -12,7 +12,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -41,6 +41,9 @@ from .project import compensate_program_targets as _compensate
 from .project import wobj_transform as wobj_transform
 from .scoring import PathScore
 from .teaching import intents_from_csv, registered_workpiece, scripted_leadthrough
+
+if TYPE_CHECKING:
+    from .learning.settings import WallSideSetting
 
 # progress(stage, fraction in [0, 1])
 Progress = Callable[[str, float], None]
@@ -101,7 +104,7 @@ class DemoSettings:
     postprocess: PostprocessSettings = field(default_factory=PostprocessSettings)
     force_control_variant: bool = True
     guide_points_csv: str | None = None
-    wall_side: str = "auto"
+    wall_side: WallSideSetting = "auto"
     wobj_mm_deg: tuple[float, ...] | None = None
     cmrr: Any = None  # robomach_core.cmrr.CmrrSettings
     compensation: Any = None  # robomach_core.stiffness.CompensationSettings
@@ -489,7 +492,7 @@ def _write_cad_only(project: Any, workpiece: Workpiece, out: Path) -> list[Path]
     if project.processed is None or project.processed.cad_comparison is None:
         return []
     robot = Robot(project.cell.robot, project.tool().T_flange_tcp)
-    written = []
+    written: list[Path] = []
     for name_of_language in program_languages(robot):
         try:
             texts = cad_only_program_texts(project, workpiece, robot, name_of_language)

@@ -31,7 +31,9 @@ def zoh(a: np.ndarray, b: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarr
     return exp[:n, :n], exp[:n, n:].reshape(b.shape)
 
 
-def zoh_tf(num: np.ndarray, den: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+def zoh_tf(
+    num: np.ndarray | list[float], den: np.ndarray | list[float], dt_s: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Discrete (b, a) of the transfer function num/den with its input held over ``dt_s``
     (``scipy.signal.cont2discrete``, method "zoh")."""
     import scipy.signal  # here, not at start-up: 0.7 s of every process's start

@@ -55,7 +55,8 @@ class ToolGravity:
         torque_bias_Nm: tuple[float, float, float] = (0.0, 0.0, 0.0),
     ) -> ToolGravity:
         """The true load of ``tool`` on a sensor with the given bias."""
-        return cls(tool.mass_kg, tuple(tool.com_m), force_bias_N, torque_bias_Nm)
+        x, y, z = (float(v) for v in tool.com_m)
+        return cls(tool.mass_kg, (x, y, z), force_bias_N, torque_bias_Nm)
 
     @property
     def bias(self) -> np.ndarray:

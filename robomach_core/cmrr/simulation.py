@@ -147,7 +147,7 @@ def run_study(
         # dips before it rises; the dip below rest is held at rest (as in the machining run).
         position = max(float(x[-1]), held)
         held = position
-        depth = depth_at(position)
+        depth = float(depth_at(position))  # a scalar at a scalar position
         feed = max(robot.feed(x), 0.0)
         current = spindle.current_A(force, noise[k, 1])
         raw = (

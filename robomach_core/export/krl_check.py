@@ -220,21 +220,23 @@ def _pose(fields: dict[str, object], file: str, line: int, what: str, *, st: boo
     missing = [f for f in FRAME_FIELDS if f not in fields]
     if missing:
         raise KrlSyntaxError(file, line, f"{what} lacks {', '.join(missing)}")
-    values = {f: fields[f] for f in FRAME_FIELDS}
-    if any(not isinstance(v, float) for v in values.values()):
+    values = {f: v for f in FRAME_FIELDS if isinstance(v := fields[f], float)}
+    if len(values) < len(FRAME_FIELDS):
         raise KrlSyntaxError(file, line, f"{what}: X, Y, Z, A, B, C must be numbers")
     for f in ("A", "B", "C"):
         if not -180.0 <= values[f] <= 180.0:
             raise KrlSyntaxError(file, line, f"{what}: {f} {values[f]:g} is outside [-180, 180]")
     status = turn = None
     if st:
+        whole: dict[str, int] = {}
         for f, top in (("S", MAX_STATUS), ("T", MAX_TURN)):
             if f not in fields:
                 raise KrlSyntaxError(file, line, f"{what} lacks {f}")
             v = fields[f]
             if not isinstance(v, float) or v != int(v) or not 0 <= v <= top:
                 raise KrlSyntaxError(file, line, f"{what}: {f} must be an integer 0..{top}")
-        status, turn = int(fields["S"]), int(fields["T"])
+            whole[f] = int(v)
+        status, turn = whole["S"], whole["T"]
     xyz = np.array([values["X"], values["Y"], values["Z"]])
     abc = np.array([values["A"], values["B"], values["C"]])
     return KrlPose(xyz, abc, status, turn)

@@ -195,7 +195,9 @@ def _tokenize(text: str) -> list[_Tok]:
         if kind == "nl":
             line += 1
         elif kind == "num" and pos < len(text) and (text[pos].isalnum() or text[pos] == "_"):
-            word = re.match(r"[A-Za-z0-9_]*", text[pos:]).group()
+            tail = re.match(r"[A-Za-z0-9_]*", text[pos:])
+            assert tail is not None  # "*" matches, if only the empty string
+            word = tail.group()
             raise RapidSyntaxError(
                 line, f"invalid identifier {value + word!r}: it must start with a letter"
             )
@@ -634,6 +636,7 @@ def _check_shape(node: tuple, shape: object, where: str) -> None:
         if literal_kind is not None and literal_kind != shape:
             raise RapidSyntaxError(line, f"{where}: expected a {shape}, got a {literal_kind}")
         return
+    assert isinstance(shape, tuple)  # a record's shape: (field name, shape) pairs
     fields = shape
     if node[0] != "agg":
         if node[0] in ("num", "str", "bool"):
@@ -652,8 +655,9 @@ def _check_shape(node: tuple, shape: object, where: str) -> None:
         _check_shape(item, sub, f"{where}.{field_name}")
     if fields is _ORIENT:
         values = [_literal_number(item) for item in items]
-        if all(v is not None for v in values):
-            norm = math.sqrt(sum(v * v for v in values))
+        numbers = [v for v in values if v is not None]
+        if len(numbers) == len(values):
+            norm = math.sqrt(sum(v * v for v in numbers))
             if abs(norm - 1.0) > QUATERNION_NORM_TOL:
                 raise RapidSyntaxError(
                     line, f"{where}: quaternion is not normalized (|q| = {norm:.6f})"
@@ -668,9 +672,10 @@ def _robtarget_values(node: tuple) -> tuple[np.ndarray, np.ndarray, np.ndarray] 
         if component[0] != "agg":
             return None
         values = [_literal_number(item) for item in component[2]]
-        if any(v is None for v in values):
+        numbers = [v for v in values if v is not None]
+        if len(numbers) < len(values):
             return None
-        parts.append(values)
+        parts.append(numbers)
     if any(v != round(v) for v in parts[2]):
         raise RapidSyntaxError(node[1], f"confdata must be integers, got {parts[2]}")
     return (
@@ -716,7 +721,7 @@ def _resolve_use(expr: tuple, expected: str | None, role: str, scopes: list[dict
             what = expected if is_direct else "identifier"
             raise RapidSyntaxError(line, f"undeclared {what} {name!r} ({role})")
         declared_type = found[0]
-        if is_direct and declared_type.upper() != expected.upper():
+        if is_direct and expected is not None and declared_type.upper() != expected.upper():
             raise RapidSyntaxError(
                 line, f"{name!r} is a {declared_type}, expected a {expected} ({role})"
             )

@@ -163,6 +163,7 @@ def _read_krl(src: str, dat: str) -> ProgramPath:
             T = T_base @ info.points[name.upper()].transform()
             positions.append(T[:3, 3])
             rotations.append(T[:3, :3])
+            assert motion.vel_cp_m_s is not None  # the check refuses a LIN/CIRC before it
             v.append(float(motion.vel_cp_m_s))
     return _path(positions, rotations, v)
 
@@ -180,15 +181,23 @@ def _read_urscript(text: str) -> ProgramPath:
         if speeds is None or len(speeds) != len(poses):
             raise InvalidInputError("the feed loop's cm_speed does not pair with its cm_path")
         controller = re.search(r"^\s*# CMRR: (\S+) holding ([-+\d.eE]+) N", text, flags=re.M)
-        feed = ("URScript feed loop", float(controller.group(2)), controller.group(1))
+        if controller is None:
+            raise InvalidInputError(
+                "the feed loop has no '# CMRR: <controller> holding <F> N' line"
+            )
+        feed: tuple[str | None, float | None, str | None] = (
+            "URScript feed loop",
+            float(controller.group(2)),
+            controller.group(1),
+        )
     else:
         moving = [(kind, poses) for kind, poses in motions if poses][1:-1]  # air moves out
         speeds_of = re.findall(r"^\s*move[lc]\(.*\bv=([-+\d.eE]+)", text, flags=re.M)[1:-1]
-        poses, speeds = [], []
+        poses, pose_speeds = [], []
         for (_kind, ps), v in zip(moving, speeds_of, strict=True):
             poses += ps
-            speeds += [float(v)] * len(ps)
-        speeds = np.asarray(speeds)
+            pose_speeds += [float(v)] * len(ps)
+        speeds = np.asarray(pose_speeds)
         feed = (None, None, None)
     rotations = [Rotation.from_rotvec(p[3:]).as_matrix() for p in poses]
     return _path(

@@ -203,9 +203,12 @@ def script_poses(text: str) -> list[tuple[str, list[np.ndarray]]]:
     for line_no, line in enumerate(text.splitlines(), start=1):
         match = _MOTION_RE.match(line)
         path = _PATH_RE.match(line)
-        if not match and not path:
+        if match:
+            body_text = match.group(2)
+        elif path:
+            body_text = path.group(1)
+        else:
             continue
-        body_text = match.group(2) if match else path.group(1)
         poses = []
         for body in _POSE_RE.findall(body_text):
             try:

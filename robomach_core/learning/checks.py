@@ -193,7 +193,7 @@ def guide_point_warnings(
             rule: GuideRule = "wall_side" if isinstance(exc, WallSideError) else "route"
             out.append(GuideWarning(0, rule, str(exc), "refusal"))
     out += _point_findings(guides, settings)
-    if mesh and len(guides) >= 2:
+    if workpiece is not None and tool_radius_m is not None and len(guides) >= 2:
         out += _mesh_findings(route, guides, settings, workpiece, tool_radius_m)
     if robot is not None and route is not None:
         from .motion_check import motion_findings

@@ -769,9 +769,9 @@ def leg_problems(proposal: GuideProposal, tool_radius_m: float) -> list[str]:
     for k in range(legs):
         j = (k + 1) % len(pts)
         a, b = pts[k], pts[j]
-        at = _leg_problem(
-            wall, tool_radius_m, a.position_floor_m[:2], b.position_floor_m[:2], a.s_m, b.s_m, 0.0
-        )
+        pa, pb = a.position_floor_m, b.position_floor_m
+        assert pa is not None and pb is not None  # the planner places every point it proposes
+        at = _leg_problem(wall, tool_radius_m, pa[:2], pb[:2], a.s_m, b.s_m, 0.0)
         if at is not None:
             x, y, _ = (
                 proposal.pick.to_wobj(np.array([*wall.point_at(np.array([at]))[0], wall.z_m]))[0]

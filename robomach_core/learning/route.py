@@ -207,7 +207,7 @@ def travel_directions(guides: Sequence[GuidePoint], closed: bool, axis: np.ndarr
     return out
 
 
-def _points(numbers: Sequence[int]) -> str:
+def _points(numbers: Sequence[int] | np.ndarray) -> str:
     return ", ".join(f"G{k + 1}" for k in numbers)
 
 
@@ -408,7 +408,8 @@ def resolve_wall_side(
         WallSideError: "auto" and no clear, consistent evidence.
     """
     if setting in ("left", "right"):
-        return WallSideDecision(setting, "setting", f"the wall is on the {setting} (as set)")
+        side: WallSide = "left" if setting == "left" else "right"
+        return WallSideDecision(side, "setting", f"the wall is on the {side} (as set)")
     if setting != "auto":
         raise InvalidInputError(f"wall side must be one of {', '.join(WALL_SIDE_CHOICES)}")
     if len(guides) < 2:
@@ -551,12 +552,12 @@ class HeightReference:
             if distance <= th.WALK_MATCH_M:
                 return self._walked[1][k]
         r = self.walls.radius
-        probes = [p]
+        footprint = [p]
         if travel is not None:  # the cutter's footprint, and ahead of it along the travel
             side = _cross(travel, self.axis)
-            probes += [p + travel * (r + th.STEP_LOOKAHEAD_M), p - travel * r]
-            probes += [p + side * r, p - side * r]
-        probes = np.array(probes)
+            footprint += [p + travel * (r + th.STEP_LOOKAHEAD_M), p - travel * r]
+            footprint += [p + side * r, p - side * r]
+        probes = np.array(footprint)
         height, normal = self.walls.floor(probes)
         a = self.axis
         cos = -(normal @ a)
@@ -688,7 +689,9 @@ def walk_route(
         row = leg.row(offsets[k])
         end = LegEnd(leg, axis, last=k == len(legs) - 1, closed=closed, tool_radius_m=r)
         limit = th.LEG_DETOUR_FACTOR * leg.length + th.LEG_DETOUR_EXTRA_M
-        pts, towards, walked, reached, over_top, off_floor = [], [], 0.0, False, 0.0, 0.0
+        pts: list[np.ndarray] = []
+        towards: list[np.ndarray] = []
+        walked, reached, over_top, off_floor = 0.0, False, 0.0, 0.0
         while walked <= limit:
             for _ in range(2):  # onto the wall, then to the route's height
                 c, d = walls.nearest(p[None])
@@ -884,6 +887,7 @@ def plan_route(
     route = LearningRoute(guides, legs, closed, axis, decision, heights, lifted)
     if walls is None:
         return route
+    assert tool_radius_m is not None  # the walls are built with the tool's radius only
     towards = np.cross(axis, travel_directions(guides, closed, axis)[0]) * decision.sign
     first = guides[0].position_m - axis * lifted[0]  # at the height it is learned at
     first_wall = walls.wall_point(first, towards, 2 * th.AT_WALL_GAP_M)

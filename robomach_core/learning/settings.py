@@ -36,12 +36,12 @@ class PathLearningSettings:
             for the wall), so the tool meets it gently instead of at full speed.
     """
 
-    force_N: float = LEARNING_FORCE_N.default
-    speed_m_s: float = LEARNING_SPEED_MM_S.default * 1e-3
+    force_N: float = LEARNING_FORCE_N.default_value()
+    speed_m_s: float = LEARNING_SPEED_MM_S.default_value() * 1e-3
     closed: bool = True
     wall_side: WallSideSetting = "auto"
     force_limit_N: float = 60.0
-    floor_clearance_m: float = FLOOR_CLEARANCE_MM.default * 1e-3
+    floor_clearance_m: float = FLOOR_CLEARANCE_MM.default_value() * 1e-3
     kp_m_s_N: float = 1.5e-3
     ki_m_s2_N: float = 0.03
     max_normal_speed_m_s: float = 0.025

@@ -284,6 +284,7 @@ class WallPick:
         is none under it: an outside edge)."""
         xy = np.atleast_2d(np.asarray(xy_m, dtype=float))
         origins = np.column_stack([xy, np.full(len(xy), self.z_m + RAY_START_M)])
+        assert self.mesh is not None  # pick_wall gives every pick its part
         floor, _ = _below(self.mesh, origins, _Z)
         floor = np.where(np.isnan(floor[:, 2]), self.floor_z_m, floor[:, 2])
         return floor + (self.z_m - self.floor_z_m)
@@ -480,6 +481,7 @@ def pick_wall(
             f"{'up' if nf[2] > 0 else 'down'}); pick a point on a wall"
         )
     across = _across(nf, _Z)
+    assert across is not None  # a face within WALL_FACE_MAX_COS of vertical leans off the floor
     near, other = float(distance[0]), _free_width(mf, pf, across)  # the wall across the space
     if other - near < AMBIGUOUS_CLICK_RADII * tool_radius_m:
         far = pf + across * other

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numba
@@ -79,7 +80,7 @@ class PackedController:
     lq_ff: np.ndarray = field(default_factory=lambda: np.zeros(1))
     lq_have: np.ndarray = field(default_factory=lambda: np.zeros(1, dtype=np.int64))
     lq_index0: int = 0
-    solve: object = None
+    solve: Callable[[int], tuple[np.ndarray, float]] | None = None
 
     def add_design(self, index: int) -> None:
         """Add the LQ design of grid ``index`` (growing the table) from ``solve``."""
@@ -94,10 +95,11 @@ class PackedController:
             ff[lo - new_lo : lo - new_lo + n] = self.lq_ff
             have[lo - new_lo : lo - new_lo + n] = self.lq_have
             self.lq_gains, self.lq_ff, self.lq_have, self.lq_index0 = gains, ff, have, new_lo
-        gain, ff = self.solve(index)
+        assert self.solve is not None  # pack_controller gives every LQ its solve
+        gain, feedforward = self.solve(index)
         row = index - self.lq_index0
         self.lq_gains[row] = gain
-        self.lq_ff[row] = ff
+        self.lq_ff[row] = feedforward
         self.lq_have[row] = 1
 
 

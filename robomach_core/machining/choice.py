@@ -58,7 +58,7 @@ REQUIREMENT_TEXT = {
     "online_correction": "an online path-correction interface",
 }
 # What a family's controller cannot be given by robomach, said where a row needs it.
-FAMILY_LACKS_TEXT = {
+FAMILY_LACKS_TEXT: dict[tuple[str | None, str], str] = {
     ("kuka", "feed_override"): "a force-driven feed override: robomach writes none for a KUKA "
     "controller (KRL has no force-driven override without KUKA.ForceTorqueControl or an RSI "
     "loop, which robomach does not generate), so only the constant feed runs there",

@@ -12,7 +12,7 @@ import csv
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -27,7 +27,7 @@ from .run import (
     run_machining,
     stiffness_model,
 )
-from .settings import COMPENSATION_NAMES, MACHINING_CONTROLLERS, MachiningSettings
+from .settings import COMPENSATION_NAMES, MACHINING_CONTROLLERS, CompensationName, MachiningSettings
 from .stock import Stock
 
 MM = 1e-3
@@ -239,7 +239,7 @@ def run_configuration(
     run_settings = replace(
         settings,
         controller=controller,
-        compensation=compensation,
+        compensation=cast("CompensationName", compensation),  # MachiningSettings checks it
         controller_settings=own if own is not None and own.kind == controller else None,
     )
     if corrected is not None and compensation == "offline":

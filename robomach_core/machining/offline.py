@@ -42,6 +42,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -49,6 +50,9 @@ from ..cell import Robot
 from ..postprocess import Targets
 from ..transforms import make_transform, matrices_from_quaternions, quaternions_from_matrices
 from .path import arc_length_m
+
+if TYPE_CHECKING:
+    from .run import MachiningRun, Rehearsal
 
 # Rehearsals stop when the planned shift moves by no more than this between two of them [m].
 SETTLE_M = 1.0e-6
@@ -235,8 +239,8 @@ def force_met_N(run, s_m: np.ndarray) -> np.ndarray:
 
 
 def offline_compensated_run(
-    rehearse: Callable[[np.ndarray], object],
-    cut: Callable[[Targets, Targets], object],
+    rehearse: Callable[[np.ndarray], Rehearsal],
+    cut: Callable[[Targets, Targets], MachiningRun],
     robot: Robot,
     nominal: Targets,
     stations_m: np.ndarray,
@@ -281,7 +285,7 @@ def offline_compensated_run(
     force = np.asarray(first_force_N, dtype=float)
     met = [force]
     change = np.inf
-    tried: list[tuple[object, np.ndarray]] = []
+    tried: list[tuple[Rehearsal, np.ndarray]] = []
     good_m = WALL_TOLERANCE_FRACTION * float(np.max(normal_compliance_m_N * force, initial=0.0))
     for k in range(MAX_REHEARSALS):
         grid, shift = plan(force)

@@ -154,8 +154,8 @@ def _interrupts_deferred() -> Iterator[None]:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-        for sig in dict.fromkeys(caught):
-            signal.raise_signal(sig)  # now, to the handlers the program had
+        for signum in dict.fromkeys(caught):
+            signal.raise_signal(signum)  # now, to the handlers the program had
 
 
 def _submitted(pool: ProcessPoolExecutor, tasks: Sequence[CutTask], cancel) -> list:
@@ -177,9 +177,13 @@ def _submitted(pool: ProcessPoolExecutor, tasks: Sequence[CutTask], cancel) -> l
     while starter.is_alive():
         starter.join(POLL_S)
         if starter.is_alive() and cancel():
-            threading.Thread(  # stop the pool once it has started; the job ends now
-                target=lambda: (starter.join(), _stop_workers(pool)), daemon=True
-            ).start()
+
+            def stop_when_started() -> None:
+                starter.join()
+                _stop_workers(pool)
+
+            # Stop the pool once it has started; the job ends now.
+            threading.Thread(target=stop_when_started, daemon=True).start()
             raise _Abandoned("machining cancelled")
     return futures
 

@@ -80,7 +80,8 @@ def wall_normals_for_workpiece(workpiece: Workpiece, path_points_m: np.ndarray) 
     The side is read from the geometry, not assumed: the normal is the one along which the
     path points move away from the true wall (the tool is on the free side).
     """
-    if workpiece.wall is None:
+    wall = workpiece.wall
+    if wall is None:
         raise StockError(f"workpiece {workpiece.name!r} has no known wall; give the normals")
     p = check_path(path_points_m)
     T = workpiece.T_base_wobj
@@ -88,7 +89,7 @@ def wall_normals_for_workpiece(workpiece: Workpiece, path_points_m: np.ndarray) 
     n = wall_normals_from_path(p, wall_side="right", up=up)
 
     def distance(points: np.ndarray) -> np.ndarray:
-        return workpiece.wall.distance(((points - T[:3, 3]) @ T[:3, :3])[:, :2])
+        return wall.distance(((points - T[:3, 3]) @ T[:3, :3])[:, :2])
 
     step = 0.2e-3
     away = distance(p + step * n) > distance(p)

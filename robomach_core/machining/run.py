@@ -452,11 +452,12 @@ def plan_cut(
     # them by micro-radians; the compliance does not change with it).
     joints = (targets if nominal is None else nominal).joints_rad
     c_true = normal_compliance_along(s_t, compliance_blocks(robot, joints, truth), s_st, N_st, U_st)
-    c_hat = (
-        normal_compliance_along(s_t, compliance_blocks(robot, joints, model), s_st, N_st, U_st)
-        if online
-        else np.zeros(n_st)
-    )
+    c_hat = np.zeros(n_st)
+    if online:
+        assert model is not None  # resolved above: online compensation has a model
+        c_hat = normal_compliance_along(
+            s_t, compliance_blocks(robot, joints, model), s_st, N_st, U_st
+        )
     offset = np.interp(s_st, s_t, off_t)
     is_constant = settings.controller == "constant"
     constant_feed = constant_feed_m_s(settings, d_max)

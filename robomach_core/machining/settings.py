@@ -78,9 +78,9 @@ def _check_range(name: str, value: object, limits_range: Range) -> None:
     field and its range in that unit."""
     unit, scale = _SI_UNIT.get(limits_range.unit, (limits_range.unit, 1.0))
     lo, hi = limits_range.min * scale, limits_range.max * scale
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    number = value if isinstance(value, (int, float)) and not isinstance(value, bool) else math.nan
     slack = 1e-12 * max(abs(lo), abs(hi))  # the unit change's rounding at the ends
-    if not (ok and lo - slack <= value <= hi + slack):
+    if not (math.isfinite(number) and lo - slack <= number <= hi + slack):
         raise MachiningSettingsError(
             f"{name} must be in [{lo:g}, {hi:g}] {unit}".rstrip() + f", got {value!r}"
         )

@@ -189,7 +189,11 @@ def builtin_stock(
     length = float(arc_length_m(p)[-1])
     s = np.linspace(0.0, length, max(2, int(np.ceil(length / PROFILE_SPACING_M)) + 1))
     wave = sum(
-        np.sin(2 * np.pi * s / lam + rng.uniform(0.0, 2 * np.pi)) for lam in ALLOWANCE_WAVELENGTHS_M
+        (
+            np.sin(2 * np.pi * s / lam + rng.uniform(0.0, 2 * np.pi))
+            for lam in ALLOWANCE_WAVELENGTHS_M
+        ),
+        np.zeros_like(s),
     )
     wave = (wave - wave.min()) / max(float(np.ptp(wave)), 1e-12)
     allowance = lo + (hi - lo) * wave

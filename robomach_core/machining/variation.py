@@ -105,7 +105,7 @@ def _with_burrs(base: Stock, scale: float, burrs_per_m: float, rng) -> Stock:
     s = base.profile_s_m
     length = float(s[-1])
     allowance = base.profile_allowance_m * scale
-    burrs = []
+    burrs: list[Burr] = []
     count = int(round(burrs_per_m * length))
     for _ in range(50 * max(count, 1)):
         if len(burrs) == count:

@@ -65,7 +65,8 @@ def wall_faces(mesh: trimesh.Trimesh, axis_wobj: np.ndarray) -> trimesh.Trimesh 
     def build() -> trimesh.Trimesh | None:
         with np.errstate(divide="ignore", invalid="ignore"):
             keep = np.flatnonzero(np.abs(mesh.face_normals @ axis) < WALL_FACE_MAX_COS)
-        return mesh.submesh([keep], append=True) if len(keep) else None
+        # trimesh types submesh's result as a list too; append=True gives one Trimesh.
+        return mesh.submesh([keep], append=True) if len(keep) else None  # type: ignore[return-value]
 
     with LOCK:
         return _kept(_WALLS, (id(mesh), tuple(np.round(axis, 3))), mesh, build)

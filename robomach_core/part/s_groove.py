@@ -60,4 +60,5 @@ def s_groove_mesh() -> trimesh.Trimesh:
         extents=(sx, sy, floor_z),
         transform=make_transform(np.eye(3), np.array([0.0, 0.0, floor_z / 2])),
     )
-    return trimesh.util.concatenate([base, top])
+    # trimesh types concatenate's result as any Geometry; of meshes it is a Trimesh.
+    return trimesh.util.concatenate([base, top])  # type: ignore[return-value]

@@ -138,8 +138,8 @@ def water_pump_wall() -> Contour:
         ((half_w, half_h), (-half_w, half_h), 4),
         ((-half_w, half_h), (-half_w, -half_h), 3),
     ]
-    for a, b, bumps in sides:
-        a, b = np.asarray(a), np.asarray(b)
+    for start, end, bumps in sides:
+        a, b = np.asarray(start), np.asarray(end)
         d = (b - a) / np.linalg.norm(b - a)
         out = np.array([d[1], -d[0]])  # right of travel = outside of the loop
         corners.append(a)
@@ -190,8 +190,9 @@ def water_pump(T_base_wobj: np.ndarray | None = None) -> Workpiece:
     island = outer.buffer(-PUMP_GROOVE_WIDTH_M, join_style="round", quad_segs=16)
     plate = shapely.geometry.box(-sx / 2, -sy / 2, sx / 2, sy / 2)
     rim = plate.difference(outer)
+    # trimesh types concatenate's result as any Geometry; of meshes it is a Trimesh.
     mesh = solid_mesh(
-        trimesh.util.concatenate(
+        trimesh.util.concatenate(  # type: ignore[arg-type]
             [
                 trimesh.creation.box(
                     extents=(sx, sy, floor_z),

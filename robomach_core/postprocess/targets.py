@@ -54,7 +54,7 @@ class PostprocessSettings:
 
     force_min_N: float = 5.0
     force_max_N: float = 15.0
-    tolerance_m: float = TOLERANCE_MM.default * 1e-3
+    tolerance_m: float = TOLERANCE_MM.default_value() * 1e-3
     speed_mean_m_s: float = 0.010
     speed_min_m_s: float = 0.003
     curvature_ref_1_m: float = 1.0 / 0.010

@@ -76,7 +76,8 @@ def project_file_bytes(project: Project) -> bytes:
         arrays["stock_mesh_bytes"] = np.frombuffer(setup.stock_mesh[1], dtype=np.uint8)
     arrays["document"] = np.frombuffer(json.dumps(doc).encode(), dtype=np.uint8)
     buffer = io.BytesIO()
-    np.savez_compressed(buffer, **arrays)
+    # numpy's stub: a ** mapping could hold allow_pickle, so it must be bool as well.
+    np.savez_compressed(buffer, **arrays)  # type: ignore[arg-type]
     return buffer.getvalue()
 
 

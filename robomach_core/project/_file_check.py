@@ -145,8 +145,8 @@ def read_project_arrays(data: bytes, name: str) -> dict[str, np.ndarray]:
                 raw = fp.read(nbytes)
                 if len(raw) != nbytes:
                     raise _error(f"{name}: array {key!r} is truncated")
-            order = "F" if fortran else "C"
-            arrays[key] = np.frombuffer(raw, dtype=dtype).reshape(shape, order=order).copy()
+            array = np.frombuffer(raw, dtype=dtype)
+            arrays[key] = array.reshape(shape, order="F" if fortran else "C").copy()
     except ProjectFileError:
         raise
     except Exception as exc:  # noqa: BLE001 - a damaged zip or .npy member

@@ -32,7 +32,7 @@ import json
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from functools import cached_property
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -43,12 +43,19 @@ from ..postprocess import Targets
 from ._stages import require_processed
 from ._value import Project, machining_inputs_key
 
+if TYPE_CHECKING:
+    from ..stiffness.settings import CompensationSetting
+
 MM = 1e-3
 STOCK_SOURCES = ("builtin", "profile", "mesh")
 # Stocks of a variation sweep (0: the one stock only).
 MAX_VARIATIONS = 1000
 # compensation choice -> the compensation settings' mode of the exported program.
-EXPORT_COMPENSATION_MODES = {"off": "off", "offline": "offline_linear", "online": "online"}
+EXPORT_COMPENSATION_MODES: dict[str, CompensationSetting] = {
+    "off": "off",
+    "offline": "offline_linear",
+    "online": "online",
+}
 EXPORT_MODE_CHOICES = {
     "off": "off",
     "offline_linear": "offline",
@@ -310,7 +317,9 @@ def wall_normals_for_project(
 
     if workpiece.wall is not None:
         return wall_normals_for_workpiece(workpiece, targets.position_m)
-    rec = project.learned.recording
+    from ._stages import require_learned
+
+    rec = require_learned(project).recording
     forces = np.array(
         [
             matrix_from_quaternion(rec.quaternion_wxyz[i]) @ rec.wrench_tool[i, :3]
@@ -337,6 +346,7 @@ def build_stock(
     r = project.cell.tool_radius_m
     p = targets.position_m
     if setup.stock_source == "profile":
+        assert setup.stock_profile_mm is not None  # MachiningSetup requires it for "profile"
         return stock_from_profile(
             p, setup.stock_profile_mm, wall_normals_m=normals, tool_radius_m=r
         )
@@ -345,6 +355,7 @@ def build_stock(
 
         from ..part import mesh_from_bytes
 
+        assert setup.stock_mesh is not None  # MachiningSetup requires it for "mesh"
         name, data = setup.stock_mesh
         mesh = mesh_from_bytes(data, Path(name).suffix.lower(), name=Path(name).stem).mesh
         mesh = mesh.copy()
@@ -447,7 +458,7 @@ def machine(
     )  # fmt: skip
     nominal = {(c, m): first[j][k] for j, c in enumerate(ctrls) for k, m in enumerate(modes)}
     runs = [nominal[p][0] for p in pairs if nominal[p][0] is not None]
-    refused = {p: nominal[p][2] for p in pairs if nominal[p][2] is not None}
+    refused = {p: why for p in pairs if (why := nominal[p][2]) is not None}
     rows = comparison_rows(runs, refused=refused, order=pairs)
     rows = [
         _plain_row({**(nominal[p][1] or {}), **row}) for p, row in zip(pairs, rows, strict=True)
@@ -581,7 +592,7 @@ def choose(project: Project, controller: str, compensation: str) -> Project:
             from ..cell import ToolGravity
 
             tool = project.tool()
-            gravity = ToolGravity(tool.mass_kg, tuple(float(v) for v in tool.com_m))
+            gravity = ToolGravity.from_tool(tool)
         comp = replace(comp, mode=mode, tool_gravity=gravity)
     return replace(project, compensation=comp)
 

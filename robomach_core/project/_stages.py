@@ -205,10 +205,16 @@ def cad_comparison_of(
     )
 
 
-def require_processed(project: Project) -> ProcessedPath:
-    """The current post-processing result, or a clear error saying which stage to run."""
+def require_learned(project: Project) -> LearnedPath:
+    """The recording's learned path, or a clear error saying to run path learning."""
     if project.learned is None:
         raise MissingResultError("no recording yet: run path learning, then post-processing")
+    return project.learned
+
+
+def require_processed(project: Project) -> ProcessedPath:
+    """The current post-processing result, or a clear error saying which stage to run."""
+    require_learned(project)
     if project.processed is None:
         raise MissingResultError("the recording is not post-processed yet: run post-processing")
     reasons = project.stale_reasons()

@@ -22,7 +22,7 @@ from ._machining import (
     stale_settings,
     ur_feed_loop,
 )
-from ._stages import require_processed
+from ._stages import require_learned, require_processed
 from ._value import (
     DEFAULT_MODULE_NAME,
     MissingResultError,
@@ -45,10 +45,11 @@ def rapid_header(
     language carries no feed control, and the CMRR line says so instead of naming it."""
     c = project.cell
     processed = require_processed(project)
-    learning = project.learned.settings
+    learned = require_learned(project)
+    learning = learned.settings
     lines = [f"NOT FIT TO MACHINE: {problem}" for problem in processed.problems()]
-    if not project.learned.recording.completed:
-        lines.append(f"path learning stopped: {project.learned.recording.stop_reason}")
+    if not learned.recording.completed:
+        lines.append(f"path learning stopped: {learned.recording.stop_reason}")
     lines += [
         f"robomach: {c.robot}, {workpiece_name}, tool radius {c.tool_radius_m * 1e3:g} mm, "
         f"seed {c.seed}",
@@ -115,7 +116,7 @@ def program_targets(
         return targets, feeds
     compensation = compensation_for_arm(project, robot.name)  # settings of another arm: re-derived
     corrected, note = compensate_program_targets(
-        robot, project.learned.recording, targets, compensation
+        robot, require_learned(project).recording, targets, compensation
     )
     stale = stale_settings(project).get("compensation")
     if stale is not None and compensation is not project.compensation:
@@ -133,6 +134,7 @@ def compensate_program_targets(
     compensation happens in the controller at run time, so it leaves the targets as they are.
     """
     from ..stiffness import compensate_targets_and_joints
+    from ..stiffness.compensation import CompensationMode
     from ..transforms import make_transform, matrix_from_quaternion, quaternions_from_matrices
 
     if compensation.robot != robot.name:
@@ -142,7 +144,7 @@ def compensate_program_targets(
         )
     if compensation.mode in ("off", "online"):
         return targets, f"deflection compensation: {compensation.mode} (targets as learned)"
-    mode = "linear" if compensation.mode == "offline_linear" else "nonlinear"
+    mode: CompensationMode = "linear" if compensation.mode == "offline_linear" else "nonlinear"
     Ts = np.array(
         [
             make_transform(matrix_from_quaternion(q), p)
@@ -215,7 +217,7 @@ def program_context(
             ),
         ),
         module_name=module_name,
-        force_control_N=project.learned.settings.force_N if force_control else None,
+        force_control_N=require_learned(project).settings.force_N if force_control else None,
         speed_change=speed_change,
         feed_loop=feed_loop,
     )
@@ -313,6 +315,7 @@ def cad_only_program_texts(
     comparison = processed.cad_comparison
     lang = language_named(language)
     targets = cad_only_targets(project, robot)
+    assert comparison is not None  # cad_only_targets refuses a project without one
     wall = "the real wall" if comparison.part_deviates else "the wall"
     c = project.cell
     comment = (
@@ -429,7 +432,7 @@ def program_export(
             )  # fmt: skip
     files |= {
         "targets.csv": targets_csv(solved),
-        "samples.csv": samples_csv(project.learned.recording, processed.result.keep_mask),
+        "samples.csv": samples_csv(require_learned(project).recording, processed.result.keep_mask),
         "settings.json": json.dumps(doc, indent=2) + "\n",
     }
     return files, program[0]

@@ -24,13 +24,18 @@ Spec = TypeVar("Spec")
 
 
 class ArmLimits(Protocol):
-    """What ``arm_urdf`` reads of an ABB or KUKA arm spec."""
+    """What ``arm_urdf`` reads of an ABB or KUKA arm spec (read-only: the specs are frozen)."""
 
-    name: str
-    title: str
-    lower_deg: tuple[float, ...]
-    upper_deg: tuple[float, ...]
-    velocity_deg_s: tuple[float, ...]
+    @property
+    def name(self) -> str: ...
+    @property
+    def title(self) -> str: ...
+    @property
+    def lower_deg(self) -> tuple[float, ...]: ...
+    @property
+    def upper_deg(self) -> tuple[float, ...]: ...
+    @property
+    def velocity_deg_s(self) -> tuple[float, ...]: ...
 
 
 def number(x: float) -> str:

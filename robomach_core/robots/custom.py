@@ -80,18 +80,23 @@ def validate_urdf(text: str) -> UrdfChain:
         raise RobotFileError(f"the URDF is not valid XML ({exc})") from None
     if root.tag != "robot":
         raise RobotFileError(f"the URDF's root element is <{root.tag}>, expected <robot>")
-    links = [link.get("name") for link in root.findall("link")]
+    names = [link.get("name") for link in root.findall("link")]
+    links = [name for name in names if name is not None]
     joints = root.findall("joint")
+    if len(links) < len(names):
+        raise RobotFileError("the URDF has a <link> without a name")
     if not links:
         raise RobotFileError("the URDF has no <link>")
     children: dict[str, list[ET.Element]] = {}
     child_links = set()
     for joint in joints:
         parent, child = joint.find("parent"), joint.find("child")
-        if parent is None or child is None:
+        parent_link = None if parent is None else parent.get("link")
+        child_link = None if child is None else child.get("link")
+        if parent_link is None or child_link is None:
             raise RobotFileError(f"joint {joint.get('name')!r} lacks a <parent> or <child> link")
-        children.setdefault(parent.get("link"), []).append(joint)
-        child_links.add(child.get("link"))
+        children.setdefault(parent_link, []).append(joint)
+        child_links.add(child_link)
     roots = [name for name in links if name not in child_links]
     if len(roots) != 1:
         raise RobotFileError(
@@ -110,15 +115,18 @@ def validate_urdf(text: str) -> UrdfChain:
             )
         joint = (moving or outgoing)[0]
         kind, name = joint.get("type"), joint.get("name")
+        if name is None:
+            raise RobotFileError(f"a joint of the chain after link {link!r} has no name")
         if kind in ("continuous", "prismatic", "floating", "planar"):
             raise RobotFileError(
                 f"joint {name!r} is {kind}: a supported arm has six revolute joints with limits"
             )
         if kind == "revolute":
             limit = joint.find("limit")
+            bounds = {} if limit is None else limit.attrib
             try:
-                lo, hi = float(limit.get("lower")), float(limit.get("upper"))
-            except (AttributeError, TypeError, ValueError):
+                lo, hi = float(bounds["lower"]), float(bounds["upper"])
+            except (KeyError, ValueError):
                 raise RobotFileError(
                     f"revolute joint {name!r} has no <limit lower=... upper=...>"
                 ) from None
@@ -129,7 +137,7 @@ def validate_urdf(text: str) -> UrdfChain:
             upper.append(hi)
         elif kind != "fixed":
             raise RobotFileError(f"joint {name!r} has an unknown type {kind!r}")
-        link = joint.find("child").get("link")
+        link = _child_link(joint)
         chain_links.append(link)
     if len(revolute) != 6:
         raise RobotFileError(
@@ -148,7 +156,16 @@ def validate_urdf(text: str) -> UrdfChain:
 
 def link_has_children(joint: ET.Element, children: dict[str, list[ET.Element]]) -> bool:
     """True when the joint's child link carries further joints (part of the chain)."""
-    return joint.find("child").get("link") in children
+    return _child_link(joint) in children
+
+
+def _child_link(joint: ET.Element) -> str:
+    """The name of the link ``joint`` moves (``validate_urdf`` requires one of every joint)."""
+    child = joint.find("child")
+    link = None if child is None else child.get("link")
+    if link is None:
+        raise RobotFileError(f"joint {joint.get('name')!r} lacks a <child> link")
+    return link
 
 
 def with_flange(text: str, chain: UrdfChain) -> str:
@@ -318,10 +335,10 @@ def _register_file(filename: str, data: bytes) -> str:
     for fraction in (0.62, 0.5, 0.4, 0.3):
         wobj = (fraction * reach, 0.0, max(0.0, shoulder_z - 0.1 * reach))
         try:
-            home = _home(name, np.array(wobj))
+            home_rad = _home(name, np.array(wobj))
         except RobomachError:
             continue
-        registry.register(replace(record, home_rad=tuple(home), part_position_m=wobj))
+        registry.register(replace(record, home_rad=tuple(home_rad), part_position_m=wobj))
         return name
     registry.forget(name)
     raise RobotFileError(

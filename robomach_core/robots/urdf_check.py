@@ -88,7 +88,7 @@ def check_urdf_text(
 
 
 def _check_urdf_text(text: str, filename: str) -> None:
-    parser = ET.XMLPullParser(events=("start", "end"))
+    parser: ET.XMLPullParser[ET.Element] = ET.XMLPullParser(events=("start", "end"))
     depth, elements = 0, 0
     owner = "robot"
     links: list[str] = []
@@ -96,7 +96,9 @@ def _check_urdf_text(text: str, filename: str) -> None:
     try:
         for start in range(0, len(text), 1 << 16):
             parser.feed(text[start : start + (1 << 16)])
-            for event, element in parser.read_events():
+            # typeshed's event union has a 1-tuple; "start" and "end" come as (event, element).
+            for event, element in parser.read_events():  # type: ignore[misc]
+                assert isinstance(element, ET.Element)  # only "start" and "end" were asked for
                 if event == "end":
                     depth -= 1
                     if depth == 1 and element.tag == "joint":
@@ -296,8 +298,9 @@ def _check_reference_cost(
 
 def _entry_count(data: bytes) -> int | None:
     """Entries the zip's end record declares (read before zipfile lists them all)."""
-    end = zipfile._EndRecData(io.BytesIO(data))  # noqa: SLF001 - the stdlib's own reader
-    return None if end is None else int(end[zipfile._ECD_ENTRIES_TOTAL])  # noqa: SLF001
+    # zipfile's private end-record reader and index: not in typeshed's stubs.
+    end = zipfile._EndRecData(io.BytesIO(data))  # type: ignore[attr-defined]  # noqa: SLF001
+    return None if end is None else int(end[zipfile._ECD_ENTRIES_TOTAL])  # type: ignore[attr-defined]  # noqa: SLF001
 
 
 def open_zip(

@@ -84,9 +84,10 @@ def identify_tool_gravity(R_base_sensor: np.ndarray, wrench_sensor: np.ndarray) 
     mass = float(x_f[0])
     if mass <= 1e-6:
         raise IdentificationError(f"identified tool mass {mass:.3g} kg is not positive")
+    com = x_t[:3] / mass
     return ToolGravity(
         mass_kg=mass,
-        com_m=tuple(float(v) for v in x_t[:3] / mass),
-        force_bias_N=tuple(float(v) for v in x_f[1:]),
-        torque_bias_Nm=tuple(float(v) for v in x_t[3:]),
+        com_m=(float(com[0]), float(com[1]), float(com[2])),
+        force_bias_N=(float(x_f[1]), float(x_f[2]), float(x_f[3])),
+        torque_bias_Nm=(float(x_t[3]), float(x_t[4]), float(x_t[5])),
     )

@@ -36,7 +36,7 @@ from ..cell import JointCompliance, Robot, true_joint_compliance
 from ..errors import SingularConfigurationError, UnreachableTargetError
 from ..transforms import make_transform, rotation_about
 from .errors import IdentificationError
-from .model import loaded_equilibrium
+from .model import ModelKind, loaded_equilibrium
 
 # The calibration tool's spheres, flange frame [m]: the load hangs on the first (the sphere
 # tip); the CMM measures all three (module docstring).
@@ -164,7 +164,7 @@ def simulate_stiffness_measurements(
     tool_loads = np.asarray(tool_loads_N, dtype=float).reshape(-1, 3)
     offsets = sphere_offsets_m(spheres_m)
     rows_q, rows_f, rows_d = [], [], []
-    mode = "nonlinear" if nonlinear else "linear"
+    mode: ModelKind = "nonlinear" if nonlinear else "linear"
     for q in np.asarray(joints_rad, dtype=float):
         T0 = robot.fk(q).copy()
         loads = np.vstack([base_loads, tool_loads @ T0[:3, :3].T])
@@ -316,13 +316,21 @@ def arm_work_position_m(robot_name: str) -> np.ndarray:
     return np.asarray(record.part_position_m) + np.asarray(WORK_OFFSET_FROM_PART_M)
 
 
-def campaign_box(robot_name: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+def campaign_box(
+    robot_name: str,
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """(centre, half size) [m] of the campaign's workspace box on the arm: above its work
     position, as large as the UR10's box scaled by the arm's reach there."""
     centre = arm_work_position_m(robot_name) + np.array([0.0, 0.0, CAMPAIGN_HEIGHT_M])
     scale = max(1.0, float(np.linalg.norm(centre[:2]) / np.linalg.norm(WORKSPACE_CENTER_M[:2])))
     half = np.asarray(WORKSPACE_HALF_SIZE_M) * scale
-    return tuple(float(v) for v in centre), tuple(float(v) for v in half)
+    return _xyz(centre), _xyz(half)
+
+
+def _xyz(values: np.ndarray | tuple[float, ...]) -> tuple[float, float, float]:
+    """A (3,) vector as three plain floats (ValueError when it has another length)."""
+    x, y, z = (float(v) for v in values)
+    return x, y, z
 
 
 def campaign_loads_N(robot_name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -355,7 +363,7 @@ def stiffness_campaign(
     (treat the arrays as read-only)."""
     centre, half = campaign_box(robot_name)
     if center_m is not None:
-        centre = tuple(float(v) for v in center_m)
+        centre = _xyz(center_m)
     tip_robot = Robot(robot_name, sphere_tip_transform())
     joints = sample_workspace_joints(tip_robot, poses, seed=seed, center_m=centre, half_size_m=half)
     loads, tool_loads = campaign_loads_N(robot_name)

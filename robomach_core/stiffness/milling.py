@@ -39,6 +39,7 @@ from ..cell import (
 from ..errors import CancelledError, InvalidInputError
 from ..transforms import make_transform, pose_error, rotation_about
 from .compensation import (
+    CompensationMode,
     OnlineCompensationParams,
     OnlineCompensationState,
     compensate_targets_and_joints,
@@ -317,7 +318,8 @@ def simulate_milling(
         u_targets = np.arange(u_start, u_end + TARGET_SPACING_M, TARGET_SPACING_M)
         T_targets = program_poses(scenario, u_targets)
         q_targets = _track_ik(robot, T_targets, q_first)
-        mode = "linear" if compensation == "offline_linear" else "nonlinear"
+        assert model is not None  # checked above: every compensation but "off" needs one
+        mode: CompensationMode = "linear" if compensation == "offline_linear" else "nonlinear"
         T_corrected, _ = compensate_targets_and_joints(
             robot, T_targets, q_targets, predicted_wrenches(scenario, u_targets), model, mode
         )
@@ -334,7 +336,10 @@ def simulate_milling(
         qs_command = qs_nominal
 
     true_tool = true_tool_gravity or tool_gravity or ToolGravity(2.5, (0.0, 0.0, 0.07))
-    online = OnlineCompensationParams(model, tool_gravity) if compensation == "online" else None
+    online = None
+    if compensation == "online":
+        assert model is not None and tool_gravity is not None  # checked above
+        online = OnlineCompensationParams(model, tool_gravity)
     state = OnlineCompensationState()
     p_sensor_tcp = robot.T_flange_tcp[:3, 3]
     W_nominal = scenario.nominal_wrench()

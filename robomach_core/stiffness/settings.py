@@ -28,7 +28,7 @@ from .errors import SettingsFileError
 SETTINGS_FORMAT = "robomach.compensation"
 SETTINGS_VERSION = 1
 CompensationSetting = Literal["off", "online", "offline_linear", "offline_nonlinear"]
-COMPENSATION_SETTINGS: tuple[str, ...] = get_args(CompensationSetting)
+COMPENSATION_SETTINGS: tuple[CompensationSetting, ...] = get_args(CompensationSetting)
 
 
 @dataclass(frozen=True)
@@ -126,11 +126,14 @@ def settings_from_dict(data: dict[str, Any]) -> CompensationSettings:
         if not isinstance(t, dict):
             raise SettingsFileError("'tool' must be an object")
         mass = _floats({"mass_kg": [t.get("mass_kg")]}, "mass_kg", 1, TOOL_MASS_KG)[0]
+        cx, cy, cz = _floats(t, "com_mm", 3, TOOL_COM_MM)
+        fx, fy, fz = _floats(t, "force_bias_N", 3, SENSOR_FORCE_BIAS_N)
+        tx, ty, tz = _floats(t, "torque_bias_Nm", 3, SENSOR_TORQUE_BIAS_NM)
         tool = ToolGravity(
             mass_kg=mass,
-            com_m=tuple(v * 1e-3 for v in _floats(t, "com_mm", 3, TOOL_COM_MM)),
-            force_bias_N=_floats(t, "force_bias_N", 3, SENSOR_FORCE_BIAS_N),
-            torque_bias_Nm=_floats(t, "torque_bias_Nm", 3, SENSOR_TORQUE_BIAS_NM),
+            com_m=(cx * 1e-3, cy * 1e-3, cz * 1e-3),
+            force_bias_N=(fx, fy, fz),
+            torque_bias_Nm=(tx, ty, tz),
         )
     std = None
     if "joint_stiffness_std_Nm_rad" in data:

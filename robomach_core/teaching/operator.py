@@ -76,7 +76,7 @@ def intents_from_csv(text: str, robot: Robot | None = None) -> list[GuideIntent]
         InvalidInputError: malformed rows or fewer than two points.
         UnreachableTargetError: a point the robot cannot reach (says which).
     """
-    rows = []
+    rows: list[tuple[int, list[float]]] = []
     for line_no, line in enumerate(text.splitlines(), start=1):
         cells = [c.strip() for c in line.split(",")]
         if not line.strip() or line.lstrip().startswith("#"):
@@ -253,13 +253,15 @@ def square_up(
     than a jog allows (45 deg) is made in several jogs (the example failed from wherever a
     person left the tool: "a rotational jog step is at most 45 degrees").
     """
+    from ..choices import AXES  # the lead-through's jog axes, typed
+
     max_steps = max(1, int(MAX_JOG_TURN_DEG / step_deg))
     goal = TOOL_DOWN if rotation is None else rotation
     for _ in range(3):
         R = state.cell.T_base_tcp[:3, :3]
         err_tool = R.T @ rotation_log(goal @ R.T)  # rotation to do, in tool axes
         moved = False
-        for i, axis in enumerate(("rx", "ry", "rz")):
+        for i, axis in enumerate(AXES[3:]):  # rx, ry, rz
             steps = round(math.degrees(err_tool[i]) / step_deg)
             while steps:  # a jog turns at most MAX_JOG_TURN_DEG, as the pendant's joystick
                 now = max(-max_steps, min(max_steps, steps))

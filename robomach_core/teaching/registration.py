@@ -306,18 +306,18 @@ class WobjFit:
                 f"; one sigma {self.std_position_m * 1e3:.3f} mm, "
                 f"{math.degrees(self.std_rotation_rad):.3f} deg"
             )
-        odd = self.odd_touches()
-        if not odd:
+        odd, d = self.odd_touches(), self.disagreement_m
+        if not odd or d is None:  # odd touches are found from the disagreements
             odd_text = ""
         elif len(odd) == 1:
             k = odd[0]
             odd_text = (
-                f"; touch {k + 1} stands {abs(self.disagreement_m[k]) * 1e3:.2f} mm off where "
+                f"; touch {k + 1} stands {abs(d[k]) * 1e3:.2f} mm off where "
                 "the others put its face (it met something else): delete it and touch again"
             )
         else:
             listed = ", ".join(str(k + 1) for k in odd)
-            worst = float(np.nanmax(np.abs(self.disagreement_m)))
+            worst = float(np.nanmax(np.abs(d)))
             odd_text = (
                 f"; the touches disagree by up to {worst * 1e3:.2f} mm: one of touches {listed} "
                 "met something else (the others agree without it); touch that face again at "

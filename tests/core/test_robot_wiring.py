@@ -60,6 +60,37 @@ def test_a_branching_urdf_is_named():
         validate_urdf(text)
 
 
+def test_a_urdf_missing_a_link_or_joint_name_is_named_at_every_place():
+    """Every link without a name, every joint end without a link and every arm joint without a
+    name of the UR5's file gets its own error (a nameless last link whose joint named no child
+    once passed, the chain ending in a None link; each alone was called a second root)."""
+    import xml.etree.ElementTree as ET
+
+    text = robot_urdf_path("ur5").read_text()
+    root = ET.fromstring(text)
+    cases = [
+        (f"link {i}", ("link", i, None, "name"), "without a name")
+        for i in range(len(root.findall("link")))
+    ]
+    for i, joint in enumerate(root.findall("joint")):
+        for end in ("parent", "child"):
+            cases.append((f"joint {i} {end}", ("joint", i, end, "link"), "lacks a <parent>"))
+        if joint.get("type") == "revolute":
+            cases.append((f"joint {i}", ("joint", i, None, "name"), "has no name"))
+    assert len(cases) > 20
+    for label, (tag, i, sub, attribute), message in cases:
+        broken = ET.fromstring(text)
+        element = broken.findall(tag)[i]
+        element = element if sub is None else element.find(sub)
+        del element.attrib[attribute]
+        try:
+            validate_urdf(ET.tostring(broken, encoding="unicode"))
+        except RobotFileError as exc:
+            assert message in str(exc), f"{label} without its {attribute}: {exc}"
+        else:
+            pytest.fail(f"{label} without its {attribute} passed")
+
+
 def _guide(p, force=(0.0, 0.0, 0.0)) -> GuidePoint:
     return GuidePoint(
         make_transform(TOOL_DOWN, np.array(p, float)), np.zeros(6), 0.0, np.array(force)

@@ -70,10 +70,10 @@ def pack_model(
             hull of its own), base frame [m]. couplings: (C, 8) coefficients (6), lower, upper
             [rad]. thresholds: (2, 9 + P + C) stop and slow values of every margin.
     """
-    head = [len(bodies), len(pairs), len(obstacles), len(couplings)]
+    head: list[float] = [len(bodies), len(pairs), len(obstacles), len(couplings)]
     head += [float(elbow_to_axis4), table_z, min_scale, ik_damping, len(vertices)]
-    parts = (placements, axes, limits, M_tcp, step_bound, tracking, bodies, pairs, obstacles)
-    parts += (couplings, thresholds, vertices)
+    parts = [placements, axes, limits, M_tcp, step_bound, tracking, bodies, pairs, obstacles]
+    parts += [couplings, thresholds, vertices]
     return np.concatenate([np.asarray(head, dtype=float)] + [np.ravel(p) for p in parts])
 
 

@@ -553,8 +553,9 @@ class Supervisor:
             )
         m1, T_tcp = self._evaluate(q1)
         track = T_ref is not None
+        reference = _NO_REFERENCE if T_ref is None else T_ref
         scale, code, index, value = decide(
-            self._evaluate(q0)[0], m1, q0, q1, T_ref if track else _NO_REFERENCE, T_tcp, track,
+            self._evaluate(q0)[0], m1, q0, q1, reference, T_tcp, track,
             self._model,
         )  # fmt: skip
         return scale, None if code == 0 else self._stop_for(code, index, value, q1)

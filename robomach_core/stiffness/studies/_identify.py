@@ -10,7 +10,7 @@ import numpy as np
 from ...cell import JointCompliance, Robot, Tool, true_joint_compliance
 from ...transforms import pose_error
 from .. import plots
-from ..compensation import compensate_targets_and_joints
+from ..compensation import CompensationMode, compensate_targets_and_joints
 from ..identification import (
     DEFAULT_LOADS_N,
     DEFAULT_TOOL_LOADS_N,
@@ -73,18 +73,21 @@ def run_identification_study(
     direction = CHAPTER_END_MILLING.nominal_wrench()
     direction = direction / np.linalg.norm(direction[:3])
     loads = np.logspace(1, 4, 7)
-    gap, landing_lin, landing_nl = [], [], []
+    gap: list[float] = []
+    landing_lin: list[float] = []
+    landing_nl: list[float] = []
+    mode: CompensationMode
     for load in loads:
         W = direction * load
         lin = loaded_equilibrium(tool_robot, q_work, W, truth, mode="linear")
         nl = loaded_equilibrium(tool_robot, q_work, W, truth)
-        gap.append(np.linalg.norm(pose_error(lin.T_base_tcp, nl.T_base_tcp)[:3]))
-        for mode, out in (("linear", landing_lin), ("nonlinear", landing_nl)):
+        gap.append(float(np.linalg.norm(pose_error(lin.T_base_tcp, nl.T_base_tcp)[:3])))
+        for mode, landings in (("linear", landing_lin), ("nonlinear", landing_nl)):
             _, q = compensate_targets_and_joints(
                 tool_robot, T_work[None], q_work[None], W[None], truth, mode
             )
             landed = loaded_equilibrium(tool_robot, q[0], W, truth).T_base_tcp
-            out.append(np.linalg.norm(pose_error(landed, T_work)[:3]))
+            landings.append(float(np.linalg.norm(pose_error(landed, T_work)[:3])))
     report(0.95)
 
     k_true = np.asarray(truth.stiffness_Nm_rad)
@@ -94,16 +97,18 @@ def run_identification_study(
     gap_at = []
     for scale in (1.0, 10.0):
         W = direction * chapter_load * scale
-        lin = loaded_equilibrium(tool_robot, q_work, W, truth, mode="linear").T_base_tcp
-        nl = loaded_equilibrium(tool_robot, q_work, W, truth).T_base_tcp
-        gap_at.append(float(np.linalg.norm(pose_error(lin, nl)[:3])))
+        T_lin = loaded_equilibrium(tool_robot, q_work, W, truth, mode="linear").T_base_tcp
+        T_nl = loaded_equilibrium(tool_robot, q_work, W, truth).T_base_tcp
+        gap_at.append(float(np.linalg.norm(pose_error(T_lin, T_nl)[:3])))
     summary = {
         "robot": name,
         "identify_robot": name,
         "cmm_noise_um": options.cmm_noise_um,
         "identification_poses": int(n_poses),
         "identification_loads": len(DEFAULT_LOADS_N) + len(DEFAULT_TOOL_LOADS_N),
-        "identification_spheres": int(data.sphere_offsets_m.shape[0]),
+        "identification_spheres": (
+            1 if data.sphere_offsets_m is None else int(data.sphere_offsets_m.shape[0])
+        ),
         "stiffness_true_Nm_rad": k_true.tolist(),
         "stiffness_identified_Nm_rad": k_id.tolist(),
         "stiffness_std_Nm_rad": ident.standard_error_Nm_rad.tolist(),

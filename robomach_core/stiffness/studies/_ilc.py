@@ -8,7 +8,7 @@ import numpy as np
 
 from ...cell import JointCompliance, Robot, Tool, true_joint_compliance
 from .. import plots
-from ..ilc import IlcSystem, milling_process_gain, perturbed, run_ilc, square_path
+from ..ilc import IlcKind, IlcSystem, milling_process_gain, perturbed, run_ilc, square_path
 from ..model import cartesian_compliance
 from ._common import (
     DEFAULT_OPTIONS,
@@ -56,7 +56,8 @@ def run_ilc_study(
     path = square_path(side_m=side, center_m=tuple(work_position_m(name)))
     iterations = min(options.ilc_iterations, 3) if options.quick else options.ilc_iterations
     results = {}
-    for i, kind in enumerate(("arm", "force")):
+    kinds: tuple[IlcKind, ...] = ("arm", "force")
+    for i, kind in enumerate(kinds):
         results[kind] = run_ilc(
             truth_system,
             model_system,

@@ -11,7 +11,7 @@ from ...cell import JointCompliance, Robot, Tool, ToolGravity, true_joint_compli
 from ...export.rapid import write_rapid_module
 from ...transforms import quaternion_from_matrix
 from .. import plots
-from ..compensation import compensate_targets_and_joints
+from ..compensation import CompensationMode, compensate_targets_and_joints
 from ..export import compensated_rapid_program
 from ..milling import (
     CHAPTER_END_MILLING,
@@ -122,13 +122,13 @@ def run_milling_study(
     jobs += [(lund, m) for m in COMPENSATION_SETTINGS if m != "offline_nonlinear"]
     runs: dict[str, dict[str, MillingRun]] = {"chapter": {}, "lund": {}}
     width = (1.0 - share) / len(jobs)
-    for i, (scenario, mode) in enumerate(jobs):
+    for i, (scenario, setting) in enumerate(jobs):
         key = "chapter" if scenario.error_measure == "surface_depth" else "lund"
-        runs[key][mode] = simulate_milling(
+        runs[key][setting] = simulate_milling(
             robots[key],
             scenario,
             truths[key],
-            compensation=mode,
+            compensation=setting,
             model=known[names[key]],
             tool_gravity=tool_gravity,
             true_tool_gravity=true_tool_gravity,
@@ -278,7 +278,9 @@ def run_milling_study(
             )
         )
         if options.rapid:
-            mode = "nonlinear" if options.mode == "offline_nonlinear" else "linear"
+            kind: CompensationMode = (
+                "nonlinear" if options.mode == "offline_nonlinear" else "linear"
+            )
             program = compensated_rapid_program(
                 robot,
                 tool,
@@ -286,7 +288,7 @@ def run_milling_study(
                 joints,
                 wrenches,
                 model,
-                mode,
+                kind,
                 speed_mm_s=chapter.feed_speed_m_s * 1e3,
                 module_name="CompensatedMilling",
             )

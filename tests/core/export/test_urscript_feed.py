@@ -151,3 +151,24 @@ def test_the_written_loop_carries_the_path_the_speeds_and_the_law(robot, short_p
     for call in ("get_tcp_force()", "zero_ftsensor()", "servoj(", "interpolate_pose(", "halt"):
         assert call in text, call
     assert not any(line.strip().startswith("movel(p[") for line in lines[12:-3])
+
+
+def test_a_feed_loop_reads_back_with_its_law_or_is_refused_without_it(robot, short_program):
+    """Read back, the loop names its controller and force; a loop whose '# CMRR:' line is gone
+    is refused with a message (it was an AttributeError)."""
+    from robomach_core.errors import InvalidInputError
+    from robomach_core.export.read_back import read_program
+
+    plan, packed = _designed("fuzzy", robot, short_program)
+    i = plan.inputs
+    loop = UrFeedLoop("fuzzy", 105.0, packed, tuple(i.filt), tuple(i.filt_z), i.dt, 0.05, 150.0)
+    pump = builtin_workpiece("water_pump", robot="ur10")
+    text = urscript_program(short_program, Tool(), pump, feed_loop=loop)
+    path = read_program("urscript", {"cut.script": text})
+    assert (path.feed_control, path.reference_N, path.controller) == (
+        "URScript feed loop", 105.0, "fuzzy",
+    )  # fmt: skip
+    without = "\n".join(line for line in text.splitlines() if "# CMRR:" not in line)
+    assert without != text
+    with pytest.raises(InvalidInputError, match="no '# CMRR:"):
+        read_program("urscript", {"cut.script": without})
