@@ -131,6 +131,14 @@ def test_offline_compensation_holds_on_other_castings(pump, stock_seed):
             # wall error is the stock left, not a deflection to compensate.
             print(f"stock seed {stock_seed}: {controller} stops uncompensated, not compared")
             continue
+        if (
+            not runs["offline"]["completed"]
+            and not runs["offline"]["offline_nominal_wall_completed"]
+        ):
+            # The same controller stops on the nominal wall with the arm held rigid (a burr the
+            # yielding arm rode over): no correction reaches that wall under this controller.
+            print(f"stock seed {stock_seed}: {controller} stops on the nominal wall, not compared")
+            continue
         cut = {mode: summary["wall_error_max_mm"] for mode, summary in runs.items()}
         share = 0.35 if controller in ("fuzzy", "two-stage") else 0.25
         assert cut["offline"] <= share * cut["off"], (stock_seed, controller, cut)
