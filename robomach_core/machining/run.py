@@ -312,6 +312,11 @@ def run_machining(
     summary["rehearsals"] = rehearsals
     summary["offline_last_change_um"] = None if not math.isfinite(change) else change / 1e-6
     summary["offline_targets"] = len(program)
+    # Whether the cut of the nominal wall itself (the arm held rigid, the first plan's force)
+    # completes: where it stops (a staged controller's protection rule on a burr the yielding
+    # arm rode over), no correction reaches the nominal wall under this controller, and the
+    # offline row stops for the stock's sake, not the compensation's.
+    summary["offline_nominal_wall_completed"] = bool(ideal.summary["completed"])
     wall_s = time.perf_counter() - started
     summary["wall_time_s"] = wall_s
     summary["realtime_factor"] = summary["sim_time_s"] / wall_s if wall_s > 0 else None

@@ -101,12 +101,14 @@ def test_the_settled_force_follows_the_process_model_and_cmrr_is_40_percent_fast
 def test_offline_compensation_holds_on_other_castings(pump, stock_seed):
     """Issue 29 over the part's variation: the same program on another built-in stock, offline
     compensation cuts the wall error by >= 75 % under the unstaged controllers (100 stocks on
-    each of the UR10, IRB 4400 and KR 270: 92.5 % at worst). The staged ones (fuzzy, two-stage) move
-    their stage switches from one rehearsal to the next; the plan from the force each station
-    met, the mean of the last two rehearsals, hedges them (``machining.offline``): median
-    93-96 %, >= 75 % on 598 of 600 staged runs, 70.2 % (UR10 stock 485402004, two-stage) and
-    73.9 % (KR 270 stock 314516579, fuzzy) the two below, where the rehearsals did not settle.
-    So >= 65 % here: a 75 % claim would fail about one run in fifty."""
+    each of the UR10, IRB 4400 and KR 270: 94.3 % at worst). The staged ones (fuzzy,
+    two-stage; 200 stocks per arm) move their stage switches from one rehearsal to the next;
+    the plan from the force each station met, the mean of the last two rehearsals, hedges them
+    (``machining.offline``): median 93-96 %, fuzzy 78.9 % at worst, two-stage under 75 % on 6
+    of 600 runs (67.3 % at worst, UR10 stock 524917070), where the rehearsals did not settle.
+    So >= 65 % here: a 75 % claim would fail about one run in thirty. (Those figures hold for
+    the noise draw the rehearsals replay; on a fresh draw the staged ones fall lower,
+    ``machining.offline``.)"""
     from robomach_core.export.target_joints import with_target_joints
     from robomach_core.machining import builtin_stock
 
@@ -130,6 +132,14 @@ def test_offline_compensation_holds_on_other_castings(pump, stock_seed):
             # A burr the controller's protection rule stops at even on the yielding arm: the
             # wall error is the stock left, not a deflection to compensate.
             print(f"stock seed {stock_seed}: {controller} stops uncompensated, not compared")
+            continue
+        if (
+            not runs["offline"]["completed"]
+            and not runs["offline"]["offline_nominal_wall_completed"]
+        ):
+            # The same controller stops on the nominal wall with the arm held rigid (a burr the
+            # yielding arm rode over): no correction reaches that wall under this controller.
+            print(f"stock seed {stock_seed}: {controller} stops on the nominal wall, not compared")
             continue
         cut = {mode: summary["wall_error_max_mm"] for mode, summary in runs.items()}
         share = 0.35 if controller in ("fuzzy", "two-stage") else 0.25

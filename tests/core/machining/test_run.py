@@ -4,6 +4,7 @@ compensation, the finished wall, errors, progress and cancel."""
 from __future__ import annotations
 
 import threading
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -217,6 +218,31 @@ def test_offline_program_moves_the_targets_against_the_predicted_force(
     met = np.interp(s, run.trace.path_m, run.trace.deflection_m)
     assert np.median(np.abs(-shift[deep] - met[deep])) < 0.15 * np.median(met[deep])
     assert np.max(np.abs(program.joints_rad - nominal.joints_rad)) < 1e-3
+
+
+@pytest.mark.parametrize("burr_mm", [6.0, 8.0])
+def test_offline_says_when_the_nominal_wall_itself_stops_the_controller(
+    robot, short_program, short_stock, burr_mm
+):
+    """A burr the fuzzy controller's protection rule stops at even on the yielding arm stops it
+    on the nominal wall too (a deeper cut): the offline row stops, and its summary says the
+    nominal wall's own cut stopped (not the compensation); on the ordinary stock it completes."""
+    model = identify_stiffness(robot.name, seed=0).model
+    burr = stock_from_profile(
+        short_program.position_m,
+        [(0, 0), (5, 1.0), (40, 1.0), (42, burr_mm), (46, burr_mm), (48, 1.0)],
+    )
+    fuzzy = MachiningSettings(controller="fuzzy")
+    assert not run_machining(robot, short_program, None, burr, fuzzy).summary["completed"]
+    offline = replace(fuzzy, compensation="offline")
+    stopped = run_machining(robot, short_program, None, burr, offline, compensation_model=model)
+    assert not stopped.summary["completed"]
+    assert stopped.summary["offline_nominal_wall_completed"] is False
+    ordinary = run_machining(
+        robot, short_program, None, short_stock, offline, compensation_model=model
+    )
+    assert ordinary.summary["completed"]
+    assert ordinary.summary["offline_nominal_wall_completed"] is True
 
 
 @given(st.integers(0, 2**31 - 1))
