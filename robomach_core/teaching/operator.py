@@ -21,6 +21,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..cell import (
+    AXES,
     CONTROL_PERIOD_S,
     ComplianceSelection,
     GuidePoint,
@@ -253,8 +254,6 @@ def square_up(
     than a jog allows (45 deg) is made in several jogs (the example failed from wherever a
     person left the tool: "a rotational jog step is at most 45 degrees").
     """
-    from ..choices import AXES  # the lead-through's jog axes, typed
-
     max_steps = max(1, int(MAX_JOG_TURN_DEG / step_deg))
     goal = TOOL_DOWN if rotation is None else rotation
     for _ in range(3):

@@ -221,10 +221,13 @@ def test_exit_1_when_the_cell_can_run_nothing_that_completes(tmp_path):
 def test_exit_130_when_interrupted(tmp_path):
     import signal
 
+    # As from a terminal: a suite started in the background (``cmd &``) ignores SIGINT, and a
+    # child inherits that, so Python would install no KeyboardInterrupt handler at all.
     proc = subprocess.Popen(
         [sys.executable, "-m", "app.cli", "machine", "--out", str(tmp_path / "o"),
          "--workpiece", "block", "--no-plot"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )  # fmt: skip
     # Interrupt while it works (path learning has begun), not after a fixed time: a fast
     # machine finished the block's whole run within 6 s.
