@@ -75,6 +75,8 @@ def start_server(
             [sys.executable, "-m", "app.cli", "serve", "--port", str(port), "--viser-port",
              str(viser_port), "--data", str(data_dir), *args],
             cwd=ROOT, env=full_env, stdout=log, stderr=subprocess.STDOUT,
+            # Ctrl-C reaches it as from a terminal, even from a suite run in the background
+            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
         )  # fmt: skip
     server = ServerProcess(
         proc, f"http://127.0.0.1:{port}", data_dir, log_path, f"http://127.0.0.1:{viser_port}/"
