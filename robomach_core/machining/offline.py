@@ -72,9 +72,6 @@ SETTLE_M = 1.0e-6
 # Eight: six left a staged controller's plan unsettled on some stocks (two-stage 82 % at worst
 # over ten UR10 stocks, 88 % with eight).
 MAX_REHEARSALS = 8
-# A corrected program's cut stands for its rehearsal within this fraction of the wall error;
-# beyond it the cut is hedged once more (``offline_compensated_run``).
-PROXY_TOLERANCE = 0.1
 # Rehearsals also stop when one leaves the wall within this fraction of the largest deflection
 # the first plan corrects (95 % of it removed, the chapter asks 75 %): further rehearsals only
 # redraw the stage switches.
@@ -252,7 +249,7 @@ def force_met_N(run, s_m: np.ndarray) -> np.ndarray:
 
 
 def offline_compensated_run(
-    rehearse: Callable[[np.ndarray], Rehearsal],
+    rehearse: Callable[[np.ndarray, int], Rehearsal],
     cut: Callable[[Targets, Targets], MachiningRun],
     robot: Robot,
     nominal: Targets,
@@ -272,8 +269,10 @@ def offline_compensated_run(
     Args:
         rehearse: Cuts the nominal program moved off the stock's path by the given offsets at
             ``run_stations_m`` (the planned correction's normal part, -n^T C_hat u F, between
-            the corrected targets), returns the ``MachiningRun``.
-        cut: Cuts a corrected program paired with its nominal targets (``cut_program``).
+            the corrected targets) as rehearsal number 1, 2, ... (the second argument: each
+            on a noise draw of its own, ``run.rehearsal_seed``), returns the ``Rehearsal``.
+        cut: Cuts a corrected program paired with its nominal targets (``cut_program``) on
+            the settings' noise draw, the one no rehearsal met.
         nominal: The nominal program; ``stations_m`` (k,) a fine grid of arc lengths along it,
             ``normal_compliance_m_N`` (k,) n^T C_hat u there (``compliance``), ``normals_m``
             and ``directions_m`` (k, 3) the wall normals n and the force's directions u there.
@@ -302,7 +301,7 @@ def offline_compensated_run(
     good_m = WALL_TOLERANCE_FRACTION * float(np.max(normal_compliance_m_N * force, initial=0.0))
     for k in range(MAX_REHEARSALS):
         grid, shift = plan(force)
-        run = rehearse(-np.interp(s_run, grid, shift))
+        run = rehearse(-np.interp(s_run, grid, shift), k + 1)
         if progress is not None:
             progress(min((k + 1) / (MAX_REHEARSALS + 1), 1.0))
         tried.append((run, force))
@@ -322,24 +321,11 @@ def offline_compensated_run(
         force = following
         if change <= SETTLE_M:
             break
-    # The corrected program of the best rehearsal is cut. A rehearsal stands for that cut up to
-    # the program's rounding (0.1 um as written) and its first-order correction, and a change
-    # that small can move a stage switch as a re-plan does (measured: 0.3 um at 42 mm moved one
-    # at 464 mm). When the program's cut is worse than its rehearsal by more than
-    # ``PROXY_TOLERANCE`` (and a micrometre), it is one more rehearsal: the program planned
-    # from the mean of the two forces met is cut too, and the better program is kept.
-    ranked = sorted(range(len(tried)), key=functools.cmp_to_key(_ranking(tried)))
-    rehearsal, force = tried[ranked[0]]
+    # The corrected program of the best rehearsal is cut, on the settings' noise draw, which
+    # no rehearsal met: its cut is the table's row and is not used to choose the program (a
+    # choice made on that draw would know where its noise puts the stage switches).
+    _, force = tried[min(range(len(tried)), key=functools.cmp_to_key(_ranking(tried)))]
     final = _program_cut(cut, robot, nominal, plan, s_f, directions_m, force, model)
-    if (
-        rehearsal.summary["completed"]
-        and final[0].summary["completed"]
-        and _worse(final[0], rehearsal, tolerance=PROXY_TOLERANCE, slack_m=SETTLE_M)
-    ):
-        hedged = 0.5 * (force_met_N(rehearsal, s_f) + force_met_N(final[0], s_f))
-        candidate = _program_cut(cut, robot, nominal, plan, s_f, directions_m, hedged, model)
-        if _worse(final[0], candidate[0]):
-            final = candidate
     run, dense = final
     if progress is not None:
         progress(1.0)
