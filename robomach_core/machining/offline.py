@@ -36,18 +36,28 @@ SOLUTION  ``offline_compensated_run`` returns the corrected program's cut: its p
           one the export carries, and its trace and finished wall are what that program does,
           so the table shows what the exported program will cut.
 
-LIMIT     The rehearsals and the corrected program's cut run the settings' seed: they meet the
-          same sensor-noise sequence, sample by sample, so the plan settles on the stage
-          switches that sequence puts. A cell meets another draw. Measured (issue 29, 100 fresh
-          stocks on each of the UR10, IRB 4400 and KR 270, the program cut on a noise draw no
-          rehearsal saw): adaptive-pi keeps >= 90 %, but fuzzy falls to a median of 83-85 %
-          (9-10 % of the stocks under 75 %) and two-stage to 67-71 % (64-76 % under): where a
-          switch lands is the noise's, and a plan hedged between two rehearsals leaves up to
-          half a stage step (two-stage on a UR10 stock: ~110 N to ~40 N), ~30 % of the
-          uncompensated error. On the same draw, planning from the mean of every rehearsal or
-          a running mean (gain 0.5) did no better over those stocks (UR10 two-stage worst 68 %);
-          on the 34 hardest, neither did the mean of the rehearsals after the first plan nor a
-          plan leaning to the lower force where two rehearsals disagree, on either draw.
+NOISE     Each rehearsal cuts on a sensor-noise draw of its own, never the settings' seed:
+          rehearsal k (0 the nominal wall's cut, 1, 2, ... the plans') runs
+          ``run.rehearsal_seed`` = SeedSequence([seed, k]), deterministic for a seed. The
+          corrected program's cut, the table's row, runs the settings' seed: the cell's draw,
+          which no rehearsal saw, and nothing is chosen on it (the best rehearsal picks the
+          program). Why: rehearsals on the program's own draw meet its noise sample by sample,
+          so the plan settled on the stage switches that very sequence puts, and the staged
+          controllers' rows showed a cut no cell meets (UR10 pump demo, seed 0: fuzzy and
+          two-stage 0.005 mm, 95-96 % cut; on draws of their own 0.015 mm, 87 %, and
+          0.043 mm, 60 %).
+LIMIT     Under a staged controller (fuzzy, two-stage) offline compensation falls short of the
+          chapter's 75 %: a stage switch lands where the noise puts it, a sample to a
+          millimetre from one draw to the next, and a plan hedged between two rehearsals leaves
+          up to half a stage step there (two-stage on a UR10 stock: ~110 N to ~40 N), ~30 % of
+          the uncompensated error. Measured over 100 fresh stocks on each of the UR10, IRB 4400
+          and KR 270 (issue 29): fuzzy median 79-80 %, 57.7 % at worst, 31 % of the stocks
+          under 75 %; two-stage median 61-66 %, 41.5 % at worst, 90 % under 75 %; the unstaged
+          controllers keep >= 85 % (adaptive-pi 85.2 % at worst, median 96 %; constant,
+          fixed-pi, adaptive-lq >= 94 %). Planning from the mean of every rehearsal or a running
+          mean (gain 0.5) did no better (measured on the replayed draw, issue 29). With a staged
+          controller, online compensation (pump, seed 0: fuzzy 91 %, two-stage 86 %) is the
+          better figure a cell can expect.
 """
 
 from __future__ import annotations
