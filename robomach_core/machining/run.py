@@ -288,15 +288,21 @@ def run_machining(
     on_the_wall = replace(
         plan, inputs=replace(plan.inputs, c_true=np.zeros_like(plan.inputs.c_true))
     )
-    ideal = rehearsal_cut(on_the_wall, np.zeros_like(plan.inputs.offset), cancel)
+    # Each rehearsal, this one number 0, cuts on its own sensor-noise draw, never the
+    # settings' seed: the corrected program's cut (the table's row) meets the settings' draw,
+    # as a cell meets a draw no rehearsal saw (``offline`` LIMIT).
+    ideal = rehearsal_cut(
+        on_the_wall, np.zeros_like(plan.inputs.offset), cancel,
+        seed=rehearsal_seed(settings.seed, 0),
+    )  # fmt: skip
     first = (
         force_met_N(ideal, s_f)
         if ideal.summary["completed"]
         else _first_plan(settings, stock, targets, s_f)
     )
 
-    def rehearse(offset_st: np.ndarray) -> Rehearsal:
-        return rehearsal_cut(plan, offset_st, cancel)
+    def rehearse(offset_st: np.ndarray, number: int) -> Rehearsal:
+        return rehearsal_cut(plan, offset_st, cancel, seed=rehearsal_seed(settings.seed, number))
 
     def cut(program: Targets, dense: Targets) -> MachiningRun:
         return cut_program(
@@ -731,14 +737,26 @@ class Rehearsal:
     trace: Any
 
 
+def rehearsal_seed(seed: int, number: int) -> int:
+    """The sensor-noise seed of offline compensation's rehearsal ``number`` (0 the nominal
+    wall's cut, 1, 2, ... the rehearsals of the plans) under the settings' ``seed``: a draw of
+    its own, deterministic, never ``seed``'s (numpy ``SeedSequence([seed, number])``)."""
+    return int(np.random.SeedSequence([seed, number]).generate_state(1, np.uint64)[0])
+
+
 def rehearsal_cut(
-    plan: CutPlan, offset_m: np.ndarray, cancel: CancelFlag | Callable[[], bool] | None
+    plan: CutPlan,
+    offset_m: np.ndarray,
+    cancel: CancelFlag | Callable[[], bool] | None,
+    *,
+    seed: int,
 ) -> Rehearsal:
-    """The planned cut with these offsets, without the run's summary (the ILC reads the
-    wall and the force only)."""
+    """The planned cut with these offsets on the sensor-noise draw ``seed``
+    (``rehearsal_seed``), without the run's summary (the plan reads the wall and the force
+    only)."""
     from types import SimpleNamespace
 
-    inputs = replace(plan.inputs, offset=offset_m)
+    inputs = replace(plan.inputs, offset=offset_m, seed=seed)
     try:
         result = run_loop(inputs, plan.controller, plan.packed, cancel=cancel_predicate(cancel))
     except _Diverged as exc:

@@ -245,6 +245,47 @@ def test_offline_says_when_the_nominal_wall_itself_stops_the_controller(
     assert ordinary.summary["offline_nominal_wall_completed"] is True
 
 
+@given(seed=st.integers(0, 2**63 - 1))
+@settings(max_examples=3, deadline=None)
+def test_each_rehearsal_cuts_a_noise_draw_of_its_own_and_the_program_the_settings_one(
+    robot, short_program, short_stock, seed
+):
+    """Offline compensation plans from rehearsals the corrected program's cut never replays:
+    every rehearsal (the nominal wall's cut included) meets a sensor-noise draw of its own,
+    none the settings' seed, and the corrected program (the table's row) meets the settings'
+    draw, as a cell meets one no rehearsal saw. The same seed gives the same run."""
+    import robomach_core.machining.run as run_module
+
+    print(f"seed {seed}")
+    model = identify_stiffness(robot.name, seed=0).model
+    settings_ = MachiningSettings(controller="two-stage", compensation="offline", seed=seed)
+    seeds: list[int] = []
+    loop = run_module.run_loop
+
+    def spy(inputs, *args, **kwargs):
+        seeds.append(int(inputs.seed))
+        return loop(inputs, *args, **kwargs)
+
+    runs = []
+    for _ in range(2):
+        seeds.clear()
+        run_module.run_loop = spy
+        try:
+            runs.append(
+                run_machining(
+                    robot, short_program, None, short_stock, settings_, compensation_model=model
+                )
+            )
+        finally:
+            run_module.run_loop = loop
+    *rehearsals, program_cut = seeds
+    assert len(rehearsals) == runs[-1].summary["rehearsals"] + 1  # the nominal wall's cut too
+    assert program_cut == seed
+    assert seed not in rehearsals and len(set(rehearsals)) == len(rehearsals)
+    assert runs[0].summary["wall_error_max_mm"] == runs[1].summary["wall_error_max_mm"]
+    assert np.array_equal(runs[0].program.position_m, runs[1].program.position_m)
+
+
 @given(st.integers(0, 2**31 - 1))
 @settings(max_examples=25, deadline=None)
 def test_the_force_a_station_met_is_the_least_over_the_stretch_its_offset_governs(seed):
