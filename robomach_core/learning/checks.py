@@ -302,8 +302,8 @@ def taught_wall_check(
         if not near.any():
             near[:] = True
         foot = wall_point - axis * h
-        d = np.linalg.norm(across - foot, axis=1)
-        d[~near] = np.inf
+        d_any = np.linalg.norm(across - foot, axis=1)  # at any height
+        d = np.where(near, d_any, np.inf)
         nearest = int(np.argmin(d))
         gap = float(d[nearest])
         if not closed and k in (0, n - 1) and nearest in (0, len(across) - 1):
@@ -313,7 +313,6 @@ def taught_wall_check(
         worst = max(worst, gap)
         if gap > th.TAUGHT_WALL_TOLERANCE_M:
             missed.append(k + 1)
-            d_any = np.linalg.norm(across - foot, axis=1)
             j = int(np.argmin(d_any))
             if d_any[j] - tool_radius_m <= th.TAUGHT_WALL_TOLERANCE_M:
                 off_height[k + 1] = float(h - path_height[j])  # > 0: above (axis into part)

@@ -227,12 +227,19 @@ class PartWalls:
 
     def nearest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Nearest wall points (k, 3) and their distances (k,) [m] to ``points`` (k, 3)."""
+        closest, dist, _ = self._closest(points)
+        return closest, dist
+
+    def _closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``nearest`` and the unit normals (k, 3) of the wall faces the points lie on (base
+        frame; zero where no walls)."""
+        k = len(points)
         if self.walls is None:
-            k = len(points)
-            return np.full((k, 3), np.nan), np.full(k, np.inf)
+            return np.full((k, 3), np.nan), np.full(k, np.inf), np.zeros((k, 3))
         with np.errstate(divide="ignore", invalid="ignore"):
-            c, d, _ = mesh_query.closest_point(self.walls, (points - self.t) @ self.R)
-        return c @ self.R.T + self.t, np.asarray(d, dtype=float)
+            c, d, tri = mesh_query.closest_point(self.walls, (points - self.t) @ self.R)
+        normals = np.asarray(self.walls.face_normals)[tri] @ self.R.T
+        return c @ self.R.T + self.t, np.asarray(d, dtype=float), normals
 
     def faces_from_free_side(self, point: np.ndarray, direction: np.ndarray, reach: float) -> bool:
         """True when the first wall along ``direction`` from ``point`` is within ``reach`` and
@@ -250,18 +257,18 @@ class PartWalls:
         along = float(n @ (corner - point)) / float(n @ direction)
         return float(n @ direction) < 0.0 and 0.0 <= along <= reach
 
-    def along_floor(self, point: np.ndarray, direction: np.ndarray) -> np.ndarray:
-        """``direction`` (across the axis) turned into the plane of the floor under ``point``:
-        the way the cutter moves there. On a tilted floor a ray straight across the axis
-        leaves the groove through its floor, under the walls it was cast at; unchanged where
-        no floor is below."""
+    def along_floor(self, point: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """``directions`` (3,) or (k, 3), across the axis, turned into the plane of the floor
+        under ``point`` (one floor for all): the way the cutter moves there. On a tilted floor a
+        ray straight across the axis leaves the groove through its floor, under the walls it
+        was cast at; unchanged where no floor is below."""
         _, normal = self.floor(point[None])
         n = normal[0]
         cos = float(n @ self.axis)
         if abs(cos) < th.WALL_FACE_MAX_COS:  # no floor (zero normal)
-            return direction
-        tilted = direction - self.axis * (float(direction @ n) / cos)
-        return tilted / float(np.linalg.norm(tilted))
+            return directions
+        tilted = directions - np.multiply.outer(directions @ n / cos, self.axis)
+        return tilted / np.linalg.norm(tilted, axis=-1, keepdims=True)
 
     def across_ray(self, point: np.ndarray, direction: np.ndarray) -> float:
         """Distance [m] from ``point`` to the first wall along ``direction`` (inf: none)."""
@@ -299,7 +306,7 @@ class PartWalls:
         """The wall point a point at ``point`` faces in direction ``towards`` (across the
         axis): its nearest wall point when that lies that way, else the first wall along it;
         None when none is within ``reach_m``."""
-        closest, dist, face = self._nearest_on_walls(point)
+        (closest,), (dist,), (face,) = self._closest(point[None])
         nearest_ok = False
         if math.isfinite(dist):
             rel3 = closest - point
@@ -329,11 +336,11 @@ class PartWalls:
         groove)."""
         if self.walls is None:
             return np.full(3, np.nan), math.inf
-        way = self.along_floor(point, towards)
-        side = np.cross(self.axis, way)
+        side = np.cross(self.axis, towards)
         angles = np.linspace(-th.FAN_HALF_ANGLE_RAD, th.FAN_HALF_ANGLE_RAD, th.FAN_RAYS)
-        fan = np.cos(angles)[:, None] * way + np.sin(angles)[:, None] * side
-        fan = np.array([self.along_floor(point, f) for f in fan]) if len(fan) > 1 else fan
+        fan = self.along_floor(
+            point, np.cos(angles)[:, None] * towards + np.sin(angles)[:, None] * side
+        )
         hits, _, tri = mesh_query.ray_hits(
             self.walls, np.repeat(((point - self.t) @ self.R)[None], len(fan), 0), fan @ self.R
         )
@@ -347,16 +354,6 @@ class PartWalls:
         d = np.linalg.norm(hits - point, axis=1)
         k = int(np.argmin(d))
         return hits[k], float(d[k])
-
-    def _nearest_on_walls(self, point: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
-        """The nearest wall point to ``point``, its distance [m] (inf: no walls) and the unit
-        normal of the wall face it lies on (base frame)."""
-        if self.walls is None:
-            return np.full(3, np.nan), math.inf, np.zeros(3)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            c, d, tri = mesh_query.closest_point(self.walls, ((point - self.t) @ self.R)[None])
-        normal = self.R @ np.asarray(self.walls.face_normals)[tri[0]]
-        return c[0] @ self.R.T + self.t, float(d[0]), normal
 
     def floor(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The floor below each point (k, 3): its height along the axis [m] (nan where no
