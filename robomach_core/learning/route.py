@@ -222,6 +222,9 @@ class PartWalls:
         self.mesh = workpiece.mesh
         self.walls = mesh_query.wall_faces(self.mesh, self.R.T @ axis)
         self._normals = np.asarray(self.mesh.face_normals)  # trimesh checks its cache per read
+        self._wall_normals = (
+            np.zeros((0, 3)) if self.walls is None else np.asarray(self.walls.face_normals)
+        )
         self._corners = np.asarray(self.mesh.vertices)[np.asarray(self.mesh.faces)[:, 0]]
         self._ray = self.mesh.ray
 
@@ -238,7 +241,7 @@ class PartWalls:
             return np.full((k, 3), np.nan), np.full(k, np.inf), np.zeros((k, 3))
         with np.errstate(divide="ignore", invalid="ignore"):
             c, d, tri = mesh_query.closest_point(self.walls, (points - self.t) @ self.R)
-        normals = np.asarray(self.walls.face_normals)[tri] @ self.R.T
+        normals = self._wall_normals[tri] @ self.R.T
         return c @ self.R.T + self.t, np.asarray(d, dtype=float), normals
 
     def faces_from_free_side(self, point: np.ndarray, direction: np.ndarray, reach: float) -> bool:
@@ -346,7 +349,7 @@ class PartWalls:
         )
         # a wall on that side faces back across it (its normal against ``towards``): the wall
         # across the groove, met by a ray swung towards it, faces the other way
-        normals = np.asarray(self.walls.face_normals)[tri] @ self.R.T
+        normals = self._wall_normals[tri] @ self.R.T
         hits = hits[normals @ towards < 0.0]
         if not len(hits):
             return np.full(3, np.nan), math.inf
