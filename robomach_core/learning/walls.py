@@ -10,8 +10,9 @@ STRATEGY  Find the floor beside the picked wall (a ray down beside it; the part'
           normal. There, cut the mesh with the plane at the machining height (trimesh's
           ``mesh_plane``): each segment comes with the face it cuts, whose normal says which
           side is free, so every segment is oriented with the material on the right (as the
-          built-in walls are) and chained into loops, closed or open. The machining height is
-          the picked point's own, when the tool can work there (``_machining_height``).
+          built-in walls are) and chained into loops, closed or open (GEOS's line merge). The
+          machining height is the picked point's own, when the tool can work there
+          (``_machining_height``).
 SOLUTION  ``section_loops(mesh, z_m)`` -> ``WallLoop``s (x-y of the mesh's frame, metres), with
           arc length, points, free-side normals and a signed distance (+ free side, -
           material); ``pick_wall(mesh, point, normal, ...)`` -> ``WallPick`` (the floor frame,
@@ -27,9 +28,6 @@ from functools import cached_property
 import numpy as np
 import shapely
 import trimesh
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 from ..errors import InvalidInputError
 from ..part.mesh_query import closest_point, ray_hits, transformed
@@ -45,7 +43,7 @@ from .thresholds import (
     WALL_FACE_MAX_COS,
 )
 
-MERGE_M = 1e-9  # segment ends closer than this are one point of a loop
+MERGE_M = 1e-9  # segment ends on one point of this grid are one point of a loop
 NORMAL_WINDOW_M = 5e-4  # the free-side normal is the mean over this much wall either side
 
 
@@ -170,43 +168,16 @@ def section_loops(mesh: trimesh.Trimesh, z_m: float) -> list[WallLoop]:
     a, b, n, d = a[keep], b[keep], n[keep], d[keep]
     flip = (-d[:, 1] * n[:, 0] + d[:, 0] * n[:, 1]) < 0  # the free side must be on the left
     a[flip], b[flip] = b[flip].copy(), a[flip].copy()
-    ends = np.vstack([a, b])
-    pairs = cKDTree(ends).query_pairs(MERGE_M, output_type="ndarray")
-    n = len(ends)
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
-    _, ids = connected_components(graph, directed=False)
-    start, stop = ids[: len(a)], ids[len(a) :]
-    point = np.zeros((ids.max() + 1, 2))
-    point[start], point[stop] = a, b
-    moving = np.flatnonzero(start != stop)
-    # The first segment leaving each point (reversed so the first one wins in the dict).
-    successor = dict(zip(start[moving][::-1].tolist(), moving[::-1].tolist(), strict=True))
-    incoming = set(stop.tolist())
-    used = np.zeros(len(a), dtype=bool)
-    loops: list[WallLoop] = []
-
-    def walk(first: int) -> tuple[list[int], bool]:
-        chain = [int(start[first])]
-        i = first
-        while True:
-            used[i] = True
-            v = int(stop[i])
-            if v == chain[0]:
-                return chain, True
-            chain.append(v)
-            i = successor.get(v, -1)
-            if i < 0 or used[i]:
-                return chain, False
-
-    # Open chains first (from a point with no incoming segment), then the closed loops.
-    for first in [i for i in range(len(a)) if int(start[i]) not in incoming]:
-        if not used[first]:
-            chain, closed = walk(first)
-            loops.append(WallLoop(point[chain], float(z_m), closed))
-    for first in range(len(a)):
-        if not used[first]:
-            chain, closed = walk(first)
-            loops.append(WallLoop(point[chain], float(z_m), closed))
+    # Ends on one point of a MERGE_M grid are one point (they move by under a nanometre);
+    # GEOS chains the oriented segments into closed rings and open lines.
+    segments = shapely.set_precision(shapely.linestrings(np.stack([a, b], axis=1)), MERGE_M)
+    merged = shapely.line_merge(
+        shapely.multilinestrings(segments[~shapely.is_empty(segments)]), directed=True
+    )
+    loops = []
+    for line in shapely.get_parts(merged):
+        points, closed = shapely.get_coordinates(line), bool(line.is_closed)
+        loops.append(WallLoop(points[:-1] if closed else points, float(z_m), closed))
     loops = _stitched([lp for lp in loops if len(lp.points_m) >= 2 and lp.length_m > 1e-6])
     return sorted(loops, key=lambda lp: -lp.length_m)
 
