@@ -361,7 +361,6 @@ def run_demo(
         learning,
         workpiece=cad,
         tool_radius_m=cell.tool.radius_m,
-        robot=cell.robot,
         supervisor=cell_supervisor(cell),
         tolerance_m=settings.tolerance_m,
     )

@@ -328,7 +328,6 @@ class Learning:
                 settings,
                 workpiece=view.cell.workpiece.cad(),  # checks use the mesh the user sees
                 tool_radius_m=view.project.cell.tool_radius_m,
-                robot=view.cell.robot,
                 supervisor=cell_supervisor(view.cell),
                 tolerance_m=view.project.post_settings.tolerance_m,
             )

@@ -15,9 +15,8 @@ STRATEGY  Before: the route is planned (``route.plan_route``: the side, the heig
           faces on the route's side (``route.taught_wall_points``) must be touched by the
           program (within ``TAUGHT_WALL_TOLERANCE_M`` across the axis, among the program's
           points at that height).
-SOLUTION  ``guide_point_warnings(guides, settings, *, workpiece, tool_radius_m, robot,
-          supervisor)`` ->
-          ``GuideWarning``s (1-based point, rule, severity, one line with the fix);
+SOLUTION  ``guide_point_warnings(guides, settings, *, workpiece, tool_radius_m, supervisor)``
+          -> ``GuideWarning``s (1-based point, rule, severity, one line with the fix);
           ``taught_wall_check(...)`` -> ``TaughtWallCheck``.
 """
 
@@ -28,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..cell import GuidePoint
+from ..cell import GuidePoint, Supervisor
 from ..errors import RouteRefusedError, WallSideError
 from ..part import Workpiece
 from ..postprocess import Move, linear_moves, sample_moves
@@ -39,17 +38,16 @@ from .route import (
     PartWalls,
     mean_tool_axis,
     plan_route,
+    right_of_travel,
     taught_wall_points,
-    travel_directions,
 )
 from .run import PathLearningSettings
 
 
 def _point_findings(guides: Sequence[GuidePoint], settings: PathLearningSettings) -> list:
     out: list[GuideWarning] = []
-    axis = mean_tool_axis(guides)
+    axis, right = right_of_travel(guides, settings.closed)
     limit = settings.force_limit_N
-    right = np.cross(axis, travel_directions(guides, settings.closed, axis))
     set_sign = {"right": 1.0, "left": -1.0}.get(settings.wall_side, 0.0)
     for k, g in enumerate(guides):
         number = k + 1
@@ -95,10 +93,9 @@ def _mesh_findings(
 
     out: list[GuideWarning] = []
     closed = settings.closed
-    axis = mean_tool_axis(guides)
+    axis, right = right_of_travel(guides, closed)
     walls = PartWalls(workpiece, axis, tool_radius_m)
     pts = np.array([g.position_m for g in guides])
-    right = np.cross(axis, travel_directions(guides, closed, axis))
     right_gap, left_gap = walls.gaps(pts, right)
     for k in range(len(guides)):
         number = k + 1
@@ -156,8 +153,7 @@ def guide_point_warnings(
     *,
     workpiece: Workpiece | None = None,
     tool_radius_m: float | None = None,
-    robot=None,
-    supervisor=None,
+    supervisor: Supervisor | None = None,
     tolerance_m: float | None = None,
 ) -> tuple[GuideWarning, ...]:
     """What the operator should know before learning (module docstring): the route's refusal,
@@ -168,9 +164,9 @@ def guide_point_warnings(
         settings: The path-learning settings (wall side, force limit, closed, floor clearance).
         workpiece: The part as the user sees it; with ``tool_radius_m``, the mesh checks.
         tool_radius_m: Ball cutter radius.
-        robot: The arm (``robot.Robot``); the run's motion along the route is checked with it
-            (``motion_check``: axis 6's wind-up, the joint ranges, the reach, and with
-            ``supervisor``, the cell's ``Supervisor``, the singularities and the clearances).
+        supervisor: The cell's ``Supervisor`` (with its arm): the run's motion along the route
+            is checked with it (``motion_check``: axis 6's wind-up, the joint ranges, the
+            reach, the singularities and the clearances).
         tolerance_m: The post-processing's deviation-height tolerance: beyond
             ``TAUGHT_WALL_TOLERANCE_M`` the program's moves may cut across the wall by that much,
             said before the run (issue 31: a 4 mm tolerance was accepted, then blamed on the
@@ -195,10 +191,10 @@ def guide_point_warnings(
     out += _point_findings(guides, settings)
     if workpiece is not None and tool_radius_m is not None and len(guides) >= 2:
         out += _mesh_findings(route, guides, settings, workpiece, tool_radius_m)
-    if robot is not None and route is not None:
+    if supervisor is not None and route is not None:
         from .motion_check import motion_findings
 
-        out += motion_findings(robot, route, supervisor)
+        out += motion_findings(route, supervisor)
     if tolerance_m is not None and tolerance_m > th.TAUGHT_WALL_TOLERANCE_M:
         out.append(GuideWarning(0, "tolerance", (
             f"the deviation-height tolerance is {tolerance_m * 1e3:g} mm: the program's straight "

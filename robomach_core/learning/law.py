@@ -47,35 +47,13 @@ _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 # The law's state vector: its entries by name.
 INTEGRAL, LIFT, H_GOAL_LAST, FOUND_WALL, EVER_TOUCHED, OUT_OF_CONTACT = range(6)
 STATE_SIZE = 6
-# The law's parameters (``law_parameters``): their order.
-PARAMETERS = (
-    "force_N",
-    "kp_m_s_N",
-    "ki_m_s2_N",
-    "max_normal_speed_m_s",
-    "search_speed_m_s",
-    "speed_m_s",
-    "beta",
-    "dt_s",
-    "floor_cone_tan",
-    "floor_force_N",
-    "floor_clearance_m",
-    "lift_decay_m",
-    "height_time_s",
-    "height_speed_m_s",
-    "behind_cos",
-    "contact_flag_N",
-    "first_search_across_m",
-    "search_turn_m",
-    "slow_from",
-    "slowest_at",
-    "slowest",
-)
+# The law's parameters (``run.contour_law_parameters``): their places in its vector.
 (
     P_FORCE, P_KP, P_KI, P_VMAX, P_SEARCH, P_SPEED, P_BETA, P_DT, P_CONE, P_FLOOR_N,
     P_CLEARANCE, P_LIFT_DECAY, P_HEIGHT_TIME, P_HEIGHT_SPEED, P_BEHIND, P_CONTACT, P_FIRST,
     P_TURN, P_SLOW_FROM, P_SLOWEST_AT, P_SLOWEST,
-) = range(len(PARAMETERS))  # fmt: skip
+) = range(21)  # fmt: skip
+PARAMETER_COUNT = 21
 
 
 # A leg of the route, one row of ``legs``: start a (3), unit direction xp (3), length, the
@@ -101,14 +79,6 @@ def initial_state() -> np.ndarray:
     state = np.zeros(STATE_SIZE)
     state[H_GOAL_LAST] = np.nan
     return state
-
-
-def law_parameters(**values: float) -> np.ndarray:
-    """The parameter vector of ``contour_law`` from keyword values named as ``PARAMETERS``."""
-    missing = set(PARAMETERS) - set(values)
-    if missing:
-        raise TypeError(f"missing contour-law parameters: {', '.join(sorted(missing))}")
-    return np.array([float(values[name]) for name in PARAMETERS])
 
 
 @_jit
@@ -157,7 +127,7 @@ def contour_law(
         ref: (REF_SIZE,) the height reference under the tool (``REF_H0`` ...).
         p_ref: (3,) the reference TCP position [m].
         state: (STATE_SIZE,) the law's state (``initial_state``); not modified.
-        params: (len(PARAMETERS),) the law's parameters (``law_parameters``).
+        params: (PARAMETER_COUNT,) the law's parameters (``P_FORCE`` ...).
 
     Returns:
         (step (3,) [m] this period, new w, new state, F_n [N], touching).

@@ -16,23 +16,23 @@ STRATEGY  The run's motion is known before it starts: it starts in the first poi
           Axis 6 adds how far the tool turns about its axis round the route, how far the axis
           can, and what to turn: the points, back to the first one's turn (the run already
           starts axis 6 a whole turn either way when that fits).
-SOLUTION  ``motion_findings(robot, route, supervisor=None) -> tuple[GuideWarning, ...]`` (none,
-          or the first limit).
+SOLUTION  ``motion_findings(route, supervisor) -> tuple[GuideWarning, ...]`` (none, or the first
+          limit).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
 
+from ..cell import Supervisor
 from ..errors import RobomachError
 from . import thresholds as th
 from .findings import GuideRule, GuideWarning
 from .route import LearningRoute, Leg
-from .run import start_joints
+from .run import axis6_round_route, start_joints
 
 RULE_OF_CAUSE: dict[str, GuideRule] = {
     "joint limit": "joint_limit",
@@ -73,23 +73,14 @@ def _pose(leg: Leg, p: np.ndarray) -> np.ndarray:
     return T
 
 
-def _joint_limit(robot, q: np.ndarray) -> tuple[int, float] | None:
-    """(axis 0-based, limit) of a joint past its range, without a supervisor."""
-    for j in range(6):
-        if q[j] < robot.lower_rad[j]:
-            return j, float(robot.lower_rad[j])
-        if q[j] > robot.upper_rad[j]:
-            return j, float(robot.upper_rad[j])
-    return None
-
-
-def motion_findings(robot, route: LearningRoute, supervisor=None) -> tuple[GuideWarning, ...]:
+def motion_findings(route: LearningRoute, supervisor: Supervisor) -> tuple[GuideWarning, ...]:
     """The first limit the run's motion along ``route`` meets (module docstring), as a finding;
     () when the arm follows the whole route. ``supervisor``: the cell's
-    (``supervision.cell_supervisor``); without one, the joint ranges and the reach only."""
+    (``supervision.cell_supervisor``), with its arm."""
     samples = _samples(route)
     if not samples:
         return ()
+    robot = supervisor.robot
     q = start_joints(robot, route.guides, route.closed)
     travelled, previous = 0.0, samples[0][1]
     for k, p in samples:
@@ -109,28 +100,13 @@ def motion_findings(robot, route: LearningRoute, supervisor=None) -> tuple[Guide
                 "tool's axis"
             )),)  # fmt: skip
         # each joint's nearest equivalent to the last: the run turns continuously
-        q_new = q + np.array([math.remainder(d, 2 * math.pi) for d in q_new - q])
-        q = q_new
-        stop = supervisor.limit_at(q) if supervisor is not None else None
-        if supervisor is None:
-            crossed = _joint_limit(robot, q)
-            if crossed is None:
-                continue
-            axis = crossed[0] + 1
-            cause, text = (
-                "joint limit",
-                (
-                    f"joint limit: axis {axis} at {math.degrees(q[axis - 1]):.1f} deg (limit "
-                    f"{math.degrees(crossed[1]):.0f} deg)"
-                ),
-            )
-        elif stop is None:
+        q = q + np.array([math.remainder(d, 2 * math.pi) for d in q_new - q])
+        stop = supervisor.limit_at(q)
+        if stop is None:
             continue
-        else:
-            axis, cause, text = stop.axis, stop.cause, stop.message
-        if cause == "joint limit" and axis == 6:
+        if stop.cause == "joint limit" and stop.axis == 6:
             return (_wind_up(robot, route, leg, where, q),)
-        rule = RULE_OF_CAUSE.get(cause, "reach")
+        rule = RULE_OF_CAUSE.get(stop.cause, "reach")
         fix = {
             "joint_limit": "place the part elsewhere (the work object), or teach the points with "
             "the tool turned so the arm stays in range",
@@ -140,7 +116,7 @@ def motion_findings(robot, route: LearningRoute, supervisor=None) -> tuple[Guide
             "clearance": "move the part (the work object) or change the tool's orientation so the "
             "arm and spindle stay clear",
         }[rule]
-        return (_finding(leg, rule, f"the run would stop {where}: {text}; {fix}"),)
+        return (_finding(leg, rule, f"the run would stop {where}: {stop.message}; {fix}"),)
     return ()
 
 
@@ -151,8 +127,8 @@ def _finding(leg: Leg, rule: GuideRule, message: str) -> GuideWarning:
 def _wind_up(robot, route: LearningRoute, leg: Leg, where: str, q: np.ndarray) -> GuideWarning:
     """Axis 6 wound to its end: how far the tool turns round the route, how far the axis can,
     and what to turn."""
-    turns = _tool_turns(robot, route.guides, route.closed)
-    turn = max(turns.values()) - min(turns.values())
+    turns = axis6_round_route(robot, route.guides, route.closed)
+    turn = max(turns) - min(turns)
     span = float(robot.upper_rad[5] - robot.lower_rad[5])
     limit = robot.upper_rad[5] if q[5] > 0 else robot.lower_rad[5]
     said = (
@@ -162,28 +138,10 @@ def _wind_up(robot, route: LearningRoute, leg: Leg, where: str, q: np.ndarray) -
     )
     # The run already starts with axis 6 a whole turn either way when that fits the route
     # (``run.start_joints``): what is left is the turn taught into the points.
-    most = max((k for k in turns if k < len(route.guides)), key=lambda k: abs(turns[k] - turns[0]))
+    points = range(min(len(turns), len(route.guides)))
+    most = max(points, key=lambda k: abs(turns[k] - turns[0]))
     turned = math.degrees(turns[most] - turns[0])
     return _finding(leg, "wrist_turn", (
         f"{said}: keep the tool's turn about its axis the same at every point (G{most + 1} is "
         f"turned {turned:+.0f} deg from G1; a spinning cutter does not mind)"
     ))  # fmt: skip
-
-
-def _tool_turns(robot, guides: Sequence, closed: bool) -> dict[int, float]:
-    """Axis 6's angle at each guide point round the route [rad], each point solved from the
-    last (0-based index; the first point's again at the end of a closed route is not kept)."""
-    q = np.asarray(guides[0].joints_rad, dtype=float)
-    values = {0: float(q[5])}
-    for k in list(range(1, len(guides))) + ([0] if closed else []):
-        try:
-            q_next = robot.ik(guides[k].T_base_tcp, q)
-        except RobomachError:
-            break
-        q_next[5] = q[5] + math.remainder(q_next[5] - q[5], 2 * math.pi)
-        q = q_next
-        if k:
-            values[k] = float(q[5])
-        else:  # back at the first point: the loop's whole turn
-            values[len(guides)] = float(q[5])
-    return values

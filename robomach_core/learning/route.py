@@ -207,6 +207,13 @@ def travel_directions(guides: Sequence[GuidePoint], closed: bool, axis: np.ndarr
     return out
 
 
+def right_of_travel(guides: Sequence[GuidePoint], closed: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(the mean tool axis, (n, 3) the unit right of travel at each point, across the axis;
+    ``travel_directions``): the side a wall on the right is on."""
+    axis = mean_tool_axis(guides)
+    return axis, np.cross(axis, travel_directions(guides, closed, axis))
+
+
 def _points(numbers: Sequence[int] | np.ndarray) -> str:
     return ", ".join(f"G{k + 1}" for k in numbers)
 
@@ -414,8 +421,7 @@ def resolve_wall_side(
         raise InvalidInputError(f"wall side must be one of {', '.join(WALL_SIDE_CHOICES)}")
     if len(guides) < 2:
         raise WallSideError("the wall side needs at least 2 guide points")
-    axis = mean_tool_axis(guides)
-    right = np.cross(axis, travel_directions(guides, closed, axis))
+    axis, right = right_of_travel(guides, closed)
     forces = np.array([np.asarray(g.force_N, dtype=float) for g in guides])
     votes = -np.einsum("ij,ij->i", forces, right)  # > 0: the wall pushed from the right
     clear = np.abs(votes) >= th.WALL_FORCE_CLEAR_N
@@ -494,9 +500,8 @@ def taught_wall_points(
     """The wall point each guide point was taught on: the nearest wall on its side of travel,
     within ``AT_WALL_GAP_M`` of the cutter, at the height it is learned at (``lifted_m`` above
     where it was recorded, off the floor); None where none is."""
-    axis = mean_tool_axis(guides)
-    sign = 1.0 if side == "right" else -1.0
-    towards = np.cross(axis, travel_directions(guides, closed, axis)) * sign
+    axis, right = right_of_travel(guides, closed)
+    towards = right * (1.0 if side == "right" else -1.0)
     reach = th.AT_WALL_GAP_M + walls.radius
     lift = np.zeros(len(guides)) if lifted_m is None or not len(lifted_m) else lifted_m
     return [
@@ -874,7 +879,7 @@ def plan_route(
     legs = tuple(route_legs(guides, closed))
     if not legs:
         raise NotEnoughGuidePointsError("the guide points coincide; record distinct points")
-    axis = mean_tool_axis(guides)
+    axis, right = right_of_travel(guides, closed)
     walls = None
     if workpiece is not None and tool_radius_m is not None:
         walls = PartWalls(workpiece, axis, tool_radius_m)
@@ -888,7 +893,7 @@ def plan_route(
     if walls is None:
         return route
     assert tool_radius_m is not None  # the walls are built with the tool's radius only
-    towards = np.cross(axis, travel_directions(guides, closed, axis)[0]) * decision.sign
+    towards = right[0] * decision.sign
     first = guides[0].position_m - axis * lifted[0]  # at the height it is learned at
     first_wall = walls.wall_point(first, towards, 2 * th.AT_WALL_GAP_M)
     if first_wall is None:  # the part may not be where its mesh is: the run searches by force

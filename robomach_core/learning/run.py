@@ -34,8 +34,9 @@ from ..cell import (
     cell_supervisor,
 )
 from ..cell.supervision.moves import move_joint, move_linear
-from ..errors import CancelledError
+from ..errors import CancelledError, RobomachError
 from ..transforms import quaternions_from_matrices
+from . import law
 from . import thresholds as th
 from .law import (
     REC_CONTACT,
@@ -51,7 +52,6 @@ from .law import (
     REC_YP,
     controller_period,
     initial_state,
-    law_parameters,
     route_height,
 )
 from .route import LearningRoute, Leg, LegEnd
@@ -151,31 +151,38 @@ class Recording:
         return len(self.time_s)
 
 
+def axis6_round_route(robot, guides: Sequence[GuidePoint], closed: bool) -> list[float]:
+    """Axis 6's angle at each guide point round the route [rad], the first point's again at the
+    end of a closed route: each point solved from the last, axis 6 the nearest equivalent of
+    the last (the solver may land a turn away); up to the first point the arm cannot reach."""
+    q = np.asarray(guides[0].joints_rad, dtype=float)
+    out = [float(q[5])]
+    for k in list(range(1, len(guides))) + ([0] if closed else []):
+        try:
+            q_next = robot.ik(guides[k].T_base_tcp, q)
+        except RobomachError:
+            break
+        q_next[5] = q[5] + math.remainder(q_next[5] - q[5], 2 * math.pi)
+        q = q_next
+        out.append(float(q[5]))
+    return out
+
+
 def start_joints(robot, guides: Sequence[GuidePoint], closed: bool) -> np.ndarray:
     """Joints to start from: the first guide point's, with axis 6 shifted by whole turns so the
-    wrist's turn round the route (the guide points solved in order, each seeded by the last)
-    stays inside axis 6's range; the recorded joints when nothing fits better."""
+    wrist's turn round the route (``axis6_round_route``) stays inside axis 6's range; the
+    recorded joints when nothing fits better, or a point is out of reach (the check says so)."""
     q0 = np.asarray(guides[0].joints_rad, dtype=float).copy()
     lo, hi = robot.lower_rad[5], robot.upper_rad[5]
     if hi - lo < 2 * math.pi + 0.5:
         return q0
-    q6 = [q0[5]]
-    seed = q0
-    order = list(range(1, len(guides))) + ([0] if closed else [])
-    for k in order:
-        try:
-            q = robot.ik(guides[k].T_base_tcp, seed)
-        except Exception:  # noqa: BLE001 - an unreachable point is reported by the check
-            return q0
-        # the nearest equivalent of axis 6 to the last (the solver may land a turn away)
-        q[5] = seed[5] + math.remainder(q[5] - seed[5], 2 * math.pi)
-        q6.append(q[5])
-        seed = q
-    lo_need, hi_need = min(q6), max(q6)
+    q6 = axis6_round_route(robot, guides, closed)
+    if len(q6) < len(guides) + closed:
+        return q0
     margin = 0.2
     for turns in sorted(range(-3, 4), key=abs):
         shift = turns * 2 * math.pi
-        if lo_need + shift >= lo + margin and hi_need + shift <= hi - margin:
+        if min(q6) + shift >= lo + margin and max(q6) + shift <= hi - margin:
             q0[5] += shift
             return q0
     return q0
@@ -238,30 +245,24 @@ def _wall_turn(
 
 
 def contour_law_parameters(settings: PathLearningSettings) -> np.ndarray:
-    """The parameter vector of ``law.contour_law`` for these settings."""
-    return law_parameters(
-        force_N=settings.force_N,
-        kp_m_s_N=settings.kp_m_s_N,
-        ki_m_s2_N=settings.ki_m_s2_N,
-        max_normal_speed_m_s=settings.max_normal_speed_m_s,
-        search_speed_m_s=settings.search_speed_m_s,
-        speed_m_s=settings.speed_m_s,
-        beta=min(1.0, CONTROL_PERIOD_S / th.WALL_DIRECTION_TIME_S),
-        dt_s=CONTROL_PERIOD_S,
-        floor_cone_tan=th.FLOOR_CONE_TAN,
-        floor_force_N=th.FLOOR_FORCE_N,
-        floor_clearance_m=settings.floor_clearance_m,
-        lift_decay_m=th.LIFT_DECAY_M,
-        height_time_s=th.HEIGHT_TIME_S,
-        height_speed_m_s=th.HEIGHT_SPEED_M_S,
-        behind_cos=th.BEHIND_COS,
-        contact_flag_N=th.CONTACT_FLAG_N,
-        first_search_across_m=th.FIRST_SEARCH_ACROSS_M,
-        search_turn_m=th.SEARCH_TURN_M,
-        slow_from=th.SLOW_FROM,
-        slowest_at=th.SLOWEST_AT,
-        slowest=th.SLOWEST,
-    )
+    """The parameter vector of ``law.contour_law`` for these settings, each value at its
+    place (``law.P_FORCE`` ...)."""
+    values = {
+        law.P_FORCE: settings.force_N, law.P_KP: settings.kp_m_s_N, law.P_KI: settings.ki_m_s2_N,
+        law.P_VMAX: settings.max_normal_speed_m_s, law.P_SEARCH: settings.search_speed_m_s,
+        law.P_SPEED: settings.speed_m_s, law.P_DT: CONTROL_PERIOD_S,
+        law.P_BETA: min(1.0, CONTROL_PERIOD_S / th.WALL_DIRECTION_TIME_S),
+        law.P_CONE: th.FLOOR_CONE_TAN, law.P_FLOOR_N: th.FLOOR_FORCE_N,
+        law.P_CLEARANCE: settings.floor_clearance_m, law.P_LIFT_DECAY: th.LIFT_DECAY_M,
+        law.P_HEIGHT_TIME: th.HEIGHT_TIME_S, law.P_HEIGHT_SPEED: th.HEIGHT_SPEED_M_S,
+        law.P_BEHIND: th.BEHIND_COS, law.P_CONTACT: th.CONTACT_FLAG_N,
+        law.P_FIRST: th.FIRST_SEARCH_ACROSS_M, law.P_TURN: th.SEARCH_TURN_M,
+        law.P_SLOW_FROM: th.SLOW_FROM, law.P_SLOWEST_AT: th.SLOWEST_AT, law.P_SLOWEST: th.SLOWEST,
+    }  # fmt: skip
+    assert sorted(values) == list(range(law.PARAMETER_COUNT))  # every place filled, once
+    params = np.empty(law.PARAMETER_COUNT)
+    params[list(values)] = list(values.values())
+    return params
 
 
 @dataclass
@@ -275,25 +276,10 @@ class _Protections:
     detour_m: float
     leg_length_m: float
 
-    @staticmethod
-    def of_leg(route: LearningRoute, k: int, settings: PathLearningSettings, radius_m: float):
-        leg = route.legs[k]
-        return _Protections(
-            settings.force_limit_N,
-            th.PENETRATION_STOP_FRACTION * radius_m,
-            max(
-                th.LOST_WALL_M,
-                th.ROUTE_WANDER_FRACTION * leg.length,
-                route.leg_wander_m.get((leg.first, leg.last), 0.0),
-            ),
-            th.LEG_DETOUR_FACTOR * leg.length + th.LEG_DETOUR_EXTRA_M,
-            leg.length,
-        )
-
     def crossed(
         self, f_abs: float, depth: float, searched: float, off_route: float, travel: float
-    ) -> tuple[str, str]:
-        """The first rule crossed, in this order, as (cause, message)."""
+    ) -> tuple[str, str] | None:
+        """The first rule crossed, in this order, as (cause, message); None while none is."""
         if f_abs > self.force_limit_N:
             return "protection", (
                 f"protection: the contact force reached {f_abs:.1f} N, over the "
@@ -313,10 +299,12 @@ class _Protections:
                 f"protection: the wall led the tool {off_route * 1e3:.0f} mm off the leg's "
                 "route, so a guide point may be on another wall"
             )
-        return "lost", (
-            f"protection: the wall of this leg ran {travel * 1e3:.0f} mm, far longer than the "
-            f"{self.leg_length_m * 1e3:.0f} mm leg, so a guide point may be on another wall"
-        )
+        if travel > self.detour_m:
+            return "lost", (
+                f"protection: the wall of this leg ran {travel * 1e3:.0f} mm, far longer than "
+                f"the {self.leg_length_m * 1e3:.0f} mm leg, so a guide point may be on another wall"
+            )
+        return None
 
 
 def learn_path(
@@ -391,15 +379,9 @@ def learn_path(
             # first samples, as the force builds, are below the force filter's band
             settled_at = state.T_base_tcp[:3, 3].copy()
         n += 1
-        depth = state.contact.depth_m
-        if (
-            f_abs > guard.force_limit_N
-            or depth > guard.penetration_m
-            or searched > th.LOST_WALL_M
-            or off_route > guard.wander_m
-            or leg_travel > guard.detour_m
-        ):
-            stop_cause, stop_reason = guard.crossed(f_abs, depth, searched, off_route, leg_travel)
+        crossed = guard.crossed(f_abs, state.contact.depth_m, searched, off_route, leg_travel)
+        if crossed is not None:
+            stop_cause, stop_reason = crossed
             break
         # --- supervision (compiled) and the cell ---
         supervised = supervisor.supervise_increment(state.q_motor, T_ref, step, turn)
@@ -443,11 +425,17 @@ def _leg_watch(
     route: LearningRoute, k: int, settings: PathLearningSettings, tool_radius_m: float
 ) -> tuple[LegEnd, _Protections]:
     """Leg ``k``'s end rule and protections, watched from its start."""
+    leg = route.legs[k]
     last = k + 1 == len(route.legs)
-    end = LegEnd(
-        route.legs[k], route.axis, last=last, closed=route.closed, tool_radius_m=tool_radius_m
+    end = LegEnd(leg, route.axis, last=last, closed=route.closed, tool_radius_m=tool_radius_m)
+    wander = route.leg_wander_m.get((leg.first, leg.last), 0.0)
+    return end, _Protections(
+        settings.force_limit_N,
+        th.PENETRATION_STOP_FRACTION * tool_radius_m,
+        max(th.LOST_WALL_M, th.ROUTE_WANDER_FRACTION * leg.length, wander),
+        th.LEG_DETOUR_FACTOR * leg.length + th.LEG_DETOUR_EXTRA_M,
+        leg.length,
     )
-    return end, _Protections.of_leg(route, k, settings, tool_radius_m)
 
 
 def _stop_at(

@@ -67,7 +67,6 @@ OPEN_RETURN_M = 0.02  # m | a leg that comes back along the other wall of the sa
 HEAVY_CONTACT_FRACTION = 0.5  # x force limit | a guide point recorded pressing this hard is half-way to a stop | force limit
 TOUCH_WITHOUT_PUSH_N = 0.8  # N | a force between this and WALL_FORCE_CLEAR_N touches without telling the side | sensor noise
 MIN_SPACING_M = 0.001  # m | closer guide points give a leg with no direction | fixed
-WRIST_MARGIN_RAD = 0.4  # rad | axis 6's turn round the route must stay this far inside its range | fixed
 MOTION_CHECK_STEP_M = 0.002  # m | the check before a run solves the arm's pose along the route this far apart (the run moves continuously between) | fixed
 
 # --- after learning: is the program on the taught wall -------------------------------------------

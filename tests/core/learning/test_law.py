@@ -18,11 +18,12 @@ from robomach_core.learning.law import (
     LEG_SIZE,
     LIFT,
     OUT_OF_CONTACT,
-    PARAMETERS,
+    P_FORCE,
+    P_SPEED,
+    PARAMETER_COUNT,
     REF_SIZE,
     contour_law,
     initial_state,
-    law_parameters,
     route_height,
     turn_towards,
 )
@@ -183,10 +184,10 @@ def test_the_floor_lifts_the_tool_clear_of_where_it_pushed_and_the_lift_fades_wi
     assert state[LIFT] == pytest.approx(lift * np.exp(-travelled / th.LIFT_DECAY_M), rel=1e-3)
 
 
-def test_parameters_are_all_named():
-    with pytest.raises(TypeError, match="missing"):
-        law_parameters(force_N=10.0)
-    assert len(_params()) == len(PARAMETERS)
+def test_every_parameter_has_its_place():
+    params = _params(force_N=17.0, speed_m_s=0.002)
+    assert params.shape == (PARAMETER_COUNT,) and np.all(np.isfinite(params))
+    assert params[P_FORCE] == 17.0 and params[P_SPEED] == 0.002
 
 
 def test_the_turn_is_rate_limited_and_reaches_the_leg_orientation():

@@ -68,7 +68,7 @@ def test_the_check_says_where_the_run_stops_and_why(k):
     settings = PathLearningSettings(wall_side="right")
     findings = guide_point_warnings(
         guides, settings, workpiece=cell.workpiece, tool_radius_m=cell.tool.radius_m,
-        robot=cell.robot, supervisor=cell_supervisor(cell),
+        supervisor=cell_supervisor(cell),
     )  # fmt: skip
     motion = [f for f in findings if f.rule in ("wrist_turn", "joint_limit", "singularity",
                                                  "reach", "clearance")]  # fmt: skip
