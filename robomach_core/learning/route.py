@@ -331,9 +331,9 @@ class PartWalls:
         hit, d = self._first_wall_that_way(point, towards)
         if d <= reach_m:
             return hit
-        # no wall at all that way (a leg cutting across a concave stretch turns "that way" off
-        # the wall): the wall the point stands by
-        return closest if nearest_ok and math.isinf(d) else None
+        # no wall within reach that way (a leg cutting across a concave stretch, or through
+        # the part, turns "that way" off the wall): the wall the point stands by
+        return closest if nearest_ok else None
 
     def _first_wall_that_way(
         self, point: np.ndarray, towards: np.ndarray

@@ -60,3 +60,27 @@ def test_every_taught_wall_point_lies_on_the_wall_the_person_chose(case):
                 f"{where}: G{k + 1}'s wall point is {d_taught:.2f} mm off the taught wall "
                 f"'{wall}' ({d_other:.2f} mm from '{taught.other}')"
             )
+
+
+def test_a_point_whose_leg_cuts_through_the_part_keeps_the_wall_it_stands_by():
+    """Round an outside edge (the T-boss), a leg's chord may cut through the part: "the way
+    the wall lies" (across the chord) then points off the wall the point stands by. Every point
+    taught beside its wall still gets its wall point on that wall: it is where the run starts
+    and what the check measures (issue 28: 1 sloppy set in 300 started the wrong way and
+    stopped, "searched 30 mm without finding the wall")."""
+    part = part_named("tboss")
+    for set_seed in set_seeds(SEED + 3, SETS):
+        rng = np.random.default_rng(set_seed)
+        cell = part.cell(set_seed % 2**32)
+        pset = people_points(
+            part, cell, rng, wall="boss", closed=bool(rng.random() < 0.5), side_mode="given"
+        )
+        where = f"{replay(SEED)}, set {set_seed}: {pset.description}"
+        guides = pset.guides
+        walls = PartWalls(cell.workpiece, mean_tool_axis(guides), cell.tool.radius_m)
+        found = taught_wall_points(guides, pset.wall_side, pset.closed, walls)
+        taught = part.walls["boss"]
+        for k, p in enumerate(found):
+            assert p is not None, f"{where}: G{k + 1} has no wall point"
+            d = abs(float(taught.signed_distance(part.to_part_mm(cell.workpiece, p))[0][0]))
+            assert d <= ON_WALL_MM, f"{where}: G{k + 1}'s wall point is {d:.2f} mm off the wall"
