@@ -82,6 +82,10 @@ async function applyChoices(root = document) {
     if (!range) continue;
     el.min = range.min;
     el.max = range.max;
+    // A number with a default has it from the core (limits.py), the one place it is written.
+    if (el.value === "" && range.default !== null && range.default !== undefined) {
+      el.value = range.default;
+    }
     if (!el.title) el.title = `${range.label}: ${range.text}`;
   }
   for (const el of root.querySelectorAll("select[data-enum]")) {

@@ -187,6 +187,24 @@ def test_pendant_keeps_the_token_and_finds_the_scene(served: Served, page: Page)
     expect(page.locator("#viser-link")).to_have_text(served.viser_url)
 
 
+def test_pendant_numbers_start_at_the_cores_defaults(
+    served: Served, api: httpx.Client, page: Page
+) -> None:
+    # The force, speed, floor clearance and tolerance are not typed in the page: it reads
+    # them from GET /api/choices (limits.py's defaults, the one place they are written).
+    ranges = api.get("/api/choices").json()["ranges"]
+    open_pendant(page, served)
+    for input_id, name in (
+        ("learn-force", "LEARNING_FORCE_N"),
+        ("learn-speed", "LEARNING_SPEED_MM_S"),
+        ("learn-floor", "FLOOR_CLEARANCE_MM"),
+        ("post-tol", "TOLERANCE_MM"),
+    ):
+        default = ranges[name]["default"]
+        assert default is not None, name
+        expect(page.locator(f"#{input_id}")).to_have_value(re.compile(rf"^{default:g}(\.0)?$"))
+
+
 def test_pendant_loads_the_example(served: Served, api: httpx.Client, page: Page) -> None:
     # The default cell: the water pump, whose scripted operator pushes the robot to a guide
     # point in each straight run of the groove's wall (a job of a few seconds).
