@@ -292,9 +292,9 @@ def taught_wall_check(
             continue
         around = [j % n for j in (k - 1, k, k + 1) if closed or 0 <= j < n]
         h = float(wall_point @ axis)
-        low = min(h, *heights[around]) - th.TAUGHT_WALL_HEIGHT_BAND_M
-        high = max(h, *heights[around]) + th.TAUGHT_WALL_HEIGHT_BAND_M
-        near = (path_height >= low) & (path_height <= high)
+        near = np.zeros(len(path_height), dtype=bool)
+        for taught in (h, *heights[around]):  # its height or a neighbour's, not between them
+            near |= np.abs(path_height - taught) <= th.TAUGHT_WALL_HEIGHT_BAND_M
         if not near.any():
             near[:] = True
         foot = wall_point - axis * h
