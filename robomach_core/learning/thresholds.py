@@ -31,6 +31,7 @@ FLOOR_FORCE_N = 1.5  # N | ... and beyond this (five times the sensor's noise) |
 LIFT_DECAY_M = 0.005  # m | a lift off a floor the route did not know fades over this much travel, then the floor is felt again | fixed: spatial
 HEIGHT_TIME_S = 0.05  # s | the height returns to the route's within about this (a position loop; the route's rate is fed forward) | fixed
 HEIGHT_SPEED_M_S = 0.05  # m/s | the fastest the height loop moves the tool along its axis (a 2 mm step climbed within 3 mm of travel at 20 mm/s) | fixed
+CLIMB_SHARE = 0.5  # x HEIGHT_SPEED_M_S | the advance is slowed where the route's height changes so fast along a leg (a point taught far above a neighbour close by) that following it would take more than this share of the height loop's speed | fixed
 
 # --- following the wall ---------------------------------------------------------------------------
 CONTACT_FLAG_N = 1.0  # N | a measured contact force above this counts as contact | sensor noise

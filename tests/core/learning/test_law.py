@@ -70,19 +70,20 @@ vec = st.lists(st.floats(-30.0, 30.0), min_size=3, max_size=3).map(np.array)
     touched=st.booleans(),
     out_m=st.floats(0.0, 0.02),
     lift=st.floats(0.0, 0.003),
-    offsets=st.tuples(st.floats(-0.005, 0.005), st.floats(-0.005, 0.005)),
+    offsets=st.tuples(st.floats(-0.015, 0.015), st.floats(-0.015, 0.015)),
+    length=st.floats(0.0015, 0.05),
     grad=st.tuples(st.floats(-0.4, 0.4), st.floats(-0.4, 0.4)),
     k=st.sampled_from([1.0, -1.0, -1.1]),
 )
 def test_the_compiled_law_equals_its_reference(
-    force, w_angle, side, p, touched, out_m, lift, offsets, grad, k
+    force, w_angle, side, p, touched, out_m, lift, offsets, length, grad, k
 ):
     w = np.array([np.cos(w_angle), np.sin(w_angle), 0.0])
     state = initial_state()
     state[EVER_TOUCHED] = float(touched)
     state[LIFT] = lift
     state[OUT_OF_CONTACT] = out_m
-    leg = _leg((1, 0.2, 0), offsets=offsets)
+    leg = _leg((1, 0.2, 0), length=length, offsets=offsets)
     ref = _plane(0.001, (grad[0], grad[1], 0.0), k)
     args = (force, w, AXIS, side, leg, ref, p, state, _params())
     got = contour_law(*args)
@@ -92,6 +93,35 @@ def test_the_compiled_law_equals_its_reference(
     assert route_height(leg, ref, p, AXIS) == pytest.approx(
         route_height.py_func(leg, ref, p, AXIS), abs=1e-15
     )
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    rise=st.floats(-0.015, 0.015),
+    length=st.floats(0.0015, 0.05),
+    grad=st.floats(-0.4, 0.4),
+    k=st.sampled_from([1.0, -1.0, -1.1]),
+    speed_mm_s=st.sampled_from([0.5, 1.0, 2.0, 5.0, 10.0, 20.0]),
+)
+def test_the_advance_leaves_the_height_loop_room_to_follow_the_route(
+    rise, length, grad, k, speed_mm_s
+):
+    """Along a leg whose height changes fast (a point taught far above a neighbour close by)
+    the tool advances no faster than the height loop can follow: |v_t dh/ds| within
+    CLIMB_SHARE x HEIGHT_SPEED_M_S; elsewhere at the learning speed."""
+    w = np.array([0.0, -1.0, 0.0])
+    state = initial_state()
+    state[EVER_TOUCHED] = 1.0
+    leg = _leg((1, 0, 0), length=length, offsets=(0.0, rise))
+    ref = _plane(0.0, (grad, 0.0, 0.0), k)
+    params = _params(speed_m_s=speed_mm_s * 1e-3)
+    step, *_ = contour_law(np.array([0.0, 10.0, 0.0]), w, AXIS, 1.0, leg, ref, np.zeros(3), state,
+                           params)  # fmt: skip
+    v_t = step[0] / DT
+    slope = abs(k * rise / length + grad)
+    room = th.CLIMB_SHARE * th.HEIGHT_SPEED_M_S
+    assert v_t * slope <= room * (1 + 1e-9)
+    assert v_t == pytest.approx(min(speed_mm_s * 1e-3, room / max(slope, 1e-9)), rel=1e-9)
 
 
 def test_pressed_at_the_reference_it_slides_along_the_wall():
