@@ -317,23 +317,26 @@ class PartWalls:
         axis): its nearest wall point when that lies that way, else the first wall along it;
         None when none is within ``reach_m``."""
         (closest,), (dist,), (face,) = self._closest(point[None])
-        nearest_ok = False
+        within = False
         if math.isfinite(dist):
             rel3 = closest - point
             rel = rel3 - self.axis * float(rel3 @ self.axis)
+            within = float(np.linalg.norm(rel)) > 1e-9 and dist <= reach_m
             # the foot on a wall face: a wall standing at the point's height, not the edge of
             # one below it (a floor step's riser) nor a corner's
             on_face = -float(rel3 @ face) >= th.FOOT_ON_FACE_COS * float(np.linalg.norm(rel3))
-            nearest_ok = on_face and float(np.linalg.norm(rel)) > 1e-9 and dist <= reach_m
-            # the nearest wall when it lies that way; else the first wall that way
-            if nearest_ok and float(rel @ towards) > 0.0:
+            # the nearest wall when it lies that way (within the fan's angle); else the first
+            # wall that way
+            that_way = math.cos(th.FAN_HALF_ANGLE_RAD) * float(np.linalg.norm(rel))
+            if within and on_face and float(rel @ towards) > that_way:
                 return closest
         hit, d = self._first_wall_that_way(point, towards)
         if d <= reach_m:
             return hit
         # no wall within reach that way (a leg cutting across a concave stretch, or through
-        # the part, turns "that way" off the wall): the wall the point stands by
-        return closest if nearest_ok else None
+        # the part, turns "that way" off the wall): the wall the point stands by, a face or
+        # a corner's edge (beside the end of a boss's bar)
+        return closest if within else None
 
     def _first_wall_that_way(
         self, point: np.ndarray, towards: np.ndarray
