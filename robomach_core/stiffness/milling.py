@@ -393,10 +393,10 @@ def _offline_command(
     qs_nominal: np.ndarray,
 ) -> np.ndarray:
     """(n, 6) joints the offline-compensated program commands at each step: targets every
-    ``TARGET_SPACING_M`` over ``u_range_m`` corrected for the predicted wrench (eq. 32, linear
-    or non-linear), and MoveL between them, so the correction varies linearly between
-    targets. The targets' joints are tracked from ``q_first`` (the seed of the nominal
-    path's), the commanded ones from the nominal path's first joints ``qs_nominal[0]``."""
+    ``TARGET_SPACING_M`` over ``u_range_m`` corrected for the predicted wrench (t_0 - C W, or
+    the non-linear iteration of eq. 32), and MoveL between them, so the correction varies
+    linearly between targets. The targets' joints are tracked from ``q_first`` (the seed of
+    the nominal path's), the commanded ones from the nominal path's first joints."""
     u_start, u_end = u_range_m
     u_targets = np.arange(u_start, u_end + TARGET_SPACING_M, TARGET_SPACING_M)
     T_targets = program_poses(scenario, u_targets)
