@@ -27,6 +27,7 @@ from ._file import recording_from_document as recording_from_document
 from ._file import save_project_file as save_project_file
 from ._file_check import RECORDING_FIELDS as RECORDING_FIELDS
 from ._file_check import ProjectFileError as ProjectFileError
+from ._machining import STOCK_SOURCES as STOCK_SOURCES
 from ._machining import MachiningResult as MachiningResult
 from ._machining import MachiningSetup as MachiningSetup
 from ._machining import capabilities_of as capabilities_of
