@@ -83,8 +83,7 @@ def enums() -> dict[str, tuple[str, ...]]:
     from .machining import COMPENSATION_NAMES
     from .machining.choice import OPTION_NAMES
     from .part import WORKPIECE_NAMES
-    from .project import StageStatus
-    from .project._machining import STOCK_SOURCES
+    from .project import STOCK_SOURCES, StageStatus
     from .robots import ARM_FAMILIES
     from .stiffness.settings import COMPENSATION_SETTINGS
     from .stiffness.studies import StudyName

@@ -43,6 +43,7 @@ from .scoring import PathScore
 from .teaching import intents_from_csv, registered_workpiece, scripted_leadthrough
 
 if TYPE_CHECKING:
+    from .learning import GuideWarning
     from .learning.settings import WallSideSetting
 
 # progress(stage, fraction in [0, 1])
@@ -304,11 +305,7 @@ def run_demo(
             "--propose-guide-points X,Y,Z (a point on the wall, work-object frame, mm) or "
             "--guide-points FILE.csv"
         )
-    cell = Cell(
-        CellConfig(
-            robot=settings.robot, tool=project.tool(), workpiece=workpiece, seed=settings.seed
-        )
-    )
+    cell = _cell(settings, project, workpiece)
     lt = LeadThrough(cell)
     state = lt.start(cell.initial_state())
     fit = None
@@ -317,26 +314,9 @@ def run_demo(
         project = with_registration(project, fit.registration())
         workpiece = registered_workpiece(workpiece, fit.T_base_wobj)
         cad = workpiece.cad()
-        cell = Cell(
-            CellConfig(
-                robot=settings.robot, tool=project.tool(), workpiece=workpiece, seed=settings.seed
-            )
-        )
+        cell = _cell(settings, project, workpiece)
         lt = LeadThrough(cell, estimator=lt.estimator)  # the sensor stays tared
-    intents = proposal = None
-    if settings.guide_points_csv is not None:
-        intents = intents_from_csv(settings.guide_points_csv, cell.robot)
-    elif settings.propose_at_m is not None:
-        proposal, intents, settings = _proposed(settings, cad, cell)
-    if workpiece.nominal is not None and settings.guide_points_csv is None:
-        # The part is not where its mesh is: the operator enters each groove in its middle
-        # and touches the real wall from there (``operator.robust_intents``).
-        from .teaching import guide_plan, robust_intents
-
-        planned = intents or guide_plan(
-            cad, cell.tool.radius_m, np.random.default_rng(settings.seed)
-        )
-        intents = robust_intents(planned, cad, cell.tool.radius_m)
+    intents, proposal, settings = _operator_intents(settings, cad, workpiece, cell)
     state, guides = scripted_leadthrough(
         lt,
         state,
@@ -353,17 +333,7 @@ def run_demo(
         wall_side=settings.wall_side,
         closed=settings.closed,
     )
-    from .cell import cell_supervisor
-    from .learning import guide_point_warnings
-
-    findings = guide_point_warnings(  # what the workbench shows before a run; a refusal raises
-        guides,
-        learning,
-        workpiece=cad,
-        tool_radius_m=cell.tool.radius_m,
-        supervisor=cell_supervisor(cell),
-        tolerance_m=settings.tolerance_m,
-    )
+    findings = _guide_point_findings(settings, guides, learning, cad, cell)
     if checked is not None:
         checked(findings)
     learned, _ = learn(
@@ -412,6 +382,61 @@ def run_demo(
         proposal=proposal,
         findings=findings,
         calibration=fit,
+    )
+
+
+def _cell(settings: DemoSettings, project: Project, workpiece: Workpiece) -> Cell:
+    """The simulated cell: the settings' arm holding the project's tool, at the part the tool
+    meets, seeded by the settings."""
+    return Cell(
+        CellConfig(
+            robot=settings.robot, tool=project.tool(), workpiece=workpiece, seed=settings.seed
+        )
+    )
+
+
+def _operator_intents(
+    settings: DemoSettings, cad: Workpiece, workpiece: Workpiece, cell: Cell
+) -> tuple[Any, Any, DemoSettings]:
+    """How the scripted operator leads the robot: the intents of ``--guide-points``, or those to
+    the guide points proposed through ``--propose-guide-points`` (the proposal comes back, and
+    the settings with the wall's side and whether it is closed), else None (the operator's own
+    plan). On a part that is not where its mesh is, the operator enters each groove in its
+    middle and touches the real wall from there (``teaching.robust_intents``)."""
+    intents = proposal = None
+    if settings.guide_points_csv is not None:
+        intents = intents_from_csv(settings.guide_points_csv, cell.robot)
+    elif settings.propose_at_m is not None:
+        proposal, intents, settings = _proposed(settings, cad, cell)
+    if workpiece.nominal is not None and settings.guide_points_csv is None:
+        from .teaching import guide_plan, robust_intents
+
+        planned = intents or guide_plan(
+            cad, cell.tool.radius_m, np.random.default_rng(settings.seed)
+        )
+        intents = robust_intents(planned, cad, cell.tool.radius_m)
+    return intents, proposal, settings
+
+
+def _guide_point_findings(
+    settings: DemoSettings,
+    guides: list[GuidePoint],
+    learning: PathLearningSettings,
+    cad: Workpiece,
+    cell: Cell,
+) -> tuple[GuideWarning, ...]:
+    """The guide-point check the workbench shows before a run (``learning.guide_point_warnings``
+    against the CAD part, the arm's reach and the cell's supervision); a refusal raises."""
+    from .cell import cell_supervisor
+    from .learning import guide_point_warnings
+
+    return guide_point_warnings(
+        guides,
+        learning,
+        workpiece=cad,
+        tool_radius_m=cell.tool.radius_m,
+        supervisor=cell_supervisor(cell),
+        tolerance_m=settings.tolerance_m,
     )
 
 

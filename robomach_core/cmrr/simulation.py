@@ -119,15 +119,7 @@ def run_study(
     use_current = scenario.feedback == "spindle_current"
     depth_at = scenario.depth_profile
 
-    rec = {
-        k: np.empty(n_max)
-        for k in (
-            "time_s position_m depth_m actual_feed_m_s speed_ratio force_N "
-            "measured_force_N spindle_current_A"
-        ).split()
-    }
-    engaged_rec = np.zeros(n_max, dtype=bool)
-    est_rec = {name: np.full(n_max, np.nan) for name in ctrl.estimate_names}
+    rec, engaged_rec, est_rec = _trace_buffers(n_max, ctrl.estimate_names)
 
     x = robot.initial_state()
     held = 0.0
@@ -192,14 +184,7 @@ def run_study(
     if progress is not None:
         progress(1.0)
 
-    trace = StudyTrace(
-        commanded_feed_m_s=rec["speed_ratio"][:n] * vr,
-        reference_N=np.full(n, scenario.reference_force_N),
-        engaged=engaged_rec[:n],
-        estimates={name: arr[:n] for name, arr in est_rec.items()},
-        truths=_truths(scenario, rec["depth_m"][:n], ctrl.estimate_names),
-        **{k: v[:n] for k, v in rec.items()},
-    )
+    trace = _finished_trace(scenario, ctrl.estimate_names, rec, engaged_rec, est_rec, n)
     summary = summarize(
         scenario,
         ctrl.name,
@@ -209,6 +194,44 @@ def run_study(
         controller_params=ctrl.describe(),
     )
     return StudyResult(scenario, ctrl.name, settings, trace, summary)
+
+
+def _trace_buffers(
+    n_max: int, estimate_names: tuple[str, ...]
+) -> tuple[dict[str, np.ndarray], np.ndarray, dict[str, np.ndarray]]:
+    """Room for ``n_max`` samples of the trace: the scalar signals by ``StudyTrace`` field name,
+    the engaged flags and the controller's estimates (NaN where it gives none)."""
+    rec = {
+        k: np.empty(n_max)
+        for k in (
+            "time_s position_m depth_m actual_feed_m_s speed_ratio force_N "
+            "measured_force_N spindle_current_A"
+        ).split()
+    }
+    engaged_rec = np.zeros(n_max, dtype=bool)
+    est_rec = {name: np.full(n_max, np.nan) for name in estimate_names}
+    return rec, engaged_rec, est_rec
+
+
+def _finished_trace(
+    scenario: Scenario,
+    estimate_names: tuple[str, ...],
+    rec: dict[str, np.ndarray],
+    engaged_rec: np.ndarray,
+    est_rec: dict[str, np.ndarray],
+    n: int,
+) -> StudyTrace:
+    """The first ``n`` samples of the buffers as a ``StudyTrace``: the commanded feed is the
+    applied speed ratio times Vr, and the true values of the estimates come from the scenario's
+    process (``_truths``)."""
+    return StudyTrace(
+        commanded_feed_m_s=rec["speed_ratio"][:n] * scenario.command_speed_m_s,
+        reference_N=np.full(n, scenario.reference_force_N),
+        engaged=engaged_rec[:n],
+        estimates={name: arr[:n] for name, arr in est_rec.items()},
+        truths=_truths(scenario, rec["depth_m"][:n], estimate_names),
+        **{k: v[:n] for k, v in rec.items()},
+    )
 
 
 def cancel_predicate(cancel: CancelFlag | Callable[[], bool] | None) -> Callable[[], bool] | None:

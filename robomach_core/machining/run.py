@@ -29,6 +29,8 @@ STRATEGY  One 4 ms control period at a time along the program's MoveL path:
 SOLUTION  ``run_machining`` returns a ``MachiningRun`` (trace, finished wall at stations,
           summary). The arm's Jacobians are evaluated once per target, so the 4 ms loop is
           scalar arithmetic: C varies over centimetres of path, the allowance over millimetres.
+          Each cut is prepared by ``plan_cut`` (``_plan``: the stations, the controller
+          designed for the cut, the sample budget) and run by ``cut_planned``.
 
 Modelling choices, stated: the TCP runs the MoveL chain through the targets at the move's
 programmed speed (capped), with speed changes between moves ramped at the path acceleration;
@@ -43,7 +45,6 @@ itself.
 
 from __future__ import annotations
 
-import functools
 import math
 import time
 from collections.abc import Callable
@@ -52,32 +53,32 @@ from typing import Any
 
 import numpy as np
 
-from ..cell import CONTROL_PERIOD_S, JointCompliance, Robot, true_joint_compliance
-from ..cmrr.controllers import ControlDesign, make_controller
+from ..cell import CONTROL_PERIOD_S, JointCompliance, Robot
 from ..cmrr.feed_dynamics import FeedDynamics
-from ..cmrr.process import ForceSensorModel, PowerLawForceModel
 from ..cmrr.simulation import CancelFlag as CancelFlag
 from ..cmrr.simulation import ProgressCallback as ProgressCallback
 from ..cmrr.simulation import cancel_predicate
 from ..postprocess import Targets
-from ..stiffness import CompensationSettings
 from ..stiffness.identification import identify_stiffness as identify_stiffness
 from ..stiffness.model import cartesian_compliance
-from ._loop import LoopInputs, _Diverged, run_loop
+from ._loop import _Diverged, run_loop
+from ._plan import FORCE_SUPERVISION_FACTOR as FORCE_SUPERVISION_FACTOR
+from ._plan import CompensationModel as CompensationModel
+from ._plan import CutPlan as CutPlan
+from ._plan import _resolve_model
+from ._plan import plan_cut as plan_cut
+from ._plan import planned_speed_profile as planned_speed_profile
+from ._plan import stiffness_model as stiffness_model
 from .compliance import (
     compliance_blocks,
     normal_compliance_along,
     path_directions,
-    segment_tangents,
 )
-from .design import designed_controller_settings
-from .errors import MachiningSettingsError, SampleLimitError, StockError
+from .errors import MachiningSettingsError
 from .offline import densify_targets as densify_targets
-from .path import arc_length_m, check_normals, check_path, project_onto_path
+from .path import arc_length_m, check_path, project_onto_path
 from .program import (
     as_written,
-    check_constant_feed,
-    constant_feed_m_s,
     design_depth_m,
     machining_program,
 )
@@ -90,18 +91,6 @@ from .summary import steady_force_N as steady_force_N
 from .summary import summarize
 
 MM = 1e-3
-# Simulated time after a controller's protection stop before the run ends [s].
-STOP_TAIL_S = 0.3
-# The controllers are designed for the deepest cut, and no shallower than this [m].
-DESIGN_DEPTH_MIN_M = 0.1 * MM
-# The stock's path and the program's may differ in length (and lie apart) by this much [m].
-PATH_LENGTH_TOLERANCE_M = 1.0 * MM
-# The cell's force supervision stops the robot at this multiple of the force limit (the
-# spindle's overload trip): a cut that runs away is stopped, not simulated to infinity.
-FORCE_SUPERVISION_FACTOR = 2.0
-
-
-CompensationModel = JointCompliance | CompensationSettings
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,16 +132,6 @@ def normal_compliance(
     return out
 
 
-def planned_speed_profile(speed_m_s: np.ndarray, ds_m: float, acceleration_m_s2: float):
-    """The path planner's speed along the stations: the programmed speeds with the speed
-    changes between moves limited to ``acceleration_m_s2`` (v^2 <= v0^2 + 2 a ds forward, and
-    the same backward so the robot slows before a slow move)."""
-    from ._kernel import speed_profile
-
-    v2 = np.asarray(speed_m_s, dtype=float) ** 2
-    return speed_profile(np.ascontiguousarray(v2), 2.0 * acceleration_m_s2 * ds_m)
-
-
 def start_feed_m_s(
     s_m: np.ndarray, plan_s_m: np.ndarray, plan_feed_m_s: np.ndarray, *, duration_s: float = 1.0
 ) -> np.ndarray:
@@ -183,34 +162,6 @@ def predicted_force_N(
     if settings.controller != "constant":
         f = np.minimum(f, settings.reference_N)
     return f
-
-
-def stiffness_model(
-    robot_name: str, settings: MachiningSettings, given: CompensationModel | None = None
-) -> JointCompliance:
-    """The stiffness the compensation uses: ``given`` (a ``JointCompliance`` or the ``model`` of
-    ``CompensationSettings``), else the one the CMM campaign identifies on the arm with the
-    settings' seed, poses and noise (``stiffness.identification.identify_stiffness``)."""
-    if given is None:
-        return identify_stiffness(
-            robot_name,
-            seed=settings.seed,
-            poses=settings.identification_poses,
-            cmm_noise_m=settings.cmm_noise_m,
-        ).model
-    if isinstance(given, CompensationSettings):
-        return given.model
-    if isinstance(given, JointCompliance):
-        return given
-    raise MachiningSettingsError("compensation_model must be a JointCompliance")
-
-
-def _resolve_model(
-    robot: Robot, settings: MachiningSettings, compensation_model: CompensationModel | None
-) -> JointCompliance | None:
-    if settings.compensation == "off":
-        return None
-    return stiffness_model(robot.name, settings, compensation_model)
 
 
 def run_machining(
@@ -339,273 +290,6 @@ def _first_plan(
     v = np.asarray(targets.speed_m_s, dtype=float)[seg]
     planned = np.minimum(v, start_feed_m_s(s_m, s_m, v))
     return predicted_force_N(settings, stock.allowance_m(s_m), planned)
-
-
-@dataclass(frozen=True, eq=False)
-class CutPlan:
-    """A cut prepared up to its loop: the stations along the stock's path and the controller.
-
-    Attributes:
-        settings, stock: as ``cut_program`` takes them.
-        s_st: (n_st,) arc length of the stations [m].
-        inputs: the loop's inputs (``_loop.LoopInputs``), the program's offset included.
-        ctrl_settings: the controller's settings as designed for this cut (None: constant).
-        controller: the controller (None: constant feed); ``packed`` its kernel form.
-        constant_feed_m_s: the constant feed (None for a CMRR controller).
-        d_max: the deepest cut the program is designed for [m] (``program.design_depth_m``);
-            ``model`` the identified stiffness the online compensation uses (None without).
-    """
-
-    settings: MachiningSettings
-    stock: Stock
-    s_st: np.ndarray
-    inputs: Any
-    ctrl_settings: Any
-    controller: Any
-    packed: Any
-    constant_feed_m_s: float | None
-    d_max: float
-    model: JointCompliance | None
-
-
-def _program_offsets(
-    targets: Targets, stock: Stock, nominal: Targets | None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(s_t, offset_t, lateral_t) of the program's targets along the stock's path: paired one
-    for one with ``nominal`` when given, else by projection (``cut_program``)."""
-    P = check_path(targets.position_m)
-    m = len(P)
-    if nominal is not None:
-        P0 = check_path(nominal.position_m)
-        if P0.shape != P.shape:
-            raise StockError(
-                f"the program has {m} targets, its nominal program {len(P0)}: they must pair"
-            )
-        s_t, _, lateral = project_onto_path(P0, stock.path_points_m, stock.wall_normals_m)
-        n_t = _normals_at(stock, s_t)
-        return s_t, np.einsum("ij,ij->i", P - P0, n_t), lateral
-    return project_onto_path(P, stock.path_points_m, stock.wall_normals_m)
-
-
-def _station_directions(
-    stock: Stock,
-    s_st: np.ndarray,
-    s_t: np.ndarray,
-    wall_normals_m: np.ndarray | None,
-    feed_force_ratio: float,
-) -> tuple[np.ndarray, np.ndarray]:
-    """(n, u) at the stations: the wall normal (the stock's, or ``wall_normals_m`` given at the
-    program's targets at ``s_t``) and the process force's direction with the stock's path
-    tangent (``compliance.path_directions``)."""
-    if wall_normals_m is None:
-        return path_directions(stock.path_points_m, stock.wall_normals_m, s_st, feed_force_ratio)
-    given = check_normals(wall_normals_m, len(s_t))
-    n = np.stack([np.interp(s_st, s_t, given[:, i]) for i in range(3)], axis=1)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    u = n - feed_force_ratio * segment_tangents(stock.path_points_m, s_st)
-    return n, u / np.linalg.norm(u, axis=1, keepdims=True)
-
-
-def _normals_at(stock: Stock, s_m: np.ndarray) -> np.ndarray:
-    """(k, 3) unit wall normals of the stock at arc lengths ``s_m``."""
-    n = np.stack([np.interp(s_m, stock.path_s_m, stock.wall_normals_m[:, i]) for i in range(3)], 1)
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
-
-
-def plan_cut(
-    robot: Robot,
-    targets: Targets,
-    wall_normals_m: np.ndarray | None,
-    stock: Stock,
-    settings: MachiningSettings,
-    *,
-    model: JointCompliance | None = None,
-    nominal: Targets | None = None,
-) -> CutPlan:
-    """Everything ``cut_program`` computes before its loop (its docstring)."""
-    P = check_path(targets.position_m)
-    m = len(P)
-    s_t, off_t, lateral = _program_offsets(targets, stock, nominal)
-    L = stock.path_length_m
-    own = arc_length_m(P if nominal is None else nominal.position_m)[-1]
-    if float(np.max(lateral)) > PATH_LENGTH_TOLERANCE_M or abs(own - L) > max(
-        PATH_LENGTH_TOLERANCE_M, 0.01 * L
-    ):
-        raise StockError(
-            f"the stock lies along a {L / MM:.1f} mm path, the program's is {own / MM:.1f} mm "
-            f"long and up to {float(np.max(lateral)) / MM:.1f} mm beside it; build the stock "
-            "on the program's path"
-        )
-    process: PowerLawForceModel = settings.process
-    d_max = design_depth_m(settings, stock.max_allowance_m)
-    truth = true_joint_compliance(robot.name)
-    online = settings.compensation == "online"
-    if online and model is None:
-        model = _resolve_model(robot, settings, None)
-
-    # Stations along the stock's path: allowance, programmed speed (the move's end target's),
-    # the normal compliance (true and identified; ``compliance``), and the program's offset
-    # from the path (MoveL between its targets).
-    ds = settings.station_spacing_m
-    n_st = int(math.floor(L / ds)) + 2
-    s_st = np.arange(n_st) * ds
-    allowance = stock.allowance_m(s_st)
-    seg = np.clip(np.searchsorted(s_t, s_st, side="left"), 1, m - 1)
-    v_prog = planned_speed_profile(
-        np.minimum(np.asarray(targets.speed_m_s, dtype=float)[seg], settings.command_speed_cap_m_s),
-        ds,
-        settings.path_acceleration_m_s2,
-    )
-    if not np.all(v_prog > 0.0):
-        raise MachiningSettingsError("every programmed speed must be positive")
-    N_st, U_st = _station_directions(stock, s_st, s_t, wall_normals_m, settings.feed_force_ratio)
-    # The arm's pose along the path: a corrected program's nominal joints (a correction moves
-    # them by micro-radians; the compliance does not change with it).
-    joints = (targets if nominal is None else nominal).joints_rad
-    c_true = normal_compliance_along(s_t, compliance_blocks(robot, joints, truth), s_st, N_st, U_st)
-    c_hat = np.zeros(n_st)
-    if online:
-        assert model is not None  # resolved above: online compensation has a model
-        c_hat = normal_compliance_along(
-            s_t, compliance_blocks(robot, joints, model), s_st, N_st, U_st
-        )
-    offset = np.interp(s_st, s_t, off_t)
-    is_constant = settings.controller == "constant"
-    constant_feed = constant_feed_m_s(settings, d_max)
-    if is_constant:
-        check_constant_feed(settings, d_max)
-
-    # Feed control, designed for this cut (``design``).
-    dt = CONTROL_PERIOD_S
-    sensor_filter = _sensor_filter(settings.sensor_filter_cutoff_hz, dt)
-    v_top = float(v_prog.max())
-    ctrl_settings = designed_controller_settings(
-        settings,
-        max_depth_m=d_max,
-        speed_m_s=v_top,
-        interaction_stiffness_N_m=1.0 / float(np.mean(c_true)) if np.all(c_true > 0) else None,
-    )
-    design = ControlDesign(
-        dt_s=dt,
-        command_speed_m_s=v_top,
-        reference_force_N=settings.reference_N,
-        min_speed_ratio=settings.min_speed_ratio,
-        nominal_force_gain_N=process.force_gain_N(max(d_max, DESIGN_DEPTH_MIN_M)),
-        nominal_feed_exponent=process.feed_exponent,
-        feed_dynamics=FeedDynamics(),
-        measurement_filter=sensor_filter,
-        control_delay_steps=1,
-    )
-    ctrl = None if ctrl_settings is None else make_controller(ctrl_settings, design)
-
-    slowest = (
-        float(np.min(np.minimum(v_prog, constant_feed)))
-        if is_constant
-        else settings.min_speed_ratio * float(v_prog.min())
-    )
-    worst = int(math.ceil(L / slowest / dt)) + 1
-    if worst > settings.max_samples:
-        raise SampleLimitError(
-            f"this run could need {worst} samples ({worst * dt:.0f} s at the slowest feed "
-            f"{slowest / MM:.2f} mm/s), more than the cap of {settings.max_samples}; raise "
-            "max_samples, the speeds or the minimum speed ratio"
-        )
-    n_max = min(settings.max_samples, 2 * worst + int(STOP_TAIL_S / dt) + 2)
-
-    robot_model = _feed_model(dt)
-    if robot_model.a.shape != (4, 4) or len(sensor_filter.sos) != 1:
-        raise MachiningSettingsError("the machining loop expects eq. (1) and a 2nd-order filter")
-    tau = process.time_constant_s
-    tau_c = 1.0 / (2.0 * math.pi * settings.online_filter_cutoff_hz)
-    typical_feed = (
-        float(np.mean(np.minimum(v_prog, constant_feed)))
-        if is_constant
-        else 0.5 * float(np.mean(v_prog))
-    )
-    inputs = LoopInputs(
-        allowance=allowance,
-        v_prog=v_prog,
-        c_true=c_true,
-        c_hat=c_hat,
-        offset=offset,
-        ds=ds,
-        length=L,
-        dt=dt,
-        constant_feed=float(constant_feed) if is_constant else math.inf,
-        # The stock's material: its coefficient scales K of the process the controller was
-        # designed for.
-        gain_K=process.gain_N * stock.material_factor,
-        alpha_d=process.depth_exponent,
-        beta_f=process.feed_exponent,
-        lag=math.exp(-dt / tau) if tau > 0 else 0.0,
-        sigma=settings.sensor_noise_N,
-        filt=np.ascontiguousarray(sensor_filter.sos[0], dtype=float),
-        filt_z=np.asarray(sensor_filter.initial_state(), dtype=float),
-        feed_a=np.ascontiguousarray(robot_model.a, dtype=float),
-        feed_b=np.ascontiguousarray(robot_model.b, dtype=float),
-        feed_c=np.ascontiguousarray(robot_model.c, dtype=float),
-        online=online,
-        alpha_c=dt / (dt + tau_c),  # the first-order filter of online_compensation_step
-        supervision_N=FORCE_SUPERVISION_FACTOR * settings.force_limit_N,
-        stop_tail_s=STOP_TAIL_S,
-        n_max=n_max,
-        capacity=int(min(n_max, max(4096, 1.3 * L / max(typical_feed, 1e-9) / dt))),
-        seed=settings.seed,
-    )
-    return CutPlan(
-        settings=settings,
-        stock=stock,
-        s_st=s_st,
-        inputs=inputs,
-        ctrl_settings=ctrl_settings,
-        controller=ctrl,
-        packed=_packed(ctrl),
-        constant_feed_m_s=float(constant_feed) if is_constant else None,
-        d_max=d_max,
-        model=model if online else None,
-    )
-
-
-@functools.lru_cache(maxsize=16)
-def _sensor_filter(cutoff_hz: float, dt_s: float) -> Any:
-    """The CMRR feedback's low-pass filter (one design per setting in this process)."""
-    return ForceSensorModel(filter_cutoff_hz=cutoff_hz).make_filter(dt_s)
-
-
-@functools.lru_cache(maxsize=4)
-def _feed_model(dt_s: float) -> Any:
-    """Eq. (1) discretized at ``dt_s`` with the path position (one per period here)."""
-    return FeedDynamics().discretize(dt_s)
-
-
-def _packed(ctrl: Any) -> Any:
-    """The kernel form of ``ctrl`` (``_kernel.pack_controller``); an adaptive LQ's is shared by
-    every cut of this process that designs the same controller, so its table of LQ designs
-    grows once."""
-    from ..cmrr.controllers import AdaptiveLqController
-    from ._kernel import pack_controller
-
-    if not isinstance(ctrl, AdaptiveLqController):
-        return pack_controller(ctrl)
-    d = ctrl.design
-    filt = d.measurement_filter
-    key = (
-        ctrl.settings, ctrl.kf, ctrl.df0, ctrl.vr_mm_s, d.reference_force_N, d.dt_s,
-        d.control_delay_steps, d.min_speed_ratio, d.feed_dynamics,
-        None if filt is None else filt.sos.tobytes(),
-    )  # fmt: skip
-    packed = _LQ_TABLES.get(key)
-    if packed is None:
-        packed = pack_controller(ctrl)
-        if len(_LQ_TABLES) >= 64:
-            _LQ_TABLES.pop(next(iter(_LQ_TABLES)))
-        _LQ_TABLES[key] = packed
-    return packed
-
-
-# Adaptive LQ controllers packed in this process, by their design: their tables of LQ designs
-# grow as cuts meet new Df values, and serve every later cut with the same design.
-_LQ_TABLES: dict[tuple, Any] = {}
 
 
 def cut_program(

@@ -27,21 +27,26 @@ from ._file import recording_from_document as recording_from_document
 from ._file import save_project_file as save_project_file
 from ._file_check import RECORDING_FIELDS as RECORDING_FIELDS
 from ._file_check import ProjectFileError as ProjectFileError
+from ._machining import STOCK_SOURCES as STOCK_SOURCES
 from ._machining import MachiningResult as MachiningResult
 from ._machining import MachiningSetup as MachiningSetup
 from ._machining import capabilities_of as capabilities_of
 from ._machining import choose as choose
-from ._machining import machine as machine
-from ._machining import machining_note as machining_note
-from ._machining import machining_result_document as machining_result_document
-from ._machining import machining_result_from_document as machining_result_from_document
-from ._machining import machining_setup_document as machining_setup_document
-from ._machining import machining_setup_from_document as machining_setup_from_document
 from ._machining import machining_setup_of as machining_setup_of
 from ._machining import stale_settings as stale_settings
 from ._machining import with_machining_result as with_machining_result
 from ._machining import with_machining_setup as with_machining_setup
 from ._machining import with_runnable_choice as with_runnable_choice
+from ._machining_cut import machine as machine
+from ._machining_documents import machining_result_document as machining_result_document
+from ._machining_documents import (
+    machining_result_from_document as machining_result_from_document,
+)
+from ._machining_documents import machining_setup_document as machining_setup_document
+from ._machining_documents import (
+    machining_setup_from_document as machining_setup_from_document,
+)
+from ._machining_program import machining_note as machining_note
 from ._stages import build_cell_workpiece as build_cell_workpiece
 from ._stages import build_workpiece as build_workpiece
 from ._stages import learn as learn

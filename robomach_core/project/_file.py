@@ -23,11 +23,8 @@ from ..learning.run import LearningStop, Recording
 from ..learning.settings import PathLearningSettings
 from ..postprocess import PostprocessSettings
 from ._file_check import RECORDING_FIELDS, ProjectFileError, check_project, read_project_arrays
-from ._machining import (
-    MachiningSetup,
-    machining_setup_document,
-    machining_setup_from_document,
-)
+from ._machining import MachiningSetup
+from ._machining_documents import machining_setup_document, machining_setup_from_document
 from ._stages import build_cell_workpiece, process
 from ._value import CellSettings, LearnedPath, Project, cmrr_document, compensation_document
 

@@ -19,6 +19,10 @@ SOLUTION  ``choose`` saves the configuration: it sets the machining settings' co
           thing. ``program_targets`` then exports the run's corrected program when offline
           compensation is chosen and the machining result holding it is current.
 
+The stage's modules: this one (the setup, the result, the choice and what follows it),
+``_machining_cut`` (``machine``: the program, its stock and the runs), ``_machining_program``
+(what the exported program carries of the choice) and ``_machining_documents`` (JSON forms).
+
 Choice rule (``machining.choice.choose``, the one the CLI, REST and both GUIs use): among the
 completed runs the cell can run (``capabilities_of``) whose peak force stays within the
 limit, those within 5 % of the fastest cycle time; of these the smallest finished-wall max
@@ -29,24 +33,17 @@ from __future__ import annotations
 
 import hashlib
 import json
-from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from ..cell import Robot
 from ..errors import InvalidInputError
-from ..part import Workpiece
 from ..postprocess import Targets
-from ._stages import require_processed
-from ._value import Project, machining_inputs_key
+from ._value import Project
 
 if TYPE_CHECKING:
     from ..stiffness.settings import CompensationSetting
 
-MM = 1e-3
 STOCK_SOURCES = ("builtin", "profile", "mesh")
 # Stocks of a variation sweep (0: the one stock only).
 MAX_VARIATIONS = 1000
@@ -305,65 +302,6 @@ def machining_setup_of(project: Project) -> MachiningSetup:
     return replace(setup, settings=s)
 
 
-def wall_normals_for_project(
-    project: Project, workpiece: Workpiece, targets: Targets
-) -> np.ndarray:
-    """(m, 3) wall normals at the targets, pointing at the tool: from a built-in part's known
-    wall, else from the contact force learned at each target (the wall pushes the tool away
-    from it), made perpendicular to the path and the work object's z."""
-    from ..machining import wall_normals_for_workpiece
-    from ..machining.path import path_tangents
-    from ..transforms import matrix_from_quaternion
-
-    if workpiece.wall is not None:
-        return wall_normals_for_workpiece(workpiece, targets.position_m)
-    from ._stages import require_learned
-
-    rec = require_learned(project).recording
-    forces = np.array(
-        [
-            matrix_from_quaternion(rec.quaternion_wxyz[i]) @ rec.wrench_tool[i, :3]
-            for i in targets.sample_index
-        ]
-    )
-    up = workpiece.T_base_wobj[:3, 2]
-    t = path_tangents(targets.position_m)
-    side = np.cross(up, t)
-    side /= np.maximum(np.linalg.norm(side, axis=1, keepdims=True), 1e-12)
-    sign = np.sign(np.einsum("ij,ij->i", side, forces))
-    sign = np.where(sign == 0.0, 1.0, sign)
-    # One side for the whole contour (the wall does not change sides): the majority's.
-    return side * (1.0 if np.sum(sign) >= 0 else -1.0)
-
-
-def build_stock(
-    project: Project, workpiece: Workpiece, targets: Targets, normals: np.ndarray
-) -> Any:
-    """The stock along the program: built-in from the cell's seed, a profile, or a mesh."""
-    from ..machining import builtin_stock, stock_from_mesh, stock_from_profile
-
-    setup = machining_setup_of(project)
-    r = project.cell.tool_radius_m
-    p = targets.position_m
-    if setup.stock_source == "profile":
-        assert setup.stock_profile_mm is not None  # MachiningSetup requires it for "profile"
-        return stock_from_profile(
-            p, setup.stock_profile_mm, wall_normals_m=normals, tool_radius_m=r
-        )
-    if setup.stock_source == "mesh":
-        from pathlib import Path
-
-        from ..part import mesh_from_bytes
-
-        assert setup.stock_mesh is not None  # MachiningSetup requires it for "mesh"
-        name, data = setup.stock_mesh
-        mesh = mesh_from_bytes(data, Path(name).suffix.lower(), name=Path(name).stem).mesh
-        mesh = mesh.copy()
-        mesh.apply_transform(workpiece.T_base_wobj)
-        return stock_from_mesh(mesh, p, normals, tool_radius_m=r)
-    return builtin_stock(p, project.cell.seed, wall_normals_m=normals, tool_radius_m=r)
-
-
 def compensation_model(project: Project, robot_name: str) -> Any:
     """The identified stiffness: the project's compensation settings when it holds some (on this
     robot), else the simulated CMM campaign of ``machining.stiffness_model``."""
@@ -374,149 +312,6 @@ def compensation_model(project: Project, robot_name: str) -> Any:
     if comp is not None and comp.robot == robot_name:
         return JointCompliance(tuple(comp.joint_stiffness_Nm_rad))
     return stiffness_model(robot_name, machining_setup_of(project).settings)
-
-
-def machine(
-    project: Project,
-    workpiece: Workpiece,
-    robot: Robot,
-    *,
-    controllers: tuple[str, ...] | None = None,
-    compensations: tuple[str, ...] | None = None,
-    progress: Callable[[float], None] | None = None,
-    cancel: Any = None,
-    workers: int | None = 1,
-    cluster: str | None = None,
-) -> MachiningResult:
-    """Cut the project's current program, one configuration or the matrix, on the stock and,
-    with ``MachiningSetup.variations``, on that many stocks drawn from the part's variation.
-
-    ``controllers`` / ``compensations`` None run the chosen one of the project's settings; give
-    tuples for the matrix. ``workers`` local processes (None: every core, 1: this process) or
-    a Dask ``cluster`` address run the cuts (``machining.parallel``); ``cancel`` (flag or
-    callable) raises ``CancelledError``. The result is stamped with
-    ``machining_inputs_key(project)``; store it with ``with_machining_result``.
-
-    Raises:
-        MissingResultError / StaleResultError: no current post-processed program.
-    """
-    from ..export.target_joints import with_target_joints
-    from ..machining import COMPENSATION_NAMES, format_table
-    from ..machining.choice import PEAK_MARGIN, choose, mark_runnable
-    from ..machining.compare import comparison_rows
-    from ..machining.parallel import CutTask, run_tasks
-    from ..machining.variation import StockVariation, draw_stocks, variation_rows
-
-    processed = require_processed(project)
-    # The program the robot runs: each target's joints its inverse kinematics, as exported
-    # (the recorded joints reach a point 0.1-0.25 mm off it), and a circular move's via
-    # point at its move's speed.
-    targets = with_move_speeds(with_target_joints(robot, processed.result.targets), processed.moves)
-    setup = machining_setup_of(project)
-    s = setup.settings
-    normals = wall_normals_for_project(project, workpiece, targets)
-    stock = build_stock(project, workpiece, targets, normals)
-    ctrls = (s.controller,) if controllers is None else tuple(controllers)
-    comps = (s.compensation,) if compensations is None else tuple(compensations)
-    model = compensation_model(project, robot.name) if any(m != "off" for m in comps) else None
-    # A controller's modes run in order in one task: offline rehearses from its off run.
-    modes = tuple(m for m in COMPENSATION_NAMES if m in comps)  # off, offline, online
-    if "offline" in modes and "off" not in modes:
-        modes = ("off", *modes)
-    pairs = [(c, m) for c in ctrls for m in comps]
-    cancelled = _cancel_callable(cancel)
-    drawn: list[Any] = []
-    variation = None
-    if setup.variations:
-        spec = StockVariation()
-        drawn = draw_stocks(stock, setup.variations, project.cell.seed, spec)
-        variation = {
-            "stocks": setup.variations + 1,
-            "drawn": setup.variations,
-            "seed": project.cell.seed,
-            "ranges": spec.describe(),
-            "program": "the nominal stock's: its design, constant feed and offline correction",
-        }
-    share = 1.0 / (1 + len(drawn))
-
-    def task(st: Any, c: str, settings: Any, keep: bool, corrected: Any = None) -> Any:
-        return CutTask(
-            robot.name, robot.T_flange_tcp, targets, normals, st, settings, c, modes, model,
-            keep_runs=keep, program_frame=workpiece.T_base_wobj, corrected=corrected,
-        )  # fmt: skip
-
-    def part(lo: float, hi: float) -> Callable[[float], None] | None:
-        if progress is None:
-            return None
-        return lambda f: progress(lo + (hi - lo) * f)
-
-    # The nominal stock: its runs design the program (constant feed, controllers, offline
-    # correction) every drawn stock is then cut with, as one program meets every casting.
-    first = run_tasks(
-        [task(stock, c, s, True) for c in ctrls], workers=workers, cluster=cluster,
-        progress=part(0.0, share), cancel=cancelled,
-    )  # fmt: skip
-    nominal = {(c, m): first[j][k] for j, c in enumerate(ctrls) for k, m in enumerate(modes)}
-    runs = [nominal[p][0] for p in pairs if nominal[p][0] is not None]
-    refused = {p: why for p in pairs if (why := nominal[p][2]) is not None}
-    rows = comparison_rows(runs, refused=refused, order=pairs)
-    rows = [
-        _plain_row({**(nominal[p][1] or {}), **row}) for p, row in zip(pairs, rows, strict=True)
-    ]
-    if drawn:
-        designed = replace(s, design_depth_m=stock.max_allowance_m)
-        offline = {c: nominal[c, "offline"][0] for c in ctrls if (c, "offline") in nominal}
-        corrected = {c: (run.program, run.nominal) for c, run in offline.items() if run is not None}
-        later = run_tasks(
-            [task(st, c, designed, False, corrected.get(c)) for st in drawn for c in ctrls],
-            workers=workers, cluster=cluster, progress=part(share, 1.0), cancel=cancelled,
-        )  # fmt: skip
-        # later[i * len(ctrls) + j][k]: drawn stock i, controller j, mode k.
-        summaries = [
-            [nominal[p][1]]
-            + [later[i * len(ctrls) + ctrls.index(p[0])][modes.index(p[1])][1]
-               for i in range(len(drawn))]
-            for p in pairs
-        ]  # fmt: skip
-        stats = variation_rows(
-            summaries, pairs, force_limit_N=s.force_limit_N, peak_margin=PEAK_MARGIN
-        )
-        rows = [dict(row, **_plain_row(st)) for row, st in zip(rows, stats, strict=True)]
-    elif progress is not None:
-        progress(1.0)
-    capabilities = capabilities_of(project)
-    rows = mark_runnable(rows, capabilities)
-    pick = choose(rows, capabilities)
-    programs = {
-        f"{r.controller}/{r.compensation}": r.program
-        for r in runs
-        if r.compensation == "offline" and r.program is not None
-    }
-    return MachiningResult(
-        rows=tuple(rows),
-        table_text=format_table(rows, chosen=pick.index),
-        chosen=pick.index,
-        programs=programs,
-        runs=tuple(runs),
-        stock=stock,
-        inputs=machining_inputs_key(project),
-        reason=pick.reason,
-        capabilities=tuple(sorted(capabilities.options)),
-        variation=variation,
-    )
-
-
-def _cancel_callable(cancel: Any) -> Callable[[], bool] | None:
-    if cancel is None:
-        return None
-    is_set = getattr(cancel, "is_set", None)
-    return is_set if callable(is_set) else cancel
-
-
-def _plain_row(row: dict[str, Any]) -> dict[str, Any]:
-    return {
-        k: (float(v) if isinstance(v, (np.floating, np.integer)) else v) for k, v in row.items()
-    }
 
 
 def best_row(
@@ -632,245 +427,6 @@ def cmrr_for(settings: Any, *, designed: Any = None) -> Any:
     )
 
 
-def with_move_speeds(targets: Targets, moves: Any) -> Targets:
-    """``targets`` with each circular move's via point at the speed of its move (the speed
-    the MoveC / movec / CIRC is written with)."""
-    if not moves:
-        return targets
-    speeds = np.array(targets.speed_m_s, dtype=float)
-    for move in moves:
-        if move.via is not None:
-            speeds[move.via] = speeds[move.to]
-    return replace(targets, speed_m_s=speeds)
-
-
-def machining_targets(
-    project: Project, targets: Targets, workpiece: Workpiece | None = None
-) -> Targets | None:
-    """``targets`` with the feeds the chosen machining configuration commands
-    (``machining.program.machining_program``: the learned speeds capped at Vr, at the constant
-    feed the stock allows for ``constant``, rounded down to 0.01 mm/s) and the positions as
-    the files write them (``as_written``): the program the simulation cut; None when the
-    project holds no machining settings."""
-    if not isinstance(project.machining_settings, MachiningSetup):
-        return None
-    from ..machining.program import as_written, design_depth_m, machining_program
-
-    s = machining_setup_of(project).settings
-    targets = with_move_speeds(targets, require_processed(project).moves)
-    if workpiece is None:
-        from ._stages import build_workpiece
-
-        workpiece = build_workpiece(project.cell, project.mesh)
-    depth = s.design_depth_m
-    if depth is None and s.controller == "constant" and s.constant_feed_m_s is None:
-        processed = require_processed(project).result.targets
-        normals = wall_normals_for_project(project, workpiece, processed)
-        depth = build_stock(project, workpiece, processed, normals).max_allowance_m
-    program = machining_program(targets, s, design_depth_m=design_depth_m(s, depth or 0.0))
-    return as_written(program, workpiece.T_base_wobj)
-
-
-def feed_note(project: Project, targets: Targets) -> str:
-    """The header's line on the feeds the program commands."""
-    s = machining_setup_of(project).settings
-    v = np.asarray(targets.speed_m_s, dtype=float) / MM
-    if s.controller == "constant":
-        return (
-            f"feeds as simulated: constant {v.max():.2f} mm/s (the greatest that keeps the "
-            f"{s.force_limit_N:g} N limit at the stock's deepest cut), slower where learned"
-            if v.min() < v.max()
-            else f"feeds as simulated: constant {v.max():.2f} mm/s (the greatest that keeps "
-            f"the {s.force_limit_N:g} N limit at the stock's deepest cut)"
-        )
-    return (
-        f"feeds as simulated: programmed {v.min():.2f}-{v.max():.2f} mm/s (learned, at most "
-        f"{s.command_speed_cap_m_s / MM:g} mm/s), scaled by the {s.controller} feed control "
-        f"holding {s.reference_N:g} N"
-    )
-
-
-def ur_feed_loop(project: Project, workpiece: Workpiece, robot: Robot, targets: Targets) -> Any:
-    """The feed loop a UR program runs for the chosen CMRR controller
-    (``export.urscript_feed``): the controller as the simulation designed it for this program
-    on this stock, its filter and the path acceleration; None for constant feed. Without
-    machining settings, the defaults' (``machining_setup_of``) with the project's CMRR: a UR
-    program of a project with CMRR settings said "CMRR: two-stage" in its header and ran plain
-    moves at the learned feeds."""
-    if project.cmrr is None and not isinstance(project.machining_settings, MachiningSetup):
-        return None
-    s = machining_setup_of(project).settings
-    if s.controller == "constant":
-        return None
-    import copy
-
-    from ..export.urscript_feed import UrFeedLoop
-    from ..machining.run import FORCE_SUPERVISION_FACTOR, plan_cut
-
-    processed = require_processed(project).result.targets
-    normals = wall_normals_for_project(project, workpiece, processed)
-    stock = build_stock(project, workpiece, processed, normals)
-    designed = _designed_settings(project, s.controller)
-    if s.controller_settings is None and designed is not None:
-        s = replace(s, controller_settings=designed)
-    plan = plan_cut(robot, targets, None, stock, replace(s, compensation="off"))
-    if plan.packed is NotImplemented:
-        return None
-    i = plan.inputs
-    return UrFeedLoop(
-        controller=s.controller,
-        reference_N=s.reference_N,
-        packed=copy.deepcopy(plan.packed),
-        filter_sos=tuple(float(v) for v in i.filt),
-        filter_z0=(float(i.filt_z[0]), float(i.filt_z[1])),
-        dt_s=i.dt,
-        acceleration_m_s2=s.path_acceleration_m_s2,
-        force_limit_N=s.force_limit_N,
-        supervision_factor=FORCE_SUPERVISION_FACTOR,
-    )
-
-
-def chosen_program(project: Project) -> tuple[Targets, str] | None:
-    """The corrected program of the chosen offline-compensated run, when the project's machining
-    result holds it and is current; else None (``program_targets`` falls back)."""
-    result = project.machining
-    if not isinstance(project.machining_settings, MachiningSetup) or not isinstance(
-        result, MachiningResult
-    ):
-        return None
-    s = machining_setup_of(project).settings
-    if s.compensation != "offline" or project.status()["machining"] != "current":
-        return None
-    program = result.programs.get(f"{s.controller}/{s.compensation}")
-    if program is None:
-        return None
-    nominal = require_processed(project).result.targets
-    return program, (
-        f"deflection compensation: offline, planned from rehearsals of the {s.controller} cut "
-        f"on the stock, {len(program)} targets from {len(nominal)}"
-    )
-
-
-# --- documents -------------------------------------------------------------------------------
-
-
-def machining_setup_document(setup: MachiningSetup) -> dict[str, Any]:
-    """JSON form of the setup (the stock mesh by file name only)."""
-    from ..machining import settings_to_dict
-
-    return {
-        "settings": settings_to_dict(setup.settings),
-        "stock_source": setup.stock_source,
-        "stock_profile_mm": None
-        if setup.stock_profile_mm is None
-        else [list(p) for p in setup.stock_profile_mm],
-        "stock_mesh": None if setup.stock_mesh is None else setup.stock_mesh[0],
-        "cell_options": None if setup.cell_options is None else list(setup.cell_options),
-        "variations": setup.variations,
-        "campaign_stiffness_Nm_rad": None
-        if setup.campaign_stiffness_Nm_rad is None
-        else list(setup.campaign_stiffness_Nm_rad),
-    }
-
-
-def machining_setup_from_document(doc: dict[str, Any], mesh: tuple[str, bytes] | None = None):
-    """The setup from ``machining_setup_document`` (controller settings back to the defaults)."""
-    from ..machining import MachiningSettings
-
-    values = dict(doc.get("settings") or {})
-    values.pop("controller_settings", None)
-    known = set(MachiningSettings.__dataclass_fields__)
-    settings = MachiningSettings(**{k: v for k, v in values.items() if k in known})
-    profile = doc.get("stock_profile_mm")
-    source = doc.get("stock_source", "builtin")
-    if source == "mesh" and mesh is None:
-        source = "builtin"
-    options = doc.get("cell_options")
-    return MachiningSetup(
-        settings,
-        source,
-        None if profile is None else tuple((float(a), float(b)) for a, b in profile),
-        mesh if source == "mesh" else None,
-        cell_options=None if options is None else tuple(str(o) for o in options),
-        variations=int(doc.get("variations") or 0),
-        campaign_stiffness_Nm_rad=None
-        if doc.get("campaign_stiffness_Nm_rad") is None
-        else tuple(float(k) for k in doc["campaign_stiffness_Nm_rad"]),
-    )
-
-
-def machining_result_document(result: MachiningResult) -> dict[str, Any]:
-    """JSON form of a result: rows, table, choice, inputs and the offline programs."""
-    return {
-        "rows": list(result.rows),
-        "table_text": result.table_text,
-        "chosen": result.chosen,
-        "inputs": result.inputs,
-        "programs": {k: _targets_doc(t) for k, t in result.programs.items()},
-        "reason": result.reason,
-        "capabilities": list(result.capabilities),
-        "variation": result.variation,
-    }
-
-
-def machining_result_from_document(doc: dict[str, Any]) -> MachiningResult:
-    chosen = doc.get("chosen")
-    return MachiningResult(
-        rows=tuple(doc["rows"]),
-        table_text=str(doc["table_text"]),
-        chosen=None if chosen is None else int(chosen),
-        programs={k: _targets_from(v) for k, v in (doc.get("programs") or {}).items()},
-        inputs=str(doc["inputs"]),
-        reason=str(doc.get("reason") or ""),
-        capabilities=tuple(doc.get("capabilities") or ()),
-        variation=doc.get("variation"),
-    )
-
-
-def _targets_doc(t: Targets) -> dict[str, Any]:
-    return {k: np.asarray(v).tolist() for k, v in asdict(t).items()}
-
-
-def _targets_from(doc: dict[str, Any]) -> Targets:
-    return Targets(
-        position_m=np.asarray(doc["position_m"], dtype=float),
-        quaternion_wxyz=np.asarray(doc["quaternion_wxyz"], dtype=float),
-        joints_rad=np.asarray(doc["joints_rad"], dtype=float),
-        speed_m_s=np.asarray(doc["speed_m_s"], dtype=float),
-        curvature_1_m=np.asarray(doc["curvature_1_m"], dtype=float),
-        sample_index=np.asarray(doc["sample_index"], dtype=int),
-    )
-
-
-# --- what the program needs from the cell, and settings of another arm ---------------------
-
-
-def machining_note(project: Project) -> str | None:
-    """The program header's line on the chosen configuration: what it needs from the cell
-    and whether the cell (``capabilities_of``) has it; None without machining settings."""
-    from ..machining.choice import missing, needs_text, requirements
-
-    if not isinstance(project.machining_settings, MachiningSetup):
-        return None
-    s = machining_setup_of(project).settings
-    caps = capabilities_of(project)
-    needs = requirements(s.controller, s.compensation)
-    lacks = set(missing(s.controller, s.compensation, caps))
-    head = f"machining: {s.controller} / {s.compensation}"
-    if not needs:
-        return f"{head}; needs nothing from the cell beyond this program"
-    parts = []
-    for r in needs:
-        if r in lacks:
-            parts.append(f"{needs_text(r, caps)} (MISSING in this cell)")
-        elif r == "feed_override" and caps.family in FEED_OVERRIDE_MEANS:
-            means = FEED_OVERRIDE_MEANS[caps.family]
-            parts.append(f"a force-driven feed override: {means} (the cell has it)")
-        else:
-            parts.append(f"{needs_text(r, caps)} (the cell has it)")
-    return f"{head}; the cell must provide " + " and ".join(parts)
-
-
 def with_runnable_choice(project: Project) -> tuple[Project, str]:
     """The project whose machining choice its cell can run: a part of the chosen
     configuration the cell's controller lacks (after a cell change: a UR10's force-mode feed
@@ -896,14 +452,6 @@ def with_runnable_choice(project: Project) -> tuple[Project, str]:
         f"{project.cell.robot}'s controller does not have here, so it is now {controller} / "
         f"{compensation}. Compare the configurations again to choose among those it can run."
     )
-
-
-# How each family's program carries the force-driven feed override.
-FEED_OVERRIDE_MEANS = {
-    "abb": "FC SpeedChange (FCSpdChgAct in the RAPID module)",
-    "ur": "the URScript program runs its own loop on the UR's force/torque sensor (the RAPID "
-    "module carries FC SpeedChange for an ABB controller)",
-}
 
 
 def stale_settings(project: Project) -> dict[str, str]:

@@ -14,14 +14,8 @@ from ..errors import InvalidInputError
 from ..learning.run import Recording
 from ..part import Workpiece
 from ..postprocess import Targets
-from ._machining import (
-    chosen_program,
-    compensation_for_arm,
-    feed_note,
-    machining_targets,
-    stale_settings,
-    ur_feed_loop,
-)
+from ._machining import compensation_for_arm, stale_settings
+from ._machining_program import chosen_program, feed_note, machining_targets, ur_feed_loop
 from ._stages import require_learned, require_processed
 from ._value import (
     DEFAULT_MODULE_NAME,
@@ -71,7 +65,9 @@ def rapid_header(
         lines.append(cmrr)
     if note is not None:
         lines.append(note)
-    from ._machining import machining_note  # what the chosen configuration needs from the cell
+    from ._machining_program import (
+        machining_note,
+    )  # what the chosen configuration needs from the cell
 
     needs = machining_note(project)
     if needs is not None:
@@ -560,12 +556,8 @@ def result_extras(processed: Any) -> dict[str, Any]:
 
 def _machining_doc(project: Project) -> dict[str, Any] | None:
     """The machining settings, the chosen configuration and the result's figures."""
-    from ._machining import (
-        MachiningResult,
-        MachiningSetup,
-        machining_setup_document,
-        machining_setup_of,
-    )
+    from ._machining import MachiningResult, MachiningSetup, machining_setup_of
+    from ._machining_documents import machining_setup_document
 
     setup = project.machining_settings
     if setup is None:

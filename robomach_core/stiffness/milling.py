@@ -315,23 +315,11 @@ def simulate_milling(
     qs_nominal = _track_ik(robot, Ts_nominal, q_first)
 
     if compensation in ("offline_linear", "offline_nonlinear"):
-        u_targets = np.arange(u_start, u_end + TARGET_SPACING_M, TARGET_SPACING_M)
-        T_targets = program_poses(scenario, u_targets)
-        q_targets = _track_ik(robot, T_targets, q_first)
         assert model is not None  # checked above: every compensation but "off" needs one
-        mode: CompensationMode = "linear" if compensation == "offline_linear" else "nonlinear"
-        T_corrected, _ = compensate_targets_and_joints(
-            robot, T_targets, q_targets, predicted_wrenches(scenario, u_targets), model, mode
-        )
-        twists = np.array([pose_error(a, b) for a, b in zip(T_targets, T_corrected, strict=True)])
-        # MoveL between corrected robtargets: the correction varies linearly between targets.
-        step_twists = np.stack(
-            [np.interp(u_nominal, u_targets, twists[:, j]) for j in range(6)], axis=1
-        )
-        Ts_command = np.array(
-            [apply_twist(T, w) for T, w in zip(Ts_nominal, step_twists, strict=True)]
-        )
-        qs_command = _track_ik(robot, Ts_command, qs_nominal[0])
+        qs_command = _offline_command(
+            robot, scenario, model, compensation, (u_start, u_end), u_nominal, Ts_nominal,
+            q_first, qs_nominal,
+        )  # fmt: skip
     else:
         qs_command = qs_nominal
 
@@ -387,6 +375,59 @@ def simulate_milling(
         if progress is not None and (k % report_every == 0 or k == n - 1):
             progress((k + 1) / n)
 
+    return _milling_run(
+        scenario, compensation, t, u_nominal, Ts_nominal[:, :3, 3], position, axis, wrenches,
+        engaged,
+    )  # fmt: skip
+
+
+def _offline_command(
+    robot: Robot,
+    scenario: MillingScenario,
+    model: JointCompliance,
+    compensation: CompensationSetting,
+    u_range_m: tuple[float, float],
+    u_nominal: np.ndarray,
+    Ts_nominal: np.ndarray,
+    q_first: np.ndarray,
+    qs_nominal: np.ndarray,
+) -> np.ndarray:
+    """(n, 6) joints the offline-compensated program commands at each step: targets every
+    ``TARGET_SPACING_M`` over ``u_range_m`` corrected for the predicted wrench (t_0 - C W, or
+    the non-linear iteration of eq. 32), and MoveL between them, so the correction varies
+    linearly between targets. The targets' joints are tracked from ``q_first`` (the seed of
+    the nominal path's), the commanded ones from the nominal path's first joints."""
+    u_start, u_end = u_range_m
+    u_targets = np.arange(u_start, u_end + TARGET_SPACING_M, TARGET_SPACING_M)
+    T_targets = program_poses(scenario, u_targets)
+    q_targets = _track_ik(robot, T_targets, q_first)
+    mode: CompensationMode = "linear" if compensation == "offline_linear" else "nonlinear"
+    T_corrected, _ = compensate_targets_and_joints(
+        robot, T_targets, q_targets, predicted_wrenches(scenario, u_targets), model, mode
+    )
+    twists = np.array([pose_error(a, b) for a, b in zip(T_targets, T_corrected, strict=True)])
+    step_twists = np.stack(
+        [np.interp(u_nominal, u_targets, twists[:, j]) for j in range(6)], axis=1
+    )
+    Ts_command = np.array([apply_twist(T, w) for T, w in zip(Ts_nominal, step_twists, strict=True)])
+    return _track_ik(robot, Ts_command, qs_nominal[0])
+
+
+def _milling_run(
+    scenario: MillingScenario,
+    compensation: str,
+    t: np.ndarray,
+    u_nominal: np.ndarray,
+    p_nominal: np.ndarray,
+    position: np.ndarray,
+    axis: np.ndarray,
+    wrenches: np.ndarray,
+    engaged: np.ndarray,
+) -> MillingRun:
+    """The pass's ``MillingRun``: the surface the cutter swept and the error the scenario
+    measures, the over-cut depth on the block's centre line (``surface_depth``, the
+    statistics over the whole grid) or the path's lateral error where the cutter is
+    stationary in the cut (``path_lateral``, the Lund paper's)."""
     surface_u, _, height = _swept_surface(scenario, position, axis)
     surface_error = -height
     if scenario.error_measure == "surface_depth":
@@ -395,14 +436,14 @@ def simulate_milling(
         stats = surface_error.reshape(-1)
     else:
         stationary = engaged >= STATIONARY_ENGAGEMENT
-        deviation = (position - Ts_nominal[:, :3, 3]) @ scenario.cross_direction
+        deviation = (position - p_nominal) @ scenario.cross_direction
         error_u = u_nominal[stationary]
         error = deviation[stationary]
         stats = error
     return MillingRun(
         compensation=compensation,
         time_s=t,
-        position_nominal_m=Ts_nominal[:, :3, 3].copy(),
+        position_nominal_m=p_nominal.copy(),
         position_actual_m=position,
         wrench=wrenches,
         engagement=engaged,

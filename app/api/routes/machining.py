@@ -23,7 +23,7 @@ from robomach_core.limits import (
 from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
 from robomach_core.machining.choice import OPTION_NAMES
 from robomach_core.machining.stock import MAX_ALLOWANCE_M, MAX_PROFILE_POINTS, MAX_PROFILE_S_MM
-from robomach_core.project._machining import STOCK_SOURCES
+from robomach_core.project import STOCK_SOURCES
 
 router = APIRouter(prefix="/api/machining", tags=["machining"], responses=ERRORS)
 

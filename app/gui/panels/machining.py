@@ -26,7 +26,7 @@ from robomach_core.limits import (
 )
 from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
 from robomach_core.machining.choice import OPTION_NAMES, OPTION_TEXT, RULE_TEXT
-from robomach_core.project._machining import STOCK_SOURCES
+from robomach_core.project import STOCK_SOURCES
 
 from ..scene import deviation_colors
 from .feedback import guarded, upload_handled
