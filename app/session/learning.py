@@ -345,7 +345,8 @@ class Learning:
         """The wall the next run would follow: its point at each guide point (base frame, None
         where none is near) and one line saying which side and why, or why it cannot tell."""
         from robomach_core.errors import RouteRefusedError
-        from robomach_core.learning.route import PartWalls, taught_wall_points
+        from robomach_core.learning.part_walls import PartWalls
+        from robomach_core.learning.route import taught_wall_points
 
         view = self._session.view()
         workpiece = view.cell.workpiece.cad()

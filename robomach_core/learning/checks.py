@@ -33,9 +33,9 @@ from ..part import Workpiece
 from ..postprocess import Move, linear_moves, sample_moves
 from . import thresholds as th
 from .findings import GuideRule, GuideWarning
+from .part_walls import PartWalls
 from .route import (
     LearningRoute,
-    PartWalls,
     mean_tool_axis,
     plan_route,
     right_of_travel,

@@ -49,6 +49,7 @@ LEG_END_MARGIN_M = 0.002  # m | a leg ends this far before its guide point's pla
 NEAR_END_M = 0.006  # m | ... or at the nearest approach to its guide point, when that comes within this across the axis | gap: twice the farthest a point is left
 END_PASSED_M = 0.001  # m | ... and recedes by this (past the nearest approach; a tool backing off an inside corner for a moment does not end it) | fixed
 CLOSE_LOOP_M = 0.001  # m | a closed route ends at its nearest approach to where the contact first held the set force, within this beyond the cutter's radius (a contact on a corner is on the cutter's arc round it) | tool radius (added to it)
+CLOSE_PASSED_M = 0.0005  # m | ... once the tool has receded this far past that nearest approach (the wall's direction wiggles at slow feeds: a loop that ended at the first step away stopped 1.7 mm short of its start and left a ridge) | fixed
 CLOSE_LOOP_OVERRUN_M = 0.01  # m | ... or this far past the last point's plane | fixed
 
 # --- protections: stop and say why ---------------------------------------------------------------

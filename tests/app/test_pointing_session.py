@@ -45,7 +45,8 @@ def test_a_click_on_the_wall_moves_the_tool_beside_it_and_records_the_point(fast
 def test_clicked_points_leave_the_wall_side_to_path_learning_which_reads_the_mesh(
     fast: Session,
 ):
-    from robomach_core.learning.route import PartWalls, mean_tool_axis, resolve_wall_side
+    from robomach_core.learning.part_walls import PartWalls
+    from robomach_core.learning.route import mean_tool_axis, resolve_wall_side
 
     cad = fast.robot.workpiece.cad()
     for order, side in (((-0.04, 0.04), "right"), ((0.04, -0.04), "left")):

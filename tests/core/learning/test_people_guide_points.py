@@ -17,7 +17,8 @@ from robomach_core.cell import Cell, CellConfig, GuidePoint, LeadThrough
 from robomach_core.cell.simulator import CONTROL_PERIOD_S
 from robomach_core.errors import WallSideError
 from robomach_core.learning.checks import guide_point_warnings, taught_wall_check
-from robomach_core.learning.route import PartWalls, mean_tool_axis, plan_route, resolve_wall_side
+from robomach_core.learning.part_walls import PartWalls
+from robomach_core.learning.route import mean_tool_axis, plan_route, resolve_wall_side
 from robomach_core.learning.run import learn_path
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.postprocess import PostprocessSettings

@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robomach_core.learning.route import PartWalls, mean_tool_axis, taught_wall_points
+from robomach_core.learning.part_walls import PartWalls
+from robomach_core.learning.route import mean_tool_axis, taught_wall_points
 from tests.envelope import part_named, replay, run_seed, set_seeds, tilted_part
 from tests.people_points import people_points
 

@@ -1,0 +1,209 @@
+"""The part's walls for one tool axis, as path learning asks about them: the nearest wall point,
+the wall a guide point faces on its side, the floor under a point, the gaps either side.
+
+PROBLEM   "Is this point at that wall" must have one answer for the route's side, its start,
+          the walk and the taught-wall check, on level, tilted and stepped floors, beside
+          corners and ends of bosses (docs/learning_model.md, "the taught wall").
+STRATEGY  The mesh's wall faces for the tool axis (``mesh_query.wall_faces``) and the whole
+          mesh, in the base frame through the work object: closest points with their faces'
+          normals, rays cast along the floor under a point, and the floor found by a ray down
+          the axis (past a wall that leans over the tool).
+SOLUTION  ``PartWalls(workpiece, axis, tool_radius_m)``: ``nearest``, ``wall_point``,
+          ``gaps``, ``floor``, ``along_floor``, ``faces_from_free_side``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..part import Workpiece, mesh_query
+from . import thresholds as th
+
+
+class PartWalls:
+    """The part's walls for one tool axis (the CAD, in the base frame): the nearest wall point
+    on a side, the floor under a point. The one answer to "is this point at that wall"."""
+
+    def __init__(self, workpiece: Workpiece, axis: np.ndarray, tool_radius_m: float) -> None:
+        T = workpiece.T_base_wobj
+        self.R, self.t = T[:3, :3], T[:3, 3]
+        self.axis, self.radius = axis, tool_radius_m
+        self.mesh = workpiece.mesh
+        self.walls = mesh_query.wall_faces(self.mesh, self.R.T @ axis)
+        self._normals = np.asarray(self.mesh.face_normals)  # trimesh checks its cache per read
+        self._wall_normals = (
+            np.zeros((0, 3)) if self.walls is None else np.asarray(self.walls.face_normals)
+        )
+        self._corners = np.asarray(self.mesh.vertices)[np.asarray(self.mesh.faces)[:, 0]]
+        self._ray = self.mesh.ray
+
+    def nearest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest wall points (k, 3) and their distances (k,) [m] to ``points`` (k, 3)."""
+        closest, dist, _ = self._closest(points)
+        return closest, dist
+
+    def _closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``nearest`` and the unit normals (k, 3) of the wall faces the points lie on (base
+        frame; zero where no walls)."""
+        k = len(points)
+        if self.walls is None:
+            return np.full((k, 3), np.nan), np.full(k, np.inf), np.zeros((k, 3))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            c, d, tri = mesh_query.closest_point(self.walls, (points - self.t) @ self.R)
+        normals = self._wall_normals[tri] @ self.R.T
+        return c @ self.R.T + self.t, np.asarray(d, dtype=float), normals
+
+    def faces_from_free_side(self, point: np.ndarray, direction: np.ndarray, reach: float) -> bool:
+        """True when the first wall along ``direction`` from ``point`` is within ``reach`` and
+        met from its free side: ``point`` stands in the free space beside a wall."""
+        if self.walls is None:
+            return False
+        with mesh_query.LOCK:
+            tri = self.walls.ray.intersects_first(
+                ((point - self.t) @ self.R)[None], (self.R.T @ direction)[None]
+            )[0]
+        if tri < 0:
+            return False
+        n = self.R @ self.walls.face_normals[tri]
+        corner = self.R @ self.walls.vertices[self.walls.faces[tri, 0]] + self.t
+        along = float(n @ (corner - point)) / float(n @ direction)
+        return float(n @ direction) < 0.0 and 0.0 <= along <= reach
+
+    def along_floor(self, point: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """``directions`` (3,) or (k, 3), across the axis, turned into the plane of the floor
+        under ``point`` (one floor for all): the way the cutter moves there. On a tilted floor a
+        ray straight across the axis leaves the groove through its floor, under the walls it
+        was cast at; unchanged where no floor is below."""
+        _, normal = self.floor(point[None])
+        n = normal[0]
+        cos = float(n @ self.axis)
+        if abs(cos) < th.WALL_FACE_MAX_COS:  # no floor (zero normal)
+            return directions
+        tilted = directions - np.multiply.outer(directions @ n / cos, self.axis)
+        return tilted / np.linalg.norm(tilted, axis=-1, keepdims=True)
+
+    def across_ray(self, point: np.ndarray, direction: np.ndarray) -> float:
+        """Distance [m] from ``point`` to the first wall along ``direction`` (inf: none)."""
+        if self.walls is None:
+            return math.inf
+        hits, _, _ = mesh_query.ray_hits(
+            self.walls, ((point - self.t) @ self.R)[None], (self.R.T @ direction)[None]
+        )
+        if not len(hits):
+            return math.inf
+        return float(np.min(np.linalg.norm(hits @ self.R.T + self.t - point, axis=1)))
+
+    def gaps(self, points: np.ndarray, right: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The cutter's gaps [m] to the nearest wall on the right and on the left of each
+        point (``right``: (k, 3) the right of travel at each); inf where none is in reach."""
+        closest, dist = self.nearest(points)
+        r_gap, l_gap = np.full(len(points), np.inf), np.full(len(points), np.inf)
+        for k, p in enumerate(points):
+            if not math.isfinite(dist[k]):
+                continue
+            rel = closest[k] - p
+            rel = rel - self.axis * float(rel @ self.axis)
+            on_right = float(rel @ right[k]) > 0.0
+            gap = float(dist[k]) - self.radius
+            (r_gap if on_right else l_gap)[k] = gap
+            # the wall across: straight away from the nearest one (across a groove, its width)
+            away = -rel / max(float(np.linalg.norm(rel)), 1e-12)
+            other = self.across_ray(p, away) - self.radius
+            (l_gap if on_right else r_gap)[k] = max(other, gap)
+        return r_gap, l_gap
+
+    def wall_point(
+        self, point: np.ndarray, towards: np.ndarray, reach_m: float
+    ) -> np.ndarray | None:
+        """The wall point a point at ``point`` faces in direction ``towards`` (across the
+        axis): its nearest wall point when that lies that way, else the first wall along it;
+        None when none is within ``reach_m``."""
+        (closest,), (dist,), (face,) = self._closest(point[None])
+        within = False
+        if math.isfinite(dist):
+            rel3 = closest - point
+            rel = rel3 - self.axis * float(rel3 @ self.axis)
+            within = float(np.linalg.norm(rel)) > 1e-9 and dist <= reach_m
+            # the foot on a wall face: a wall standing at the point's height, not the edge of
+            # one below it (a floor step's riser) nor a corner's
+            on_face = -float(rel3 @ face) >= th.FOOT_ON_FACE_COS * float(np.linalg.norm(rel3))
+            # the nearest wall when it lies that way (within the fan's angle); else the first
+            # wall that way
+            that_way = math.cos(th.FAN_HALF_ANGLE_RAD) * float(np.linalg.norm(rel))
+            if within and on_face and float(rel @ towards) > that_way:
+                return closest
+        hit, d = self._first_wall_that_way(point, towards)
+        if d <= reach_m:
+            return hit
+        # no wall within reach that way (a leg cutting across a concave stretch, or through
+        # the part, turns "that way" off the wall): the wall the point stands by, a face or
+        # a corner's edge (beside the end of a boss's bar)
+        return closest if within else None
+
+    def _first_wall_that_way(
+        self, point: np.ndarray, towards: np.ndarray
+    ) -> tuple[np.ndarray, float]:
+        """The nearest wall point met by a fan of rays within ``FAN_HALF_ANGLE_RAD`` of
+        ``towards``, each along the floor, on a wall facing back across ``towards``, and its
+        distance [m] (inf: none). One ray straight
+        that way misses the wall where the travel is a chord round a corner (an open route's
+        first point: the way to the next point, round the corner, turns "that way" along the
+        groove)."""
+        if self.walls is None:
+            return np.full(3, np.nan), math.inf
+        side = np.cross(self.axis, towards)
+        angles = np.linspace(-th.FAN_HALF_ANGLE_RAD, th.FAN_HALF_ANGLE_RAD, th.FAN_RAYS)
+        fan = self.along_floor(
+            point, np.cos(angles)[:, None] * towards + np.sin(angles)[:, None] * side
+        )
+        hits, _, tri = mesh_query.ray_hits(
+            self.walls, np.repeat(((point - self.t) @ self.R)[None], len(fan), 0), fan @ self.R
+        )
+        # a wall on that side faces back across it (its normal against ``towards``): the wall
+        # across the groove, met by a ray swung towards it, faces the other way
+        normals = self._wall_normals[tri] @ self.R.T
+        hits = hits[normals @ towards < 0.0]
+        if not len(hits):
+            return np.full(3, np.nan), math.inf
+        hits = hits @ self.R.T + self.t
+        d = np.linalg.norm(hits - point, axis=1)
+        k = int(np.argmin(d))
+        return hits[k], float(d[k])
+
+    def floor(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The floor below each point (k, 3): its height along the axis [m] (nan where no
+        floor lies within ``FLOOR_SEARCH_M`` below the cutter) and its unit normal (k, 3). A
+        ray each, from ``FLOOR_ABOVE_M`` above the cutter; where its first face is a wall (a
+        wall leaning over the tool, met from inside), once more from just past it."""
+        a = self.axis
+        a_w = self.R.T @ a
+        up = self.radius + th.FLOOR_ABOVE_M
+        origins = (np.asarray(points, dtype=float) - a * up - self.t) @ self.R
+        height = np.full(len(origins), np.nan)
+        normal = np.zeros((len(origins), 3))
+        start = np.zeros(len(origins))  # how far along each ray it was cast from
+        todo = np.arange(len(origins))
+        for _ in range(2):
+            with mesh_query.LOCK:
+                tri = self._ray.intersects_first(
+                    origins[todo], np.broadcast_to(a_w, (len(todo), 3))
+                )
+            n_w = self._normals[tri]
+            cos = -(n_w @ a_w)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                along = np.einsum("ij,ij->i", n_w, self._corners[tri] - origins[todo]) / -cos
+            hit = (tri >= 0) & (start[todo] + along <= up + self.radius + th.FLOOR_SEARCH_M)
+            floor = hit & (cos >= th.WALL_FACE_MAX_COS)
+            k = todo[floor]
+            height[k] = (origins[k] + np.outer(along[floor], a_w)) @ a_w + self.t @ a
+            normal[k] = n_w[floor] @ self.R.T
+            again = hit & ~floor  # a wall first: look on from just past it
+            step = along[again] + 1e-6
+            origins[todo[again]] += np.outer(step, a_w)
+            start[todo[again]] += step
+            todo = todo[again]
+            if not len(todo):
+                break
+        return height, normal
