@@ -3,11 +3,13 @@
 Force-threshold filtering drops samples whose contact force is outside [Fmin, Fmax] (corner
 spikes, lost contact), except where the chord bridging the gap would leave them by more than the
 tolerance (``keep_corners``: the tool's arc round a sharp outside corner, out of contact, whose
-chord would cut the corner). Deviation-height reduction (the chapter's fig. 3) approximates the
-contour by straight segments: a chord runs from a start sample to the current sample; the deviation
-height of every intermediate sample is its perpendicular distance from the chord; the current
-sample moves along the contour until some deviation height exceeds the tolerance, and then the
-*previous* sample ends the segment and starts the next. Per-target speeds are slower where the
+chord would cut the corner). A closed loop's samples end at their nearest approach to the
+first kept one (``closed_at_start``: the run goes on a little past its start). Deviation-height
+reduction (the chapter's fig. 3) approximates the contour by straight segments: a chord runs
+from a start sample to the current sample; the deviation height of every intermediate sample is
+its perpendicular distance from the chord; the current sample moves along the contour until
+some deviation height exceeds the tolerance, and then the *previous* sample ends the segment
+and starts the next. Per-target speeds are slower where the
 local curvature is high (section 3.4: about 10 mm/s on average, slower at sharp corners).
 """
 
@@ -370,6 +372,27 @@ def loop_ridge_m(position_m: np.ndarray, tool_radius_m: float) -> float:
     return r if half >= r else r - float(np.sqrt(r * r - half * half))
 
 
+def closed_at_start(points: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``mask`` without a closed loop's samples past its nearest approach to its first kept
+    sample, looked for over the loop's second half by length: the run goes on past its start
+    before it knows it has passed it (``learning.route.LegEnd``), and the program ends where it
+    began instead of cutting that stretch of wall twice. (Elsewhere on a loop a tool passes no
+    nearer its start than across a wall, two radii.)"""
+    kept = np.nonzero(mask)[0]
+    if len(kept) < 3:
+        return mask
+    p = points[kept]
+    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+    second = np.flatnonzero(along > 0.5 * along[-1])
+    if not len(second):
+        return mask
+    d = np.linalg.norm(p[second] - p[0], axis=1)
+    last = int(second[np.argmin(d)])
+    out = mask.copy()
+    out[kept[last + 1 :]] = False
+    return out
+
+
 def postprocess(
     recording,
     guide_quaternions_wxyz: np.ndarray,
@@ -397,6 +420,8 @@ def postprocess(
         rec.position_m, rec.wrench_tool, rec.quaternion_wxyz, settings.contact_stiffness_N_m
     )
     mask = keep_corners(surface, mask, settings.tolerance_m)
+    if closed:
+        mask = closed_at_start(surface, mask)
     kept = np.nonzero(mask)[0]
     pts = surface[kept]
     local = reduce_deviation_height(pts, settings.tolerance_m)

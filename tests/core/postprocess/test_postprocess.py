@@ -253,3 +253,32 @@ def test_a_loops_ridge_is_the_scallop_between_its_end_and_its_start(
         else tool_radius_m - np.sqrt(tool_radius_m**2 - half**2)
     )
     assert ridge == pytest.approx(want, rel=1e-9, abs=1e-12)
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    radius=st.floats(0.01, 0.2),
+    overrun=st.floats(0.0, 0.02),
+    step=st.floats(2e-5, 2e-4),
+    wiggle=st.floats(0.0, 2e-4),
+    approach=st.floats(0.0, 0.001),  # in contact: the force builds within a millimetre
+)
+def test_a_closed_loop_ends_where_it_began(radius, overrun, step, wiggle, approach):
+    """A closed loop's samples run past its start (the run knows it has passed only after);
+    the program keeps them up to its nearest approach to its first kept sample, through the
+    wall's wiggles, and an open route keeps all of them."""
+    from robomach_core.postprocess.targets import closed_at_start
+
+    length = 2 * np.pi * radius + overrun
+    s = np.arange(0.0, length, step)
+    r = radius + wiggle * np.sin(s / 3e-4)
+    pts = np.stack([r * np.cos(s / radius), r * np.sin(s / radius), np.zeros_like(s)], axis=1)
+    # the first samples in the force band come in across the wall, as the tool meets it
+    lead = np.linspace(approach, 0.0, max(2, int(approach / step)), endpoint=False)
+    pts = np.vstack([np.stack([radius + lead, np.zeros_like(lead), np.zeros_like(lead)], 1), pts])
+    mask = np.ones(len(pts), dtype=bool)
+    kept = np.nonzero(closed_at_start(pts, mask))[0]
+    d = np.linalg.norm(pts - pts[0], axis=1)
+    near_end = np.flatnonzero(np.arange(len(pts)) > len(pts) * 0.75)
+    assert kept[-1] == near_end[np.argmin(d[near_end])]  # the nearest approach
+    assert np.array_equal(kept, np.arange(kept[-1] + 1))  # nothing else dropped
