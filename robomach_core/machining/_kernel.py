@@ -29,6 +29,8 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
+from ..cmrr.controllers._fast import lq_command, lq_matching_integral
+
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 
 # Controller kinds of the kernel.
@@ -475,35 +477,6 @@ def _fuzzy_step(
 
 
 @_jit
-def _lq_command(
-    gain: np.ndarray, ff: float, xs: np.ndarray, n: int, delay: int, force: float,
-    integral: float, fr: float,
-) -> float:  # fmt: skip
-    """``adaptive_lq._lq_command``: eq. (13) with the integral state [mm/s]; ``xs`` holds
-    x_hat then the delayed commands."""
-    feedback = 0.0
-    for i in range(n):
-        feedback += gain[i] * xs[i]
-    acc = 0.0
-    for i in range(delay):
-        acc += gain[n + i] * xs[n + i]
-    feedback = feedback + acc + gain[n + delay] * force + gain[n + delay + 1] * integral
-    return -feedback + ff * fr
-
-
-@_jit
-def _matching_integral(
-    gain: np.ndarray, ff: float, xs: np.ndarray, n: int, delay: int, force: float, fr: float,
-    command: float, fallback: float,
-) -> float:  # fmt: skip
-    li = gain[n + delay + 1]
-    if abs(li) < 1e-12:
-        return fallback
-    without = _lq_command(gain, ff, xs, n, delay, force, 0.0, fr)
-    return (without - command) / li
-
-
-@_jit
 def _lq_step(
     fp: np.ndarray, fs: np.ndarray, mats: np.ndarray, vecs: np.ndarray, gains: np.ndarray,
     ffs: np.ndarray, have: np.ndarray, index0: int, force: float, feed_m_s: float,
@@ -517,6 +490,7 @@ def _lq_step(
     delay = int(fp[15])
     o = n + delay  # state offsets
     i_theta = o + 6
+    x_hat, delayed = fs[:n], fs[n:o]
     feed = feed_m_s / 1e-3
     # Kalman measurement update.
     y_hat = 0.0
@@ -568,9 +542,9 @@ def _lq_step(
                 if new_row < 0 or new_row >= have.shape[0] or have[new_row] == 0:
                     return 0.0, new
                 if active:
-                    before = _lq_command(gains[row], ffs[row], fs, n, delay, force, integral, fr)
-                    integral = _matching_integral(
-                        gains[new_row], ffs[new_row], fs, n, delay, force, fr, before, integral
+                    before = lq_command(gains[row], ffs[row], x_hat, delayed, force, integral, fr)
+                    integral = lq_matching_integral(
+                        gains[new_row], ffs[new_row], x_hat, delayed, force, fr, before, integral
                     )
                 index, row = new, new_row
                 fs[i_theta + 6] = float(index)
@@ -579,12 +553,12 @@ def _lq_step(
         if not adapt or rel_std < activation:
             active = True
             current = startup * vr if delay == 0 else fs[n + delay - 1]
-            integral = _matching_integral(
-                gains[row], ffs[row], fs, n, delay, force, fr, current, integral
+            integral = lq_matching_integral(
+                gains[row], ffs[row], x_hat, delayed, force, fr, current, integral
             )
     gain = gains[row]
     if active:
-        u = _lq_command(gain, ffs[row], fs, n, delay, force, integral, fr) / vr
+        u = lq_command(gain, ffs[row], x_hat, delayed, force, integral, fr) / vr
         ratio = 1.0 if u >= 1.0 else (low if u <= low else u)
         error = fr - force
         pushing = (ratio >= 1.0 and error > 0.0) or (ratio <= low and error < 0.0)

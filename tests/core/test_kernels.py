@@ -500,7 +500,15 @@ _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
         **dict.fromkeys(("increment_proposal", "supervise_increment"), SUPERVISED),
     },
     "robomach_core.cmrr.controllers._fast": dict.fromkeys(
-        ("_memberships", "_fuzzy_infer", "_lq_estimate", "_lq_act"), FAST_COPIES
+        (
+            "_memberships",
+            "_fuzzy_infer",
+            "_lq_estimate",
+            "_lq_act",
+            "lq_command",
+            "lq_matching_integral",
+        ),
+        FAST_COPIES,
     ),
     "robomach_core.machining._kernel": {
         **dict.fromkeys(
@@ -513,8 +521,6 @@ _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
                 "_fuzzy_infer",
                 "_switch_level",
                 "_fuzzy_step",
-                "_lq_command",
-                "_matching_integral",
                 "_lq_step",
             ),
             "tests/core/machining/test_kernel.py::test_the_compiled_loop_equals_the_reference",

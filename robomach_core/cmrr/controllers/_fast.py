@@ -20,7 +20,7 @@ from collections.abc import Callable
 import numba
 import numpy as np
 
-from .adaptive_lq import AdaptiveLqController, _matching_integral
+from .adaptive_lq import AdaptiveLqController
 from .base import Measurement
 from .fuzzy import (
     ERROR_TERMS,
@@ -319,6 +319,41 @@ def _lq_estimate(
 
 
 @_jit
+def lq_command(
+    gain: np.ndarray, feedforward: float, x_hat: np.ndarray, delayed: np.ndarray, force: float,
+    integral: float, fr: float,
+) -> float:  # fmt: skip
+    """``adaptive_lq._lq_command``, eq. (13) with the integral state [mm/s]: -L [x_hat;
+    delayed; F; xi] + lr Fr, summed in one fixed order (x_hat, the delayed commands, then F
+    and xi). The machining kernel calls this very function: the reference loop and the
+    compiled one then agree to the last bit, where two orders of the same sum parted by an
+    ulp, and an ulp moved the LQ's Df grid switch by a sample at a knife edge (issue 29)."""
+    n = x_hat.shape[0]
+    feedback = 0.0
+    for i in range(n):
+        feedback += gain[i] * x_hat[i]
+    for i in range(delayed.shape[0]):
+        feedback += gain[n + i] * delayed[i]
+    o = n + delayed.shape[0]
+    feedback = feedback + gain[o] * force + gain[o + 1] * integral
+    return -feedback + feedforward * fr
+
+
+@_jit
+def lq_matching_integral(
+    gain: np.ndarray, feedforward: float, x_hat: np.ndarray, delayed: np.ndarray, force: float,
+    fr: float, command: float, fallback: float,
+) -> float:  # fmt: skip
+    """``adaptive_lq._matching_integral``: the integral state for which the design (``gain``,
+    ``feedforward``) commands ``command`` at this state (``fallback`` without an integral)."""
+    li = gain[x_hat.shape[0] + delayed.shape[0] + 1]
+    if abs(li) < 1e-12:
+        return fallback
+    without = lq_command(gain, feedforward, x_hat, delayed, force, 0.0, fr)
+    return (without - command) / li
+
+
+@_jit
 def _lq_act(
     gain: np.ndarray, feedforward: float, x_hat: np.ndarray, delayed: np.ndarray, force: float,
     integral: float, fr: float, vr: float, low: float, active: bool, startup: float, dt: float,
@@ -329,12 +364,7 @@ def _lq_act(
     integral)."""
     n = x_hat.shape[0]
     if active:
-        feedback = gain[-2] * force + gain[-1] * integral
-        for i in range(n):
-            feedback += gain[i] * x_hat[i]
-        for i in range(delayed.shape[0]):
-            feedback += gain[n + i] * delayed[i]
-        u = (-feedback + feedforward * fr) / vr
+        u = lq_command(gain, feedforward, x_hat, delayed, force, integral, fr) / vr
         ratio = 1.0 if u >= 1.0 else (low if u <= low else u)
         error = fr - force
         pushing = (ratio >= 1.0 and error > 0.0) or (ratio <= low and error < 0.0)
@@ -416,10 +446,14 @@ class _LqStepper:
                 old = self.lq
                 lq = ctrl.solve(grid_df)
                 if self.active:
-                    before = _command(old, self.x_hat, self.delayed, force, self.integral, fr)
-                    self.integral = _matching_integral(
-                        lq, self.x_hat, self.delayed, force, fr, before, self.integral
-                    )
+                    before = lq_command(
+                        self.gain, old.feedforward, self.x_hat, self.delayed, force,
+                        self.integral, fr,
+                    )  # fmt: skip
+                    self.integral = lq_matching_integral(
+                        np.ascontiguousarray(lq.gain), lq.feedforward, self.x_hat,
+                        self.delayed, force, fr, before, self.integral,
+                    )  # fmt: skip
                 self.lq, self.gain, self.grid_key = lq, np.ascontiguousarray(lq.gain), grid_df
                 self._set_cell()
         if not self.active and self.time_s >= s.min_startup_s:
@@ -428,20 +462,13 @@ class _LqStepper:
                 self.active = True
                 last = float(self.delayed[-1]) if self.delayed.shape[0] else None
                 current = s.startup_speed_ratio * ctrl.vr_mm_s if last is None else last
-                self.integral = _matching_integral(
-                    self.lq, self.x_hat, self.delayed, force, fr, current, self.integral
-                )
+                self.integral = lq_matching_integral(
+                    self.gain, self.lq.feedforward, self.x_hat, self.delayed, force, fr,
+                    current, self.integral,
+                )  # fmt: skip
         ratio, self.integral = _lq_act(
             self.gain, self.lq.feedforward, self.x_hat, self.delayed, force, self.integral, fr,
             ctrl.vr_mm_s, d.min_speed_ratio, self.active, s.startup_speed_ratio, d.dt_s,
             self.phi, self.gamma,
         )  # fmt: skip
         return ratio, False
-
-
-def _command(lq, x_hat, delayed, force, integral, fr) -> float:
-    """``adaptive_lq._lq_command`` (eq. 13 with the integral state) on plain arrays."""
-    n = x_hat.shape[0]
-    g = lq.gain
-    feedback = float(g[:n] @ x_hat) + float(g[n:-2] @ delayed) + g[-2] * force + g[-1] * integral
-    return -feedback + lq.feedforward * fr

@@ -1,14 +1,18 @@
 """The compiled machining loop (``machining._kernel``) equals its Python reference
 (``machining._loop.cut_loop``, the controllers through ``_fast``, itself tested against each
 controller's public step), sample for sample, over generated stocks and settings, including
-the adaptive LQ's growing table of designs, stops and the online compensation."""
+the adaptive LQ's growing table of designs, stops and the online compensation.
+
+Equal to the last bit, not within a tolerance: the two run the same operations in the same
+order (the LQ's command is one function both call), and must. A tolerance hid an ulp that the
+adaptive LQ's Df grid switch turned, at a knife edge, into a switch a sample later and a cut
+6 samples longer (issue 29: seed 3961, adaptive-lq/online, limit 228 N, material 2.5)."""
 
 from __future__ import annotations
 
 from dataclasses import replace
 
 import numpy as np
-import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -28,13 +32,12 @@ def _same(a, b) -> None:
     assert len(a.trace) == len(b.trace)
     for name in TRACE:
         x, y = getattr(a.trace, name), getattr(b.trace, name)
-        np.testing.assert_allclose(x, y, rtol=1e-9, atol=1e-12, err_msg=name)
-    for key in ("completed", "stop_reason", "cycle_time_s", "stop_time_s"):
+        np.testing.assert_array_equal(x, y, err_msg=name)
+    for key in (
+        "completed", "stop_reason", "cycle_time_s", "stop_time_s", "force_peak_N",
+        "wall_error_max_mm",
+    ):  # fmt: skip
         assert a.summary[key] == b.summary[key], key
-    assert a.summary["force_peak_N"] == pytest.approx(b.summary["force_peak_N"], rel=1e-9)
-    assert a.summary["wall_error_max_mm"] == pytest.approx(
-        b.summary["wall_error_max_mm"], rel=1e-9, abs=1e-12
-    )
 
 
 @given(
