@@ -21,7 +21,6 @@ SOLUTION  ``cut_kernel`` and ``pack_controller``; ``run.cut_program`` calls them
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -29,7 +28,12 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from ..cmrr.controllers._fast import lq_command, lq_matching_integral
+from ..cmrr.controllers._fast import (
+    _fuzzy_infer,
+    lq_command,
+    lq_matching_integral,
+    output_set_table,
+)
 
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
 
@@ -60,7 +64,7 @@ class PackedController:
         kind: ``KIND_*``.
         fp: float parameters; ``fs`` the float state (copied for every run).
         stages, rules, set_idx, set_val, universe: the fuzzy controller's tables (output
-            sets by ``sparse_sets``; empty otherwise).
+            sets by ``_fast.sparse_sets``; empty otherwise).
         lq_*: the adaptive LQ's matrices and its table of designs on the Df grid
             (``lq_index0`` the grid index of row 0; rows not designed yet have ``lq_have`` 0).
         first_ratio: the speed ratio before the first command.
@@ -73,8 +77,8 @@ class PackedController:
     first_ratio: float
     stages: np.ndarray = field(default_factory=lambda: np.zeros(1))
     rules: np.ndarray = field(default_factory=lambda: np.zeros((1, 4), dtype=np.int64))
-    set_idx: np.ndarray = field(default_factory=lambda: np.zeros((1, 1), dtype=np.int64))
-    set_val: np.ndarray = field(default_factory=lambda: np.zeros((1, 1)))
+    set_idx: np.ndarray = field(default_factory=lambda: np.full((1, 2), -1, dtype=np.int64))
+    set_val: np.ndarray = field(default_factory=lambda: np.zeros((1, 2)))
     universe: np.ndarray = field(default_factory=lambda: np.zeros(1))
     lq_mats: np.ndarray = field(default_factory=lambda: np.zeros((1, 1)))
     lq_vecs: np.ndarray = field(default_factory=lambda: np.zeros((1, 1)))
@@ -205,7 +209,7 @@ def _pack_fuzzy(ctrl) -> PackedController:
             s0.protection_time_s, 1.0 if s0.stopped else 0.0, s0.since_switch_s,
         ]
     )  # fmt: skip
-    set_idx, set_val = _sparse_output_sets()
+    set_idx, set_val = output_set_table()
     return PackedController(
         KIND_FUZZY, fp, fs, ctrl.initial_speed_ratio,
         stages=np.array(f.stages, dtype=float), rules=_rule_table(), set_idx=set_idx,
@@ -344,84 +348,6 @@ def _adaptive_pi_step(fp: np.ndarray, fs: np.ndarray, force_N: float, feed_m_s: 
         integral = min(max(integral + ki * error * dt, low), 1.0)
     fs[0], fs[1], fs[2], fs[3], fs[4], fs[5], fs[6] = integral, t0, t1, p00, p01, p10, p11
     return u
-
-
-@_jit
-def _memberships(x: float, lo: float, hi: float, count: int, out: np.ndarray) -> None:
-    """``fuzzy.triangular_memberships`` of ``count`` evenly spaced centres in [lo, hi] into
-    ``out``."""
-    width = (hi - lo) / (count - 1)
-    xc = min(max(x, lo), hi)
-    for i in range(count):
-        g = 1.0 - abs(xc - (lo + i * width)) / width
-        out[i] = g if g > 0.0 else 0.0
-
-
-@_jit
-def _fuzzy_infer(
-    e: float, de: float, ratio: float, lo: float, hi: float, rules: np.ndarray,
-    set_idx: np.ndarray, set_val: np.ndarray, universe: np.ndarray, scratch: np.ndarray,
-) -> tuple[float, float]:  # fmt: skip
-    """``_fast._fuzzy_infer`` (Mamdani inference, centroid over the output universe) with the
-    output sets stored sparsely: at each universe point only the (at most two) sets that are
-    not zero there (the aggregate is a max, so the zeros never count: the same numbers)."""
-    mu_e = scratch[0:5]
-    mu_de = scratch[5:8]
-    mu_u = scratch[8:11]
-    strength = scratch[11:16]
-    _memberships(e, -1.0, 1.0, 5, mu_e)
-    _memberships(de, -1.0, 1.0, 3, mu_de)
-    _memberships(ratio, lo, hi, 3, mu_u)
-    for o in range(5):
-        strength[o] = 0.0
-    stop = 0.0
-    for r in range(rules.shape[0]):
-        w = 1.0
-        if rules[r, 0] >= 0:
-            w = min(w, mu_e[rules[r, 0]])
-        if rules[r, 1] >= 0:
-            w = min(w, mu_de[rules[r, 1]])
-        if rules[r, 2] >= 0:
-            w = min(w, mu_u[rules[r, 2]])
-        o = rules[r, 3]
-        if o < 0:
-            stop = max(stop, w)
-        elif w > strength[o]:
-            strength[o] = w
-    area = 0.0
-    moment = 0.0
-    for j in range(universe.shape[0]):
-        a = 0.0
-        for q in range(set_idx.shape[1]):
-            o = set_idx[j, q]
-            if o >= 0:
-                v = min(strength[o], set_val[j, q])
-                if v > a:
-                    a = v
-        area += a
-        moment += a * universe[j]
-    return (moment / area if area > 0.0 else 0.0), stop
-
-
-@functools.cache
-def _sparse_output_sets() -> tuple[np.ndarray, np.ndarray]:
-    from ..cmrr.controllers.fuzzy import OUTPUT_SETS
-
-    return sparse_sets(np.asarray(OUTPUT_SETS, dtype=float))
-
-
-def sparse_sets(sets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(index (k, w), value (k, w)) of the output sets not zero at each universe point (-1 and
-    0 pad), from ``sets`` (n_sets, k)."""
-    nonzero = sets > 0.0
-    width = max(1, int(nonzero.sum(axis=0).max()))
-    idx = np.full((sets.shape[1], width), -1, dtype=np.int64)
-    val = np.zeros((sets.shape[1], width))
-    for j in range(sets.shape[1]):
-        on = np.flatnonzero(nonzero[:, j])
-        idx[j, : len(on)] = on
-        val[j, : len(on)] = sets[on, j]
-    return idx, val
 
 
 @_jit

@@ -517,8 +517,6 @@ _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
                 "_power",
                 "_fixed_pi_step",
                 "_adaptive_pi_step",
-                "_memberships",
-                "_fuzzy_infer",
                 "_switch_level",
                 "_fuzzy_step",
                 "_lq_step",
