@@ -709,6 +709,26 @@ def lowest_reach(station: np.ndarray, tool_normal: np.ndarray, n_st: int) -> np.
 
 
 @_jit
+def ball_envelope(reach: np.ndarray, rise: np.ndarray) -> np.ndarray:
+    """The lowest reach of the ball at each station, ``summary.ball_envelope_reference``
+    compiled: each station's own reach, and its neighbours' ``shift`` stations away lifted
+    by ``rise[shift - 1]``, the ball's profile there (the same minima in the same order)."""
+    envelope = reach.copy()
+    n = reach.shape[0]
+    for shift in range(1, rise.shape[0] + 1):
+        lift = rise[shift - 1]
+        for i in range(shift, n):
+            v = reach[i - shift] + lift
+            if v < envelope[i]:
+                envelope[i] = v
+        for i in range(n - shift):
+            v = reach[i + shift] + lift
+            if v < envelope[i]:
+                envelope[i] = v
+    return envelope
+
+
+@_jit
 def split_by_deviation(s: np.ndarray, shift: np.ndarray, keep: np.ndarray, tol: float) -> None:
     """``offline.split_by_deviation_reference`` compiled: the deviation-height split of the
     planned shift between the kept stations, ``keep`` updated in place."""

@@ -530,6 +530,8 @@ _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
             ("speed_profile", "lowest_reach"),
             "tests/core/machining/test_kernel.py::test_the_stations_kernels_equal_numpy",
         ),
+        "ball_envelope": "tests/core/machining/test_kernel.py::"
+        "test_the_compiled_ball_envelope_equals_its_reference",
         "split_by_deviation": "tests/core/machining/test_kernel.py::"
         "test_the_compiled_target_placement_equals_its_reference",
     },

@@ -133,3 +133,20 @@ def test_the_stations_kernels_equal_numpy(speeds, step, samples):
     reach = np.full(50, np.inf)
     np.minimum.at(reach, station, depth)
     np.testing.assert_array_equal(lowest_reach(station, depth, 50), reach)
+
+
+@given(
+    st.lists(st.one_of(st.floats(-2e-3, 2e-3), st.just(np.inf)), min_size=1, max_size=300),
+    st.floats(2e-4, 3e-3),
+    st.floats(2e-5, 5e-4),
+)
+@settings(max_examples=60, deadline=None)
+def test_the_compiled_ball_envelope_equals_its_reference(reach, radius_m, ds_m):
+    """The finished wall's ball envelope over the stations' lowest reach (inf where the tool
+    never came), compiled, against its numpy form: the same minima, to the bit."""
+    from robomach_core.machining._kernel import ball_envelope
+    from robomach_core.machining.summary import ball_envelope_reference, ball_rise_m
+
+    reach = np.asarray(reach, dtype=float)
+    rise = ball_rise_m(radius_m, ds_m)
+    np.testing.assert_array_equal(ball_envelope(reach, rise), ball_envelope_reference(reach, rise))
