@@ -14,6 +14,12 @@ STRATEGY  The loop of ``_loop.cut_loop`` (the reference: eq. (1) feed, the senso
           kernel carries a table of designs on the Df grid, and when the estimate reaches a
           grid point not in the table it returns that point; the caller adds the design and
           runs the cut again from the start (same seed, same numbers).
+          The fuzzy inference and the LQ's command are not copied: the kernel calls
+          ``_fast._fuzzy_infer``, ``_fast.lq_command`` and ``_fast.lq_matching_integral``,
+          which the reference loop's steppers call too. The two loops then run the same
+          operations in the same order and agree to the last bit (tests ask it): a copy that
+          summed the LQ's command in another order parted from the reference by an ulp, and
+          the Df grid switch turned that ulp into a cut 6 samples longer (issue 29).
 SOLUTION  ``cut_kernel`` and ``pack_controller``; ``run.cut_program`` calls them, and falls back
           to the reference loop for a controller setting the kernel does not cover (tests keep
           the two equal).
@@ -412,7 +418,8 @@ def _lq_step(
     fp: np.ndarray, fs: np.ndarray, mats: np.ndarray, vecs: np.ndarray, gains: np.ndarray,
     ffs: np.ndarray, have: np.ndarray, index0: int, force: float, feed_m_s: float,
 ) -> tuple[float, int]:  # fmt: skip
-    """``_fast._LqStepper.step``; returns (ratio, grid index still to design or -2**62)."""
+    """``_fast._LqStepper.step``; returns (ratio, grid index still to design or
+    ``NO_DESIGN_NEEDED``)."""
     fr, kf, vr, adapt, lam = fp[0], fp[1], fp[2], fp[3] > 0.5, fp[4]
     df0, step, half, low, startup, dt = fp[5], fp[6], fp[7], fp[8], fp[9], fp[10]
     min_startup, activation = fp[11], fp[12]
