@@ -304,7 +304,7 @@ cm_fs[6] = cm_p11"""
 
 
 def _memberships(dst: str, offset: int, x: str, lo: str, hi: str, count: int) -> str:
-    """_kernel._memberships into cm_mu[offset:offset + count]."""
+    """cmrr.controllers._fast._memberships into cm_mu[offset:offset + count]."""
     return f"""cm_w = ({hi} - {lo}) / {count - 1}.0
 cm_xc = {x}
 if cm_xc < {lo}:

@@ -14,6 +14,12 @@ STRATEGY  The loop of ``_loop.cut_loop`` (the reference: eq. (1) feed, the senso
           kernel carries a table of designs on the Df grid, and when the estimate reaches a
           grid point not in the table it returns that point; the caller adds the design and
           runs the cut again from the start (same seed, same numbers).
+          The fuzzy inference and the LQ's command are not copied: the kernel calls
+          ``_fast._fuzzy_infer``, ``_fast.lq_command`` and ``_fast.lq_matching_integral``,
+          which the reference loop's steppers call too. The two loops then run the same
+          operations in the same order and agree to the last bit (tests ask it): a copy that
+          summed the LQ's command in another order parted from the reference by an ulp, and
+          the Df grid switch turned that ulp into a cut 6 samples longer (issue 29).
 SOLUTION  ``cut_kernel`` and ``pack_controller``; ``run.cut_program`` calls them, and falls back
           to the reference loop for a controller setting the kernel does not cover (tests keep
           the two equal).
@@ -21,7 +27,6 @@ SOLUTION  ``cut_kernel`` and ``pack_controller``; ``run.cut_program`` calls them
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -29,7 +34,17 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
+from ..cmrr.controllers._fast import (
+    _fuzzy_infer,
+    lq_command,
+    lq_matching_integral,
+    output_set_table,
+)
+
 _jit = numba.njit(cache=True, fastmath=False, nogil=True)
+# The loop's parts, inlined into it by numba (a call with a dozen array arguments per sample
+# doubled a PI sample's time).
+_jit_inline = numba.njit(cache=True, fastmath=False, nogil=True, inline="always")
 
 # Controller kinds of the kernel.
 KIND_NONE = 0  # constant feed: the program's speed
@@ -41,6 +56,8 @@ KIND_LQ = 4
 EVENT_DONE = 0
 EVENT_NEED_DESIGN = 1  # the LQ reached a Df grid point not in its table (index in ``value``)
 EVENT_SAMPLE_LIMIT = 2
+# The LQ step's answer when its table holds the design it needs.
+NO_DESIGN_NEEDED = -(2**62)
 # Stop reasons.
 STOP_NONE = 0
 STOP_PROTECTION = 1
@@ -58,7 +75,7 @@ class PackedController:
         kind: ``KIND_*``.
         fp: float parameters; ``fs`` the float state (copied for every run).
         stages, rules, set_idx, set_val, universe: the fuzzy controller's tables (output
-            sets by ``sparse_sets``; empty otherwise).
+            sets by ``_fast.sparse_sets``; empty otherwise).
         lq_*: the adaptive LQ's matrices and its table of designs on the Df grid
             (``lq_index0`` the grid index of row 0; rows not designed yet have ``lq_have`` 0).
         first_ratio: the speed ratio before the first command.
@@ -71,8 +88,8 @@ class PackedController:
     first_ratio: float
     stages: np.ndarray = field(default_factory=lambda: np.zeros(1))
     rules: np.ndarray = field(default_factory=lambda: np.zeros((1, 4), dtype=np.int64))
-    set_idx: np.ndarray = field(default_factory=lambda: np.zeros((1, 1), dtype=np.int64))
-    set_val: np.ndarray = field(default_factory=lambda: np.zeros((1, 1)))
+    set_idx: np.ndarray = field(default_factory=lambda: np.full((1, 2), -1, dtype=np.int64))
+    set_val: np.ndarray = field(default_factory=lambda: np.zeros((1, 2)))
     universe: np.ndarray = field(default_factory=lambda: np.zeros(1))
     lq_mats: np.ndarray = field(default_factory=lambda: np.zeros((1, 1)))
     lq_vecs: np.ndarray = field(default_factory=lambda: np.zeros((1, 1)))
@@ -203,7 +220,7 @@ def _pack_fuzzy(ctrl) -> PackedController:
             s0.protection_time_s, 1.0 if s0.stopped else 0.0, s0.since_switch_s,
         ]
     )  # fmt: skip
-    set_idx, set_val = _sparse_output_sets()
+    set_idx, set_val = output_set_table()
     return PackedController(
         KIND_FUZZY, fp, fs, ctrl.initial_speed_ratio,
         stages=np.array(f.stages, dtype=float), rules=_rule_table(), set_idx=set_idx,
@@ -345,84 +362,6 @@ def _adaptive_pi_step(fp: np.ndarray, fs: np.ndarray, force_N: float, feed_m_s: 
 
 
 @_jit
-def _memberships(x: float, lo: float, hi: float, count: int, out: np.ndarray) -> None:
-    """``fuzzy.triangular_memberships`` of ``count`` evenly spaced centres in [lo, hi] into
-    ``out``."""
-    width = (hi - lo) / (count - 1)
-    xc = min(max(x, lo), hi)
-    for i in range(count):
-        g = 1.0 - abs(xc - (lo + i * width)) / width
-        out[i] = g if g > 0.0 else 0.0
-
-
-@_jit
-def _fuzzy_infer(
-    e: float, de: float, ratio: float, lo: float, hi: float, rules: np.ndarray,
-    set_idx: np.ndarray, set_val: np.ndarray, universe: np.ndarray, scratch: np.ndarray,
-) -> tuple[float, float]:  # fmt: skip
-    """``_fast._fuzzy_infer`` (Mamdani inference, centroid over the output universe) with the
-    output sets stored sparsely: at each universe point only the (at most two) sets that are
-    not zero there (the aggregate is a max, so the zeros never count: the same numbers)."""
-    mu_e = scratch[0:5]
-    mu_de = scratch[5:8]
-    mu_u = scratch[8:11]
-    strength = scratch[11:16]
-    _memberships(e, -1.0, 1.0, 5, mu_e)
-    _memberships(de, -1.0, 1.0, 3, mu_de)
-    _memberships(ratio, lo, hi, 3, mu_u)
-    for o in range(5):
-        strength[o] = 0.0
-    stop = 0.0
-    for r in range(rules.shape[0]):
-        w = 1.0
-        if rules[r, 0] >= 0:
-            w = min(w, mu_e[rules[r, 0]])
-        if rules[r, 1] >= 0:
-            w = min(w, mu_de[rules[r, 1]])
-        if rules[r, 2] >= 0:
-            w = min(w, mu_u[rules[r, 2]])
-        o = rules[r, 3]
-        if o < 0:
-            stop = max(stop, w)
-        elif w > strength[o]:
-            strength[o] = w
-    area = 0.0
-    moment = 0.0
-    for j in range(universe.shape[0]):
-        a = 0.0
-        for q in range(set_idx.shape[1]):
-            o = set_idx[j, q]
-            if o >= 0:
-                v = min(strength[o], set_val[j, q])
-                if v > a:
-                    a = v
-        area += a
-        moment += a * universe[j]
-    return (moment / area if area > 0.0 else 0.0), stop
-
-
-@functools.cache
-def _sparse_output_sets() -> tuple[np.ndarray, np.ndarray]:
-    from ..cmrr.controllers.fuzzy import OUTPUT_SETS
-
-    return sparse_sets(np.asarray(OUTPUT_SETS, dtype=float))
-
-
-def sparse_sets(sets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(index (k, w), value (k, w)) of the output sets not zero at each universe point (-1 and
-    0 pad), from ``sets`` (n_sets, k)."""
-    nonzero = sets > 0.0
-    width = max(1, int(nonzero.sum(axis=0).max()))
-    idx = np.full((sets.shape[1], width), -1, dtype=np.int64)
-    val = np.zeros((sets.shape[1], width))
-    for j in range(sets.shape[1]):
-        on = np.flatnonzero(nonzero[:, j])
-        idx[j, : len(on)] = on
-        val[j, : len(on)] = sets[on, j]
-    return idx, val
-
-
-@_jit
 def _switch_level(stages: np.ndarray, stage: int, direction: int, hysteresis: float) -> float:
     other = stage + direction
     mid = 0.5 * (stages[stage] + stages[other])
@@ -475,40 +414,12 @@ def _fuzzy_step(
 
 
 @_jit
-def _lq_command(
-    gain: np.ndarray, ff: float, xs: np.ndarray, n: int, delay: int, force: float,
-    integral: float, fr: float,
-) -> float:  # fmt: skip
-    """``adaptive_lq._lq_command``: eq. (13) with the integral state [mm/s]; ``xs`` holds
-    x_hat then the delayed commands."""
-    feedback = 0.0
-    for i in range(n):
-        feedback += gain[i] * xs[i]
-    acc = 0.0
-    for i in range(delay):
-        acc += gain[n + i] * xs[n + i]
-    feedback = feedback + acc + gain[n + delay] * force + gain[n + delay + 1] * integral
-    return -feedback + ff * fr
-
-
-@_jit
-def _matching_integral(
-    gain: np.ndarray, ff: float, xs: np.ndarray, n: int, delay: int, force: float, fr: float,
-    command: float, fallback: float,
-) -> float:  # fmt: skip
-    li = gain[n + delay + 1]
-    if abs(li) < 1e-12:
-        return fallback
-    without = _lq_command(gain, ff, xs, n, delay, force, 0.0, fr)
-    return (without - command) / li
-
-
-@_jit
 def _lq_step(
     fp: np.ndarray, fs: np.ndarray, mats: np.ndarray, vecs: np.ndarray, gains: np.ndarray,
     ffs: np.ndarray, have: np.ndarray, index0: int, force: float, feed_m_s: float,
 ) -> tuple[float, int]:  # fmt: skip
-    """``_fast._LqStepper.step``; returns (ratio, grid index still to design or -2**62)."""
+    """``_fast._LqStepper.step``; returns (ratio, grid index still to design or
+    ``NO_DESIGN_NEEDED``)."""
     fr, kf, vr, adapt, lam = fp[0], fp[1], fp[2], fp[3] > 0.5, fp[4]
     df0, step, half, low, startup, dt = fp[5], fp[6], fp[7], fp[8], fp[9], fp[10]
     min_startup, activation = fp[11], fp[12]
@@ -517,6 +428,7 @@ def _lq_step(
     delay = int(fp[15])
     o = n + delay  # state offsets
     i_theta = o + 6
+    x_hat, delayed = fs[:n], fs[n:o]
     feed = feed_m_s / 1e-3
     # Kalman measurement update.
     y_hat = 0.0
@@ -568,9 +480,9 @@ def _lq_step(
                 if new_row < 0 or new_row >= have.shape[0] or have[new_row] == 0:
                     return 0.0, new
                 if active:
-                    before = _lq_command(gains[row], ffs[row], fs, n, delay, force, integral, fr)
-                    integral = _matching_integral(
-                        gains[new_row], ffs[new_row], fs, n, delay, force, fr, before, integral
+                    before = lq_command(gains[row], ffs[row], x_hat, delayed, force, integral, fr)
+                    integral = lq_matching_integral(
+                        gains[new_row], ffs[new_row], x_hat, delayed, force, fr, before, integral
                     )
                 index, row = new, new_row
                 fs[i_theta + 6] = float(index)
@@ -579,12 +491,12 @@ def _lq_step(
         if not adapt or rel_std < activation:
             active = True
             current = startup * vr if delay == 0 else fs[n + delay - 1]
-            integral = _matching_integral(
-                gains[row], ffs[row], fs, n, delay, force, fr, current, integral
+            integral = lq_matching_integral(
+                gains[row], ffs[row], x_hat, delayed, force, fr, current, integral
             )
     gain = gains[row]
     if active:
-        u = _lq_command(gain, ffs[row], fs, n, delay, force, integral, fr) / vr
+        u = lq_command(gain, ffs[row], x_hat, delayed, force, integral, fr) / vr
         ratio = 1.0 if u >= 1.0 else (low if u <= low else u)
         error = fr - force
         pushing = (ratio >= 1.0 and error > 0.0) or (ratio <= low and error < 0.0)
@@ -608,10 +520,62 @@ def _lq_step(
         fs[n + delay - 1] = command
     fs[i_theta + 3] = integral
     fs[i_theta + 5] = 1.0 if active else 0.0
-    return ratio, -(2**62)
+    return ratio, NO_DESIGN_NEEDED
 
 
 # --- the loop ----------------------------------------------------------------------------------
+
+
+@_jit_inline
+def _record(
+    out: np.ndarray, k: int, t: float, s: float, feed: float, command: float, ratio: float,
+    depth: float, force: float, raw: float, deflection: float, h: float,
+) -> None:  # fmt: skip
+    """Sample ``k`` of the trace, in the columns of ``_loop.TRACE_NAMES``."""
+    out[0, k] = t
+    out[1, k] = s
+    out[2, k] = feed
+    out[3, k] = command
+    out[4, k] = ratio
+    out[5, k] = depth
+    out[6, k] = force
+    out[7, k] = raw
+    out[8, k] = deflection
+    out[9, k] = h
+
+
+@_jit_inline
+def _process_force(
+    force_N: float, depth_m: float, feed_m_s: float, gain_K: float, alpha_d: float,
+    beta_f: float, lag: float,
+) -> float:  # fmt: skip
+    """The process force one period on, eq. (3): the exact first-order lag (``lag`` =
+    exp(-dt / tau_m)) towards eq. (5), F = K d^alpha f^beta (d, f in mm, mm/s), at this depth
+    and feed."""
+    if depth_m > 0.0 and feed_m_s > 0.0:
+        target = gain_K * (depth_m * 1e3) ** alpha_d * (feed_m_s * 1e3) ** beta_f
+    else:
+        target = 0.0
+    return lag * force_N + (1.0 - lag) * target
+
+
+@_jit_inline
+def _feed_step(
+    feed_a: np.ndarray, feed_b: np.ndarray, x0: float, x1: float, x2: float, pos: float,
+    command: float,
+) -> tuple[float, float, float, float]:  # fmt: skip
+    """Eq. (1) discretized one period on under ``command``: the feed model's state, the path
+    position last."""
+    n0 = feed_a[0, 0] * x0 + feed_a[0, 1] * x1 + feed_a[0, 2] * x2 + feed_a[0, 3] * pos
+    n1 = feed_a[1, 0] * x0 + feed_a[1, 1] * x1 + feed_a[1, 2] * x2 + feed_a[1, 3] * pos
+    n2 = feed_a[2, 0] * x0 + feed_a[2, 1] * x1 + feed_a[2, 2] * x2 + feed_a[2, 3] * pos
+    n3 = feed_a[3, 0] * x0 + feed_a[3, 1] * x1 + feed_a[3, 2] * x2 + feed_a[3, 3] * pos
+    return (
+        n0 + feed_b[0] * command,
+        n1 + feed_b[1] * command,
+        n2 + feed_b[2] * command,
+        n3 + feed_b[3] * command,
+    )
 
 
 @_jit
@@ -688,7 +652,7 @@ def cut_kernel(
                     fp, fs, lq_mats, lq_vecs, lq_gains, lq_ff, lq_have, lq_index0, measured,
                     feed,
                 )  # fmt: skip
-                if need != -(2**62):
+                if need != NO_DESIGN_NEEDED:
                     return out[:, :k], EVENT_NEED_DESIGN, need, cycle_time, stop_time, stop_reason
             if stop and stop_time < 0.0:
                 stop_time, stop_reason = t, STOP_PROTECTION
@@ -701,27 +665,14 @@ def cut_kernel(
         if stop_time >= 0.0:
             ratio = 0.0
             command = 0.0
-        out[0, k] = t
-        out[1, k] = s
-        out[2, k] = feed
-        out[3, k] = command
-        out[4, k] = ratio
-        out[5, k] = depth
-        out[6, k] = force
-        out[7, k] = raw
-        out[8, k] = deflection
-        out[9, k] = h
+        _record(out, k, t, s, feed, command, ratio, depth, force, raw, deflection, h)
         k += 1
         if s >= length:
             cycle_time = t
             break
         if stop_time >= 0.0 and t - stop_time >= stop_tail_s:
             break
-        if depth > 0.0 and feed > 0.0:
-            target = gain_K * (depth * 1e3) ** alpha_d * (feed * 1e3) ** beta_f
-        else:
-            target = 0.0
-        force = lag * force + (1.0 - lag) * target
+        force = _process_force(force, depth, feed, gain_K, alpha_d, beta_f, lag)
         if not math.isfinite(force):
             return out[:, :k], EVENT_DONE, -1, cycle_time, stop_time, -1
         if force > supervision_N:
@@ -730,14 +681,7 @@ def cut_kernel(
                 stop_time, stop_reason = t, STOP_SUPERVISION
         if online:
             w_f += alpha_c * (raw - w_f)
-        n0 = feed_a[0, 0] * x0 + feed_a[0, 1] * x1 + feed_a[0, 2] * x2 + feed_a[0, 3] * pos
-        n1 = feed_a[1, 0] * x0 + feed_a[1, 1] * x1 + feed_a[1, 2] * x2 + feed_a[1, 3] * pos
-        n2 = feed_a[2, 0] * x0 + feed_a[2, 1] * x1 + feed_a[2, 2] * x2 + feed_a[2, 3] * pos
-        n3 = feed_a[3, 0] * x0 + feed_a[3, 1] * x1 + feed_a[3, 2] * x2 + feed_a[3, 3] * pos
-        x0 = n0 + feed_b[0] * command
-        x1 = n1 + feed_b[1] * command
-        x2 = n2 + feed_b[2] * command
-        pos = n3 + feed_b[3] * command
+        x0, x1, x2, pos = _feed_step(feed_a, feed_b, x0, x1, x2, pos, command)
     return out[:, :k], EVENT_DONE, 0, cycle_time, stop_time, stop_reason
 
 
@@ -769,6 +713,26 @@ def lowest_reach(station: np.ndarray, tool_normal: np.ndarray, n_st: int) -> np.
         if tool_normal[k] < reach[i]:
             reach[i] = tool_normal[k]
     return reach
+
+
+@_jit
+def ball_envelope(reach: np.ndarray, rise: np.ndarray) -> np.ndarray:
+    """The lowest reach of the ball at each station, ``summary.ball_envelope_reference``
+    compiled: each station's own reach, and its neighbours' ``shift`` stations away lifted
+    by ``rise[shift - 1]``, the ball's profile there (the same minima in the same order)."""
+    envelope = reach.copy()
+    n = reach.shape[0]
+    for shift in range(1, rise.shape[0] + 1):
+        lift = rise[shift - 1]
+        for i in range(shift, n):
+            v = reach[i - shift] + lift
+            if v < envelope[i]:
+                envelope[i] = v
+        for i in range(n - shift):
+            v = reach[i + shift] + lift
+            if v < envelope[i]:
+                envelope[i] = v
+    return envelope
 
 
 @_jit

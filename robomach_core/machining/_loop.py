@@ -175,7 +175,33 @@ def cut_loop(
     inputs: LoopInputs, controller: Any, *, cancel: Callable[[], bool] | None = None
 ) -> LoopResult:
     """The reference loop (scalar Python; the controller through ``_fast.fast_stepper``, itself
-    tested against each controller's public ``step``)."""
+    tested against each controller's public ``step``). A cut whose arithmetic fails (an
+    overflow, a division by zero, a NaN position) diverged where its last sample was, as the
+    compiled loop reports it."""
+    columns: list[list[float]] = [[] for _ in TRACE_NAMES]
+    try:
+        cycle_time, stop_time, stop_reason = _reference_samples(inputs, controller, cancel, columns)
+    except (OverflowError, ZeroDivisionError, ValueError) as exc:
+        if isinstance(exc, InvalidInputError):
+            raise
+        path, force = columns[TRACE_NAMES.index("path_m")], columns[TRACE_NAMES.index("force_N")]
+        raise _diverged(path[-1] if path else 0.0, force[-1] if force else 0.0) from None
+    return LoopResult(
+        {name: np.asarray(c, dtype=float) for name, c in zip(TRACE_NAMES, columns, strict=True)},
+        cycle_time,
+        stop_time,
+        stop_reason,
+    )
+
+
+def _reference_samples(
+    inputs: LoopInputs,
+    controller: Any,
+    cancel: Callable[[], bool] | None,
+    columns: list[list[float]],
+) -> tuple[float | None, float | None, str | None]:
+    """The reference loop's samples, appended to ``columns`` (``TRACE_NAMES``); returns (cycle
+    time, stop time, stop reason)."""
     from ..cmrr.controllers._fast import fast_stepper
 
     i = inputs
@@ -191,7 +217,6 @@ def cut_loop(
     constant_feed = i.constant_feed
     rng = np.random.default_rng(i.seed)
     noise: list[float] = []
-    columns: list[list[float]] = [[] for _ in TRACE_NAMES]
     rt, rs, rf, rcf, rr, rd, rF, rm, rdef, rh = columns
     control = fast_stepper(controller) if controller is not None else None
     first_ratio = controller.initial_speed_ratio if controller is not None else 1.0
@@ -202,93 +227,82 @@ def cut_loop(
     stop_reason: str | None = None
     cycle_time: float | None = None
     k = 0
-    s = 0.0
-    try:
-        while True:
-            if k >= i.n_max:
-                raise _stalled(i.n_max, dt)
-            if cancel is not None and k % CANCEL_CHECK_EVERY == 0 and cancel():
-                raise CancelledError("machining run cancelled")
-            t = k * dt
-            s = pos
-            if s < s_held:
-                s = s_held
-            else:
-                s_held = s
-            j = int(s * inv_ds)
-            if j > last:
-                j = last
-            feed = fc[0] * x0 + fc[1] * x1 + fc[2] * x2 + fc[3] * pos
-            if feed < 0.0:
-                feed = 0.0
-            deflection = ct_l[j] * force
-            h = off_l[j] + deflection - ch_l[j] * w_f
-            depth = a_l[j] - h
-            if depth < 0.0:
-                depth = 0.0
-            if k % NOISE_BLOCK == 0:
-                noise = rng.standard_normal(NOISE_BLOCK).tolist()
-            raw = force + sigma * noise[k % NOISE_BLOCK]
-            measured = b0 * raw + z1
-            z1 = b1 * raw - a1 * measured + z2
-            z2 = b2 * raw - a2 * measured
-            if control is not None:
-                next_ratio, stop = control(measured, feed)
-                if stop and stop_time is None:
-                    stop_time, stop_reason = t, "protection rule"
-                pending.append(0.0 if stop_time is not None else next_ratio)
-                ratio = pending.pop(0)
-                command = ratio * v_l[j]
-            else:
-                command = constant_feed if constant_feed < v_l[j] else v_l[j]
-                ratio = command / v_l[j]
-            if stop_time is not None:
-                ratio = command = 0.0
-            rt.append(t)
-            rs.append(s)
-            rf.append(feed)
-            rcf.append(command)
-            rr.append(ratio)
-            rd.append(depth)
-            rF.append(force)
-            rm.append(raw)
-            rdef.append(deflection)
-            rh.append(h)
-            k += 1
-            if s >= i.length:
-                cycle_time = t
-                break
-            if stop_time is not None and t - stop_time >= i.stop_tail_s:
-                break
-            # Process force, eq. (3): exact first-order lag towards eq. (5) at this depth, feed.
-            if depth > 0.0 and feed > 0.0:
-                target = K * (depth * 1e3) ** alpha_d * (feed * 1e3) ** beta_f
-            else:
-                target = 0.0
-            force = lag * force + (1.0 - lag) * target
-            if not math.isfinite(force):
-                raise _diverged(s, force)
-            if force > i.supervision_N:
-                force = i.supervision_N
-                if stop_time is None:
-                    stop_time, stop_reason = t, "force supervision"
-            if i.online:
-                w_f += i.alpha_c * (raw - w_f)
-            n0 = fa[0][0] * x0 + fa[0][1] * x1 + fa[0][2] * x2 + fa[0][3] * pos
-            n1 = fa[1][0] * x0 + fa[1][1] * x1 + fa[1][2] * x2 + fa[1][3] * pos
-            n2 = fa[2][0] * x0 + fa[2][1] * x1 + fa[2][2] * x2 + fa[2][3] * pos
-            n3 = fa[3][0] * x0 + fa[3][1] * x1 + fa[3][2] * x2 + fa[3][3] * pos
-            x0 = n0 + fb[0] * command
-            x1 = n1 + fb[1] * command
-            x2 = n2 + fb[2] * command
-            pos = n3 + fb[3] * command
-    except (OverflowError, ZeroDivisionError, ValueError) as exc:
-        if isinstance(exc, InvalidInputError):
-            raise
-        raise _diverged(s, force) from None
-    return LoopResult(
-        {name: np.asarray(c, dtype=float) for name, c in zip(TRACE_NAMES, columns, strict=True)},
-        cycle_time,
-        stop_time,
-        stop_reason,
-    )
+    while True:
+        if k >= i.n_max:
+            raise _stalled(i.n_max, dt)
+        if cancel is not None and k % CANCEL_CHECK_EVERY == 0 and cancel():
+            raise CancelledError("machining run cancelled")
+        t = k * dt
+        s = pos
+        if s < s_held:
+            s = s_held
+        else:
+            s_held = s
+        j = int(s * inv_ds)
+        if j > last:
+            j = last
+        feed = fc[0] * x0 + fc[1] * x1 + fc[2] * x2 + fc[3] * pos
+        if feed < 0.0:
+            feed = 0.0
+        deflection = ct_l[j] * force
+        h = off_l[j] + deflection - ch_l[j] * w_f
+        depth = a_l[j] - h
+        if depth < 0.0:
+            depth = 0.0
+        if k % NOISE_BLOCK == 0:
+            noise = rng.standard_normal(NOISE_BLOCK).tolist()
+        raw = force + sigma * noise[k % NOISE_BLOCK]
+        measured = b0 * raw + z1
+        z1 = b1 * raw - a1 * measured + z2
+        z2 = b2 * raw - a2 * measured
+        if control is not None:
+            next_ratio, stop = control(measured, feed)
+            if stop and stop_time is None:
+                stop_time, stop_reason = t, "protection rule"
+            pending.append(0.0 if stop_time is not None else next_ratio)
+            ratio = pending.pop(0)
+            command = ratio * v_l[j]
+        else:
+            command = constant_feed if constant_feed < v_l[j] else v_l[j]
+            ratio = command / v_l[j]
+        if stop_time is not None:
+            ratio = command = 0.0
+        rt.append(t)
+        rs.append(s)
+        rf.append(feed)
+        rcf.append(command)
+        rr.append(ratio)
+        rd.append(depth)
+        rF.append(force)
+        rm.append(raw)
+        rdef.append(deflection)
+        rh.append(h)
+        k += 1
+        if s >= i.length:
+            cycle_time = t
+            break
+        if stop_time is not None and t - stop_time >= i.stop_tail_s:
+            break
+        # Process force, eq. (3): exact first-order lag towards eq. (5) at this depth, feed.
+        if depth > 0.0 and feed > 0.0:
+            target = K * (depth * 1e3) ** alpha_d * (feed * 1e3) ** beta_f
+        else:
+            target = 0.0
+        force = lag * force + (1.0 - lag) * target
+        if not math.isfinite(force):
+            raise _diverged(s, force)
+        if force > i.supervision_N:
+            force = i.supervision_N
+            if stop_time is None:
+                stop_time, stop_reason = t, "force supervision"
+        if i.online:
+            w_f += i.alpha_c * (raw - w_f)
+        n0 = fa[0][0] * x0 + fa[0][1] * x1 + fa[0][2] * x2 + fa[0][3] * pos
+        n1 = fa[1][0] * x0 + fa[1][1] * x1 + fa[1][2] * x2 + fa[1][3] * pos
+        n2 = fa[2][0] * x0 + fa[2][1] * x1 + fa[2][2] * x2 + fa[2][3] * pos
+        n3 = fa[3][0] * x0 + fa[3][1] * x1 + fa[3][2] * x2 + fa[3][3] * pos
+        x0 = n0 + fb[0] * command
+        x1 = n1 + fb[1] * command
+        x2 = n2 + fb[2] * command
+        pos = n3 + fb[3] * command
+    return cycle_time, stop_time, stop_reason

@@ -153,6 +153,31 @@ def targets_along_wall(
     )
 
 
+def _project_onto_every_segment(
+    p: np.ndarray, ref: np.ndarray, normals_m: np.ndarray, *, window_m: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``project_onto_path`` measured against every segment of the reference ((k, n-1)
+    arrays): its reference (tests compare the two) and its answer where no segment lies in a
+    point's window."""
+    s_ref = arc_length_m(ref)
+    length = float(s_ref[-1])
+    s_own = arc_length_m(p)
+    expected = s_own * (length / s_own[-1]) if s_own[-1] > 0.0 else np.zeros(len(p))
+    a, b = ref[:-1], ref[1:]
+    d = b - a
+    seg_len2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-30)
+    t = np.einsum("kij,ij->ki", p[:, None, :] - a[None], d) / seg_len2
+    t = np.clip(t, 0.0, 1.0)
+    foot = a[None] + t[..., None] * d[None]
+    dist = np.linalg.norm(p[:, None, :] - foot, axis=2)
+    s_foot = s_ref[:-1][None] + t * np.sqrt(seg_len2)[None]
+    far = np.abs(s_foot - expected[:, None]) > window_m + np.sqrt(seg_len2)[None]
+    dist = np.where(far, np.inf, dist)
+    best = np.argmin(dist, axis=1)
+    rows = np.arange(len(p))
+    return _offsets_at(p, s_foot[rows, best], foot[rows, best], s_ref, normals_m)
+
+
 def project_onto_path(
     points_m: np.ndarray,
     path_points_m: np.ndarray,
@@ -176,24 +201,40 @@ def project_onto_path(
     length = float(s_ref[-1])
     s_own = arc_length_m(p)
     expected = s_own * (length / s_own[-1]) if s_own[-1] > 0.0 else np.zeros(len(p))
-    a, b = ref[:-1], ref[1:]
-    d = b - a
+    a, d = ref[:-1], ref[1:] - ref[:-1]
     seg_len2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-30)
-    # (k, n-1): parameter of the foot on each segment, clipped to the segment.
-    t = np.einsum("kij,ij->ki", p[:, None, :] - a[None], d) / seg_len2
+    seg_len = np.sqrt(seg_len2)
+    # Only the segments near each point's expected arc length can be within the window (a
+    # foot lies on its segment): (k, w) candidates instead of every segment, the same numbers.
+    reach = window_m + 2.0 * float(seg_len.max()) + 1e-9
+    first = np.searchsorted(s_ref[1:], expected - reach, side="left")
+    count = np.searchsorted(s_ref[:-1], expected + reach, side="right") - first
+    seg = first[:, None] + np.arange(max(int(count.max(initial=0)), 1))[None]
+    outside = seg >= (first + count)[:, None]
+    seg = np.minimum(seg, len(a) - 1)
+    # (k, w): parameter of the foot on each candidate segment, clipped to the segment.
+    t = np.einsum("kwj,kwj->kw", p[:, None, :] - a[seg], d[seg]) / seg_len2[seg]
     t = np.clip(t, 0.0, 1.0)
-    foot = a[None] + t[..., None] * d[None]
+    foot = a[seg] + t[..., None] * d[seg]
     dist = np.linalg.norm(p[:, None, :] - foot, axis=2)
-    s_foot = s_ref[:-1][None] + t * np.sqrt(seg_len2)[None]
-    far = np.abs(s_foot - expected[:, None]) > window_m + np.sqrt(seg_len2)[None]
+    s_foot = s_ref[:-1][seg] + t * seg_len[seg]
+    far = outside | (np.abs(s_foot - expected[:, None]) > window_m + seg_len[seg])
+    if far.all(axis=1).any():  # a point no segment's window holds: every segment, as before
+        return _project_onto_every_segment(p, ref, normals_m, window_m=window_m)
     dist = np.where(far, np.inf, dist)
     best = np.argmin(dist, axis=1)
     rows = np.arange(len(p))
-    s = s_foot[rows, best]
-    s = np.maximum.accumulate(s)
+    return _offsets_at(p, s_foot[rows, best], foot[rows, best], s_ref, normals_m)
+
+
+def _offsets_at(
+    p: np.ndarray, s_foot: np.ndarray, foot: np.ndarray, s_ref: np.ndarray, normals_m: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(s, offset, lateral) of ``project_onto_path`` from each point's nearest foot."""
+    s = np.maximum.accumulate(s_foot)
     n = np.stack([np.interp(s, s_ref, normals_m[:, i]) for i in range(3)], axis=1)
     n /= np.linalg.norm(n, axis=1, keepdims=True)
-    delta = p - foot[rows, best]
+    delta = p - foot
     offset = np.einsum("ij,ij->i", delta, n)
     lateral = np.sqrt(np.maximum(np.einsum("ij,ij->i", delta, delta) - offset**2, 0.0))
     return s, offset, lateral

@@ -88,17 +88,34 @@ def finished_wall(
     stock (where the tool never reached the stock surface the stock remains)."""
     ds = float(s_st[1] - s_st[0])
     n_st = len(s_st)
-    from ._kernel import lowest_reach
+    from ._kernel import ball_envelope, lowest_reach
 
     idx = np.clip(np.rint(path_m / ds).astype(np.int64), 0, n_st - 1)
     reach = lowest_reach(idx, np.ascontiguousarray(tool_normal_m, dtype=float), n_st)
-    envelope = reach.copy()
-    r = tool_radius_m
-    for shift in range(1, int(r / ds) + 1):
-        rise = r - math.sqrt(max(r * r - (shift * ds) ** 2, 0.0))
-        envelope[shift:] = np.minimum(envelope[shift:], reach[:-shift] + rise)
-        envelope[:-shift] = np.minimum(envelope[:-shift], reach[shift:] + rise)
+    envelope = ball_envelope(reach, ball_rise_m(tool_radius_m, ds))
     return FinishedWall(s_st, allowance_m, np.minimum(allowance_m, envelope))
+
+
+def ball_rise_m(radius_m: float, ds_m: float) -> np.ndarray:
+    """(k,) how far the ball's surface rises ``shift`` = 1 ... k stations (every ``ds_m``)
+    from its lowest point, r - sqrt(r^2 - (shift ds)^2), over the ball's radius."""
+    r = radius_m
+    return np.array(
+        [
+            r - math.sqrt(max(r * r - (shift * ds_m) ** 2, 0.0))
+            for shift in range(1, int(r / ds_m) + 1)
+        ],
+        dtype=float,
+    )
+
+
+def ball_envelope_reference(reach: np.ndarray, rise: np.ndarray) -> np.ndarray:
+    """``_kernel.ball_envelope`` in numpy (its reference, tests compare them)."""
+    envelope = reach.copy()
+    for shift in range(1, len(rise) + 1):
+        envelope[shift:] = np.minimum(envelope[shift:], reach[:-shift] + rise[shift - 1])
+        envelope[:-shift] = np.minimum(envelope[:-shift], reach[shift:] + rise[shift - 1])
+    return envelope
 
 
 def summarize(

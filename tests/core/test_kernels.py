@@ -500,7 +500,15 @@ _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
         **dict.fromkeys(("increment_proposal", "supervise_increment"), SUPERVISED),
     },
     "robomach_core.cmrr.controllers._fast": dict.fromkeys(
-        ("_memberships", "_fuzzy_infer", "_lq_estimate", "_lq_act"), FAST_COPIES
+        (
+            "_memberships",
+            "_fuzzy_infer",
+            "_lq_estimate",
+            "_lq_act",
+            "lq_command",
+            "lq_matching_integral",
+        ),
+        FAST_COPIES,
     ),
     "robomach_core.machining._kernel": {
         **dict.fromkeys(
@@ -509,13 +517,12 @@ _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
                 "_power",
                 "_fixed_pi_step",
                 "_adaptive_pi_step",
-                "_memberships",
-                "_fuzzy_infer",
                 "_switch_level",
                 "_fuzzy_step",
-                "_lq_command",
-                "_matching_integral",
                 "_lq_step",
+                "_record",
+                "_process_force",
+                "_feed_step",
             ),
             "tests/core/machining/test_kernel.py::test_the_compiled_loop_equals_the_reference",
         ),
@@ -523,6 +530,8 @@ _TESTS_BY_MODULE: dict[str, dict[str, str]] = {
             ("speed_profile", "lowest_reach"),
             "tests/core/machining/test_kernel.py::test_the_stations_kernels_equal_numpy",
         ),
+        "ball_envelope": "tests/core/machining/test_kernel.py::"
+        "test_the_compiled_ball_envelope_equals_its_reference",
         "split_by_deviation": "tests/core/machining/test_kernel.py::"
         "test_the_compiled_target_placement_equals_its_reference",
     },
