@@ -121,7 +121,7 @@ class PartWalls:
         axis): its nearest wall point when that lies that way, else the first wall along it;
         None when none is within ``reach_m``."""
         (closest,), (dist,), (face,) = self._closest(point[None])
-        within = False
+        within = on_face = False
         if math.isfinite(dist):
             rel3 = closest - point
             rel = rel3 - self.axis * float(rel3 @ self.axis)
@@ -138,9 +138,10 @@ class PartWalls:
         if d <= reach_m:
             return hit
         # no wall within reach that way (a leg cutting across a concave stretch, or through
-        # the part, turns "that way" off the wall): the wall the point stands by, a face or
-        # a corner's edge (beside the end of a boss's bar)
-        return closest if within else None
+        # the part, turns "that way" off the wall): the wall face the point stands by; not a
+        # corner's edge, which may be another wall's (a part off its mesh: the run then
+        # searches by force)
+        return closest if within and on_face else None
 
     def _first_wall_that_way(
         self, point: np.ndarray, towards: np.ndarray
