@@ -672,6 +672,26 @@ class LearningRoute:
         return float(o[leg.first]), float(o[leg.last])
 
 
+def _stacked(guides: Sequence[GuidePoint], closed: bool, axis: np.ndarray) -> str:
+    """A sentence when two neighbouring points stand one above the other: less than
+    ``MIN_SPACING_M`` apart across the axis (they give no leg) and more than
+    ``TAUGHT_WALL_HEIGHT_BAND_M`` along it. The route holds one height at one place, so one of
+    the two heights would be dropped without a word. "" when none do."""
+    n = len(guides)
+    pairs = [(k, k + 1) for k in range(n - 1)] + ([(n - 1, 0)] if closed and n > 2 else [])
+    for i, j in pairs:
+        d = guides[j].position_m - guides[i].position_m
+        along = float(d @ axis)
+        across = float(np.linalg.norm(d - axis * along))
+        if across < th.MIN_SPACING_M and abs(along) > th.TAUGHT_WALL_HEIGHT_BAND_M:
+            return (
+                f"G{i + 1} and G{j + 1} stand one above the other ({across * 1e3:.1f} mm apart "
+                f"across the tool axis, {abs(along) * 1e3:.1f} mm along it): the route holds one "
+                "height at one place; delete one of them, or move it along the wall"
+            )
+    return ""
+
+
 def plan_route(
     guides: Sequence[GuidePoint],
     settings: PathLearningSettings,
@@ -684,7 +704,8 @@ def plan_route(
     Raises:
         NotEnoughGuidePointsError: fewer than two distinct points.
         WallSideError: the side is "auto" and neither the pushes nor the mesh tell it.
-        RouteRefusedError: the route cannot be learned as taught (an open wall as a loop).
+        RouteRefusedError: the route cannot be learned as taught (an open wall as a loop, two
+            points one above the other).
     """
     from ..errors import NotEnoughGuidePointsError
 
@@ -698,6 +719,9 @@ def plan_route(
     if not legs:
         raise NotEnoughGuidePointsError("the guide points coincide; record distinct points")
     axis, right = right_of_travel(guides, closed)
+    stacked = _stacked(guides, closed, axis)
+    if stacked:
+        raise RouteRefusedError(stacked)
     walls = None
     if workpiece is not None and tool_radius_m is not None:
         walls = PartWalls(workpiece, axis, tool_radius_m)
