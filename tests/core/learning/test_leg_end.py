@@ -48,6 +48,7 @@ def test_a_loop_ends_past_its_start_through_the_walls_wiggles():
         # receding CLOSE_PASSED_M from a nearest approach b across the travel takes this much
         b = abs(float(start[1]))
         beyond = np.sqrt((b + th.CLOSE_PASSED_M + 2 * wiggle) ** 2 - max(b - wiggle, 0.0) ** 2)
-        assert ended_at <= start[0] + beyond + step, (
+        # + a step for where the sampled nearest approach falls, and one for seeing it recede
+        assert ended_at <= start[0] + beyond + 2 * step, (
             f"{where}: the loop ran {(ended_at - start[0]) * 1e3:.2f} mm past its start"
         )
