@@ -55,6 +55,18 @@ class PartWalls:
         normals = self._wall_normals[tri] @ self.R.T
         return c @ self.R.T + self.t, np.asarray(d, dtype=float), normals
 
+    def feet(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``nearest``, and whether each nearest wall point is the foot on a wall face (the way
+        to it within ``FOOT_ON_FACE_COS`` of the face's normal): a wall standing at the
+        point's height, not the edge of one below it (a floor step's riser) nor a corner's."""
+        closest, dist, normals = self._closest(points)
+        way = closest - points
+        with np.errstate(invalid="ignore"):  # no walls: NaN, never on a face
+            on_face = -np.einsum("ij,ij->i", way, normals) >= th.FOOT_ON_FACE_COS * np.linalg.norm(
+                way, axis=1
+            )
+        return closest, dist, on_face
+
     def faces_from_free_side(self, point: np.ndarray, direction: np.ndarray, reach: float) -> bool:
         """True when the first wall along ``direction`` from ``point`` is within ``reach`` and
         met from its free side: ``point`` stands in the free space beside a wall."""
@@ -66,7 +78,7 @@ class PartWalls:
             )[0]
         if tri < 0:
             return False
-        n = self.R @ self.walls.face_normals[tri]
+        n = self.R @ self._wall_normals[tri]
         corner = self.R @ self.walls.vertices[self.walls.faces[tri, 0]] + self.t
         along = float(n @ (corner - point)) / float(n @ direction)
         return float(n @ direction) < 0.0 and 0.0 <= along <= reach
@@ -120,15 +132,12 @@ class PartWalls:
         """The wall point a point at ``point`` faces in direction ``towards`` (across the
         axis): its nearest wall point when that lies that way, else the first wall along it;
         None when none is within ``reach_m``."""
-        (closest,), (dist,), (face,) = self._closest(point[None])
-        within = on_face = False
+        (closest,), (dist,), (on_face,) = self.feet(point[None])
+        within = False
         if math.isfinite(dist):
             rel3 = closest - point
             rel = rel3 - self.axis * float(rel3 @ self.axis)
             within = float(np.linalg.norm(rel)) > 1e-9 and dist <= reach_m
-            # the foot on a wall face: a wall standing at the point's height, not the edge of
-            # one below it (a floor step's riser) nor a corner's
-            on_face = -float(rel3 @ face) >= th.FOOT_ON_FACE_COS * float(np.linalg.norm(rel3))
             # the nearest wall when it lies that way (within the fan's angle); else the first
             # wall that way
             that_way = math.cos(th.FAN_HALF_ANGLE_RAD) * float(np.linalg.norm(rel))

@@ -80,8 +80,14 @@ def route_legs(guides: Sequence[GuidePoint], closed: bool) -> list[Leg]:
     across the tool axis (its direction and length: the progress along a leg, which sets the
     route's height, must not move with the tool's own height; along a leg steeper than it is
     long, progress measured in 3D held the tool at whatever height it had). Two points less
-    than ``MIN_SPACING_M`` apart across the axis (one above the other) give no leg: the route
-    goes on from the second, at its height."""
+    than ``MIN_SPACING_M`` apart across the axis give no leg: the route goes on from the
+    second, at its height.
+
+    Raises:
+        RouteRefusedError: two such points stand one above the other, more than
+            ``TAUGHT_WALL_HEIGHT_BAND_M`` apart along the axis: the route holds one height at
+            one place, so one of the two heights would be dropped without a word.
+    """
     axis = mean_tool_axis(guides)
     order = list(range(len(guides))) + ([0] if closed else [])
     legs = []
@@ -91,6 +97,13 @@ def route_legs(guides: Sequence[GuidePoint], closed: bool) -> list[Leg]:
         across = d - axis * float(d @ axis)
         length = float(np.linalg.norm(across))
         if length < th.MIN_SPACING_M:
+            rise = abs(float(d @ axis))
+            if rise > th.TAUGHT_WALL_HEIGHT_BAND_M:
+                raise RouteRefusedError(
+                    f"G{i0 + 1} and G{i1 + 1} stand one above the other ({length * 1e3:.1f} mm "
+                    f"apart across the tool axis, {rise * 1e3:.1f} mm along it): the route "
+                    "holds one height at one place; delete one of them, or move it along the wall"
+                )
             continue
         Ra = matrix_from_quaternion(guides[i0].quaternion_wxyz)
         Rb = matrix_from_quaternion(guides[i1].quaternion_wxyz)
@@ -672,26 +685,6 @@ class LearningRoute:
         return float(o[leg.first]), float(o[leg.last])
 
 
-def _stacked(guides: Sequence[GuidePoint], closed: bool, axis: np.ndarray) -> str:
-    """A sentence when two neighbouring points stand one above the other: less than
-    ``MIN_SPACING_M`` apart across the axis (they give no leg) and more than
-    ``TAUGHT_WALL_HEIGHT_BAND_M`` along it. The route holds one height at one place, so one of
-    the two heights would be dropped without a word. "" when none do."""
-    n = len(guides)
-    pairs = [(k, k + 1) for k in range(n - 1)] + ([(n - 1, 0)] if closed and n > 2 else [])
-    for i, j in pairs:
-        d = guides[j].position_m - guides[i].position_m
-        along = float(d @ axis)
-        across = float(np.linalg.norm(d - axis * along))
-        if across < th.MIN_SPACING_M and abs(along) > th.TAUGHT_WALL_HEIGHT_BAND_M:
-            return (
-                f"G{i + 1} and G{j + 1} stand one above the other ({across * 1e3:.1f} mm apart "
-                f"across the tool axis, {abs(along) * 1e3:.1f} mm along it): the route holds one "
-                "height at one place; delete one of them, or move it along the wall"
-            )
-    return ""
-
-
 def plan_route(
     guides: Sequence[GuidePoint],
     settings: PathLearningSettings,
@@ -719,9 +712,6 @@ def plan_route(
     if not legs:
         raise NotEnoughGuidePointsError("the guide points coincide; record distinct points")
     axis, right = right_of_travel(guides, closed)
-    stacked = _stacked(guides, closed, axis)
-    if stacked:
-        raise RouteRefusedError(stacked)
     walls = None
     if workpiece is not None and tool_radius_m is not None:
         walls = PartWalls(workpiece, axis, tool_radius_m)

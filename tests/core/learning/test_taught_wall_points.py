@@ -85,9 +85,7 @@ def test_a_point_whose_leg_cuts_through_the_part_keeps_the_wall_it_stands_by():
         # the points beside a wall face (the foot of the nearest wall point on a face, within
         # reach), as the rule reads them: beside a corner's edge a point may get none
         pts = np.array([g.position_m for g in guides])
-        closest, dist, normals = walls._closest(pts)
-        way = closest - pts
-        on_face = -np.einsum("ij,ij->i", way, normals) >= th.FOOT_ON_FACE_COS * dist
+        _, dist, on_face = walls.feet(pts)
         beside = on_face & (dist <= th.AT_WALL_GAP_M + walls.radius)
         for k, p in enumerate(found):
             assert p is not None or not beside[k], f"{where}: G{k + 1} has no wall point"
