@@ -223,7 +223,7 @@ def reference_problem(reference: str) -> str | None:
         path = path.split("/", 1)[1]
     if path.startswith("/") or (len(path) > 1 and path[1] == ":"):
         return "is an absolute path (a file of the server's disk, not of the upload)"
-    if ".." in path.split("/"):
+    if ".." in rest.replace("\\", "/").split("/"):  # the package's name counts too
         return "climbs out of its folder (..)"
     suffix = posixpath.splitext(path)[1].lower()
     if suffix not in MESH_REFERENCE_SUFFIXES:
