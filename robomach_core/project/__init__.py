@@ -47,8 +47,9 @@ from ._machining_documents import (
     machining_setup_from_document as machining_setup_from_document,
 )
 from ._machining_program import machining_note as machining_note
-from ._stages import build_cell_workpiece as build_cell_workpiece
+from ._stages import build_cell as build_cell
 from ._stages import build_workpiece as build_workpiece
+from ._stages import guide_findings as guide_findings
 from ._stages import learn as learn
 from ._stages import process as process
 from ._stages import require_processed as require_processed
