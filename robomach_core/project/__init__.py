@@ -83,7 +83,6 @@ from ._value import machining_inputs_key as machining_inputs_key
 from ._value import processed_inputs_key as processed_inputs_key
 from ._value import recording_inputs_key as recording_inputs_key
 from ._writers import cad_only_program_texts as cad_only_program_texts
-from ._writers import compensate_program_targets as compensate_program_targets
 from ._writers import program_export as program_export
 from ._writers import program_files as program_files
 from ._writers import program_languages as program_languages
