@@ -163,7 +163,7 @@ def run_demo(
     *,
     guide_points_csv: str | None = None,
     propose_at_m: tuple[float, float, float] | None = None,
-    proposal: ProposalSettings | None = None,
+    proposal_settings: ProposalSettings | None = None,
     touch_force_N: float | None = None,
     language: str = "auto",
     progress: Progress | None = None,
@@ -179,9 +179,9 @@ def run_demo(
             (``teaching.intents_from_csv``) instead of the operator's own plan; needed for a
             mesh file, whose wall is unknown.
         propose_at_m: (3,) a point on the wall to follow, work-object frame [m]: the guide
-            points are proposed along that wall (``proposal``: their gap and height) and the
-            operator leads the robot to them; the wall decides open or closed, and the side
-            when ``learning``'s is "auto".
+            points are proposed along that wall (``proposal_settings``: their gap and height)
+            and the operator leads the robot to them; the wall decides open or closed, and the
+            side when ``learning``'s is "auto".
         touch_force_N: Before teaching, the operator touches the real part at this force
             (``teaching.calibration``) and the CAD is registered to the touches
             (``teaching.fit_wobj``): the guide points are planned, checked and learned on the
@@ -210,7 +210,7 @@ def run_demo(
         cell = build_cell(project.cell, project.mesh)  # the CAD where the touches found it
         lt = LeadThrough(cell, estimator=lt.estimator)  # the sensor stays tared
     intents, found, learning = _operator_intents(
-        cell, learning, project.cell.seed, guide_points_csv, propose_at_m, proposal
+        cell, learning, project.cell.seed, guide_points_csv, propose_at_m, proposal_settings
     )
     state, guides = _teach(lt, state, intents, project.cell.seed, report)
     project = with_guide_points(project, guides)

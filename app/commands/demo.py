@@ -319,7 +319,7 @@ def run(args: argparse.Namespace) -> int:
             learning,
             guide_points_csv=guide_csv,
             propose_at_m=propose_at,
-            proposal=ProposalSettings(gap_m=args.gap_mm * 1e-3),
+            proposal_settings=ProposalSettings(gap_m=args.gap_mm * 1e-3),
             touch_force_N=max(args.force, limits.TOUCH_OFF_FORCE_N.min) if args.calibrate else None,
             language=args.language,
             progress=bar,
