@@ -23,11 +23,9 @@ import numpy as np
 
 from .cell import CONTROL_PERIOD_S, Cell, GuidePoint, LeadThrough, program_language
 from .errors import InvalidInputError, MeshFileError
-from .export.reachability import ReachabilityReport, check_program_reachability
-from .learning.run import Recording
+from .export.reachability import check_program_reachability
 from .learning.settings import PathLearningSettings
 from .part import MAX_MESH_BYTES, MESH_SUFFIXES, Workpiece
-from .postprocess import PostprocessResult
 from .project import (
     Project,
     build_cell,
@@ -42,11 +40,14 @@ from .project import (
     with_processed,
     with_registration,
 )
-from .scoring import PathScore
 
 if TYPE_CHECKING:
+    from .export.reachability import ReachabilityReport
     from .learning import GuideWarning
     from .learning.planner import GuideProposal, ProposalSettings
+    from .learning.run import Recording
+    from .postprocess import PostprocessResult
+    from .scoring import PathScore
     from .teaching import WobjFit
 
 # progress(stage, fraction in [0, 1])
