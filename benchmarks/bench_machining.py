@@ -70,10 +70,11 @@ def main() -> None:
         )
         source = "program along the true wall (--quick)"
     else:
-        from robomach_core.pipeline import DemoSettings, run_demo
+        from robomach_core.pipeline import run_demo
+        from robomach_core.project import Project
 
         t0 = time.perf_counter()
-        demo = run_demo(DemoSettings())
+        demo = run_demo(Project())
         targets, project = demo.processed.targets, demo.project
         source = f"learned program (demo pipeline, {time.perf_counter() - t0:.0f} s, not timed)"
     normals = wall_normals_for_workpiece(pump, targets.position_m)

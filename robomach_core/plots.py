@@ -31,10 +31,9 @@ def demo_figure(result, path: str | Path) -> Path:
     import matplotlib.pyplot as plt
 
     rec = result.recording
-    post = result.settings.postprocess
+    post = result.project.post_settings  # the band the filter kept (``project.with_learned``)
     kept = result.processed.keep_mask
-    processed = None if result.project is None else result.project.processed
-    comparison = getattr(processed, "cad_comparison", None)
+    comparison = result.project.processed.cad_comparison
     if comparison is not None and comparison.part_deviates:
         fig, (ax_f, ax_p, ax_c) = plt.subplots(
             1, 3, figsize=(19, 5), gridspec_kw={"width_ratios": [1.1, 1, 1.1]}
@@ -55,7 +54,9 @@ def demo_figure(result, path: str | Path) -> Path:
         color="tab:red",
         label="dropped by the filter",
     )
-    ax_f.axhline(result.settings.force_N, color="tab:green", lw=1.2, label="setpoint")
+    ax_f.axhline(
+        result.project.learned.settings.force_N, color="tab:green", lw=1.2, label="setpoint"
+    )
     ax_f.axhspan(
         post.force_min_N,
         post.force_max_N,
@@ -94,7 +95,9 @@ def demo_figure(result, path: str | Path) -> Path:
 
         dev = (
             true_tool_path_distance(
-                result.workpiece, result.settings.tool.radius_m, result.processed.targets.position_m
+                result.workpiece,
+                result.project.cell.tool_radius_m,
+                result.processed.targets.position_m,
             )
             * 1e3
         )

@@ -33,7 +33,8 @@ from scipy.spatial.transform import Rotation
 
 from robomach_core.cell import Cell, CellConfig
 from robomach_core.part import Workpiece, default_T_base_wobj
-from robomach_core.project import CellSettings, build_cell_workpiece
+from robomach_core.project import CellSettings
+from robomach_core.project._stages import build_cell_workpiece
 
 WALL_SPACING_MM = 0.05  # the true walls' polylines, dense enough that a vertex is the foot
 PLATE_MM = (160.0, 110.0)  # the generated plates' footprint

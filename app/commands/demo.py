@@ -4,10 +4,15 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from app.commands.progress import StageProgress
 from robomach_core import limits
+
+if TYPE_CHECKING:
+    from robomach_core.project import Project
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -278,52 +283,20 @@ def run(args: argparse.Namespace) -> int:
             settings_file(args.compensation_settings, "--compensation-settings")
         )
 
-    from robomach_core.cell import Tool
     from robomach_core.errors import RobomachError, SupervisionError
+    from robomach_core.export.languages import default_arm
     from robomach_core.learning.planner import ProposalSettings
-    from robomach_core.part import PartDeviation
-    from robomach_core.pipeline import DemoSettings, default_robot, run_demo, write_demo_outputs
-    from robomach_core.postprocess import PostprocessSettings
+    from robomach_core.learning.settings import PathLearningSettings
+    from robomach_core.pipeline import run_demo, write_demo_outputs
 
-    robot, robot_urdf = args.robot or default_robot(args.language), None
-    if robot.lower().endswith(".urdf"):
-        from robomach_core.robots.custom import read_robot_file, register_urdf
-
-        robot_urdf = read_robot_file(Path(robot))
-        robot = register_urdf(*robot_urdf)
-
-    # A language the arm's controller does not run is refused now, not after learning.
-    from robomach_core.cell import Robot
-    from robomach_core.export.languages import resolve_languages
-
-    resolve_languages(Robot(robot), args.language)
-
-    settings = DemoSettings(
-        robot=robot,
-        workpiece=args.workpiece,
+    robot = args.robot or default_arm(args.language)
+    project = _project(args, robot, wobj, cmrr, compensation)
+    robot = project.cell.robot  # a URDF file's: the name it is registered under
+    learning = PathLearningSettings(
         force_N=args.force,
         speed_m_s=args.speed * 1e-3,
-        tolerance_m=args.tolerance * 1e-3,
-        seed=args.seed,
-        guide_points_csv=guide_csv,
         wall_side=args.wall_side,
-        cmrr=cmrr,
-        compensation=compensation,
-        wobj_mm_deg=wobj,
-        tool=Tool(radius_m=args.tool_radius_mm * 1e-3),
-        # The force filter's band: the workbench's rule (``for_learning_force``).
-        postprocess=PostprocessSettings(
-            arcs=args.arcs,
-            arc_tolerance_m=None if args.arc_tolerance is None else args.arc_tolerance * 1e-3,
-        ),
         closed=not args.open,
-        language=args.language,
-        robot_urdf=robot_urdf,
-        propose_at_m=propose_at,
-        proposal=ProposalSettings(gap_m=args.gap_mm * 1e-3),
-        part_deviation=PartDeviation.realistic(args.seed) if args.realistic else None,
-        calibrate=args.calibrate,
-        touch_force_N=max(args.force, limits.TOUCH_OFF_FORCE_N.min),
     )
     bar = StageProgress()
 
@@ -341,7 +314,17 @@ def run(args: argparse.Namespace) -> int:
         bar.stage = None
 
     try:
-        result = run_demo(settings, progress=bar, checked=checked)
+        result = run_demo(
+            project,
+            learning,
+            guide_points_csv=guide_csv,
+            propose_at_m=propose_at,
+            proposal_settings=ProposalSettings(gap_m=args.gap_mm * 1e-3),
+            touch_force_N=max(args.force, limits.TOUCH_OFF_FORCE_N.min) if args.calibrate else None,
+            language=args.language,
+            progress=bar,
+            checked=checked,
+        )
     except SupervisionError as exc:
         where = "" if args.wobj is not None else " (now the built-in placement)"
         raise exc.with_cause_note(robot, place=f"--wobj x,y,z (mm){where}") from None
@@ -440,6 +423,48 @@ def run(args: argparse.Namespace) -> int:
     for problem in s.get("problems") or ():
         print(f"NOT FIT TO MACHINE: {problem}", file=sys.stderr)
     return 0 if result.recording.completed and not s.get("problems") else 1
+
+
+def _project(
+    args: argparse.Namespace, robot: str, wobj: tuple | None, cmrr: Any, compensation: Any
+) -> Project:
+    """The job the flags describe, built by the project's transitions as the workbench builds
+    it (an uploaded arm, an uploaded mesh, the cell, the process settings); its settings are
+    the project's own (``CellSettings``, ``PostprocessSettings``), each flag onto one."""
+    from robomach_core import project as core
+    from robomach_core.cell import Robot
+    from robomach_core.export.languages import resolve_languages
+    from robomach_core.part import PartDeviation
+    from robomach_core.pipeline import read_mesh_file
+
+    project = core.Project()
+    if robot.lower().endswith(".urdf"):
+        from robomach_core.robots.custom import read_robot_file, register_urdf
+
+        filename, data = read_robot_file(Path(robot))
+        project = core.with_robot_file(project, filename, data, register_urdf(filename, data))
+        robot = project.cell.robot
+    # A language the arm's controller does not run is refused now, not after learning.
+    resolve_languages(Robot(robot), args.language)
+    mesh = Path(args.workpiece)
+    if mesh.suffix:
+        project = core.with_uploaded_mesh(project, *read_mesh_file(mesh))
+    project = core.with_cell(
+        project,
+        robot=robot,
+        workpiece=None if mesh.suffix else args.workpiece,
+        tool_radius_m=args.tool_radius_mm * 1e-3,
+        wobj_mm_deg=wobj,
+        part_deviation=PartDeviation.realistic(args.seed) if args.realistic else None,
+        seed=args.seed,
+    )
+    post = core.post_settings_with(
+        project,
+        tolerance_m=args.tolerance * 1e-3,
+        arcs=args.arcs,
+        arc_tolerance_m=None if args.arc_tolerance is None else args.arc_tolerance * 1e-3,
+    )
+    return core.with_process_settings(replace(project, post_settings=post), cmrr, compensation)
 
 
 def _check_lines(findings: list[dict]) -> list[str]:

@@ -346,7 +346,7 @@ def _project(args: argparse.Namespace, bar):
             )
         project = core.load_project_file(path)
     else:
-        from robomach_core.pipeline import DemoSettings, run_demo
+        from robomach_core.pipeline import run_demo
 
         if Path(args.workpiece or "").suffix:  # a mesh: its guide points come with the demo
             raise InvalidInputError(
@@ -354,9 +354,8 @@ def _project(args: argparse.Namespace, bar):
                 "--workpiece FILE --guide-points CSV --out DIR`, then `robomach machine --from DIR`"
             )
 
-        result = run_demo(
-            DemoSettings(workpiece=args.workpiece or "water_pump", seed=args.seed), progress=bar
-        )
+        job = core.with_cell(core.Project(), workpiece=args.workpiece, seed=args.seed)
+        result = run_demo(job, progress=bar)
         project = result.project
     status = project.status()
     if status["postprocess"] != "current":

@@ -316,21 +316,10 @@ class Learning:
         closed: bool = True,
         wall_side: str = "auto",
     ) -> tuple:
-        """What the operator check finds in the guide points (``guide_check``)."""
-        from robomach_core.cell import cell_supervisor
-        from robomach_core.learning.checks import guide_point_warnings
-
+        """What the operator check finds in the guide points (``project.guide_findings``)."""
         view = self._session.view()
         settings = PathLearningSettings(force_N=force_N, closed=closed, wall_side=wall_side)
-        with mesh_query.LOCK:  # the mesh's nearest-point tree answers one thread at a time
-            return guide_point_warnings(
-                view.project.guide_points,
-                settings,
-                workpiece=view.cell.workpiece.cad(),  # checks use the mesh the user sees
-                tool_radius_m=view.project.cell.tool_radius_m,
-                supervisor=cell_supervisor(view.cell),
-                tolerance_m=view.project.post_settings.tolerance_m,
-            )
+        return core.guide_findings(view.project, view.cell, settings)
 
     def guide_warnings(
         self, force_N: float, *, closed: bool = True, wall_side: str = "auto"

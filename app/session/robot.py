@@ -28,14 +28,13 @@ from robomach_core import project as core
 from robomach_core.cell import (
     AXES,
     Cell,
-    CellConfig,
     CellState,
     ComplianceSelection,
     GuidePoint,
     LeadThrough,
     LeadThroughState,
 )
-from robomach_core.errors import ConflictError, InvalidInputError, RobomachError
+from robomach_core.errors import ConflictError, RobomachError
 from robomach_core.learning.run import Recording
 from robomach_core.part import Workpiece
 from robomach_core.project import CellSettings
@@ -67,23 +66,10 @@ def build_live_cell(
     *,
     parsed: Workpiece | None = None,
 ) -> Built:
-    """The cell of ``settings`` and its lead-through, the robot at ``joints`` (home when None
-    or not usable); ``parsed`` is ``mesh`` already read (``workpiece.mesh_from_bytes``)."""
-    from robomach_core.cell import ROBOT_URDFS
-
-    if settings.robot not in ROBOT_URDFS:  # an uploaded arm is in once registered
-        raise InvalidInputError(
-            f"unknown robot {settings.robot!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
-        )
-    workpiece = core.build_cell_workpiece(settings, mesh, parsed=parsed)
-    cell = Cell(
-        CellConfig(
-            robot=settings.robot,
-            tool=core.Project(cell=settings).tool(),
-            workpiece=workpiece,
-            seed=settings.seed,
-        )
-    )
+    """The cell of ``settings`` (``project.build_cell``) and its lead-through, the robot at
+    ``joints`` (home when None or not usable); ``parsed`` is ``mesh`` already read
+    (``workpiece.mesh_from_bytes``)."""
+    cell = core.build_cell(settings, mesh, parsed=parsed)
     initial = None
     if joints is not None:
         try:

@@ -386,7 +386,7 @@ def mesh_from_bytes(
     scale: float = 1e-3,
     max_triangles: int = MAX_MESH_TRIANGLES,
 ) -> Workpiece:
-    """A workpiece from the bytes of a mesh file (uploads, ``pipeline.load_workpiece``). A file
+    """A workpiece from the bytes of a mesh file (uploads, ``robomach demo --workpiece F``). A file
     with more than ``max_triangles`` (or three times as many vertices) is refused from its
     bytes, before it is parsed (``count_mesh_triangles``, ``mesh_check.check_mesh_bytes``);
     it is then read in an isolated process within ``PARSE_MEMORY_BYTES`` and

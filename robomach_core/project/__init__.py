@@ -47,8 +47,9 @@ from ._machining_documents import (
     machining_setup_from_document as machining_setup_from_document,
 )
 from ._machining_program import machining_note as machining_note
-from ._stages import build_cell_workpiece as build_cell_workpiece
+from ._stages import build_cell as build_cell
 from ._stages import build_workpiece as build_workpiece
+from ._stages import guide_findings as guide_findings
 from ._stages import learn as learn
 from ._stages import process as process
 from ._stages import require_processed as require_processed
@@ -82,7 +83,6 @@ from ._value import machining_inputs_key as machining_inputs_key
 from ._value import processed_inputs_key as processed_inputs_key
 from ._value import recording_inputs_key as recording_inputs_key
 from ._writers import cad_only_program_texts as cad_only_program_texts
-from ._writers import compensate_program_targets as compensate_program_targets
 from ._writers import program_export as program_export
 from ._writers import program_files as program_files
 from ._writers import program_languages as program_languages

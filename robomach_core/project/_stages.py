@@ -29,7 +29,7 @@ from ._value import (
 )
 
 if TYPE_CHECKING:
-    from ..learning.checks import TaughtWallCheck
+    from ..learning.checks import GuideWarning, TaughtWallCheck
 
 
 def learn(
@@ -223,7 +223,45 @@ def require_processed(project: Project) -> ProcessedPath:
     return project.processed
 
 
-# --- the workpiece of a project --------------------------------------------------------------
+def guide_findings(
+    project: Project, cell: Cell, settings: PathLearningSettings
+) -> tuple[GuideWarning, ...]:
+    """The check of the project's guide points before a run (``learning.guide_point_warnings``
+    against the mesh the user sees, the arm's reach and the cell's supervision, at the
+    project's tolerance): what the workbench shows and ``robomach demo`` prints; a refusal
+    raises."""
+    from ..cell import cell_supervisor
+    from ..learning.checks import guide_point_warnings
+
+    with mesh_query.LOCK:  # the mesh's nearest-point tree answers one thread at a time
+        return guide_point_warnings(
+            project.guide_points,
+            settings,
+            workpiece=cell.workpiece.cad(),
+            tool_radius_m=project.cell.tool_radius_m,
+            supervisor=cell_supervisor(cell),
+            tolerance_m=project.post_settings.tolerance_m,
+        )
+
+
+# --- the cell and workpiece of a project -----------------------------------------------------
+
+
+def build_cell(
+    settings: CellSettings, mesh: tuple[str, bytes] | None, *, parsed: Workpiece | None = None
+) -> Cell:
+    """The simulated cell of ``settings``, the one the workbench and ``robomach demo`` run:
+    the arm holding the cell's tool at the part its contact meets (``build_cell_workpiece``),
+    its sensor seeded by the cell's seed; ``parsed`` is ``mesh`` already read."""
+    from ..cell import ROBOT_URDFS, CellConfig
+
+    if settings.robot not in ROBOT_URDFS:  # an uploaded arm is in once registered
+        raise InvalidInputError(
+            f"unknown robot {settings.robot!r}; choose one of {', '.join(sorted(ROBOT_URDFS))}"
+        )
+    workpiece = build_cell_workpiece(settings, mesh, parsed=parsed)
+    tool = Project(cell=settings).tool()
+    return Cell(CellConfig(settings.robot, tool, workpiece, seed=settings.seed))
 
 
 def wobj_transform(values: Sequence[float]) -> np.ndarray:

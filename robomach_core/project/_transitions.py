@@ -13,7 +13,8 @@ SOLUTION  ``with_cell``, ``with_registration``, ``with_uploaded_mesh`` (``mesh_f
           ``with_guide_points``, ``with_guide_point_added``, ``without_guide_point``,
           ``with_guide_point_at``, ``with_learned``,
           ``post_settings_with``, ``with_processed``, ``with_process_settings``. The session
-          applies them under its lock and saves; ``pipeline.run_demo`` applies them in order.
+          applies them under its lock and saves; ``robomach demo`` builds its project with them
+          and ``pipeline.run_demo`` applies the stages' in order.
 """
 
 from __future__ import annotations
@@ -52,6 +53,7 @@ def with_cell(
     workpiece: str | None = None,
     part_deviation: Any = KEEP,
     wobj_mm_deg: Any = KEEP,
+    seed: int | None = None,
 ) -> Project:
     """The project in another cell; None keeps a setting (``part_deviation``: a
     ``real_part.PartDeviation``, None for a part that is its mesh; ``wobj_mm_deg``: the
@@ -74,6 +76,7 @@ def with_cell(
         tool_radius_m=cur.tool_radius_m if tool_radius_m is None else float(tool_radius_m),
         part_deviation=cur.part_deviation if part_deviation is KEEP else part_deviation,
         wobj_mm_deg=cur.wobj_mm_deg if wobj_mm_deg is KEEP else wobj_mm_deg,
+        seed=cur.seed if seed is None else int(seed),
     )
     if workpiece in WORKPIECE_NAMES:
         new, mesh = replace(new, workpiece=workpiece, workpiece_builtin=True), None

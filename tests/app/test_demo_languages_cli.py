@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from app.cli import main
-from robomach_core.pipeline import default_robot
+from robomach_core.export.languages import default_arm as default_robot
 
 
 def test_each_language_brings_its_own_arm():

@@ -5,8 +5,11 @@ through the Session as a person at the workbench does it (choose the arm, upload
 click the wall to propose the guide points, accept them, learn, post-process). Every stage's
 result is compared, on a UR10 and on an IRB 4400 (whose part sits elsewhere: an uploaded mesh
 placed at the UR10's spot while the session ran, at the arm's own after a reopen, was the
-drift), and then both are reopened from their saved form: the CLI's ``project.npz`` (loaded by
-the core, and imported into a workbench) and the workbench's SQLite store.
+drift), at 10, 12 and 20 N (the force filter's band: the CLI once filtered 6-18 N at 12 N where
+the workbench kept its 5-15 N, issue 30), at non-default tolerances and with the part on a
+work object of the user's; then both are reopened from their saved form: the CLI's
+``project.npz`` (loaded by the core, and imported into a workbench) and the workbench's SQLite
+store.
 """
 
 from __future__ import annotations
@@ -25,30 +28,37 @@ from tests.generated_parts import PARTS
 from tests.jobs import done
 
 SPEED_MM_S = 20.0
-# (robot, force [N], tolerance [mm] or None for the default): 12 N with a non-default
-# tolerance is where the CLI once filtered 6-18 N and the workbench 5-15 N (issue 30).
-CASES = [("ur10", 10.0, None), ("irb4400", 10.0, None), ("ur10", 12.0, 0.05)]
+# (robot, force [N], tolerance [mm] or None for the default, work object [mm, deg] or None for
+# the arm's placement). At 12 N the default 5-15 N band holds the force and stays; at 20 N it
+# does not and moves to 10-30 N (``PostprocessSettings.for_learning_force``).
+CASES = [
+    ("ur10", 10.0, None, None),
+    ("irb4400", 10.0, None, None),
+    ("ur10", 12.0, 0.05, None),
+    ("ur10", 20.0, 0.1, (780.0, 130.0, 10.0, 15.0)),
+]
 
 
 def _cli_project(
-    tmp_path: Path, stl: Path, pick_mm, robot: str, force_N: float, tolerance_mm: float | None
+    tmp_path: Path, stl: Path, pick_mm, robot: str, force_N: float, tolerance_mm, wobj
 ) -> tuple[core.Project, Path]:
     out = tmp_path / "cli"
     x, y, z = pick_mm
     tolerance = [] if tolerance_mm is None else ["--tolerance", str(tolerance_mm)]
+    placed = [] if wobj is None else ["--wobj", ",".join(map(str, wobj))]
     code = robomach(
         ["demo", "--out", str(out), "--workpiece", str(stl), "--robot", robot,
          f"--propose-guide-points={x},{y},{z}", "--speed", str(SPEED_MM_S),
-         "--force", str(force_N), "--no-plot", *tolerance]
+         "--force", str(force_N), "--no-plot", *tolerance, *placed]
     )  # fmt: skip
     assert code == 0
     return core.load_project_file(out / "project.npz"), out
 
 
 def _session_project(
-    session: Session, stl: Path, pick_mm, robot: str, force_N: float, tolerance_mm: float | None
+    session: Session, stl: Path, pick_mm, robot: str, force_N: float, tolerance_mm, wobj
 ) -> None:
-    session.set_cell(robot=robot)
+    session.set_cell(robot=robot, wobj_mm_deg=wobj)
     session.upload_workpiece(stl.read_bytes(), stl.name)  # as the browser uploads it
     proposal = session.pointing.propose(np.asarray(pick_mm, dtype=float) * 1e-3)
     done(session, session.pointing.accept())
@@ -80,21 +90,23 @@ def _assert_same_stages(live: core.Project, cli: core.Project) -> None:
 
 
 @pytest.mark.slow  # the CLI's demo and the workbench's run, twice per case: 5-6 s idle
-@pytest.mark.parametrize(("robot", "force_N", "tolerance_mm"), CASES)
+@pytest.mark.parametrize(("robot", "force_N", "tolerance_mm", "wobj"), CASES)
 def test_the_workbench_and_the_cli_build_the_same_project(
-    tmp_path, robot, force_N, tolerance_mm
+    tmp_path, robot, force_N, tolerance_mm, wobj
 ) -> None:
     part = PARTS["slotted_plate"]()
     stl = tmp_path / "slotted_plate.stl"
     stl.write_bytes(part.stl_bytes())
     pick = part.picks["right side"]
-    cli, out = _cli_project(tmp_path, stl, pick, robot, force_N, tolerance_mm)
+    cli, out = _cli_project(tmp_path, stl, pick, robot, force_N, tolerance_mm, wobj)
     if tolerance_mm is not None:
         assert cli.post_settings.tolerance_m == pytest.approx(tolerance_mm * 1e-3)
+    assert cli.post_settings.holds_force(force_N)  # the band keeps the learned samples
+    assert cli.cell.wobj_mm_deg == wobj
     db = tmp_path / "robomach.sqlite"
     session = Session(Store(db), data_dir=tmp_path, real_time=False)
     try:
-        _session_project(session, stl, pick, robot, force_N, tolerance_mm)
+        _session_project(session, stl, pick, robot, force_N, tolerance_mm, wobj)
         live = session.project()
         # The part sits where the arm's own placement puts it, live as after a reopen.
         cad = core.build_workpiece(cli.cell, cli.mesh)

@@ -22,8 +22,9 @@ import pytest
 
 from robomach_core.part import PartDeviation, builtin_workpiece
 from robomach_core.part.real_part import fixture_error
-from robomach_core.pipeline import DemoSettings, run_demo
+from robomach_core.pipeline import run_demo
 from robomach_core.postprocess import PostprocessSettings
+from robomach_core.project import CellSettings, Project
 from tests.envelope import replay, run_seed
 
 SEED = run_seed()
@@ -59,19 +60,11 @@ def calibrated_demo(seed: int) -> dict:
     """``robomach demo --realistic --calibrate --seed S --wobj <placement>``'s figures."""
     wobj = _placement(seed)
     deviation = PartDeviation.realistic(seed)
-    result = run_demo(
-        DemoSettings(
-            robot="ur10",
-            workpiece="water_pump",
-            seed=seed,
-            wobj_mm_deg=wobj,
-            tolerance_m=TOLERANCE_MM * 1e-3,
-            part_deviation=deviation,
-            calibrate=True,
-            touch_force_N=10.0,
-            postprocess=PostprocessSettings().with_band_for(10.0),
-        )
+    cell = CellSettings(
+        robot="ur10", workpiece="water_pump", seed=seed, wobj_mm_deg=wobj, part_deviation=deviation
     )
+    post = PostprocessSettings(tolerance_m=TOLERANCE_MM * 1e-3).with_band_for(10.0)
+    result = run_demo(Project(cell=cell, post_settings=post), touch_force_N=10.0)
     s = result.summary()
     c = s["cad_comparison"]
     return {

@@ -10,10 +10,10 @@ import pytest
 from robomach_core.cell import TOOL_DOWN, GuidePoint, Robot
 from robomach_core.cell.robot import robot_urdf_path
 from robomach_core.errors import InvalidInputError
+from robomach_core.export.languages import default_arm as default_robot
 from robomach_core.learning.checks import guide_point_warnings
 from robomach_core.learning.settings import PathLearningSettings
 from robomach_core.part import builtin_workpiece
-from robomach_core.pipeline import default_robot
 from robomach_core.project import wobj_transform
 from robomach_core.robots.custom import RobotFileError, register_urdf, validate_urdf
 from robomach_core.scoring import score_mesh, score_path
@@ -132,9 +132,11 @@ def test_mesh_score_agrees_with_the_true_wall_score():
 def test_the_ur5_learns_the_pump_where_it_is_placed_for_it():
     """At the UR10's placement (0.8 m) the UR5 met its elbow singularity before the first
     guide point; its own placement (0.525 m) is within its reach."""
-    from robomach_core.pipeline import DemoSettings, run_demo
+    from robomach_core.pipeline import run_demo
+    from robomach_core.project import CellSettings, Project
 
-    result = run_demo(DemoSettings(robot="ur5", speed_m_s=0.010))
+    ur5 = Project(cell=CellSettings(robot="ur5"))
+    result = run_demo(ur5, PathLearningSettings(speed_m_s=0.010))
     assert result.recording.completed, result.recording.stop_reason
     assert result.score.max_m < 0.25e-3
     assert result.reachability.reachable == result.reachability.total

@@ -9,7 +9,7 @@ from robomach_core.errors import MeshFileError, UnknownNameError
 from robomach_core.part import Arc, builtin_workpiece, mesh_from_bytes
 from robomach_core.part.contour import filleted_polygon
 from robomach_core.part.workpiece import block, water_pump
-from robomach_core.pipeline import load_workpiece
+from robomach_core.pipeline import read_mesh_file
 
 TOOL_DOWN = np.diag([1.0, -1.0, -1.0])
 
@@ -102,17 +102,17 @@ def test_unknown_workpiece_names_the_choices():
 def test_mesh_files_load_and_bad_files_give_clear_errors(tmp_path):
     good = tmp_path / "part.stl"
     block().mesh.copy().apply_scale(1000.0).export(good)  # mm on disk
-    cell, (filename, data) = load_workpiece(str(good))  # what the CLI's --workpiece FILE does
-    assert (cell.workpiece, cell.workpiece_builtin, filename) == ("part", False, "part.stl")
-    wp = mesh_from_bytes(data, ".stl", name=cell.workpiece)
+    filename, data = read_mesh_file(good)  # what the CLI's --workpiece FILE does
+    assert filename == "part.stl"
+    wp = mesh_from_bytes(data, ".stl", name="part")
     np.testing.assert_allclose(wp.mesh.extents[:2], [0.150, 0.050], atol=1e-9)
     bad = tmp_path / "notes.stl"
     bad.write_text("this is not a mesh")
     with pytest.raises(MeshFileError):
         mesh_from_bytes(bad.read_bytes(), ".stl", name="notes")
     with pytest.raises(MeshFileError, match="not a mesh file"):
-        load_workpiece(str(tmp_path / "x.txt"))
+        read_mesh_file(tmp_path / "x.txt")
     with pytest.raises(MeshFileError, match="no such file"):
-        load_workpiece(str(tmp_path / "missing.stl"))
+        read_mesh_file(tmp_path / "missing.stl")
     with pytest.raises(MeshFileError, match="exceed the limit"):
         mesh_from_bytes(good.read_bytes(), ".stl", max_triangles=4)

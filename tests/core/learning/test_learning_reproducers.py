@@ -18,7 +18,9 @@ import pytest
 
 from robomach_core.cell import TOOL_DOWN
 from robomach_core.errors import RouteRefusedError
-from robomach_core.pipeline import DemoSettings, run_demo
+from robomach_core.learning.settings import PathLearningSettings
+from robomach_core.pipeline import run_demo
+from robomach_core.project import CellSettings, Project
 from tests.envelope import (
     DENSE_SAMPLES,
     GRID_WITHIN_MM,
@@ -45,20 +47,22 @@ def _rng(*key: object) -> np.random.Generator:
     return np.random.default_rng([SEED, zlib.crc32(repr(key).encode())])
 
 
-def _demo(part_name: str, wall: str, **kwargs) -> tuple[Outcome, object]:
+def _demo(
+    part_name: str, wall: str, *, seed: int, guide_points_csv: str | None = None, **learning
+) -> tuple[Outcome, object]:
     """``robomach demo`` (``run_demo``) on a built-in part, judged against ``wall``; a
     refusal before learning is the outcome "refused"."""
     part = part_named(part_name)
-    settings = DemoSettings(workpiece=part_name, force_control_variant=False, **kwargs)
+    settings = PathLearningSettings(**learning)
+    job = Project(cell=CellSettings(workpiece=part_name, seed=seed))
     try:
-        result = run_demo(settings)
+        result = run_demo(job, settings, guide_points_csv=guide_points_csv)
     except RouteRefusedError as exc:
         return Outcome("refused", reason=f"refused: {exc}"), None
-    r = settings.tool.radius_m
-    closed = settings.closed
+    r = job.cell.tool_radius_m
     pset = as_set(
         part, result.workpiece, r, result.guides, "the example operator", wall=wall,
-        closed=closed, side=settings.wall_side,
+        closed=settings.closed, side=settings.wall_side,
     )  # fmt: skip
     processed = result.project.processed
     note = f"{settings.force_N:g} N, {settings.speed_m_s * 1e3:g} mm/s"
@@ -220,7 +224,7 @@ def test_the_wall_side_set_against_the_points_is_followed_and_the_points_named(t
             result.guides,
             PathLearningSettings(wall_side="left"),
             workpiece=result.workpiece.cad(),
-            tool_radius_m=result.settings.tool.radius_m,
+            tool_radius_m=result.project.cell.tool_radius_m,
         )
         named += [w.message for w in found if w.point >= 1 and w.severity == "warning"]
         assert named, f"no warning names the points taught at the outer wall: {why}\n{texts}"

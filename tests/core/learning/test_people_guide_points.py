@@ -247,10 +247,11 @@ def test_a_program_on_the_floor_off_the_wall_misses_the_taught_wall(pump_cell, b
 # --- the reproducers through the whole pipeline ---------------------------------------
 
 
-def _demo(**kwargs):
-    from robomach_core.pipeline import DemoSettings, run_demo
+def _demo(seed: int):
+    from robomach_core.pipeline import run_demo
+    from robomach_core.project import CellSettings, Project
 
-    return run_demo(DemoSettings(**kwargs))
+    return run_demo(Project(cell=CellSettings(seed=seed)))
 
 
 @pytest.mark.slow
@@ -268,7 +269,7 @@ def test_the_example_points_without_their_push_learn_the_wall():
     demo_operator.guide_plan = free_plan
     try:
         for seed in range(2):
-            result = _demo(seed=seed, force_control_variant=False)
+            result = _demo(seed)
             assert result.recording.completed, result.recording.stop_reason
             assert result.score.max_m <= 0.3e-3
             mesh = result.project.processed.mesh_score

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from robomach_core.limits import TOLERANCE_MM
-from robomach_core.pipeline import DemoSettings, run_demo
+from robomach_core.pipeline import run_demo
 from robomach_core.postprocess import PostprocessSettings
-from robomach_core.project import process
+from robomach_core.project import CellSettings, Project, process
 from tests.envelope import replay, run_seed
 
 SEED = run_seed()
@@ -19,7 +19,7 @@ SEED = run_seed()
 
 @pytest.fixture(scope="module")
 def demo():
-    return run_demo(DemoSettings(seed=int(SEED % 1000)))
+    return run_demo(Project(cell=CellSettings(seed=int(SEED % 1000))))
 
 
 @pytest.mark.slow

@@ -13,7 +13,8 @@ from robomach_core.learning.walls import section_loops
 from robomach_core.part import PartDeviation, real_workpiece
 from robomach_core.part.real_part import fixture_error, refine_walls
 from robomach_core.part.workpiece import block, water_pump
-from robomach_core.project import CellSettings, Project, build_cell_workpiece
+from robomach_core.project import CellSettings, Project
+from robomach_core.project._stages import build_cell_workpiece
 
 MACHINING_Z_M = 0.017
 
