@@ -4,8 +4,8 @@ PROBLEM   The GUI and the REST API both start CMRR studies (``robomach_core.cmrr
           stiffness / compensation studies (``robomach_core.stiffness``), watch their progress,
           cancel them, show the last result's numbers and plots, and keep the settings with the
           project so that they survive a restart.
-STRATEGY  One ``StudyService`` per session, built at start-up and handed to the GUI and the
-          API (``create_app(studies=)``), submits each study to the session's ``JobRunner``,
+STRATEGY  One ``StudyService`` per session, built with it (``Session.studies``) and read by
+          the GUI and the API, submits each study to the session's ``JobRunner``,
           so it shows in ``/api/jobs`` and cancels like any job. A run
           writes the core's files into a fresh folder under ``<data>/studies/.tmp``; when it is
           done, the folder replaces ``<data>/studies/<project id>/<kind>/`` and the summary and

@@ -51,9 +51,8 @@ from app.api.routes import (
 )
 from app.session import ConflictError, NotFoundError, QueueFullError, Session
 from app.session.jobs import describe_unexpected
-from app.session.machining import MachiningService
 from app.settings import MAX_JSON_BODY_BYTES, ServerSettings, is_loopback_name
-from app.studies import StudyQueueFullError, StudyService
+from app.studies import StudyQueueFullError
 from robomach_core.errors import (
     CancelledError,
     ForceLimitError,
@@ -364,8 +363,6 @@ def create_app(
     *,
     services: Sequence[Service] = (),
     close_session: bool = True,
-    studies: StudyService | None = None,
-    machining: MachiningService | None = None,
 ) -> FastAPI:
     """The REST API over ``session``.
 
@@ -375,8 +372,6 @@ def create_app(
         services: Context-manager factories entered at startup and left at shutdown, in
             reverse order (the viser workbench).
         close_session: Close the session (cancel jobs, close the store) at shutdown.
-        studies, machining: The session's study and machining services, shared with the
-            viser workbench (``server.build_app``); new ones when None.
     """
     settings = settings or ServerSettings(viser_port=None)
 
@@ -408,8 +403,6 @@ def create_app(
         max_body_size=MAX_JSON_BODY_BYTES,
     )
     app.state.session = session
-    app.state.studies = studies or StudyService(session)
-    app.state.machining = machining or MachiningService(session)
     app.state.settings = settings
     for module in ROUTERS:
         app.include_router(module.router)

@@ -43,7 +43,6 @@ from robomach_core.project import ProcessedPath, Project
 
 from .jobs import JobContext
 from .records import ForceTrace, RobotSnapshot, Topic
-from .robot import build_live_cell
 
 if TYPE_CHECKING:
     from .session import Session
@@ -208,9 +207,7 @@ class Learning:
             wall_side=wall_side,
             **({} if floor_clearance_m is None else {"floor_clearance_m": floor_clearance_m}),
         )
-        with robot.lock:
-            robot.require_idle()
-            project, pose = s.project(), robot.pose()
+        project, pose = s.idle_start()
         if len(project.guide_points) < 2:
             raise NotEnoughGuidePointsError(
                 f"path learning needs at least 2 guide points, got {len(project.guide_points)}"
@@ -293,14 +290,8 @@ class Learning:
 
     def go_home(self) -> RobotSnapshot:
         """Put the robot back at its home pose (a reset of the simulation, not a move)."""
-        s, robot = self._session, self._session.robot
-        with robot.lock:
-            robot.require_idle()
-            project = s.project()
-            robot.install(build_live_cell(project.cell, project.mesh))
-            robot.save()
-        s.notify("robot")
-        return robot.snapshot()
+        self._session.reset_robot()
+        return self._session.robot.snapshot()
 
     def force_trace(self, max_points: int = 2000) -> ForceTrace:
         """Force vs time, at most ``max_points`` (>= 2) by stride: live during a job, else the

@@ -148,10 +148,12 @@ class Pointing:
         mode = self.click_mode if click_mode is None else click_mode
         if new == self.settings and mode == self.click_mode:
             return self.settings
-        robot = self._session.robot
-        with robot.lock:  # kept with the project's robot document, saved before it applies
-            robot.save({**robot.document(), "pointing": pointing_document(new, mode)})
+
+        def apply() -> None:
             self.settings, self.click_mode = new, mode
+
+        # Kept with the project's robot document, saved before it applies.
+        self._session.robot.keep({"pointing": pointing_document(new, mode)}, apply)
         self._session.notify("guide_points")
         return self.settings
 
@@ -190,10 +192,8 @@ class Pointing:
         """Put the tool beside the wall at a picked point (work-object frame) and record a
         guide point there: appended, or in place of ``replace_index`` (drag to adjust)."""
         s, robot = self._session, self._session.robot
-        with robot.lock:
-            robot.require_idle()
-            pose = robot.pose()
-            count = len(s.project().guide_points)
+        project, pose = s.idle_start()
+        count = len(project.guide_points)
         if replace_index is not None and not 0 <= replace_index < count:
             raise NotFoundError(f"no guide point G{replace_index + 1}; there are {count}")
         if replace_index is None and count >= MAX_GUIDE_POINTS:
@@ -371,10 +371,8 @@ class Pointing:
                 f"the arm cannot reach {listed}: move or delete them before accepting"
             )
         s, robot = self._session, self._session.robot
-        with robot.lock:
-            robot.require_idle()
-            pose = robot.pose()
-            rng_seed = s.project().cell.seed
+        project, pose = s.idle_start()
+        rng_seed = project.cell.seed
         if epoch != pose.epoch:
             raise ConflictError("the cell changed since the proposal; propose again")
         cell, estimator, start = pose.cell, pose.leadthrough.estimator, pose.state

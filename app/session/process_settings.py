@@ -8,18 +8,26 @@ compensated targets (``robomach_core.project._writers.rapid_text``).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .records import ConflictError, NotFoundError
 
+if TYPE_CHECKING:
+    from robomach_core.cmrr import CmrrSettings
+    from robomach_core.project import Project
+    from robomach_core.stiffness import CompensationSettings
+
+    from ..studies import StudyService
+    from .session import Session
+
 
 def settings_from_studies(
-    studies: Any,
+    studies: StudyService,
     *,
     controller: str | None = None,
     cmrr: bool = True,
     compensation: bool = True,
-) -> tuple[Any, Any]:
+) -> tuple[CmrrSettings | None, CompensationSettings | None]:
     """(CmrrSettings | None, CompensationSettings | None) of the open project's last studies.
 
     Args:
@@ -69,7 +77,12 @@ def settings_from_studies(
     return cmrr_settings, compensation_settings
 
 
-def set_process_settings(session: Any, *, cmrr: Any = None, compensation: Any = None) -> Any:
+def set_process_settings(
+    session: Session,
+    *,
+    cmrr: CmrrSettings | None = None,
+    compensation: CompensationSettings | None = None,
+) -> Project:
     """Choose the CMRR controller settings (``cmrr.CmrrSettings``) and the compensation
     settings (``stiffness.CompensationSettings``) the exported program carries
     (``project.with_process_settings``; None removes one). Returns the project."""

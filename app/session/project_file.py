@@ -4,14 +4,17 @@ workbench then hold the same ``Project`` value and write the same program files.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 from robomach_core import project as core
 
 from .records import ProjectInfo
 
+if TYPE_CHECKING:
+    from .session import Session
 
-def import_project(session: Any, data: bytes, name: str) -> ProjectInfo:
+
+def import_project(session: Session, data: bytes, name: str) -> ProjectInfo:
     """A new project named ``name`` holding the file's project, opened at once.
 
     Raises:
@@ -29,6 +32,6 @@ def import_project(session: Any, data: bytes, name: str) -> ProjectInfo:
     return session.current_project()
 
 
-def export_project(session: Any) -> bytes:
+def export_project(session: Session) -> bytes:
     """The open project as ``project.npz`` bytes."""
     return core.project_file_bytes(session.project())

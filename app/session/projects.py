@@ -10,7 +10,6 @@ Functions over a ``Session``: ``open_initial``, ``list_projects``, ``create_proj
 
 from __future__ import annotations
 
-import shutil
 from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING, Any
 
@@ -23,7 +22,6 @@ from ..store import ProjectData, Store
 from .persistence import cell_from_doc, project_from_data
 from .records import (
     DEFAULT_PROJECT_NAME,
-    ConflictError,
     NotFoundError,
     ProjectInfo,
     check_project_name,
@@ -59,57 +57,30 @@ def list_projects(session: Session) -> list[ProjectInfo]:
 
 def create_project(session: Session, name: str) -> ProjectInfo:
     """A new project with the default cell, opened at once."""
-    name = check_project_name(name)
-    with session.robot.lock:
-        session.robot.require_idle()
-        if session.store.find_project(name) is not None:
-            raise ConflictError(f"a project named {name!r} already exists")
-        row = session.store.create_project(name, asdict(CellSettings()), _robot_doc_default())
-    session.switch_to(read_project(session.store, row.id))
+    project_id = session.new_project_row(check_project_name(name), _robot_doc_default())
+    session.switch_to(read_project(session.store, project_id))
     return session.current_project()
 
 
 def open_project(session: Session, project_id: int) -> ProjectInfo:
     """Open a stored project (its cell, robot pose, guide points, recording, results)."""
-    with session.robot.lock:
-        session.robot.require_idle()
-        if session.store.get_project(project_id) is None:
-            raise NotFoundError(f"no project with id {project_id}")
-        epoch = session.robot.epoch
-    loaded = read_project(session.store, project_id)  # outside the lock: reads never wait
+    session.robot.require_idle()  # early: ``switch_to`` checks it again, with the epoch
+    if session.store.get_project(project_id) is None:
+        raise NotFoundError(f"no project with id {project_id}")
+    epoch = session.robot.epoch
+    loaded = read_project(session.store, project_id)  # reads never wait for the slow part
     session.switch_to(loaded, epoch=epoch)
     return session.current_project()
 
 
 def rename_project(session: Session, project_id: int, name: str) -> ProjectInfo:
-    name = check_project_name(name)
-    store = session.store
-    with session.robot.lock:
-        row = store.get_project(project_id)
-        if row is None:
-            raise NotFoundError(f"no project with id {project_id}")
-        other = store.find_project(name)
-        if other is not None and other.id != project_id:
-            raise ConflictError(f"a project named {name!r} already exists")
-        store.rename_project(project_id, name)
-        row = store.get_project(project_id)
-    session.notify("project")
-    return ProjectInfo(row.id, row.name, row.created_s, row.updated_s, row.id == session.project_id)
+    return session.rename_project_row(project_id, check_project_name(name))
 
 
 def delete_project(session: Session, project_id: int) -> None:
     """Delete a project and its saved export files. Deleting the open one opens the most
     recently changed other project (or a new ``default`` project)."""
-    with session.robot.lock:
-        if session.store.get_project(project_id) is None:
-            raise NotFoundError(f"no project with id {project_id}")
-        is_open = project_id == session.project_id
-        if is_open:
-            session.robot.require_idle()
-        session.store.delete_project(project_id)
-        if session.data_dir is not None:
-            shutil.rmtree(session.data_dir / "exports" / str(project_id), ignore_errors=True)
-    if is_open:
+    if session.delete_project_row(project_id):
         open_initial(session, prefer=None)
     else:
         session.notify("project")

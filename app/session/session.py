@@ -39,9 +39,10 @@ While a job moves the robot, motions, recording and cell or project changes rais
 
 from __future__ import annotations
 
+import shutil
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -57,13 +58,14 @@ from . import projects
 from .calibration import Calibration
 from .jobs import JobRunner
 from .learning import Learning
+from .machining import MachiningService
 from .persistence import Part, save_kwargs
 from .pointing import Pointing, pointing_document, pointing_from_document
 from .preview import PlacementPreview
 from .projects import Loaded
 from .records import ConflictError, GuidePointEntry, NotFoundError, ProjectInfo, Topic, log
 from .robot import ROBOT_JOB_KINDS as ROBOT_JOB_KINDS
-from .robot import LiveRobot, build_live_cell
+from .robot import LiveRobot, Pose, build_live_cell
 from .teach import Teach
 
 # What a change of the project's inputs makes stale, for the listeners to redraw.
@@ -128,6 +130,10 @@ class Session:
         }
         self.learning = Learning(self)
         projects.open_initial(self)
+        from ..studies import StudyService  # app.studies imports this package
+
+        self.machining = MachiningService(self)  # machining of the open project
+        self.studies = StudyService(self)  # the CMRR and compensation studies (reads the project)
 
     # --- listeners ---------------------------------------------------------------------------
 
@@ -175,6 +181,12 @@ class Session:
         """The project, the live cell, its epoch and the project's id, read together."""
         with self._lock:
             return View(self._project, self.robot.cell, self.robot.epoch, self._project_id)
+
+    def idle_start(self) -> tuple[Project, Pose]:
+        """The project and the robot's pose for a motion or job about to start, read together;
+        ``BusyError`` while a job owns the robot."""
+        with self._lock:
+            return self._project, self.robot.idle_pose()
 
     def cell_note(self) -> str:
         """What the last cell change cleared and why (a machining choice the new controller
@@ -318,6 +330,58 @@ class Session:
     def clear_guide_points(self) -> None:
         change = lambda p: core.with_guide_points(p, ())  # noqa: E731
         self.commit(change, "guides", topics=("guide_points", *DOWNSTREAM_TOPICS))
+
+    def reset_robot(self) -> None:
+        """The robot back at its home pose in the project's cell (a reset of the simulation,
+        not a move); refused while a job owns the robot."""
+        with self._lock:
+            self.robot.require_idle()
+            self.robot.install(build_live_cell(self._project.cell, self._project.mesh))
+            self.robot.save()
+        self.notify("robot")
+
+    # --- projects: their rows (``projects`` opens, lists and reads them) ---------------------
+
+    def new_project_row(self, name: str, robot: dict[str, Any]) -> int:
+        """Store a new project ``name`` with the default cell and the ``robot`` document (not
+        opened); refused while a job owns the robot or when the name is taken."""
+        with self._lock:
+            self.robot.require_idle()
+            if self.store.find_project(name) is not None:
+                raise ConflictError(f"a project named {name!r} already exists")
+            return self.store.create_project(name, asdict(CellSettings()), robot).id
+
+    def rename_project_row(self, project_id: int, name: str) -> ProjectInfo:
+        """Rename a stored project; refused when another project has that name."""
+        with self._lock:
+            row = self.store.get_project(project_id)
+            if row is None:
+                raise NotFoundError(f"no project with id {project_id}")
+            other = self.store.find_project(name)
+            if other is not None and other.id != project_id:
+                raise ConflictError(f"a project named {name!r} already exists")
+            self.store.rename_project(project_id, name)
+            row = self.store.get_project(project_id)
+            assert row is not None  # under the lock: nothing deleted it
+            info = ProjectInfo(row.id, row.name, row.created_s, row.updated_s,
+                               row.id == self._project_id)  # fmt: skip
+        self.notify("project")
+        return info
+
+    def delete_project_row(self, project_id: int) -> bool:
+        """Delete a stored project and its saved export files; the open one only while no job
+        owns the robot. Returns whether it was the open one (which stays open until the
+        caller opens another: ``projects.delete_project``)."""
+        with self._lock:
+            if self.store.get_project(project_id) is None:
+                raise NotFoundError(f"no project with id {project_id}")
+            is_open = project_id == self._project_id
+            if is_open:
+                self.robot.require_idle()
+            self.store.delete_project(project_id)
+            if self.data_dir is not None:
+                shutil.rmtree(self.data_dir / "exports" / str(project_id), ignore_errors=True)
+        return is_open
 
     def switch_to(self, loaded: Loaded, *, epoch: int | None = None, save: bool = False) -> None:
         """Make ``loaded`` the open project (``projects``); ``epoch``: refused when the cell

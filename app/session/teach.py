@@ -390,10 +390,8 @@ class Teach:
                 "(or let go of the other button)"
             )
         try:
-            with robot.lock:
-                robot.require_idle()
-                pose = robot.pose()
-                generation = self._stop_generation
+            pose = robot.idle_pose()
+            generation = self._stop_generation  # a stop from now on stops this motion
             epoch, start, selection, lt = pose.epoch, pose.state, pose.selection, pose.leadthrough
             last: list[CellState] = [start.cell]
             credit = 0

@@ -21,7 +21,7 @@ from fastapi import APIRouter, Query, Response, status
 import robomach_core.export.languages as registry
 from app.api.routes import ERRORS, SessionDep, SettingsDep, download
 from app.api.schemas import ExportCreate, ExportPublic, ProgramLanguagePublic
-from app.session import programs
+from app.session import Session, programs
 from robomach_core.export.rapid import rapid_identifier
 
 PROGRAM_ANSWERS: dict[int | str, dict[str, Any]] = {
@@ -40,7 +40,7 @@ ModuleName = Annotated[
 
 
 def program_download(
-    session: Any,
+    session: Session,
     language: str,
     *,
     force_control: bool = False,
@@ -71,7 +71,7 @@ def program_download(
     return download(buffer.getvalue(), f"{stem}_{lang.name}.zip")
 
 
-def cad_only_download(session: Any, language: str, *, file: str | None = None) -> Response:
+def cad_only_download(session: Session, language: str, *, file: str | None = None) -> Response:
     """The CAD-only program's file, or a zip of its files (KRL's .src and .dat)."""
     from robomach_core.errors import InvalidInputError
 

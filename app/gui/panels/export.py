@@ -8,7 +8,7 @@ from __future__ import annotations
 import viser
 
 import robomach_core.export.languages as registry
-from app.session import ConflictError, process_settings, programs
+from app.session import ConflictError, Session, process_settings, programs
 from robomach_core.errors import RobomachError
 from robomach_core.project import StaleResultError, machining_setup_of
 
@@ -52,7 +52,7 @@ class ExportPanel:
     CSVs and the settings JSON (each straight from the session, so it always matches the last
     result)."""
 
-    def __init__(self, server: viser.ViserServer, session, studies) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, studies) -> None:
         self.session = session
         self.studies = studies  # the session's StudyService
         languages = programs.program_languages(session)

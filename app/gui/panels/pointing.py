@@ -14,6 +14,7 @@ import time
 import numpy as np
 import viser
 
+from app.session import Session
 from robomach_core.choices import CLICK_MODES, LABELS
 from robomach_core.errors import InvalidInputError
 from robomach_core.limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
@@ -41,7 +42,9 @@ class PointingPanel:
         guide_points: The guide-points panel (its selected point is the one dragged).
     """
 
-    def __init__(self, server: viser.ViserServer, session, scene: CellScene, guide_points) -> None:
+    def __init__(
+        self, server: viser.ViserServer, session: Session, scene: CellScene, guide_points
+    ) -> None:
         self.server = server
         self.session = session
         self.scene = scene
