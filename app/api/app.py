@@ -36,18 +36,15 @@ from app.api.routes import (
     events,
     export,
     guide_points,
-    guide_proposals,
     jobs,
     leadthrough,
     machining,
     path_learning,
     placement_preview,
     postprocess,
-    project_file,
     projects,
     robot_wiring,
     state,
-    teach,
 )
 from app.session import ConflictError, NotFoundError, QueueFullError, Session
 from app.session.jobs import describe_unexpected
@@ -69,10 +66,10 @@ DEFAULT_PORTS = {"http": 80, "https": 443}
 UPLOAD_PATHS = frozenset({"/api/cell/workpiece"})
 # Multipart boundaries and part headers around the file: a few hundred bytes in practice.
 MULTIPART_OVERHEAD_BYTES = 64 * 1024
-# guide_proposals before guide_points: its /proposal paths must not be read as an {index}.
-ROUTERS = (state, leadthrough, guide_proposals, guide_points, path_learning, jobs, postprocess,
-           export, projects, calibration, cell, cmrr, compensation, robot_wiring, machining,
-           project_file, teach, events, choices, placement_preview)  # fmt: skip
+# One router per resource (each module's prefix is its own).
+ROUTERS = (state, leadthrough, guide_points, path_learning, jobs, postprocess, export, projects,
+           calibration, cell, cmrr, compensation, robot_wiring, machining, events, choices,
+           placement_preview)  # fmt: skip
 
 # A service is started in the lifespan and stopped after it (e.g. the viser workbench).
 Service = Callable[[], AbstractContextManager]

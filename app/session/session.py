@@ -13,22 +13,31 @@ STRATEGY  The job is one frozen ``robomach_core.project.Project``, changed only 
           saved exports (``programs``), projects (``projects``) and machining (``machining``)
           work through its public interface; long work computes from a ``view()`` outside the
           lock and commits a transition that refuses a result whose inputs changed meanwhile.
-SOLUTION  Public API (thread-safe):
+SOLUTION  Public API (thread-safe). The session builds every service once and is the one way
+          to reach them; its lock is private: what must happen under it is a method here or of
+          the ``LiveRobot`` (which shares it).
 
   Reading   project() -> Project; view() -> View (project, cell, epoch, project id, at once);
+            idle_start() -> (Project, Pose) for a motion or job about to start (busy: 409);
             current_project() -> ProjectInfo; cell_note() (what a cell change cleared);
             robot (LiveRobot: snapshot(), pose(), ...)
   Services  robot, teach (push, jog, touch_off, touch_along, stop, tool_view), pointing,
             calibration (touches of the real part, the fit, its acceptance), learning
             (start_example, start_path_learning, run_postprocess, go_home, force_trace), jobs,
-            preview (a work-object placement being tried, not saved)
+            preview (a work-object placement being tried, not saved), studies (CMRR and
+            compensation, ``app.studies``), machining (``machining``); stateless operations
+            over a session are functions of their modules (``projects``, ``programs``,
+            ``process_settings``, ``project_file``)
   Changing  commit(change, *parts, topics=, idle=, with_robot=) -> Project
             change_cell(change, parsed=) -> Project   a transition that rebuilds the live cell
             set_cell(robot=, tool_radius_m=, workpiece=, part_deviation=, wobj_mm_deg=)
                 -> CellSettings
             upload_workpiece(data, filename) / upload_robot(data, filename, family=)
             record_guide_point() -> GuidePointEntry; delete_guide_point(i); clear_guide_points()
+            reset_robot()                              the robot home in the project's cell
             switch_to(loaded, epoch=, save=)          another project (``projects``)
+            new_project_row(name, robot) / rename_project_row(id, name) /
+            delete_project_row(id)                    the store's rows (``projects``)
   Listening subscribe(callback) -> unsubscribe; notify(*topics)
             callback(topic) runs in the thread that made the change, the lock released
   Lifecycle close()                                   cancel jobs, stop the worker, close the store
