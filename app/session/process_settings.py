@@ -41,39 +41,40 @@ def settings_from_studies(
         ConflictError: A wanted study has not run, or several controllers and none chosen.
         NotFoundError: ``controller`` was not run by the last study.
     """
-    cmrr_settings = compensation_settings = None
+    cmrr_settings: CmrrSettings | None = None
+    compensation_settings: CompensationSettings | None = None
     if cmrr:
-        from robomach_core.cmrr import settings_from_dict
+        from robomach_core.cmrr import settings_from_dict as cmrr_from_dict
 
-        outcome = studies.require_cmrr()
-        chosen: Any = outcome.settings
+        study = studies.require_cmrr()
+        chosen: Any = study.settings
         if isinstance(chosen, list):
             if controller is None:
                 raise ConflictError(
                     "the last CMRR study compared controllers; choose one of "
-                    f"{', '.join(outcome.controllers)}"
+                    f"{', '.join(study.controllers)}"
                 )
-            if controller not in outcome.controllers:
+            if controller not in study.controllers:
                 raise NotFoundError(
                     f"the last CMRR study did not run {controller!r}; it ran "
-                    f"{', '.join(outcome.controllers)}"
+                    f"{', '.join(study.controllers)}"
                 )
-            chosen = chosen[outcome.controllers.index(controller)]
+            chosen = chosen[study.controllers.index(controller)]
         elif controller is not None and controller != chosen.get("controller"):
             raise NotFoundError(
                 f"the last CMRR study ran {chosen.get('controller')!r}, not {controller!r}"
             )
-        cmrr_settings = settings_from_dict(chosen)
+        cmrr_settings = cmrr_from_dict(chosen)
     if compensation:
-        from robomach_core.stiffness.settings import settings_from_dict
+        from robomach_core.stiffness.settings import settings_from_dict as compensation_from_dict
 
-        outcome = studies.require_compensation()
-        if outcome.settings is None:
+        identified = studies.require_compensation()
+        if identified.settings is None:
             raise ConflictError(
                 "no compensation settings yet: run the identify study (or all), which "
                 "identifies the joint stiffness they hold"
             )
-        compensation_settings = settings_from_dict(outcome.settings)
+        compensation_settings = compensation_from_dict(identified.settings)
     return cmrr_settings, compensation_settings
 
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import itertools
 import random
-import time
 
 import numpy as np
 import pytest
@@ -23,18 +22,11 @@ from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
 from robomach_core.machining.choice import missing
 from robomach_core.part import PartDeviation
 from robomach_core.project import capabilities_of, machining_note, machining_setup_of
+from tests.jobs import done
 
 pytestmark = pytest.mark.slow  # path learning on the pump (about 10 s unpaced)
 
 ARMS = ("ur10", "irb4400", "kr270")
-
-
-def _finish(session: Session, job: str) -> None:
-    deadline = time.monotonic() + 300
-    while session.jobs.get(job).status in ("queued", "running"):
-        assert time.monotonic() < deadline
-        time.sleep(0.05)
-    assert session.jobs.get(job).status == "done", session.jobs.get(job).error
 
 
 @pytest.fixture(scope="module")
@@ -44,10 +36,10 @@ def learned() -> Session:
     example and post-processed."""
     session = Session(real_time=False)
     session.set_cell(part_deviation=PartDeviation.realistic(0))
-    _finish(session, session.calibration.start_auto())
+    done(session, session.calibration.start_auto())
     session.calibration.accept()
-    _finish(session, session.learning.start_example())
-    _finish(session, session.learning.start_path_learning(10.0, 0.005))
+    done(session, session.learning.start_example())
+    done(session, session.learning.start_path_learning(10.0, 0.005))
     session.learning.run_postprocess()
     yield session
     session.close()

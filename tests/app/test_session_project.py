@@ -15,7 +15,6 @@ import pytest
 
 import robomach_core.project as core
 from app.session import ConflictError, Session, process_settings, programs, projects
-from app.studies import StudyService
 from tests.jobs import done
 
 
@@ -69,7 +68,7 @@ def test_changing_guide_points_marks_results_out_of_date_in_the_gui(session: Ses
     try:
         scene = CellScene(server)
         post = PostprocessPanel(server, session, scene)
-        export = ExportPanel(server, session, StudyService(session))
+        export = ExportPanel(server, session, session.studies)
         learning = PathLearningPanel(server, session)
         learning.show_job(None)
         assert session.project().status()["postprocess"] == "current"
@@ -117,7 +116,7 @@ def test_the_export_panel_shows_what_the_program_carries(session: Session) -> No
 
     server = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
     try:
-        export = ExportPanel(server, session, StudyService(session))
+        export = ExportPanel(server, session, session.studies)
         # Nothing chosen: a constant feed, as the files are written (no FC SpeedChange).
         assert "feed control **constant**, compensation **off**" in export.process.content
         assert "FCSpdChgAct" not in export.file_text("program.mod")
