@@ -43,6 +43,7 @@ from robomach_core.project import ProcessedPath, Project
 
 from .jobs import JobContext
 from .records import ForceTrace, RobotSnapshot, Topic
+from .robot import build_live_cell
 
 if TYPE_CHECKING:
     from .session import Session
@@ -290,8 +291,15 @@ class Learning:
 
     def go_home(self) -> RobotSnapshot:
         """Put the robot back at its home pose (a reset of the simulation, not a move)."""
-        self._session.reset_robot()
-        return self._session.robot.snapshot()
+        robot = self._session.robot
+
+        def home(p: Project) -> Project:  # under the lock: the project's cell, the robot idle
+            robot.install(build_live_cell(p.cell, p.mesh))
+            robot.save()
+            return p  # the project as it was: nothing of it is saved
+
+        self._session.commit(home, topics=("robot",), idle=True)
+        return robot.snapshot()
 
     def force_trace(self, max_points: int = 2000) -> ForceTrace:
         """Force vs time, at most ``max_points`` (>= 2) by stride: live during a job, else the

@@ -14,11 +14,9 @@ from .records import ConflictError, NotFoundError
 
 if TYPE_CHECKING:
     from robomach_core.cmrr import CmrrSettings
-    from robomach_core.project import Project
     from robomach_core.stiffness import CompensationSettings
 
     from ..studies import StudyService
-    from .session import Session
 
 
 def settings_from_studies(
@@ -76,18 +74,3 @@ def settings_from_studies(
             )
         compensation_settings = compensation_from_dict(identified.settings)
     return cmrr_settings, compensation_settings
-
-
-def set_process_settings(
-    session: Session,
-    *,
-    cmrr: CmrrSettings | None = None,
-    compensation: CompensationSettings | None = None,
-) -> Project:
-    """Choose the CMRR controller settings (``cmrr.CmrrSettings``) and the compensation
-    settings (``stiffness.CompensationSettings``) the exported program carries
-    (``project.with_process_settings``; None removes one). Returns the project."""
-    from robomach_core import project as core
-
-    change = lambda p: core.with_process_settings(p, cmrr, compensation)  # noqa: E731
-    return session.commit(change, "post", topics=("postprocess",))

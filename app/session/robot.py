@@ -40,7 +40,7 @@ from robomach_core.cell import (
 from robomach_core.errors import ConflictError, InvalidInputError, RobomachError
 from robomach_core.learning.run import Recording
 from robomach_core.part import Workpiece
-from robomach_core.project import CellSettings
+from robomach_core.project import CellSettings, Project
 
 from .jobs import JobContext, JobRunner
 from .live import LiveFeed, TappedCell
@@ -60,6 +60,17 @@ class Pose:
     state: LeadThroughState
     selection: ComplianceSelection
     epoch: int
+
+
+@dataclass(frozen=True)
+class View:
+    """The open project and the live cell it runs on, read together under the lock
+    (``Session.view``)."""
+
+    project: Project
+    cell: Cell
+    epoch: int
+    project_id: int
 
 
 def build_live_cell(

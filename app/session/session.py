@@ -8,36 +8,26 @@ STRATEGY  The job is one frozen ``robomach_core.project.Project``, changed only 
           the same the CLI applies) through ``commit``: under one ``threading.RLock`` the
           transition runs, the value is replaced and the changed parts are saved in one store
           transaction; listeners then hear the topics. The robot is a ``LiveRobot`` beside it
-          under the same lock. The session holds nothing else: teaching (``teach``), pointing
-          (``pointing``), the robot jobs and post-processing (``learning``), the programs and
-          saved exports (``programs``), projects (``projects``) and machining (``machining``)
-          work through its public interface; long work computes from a ``view()`` outside the
-          lock and commits a transition that refuses a result whose inputs changed meanwhile.
-SOLUTION  Public API (thread-safe). The session builds every service once and is the one way
-          to reach them; its lock is private: what must happen under it is a method here or of
-          the ``LiveRobot`` (which shares it).
+          under the same lock, which stays private (what needs it is a method here or of a part
+          built with it: ``LiveRobot``, ``Projects``). The session holds nothing else: it builds
+          each service once, and they work through its public interface; long work computes
+          from a ``view()`` outside the lock and commits a transition that refuses a result
+          whose inputs changed meanwhile.
+SOLUTION  Public API (thread-safe):
 
   Reading   project() -> Project; view() -> View (project, cell, epoch, project id, at once);
             idle_start() -> (Project, Pose) for a motion or job about to start (busy: 409);
-            current_project() -> ProjectInfo; cell_note() (what a cell change cleared);
-            robot (LiveRobot: snapshot(), pose(), ...)
-  Services  robot, teach (push, jog, touch_off, touch_along, stop, tool_view), pointing,
-            calibration (touches of the real part, the fit, its acceptance), learning
-            (start_example, start_path_learning, run_postprocess, go_home, force_trace), jobs,
-            preview (a work-object placement being tried, not saved), studies (CMRR and
-            compensation, ``app.studies``), machining (``machining``); stateless operations
-            over a session are functions of their modules (``projects``, ``programs``,
-            ``process_settings``, ``project_file``)
+            current_project() -> ProjectInfo; cell_note() (what a cell change cleared)
+  Services  robot, teach (push, jog, touch_off ...), pointing, calibration, learning (the robot
+            jobs, post-processing), jobs, preview (a placement tried), programs (and saved
+            exports), projects (open, create ..., files), studies (``app.studies``), machining
   Changing  commit(change, *parts, topics=, idle=, with_robot=) -> Project
             change_cell(change, parsed=) -> Project   a transition that rebuilds the live cell
             set_cell(robot=, tool_radius_m=, workpiece=, part_deviation=, wobj_mm_deg=)
                 -> CellSettings
             upload_workpiece(data, filename) / upload_robot(data, filename, family=)
             record_guide_point() -> GuidePointEntry; delete_guide_point(i); clear_guide_points()
-            reset_robot()                              the robot home in the project's cell
             switch_to(loaded, epoch=, save=)          another project (``projects``)
-            new_project_row(name, robot) / rename_project_row(id, name) /
-            delete_project_row(id)                    the store's rows (``projects``)
   Listening subscribe(callback) -> unsubscribe; notify(*topics)
             callback(topic) runs in the thread that made the change, the lock released
   Lifecycle close()                                   cancel jobs, stop the worker, close the store
@@ -48,22 +38,18 @@ While a job moves the robot, motions, recording and cell or project changes rais
 
 from __future__ import annotations
 
-import shutil
 import threading
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 from robomach_core import project as core
-from robomach_core.cell import Cell
 from robomach_core.errors import InvalidInputError
 from robomach_core.part import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, Workpiece
 from robomach_core.project import CellSettings, Project
 
 from ..memory import give_back
 from ..store import Store
-from . import projects
 from .calibration import Calibration
 from .jobs import JobRunner
 from .learning import Learning
@@ -71,10 +57,11 @@ from .machining import MachiningService
 from .persistence import Part, save_kwargs
 from .pointing import Pointing, pointing_document, pointing_from_document
 from .preview import PlacementPreview
-from .projects import Loaded
+from .programs import Programs
+from .projects import Loaded, Projects
 from .records import ConflictError, GuidePointEntry, NotFoundError, ProjectInfo, Topic, log
 from .robot import ROBOT_JOB_KINDS as ROBOT_JOB_KINDS
-from .robot import LiveRobot, Pose, build_live_cell
+from .robot import LiveRobot, Pose, View, build_live_cell
 from .teach import Teach
 
 # What a change of the project's inputs makes stale, for the listeners to redraw.
@@ -82,16 +69,6 @@ DOWNSTREAM_TOPICS: tuple[Topic, ...] = ("recording", "postprocess")
 CELL_TOPICS: tuple[Topic, ...] = ("cell", "robot", "guide_points", *DOWNSTREAM_TOPICS)
 ALL_TOPICS: tuple[Topic, ...] = ("project", "compliance", "exports", *CELL_TOPICS)
 ALL_PARTS: tuple[Part, ...] = ("cell", "guides", "recording", "post")
-
-
-@dataclass(frozen=True)
-class View:
-    """The open project and the live cell it runs on, read together under the lock."""
-
-    project: Project
-    cell: Cell
-    epoch: int
-    project_id: int
 
 
 class Session:
@@ -138,11 +115,13 @@ class Session:
             "calibration": self.calibration.document(),
         }
         self.learning = Learning(self)
-        projects.open_initial(self)
-        from ..studies import StudyService  # app.studies imports this package
+        self.programs = Programs(self)  # the open project's programs, tables, saved exports
+        self.projects = Projects(self, self._lock)  # the stored projects (open, files ...)
+        self.projects.open_initial()
+        from ..studies import StudyService  # (app.studies imports this package)
 
-        self.machining = MachiningService(self)  # machining of the open project
-        self.studies = StudyService(self)  # the CMRR and compensation studies (reads the project)
+        self.machining = MachiningService(self)
+        self.studies = StudyService(self)  # reads the open project
 
     # --- listeners ---------------------------------------------------------------------------
 
@@ -192,8 +171,7 @@ class Session:
             return View(self._project, self.robot.cell, self.robot.epoch, self._project_id)
 
     def idle_start(self) -> tuple[Project, Pose]:
-        """The project and the robot's pose for a motion or job about to start, read together;
-        ``BusyError`` while a job owns the robot."""
+        """The project and the robot's pose, read together; ``BusyError`` while a job runs."""
         with self._lock:
             return self._project, self.robot.idle_pose()
 
@@ -339,58 +317,6 @@ class Session:
     def clear_guide_points(self) -> None:
         change = lambda p: core.with_guide_points(p, ())  # noqa: E731
         self.commit(change, "guides", topics=("guide_points", *DOWNSTREAM_TOPICS))
-
-    def reset_robot(self) -> None:
-        """The robot back at its home pose in the project's cell (a reset of the simulation,
-        not a move); refused while a job owns the robot."""
-        with self._lock:
-            self.robot.require_idle()
-            self.robot.install(build_live_cell(self._project.cell, self._project.mesh))
-            self.robot.save()
-        self.notify("robot")
-
-    # --- projects: their rows (``projects`` opens, lists and reads them) ---------------------
-
-    def new_project_row(self, name: str, robot: dict[str, Any]) -> int:
-        """Store a new project ``name`` with the default cell and the ``robot`` document (not
-        opened); refused while a job owns the robot or when the name is taken."""
-        with self._lock:
-            self.robot.require_idle()
-            if self.store.find_project(name) is not None:
-                raise ConflictError(f"a project named {name!r} already exists")
-            return self.store.create_project(name, asdict(CellSettings()), robot).id
-
-    def rename_project_row(self, project_id: int, name: str) -> ProjectInfo:
-        """Rename a stored project; refused when another project has that name."""
-        with self._lock:
-            row = self.store.get_project(project_id)
-            if row is None:
-                raise NotFoundError(f"no project with id {project_id}")
-            other = self.store.find_project(name)
-            if other is not None and other.id != project_id:
-                raise ConflictError(f"a project named {name!r} already exists")
-            self.store.rename_project(project_id, name)
-            row = self.store.get_project(project_id)
-            assert row is not None  # under the lock: nothing deleted it
-            info = ProjectInfo(row.id, row.name, row.created_s, row.updated_s,
-                               row.id == self._project_id)  # fmt: skip
-        self.notify("project")
-        return info
-
-    def delete_project_row(self, project_id: int) -> bool:
-        """Delete a stored project and its saved export files; the open one only while no job
-        owns the robot. Returns whether it was the open one (which stays open until the
-        caller opens another: ``projects.delete_project``)."""
-        with self._lock:
-            if self.store.get_project(project_id) is None:
-                raise NotFoundError(f"no project with id {project_id}")
-            is_open = project_id == self._project_id
-            if is_open:
-                self.robot.require_idle()
-            self.store.delete_project(project_id)
-            if self.data_dir is not None:
-                shutil.rmtree(self.data_dir / "exports" / str(project_id), ignore_errors=True)
-        return is_open
 
     def switch_to(self, loaded: Loaded, *, epoch: int | None = None, save: bool = False) -> None:
         """Make ``loaded`` the open project (``projects``); ``epoch``: refused when the cell

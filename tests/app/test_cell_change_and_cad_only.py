@@ -15,7 +15,7 @@ import random
 import numpy as np
 import pytest
 
-from app.session import Session, programs
+from app.session import Session
 from robomach_core import project as core
 from robomach_core.export.read_back import read_program
 from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
@@ -49,7 +49,7 @@ def learned() -> Session:
 def test_the_cad_only_program_reads_back_to_the_targets_it_was_scored_by(learned, language):
     comparison = learned.project().processed.cad_comparison
     assert comparison is not None and comparison.part_deviates
-    files = programs.cad_only_program_texts(learned, language)
+    files = learned.programs.cad_only_program_texts(language)
     text = next(iter(files.values()))
     assert "CAD-ONLY PROGRAM" in text  # it says what it is, and how far both are
     assert f"max {comparison.cad_only.max_m * 1e3:.3f} mm" in text
@@ -65,7 +65,7 @@ def test_the_cad_only_program_is_refused_in_a_language_the_arm_does_not_run(lear
     from robomach_core.errors import RobomachError
 
     with pytest.raises(RobomachError, match="(?i)krl|kuka|controller"):
-        programs.cad_only_program_texts(learned, "krl")
+        learned.programs.cad_only_program_texts("krl")
 
 
 def test_a_cell_change_clears_only_the_choices_the_new_controller_cannot_run(learned):

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import robomach_core.project as core
-from app.session import ConflictError, Session, process_settings, programs, projects
+from app.session import ConflictError, Session
 from tests.jobs import done
 
 
@@ -121,14 +121,14 @@ def test_the_export_panel_shows_what_the_program_carries(session: Session) -> No
         assert "feed control **constant**, compensation **off**" in export.process.content
         assert "FCSpdChgAct" not in export.file_text("program.mod")
         cmrr = cmrr_settings_for(build_scenario("deburr-burrs"), settings_for("two-stage"))
-        process_settings.set_process_settings(session, cmrr=cmrr)
+        session.programs.set_process_settings(cmrr=cmrr)
         export.refresh()
         assert "feed control **two-stage**" in export.process.content
         assert "CMRR: two-stage" in export.preview.content
         assert "FCSpdChgAct" in export.file_text("program.mod")
         assert "FCSpdChgAct" not in export.file_text("program_fc.mod")
     finally:
-        process_settings.set_process_settings(session)
+        session.programs.set_process_settings()
         server.stop()
 
 
@@ -179,9 +179,9 @@ def test_opening_a_project_post_processes_outside_the_lock(session: Session, gat
     entered, gate = gated_process
     original = session.current_project().id
     targets = len(session.project().processed.result.targets)
-    projects.create_project(session, f"other-{time.monotonic_ns()}")
+    session.projects.create_project(f"other-{time.monotonic_ns()}")
     assert session.project().recording is None
-    worker = threading.Thread(target=projects.open_project, args=(session, original))
+    worker = threading.Thread(target=session.projects.open_project, args=(original,))
     worker.start()
     assert entered.wait(30)  # re-running the stored post-processing
     assert _lock_is_free(session)
@@ -214,7 +214,7 @@ def test_a_project_saved_before_fingerprints_opens_as_current(
     try:
         assert reopened.project().status() == project.status()
         assert reopened.project().status()["postprocess"] == "current"
-        assert programs.rapid_module(reopened) == programs.rapid_module(session)
+        assert reopened.programs.rapid_module() == session.programs.rapid_module()
     finally:
         reopened.close()
 

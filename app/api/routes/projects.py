@@ -20,8 +20,6 @@ from app.api.schemas import (
     ProjectStatusPublic,
     ProjectUpdate,
 )
-from app.session import process_settings, projects
-from app.session.project_file import export_project, import_project
 from robomach_core import project as core
 
 router = APIRouter(prefix="/api/projects", tags=["projects"], responses=ERRORS)
@@ -35,7 +33,7 @@ ProjectId = Annotated[int, Path(ge=1, le=2**63 - 1, description="the project's i
 @router.get("")
 def list_projects(session: SessionDep) -> list[ProjectPublic]:
     """Every project, most recently changed first."""
-    return [ProjectPublic.from_info(p) for p in projects.list_projects(session)]
+    return [ProjectPublic.from_info(p) for p in session.projects.list_projects()]
 
 
 @router.get("/current")
@@ -69,7 +67,7 @@ def put_process_settings(body: ProcessSettingsUpdate, session: SessionDep) -> Pr
 
     cmrr = None if body.cmrr is None else cmrr_from_dict(body.cmrr)
     compensation = None if body.compensation is None else compensation_from_dict(body.compensation)
-    project = process_settings.set_process_settings(session, cmrr=cmrr, compensation=compensation)
+    project = session.programs.set_process_settings(cmrr=cmrr, compensation=compensation)
     return ProcessSettingsPublic(
         cmrr=core.cmrr_document(project), compensation=core.compensation_document(project)
     )
@@ -87,8 +85,7 @@ def process_settings_from_studies(
     cmrr, compensation = settings_from_studies(
         studies, controller=body.controller, cmrr=body.cmrr, compensation=body.compensation
     )
-    project = process_settings.set_process_settings(
-        session,
+    project = session.programs.set_process_settings(
         cmrr=cmrr if body.cmrr else project.cmrr,
         compensation=compensation if body.compensation else project.compensation,
     )
@@ -100,13 +97,13 @@ def process_settings_from_studies(
 @router.post("", status_code=status.HTTP_201_CREATED)
 def create_project(body: ProjectCreate, session: SessionDep) -> ProjectPublic:
     """A new project with the default cell; it is opened at once."""
-    return ProjectPublic.from_info(projects.create_project(session, body.name))
+    return ProjectPublic.from_info(session.projects.create_project(body.name))
 
 
 @router.post("/{project_id}/open")
 def open_project(project_id: ProjectId, session: SessionDep) -> ProjectPublic:
     """Open a project: its cell, robot pose, guide points, recording and results."""
-    return ProjectPublic.from_info(projects.open_project(session, project_id))
+    return ProjectPublic.from_info(session.projects.open_project(project_id))
 
 
 @router.patch("/{project_id}")
@@ -114,13 +111,13 @@ def rename_project(
     project_id: ProjectId, body: ProjectUpdate, session: SessionDep
 ) -> ProjectPublic:
     """Rename a project."""
-    return ProjectPublic.from_info(projects.rename_project(session, project_id, body.name))
+    return ProjectPublic.from_info(session.projects.rename_project(project_id, body.name))
 
 
 @router.delete("/{project_id}", status_code=status.HTTP_204_NO_CONTENT)
 def delete_project(project_id: ProjectId, session: SessionDep) -> Response:
     """Delete a project and its saved exports; deleting the open one opens another."""
-    projects.delete_project(session, project_id)
+    session.projects.delete_project(project_id)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
@@ -149,7 +146,7 @@ async def import_project_file(
                 f"{file.filename}: the upload exceeds {MAX_PROJECT_FILE_BYTES / 1e6:g} MB",
             )
         chunks.append(chunk)
-    info = await run_in_threadpool(import_project, session, b"".join(chunks), name)
+    info = await run_in_threadpool(session.projects.import_project, b"".join(chunks), name)
     return ProjectPublic.from_info(info)
 
 
@@ -160,4 +157,4 @@ async def import_project_file(
 )
 def download_project_file(session: SessionDep) -> Response:
     """The open project as ``project.npz`` (``robomach machine --from`` reads it)."""
-    return download(export_project(session), "project.npz")
+    return download(session.projects.export_project(), "project.npz")

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import viser
 
-from app.session import Session, programs
+from app.session import Session
 from robomach_core.choices import TEXTS
 from robomach_core.project import result_extras
 from robomach_core.robots import ARM_FAMILIES
@@ -65,7 +65,7 @@ class RobotProgramPanel:
     def refresh(self) -> None:
         """The arm and its language, the arcs setting, the moves and the mesh score."""
         robot = self.session.robot.cell.robot
-        offered = ", ".join(programs.program_languages(self.session)) or "none"
+        offered = ", ".join(self.session.programs.program_languages()) or "none"
         lines = [
             f"Arm **{robot.name}** ({robot.family} controller), program languages "
             f"**{offered}** (downloads in the Export panel)."
