@@ -26,6 +26,7 @@ from __future__ import annotations
 import hashlib
 import json
 import threading
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING, Any
 
@@ -56,6 +57,7 @@ from .jobs import JobContext
 from .records import ConflictError, NotFoundError
 
 if TYPE_CHECKING:
+    from .robot import Pose
     from .session import Session
 
 MAX_TOUCHES = 50
@@ -266,7 +268,7 @@ class Calibration:
         """Back to the placement: the accepted calibration is dropped (the touches stay)."""
         return self._change(lambda p: core.with_registration(p, None))
 
-    def _change(self, change) -> CellSettings:
+    def _change(self, change: Callable[[Project], Project]) -> CellSettings:
         s, robot = self._session, self._session.robot
         joints = robot.snapshot().joints_rad
         project = s.change_cell(change, joints=joints)
@@ -350,7 +352,7 @@ class Calibration:
         return fit, error
 
 
-def _in_base(direction: np.ndarray, frame: str, pose, cad: Workpiece) -> np.ndarray:
+def _in_base(direction: np.ndarray, frame: str, pose: Pose, cad: Workpiece) -> np.ndarray:
     """A direction given in ``frame`` ("base", "wobj", "tool") in the base frame."""
     if direction.shape != (3,) or not np.all(np.isfinite(direction)):
         raise InvalidInputError("a touch direction is 3 finite numbers")

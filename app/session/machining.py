@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import base64
 import os
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -304,7 +305,9 @@ class MachiningService:
 
     # --- internals ---------------------------------------------------------------------------
 
-    def _update(self, change) -> core.MachiningSetup:
+    def _update(
+        self, change: Callable[[core.MachiningSetup], core.MachiningSetup]
+    ) -> core.MachiningSetup:
         def transition(project: core.Project) -> core.Project:
             project = core.with_machining_setup(project, change(core.machining_setup_of(project)))
             result = project.machining

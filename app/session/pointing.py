@@ -40,9 +40,10 @@ from robomach_core.learning.planner import (
     tool_reach,
 )
 from robomach_core.learning.walls import WallPick
-from robomach_core.part import mesh_query
+from robomach_core.part import Workpiece, mesh_query
 from robomach_core.teaching import Arrival, guide_intents, robust_intents
 
+from .jobs import JobContext
 from .records import MAX_GUIDE_POINTS, ConflictError, GuidePointEntry, NotFoundError
 from .robot import ROBOT_JOB_KINDS
 
@@ -272,7 +273,7 @@ class Pointing:
         )
 
     @staticmethod
-    def _safe_z(cad) -> float:
+    def _safe_z(cad: Workpiece) -> float:
         """Base-frame height the tool travels at: above the part's highest point."""
         top = cad.mesh_in_base().bounds[1, 2]
         return float(top) + SAFE_HEIGHT_M
@@ -380,7 +381,7 @@ class Pointing:
         if cell.workpiece.nominal is not None:  # the real part is not where its mesh is
             intents = robust_intents(intents, cell.workpiece, cell.tool.radius_m)
 
-        def work(ctx) -> tuple[LeadThroughState, list[GuidePoint]]:
+        def work(ctx: JobContext) -> tuple[LeadThroughState, list[GuidePoint]]:
             lt = LeadThrough(robot.tapped(ctx, cell), estimator=estimator)
             try:
                 return scripted_leadthrough(

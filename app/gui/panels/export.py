@@ -9,6 +9,7 @@ import viser
 
 import robomach_core.export.languages as registry
 from app.session import ConflictError, Session, programs
+from app.studies import StudyService
 from robomach_core.errors import RobomachError
 from robomach_core.project import StaleResultError, machining_setup_of
 
@@ -52,7 +53,7 @@ class ExportPanel:
     CSVs and the settings JSON (each straight from the session, so it always matches the last
     result)."""
 
-    def __init__(self, server: viser.ViserServer, session: Session, studies) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, studies: StudyService) -> None:
         self.session = session
         self.studies = studies  # the session's StudyService
         languages = session.programs.program_languages()
