@@ -72,7 +72,6 @@ def viser_workbench(
     settings: ServerSettings,
     *,
     on_port: Callable[[int], None] | None = None,
-    services: dict[str, object] | None = None,
 ) -> Iterator[object]:
     """The viser server with the workbench GUI (``app.gui.workbench``) when it is installed,
     else an empty scene; stopped on exit. ``on_port`` gets the port viser actually bound."""
@@ -104,7 +103,7 @@ def viser_workbench(
             log.warning("app.gui.workbench is not installed: the 3D view shows nothing")
         else:
             try:
-                workbench = Workbench(server, session, **(services or {}))
+                workbench = Workbench(server, session)
             except Exception:  # the REST API stays useful without the GUI
                 log.exception("the viser workbench failed to build; serving an empty scene")
         shown = _display_host(settings) if host == settings.host else host
@@ -251,15 +250,10 @@ def build_app(settings: ServerSettings, session: Session) -> FastAPI:
         if port != app.state.settings.viser_port:
             app.state.settings = app.state.settings.model_copy(update={"viser_port": port})
 
-    from app.session.machining import MachiningService
-    from app.studies import StudyService
-
-    # The session's services, built once here and injected into the API and the workbench.
-    shared = {"studies": StudyService(session), "machining": MachiningService(session)}
     services = []
     if settings.viser_port is not None:
-        services.append(lambda: viser_workbench(session, settings, on_port=bound, services=shared))
-    app = create_app(session, settings, services=services, **shared)
+        services.append(lambda: viser_workbench(session, settings, on_port=bound))
+    app = create_app(session, settings, services=services)
     return app
 
 

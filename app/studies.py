@@ -4,8 +4,8 @@ PROBLEM   The GUI and the REST API both start CMRR studies (``robomach_core.cmrr
           stiffness / compensation studies (``robomach_core.stiffness``), watch their progress,
           cancel them, show the last result's numbers and plots, and keep the settings with the
           project so that they survive a restart.
-STRATEGY  One ``StudyService`` per session, built at start-up and handed to the GUI and the
-          API (``create_app(studies=)``), submits each study to the session's ``JobRunner``,
+STRATEGY  One ``StudyService`` per session, built with it (``Session.studies``) and read by
+          the GUI and the API, submits each study to the session's ``JobRunner``,
           so it shows in ``/api/jobs`` and cancels like any job. A run
           writes the core's files into a fresh folder under ``<data>/studies/.tmp``; when it is
           done, the folder replaces ``<data>/studies/<project id>/<kind>/`` and the summary and
@@ -46,7 +46,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, get_args
 
-from app.session import projects
 from robomach_core.cmrr import CONTROLLER_NAMES, SCENARIO_NAMES
 from robomach_core.cmrr.errors import (
     UnknownControllerError,
@@ -59,10 +58,13 @@ from robomach_core.stiffness.errors import UnknownStudyError
 from robomach_core.stiffness.settings import COMPENSATION_SETTINGS
 from robomach_core.stiffness.studies import StudyName
 
-from .session import ConflictError, JobContext, JobInfo, NotFoundError, Session
+from .session.jobs import JobContext
+from .session.records import ConflictError, JobInfo, NotFoundError
 
 if TYPE_CHECKING:
     from robomach_core.cmrr.scenarios import Scenario
+
+    from .session import Session
 
 log = logging.getLogger(__name__)
 
@@ -623,7 +625,7 @@ class StudyService:
     def _forget_deleted_projects(self) -> None:
         """Remove the study folders of deleted projects (the store drops their exports)."""
         try:
-            alive = {str(p.id) for p in projects.list_projects(self.session)}
+            alive = {str(p.id) for p in self.session.projects.list_projects()}
             folders = [p for p in self.root.iterdir() if p.is_dir() and p.name.isdigit()]
         except Exception:
             return

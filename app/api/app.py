@@ -36,24 +36,20 @@ from app.api.routes import (
     events,
     export,
     guide_points,
-    guide_proposals,
     jobs,
     leadthrough,
     machining,
     path_learning,
     placement_preview,
     postprocess,
-    project_file,
     projects,
     robot_wiring,
     state,
-    teach,
 )
 from app.session import ConflictError, NotFoundError, QueueFullError, Session
 from app.session.jobs import describe_unexpected
-from app.session.machining import MachiningService
 from app.settings import MAX_JSON_BODY_BYTES, ServerSettings, is_loopback_name
-from app.studies import StudyQueueFullError, StudyService
+from app.studies import StudyQueueFullError
 from robomach_core.errors import (
     CancelledError,
     ForceLimitError,
@@ -70,10 +66,10 @@ DEFAULT_PORTS = {"http": 80, "https": 443}
 UPLOAD_PATHS = frozenset({"/api/cell/workpiece"})
 # Multipart boundaries and part headers around the file: a few hundred bytes in practice.
 MULTIPART_OVERHEAD_BYTES = 64 * 1024
-# guide_proposals before guide_points: its /proposal paths must not be read as an {index}.
-ROUTERS = (state, leadthrough, guide_proposals, guide_points, path_learning, jobs, postprocess,
-           export, projects, calibration, cell, cmrr, compensation, robot_wiring, machining,
-           project_file, teach, events, choices, placement_preview)  # fmt: skip
+# One router per resource (each module's prefix is its own).
+ROUTERS = (state, leadthrough, guide_points, path_learning, jobs, postprocess, export, projects,
+           calibration, cell, cmrr, compensation, robot_wiring, machining, events, choices,
+           placement_preview)  # fmt: skip
 
 # A service is started in the lifespan and stopped after it (e.g. the viser workbench).
 Service = Callable[[], AbstractContextManager]
@@ -364,8 +360,6 @@ def create_app(
     *,
     services: Sequence[Service] = (),
     close_session: bool = True,
-    studies: StudyService | None = None,
-    machining: MachiningService | None = None,
 ) -> FastAPI:
     """The REST API over ``session``.
 
@@ -375,8 +369,6 @@ def create_app(
         services: Context-manager factories entered at startup and left at shutdown, in
             reverse order (the viser workbench).
         close_session: Close the session (cancel jobs, close the store) at shutdown.
-        studies, machining: The session's study and machining services, shared with the
-            viser workbench (``server.build_app``); new ones when None.
     """
     settings = settings or ServerSettings(viser_port=None)
 
@@ -408,8 +400,6 @@ def create_app(
         max_body_size=MAX_JSON_BODY_BYTES,
     )
     app.state.session = session
-    app.state.studies = studies or StudyService(session)
-    app.state.machining = machining or MachiningService(session)
     app.state.settings = settings
     for module in ROUTERS:
         app.include_router(module.router)

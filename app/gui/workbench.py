@@ -19,6 +19,7 @@ import time
 import numpy as np
 import viser
 
+from app.session import Session
 from robomach_core.errors import RobomachError
 
 from .panels import (
@@ -64,20 +65,14 @@ class Workbench:
     def __init__(
         self,
         server: viser.ViserServer,
-        session,
+        session: Session,
         *,
         rate_hz: float = RATE_HZ,
-        studies=None,
-        machining=None,
     ) -> None:
-        from app.session.machining import MachiningService
-        from app.studies import StudyService
-
         self.server = server
         self.session = session
-        # The session's services, shared with the API when the server injects them.
-        self.study_service = studies or StudyService(session)
-        self.machining_service = machining or MachiningService(session)
+        self.study_service = session.studies  # the session's, shared with the API
+        self.machining_service = session.machining
         self.period_s = 1.0 / rate_hz
         server.gui.configure_theme(
             control_width="large",
@@ -133,7 +128,7 @@ class Workbench:
         for panel in self.studies:
             panel.close()
 
-    def _study_panels(self, server: viser.ViserServer, session) -> list:
+    def _study_panels(self, server: viser.ViserServer, session: Session) -> list:
         """The CMRR and compensation study panels (collapsed, below the pipeline's)."""
         try:
             from .panels.cmrr import CmrrPanel
@@ -148,7 +143,7 @@ class Workbench:
             log.exception("the study panels failed to build")
             return []
 
-    def _machining_panel(self, server: viser.ViserServer, session) -> list:
+    def _machining_panel(self, server: viser.ViserServer, session: Session) -> list:
         """The Machining panel (issue 8), closed with the study panels."""
         try:
             from .panels.machining import MachiningPanel

@@ -26,6 +26,7 @@ from __future__ import annotations
 import hashlib
 import json
 import threading
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from typing import TYPE_CHECKING, Any
 
@@ -52,9 +53,11 @@ from robomach_core.teaching import (
     touch_at,
 )
 
+from .jobs import JobContext
 from .records import ConflictError, NotFoundError
 
 if TYPE_CHECKING:
+    from .robot import Pose
     from .session import Session
 
 MAX_TOUCHES = 50
@@ -239,21 +242,16 @@ class Calibration:
         force = self._force_N if force_N is None else float(force_N)
         limits.TOUCH_OFF_FORCE_N.check(force, "touch force [N]")
         plan = self.plan()
-        with robot.lock:
-            robot.require_idle()
-            pose = robot.pose()
-            project = s.project()
+        project, pose = s.idle_start()
         cell, estimator, start = pose.cell, pose.leadthrough.estimator, pose.state
 
-        def work(ctx) -> tuple[LeadThroughState, list[Touch]]:
+        def work(ctx: JobContext) -> tuple[LeadThroughState, list[Touch]]:
             lt = LeadThrough(robot.tapped(ctx, cell), estimator=estimator)
             return scripted_touches(lt, start, plan, force_N=force, progress=ctx.progress)
 
         def done(result: tuple[LeadThroughState, list[Touch]]) -> None:
             state, touches = result
-            with robot.lock:
-                robot.place(state, pose.epoch, "the calibration's touches")
-                robot.save()
+            robot.place(state, pose.epoch, "the calibration's touches", save=True)
             self._set(project, tuple(touches), force)
 
         return robot.submit(ROBOT_JOB_KINDS[3], work, done, pose.epoch)
@@ -270,7 +268,7 @@ class Calibration:
         """Back to the placement: the accepted calibration is dropped (the touches stay)."""
         return self._change(lambda p: core.with_registration(p, None))
 
-    def _change(self, change) -> CellSettings:
+    def _change(self, change: Callable[[Project], Project]) -> CellSettings:
         s, robot = self._session, self._session.robot
         joints = robot.snapshot().joints_rad
         project = s.change_cell(change, joints=joints)
@@ -317,12 +315,13 @@ class Calibration:
 
     def _set(self, project: Project, touches: tuple[Touch, ...], force_N: float) -> None:
         key = part_key(project.cell, project.mesh)
-        robot = self._session.robot
-        with robot.lock:
-            doc = {"part": key, "force_N": force_N, "touches": [asdict(t) for t in touches]}
-            robot.save({**robot.document(), "calibration": doc})  # saved first: a 503 keeps all
+        doc = {"part": key, "force_N": force_N, "touches": [asdict(t) for t in touches]}
+
+        def apply() -> None:
             with self._lock:
                 self._touches, self._key, self._force_N = touches, key, float(force_N)
+
+        self._session.robot.keep({"calibration": doc}, apply)  # saved first: a 503 keeps all
         self._session.notify("calibration")
 
     def _fitted(self, touches: tuple[Touch, ...]) -> tuple[WobjFit | None, str]:
@@ -353,7 +352,7 @@ class Calibration:
         return fit, error
 
 
-def _in_base(direction: np.ndarray, frame: str, pose, cad: Workpiece) -> np.ndarray:
+def _in_base(direction: np.ndarray, frame: str, pose: Pose, cad: Workpiece) -> np.ndarray:
     """A direction given in ``frame`` ("base", "wobj", "tool") in the base frame."""
     if direction.shape != (3,) or not np.all(np.isfinite(direction)):
         raise InvalidInputError("a touch direction is 3 finite numbers")

@@ -3,6 +3,7 @@ cancel, ``wait``, a bounded history."""
 
 from __future__ import annotations
 
+import builtins
 import threading
 import time
 import uuid
@@ -171,11 +172,11 @@ class JobRunner:
                 f"job {job_id} ({job.kind}) had not ended after {timeout_s:g} s: {job.info()}"
             ) from None
 
-    def list(self) -> list[JobInfo]:
+    def list(self) -> builtins.list[JobInfo]:
         with self._lock:
             return [j.info() for j in self._jobs.values()]
 
-    def active(self, kinds: Iterable[str] | None = None) -> list[JobInfo]:
+    def active(self, kinds: Iterable[str] | None = None) -> builtins.list[JobInfo]:
         """Queued and running jobs, optionally of some kinds only."""
         wanted = None if kinds is None else set(kinds)
         with self._lock:

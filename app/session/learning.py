@@ -208,9 +208,7 @@ class Learning:
             wall_side=wall_side,
             **({} if floor_clearance_m is None else {"floor_clearance_m": floor_clearance_m}),
         )
-        with robot.lock:
-            robot.require_idle()
-            project, pose = s.project(), robot.pose()
+        project, pose = s.idle_start()
         if len(project.guide_points) < 2:
             raise NotEnoughGuidePointsError(
                 f"path learning needs at least 2 guide points, got {len(project.guide_points)}"
@@ -293,13 +291,14 @@ class Learning:
 
     def go_home(self) -> RobotSnapshot:
         """Put the robot back at its home pose (a reset of the simulation, not a move)."""
-        s, robot = self._session, self._session.robot
-        with robot.lock:
-            robot.require_idle()
-            project = s.project()
-            robot.install(build_live_cell(project.cell, project.mesh))
+        robot = self._session.robot
+
+        def home(p: Project) -> Project:  # under the lock: the project's cell, the robot idle
+            robot.install(build_live_cell(p.cell, p.mesh))
             robot.save()
-        s.notify("robot")
+            return p  # the project as it was: nothing of it is saved
+
+        self._session.commit(home, topics=("robot",), idle=True)
         return robot.snapshot()
 
     def force_trace(self, max_points: int = 2000) -> ForceTrace:

@@ -23,9 +23,10 @@ from __future__ import annotations
 
 import base64
 import os
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -36,6 +37,9 @@ from robomach_core.machining.retained import bucket_trace, retained_result
 
 from ..memory import give_back
 from .records import ConflictError, log
+
+if TYPE_CHECKING:
+    from .session import Session
 
 MM = 1e-3
 JobKind = Literal["run", "compare"]
@@ -49,7 +53,7 @@ CLUSTER_ENV = "ROBOMACH_CLUSTER"
 class MachiningService:
     """Machining of the session's open project (module docstring)."""
 
-    def __init__(self, session: Any) -> None:
+    def __init__(self, session: Session) -> None:
         self.session = session
 
     # --- reading -----------------------------------------------------------------------------
@@ -301,7 +305,9 @@ class MachiningService:
 
     # --- internals ---------------------------------------------------------------------------
 
-    def _update(self, change) -> core.MachiningSetup:
+    def _update(
+        self, change: Callable[[core.MachiningSetup], core.MachiningSetup]
+    ) -> core.MachiningSetup:
         def transition(project: core.Project) -> core.Project:
             project = core.with_machining_setup(project, change(core.machining_setup_of(project)))
             result = project.machining

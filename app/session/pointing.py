@@ -40,9 +40,10 @@ from robomach_core.learning.planner import (
     tool_reach,
 )
 from robomach_core.learning.walls import WallPick
-from robomach_core.part import mesh_query
+from robomach_core.part import Workpiece, mesh_query
 from robomach_core.teaching import Arrival, guide_intents, robust_intents
 
+from .jobs import JobContext
 from .records import MAX_GUIDE_POINTS, ConflictError, GuidePointEntry, NotFoundError
 from .robot import ROBOT_JOB_KINDS
 
@@ -148,10 +149,12 @@ class Pointing:
         mode = self.click_mode if click_mode is None else click_mode
         if new == self.settings and mode == self.click_mode:
             return self.settings
-        robot = self._session.robot
-        with robot.lock:  # kept with the project's robot document, saved before it applies
-            robot.save({**robot.document(), "pointing": pointing_document(new, mode)})
+
+        def apply() -> None:
             self.settings, self.click_mode = new, mode
+
+        # Kept with the project's robot document, saved before it applies.
+        self._session.robot.keep({"pointing": pointing_document(new, mode)}, apply)
         self._session.notify("guide_points")
         return self.settings
 
@@ -190,10 +193,8 @@ class Pointing:
         """Put the tool beside the wall at a picked point (work-object frame) and record a
         guide point there: appended, or in place of ``replace_index`` (drag to adjust)."""
         s, robot = self._session, self._session.robot
-        with robot.lock:
-            robot.require_idle()
-            pose = robot.pose()
-            count = len(s.project().guide_points)
+        project, pose = s.idle_start()
+        count = len(project.guide_points)
         if replace_index is not None and not 0 <= replace_index < count:
             raise NotFoundError(f"no guide point G{replace_index + 1}; there are {count}")
         if replace_index is None and count >= MAX_GUIDE_POINTS:
@@ -272,7 +273,7 @@ class Pointing:
         )
 
     @staticmethod
-    def _safe_z(cad) -> float:
+    def _safe_z(cad: Workpiece) -> float:
         """Base-frame height the tool travels at: above the part's highest point."""
         top = cad.mesh_in_base().bounds[1, 2]
         return float(top) + SAFE_HEIGHT_M
@@ -371,10 +372,8 @@ class Pointing:
                 f"the arm cannot reach {listed}: move or delete them before accepting"
             )
         s, robot = self._session, self._session.robot
-        with robot.lock:
-            robot.require_idle()
-            pose = robot.pose()
-            rng_seed = s.project().cell.seed
+        project, pose = s.idle_start()
+        rng_seed = project.cell.seed
         if epoch != pose.epoch:
             raise ConflictError("the cell changed since the proposal; propose again")
         cell, estimator, start = pose.cell, pose.leadthrough.estimator, pose.state
@@ -382,7 +381,7 @@ class Pointing:
         if cell.workpiece.nominal is not None:  # the real part is not where its mesh is
             intents = robust_intents(intents, cell.workpiece, cell.tool.radius_m)
 
-        def work(ctx) -> tuple[LeadThroughState, list[GuidePoint]]:
+        def work(ctx: JobContext) -> tuple[LeadThroughState, list[GuidePoint]]:
             lt = LeadThrough(robot.tapped(ctx, cell), estimator=estimator)
             try:
                 return scripted_leadthrough(

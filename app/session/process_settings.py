@@ -8,18 +8,24 @@ compensated targets (``robomach_core.project._writers.rapid_text``).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .records import ConflictError, NotFoundError
 
+if TYPE_CHECKING:
+    from robomach_core.cmrr import CmrrSettings
+    from robomach_core.stiffness import CompensationSettings
+
+    from ..studies import StudyService
+
 
 def settings_from_studies(
-    studies: Any,
+    studies: StudyService,
     *,
     controller: str | None = None,
     cmrr: bool = True,
     compensation: bool = True,
-) -> tuple[Any, Any]:
+) -> tuple[CmrrSettings | None, CompensationSettings | None]:
     """(CmrrSettings | None, CompensationSettings | None) of the open project's last studies.
 
     Args:
@@ -33,47 +39,38 @@ def settings_from_studies(
         ConflictError: A wanted study has not run, or several controllers and none chosen.
         NotFoundError: ``controller`` was not run by the last study.
     """
-    cmrr_settings = compensation_settings = None
+    cmrr_settings: CmrrSettings | None = None
+    compensation_settings: CompensationSettings | None = None
     if cmrr:
-        from robomach_core.cmrr import settings_from_dict
+        from robomach_core.cmrr import settings_from_dict as cmrr_from_dict
 
-        outcome = studies.require_cmrr()
-        chosen: Any = outcome.settings
+        study = studies.require_cmrr()
+        chosen: Any = study.settings
         if isinstance(chosen, list):
             if controller is None:
                 raise ConflictError(
                     "the last CMRR study compared controllers; choose one of "
-                    f"{', '.join(outcome.controllers)}"
+                    f"{', '.join(study.controllers)}"
                 )
-            if controller not in outcome.controllers:
+            if controller not in study.controllers:
                 raise NotFoundError(
                     f"the last CMRR study did not run {controller!r}; it ran "
-                    f"{', '.join(outcome.controllers)}"
+                    f"{', '.join(study.controllers)}"
                 )
-            chosen = chosen[outcome.controllers.index(controller)]
+            chosen = chosen[study.controllers.index(controller)]
         elif controller is not None and controller != chosen.get("controller"):
             raise NotFoundError(
                 f"the last CMRR study ran {chosen.get('controller')!r}, not {controller!r}"
             )
-        cmrr_settings = settings_from_dict(chosen)
+        cmrr_settings = cmrr_from_dict(chosen)
     if compensation:
-        from robomach_core.stiffness.settings import settings_from_dict
+        from robomach_core.stiffness.settings import settings_from_dict as compensation_from_dict
 
-        outcome = studies.require_compensation()
-        if outcome.settings is None:
+        identified = studies.require_compensation()
+        if identified.settings is None:
             raise ConflictError(
                 "no compensation settings yet: run the identify study (or all), which "
                 "identifies the joint stiffness they hold"
             )
-        compensation_settings = settings_from_dict(outcome.settings)
+        compensation_settings = compensation_from_dict(identified.settings)
     return cmrr_settings, compensation_settings
-
-
-def set_process_settings(session: Any, *, cmrr: Any = None, compensation: Any = None) -> Any:
-    """Choose the CMRR controller settings (``cmrr.CmrrSettings``) and the compensation
-    settings (``stiffness.CompensationSettings``) the exported program carries
-    (``project.with_process_settings``; None removes one). Returns the project."""
-    from robomach_core import project as core
-
-    change = lambda p: core.with_process_settings(p, cmrr, compensation)  # noqa: E731
-    return session.commit(change, "post", topics=("postprocess",))

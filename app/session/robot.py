@@ -10,9 +10,11 @@ STRATEGY  One ``LiveRobot`` holds the cell, its lead-through, the state and the 
           the same. Robot jobs go through ``submit``: they step the cell through a tap
           (``live.LiveFeed``), so the state shows while they run, and the robot stays where
           they left it, whatever their end.
-SOLUTION  Read: ``pose()``, ``snapshot(wait=)``, ``busy()``, ``force_trace``, ``document()``.
-          Act: ``install``, ``show``, ``settle``, ``record``, ``select``, ``submit``,
-          ``tapped``; ``build_live_cell`` makes what ``install`` takes.
+SOLUTION  Read: ``pose()``, ``idle_pose()``, ``snapshot(wait=)``, ``busy()``, ``force_trace``,
+          ``document()``. Act: ``install``, ``show``, ``settle``, ``place``, ``save``, ``keep``,
+          ``record``, ``select``, ``submit``, ``tapped``; ``build_live_cell`` makes what
+          ``install`` takes. The lock is the session's and stays private: what must happen
+          under it is one of these methods (or the ``Session``'s).
 """
 
 from __future__ import annotations
@@ -37,7 +39,7 @@ from robomach_core.cell import (
 from robomach_core.errors import ConflictError, RobomachError
 from robomach_core.learning.run import Recording
 from robomach_core.part import Workpiece
-from robomach_core.project import CellSettings
+from robomach_core.project import CellSettings, Project
 
 from .jobs import JobContext, JobRunner
 from .live import LiveFeed, TappedCell
@@ -57,6 +59,17 @@ class Pose:
     state: LeadThroughState
     selection: ComplianceSelection
     epoch: int
+
+
+@dataclass(frozen=True)
+class View:
+    """The open project and the live cell it runs on, read together under the lock
+    (``Session.view``)."""
+
+    project: Project
+    cell: Cell
+    epoch: int
+    project_id: int
 
 
 def build_live_cell(
@@ -98,7 +111,7 @@ class LiveRobot:
         save: Callable[..., None],
         notify: Callable[..., None],
     ) -> None:
-        self.lock = lock
+        self._lock = lock
         self.jobs = jobs
         self._save = save
         self.notify = notify  # the session's listeners (call with the lock released)
@@ -129,9 +142,16 @@ class LiveRobot:
 
     def pose(self) -> Pose:
         """The cell, the lead-through, the state, the selection and the epoch, together."""
-        with self.lock:
+        with self._lock:
             cell, lt, state = self._parts()
             return Pose(cell, lt, state, self._selection, self.epoch)
+
+    def idle_pose(self) -> Pose:
+        """``pose()`` for a motion or job about to start: ``BusyError`` while a job owns the
+        robot (checked with the pose, under the lock)."""
+        with self._lock:
+            self.require_idle()
+            return self.pose()
 
     def busy(self) -> bool:
         """True while a job owns the robot."""
@@ -151,15 +171,15 @@ class LiveRobot:
         """The robot now (live during a job). ``wait=False`` never waits for the lock: while
         a change holds it, the answer is the last snapshot taken (``GET /api/state`` answers
         on the server's event loop, which must never block)."""
-        if not self.lock.acquire(blocking=wait):
+        if not self._lock.acquire(blocking=wait):
             last = self._last_snapshot
             if last is not None:  # busy from the job runner: a job that just ended reads so
                 return replace(last, busy=self.busy())
-            self.lock.acquire()
+            self._lock.acquire()
         try:
             return self._take_snapshot()
         finally:
-            self.lock.release()
+            self._lock.release()
 
     def _take_snapshot(self) -> RobotSnapshot:
         """The robot now, kept as the answer for readers that find the lock held (lock held)."""
@@ -186,7 +206,7 @@ class LiveRobot:
 
     def force_trace(self, recording: Recording | None, max_points: int = 2000) -> ForceTrace:
         """Force vs time, at most ``max_points`` (>= 2): live during a job, else ``recording``'s."""
-        with self.lock:
+        with self._lock:
             return self.live.force_trace(recording, self.busy(), max_points)
 
     def document(
@@ -195,7 +215,7 @@ class LiveRobot:
         """What the store keeps of the robot: its joints and the compliance selection (of
         ``built`` and ``selection`` when given: a cell or selection saved before it is taken
         on)."""
-        with self.lock:
+        with self._lock:
             built = self._built if built is None else built
             return {
                 "joints_rad": None if built is None else built[2].cell.q_motor.tolist(),
@@ -207,7 +227,7 @@ class LiveRobot:
 
     def install(self, built: Built, selection: ComplianceSelection | None = None) -> None:
         """A new cell (and the robot in it): motions and jobs of the old one are dropped."""
-        with self.lock:
+        with self._lock:
             if selection is not None:
                 self._selection = selection
             self.epoch += 1
@@ -215,7 +235,7 @@ class LiveRobot:
 
     def show(self, state: CellState, epoch: int) -> None:
         """Where a running motion is (not saved), while the cell is still ``epoch``'s."""
-        with self.lock:
+        with self._lock:
             if epoch == self.epoch and self._built is not None:
                 cell, lt, _ = self._built
                 moving = LeadThroughState(state, state.T_base_tcp.copy(), np.zeros(6))
@@ -227,7 +247,7 @@ class LiveRobot:
         Raises:
             ConflictError: the cell changed while it moved (the motion is dropped).
         """
-        with self.lock:
+        with self._lock:
             if epoch != self.epoch or self._built is None:
                 raise ConflictError(
                     "the cell or the project changed while the robot moved; the motion was stopped"
@@ -237,28 +257,42 @@ class LiveRobot:
             self._save()
         self.notify("robot")
 
-    def place(self, state: LeadThroughState, epoch: int, what: str = "the job") -> None:
-        """A job ended at ``state``: the robot stays there (not saved: the caller saves it with
-        the job's result, under the lock).
+    def place(
+        self, state: LeadThroughState, epoch: int, what: str = "the job", *, save: bool = False
+    ) -> None:
+        """A job ended at ``state``: the robot stays there; ``save``: saved at once, else the
+        caller saves it with the job's result (``Session.commit(with_robot=True)``, whose
+        transition calls this under the same lock).
 
         Raises:
             ConflictError: the cell changed while ``what`` ran (its result is dropped).
         """
-        with self.lock:
+        with self._lock:
             if epoch != self.epoch or self._built is None:
                 raise ConflictError(f"the cell changed while {what} ran")
             cell, lt, _ = self._built
             self._put((cell, lt, replace(state, velocity=np.zeros(6))))
+            if save:
+                self._save()
 
     def save(self, document: dict[str, Any] | None = None) -> None:
         """Save the robot's joints and compliance selection now (``document`` in their
         place: what is about to apply, saved first)."""
-        with self.lock:
+        with self._lock:
             self._save(document)
+
+    def keep(self, extra: dict[str, Any], apply: Callable[[], None]) -> None:
+        """Save the robot's document with ``extra`` over its parts (what the session keeps
+        with the robot: the pointing settings, the calibration's touches), then ``apply`` the
+        change, both under the lock: a save that fails (a locked database: 503) applies
+        nothing, and no other save of the robot comes between them with the old parts."""
+        with self._lock:
+            self._save({**self.document(), **extra})
+            apply()
 
     def record(self) -> GuidePoint:
         """The current pose as a guide point (not yet in the project)."""
-        with self.lock:
+        with self._lock:
             self.require_idle()
             _, lt, state = self._parts()
             return lt.record(state)
@@ -266,7 +300,7 @@ class LiveRobot:
     def select(self, axes: Any, frame: str) -> ComplianceSelection:
         """Make the axes (any of x y z rx ry rz) in the "tool" or "base" frame compliant."""
         selection = ComplianceSelection(frozenset(axes), frame)  # validates
-        with self.lock:
+        with self._lock:
             self._save(self.document(selection=selection))  # saved first: a 503 changes nothing
             self._selection = selection
         self.notify("compliance")
@@ -288,12 +322,12 @@ class LiveRobot:
         """A job that owns the robot (``kind`` of ``ROBOT_JOB_KINDS``); cancelled or failed,
         the robot stays where it left it (nothing teleports)."""
         assert kind in ROBOT_JOB_KINDS, kind
-        with self.lock:
+        with self._lock:
             self.require_idle()
             self.live.start(self._parts()[2].cell)
 
         def end(info: JobInfo) -> None:
-            with self.lock:
+            with self._lock:
                 live = self.live.stop()
                 if info.status != "done" and live is not None and epoch == self.epoch:
                     cell, lt, _ = self._parts()

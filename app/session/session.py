@@ -8,20 +8,19 @@ STRATEGY  The job is one frozen ``robomach_core.project.Project``, changed only 
           the same the CLI applies) through ``commit``: under one ``threading.RLock`` the
           transition runs, the value is replaced and the changed parts are saved in one store
           transaction; listeners then hear the topics. The robot is a ``LiveRobot`` beside it
-          under the same lock. The session holds nothing else: teaching (``teach``), pointing
-          (``pointing``), the robot jobs and post-processing (``learning``), the programs and
-          saved exports (``programs``), projects (``projects``) and machining (``machining``)
-          work through its public interface; long work computes from a ``view()`` outside the
-          lock and commits a transition that refuses a result whose inputs changed meanwhile.
+          under the same lock, which stays private (what needs it is a method here or of a part
+          built with it: ``LiveRobot``, ``Projects``). The session holds nothing else: it builds
+          each service once, and they work through its public interface; long work computes
+          from a ``view()`` outside the lock and commits a transition that refuses a result
+          whose inputs changed meanwhile.
 SOLUTION  Public API (thread-safe):
 
   Reading   project() -> Project; view() -> View (project, cell, epoch, project id, at once);
-            current_project() -> ProjectInfo; cell_note() (what a cell change cleared);
-            robot (LiveRobot: snapshot(), pose(), ...)
-  Services  robot, teach (push, jog, touch_off, touch_along, stop, tool_view), pointing,
-            calibration (touches of the real part, the fit, its acceptance), learning
-            (start_example, start_path_learning, run_postprocess, go_home, force_trace), jobs,
-            preview (a work-object placement being tried, not saved)
+            idle_start() -> (Project, Pose) for a motion or job about to start (busy: 409);
+            current_project() -> ProjectInfo; cell_note() (what a cell change cleared)
+  Services  robot, teach (push, jog, touch_off ...), pointing, calibration, learning (the robot
+            jobs, post-processing), jobs, preview (a placement tried), programs (and saved
+            exports), projects (open, create ..., files), studies (``app.studies``), machining
   Changing  commit(change, *parts, topics=, idle=, with_robot=) -> Project
             change_cell(change, parsed=) -> Project   a transition that rebuilds the live cell
             set_cell(robot=, tool_radius_m=, workpiece=, part_deviation=, wobj_mm_deg=)
@@ -41,29 +40,28 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from robomach_core import project as core
-from robomach_core.cell import Cell
 from robomach_core.errors import InvalidInputError
 from robomach_core.part import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, Workpiece
 from robomach_core.project import CellSettings, Project
 
 from ..memory import give_back
 from ..store import Store
-from . import projects
 from .calibration import Calibration
 from .jobs import JobRunner
 from .learning import Learning
+from .machining import MachiningService
 from .persistence import Part, save_kwargs
 from .pointing import Pointing, pointing_document, pointing_from_document
 from .preview import PlacementPreview
-from .projects import Loaded
+from .programs import Programs
+from .projects import Loaded, Projects
 from .records import ConflictError, GuidePointEntry, NotFoundError, ProjectInfo, Topic, log
 from .robot import ROBOT_JOB_KINDS as ROBOT_JOB_KINDS
-from .robot import LiveRobot, build_live_cell
+from .robot import LiveRobot, Pose, View, build_live_cell
 from .teach import Teach
 
 # What a change of the project's inputs makes stale, for the listeners to redraw.
@@ -71,16 +69,6 @@ DOWNSTREAM_TOPICS: tuple[Topic, ...] = ("recording", "postprocess")
 CELL_TOPICS: tuple[Topic, ...] = ("cell", "robot", "guide_points", *DOWNSTREAM_TOPICS)
 ALL_TOPICS: tuple[Topic, ...] = ("project", "compliance", "exports", *CELL_TOPICS)
 ALL_PARTS: tuple[Part, ...] = ("cell", "guides", "recording", "post")
-
-
-@dataclass(frozen=True)
-class View:
-    """The open project and the live cell it runs on, read together under the lock."""
-
-    project: Project
-    cell: Cell
-    epoch: int
-    project_id: int
 
 
 class Session:
@@ -127,7 +115,13 @@ class Session:
             "calibration": self.calibration.document(),
         }
         self.learning = Learning(self)
-        projects.open_initial(self)
+        self.programs = Programs(self)  # the open project's programs, tables, saved exports
+        self.projects = Projects(self, self._lock)  # the stored projects (open, files ...)
+        self.projects.open_initial()
+        from ..studies import StudyService  # (app.studies imports this package)
+
+        self.machining = MachiningService(self)
+        self.studies = StudyService(self)  # reads the open project
 
     # --- listeners ---------------------------------------------------------------------------
 
@@ -175,6 +169,11 @@ class Session:
         """The project, the live cell, its epoch and the project's id, read together."""
         with self._lock:
             return View(self._project, self.robot.cell, self.robot.epoch, self._project_id)
+
+    def idle_start(self) -> tuple[Project, Pose]:
+        """The project and the robot's pose, read together; ``BusyError`` while a job runs."""
+        with self._lock:
+            return self._project, self.robot.idle_pose()
 
     def cell_note(self) -> str:
         """What the last cell change cleared and why (a machining choice the new controller

@@ -36,6 +36,7 @@ from robomach_core import limits
 from robomach_core.cell import (
     AXES,
     CONTROL_PERIOD_S,
+    Cell,
     CellState,
     ClearanceProbe,
     ComplianceFrame,
@@ -356,7 +357,7 @@ class Teach:
             wall_gap,
         )
 
-    def _wall_gap(self, cell, p_base: np.ndarray) -> float | None:
+    def _wall_gap(self, cell: Cell, p_base: np.ndarray) -> float | None:
         """The cutter's gap to the nearest wall of the mesh at the TCP's height (the section
         there, kept per 0.1 mm of height)."""
         from robomach_core.learning.walls import section_loops
@@ -390,10 +391,8 @@ class Teach:
                 "(or let go of the other button)"
             )
         try:
-            with robot.lock:
-                robot.require_idle()
-                pose = robot.pose()
-                generation = self._stop_generation
+            pose = robot.idle_pose()
+            generation = self._stop_generation  # a stop from now on stops this motion
             epoch, start, selection, lt = pose.epoch, pose.state, pose.selection, pose.leadthrough
             last: list[CellState] = [start.cell]
             credit = 0

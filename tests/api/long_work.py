@@ -23,6 +23,7 @@ from app.session import Session
 from app.session.persistence import save_kwargs
 from app.store import Store
 from robomach_core.learning.run import Recording
+from tests.jobs import done
 
 CONTROL_PERIOD_S = 0.004
 LEARNING_FORCE_N = 10.0
@@ -64,12 +65,6 @@ def densify(recording: Recording, factor: int) -> Recording:
     )
 
 
-def _wait(session: Session, job_id: str) -> None:
-    info = session.jobs.wait(job_id, JOB_TIMEOUT_S)
-    if info.status != "done":
-        raise RuntimeError(f"job {job_id} ended {info.status}: {info.error}")
-
-
 def write_dense_project(data_dir: Path, *, speed_mm_s: float = 5.0, factor: int = 10) -> int:
     """Make the project ``robomach serve`` opens in ``data_dir`` (default cell: UR10 + water
     pump) hold the example guide points and a recording learned at ``speed_mm_s``, ``factor``
@@ -78,8 +73,12 @@ def write_dense_project(data_dir: Path, *, speed_mm_s: float = 5.0, factor: int 
     data_dir.mkdir(parents=True, exist_ok=True)
     session = Session(Store.in_data_dir(data_dir), data_dir=data_dir)
     try:
-        _wait(session, session.learning.start_example())
-        _wait(session, session.learning.start_path_learning(LEARNING_FORCE_N, speed_mm_s * 1e-3))
+        done(session, session.learning.start_example(), JOB_TIMEOUT_S)
+        done(
+            session,
+            session.learning.start_path_learning(LEARNING_FORCE_N, speed_mm_s * 1e-3),
+            JOB_TIMEOUT_S,
+        )
         project = session.project()
         learned = project.learned
         dense = replace(

@@ -16,6 +16,7 @@ from app.studies import CMRR_EXPORT, MAX_ACTIVE_STUDIES, StudyService, _clean_fa
 from robomach_core.cmrr import CONTROLLER_NAMES, SCENARIO_NAMES
 from tests.api.in_process import InProcessServer
 from tests.api.server_process import Api
+from tests.jobs import finished
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -234,10 +235,7 @@ def test_an_unforeseen_failure_ends_the_job_with_one_line(tmp_path) -> None:
     try:
         work = _clean_failures("CMRR", lambda ctx: 1 / 0)
         job_id = session.jobs.submit("cmrr_study", work)
-        deadline = time.monotonic() + 10.0
-        while (job := session.jobs.get(job_id)).status in ("queued", "running"):
-            assert time.monotonic() < deadline
-            time.sleep(0.01)
+        job = finished(session, job_id, timeout_s=10.0)
         assert job.status == "failed"
         assert job.error == "the CMRR study failed: ZeroDivisionError: division by zero"
     finally:

@@ -5,8 +5,6 @@ and a cell change that drops what belonged to the old part. A fresh realistic pa
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -17,19 +15,10 @@ from robomach_core.part import PartDeviation
 from robomach_core.part.real_part import fixture_error
 from robomach_core.teaching import CalibrationError
 from tests.envelope import replay, run_seed
+from tests.jobs import finished
 
 SEED = run_seed()
 TOP_WOBJ_M = np.array([0.09, 0.06, 0.020])  # the pump's rim, 10 mm inside its corner
-
-
-def _wait(session: Session, job_id: str, timeout_s: float = 300.0):
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        info = session.jobs.get(job_id)
-        if info.status in ("done", "failed", "cancelled"):
-            return info
-        time.sleep(0.05)
-    raise AssertionError("job did not finish")
 
 
 def _errors_m(session: Session, deviation: PartDeviation) -> float:
@@ -55,7 +44,7 @@ def test_the_example_operator_calibrates_and_the_accepted_fit_survives_a_restart
         assert before > 2e-3, replay(SEED)  # the CAD as placed: millimetres off
         plan = session.calibration.plan()
         assert [t.feature for t in plan.touches].count("top") == 3 and len(plan.touches) == 8
-        info = _wait(session, session.calibration.start_auto(force_N=12.0))
+        info = finished(session, session.calibration.start_auto(force_N=12.0))
         assert info.status == "done", info.error
         state = session.calibration.state()
         assert len(state.touches) == 8 and state.fit is not None, state.fit_error
@@ -124,7 +113,7 @@ def test_another_part_or_placement_drops_the_touches_and_the_calibration_a_tool_
     session = Session(real_time=False)
     try:
         session.set_cell(workpiece="block")
-        info = _wait(session, session.calibration.start_auto())
+        info = finished(session, session.calibration.start_auto())
         assert info.status == "done", info.error
         session.calibration.accept()
         assert session.project().cell.registration is not None

@@ -11,30 +11,22 @@ from __future__ import annotations
 
 import itertools
 import random
-import time
 
 import numpy as np
 import pytest
 
-from app.session import Session, programs
+from app.session import Session
 from robomach_core import project as core
 from robomach_core.export.read_back import read_program
 from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
 from robomach_core.machining.choice import missing
 from robomach_core.part import PartDeviation
 from robomach_core.project import capabilities_of, machining_note, machining_setup_of
+from tests.jobs import done
 
 pytestmark = pytest.mark.slow  # path learning on the pump (about 10 s unpaced)
 
 ARMS = ("ur10", "irb4400", "kr270")
-
-
-def _finish(session: Session, job: str) -> None:
-    deadline = time.monotonic() + 300
-    while session.jobs.get(job).status in ("queued", "running"):
-        assert time.monotonic() < deadline
-        time.sleep(0.05)
-    assert session.jobs.get(job).status == "done", session.jobs.get(job).error
 
 
 @pytest.fixture(scope="module")
@@ -44,10 +36,10 @@ def learned() -> Session:
     example and post-processed."""
     session = Session(real_time=False)
     session.set_cell(part_deviation=PartDeviation.realistic(0))
-    _finish(session, session.calibration.start_auto())
+    done(session, session.calibration.start_auto())
     session.calibration.accept()
-    _finish(session, session.learning.start_example())
-    _finish(session, session.learning.start_path_learning(10.0, 0.005))
+    done(session, session.learning.start_example())
+    done(session, session.learning.start_path_learning(10.0, 0.005))
     session.learning.run_postprocess()
     yield session
     session.close()
@@ -57,7 +49,7 @@ def learned() -> Session:
 def test_the_cad_only_program_reads_back_to_the_targets_it_was_scored_by(learned, language):
     comparison = learned.project().processed.cad_comparison
     assert comparison is not None and comparison.part_deviates
-    files = programs.cad_only_program_texts(learned, language)
+    files = learned.programs.cad_only_program_texts(language)
     text = next(iter(files.values()))
     assert "CAD-ONLY PROGRAM" in text  # it says what it is, and how far both are
     assert f"max {comparison.cad_only.max_m * 1e3:.3f} mm" in text
@@ -73,7 +65,7 @@ def test_the_cad_only_program_is_refused_in_a_language_the_arm_does_not_run(lear
     from robomach_core.errors import RobomachError
 
     with pytest.raises(RobomachError, match="(?i)krl|kuka|controller"):
-        programs.cad_only_program_texts(learned, "krl")
+        learned.programs.cad_only_program_texts("krl")
 
 
 def test_a_cell_change_clears_only_the_choices_the_new_controller_cannot_run(learned):

@@ -14,8 +14,7 @@ import numpy as np
 import pytest
 
 from app.cli import main as robomach
-from app.session import Session, programs
-from app.session.project_file import export_project, import_project
+from app.session import Session
 from robomach_core import project as core
 from robomach_core.cell.robot import robot_urdf_path
 from robomach_core.robots import custom, registry
@@ -70,12 +69,12 @@ def test_a_custom_arm_project_round_trips_through_its_file(tmp_path) -> None:
     registry.forget(arm)
     session = Session(real_time=False)  # what POST /api/projects/import does
     try:
-        import_project(session, (out / core.PROJECT_FILE).read_bytes(), "my arm")
+        session.projects.import_project((out / core.PROJECT_FILE).read_bytes(), "my arm")
         assert session.robot.cell.robot.name == arm
         _same(session.project(), saved)
         if program is not None:
-            assert programs.program_texts(session, "urscript")["program.urscript"] == program
-        again = core.project_from_file_bytes(export_project(session))
+            assert session.programs.program_texts("urscript")["program.urscript"] == program
+        again = core.project_from_file_bytes(session.projects.export_project())
         _same(again, saved)
     finally:
         session.close()
@@ -104,7 +103,7 @@ def test_switching_between_two_uploaded_arms_keeps_each_arms_own_file(tmp_path) 
         session.set_cell(robot=a)
         assert session.project().cell.robot == a
         assert session.project().robot_urdf == ("arm_a.urdf", a_bytes)
-        reopened = core.project_from_file_bytes(export_project(session))
+        reopened = core.project_from_file_bytes(session.projects.export_project())
         assert reopened.cell.robot == a and reopened.robot_urdf == ("arm_a.urdf", a_bytes)
         session.set_cell(robot="ur10")  # a built-in arm carries no file
         assert session.project().robot_urdf is None

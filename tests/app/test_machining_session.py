@@ -5,9 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from app.session import Session, programs
+from app.session import Session
 from app.session.machining import MachiningService
-from app.session.project_file import import_project
 from app.store import Store
 from tests.demo_project import block_demo_dir
 from tests.jobs import done
@@ -18,13 +17,13 @@ def test_settings_choice_and_result_survive_a_restart(tmp_path):
     db = tmp_path / "robomach.sqlite"
     session = Session(Store(db), data_dir=tmp_path)
     try:
-        import_project(session, (block_demo_dir() / "project.npz").read_bytes(), "block")
+        session.projects.import_project((block_demo_dir() / "project.npz").read_bytes(), "block")
         service = MachiningService(session)
         service.set_settings(process_gain_N=25.0, force_limit_N=180.0)
         service.choose("fuzzy", "offline")
         done(session, service.start("run"))
         rows = service.result().rows
-        rapid = programs.rapid_module(session)
+        rapid = session.programs.rapid_module()
         assert "planned from rehearsals of the fuzzy cut" in rapid
     finally:
         session.close()
@@ -39,6 +38,6 @@ def test_settings_choice_and_result_survive_a_restart(tmp_path):
         result = service.result()
         assert [r["cycle_time_s"] for r in result.rows] == [r["cycle_time_s"] for r in rows]
         assert result.runs == ()  # traces are not stored
-        assert programs.rapid_module(reopened) == rapid  # the corrected program came back with it
+        assert reopened.programs.rapid_module() == rapid  # the corrected program came back with it
     finally:
         reopened.close()

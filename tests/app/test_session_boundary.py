@@ -88,3 +88,29 @@ def test_the_session_with_what_it_inherits_is_under_400_lines() -> None:
     assert sum(lines.values()) < MAX_SESSION_LINES, lines
     # and the module around it, docstring and records included
     assert len(SESSION_FILE.read_text().splitlines()) < MAX_SESSION_LINES
+
+
+def test_only_the_session_and_the_parts_built_with_it_take_its_lock() -> None:
+    """No public lock: what must happen under the session's lock is a method of the Session or
+    of a part it builds with the lock (``LiveRobot``, ``Projects``); no other module names the
+    lock of a robot or a session (``robot.lock``, ``session._lock``, ``s.robot._lock`` ...)."""
+    owners = {SESSION_FILE, ROBOT_FILE, ROOT / "app" / "session" / "projects.py"}
+    holders = {"robot", "session", "_session", "s", "projects"}
+    found = []
+    for path in _modules(besides=SESSION_FILE):
+        if path in owners:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not (isinstance(node, ast.Attribute) and node.attr in ("lock", "_lock")):
+                continue
+            inner = node.value
+            name = inner.attr if isinstance(inner, ast.Attribute) else getattr(inner, "id", "")
+            if name in holders:
+                found.append(f"{path.relative_to(ROOT)}:{node.lineno} {ast.unparse(node)}")
+    assert not found, "takes the session's lock from outside:\n" + "\n".join(found)
+    session = Session(real_time=False)
+    try:
+        public = {n for n in (*vars(session), *vars(session.robot)) if "lock" in n.lower()}
+        assert not {n for n in public if not n.startswith("_")}, public
+    finally:
+        session.close()

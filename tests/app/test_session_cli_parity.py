@@ -20,8 +20,7 @@ import numpy as np
 import pytest
 
 from app.cli import main as robomach
-from app.session import Session, programs
-from app.session.project_file import import_project
+from app.session import Session
 from app.store import Store
 from robomach_core import project as core
 from tests.generated_parts import PARTS
@@ -112,8 +111,8 @@ def test_the_workbench_and_the_cli_build_the_same_project(
         cad = core.build_workpiece(cli.cell, cli.mesh)
         np.testing.assert_allclose(session.robot.workpiece.T_base_wobj, cad.T_base_wobj)
         _assert_same_stages(live, cli)
-        (language,) = programs.program_languages(session)[:1]
-        live_files = programs.program_texts(session, language)
+        (language,) = session.programs.program_languages()[:1]
+        live_files = session.programs.program_texts(language)
         for name, text in live_files.items():
             assert (out / name).read_text() == text, name  # the CLI's written program
     finally:
@@ -124,9 +123,9 @@ def test_the_workbench_and_the_cli_build_the_same_project(
     try:
         _assert_same_stages(reopened.project(), cli)
         np.testing.assert_allclose(reopened.robot.workpiece.T_base_wobj, cad.T_base_wobj)
-        assert programs.program_texts(reopened, language) == live_files
-        import_project(reopened, (out / "project.npz").read_bytes(), "from the cli")
+        assert reopened.programs.program_texts(language) == live_files
+        reopened.projects.import_project((out / "project.npz").read_bytes(), "from the cli")
         _assert_same_stages(reopened.project(), cli)
-        assert programs.program_texts(reopened, language) == live_files
+        assert reopened.programs.program_texts(language) == live_files
     finally:
         reopened.close()

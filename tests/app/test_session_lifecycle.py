@@ -19,9 +19,9 @@ from app.store import Store
 def test_a_project_deleted_while_it_opens_does_not_open(tmp_path: Path) -> None:
     session = Session(Store(tmp_path / "robomach.sqlite"), real_time=False)
     try:
-        first = projects.create_project(session, "first")
-        other = projects.create_project(session, "other")
-        projects.open_project(session, first.id)
+        first = session.projects.create_project("first")
+        other = session.projects.create_project("other")
+        session.projects.open_project(first.id)
         loaded = projects.read_project(session.store, other.id)  # the slow part, unlocked
         session.store.delete_project(other.id)  # another request deletes it meanwhile
         with pytest.raises(NotFoundError, match="deleted while it opened"):
@@ -37,16 +37,16 @@ def test_the_pointing_settings_come_back_with_their_project(tmp_path: Path) -> N
     db = tmp_path / "robomach.sqlite"
     session = Session(Store(db), real_time=False)
     try:
-        mine = projects.create_project(session, "mine")
+        mine = session.projects.create_project("mine")
         session.pointing.set_settings(gap_m=0.0025, height_above_floor_m=0.005, click_mode="teach")
-        projects.create_project(session, "fresh")  # another project: the defaults
+        session.projects.create_project("fresh")  # another project: the defaults
         assert session.pointing.settings.gap_m == pytest.approx(0.001)
         assert session.pointing.click_mode == "propose"
     finally:
         session.close()
     reopened = Session(Store(db), real_time=False)
     try:
-        projects.open_project(reopened, mine.id)
+        reopened.projects.open_project(mine.id)
         assert reopened.pointing.settings.gap_m == pytest.approx(0.0025)
         assert reopened.pointing.settings.height_above_floor_m == pytest.approx(0.005)
         assert reopened.pointing.click_mode == "teach"

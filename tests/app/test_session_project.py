@@ -14,8 +14,7 @@ import numpy as np
 import pytest
 
 import robomach_core.project as core
-from app.session import ConflictError, Session, process_settings, programs, projects
-from app.studies import StudyService
+from app.session import ConflictError, Session
 from tests.jobs import done
 
 
@@ -69,7 +68,7 @@ def test_changing_guide_points_marks_results_out_of_date_in_the_gui(session: Ses
     try:
         scene = CellScene(server)
         post = PostprocessPanel(server, session, scene)
-        export = ExportPanel(server, session, StudyService(session))
+        export = ExportPanel(server, session, session.studies)
         learning = PathLearningPanel(server, session)
         learning.show_job(None)
         assert session.project().status()["postprocess"] == "current"
@@ -117,19 +116,19 @@ def test_the_export_panel_shows_what_the_program_carries(session: Session) -> No
 
     server = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
     try:
-        export = ExportPanel(server, session, StudyService(session))
+        export = ExportPanel(server, session, session.studies)
         # Nothing chosen: a constant feed, as the files are written (no FC SpeedChange).
         assert "feed control **constant**, compensation **off**" in export.process.content
         assert "FCSpdChgAct" not in export.file_text("program.mod")
         cmrr = cmrr_settings_for(build_scenario("deburr-burrs"), settings_for("two-stage"))
-        process_settings.set_process_settings(session, cmrr=cmrr)
+        session.programs.set_process_settings(cmrr=cmrr)
         export.refresh()
         assert "feed control **two-stage**" in export.process.content
         assert "CMRR: two-stage" in export.preview.content
         assert "FCSpdChgAct" in export.file_text("program.mod")
         assert "FCSpdChgAct" not in export.file_text("program_fc.mod")
     finally:
-        process_settings.set_process_settings(session)
+        session.programs.set_process_settings()
         server.stop()
 
 
@@ -149,6 +148,14 @@ def gated_process(monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[threading.E
     gate.set()
 
 
+def _lock_is_free(session: Session, timeout_s: float = 2.0) -> bool:
+    """A change that takes the session's lock (an empty ``commit``) ends within ``timeout_s``."""
+    worker = threading.Thread(target=session.commit, args=(lambda p: p,), daemon=True)
+    worker.start()
+    worker.join(timeout_s)
+    return not worker.is_alive()
+
+
 def test_post_processing_runs_outside_the_session_lock(session: Session, gated_process) -> None:
     entered, gate = gated_process
     out: dict = {}
@@ -158,8 +165,7 @@ def test_post_processing_runs_outside_the_session_lock(session: Session, gated_p
     worker.start()
     assert entered.wait(30)
     # While it computes, the lock is free: state reads and the robot answer at once.
-    assert session.robot.lock.acquire(timeout=2.0)
-    session.robot.lock.release()
+    assert _lock_is_free(session)
     session.robot.snapshot()
     assert session.project().post_settings.tolerance_m == pytest.approx(5e-5)  # not swapped yet
     gate.set()
@@ -173,13 +179,12 @@ def test_opening_a_project_post_processes_outside_the_lock(session: Session, gat
     entered, gate = gated_process
     original = session.current_project().id
     targets = len(session.project().processed.result.targets)
-    projects.create_project(session, f"other-{time.monotonic_ns()}")
+    session.projects.create_project(f"other-{time.monotonic_ns()}")
     assert session.project().recording is None
-    worker = threading.Thread(target=projects.open_project, args=(session, original))
+    worker = threading.Thread(target=session.projects.open_project, args=(original,))
     worker.start()
     assert entered.wait(30)  # re-running the stored post-processing
-    assert session.robot.lock.acquire(timeout=2.0)
-    session.robot.lock.release()
+    assert _lock_is_free(session)
     assert session.project().recording is None  # still the other project until it is ready
     gate.set()
     worker.join(60)
@@ -209,7 +214,7 @@ def test_a_project_saved_before_fingerprints_opens_as_current(
     try:
         assert reopened.project().status() == project.status()
         assert reopened.project().status()["postprocess"] == "current"
-        assert programs.rapid_module(reopened) == programs.rapid_module(session)
+        assert reopened.programs.rapid_module() == session.programs.rapid_module()
     finally:
         reopened.close()
 

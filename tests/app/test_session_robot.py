@@ -69,10 +69,13 @@ def test_a_read_that_finds_the_robot_busy_shows_the_robot_after_the_last_change(
         s.set_cell(workpiece="water_pump")  # a new cell: the robot back at its home
         held, release = threading.Event(), threading.Event()
 
+        def holding(project):  # a change that holds the session's lock a while
+            held.set()
+            release.wait(10)
+            return project
+
         def hold() -> None:
-            with s.robot.lock:
-                held.set()
-                release.wait(10)
+            s.commit(holding)
 
         holder = threading.Thread(target=hold)
         holder.start()

@@ -40,6 +40,7 @@ from tests.browser.test_place_calibrate_learn import (
 )
 from tests.browser.test_pointing import _click_at
 from tests.generated_parts import cam_plate
+from tests.jobs import done
 
 VIEWPORT = {"width": 1500, "height": 900}
 TIMEOUT_S = 600.0
@@ -189,9 +190,9 @@ def pump_shots(browser, folder: Path) -> None:
         # 5. Learned and compared on the pump with a machining choice, then another arm.
         _set_guides(session, ())
         job = session.learning.start_example()
-        wait_for(lambda: session.jobs.get(job).status == "done", TIMEOUT_S)
+        done(session, job, TIMEOUT_S)
         job = session.learning.start_path_learning(10.0, 0.005)
-        wait_for(lambda: session.jobs.get(job).status == "done", TIMEOUT_S)
+        done(session, job, TIMEOUT_S)
         session.learning.run_postprocess()
         wait_for(lambda: "What learning buys" in wb.pointing.compare.content, TIMEOUT_S)
         session.commit(lambda p: core.choose(p, "fuzzy", "off"), "post", topics=("machining",))

@@ -79,11 +79,10 @@ def test_the_pendant_compares_and_chooses(served: Served, browser) -> None:
 @pytest.fixture
 def workbench() -> Iterator:
     from app.session import Session
-    from app.session.project_file import import_project
 
     session = Session()
     data = (block_demo_dir() / "project.npz").read_bytes()
-    import_project(session, data, "block demo")
+    session.projects.import_project(data, "block demo")
     with workbench_on(session) as wb:
         yield wb
 

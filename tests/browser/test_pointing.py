@@ -20,6 +20,7 @@ from playwright.sync_api import Page, expect
 from robomach_core.transforms import matrix_from_quaternion
 from tests.browser.conftest import new_context, wait_for, workbench_on
 from tests.generated_parts import grooved_plate
+from tests.jobs import done
 
 pytestmark = pytest.mark.slow
 
@@ -238,9 +239,9 @@ def test_a_cell_change_leaves_nothing_of_the_old_cell_in_the_scene() -> None:
         session = wb.session
         session.pointing.propose(np.array([0.0, -0.065, 0.017]))
         job = session.pointing.accept()
-        wait_for(lambda: session.jobs.get(job).status == "done", timeout_s=300)
+        done(session, job, 300)
         job = session.learning.start_path_learning(10.0, 0.005)
-        wait_for(lambda: session.jobs.get(job).status == "done", timeout_s=300)
+        done(session, job, 300)
         session.learning.run_postprocess()
         wait_for(lambda: "What learning buys" in wb.pointing.compare.content)
         session.pointing.propose(np.array([0.04, -0.065, 0.017]))

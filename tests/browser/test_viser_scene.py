@@ -14,6 +14,7 @@ from PIL import Image
 from playwright.sync_api import Page, expect
 
 from tests.browser.conftest import Served, new_context, wait_for, workbench_on
+from tests.jobs import done
 
 pytestmark = pytest.mark.slow
 
@@ -168,7 +169,7 @@ def test_the_wall_to_follow_is_shown_before_the_run_and_the_side_is_checked(work
     rules panel says every point is nearer the wall on the right."""
     session = workbench.session
     job = session.learning.start_example()
-    wait_for(lambda: session.jobs.get(job).status == "done", timeout_s=180.0)
+    done(session, job, 180.0)
     panel = workbench.path_learning
     wait_for(lambda: "follows the wall on the right" in panel.wall_note.content)
     assert "pushed back from the right" in panel.wall_note.content

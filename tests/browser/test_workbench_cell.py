@@ -17,6 +17,7 @@ from robomach_core.cell import ROBOT_NAMES
 from robomach_core.project import wobj_transform
 from robomach_core.transforms import matrix_from_quaternion
 from tests.browser.conftest import wait_for, workbench_on
+from tests.jobs import done
 
 pytestmark = pytest.mark.slow  # a viser server and a session per test
 
@@ -159,7 +160,7 @@ def test_the_check_before_the_run_is_shown_above_run_one_line_per_rule(workbench
     wb, session = workbench, workbench.session
     assert "No guide point breaks a rule" in wb.path_learning.check.content
     job = session.learning.start_example()
-    wait_for(lambda: session.jobs.get(job).status == "done", timeout_s=300)
+    done(session, job, 300)
     wb.path_learning.wall_side.value = "left"  # against the example's pushes
     wb.guide_rules.refresh()  # what the wall side's update does
     content = wb.path_learning.check.content

@@ -25,11 +25,11 @@ async def get_settings(request: Request) -> ServerSettings:
 
 
 async def get_studies(request: Request) -> StudyService:
-    return request.app.state.studies
+    return request.app.state.session.studies
 
 
 async def get_machining(request: Request) -> MachiningService:
-    return request.app.state.machining
+    return request.app.state.session.machining
 
 
 SessionDep = Annotated[Session, Depends(get_session)]

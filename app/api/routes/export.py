@@ -21,7 +21,7 @@ from fastapi import APIRouter, Query, Response, status
 import robomach_core.export.languages as registry
 from app.api.routes import ERRORS, SessionDep, SettingsDep, download
 from app.api.schemas import ExportCreate, ExportPublic, ProgramLanguagePublic
-from app.session import programs
+from app.session import Session, programs
 from robomach_core.export.rapid import rapid_identifier
 
 PROGRAM_ANSWERS: dict[int | str, dict[str, Any]] = {
@@ -40,7 +40,7 @@ ModuleName = Annotated[
 
 
 def program_download(
-    session: Any,
+    session: Session,
     language: str,
     *,
     force_control: bool = False,
@@ -51,8 +51,8 @@ def program_download(
     from robomach_core.errors import InvalidInputError
 
     lang = registry.language(language)
-    files = programs.program_texts(
-        session, lang.name, force_control=force_control, module_name=rapid_identifier(module_name)
+    files = session.programs.program_texts(
+        lang.name, force_control=force_control, module_name=rapid_identifier(module_name)
     )
     if file is not None:
         if file not in files:
@@ -71,12 +71,12 @@ def program_download(
     return download(buffer.getvalue(), f"{stem}_{lang.name}.zip")
 
 
-def cad_only_download(session: Any, language: str, *, file: str | None = None) -> Response:
+def cad_only_download(session: Session, language: str, *, file: str | None = None) -> Response:
     """The CAD-only program's file, or a zip of its files (KRL's .src and .dat)."""
     from robomach_core.errors import InvalidInputError
 
     lang = registry.language(language)
-    files = programs.cad_only_program_texts(session, lang.name)
+    files = session.programs.cad_only_program_texts(lang.name)
     if file is not None:
         if file not in files:
             raise InvalidInputError(
@@ -116,7 +116,7 @@ def make_router() -> APIRouter:
     def list_languages(session: SessionDep) -> list[ProgramLanguagePublic]:
         """Every program language, and whether the cell's arm is offered it (its controller
         runs it): the menus of the workbench and the pendant."""
-        offered = set(programs.program_languages(session))
+        offered = set(session.programs.program_languages())
         return [language_public(lang, lang.name in offered) for lang in registry.languages()]
 
     def export_program(
@@ -183,7 +183,7 @@ def make_router() -> APIRouter:
         """The ABB RAPID module (alias of GET /api/export/program/rapid; text/plain)."""
         name = rapid_identifier(module_name)
         return download(
-            programs.rapid_module(session, module_name=name, force_control=force_control),
+            session.programs.rapid_module(module_name=name, force_control=force_control),
             f"{name}.mod",
         )
 
@@ -195,28 +195,28 @@ def make_router() -> APIRouter:
     @router.get("/export/targets.csv", response_class=Response)
     def export_targets(session: SessionDep) -> Response:
         """The post-processed targets (mm, degrees, mm/s)."""
-        return download(programs.targets_csv(session), "targets.csv")
+        return download(session.programs.targets_csv(), "targets.csv")
 
     @router.get("/export/settings.json", response_class=Response)
     def export_settings(session: SessionDep) -> Response:
         """Cell, compliance, path-learning and post-processing settings (mm, N, s)."""
-        return download(programs.settings_json(session), "settings.json")
+        return download(session.programs.settings_json(), "settings.json")
 
     @router.post("/exports", status_code=status.HTTP_201_CREATED)
     def save_export(body: ExportCreate, session: SessionDep, settings: SettingsDep) -> ExportPublic:
         """Save every export file under a name, in the project and in the data folder
         (``exports/<project id>/<name>/``); the same name replaces them."""
-        return ExportPublic.from_info(programs.save(session, body.name), session.data_dir)
+        return ExportPublic.from_info(session.programs.save(body.name), session.data_dir)
 
     @router.get("/exports")
     def list_exports(session: SessionDep) -> list[ExportPublic]:
         """The open project's saved exports, newest first."""
-        return [ExportPublic.from_info(e, session.data_dir) for e in programs.saved(session)]
+        return [ExportPublic.from_info(e, session.data_dir) for e in session.programs.saved()]
 
     @router.get("/exports/{name}/{filename}", response_class=Response)
     def get_export_file(name: str, filename: str, session: SessionDep) -> Response:
         """One file of a saved export."""
-        return download(programs.saved_file(session, name, filename), filename)
+        return download(session.programs.saved_file(name, filename), filename)
 
     return router
 

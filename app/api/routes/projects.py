@@ -1,12 +1,16 @@
-"""Projects: list, create, open, rename, delete (each holds a cell and its work)."""
+"""Projects (/api/projects): list, create, open, rename, delete (each holds a cell and its
+work); the open project's status and process settings; projects as files: import a
+``project.npz`` from ``robomach demo`` / ``robomach machine``, download the open project as
+one."""
 
 from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Path, Response, status
+from fastapi import APIRouter, HTTPException, Path, Query, Response, UploadFile, status
+from starlette.concurrency import run_in_threadpool
 
-from app.api.routes import ERRORS, SessionDep, StudiesDep
+from app.api.routes import ERRORS, SessionDep, StudiesDep, download
 from app.api.schemas import (
     ProcessSettingsFromStudies,
     ProcessSettingsPublic,
@@ -16,10 +20,12 @@ from app.api.schemas import (
     ProjectStatusPublic,
     ProjectUpdate,
 )
-from app.session import process_settings, projects
 from robomach_core import project as core
 
 router = APIRouter(prefix="/api/projects", tags=["projects"], responses=ERRORS)
+
+MAX_PROJECT_FILE_BYTES = 200_000_000
+UPLOAD_CHUNK_BYTES = 1024 * 1024
 
 ProjectId = Annotated[int, Path(ge=1, le=2**63 - 1, description="the project's id")]
 
@@ -27,7 +33,7 @@ ProjectId = Annotated[int, Path(ge=1, le=2**63 - 1, description="the project's i
 @router.get("")
 def list_projects(session: SessionDep) -> list[ProjectPublic]:
     """Every project, most recently changed first."""
-    return [ProjectPublic.from_info(p) for p in projects.list_projects(session)]
+    return [ProjectPublic.from_info(p) for p in session.projects.list_projects()]
 
 
 @router.get("/current")
@@ -61,7 +67,7 @@ def put_process_settings(body: ProcessSettingsUpdate, session: SessionDep) -> Pr
 
     cmrr = None if body.cmrr is None else cmrr_from_dict(body.cmrr)
     compensation = None if body.compensation is None else compensation_from_dict(body.compensation)
-    project = process_settings.set_process_settings(session, cmrr=cmrr, compensation=compensation)
+    project = session.programs.set_process_settings(cmrr=cmrr, compensation=compensation)
     return ProcessSettingsPublic(
         cmrr=core.cmrr_document(project), compensation=core.compensation_document(project)
     )
@@ -79,8 +85,7 @@ def process_settings_from_studies(
     cmrr, compensation = settings_from_studies(
         studies, controller=body.controller, cmrr=body.cmrr, compensation=body.compensation
     )
-    project = process_settings.set_process_settings(
-        session,
+    project = session.programs.set_process_settings(
         cmrr=cmrr if body.cmrr else project.cmrr,
         compensation=compensation if body.compensation else project.compensation,
     )
@@ -92,13 +97,13 @@ def process_settings_from_studies(
 @router.post("", status_code=status.HTTP_201_CREATED)
 def create_project(body: ProjectCreate, session: SessionDep) -> ProjectPublic:
     """A new project with the default cell; it is opened at once."""
-    return ProjectPublic.from_info(projects.create_project(session, body.name))
+    return ProjectPublic.from_info(session.projects.create_project(body.name))
 
 
 @router.post("/{project_id}/open")
 def open_project(project_id: ProjectId, session: SessionDep) -> ProjectPublic:
     """Open a project: its cell, robot pose, guide points, recording and results."""
-    return ProjectPublic.from_info(projects.open_project(session, project_id))
+    return ProjectPublic.from_info(session.projects.open_project(project_id))
 
 
 @router.patch("/{project_id}")
@@ -106,11 +111,50 @@ def rename_project(
     project_id: ProjectId, body: ProjectUpdate, session: SessionDep
 ) -> ProjectPublic:
     """Rename a project."""
-    return ProjectPublic.from_info(projects.rename_project(session, project_id, body.name))
+    return ProjectPublic.from_info(session.projects.rename_project(project_id, body.name))
 
 
 @router.delete("/{project_id}", status_code=status.HTTP_204_NO_CONTENT)
 def delete_project(project_id: ProjectId, session: SessionDep) -> Response:
     """Delete a project and its saved exports; deleting the open one opens another."""
-    projects.delete_project(session, project_id)
+    session.projects.delete_project(project_id)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+# --- projects as files ---
+
+
+@router.post(
+    "/import",
+    status_code=status.HTTP_201_CREATED,
+    max_body_size=MAX_PROJECT_FILE_BYTES + 1024 * 1024,
+    responses={413: {"description": "the file is larger than the upload limit"}},
+)
+async def import_project_file(
+    file: UploadFile,
+    session: SessionDep,
+    name: Annotated[str, Query(min_length=1, max_length=64, description="the new project's name")],
+) -> ProjectPublic:
+    """A new project from a ``project.npz`` (multipart field ``file``), opened at once: the
+    cell, guide points, recording, post-processing and process settings it holds."""
+    chunks, size = [], 0
+    while chunk := await file.read(UPLOAD_CHUNK_BYTES):
+        size += len(chunk)
+        if size > MAX_PROJECT_FILE_BYTES:
+            raise HTTPException(
+                status.HTTP_413_REQUEST_ENTITY_TOO_LARGE,
+                f"{file.filename}: the upload exceeds {MAX_PROJECT_FILE_BYTES / 1e6:g} MB",
+            )
+        chunks.append(chunk)
+    info = await run_in_threadpool(session.projects.import_project, b"".join(chunks), name)
+    return ProjectPublic.from_info(info)
+
+
+@router.get(
+    "/current/project.npz",
+    response_class=Response,
+    responses={200: {"content": {"application/octet-stream": {}}}},
+)
+def download_project_file(session: SessionDep) -> Response:
+    """The open project as ``project.npz`` (``robomach machine --from`` reads it)."""
+    return download(session.projects.export_project(), "project.npz")

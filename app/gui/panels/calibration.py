@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 import viser
 
+from app.session import Session
 from robomach_core import limits
 from robomach_core.teaching import MIN_TOUCHES, UP_COS, face_touch_points, touches_for_face
 
@@ -42,7 +43,7 @@ class CalibrationPanel:
         scene: The cell's scene (the touches and the fitted CAD).
     """
 
-    def __init__(self, server: viser.ViserServer, session, scene: CellScene) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, scene: CellScene) -> None:
         self.session = session
         self.scene = scene
         state = session.calibration.state()

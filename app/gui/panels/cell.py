@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import viser
 
+from app.session import Session
 from robomach_core.cell import ROBOT_NAMES, TOOL_RADIUS_RANGE_M
 from robomach_core.part import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, WORKPIECE_NAMES, PartDeviation
 
@@ -20,7 +21,7 @@ class CellPanel:
     cleared, because they belong to the old cell. An upload applies at once.
     """
 
-    def __init__(self, server: viser.ViserServer, session) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session) -> None:
         self.session = session
         s = session.project().cell
         lo, hi = (r * 1e3 for r in TOOL_RADIUS_RANGE_M)

@@ -20,6 +20,7 @@ from collections.abc import Callable
 import numpy as np
 import viser
 
+from app.session import Session
 from app.studies import CMRR_CONTROLLER_CHOICES, CMRR_JOB_KIND, CmrrOutcome, StudyService
 from robomach_core.cmrr import SCENARIO_NAMES
 from robomach_core.limits import SEED
@@ -83,7 +84,7 @@ class StudyJobFollower:
     or None)."""
 
     def __init__(
-        self, session, service: StudyService, kind: str, refresh: Callable[[object], None]
+        self, session: Session, service: StudyService, kind: str, refresh: Callable[[object], None]
     ) -> None:
         self.session = session
         self.kind = kind
@@ -166,7 +167,11 @@ class StudyPanel:
         self.figures = server.gui.add_markdown("")
 
     def _follow_jobs(
-        self, session, service: StudyService, result: Callable, settings_json: Callable[[], str]
+        self,
+        session: Session,
+        service: StudyService,
+        result: Callable,
+        settings_json: Callable[[], str],
     ) -> None:
         """Wire run, cancel and download, then follow the panel's jobs (refreshing it)."""
         self._result, self._settings_json = result, settings_json
@@ -214,7 +219,7 @@ class CmrrPanel(StudyPanel):
 
     NAME, JOB_KIND, SETTINGS_FILE = "CMRR", CMRR_JOB_KIND, "cmrr_settings.json"
 
-    def __init__(self, server: viser.ViserServer, session, service: StudyService) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, service: StudyService) -> None:
         self.session = session
         self.service = service
         last = service.cmrr_result()

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import viser
 
+from app.session import Session
 from app.studies import (
     COMPENSATION_JOB_KIND,
     COMPENSATION_STUDIES,
@@ -43,7 +44,7 @@ class CompensationPanel(StudyPanel):
     NAME, JOB_KIND = "Compensation", COMPENSATION_JOB_KIND
     SETTINGS_FILE = "compensation_settings.json"
 
-    def __init__(self, server: viser.ViserServer, session, service: StudyService) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, service: StudyService) -> None:
         self.session = session
         self.service = service
         last = service.compensation_result()

@@ -8,7 +8,8 @@ from __future__ import annotations
 import viser
 
 import robomach_core.export.languages as registry
-from app.session import ConflictError, process_settings, programs
+from app.session import ConflictError, Session, programs
+from app.studies import StudyService
 from robomach_core.errors import RobomachError
 from robomach_core.project import StaleResultError, machining_setup_of
 
@@ -52,10 +53,10 @@ class ExportPanel:
     CSVs and the settings JSON (each straight from the session, so it always matches the last
     result)."""
 
-    def __init__(self, server: viser.ViserServer, session, studies) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, studies: StudyService) -> None:
         self.session = session
         self.studies = studies  # the session's StudyService
-        languages = programs.program_languages(session)
+        languages = session.programs.program_languages()
         with server.gui.add_folder("Export", expand_by_default=False):
             self.process = server.gui.add_markdown("")
             self.controller = server.gui.add_text(
@@ -110,23 +111,23 @@ class ExportPanel:
         if name == "samples.csv":
             return programs.samples_csv(self.session.project())
         if name == "targets.csv":
-            return programs.targets_csv(self.session)
+            return self.session.programs.targets_csv()
         if name == "settings.json":
-            return programs.settings_json(self.session)
+            return self.session.programs.settings_json()
         lang, force = language_of(name)
         kwargs = {"module_name": FC_MODULE_NAME} if force else {}
-        return programs.program_texts(self.session, lang.name, force_control=force, **kwargs)[name]
+        return self.session.programs.program_texts(lang.name, force_control=force, **kwargs)[name]
 
     def cad_only_text(self, name: str) -> str:
         """One file of the CAD-only program (``programs.cad_only_program_texts``)."""
         lang, _ = language_of(name)
-        return programs.cad_only_program_texts(self.session, lang.name)[name]
+        return self.session.programs.cad_only_program_texts(lang.name)[name]
 
     def use_studies(self, use: bool) -> None:
         """Carry the last CMRR study's controller and the identified compensation in the
         program (those that have run), or remove both."""
         if not use:
-            process_settings.set_process_settings(self.session, cmrr=None, compensation=None)
+            self.session.programs.set_process_settings(cmrr=None, compensation=None)
             return
         from app.session.process_settings import settings_from_studies
 
@@ -142,7 +143,7 @@ class ExportPanel:
             cmrr=has_cmrr,
             compensation=has_comp,
         )
-        process_settings.set_process_settings(self.session, cmrr=cmrr, compensation=compensation)
+        self.session.programs.set_process_settings(cmrr=cmrr, compensation=compensation)
 
     def _process_text(self) -> str:
         """What the program carries, in the Machining panel's words (its controller and
@@ -164,7 +165,7 @@ class ExportPanel:
 
     def _sync_menus(self) -> tuple[str, ...]:
         """The language and file menus for the cell's arm (it may have changed)."""
-        languages = programs.program_languages(self.session)
+        languages = self.session.programs.program_languages()
         options = languages or ("none",)
         if tuple(self.language.options) != options:
             self.language.options = options
@@ -188,7 +189,7 @@ class ExportPanel:
         lang = registry.language(self.language.value)
         main = lang.file_names()[0]
         try:
-            text = programs.program_texts(self.session, lang.name)[main]
+            text = self.session.programs.program_texts(lang.name)[main]
         except StaleResultError as exc:
             self.preview.content = f"**{OUT_OF_DATE}**: {exc}"
             return

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import viser
 
+from app.session import Session
 from robomach_core.errors import InvalidInputError
 
 from ..scene import CellScene
@@ -36,7 +37,7 @@ class GuidePointsPanel:
     built-in workpiece's example guide points (a job; progress below the button).
     """
 
-    def __init__(self, server: viser.ViserServer, session, scene: CellScene) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, scene: CellScene) -> None:
         self.session = session
         self.scene = scene
         with server.gui.add_folder("Guide points"):

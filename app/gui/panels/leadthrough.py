@@ -14,6 +14,7 @@ import time
 import numpy as np
 import viser
 
+from app.session import Session
 from robomach_core import limits
 from robomach_core.cell import AXES
 from robomach_core.choices import COMPLIANCE_FRAMES
@@ -59,7 +60,7 @@ def pose_markdown(snapshot, push_N: np.ndarray | None) -> str:
 class LeadThroughPanel:
     """Compliance toggles, the spring handle, push buttons, orientation jogs, the live pose."""
 
-    def __init__(self, server: viser.ViserServer, session, scene: CellScene) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, scene: CellScene) -> None:
         self.session = session
         self.scene = scene
         sel = session.robot.selection

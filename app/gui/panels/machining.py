@@ -17,6 +17,8 @@ import threading
 import numpy as np
 import viser
 
+from app.session import Session
+from app.session.machining import MachiningService
 from robomach_core.limits import (
     MACHINING_DEPTH_EXPONENT,
     MACHINING_FEED_EXPONENT,
@@ -48,7 +50,9 @@ EVENTS = ("job", "machining", "postprocess", "recording", "guide_points", "cell"
 class MachiningPanel:
     """The Machining folder of the sidebar (module docstring)."""
 
-    def __init__(self, server: viser.ViserServer, session, service) -> None:
+    def __init__(
+        self, server: viser.ViserServer, session: Session, service: MachiningService
+    ) -> None:
         self.server = server
         self.session = session
         self.service = service  # the session's MachiningService

@@ -6,6 +6,7 @@ import numpy as np
 import viser
 import viser.uplot
 
+from app.session import Session
 from robomach_core import limits
 from robomach_core.learning.settings import WALL_SIDE_CHOICES, PathLearningSettings
 
@@ -26,7 +27,7 @@ class PathLearningPanel:
     time) while a run goes on, then the recorded force normal to the edge.
     """
 
-    def __init__(self, server: viser.ViserServer, session, scene=None) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, scene=None) -> None:
         self.session = session
         self.scene = scene
         learned = session.project().learned

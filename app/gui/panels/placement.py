@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import viser
 
+from app.session import Session
 from robomach_core.limits import WOBJ_POSITION_MM
 
 from .feedback import guarded
@@ -28,7 +29,7 @@ class PlacementPanel:
         session: The workbench session (its ``preview`` and its cell change).
     """
 
-    def __init__(self, server: viser.ViserServer, session) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session) -> None:
         self.session = session
         placed = self._placed()
         lo, hi = WOBJ_POSITION_MM.min, WOBJ_POSITION_MM.max

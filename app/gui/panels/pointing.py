@@ -14,8 +14,10 @@ import time
 import numpy as np
 import viser
 
+from app.session import Session
 from robomach_core.choices import CLICK_MODES, LABELS
 from robomach_core.errors import InvalidInputError
+from robomach_core.learning.walls import WallPick
 from robomach_core.limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
 
 from ..scene import COMPARISON_COLORS, CellScene
@@ -41,7 +43,9 @@ class PointingPanel:
         guide_points: The guide-points panel (its selected point is the one dragged).
     """
 
-    def __init__(self, server: viser.ViserServer, session, scene: CellScene, guide_points) -> None:
+    def __init__(
+        self, server: viser.ViserServer, session: Session, scene: CellScene, guide_points
+    ) -> None:
         self.server = server
         self.session = session
         self.scene = scene
@@ -119,7 +123,7 @@ class PointingPanel:
         self.part.on_click(lambda e: e.client and self._view_part(e.client))
         scene.on_part_click(self._clicked)
         self.last_click_s = float("nan")  # how long the last click took (tests read it)
-        self.picked = None  # the wall the last click picked (``walls.WallPick``)
+        self.picked: WallPick | None = None  # the wall the last click picked
         self.on_touch = None  # (point_wobj_m, normal, client) of a click in the touch mode
         self.refresh()
 

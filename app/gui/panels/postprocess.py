@@ -12,6 +12,7 @@ import threading
 import numpy as np
 import viser
 
+from app.session import Session
 from robomach_core import limits
 from robomach_core.errors import RobomachError
 from robomach_core.scoring import true_tool_path_distance
@@ -25,7 +26,7 @@ OUT_OF_DATE = "\u26a0 Out of date"
 class PostprocessPanel:
     """Fmin/Fmax and tolerance; every change re-runs the filter and the reduction."""
 
-    def __init__(self, server: viser.ViserServer, session, scene: CellScene) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, scene: CellScene) -> None:
         self.session = session
         self.scene = scene
         s = session.project().post_settings

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import viser
 
-from app.session import programs
+from app.session import Session
 from robomach_core.choices import TEXTS
 from robomach_core.project import result_extras
 from robomach_core.robots import ARM_FAMILIES
@@ -25,7 +25,7 @@ class RobotProgramPanel:
     """Upload a URDF arm (its controller recognised or chosen); arcs on or off; the arm's
     languages and the program's mesh score."""
 
-    def __init__(self, server: viser.ViserServer, session) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session) -> None:
         self.session = session
         s = session.project().post_settings
         with server.gui.add_folder("Robot & program", expand_by_default=False):
@@ -65,7 +65,7 @@ class RobotProgramPanel:
     def refresh(self) -> None:
         """The arm and its language, the arcs setting, the moves and the mesh score."""
         robot = self.session.robot.cell.robot
-        offered = ", ".join(programs.program_languages(self.session)) or "none"
+        offered = ", ".join(self.session.programs.program_languages()) or "none"
         lines = [
             f"Arm **{robot.name}** ({robot.family} controller), program languages "
             f"**{offered}** (downloads in the Export panel)."
@@ -89,7 +89,7 @@ class RobotProgramPanel:
 class GuideRulesPanel:
     """The operator's rules as a hint, and the guide points that break them."""
 
-    def __init__(self, server: viser.ViserServer, session, settings=None) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session, settings=None) -> None:
         self.session = session
         self.settings = settings  # () -> (wall_side, closed) of the path-learning panel
         self.listeners: list = []  # called with the findings' markdown after each check

@@ -13,6 +13,7 @@ import time
 import numpy as np
 import viser
 
+from app.session import Session
 from robomach_core.choices import JOG_FRAMES
 
 from .feedback import guarded, notify_info
@@ -26,7 +27,7 @@ VIEW_PERIOD_S = 0.2
 class TeachPanel:
     """Frame, steps and jog buttons; touch-off buttons; live gap, force and follow camera."""
 
-    def __init__(self, server: viser.ViserServer, session) -> None:
+    def __init__(self, server: viser.ViserServer, session: Session) -> None:
         self.server = server
         self.session = session
         self._next_view = 0.0
