@@ -93,7 +93,7 @@ LEARNING_FORCE_N = Range("contact force", 1.0, 50.0, "N", default=10.0)
 LEARNING_SPEED_MM_S = Range("learning speed", 0.5, 50.0, "mm/s", default=5.0)
 # The cutter's height above a floor the run meets (a little above: the machining height).
 FLOOR_CLEARANCE_MM = Range("floor clearance", 0.0, 5.0, "mm", default=0.5)
-PUSH_FORCE_N = Range("push force", 0.0, 200.0, "N")  # magnitude of the force vector
+PUSH_FORCE_N = Range("push force", 0.0, 200.0, "N", default=10.0)  # the force vector's size
 PUSH_TORQUE_NM = Range("push torque", 0.0, 20.0, "N*m")  # a hand's twist on a tool handle
 PUSH_DURATION_S = Range("push duration", 0.0, 10.0, "s")
 # Force-control jogging (the admittance's speed limit is 50 mm/s) and the guarded touch-off.
@@ -101,8 +101,9 @@ JOG_STEP_MM = Range("jog step", 0.0, 200.0, "mm")
 JOG_TURN_DEG = Range("jog turn", 0.0, 45.0, "deg")
 JOG_SPEED_MM_S = Range("jog speed", 0.5, 50.0, "mm/s")
 JOG_RATE_DEG_S = Range("jog rate", 0.5, 30.0, "deg/s")
-TOUCH_OFF_FORCE_N = Range("touch-off force", 2.0, 50.0, "N")
-TOUCH_OFF_TRAVEL_MM = Range("touch-off travel", 0.0, 200.0, "mm")  # and more than 0
+# A touch stops at the chapter's lightest contact force.
+TOUCH_OFF_FORCE_N = Range("touch-off force", 2.0, 50.0, "N", default=10.0)
+TOUCH_OFF_TRAVEL_MM = Range("touch-off travel", 0.0, 200.0, "mm", default=30.0)  # and > 0
 # The viser push handle: its offset from the TCP times this spring pushes the tool.
 HANDLE_SPRING_N_MM = Range("handle spring", 0.1, 5.0, "N/mm")
 # Guide points of one project, and samples of one recording (4 ms each: 1 M is 67 min of

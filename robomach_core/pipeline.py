@@ -40,7 +40,7 @@ from .project import (
 from .project import compensate_program_targets as _compensate
 from .project import wobj_transform as wobj_transform
 from .scoring import PathScore
-from .teaching import intents_from_csv, registered_workpiece, scripted_leadthrough
+from .teaching import TOUCH_FORCE_N, intents_from_csv, registered_workpiece, scripted_leadthrough
 
 if TYPE_CHECKING:
     from .learning import GuideWarning
@@ -116,7 +116,7 @@ class DemoSettings:
     proposal: Any = None  # guide_proposal.ProposalSettings
     part_deviation: Any = None  # real_part.PartDeviation
     calibrate: bool = False
-    touch_force_N: float = 10.0
+    touch_force_N: float = TOUCH_FORCE_N
 
 
 @dataclass(frozen=True)

@@ -169,7 +169,8 @@ def test_one_settings_document_and_one_header(processed) -> None:
     assert all(f"! {line}" in program for line in header.splitlines())
     assert "FCSpdChgAct" in program and "CMRR: two-stage" in program
     # Zero learned wrench: compensation moves nothing (zero at zero load).
-    assert "deflection compensation: offline (linear), largest target correction 0.0000 mm" in program
+    correction = "deflection compensation: offline (linear), largest target correction 0.0000 mm"
+    assert correction in program
     fc = files["program_fc.mod"]
     check_rapid_module(fc)
     assert fc.startswith("MODULE LearnedPathFC") and "FCSpdChgAct" not in fc
