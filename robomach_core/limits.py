@@ -151,7 +151,7 @@ WOBJ_POSITION_MM = Range("work-object position", -3000.0, 3000.0, "mm")
 WOBJ_ROTATION_DEG = Range("work-object rotation", -360.0, 360.0, "deg")
 
 # Ball cutter radius: the design's 1-5 mm cutters, down to 0.5 mm.
-TOOL_RADIUS_MM = Range("tool radius", 0.5, 5.0, "mm")
+TOOL_RADIUS_MM = Range("tool radius", 0.5, 5.0, "mm", default=1.0)
 
 # --- machining run (chapter eq. 6: F = 23 d^0.9 f^0.5; the spindle limit ~150-300 N) ----------
 MACHINING_PROCESS_GAIN_N = Range("process gain K", 0.1, 1.0e4, "N")
@@ -184,5 +184,6 @@ FIXTURE_ROTATION_DEG = Range("fixture rotation", 0.0, 3.0, "deg")
 WALL_OFFSET_MM = Range("casting wall offset", 0.0, 2.0, "mm")
 BURR_COUNT = Range("burrs", 0, 50, integer=True)
 BURR_HEIGHT_MM = Range("burr height", 0.0, 1.0, "mm")
-WALL_GAP_MM = Range("gap to the wall", 0.2, 5.0, "mm")
-MACHINING_HEIGHT_MM = Range("machining height above the floor", 0.5, 50.0, "mm")
+# A proposed guide point: 1 mm off the wall, 3 mm above the floor where its own height fails.
+WALL_GAP_MM = Range("gap to the wall", 0.2, 5.0, "mm", default=1.0)
+MACHINING_HEIGHT_MM = Range("machining height above the floor", 0.5, 50.0, "mm", default=3.0)

@@ -618,7 +618,9 @@ class CellUpdate(_Request):
         "in front of the arm. A change moves the part, sends the robot home and clears the "
         "guide points and the work-object calibration",
     )
-    tool_radius_mm: Finite | None = Field(None, description="ball cutter radius [mm], 0.5-5")
+    tool_radius_mm: Finite | None = Field(
+        None, description=f"ball cutter radius [mm], {limits.TOOL_RADIUS_MM.text()}"
+    )
     workpiece: str | None = Field(None, description="water_pump, block, or the uploaded mesh")
     realistic: bool | None = Field(
         None,

@@ -278,6 +278,7 @@ OTHER_QUANTITIES = {
     "normal_force_N": "a milling scenario's normal force",
     "deviation_scale_m": "the colour scale of the deviation map",
     "height_m": "a CMRR block's height",
+    "depth_of_cut_m": "a milling scenario's depth of cut",
 }
 
 

@@ -202,6 +202,8 @@ def test_pendant_numbers_start_at_the_cores_defaults(
         ("touch-force", "TOUCH_OFF_FORCE_N"),
         ("touch-travel", "TOUCH_OFF_TRAVEL_MM"),
         ("push-force", "PUSH_FORCE_N"),
+        ("point-gap", "WALL_GAP_MM"),
+        ("point-height", "MACHINING_HEIGHT_MM"),
     ):
         default = ranges[name]["default"]
         assert default is not None, name
