@@ -123,8 +123,9 @@ CORE_DATA = {
     ("robomach_core/machining/choice.py", "arm_family"),
     ("robomach_core/stiffness/studies/_common.py", "compensation_study"),
 }
-# The compensation's old spellings, and the one module that reads them (its rule).
-OLD_COMPENSATION_SPELLINGS = ("offline_linear", "offline_nonlinear")
+# The compensation's old spellings (and their prefix, which parsing or building them takes),
+# and the one module that reads and writes them (its rule).
+OLD_COMPENSATION_SPELLINGS = ("offline_linear", "offline_nonlinear", "offline_")
 OLD_SPELLINGS_RULE = "robomach_core/stiffness/modes.py"
 
 
