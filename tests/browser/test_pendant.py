@@ -204,6 +204,9 @@ def test_pendant_numbers_start_at_the_cores_defaults(
         ("push-force", "PUSH_FORCE_N"),
         ("point-gap", "WALL_GAP_MM"),
         ("point-height", "MACHINING_HEIGHT_MM"),
+        ("jog-step-mm", "JOG_STEP_MM"),
+        ("jog-step-deg", "JOG_TURN_DEG"),
+        ("jog-rate", "JOG_RATE_DEG_S"),
     ):
         default = ranges[name]["default"]
         assert default is not None, name

@@ -36,10 +36,18 @@ class TeachPanel:
                 "Frame", JOG_FRAMES, initial_value="wobj", hint="Axes of the jog and touch-off"
             )
             self.step_mm = server.gui.add_number(
-                "Step (mm)", 5.0, min=0.1, max=limits.JOG_STEP_MM.max, step=0.1
+                "Step (mm)",
+                limits.JOG_STEP_MM.default_value(),
+                min=0.1,
+                max=limits.JOG_STEP_MM.max,
+                step=0.1,
             )
             self.step_deg = server.gui.add_number(
-                "Step (deg)", 2.0, min=0.1, max=limits.JOG_TURN_DEG.max, step=0.1
+                "Step (deg)",
+                limits.JOG_TURN_DEG.default_value(),
+                min=0.1,
+                max=limits.JOG_TURN_DEG.max,
+                step=0.1,
             )
             self.speed = server.gui.add_number(
                 "Speed (mm/s)",

@@ -157,9 +157,7 @@ def test_one_settings_document_and_one_header(processed) -> None:
         "settings.json",
     }
     doc = json.loads(files["settings.json"])
-    assert (
-        doc["cmrr"]["controller"] == "two-stage" and doc["compensation"]["mode"] == "offline"
-    )
+    assert doc["cmrr"]["controller"] == "two-stage" and doc["compensation"]["mode"] == "offline"
     assert doc["compensation"]["offline_model"] == "linear"
     assert doc["cell"]["workpiece"] == "block" and doc["path_learning"]["closed"] is False
     assert doc["result"]["targets"] == len(carried.processed.result.targets)
