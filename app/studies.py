@@ -20,7 +20,7 @@ STRATEGY  One ``StudyService`` per session, built with it (``Session.studies``) 
 SOLUTION  Public API (thread-safe):
 
   start_cmrr(scenario, controller, seed=, reference_force_N=, command_speed_mm_s=) -> job_id
-  start_compensation(study, quick=, seed=, mode=) -> job_id
+  start_compensation(study, quick=, seed=, mode=, offline_model=) -> job_id
   cmrr_result() / compensation_result() -> CmrrOutcome | CompensationOutcome | None
   cmrr_settings_json(controller=None) / compensation_settings_json() -> str
   compensation_plot(name) -> bytes
@@ -54,8 +54,8 @@ from robomach_core.cmrr.errors import (
 from robomach_core.cmrr.settings import check_cmrr_numbers, check_study_size
 from robomach_core.errors import InvalidInputError, RobomachError
 from robomach_core.limits import SEED
+from robomach_core.stiffness import StudyOptions, read_compensation
 from robomach_core.stiffness.errors import UnknownStudyError
-from robomach_core.stiffness.settings import COMPENSATION_SETTINGS
 from robomach_core.stiffness.studies import StudyName
 
 from .session.jobs import JobContext
@@ -382,7 +382,8 @@ class StudyService:
         *,
         quick: bool = False,
         seed: int = 0,
-        mode: str = "online",
+        mode: str = StudyOptions.mode,
+        offline_model: str | None = None,
     ) -> str:
         """Queue a compensation study; returns the job id.
 
@@ -391,19 +392,17 @@ class StudyService:
                 compliance paper, always on the KR 270) or all.
             quick: Shorter cuts and fewer poses (a preview in seconds).
             seed: Seed of every random element.
-            mode: Compensation mode written to the settings (off, online, offline_linear,
-                offline_nonlinear).
+            mode: Compensation written to the settings (``stiffness.modes``: off, offline,
+                online; the old spellings offline_linear / offline_nonlinear read as offline
+                with that model).
+            offline_model: linear or nonlinear (eq. 32); None: the old spelling's, or linear.
         """
         if study not in COMPENSATION_STUDIES:
             raise UnknownStudyError(
                 f"unknown compensation study {study!r}; choose one of "
                 f"{', '.join(COMPENSATION_STUDIES)}"
             )
-        if mode not in COMPENSATION_SETTINGS:
-            raise InvalidInputError(
-                f"unknown compensation mode {mode!r}; choose one of "
-                f"{', '.join(COMPENSATION_SETTINGS)}"
-            )
+        compensation, model = read_compensation(mode, offline_model, name="compensation mode")
         seed = _seed(seed)
         self._check_queue()
         project_id = self.session.current_project().id
@@ -418,7 +417,8 @@ class StudyService:
                 options = StudyOptions(
                     robot=self.session.robot.cell.robot.name,
                     seed=seed,
-                    mode=mode,
+                    mode=compensation,
+                    offline_model=model,
                     quick=bool(quick),
                 )
                 results = run_studies(

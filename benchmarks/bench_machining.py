@@ -34,7 +34,6 @@ from robomach_core.cell import (
     Tool,  # noqa: E402
 )
 from robomach_core.machining import (  # noqa: E402
-    COMPENSATION_NAMES,
     MACHINING_CONTROLLERS,
     MachiningSettings,
     builtin_stock,
@@ -46,6 +45,7 @@ from robomach_core.machining import (  # noqa: E402
 from robomach_core.machining.parallel import default_workers  # noqa: E402
 from robomach_core.machining.run import cut_program  # noqa: E402
 from robomach_core.part import builtin_workpiece  # noqa: E402
+from robomach_core.stiffness import COMPENSATIONS  # noqa: E402
 
 
 def main() -> None:
@@ -81,7 +81,7 @@ def main() -> None:
     stock = builtin_stock(targets.position_m, seed=0, wall_normals_m=normals)
     model = identify_stiffness(robot.name, seed=0).model
     print(f"water pump, {source}: {len(targets)} targets, {stock.path_length_m * 1e3:.0f} mm")
-    configs = [(c, m) for c in MACHINING_CONTROLLERS for m in COMPENSATION_NAMES]
+    configs = [(c, m) for c in MACHINING_CONTROLLERS for m in COMPENSATIONS]
     if args.quick:
         configs = [("adaptive-pi", "off"), ("constant", "off"), ("adaptive-lq", "offline")]
     print(
@@ -121,7 +121,7 @@ def main() -> None:
         t0 = time.perf_counter()
         result = core.machine(
             p, workpiece, robot, controllers=MACHINING_CONTROLLERS,
-            compensations=tuple(COMPENSATION_NAMES), workers=None,
+            compensations=tuple(COMPENSATIONS), workers=None,
         )  # fmt: skip
         wall = time.perf_counter() - t0
         runs = len(result.rows) * (1 + (p.machining_settings.variations or 0))
@@ -151,7 +151,7 @@ def _same_figures_on_every_core(robot, targets, normals, stock, model, count: in
             st,
             MachiningSettings(),
             c,
-            tuple(COMPENSATION_NAMES),
+            tuple(COMPENSATIONS),
             model,
         )  # fmt: skip
         for st in stocks

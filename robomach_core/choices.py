@@ -37,6 +37,7 @@ NEAREST_FACES: tuple[NearestFace, ...] = get_args(NearestFace)
 
 LABELS: dict[str, dict[str, str]] = {
     "jog_frame": {"base": "base", "tool": "tool", "wobj": "work object"},
+    "offline_model": {"linear": "linear", "nonlinear": "non-linear (eq. 32)"},
     "compliance_frame": {"base": "base frame", "tool": "tool frame"},
     "cell_option": {
         "fc_speed_change": "FC SpeedChange",
@@ -80,18 +81,17 @@ def enums() -> dict[str, tuple[str, ...]]:
     from .export.languages import language_choices, language_names
     from .learning.planner import PointKind, Reach
     from .learning.settings import WALL_SIDE_CHOICES
-    from .machining import COMPENSATION_NAMES
     from .machining.choice import OPTION_NAMES
     from .part import WORKPIECE_NAMES
     from .project import STOCK_SOURCES, StageStatus
     from .robots import ARM_FAMILIES
-    from .stiffness.settings import COMPENSATION_SETTINGS
+    from .stiffness.modes import COMPENSATIONS, OFFLINE_MODELS
     from .stiffness.studies import StudyName
 
     return {
         "cmrr_controller": tuple(CONTROLLER_NAMES),
-        "machining_compensation": tuple(COMPENSATION_NAMES),
-        "compensation_mode": tuple(COMPENSATION_SETTINGS),
+        "compensation": tuple(COMPENSATIONS),
+        "offline_model": tuple(OFFLINE_MODELS),
         "program_language": tuple(language_names()),
         "language_choice": tuple(language_choices()),
         "wall_side": tuple(WALL_SIDE_CHOICES),

@@ -93,16 +93,17 @@ LEARNING_FORCE_N = Range("contact force", 1.0, 50.0, "N", default=10.0)
 LEARNING_SPEED_MM_S = Range("learning speed", 0.5, 50.0, "mm/s", default=5.0)
 # The cutter's height above a floor the run meets (a little above: the machining height).
 FLOOR_CLEARANCE_MM = Range("floor clearance", 0.0, 5.0, "mm", default=0.5)
-PUSH_FORCE_N = Range("push force", 0.0, 200.0, "N")  # magnitude of the force vector
+PUSH_FORCE_N = Range("push force", 0.0, 200.0, "N", default=10.0)  # the force vector's size
 PUSH_TORQUE_NM = Range("push torque", 0.0, 20.0, "N*m")  # a hand's twist on a tool handle
 PUSH_DURATION_S = Range("push duration", 0.0, 10.0, "s")
 # Force-control jogging (the admittance's speed limit is 50 mm/s) and the guarded touch-off.
-JOG_STEP_MM = Range("jog step", 0.0, 200.0, "mm")
-JOG_TURN_DEG = Range("jog turn", 0.0, 45.0, "deg")
+JOG_STEP_MM = Range("jog step", 0.0, 200.0, "mm", default=5.0)
+JOG_TURN_DEG = Range("jog turn", 0.0, 45.0, "deg", default=2.0)
 JOG_SPEED_MM_S = Range("jog speed", 0.5, 50.0, "mm/s")
-JOG_RATE_DEG_S = Range("jog rate", 0.5, 30.0, "deg/s")
-TOUCH_OFF_FORCE_N = Range("touch-off force", 2.0, 50.0, "N")
-TOUCH_OFF_TRAVEL_MM = Range("touch-off travel", 0.0, 200.0, "mm")  # and more than 0
+JOG_RATE_DEG_S = Range("jog rate", 0.5, 30.0, "deg/s", default=10.0)
+# A touch stops at the chapter's lightest contact force.
+TOUCH_OFF_FORCE_N = Range("touch-off force", 2.0, 50.0, "N", default=10.0)
+TOUCH_OFF_TRAVEL_MM = Range("touch-off travel", 0.0, 200.0, "mm", default=30.0)  # and > 0
 # The viser push handle: its offset from the TCP times this spring pushes the tool.
 HANDLE_SPRING_N_MM = Range("handle spring", 0.1, 5.0, "N/mm")
 # Guide points of one project, and samples of one recording (4 ms each: 1 M is 67 min of
@@ -150,7 +151,7 @@ WOBJ_POSITION_MM = Range("work-object position", -3000.0, 3000.0, "mm")
 WOBJ_ROTATION_DEG = Range("work-object rotation", -360.0, 360.0, "deg")
 
 # Ball cutter radius: the design's 1-5 mm cutters, down to 0.5 mm.
-TOOL_RADIUS_MM = Range("tool radius", 0.5, 5.0, "mm")
+TOOL_RADIUS_MM = Range("tool radius", 0.5, 5.0, "mm", default=1.0)
 
 # --- machining run (chapter eq. 6: F = 23 d^0.9 f^0.5; the spindle limit ~150-300 N) ----------
 MACHINING_PROCESS_GAIN_N = Range("process gain K", 0.1, 1.0e4, "N")
@@ -183,5 +184,6 @@ FIXTURE_ROTATION_DEG = Range("fixture rotation", 0.0, 3.0, "deg")
 WALL_OFFSET_MM = Range("casting wall offset", 0.0, 2.0, "mm")
 BURR_COUNT = Range("burrs", 0, 50, integer=True)
 BURR_HEIGHT_MM = Range("burr height", 0.0, 1.0, "mm")
-WALL_GAP_MM = Range("gap to the wall", 0.2, 5.0, "mm")
-MACHINING_HEIGHT_MM = Range("machining height above the floor", 0.5, 50.0, "mm")
+# A proposed guide point: 1 mm off the wall, 3 mm above the floor where its own height fails.
+WALL_GAP_MM = Range("gap to the wall", 0.2, 5.0, "mm", default=1.0)
+MACHINING_HEIGHT_MM = Range("machining height above the floor", 0.5, 50.0, "mm", default=3.0)

@@ -27,7 +27,7 @@ function machiningCard(choices) {
     </div>
     <div class="row">
       <label>Controller <select id="mach-controller" data-enum="cmrr_controller"></select></label>
-      <label>Compensation <select id="mach-compensation" data-enum="machining_compensation"></select></label>
+      <label>Compensation <select id="mach-compensation" data-enum="compensation"></select></label>
       <span class="small">stock: <span id="mach-stock">-</span></span>
     </div>
     <div class="row">

@@ -35,7 +35,7 @@ function workObjectCard() {
       faces</b>, then click three faces of the part in the 3D scene: the top, a side and a side
       across it. The robot touches each where the frame needs it (3, 3 and 2 touches).</p>
     <div class="row">
-      <label>Force <input id="calib-force" type="number" value="10" data-range="TOUCH_OFF_FORCE_N" step="0.5"> N</label>
+      <label>Force <input id="calib-force" type="number" data-range="TOUCH_OFF_FORCE_N" step="0.5"> N</label>
       <button id="calib-mode">Touch faces</button>
       <button id="calib-auto" title="the example operator touches 3 points of the top face and 3 and 2 of two sides">Touch the planned features</button>
       <progress id="calib-progress" max="1" value="0" class="hidden"></progress>

@@ -24,7 +24,7 @@ from app.session import (
     RobotSnapshot,
 )
 from robomach_core import limits
-from robomach_core.cell import ComplianceFrame, ComplianceSelection
+from robomach_core.cell import JOG_SPEED_M_S, ComplianceFrame, ComplianceSelection
 from robomach_core.choices import JogFrame
 from robomach_core.learning.settings import WallSideSetting
 from robomach_core.postprocess import PostprocessSettings
@@ -187,14 +187,17 @@ class PushCreate(_Request):
 class JogCreate(_Request):
     axis: Axis = Field(description="axis to move along (x, y, z) or about (rx, ry, rz)")
     step: Finite = Field(
-        description="step [mm] along x/y/z (at most 200) or [deg] about rx/ry/rz (at most 45)"
+        description=f"step [mm] along x/y/z (at most {limits.JOG_STEP_MM.max:g}) or [deg] about "
+        f"rx/ry/rz (at most {limits.JOG_TURN_DEG.max:g})"
     )
     frame: JogFrame = Field(
         default="tool", description="frame of the axis: tool, robot base or work object"
     )
     speed: Finite | None = Field(
         default=None,
-        description="[mm/s] along x/y/z (0.5-50) or [deg/s] about rx/ry/rz (0.5-30); default 10",
+        description=f"[mm/s] along x/y/z ({limits.JOG_SPEED_MM_S.text()}; default "
+        f"{JOG_SPEED_M_S * 1e3:g}) or [deg/s] about rx/ry/rz ({limits.JOG_RATE_DEG_S.text()}; "
+        f"default {limits.JOG_RATE_DEG_S.default:g})",
     )
 
 
@@ -618,7 +621,9 @@ class CellUpdate(_Request):
         "in front of the arm. A change moves the part, sends the robot home and clears the "
         "guide points and the work-object calibration",
     )
-    tool_radius_mm: Finite | None = Field(None, description="ball cutter radius [mm], 0.5-5")
+    tool_radius_mm: Finite | None = Field(
+        None, description=f"ball cutter radius [mm], {limits.TOOL_RADIUS_MM.text()}"
+    )
     workpiece: str | None = Field(None, description="water_pump, block, or the uploaded mesh")
     realistic: bool | None = Field(
         None,

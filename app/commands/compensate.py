@@ -7,8 +7,8 @@ from pathlib import Path
 from typing import get_args
 
 from app.commands.progress import StageProgress
-from robomach_core.stiffness.settings import COMPENSATION_SETTINGS as MODE_CHOICES
-from robomach_core.stiffness.studies import StudyName
+from robomach_core.stiffness.modes import COMPENSATIONS, OFFLINE_MODELS
+from robomach_core.stiffness.studies import StudyName, StudyOptions
 
 STUDY_CHOICES = get_args(StudyName)
 
@@ -50,19 +50,38 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--cmm-noise",
         type=float,
-        default=20.0,
+        default=StudyOptions.cmm_noise_um,
         metavar="UM",
-        help="CMM noise per axis in um (the chapter: 10-50; default 20)",
+        help="CMM noise per axis in um (the chapter: 10-50; default %(default)g)",
     )
     p.add_argument(
-        "--poses", type=int, default=30, help="poses of the identification campaign (default 30)"
+        "--poses",
+        type=int,
+        default=StudyOptions.identification_poses,
+        help="poses of the identification campaign (default %(default)s)",
     )
-    p.add_argument("--iterations", type=int, default=6, help="ILC iterations (default 6)")
+    p.add_argument(
+        "--iterations",
+        type=int,
+        default=StudyOptions.ilc_iterations,
+        help="ILC iterations (default %(default)s)",
+    )
     p.add_argument(
         "--mode",
-        choices=MODE_CHOICES,
-        default="online",
-        help="compensation mode written to compensation_settings.json",
+        default=StudyOptions.mode,
+        metavar="{" + ",".join(COMPENSATIONS) + "}",
+        help="compensation written to compensation_settings.json (default %(default)s): off, "
+        "offline (targets corrected before the run) or online (from the measured force); "
+        "the old spellings offline_linear and offline_nonlinear still read as offline with "
+        "that model",
+    )
+    p.add_argument(
+        "--offline-model",
+        choices=OFFLINE_MODELS,
+        default=None,
+        help="how offline compensation corrects the targets, in the settings and "
+        f"milling_compensated.mod: linear (t0 - C W) or nonlinear (eq. 32); default "
+        f"{StudyOptions.offline_model}, or the old --mode spelling's",
     )
     p.add_argument(
         "--rapid",
@@ -136,11 +155,13 @@ def _report(summary: dict) -> list[str]:
 def run(args: argparse.Namespace) -> int:
     from app.cli import writable_folder
     from robomach_core.limits import CMM_NOISE_UM, IDENTIFICATION_POSES, ILC_ITERATIONS, SEED
+    from robomach_core.stiffness import read_compensation
 
     SEED.check(args.seed, "--seed")
     CMM_NOISE_UM.check(args.cmm_noise, "--cmm-noise")
     IDENTIFICATION_POSES.check(args.poses, "--poses")
     ILC_ITERATIONS.check(args.iterations, "--iterations")
+    mode, offline_model = read_compensation(args.mode, args.offline_model, name="--mode")
     writable_folder(args.out)
 
     from robomach_core.stiffness.studies import SUMMARY_FILE, StudyOptions, run_studies
@@ -151,7 +172,8 @@ def run(args: argparse.Namespace) -> int:
         cmm_noise_um=args.cmm_noise,
         identification_poses=args.poses,
         ilc_iterations=args.iterations,
-        mode=args.mode,
+        mode=mode,
+        offline_model=offline_model,
         rapid=args.rapid,
         quick=args.quick,
     )

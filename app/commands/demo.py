@@ -71,9 +71,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--tool-radius-mm",
         type=float,
-        default=1.0,
+        default=limits.TOOL_RADIUS_MM.default,
         metavar="MM",
-        help="ball cutter radius in mm (default 1)",
+        help="ball cutter radius in mm (default %(default)g)",
     )
     p.add_argument("--workpiece", default="water_pump", help="water_pump (default) or block")
     p.add_argument(
@@ -132,9 +132,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--gap-mm",
         type=float,
-        default=1.0,
+        default=limits.WALL_GAP_MM.default,
         metavar="MM",
-        help="with --propose-guide-points: gap between the cutter and the wall (default 1)",
+        help="with --propose-guide-points: gap between the cutter and the wall (default "
+        "%(default)g)",
     )
     p.add_argument(
         "--realistic",

@@ -17,9 +17,9 @@ import sys
 from pathlib import Path
 
 from robomach_core.machining.choice import OPTION_NAMES as CELL_OPTION_CHOICES
-from robomach_core.machining.settings import COMPENSATION_NAMES as COMPENSATION_CHOICES
 from robomach_core.machining.settings import MACHINING_CONTROLLERS as CONTROLLER_CHOICES
 from robomach_core.machining.settings import MachiningSettings
+from robomach_core.stiffness.modes import COMPENSATIONS as COMPENSATION_CHOICES
 
 MESH_STOCK_SUFFIXES = (".stl", ".obj", ".ply")
 # Exit codes (also in the README and --help).

@@ -32,8 +32,9 @@ import numpy as np
 
 from robomach_core import project as core
 from robomach_core.errors import InvalidInputError
-from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
+from robomach_core.machining import MACHINING_CONTROLLERS
 from robomach_core.machining.retained import bucket_trace, retained_result
+from robomach_core.stiffness import COMPENSATIONS
 
 from ..memory import give_back
 from .records import ConflictError, log
@@ -268,7 +269,7 @@ class MachiningService:
         if project.machining_settings is None:  # from the CMRR / compensation slots
             project = core.with_machining_setup(project, core.machining_setup_of(project))
         controllers = MACHINING_CONTROLLERS if kind == "compare" else None
-        compensations = COMPENSATION_NAMES if kind == "compare" else None
+        compensations = COMPENSATIONS if kind == "compare" else None
 
         def work(ctx: Any) -> core.MachiningResult:
             return core.machine(

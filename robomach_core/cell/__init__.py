@@ -16,6 +16,7 @@ from .clock import zoh_tf as zoh_tf
 from .joint_compliance import JointCompliance as JointCompliance
 from .joint_compliance import true_joint_compliance as true_joint_compliance
 from .leadthrough import AXES as AXES
+from .leadthrough import JOG_SPEED_M_S as JOG_SPEED_M_S
 from .leadthrough import ComplianceFrame as ComplianceFrame
 from .leadthrough import ComplianceSelection as ComplianceSelection
 from .leadthrough import GuidePoint as GuidePoint
@@ -64,6 +65,7 @@ __all__ = [
     "ForceEstimator",
     "GuidePoint",
     "JointCompliance",
+    "JOG_SPEED_M_S",
     "LeadThrough",
     "LeadThroughState",
     "RealTimePacer",

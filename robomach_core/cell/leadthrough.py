@@ -30,6 +30,7 @@ import numpy as np
 from .. import _kernels
 from ..errors import InvalidInputError, NoContactError
 from ..limits import (
+    JOG_RATE_DEG_S,
     JOG_STEP_MM,
     JOG_TURN_DEG,
     PUSH_DURATION_S,
@@ -48,6 +49,9 @@ _IDENTITY = np.eye(3)
 ComplianceFrame = Literal["tool", "base"]
 # A jog slowed by supervision may take this many times its nominal periods to complete.
 JOG_MAX_PERIODS_FACTOR = 20
+# A translational jog's speed when none is given [m/s] (the REST API's; the pendant and the
+# workbench start their speed fields at their own numbers, 25 and 20 mm/s).
+JOG_SPEED_M_S = 0.01
 TOUCH_OFF_DETECT_FRACTION = 0.5  # contact: the wall pushes back with half the set force
 TOUCH_OFF_STILL_M_S = 0.0005  # settled: slower than this ...
 TOUCH_OFF_STILL_PERIODS = 25  # ... for 0.1 s
@@ -315,7 +319,9 @@ class LeadThrough:
             )
         if not rotational and abs(step) > JOG_STEP_MM.max * 1e-3:
             raise InvalidInputError(f"a translational jog step is at most {JOG_STEP_MM.max:g} mm")
-        speed = rate or (math.radians(10.0) if rotational else 0.01)
+        speed = rate or (
+            math.radians(JOG_RATE_DEG_S.default_value()) if rotational else JOG_SPEED_M_S
+        )
         n = max(1, int(math.ceil(abs(step) / speed / CONTROL_PERIOD_S)))
         unit = {"x": 0, "y": 1, "z": 2}[axis[-1]]
         R_frame = state.cell.T_base_tcp[:3, :3] if frame == "tool" else np.eye(3)

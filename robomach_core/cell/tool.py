@@ -39,7 +39,7 @@ class Tool:
     mass_kg: float = 2.5
     com_m: tuple[float, float, float] = (0.0, 0.0, 0.07)
     shape: CutterShape = "ball"
-    radius_m: float = 0.001
+    radius_m: float = TOOL_RADIUS_MM.default_value() * 1e-3
     flute_length_m: float = 0.010
     _checked: bool = field(default=False, repr=False, compare=False)
 

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..cell import GuidePoint, Supervisor
 from ..errors import RouteRefusedError, WallSideError
+from ..limits import TOLERANCE_MM
 from ..part import Workpiece
 from ..postprocess import Move, linear_moves, sample_moves
 from . import thresholds as th
@@ -324,7 +325,8 @@ def taught_wall_check(
                 f"the program does not follow the wall taught at {where} (on the {side}; it "
                 f"passes {worst * 1e3:.1f} mm from it), although the learned path does: the "
                 f"deviation-height tolerance of {tolerance_m * 1e3:g} mm lets the program's "
-                "moves cut that far across the wall; lower the tolerance (0.2 mm by default; at "
+                "moves cut that far across the wall; lower the tolerance "
+                f"({TOLERANCE_MM.default:g} mm by default; at "
                 f"most {th.TAUGHT_WALL_TOLERANCE_M * 1e3:g} mm keeps the program on the taught "
                 "wall)"
             )

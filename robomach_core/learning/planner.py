@@ -84,8 +84,8 @@ class ProposalSettings:
             cutter miss the wall; ``walls.pick_wall``).
     """
 
-    gap_m: float = 0.001
-    height_above_floor_m: float = 0.003
+    gap_m: float = WALL_GAP_MM.default_value() * 1e-3
+    height_above_floor_m: float = MACHINING_HEIGHT_MM.default_value() * 1e-3
 
     def __post_init__(self) -> None:
         WALL_GAP_MM.check(self.gap_m * 1e3)

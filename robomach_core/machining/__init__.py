@@ -22,7 +22,6 @@ from .run import MachiningTrace as MachiningTrace
 from .run import identify_stiffness as identify_stiffness
 from .run import run_machining as run_machining
 from .run import stiffness_model as stiffness_model
-from .settings import COMPENSATION_NAMES as COMPENSATION_NAMES
 from .settings import MACHINING_CONTROLLERS as MACHINING_CONTROLLERS
 from .settings import MachiningSettings as MachiningSettings
 from .settings import settings_to_dict as settings_to_dict

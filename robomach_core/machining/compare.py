@@ -19,6 +19,7 @@ import numpy as np
 from ..cell import Robot
 from ..errors import InvalidInputError
 from ..postprocess import Targets
+from ..stiffness.modes import COMPENSATIONS, Compensation
 from .run import (
     CancelFlag,
     CompensationModel,
@@ -27,7 +28,7 @@ from .run import (
     run_machining,
     stiffness_model,
 )
-from .settings import COMPENSATION_NAMES, MACHINING_CONTROLLERS, CompensationName, MachiningSettings
+from .settings import MACHINING_CONTROLLERS, MachiningSettings
 from .stock import Stock
 
 MM = 1e-3
@@ -179,7 +180,7 @@ def compare_configurations(
     settings: MachiningSettings,
     *,
     controllers: Sequence[str] = MACHINING_CONTROLLERS,
-    compensations: Sequence[str] = COMPENSATION_NAMES,
+    compensations: Sequence[str] = COMPENSATIONS,
     compensation_model: CompensationModel | None = None,
     progress: ProgressCallback | None = None,
     cancel: CancelFlag | Callable[[], bool] | None = None,
@@ -239,7 +240,7 @@ def run_configuration(
     run_settings = replace(
         settings,
         controller=controller,
-        compensation=cast("CompensationName", compensation),  # MachiningSettings checks it
+        compensation=cast("Compensation", compensation),  # MachiningSettings checks it
         controller_settings=own if own is not None and own.kind == controller else None,
     )
     if corrected is not None and compensation == "offline":

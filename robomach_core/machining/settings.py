@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from typing import Any, Literal, get_args
+from typing import Any, Literal
 
 from ..cmrr.controllers import CONTROLLER_NAMES, ControllerSettings
 from ..cmrr.process import DEFAULT_TAU_M_S, PowerLawForceModel
@@ -32,6 +32,8 @@ from ..limits import (
     MACHINING_TIME_CONSTANT_S,
     Range,
 )
+from ..stiffness.compensation import FORCE_FILTER_CUTOFF_HZ as ONLINE_CUTOFF_HZ
+from ..stiffness.modes import COMPENSATIONS, Compensation
 from .errors import MachiningSettingsError
 
 MM = 1e-3
@@ -39,8 +41,6 @@ MM = 1e-3
 DEFAULT_REFERENCE_FRACTION = 0.7
 # The deepest cut a design may assume [m] (a stock's allowance is at most 20 mm).
 MAX_DESIGN_DEPTH_M = 0.02
-CompensationName = Literal["off", "offline", "online"]
-COMPENSATION_NAMES: tuple[str, ...] = get_args(CompensationName)
 # The machining run's feed controls are the CMRR controllers (defined with their settings).
 MACHINING_CONTROLLERS: tuple[str, ...] = CONTROLLER_NAMES
 ControllerName = Literal[MACHINING_CONTROLLERS]  # type: ignore[valid-type]
@@ -113,7 +113,9 @@ class MachiningSettings:
             stock's, so every casting is cut by the one program that is exported.
         min_speed_ratio: delta of eq. (13), the lowest speed ratio CMRR may command.
         compensation: ``"off"``, ``"offline"`` (targets corrected before the run) or
-            ``"online"`` (joint reference corrected from the measured force).
+            ``"online"`` (joint reference corrected from the measured force): the one
+            vocabulary of ``stiffness.modes``. The run plans an offline correction linearly
+            from the force its rehearsals met (``machining.offline``).
         feed_force_ratio: Feed (tangential) over normal component of the process force; the
             power law gives the magnitude, the normal component pushes the tool off the wall.
         axial_engagement_m: Height of the cut along the tool axis (for the MRR only).
@@ -141,12 +143,12 @@ class MachiningSettings:
     constant_feed_m_s: float | None = None
     design_depth_m: float | None = None
     min_speed_ratio: float = 0.1
-    compensation: CompensationName = "off"
+    compensation: Compensation = "off"
     feed_force_ratio: float = 0.5
     axial_engagement_m: float = 0.005
     sensor_noise_N: float = 2.0
     sensor_filter_cutoff_hz: float = 20.0
-    online_filter_cutoff_hz: float = 30.0
+    online_filter_cutoff_hz: float = ONLINE_CUTOFF_HZ
     station_spacing_m: float = 0.1 * MM
     offline_target_spacing_m: float = 1.0 * MM
     identification_poses: int = 30
@@ -162,10 +164,10 @@ class MachiningSettings:
                 f"unknown controller {self.controller!r}; choose one of "
                 f"{', '.join(MACHINING_CONTROLLERS)}"
             )
-        if self.compensation not in COMPENSATION_NAMES:
+        if self.compensation not in COMPENSATIONS:
             raise MachiningSettingsError(
                 f"unknown compensation {self.compensation!r}; choose one of "
-                f"{', '.join(COMPENSATION_NAMES)}"
+                f"{', '.join(COMPENSATIONS)}"
             )
         if self.controller_settings is not None and self.controller_settings.kind != (
             self.controller

@@ -35,30 +35,15 @@ import hashlib
 import json
 from dataclasses import dataclass, field, replace
 from functools import cached_property
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from ..errors import InvalidInputError
 from ..postprocess import Targets
 from ._value import Project
 
-if TYPE_CHECKING:
-    from ..stiffness.settings import CompensationSetting
-
 STOCK_SOURCES = ("builtin", "profile", "mesh")
 # Stocks of a variation sweep (0: the one stock only).
 MAX_VARIATIONS = 1000
-# compensation choice -> the compensation settings' mode of the exported program.
-EXPORT_COMPENSATION_MODES: dict[str, CompensationSetting] = {
-    "off": "off",
-    "offline": "offline_linear",
-    "online": "online",
-}
-EXPORT_MODE_CHOICES = {
-    "off": "off",
-    "offline_linear": "offline",
-    "offline_nonlinear": "offline",
-    "online": "online",
-}
 
 
 @dataclass(frozen=True)
@@ -271,7 +256,7 @@ def machining_setup_of(project: Project) -> MachiningSetup:
             return setup
     controller = "constant" if project.cmrr is None else project.cmrr.controller.kind
     comp = project.compensation
-    compensation = "off" if comp is None else EXPORT_MODE_CHOICES.get(comp.mode, "off")
+    compensation = "off" if comp is None else comp.mode
     s = setup.settings
     # without machining settings, the CMRR's reference force (a study's, --cmrr-settings) is the
     # machining's; a reference over the limit brings the limit the default fraction pairs with
@@ -351,15 +336,16 @@ def choose(project: Project, controller: str, compensation: str) -> Project:
     """Save the configuration the exports carry: the machining settings' controller and
     compensation, the CMRR slot (the FC SpeedChange block; None for constant feed) and the
     compensation slot's mode (module docstring)."""
-    from ..machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
+    from ..machining import MACHINING_CONTROLLERS
+    from ..stiffness.modes import COMPENSATIONS
 
     if controller not in MACHINING_CONTROLLERS:
         raise InvalidInputError(
             f"unknown controller {controller!r}; choose one of {', '.join(MACHINING_CONTROLLERS)}"
         )
-    if compensation not in COMPENSATION_NAMES:
+    if compensation not in COMPENSATIONS:
         raise InvalidInputError(
-            f"unknown compensation {compensation!r}; choose one of {', '.join(COMPENSATION_NAMES)}"
+            f"unknown compensation {compensation!r}; choose one of {', '.join(COMPENSATIONS)}"
         )
     setup = machining_setup_of(project)
     s = replace(setup.settings, controller=controller, compensation=compensation)
@@ -369,26 +355,32 @@ def choose(project: Project, controller: str, compensation: str) -> Project:
     project = replace(project, machining_settings=setup)
     project = replace(project, cmrr=cmrr_for(s, designed=_designed_settings(project, controller)))
     comp = project.compensation
-    mode = EXPORT_COMPENSATION_MODES[compensation]
     if compensation != "off" and (comp is None or comp.robot != project.cell.robot):
         from ..stiffness import CompensationSettings
 
         model = compensation_model(replace(project, compensation=None), project.cell.robot)
         stiffness = tuple(float(k) for k in model.stiffness_Nm_rad)
         comp = CompensationSettings(
-            robot=project.cell.robot, joint_stiffness_Nm_rad=stiffness, mode="off"
+            robot=project.cell.robot,
+            joint_stiffness_Nm_rad=stiffness,
+            mode="off",
+            # another arm's settings: their offline model stays the user's
+            offline_model=(
+                CompensationSettings.offline_model if comp is None else comp.offline_model
+            ),
         )
         setup = replace(setup, campaign_stiffness_Nm_rad=stiffness)
         project = replace(project, machining_settings=setup)
     if comp is not None:
         gravity = comp.tool_gravity
-        if mode == "online" and gravity is None:
+        if compensation == "online" and gravity is None:
             # Not identified here: the tool's nominal mass and centre of mass, no sensor bias.
             from ..cell import ToolGravity
 
             tool = project.tool()
             gravity = ToolGravity.from_tool(tool)
-        comp = replace(comp, mode=mode, tool_gravity=gravity)
+        # The same word in both slots; an offline model the settings hold stays theirs.
+        comp = replace(comp, mode=compensation, tool_gravity=gravity)
     return replace(project, compensation=comp)
 
 

@@ -123,9 +123,9 @@ def machine(
     Raises:
         MissingResultError / StaleResultError: no current post-processed program.
     """
-    from ..machining import COMPENSATION_NAMES
     from ..machining.compare import comparison_rows
     from ..machining.parallel import CutTask, run_tasks
+    from ..stiffness.modes import COMPENSATIONS
 
     targets = _program_cut(project, robot)
     setup = machining_setup_of(project)
@@ -136,7 +136,7 @@ def machine(
     comps = (s.compensation,) if compensations is None else tuple(compensations)
     model = compensation_model(project, robot.name) if any(m != "off" for m in comps) else None
     # A controller's modes run in order in one task: offline rehearses from its off run.
-    modes = tuple(m for m in COMPENSATION_NAMES if m in comps)  # off, offline, online
+    modes: tuple[str, ...] = tuple(m for m in COMPENSATIONS if m in comps)  # off, offline, online
     if "offline" in modes and "off" not in modes:
         modes = ("off", *modes)
     pairs = [(c, m) for c in ctrls for m in comps]

@@ -71,7 +71,7 @@ class CellSettings:
     """
 
     robot: str = "ur10"
-    tool_radius_m: float = 0.001
+    tool_radius_m: float = Tool.radius_m
     workpiece: str = "water_pump"
     workpiece_builtin: bool = True
     seed: int = 0

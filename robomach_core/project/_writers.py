@@ -130,7 +130,6 @@ def compensate_program_targets(
     compensation happens in the controller at run time, so it leaves the targets as they are.
     """
     from ..stiffness import compensate_targets_and_joints
-    from ..stiffness.compensation import CompensationMode
     from ..transforms import make_transform, matrix_from_quaternion, quaternions_from_matrices
 
     if compensation.robot != robot.name:
@@ -138,9 +137,8 @@ def compensate_program_targets(
             f"the compensation settings were identified on {compensation.robot}, "
             f"the cell has {robot.name}"
         )
-    if compensation.mode in ("off", "online"):
+    if compensation.mode != "offline":
         return targets, f"deflection compensation: {compensation.mode} (targets as learned)"
-    mode: CompensationMode = "linear" if compensation.mode == "offline_linear" else "nonlinear"
     Ts = np.array(
         [
             make_transform(matrix_from_quaternion(q), p)
@@ -153,7 +151,7 @@ def compensate_program_targets(
         wrenches[k, :3] = R @ recording.wrench_tool[i, :3]
         wrenches[k, 3:] = R @ recording.wrench_tool[i, 3:]
     Ts_c, q_c = compensate_targets_and_joints(
-        robot, Ts, targets.joints_rad, wrenches, compensation.model, mode
+        robot, Ts, targets.joints_rad, wrenches, compensation.model, compensation.offline_model
     )
     corrected = replace(
         targets,
@@ -163,7 +161,8 @@ def compensate_program_targets(
     )
     shift = np.linalg.norm(corrected.position_m - targets.position_m, axis=1).max()
     return corrected, (
-        f"deflection compensation: {compensation.mode}, largest target correction "
+        f"deflection compensation: offline ({compensation.offline_model}), largest target "
+        "correction "
         f"{shift * 1e3:.4f} mm"
     )
 

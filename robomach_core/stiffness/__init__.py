@@ -47,6 +47,11 @@ from .model import equilibrium_at_pose as equilibrium_at_pose
 from .model import linear_deflection as linear_deflection
 from .model import loaded_cartesian_compliance as loaded_cartesian_compliance
 from .model import loaded_equilibrium as loaded_equilibrium
+from .modes import COMPENSATIONS as COMPENSATIONS
+from .modes import OFFLINE_MODELS as OFFLINE_MODELS
+from .modes import Compensation as Compensation
+from .modes import OfflineModel as OfflineModel
+from .modes import read_compensation as read_compensation
 from .settings import CompensationSettings as CompensationSettings
 from .settings import load_settings as load_settings
 from .settings import save_settings as save_settings

@@ -16,7 +16,6 @@ SOLUTION  ``online_compensation_step`` (state, input, params, dt -> state, refer
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
 
@@ -24,8 +23,7 @@ from ..cell import JointCompliance, Robot, ToolGravity, compensate_gravity, wren
 from ..transforms import pose_error
 from .errors import ConvergenceError
 from .model import apply_twist, loaded_equilibrium
-
-CompensationMode = Literal["linear", "nonlinear"]
+from .modes import DEFAULT_OFFLINE_MODEL, OfflineModel
 
 # Eq. (32): relaxation mu in (0, 1] and stopping tolerances of the target iteration.
 NONLINEAR_RELAXATION = 1.0
@@ -43,7 +41,7 @@ def compensate_targets_and_joints(
     joints: np.ndarray,
     wrenches: np.ndarray,
     model: JointCompliance,
-    mode: CompensationMode = "linear",
+    mode: OfflineModel = DEFAULT_OFFLINE_MODEL,
     *,
     relaxation: float = NONLINEAR_RELAXATION,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -101,7 +99,7 @@ def compensate_targets(
     joints: np.ndarray,
     wrenches: np.ndarray,
     model: JointCompliance,
-    mode: CompensationMode = "linear",
+    mode: OfflineModel = DEFAULT_OFFLINE_MODEL,
 ) -> np.ndarray:
     """Program targets moved so that, under the predicted wrenches, the TCP lands on them.
 

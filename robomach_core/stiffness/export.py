@@ -11,7 +11,8 @@ import numpy as np
 
 from ..cell import JointCompliance, Robot, Tool
 from ..export.rapid import RapidProgram, RapidTarget, RapidTool, RapidWorkObject
-from .compensation import CompensationMode, compensate_targets_and_joints
+from .compensation import compensate_targets_and_joints
+from .modes import OfflineModel
 
 
 def compensated_rapid_program(
@@ -21,7 +22,7 @@ def compensated_rapid_program(
     joints: np.ndarray,
     wrenches: np.ndarray,
     model: JointCompliance,
-    mode: CompensationMode,
+    mode: OfflineModel,
     *,
     speed_mm_s: float,
     module_name: str = "CompensatedPath",

@@ -39,14 +39,19 @@ from ..cell import (
 from ..errors import CancelledError, InvalidInputError
 from ..transforms import make_transform, pose_error, rotation_about
 from .compensation import (
-    CompensationMode,
     OnlineCompensationParams,
     OnlineCompensationState,
     compensate_targets_and_joints,
     online_compensation_step,
 )
 from .model import apply_twist, loaded_equilibrium
-from .settings import COMPENSATION_SETTINGS, CompensationSetting
+from .modes import (
+    COMPENSATIONS,
+    DEFAULT_OFFLINE_MODEL,
+    Compensation,
+    OfflineModel,
+    variant_name,
+)
 
 ErrorMeasure = Literal["surface_depth", "path_lateral"]
 
@@ -190,7 +195,7 @@ class MillingRun:
     """One simulated pass.
 
     Attributes:
-        compensation: The mode used.
+        compensation: The compensation used (``modes.variant_name``: ``offline_linear``, ...).
         time_s: (n,) control-step times.
         position_nominal_m / position_actual_m: (n, 3) programmed and arm-side TCP positions.
         wrench: (n, 6) process wrench on the arm, base axes [N, N*m].
@@ -269,8 +274,9 @@ def simulate_milling(
     scenario: MillingScenario,
     truth: JointCompliance,
     *,
-    compensation: CompensationSetting = "off",
+    compensation: Compensation = "off",
     model: JointCompliance | None = None,
+    offline_model: OfflineModel = DEFAULT_OFFLINE_MODEL,
     tool_gravity: ToolGravity | None = None,
     true_tool_gravity: ToolGravity | None = None,
     sensor_force_noise_N: float = 0.5,
@@ -286,9 +292,10 @@ def simulate_milling(
         scenario: The cut.
         truth: The simulator's joint stiffness (bends the arm).
         compensation: ``"off"``, ``"online"`` (chapter fig. 15, needs ``model`` and
-            ``tool_gravity``), ``"offline_linear"`` or ``"offline_nonlinear"`` (eq. 32, needs
-            ``model``; targets every ``TARGET_SPACING_M`` corrected for the predicted wrench).
+            ``tool_gravity``) or ``"offline"`` (needs ``model``; targets every
+            ``TARGET_SPACING_M`` corrected for the predicted wrench).
         model: Identified joint stiffness the controller uses.
+        offline_model: The offline correction: ``"linear"`` or ``"nonlinear"`` (eq. 32).
         tool_gravity: Identified tool weight and sensor bias (online mode).
         true_tool_gravity: What the sensor really carries (defaults to ``tool_gravity``).
         sensor_force_noise_N / sensor_torque_noise_Nm: F/T noise per axis.
@@ -296,8 +303,8 @@ def simulate_milling(
         progress: Called with the completed fraction.
         cancel: Polled each step; True stops the run with ``CancelledError``.
     """
-    if compensation not in COMPENSATION_SETTINGS:
-        choices = ", ".join(COMPENSATION_SETTINGS)
+    if compensation not in COMPENSATIONS:
+        choices = ", ".join(COMPENSATIONS)
         raise InvalidInputError(f"unknown compensation {compensation!r}; choose one of {choices}")
     if compensation != "off" and model is None:
         raise InvalidInputError(f"compensation {compensation!r} needs an identified model")
@@ -314,10 +321,10 @@ def simulate_milling(
     q_first = robot.ik(Ts_nominal[0])
     qs_nominal = _track_ik(robot, Ts_nominal, q_first)
 
-    if compensation in ("offline_linear", "offline_nonlinear"):
+    if compensation == "offline":
         assert model is not None  # checked above: every compensation but "off" needs one
         qs_command = _offline_command(
-            robot, scenario, model, compensation, (u_start, u_end), u_nominal, Ts_nominal,
+            robot, scenario, model, offline_model, (u_start, u_end), u_nominal, Ts_nominal,
             q_first, qs_nominal,
         )  # fmt: skip
     else:
@@ -376,8 +383,8 @@ def simulate_milling(
             progress((k + 1) / n)
 
     return _milling_run(
-        scenario, compensation, t, u_nominal, Ts_nominal[:, :3, 3], position, axis, wrenches,
-        engaged,
+        scenario, variant_name(compensation, offline_model), t, u_nominal, Ts_nominal[:, :3, 3],
+        position, axis, wrenches, engaged,
     )  # fmt: skip
 
 
@@ -385,7 +392,7 @@ def _offline_command(
     robot: Robot,
     scenario: MillingScenario,
     model: JointCompliance,
-    compensation: CompensationSetting,
+    offline_model: OfflineModel,
     u_range_m: tuple[float, float],
     u_nominal: np.ndarray,
     Ts_nominal: np.ndarray,
@@ -401,9 +408,8 @@ def _offline_command(
     u_targets = np.arange(u_start, u_end + TARGET_SPACING_M, TARGET_SPACING_M)
     T_targets = program_poses(scenario, u_targets)
     q_targets = _track_ik(robot, T_targets, q_first)
-    mode: CompensationMode = "linear" if compensation == "offline_linear" else "nonlinear"
     T_corrected, _ = compensate_targets_and_joints(
-        robot, T_targets, q_targets, predicted_wrenches(scenario, u_targets), model, mode
+        robot, T_targets, q_targets, predicted_wrenches(scenario, u_targets), model, offline_model
     )
     twists = np.array([pose_error(a, b) for a, b in zip(T_targets, T_corrected, strict=True)])
     step_twists = np.stack(

@@ -15,16 +15,18 @@ from ..cell import CONTROL_PERIOD_S
 from ..plots import agg_figure
 from .ilc import IlcResult
 from .milling import MillingRun
+from .modes import variant_name
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
 DPI = 110
+# Legend words of the milling study's runs, by ``modes.variant_name``.
 MODE_LABELS = {
-    "off": "uncompensated",
-    "online": "online (fig. 15)",
-    "offline_linear": "offline, linear",
-    "offline_nonlinear": "offline, non-linear (eq. 32)",
+    variant_name("off"): "uncompensated",
+    variant_name("online"): "online (fig. 15)",
+    variant_name("offline", "linear"): "offline, linear",
+    variant_name("offline", "nonlinear"): "offline, non-linear (eq. 32)",
 }
 
 

@@ -2,6 +2,12 @@
 
 The file is a boundary: stiffness in N*m/rad, lengths in mm, forces in N, every field named with
 its unit. It travels with the exported program, and the workbench and API read it back.
+
+Format version 2 names the compensation in the one vocabulary (``stiffness.modes``): ``mode``
+``off``, ``offline`` or ``online`` and ``offline_model`` ``linear`` or ``nonlinear``. Version 1
+files (and projects saved with them) spelled the offline model into the mode
+(``offline_linear``, ``offline_nonlinear``); they are read by ``modes.read_compensation``'s rule
+(``offline`` with that model) and written back as version 2.
 """
 
 from __future__ import annotations
@@ -10,7 +16,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal, get_args
+from typing import Any
 
 from ..cell import JointCompliance, ToolGravity
 from ..limits import (
@@ -23,12 +29,21 @@ from ..limits import (
     TOOL_MASS_KG,
     Range,
 )
+from .compensation import FORCE_FILTER_CUTOFF_HZ as DEFAULT_CUTOFF_HZ
 from .errors import SettingsFileError
+from .modes import (
+    COMPENSATIONS,
+    DEFAULT_OFFLINE_MODEL,
+    OFFLINE_MODELS,
+    Compensation,
+    OfflineModel,
+    read_compensation,
+)
 
 SETTINGS_FORMAT = "robomach.compensation"
-SETTINGS_VERSION = 1
-CompensationSetting = Literal["off", "online", "offline_linear", "offline_nonlinear"]
-COMPENSATION_SETTINGS: tuple[CompensationSetting, ...] = get_args(CompensationSetting)
+SETTINGS_VERSION = 2
+# Versions read: 1 spelled the offline model into the mode (module docstring).
+READ_VERSIONS = (1, 2)
 
 
 @dataclass(frozen=True)
@@ -38,8 +53,10 @@ class CompensationSettings:
     Attributes:
         robot: Robot model name.
         joint_stiffness_Nm_rad: (6,) identified Kq.
-        mode: ``"off"``, ``"online"`` (chapter fig. 15), ``"offline_linear"`` or
-            ``"offline_nonlinear"`` (corrected robtargets, eq. 32).
+        mode: ``"off"``, ``"offline"`` (corrected robtargets) or ``"online"`` (chapter
+            fig. 15): ``stiffness.modes.Compensation``.
+        offline_model: How the offline mode corrects the targets: ``"linear"`` or
+            ``"nonlinear"`` (eq. 32); kept, and unused, in the other modes.
         joint_stiffness_std_Nm_rad: (6,) one-sigma uncertainty, if known.
         tool_gravity: Identified tool weight and sensor bias (needed online).
         force_filter_cutoff_hz: Low-pass on the measured wrench (online).
@@ -47,15 +64,21 @@ class CompensationSettings:
 
     robot: str
     joint_stiffness_Nm_rad: tuple[float, ...]
-    mode: CompensationSetting = "online"
+    mode: Compensation = "online"
     joint_stiffness_std_Nm_rad: tuple[float, ...] | None = None
     tool_gravity: ToolGravity | None = None
-    force_filter_cutoff_hz: float = 30.0
+    force_filter_cutoff_hz: float = DEFAULT_CUTOFF_HZ
+    offline_model: OfflineModel = DEFAULT_OFFLINE_MODEL
 
     def __post_init__(self) -> None:
-        if self.mode not in COMPENSATION_SETTINGS:
+        if self.mode not in COMPENSATIONS:  # old spellings are read at the boundaries only
             raise SettingsFileError(
-                f"compensation mode {self.mode!r} is not one of {', '.join(COMPENSATION_SETTINGS)}"
+                f"compensation mode {self.mode!r} is not one of {', '.join(COMPENSATIONS)}"
+                " (an offline model goes in offline_model)"
+            )
+        if self.offline_model not in OFFLINE_MODELS:
+            raise SettingsFileError(
+                f"offline model {self.offline_model!r} is not one of {', '.join(OFFLINE_MODELS)}"
             )
         JointCompliance(tuple(self.joint_stiffness_Nm_rad))  # validates the six values
         FORCE_FILTER_CUTOFF_HZ.check(
@@ -76,6 +99,7 @@ def settings_to_dict(settings: CompensationSettings) -> dict[str, Any]:
         "version": SETTINGS_VERSION,
         "robot": settings.robot,
         "mode": settings.mode,
+        "offline_model": settings.offline_model,
         "joint_stiffness_Nm_rad": [float(k) for k in settings.joint_stiffness_Nm_rad],
         "force_filter_cutoff_hz": settings.force_filter_cutoff_hz,
     }
@@ -116,8 +140,11 @@ def settings_from_dict(data: dict[str, Any]) -> CompensationSettings:
     """
     if not isinstance(data, dict) or data.get("format") != SETTINGS_FORMAT:
         raise SettingsFileError(f"not a compensation settings file (format {SETTINGS_FORMAT!r})")
-    if data.get("version") != SETTINGS_VERSION:
-        raise SettingsFileError(f"settings version {data.get('version')!r} is not supported")
+    if data.get("version") not in READ_VERSIONS:
+        raise SettingsFileError(
+            f"settings version {data.get('version')!r} is not supported (this robomach reads "
+            f"{', '.join(map(str, READ_VERSIONS))})"
+        )
     if not isinstance(data.get("robot"), str):
         raise SettingsFileError("'robot' must be a robot name")
     tool = None
@@ -138,14 +165,22 @@ def settings_from_dict(data: dict[str, Any]) -> CompensationSettings:
     std = None
     if "joint_stiffness_std_Nm_rad" in data:
         std = _floats(data, "joint_stiffness_std_Nm_rad", 6, JOINT_STIFFNESS_STD_NM_RAD)
+    mode, model = read_compensation(
+        data.get("mode", CompensationSettings.mode),
+        data.get("offline_model"),
+        name="compensation mode",
+        error=SettingsFileError,
+    )
     try:
-        cutoff = float(data.get("force_filter_cutoff_hz", 30.0))
+        default_cutoff = CompensationSettings.force_filter_cutoff_hz
+        cutoff = float(data.get("force_filter_cutoff_hz", default_cutoff))
         return CompensationSettings(
             robot=data["robot"],
             joint_stiffness_Nm_rad=_floats(
                 data, "joint_stiffness_Nm_rad", 6, JOINT_STIFFNESS_NM_RAD
             ),
-            mode=data.get("mode", "online"),
+            mode=mode,
+            offline_model=model,
             joint_stiffness_std_Nm_rad=std,
             tool_gravity=tool,
             force_filter_cutoff_hz=cutoff,

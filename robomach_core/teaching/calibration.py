@@ -29,6 +29,7 @@ import shapely
 
 from ..cell import TOOL_DOWN, LeadThrough, LeadThroughState
 from ..errors import InvalidInputError, NoContactError, RobomachError
+from ..limits import TOUCH_OFF_FORCE_N
 from ..part import Workpiece, mesh_query
 from .motion import go_to_point, move_by
 from .registration import CalibrationError, Touch
@@ -39,7 +40,7 @@ SIDE_STANDOFF_M = EXPECTED_ERROR_M + 0.003  # a touch across starts this far off
 TOUCH_DEPTH_M = 0.008  # a side is touched this far below its top edge (the spindle stays above)
 TABLE_CLEARANCE_M = 0.002  # ... and at least this far above the part's lowest point
 SAFE_ABOVE_M = 0.03  # the tool travels between touches this far above the part
-TOUCH_FORCE_N = 10.0  # the chapter's lightest contact force
+TOUCH_FORCE_N = TOUCH_OFF_FORCE_N.default_value()  # the chapter's lightest contact force
 TOP_TOUCHES = 3  # the corners of the largest triangle on the top face
 SIDE_TOUCHES = 3
 OTHER_SIDE_TOUCHES = 2

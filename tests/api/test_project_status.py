@@ -76,8 +76,10 @@ def _cmrr_and_compensation() -> dict:
     from robomach_core.stiffness.settings import settings_to_dict as compensation_to_dict
 
     cmrr = cmrr_settings_for(build_scenario("deburr-burrs"), settings_for("two-stage"))
-    comp = CompensationSettings("ur10", TRUE_JOINT_STIFFNESS_NM_RAD["ur10"], mode="offline_linear")
-    return {"cmrr": cmrr_to_dict(cmrr), "compensation": compensation_to_dict(comp)}
+    comp = CompensationSettings("ur10", TRUE_JOINT_STIFFNESS_NM_RAD["ur10"], mode="offline")
+    old = compensation_to_dict(comp) | {"version": 1, "mode": "offline_linear"}
+    del old["offline_model"]  # an older client's document: read by the old-spelling rule
+    return {"cmrr": cmrr_to_dict(cmrr), "compensation": old}
 
 
 def test_rest_export_and_core_writer_give_the_same_bytes(
@@ -99,7 +101,8 @@ def test_rest_export_and_core_writer_give_the_same_bytes(
     assert "FCSpdChgAct" in text and "largest target correction" in text
     settings = json.loads(api.get("/api/export/settings.json").text)
     assert settings["cmrr"]["controller"] == "two-stage"
-    assert settings["compensation"]["mode"] == "offline_linear"
+    assert settings["compensation"]["mode"] == "offline"
+    assert settings["compensation"]["offline_model"] == "linear"
 
     # The same project, read back from the server's store file, through the core writer.
     pid = api.ok("GET", "/api/projects/current")["id"]

@@ -18,10 +18,11 @@ import pytest
 from app.session import Session
 from robomach_core import project as core
 from robomach_core.export.read_back import read_program
-from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
+from robomach_core.machining import MACHINING_CONTROLLERS
 from robomach_core.machining.choice import missing
 from robomach_core.part import PartDeviation
 from robomach_core.project import capabilities_of, machining_note, machining_setup_of
+from robomach_core.stiffness import COMPENSATIONS
 from tests.jobs import done
 
 pytestmark = pytest.mark.slow  # path learning on the pump (about 10 s unpaced)
@@ -75,7 +76,7 @@ def test_a_cell_change_clears_only_the_choices_the_new_controller_cannot_run(lea
     rng = random.Random()
     seed = rng.randrange(2**32)
     rng.seed(seed)
-    configs = list(itertools.product(MACHINING_CONTROLLERS, COMPENSATION_NAMES))
+    configs = list(itertools.product(MACHINING_CONTROLLERS, COMPENSATIONS))
     for controller, compensation in rng.sample(configs, 8):
         chosen = core.choose(project, controller, compensation)
         for arm in ARMS:

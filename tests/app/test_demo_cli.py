@@ -170,7 +170,7 @@ def test_demo_exports_cmrr_speed_change_and_compensated_targets(tmp_path):
         tmp_path / "cmrr.json",
     )
     comp_json = save_compensation(
-        CompensationSettings("ur10", TRUE_JOINT_STIFFNESS_NM_RAD["ur10"], mode="offline_linear"),
+        CompensationSettings("ur10", TRUE_JOINT_STIFFNESS_NM_RAD["ur10"], mode="offline"),
         tmp_path / "comp.json",
     )
     out = tmp_path / "out"
@@ -194,7 +194,8 @@ def test_demo_exports_cmrr_speed_change_and_compensated_targets(tmp_path):
     assert 0.0 < correction < 0.1  # a 10 N contact on a ~1 N/um arm: micrometres
     settings = json.loads((out / "settings.json").read_text())
     assert settings["cmrr"]["controller"] == "two-stage"
-    assert settings["compensation"]["mode"] == "offline_linear"
+    assert settings["compensation"]["mode"] == "offline"
+    assert settings["compensation"]["offline_model"] == "linear"
 
 
 def test_settings_files_are_validated(tmp_path):

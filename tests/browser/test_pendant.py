@@ -199,10 +199,23 @@ def test_pendant_numbers_start_at_the_cores_defaults(
         ("learn-speed", "LEARNING_SPEED_MM_S"),
         ("learn-floor", "FLOOR_CLEARANCE_MM"),
         ("post-tol", "TOLERANCE_MM"),
+        ("touch-force", "TOUCH_OFF_FORCE_N"),
+        ("touch-travel", "TOUCH_OFF_TRAVEL_MM"),
+        ("push-force", "PUSH_FORCE_N"),
+        ("point-gap", "WALL_GAP_MM"),
+        ("point-height", "MACHINING_HEIGHT_MM"),
+        ("jog-step-mm", "JOG_STEP_MM"),
+        ("jog-step-deg", "JOG_TURN_DEG"),
+        ("jog-rate", "JOG_RATE_DEG_S"),
     ):
         default = ranges[name]["default"]
         assert default is not None, name
         expect(page.locator(f"#{input_id}")).to_have_value(re.compile(rf"^{default:g}(\.0)?$"))
+    # One compensation vocabulary: the machining menu offers the core's, nothing else.
+    compensation = api.get("/api/choices").json()["enums"]["compensation"]["values"]
+    options = page.locator("#mach-compensation option")
+    expect(options).to_have_count(len(compensation))
+    assert options.evaluate_all("os => os.map((o) => o.value)") == compensation
 
 
 def test_pendant_loads_the_example(served: Served, api: httpx.Client, page: Page) -> None:

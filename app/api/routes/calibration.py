@@ -36,7 +36,9 @@ IndexPath = Annotated[int, Path(ge=0, description="the touch's index, from 0")]
 
 class CalibrationStart(_Request):
     force_N: ForceN | None = Field(
-        None, description=f"the touch force [N], {TOUCH_OFF_FORCE_N.text()} (default 10)"
+        None,
+        description=f"the touch force [N], {TOUCH_OFF_FORCE_N.text()} (default the last one, "
+        f"{TOUCH_OFF_FORCE_N.default:g} at first)",
     )
 
 

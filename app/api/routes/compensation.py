@@ -7,12 +7,19 @@ from pathlib import Path
 from typing import Any
 
 from fastapi import APIRouter, Response, status
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from app.api.routes import ERRORS, JSON_FILE, PNG, StudiesDep, download, relative_folder
 from app.api.schemas import JobCreated
 from app.studies import SEED_MAX, CompensationOutcome, CompensationStudy
-from robomach_core.stiffness.settings import CompensationSetting
+from robomach_core.errors import InvalidInputError
+from robomach_core.stiffness import (
+    COMPENSATIONS,
+    Compensation,
+    OfflineModel,
+    StudyOptions,
+    read_compensation,
+)
 
 router = APIRouter(prefix="/api/compensation", tags=["compensation"], responses=ERRORS)
 
@@ -32,9 +39,34 @@ class CompensationStudyCreate(BaseModel):
     )
     quick: bool = Field(False, description="shorter cuts and fewer poses: a preview in seconds")
     seed: int = Field(0, ge=0, le=SEED_MAX, description="seed of every random element")
-    mode: CompensationSetting = Field(
-        "online", description="compensation mode written to the settings"
+    mode: Compensation = Field(
+        StudyOptions.mode,
+        description="compensation written to the settings: off, offline (targets corrected "
+        "before the run) or online (corrected from the measured force). The old spellings "
+        "offline_linear and offline_nonlinear are read as offline with that offline_model",
     )
+    offline_model: OfflineModel | None = Field(
+        None,
+        description="how offline compensation corrects the targets: linear (t0 - C W) or "
+        "nonlinear (the compliance paper's eq. 32); default linear, or the old spelling's",
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _old_spellings(cls, data: Any) -> Any:
+        """``mode`` in an old spelling (``stiffness.modes.read_compensation``'s rule): offline
+        with its model; a model given beside it that contradicts it is refused (422)."""
+        if isinstance(data, dict) and isinstance(data.get("mode"), str):
+            mode = data["mode"]
+            if mode not in COMPENSATIONS:
+                try:
+                    compensation, model = read_compensation(
+                        mode, data.get("offline_model"), name="mode"
+                    )
+                except InvalidInputError as exc:
+                    raise ValueError(str(exc)) from None
+                data = {**data, "mode": compensation, "offline_model": model}
+        return data
 
 
 class CompensationStudyPublic(BaseModel):
@@ -83,7 +115,11 @@ def start_study(body: CompensationStudyCreate, studies: StudiesDep) -> JobCreate
     """Job: run the study. Follow it at /api/jobs/{job_id}; when done it is the last study and
     is saved to the project. 429 when two studies are already queued or running."""
     job_id = studies.start_compensation(
-        body.study, quick=body.quick, seed=body.seed, mode=body.mode
+        body.study,
+        quick=body.quick,
+        seed=body.seed,
+        mode=body.mode,
+        offline_model=body.offline_model,
     )
     return JobCreated(job_id=job_id)
 

@@ -20,16 +20,16 @@ from robomach_core.limits import (
     MACHINING_PROCESS_GAIN_N,
     MACHINING_VARIATIONS,
 )
-from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
+from robomach_core.machining import MACHINING_CONTROLLERS
 from robomach_core.machining.choice import OPTION_NAMES
 from robomach_core.machining.stock import MAX_ALLOWANCE_M, MAX_PROFILE_POINTS, MAX_PROFILE_S_MM
 from robomach_core.project import STOCK_SOURCES
+from robomach_core.stiffness import Compensation
 
 router = APIRouter(prefix="/api/machining", tags=["machining"], responses=ERRORS)
 
 # The choices of the core (``robomach_core.choices``), never typed again here.
 Controller = Literal[MACHINING_CONTROLLERS]  # type: ignore[valid-type]
-Compensation = Literal[COMPENSATION_NAMES]  # type: ignore[valid-type]
 StockSource = Literal[STOCK_SOURCES]  # type: ignore[valid-type]
 CellOption = Literal[OPTION_NAMES]  # type: ignore[valid-type]
 UPLOAD_CHUNK_BYTES = 1024 * 1024

@@ -9,6 +9,7 @@ from fastapi import APIRouter, Query, status
 from app.api.routes import ERRORS, SessionDep
 from app.api.schemas import FindingPublic, ForceTracePublic, JobCreated, PathLearningCreate
 from robomach_core.learning.findings import grouped_findings
+from robomach_core.limits import TRACE_POINTS
 
 router = APIRouter(prefix="/api/path-learning", tags=["path learning"], responses=ERRORS)
 
@@ -38,7 +39,10 @@ def start_path_learning(body: PathLearningCreate, session: SessionDep) -> JobCre
 @router.get("/recording")
 def get_recording(
     session: SessionDep,
-    max_points: Annotated[int, Query(ge=2, le=100_000, description="decimate to this")] = 2000,
+    max_points: Annotated[
+        int,
+        Query(ge=TRACE_POINTS.min, le=TRACE_POINTS.max, description="decimate to this"),
+    ] = 2000,
 ) -> ForceTracePublic:
     """Force against time for plots: live while a job runs, else the last recording."""
     rec = session.project().recording

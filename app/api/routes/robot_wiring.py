@@ -100,7 +100,14 @@ def guide_point_warnings(
 @router.get("/path-learning/check")
 def guide_point_check(
     session: SessionDep,
-    force_N: Annotated[float, Query(ge=1.0, le=50.0, description="contact force [N]")] = 10.0,
+    force_N: Annotated[
+        float,
+        Query(
+            ge=limits.LEARNING_FORCE_N.min,
+            le=limits.LEARNING_FORCE_N.max,
+            description="contact force [N]",
+        ),
+    ] = limits.LEARNING_FORCE_N.default,
     closed: Annotated[bool, Query(description="closed contour")] = True,
     wall_side: Annotated[
         WallSideSetting, Query(description="the wall side to learn with")

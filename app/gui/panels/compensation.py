@@ -18,7 +18,7 @@ from app.studies import (
     CompensationOutcome,
     StudyService,
 )
-from robomach_core.stiffness.settings import COMPENSATION_SETTINGS
+from robomach_core.stiffness import COMPENSATIONS, OFFLINE_MODELS, StudyOptions
 
 from .cmrr import StudyPanel, fmt, png_to_image
 
@@ -59,9 +59,17 @@ class CompensationPanel(StudyPanel):
             )
             self.mode = server.gui.add_dropdown(
                 "Mode",
-                COMPENSATION_SETTINGS,
-                initial_value="online",
-                hint="Compensation mode written to the settings (online needs the gravity study)",
+                COMPENSATIONS,
+                initial_value=StudyOptions.mode,
+                hint="Compensation written to the settings: off, offline (targets corrected "
+                "before the run) or online (needs the gravity study)",
+            )
+            self.offline_model = server.gui.add_dropdown(
+                "Offline model",
+                OFFLINE_MODELS,
+                initial_value=StudyOptions.offline_model,
+                hint="How offline compensation corrects the targets: linear (t0 - C W) or "
+                "non-linear (the compliance paper's eq. 32)",
             )
             self._add_run_controls(server, "Run compensation study")
             self.plot_name = server.gui.add_dropdown("Plot", (NO_PLOT,), initial_value=NO_PLOT)
@@ -70,6 +78,11 @@ class CompensationPanel(StudyPanel):
                 "Download settings JSON", icon=viser.Icon.DOWNLOAD, disabled=True
             )
         self.study.on_update(lambda e: self._show_hint())
+        # The model matters only to offline compensation.
+        self.offline_model.disabled = self.mode.value != "offline"
+        self.mode.on_update(
+            lambda e: setattr(self.offline_model, "disabled", self.mode.value != "offline")
+        )
         self.plot_name.on_update(lambda e: self._show_plot())
         self._follow_jobs(
             session, service, service.compensation_result, service.compensation_settings_json
@@ -77,7 +90,10 @@ class CompensationPanel(StudyPanel):
 
     def _submit(self) -> str:
         return self.service.start_compensation(
-            self.study.value, quick=bool(self.quick.value), mode=self.mode.value
+            self.study.value,
+            quick=bool(self.quick.value),
+            mode=self.mode.value,
+            offline_model=self.offline_model.value,
         )
 
     def _show_hint(self) -> None:

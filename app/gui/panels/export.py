@@ -156,8 +156,8 @@ class ExportPanel:
         controller = "constant" if project.cmrr is None else s.controller
         compensation = "off" if comp is None else s.compensation
         model = ""
-        if comp is not None and comp.mode.startswith("offline_"):
-            model = f" ({comp.mode.removeprefix('offline_')} joint-stiffness model)"
+        if comp is not None and comp.mode == "offline":
+            model = f" ({comp.offline_model} joint-stiffness model)"
         return (
             f"Program carries: feed control **{controller}**, compensation "
             f"**{compensation}**{model} (the Machining panel's choice)"

@@ -96,7 +96,12 @@ class LeadThroughPanel:
             self.release = server.gui.add_button(
                 "Release handle", icon=viser.Icon.HAND_STOP, hint="Put the handle back on the tool"
             )
-            self.push_force = server.gui.add_number("Push force (N)", 10.0, min=0.5, max=50.0)
+            self.push_force = server.gui.add_number(
+                "Push force (N)",
+                limits.PUSH_FORCE_N.default_value(),
+                min=limits.PUSH_FORCE_N.min,
+                max=limits.PUSH_FORCE_N.max,
+            )
             self.push_time = server.gui.add_number("Push time (s)", 0.5, min=0.05, max=10.0)
             self.push = [server.gui.add_button_group(label, d) for label, d in PUSH_ROWS]
             self.jog_step = server.gui.add_number("Jog step (deg)", 2.0, min=0.1, max=45.0)

@@ -26,9 +26,10 @@ from robomach_core.limits import (
     MACHINING_PROCESS_GAIN_N,
     MACHINING_VARIATIONS,
 )
-from robomach_core.machining import COMPENSATION_NAMES, MACHINING_CONTROLLERS
+from robomach_core.machining import MACHINING_CONTROLLERS
 from robomach_core.machining.choice import OPTION_NAMES, OPTION_TEXT, RULE_TEXT
 from robomach_core.project import STOCK_SOURCES
+from robomach_core.stiffness import COMPENSATIONS
 
 from ..scene import deviation_colors
 from .feedback import guarded, upload_handled
@@ -88,7 +89,7 @@ class MachiningPanel:
                 "Controller", MACHINING_CONTROLLERS, initial_value=s["controller"]
             )
             self.compensation = server.gui.add_dropdown(
-                "Compensation", COMPENSATION_NAMES, initial_value=s["compensation"]
+                "Compensation", COMPENSATIONS, initial_value=s["compensation"]
             )
             with server.gui.add_folder("Cell options", expand_by_default=False):
                 self.options = {

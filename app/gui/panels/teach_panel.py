@@ -14,6 +14,7 @@ import numpy as np
 import viser
 
 from app.session import Session
+from robomach_core import limits
 from robomach_core.choices import JOG_FRAMES
 
 from .feedback import guarded, notify_info
@@ -35,15 +36,43 @@ class TeachPanel:
             self.frame = server.gui.add_dropdown(
                 "Frame", JOG_FRAMES, initial_value="wobj", hint="Axes of the jog and touch-off"
             )
-            self.step_mm = server.gui.add_number("Step (mm)", 5.0, min=0.1, max=200.0, step=0.1)
-            self.step_deg = server.gui.add_number("Step (deg)", 2.0, min=0.1, max=45.0, step=0.1)
-            self.speed = server.gui.add_number("Speed (mm/s)", 20.0, min=0.5, max=50.0, step=0.5)
+            self.step_mm = server.gui.add_number(
+                "Step (mm)",
+                limits.JOG_STEP_MM.default_value(),
+                min=0.1,
+                max=limits.JOG_STEP_MM.max,
+                step=0.1,
+            )
+            self.step_deg = server.gui.add_number(
+                "Step (deg)",
+                limits.JOG_TURN_DEG.default_value(),
+                min=0.1,
+                max=limits.JOG_TURN_DEG.max,
+                step=0.1,
+            )
+            self.speed = server.gui.add_number(
+                "Speed (mm/s)",
+                20.0,
+                min=limits.JOG_SPEED_MM_S.min,
+                max=limits.JOG_SPEED_MM_S.max,
+                step=0.5,
+            )
             self.jog_plus = server.gui.add_button_group("Jog +", ("+X", "+Y", "+Z"))
             self.jog_minus = server.gui.add_button_group("Jog -", ("-X", "-Y", "-Z"))
             self.rot_plus = server.gui.add_button_group("Turn +", ("+Rx", "+Ry", "+Rz"))
             self.rot_minus = server.gui.add_button_group("Turn -", ("-Rx", "-Ry", "-Rz"))
-            self.force = server.gui.add_number("Touch force (N)", 10.0, min=2.0, max=50.0)
-            self.travel = server.gui.add_number("Touch travel (mm)", 30.0, min=1.0, max=200.0)
+            self.force = server.gui.add_number(
+                "Touch force (N)",
+                limits.TOUCH_OFF_FORCE_N.default_value(),
+                min=limits.TOUCH_OFF_FORCE_N.min,
+                max=limits.TOUCH_OFF_FORCE_N.max,
+            )
+            self.travel = server.gui.add_number(
+                "Touch travel (mm)",
+                limits.TOUCH_OFF_TRAVEL_MM.default_value(),
+                min=1.0,  # more than the range's 0: a touch must move
+                max=limits.TOUCH_OFF_TRAVEL_MM.max,
+            )
             self.touch_plus = server.gui.add_button_group("Touch +", ("+X", "+Y", "+Z"))
             self.touch_minus = server.gui.add_button_group("Touch -", ("-X", "-Y", "-Z"))
             self.record = server.gui.add_button("Record guide point", color="orange")

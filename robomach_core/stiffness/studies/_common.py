@@ -13,7 +13,7 @@ from ...cell import Robot
 from ...errors import CancelledError
 from ...transforms import make_transform, rotation_about
 from ..milling import CHAPTER_END_MILLING
-from ..settings import CompensationSetting
+from ..modes import DEFAULT_OFFLINE_MODEL, Compensation, OfflineModel
 
 StudyName = Literal["identify", "gravity", "milling", "ilc", "compliance", "all"]
 STUDIES: tuple[str, ...] = tuple(s for s in get_args(StudyName) if s != "all")
@@ -80,7 +80,8 @@ class StudyOptions:
         test_poses: Poses where the identified model's prediction is scored.
         gravity_configurations: Configurations of the gravity calibration (the chapter: 15).
         ilc_iterations: ILC runs after the first.
-        mode: Compensation mode written to the settings file.
+        mode: Compensation written to the settings file (``modes.Compensation``).
+        offline_model: Its offline model, written with it and used by the RAPID export.
         rapid: Also write the offline-compensated milling program as RAPID.
         quick: Shorter cuts and fewer poses (tests, previews).
     """
@@ -92,7 +93,8 @@ class StudyOptions:
     test_poses: int = 30
     gravity_configurations: int = 15
     ilc_iterations: int = 6
-    mode: CompensationSetting = "online"
+    mode: Compensation = "online"
+    offline_model: OfflineModel = DEFAULT_OFFLINE_MODEL
     rapid: bool = False
     quick: bool = False
 

@@ -10,7 +10,7 @@ import numpy as np
 from ...cell import JointCompliance, Robot, Tool, true_joint_compliance
 from ...transforms import pose_error
 from .. import plots
-from ..compensation import CompensationMode, compensate_targets_and_joints
+from ..compensation import compensate_targets_and_joints
 from ..identification import (
     DEFAULT_LOADS_N,
     DEFAULT_TOOL_LOADS_N,
@@ -25,6 +25,7 @@ from ..milling import (
     CHAPTER_END_MILLING,
 )
 from ..model import cartesian_compliance, loaded_equilibrium
+from ..modes import OfflineModel
 from ._common import (
     DEFAULT_OPTIONS,
     Cancel,
@@ -146,7 +147,7 @@ def _linear_vs_nonlinear(
     gap: list[float] = []
     landing_lin: list[float] = []
     landing_nl: list[float] = []
-    mode: CompensationMode
+    mode: OfflineModel
     for load in loads:
         W = direction * load
         lin = loaded_equilibrium(robot, q_work, W, truth, mode="linear")

@@ -11,7 +11,7 @@ from ...cell import JointCompliance, Robot, Tool, ToolGravity, true_joint_compli
 from ...export.rapid import write_rapid_module
 from ...transforms import quaternion_from_matrix
 from .. import plots
-from ..compensation import CompensationMode, compensate_targets_and_joints
+from ..compensation import compensate_targets_and_joints
 from ..export import compensated_rapid_program
 from ..milling import (
     CHAPTER_END_MILLING,
@@ -22,7 +22,14 @@ from ..milling import (
     program_poses,
     simulate_milling,
 )
-from ..settings import COMPENSATION_SETTINGS
+from ..modes import (
+    COMPENSATIONS,
+    DEFAULT_OFFLINE_MODEL,
+    OFFLINE_MODELS,
+    Compensation,
+    OfflineModel,
+    variant_name,
+)
 from ._common import (
     DEFAULT_OPTIONS,
     RAPID_FILE,
@@ -39,6 +46,13 @@ from ._common import (
 )
 from ._gravity import run_gravity_study
 from ._identify import identified_model
+
+# The compensations the study compares: each one, offline with each model (``modes``).
+VARIANTS: tuple[tuple[Compensation, OfflineModel], ...] = tuple(
+    (c, m)
+    for c in COMPENSATIONS
+    for m in (OFFLINE_MODELS if c == "offline" else (DEFAULT_OFFLINE_MODEL,))
+)
 
 
 def _quick(scenario: MillingScenario) -> MillingScenario:
@@ -108,17 +122,18 @@ def run_milling_study(
     lund = replace(LUND_FACE_MILLING, surface_center_m=tuple(work_position_m(names["lund"])))
     if options.quick:
         chapter, lund = _quick(chapter), _quick(lund)
-    jobs = [(chapter, m) for m in COMPENSATION_SETTINGS]
-    jobs += [(lund, m) for m in COMPENSATION_SETTINGS if m != "offline_nonlinear"]
+    jobs = [(chapter, c, m) for c, m in VARIANTS]
+    jobs += [(lund, c, m) for c, m in VARIANTS if m == DEFAULT_OFFLINE_MODEL]  # Lund: linear only
     runs: dict[str, dict[str, MillingRun]] = {"chapter": {}, "lund": {}}
     width = (1.0 - share) / len(jobs)
-    for i, (scenario, setting) in enumerate(jobs):
+    for i, (scenario, compensation, offline_model) in enumerate(jobs):
         key = "chapter" if scenario.error_measure == "surface_depth" else "lund"
-        runs[key][setting] = simulate_milling(
+        runs[key][variant_name(compensation, offline_model)] = simulate_milling(
             robots[key],
             scenario,
             truths[key],
-            compensation=setting,
+            compensation=compensation,
+            offline_model=offline_model,
             model=known[names[key]],
             tool_gravity=tool_gravity,
             true_tool_gravity=true_tool_gravity,
@@ -186,6 +201,7 @@ def _milling_summary(
     """The study's figures: the chapter block's over-cut depth (max, mean, std) per
     compensation and the reduction of its max, and the Lund pass's lateral error [um]."""
     ch, lu = runs["chapter"], runs["lund"]
+    linear, nonlinear = (variant_name("offline", m) for m in OFFLINE_MODELS)
 
     def um(x: float) -> float:
         return float(x * 1e6)
@@ -200,23 +216,23 @@ def _milling_summary(
         "error_max_uncompensated_um": um(ch["off"].error_max_m),
         "error_mean_uncompensated_um": um(ch["off"].error_mean_m),
         "error_std_uncompensated_um": um(ch["off"].error_std_m),
-        "error_max_compensated_linear_um": um(ch["offline_linear"].error_max_m),
-        "error_max_compensated_nonlinear_um": um(ch["offline_nonlinear"].error_max_m),
+        "error_max_compensated_linear_um": um(ch[linear].error_max_m),
+        "error_max_compensated_nonlinear_um": um(ch[nonlinear].error_max_m),
         "error_max_compensated_online_um": um(ch["online"].error_max_m),
         "error_mean_compensated_online_um": um(ch["online"].error_mean_m),
-        "error_std_compensated_um": um(ch["offline_linear"].error_std_m),
-        "error_std_compensated_nonlinear_um": um(ch["offline_nonlinear"].error_std_m),
+        "error_std_compensated_um": um(ch[linear].error_std_m),
+        "error_std_compensated_nonlinear_um": um(ch[nonlinear].error_std_m),
         "error_std_compensated_online_um": um(ch["online"].error_std_m),
-        "error_max_reduction_linear_percent": reduction(ch["off"], ch["offline_linear"]),
-        "error_max_reduction_nonlinear_percent": reduction(ch["off"], ch["offline_nonlinear"]),
+        "error_max_reduction_linear_percent": reduction(ch["off"], ch[linear]),
+        "error_max_reduction_nonlinear_percent": reduction(ch["off"], ch[nonlinear]),
         "error_max_reduction_online_percent": reduction(ch["off"], ch["online"]),
         "face_scenario": lund.name,
         "face_error_max_uncompensated_um": um(lu["off"].error_max_m),
         "face_error_std_uncompensated_um": um(lu["off"].error_std_m),
         "face_error_max_compensated_um": um(lu["online"].error_max_m),
         "face_error_std_compensated_um": um(lu["online"].error_std_m),
-        "face_error_max_compensated_offline_um": um(lu["offline_linear"].error_max_m),
-        "face_error_std_compensated_offline_um": um(lu["offline_linear"].error_std_m),
+        "face_error_max_compensated_offline_um": um(lu[linear].error_max_m),
+        "face_error_std_compensated_offline_um": um(lu[linear].error_std_m),
         "quick": quick,
     }
 
@@ -230,6 +246,7 @@ def _write_run_files(
     """The runs' CSVs (the chapter block's surface per compensation, the Lund pass's lateral
     error, the chapter runs' time series) and the two plots."""
     ch, lu = runs["chapter"], runs["lund"]
+    linear, nonlinear = (variant_name("offline", m) for m in OFFLINE_MODELS)
     files: list[Path] = []
     modes = list(ch)
     files.append(
@@ -351,9 +368,8 @@ def _write_compensated_rapid(
     options: StudyOptions,
 ) -> Path:
     """``milling_compensated.mod``: the chapter program with offline-compensated robtargets
-    (non-linear for ``offline_nonlinear``, else linear) at the block's feed."""
+    (the options' offline model) at the block's feed."""
     _, Ts, joints, wrenches = table
-    kind: CompensationMode = "nonlinear" if options.mode == "offline_nonlinear" else "linear"
     program = compensated_rapid_program(
         robot,
         tool,
@@ -361,7 +377,7 @@ def _write_compensated_rapid(
         joints,
         wrenches,
         model,
-        kind,
+        options.offline_model,
         speed_mm_s=chapter.feed_speed_m_s * 1e3,
         module_name="CompensatedMilling",
     )

@@ -104,12 +104,13 @@ def run_studies(
             ident: StiffnessIdentification = results["identify"].objects["identification"]
             mode = options.mode
             if mode == "online" and tool_gravity is None:
-                mode = "offline_linear"  # online needs the tool gravity of the gravity study
+                mode = "offline"  # online needs the tool gravity of the gravity study
             save_settings(
                 CompensationSettings(
                     robot=study_robot(options, "identify"),
                     joint_stiffness_Nm_rad=ident.model.stiffness_Nm_rad,
                     mode=mode,
+                    offline_model=options.offline_model,
                     joint_stiffness_std_Nm_rad=tuple(ident.standard_error_Nm_rad.tolist()),
                     tool_gravity=tool_gravity,
                 ),

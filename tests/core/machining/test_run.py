@@ -193,7 +193,7 @@ def test_offline_program_moves_the_targets_against_the_predicted_force(
     from robomach_core.stiffness import CompensationSettings
 
     ident = identify_stiffness(robot.name, seed=0)
-    settings = CompensationSettings(robot.name, ident.model.stiffness_Nm_rad, mode="offline_linear")
+    settings = CompensationSettings(robot.name, ident.model.stiffness_Nm_rad, mode="offline")
     run = run_machining(
         robot,
         short_program,

@@ -24,7 +24,6 @@ from robomach_core.limits import (
     MACHINING_PROCESS_GAIN_N,
 )
 from robomach_core.machining import (
-    COMPENSATION_NAMES,
     MACHINING_CONTROLLERS,
     MachiningSettings,
     builtin_stock,
@@ -34,6 +33,7 @@ from robomach_core.machining import (
 from robomach_core.machining.parallel import CutTask, run_tasks
 from robomach_core.machining.variation import StockVariation, draw_stocks
 from robomach_core.postprocess import Targets
+from robomach_core.stiffness import COMPENSATIONS
 
 MM = 1e-3
 
@@ -138,7 +138,7 @@ def _tiny(program: Targets, count: int = 16) -> Targets:
     beta=st.floats(MACHINING_FEED_EXPONENT.min, MACHINING_FEED_EXPONENT.max),
     limit=st.floats(MACHINING_FORCE_LIMIT_N.min, MACHINING_FORCE_LIMIT_N.max),
     controller=st.sampled_from(MACHINING_CONTROLLERS),
-    compensation=st.sampled_from(COMPENSATION_NAMES),
+    compensation=st.sampled_from(COMPENSATIONS),
 )
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @pytest.mark.slow  # a sweep of cuts across the documented ranges

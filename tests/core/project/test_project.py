@@ -136,7 +136,7 @@ def _compensation():
     from robomach_core.cell.joint_compliance import TRUE_JOINT_STIFFNESS_NM_RAD
     from robomach_core.stiffness import CompensationSettings
 
-    return CompensationSettings("ur10", TRUE_JOINT_STIFFNESS_NM_RAD["ur10"], mode="offline_linear")
+    return CompensationSettings("ur10", TRUE_JOINT_STIFFNESS_NM_RAD["ur10"], mode="offline")
 
 
 def test_one_settings_document_and_one_header(processed) -> None:
@@ -157,9 +157,8 @@ def test_one_settings_document_and_one_header(processed) -> None:
         "settings.json",
     }
     doc = json.loads(files["settings.json"])
-    assert (
-        doc["cmrr"]["controller"] == "two-stage" and doc["compensation"]["mode"] == "offline_linear"
-    )
+    assert doc["cmrr"]["controller"] == "two-stage" and doc["compensation"]["mode"] == "offline"
+    assert doc["compensation"]["offline_model"] == "linear"
     assert doc["cell"]["workpiece"] == "block" and doc["path_learning"]["closed"] is False
     assert doc["result"]["targets"] == len(carried.processed.result.targets)
     program = files["program.mod"]
@@ -168,7 +167,8 @@ def test_one_settings_document_and_one_header(processed) -> None:
     assert all(f"! {line}" in program for line in header.splitlines())
     assert "FCSpdChgAct" in program and "CMRR: two-stage" in program
     # Zero learned wrench: compensation moves nothing (zero at zero load).
-    assert "deflection compensation: offline_linear, largest target correction 0.0000 mm" in program
+    correction = "deflection compensation: offline (linear), largest target correction 0.0000 mm"
+    assert correction in program
     fc = files["program_fc.mod"]
     check_rapid_module(fc)
     assert fc.startswith("MODULE LearnedPathFC") and "FCSpdChgAct" not in fc

@@ -148,3 +148,33 @@ def test_members_robomach_does_not_write_are_never_read(bomb_parts):
         tracemalloc.stop()
     assert len(project.learned.recording) == 400
     assert peak < 100e6, f"{peak / 1e6:.0f} MB"
+
+
+@pytest.mark.parametrize("model", ["linear", "nonlinear"])
+def test_a_project_saved_with_the_old_compensation_spelling_loads_by_the_rule(
+    good_bytes: bytes, model: str
+):
+    """Issue 30: a project.npz written before the one vocabulary holds a version-1 compensation
+    document (``"mode": "offline_<model>"``); it loads as offline with that model, and is
+    saved back in the one vocabulary (nothing dropped, nothing silently changed)."""
+    from robomach_core.cell.joint_compliance import TRUE_JOINT_STIFFNESS_NM_RAD
+
+    def old_compensation(doc: dict) -> None:
+        doc["compensation"] = {
+            "format": "robomach.compensation",
+            "version": 1,
+            "robot": "ur10",
+            "mode": f"offline_{model}",
+            "joint_stiffness_Nm_rad": list(TRUE_JOINT_STIFFNESS_NM_RAD["ur10"]),
+            "force_filter_cutoff_hz": 30.0,
+        }
+
+    project = project_from_file_bytes(with_document(good_bytes, old_compensation))
+    assert (project.compensation.mode, project.compensation.offline_model) == ("offline", model)
+    again = project_from_file_bytes(project_file_bytes(project))
+    assert again.compensation == project.compensation
+    doc = json.loads(arrays_of(project_file_bytes(project))["document"].tobytes())
+    assert (doc["compensation"]["mode"], doc["compensation"]["offline_model"]) == (
+        "offline",
+        model,
+    )

@@ -117,7 +117,8 @@ def test_the_choice_is_the_cmrr_and_compensation_settings(block_project):
     assert p.cmrr.controller.kind == "adaptive-pi" and p.compensation is None
     assert p.cmrr.reference_force_N == pytest.approx(105.0)
     p = core.choose(p, "constant", "offline")
-    assert p.cmrr is None and p.compensation.mode == "offline_linear"
+    assert p.cmrr is None and p.compensation.mode == "offline"
+    assert p.compensation.offline_model == "linear"
     setup = core.machining_setup_of(p)
     assert (setup.settings.controller, setup.settings.compensation) == ("constant", "offline")
     # A CMRR controller set another way (a study) is the machining controller.
@@ -151,7 +152,7 @@ def test_compensation_settings_of_another_arm_are_re_derived_not_blocking_the_ex
 
     p = core.with_machining_setup(block_project, core.MachiningSetup())
     p = core.choose(p, "constant", "offline")
-    other = CompensationSettings("ur5", (1e5,) * 6, mode="offline_linear")
+    other = CompensationSettings("ur5", (1e5,) * 6, mode="offline", offline_model="nonlinear")
     p = replace(p, compensation=other)
     assert "ur5" in core.stale_settings(p)["compensation"]
     workpiece = core.build_workpiece(p.cell, p.mesh)
@@ -161,8 +162,13 @@ def test_compensation_settings_of_another_arm_are_re_derived_not_blocking_the_ex
         "identified on ur5" in files["program.mod"]
         and "re-derives it for ur10" in files["program.mod"]
     )
-    # The CMRR choice and the mode are kept (no "Remove" needed).
-    assert p.compensation.mode == "offline_linear"
+    # The CMRR choice and the mode are kept (no "Remove" needed), and the offline model.
+    assert (p.compensation.mode, p.compensation.offline_model) == ("offline", "nonlinear")
+    # Choosing again (here online, then offline) re-derives for the cell's arm and keeps the
+    # user's offline model: one word for the choice, the model a setting of its own.
+    again = core.choose(core.choose(p, "constant", "online"), "constant", "offline")
+    assert again.compensation.robot == "ur10"
+    assert (again.compensation.mode, again.compensation.offline_model) == ("offline", "nonlinear")
 
 
 def test_a_result_is_re_chosen_for_another_cell_without_running_again():

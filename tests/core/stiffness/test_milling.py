@@ -41,14 +41,18 @@ def test_no_force_leaves_the_programmed_surface(robot, truth):
     assert run.error_max_m < 1e-9
 
 
-@pytest.mark.parametrize("mode", ["online", "offline_linear", "offline_nonlinear"])
-def test_compensation_is_zero_at_zero_load(robot, truth, mode):
+COMPENSATED = [("online", "linear"), ("offline", "linear"), ("offline", "nonlinear")]
+
+
+@pytest.mark.parametrize(("mode", "offline_model"), COMPENSATED)
+def test_compensation_is_zero_at_zero_load(robot, truth, mode, offline_model):
     quiet = replace(SHORT, feed_force_N=0.0, cutting_force_N=0.0, normal_force_N=0.0)
     exact_sensor = {"sensor_force_noise_N": 0.0, "sensor_torque_noise_Nm": 0.0}
     plain = simulate_milling(robot, quiet, truth, true_tool_gravity=TOOL, **exact_sensor)
     comp = simulate_milling(
-        robot, quiet, truth, compensation=mode, model=truth, tool_gravity=TOOL, **exact_sensor
-    )
+        robot, quiet, truth, compensation=mode, offline_model=offline_model, model=truth,
+        tool_gravity=TOOL, **exact_sensor,
+    )  # fmt: skip
     np.testing.assert_allclose(comp.position_actual_m, plain.position_actual_m, atol=1e-9)
 
 
@@ -59,12 +63,15 @@ def test_chapter_forces_cut_too_deep_without_compensation(robot, truth):
     assert np.all(run.error_m >= 0.0)
 
 
-@pytest.mark.parametrize("mode", ["online", "offline_linear", "offline_nonlinear"])
-def test_compensation_with_a_perfect_model_removes_most_of_the_error(robot, truth, mode):
+@pytest.mark.parametrize(("mode", "offline_model"), COMPENSATED)
+def test_compensation_with_a_perfect_model_removes_most_of_the_error(
+    robot, truth, mode, offline_model
+):
     plain = simulate_milling(robot, SHORT, truth, seed=2, true_tool_gravity=TOOL)
     comp = simulate_milling(
-        robot, SHORT, truth, compensation=mode, model=truth, tool_gravity=TOOL, seed=2
-    )
+        robot, SHORT, truth, compensation=mode, offline_model=offline_model, model=truth,
+        tool_gravity=TOOL, seed=2,
+    )  # fmt: skip
     assert comp.error_mean_m < 0.1 * plain.error_mean_m
     # Force noise the model cannot predict stays (the deepest excursion cuts); online also lags
     # the force by a step and a filter, which this fast feed shows at the entry.
@@ -89,4 +96,6 @@ def test_progress_and_cancel(robot, truth):
 
 def test_compensation_without_model_is_refused(robot, truth):
     with pytest.raises(InvalidInputError):
-        simulate_milling(robot, SHORT, truth, compensation="offline_linear")
+        simulate_milling(robot, SHORT, truth, compensation="offline")
+    with pytest.raises(InvalidInputError, match="off, offline, online"):
+        simulate_milling(robot, SHORT, truth, compensation="offline_linear", model=truth)
