@@ -586,14 +586,33 @@ def walk_route(
     return out
 
 
-def _walk_off_points(
-    walks: Sequence[LegWalk], guides: Sequence[GuidePoint], axis: np.ndarray
-) -> float:
-    """The median over the guide points of how far across the axis the walk passes them [m]."""
-    pts = np.vstack([w.points_m for w in walks])
-    rel = np.array([g.position_m for g in guides])[:, None, :] - pts[None, :, :]
-    across = rel - np.einsum("gpi,i->gp", rel, axis)[..., None] * axis
-    return float(np.median(np.linalg.norm(across, axis=2).min(axis=1)))
+def walk_travel(
+    guides: Sequence[GuidePoint],
+    legs: Sequence[Leg],
+    walks: Sequence[LegWalk],
+    axis: np.ndarray,
+    sign: float,
+) -> np.ndarray:
+    """(n, 3) the way the walk travels past each guide point: its direction along the wall at
+    the walk's point nearest the guide point, on the legs to and from it (else on any leg),
+    where that is within ``AT_WALL_GAP_M`` across the axis; zero elsewhere and without a walk."""
+    out = np.zeros((len(guides), 3))
+    every = [w for w in walks if len(w.points_m)]
+    for k, g in enumerate(guides):
+        adjacent = [w for leg, w in zip(legs, walks, strict=False)
+                    if k in (leg.first, leg.last) and len(w.points_m)]  # fmt: skip
+        for near in (adjacent, every):  # a leg's walk may end before its point: then any leg's
+            if not near:
+                continue
+            pts = np.vstack([w.points_m for w in near])
+            towards = np.vstack([w.towards_m for w in near])
+            rel = pts - g.position_m
+            across = np.linalg.norm(rel - np.outer(rel @ axis, axis), axis=1)
+            j = int(np.argmin(across))
+            if across[j] <= th.AT_WALL_GAP_M and np.any(towards[j]):
+                out[k] = sign * _cross(towards[j], axis)
+                break
+    return out
 
 
 def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -700,24 +719,8 @@ class LearningRoute:
 
     @property
     def guide_travel(self) -> np.ndarray:
-        """(n, 3) the way the walk travels past each guide point: its direction along the
-        wall at the walk's point nearest the guide point, on the legs to and from it, where
-        that is within ``AT_WALL_GAP_M`` across the axis; zero elsewhere and without a walk."""
-        out = np.zeros((len(self.guides), 3))
-        sign, axis = self.wall_side.sign, self.axis
-        for k, g in enumerate(self.guides):
-            near = [w for leg, w in zip(self.legs, self.walks, strict=False)
-                    if k in (leg.first, leg.last) and len(w.points_m)]  # fmt: skip
-            if not near:
-                continue
-            pts = np.vstack([w.points_m for w in near])
-            towards = np.vstack([w.towards_m for w in near])
-            rel = pts - g.position_m
-            across = np.linalg.norm(rel - np.outer(rel @ axis, axis), axis=1)
-            j = int(np.argmin(across))
-            if across[j] <= th.AT_WALL_GAP_M and np.any(towards[j]):
-                out[k] = sign * _cross(towards[j], axis)
-        return out
+        """(n, 3) the way the walk travels past each guide point (``walk_travel``)."""
+        return walk_travel(self.guides, self.legs, self.walks, self.axis, self.wall_side.sign)
 
     def leg_offsets(self, leg: Leg) -> tuple[float, float]:
         o = self.heights.offsets_m
@@ -769,33 +772,14 @@ def plan_route(
     first_wall = walls.wall_point(first, towards, 2 * th.AT_WALL_GAP_M)
     if first_wall is None:  # the part may not be where its mesh is: the run searches by force
         return route
-    offsets = [route.leg_offsets(leg) for leg in legs]
-    starts = [first_wall]
-    (nearest,), (dist,), (on_face,) = walls.feet(first[None])
-    if on_face and dist <= th.AT_WALL_GAP_M + tool_radius_m:
-        if float(np.linalg.norm(nearest - first_wall)) > th.MIN_SPACING_M:
-            starts.append(nearest)  # the wall the point stands by, if the chord says another
-    tried = []
-    for wall_point in starts:
-        start_dir = wall_point - first
-        start_dir -= axis * float(start_dir @ axis)
-        if float(np.linalg.norm(start_dir)) < 1e-9:
-            continue
-        start_dir /= float(np.linalg.norm(start_dir))
-        start = first + start_dir * (float(np.linalg.norm(wall_point - first)) - tool_radius_m)
-        walks = walk_route(legs, heights, offsets, decision.sign, walls, start, closed=closed)
-        tried.append((start_dir, start, walks))
-    if not tried:
+    start_dir = first_wall - first
+    start_dir -= axis * float(start_dir @ axis)
+    if float(np.linalg.norm(start_dir)) < 1e-9:
         return route
-    if len(tried) > 1:
-        # the first point's chord runs across its wall (a bay, a jog): the wall the points
-        # were taught on is the one whose walk reaches every leg and passes nearest them
-        best = min(
-            tried, key=lambda t: (not t[2][-1].reached, _walk_off_points(t[2], guides, axis))
-        )
-        if best is not tried[-1]:  # walk it again: the height reference keeps the last walk's
-            walks = walk_route(legs, heights, offsets, decision.sign, walls, best[1], closed=closed)
-        start_dir = best[0]
+    start_dir /= float(np.linalg.norm(start_dir))
+    offsets = [route.leg_offsets(leg) for leg in legs]
+    start = first + start_dir * (float(np.linalg.norm(first_wall - first)) - tool_radius_m)
+    walks = walk_route(legs, heights, offsets, decision.sign, walls, start, closed=closed)
     problem = open_wall_return(walks, legs, tool_radius_m) if closed else ""
     for leg, walk in zip(legs, walks, strict=False):
         if not problem and walk.off_floor_m > th.OPEN_RETURN_M:
