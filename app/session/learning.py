@@ -348,7 +348,9 @@ class Learning:
             route = core.route_of(view.project, settings, workpiece)
             with mesh_query.LOCK:
                 walls = PartWalls(workpiece, route.axis, radius)
-                points = taught_wall_points(guides, route.wall_side.side, closed, walls)
+                points = taught_wall_points(
+                    guides, route.wall_side.side, closed, walls, travel=route.guide_travel
+                )
         except RouteRefusedError as exc:
             return [], f"wall side: {exc}"
         decision = route.wall_side

@@ -262,20 +262,22 @@ def taught_wall_check(
     lifted_m: Sequence[float] | None = None,
     samples_m: np.ndarray | None = None,
     tolerance_m: float | None = None,
+    travel: Sequence[Sequence[float]] | None = None,
 ) -> TaughtWallCheck:
     """The program (targets and moves) against the wall points the guide points face on
     ``side``, the side the route decided and the run followed, at the heights they were
     learned at (``lifted_m`` off the floor) (module docstring). With the learned ``samples_m``
     (the path the program was reduced from) and the reduction's ``tolerance_m``, a miss the
     learned path does not share is named as the tolerance's (issue 31: a 4 mm tolerance was
-    reported as a path learned on another wall)."""
+    reported as a path learned on another wall). ``travel``: the route's walk past each point
+    (``LearningRoute.guide_travel``), which gives the side's direction where it passed."""
     if side not in ("left", "right") or len(guides) < 2:
         return TaughtWallCheck(True, (), (), 0.0, "the taught wall is not known")
     axis = mean_tool_axis(guides)
     walls = PartWalls(workpiece, axis, tool_radius_m)
     if walls.walls is None:
         return TaughtWallCheck(True, (), (), 0.0, "no wall found in the part's mesh")
-    points = taught_wall_points(guides, side, closed, walls, lifted_m)
+    points = taught_wall_points(guides, side, closed, walls, lifted_m, travel)
     pts = np.asarray(positions_m, dtype=float)
     moves = linear_moves(len(pts)) if moves is None else tuple(moves)
     path = sample_moves(pts, moves, spacing_m=2.5e-4)
@@ -317,7 +319,14 @@ def taught_wall_check(
         return TaughtWallCheck(True, (), (), 0.0, "no taught wall found in the part's mesh")
     if missed and samples_m is not None and tolerance_m is not None and len(samples_m) >= 2:
         learned = taught_wall_check(
-            workpiece, tool_radius_m, guides, side, samples_m, closed=closed, lifted_m=lifted_m
+            workpiece,
+            tool_radius_m,
+            guides,
+            side,
+            samples_m,
+            closed=closed,
+            lifted_m=lifted_m,
+            travel=travel,
         )
         if not set(missed) & set(learned.missed):
             where = ", ".join(f"G{k}" for k in missed)

@@ -327,11 +327,19 @@ def taught_wall_points(
     closed: bool,
     walls: PartWalls,
     lifted_m: Sequence[float] | None = None,
+    travel: np.ndarray | Sequence[Sequence[float]] | None = None,
 ) -> list[np.ndarray | None]:
     """The wall point each guide point was taught on: the nearest wall on its side of travel,
     within ``AT_WALL_GAP_M`` of the cutter, at the height it is learned at (``lifted_m`` above
-    where it was recorded, off the floor); None where none is."""
+    where it was recorded, off the floor); None where none is. The travel at a point is the
+    walk's past it (``travel``, ``LearningRoute.guide_travel``: the way along its wall) where
+    the walk passed it, else the chord through its neighbours (beside a jog of the wall, the
+    chord runs across it and its side is the other wall's)."""
     axis, right = right_of_travel(guides, closed)
+    walked = np.zeros((0, 3)) if travel is None else np.asarray(travel, dtype=float)
+    if walked.shape == right.shape:
+        along = np.linalg.norm(walked, axis=1) > 0.5
+        right[along] = np.cross(axis, walked[along])
     towards = right * (1.0 if side == "right" else -1.0)
     reach = th.AT_WALL_GAP_M + walls.radius
     lift = np.zeros(len(guides)) if lifted_m is None or not len(lifted_m) else lifted_m
@@ -578,6 +586,35 @@ def walk_route(
     return out
 
 
+def walk_travel(
+    guides: Sequence[GuidePoint],
+    legs: Sequence[Leg],
+    walks: Sequence[LegWalk],
+    axis: np.ndarray,
+    sign: float,
+) -> np.ndarray:
+    """(n, 3) the way the walk travels past each guide point: its direction along the wall at
+    the walk's point nearest the guide point, on the legs to and from it (else on any leg),
+    where that is within ``AT_WALL_GAP_M`` across the axis; zero elsewhere and without a walk."""
+    out = np.zeros((len(guides), 3))
+    every = [w for w in walks if len(w.points_m)]
+    for k, g in enumerate(guides):
+        adjacent = [w for leg, w in zip(legs, walks, strict=False)
+                    if k in (leg.first, leg.last) and len(w.points_m)]  # fmt: skip
+        for near in (adjacent, every):  # a leg's walk may end before its point: then any leg's
+            if not near:
+                continue
+            pts = np.vstack([w.points_m for w in near])
+            towards = np.vstack([w.towards_m for w in near])
+            rel = pts - g.position_m
+            across = np.linalg.norm(rel - np.outer(rel @ axis, axis), axis=1)
+            j = int(np.argmin(across))
+            if across[j] <= th.AT_WALL_GAP_M and np.any(towards[j]):
+                out[k] = sign * _cross(towards[j], axis)
+                break
+    return out
+
+
 def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.array(
         [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
@@ -679,6 +716,11 @@ class LearningRoute:
     start_towards_wall: np.ndarray | None = None
     leg_wander_m: dict[tuple[int, int], float] = field(default_factory=dict)
     walks: tuple[LegWalk, ...] = ()
+
+    @property
+    def guide_travel(self) -> np.ndarray:
+        """(n, 3) the way the walk travels past each guide point (``walk_travel``)."""
+        return walk_travel(self.guides, self.legs, self.walks, self.axis, self.wall_side.sign)
 
     def leg_offsets(self, leg: Leg) -> tuple[float, float]:
         o = self.heights.offsets_m

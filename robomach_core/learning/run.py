@@ -126,6 +126,9 @@ class Recording:
             person set is never overruled by the checks.
         guide_lift_m: How far the route lifted each guide point off the floor [m] (empty for
             older recordings): the checks look for each point's wall at the height learned.
+        guide_travel: The way the route's walk on the mesh travels past each guide point, (3,)
+            unit or zero where it does not pass (``LearningRoute.guide_travel``; empty for
+            older recordings and without a mesh): the checks take each point's side from it.
     """
 
     time_s: np.ndarray
@@ -146,6 +149,7 @@ class Recording:
     wall_side_reason: str = ""
     wall_side_source: str = ""
     guide_lift_m: tuple[float, ...] = ()
+    guide_travel: tuple[tuple[float, float, float], ...] = ()
 
     def __len__(self) -> int:
         return len(self.time_s)
@@ -526,4 +530,5 @@ def _recording(
         wall_side_reason=decision.detail,
         wall_side_source=decision.source,
         guide_lift_m=tuple(float(v) for v in route.lifted_m),
+        guide_travel=tuple((float(x), float(y), float(z)) for x, y, z in route.guide_travel),
     )

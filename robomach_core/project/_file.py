@@ -90,6 +90,7 @@ def recording_document(learned: LearnedPath) -> dict[str, Any]:
         "wall_side_reason": rec.wall_side_reason,
         "wall_side_source": rec.wall_side_source,
         "guide_lift_m": list(rec.guide_lift_m),
+        "guide_travel": [list(t) for t in rec.guide_travel],
         "learning": asdict(learned.settings),
         "inputs": learned.inputs,
     }
@@ -106,6 +107,7 @@ def recording_from_document(info: dict[str, Any], fields: dict[str, np.ndarray])
         wall_side_reason=str(info.get("wall_side_reason", "")),
         wall_side_source=str(info.get("wall_side_source", "")),
         guide_lift_m=_finite_floats(info.get("guide_lift_m")),
+        guide_travel=_directions(info.get("guide_travel")),
     )
 
 
@@ -240,3 +242,14 @@ def _finite_floats(value: object) -> tuple[float, ...]:
     ):
         return ()
     return tuple(float(v) for v in value)
+
+
+def _directions(value: object) -> tuple[tuple[float, float, float], ...]:
+    """A list of (3,) directions from a project file as a tuple; anything else as none (an
+    older or hand-edited file: the checks then take each point's side from the chords)."""
+    if not isinstance(value, list) or not all(isinstance(v, list) and len(v) == 3 for v in value):
+        return ()
+    rows = tuple(_finite_floats(v) for v in value)
+    if any(len(r) != 3 for r in rows):
+        return ()
+    return tuple((r[0], r[1], r[2]) for r in rows)

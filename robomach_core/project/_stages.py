@@ -174,6 +174,7 @@ def _scores(
                 moves,
                 closed=learned.settings.closed,
                 lifted_m=rec.guide_lift_m,
+                travel=rec.guide_travel,
                 # the path the program was reduced from, every 10th kept sample (0.2 mm apart
                 # at 5 mm/s): a miss it does not share is the tolerance's
                 samples_m=result.surface_m[result.keep_mask][::10],
