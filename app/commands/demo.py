@@ -449,7 +449,13 @@ def _project(
     resolve_languages(Robot(robot), args.language)
     mesh = Path(args.workpiece)
     if mesh.suffix:
-        project = core.with_uploaded_mesh(project, *read_mesh_file(mesh))
+        from robomach_core.part import mesh_from_bytes
+
+        filename, data = read_mesh_file(mesh)
+        name = core.mesh_file_name(filename)
+        # parsed and checked first, as an upload is (a flat or broken file says so here)
+        mesh_from_bytes(data, Path(name).suffix, name=Path(name).stem)
+        project = core.with_uploaded_mesh(project, filename, data)
     project = core.with_cell(
         project,
         robot=robot,
