@@ -59,10 +59,13 @@ PARAMETER_COUNT = 22
 
 # A leg of the route, one row of ``legs``: start a (3), unit direction xp (3), length, the
 # orientation at a (9, row-major), the rotation vector omega to the orientation at its end
-# (3, in a's axes: slerp R_a exp(f omega)), the index of its first guide point, and the height
-# offsets over the reference surface at its two ends (``route.HeightReference``).
+# (3, in a's axes: slerp R_a exp(f omega)), the index of its first guide point, the height
+# offsets over the reference surface at its two ends (``route.HeightReference``), and the
+# chord the height's progress is measured along (start (3), unit direction (3), length: the
+# walk's points beside the two guide points, ``route.Leg.height_chord``).
 LEG_A, LEG_XP, LEG_LENGTH, LEG_RA, LEG_OMEGA, LEG_FIRST, LEG_OFFSETS = 0, 3, 6, 7, 16, 19, 20
-LEG_SIZE = 22
+LEG_HA, LEG_HXP, LEG_HLENGTH = 22, 25, 28
+LEG_SIZE = 29
 # The height reference under the tool (``route.HeightReference.at``): the surface's height
 # along the axis H0 at P0 (3), its gradient G (3) across the axis, and the offsets' factor K.
 REF_H0, REF_G, REF_P0, REF_K = 0, 1, 4, 7
@@ -98,9 +101,9 @@ def route_height(leg: np.ndarray, ref: np.ndarray, p: np.ndarray, axis: np.ndarr
     s = 0.0
     dh = 0.0
     for i in range(3):
-        s += (p[i] - leg[LEG_A + i]) * leg[LEG_XP + i]
+        s += (p[i] - leg[LEG_HA + i]) * leg[LEG_HXP + i]
         dh += ref[REF_G + i] * (p[i] - ref[REF_P0 + i])
-    f = min(max(s / leg[LEG_LENGTH], 0.0), 1.0)
+    f = min(max(s / leg[LEG_HLENGTH], 0.0), 1.0)
     o_a, o_b = leg[LEG_OFFSETS], leg[LEG_OFFSETS + 1]
     return ref[REF_H0] + dh + ref[REF_K] * (o_a + (o_b - o_a) * f)
 
@@ -187,10 +190,11 @@ def contour_law(
     else:
         v_t = 0.0  # the first search: straight across to the wall, nothing skipped
     # no faster than the height loop can follow the route's climb along the leg (a point
-    # taught 12 mm above its neighbour 2 mm away): dh/ds = K (o_b - o_a) / L + G . xp
-    slope = ref[REF_K] * (leg[LEG_OFFSETS + 1] - leg[LEG_OFFSETS]) / leg[LEG_LENGTH]
+    # taught 12 mm above its neighbour 2 mm away): dh/ds = K (o_b - o_a) / L + G . xp, along
+    # the height's chord
+    slope = ref[REF_K] * (leg[LEG_OFFSETS + 1] - leg[LEG_OFFSETS]) / leg[LEG_HLENGTH]
     for i in range(3):
-        slope += ref[REF_G + i] * leg_xp[i]
+        slope += ref[REF_G + i] * leg[LEG_HXP + i]
     v_t = min(v_t, params[P_CLIMB] * params[P_HEIGHT_SPEED] / max(abs(slope), 1e-9))
     if not touching:
         out[OUT_OF_CONTACT] += math.sqrt(v_t * v_t + v_w * v_w) * dt

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -65,12 +65,35 @@ class Leg:
     omega: np.ndarray  # rotation vector from Ra to Rb, in Ra's axes (slerp Ra exp(f omega))
     first: int
     last: int
+    beside: tuple[np.ndarray, np.ndarray] | None = None  # the walk's points beside a and b
+
+    @property
+    def height_chord(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """(start, unit direction, length) the height's progress along the leg is measured
+        on: the walk's points beside its two guide points, where the route was walked and
+        they stand ``MIN_SPACING_M`` apart or more, else the leg's own chord. Where a leg runs
+        across the wall (a point taught off it, a neighbour close by on it), progress along
+        its chord lags the travel along the wall, and a climb between the points came late."""
+        if self.beside is not None:
+            a, b = self.beside
+            d = b - a
+            n = float(np.linalg.norm(d))
+            if n >= th.MIN_SPACING_M:
+                return a, d / n, n
+        return self.a, self.xp, self.length
+
+    def progress(self, p: np.ndarray) -> float:
+        """The share of the leg's height change done at ``p`` (0 to 1, ``law.route_height``)."""
+        a, d, n = self.height_chord
+        return min(max(float((p - a) @ d) / n, 0.0), 1.0)
 
     def row(self, offsets: tuple[float, float]) -> np.ndarray:
         """The leg as a row of the law's leg table (``law.LEG_A`` ...)."""
+        ha, hxp, hlength = self.height_chord
         out = np.concatenate(
-            [self.a, self.xp, [self.length], self.Ra.ravel(), self.omega, [self.first], offsets]
-        )
+            [self.a, self.xp, [self.length], self.Ra.ravel(), self.omega, [self.first], offsets,
+             ha, hxp, [hlength]]
+        )  # fmt: skip
         assert len(out) == LEG_SIZE
         return out
 
@@ -586,17 +609,13 @@ def walk_route(
     return out
 
 
-def walk_travel(
-    guides: Sequence[GuidePoint],
-    legs: Sequence[Leg],
-    walks: Sequence[LegWalk],
-    axis: np.ndarray,
-    sign: float,
-) -> np.ndarray:
-    """(n, 3) the way the walk travels past each guide point: its direction along the wall at
-    the walk's point nearest the guide point, on the legs to and from it (else on any leg),
-    where that is within ``AT_WALL_GAP_M`` across the axis; zero elsewhere and without a walk."""
-    out = np.zeros((len(guides), 3))
+def walk_beside(
+    guides: Sequence[GuidePoint], legs: Sequence[Leg], walks: Sequence[LegWalk], axis: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray] | None]:
+    """For each guide point, the walk's point nearest it across the axis and the walk's wall
+    direction there, on the legs to and from it (else on any leg), where that is within
+    ``AT_WALL_GAP_M``; None elsewhere and without a walk."""
+    out: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(guides)
     every = [w for w in walks if len(w.points_m)]
     for k, g in enumerate(guides):
         adjacent = [w for leg, w in zip(legs, walks, strict=False)
@@ -610,8 +629,40 @@ def walk_travel(
             across = np.linalg.norm(rel - np.outer(rel @ axis, axis), axis=1)
             j = int(np.argmin(across))
             if across[j] <= th.AT_WALL_GAP_M and np.any(towards[j]):
-                out[k] = sign * _cross(towards[j], axis)
+                out[k] = (pts[j], towards[j])
                 break
+    return out
+
+
+def _walked_legs(
+    legs: Sequence[Leg], beside: Sequence[tuple[np.ndarray, np.ndarray] | None], axis: np.ndarray
+) -> tuple[Leg, ...]:
+    """The legs with the walk's points beside their guide points (``Leg.height_chord``), the
+    second at the first's height: the chord runs across the axis, as the legs do."""
+    out = []
+    for leg in legs:
+        a, b = beside[leg.first], beside[leg.last]
+        if a is None or b is None:
+            out.append(leg)
+            continue
+        b_across = b[0] - axis * float((b[0] - a[0]) @ axis)
+        out.append(replace(leg, beside=(a[0], b_across)))
+    return tuple(out)
+
+
+def walk_travel(
+    guides: Sequence[GuidePoint],
+    legs: Sequence[Leg],
+    walks: Sequence[LegWalk],
+    axis: np.ndarray,
+    sign: float,
+) -> np.ndarray:
+    """(n, 3) the way the walk travels past each guide point (``walk_beside``): along the
+    wall there, on the route's side; zero where the walk does not pass it."""
+    out = np.zeros((len(guides), 3))
+    for k, near in enumerate(walk_beside(guides, legs, walks, axis)):
+        if near is not None:
+            out[k] = sign * _cross(near[1], axis)
     return out
 
 
@@ -807,6 +858,7 @@ def plan_route(
         for leg, walk in zip(legs, walks, strict=False)
         if walk.reached
     }
+    legs = _walked_legs(legs, walk_beside(guides, legs, walks, axis), axis)
     return LearningRoute(
         guides, legs, closed, axis, decision, heights, lifted, start_dir, wander, tuple(walks)
     )

@@ -49,6 +49,8 @@ def _leg(xp=(1.0, 0.0, 0.0), length=0.05, offsets=(0.0, 0.0)) -> np.ndarray:
     leg[6] = length
     leg[7:16] = np.eye(3).ravel()
     leg[20:22] = offsets
+    leg[25:28] = leg[3:6]  # the height's chord: the leg's own (no walk)
+    leg[28] = length
     return leg
 
 
