@@ -337,8 +337,10 @@ def test_the_controller_period_is_its_parts(cell):
     params = contour_law_parameters(PathLearningSettings())
     axis = np.array([0.0, 0.0, -1.0])
     Ra = _random_rotation(rng)
+    h_dir = np.array([0.995, 0.1, 0.0]) / np.linalg.norm([0.995, 0.1, 0.0])  # the height's chord
     leg = np.concatenate([[0.1, 0.2, 0.0], [1.0, 0.0, 0.0], [0.05], Ra.ravel(),
-                          [0.0, 0.0, 0.3], [2.0], [0.001, -0.002]])  # fmt: skip
+                          [0.0, 0.0, 0.3], [2.0], [0.001, -0.002],
+                          [0.1, 0.201, 0.0], h_dir, [0.048]])  # fmt: skip
     ref = np.array([0.001, 0.1, -0.2, 0.0, 0.1, 0.2, 0.0, -1.05])
     R_tcp_flange = cell.tool.T_flange_tcp[:3, :3].T.copy()
     for _ in range(20):
