@@ -99,7 +99,7 @@ PUSH_DURATION_S = Range("push duration", 0.0, 10.0, "s")
 # Force-control jogging (the admittance's speed limit is 50 mm/s) and the guarded touch-off.
 JOG_STEP_MM = Range("jog step", 0.0, 200.0, "mm", default=5.0)
 JOG_TURN_DEG = Range("jog turn", 0.0, 45.0, "deg", default=2.0)
-JOG_SPEED_MM_S = Range("jog speed", 0.5, 50.0, "mm/s")
+JOG_SPEED_MM_S = Range("jog speed", 0.5, 50.0, "mm/s", default=10.0)
 JOG_RATE_DEG_S = Range("jog rate", 0.5, 30.0, "deg/s", default=10.0)
 # A touch stops at the chapter's lightest contact force.
 TOUCH_OFF_FORCE_N = Range("touch-off force", 2.0, 50.0, "N", default=10.0)

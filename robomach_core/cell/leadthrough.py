@@ -31,6 +31,7 @@ from .. import _kernels
 from ..errors import InvalidInputError, NoContactError
 from ..limits import (
     JOG_RATE_DEG_S,
+    JOG_SPEED_MM_S,
     JOG_STEP_MM,
     JOG_TURN_DEG,
     PUSH_DURATION_S,
@@ -49,9 +50,9 @@ _IDENTITY = np.eye(3)
 ComplianceFrame = Literal["tool", "base"]
 # A jog slowed by supervision may take this many times its nominal periods to complete.
 JOG_MAX_PERIODS_FACTOR = 20
-# A translational jog's speed when none is given [m/s] (the REST API's; the pendant and the
-# workbench start their speed fields at their own numbers, 25 and 20 mm/s).
-JOG_SPEED_M_S = 0.01
+# A translational jog's speed when none is given [m/s]: its range's default, which the REST
+# API, the workbench and the pendant start their speed fields at too.
+JOG_SPEED_M_S = JOG_SPEED_MM_S.default_value() * 1e-3
 TOUCH_OFF_DETECT_FRACTION = 0.5  # contact: the wall pushes back with half the set force
 TOUCH_OFF_STILL_M_S = 0.0005  # settled: slower than this ...
 TOUCH_OFF_STILL_PERIODS = 25  # ... for 0.1 s

@@ -280,6 +280,8 @@ OTHER_QUANTITIES = {
     "deviation_scale_m": "the colour scale of the deviation map",
     "height_m": "a CMRR block's height",
     "depth_of_cut_m": "a milling scenario's depth of cut",
+    "command_speed_cap_m_s": "the machining feed's cap, not the jog speed",
+    "speed_mean_m_s": "the program's mean feed, not the jog speed",
 }
 
 

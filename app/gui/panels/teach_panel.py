@@ -52,7 +52,7 @@ class TeachPanel:
             )
             self.speed = server.gui.add_number(
                 "Speed (mm/s)",
-                20.0,
+                limits.JOG_SPEED_MM_S.default_value(),
                 min=limits.JOG_SPEED_MM_S.min,
                 max=limits.JOG_SPEED_MM_S.max,
                 step=0.5,
