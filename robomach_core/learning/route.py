@@ -823,14 +823,43 @@ def plan_route(
     first_wall = walls.wall_point(first, towards, 2 * th.AT_WALL_GAP_M)
     if first_wall is None:  # the part may not be where its mesh is: the run searches by force
         return route
-    start_dir = first_wall - first
-    start_dir -= axis * float(start_dir @ axis)
-    if float(np.linalg.norm(start_dir)) < 1e-9:
-        return route
-    start_dir /= float(np.linalg.norm(start_dir))
     offsets = [route.leg_offsets(leg) for leg in legs]
-    start = first + start_dir * (float(np.linalg.norm(first_wall - first)) - tool_radius_m)
-    walks = walk_route(legs, heights, offsets, decision.sign, walls, start, closed=closed)
+    starts = [first_wall]
+    (nearest,), (dist,), (on_face,) = walls.feet(first[None])
+    if on_face and dist <= th.AT_WALL_GAP_M + tool_radius_m:
+        if float(np.linalg.norm(nearest - first_wall)) > th.MIN_SPACING_M:
+            # the wall it stands by is another than the one its chord's side gives (beside a
+            # jog or bay the chord runs across or against the wall; or the point is nearer the
+            # groove's other wall): both are walked
+            starts.append(nearest)
+    tried = []
+    for wall_point in starts:
+        start_dir = wall_point - first
+        start_dir -= axis * float(start_dir @ axis)
+        if float(np.linalg.norm(start_dir)) < 1e-9:
+            continue
+        start_dir /= float(np.linalg.norm(start_dir))
+        start = first + start_dir * (float(np.linalg.norm(wall_point - first)) - tool_radius_m)
+        walks = walk_route(legs, heights, offsets, decision.sign, walls, start, closed=closed)
+        tried.append((start_dir, start, walks))
+    if not tried:
+        return route
+    if len(tried) > 1:
+        # the wall it stands by, when the first leg's walk from it reaches the second point in
+        # under FIRST_WALK_SHARE of the walk from the wall the chord gives: the chord's wall is
+        # across a slot's end or a bay, and its walk runs round it; else the chord's wall (a
+        # point nearer the groove's other wall, the side as taught)
+        (chord_dir, _, by_chord), (near_dir, near_start, by_nearest) = tried
+        if by_nearest[0].reached and (
+            not by_chord[0].reached
+            or by_nearest[0].length_m < th.FIRST_WALK_SHARE * by_chord[0].length_m
+        ):
+            walks, start_dir = by_nearest, near_dir
+        else:  # walk it again: the height reference keeps the last walk's
+            walks = walk_route(
+                legs, heights, offsets, decision.sign, walls, tried[0][1], closed=closed
+            )
+            start_dir = chord_dir
     problem = open_wall_return(walks, legs, tool_radius_m) if closed else ""
     for leg, walk in zip(legs, walks, strict=False):
         if not problem and walk.off_floor_m > th.OPEN_RETURN_M:

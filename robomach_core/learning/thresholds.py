@@ -66,6 +66,7 @@ WALK_STEP_M = 0.0005  # m | the route is walked along the mesh's wall in steps o
 OVER_TOP_SIN = math.sin(math.radians(45.0))  # 1 | the wall met more than 45 deg below the cutter's equator: the cutter rides over the wall's top edge | fixed
 OVER_TOP_M = 0.002  # m | a route whose walk rides over the wall's top this far is refused | fixed
 OPEN_RETURN_M = 0.02  # m | a leg that comes back along the other wall of the same free space this far, with no point there, means an open wall taught as a loop | fixed
+FIRST_WALK_SHARE = 0.5  # x walk | the first point starts from the wall it stands by, not the one its chord's side gives, when the first leg's walk from it is shorter than this share | fixed
 HEAVY_CONTACT_FRACTION = 0.5  # x force limit | a guide point recorded pressing this hard is half-way to a stop | force limit
 TOUCH_WITHOUT_PUSH_N = 0.8  # N | a force between this and WALL_FORCE_CLEAR_N touches without telling the side | sensor noise
 MIN_SPACING_M = 0.001  # m | closer guide points give a leg with no direction | fixed
