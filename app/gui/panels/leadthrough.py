@@ -21,6 +21,7 @@ from robomach_core.choices import COMPLIANCE_FRAMES
 
 from ..scene import CellScene
 from .feedback import guarded
+from .inputs import range_number
 
 # Three buttons a row: six do not fit the sidebar.
 PUSH_ROWS = (("Push +", ("+X", "+Y", "+Z")), ("Push -", ("-X", "-Y", "-Z")))
@@ -96,15 +97,10 @@ class LeadThroughPanel:
             self.release = server.gui.add_button(
                 "Release handle", icon=viser.Icon.HAND_STOP, hint="Put the handle back on the tool"
             )
-            self.push_force = server.gui.add_number(
-                "Push force (N)",
-                limits.PUSH_FORCE_N.default_value(),
-                min=limits.PUSH_FORCE_N.min,
-                max=limits.PUSH_FORCE_N.max,
-            )
+            self.push_force = range_number(server, "Push force (N)", limits.PUSH_FORCE_N)
             self.push_time = server.gui.add_number("Push time (s)", 0.5, min=0.05, max=10.0)
             self.push = [server.gui.add_button_group(label, d) for label, d in PUSH_ROWS]
-            self.jog_step = server.gui.add_number("Jog step (deg)", 2.0, min=0.1, max=45.0)
+            self.jog_step = range_number(server, "Jog step (deg)", limits.JOG_TURN_DEG, min=0.1)
             self.jog = [server.gui.add_button_group(label, d) for label, d in JOG_ROWS]
             self.home = server.gui.add_button("Home", icon=viser.Icon.HOME)
             self.pose = server.gui.add_markdown("")

@@ -18,6 +18,7 @@ from robomach_core import limits
 from robomach_core.choices import JOG_FRAMES
 
 from .feedback import guarded, notify_info
+from .inputs import range_number
 
 FRAME_NAMES = {"wobj": "work object", "base": "base", "tool": "tool"}
 FOLLOW_DISTANCE_M = 0.12  # the close-up camera, this far from the tool tip
@@ -36,42 +37,18 @@ class TeachPanel:
             self.frame = server.gui.add_dropdown(
                 "Frame", JOG_FRAMES, initial_value="wobj", hint="Axes of the jog and touch-off"
             )
-            self.step_mm = server.gui.add_number(
-                "Step (mm)",
-                limits.JOG_STEP_MM.default_value(),
-                min=0.1,
-                max=limits.JOG_STEP_MM.max,
-                step=0.1,
+            self.step_mm = range_number(server, "Step (mm)", limits.JOG_STEP_MM, min=0.1, step=0.1)
+            self.step_deg = range_number(
+                server, "Step (deg)", limits.JOG_TURN_DEG, min=0.1, step=0.1
             )
-            self.step_deg = server.gui.add_number(
-                "Step (deg)",
-                limits.JOG_TURN_DEG.default_value(),
-                min=0.1,
-                max=limits.JOG_TURN_DEG.max,
-                step=0.1,
-            )
-            self.speed = server.gui.add_number(
-                "Speed (mm/s)",
-                limits.JOG_SPEED_MM_S.default_value(),
-                min=limits.JOG_SPEED_MM_S.min,
-                max=limits.JOG_SPEED_MM_S.max,
-                step=0.5,
-            )
+            self.speed = range_number(server, "Speed (mm/s)", limits.JOG_SPEED_MM_S, step=0.5)
             self.jog_plus = server.gui.add_button_group("Jog +", ("+X", "+Y", "+Z"))
             self.jog_minus = server.gui.add_button_group("Jog -", ("-X", "-Y", "-Z"))
             self.rot_plus = server.gui.add_button_group("Turn +", ("+Rx", "+Ry", "+Rz"))
             self.rot_minus = server.gui.add_button_group("Turn -", ("-Rx", "-Ry", "-Rz"))
-            self.force = server.gui.add_number(
-                "Touch force (N)",
-                limits.TOUCH_OFF_FORCE_N.default_value(),
-                min=limits.TOUCH_OFF_FORCE_N.min,
-                max=limits.TOUCH_OFF_FORCE_N.max,
-            )
-            self.travel = server.gui.add_number(
-                "Touch travel (mm)",
-                limits.TOUCH_OFF_TRAVEL_MM.default_value(),
-                min=1.0,  # more than the range's 0: a touch must move
-                max=limits.TOUCH_OFF_TRAVEL_MM.max,
+            self.force = range_number(server, "Touch force (N)", limits.TOUCH_OFF_FORCE_N)
+            self.travel = range_number(  # min more than the range's 0: a touch must move
+                server, "Touch travel (mm)", limits.TOUCH_OFF_TRAVEL_MM, min=1.0
             )
             self.touch_plus = server.gui.add_button_group("Touch +", ("+X", "+Y", "+Z"))
             self.touch_minus = server.gui.add_button_group("Touch -", ("-X", "-Y", "-Z"))
