@@ -7,7 +7,7 @@ STRATEGY  The route is planned once before any motion (``route.plan_route``: the
           side, the height, the protections); then every 4 ms the controller runs the law
           (``law.controller_period``, compiled: hybrid force/velocity contour following across
           the tool axis, the height held along it) and supervision, and the leg ends and
-          protections are checked (``route.LegEnd``, ``_protection_stop``). The floor under the
+          protections are checked (``walk.LegEnd``, ``_protection_stop``). The floor under the
           tool is measured anew every ``REFERENCE_SPACING_M`` of travel, not of time.
           docs/learning_model.md is the model: its states, transitions and thresholds.
 SOLUTION  ``learn_path(cell, state, route, settings, estimator) -> (Recording, state)``: every
@@ -54,8 +54,9 @@ from .law import (
     initial_state,
     route_height,
 )
-from .route import LearningRoute, Leg, LegEnd
+from .route import LearningRoute, Leg
 from .settings import PathLearningSettings
+from .walk import LegEnd
 
 
 @dataclass(frozen=True)

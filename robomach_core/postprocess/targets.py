@@ -375,7 +375,7 @@ def loop_ridge_m(position_m: np.ndarray, tool_radius_m: float) -> float:
 def closed_at_start(points: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """``mask`` without a closed loop's samples past its nearest approach to its first kept
     sample, looked for over the loop's second half by length: the run goes on past its start
-    before it knows it has passed it (``learning.route.LegEnd``), and the program ends where it
+    before it knows it has passed it (``learning.walk.LegEnd``), and the program ends where it
     began instead of cutting that stretch of wall twice. (Elsewhere on a loop a tool passes no
     nearer its start than across a wall, two radii.)"""
     kept = np.nonzero(mask)[0]

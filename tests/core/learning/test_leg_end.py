@@ -1,4 +1,4 @@
-"""Where a closed route's last leg ends (``route.LegEnd``): past its start, not at the first
+"""Where a closed route's last leg ends (``walk.LegEnd``): past its start, not at the first
 step away from it. At slow feeds the wall's direction wiggles, so the distance to the start
 does not fall monotonically; a loop that ended at its first rise stopped 1.7 mm short of its
 start and left a 0.46 mm ridge (a good program condemned, issue 28). Properties over generated
@@ -9,7 +9,8 @@ from __future__ import annotations
 import numpy as np
 
 from robomach_core.learning import thresholds as th
-from robomach_core.learning.route import Leg, LegEnd
+from robomach_core.learning.route import Leg
+from robomach_core.learning.walk import LegEnd
 from tests.envelope import replay, run_seed
 
 SEED = run_seed()
