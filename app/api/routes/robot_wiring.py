@@ -21,6 +21,18 @@ FamilyChoice = Literal[("auto", *ARM_FAMILIES)]  # type: ignore[valid-type]
 
 router = APIRouter(prefix="/api", tags=["cell"], responses=ERRORS)
 
+# The learning settings the guide-point checks are asked with (both routes below).
+LearningForceQuery = Annotated[
+    float,
+    Query(
+        ge=limits.LEARNING_FORCE_N.min,
+        le=limits.LEARNING_FORCE_N.max,
+        description="contact force [N]",
+    ),
+]
+ClosedQuery = Annotated[bool, Query(description="closed contour")]
+WallSideQuery = Annotated[WallSideSetting, Query(description="the wall side to learn with")]
+
 
 @router.post(
     "/cell/robot",
@@ -77,18 +89,9 @@ def export_urscript(
 @router.get("/path-learning/warnings")
 def guide_point_warnings(
     session: SessionDep,
-    force_N: Annotated[
-        float,
-        Query(
-            ge=limits.LEARNING_FORCE_N.min,
-            le=limits.LEARNING_FORCE_N.max,
-            description="contact force [N]",
-        ),
-    ] = limits.LEARNING_FORCE_N.default,
-    closed: Annotated[bool, Query(description="closed contour")] = True,
-    wall_side: Annotated[
-        WallSideSetting, Query(description="the wall side to learn with")
-    ] = "auto",
+    force_N: LearningForceQuery = limits.LEARNING_FORCE_N.default,
+    closed: ClosedQuery = True,
+    wall_side: WallSideQuery = "auto",
 ) -> list[str]:
     """What the operator check finds in the guide points (docs/guide_points.md): the wall side
     that cannot be told, heavy contact, a point nearer another wall, on the floor, a leg
@@ -100,18 +103,9 @@ def guide_point_warnings(
 @router.get("/path-learning/check")
 def guide_point_check(
     session: SessionDep,
-    force_N: Annotated[
-        float,
-        Query(
-            ge=limits.LEARNING_FORCE_N.min,
-            le=limits.LEARNING_FORCE_N.max,
-            description="contact force [N]",
-        ),
-    ] = limits.LEARNING_FORCE_N.default,
-    closed: Annotated[bool, Query(description="closed contour")] = True,
-    wall_side: Annotated[
-        WallSideSetting, Query(description="the wall side to learn with")
-    ] = "auto",
+    force_N: LearningForceQuery = limits.LEARNING_FORCE_N.default,
+    closed: ClosedQuery = True,
+    wall_side: WallSideQuery = "auto",
 ) -> GuideCheckPublic:
     """The check before a run, as every page shows it: one finding per rule with its rule,
     severity and the other points where it holds (refusals first: learning will not start),
