@@ -131,6 +131,26 @@ def place_points(
     return guides, kept, lines
 
 
+def _from_the_feet(
+    wall: TrueWall, nominal_mm: tuple[float, float], feet_mm: tuple[float, float]
+) -> tuple[float, float]:
+    """The taught stretch from its end points' feet (each point's nearest wall vertex): a
+    point placed off the wall along the normal at its station can stand nearer another part
+    of the wall (in an inside corner's fillet, the next face), and the wall between that foot
+    and the station is not taught by it. An end only moves inwards, by under half the
+    stretch."""
+    s0, s1 = nominal_mm
+    length = (s1 - s0) % wall.length_mm if wall.closed else s1 - s0
+    wrap = wall.length_mm if wall.closed else math.inf
+    into_0 = (feet_mm[0] - s0) % wrap
+    into_1 = (s1 - feet_mm[1]) % wrap
+    if 0.0 < into_0 < length / 2.0:
+        s0 = feet_mm[0]
+    if 0.0 < into_1 < length / 2.0:
+        s1 = feet_mm[1]
+    return (s0, s1)
+
+
 def _stand_off(wall: TrueWall, xy: np.ndarray, distance_mm: float) -> np.ndarray:
     """``xy`` moved until the nearest point of the wall is ``distance_mm`` away: in an inside
     corner tighter than that, the other side of the corner stops the hand too."""
@@ -263,7 +283,12 @@ def people_points(
     s_kept = s_all[kept]
     stretch = None
     if not loop and len(s_kept):
-        stretch = (s_kept[0], s_kept[-1]) if forward else (s_kept[-1], s_kept[0])
+        feet = w.project(
+            part.to_part_mm(cell.workpiece, np.array([g.position_m for g in guides]))[:, :2]
+        )
+        ends = (feet[0], feet[-1]) if forward else (feet[-1], feet[0])
+        nominal = (s_kept[0], s_kept[-1]) if forward else (s_kept[-1], s_kept[0])
+        stretch = _from_the_feet(w, nominal, ends)
     return PeopleSet(
         guides,
         part.name,
