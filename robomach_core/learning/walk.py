@@ -39,7 +39,10 @@ class LegEnd:
     so the loop's end overlaps its program's start), within the cutter's radius + ``CLOSE_LOOP_M``
     (a contact on a corner is anywhere on the cutter's arc round it, up to a radius off the
     faces' path), receding ``CLOSE_PASSED_M``; of an open one at the nearest approach to its
-    last point; either ``CLOSE_LOOP_OVERRUN_M`` past the plane at the latest."""
+    last point; either ``CLOSE_LOOP_OVERRUN_M`` past the plane at the latest (a loop's, once
+    it has come within ``NEAR_END_M`` of its start). The nearest
+    approach is watched over the leg's last ``NEAR_END_M`` (half of it at least), and over
+    the whole of a leg shorter than that."""
 
     def __init__(
         self, leg: Leg, axis: np.ndarray, *, last: bool, closed: bool, tool_radius_m: float
@@ -50,7 +53,14 @@ class LegEnd:
         self.close_best = math.inf
         L = leg.length
         #: the progress along the leg before which ``reached`` is False (the run skips it)
-        self.watch_from_m = 0.5 * L if last and closed else max(L - th.NEAR_END_M, 0.5 * L)
+        self.watch_from_m = 0.5 * L if last and closed else self._near_from(L)
+
+    @staticmethod
+    def _near_from(length: float) -> float:
+        """The progress from which the nearest approach to the end point is watched: on a
+        leg shorter than ``NEAR_END_M``, from its start (its chord may run across the wall, a
+        point taught off it beside a neighbour on it, and progress along it never comes)."""
+        return max(length - th.NEAR_END_M, 0.5 * length) if length > th.NEAR_END_M else -math.inf
 
     def _across(self, v: np.ndarray) -> float:
         along = float(v @ self.axis)
@@ -67,9 +77,11 @@ class LegEnd:
                 if near and gap > self.close_best + th.CLOSE_PASSED_M:
                     return True
                 self.close_best = min(self.close_best, gap)
-            return s >= L + th.CLOSE_LOOP_OVERRUN_M
+            # past the plane only once it has come near the start: a closing chord across a
+            # sparse loop has its plane well before the start where the wall bulges past it
+            return s >= L + th.CLOSE_LOOP_OVERRUN_M and self.close_best < th.NEAR_END_M
         passed = False
-        if s >= max(L - th.NEAR_END_M, 0.5 * L):
+        if s >= self._near_from(L):
             d_end = self._across(p - self.leg.b)
             passed = self.end_best < th.NEAR_END_M and d_end > self.end_best + th.END_PASSED_M
             self.end_best = min(self.end_best, d_end)

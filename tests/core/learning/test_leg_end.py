@@ -53,3 +53,38 @@ def test_a_loop_ends_past_its_start_through_the_walls_wiggles():
         assert ended_at <= start[0] + beyond + 2 * step, (
             f"{where}: the loop ran {(ended_at - start[0]) * 1e3:.2f} mm past its start"
         )
+
+
+def test_a_leg_across_the_wall_ends_as_the_tool_passes_its_point():
+    """Two points at one station of the wall, one on it and one a gap off it: the leg's chord
+    runs across the wall, so the tool following the wall makes no progress along it (a little
+    backwards, even). The leg ends as the tool passes its end point's station, within
+    ``NEAR_END_M`` of it (where the distance to the point has grown ``END_PASSED_M`` past its
+    least); it ran past the next points, round a slot's end and back
+    along the other wall before (issue 28, a wrong program that passed)."""
+    rng = np.random.default_rng(SEED + 1)
+    for case in range(200):
+        # the off point's distance: up to the farthest a point is left (half ``NEAR_END_M``)
+        gap = float(rng.uniform(0.0005, 0.5 * th.NEAR_END_M))
+        lean = float(rng.uniform(-0.3, 0.3)) * gap  # ... and how far along the wall it stands
+        a, b = np.zeros(3), np.array([lean, gap, 0.0])
+        length = float(np.hypot(lean, gap))
+        leg = Leg(a, b, length, b / length, np.eye(3), np.zeros(3), 7, 8)
+        end = LegEnd(leg, AXIS, last=bool(rng.random() < 0.5), closed=False, tool_radius_m=1e-3)
+        y = float(rng.uniform(-0.3e-3, 0.1e-3))  # the tool's centre on the wall, by point a
+        step = float(rng.uniform(2e-5, 2e-4))
+        x = -float(rng.uniform(0.5e-3, 2e-3))  # where the previous leg handed over
+        ended_at = None
+        while x < 0.05:
+            p = np.array([x, y, 0.0])
+            s = float((p - a) @ leg.xp)
+            if s >= end.watch_from_m and end.reached(p, s, None):
+                ended_at = x
+                break
+            x += step
+        where = f"{replay(SEED)}, case {case}: gap {gap * 1e3:.2f} mm, lean {lean * 1e3:.2f} mm"
+        assert ended_at is not None, f"{where}: the leg never ended"
+        # the nearest approach |gap - y|, then receding END_PASSED_M: under NEAR_END_M on
+        assert ended_at - lean <= th.NEAR_END_M, (
+            f"{where}: ended {(ended_at - lean) * 1e3:.2f} mm past the point's station"
+        )
