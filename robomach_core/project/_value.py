@@ -181,10 +181,12 @@ class ProcessedPath:
             )
         ridge = self.loop_ridge_m
         if self.completed and ridge is not None and ridge > limit:
+            p = self.result.targets.position_m
+            short = float(np.linalg.norm(p[-1] - p[0])) if len(p) else 0.0
             out.append(
-                f"the loop ends short of its start and leaves a {ridge * 1e3:.2f} mm ridge of "
-                f"wall uncut there (more than the {self.settings.tolerance_m * 1e3:g} mm "
-                "tolerance): learn it again"
+                f"the loop ends short of its start, {short * 1e3:.1f} mm from it, and leaves "
+                f"a {ridge * 1e3:.2f} mm ridge of wall uncut there (more than the "
+                f"{self.settings.tolerance_m * 1e3:g} mm tolerance): learn it again"
             )
         return out
 
