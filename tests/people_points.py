@@ -207,6 +207,7 @@ def people_points(
     max_tilt_deg: float = 8.0,
     max_yaw_deg: float = 25.0,
     top_margin_mm: float = 1.0,
+    pushes: int = 0,
 ) -> PeopleSet:
     """A seeded set of people's points on ``part``'s wall ``wall`` (module docstring).
 
@@ -222,6 +223,7 @@ def people_points(
         max_gap_mm: Largest gap between the cutter and the wall; in a groove also less than
             half its free width, so the point is nearer the taught wall.
         nearer_other: Points placed nearer the groove's other wall (free or touching it).
+        pushes: At least this many points push the taught wall (drawn among the others).
         max_tilt_deg, max_yaw_deg: Tool tilt off the job's axis and turn about it.
         top_margin_mm: The highest a point sits below the top of the wall.
     """
@@ -244,6 +246,8 @@ def people_points(
     if w.free_mm is not None:
         gap_cap = min(max_gap_mm, (w.free_mm - 2 * r_mm) / 2 - OTHER_MARGIN_MM)
     modes = rng.choice(np.array(["free", "free", "touch", "push"], dtype=object), n)
+    if pushes:
+        modes[rng.choice(n, size=min(pushes, n), replace=False)] = "push"
     gaps = np.where(
         modes == "free",
         rng.uniform(0.0, gap_cap, n),

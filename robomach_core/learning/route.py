@@ -50,6 +50,7 @@ from .walk import (
     LegWalk,
     cross3,
     open_wall_return,
+    pushed_against_walk,
     unreached_sentence,
     walk_beside,
     walk_route,
@@ -590,7 +591,13 @@ def plan_route(
         # across a slot's end or a bay, and its walk runs round it; else the chord's wall (a
         # point nearer the groove's other wall, the side as taught)
         (chord_dir, _, by_chord), (near_dir, near_start, by_nearest) = tried
-        if by_nearest[0].reached and (
+        # ... unless a point pushed a wall the chord's walk passes the other way and none the
+        # nearest's (a sparse loop whose first chord cuts across an island)
+        pushed_chord = pushed_against_walk(guides, legs, by_chord, axis)
+        pushed_near = pushed_against_walk(guides, legs, by_nearest, axis)
+        if by_nearest[-1].reached and pushed_chord and not pushed_near:
+            walks, start_dir = by_nearest, near_dir
+        elif by_nearest[0].reached and (
             not by_chord[0].reached
             or by_nearest[0].length_m < th.FIRST_WALK_SHARE * by_chord[0].length_m
         ):

@@ -228,6 +228,21 @@ def walked_legs(
     return tuple(out)
 
 
+def pushed_against_walk(
+    guides: Sequence[GuidePoint], legs: Sequence[Leg], walks: Sequence[LegWalk], axis: np.ndarray
+) -> list[int]:
+    """The guide points (0-based) that pushed a wall clearly (``WALL_FORCE_CLEAR_N`` across
+    the axis, as the side's vote counts a push) where the walk passes them with its wall the
+    other way: the walk follows another wall than the one the person pressed there."""
+    out = []
+    for k, near in enumerate(walk_beside(guides, legs, walks, axis)):
+        f = -np.asarray(guides[k].force_N, dtype=float)  # towards the wall that pushed
+        f -= axis * float(f @ axis)
+        if near is not None and np.linalg.norm(f) >= th.WALL_FORCE_CLEAR_N and f @ near[1] < 0:
+            out.append(k)
+    return out
+
+
 def walk_travel(
     guides: Sequence[GuidePoint],
     legs: Sequence[Leg],
