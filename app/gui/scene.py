@@ -4,150 +4,68 @@ Scene paths follow the cell: ``/robot/...`` (URDF meshes, ``tcp`` carrying ``tcp
 ``force``, ``push``, ``handle``), ``/workpiece``, ``/path/guide_points``, ``/path/samples``
 (``raw``, ``filtered``) and ``/path/targets``. Everything is in the robot base frame, metres.
 The robot is drawn at the motor-side joints (what the controller knows); the tool hangs on the
-TCP frame.
+TCP frame. How the arm and tool are built is in ``arm``, where the camera stands in
+``camera``, the colours in ``colors``; ``CellScene`` puts them in the scene and keeps them up
+to date.
 """
 
 from __future__ import annotations
 
-import functools
 import math
 import threading
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 import trimesh
 import viser
 from viser.extras import ViserUrdf
 
-from robomach_core.cell import ROBOT_URDFS, Tool, robots_directory
+from robomach_core.cell import Tool
 from robomach_core.part import Workpiece
-from robomach_core.transforms import quaternion_from_matrix, rotation_about
+from robomach_core.transforms import quaternion_from_matrix
 
-# The example-robot-data URDFs name their meshes package://example-robot-data/robots/...
-_PACKAGE_PREFIXES = ("package://example-robot-data/robots/", "package://")
+from .arm import RobotPose, cutter_mesh, load_urdf, tool_mesh
+from .camera import part_view_pose, top_view_pose
+from .colors import (
+    COMPARISON_COLORS,
+    CONTACT_COLOR,
+    CUTTER_COLOR,
+    FILTERED_COLOR,
+    FIT_COLOR,
+    GUIDE_COLOR,
+    OTHER_WALL_COLOR,
+    PICKED_WALL_COLOR,
+    PROPOSAL_LINE_COLOR,
+    PUSH_COLOR,
+    RAW_COLOR,
+    REACH_COLORS,
+    SELECTED_GUIDE_COLOR,
+    STALE_COLOR,
+    STOP_COLOR,
+    TABLE_COLOR,
+    TARGET_COLOR,
+    TAUGHT_WALL_COLOR,
+    TOOL_COLOR,
+    TOUCH_COLOR,
+    WALL_COLOR,
+    WORKPIECE_COLOR,
+    deviation_colors,
+)
+
 FORCE_ARROW_M_PER_N = 0.002  # 10 N draws a 20 mm arrow: beside a 1 mm cutter, not over the part
 FORCE_ARROW_MAX_M = 0.04  # a 60 N spike stays a 40 mm arrow
 ARROW_MIN_N = 1.0  # weaker forces draw no arrow (noise; path learning's contact flag is 1 N)
-WORKPIECE_COLOR = (150, 160, 175)
-TOOL_COLOR = (70, 70, 80)
-CUTTER_COLOR = (230, 180, 40)
-CONTACT_COLOR = (220, 40, 40)
-PUSH_COLOR = (40, 120, 230)
-RAW_COLOR = (150, 150, 150)
-FILTERED_COLOR = (40, 110, 220)
-TARGET_COLOR = (240, 120, 20)
-STALE_COLOR = (110, 110, 120)  # a path computed from inputs that changed since
-GUIDE_COLOR = (20, 160, 90)
-TAUGHT_WALL_COLOR = (255, 200, 0)  # the wall the next run will follow
-STOP_COLOR = (220, 20, 20)
-SELECTED_GUIDE_COLOR = (230, 40, 160)
 SPINDLE_OPACITY = 0.3
 HANDLE_SCALE = 0.05  # the push handle: small, beside the tool rather than over it
 GUIDE_LABEL_LIFT_M = 0.004  # the "G1" label sits just above its marker
-REACH_COLORS = {"ok": (30, 170, 70), "near": (240, 160, 20), "unreachable": (220, 40, 40)}
-PROPOSAL_LINE_COLOR = (120, 120, 200)
-WALL_COLOR = (40, 140, 220)
-# The learned and the CAD-only program, drawn side by side: two colours, the panels' legend.
-COMPARISON_COLORS = {"learned": (0, 160, 110), "cad_only": (170, 60, 220)}
 WOBJ_AXES_M = 0.05
-PICKED_WALL_COLOR = (255, 70, 20)  # the wall a click picked, before anything moves
-OTHER_WALL_COLOR = (150, 150, 160)  # the other walls at that height (a groove's other side)
 PICKED_ARROW_M = 0.008  # from the picked wall to the side the tool stands on
-TABLE_COLOR = (196, 182, 160)
-TOUCH_COLOR = (90, 90, 200)  # a calibration's touch before the touches fix a frame
 TOUCH_ARROW_M = 0.008  # the arrow of a touch's move, ending at the ball
-FIT_COLOR = (40, 200, 120)  # the CAD where the calibration's fit places it
 CALIBRATION_SCALE_M = 0.2e-3  # a touch's residual: green at 0, red from 0.2 mm
-# View the part: looking down at the walls from beyond the part (away from the robot's base),
-# else from the first of these directions the arm does not stand in.
-PART_VIEW_ELEVATIONS_DEG = (40.0, 60.0, 25.0, 75.0)
-PART_VIEW_AZIMUTHS_DEG = (0.0, 35.0, -35.0, 70.0, -70.0, 110.0, -110.0, 180.0)
-PART_VIEW_FILL = 1.15  # the part's bounding sphere fills the view with this margin
 TABLE_MARGIN_M = 0.08  # the table reaches this far beyond the part
 TABLE_STAND_FROM_M = 0.05  # a part this high stands on a stand from the floor
 TABLE_PLATE_M = 0.02  # else a plate this thick
 TABLE_GAP_M = 0.0002  # the table's top just under the part's bottom (no flicker)
-
-
-def _mesh_filename(fname: str) -> str:
-    """yourdfpy filename handler: resolve ``package://`` mesh names in example-robot-data."""
-    root = robots_directory()
-    for prefix in _PACKAGE_PREFIXES:
-        if fname.startswith(prefix):
-            rest = fname[len(prefix) :]
-            candidate = root / rest
-            return str(candidate if candidate.exists() else root.parent / rest)
-    return fname
-
-
-@functools.lru_cache(maxsize=4)
-def _load_urdf_bytes(robot: str) -> tuple[Path, bytes]:
-    path = robots_directory() / ROBOT_URDFS[robot]
-    return path, path.read_bytes()
-
-
-def load_urdf(robot: str):  # -> yourdfpy.URDF
-    """A fresh yourdfpy URDF of ``robot`` with its visual meshes (each ViserUrdf owns one).
-
-    An uploaded arm's meshes are resolved by ``robots.custom.mesh_path`` inside its own
-    folder only: a reference to any other file loads nothing (an absolute path or ``file://``
-    read the server's disk, issue 32)."""
-    import yourdfpy
-
-    from robomach_core.robots import registry
-    from robomach_core.robots.custom import mesh_path
-
-    record = registry.arm(robot)
-
-    def handler(fname: str) -> str:  # yourdfpy passes the name as ``fname=``
-        return mesh_path(record, fname) if record.uploaded else _mesh_filename(fname)
-
-    path = record.urdf_path() if record.uploaded else _load_urdf_bytes(robot)[0]
-    return yourdfpy.URDF.load(
-        str(path),
-        filename_handler=handler,
-        build_collision_scene_graph=False,
-        load_collision_meshes=False,
-    )
-
-
-def deviation_colors(deviation_m: np.ndarray, scale_m: float) -> np.ndarray:
-    """(n, 3) uint8 colours: green at 0, yellow at scale/2, red at and above ``scale_m``."""
-    t = np.clip(np.asarray(deviation_m, dtype=float) / max(scale_m, 1e-9), 0.0, 1.0)
-    stops = np.array([[30, 170, 70], [240, 200, 30], [220, 40, 40]], dtype=float)
-    lo = np.where(t < 0.5, stops[0][:, None], stops[1][:, None]).T
-    hi = np.where(t < 0.5, stops[1][:, None], stops[2][:, None]).T
-    f = np.where(t < 0.5, t * 2, (t - 0.5) * 2)[:, None]
-    return (lo + (hi - lo) * f).astype(np.uint8)
-
-
-def tool_mesh(tool: Tool) -> trimesh.Trimesh:
-    """Spindle body and cutter in the TCP frame (tool axis +Z, the body towards -Z)."""
-    length = float(tool.tcp_offset_m[2])
-    cutter_len = tool.flute_length_m
-    parts = []
-    body_len = max(length - cutter_len - 0.01, 0.01)
-    body = trimesh.creation.cylinder(radius=0.03, height=body_len, sections=32)
-    body.apply_translation([0.0, 0.0, -length + body_len / 2])
-    parts.append(body)
-    shank_len = max(length - body_len - cutter_len, 0.002)
-    shank = trimesh.creation.cylinder(radius=tool.radius_m * 0.8, height=shank_len, sections=16)
-    shank.apply_translation([0.0, 0.0, -cutter_len - shank_len / 2])
-    parts.append(shank)
-    return trimesh.util.concatenate(parts)
-
-
-def cutter_mesh(tool: Tool) -> trimesh.Trimesh:
-    """The cutting part in the TCP frame: a ball at the TCP or a cylinder ending at it."""
-    if tool.shape == "ball":
-        ball = trimesh.creation.icosphere(subdivisions=3, radius=tool.radius_m)
-        stem = trimesh.creation.cylinder(radius=tool.radius_m, height=tool.flute_length_m)
-        stem.apply_translation([0.0, 0.0, -tool.flute_length_m / 2])
-        return trimesh.util.concatenate([ball, stem])
-    mesh = trimesh.creation.cylinder(radius=tool.radius_m, height=tool.flute_length_m, sections=24)
-    mesh.apply_translation([0.0, 0.0, -tool.flute_length_m / 2])
-    return mesh
 
 
 def _labelled_arrow(scene, name: str, color: tuple[int, int, int], anchor: str) -> tuple:
@@ -164,100 +82,6 @@ def _labelled_arrow(scene, name: str, color: tuple[int, int, int], anchor: str) 
     return arrow, scene.add_label(f"/robot/{name}/label", "", anchor=anchor, visible=False)
 
 
-class _RobotPose:
-    """Moves a ViserUrdf's joint frames fast: only the revolute joints' orientations.
-
-    ``ViserUrdf.update_cfg`` recomputes every joint through the trimesh scene graph and sets
-    position and orientation of every frame (~5 ms for a UR arm); a revolute joint's child
-    frame only turns about its axis, at a fixed origin, so six orientation updates suffice
-    (~1 ms), which keeps the 30+ Hz redraw cheap next to a running simulation. Relies on
-    ViserUrdf's joint-frame list (one frame per ``urdf.joint_map`` entry, in order); without it
-    falls back to ``update_cfg``.
-    """
-
-    def __init__(self, viser_urdf: ViserUrdf, urdf) -> None:  # urdf: yourdfpy.URDF
-        self._viser_urdf = viser_urdf
-        joints = list(urdf.joint_map.values())
-        frames = getattr(viser_urdf, "_joint_frames", None)
-        names = list(urdf.actuated_joint_names)
-        self._moving = []
-        if frames is not None and len(frames) == len(joints):
-            for frame, joint in zip(frames, joints, strict=True):
-                if joint.name in names and joint.type in ("revolute", "continuous"):
-                    axis = np.asarray(joint.axis, dtype=float)
-                    self._moving.append(
-                        (
-                            frame,
-                            names.index(joint.name),
-                            joint.origin[:3, :3].copy(),
-                            axis / np.linalg.norm(axis),
-                        )
-                    )
-        self._fast = len(self._moving) == len(names)
-        self._q: np.ndarray | None = None
-
-    def update(self, q: np.ndarray) -> None:
-        if not self._fast or self._q is None:
-            self._viser_urdf.update_cfg(q)  # the first call places every frame
-            self._q = q.copy()
-            return
-        for frame, i, R_origin, axis in self._moving:
-            if q[i] != self._q[i]:
-                frame.wxyz = quaternion_from_matrix(R_origin @ rotation_about(axis, q[i]))
-        self._q = q.copy()
-
-
-def part_view_pose(
-    bounds: np.ndarray, fov_rad: float, obstacle: trimesh.Trimesh | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """(eye, look-at) framing a part of base-frame ``bounds`` (2, 3): its bounding sphere
-    fills the view (``PART_VIEW_FILL``), looking down ``PART_VIEW_ELEVATIONS_DEG`` from a
-    side ``PART_VIEW_AZIMUTHS_DEG`` off "beyond the part, away from the robot's base"; the
-    first from which no ray to the part's centre or the corners of its top is blocked by
-    ``obstacle`` (the arm and its tool), else the one blocked least."""
-    lo, hi = np.asarray(bounds, dtype=float)
-    centre = 0.5 * (lo + hi)
-    radius = 0.5 * float(np.linalg.norm(hi - lo))
-    distance = PART_VIEW_FILL * radius / math.sin(0.5 * fov_rad)
-    xy = centre[:2]
-    away = xy / np.linalg.norm(xy) if np.linalg.norm(xy) > 1e-6 else np.array([1.0, 0.0])
-    inset = 0.4 * (hi - lo)
-    targets = np.array(
-        [centre]
-        + [[centre[0] + sx * inset[0], centre[1] + sy * inset[1], hi[2]]
-           for sx in (-1, 1) for sy in (-1, 1)]
-    )  # fmt: skip
-    best, fewest = None, None
-    for el_deg in PART_VIEW_ELEVATIONS_DEG:
-        el = math.radians(el_deg)
-        for az_deg in PART_VIEW_AZIMUTHS_DEG:
-            c, s = math.cos(math.radians(az_deg)), math.sin(math.radians(az_deg))
-            horizontal = np.array([c * away[0] - s * away[1], s * away[0] + c * away[1]])
-            eye = centre + distance * np.array([*(horizontal * math.cos(el)), math.sin(el)])
-            blocked = 0 if obstacle is None else _blocked(obstacle, eye, targets)
-            if blocked == 0:
-                return eye, centre
-            if fewest is None or blocked < fewest:
-                best, fewest = eye, blocked
-    return best, centre
-
-
-def _blocked(obstacle: trimesh.Trimesh, eye: np.ndarray, targets: np.ndarray) -> int:
-    """How many of the rays from ``eye`` to ``targets`` meet ``obstacle`` first (or start in
-    it)."""
-    to = targets - eye
-    length = np.linalg.norm(to, axis=1)
-    dirs = to / length[:, None]
-    hits, rays, _ = obstacle.ray.intersects_location(
-        np.repeat(eye[None], len(targets), axis=0), dirs, multiple_hits=True
-    )
-    nearer = np.zeros(len(targets), dtype=bool)
-    for hit, ray in zip(hits, rays, strict=True):
-        if np.linalg.norm(hit - eye) < length[ray] - 1e-3:
-            nearer[ray] = True
-    return int(nearer.sum())
-
-
 class CellScene:
     """Scene nodes of the cell, updated from the session's state.
 
@@ -270,7 +94,7 @@ class CellScene:
         self.stale_label: viser.LabelHandle | None = None  # "out of date" at the targets
         self._lock = threading.Lock()
         self._urdf: ViserUrdf | None = None
-        self._pose: _RobotPose | None = None
+        self._pose: RobotPose | None = None
         self._robot_name = ""
         self._last_joints = np.full(6, np.nan)
         self.guide_labels: list[viser.LabelHandle] = []
@@ -307,7 +131,7 @@ class CellScene:
             if self._urdf is not None:
                 self._urdf.remove()
             self._urdf = ViserUrdf(self.server, urdf, root_node_name="/robot")
-            self._pose = _RobotPose(self._urdf, urdf)
+            self._pose = RobotPose(self._urdf, urdf)
             self._robot_name = robot
             self._last_joints = np.full(6, np.nan)
 
@@ -652,20 +476,13 @@ class CellScene:
     def top_view(self, client, workpiece: Workpiece) -> None:
         """Put ``client``'s camera straight above the part, looking down, the whole part in
         view (x to the right, y up)."""
-        cad = workpiece.cad()
-        bounds = cad.mesh_in_base().bounds
-        centre = 0.5 * (bounds[0] + bounds[1])
-        span = float(np.max(bounds[1, :2] - bounds[0, :2]))
+        bounds = workpiece.cad().mesh_in_base().bounds
         fov = float(getattr(client.camera, "fov", math.radians(50.0)))
-        height = 0.65 * span / math.tan(0.5 * fov) + 0.05
+        eye, look_at = top_view_pose(bounds, fov)
         with client.atomic():
             client.camera.up_direction = (0.0, 1.0, 0.0)
-            client.camera.position = (
-                float(centre[0]),
-                float(centre[1]),
-                float(bounds[1, 2] + height),
-            )
-            client.camera.look_at = (float(centre[0]), float(centre[1]), float(bounds[1, 2]))
+            client.camera.position = tuple(float(v) for v in eye)
+            client.camera.look_at = tuple(float(v) for v in look_at)
 
     def part_view(
         self,

@@ -20,7 +20,8 @@ from robomach_core.errors import InvalidInputError
 from robomach_core.learning.walls import WallPick
 from robomach_core.limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
 
-from ..scene import COMPARISON_COLORS, CellScene
+from ..colors import COMPARISON_COLORS
+from ..scene import CellScene
 from .feedback import guarded, notify_error, notify_info
 
 # What a click on the part does, in the words every page uses (``choices.LABELS``).
