@@ -263,7 +263,7 @@ class PointingPanel:
         self.selected.value = keep
         selected = self._selected_proposed()
         if proposal is None:
-            self.scene.set_proposal(None)
+            self.scene.paths.set_proposal(None)
             self.status.content = (
                 "*Click a wall of the part: **propose** shows guide points for the whole wall; "
                 "**teach** sends the robot beside the wall and records a point.*"
@@ -273,7 +273,7 @@ class PointingPanel:
             wall = proposal.wall_wobj_m()
             if proposal.closed:
                 wall = np.vstack([wall, wall[:1]])
-            self.scene.set_proposal(
+            self.scene.paths.set_proposal(
                 np.array([p.T_base_tcp[:3, 3] for p in proposal.points]),
                 [p.reach for p in proposal.points],
                 closed=proposal.closed,
@@ -310,7 +310,7 @@ class PointingPanel:
         outcome = self.session.project().processed
         current = self.session.project().status()["postprocess"] == "current"
         comparison = getattr(outcome, "cad_comparison", None) if current else None
-        self.scene.set_comparison(
+        self.scene.paths.set_comparison(
             comparison,
             show_learned=self.show_learned.value,
             show_cad_only=self.show_cad_only.value,
