@@ -206,7 +206,7 @@ async function discardProposal() {
 }
 
 // The CAD-only program beside the learned one (post-processing's answer).
-// The two programs' colours in the 3D scene (app/gui/scene.py COMPARISON_COLORS): the rows'
+// The two programs' colours in the 3D scene (app/gui/colors.py COMPARISON_COLORS): the rows'
 // swatches are the scene's legend.
 const COMPARISON_COLORS = { learned: "rgb(0, 160, 110)", cad_only: "rgb(170, 60, 220)" };
 

@@ -1,153 +1,62 @@
 """The workbench's 3D scene: robot, tool, workpiece, TCP frame, force arrows, guide points, paths.
 
 Scene paths follow the cell: ``/robot/...`` (URDF meshes, ``tcp`` carrying ``tcp/tool``,
-``force``, ``push``, ``handle``), ``/workpiece``, ``/path/guide_points``, ``/path/samples``
-(``raw``, ``filtered``) and ``/path/targets``. Everything is in the robot base frame, metres.
-The robot is drawn at the motor-side joints (what the controller knows); the tool hangs on the
-TCP frame.
+``force``, ``push``, ``handle``), ``/workpiece``, ``/wobj``, ``/table``, ``/calibration``,
+``/path/picked``, and the paths drawn over the cell (``paths``): ``/path/guide_points``,
+``/path/samples`` (``raw``, ``filtered``), ``/path/targets``, ``/path/proposal`` and
+``/path/comparison``. Everything is in the robot base frame, metres. The robot is drawn at the
+motor-side joints (what the controller knows); the tool hangs on the TCP frame.
+
+``CellScene`` draws the cell and keeps it up to date; ``CellScene.paths`` (``paths.ScenePaths``)
+draws the paths. How the arm and the tool are built is in ``arm``, where the camera stands in
+``camera``, the colours in ``colors``.
 """
 
 from __future__ import annotations
 
-import functools
 import math
 import threading
 from collections.abc import Sequence
-from pathlib import Path
 
 import numpy as np
 import trimesh
 import viser
 from viser.extras import ViserUrdf
 
-from robomach_core.cell import ROBOT_URDFS, Tool, robots_directory
+from robomach_core.cell import Tool
 from robomach_core.part import Workpiece
-from robomach_core.transforms import quaternion_from_matrix, rotation_about
+from robomach_core.transforms import quaternion_from_matrix
 
-# The example-robot-data URDFs name their meshes package://example-robot-data/robots/...
-_PACKAGE_PREFIXES = ("package://example-robot-data/robots/", "package://")
+from .arm import RobotPose, cutter_mesh, load_urdf, tool_mesh
+from .camera import part_view_pose, top_view_pose
+from .colors import (
+    CONTACT_COLOR,
+    CUTTER_COLOR,
+    FIT_COLOR,
+    OTHER_WALL_COLOR,
+    PICKED_WALL_COLOR,
+    PUSH_COLOR,
+    TABLE_COLOR,
+    TOOL_COLOR,
+    TOUCH_COLOR,
+    WORKPIECE_COLOR,
+    deviation_colors,
+)
+from .paths import ScenePaths
+
 FORCE_ARROW_M_PER_N = 0.002  # 10 N draws a 20 mm arrow: beside a 1 mm cutter, not over the part
 FORCE_ARROW_MAX_M = 0.04  # a 60 N spike stays a 40 mm arrow
 ARROW_MIN_N = 1.0  # weaker forces draw no arrow (noise; path learning's contact flag is 1 N)
-WORKPIECE_COLOR = (150, 160, 175)
-TOOL_COLOR = (70, 70, 80)
-CUTTER_COLOR = (230, 180, 40)
-CONTACT_COLOR = (220, 40, 40)
-PUSH_COLOR = (40, 120, 230)
-RAW_COLOR = (150, 150, 150)
-FILTERED_COLOR = (40, 110, 220)
-TARGET_COLOR = (240, 120, 20)
-STALE_COLOR = (110, 110, 120)  # a path computed from inputs that changed since
-GUIDE_COLOR = (20, 160, 90)
-TAUGHT_WALL_COLOR = (255, 200, 0)  # the wall the next run will follow
-STOP_COLOR = (220, 20, 20)
-SELECTED_GUIDE_COLOR = (230, 40, 160)
 SPINDLE_OPACITY = 0.3
 HANDLE_SCALE = 0.05  # the push handle: small, beside the tool rather than over it
-GUIDE_LABEL_LIFT_M = 0.004  # the "G1" label sits just above its marker
-REACH_COLORS = {"ok": (30, 170, 70), "near": (240, 160, 20), "unreachable": (220, 40, 40)}
-PROPOSAL_LINE_COLOR = (120, 120, 200)
-WALL_COLOR = (40, 140, 220)
-# The learned and the CAD-only program, drawn side by side: two colours, the panels' legend.
-COMPARISON_COLORS = {"learned": (0, 160, 110), "cad_only": (170, 60, 220)}
 WOBJ_AXES_M = 0.05
-PICKED_WALL_COLOR = (255, 70, 20)  # the wall a click picked, before anything moves
-OTHER_WALL_COLOR = (150, 150, 160)  # the other walls at that height (a groove's other side)
 PICKED_ARROW_M = 0.008  # from the picked wall to the side the tool stands on
-TABLE_COLOR = (196, 182, 160)
-TOUCH_COLOR = (90, 90, 200)  # a calibration's touch before the touches fix a frame
 TOUCH_ARROW_M = 0.008  # the arrow of a touch's move, ending at the ball
-FIT_COLOR = (40, 200, 120)  # the CAD where the calibration's fit places it
 CALIBRATION_SCALE_M = 0.2e-3  # a touch's residual: green at 0, red from 0.2 mm
-# View the part: looking down at the walls from beyond the part (away from the robot's base),
-# else from the first of these directions the arm does not stand in.
-PART_VIEW_ELEVATIONS_DEG = (40.0, 60.0, 25.0, 75.0)
-PART_VIEW_AZIMUTHS_DEG = (0.0, 35.0, -35.0, 70.0, -70.0, 110.0, -110.0, 180.0)
-PART_VIEW_FILL = 1.15  # the part's bounding sphere fills the view with this margin
 TABLE_MARGIN_M = 0.08  # the table reaches this far beyond the part
 TABLE_STAND_FROM_M = 0.05  # a part this high stands on a stand from the floor
 TABLE_PLATE_M = 0.02  # else a plate this thick
 TABLE_GAP_M = 0.0002  # the table's top just under the part's bottom (no flicker)
-
-
-def _mesh_filename(fname: str) -> str:
-    """yourdfpy filename handler: resolve ``package://`` mesh names in example-robot-data."""
-    root = robots_directory()
-    for prefix in _PACKAGE_PREFIXES:
-        if fname.startswith(prefix):
-            rest = fname[len(prefix) :]
-            candidate = root / rest
-            return str(candidate if candidate.exists() else root.parent / rest)
-    return fname
-
-
-@functools.lru_cache(maxsize=4)
-def _load_urdf_bytes(robot: str) -> tuple[Path, bytes]:
-    path = robots_directory() / ROBOT_URDFS[robot]
-    return path, path.read_bytes()
-
-
-def load_urdf(robot: str):  # -> yourdfpy.URDF
-    """A fresh yourdfpy URDF of ``robot`` with its visual meshes (each ViserUrdf owns one).
-
-    An uploaded arm's meshes are resolved by ``robots.custom.mesh_path`` inside its own
-    folder only: a reference to any other file loads nothing (an absolute path or ``file://``
-    read the server's disk, issue 32)."""
-    import yourdfpy
-
-    from robomach_core.robots import registry
-    from robomach_core.robots.custom import mesh_path
-
-    record = registry.arm(robot)
-
-    def handler(fname: str) -> str:  # yourdfpy passes the name as ``fname=``
-        return mesh_path(record, fname) if record.uploaded else _mesh_filename(fname)
-
-    path = record.urdf_path() if record.uploaded else _load_urdf_bytes(robot)[0]
-    return yourdfpy.URDF.load(
-        str(path),
-        filename_handler=handler,
-        build_collision_scene_graph=False,
-        load_collision_meshes=False,
-    )
-
-
-def deviation_colors(deviation_m: np.ndarray, scale_m: float) -> np.ndarray:
-    """(n, 3) uint8 colours: green at 0, yellow at scale/2, red at and above ``scale_m``."""
-    t = np.clip(np.asarray(deviation_m, dtype=float) / max(scale_m, 1e-9), 0.0, 1.0)
-    stops = np.array([[30, 170, 70], [240, 200, 30], [220, 40, 40]], dtype=float)
-    lo = np.where(t < 0.5, stops[0][:, None], stops[1][:, None]).T
-    hi = np.where(t < 0.5, stops[1][:, None], stops[2][:, None]).T
-    f = np.where(t < 0.5, t * 2, (t - 0.5) * 2)[:, None]
-    return (lo + (hi - lo) * f).astype(np.uint8)
-
-
-def tool_mesh(tool: Tool) -> trimesh.Trimesh:
-    """Spindle body and cutter in the TCP frame (tool axis +Z, the body towards -Z)."""
-    length = float(tool.tcp_offset_m[2])
-    cutter_len = tool.flute_length_m
-    parts = []
-    body_len = max(length - cutter_len - 0.01, 0.01)
-    body = trimesh.creation.cylinder(radius=0.03, height=body_len, sections=32)
-    body.apply_translation([0.0, 0.0, -length + body_len / 2])
-    parts.append(body)
-    shank_len = max(length - body_len - cutter_len, 0.002)
-    shank = trimesh.creation.cylinder(radius=tool.radius_m * 0.8, height=shank_len, sections=16)
-    shank.apply_translation([0.0, 0.0, -cutter_len - shank_len / 2])
-    parts.append(shank)
-    return trimesh.util.concatenate(parts)
-
-
-def cutter_mesh(tool: Tool) -> trimesh.Trimesh:
-    """The cutting part in the TCP frame: a ball at the TCP or a cylinder ending at it."""
-    if tool.shape == "ball":
-        ball = trimesh.creation.icosphere(subdivisions=3, radius=tool.radius_m)
-        stem = trimesh.creation.cylinder(radius=tool.radius_m, height=tool.flute_length_m)
-        stem.apply_translation([0.0, 0.0, -tool.flute_length_m / 2])
-        return trimesh.util.concatenate([ball, stem])
-    mesh = trimesh.creation.cylinder(radius=tool.radius_m, height=tool.flute_length_m, sections=24)
-    mesh.apply_translation([0.0, 0.0, -tool.flute_length_m / 2])
-    return mesh
 
 
 def _labelled_arrow(scene, name: str, color: tuple[int, int, int], anchor: str) -> tuple:
@@ -164,100 +73,6 @@ def _labelled_arrow(scene, name: str, color: tuple[int, int, int], anchor: str) 
     return arrow, scene.add_label(f"/robot/{name}/label", "", anchor=anchor, visible=False)
 
 
-class _RobotPose:
-    """Moves a ViserUrdf's joint frames fast: only the revolute joints' orientations.
-
-    ``ViserUrdf.update_cfg`` recomputes every joint through the trimesh scene graph and sets
-    position and orientation of every frame (~5 ms for a UR arm); a revolute joint's child
-    frame only turns about its axis, at a fixed origin, so six orientation updates suffice
-    (~1 ms), which keeps the 30+ Hz redraw cheap next to a running simulation. Relies on
-    ViserUrdf's joint-frame list (one frame per ``urdf.joint_map`` entry, in order); without it
-    falls back to ``update_cfg``.
-    """
-
-    def __init__(self, viser_urdf: ViserUrdf, urdf) -> None:  # urdf: yourdfpy.URDF
-        self._viser_urdf = viser_urdf
-        joints = list(urdf.joint_map.values())
-        frames = getattr(viser_urdf, "_joint_frames", None)
-        names = list(urdf.actuated_joint_names)
-        self._moving = []
-        if frames is not None and len(frames) == len(joints):
-            for frame, joint in zip(frames, joints, strict=True):
-                if joint.name in names and joint.type in ("revolute", "continuous"):
-                    axis = np.asarray(joint.axis, dtype=float)
-                    self._moving.append(
-                        (
-                            frame,
-                            names.index(joint.name),
-                            joint.origin[:3, :3].copy(),
-                            axis / np.linalg.norm(axis),
-                        )
-                    )
-        self._fast = len(self._moving) == len(names)
-        self._q: np.ndarray | None = None
-
-    def update(self, q: np.ndarray) -> None:
-        if not self._fast or self._q is None:
-            self._viser_urdf.update_cfg(q)  # the first call places every frame
-            self._q = q.copy()
-            return
-        for frame, i, R_origin, axis in self._moving:
-            if q[i] != self._q[i]:
-                frame.wxyz = quaternion_from_matrix(R_origin @ rotation_about(axis, q[i]))
-        self._q = q.copy()
-
-
-def part_view_pose(
-    bounds: np.ndarray, fov_rad: float, obstacle: trimesh.Trimesh | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """(eye, look-at) framing a part of base-frame ``bounds`` (2, 3): its bounding sphere
-    fills the view (``PART_VIEW_FILL``), looking down ``PART_VIEW_ELEVATIONS_DEG`` from a
-    side ``PART_VIEW_AZIMUTHS_DEG`` off "beyond the part, away from the robot's base"; the
-    first from which no ray to the part's centre or the corners of its top is blocked by
-    ``obstacle`` (the arm and its tool), else the one blocked least."""
-    lo, hi = np.asarray(bounds, dtype=float)
-    centre = 0.5 * (lo + hi)
-    radius = 0.5 * float(np.linalg.norm(hi - lo))
-    distance = PART_VIEW_FILL * radius / math.sin(0.5 * fov_rad)
-    xy = centre[:2]
-    away = xy / np.linalg.norm(xy) if np.linalg.norm(xy) > 1e-6 else np.array([1.0, 0.0])
-    inset = 0.4 * (hi - lo)
-    targets = np.array(
-        [centre]
-        + [[centre[0] + sx * inset[0], centre[1] + sy * inset[1], hi[2]]
-           for sx in (-1, 1) for sy in (-1, 1)]
-    )  # fmt: skip
-    best, fewest = None, None
-    for el_deg in PART_VIEW_ELEVATIONS_DEG:
-        el = math.radians(el_deg)
-        for az_deg in PART_VIEW_AZIMUTHS_DEG:
-            c, s = math.cos(math.radians(az_deg)), math.sin(math.radians(az_deg))
-            horizontal = np.array([c * away[0] - s * away[1], s * away[0] + c * away[1]])
-            eye = centre + distance * np.array([*(horizontal * math.cos(el)), math.sin(el)])
-            blocked = 0 if obstacle is None else _blocked(obstacle, eye, targets)
-            if blocked == 0:
-                return eye, centre
-            if fewest is None or blocked < fewest:
-                best, fewest = eye, blocked
-    return best, centre
-
-
-def _blocked(obstacle: trimesh.Trimesh, eye: np.ndarray, targets: np.ndarray) -> int:
-    """How many of the rays from ``eye`` to ``targets`` meet ``obstacle`` first (or start in
-    it)."""
-    to = targets - eye
-    length = np.linalg.norm(to, axis=1)
-    dirs = to / length[:, None]
-    hits, rays, _ = obstacle.ray.intersects_location(
-        np.repeat(eye[None], len(targets), axis=0), dirs, multiple_hits=True
-    )
-    nearer = np.zeros(len(targets), dtype=bool)
-    for hit, ray in zip(hits, rays, strict=True):
-        if np.linalg.norm(hit - eye) < length[ray] - 1e-3:
-            nearer[ray] = True
-    return int(nearer.sum())
-
-
 class CellScene:
     """Scene nodes of the cell, updated from the session's state.
 
@@ -267,13 +82,12 @@ class CellScene:
 
     def __init__(self, server: viser.ViserServer) -> None:
         self.server = server
-        self.stale_label: viser.LabelHandle | None = None  # "out of date" at the targets
+        self.paths = ScenePaths(server)
         self._lock = threading.Lock()
         self._urdf: ViserUrdf | None = None
-        self._pose: _RobotPose | None = None
+        self._pose: RobotPose | None = None
         self._robot_name = ""
         self._last_joints = np.full(6, np.nan)
-        self.guide_labels: list[viser.LabelHandle] = []
         scene = server.scene
         scene.set_up_direction("+z")
         scene.add_grid("/grid", width=2.0, height=2.0, cell_size=0.1, section_size=0.5)
@@ -289,8 +103,6 @@ class CellScene:
             depth_test=False,
         )
         self.workpiece_node: viser.SceneNodeHandle | None = None
-        self._guides_node: viser.SceneNodeHandle | None = None
-        self.paths_hidden = False  # the drawn paths belong to a cell no longer there
         self.placement_previewed = False  # the part is drawn where a placement is being tried
         # Clicks are the scene's (anywhere on the canvas), met against the part's mesh here:
         # nothing drawn in front of the part takes them (``on_part_click``).
@@ -307,7 +119,7 @@ class CellScene:
             if self._urdf is not None:
                 self._urdf.remove()
             self._urdf = ViserUrdf(self.server, urdf, root_node_name="/robot")
-            self._pose = _RobotPose(self._urdf, urdf)
+            self._pose = RobotPose(self._urdf, urdf)
             self._robot_name = robot
             self._last_joints = np.full(6, np.nan)
 
@@ -494,57 +306,6 @@ class CellScene:
                 position=tuple(tip + np.array([0.0, 0.0, 0.006])), anchor="bottom-center",
             )  # fmt: skip
 
-    def set_proposal(
-        self,
-        points_base_m: np.ndarray | None,
-        reach: Sequence[str] = (),
-        *,
-        closed: bool = True,
-        wall_base_m: np.ndarray | None = None,
-        selected: int | None = None,
-    ) -> None:
-        """The proposed guide points (coloured by reachability: green, orange near a limit,
-        red unreachable; the selected one magenta), the test program through them, the wall
-        they follow; None removes them."""
-        scene = self.server.scene
-        with self.server.atomic():
-            node = getattr(self, "_proposal_node", None)
-            if node is not None:
-                node.remove()
-            self._proposal_node = scene.add_frame("/path/proposal", show_axes=False)
-            if points_base_m is None or len(points_base_m) == 0:
-                return
-            pts = np.asarray(points_base_m, dtype=float)
-            colors = np.array([REACH_COLORS.get(r, REACH_COLORS["near"]) for r in reach],
-                              dtype=np.uint8)  # fmt: skip
-            if selected is not None and 0 <= selected < len(pts):
-                colors[selected] = SELECTED_GUIDE_COLOR
-            scene.add_point_cloud(
-                "/path/proposal/points", pts, colors, point_size=0.005, point_shape="diamond",
-                precision="float32",
-            )  # fmt: skip
-            chain = np.vstack([pts, pts[:1]]) if closed else pts
-            scene.add_line_segments(
-                "/path/proposal/program",
-                np.stack([chain[:-1], chain[1:]], axis=1),
-                PROPOSAL_LINE_COLOR,
-                thickness=1.5,
-                thickness_units="screen",
-            )
-            if wall_base_m is not None and len(wall_base_m) >= 2:
-                w = np.asarray(wall_base_m, dtype=float)
-                scene.add_line_segments(
-                    "/path/proposal/wall", np.stack([w[:-1], w[1:]], axis=1), WALL_COLOR,
-                    thickness=2.5, thickness_units="screen",
-                )  # fmt: skip
-            for k, p in enumerate(pts):
-                scene.add_label(
-                    f"/path/proposal/labels/P{k + 1}",
-                    f"P{k + 1}",
-                    position=p + np.array([0.0, 0.0, GUIDE_LABEL_LIFT_M]),
-                    anchor="bottom-center",
-                )
-
     def set_calibration(
         self,
         touches: Sequence,
@@ -599,73 +360,18 @@ class CellScene:
                     wxyz=quaternion_from_matrix(T_fit[:3, :3]), position=T_fit[:3, 3],
                 )  # fmt: skip
 
-    def set_comparison(
-        self, comparison, *, show_learned: bool = True, show_cad_only: bool = True
-    ) -> None:
-        """The learned program and the CAD-only one in two colours (``COMPARISON_COLORS``:
-        the legend the panels show), each labelled at its worst place with its error against
-        the (real) wall; ``show_*`` hides one; None removes them."""
-        scene = self.server.scene
-        with self.server.atomic():
-            node = getattr(self, "_comparison_node", None)
-            if node is not None:
-                node.remove()
-            self._comparison_node = scene.add_frame("/path/comparison", show_axes=False)
-            if comparison is None:
-                return
-            for name, score, title, shown in (
-                ("cad_only", comparison.cad_only, "CAD-only", show_cad_only),
-                ("learned", comparison.learned, "learned", show_learned),
-            ):
-                if not shown:
-                    continue
-                pts = score.points_m[:: max(1, len(score.points_m) // 4000)]
-                lift = np.array([0.0, 0.0, 0.0015 if name == "cad_only" else 0.0])
-                scene.add_line_segments(
-                    f"/path/comparison/{name}",
-                    np.stack([pts[:-1] + lift, pts[1:] + lift], axis=1),
-                    COMPARISON_COLORS[name],
-                    thickness=3.5 if name == "cad_only" else 2.5,
-                    thickness_units="screen",
-                )
-                k = int(np.argmax(np.abs(score.deviation_m)))
-                scene.add_label(
-                    f"/path/comparison/{name}/worst",
-                    f"{title}: max {score.max_m * 1e3:.2f} mm",
-                    position=score.points_m[k] + lift + np.array([0.0, 0.0, 0.006]),
-                    anchor="bottom-center",
-                )
-
-    def hide_paths(self) -> None:
-        """Hide the recording, targets and comparison (a result of a cell no longer there)."""
-        self.paths_hidden = True
-        with self.server.atomic():
-            for name in ("/path/samples/raw", "/path/samples/filtered", "/path/targets",
-                         "/path/targets/segments"):  # fmt: skip
-                self.server.scene.add_point_cloud(
-                    name, np.zeros((0, 3)), RAW_COLOR, point_size=0.001, visible=False
-                ) if "segments" not in name else self.server.scene.add_line_segments(
-                    name, np.zeros((1, 2, 3)), TARGET_COLOR, visible=False
-                )
-        self.set_comparison(None)
+    # ----------------------------------------------------------------- camera
 
     def top_view(self, client, workpiece: Workpiece) -> None:
         """Put ``client``'s camera straight above the part, looking down, the whole part in
         view (x to the right, y up)."""
-        cad = workpiece.cad()
-        bounds = cad.mesh_in_base().bounds
-        centre = 0.5 * (bounds[0] + bounds[1])
-        span = float(np.max(bounds[1, :2] - bounds[0, :2]))
+        bounds = workpiece.cad().mesh_in_base().bounds
         fov = float(getattr(client.camera, "fov", math.radians(50.0)))
-        height = 0.65 * span / math.tan(0.5 * fov) + 0.05
+        eye, look_at = top_view_pose(bounds, fov)
         with client.atomic():
             client.camera.up_direction = (0.0, 1.0, 0.0)
-            client.camera.position = (
-                float(centre[0]),
-                float(centre[1]),
-                float(bounds[1, 2] + height),
-            )
-            client.camera.look_at = (float(centre[0]), float(centre[1]), float(bounds[1, 2]))
+            client.camera.position = tuple(float(v) for v in eye)
+            client.camera.look_at = tuple(float(v) for v in look_at)
 
     def part_view(
         self,
@@ -755,213 +461,3 @@ class CellScene:
         p = np.asarray(position_m, dtype=float)
         if not np.allclose(self.handle.position, p, rtol=0.0, atol=1e-6):
             self.handle.position = p
-
-    # ----------------------------------------------------------------- paths
-
-    def set_guide_points(
-        self,
-        Ts_base_guide: Sequence[np.ndarray],
-        *,
-        selected: int | None = None,
-    ) -> None:
-        """Show guide points as small axes with "G1", "G2", ... labels; ``selected`` highlighted."""
-        scene = self.server.scene
-        with self.server.atomic():
-            # Rebuild the subtree: removing the parent removes its axes and labels.
-            if self._guides_node is not None:
-                self._guides_node.remove()
-            self.guide_labels = []
-            self._guides_node = scene.add_frame("/path/guide_points", show_axes=False)
-            if not len(Ts_base_guide):
-                return
-            Ts = np.asarray(Ts_base_guide, dtype=float)
-            positions = Ts[:, :3, 3]
-            colors = np.tile(np.array(GUIDE_COLOR, dtype=np.uint8), (len(Ts), 1))
-            if selected is not None and 0 <= selected < len(Ts):
-                colors[selected] = SELECTED_GUIDE_COLOR
-            scene.add_point_cloud(
-                "/path/guide_points/points",
-                positions,
-                colors,
-                point_size=0.006,
-                point_shape="circle",
-                precision="float32",
-            )
-            scene.add_batched_axes(
-                "/path/guide_points/axes",
-                np.array([quaternion_from_matrix(T[:3, :3]) for T in Ts]),
-                positions,
-                axes_length=0.02,
-                axes_radius=0.001,
-            )
-            for k, p in enumerate(positions):
-                # "G1" as in the table, just above its own marker.
-                self.guide_labels.append(
-                    scene.add_label(
-                        f"/path/guide_points/labels/G{k + 1}",
-                        f"G{k + 1}",
-                        position=p + np.array([0.0, 0.0, GUIDE_LABEL_LIFT_M]),
-                        anchor="bottom-center",
-                    )
-                )
-
-    def set_taught_wall(self, points_m: Sequence[np.ndarray | None], text: str = "") -> None:
-        """Highlight the wall the next run will follow: the wall point each guide point faces
-        (``wall_side.taught_wall_points``), joined in order, and what decided the side."""
-        scene = self.server.scene
-        pts = np.array([p for p in points_m if p is not None], dtype=float).reshape(-1, 3)
-        with self.server.atomic():
-            if len(pts) == 0:
-                scene.add_point_cloud(
-                    "/path/taught_wall/points",
-                    np.zeros((1, 3)),
-                    TAUGHT_WALL_COLOR,
-                    point_size=0.004,
-                    visible=False,
-                )
-                scene.add_line_segments(
-                    "/path/taught_wall/line",
-                    np.zeros((1, 2, 3)),
-                    TAUGHT_WALL_COLOR,
-                    visible=False,
-                )
-                scene.add_label("/path/taught_wall/label", "", visible=False)
-                return
-            scene.add_point_cloud(
-                "/path/taught_wall/points",
-                pts,
-                TAUGHT_WALL_COLOR,
-                point_size=0.004,
-                point_shape="diamond",
-            )
-            segments = (
-                np.stack([pts[:-1], pts[1:]], axis=1) if len(pts) > 1 else np.zeros((1, 2, 3))
-            )
-            scene.add_line_segments(
-                "/path/taught_wall/line",
-                segments,
-                TAUGHT_WALL_COLOR,
-                thickness=0.0012,
-                visible=len(pts) > 1,
-            )
-            scene.add_label(
-                "/path/taught_wall/label",
-                text,
-                position=pts[0] + np.array([0.0, 0.0, 0.012]),
-                anchor="bottom-left",
-                visible=bool(text),
-            )
-
-    def set_stop(self, position_m: np.ndarray | None, text: str = "") -> None:
-        """Mark where the last path-learning run stopped early (hidden when it completed)."""
-        scene = self.server.scene
-        p = np.zeros(3) if position_m is None else np.asarray(position_m, dtype=float)
-        with self.server.atomic():
-            scene.add_icosphere(
-                "/path/stop",
-                radius=0.003,
-                color=STOP_COLOR,
-                position=p,
-                visible=position_m is not None,
-            )
-            scene.add_label(
-                "/path/stop/label",
-                text,
-                position=np.array([0.0, 0.0, 0.008]),
-                anchor="bottom-center",
-                visible=position_m is not None and bool(text),
-            )
-
-    def set_samples(
-        self,
-        raw_m: np.ndarray | None,
-        filtered_m: np.ndarray | None = None,
-        targets_m: np.ndarray | None = None,
-        *,
-        filtered_deviation_m: np.ndarray | None = None,
-        targets_deviation_m: np.ndarray | None = None,
-        deviation_scale_m: float = 0.5e-3,
-        stale: bool = False,
-        segments_deviation: tuple[np.ndarray, np.ndarray] | None = None,
-    ) -> None:
-        """Show raw samples (grey), filtered samples (blue, or coloured by deviation) and the
-        reduced targets (orange points joined by segments, or coloured by deviation). A
-        ``stale`` path (out of date with the project's inputs) is drawn dark grey with an
-        "out of date" label at its first target."""
-        if stale:
-            filtered_deviation_m = targets_deviation_m = None
-        self.paths_hidden = False
-        scene = self.server.scene
-        empty = np.zeros((0, 3))
-        with self.server.atomic():
-            raw = empty if raw_m is None else np.asarray(raw_m)
-            scene.add_point_cloud(
-                "/path/samples/raw",
-                raw,
-                RAW_COLOR,
-                point_size=0.0008,
-                precision="float32",
-                visible=len(raw) > 0,
-            )
-            filt = empty if filtered_m is None else np.asarray(filtered_m)
-            colors = (
-                (STALE_COLOR if stale else FILTERED_COLOR)
-                if filtered_deviation_m is None
-                else deviation_colors(filtered_deviation_m, deviation_scale_m)
-            )
-            scene.add_point_cloud(
-                "/path/samples/filtered",
-                filt,
-                colors,
-                point_size=0.0012,
-                precision="float32",
-                visible=len(filt) > 0,
-            )
-            tg = empty if targets_m is None else np.asarray(targets_m)
-            tcolor = STALE_COLOR if stale else TARGET_COLOR
-            tcolors = (
-                np.tile(np.array(tcolor, dtype=np.uint8), (len(tg), 1))
-                if targets_deviation_m is None
-                else deviation_colors(targets_deviation_m, deviation_scale_m)
-            )
-            scene.add_point_cloud(
-                "/path/targets",
-                tg,
-                tcolors if len(tg) else tcolor,
-                point_size=0.003,
-                point_shape="diamond",
-                precision="float32",
-                visible=len(tg) > 0,
-            )
-            self.stale_label = scene.add_label(
-                "/path/targets/out_of_date",
-                "out of date",
-                position=tuple(tg[0]) if len(tg) else (0.0, 0.0, 0.0),
-                visible=bool(stale and len(tg)),
-            )
-            if segments_deviation is not None and not stale and len(segments_deviation[0]) >= 2:
-                # Coloured along the straight moves by the deviation of points between targets.
-                dense, dense_dev = segments_deviation
-                dense = np.asarray(dense, dtype=float)
-                c = deviation_colors(np.asarray(dense_dev), deviation_scale_m)
-                scene.add_line_segments(
-                    "/path/targets/segments",
-                    np.stack([dense[:-1], dense[1:]], axis=1),
-                    np.stack([c[:-1], c[1:]], axis=1),
-                    thickness=2.0,
-                    thickness_units="screen",
-                )
-            elif len(tg) >= 2:
-                segments = np.stack([tg[:-1], tg[1:]], axis=1)
-                seg_colors = np.stack([tcolors[:-1], tcolors[1:]], axis=1)
-                scene.add_line_segments(
-                    "/path/targets/segments",
-                    segments,
-                    seg_colors,
-                    thickness=2.0,
-                    thickness_units="screen",
-                )
-            else:
-                scene.add_line_segments(
-                    "/path/targets/segments", np.zeros((1, 2, 3)), TARGET_COLOR, visible=False
-                )

@@ -229,7 +229,7 @@ class Workbench:
             self.pointing.show_comparison()
             self._hide_old_cell_paths(topics)
         if topics & {"recording", "postprocess", "cell", "project"}:
-            self.path_learning.refresh_stop(old_cell=self.scene.paths_hidden)
+            self.path_learning.refresh_stop(old_cell=self.scene.paths.hidden)
         snapshot = self.leadthrough.tick(self.session.robot.snapshot())
         self.teach.tick(snapshot)
         self._draw_robot(snapshot)
@@ -295,7 +295,7 @@ class Workbench:
         if "cell" in topics and "project" not in topics:
             self._old_cell_learned = learned
         if learned is not None and learned is getattr(self, "_old_cell_learned", None):
-            self.scene.hide_paths()
+            self.scene.paths.hide()
 
     def _show_jobs(self) -> None:
         """Progress of the robot jobs, whoever started them; a job that failed says why in

@@ -23,11 +23,18 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import InvalidInputError, UnknownNameError
+
+if TYPE_CHECKING:  # names only: the writers import these at run time, the registry need not
+    from ..cell import Robot, Tool
+    from ..part import Workpiece
+    from ..postprocess import Move, Targets
+    from .rapid import SpeedChangeSettings
+    from .urscript_feed import UrFeedLoop
 
 AUTO = "auto"  # the languages of the arm's controller
 PROGRAM_STEM = "program"
@@ -39,31 +46,31 @@ class ProgramContext:
     """What a writer gets: the program's targets and everything around them.
 
     Attributes:
-        targets: ``postprocess.Targets`` in the base frame, their joints the IK of each target
-            on ``robot`` (``project.program_targets``).
-        tool: ``tool.Tool``.
-        workpiece: ``workpiece.Workpiece`` (its ``T_base_wobj`` is the work object).
-        robot: ``robot.Robot`` with the tool as its TCP.
-        moves: ``arcs.Move`` sequence (circular moves), or None for a linear move to each.
+        targets: In the base frame, their joints the IK of each target on ``robot``
+            (``project.program_targets``).
+        tool: The tool on the flange (its TCP and payload).
+        workpiece: The part (its ``T_base_wobj`` is the work object).
+        robot: The arm, with the tool as its TCP.
+        moves: The move sequence (circular moves, ``postprocess.arcs``), or None for a linear
+            move to each target.
         comment: Header comment lines.
         module_name: The program's name where the language has one (RAPID's MODULE).
         force_control_N: The force-controlled variant pressing with this force; None for the
             position-controlled program.
-        speed_change: ``export.rapid.SpeedChangeSettings`` of a CMRR controller, or None.
-        feed_loop: ``export.urscript_feed.UrFeedLoop`` of a CMRR controller (the feed loop a
-            UR program runs itself), or None.
+        speed_change: The FC SpeedChange block of a CMRR controller (RAPID), or None.
+        feed_loop: The feed loop a UR program of a CMRR controller runs itself, or None.
     """
 
-    targets: Any
-    tool: Any
-    workpiece: Any
-    robot: Any
-    moves: Sequence[Any] | None
+    targets: Targets
+    tool: Tool
+    workpiece: Workpiece
+    robot: Robot
+    moves: Sequence[Move] | None
     comment: tuple[str, ...]
     module_name: str
     force_control_N: float | None = None
-    speed_change: Any = None
-    feed_loop: Any = None
+    speed_change: SpeedChangeSettings | None = None
+    feed_loop: UrFeedLoop | None = None
 
 
 @dataclass(frozen=True)
@@ -90,7 +97,7 @@ class ProgramLanguage:
     write: Callable[[ProgramContext], tuple[str, ...]]
     families: tuple[str, ...]
     force_control: bool = False
-    read_poses: Callable[[tuple[str, ...], Any], list[tuple[str, np.ndarray]]] | None = None
+    read_poses: Callable[[tuple[str, ...], Workpiece], list[tuple[str, np.ndarray]]] | None = None
     default_arm: str | None = None
     media_type: str = "text/plain; charset=utf-8"
 
@@ -160,12 +167,12 @@ def languages_for_family(family: str) -> tuple[ProgramLanguage, ...]:
     return tuple(lang for lang in _REGISTRY.values() if family in lang.families)
 
 
-def languages_for(robot: Any) -> tuple[ProgramLanguage, ...]:
+def languages_for(robot: Robot) -> tuple[ProgramLanguage, ...]:
     """The languages the arm's controller is offered (``robot.family``)."""
     return languages_for_family(robot.family)
 
 
-def resolve_languages(robot: Any, choice: str = AUTO) -> tuple[ProgramLanguage, ...]:
+def resolve_languages(robot: Robot, choice: str = AUTO) -> tuple[ProgramLanguage, ...]:
     """The languages to write for ``choice``: ``auto`` -> every language of the arm's family;
     a name -> that language, if the arm's controller runs it.
 
@@ -216,7 +223,7 @@ def _write_rapid(context: ProgramContext) -> tuple[str, ...]:
     return (rapid_module(program),)
 
 
-def _rapid_poses(texts: tuple[str, ...], workpiece: Any) -> list[tuple[str, np.ndarray]]:
+def _rapid_poses(texts: tuple[str, ...], workpiece: Workpiece) -> list[tuple[str, np.ndarray]]:
     from ..transforms import make_transform, matrix_from_quaternion
     from .rapid_check import check_rapid_module
 
@@ -247,7 +254,7 @@ def _write_urscript(context: ProgramContext) -> tuple[str, ...]:
     )
 
 
-def _urscript_poses(texts: tuple[str, ...], workpiece: Any) -> list[tuple[str, np.ndarray]]:
+def _urscript_poses(texts: tuple[str, ...], workpiece: Workpiece) -> list[tuple[str, np.ndarray]]:
     from scipy.spatial.transform import Rotation
 
     from ..transforms import make_transform
@@ -275,7 +282,7 @@ def _write_krl(context: ProgramContext) -> tuple[str, ...]:
     )
 
 
-def _krl_poses(texts: tuple[str, ...], workpiece: Any) -> list[tuple[str, np.ndarray]]:
+def _krl_poses(texts: tuple[str, ...], workpiece: Workpiece) -> list[tuple[str, np.ndarray]]:
     from .krl_check import check_krl_program
 
     return check_krl_program(texts[0], texts[1]).motion_poses()

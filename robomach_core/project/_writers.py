@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -24,6 +24,9 @@ from ._value import (
     cmrr_document,
     compensation_document,
 )
+
+if TYPE_CHECKING:  # for the annotation; the functions import the registry when they run
+    from ..export.languages import ProgramContext
 
 
 def rapid_header(
@@ -176,7 +179,7 @@ def program_context(
     force_control: bool = False,
     program: tuple[Targets, str | None] | None = None,
     language: str | None = None,
-) -> Any:
+) -> ProgramContext:
     """The ``export.languages.ProgramContext`` of the project's program: its targets
     (``program``, else ``program_targets``: IK joints, compensated in the offline modes), the
     header, the moves, the CMRR speed change (position-controlled program) or the learning

@@ -75,7 +75,7 @@ def test_changing_guide_points_marks_results_out_of_date_in_the_gui(session: Ses
         assert OUT_OF_DATE not in post.summary.content
         assert export.preview.content.startswith("**RAPID preview**")
         assert OUT_OF_DATE not in learning.status.content
-        assert scene.stale_label is not None and not scene.stale_label.visible
+        assert scene.paths.stale_label is not None and not scene.paths.stale_label.visible
 
         # The machining slot follows the same rule (the lead wires its results).
         project = session.project()
@@ -97,13 +97,13 @@ def test_changing_guide_points_marks_results_out_of_date_in_the_gui(session: Ses
             assert OUT_OF_DATE in post.summary.content
             assert OUT_OF_DATE in export.preview.content
             assert OUT_OF_DATE in learning.status.content
-            assert scene.stale_label.visible  # the scene's path says so too
+            assert scene.paths.stale_label.visible  # the scene's path says so too
         finally:  # put the point back: the results are current again (same fingerprint)
             session.commit(lambda p: core.with_guide_points(p, guides), "guides")
         assert session.project().status()["postprocess"] == "current"
         post.refresh()
         assert OUT_OF_DATE not in post.summary.content
-        assert not scene.stale_label.visible
+        assert not scene.paths.stale_label.visible
     finally:
         server.stop()
 

@@ -204,7 +204,7 @@ def pump_shots(browser, folder: Path) -> None:
         page.get_by_role("option", name="kr270").click()
         page.get_by_role("button", name="Apply cell").click()
         wait_for(lambda: session.project().cell.robot == "kr270", TIMEOUT_S)
-        wait_for(lambda: wb.scene.paths_hidden, 60)
+        wait_for(lambda: wb.scene.paths.hidden, 60)
         _shot(page, folder, "workbench-cell-change.png", show="Apply cell")
 
 

@@ -246,9 +246,9 @@ def test_a_cell_change_leaves_nothing_of_the_old_cell_in_the_scene() -> None:
         wait_for(lambda: "What learning buys" in wb.pointing.compare.content)
         session.pointing.propose(np.array([0.04, -0.065, 0.017]))
         wait_for(lambda: "P14" in wb.pointing.selected.options)
-        assert not wb.scene.paths_hidden
+        assert not wb.scene.paths.hidden
         session.set_cell(workpiece="block")
-        wait_for(lambda: wb.scene.paths_hidden)
+        wait_for(lambda: wb.scene.paths.hidden)
         wait_for(lambda: wb.pointing.selected.options == ("none",))
         wait_for(lambda: wb.pointing.compare.content == "")
         assert wb.guide_points.selected.options == ("none",)

@@ -79,7 +79,7 @@ def test_view_the_part_frames_it_with_the_arm_out_of_the_way():
     plate, placed at random about the default place and turned: the camera stands outside
     the arm and sees the part's centre and the corners of its top past the arm and its
     spindle, with the whole part in view."""
-    from app.gui.scene import part_view_pose
+    from app.gui.camera import blocked_rays, part_view_pose
     from tests.generated_parts import cam_plate
 
     rng = random.Random()
@@ -105,12 +105,10 @@ def test_view_the_part_frames_it_with_the_arm_out_of_the_way():
                     bounds = session.robot.workpiece.cad().mesh_in_base().bounds
                     eye, centre = part_view_pose(bounds, _Camera.fov, arm)
                     context = f"seed {seed}: {robot}, {workpiece} at {np.round(values, 1)}"
-                    from app.gui.scene import _blocked
-
                     corners = [[x, y, bounds[1, 2]] for x in bounds[:, 0] for y in bounds[:, 1]]
                     inset = centre + 0.8 * (np.array(corners) - centre)
                     inset[:, 2] = bounds[1, 2]
-                    assert _blocked(arm, eye, np.vstack([centre, inset])) == 0, context
+                    assert blocked_rays(arm, eye, np.vstack([centre, inset])) == 0, context
                     radius = 0.5 * np.linalg.norm(bounds[1] - bounds[0])
                     to_centre = np.linalg.norm(centre - eye)
                     assert to_centre * np.sin(0.5 * _Camera.fov) >= radius, context

@@ -91,7 +91,7 @@ class GuidePointsPanel:
     def show_in_scene(self, guides: list | None = None) -> None:
         guides = list(self.session.project().guide_points) if guides is None else guides
         index = self.selected_index()
-        self.scene.set_guide_points(
+        self.scene.paths.set_guide_points(
             [g.T_base_tcp for g in guides], selected=index if index >= 0 else None
         )
 

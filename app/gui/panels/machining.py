@@ -31,7 +31,7 @@ from robomach_core.machining.choice import OPTION_NAMES, OPTION_TEXT, RULE_TEXT
 from robomach_core.project import STOCK_SOURCES
 from robomach_core.stiffness import COMPENSATIONS
 
-from ..scene import deviation_colors
+from ..colors import deviation_colors
 from .feedback import guarded, upload_handled
 from .large import open_large, png_html
 from .machining_table import SORT_KEYS, table_html

@@ -131,7 +131,7 @@ class PathLearningPanel:
         points, text = self.session.learning.taught_wall_preview(
             self.wall_side.value, closed=self.closed.value
         )
-        self.scene.set_taught_wall(points, "" if not points else "wall to follow")
+        self.scene.paths.set_taught_wall(points, "" if not points else "wall to follow")
         self.wall_note.content = text
 
     def show_check(self, findings_markdown: str) -> None:
@@ -146,9 +146,9 @@ class PathLearningPanel:
         rec = self.session.project().recording
         stop = None if rec is None or old_cell else rec.stop
         if stop is None:
-            self.scene.set_stop(None)
+            self.scene.paths.set_stop(None)
         else:
-            self.scene.set_stop(stop.position_m, f"stopped: {stop.cause}")
+            self.scene.paths.set_stop(stop.position_m, f"stopped: {stop.cause}")
 
     def show_job(self, job) -> None:
         """Reflect a path-learning job (running or just ended) in the buttons and the status."""

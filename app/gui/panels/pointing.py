@@ -20,7 +20,8 @@ from robomach_core.errors import InvalidInputError
 from robomach_core.learning.walls import WallPick
 from robomach_core.limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
 
-from ..scene import COMPARISON_COLORS, CellScene
+from ..colors import COMPARISON_COLORS
+from ..scene import CellScene
 from .feedback import guarded, notify_error, notify_info
 
 # What a click on the part does, in the words every page uses (``choices.LABELS``).
@@ -262,7 +263,7 @@ class PointingPanel:
         self.selected.value = keep
         selected = self._selected_proposed()
         if proposal is None:
-            self.scene.set_proposal(None)
+            self.scene.paths.set_proposal(None)
             self.status.content = (
                 "*Click a wall of the part: **propose** shows guide points for the whole wall; "
                 "**teach** sends the robot beside the wall and records a point.*"
@@ -272,7 +273,7 @@ class PointingPanel:
             wall = proposal.wall_wobj_m()
             if proposal.closed:
                 wall = np.vstack([wall, wall[:1]])
-            self.scene.set_proposal(
+            self.scene.paths.set_proposal(
                 np.array([p.T_base_tcp[:3, 3] for p in proposal.points]),
                 [p.reach for p in proposal.points],
                 closed=proposal.closed,
@@ -309,7 +310,7 @@ class PointingPanel:
         outcome = self.session.project().processed
         current = self.session.project().status()["postprocess"] == "current"
         comparison = getattr(outcome, "cad_comparison", None) if current else None
-        self.scene.set_comparison(
+        self.scene.paths.set_comparison(
             comparison,
             show_learned=self.show_learned.value,
             show_cad_only=self.show_cad_only.value,

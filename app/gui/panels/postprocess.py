@@ -142,10 +142,10 @@ class PostprocessPanel:
         rec = self.session.project().recording
         outcome = self.session.project().processed
         if rec is None:
-            self.scene.set_samples(None)
+            self.scene.paths.set_samples(None)
             return
         if outcome is None:
-            self.scene.set_samples(drawn(rec.position_m))
+            self.scene.paths.set_samples(drawn(rec.position_m))
             return
         r = outcome.result
         filtered = drawn(r.surface_m[r.keep_mask])
@@ -161,7 +161,7 @@ class PostprocessPanel:
                 dense = (along, true_tool_path_distance(wp, radius, along))
             except RobomachError:  # an uploaded mesh has no true wall
                 dev_f = dev_t = dense = None
-        self.scene.set_samples(
+        self.scene.paths.set_samples(
             drawn(rec.position_m),
             filtered,
             targets,

@@ -69,7 +69,7 @@ SupervisionCause = Literal[
 ]
 ARM_LINK_NAMES = ("upper arm", "forearm", "wrist 1", "wrist 2", "wrist 3")
 GJK_MAX_CORNERS = 500  # a hull with more corners is measured by coal (``_measure_near``)
-SPINDLE_RADIUS_M = 0.03  # the spindle body the GUIs draw (app/gui/scene.py ``tool_mesh``)
+SPINDLE_RADIUS_M = 0.03  # the spindle body the GUIs draw (app/gui/arm.py ``tool_mesh``)
 SHANK_LENGTH_M = 0.01  # between the cutter's flutes and the spindle body
 SHANK_RADIUS_FRACTION = 0.8  # of the cutter radius
 _NO_REFERENCE = np.eye(4)

@@ -121,7 +121,7 @@ def test_the_scene_reads_an_uploads_meshes_from_its_own_folder_only() -> None:
     for other in ("package://arm/meshes/unreferenced.stl", "/etc/passwd", "file:///etc/passwd",
                   "package://arm/../../../../etc/passwd", str(found)):  # fmt: skip
         assert mesh_path(record, other) == ""
-    from app.gui.scene import load_urdf
+    from app.gui.arm import load_urdf
 
     urdf = load_urdf(record.name)  # yourdfpy through the resolver: the mesh is drawn
     assert urdf.scene is not None and len(urdf.scene.geometry) >= 1
