@@ -32,11 +32,13 @@ UR_OPTIONS = ("force_mode", "path_correction")  # every configuration runnable o
 # over fresh castings: 0.25 (>= 75 % cut) for the unstaged controllers; the staged ones' stage
 # switches land where the cell's noise puts them, which no rehearsal saw. Measured over 100
 # fresh stocks on each of the UR10, IRB 4400 and KR 270 demos as the castings test below cuts
-# them (issue 29's closing note gives the script and its seeds):
-# unstaged 85.2 % at worst (adaptive-pi, KR 270; the others >= 94.3 %); fuzzy median 79-80 %,
-# 57.7 % at worst, 31 % of the stocks under 75 %; two-stage median 61-66 %, 41.5 % at worst,
-# 90 % under 75 %. Asserted with a margin under the worst, so no fresh draw fails at random:
-# fuzzy >= 50 %, two-stage >= 35 %.
+# them (issue 29's closing note gives the script and its seeds), the plan the midrange of every
+# rehearsal (``machining.offline``; 2026-12-04, stock seeds from 2026120500):
+# unstaged 85.2 % at worst (adaptive-pi, IRB 4400; the others >= 91.7 %); fuzzy median 80-82 %,
+# 57.6 % at worst, 12 % of the stocks under 75 %; two-stage median 67-72 %, 42.9 % at worst,
+# 71 % under 75 % (the mean of the last two rehearsals before: fuzzy 55.4 % at worst, two-stage
+# 39.9 %, on the same stocks). Asserted with a margin under the worst, so no fresh draw fails
+# at random: fuzzy >= 50 %, two-stage >= 35 %.
 OFFLINE_SHARE = {"fuzzy": 0.50, "two-stage": 0.65}
 # Online, the share left is 0.15 (>= 85 % cut) for every controller but the two-stage one, whose
 # switch between its two feeds lands where the stock's noise puts it: over the pump demo's
@@ -87,7 +89,7 @@ def test_all_18_complete_within_1_2_x_the_limit_and_never_feed_backwards(pump):
 @pytest.mark.parametrize("controller", MACHINING_CONTROLLERS)
 def test_compensation_cuts_the_wall_error_offline_75_and_online_85_percent(pump, controller):
     """Offline >= 75 % under the unstaged controllers, the staged ones as measured over fresh
-    castings (``OFFLINE_SHARE``; on this stock, seed 0: fuzzy 87 %, two-stage 60 %); online
+    castings (``OFFLINE_SHARE``; on this stock, seed 0: fuzzy 83 %, two-stage 61 %); online
     >= 85 % under every controller but the two-stage one, as measured (``ONLINE_SHARE``)."""
     _, _, _, result = pump
     off = _row(result, controller, "off")["wall_error_max_mm"]
@@ -129,7 +131,7 @@ def test_offline_compensation_holds_on_other_castings(pump, stock_seed):
     """Issue 29 over the part's variation: the same program on another built-in stock, its
     rehearsals and its cut on noise draws of their own, offline compensation cuts the wall
     error by >= 75 % under the unstaged controllers; under the staged ones (fuzzy, two-stage)
-    by what holds over fresh castings (``OFFLINE_SHARE``: 57.7 % and 41.5 % at worst over 300
+    by what holds over fresh castings (``OFFLINE_SHARE``: 57.6 % and 42.9 % at worst over 300
     stocks, asserted >= 50 % and >= 35 %), since where a stage switch lands is the cell's
     noise's and a plan hedged between rehearsals leaves up to half a stage step there
     (``machining.offline`` LIMIT)."""
