@@ -14,7 +14,9 @@ STRATEGY  Before: the route is planned (``route.plan_route``: the side, the heig
           every page tells the same story as the run. After: the wall point each guide point
           faces on the route's side (``route.taught_wall_points``) must be touched by the
           program (within ``TAUGHT_WALL_TOLERANCE_M`` across the axis, among the program's
-          points at that height).
+          points at that height), and the program must meet the points in the order taught
+          (``met_order``: the wall points come from the route's walk, and a walk round another
+          wall, or the other way round, passes its own).
 SOLUTION  ``guide_point_warnings(guides, settings, *, workpiece, tool_radius_m, supervisor)``
           -> ``GuideWarning``s (1-based point, rule, severity, one line with the fix);
           ``taught_wall_check(...)`` -> ``TaughtWallCheck``.
@@ -216,7 +218,8 @@ class TaughtWallCheck:
     Attributes:
         follows: True when the program touches the taught wall at every guide point checked.
         checked: Guide points with a taught wall in the mesh (1-based numbers).
-        missed: The guide points whose taught wall the program does not touch.
+        missed: The guide points whose taught wall the program does not touch (all of them,
+            in the order the program meets them, when it meets them out of the order taught).
         worst_gap_m: The farthest the program's cutter stays from a taught wall point.
         message: One line for the user.
     """
@@ -248,6 +251,43 @@ def _across_the_end(across: np.ndarray, end: int, foot: np.ndarray, gap: float) 
     if along > 0.0 or -along > th.OPEN_END_SHORT_M:  # beside the program, or short by more
         return gap
     return float(np.linalg.norm((foot - p0) - along * t))
+
+
+def met_order(
+    guides: Sequence[GuidePoint], path_m: np.ndarray, axis: np.ndarray, closed: bool
+) -> list[int] | None:
+    """The guide points (1-based) in the order the program's points ``path_m`` meet them
+    (across the axis), when that is not the order taught, else None: a loop that went round
+    another wall, or the other way, meets its points out of order and can still pass every
+    wall point it reads off its own walk. Each point is met at the program's point nearest it
+    across the axis (points farther than twice ``AT_WALL_GAP_M`` are left out); on a loop the
+    steps from each point to the next add up to one lap when in order; a step back of up to
+    ``NEAR_END_M`` is a point met in place (two points at one station)."""
+    if len(path_m) < 2:
+        return None
+    across = path_m - np.outer(path_m @ axis, axis)
+    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(across, axis=0), axis=1))])
+    length = float(along[-1])
+    met: list[tuple[int, float]] = []
+    for k, g in enumerate(guides):
+        p = g.position_m - axis * float(g.position_m @ axis)
+        d = np.linalg.norm(across - p, axis=1)
+        j = int(np.argmin(d))
+        if d[j] <= 2 * th.AT_WALL_GAP_M:
+            met.append((k + 1, float(along[j])))
+    if len(met) < 3 or length <= 0.0:
+        return None
+    s = np.array([v for _, v in met])
+    tol = th.NEAR_END_M
+    if closed:
+        steps = (np.roll(s, -1) - s + tol) % length - tol
+        in_order = round(float(steps.sum()) / length) <= 1
+        start = s[0]
+        seen = sorted(met, key=lambda m: (m[1] - start + tol) % length)
+    else:
+        in_order = bool(np.all(np.diff(s) >= -tol))
+        seen = sorted(met, key=lambda m: m[1])
+    return None if in_order else [k for k, _ in seen]
 
 
 def taught_wall_check(
@@ -317,6 +357,13 @@ def taught_wall_check(
                 off_height[k + 1] = float(h - path_height[j])  # > 0: above (axis into part)
     if not checked:
         return TaughtWallCheck(True, (), (), 0.0, "no taught wall found in the part's mesh")
+    order = met_order(guides, across, axis, closed)
+    if order is not None:
+        return TaughtWallCheck(False, tuple(checked), tuple(order), worst, (
+            f"the program meets the guide points in another order than taught "
+            f"({', '.join(f'G{k}' for k in order)}): it went round another wall, or the other "
+            "way round; check the wall side, or add a point where the route should go"
+        ))  # fmt: skip
     if missed and samples_m is not None and tolerance_m is not None and len(samples_m) >= 2:
         learned = taught_wall_check(
             workpiece,
