@@ -58,7 +58,7 @@ def _shares(rng: np.random.Generator, closed: bool) -> np.ndarray:
 
 def test_points_met_in_the_order_taught_are_in_order():
     rng = np.random.default_rng(SEED)
-    for case in range(300):
+    for case in range(150):
         closed = bool(rng.random() < 0.6)
         program, at = _contour(rng, closed)
         shares = _shares(rng, closed)
@@ -70,7 +70,7 @@ def test_points_met_in_the_order_taught_are_in_order():
 
 def test_points_met_round_the_other_way_are_out_of_order():
     rng = np.random.default_rng(SEED + 1)
-    for case in range(300):
+    for case in range(150):
         closed = bool(rng.random() < 0.6)
         program, at = _contour(rng, closed)
         shares = _shares(rng, closed)
