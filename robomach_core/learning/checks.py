@@ -254,13 +254,15 @@ def _across_the_end(across: np.ndarray, end: int, foot: np.ndarray, gap: float) 
 
 
 def met_order(
-    guides: Sequence[GuidePoint], path_m: np.ndarray, axis: np.ndarray, closed: bool
+    places_m: Sequence[np.ndarray], path_m: np.ndarray, axis: np.ndarray, closed: bool
 ) -> list[int] | None:
-    """The guide points (1-based) in the order the program's points ``path_m`` meet them
-    (across the axis), when that is not the order taught, else None: a loop that went round
-    another wall, or the other way, meets its points out of order and can still pass every
-    wall point it reads off its own walk. Each point is met at the program's point nearest it
-    across the axis (points farther than twice ``AT_WALL_GAP_M`` are left out); on a loop the
+    """The guide points (1-based) in the order the program's points ``path_m`` meet their
+    places ``places_m`` (each point's wall point, else the point), across the axis, when that
+    is not the order taught, else None: a loop that went round another wall, or the other way,
+    meets its points out of order and can still pass every wall point it reads off its own
+    walk. Each point is met at the program's point nearest its place across the axis (places
+    farther than twice ``AT_WALL_GAP_M`` are left out: a wall point, not the point, so that a
+    point inside a narrow bay is met on its own wall's pass); on a loop the
     steps from each point to the next add up to one lap when in order; a step back of up to
     ``NEAR_END_M`` is a point met in place (two points at one station)."""
     if len(path_m) < 2:
@@ -269,8 +271,8 @@ def met_order(
     along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(across, axis=0), axis=1))])
     length = float(along[-1])
     met: list[tuple[int, float]] = []
-    for k, g in enumerate(guides):
-        p = g.position_m - axis * float(g.position_m @ axis)
+    for k, place in enumerate(places_m):
+        p = place - axis * float(place @ axis)
         d = np.linalg.norm(across - p, axis=1)
         j = int(np.argmin(d))
         if d[j] <= 2 * th.AT_WALL_GAP_M:
@@ -357,7 +359,8 @@ def taught_wall_check(
                 off_height[k + 1] = float(h - path_height[j])  # > 0: above (axis into part)
     if not checked:
         return TaughtWallCheck(True, (), (), 0.0, "no taught wall found in the part's mesh")
-    order = met_order(guides, across, axis, closed)
+    places = [g.position_m if p is None else p for p, g in zip(points, guides, strict=True)]
+    order = met_order(places, across, axis, closed)
     if order is not None:
         return TaughtWallCheck(False, tuple(checked), tuple(order), worst, (
             f"the program meets the guide points in another order than taught "

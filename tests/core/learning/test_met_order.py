@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from robomach_core.cell import GuidePoint
 from robomach_core.learning.checks import met_order
 from tests.envelope import replay, run_seed
 
@@ -33,15 +32,13 @@ def _contour(rng: np.random.Generator, closed: bool) -> tuple[np.ndarray, callab
     return at(np.linspace(0.0, 1.0, n)), at
 
 
-def _guides(at, shares: np.ndarray, rng: np.random.Generator) -> list[GuidePoint]:
+def _places(at, shares: np.ndarray, rng: np.random.Generator) -> list[np.ndarray]:
     out = []
     for u in shares:
         p, q = at(np.array([u - 1e-4, u + 1e-4]))
         tangent = (q - p) / np.linalg.norm(q - p)
         across = np.cross(AXIS, tangent)
-        T = np.eye(4)
-        T[:3, 3] = at(np.array([u]))[0] + across * rng.uniform(-0.003, 0.003)
-        out.append(GuidePoint(T, np.zeros(6), 0.0))
+        out.append(at(np.array([u]))[0] + across * rng.uniform(-0.003, 0.003))
     return out
 
 
@@ -64,7 +61,7 @@ def test_points_met_in_the_order_taught_are_in_order():
         shares = _shares(rng, closed)
         if closed:
             shares = np.roll(shares, int(rng.integers(0, len(shares))))  # any point first
-        found = met_order(_guides(at, shares, rng), program, AXIS, closed)
+        found = met_order(_places(at, shares, rng), program, AXIS, closed)
         assert found is None, f"{replay(SEED)}, case {case}: in order, but met as {found}"
 
 
@@ -78,5 +75,5 @@ def test_points_met_round_the_other_way_are_out_of_order():
         length = float(np.sum(np.linalg.norm(np.diff(program, axis=0), axis=1)))
         if len(stations) < 3 or np.min(np.diff(stations)) * length < 0.02:
             continue  # the stations a step back of two points in place could hide
-        found = met_order(_guides(at, shares[::-1], rng), program, AXIS, closed)
+        found = met_order(_places(at, shares[::-1], rng), program, AXIS, closed)
         assert found is not None, f"{replay(SEED)}, case {case}: reversed, but found in order"
