@@ -40,9 +40,9 @@ class LegEnd:
     (a contact on a corner is anywhere on the cutter's arc round it, up to a radius off the
     faces' path), receding ``CLOSE_PASSED_M``; of an open one at the nearest approach to its
     last point; either ``CLOSE_LOOP_OVERRUN_M`` past the plane at the latest (a loop's, once
-    it has come within ``NEAR_END_M`` of its start). The nearest
-    approach is watched over the leg's last ``NEAR_END_M`` (half of it at least), and over
-    the whole of a leg shorter than that."""
+    it has come within ``NEAR_END_M`` of its start). The nearest approach is watched over the
+    leg's last ``NEAR_END_M`` (half of it at least), and over the whole of a leg shorter than
+    that."""
 
     def __init__(
         self, leg: Leg, axis: np.ndarray, *, last: bool, closed: bool, tool_radius_m: float
