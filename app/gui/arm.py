@@ -16,11 +16,19 @@ import numpy as np
 import trimesh
 from viser.extras import ViserUrdf
 
-from robomach_core.cell import ROBOT_URDFS, Tool, robots_directory
+from robomach_core.cell import (
+    ROBOT_URDFS,
+    SHANK_LENGTH_M,
+    SHANK_RADIUS_FRACTION,
+    SPINDLE_RADIUS_M,
+    Tool,
+    robots_directory,
+)
 from robomach_core.transforms import quaternion_from_matrix, rotation_about
 
 # The example-robot-data URDFs name their meshes package://example-robot-data/robots/...
 _PACKAGE_PREFIXES = ("package://example-robot-data/robots/", "package://")
+MIN_BODY_DRAWN_M = 0.01  # the spindle body is drawn at least this long on a short tool
 
 
 def _mesh_filename(fname: str) -> str:
@@ -71,12 +79,14 @@ def tool_mesh(tool: Tool) -> trimesh.Trimesh:
     length = float(tool.tcp_offset_m[2])
     cutter_len = tool.flute_length_m
     parts = []
-    body_len = max(length - cutter_len - 0.01, 0.01)
-    body = trimesh.creation.cylinder(radius=0.03, height=body_len, sections=32)
+    body_len = max(length - cutter_len - SHANK_LENGTH_M, MIN_BODY_DRAWN_M)
+    body = trimesh.creation.cylinder(radius=SPINDLE_RADIUS_M, height=body_len, sections=32)
     body.apply_translation([0.0, 0.0, -length + body_len / 2])
     parts.append(body)
     shank_len = max(length - body_len - cutter_len, 0.002)
-    shank = trimesh.creation.cylinder(radius=tool.radius_m * 0.8, height=shank_len, sections=16)
+    shank = trimesh.creation.cylinder(
+        radius=tool.radius_m * SHANK_RADIUS_FRACTION, height=shank_len, sections=16
+    )
     shank.apply_translation([0.0, 0.0, -cutter_len - shank_len / 2])
     parts.append(shank)
     return trimesh.util.concatenate(parts)

@@ -41,6 +41,9 @@ from .sensor import wrench_in_tool_frame as wrench_in_tool_frame
 from .simulator import Cell as Cell
 from .simulator import CellConfig as CellConfig
 from .simulator import CellState as CellState
+from .supervision import SHANK_LENGTH_M as SHANK_LENGTH_M
+from .supervision import SHANK_RADIUS_FRACTION as SHANK_RADIUS_FRACTION
+from .supervision import SPINDLE_RADIUS_M as SPINDLE_RADIUS_M
 from .supervision import Supervisor as Supervisor
 from .supervision import cell_supervisor as cell_supervisor
 from .tool import TOOL_DOWN as TOOL_DOWN

@@ -560,7 +560,7 @@ def _placed(
 
 def tool_reach(tool: object) -> float:
     """How deep the tool reaches below its spindle body: cutter and shank [m]."""
-    from ..cell.supervision.supervisor import SHANK_LENGTH_M
+    from ..cell import SHANK_LENGTH_M
 
     return float(tool.flute_length_m) + SHANK_LENGTH_M  # type: ignore[attr-defined]
 

@@ -3,6 +3,9 @@
 See ``supervisor`` for the model; the compiled per-period arithmetic is in ``_kernels``.
 """
 
+from .supervisor import SHANK_LENGTH_M as SHANK_LENGTH_M
+from .supervisor import SHANK_RADIUS_FRACTION as SHANK_RADIUS_FRACTION
+from .supervisor import SPINDLE_RADIUS_M as SPINDLE_RADIUS_M
 from .supervisor import FixtureBox as FixtureBox
 from .supervisor import Supervised as Supervised
 from .supervisor import SupervisionCause as SupervisionCause
