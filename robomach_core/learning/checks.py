@@ -15,7 +15,7 @@ STRATEGY  Before: the route is planned (``route.plan_route``: the side, the heig
           faces on the route's side (``route.taught_wall_points``) must be touched by the
           program (within ``TAUGHT_WALL_TOLERANCE_M`` across the axis, among the program's
           points at that height), and the program must meet the points in the order taught
-          (``met_order``: the wall points come from the route's walk, and a walk round another
+          (``walk.met_order``: the wall points come from the route's walk, and a walk round another
           wall, or the other way round, passes its own).
 SOLUTION  ``guide_point_warnings(guides, settings, *, workpiece, tool_radius_m, supervisor)``
           -> ``GuideWarning``s (1-based point, rule, severity, one line with the fix);
@@ -45,6 +45,7 @@ from .route import (
     taught_wall_points,
 )
 from .run import PathLearningSettings
+from .walk import met_order
 
 
 def _point_findings(guides: Sequence[GuidePoint], settings: PathLearningSettings) -> list:
@@ -251,45 +252,6 @@ def _across_the_end(across: np.ndarray, end: int, foot: np.ndarray, gap: float) 
     if along > 0.0 or -along > th.OPEN_END_SHORT_M:  # beside the program, or short by more
         return gap
     return float(np.linalg.norm((foot - p0) - along * t))
-
-
-def met_order(
-    places_m: Sequence[np.ndarray], path_m: np.ndarray, axis: np.ndarray, closed: bool
-) -> list[int] | None:
-    """The guide points (1-based) in the order the program's points ``path_m`` meet their
-    places ``places_m`` (each point's wall point, else the point), across the axis, when that
-    is not the order taught, else None: a loop that went round another wall, or the other way,
-    meets its points out of order and can still pass every wall point it reads off its own
-    walk. Each point is met at the program's point nearest its place across the axis (places
-    farther than twice ``AT_WALL_GAP_M`` are left out: a wall point, not the point, so that a
-    point inside a narrow bay is met on its own wall's pass); on a loop the
-    steps from each point to the next add up to one lap when in order; a step back of up to
-    ``NEAR_END_M`` is a point met in place (two points at one station)."""
-    if len(path_m) < 2:
-        return None
-    across = path_m - np.outer(path_m @ axis, axis)
-    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(across, axis=0), axis=1))])
-    length = float(along[-1])
-    met: list[tuple[int, float]] = []
-    for k, place in enumerate(places_m):
-        p = place - axis * float(place @ axis)
-        d = np.linalg.norm(across - p, axis=1)
-        j = int(np.argmin(d))
-        if d[j] <= 2 * th.AT_WALL_GAP_M:
-            met.append((k + 1, float(along[j])))
-    if len(met) < 3 or length <= 0.0:
-        return None
-    s = np.array([v for _, v in met])
-    tol = th.NEAR_END_M
-    if closed:
-        steps = (np.roll(s, -1) - s + tol) % length - tol
-        in_order = round(float(steps.sum()) / length) <= 1
-        start = s[0]
-        seen = sorted(met, key=lambda m: (m[1] - start + tol) % length)
-    else:
-        in_order = bool(np.all(np.diff(s) >= -tol))
-        seen = sorted(met, key=lambda m: m[1])
-    return None if in_order else [k for k, _ in seen]
 
 
 def taught_wall_check(

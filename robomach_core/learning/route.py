@@ -49,6 +49,7 @@ from .settings import WALL_SIDE_CHOICES, PathLearningSettings
 from .walk import (
     LegWalk,
     cross3,
+    met_order,
     open_wall_return,
     pushed_against_walk,
     unreached_sentence,
@@ -519,6 +520,21 @@ class LearningRoute:
         return float(o[leg.first]), float(o[leg.last])
 
 
+def _astray(
+    guides: Sequence[GuidePoint],
+    legs: Sequence[Leg],
+    walks: Sequence[LegWalk],
+    axis: np.ndarray,
+    closed: bool,
+) -> bool:
+    """The walk meets the guide points out of the order taught (``met_order``), or passes
+    a point's push with its wall the other way (``pushed_against_walk``)."""
+    points = [w.points_m for w in walks if len(w.points_m)]
+    if points and met_order([g.position_m for g in guides], np.vstack(points), axis, closed):
+        return True
+    return bool(pushed_against_walk(guides, legs, walks, axis))
+
+
 def plan_route(
     guides: Sequence[GuidePoint],
     settings: PathLearningSettings,
@@ -591,11 +607,15 @@ def plan_route(
         # across a slot's end or a bay, and its walk runs round it; else the chord's wall (a
         # point nearer the groove's other wall, the side as taught)
         (chord_dir, _, by_chord), (near_dir, near_start, by_nearest) = tried
-        # ... unless a point pushed a wall the chord's walk passes the other way and none the
-        # nearest's (a sparse loop whose first chord cuts across an island)
-        pushed_chord = pushed_against_walk(guides, legs, by_chord, axis)
-        pushed_near = pushed_against_walk(guides, legs, by_nearest, axis)
-        if by_nearest[-1].reached and pushed_chord and not pushed_near:
+        # ... unless the chord's walk meets the points out of the order taught, or passes a
+        # point's push the other way, and the nearest's does not (a sparse loop whose first
+        # chord cuts across an island: its side's wall is the groove's outer one, round the
+        # other way)
+        if (
+            by_nearest[-1].reached
+            and _astray(guides, legs, by_chord, axis, closed)
+            and not (_astray(guides, legs, by_nearest, axis, closed))
+        ):
             walks, start_dir = by_nearest, near_dir
         elif by_nearest[0].reached and (
             not by_chord[0].reached

@@ -1,4 +1,4 @@
-"""The order a program meets the guide points in (``checks.met_order``): a loop that went round
+"""The order a program meets the guide points in (``walk.met_order``): a loop that went round
 another wall, or the other way round, meets its points out of order though every wall point
 it reads off its own walk is passed (issue 28: a sparse loop round an island went round the
 groove's outer wall the other way and passed, 4.0 mm off). Properties over generated loops and
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from robomach_core.learning.checks import met_order
+from robomach_core.learning.walk import met_order
 from tests.envelope import replay, run_seed
 
 SEED = run_seed()
