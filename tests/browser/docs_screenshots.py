@@ -241,6 +241,9 @@ def pendant_shot(browser, folder: Path) -> None:
 def main() -> None:
     folder = Path(sys.argv[1] if len(sys.argv) > 1 else "docs/images")
     folder.mkdir(parents=True, exist_ok=True)
+    # a page's text comes after the session's work (a route planned, a mesh loaded): on a
+    # loaded machine that takes longer than Playwright's 5 s default
+    expect.set_options(timeout=60_000)
     with sync_playwright() as p:
         browser = p.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
         try:
