@@ -254,6 +254,15 @@ def _across_the_end(across: np.ndarray, end: int, foot: np.ndarray, gap: float) 
     return float(np.linalg.norm((foot - p0) - along * t))
 
 
+def _out_of_order(order: list[int], checked: list[int], worst: float) -> TaughtWallCheck:
+    """NOT FIT for a program that meets the points in ``order``, not the order taught."""
+    return TaughtWallCheck(False, tuple(checked), tuple(order), worst, (
+        f"the program meets the guide points in another order than taught "
+        f"({', '.join(f'G{k}' for k in order)}): it went round another wall, or the other "
+        "way round; check the wall side, or add a point where the route should go"
+    ))  # fmt: skip
+
+
 def taught_wall_check(
     workpiece: Workpiece,
     tool_radius_m: float,
@@ -322,13 +331,8 @@ def taught_wall_check(
     if not checked:
         return TaughtWallCheck(True, (), (), 0.0, "no taught wall found in the part's mesh")
     places = [g.position_m if p is None else p for p, g in zip(points, guides, strict=True)]
-    order = met_order(places, across, axis, closed)
-    if order is not None:
-        return TaughtWallCheck(False, tuple(checked), tuple(order), worst, (
-            f"the program meets the guide points in another order than taught "
-            f"({', '.join(f'G{k}' for k in order)}): it went round another wall, or the other "
-            "way round; check the wall side, or add a point where the route should go"
-        ))  # fmt: skip
+    if (order := met_order(places, across, axis, closed)) is not None:
+        return _out_of_order(order, checked, worst)
     if missed and samples_m is not None and tolerance_m is not None and len(samples_m) >= 2:
         learned = taught_wall_check(
             workpiece,

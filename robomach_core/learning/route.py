@@ -535,6 +535,34 @@ def _astray(
     return bool(pushed_against_walk(guides, legs, walks, axis))
 
 
+def _nearest_wins(
+    guides: Sequence[GuidePoint],
+    legs: Sequence[Leg],
+    by_chord: Sequence[LegWalk],
+    by_nearest: Sequence[LegWalk],
+    axis: np.ndarray,
+    closed: bool,
+) -> bool:
+    """Whether the first point's walk starts from the wall it stands by (``by_nearest``)
+    rather than the one its chord's side gives (``by_chord``): when the chord's walk meets the
+    points out of order or against a push and the nearest's does not (a sparse loop whose first
+    chord cuts across an island: its side's wall is the groove's outer one, round the other
+    way); else when the first leg's walk from the wall it stands by reaches the second point in
+    under ``FIRST_WALK_SHARE`` of the chord's (the chord's wall is across a slot's end or a
+    bay, and its walk runs round it). Otherwise the chord's wall: a point nearer the groove's
+    other wall, the side as taught."""
+    if (
+        by_nearest[-1].reached
+        and _astray(guides, legs, by_chord, axis, closed)
+        and not _astray(guides, legs, by_nearest, axis, closed)
+    ):
+        return True
+    return by_nearest[0].reached and (
+        not by_chord[0].reached
+        or by_nearest[0].length_m < th.FIRST_WALK_SHARE * by_chord[0].length_m
+    )
+
+
 def plan_route(
     guides: Sequence[GuidePoint],
     settings: PathLearningSettings,
@@ -602,25 +630,8 @@ def plan_route(
     if not tried:
         return route
     if len(tried) > 1:
-        # the wall it stands by, when the first leg's walk from it reaches the second point in
-        # under FIRST_WALK_SHARE of the walk from the wall the chord gives: the chord's wall is
-        # across a slot's end or a bay, and its walk runs round it; else the chord's wall (a
-        # point nearer the groove's other wall, the side as taught)
-        (chord_dir, _, by_chord), (near_dir, near_start, by_nearest) = tried
-        # ... unless the chord's walk meets the points out of the order taught, or passes a
-        # point's push the other way, and the nearest's does not (a sparse loop whose first
-        # chord cuts across an island: its side's wall is the groove's outer one, round the
-        # other way)
-        if (
-            by_nearest[-1].reached
-            and _astray(guides, legs, by_chord, axis, closed)
-            and not (_astray(guides, legs, by_nearest, axis, closed))
-        ):
-            walks, start_dir = by_nearest, near_dir
-        elif by_nearest[0].reached and (
-            not by_chord[0].reached
-            or by_nearest[0].length_m < th.FIRST_WALK_SHARE * by_chord[0].length_m
-        ):
+        (chord_dir, _, by_chord), (near_dir, _, by_nearest) = tried
+        if _nearest_wins(guides, legs, by_chord, by_nearest, axis, closed):
             walks, start_dir = by_nearest, near_dir
         else:  # walk it again: the height reference keeps the last walk's
             walks = walk_route(
