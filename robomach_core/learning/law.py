@@ -15,7 +15,8 @@ STRATEGY  Hybrid force/velocity contour following in the plane across the tool a
             - across it, PI force control to the reference (eq. of the chapter's Yp loop):
                   v_w = Kp e + Ki integral(e),  e = F_ref - F_n,  F_n = |F_x|;
             - out of contact the tool searches along w at the search speed, advancing no faster
-              (not at all before the first touch, until it has searched ``first_across``), and
+              (not at all before the first touch, a push of ``touched`` or more, not the
+              sensor's noise, until it has searched ``first_across``), and
               after ``search_turn`` without the wall it searches across the leg again;
             - along the axis the tool holds the height the person taught, relative to the part:
                   h = H0 + G . (p - P0) + K (o_a + (o_b - o_a) f) - lift,
@@ -52,9 +53,9 @@ STATE_SIZE = 6
 (
     P_FORCE, P_KP, P_KI, P_VMAX, P_SEARCH, P_SPEED, P_BETA, P_DT, P_CONE, P_FLOOR_N,
     P_CLEARANCE, P_LIFT_DECAY, P_HEIGHT_TIME, P_HEIGHT_SPEED, P_BEHIND, P_CONTACT, P_FIRST,
-    P_TURN, P_SLOW_FROM, P_SLOWEST_AT, P_SLOWEST, P_CLIMB,
-) = range(22)  # fmt: skip
-PARAMETER_COUNT = 22
+    P_TURN, P_SLOW_FROM, P_SLOWEST_AT, P_SLOWEST, P_CLIMB, P_TOUCHED,
+) = range(23)  # fmt: skip
+PARAMETER_COUNT = 23
 
 
 # A leg of the route, one row of ``legs``: start a (3), unit direction xp (3), length, the
@@ -160,7 +161,8 @@ def contour_law(
             norm = math.sqrt(wx * wx + wy * wy + wz * wz)
             w_new[0], w_new[1], w_new[2] = wx / norm, wy / norm, wz / norm
             out[FOUND_WALL] = 1.0
-            out[EVER_TOUCHED] = 1.0
+            if f_across >= params[P_TOUCHED]:  # a push, not the sensor's noise
+                out[EVER_TOUCHED] = 1.0
             out[OUT_OF_CONTACT] = 0.0
     if not touching and out[FOUND_WALL] > 0.0 and out[OUT_OF_CONTACT] > params[P_TURN]:
         # the wall has been lost for a while: search across the leg again

@@ -263,7 +263,7 @@ def contour_law_parameters(settings: PathLearningSettings) -> np.ndarray:
         law.P_BEHIND: th.BEHIND_COS, law.P_CONTACT: th.CONTACT_FLAG_N,
         law.P_FIRST: th.FIRST_SEARCH_ACROSS_M, law.P_TURN: th.SEARCH_TURN_M,
         law.P_SLOW_FROM: th.SLOW_FROM, law.P_SLOWEST_AT: th.SLOWEST_AT, law.P_SLOWEST: th.SLOWEST,
-        law.P_CLIMB: th.CLIMB_SHARE,
+        law.P_CLIMB: th.CLIMB_SHARE, law.P_TOUCHED: th.WALL_FORCE_CLEAR_N,
     }  # fmt: skip
     assert sorted(values) == list(range(law.PARAMETER_COUNT))  # every place filled, once
     params = np.empty(law.PARAMETER_COUNT)

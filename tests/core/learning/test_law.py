@@ -141,6 +141,28 @@ def test_pressed_at_the_reference_it_slides_along_the_wall():
     assert abs(step[1]) < 1e-7  # in balance across the wall
 
 
+@given(st.floats(0.01, 0.99), st.floats(0.0, 1.0), st.floats(0.5, 20.0))
+@settings(max_examples=60, deadline=None)
+def test_the_sensors_noise_is_not_the_first_touch(share, later, speed_mm_s):
+    """Before the first touch the tool goes straight across to the wall, nothing skipped: a
+    force across the axis under ``WALL_FORCE_CLEAR_N`` (the sensor's noise, 0.3 N rms, can pass
+    the contact flag's 1 N) does not count as it. Counted, the tool advanced along a wall it had
+    not met and an open route's program began 3.5 mm past its first point (issue 28)."""
+    w = np.array([0.0, -1.0, 0.0])
+    params = _params(speed_m_s=speed_mm_s * 1e-3)
+    noise = th.CONTACT_FLAG_N + share * (th.WALL_FORCE_CLEAR_N - th.CONTACT_FLAG_N)
+    state = initial_state()
+    _, _, state, _, touching = contour_law(
+        np.array([0.0, noise, 0.0]), w, AXIS, 1.0, _leg(), _plane(), np.zeros(3), state, params
+    )
+    assert touching  # the contact flag, as recorded
+    step, *_ = contour_law(
+        np.array([0.0, later * th.CONTACT_FLAG_N, 0.0]), w, AXIS, 1.0, _leg(), _plane(),
+        np.zeros(3), state, params,
+    )  # fmt: skip
+    assert step[0] == 0.0  # no advance along the wall: still the first search
+
+
 def test_a_force_from_behind_pushes_the_tool_towards_its_wall_and_keeps_w():
     w = np.array([0.0, -1.0, 0.0])
     state = initial_state()

@@ -4,8 +4,9 @@ groove's outer wall; the first point stands by the island, none to two of the ot
 it. The run went round the outer wall the other way, met the points out of order, and the
 taught-wall check, which reads the wall off the walk, passed it (issue 28, a wrong program
 that passed: 4.0 mm from the island, 0 % of it covered). The walk that meets the points in
-order, and that the person's pushes agree with, is taken. Properties over generated sets on two parts' islands, judged against the true
-walls (``learning_outcome``); a fresh seed each run (``ROBOMACH_SEED`` replays it)."""
+order, and that the person's pushes agree with, is taken. Properties over generated sets on
+two parts' islands, judged against the true walls (``learning_outcome``); a fresh seed each
+run (``ROBOMACH_SEED`` replays it)."""
 
 from __future__ import annotations
 
