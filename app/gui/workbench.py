@@ -278,6 +278,12 @@ class Workbench:
         mesh_key = None if mesh is None else (mesh[0], len(mesh[1]))
         return (cell.robot, cell.workpiece, cell.wobj_mm_deg, mesh_key)
 
+    @property
+    def part_framed(self) -> bool:
+        """The browsers' cameras were sent to the cell's part (after a cell change the tick
+        frames it; until then a camera the person moves is moved again)."""
+        return self._framed == self._part_key()
+
     def _frame_part(self) -> None:
         """Every browser's camera on the new part (a cell change: another part, place or
         robot), from beyond it so that the arm is never in the way."""
