@@ -52,15 +52,12 @@ class LegEnd:
         self.end_best = math.inf
         self.close_best = math.inf
         L = leg.length
+        # the progress from which the nearest approach to the end point is watched: on a leg
+        # shorter than NEAR_END_M from its start (its chord may run across the wall, a point
+        # taught off it beside a neighbour on it, and progress along it never comes)
+        self.near_from_m = max(L - th.NEAR_END_M, 0.5 * L) if L > th.NEAR_END_M else -math.inf
         #: the progress along the leg before which ``reached`` is False (the run skips it)
-        self.watch_from_m = 0.5 * L if last and closed else self._near_from(L)
-
-    @staticmethod
-    def _near_from(length: float) -> float:
-        """The progress from which the nearest approach to the end point is watched: on a
-        leg shorter than ``NEAR_END_M``, from its start (its chord may run across the wall, a
-        point taught off it beside a neighbour on it, and progress along it never comes)."""
-        return max(length - th.NEAR_END_M, 0.5 * length) if length > th.NEAR_END_M else -math.inf
+        self.watch_from_m = 0.5 * L if last and closed else self.near_from_m
 
     def _across(self, v: np.ndarray) -> float:
         along = float(v @ self.axis)
@@ -81,7 +78,7 @@ class LegEnd:
             # sparse loop has its plane well before the start where the wall bulges past it
             return s >= L + th.CLOSE_LOOP_OVERRUN_M and self.close_best < th.NEAR_END_M
         passed = False
-        if s >= self._near_from(L):
+        if s >= self.near_from_m:
             d_end = self._across(p - self.leg.b)
             passed = self.end_best < th.NEAR_END_M and d_end > self.end_best + th.END_PASSED_M
             self.end_best = min(self.end_best, d_end)
