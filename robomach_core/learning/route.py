@@ -180,9 +180,10 @@ def mean_tool_axis(guides: Sequence[GuidePoint]) -> np.ndarray:
 def travel_directions(guides: Sequence[GuidePoint], closed: bool, axis: np.ndarray) -> np.ndarray:
     """(n, 3) unit direction of travel at each point, across ``axis``: the mean of the
     directions to the points before and after it, each the nearest one at least
-    ``MIN_SPACING_M`` away across the axis (two points taught one above the other give no
-    direction); one side at the ends of an open route; at a U-turn, the way in (the first
-    point: the way out)."""
+    ``ONE_STATION_M`` away across the axis (two points at one station of the wall, one on it
+    and one a gap off it, or one above the other, give no direction: the way between them
+    runs across the wall, and its side pointed along a slot at its other wall); one side at
+    the ends of an open route; at a U-turn, the way in (the first point: the way out)."""
     pts = np.array([g.position_m for g in guides])
     pts = pts - np.outer(pts @ axis, axis)
     n = len(pts)
@@ -195,7 +196,7 @@ def travel_directions(guides: Sequence[GuidePoint], closed: bool, axis: np.ndarr
             if not closed and not 0 <= j < n:
                 return None
             d = (pts[j % n] - pts[k]) * step
-            if float(np.linalg.norm(d)) >= th.MIN_SPACING_M:
+            if float(np.linalg.norm(d)) >= th.ONE_STATION_M:
                 return d / float(np.linalg.norm(d))
         return None
 
