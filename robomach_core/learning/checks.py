@@ -24,6 +24,7 @@ SOLUTION  ``guide_point_warnings(guides, settings, *, workpiece, tool_radius_m, 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -263,6 +264,17 @@ def _out_of_order(order: list[int], checked: list[int], worst: float) -> TaughtW
     ))  # fmt: skip
 
 
+def _passing(d_any: np.ndarray, j: int) -> np.ndarray:
+    """The program's points where it passes a guide point's wall: within
+    ``TAUGHT_WALL_TOLERANCE_M`` along the wall of its nearest approach ``j`` (``d_any``: each
+    point's distance from the wall point's foot, across the axis). The program's height must
+    be a taught one there, not only somewhere within the tolerance's reach across it: a
+    program that passed a point 6.7 mm above its height and its neighbours' (a point 10 mm
+    above them 1 mm away, the climb taken late at 20 mm/s) was counted as meeting it, at a
+    program point still coming down through their heights 1.7 mm along the wall."""
+    return np.flatnonzero(d_any <= math.hypot(float(d_any[j]), th.TAUGHT_WALL_TOLERANCE_M))
+
+
 def taught_wall_check(
     workpiece: Workpiece,
     tool_radius_m: float,
@@ -323,9 +335,9 @@ def taught_wall_check(
         gap -= tool_radius_m
         checked.append(k + 1)
         worst = max(worst, gap)
-        if gap > th.TAUGHT_WALL_TOLERANCE_M:
+        j = int(np.argmin(d_any))
+        if gap > th.TAUGHT_WALL_TOLERANCE_M or not near[_passing(d_any, j)].any():
             missed.append(k + 1)
-            j = int(np.argmin(d_any))
             if d_any[j] - tool_radius_m <= th.TAUGHT_WALL_TOLERANCE_M:
                 off_height[k + 1] = float(h - path_height[j])  # > 0: above (axis into part)
     if not checked:

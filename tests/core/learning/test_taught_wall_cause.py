@@ -89,3 +89,51 @@ def test_a_program_on_the_taught_wall_at_another_height_is_named_so(demo):
     assert "at another height" in check.message and "another wall" not in check.message, where
     said = float(check.message.split(" mm above")[0].rsplit(" ", 1)[1])
     assert abs(said - lift_m * 1e3) < 1.0, where
+
+
+def test_a_program_above_a_point_where_it_passes_it_misses_it_though_it_comes_down_nearby(demo):
+    """Where the program passes a guide point's wall it must be at a height taught there (the
+    point's or a neighbour's), not only within the tolerance's reach across the wall: a
+    program lifted past the band over a stretch 1.1 mm or more either side of the point's wall
+    point, back at the taught height beyond it, was counted as meeting the point (with a 1 mm
+    cutter, a program point 1.5 mm along the wall is within its radius + 1 mm of the wall
+    point). A fresh point, lift and stretch each run."""
+    from robomach_core.learning.checks import taught_wall_check
+    from robomach_core.learning.part_walls import PartWalls
+    from robomach_core.learning.route import mean_tool_axis, taught_wall_points
+    from robomach_core.postprocess.arcs import linear_moves, sample_moves
+
+    project = demo.project
+    rng = np.random.default_rng([SEED, 4])
+    guides = project.guide_points
+    side = project.learned.recording.wall_side
+    closed = project.learned.settings.closed
+    lifted = project.learned.recording.guide_lift_m
+    r = project.cell.tool_radius_m
+    k = int(rng.integers(1, len(guides) - 1))
+    # past the 1 mm along the wall the check now reads, within what the tolerance reached
+    # across it before (a program 0.25 mm off the wall, within r + 1 mm of the wall point)
+    reach_m = float(np.sqrt((r + 0.001) ** 2 - (r + 0.00025) ** 2))
+    half_m = float(rng.uniform(0.0011, 0.95 * reach_m))
+    lift_m = float(rng.uniform(0.006, 0.009))
+    axis = mean_tool_axis(guides)
+    walls = PartWalls(demo.workpiece, axis, r)
+    wall_point = taught_wall_points(guides, side, closed, walls, lifted)[k]
+    assert wall_point is not None
+    targets = np.array(project.processed.result.targets.position_m, dtype=float)
+    pos = sample_moves(targets, linear_moves(len(targets)), spacing_m=1e-4)
+    across = pos - np.outer(pos @ axis, axis)
+    foot = wall_point - axis * float(wall_point @ axis)
+    along = np.sqrt(np.maximum(np.linalg.norm(across - foot, axis=1) ** 2 - r**2, 0.0))
+    lifted_pos = pos.copy()
+    lifted_pos[along < half_m] -= axis * lift_m  # the axis points into the part: up is -axis
+    where = f"{replay(SEED)}: G{k + 1} lifted {lift_m * 1e3:.1f} mm over +-{half_m * 1e3:.1f} mm"
+    before = taught_wall_check(
+        demo.workpiece, r, guides, side, pos, closed=closed, lifted_m=lifted
+    )
+    assert before.follows, f"{where}: unlifted: {before.message}"
+    check = taught_wall_check(
+        demo.workpiece, r, guides, side, lifted_pos, closed=closed, lifted_m=lifted
+    )
+    assert not check.follows and k + 1 in check.missed, f"{where}: {check.message}"
+    assert "at another height" in check.message, f"{where}: {check.message}"
