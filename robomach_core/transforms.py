@@ -18,6 +18,12 @@ from .errors import InvalidInputError
 _AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 
 
+def arc_length_m(points_m: np.ndarray) -> np.ndarray:
+    """(n,) cumulative length [m] along the polyline through ``points_m`` ((n, d)), from 0."""
+    p = np.asarray(points_m, dtype=float)
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+
+
 def make_transform(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
     """Build a 4x4 transform from a 3x3 rotation and a (3,) translation."""
     T = np.eye(4)

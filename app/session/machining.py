@@ -165,7 +165,7 @@ class MachiningService:
         run = run or (result.runs[0] if result.runs else None)
         if run is None:
             return None
-        from robomach_core.machining.path import arc_length_m
+        from robomach_core.transforms import arc_length_m
 
         stock = result.stock
         s_path = arc_length_m(stock.path_points_m)

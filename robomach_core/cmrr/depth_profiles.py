@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..transforms import arc_length_m
 from .errors import CmrrSettingsError, MeshDepthError
 
 MM = 1e-3
@@ -148,12 +149,6 @@ def random_burrs(
     return sorted(burrs, key=lambda b: b.center_m)
 
 
-def arc_length(points: np.ndarray) -> np.ndarray:
-    """Cumulative arc length [m] of a polyline, shape (n,)."""
-    pts = np.asarray(points, dtype=float)
-    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
-
-
 def depth_along_path(
     path_points_m: np.ndarray,
     nominal_mesh: object,
@@ -225,7 +220,7 @@ def path_depth_profile(
     depth = depth_along_path(
         path_points_m, nominal_mesh, stock_mesh, tool_axis, max_depth_m=max_depth_m
     )
-    s = arc_length(path_points_m)
+    s = arc_length_m(path_points_m)
     if s[-1] <= 0.0:
         raise MeshDepthError("the path has zero length")
     return PathProfile(s, depth)

@@ -30,7 +30,7 @@ from ..cell import Tool
 from ..errors import InvalidInputError
 from ..part import Workpiece
 from ..postprocess import Move, Targets, linear_moves, validate_moves
-from ..transforms import make_transform, matrix_from_quaternion, rotation_log
+from ..transforms import arc_length_m, make_transform, matrix_from_quaternion, rotation_log
 from .urscript_feed import UrFeedLoop, feed_loop_lines
 
 PROGRAM_NAME = "learned_path"
@@ -161,7 +161,7 @@ def urscript_program(
             feed_loop,
             [pose_literal(T) for T in Ts],
             speeds,
-            np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0), axis=1))]),
+            arc_length_m(positions),
             fixed=_short,
         )
         moves = ()

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..transforms import arc_length_m
 from . import thresholds as th
 from .law import route_height
 from .part_walls import PartWalls
@@ -255,7 +256,7 @@ def met_order(
     if len(path_m) < 2:
         return None
     across = path_m - np.outer(path_m @ axis, axis)
-    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(across, axis=0), axis=1))])
+    along = arc_length_m(across)
     length = float(along[-1])
     met: list[tuple[int, float]] = []
     for k, place in enumerate(places_m):

@@ -32,6 +32,7 @@ from ..cmrr.process import ForceSensorModel, PowerLawForceModel
 from ..postprocess import Targets
 from ..stiffness import CompensationSettings
 from ..stiffness.identification import identify_stiffness
+from ..transforms import arc_length_m
 from ._loop import LoopInputs
 from .compliance import (
     compliance_blocks,
@@ -41,7 +42,7 @@ from .compliance import (
 )
 from .design import designed_controller_settings
 from .errors import MachiningSettingsError, SampleLimitError, StockError
-from .path import arc_length_m, check_normals, check_path, project_onto_path
+from .path import check_normals, check_path, project_onto_path
 from .program import check_constant_feed, constant_feed_m_s, design_depth_m
 from .settings import MachiningSettings
 from .stock import Stock

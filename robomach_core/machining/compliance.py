@@ -23,6 +23,7 @@ import hashlib
 import numpy as np
 
 from ..cell import JointCompliance, Robot
+from ..transforms import arc_length_m
 
 # Blocks of the programs cut lately in this process, by arm, tool, joints and stiffness.
 _BLOCKS: dict[tuple, np.ndarray] = {}
@@ -78,9 +79,7 @@ def path_directions(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(n (k, 3), u (k, 3)) at arc lengths ``s_m`` of the path: the wall normal interpolated
     between the path points and the process force's direction u = (n - rho t) / |n - rho t|."""
-    s_path = np.concatenate(
-        [[0.0], np.cumsum(np.linalg.norm(np.diff(path_points_m, axis=0), axis=1))]
-    )
+    s_path = arc_length_m(path_points_m)
     n = np.stack([np.interp(s_m, s_path, path_normals_m[:, i]) for i in range(3)], axis=1)
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     u = n - feed_force_ratio * segment_tangents(path_points_m, s_m)

@@ -82,8 +82,12 @@ import numpy as np
 
 from ..cell import Robot
 from ..postprocess import Targets
-from ..transforms import make_transform, matrices_from_quaternions, quaternions_from_matrices
-from .path import arc_length_m
+from ..transforms import (
+    arc_length_m,
+    make_transform,
+    matrices_from_quaternions,
+    quaternions_from_matrices,
+)
 
 if TYPE_CHECKING:
     from .run import MachiningRun, Rehearsal

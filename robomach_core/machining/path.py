@@ -15,7 +15,7 @@ import numpy as np
 from ..cell import Robot
 from ..part import Workpiece
 from ..postprocess import Targets, curvature_along, speeds_by_curvature
-from ..transforms import make_transform, quaternions_from_matrices
+from ..transforms import arc_length_m, make_transform, quaternions_from_matrices
 from .errors import StockError
 
 WallSide = Literal["left", "right"]
@@ -35,12 +35,6 @@ def check_path(path_points_m: np.ndarray) -> np.ndarray:
     if arc_length_m(p)[-1] <= 0.0:
         raise StockError("the path has zero length")
     return p
-
-
-def arc_length_m(path_points_m: np.ndarray) -> np.ndarray:
-    """(n,) cumulative arc length [m] of the polyline through the points."""
-    p = np.asarray(path_points_m, dtype=float)
-    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
 
 
 def path_tangents(path_points_m: np.ndarray) -> np.ndarray:

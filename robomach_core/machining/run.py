@@ -61,6 +61,7 @@ from ..cmrr.simulation import cancel_predicate
 from ..postprocess import Targets
 from ..stiffness.identification import identify_stiffness as identify_stiffness
 from ..stiffness.model import cartesian_compliance
+from ..transforms import arc_length_m
 from ._loop import _Diverged, run_loop
 from ._plan import FORCE_SUPERVISION_FACTOR as FORCE_SUPERVISION_FACTOR
 from ._plan import CompensationModel as CompensationModel
@@ -76,7 +77,7 @@ from .compliance import (
 )
 from .errors import MachiningSettingsError
 from .offline import densify_targets as densify_targets
-from .path import arc_length_m, check_path, project_onto_path
+from .path import check_path, project_onto_path
 from .program import (
     as_written,
     design_depth_m,

@@ -20,8 +20,9 @@ import numpy as np
 import trimesh
 
 from ..cell import Tool
+from ..transforms import arc_length_m
 from .errors import StockError
-from .path import arc_length_m, check_normals, check_path, wall_normals_from_path
+from .path import check_normals, check_path, wall_normals_from_path
 
 MM = 1e-3
 # Built-in stock: smooth allowance range, burr heights and lengths [m], burrs per metre of path.

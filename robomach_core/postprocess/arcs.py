@@ -35,7 +35,7 @@ from typing import Literal
 import numpy as np
 
 from ..errors import InvalidInputError
-from ..transforms import slerp
+from ..transforms import arc_length_m, slerp
 from .targets import Targets
 
 MAX_SWEEP_DEG = 180.0  # ABB: keep a MoveC well under 240 deg with the via point near the middle
@@ -201,7 +201,7 @@ def fit_arcs(points_m: np.ndarray, tolerance_m: float) -> tuple[Piece, ...]:
     if not tolerance_m > 0:
         raise InvalidInputError(f"arc tolerance must be > 0 mm, got {tolerance_m * 1e3:g} mm")
     n = len(pts)
-    s_along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    s_along = arc_length_m(pts)
     pieces: list[Piece] = []
     start = 0
     while start < n - 1:

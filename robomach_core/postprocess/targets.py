@@ -28,6 +28,7 @@ from ..limits import (
     PROGRAM_SPEED_MM_S,
     TOLERANCE_MM,
 )
+from ..transforms import arc_length_m
 
 # The force filter's band around the learning force (the defaults, 5-15 N, at the chapter's
 # 10 N), and the least a band must reach to keep a recording held at that force.
@@ -382,7 +383,7 @@ def closed_at_start(points: np.ndarray, mask: np.ndarray) -> np.ndarray:
     if len(kept) < 3:
         return mask
     p = points[kept]
-    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+    along = arc_length_m(p)
     second = np.flatnonzero(along > 0.5 * along[-1])
     if not len(second):
         return mask

@@ -36,6 +36,7 @@ from ..learning.walls import WallLoop, floor_under, section_loops
 from ..part import Workpiece
 from ..part.mesh_query import transformed
 from ..postprocess import reduce_deviation_height
+from ..transforms import arc_length_m
 
 # Every 0.1 mm along the moves: between targets the error is a smooth chord sagitta, whose
 # maximum a 0.1 mm sampling misses by well under a micrometre on millimetre-long chords.
@@ -216,7 +217,7 @@ def _offset_path(loop: WallLoop, radius_m: float, closed: bool) -> np.ndarray | 
 
 def _resample(path: np.ndarray, closed: bool, spacing_m: float) -> np.ndarray:
     chain = np.vstack([path, path[:1]]) if closed else path
-    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(chain, axis=0), axis=1))])
+    s = arc_length_m(chain)
     n = max(2, int(math.ceil(s[-1] / spacing_m)) + 1)
     t = np.linspace(0.0, s[-1], n)
     if closed:

@@ -16,6 +16,7 @@ import numpy as np
 from ..errors import InvalidInputError
 from ..part import Workpiece
 from ..postprocess import Move, sample_moves
+from ..transforms import arc_length_m
 
 SCORE_SPACING_M = 2e-5  # points every 0.02 mm along each segment
 
@@ -123,7 +124,7 @@ def score_sampled_moves(
     dev = deviation(path)
     used = sorted({m.to for m in moves} | {m.via for m in moves if m.via is not None})
     at_targets = deviation(pts[used])
-    along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+    along = arc_length_m(path)
     return PathScore(
         max_m=float(np.abs(dev).max()),
         rms_m=float(np.sqrt(np.mean(dev**2))),

@@ -20,9 +20,9 @@ from robomach_core.cmrr import (
     step_depth_profile,
     synthetic_burr_block,
 )
-from robomach_core.cmrr.depth_profiles import arc_length
 from robomach_core.cmrr.errors import CmrrSettingsError
 from robomach_core.cmrr.process import LowPassFilter, process_step
+from robomach_core.transforms import arc_length_m
 
 MM = 1e-3
 
@@ -139,7 +139,7 @@ def test_depth_along_path_recovers_allowance_and_burrs_from_the_meshes():
     # A TCP offset along the tool axis (ball centre above the surface) does not change it.
     lifted = depth_along_path(path + 3 * MM * axis, nominal, stock, axis)
     np.testing.assert_allclose(lifted, depth, atol=1e-9)
-    assert arc_length(path)[-1] == pytest.approx(path[-1, 0] - path[0, 0])
+    assert arc_length_m(path)[-1] == pytest.approx(path[-1, 0] - path[0, 0])
 
 
 def test_depth_along_path_rejects_points_off_the_part():

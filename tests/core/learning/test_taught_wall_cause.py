@@ -128,9 +128,7 @@ def test_a_program_above_a_point_where_it_passes_it_misses_it_though_it_comes_do
     lifted_pos = pos.copy()
     lifted_pos[along < half_m] -= axis * lift_m  # the axis points into the part: up is -axis
     where = f"{replay(SEED)}: G{k + 1} lifted {lift_m * 1e3:.1f} mm over +-{half_m * 1e3:.1f} mm"
-    before = taught_wall_check(
-        demo.workpiece, r, guides, side, pos, closed=closed, lifted_m=lifted
-    )
+    before = taught_wall_check(demo.workpiece, r, guides, side, pos, closed=closed, lifted_m=lifted)
     assert before.follows, f"{where}: unlifted: {before.message}"
     check = taught_wall_check(
         demo.workpiece, r, guides, side, lifted_pos, closed=closed, lifted_m=lifted

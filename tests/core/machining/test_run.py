@@ -206,7 +206,7 @@ def test_offline_program_moves_the_targets_against_the_predicted_force(
     program, nominal = run.program, run.nominal
     assert len(program) == len(nominal) > len(short_program)  # targets where the force changes
     assert run.summary["rehearsals"] >= 1
-    from robomach_core.machining.run import arc_length_m
+    from robomach_core.transforms import arc_length_m
 
     n = wall_normals_from_path(nominal.position_m)
     shift = np.einsum("ij,ij->i", program.position_m - nominal.position_m, n)
