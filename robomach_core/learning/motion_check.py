@@ -4,8 +4,9 @@ PROBLEM   A run stops at the first supervision limit it meets: axis 6 wound to i
           tool turned about its axis round a loop, a stretch beyond the arm's reach, the spindle
           against the part. Met by the run, it costs the run; named by guess afterwards (a
           wind-up called a reach problem) it sends the person the wrong way.
-STRATEGY  The run's motion is known before it starts: it starts in the first point's arm
-          configuration with axis 6 unwound for the route (``run.start_joints``), then follows
+STRATEGY  The run's motion is known before it starts: it comes straight down to where it
+          starts (``run.run_start``) from ``APPROACH_CLEARANCE_M`` above, in the first point's
+          arm configuration with axis 6 unwound for the route (``run.start_joints``), then follows
           the wall the route's walk found on the mesh (``route.walks``: the cutter rolled along
           it; the straight legs without a mesh), turning the tool as the law does (the slerp
           R_a exp(f omega), f the progress along the leg, ``law.turn_towards``). The poses are
@@ -32,7 +33,7 @@ from ..errors import RobomachError
 from . import thresholds as th
 from .findings import GuideRule, GuideWarning
 from .route import LearningRoute, Leg
-from .run import axis6_round_route, start_joints
+from .run import axis6_round_route, run_start, start_joints
 
 RULE_OF_CAUSE: dict[str, GuideRule] = {
     "joint limit": "joint_limit",
@@ -73,15 +74,60 @@ def _pose(leg: Leg, p: np.ndarray) -> np.ndarray:
     return T
 
 
+def _approach(
+    route: LearningRoute, supervisor: Supervisor
+) -> tuple[np.ndarray, GuideWarning | None]:
+    """The approach's last move, straight down to where the run starts, every
+    ``MOTION_CHECK_STEP_M`` in the first point's orientation: (the joints at the start, the
+    first limit it crosses as a finding, or None)."""
+    robot, axis = supervisor.robot, route.axis
+    start = run_start(route)[0]
+    T = route.guides[0].T_base_tcp.copy()
+    q = start_joints(robot, route.guides, route.closed)
+    n = int(th.APPROACH_CLEARANCE_M / th.MOTION_CHECK_STEP_M) + 1
+    for above in np.linspace(th.APPROACH_CLEARANCE_M, 0.0, n):
+        T[:3, 3] = start - axis * above
+        try:
+            q_new = robot.ik(T, q)
+        except RobomachError:
+            return q, None  # the first point's reach is the route's finding (below)
+        q = q + np.array([math.remainder(d, 2 * math.pi) for d in q_new - q])
+        stop = supervisor.limit_at(q)
+        if stop is not None:
+            rule = RULE_OF_CAUSE.get(stop.cause, "reach")
+            where = (
+                f"coming down to G1, {above * 1e3:.0f} mm above where the run starts"
+                if above >= th.MOTION_CHECK_STEP_M
+                else "where it starts, at G1"
+            )
+            return q, GuideWarning(1, rule, (
+                f"the approach would stop {where}: {stop.message}; {_FIX[rule]}"
+            ))  # fmt: skip
+    return q, None
+
+
+_FIX = {
+    "joint_limit": "place the part elsewhere (the work object), or teach the points with the "
+    "tool turned so the arm stays in range",
+    "singularity": "place the part elsewhere (the work object), or tilt or turn the tool so the "
+    "arm passes clear of it",
+    "reach": "place the part nearer the arm (the work object's x, y, z)",
+    "clearance": "move the part (the work object) or change the tool's orientation so the arm "
+    "and spindle stay clear",
+}
+
+
 def motion_findings(route: LearningRoute, supervisor: Supervisor) -> tuple[GuideWarning, ...]:
-    """The first limit the run's motion along ``route`` meets (module docstring), as a finding;
-    () when the arm follows the whole route. ``supervisor``: the cell's
-    (``supervision.cell_supervisor``), with its arm."""
+    """The first limit the run's motion (its approach's last move, then along ``route``)
+    meets (module docstring), as a finding; () when the arm follows the whole route.
+    ``supervisor``: the cell's (``supervision.cell_supervisor``), with its arm."""
     samples = _samples(route)
     if not samples:
         return ()
     robot = supervisor.robot
-    q = start_joints(robot, route.guides, route.closed)
+    q, found = _approach(route, supervisor)
+    if found is not None:
+        return (found,)
     travelled, previous = 0.0, samples[0][1]
     for k, p in samples:
         leg = route.legs[k]
@@ -107,16 +153,7 @@ def motion_findings(route: LearningRoute, supervisor: Supervisor) -> tuple[Guide
         if stop.cause == "joint limit" and stop.axis == 6:
             return (_wind_up(robot, route, leg, where, q),)
         rule = RULE_OF_CAUSE.get(stop.cause, "reach")
-        fix = {
-            "joint_limit": "place the part elsewhere (the work object), or teach the points with "
-            "the tool turned so the arm stays in range",
-            "singularity": "place the part elsewhere (the work object), or tilt or turn the tool "
-            "so the arm passes clear of it",
-            "reach": "place the part nearer the arm (the work object's x, y, z)",
-            "clearance": "move the part (the work object) or change the tool's orientation so the "
-            "arm and spindle stay clear",
-        }[rule]
-        return (_finding(leg, rule, f"the run would stop {where}: {stop.message}; {fix}"),)
+        return (_finding(leg, rule, f"the run would stop {where}: {stop.message}; {_FIX[rule]}"),)
     return ()
 
 

@@ -471,10 +471,20 @@ def _stop_at(
 def _start(
     cell: Cell, state: CellState, route: LearningRoute, supervisor: Supervisor
 ) -> tuple[CellState, np.ndarray, np.ndarray]:
-    """The run's start: the direction to the wall (the mesh's wall point, else the recorded
-    push, else across the first leg on the wall's side), the floor under the whole cutter
-    there (a step included), and the approach down to the first point at the route's height.
-    Returns (the state there, the wall direction, the height reference)."""
+    """The run's start (``run_start``) and the approach down to it. Returns (the state there,
+    the wall direction, the height reference)."""
+    start, w, ref = run_start(route)
+    state = _approach(
+        cell, state, route.guides, start, route.axis, route.closed, supervisor=supervisor
+    )
+    return state, w, ref
+
+
+def run_start(route: LearningRoute) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where the run starts: the first point at the route's height over the floor under the
+    whole cutter there (a step included), the direction to the wall (the mesh's wall point,
+    else the recorded push, else across the first leg on the wall's side) and the height
+    reference. Returns (the start, the wall direction, the reference)."""
     legs, axis, guide = route.legs, route.axis, route.guides[0]
 
     def across(v: np.ndarray) -> np.ndarray:
@@ -493,8 +503,7 @@ def _start(
     ref = route.heights.at(start, travel, w)
     row = legs[0].row(route.leg_offsets(legs[0]))
     start += axis * (route_height(row, ref, start, axis) - float(start @ axis))
-    state = _approach(cell, state, route.guides, start, axis, route.closed, supervisor=supervisor)
-    return state, w, ref
+    return start, w, ref
 
 
 def _recording(

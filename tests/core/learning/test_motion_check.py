@@ -122,3 +122,42 @@ def test_a_refusal_says_what_to_do_about_its_own_cause(cause, axis, says, never)
     )
     assert says in str(exc) and never not in str(exc).split("; ", 1)[1]
     assert exc.cause == cause and exc.axis == axis
+
+
+@pytest.mark.parametrize("k", range(3))
+def test_the_check_names_the_spindle_against_the_part_on_the_approach_as_the_run_meets_it(k):
+    """The approach's last move, straight down to where the run starts, is part of the run's
+    motion: a first point taught with the tool leaning over its wall brings the spindle
+    against the part there, and the run raised a supervision error the check had not said
+    (a tilted plate, envelope set 9609494606522070085). The check names it exactly when the
+    approach meets it (G1 leant 0-45 deg over the part, fresh each run; from about 30 deg the
+    spindle meets it)."""
+    from robomach_core.errors import CancelledError
+
+    cell, guides, what = _loop(k)
+    tilt_deg = float(_rng("approach", k).uniform(*[(0, 15), (32, 45), (0, 45)][k]))
+    R_wobj = cell.workpiece.cad().T_base_wobj[:3, :3]
+    lean = R_wobj @ rotation_about("x", -math.radians(tilt_deg)) @ R_wobj.T
+    T = guides[0].T_base_tcp.copy()
+    T[:3, :3] = lean @ T[:3, :3]
+    guides[0] = GuidePoint(T, cell.robot.ik(T, guides[0].joints_rad), 0.0)
+    what += f", G1 leant {tilt_deg:.1f} deg over the part"
+    settings = PathLearningSettings(wall_side="right")
+    findings = guide_point_warnings(
+        guides, settings, workpiece=cell.workpiece, tool_radius_m=cell.tool.radius_m,
+        supervisor=cell_supervisor(cell),
+    )  # fmt: skip
+    said = [f.message for f in findings if f.message.startswith("the approach would stop")]
+    lt = LeadThrough(cell)
+    state = lt.start(cell.initial_state())
+    route = plan_route(guides, settings, workpiece=cell.workpiece, tool_radius_m=0.001)
+    try:  # the run's approach, then cancelled at its first period
+        learn_path(cell, state.cell, route, settings, lt.estimator, cancelled=lambda: True)
+        met = ""
+    except SupervisionError as exc:
+        met = str(exc)
+    except CancelledError:
+        met = ""
+    assert bool(said) == bool(met), f"{what}: the approach met {met or 'nothing'}; said {said}"
+    if met:
+        assert "collision" in met and "collision" in said[0], f"{what}: {met}; {said}"
