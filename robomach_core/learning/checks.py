@@ -98,8 +98,9 @@ def _mesh_findings(
 
     out: list[GuideWarning] = []
     closed = settings.closed
-    axis, right = right_of_travel(guides, closed)
+    axis = mean_tool_axis(guides)
     walls = PartWalls(workpiece, axis, tool_radius_m)
+    right = right_of_travel(guides, closed, walls)[1]
     pts = np.array([g.position_m for g in guides])
     right_gap, left_gap = walls.gaps(pts, right)
     for k in range(len(guides)):

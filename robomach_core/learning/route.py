@@ -177,17 +177,49 @@ def mean_tool_axis(guides: Sequence[GuidePoint]) -> np.ndarray:
     return u / n if n > 1e-9 else axes[0]
 
 
-def travel_directions(guides: Sequence[GuidePoint], closed: bool, axis: np.ndarray) -> np.ndarray:
+def station_normals(guides: Sequence[GuidePoint], walls: PartWalls | None) -> np.ndarray | None:
+    """(n, 3) the unit normal, across the axis, of the wall face each guide point stands by
+    (its foot on a face within ``AT_WALL_GAP_M`` of its cutter); zero where it stands by none.
+    None without walls."""
+    if walls is None or walls.walls is None:
+        return None
+    pts = np.array([g.position_m for g in guides])
+    closest, dist, on_face = walls.feet(pts)
+    out = np.zeros_like(pts)
+    axis = walls.axis
+    for k in np.flatnonzero(on_face & (dist <= th.AT_WALL_GAP_M + walls.radius)):
+        n = pts[k] - closest[k]
+        n -= axis * float(n @ axis)
+        size = float(np.linalg.norm(n))
+        if size > 1e-9:
+            out[k] = n / size
+    return out
+
+
+def travel_directions(
+    guides: Sequence[GuidePoint],
+    closed: bool,
+    axis: np.ndarray,
+    normals: np.ndarray | None = None,
+) -> np.ndarray:
     """(n, 3) unit direction of travel at each point, across ``axis``: the mean of the
     directions to the points before and after it, each the nearest one at least
-    ``ONE_STATION_M`` away across the axis (two points at one station of the wall, one on it
-    and one a gap off it, or one above the other, give no direction: the way between them
-    runs across the wall, and its side pointed along a slot at its other wall); one side at
-    the ends of an open route; at a U-turn, the way in (the first point: the way out)."""
+    ``MIN_SPACING_M`` away across the axis (two points taught one above the other give no
+    direction) and not at the point's station of its wall: nearer than ``ONE_STATION_M`` with
+    the way to it more across the wall than along it (``normals``, ``station_normals``: one
+    point pressed on the wall, the other a gap off it; the way between them is across the
+    wall, and its side pointed along a slot at the other wall); one side at the ends of an
+    open route; at a U-turn, the way in (the first point: the way out)."""
     pts = np.array([g.position_m for g in guides])
     pts = pts - np.outer(pts @ axis, axis)
     n = len(pts)
     out = np.zeros((n, 3))
+
+    def across_wall(k: int, d: np.ndarray, size: float) -> bool:
+        if normals is None or size >= th.ONE_STATION_M:
+            return False
+        along_wall = np.cross(axis, normals[k])
+        return abs(float(d @ normals[k])) > abs(float(d @ along_wall))
 
     def toward(k: int, step: int) -> np.ndarray | None:
         j = k
@@ -196,8 +228,9 @@ def travel_directions(guides: Sequence[GuidePoint], closed: bool, axis: np.ndarr
             if not closed and not 0 <= j < n:
                 return None
             d = (pts[j % n] - pts[k]) * step
-            if float(np.linalg.norm(d)) >= th.ONE_STATION_M:
-                return d / float(np.linalg.norm(d))
+            size = float(np.linalg.norm(d))
+            if size >= th.MIN_SPACING_M and not across_wall(k, d, size):
+                return d / size
         return None
 
     for k in range(n):
@@ -211,11 +244,15 @@ def travel_directions(guides: Sequence[GuidePoint], closed: bool, axis: np.ndarr
     return out
 
 
-def right_of_travel(guides: Sequence[GuidePoint], closed: bool) -> tuple[np.ndarray, np.ndarray]:
+def right_of_travel(
+    guides: Sequence[GuidePoint], closed: bool, walls: PartWalls | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """(the mean tool axis, (n, 3) the unit right of travel at each point, across the axis;
-    ``travel_directions``): the side a wall on the right is on."""
+    ``travel_directions``, with the walls the points stand by when the part's are known): the
+    side a wall on the right is on."""
     axis = mean_tool_axis(guides)
-    return axis, np.cross(axis, travel_directions(guides, closed, axis))
+    normals = station_normals(guides, walls)
+    return axis, np.cross(axis, travel_directions(guides, closed, axis, normals))
 
 
 def _points(numbers: Sequence[int] | np.ndarray) -> str:
@@ -241,7 +278,7 @@ def resolve_wall_side(
         raise InvalidInputError(f"wall side must be one of {', '.join(WALL_SIDE_CHOICES)}")
     if len(guides) < 2:
         raise WallSideError("the wall side needs at least 2 guide points")
-    axis, right = right_of_travel(guides, closed)
+    axis, right = right_of_travel(guides, closed, walls)
     forces = np.array([np.asarray(g.force_N, dtype=float) for g in guides])
     votes = -np.einsum("ij,ij->i", forces, right)  # > 0: the wall pushed from the right
     clear = np.abs(votes) >= th.WALL_FORCE_CLEAR_N
@@ -324,7 +361,7 @@ def taught_wall_points(
     walk's past it (``travel``, ``LearningRoute.guide_travel``: the way along its wall) where
     the walk passed it, else the chord through its neighbours (beside a jog of the wall, the
     chord runs across it and its side is the other wall's)."""
-    axis, right = right_of_travel(guides, closed)
+    axis, right = right_of_travel(guides, closed, walls)
     walked = np.zeros((0, 3)) if travel is None else np.asarray(travel, dtype=float)
     if walked.shape == right.shape:
         along = np.linalg.norm(walked, axis=1) > 0.5
@@ -431,7 +468,7 @@ def plan_heights(
     lifted = np.zeros(len(guides))
     if walls is not None and all(np.isfinite(walls.floor(pts)[0])):
         reference = HeightReference("floor", axis, np.zeros(len(guides)), np.zeros(REF_SIZE), walls)
-        travel = travel_directions(guides, closed, axis)
+        travel = travel_directions(guides, closed, axis, station_normals(guides, walls))
         need = walls.radius + floor_clearance_m
         offsets = np.zeros(len(guides))
         for k, p in enumerate(pts):  # the highest floor under each point's cutter
@@ -590,12 +627,13 @@ def plan_route(
     legs = tuple(route_legs(guides, closed))
     if not legs:
         raise NotEnoughGuidePointsError("the guide points coincide; record distinct points")
-    axis, right = right_of_travel(guides, closed)
+    axis = mean_tool_axis(guides)
     walls = None
     if workpiece is not None and tool_radius_m is not None:
         walls = PartWalls(workpiece, axis, tool_radius_m)
         if walls.walls is None:
             walls = None
+    right = right_of_travel(guides, closed, walls)[1]
     decision = resolve_wall_side(guides, settings.wall_side, closed=closed, walls=walls)
     heights, lifted = plan_heights(
         guides, axis, settings.floor_clearance_m, walls, closed=closed, sign=decision.sign

@@ -70,7 +70,7 @@ FIRST_WALK_SHARE = 0.5  # x walk | the first point starts from the wall it stand
 HEAVY_CONTACT_FRACTION = 0.5  # x force limit | a guide point recorded pressing this hard is half-way to a stop | force limit
 TOUCH_WITHOUT_PUSH_N = 0.8  # N | a force between this and WALL_FORCE_CLEAR_N touches without telling the side | sensor noise
 MIN_SPACING_M = 0.001  # m | closer guide points give a leg with no direction | fixed
-ONE_STATION_M = 0.006  # m | guide points nearer than this across the axis stand at one station of the wall (one pressed on it, one a gap off it): the way from one to the other is across the wall, no direction of travel | gap: twice the farthest a point is left
+ONE_STATION_M = 0.006  # m | a neighbour nearer than this, the way to it more across the point's wall than along it, stands at its station (one pressed on the wall, one a gap off it): no direction of travel | gap: twice the farthest a point is left
 MOTION_CHECK_STEP_M = 0.002  # m | the check before a run solves the arm's pose along the route this far apart (the run moves continuously between) | fixed
 
 # --- after learning: is the program on the taught wall -------------------------------------------
