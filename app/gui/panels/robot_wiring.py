@@ -13,6 +13,7 @@ from robomach_core.robots import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
 
 from .feedback import guarded, upload_handled
+from .inputs import set_value
 
 ROBOT_MIME_TYPES = ".urdf,.zip,application/xml,application/zip,application/octet-stream"
 FAMILY_CHOICES = ("auto", *ARM_FAMILIES)
@@ -70,7 +71,7 @@ class RobotProgramPanel:
             f"Arm **{robot.name}** ({robot.family} controller), program languages "
             f"**{offered}** (downloads in the Export panel)."
         ]
-        self.arcs.value = self.session.project().post_settings.arcs
+        set_value(self.arcs, self.session.project().post_settings.arcs)
         outcome = self.session.project().processed
         if outcome is not None:
             x = result_extras(outcome)
