@@ -8,7 +8,11 @@ import viser.uplot
 
 from app.session import JobInfo, Session
 from robomach_core import limits
-from robomach_core.learning.settings import WALL_SIDE_CHOICES, PathLearningSettings
+from robomach_core.learning.settings import (
+    WALL_SIDE_CHOICES,
+    PathLearningSettings,
+    WallSideSetting,
+)
 
 from .feedback import guarded
 from .inputs import set_value
@@ -115,7 +119,7 @@ class PathLearningPanel:
         self.job_id: str | None = None
         self.refresh_plot()
 
-    def route_settings(self) -> tuple[str, bool]:
+    def route_settings(self) -> tuple[WallSideSetting, bool]:
         """(wall side, closed) as set in the panel: the operator check and the preview use
         them."""
         return self.wall_side.value, self.closed.value

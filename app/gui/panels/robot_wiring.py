@@ -4,10 +4,13 @@ every language the arm runs, are downloaded from the Export panel."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import viser
 
 from app.session import Session
 from robomach_core.choices import TEXTS
+from robomach_core.learning.settings import WallSideSetting
 from robomach_core.project import result_extras
 from robomach_core.robots import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
@@ -90,7 +93,12 @@ class RobotProgramPanel:
 class GuideRulesPanel:
     """The operator's rules as a hint, and the guide points that break them."""
 
-    def __init__(self, server: viser.ViserServer, session: Session, settings=None) -> None:
+    def __init__(
+        self,
+        server: viser.ViserServer,
+        session: Session,
+        settings: Callable[[], tuple[WallSideSetting, bool]] | None = None,
+    ) -> None:
         self.session = session
         self.settings = settings  # () -> (wall_side, closed) of the path-learning panel
         self.listeners: list = []  # called with the findings' markdown after each check
