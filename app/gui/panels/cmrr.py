@@ -32,7 +32,7 @@ from .inputs import set_value
 if TYPE_CHECKING:
     from viser._gui_handles import GuiProgressBarHandle  # not exported by viser
 
-O = TypeVar("O")  # a study's outcome (CmrrOutcome, CompensationOutcome)
+OutcomeT = TypeVar("OutcomeT")  # a study's outcome (CmrrOutcome, CompensationOutcome)
 REFRESH_HZ = 4.0
 _NOTHING_SHOWN = object()  # the panel has shown no study, not even "none yet"
 PLOT_WIDTH_PX = 720  # the sidebar is narrower: a smaller image is sent faster
@@ -167,11 +167,11 @@ class StudyJobFollower:
             return None
 
 
-class StudyPanel(Generic[O]):
+class StudyPanel(Generic[OutcomeT]):
     """What the CMRR and compensation panels share: run/cancel/progress/status/figures, the
     settings download and the job follower. A panel names itself (``NAME``, ``JOB_KIND``,
     ``SETTINGS_FILE``), adds its ``download`` button, submits its job in ``_submit`` and shows
-    a new study (of outcome type ``O``) in ``_show``."""
+    a new study (of outcome type ``OutcomeT``) in ``_show``."""
 
     NAME: str
     JOB_KIND: str
@@ -186,7 +186,7 @@ class StudyPanel(Generic[O]):
         """Show the hint of the chosen study on the run button."""
         raise NotImplementedError
 
-    def _show(self, outcome: O | None) -> None:
+    def _show(self, outcome: OutcomeT | None) -> None:
         """Show the project's last study (None: none yet)."""
         raise NotImplementedError
 
@@ -203,7 +203,7 @@ class StudyPanel(Generic[O]):
         self,
         session: Session,
         service: StudyService,
-        result: Callable[[], O | None],
+        result: Callable[[], OutcomeT | None],
         settings_json: Callable[[], str],
     ) -> None:
         """Wire run, cancel and download, then follow the panel's jobs (refreshing it)."""
