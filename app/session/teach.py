@@ -445,7 +445,7 @@ class Teach:
 
 def _base_axis_of_wobj(
     T_base_wobj: np.ndarray, axis: str, direction: int
-) -> tuple[Literal["x", "y", "z"], Literal[1, -1]]:
+) -> tuple[TouchAxis, Literal[1, -1]]:
     """The base axis and sign a work-object axis is aligned with (within 0.1 degree)."""
     column = np.asarray(T_base_wobj[:3, "xyz".index(axis)], dtype=float) * direction
     i = int(np.argmax(np.abs(column)))
@@ -454,7 +454,7 @@ def _base_axis_of_wobj(
             "a touch-off in the work-object frame needs the work object aligned with the base "
             "axes; use the base or tool frame"
         )
-    return "xyz"[i], (1 if column[i] > 0 else -1)  # type: ignore[return-value]
+    return TOUCH_AXES[i], (1 if column[i] > 0 else -1)
 
 
 class _Coalescer:
