@@ -95,11 +95,12 @@ def _interrupted(exc: BaseException) -> bool:
     """Whether Ctrl-C caused ``exc``: an interrupt inside a compiled (numba) kernel comes out
     as a ``SystemError`` ("returned a result with an exception set") caused by it."""
     seen: set[int] = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, KeyboardInterrupt):
+    link: BaseException | None = exc
+    while link is not None and id(link) not in seen:
+        if isinstance(link, KeyboardInterrupt):
             return True
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__  # type: ignore[assignment]
+        seen.add(id(link))
+        link = link.__cause__ or link.__context__
     return False
 
 
@@ -114,11 +115,12 @@ def _terminate(signum: int, frame: object) -> None:
 def _interrupted_code(exc: BaseException) -> int:
     """130 after Ctrl-C, 143 after SIGTERM (128 + the signal, as a shell reports it)."""
     seen: set[int] = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, _Terminated):
+    link: BaseException | None = exc
+    while link is not None and id(link) not in seen:
+        if isinstance(link, _Terminated):
             return 128 + signal.SIGTERM
-        seen.add(id(exc))
-        exc = exc.__cause__ or exc.__context__  # type: ignore[assignment]
+        seen.add(id(link))
+        link = link.__cause__ or link.__context__
     return 130
 
 

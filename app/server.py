@@ -16,6 +16,7 @@ import sqlite3
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from types import ModuleType
 from typing import IO
 from urllib.parse import urlsplit
 
@@ -77,6 +78,8 @@ def viser_workbench(
     else an empty scene; stopped on exit. ``on_port`` gets the port viser actually bound."""
     import viser
 
+    if settings.viser_port is None:  # build_app adds the workbench only with a port
+        raise ValueError("the viser workbench needs a viser port (settings.viser_port)")
     host = viser_host(settings)
     if host != settings.host:
         log.info(
@@ -218,6 +221,7 @@ def data_dir_lock(data_dir: Path) -> Iterator[None]:
     data_dir.mkdir(parents=True, exist_ok=True)
     handle: IO[str] = open(data_dir / LOCK_FILENAME, "a+")  # noqa: SIM115 (held until exit)
     try:
+        fcntl: ModuleType | None
         try:
             import fcntl
         except ImportError:  # Windows: no advisory lock, accept the risk

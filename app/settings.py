@@ -88,7 +88,7 @@ class ServerSettings(BaseSettings):
         """Defaults, then ``ROBOMACH_*`` variables, then the non-None ``overrides``; foreign
         hosts refused; checked (``check``). A variable pydantic cannot read as its field's
         type is an ``InvalidInputError`` naming it."""
-        values = {"refuse_foreign_hosts": True}
+        values: dict[str, Any] = {"refuse_foreign_hosts": True}
         values |= {k: v for k, v in overrides.items() if v is not None}
         try:
             settings = cls(**values)

@@ -13,6 +13,7 @@ SOLUTION  ``Store``: small typed read/write methods per part of a project. It va
 
 from __future__ import annotations
 
+import enum
 import io
 import json
 import sqlite3
@@ -77,14 +78,17 @@ CREATE TABLE IF NOT EXISTS exports (
 """
 
 
-class _Keep:
-    """Marks a part of a project that a save leaves as it is."""
+class _Keep(enum.Enum):
+    """Marks a part of a project that a save leaves as it is (an enum of one member, so that
+    ``part is not KEEP`` narrows the part's type for a type checker)."""
+
+    KEEP = "KEEP"
 
     def __repr__(self) -> str:
         return "KEEP"
 
 
-KEEP = _Keep()
+KEEP = _Keep.KEEP
 
 
 def array_to_bytes(a: np.ndarray) -> bytes:
@@ -239,7 +243,8 @@ class Store:
                 "VALUES (?, ?, ?, ?, ?)",
                 (name, now, now, json.dumps(cell), json.dumps(robot or {})),
             )
-            project_id = int(cur.lastrowid)
+            project_id = cur.lastrowid
+            assert project_id is not None  # an INSERT sets it
             c.execute(
                 "INSERT INTO meta(key, value) VALUES ('last_project', ?) "
                 "ON CONFLICT(key) DO UPDATE SET value = excluded.value",

@@ -70,7 +70,7 @@ log = logging.getLogger(__name__)
 
 StudyKind = Literal["cmrr", "compensation"]
 CompensationStudy = StudyName
-COMPENSATION_STUDIES: tuple[str, ...] = get_args(CompensationStudy)
+COMPENSATION_STUDIES: tuple[CompensationStudy, ...] = get_args(CompensationStudy)
 CMRR_CONTROLLER_CHOICES: tuple[str, ...] = (*CONTROLLER_NAMES, "all")
 
 CMRR_JOB_KIND = "cmrr_study"
@@ -480,7 +480,8 @@ class StudyService:
         store = self.session.store
         with self._lock:
             if store.get_project(project_id) is None:
-                shutil.rmtree(outcome.folder, ignore_errors=True)
+                if outcome.folder is not None:
+                    shutil.rmtree(outcome.folder, ignore_errors=True)
                 raise ConflictError(
                     f"project {project_id} was deleted while the study ran; nothing was saved"
                 )
@@ -497,7 +498,7 @@ class StudyService:
             store.save_export(project_id, export, files)
             self._write_export_copy(project_id, export, files)
             if project_id == self._project_id:
-                if kind == "cmrr":
+                if isinstance(outcome, CmrrOutcome):  # kind "cmrr"
                     self._cmrr = outcome
                 else:
                     self._compensation = outcome
@@ -549,9 +550,11 @@ class StudyService:
         if files is not None:
             return files
         legacy = store.get_export(project_id, LEGACY_EXPORTS.get(export, ""))
+        if legacy is None:
+            return {}
         kind = "cmrr" if export == CMRR_EXPORT else "compensation"
         try:
-            is_study = legacy is not None and _loads(legacy[STUDY_META_FILE])["kind"] == kind
+            is_study = _loads(legacy[STUDY_META_FILE])["kind"] == kind
         except (KeyError, TypeError, ValueError):
             is_study = False  # an export of the PbD program that took the old name
         if not is_study:

@@ -24,10 +24,12 @@ from .cell import AXES, ComplianceFrame
 
 JogFrame = Literal["base", "tool", "wobj"]
 JOG_FRAMES: tuple[JogFrame, ...] = get_args(JogFrame)
-COMPLIANCE_FRAMES: tuple[str, ...] = get_args(ComplianceFrame)
-# A touch-off moves along a translational axis only.
-TouchAxis = Literal[AXES[:3]]  # type: ignore[valid-type]
-TOUCH_AXES: tuple[str, ...] = AXES[:3]
+COMPLIANCE_FRAMES: tuple[ComplianceFrame, ...] = get_args(ComplianceFrame)
+# A touch-off moves along a translational axis only: the first three of ``AXES``, spelt out so
+# that a type checker reads ``TouchAxis`` as a type (``Literal[AXES[:3]]`` is not one).
+TouchAxis = Literal["x", "y", "z"]
+TOUCH_AXES: tuple[TouchAxis, ...] = get_args(TouchAxis)
+assert TOUCH_AXES == AXES[:3]
 # What a click on the part does in the 3-D scene (both GUIs follow the same setting).
 ClickMode = Literal["propose", "teach", "move", "touch", "off"]
 CLICK_MODES: tuple[ClickMode, ...] = get_args(ClickMode)

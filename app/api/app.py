@@ -25,7 +25,7 @@ from fastapi.responses import JSONResponse, RedirectResponse
 from fastapi.staticfiles import StaticFiles
 from starlette.datastructures import Headers
 from starlette.exceptions import HTTPException as StarletteHTTPException
-from starlette.types import ASGIApp, Receive, Scope, Send
+from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from app.api.routes import (
     calibration,
@@ -178,7 +178,7 @@ class TokenMiddleware:
     def _with_cookie(self, send: Send) -> Send:
         cookie = f"{READ_COOKIE}={self._cookie}; Path=/api; HttpOnly; SameSite=Strict".encode()
 
-        async def sending(message: dict) -> None:
+        async def sending(message: Message) -> None:
             if message["type"] == "http.response.start":
                 message = {**message, "headers": [*message.get("headers", []),
                                                   (b"set-cookie", cookie)]}  # fmt: skip
@@ -296,7 +296,7 @@ class UnexpectedErrorMiddleware:
             return
         started = False
 
-        async def tracked(message: dict) -> None:
+        async def tracked(message: Message) -> None:
             nonlocal started
             if message["type"] == "http.response.start":
                 started = True

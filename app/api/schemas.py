@@ -8,7 +8,8 @@ responses; ``from_*`` class methods convert the session's SI dataclasses.
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Literal
+from pathlib import Path
+from typing import Annotated, Any, Literal, get_args
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -33,7 +34,7 @@ from robomach_core.project import StageStatus
 Axis = Literal["x", "y", "z", "rx", "ry", "rz"]
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 Vector3 = Annotated[list[Finite], Field(min_length=3, max_length=3)]
-AXIS_ORDER = ("x", "y", "z", "rx", "ry", "rz")
+AXIS_ORDER: tuple[Axis, ...] = get_args(Axis)
 
 
 class _Request(BaseModel):
@@ -342,7 +343,7 @@ class PathLearningCreate(_Request):
         "and is refused (422) when neither tells",
     )
     floor_clearance_mm: Finite = Field(
-        limits.FLOOR_CLEARANCE_MM.default,
+        limits.FLOOR_CLEARANCE_MM.default_value(),
         ge=limits.FLOOR_CLEARANCE_MM.min,
         le=limits.FLOOR_CLEARANCE_MM.max,
         description="machining height: the cutter this far above a floor the run meets or a "
@@ -543,7 +544,7 @@ class ExportPublic(BaseModel):
     folder: str | None = Field(description="where the files are, relative to the data folder")
 
     @classmethod
-    def from_info(cls, e: ExportInfo, data_dir: object | None) -> ExportPublic:
+    def from_info(cls, e: ExportInfo, data_dir: Path | None) -> ExportPublic:
         folder = None
         if e.folder is not None and data_dir is not None:
             folder = str(e.folder.relative_to(data_dir))

@@ -195,7 +195,7 @@ def _point_mm(text: str, option: str) -> tuple[float, float, float]:
         )
     for v in values:
         limits.WOBJ_POSITION_MM.check(v, option)
-    return values[0] * 1e-3, values[1] * 1e-3, values[2] * 1e-3  # type: ignore[return-value]
+    return values[0] * 1e-3, values[1] * 1e-3, values[2] * 1e-3
 
 
 # A guide-point file holds at most ``limits.GUIDE_POINTS_MAX`` rows of ten numbers: a few kB.

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import functools
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import trimesh
@@ -89,7 +90,8 @@ def tool_mesh(tool: Tool) -> trimesh.Trimesh:
     )
     shank.apply_translation([0.0, 0.0, -cutter_len - shank_len / 2])
     parts.append(shank)
-    return trimesh.util.concatenate(parts)
+    # trimesh annotates concatenate as returning any Geometry: meshes in, it is a Trimesh.
+    return cast(trimesh.Trimesh, trimesh.util.concatenate(parts))
 
 
 def cutter_mesh(tool: Tool) -> trimesh.Trimesh:
@@ -98,7 +100,8 @@ def cutter_mesh(tool: Tool) -> trimesh.Trimesh:
         ball = trimesh.creation.icosphere(subdivisions=3, radius=tool.radius_m)
         stem = trimesh.creation.cylinder(radius=tool.radius_m, height=tool.flute_length_m)
         stem.apply_translation([0.0, 0.0, -tool.flute_length_m / 2])
-        return trimesh.util.concatenate([ball, stem])
+        # trimesh annotates concatenate as returning any Geometry: meshes in, it is a Trimesh.
+        return cast(trimesh.Trimesh, trimesh.util.concatenate([ball, stem]))
     mesh = trimesh.creation.cylinder(radius=tool.radius_m, height=tool.flute_length_m, sections=24)
     mesh.apply_translation([0.0, 0.0, -tool.flute_length_m / 2])
     return mesh

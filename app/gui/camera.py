@@ -45,7 +45,8 @@ def part_view_pose(
         + [[centre[0] + sx * inset[0], centre[1] + sy * inset[1], hi[2]]
            for sx in (-1, 1) for sy in (-1, 1)]
     )  # fmt: skip
-    best, fewest = None, None
+    best: np.ndarray | None = None
+    fewest: int | None = None
     for el_deg in PART_VIEW_ELEVATIONS_DEG:
         el = math.radians(el_deg)
         for az_deg in PART_VIEW_AZIMUTHS_DEG:
@@ -57,6 +58,7 @@ def part_view_pose(
                 return eye, centre
             if fewest is None or blocked < fewest:
                 best, fewest = eye, blocked
+    assert best is not None  # the first direction tried sets it (the lists are not empty)
     return best, centre
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Sequence
+from typing import cast
 
 import numpy as np
 import trimesh
@@ -330,11 +331,10 @@ class CellScene:
                 at = np.asarray(touch.tcp_m, dtype=float)
                 d = np.asarray(touch.direction, dtype=float)
                 res = None if residuals_m is None else float(residuals_m[k])
-                color = (
-                    TOUCH_COLOR
-                    if res is None
-                    else tuple(int(c) for c in deviation_colors([abs(res)], CALIBRATION_SCALE_M)[0])
-                )
+                color = TOUCH_COLOR
+                if res is not None:
+                    r, g, b = deviation_colors(np.array([abs(res)]), CALIBRATION_SCALE_M)[0]
+                    color = (int(r), int(g), int(b))
                 scene.add_icosphere(
                     f"/calibration/T{k + 1}", radius=max(touch.tool_radius_m, 5e-4), color=color,
                     position=tuple(at),
@@ -402,7 +402,8 @@ class CellScene:
         body = getattr(self, "_tool_body", None)
         if body is not None and T_base_tcp is not None:
             parts.append(body.copy().apply_transform(np.asarray(T_base_tcp, dtype=float)))
-        return trimesh.util.concatenate(parts)
+        # trimesh annotates concatenate as returning any Geometry: meshes in, it is a Trimesh.
+        return cast(trimesh.Trimesh, trimesh.util.concatenate(parts))
 
     # ----------------------------------------------------------------- live state
 

@@ -15,11 +15,12 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from typing import Protocol
 
 import numpy as np
 import viser
 
-from app.session import Session
+from app.session import JobInfo, Session
 from robomach_core.errors import RobomachError
 
 from .panels import (
@@ -51,6 +52,12 @@ JOB_TITLES = {
     "accept_proposal": "Accepting the proposal",
     "calibration": "Touching the planned features",
 }
+
+
+class JobPanel(Protocol):
+    """A panel that shows a robot job's progress (None: no job of its kind)."""
+
+    def show_job(self, job: JobInfo | None) -> None: ...
 
 
 class Workbench:
@@ -308,7 +315,7 @@ class Workbench:
         every browser, until it is closed."""
         kinds = ("example", "path_learning", "accept_proposal", "calibration")
         active = {j.kind: j for j in self.session.jobs.active(kinds)}
-        panels = {
+        panels: dict[str, JobPanel] = {
             "example": self.guide_points,
             "path_learning": self.path_learning,
             "accept_proposal": self.pointing,

@@ -313,8 +313,8 @@ def _cancel_at_exit() -> None:
 
 
 # Called before concurrent.futures joins its workers (registered later, so called first): the
-# hook concurrent.futures itself uses for that join.
-threading._register_atexit(_cancel_at_exit)
+# hook concurrent.futures itself uses for that join (private: typeshed's stubs leave it out).
+threading._register_atexit(_cancel_at_exit)  # type: ignore[attr-defined]
 
 
 def _ended(ctx: JobContext) -> None:

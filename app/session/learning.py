@@ -37,7 +37,7 @@ from robomach_core.errors import (
     NotEnoughGuidePointsError,
     SupervisionError,
 )
-from robomach_core.learning.settings import PathLearningSettings
+from robomach_core.learning.settings import PathLearningSettings, WallSideSetting
 from robomach_core.part import Workpiece, mesh_query
 from robomach_core.project import ProcessedPath, Project
 
@@ -97,7 +97,7 @@ def released(lt: LeadThrough, end: CellState, above_N: float) -> CellState:
             if float(np.linalg.norm(lt.measured_wrench(state.cell)[:3])) < RELEASED_BELOW_N:
                 break
     except SupervisionError as exc:  # a limit on the way out: it stops there, held
-        if exc.state is not None:
+        if isinstance(exc.state, LeadThroughState):  # lt.step's error carries its state
             state = exc.state
     return state.cell
 
@@ -184,7 +184,7 @@ class Learning:
         speed_m_s: float,
         *,
         closed: bool = True,
-        wall_side: str = "auto",
+        wall_side: WallSideSetting = "auto",
         floor_clearance_m: float | None = None,
     ) -> str:
         """Job: learn the path through the guide points at ``force_N`` and ``speed_m_s``
@@ -313,7 +313,7 @@ class Learning:
         force_N: float = PathLearningSettings.force_N,
         *,
         closed: bool = True,
-        wall_side: str = "auto",
+        wall_side: WallSideSetting = "auto",
     ) -> tuple:
         """What the operator check finds in the guide points (``project.guide_findings``)."""
         view = self._session.view()
@@ -321,14 +321,14 @@ class Learning:
         return core.guide_findings(view.project, view.cell, settings)
 
     def guide_warnings(
-        self, force_N: float, *, closed: bool = True, wall_side: str = "auto"
+        self, force_N: float, *, closed: bool = True, wall_side: WallSideSetting = "auto"
     ) -> list[str]:
         """The operator check's findings (``guide_findings``) as messages."""
         found = self.guide_findings(force_N, closed=closed, wall_side=wall_side)
         return [w.message for w in found]
 
     def taught_wall_preview(
-        self, wall_side: str = "auto", *, closed: bool = True
+        self, wall_side: WallSideSetting = "auto", *, closed: bool = True
     ) -> tuple[list, str]:
         """The wall the next run would follow: its point at each guide point (base frame, None
         where none is near) and one line saying which side and why, or why it cannot tell."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -19,7 +19,13 @@ from robomach_core.errors import InvalidInputError
 from robomach_core.learning.run import Recording
 
 from .jobs import JobContext
-from .records import LIVE_NOTIFY_S, LIVE_TRACE_EVERY, LIVE_TRACE_MAX, ForceTrace
+from .records import (
+    LIVE_NOTIFY_S,
+    LIVE_TRACE_EVERY,
+    LIVE_TRACE_MAX,
+    ForceSource,
+    ForceTrace,
+)
 
 
 class TappedCell:
@@ -38,6 +44,13 @@ class TappedCell:
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._cell, name)
+
+
+def tapped_cell(cell: Cell, tap: Callable[[CellState], None]) -> Cell:
+    """``TappedCell(cell, tap)``, typed as the ``Cell`` it stands in for wherever one is taken:
+    every attribute but ``step`` is the cell's (``__getattr__``), a delegation a type checker
+    cannot follow (hence the cast, here only)."""
+    return cast(Cell, TappedCell(cell, tap))
 
 
 class LiveFeed:
@@ -75,6 +88,7 @@ class LiveFeed:
         if max_points < 2:
             raise InvalidInputError("max_points must be at least 2")
         live = list(self.trace)
+        source: ForceSource
         if busy and live:
             data = np.array(live)
             t, f = data[:, 0], data[:, 1]
@@ -104,7 +118,7 @@ class LiveFeed:
         *,
         path_m: np.ndarray | None = None,
         closed: bool = False,
-    ) -> TappedCell:
+    ) -> Cell:
         """``cell`` seen through a tap that feeds this and checks the job's cancel. With the
         guide points' positions ``path_m`` (n, 3) the live force is the one across the path,
         the quantity the recording keeps (``across_path_force``); else |F|."""
@@ -133,7 +147,7 @@ class LiveFeed:
                 self._last_notify = now
                 self._on_move()
 
-        return TappedCell(cell, tap)
+        return tapped_cell(cell, tap)
 
 
 def _segments(path_m: np.ndarray, closed: bool) -> tuple[np.ndarray, np.ndarray]:

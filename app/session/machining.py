@@ -94,7 +94,7 @@ class MachiningService:
         result = self.session.project().machining
         return result if isinstance(result, core.MachiningResult) else None
 
-    def status(self) -> str:
+    def status(self) -> core.StageStatus:
         return self.session.project().status()["machining"]
 
     def require_result(self) -> core.MachiningResult:

@@ -10,7 +10,7 @@ current (nothing recorded what they were computed from).
 from __future__ import annotations
 
 from dataclasses import asdict, replace
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -32,6 +32,10 @@ from robomach_core.project import (
 from ..store import GuidePointRow, ProjectData
 from .machining import machining_document, machining_from_document
 from .records import RECORDING_ARRAYS, log
+
+if TYPE_CHECKING:
+    from robomach_core.cmrr import CmrrSettings
+    from robomach_core.stiffness import CompensationSettings
 
 Part = Literal["cell", "guides", "recording", "post"]
 
@@ -81,10 +85,11 @@ def cell_from_doc(doc: dict[str, Any]) -> CellSettings:
     """Cell settings from ``cell_json`` (unknown keys ignored, missing ones default)."""
     known = set(CellSettings.__dataclass_fields__)
     values = {k: v for k, v in doc.items() if k in known}
-    if doc.get("robot_urdf"):  # register the user's arm again so Robot(name) builds it
+    urdf = robot_urdf_from_doc(doc)
+    if urdf is not None:  # register the user's arm again so Robot(name) builds it
         from robomach_core.robots.custom import register_urdf
 
-        register_urdf(*robot_urdf_from_doc(doc))
+        register_urdf(*urdf)
     if values.get("wobj_mm_deg") is not None:
         values["wobj_mm_deg"] = tuple(float(v) for v in values["wobj_mm_deg"])
     return CellSettings(**values)
@@ -155,19 +160,20 @@ def _learned(data: ProjectData, project: Project) -> LearnedPath | None:
 
 def _process_settings(project: Project, post: dict[str, Any], pid: int) -> Project:
     """The CMRR and compensation settings stored with the project (unreadable ones dropped)."""
-    cmrr = compensation = None
+    cmrr: CmrrSettings | None = None
+    compensation: CompensationSettings | None = None
     if post.get("cmrr") is not None:
-        from robomach_core.cmrr import settings_from_dict
+        from robomach_core.cmrr import settings_from_dict as cmrr_from_dict
 
         try:
-            cmrr = settings_from_dict(post["cmrr"])
+            cmrr = cmrr_from_dict(post["cmrr"])
         except (RobomachError, TypeError, ValueError, KeyError) as exc:
             log.error("project %s: CMRR settings unreadable (%s); dropped", pid, exc)
     if post.get("compensation") is not None:
-        from robomach_core.stiffness.settings import settings_from_dict
+        from robomach_core.stiffness.settings import settings_from_dict as compensation_from_dict
 
         try:
-            compensation = settings_from_dict(post["compensation"])
+            compensation = compensation_from_dict(post["compensation"])
         except (RobomachError, TypeError, ValueError, KeyError) as exc:
             log.error("project %s: compensation settings unreadable (%s); dropped", pid, exc)
     return replace(project, cmrr=cmrr, compensation=compensation)

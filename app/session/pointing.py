@@ -39,6 +39,7 @@ from robomach_core.learning.planner import (
     teach_point,
     tool_reach,
 )
+from robomach_core.learning.route import WallSide
 from robomach_core.learning.walls import WallPick
 from robomach_core.part import Workpiece, mesh_query
 from robomach_core.teaching import Arrival, guide_intents, robust_intents
@@ -121,7 +122,7 @@ class Pointing:
         self._session = session
         self._lock = threading.Lock()
         self._proposal: tuple[int, GuideProposal] | None = None
-        self._pointed: tuple[str, str] | None = None  # (guides_key, side) of a proposal
+        self._pointed: tuple[str, WallSide] | None = None  # (guides_key, side) of a proposal
         self.settings = ProposalSettings()
         self.click_mode: ClickMode = "propose"  # what a click on the part does (both GUIs)
 
@@ -411,7 +412,7 @@ class Pointing:
 
     # --- what path learning needs ----------------------------------------------------------
 
-    def learning_side(self) -> str | None:
+    def learning_side(self) -> WallSide | None:
         """The wall side of an accepted proposal's points ("right": the planner's wall runs
         with the material on its right), while the guide points are still those; None
         otherwise (path learning decides it, from the pushes or the part's mesh:

@@ -98,6 +98,10 @@ class GuidePointEntry:
     point: GuidePoint
 
 
+# Where a force trace comes from (``ForceTrace.source``).
+ForceSource = Literal["live", "recording", "none"]
+
+
 @dataclass(frozen=True)
 class ForceTrace:
     """Force against time for plots, decimated.
@@ -114,7 +118,7 @@ class ForceTrace:
         force_max_N: (k,) largest force of those samples.
     """
 
-    source: Literal["live", "recording", "none"]
+    source: ForceSource
     time_s: np.ndarray
     force_N: np.ndarray
     force_reference_N: np.ndarray

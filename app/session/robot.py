@@ -20,7 +20,7 @@ SOLUTION  Read: ``pose()``, ``idle_pose()``, ``snapshot(wait=)``, ``busy()``, ``
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -31,6 +31,7 @@ from robomach_core.cell import (
     AXES,
     Cell,
     CellState,
+    ComplianceFrame,
     ComplianceSelection,
     GuidePoint,
     LeadThrough,
@@ -42,7 +43,7 @@ from robomach_core.part import Workpiece
 from robomach_core.project import CellSettings, Project
 
 from .jobs import JobContext, JobRunner
-from .live import LiveFeed, TappedCell
+from .live import LiveFeed
 from .records import BusyError, ForceTrace, JobInfo, RobotSnapshot, log
 
 ROBOT_JOB_KINDS = ("example", "path_learning", "accept_proposal", "calibration")
@@ -297,7 +298,7 @@ class LiveRobot:
             _, lt, state = self._parts()
             return lt.record(state)
 
-    def select(self, axes: Any, frame: str) -> ComplianceSelection:
+    def select(self, axes: Iterable[str], frame: ComplianceFrame) -> ComplianceSelection:
         """Make the axes (any of x y z rx ry rz) in the "tool" or "base" frame compliant."""
         selection = ComplianceSelection(frozenset(axes), frame)  # validates
         with self._lock:
@@ -308,7 +309,7 @@ class LiveRobot:
 
     def tapped(
         self, ctx: JobContext, cell: Cell, *, path_m: np.ndarray | None = None, closed: bool = False
-    ) -> TappedCell:
+    ) -> Cell:
         """``cell`` seen through the live feed of the running job ``ctx`` (``LiveFeed.tapped``)."""
         return self.live.tapped(cell, self._parts()[1].estimator, ctx, path_m=path_m, closed=closed)
 

@@ -56,7 +56,7 @@ from robomach_core.errors import (
 from robomach_core.part import mesh_query
 from robomach_core.teaching import Arrival, go_to_point
 
-from .live import TappedCell
+from .live import tapped_cell
 from .records import LIVE_NOTIFY_S, BusyError, ConflictError, RobotSnapshot
 
 if TYPE_CHECKING:
@@ -193,7 +193,7 @@ class Teach:
             R = frame_rotation(frame, st.cell.T_base_tcp, wobj)
             before.append(R[:, "xyz".index(axis[-1])].copy())
             before.append(st.cell.T_base_tcp.copy())
-            return lt.jog(st, axis, float(step), sel, rate=speed, frame_rotation=R)  # type: ignore[arg-type]
+            return lt.jog(st, axis, float(step), sel, rate=speed, frame_rotation=R)
 
         self._run(move)
         if before and not rotational:
@@ -346,7 +346,7 @@ class Teach:
             gap = probe.gap(snap.T_base_tcp)
             wall_gap = self._wall_gap(cell, snap.T_base_tcp[:3, 3])
         nz = float(gap.normal[2])
-        face = "floor" if nz > 0.7 else "underside" if nz < -0.7 else "wall"
+        face: NearestFace = "floor" if nz > 0.7 else "underside" if nz < -0.7 else "wall"
         return ToolView(
             float(gap.distance_m),
             gap.normal,
@@ -418,7 +418,7 @@ class Teach:
                     self._notifier.poke()
 
             tapped = LeadThrough(
-                TappedCell(lt.cell, tap),  # type: ignore[arg-type]
+                tapped_cell(lt.cell, tap),
                 lt.params,
                 lt.estimator,
                 supervisor=lt.supervisor,
@@ -445,7 +445,7 @@ class Teach:
 
 def _base_axis_of_wobj(
     T_base_wobj: np.ndarray, axis: str, direction: int
-) -> tuple[Literal["x", "y", "z"], Literal[1, -1]]:
+) -> tuple[TouchAxis, Literal[1, -1]]:
     """The base axis and sign a work-object axis is aligned with (within 0.1 degree)."""
     column = np.asarray(T_base_wobj[:3, "xyz".index(axis)], dtype=float) * direction
     i = int(np.argmax(np.abs(column)))
@@ -454,7 +454,7 @@ def _base_axis_of_wobj(
             "a touch-off in the work-object frame needs the work object aligned with the base "
             "axes; use the base or tool frame"
         )
-    return "xyz"[i], (1 if column[i] > 0 else -1)  # type: ignore[return-value]
+    return TOUCH_AXES[i], (1 if column[i] > 0 else -1)
 
 
 class _Coalescer:

@@ -9,7 +9,7 @@ from ..errors import InvalidInputError
 from ..limits import FLOOR_CLEARANCE_MM, LEARNING_FORCE_N, LEARNING_SPEED_MM_S
 
 WallSideSetting = Literal["auto", "left", "right"]
-WALL_SIDE_CHOICES: tuple[str, ...] = get_args(WallSideSetting)
+WALL_SIDE_CHOICES: tuple[WallSideSetting, ...] = get_args(WallSideSetting)
 FORCE_RANGE_N = (LEARNING_FORCE_N.min, LEARNING_FORCE_N.max)
 SPEED_RANGE_M_S = (LEARNING_SPEED_MM_S.min * 1e-3, LEARNING_SPEED_MM_S.max * 1e-3)
 

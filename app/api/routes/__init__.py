@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import Depends, Request, Response
 
@@ -47,8 +47,12 @@ ERRORS: dict[int | str, dict] = {
 }
 
 # File answers of the study routes.
-PNG = {200: {"content": {"image/png": {}}, "description": "the figure (PNG)"}}
-JSON_FILE = {200: {"content": {"application/json": {}}, "description": "a JSON file"}}
+PNG: dict[int | str, dict[str, Any]] = {
+    200: {"content": {"image/png": {}}, "description": "the figure (PNG)"}
+}
+JSON_FILE: dict[int | str, dict[str, Any]] = {
+    200: {"content": {"application/json": {}}, "description": "a JSON file"}
+}
 MEDIA_TYPES = {
     ".mod": "text/plain; charset=utf-8",
     ".csv": "text/csv; charset=utf-8",

@@ -9,7 +9,7 @@ frame; the fit is point-to-plane least squares. Positions in mm, directions unit
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 import numpy as np
 from fastapi import APIRouter, Path, status
@@ -152,7 +152,7 @@ class CalibrationPublic(BaseModel):
 
 def _touch(k: int, touch: Touch, fit: WobjFit | None) -> TouchPublic:
     doc = touch.document()
-    extra = {}
+    extra: dict[str, Any] = {}
     if fit is not None and k < len(fit.residuals_m):
         extra = {
             "residual_mm": round(float(fit.residuals_m[k]) * 1e3, 4),

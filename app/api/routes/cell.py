@@ -3,6 +3,8 @@ placed (the work object); its calibration by touch is ``calibration.py``'s."""
 
 from __future__ import annotations
 
+from typing import Any
+
 from fastapi import APIRouter, HTTPException, UploadFile, status
 from starlette.concurrency import run_in_threadpool
 
@@ -44,7 +46,7 @@ def put_cell(body: CellUpdate, session: SessionDep) -> CellPublic:
     built-in one) or the realistic preset (omitted ones stay). A change sends the robot home
     and clears the guide points (poses in the old cell); moving or changing the part also
     drops its work-object calibration. The recording and results stay, marked out of date."""
-    extra = {}
+    extra: dict[str, Any] = {}
     if body.realistic is not None:
         from robomach_core.part import PartDeviation
 

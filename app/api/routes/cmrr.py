@@ -70,9 +70,11 @@ class CmrrStudyCreate(BaseModel):
     @classmethod
     def _in_range(cls, value: Any, info: ValidationInfo) -> Any:
         """The message names the whole range (``ge``/``le`` alone name one end)."""
-        rng = RANGES[info.field_name]
+        name = info.field_name
+        assert name is not None  # a field validator runs for one of its fields
+        rng = RANGES[name]
         if isinstance(value, (int, float)) and not isinstance(value, bool):
-            rng.check(value, info.field_name)
+            rng.check(value, name)
         return value
 
 

@@ -71,13 +71,13 @@ class TouchOffCreate(_Request):
     axis: TouchAxis = Field(description="axis of the frame to move along")
     direction: TouchDirection = Field(description="+1 or -1: which way along the axis")
     force_N: Finite = Field(
-        default=limits.TOUCH_OFF_FORCE_N.default,
+        default=limits.TOUCH_OFF_FORCE_N.default_value(),
         ge=limits.TOUCH_OFF_FORCE_N.min,
         le=limits.TOUCH_OFF_FORCE_N.max,
         description="contact force to stop at [N]",
     )
     max_travel_mm: Finite = Field(
-        default=limits.TOUCH_OFF_TRAVEL_MM.default,
+        default=limits.TOUCH_OFF_TRAVEL_MM.default_value(),
         gt=limits.TOUCH_OFF_TRAVEL_MM.min,
         le=limits.TOUCH_OFF_TRAVEL_MM.max,
         description="give up after this travel [mm]",

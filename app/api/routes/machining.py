@@ -23,7 +23,7 @@ from robomach_core.limits import (
 from robomach_core.machining import MACHINING_CONTROLLERS
 from robomach_core.machining.choice import OPTION_NAMES
 from robomach_core.machining.stock import MAX_ALLOWANCE_M, MAX_PROFILE_POINTS, MAX_PROFILE_S_MM
-from robomach_core.project import STOCK_SOURCES
+from robomach_core.project import STOCK_SOURCES, StageStatus
 from robomach_core.stiffness import Compensation
 
 router = APIRouter(prefix="/api/machining", tags=["machining"], responses=ERRORS)
@@ -48,7 +48,7 @@ class MachiningSettingsPublic(BaseModel):
     stock_source: StockSource
     stock_profile_mm: list[list[float]] | None = Field(description="(s_mm, allowance_mm) pairs")
     stock_mesh: str | None = Field(description="file name of the uploaded stock mesh")
-    status: Literal["none", "current", "stale"] = Field(description="of the machining result")
+    status: StageStatus = Field(description="of the machining result")
     cell_options: list[CellOption] = Field(
         description="the cell's controller options: only configurations it can run are chosen"
     )
@@ -122,7 +122,7 @@ class StockProfile(BaseModel):
 class MachiningResultPublic(BaseModel):
     """The last machining result: one summary row per run, the choice, the plotted trace."""
 
-    status: Literal["none", "current", "stale"]
+    status: StageStatus
     stale_reason: str | None
     runs: list[dict[str, Any]] = Field(
         description="figures per run, units in the keys; ``runnable`` false (and ``needs``) "
@@ -145,7 +145,7 @@ class MachiningResultPublic(BaseModel):
 class ComparisonPublic(BaseModel):
     """The side-by-side table of the last result."""
 
-    status: Literal["none", "current", "stale"]
+    status: StageStatus
     rows: list[dict[str, Any]]
     table_text: str
     table_markdown: str

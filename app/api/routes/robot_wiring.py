@@ -12,7 +12,7 @@ from app.api.routes.cell import UPLOAD_CHUNK_BYTES, _public
 from app.api.routes.export import program_download
 from app.api.schemas import CellPublic, FindingPublic, GuideCheckPublic
 from robomach_core import limits
-from robomach_core.learning.settings import WallSideSetting
+from robomach_core.learning.settings import PathLearningSettings, WallSideSetting
 from robomach_core.robots import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
 
@@ -89,7 +89,7 @@ def export_urscript(
 @router.get("/path-learning/warnings")
 def guide_point_warnings(
     session: SessionDep,
-    force_N: LearningForceQuery = limits.LEARNING_FORCE_N.default,
+    force_N: LearningForceQuery = PathLearningSettings.force_N,
     closed: ClosedQuery = True,
     wall_side: WallSideQuery = "auto",
 ) -> list[str]:
@@ -103,7 +103,7 @@ def guide_point_warnings(
 @router.get("/path-learning/check")
 def guide_point_check(
     session: SessionDep,
-    force_N: LearningForceQuery = limits.LEARNING_FORCE_N.default,
+    force_N: LearningForceQuery = PathLearningSettings.force_N,
     closed: ClosedQuery = True,
     wall_side: WallSideQuery = "auto",
 ) -> GuideCheckPublic:

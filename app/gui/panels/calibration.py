@@ -17,12 +17,13 @@ from __future__ import annotations
 import numpy as np
 import viser
 
-from app.session import Session
+from app.session import JobInfo, Session
 from robomach_core import limits
 from robomach_core.teaching import MIN_TOUCHES, UP_COS, face_touch_points, touches_for_face
 
 from ..scene import CellScene
 from .feedback import guarded, notify_error
+from .inputs import set_value
 
 REACH_ABOVE_M = 0.015  # a face's touch starts about this far off it
 INTRO = (
@@ -102,7 +103,9 @@ class CalibrationPanel:
 
     # --- a click in the touch mode -----------------------------------------------------------
 
-    def touch_face(self, point_wobj_m: np.ndarray, normal: np.ndarray, client) -> None:
+    def touch_face(
+        self, point_wobj_m: np.ndarray, normal: np.ndarray, client: viser.ClientHandle
+    ) -> None:
         """Touch the face clicked, as many times as it should take (module docstring); an
         error (nothing met, busy, a limit) goes to the user who clicked."""
         try:
@@ -164,14 +167,14 @@ class CalibrationPanel:
         self.accept.disabled = fit is None
         self.remove.disabled = state.registration is None
         if abs(float(self.force.value) - state.force_N) > 1e-9:
-            self.force.value = state.force_N
+            set_value(self.force, state.force_N)
 
-    def show_job(self, job) -> None:
+    def show_job(self, job: JobInfo | None) -> None:
         """Progress of the example operator's touches (None hides the bar)."""
         self.progress.visible = job is not None
         self.auto.disabled = job is not None
         if job is not None:
-            self.progress.value = round(job.progress * 100.0, 1)
+            set_value(self.progress, round(job.progress * 100.0, 1))
 
 
 def touches_markdown(state) -> str:

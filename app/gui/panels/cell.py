@@ -9,6 +9,7 @@ from robomach_core.cell import ROBOT_NAMES, TOOL_RADIUS_RANGE_M
 from robomach_core.part import MAX_MESH_BYTES, MAX_MESH_TRIANGLES, WORKPIECE_NAMES, PartDeviation
 
 from .feedback import guarded, notify_info, upload_handled
+from .inputs import set_value
 
 _PRESET = PartDeviation.realistic()  # the preset's ranges, for the hint
 MESH_MIME_TYPES = ".stl,.obj,.ply,model/stl,model/obj,application/octet-stream"
@@ -113,11 +114,11 @@ class CellPanel:
         s = self.session.project().cell
         wp = self.session.robot.workpiece
         self.robot.options = self._robot_options(s)
-        self.robot.value = s.robot
-        self.tool_radius.value = round(s.tool_radius_m * 1e3, 3)
+        set_value(self.robot, s.robot)
+        set_value(self.tool_radius, round(s.tool_radius_m * 1e3, 3))
         self.workpiece.options = self._workpiece_options(s)
-        self.workpiece.value = s.workpiece
-        self.realistic.value = s.part_deviation is not None
+        set_value(self.workpiece, s.workpiece)
+        set_value(self.realistic, s.part_deviation is not None)
         cad = wp.cad()
         extents = cad.mesh.extents * 1e3
         kind = "built-in" if s.workpiece_builtin else "uploaded mesh"

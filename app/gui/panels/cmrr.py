@@ -16,17 +16,23 @@ import logging
 import math
 import threading
 from collections.abc import Callable
+from typing import TYPE_CHECKING, Generic, TypeVar
 
 import numpy as np
 import viser
 
-from app.session import Session
+from app.session import JobInfo, Session
 from app.studies import CMRR_CONTROLLER_CHOICES, CMRR_JOB_KIND, CmrrOutcome, StudyService
 from robomach_core.cmrr import SCENARIO_NAMES
 from robomach_core.limits import SEED
 
 from .feedback import guarded
+from .inputs import set_value
 
+if TYPE_CHECKING:
+    from viser._gui_handles import GuiProgressBarHandle  # not exported by viser
+
+OutcomeT = TypeVar("OutcomeT")  # a study's outcome (CmrrOutcome, CompensationOutcome)
 REFRESH_HZ = 4.0
 _NOTHING_SHOWN = object()  # the panel has shown no study, not even "none yet"
 PLOT_WIDTH_PX = 720  # the sidebar is narrower: a smaller image is sent faster
@@ -45,7 +51,9 @@ def png_to_image(png: bytes, width_px: int = PLOT_WIDTH_PX) -> np.ndarray:
     with Image.open(io.BytesIO(png)) as im:
         rgb = im.convert("RGB")
         if rgb.width > width_px:
-            rgb = rgb.resize((width_px, round(rgb.height * width_px / rgb.width)), Image.LANCZOS)
+            rgb = rgb.resize(
+                (width_px, round(rgb.height * width_px / rgb.width)), Image.Resampling.LANCZOS
+            )
         return np.asarray(rgb)
 
 
@@ -59,7 +67,12 @@ def fmt(value: object, spec: str = ".1f", unit: str = "") -> str:
 
 
 def show_job_progress(
-    job, *, run: object, cancel: object, progress: object, status: object
+    job: JobInfo | None,
+    *,
+    run: viser.GuiButtonHandle,
+    cancel: viser.GuiButtonHandle,
+    progress: GuiProgressBarHandle,
+    status: viser.GuiMarkdownHandle,
 ) -> None:
     """A study panel's controls for ``job``: run/cancel enabled, progress bar, status line.
 
@@ -70,11 +83,13 @@ def show_job_progress(
     run.disabled = running
     cancel.disabled = not running
     progress.animated = running
+    if job is None:
+        return
     if running:
-        progress.value = round(job.progress * 100.0, 1)
+        set_value(progress, round(job.progress * 100.0, 1))
         state = "Queued" if job.status == "queued" else "Running"
         status.content = f"{state}: {job.progress:.0%}"
-    elif job is not None:
+    else:
         status.content = "" if job.status == "done" else f"**{job.status}**: {job.error}"
 
 
@@ -84,7 +99,11 @@ class StudyJobFollower:
     or None)."""
 
     def __init__(
-        self, session: Session, service: StudyService, kind: str, refresh: Callable[[object], None]
+        self,
+        session: Session,
+        service: StudyService,
+        kind: str,
+        refresh: Callable[[JobInfo | None], None],
     ) -> None:
         self.session = session
         self.kind = kind
@@ -134,7 +153,7 @@ class StudyJobFollower:
                 logging.getLogger(__name__).exception("%s panel refresh failed", self.kind)
             self._stop.wait(period)
 
-    def _current_job(self):
+    def _current_job(self) -> JobInfo | None:
         active = self.session.jobs.active((self.kind,))
         if active:
             self.job_id = active[0].id
@@ -148,14 +167,28 @@ class StudyJobFollower:
             return None
 
 
-class StudyPanel:
+class StudyPanel(Generic[OutcomeT]):
     """What the CMRR and compensation panels share: run/cancel/progress/status/figures, the
     settings download and the job follower. A panel names itself (``NAME``, ``JOB_KIND``,
-    ``SETTINGS_FILE``), submits its job in ``_submit`` and shows a new study in ``_show``."""
+    ``SETTINGS_FILE``), adds its ``download`` button, submits its job in ``_submit`` and shows
+    a new study (of outcome type ``OutcomeT``) in ``_show``."""
 
     NAME: str
     JOB_KIND: str
     SETTINGS_FILE: str
+    download: viser.GuiButtonHandle
+
+    def _submit(self) -> str:
+        """Submit the panel's study as a job; returns its id."""
+        raise NotImplementedError
+
+    def _show_hint(self) -> None:
+        """Show the hint of the chosen study on the run button."""
+        raise NotImplementedError
+
+    def _show(self, outcome: OutcomeT | None) -> None:
+        """Show the project's last study (None: none yet)."""
+        raise NotImplementedError
 
     def _add_run_controls(self, server: viser.ViserServer, run_label: str) -> None:
         self.run = server.gui.add_button(run_label, icon=viser.Icon.PLAYER_PLAY, color="green")
@@ -170,7 +203,7 @@ class StudyPanel:
         self,
         session: Session,
         service: StudyService,
-        result: Callable,
+        result: Callable[[], OutcomeT | None],
         settings_json: Callable[[], str],
     ) -> None:
         """Wire run, cancel and download, then follow the panel's jobs (refreshing it)."""
@@ -197,7 +230,7 @@ class StudyPanel:
         """Stop following the session and the service."""
         self.follower.close()
 
-    def refresh(self, job) -> None:
+    def refresh(self, job: JobInfo | None) -> None:
         """Show the job's progress (or how it ended) and the project's last study."""
         show_job_progress(
             job, run=self.run, cancel=self.cancel, progress=self.progress, status=self.status
@@ -208,7 +241,7 @@ class StudyPanel:
             self._show(outcome)
 
 
-class CmrrPanel(StudyPanel):
+class CmrrPanel(StudyPanel[CmrrOutcome]):
     """Scenario, controller (or all), seed; run, cancel, progress; figures, plot, settings.
 
     Args:
@@ -277,11 +310,11 @@ class CmrrPanel(StudyPanel):
         self.download.disabled = outcome is None
         self.enlarge.disabled = outcome is None or outcome.plot_png is None
         if outcome is None:
-            self.progress.value = 0.0
+            set_value(self.progress, 0.0)
             self.figures.content = "*No CMRR study in this project yet.*"
             self.plot.image = np.full((2, 2, 3), 255, np.uint8)
             return
-        self.progress.value = 100.0
+        set_value(self.progress, 100.0)
         self.figures.content = cmrr_figures(outcome)
         if outcome.plot_png is not None:
             self.plot.image = png_to_image(outcome.plot_png)

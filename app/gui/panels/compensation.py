@@ -21,6 +21,7 @@ from app.studies import (
 from robomach_core.stiffness import COMPENSATIONS, OFFLINE_MODELS, StudyOptions
 
 from .cmrr import StudyPanel, fmt, png_to_image
+from .inputs import set_value
 
 STUDY_HINTS = {
     "identify": "Joint stiffness from CMM measurements under known loads (chapter 5.2)",
@@ -32,7 +33,7 @@ STUDY_HINTS = {
 NO_PLOT = "(none)"
 
 
-class CompensationPanel(StudyPanel):
+class CompensationPanel(StudyPanel[CompensationOutcome]):
     """Study, quick preview, compensation mode; run, cancel, progress; figures, plots, settings.
 
     Args:
@@ -102,18 +103,18 @@ class CompensationPanel(StudyPanel):
     def _show(self, outcome: CompensationOutcome | None) -> None:
         self.download.disabled = outcome is None or outcome.settings is None
         if outcome is None:
-            self.progress.value = 0.0
+            set_value(self.progress, 0.0)
             self.figures.content = "*No compensation study in this project yet.*"
             self.plot_name.options = (NO_PLOT,)
-            self.plot_name.value = NO_PLOT
+            set_value(self.plot_name, NO_PLOT)
             self._show_plot()
             return
-        self.progress.value = 100.0
+        set_value(self.progress, 100.0)
         self.figures.content = compensation_figures(outcome)
         names = tuple(sorted(outcome.plots)) or (NO_PLOT,)
         keep = self.plot_name.value if self.plot_name.value in names else names[0]
         self.plot_name.options = names
-        self.plot_name.value = keep
+        set_value(self.plot_name, keep)
         self._show_plot()
 
     def _show_plot(self) -> None:

@@ -13,7 +13,8 @@ from app.studies import StudyService
 from robomach_core.errors import RobomachError
 from robomach_core.project import StaleResultError, machining_setup_of
 
-from .feedback import guarded
+from .feedback import client_of, guarded
+from .inputs import set_value
 from .postprocess import OUT_OF_DATE
 
 PREVIEW_LINES = 60
@@ -86,7 +87,7 @@ class ExportPanel:
         self.cad_only.on_click(
             guarded(
                 "CAD-only program",
-                lambda e: e.client.send_file_download(
+                lambda e: client_of(e).send_file_download(
                     f"cad_only_{e.target.value}",
                     self.cad_only_text(e.target.value).encode("utf-8"),
                     save_immediately=True,
@@ -97,7 +98,7 @@ class ExportPanel:
             group.on_click(
                 guarded(
                     "Export",
-                    lambda e: e.client.send_file_download(
+                    lambda e: client_of(e).send_file_download(
                         e.target.value,
                         self.file_text(e.target.value).encode("utf-8"),
                         save_immediately=True,
@@ -170,7 +171,7 @@ class ExportPanel:
         if tuple(self.language.options) != options:
             self.language.options = options
         if self.language.value not in options:
-            self.language.value = options[0]
+            set_value(self.language, options[0])
         files = program_file_names(languages) or ("none",)
         if tuple(self.program.options) != files:
             self.program.options = files

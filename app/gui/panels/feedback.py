@@ -30,6 +30,14 @@ def notify_info(client: viser.ClientHandle | None, title: str, message: str) -> 
         client.add_notification(title, message, color="blue", auto_close_seconds=6.0)
 
 
+def client_of(event: viser.GuiEvent[Any]) -> viser.ClientHandle:
+    """The browser behind the event of a ``guarded`` callback: ``guarded`` drops the events
+    without one (those the server fires itself), so there always is one."""
+    if event.client is None:
+        raise RuntimeError("a GUI event without a browser reached a guarded callback")
+    return event.client
+
+
 def guarded(title: str, callback: Callable[[E], Any]) -> Callable[[E], None]:
     """Wrap a GUI callback so that a ``RobomachError`` (busy, bad input, ...) is shown to the
     user who clicked, not lost in the server log. Events fired by the server itself

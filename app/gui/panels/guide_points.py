@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import viser
 
-from app.session import Session
+from app.session import JobInfo, Session
 from robomach_core.errors import InvalidInputError
 
 from ..scene import CellScene
 from .feedback import guarded
+from .inputs import set_value
 
 NO_SELECTION = "none"
 LIST_ROWS_MAX = 40  # the table shows the first rows; the scene shows them all
@@ -84,7 +85,7 @@ class GuidePointsPanel:
         options = (NO_SELECTION, *(f"G{k + 1}" for k in range(len(guides))))
         keep = self.selected.value if self.selected.value in options else NO_SELECTION
         self.selected.options = options
-        self.selected.value = keep
+        set_value(self.selected, keep)
         self.table.content = guide_table(guides)
         self.show_in_scene(guides)
 
@@ -95,9 +96,9 @@ class GuidePointsPanel:
             [g.T_base_tcp for g in guides], selected=index if index >= 0 else None
         )
 
-    def show_job(self, job) -> None:
+    def show_job(self, job: JobInfo | None) -> None:
         """Progress of a running example job (None hides the bar)."""
         self.progress.visible = job is not None
         self.example.disabled = job is not None
         if job is not None:
-            self.progress.value = round(job.progress * 100.0, 1)
+            set_value(self.progress, round(job.progress * 100.0, 1))

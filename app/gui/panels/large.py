@@ -9,8 +9,12 @@ from __future__ import annotations
 
 import base64
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import viser
+
+if TYPE_CHECKING:
+    from viser._gui_handles import GuiModalHandle  # not exported by viser
 
 # Widen the modal this style sits in (and only while it is open).
 WIDE_MODAL_STYLE = (
@@ -35,7 +39,7 @@ def open_large(
     *,
     download: tuple[str, bytes] | None = None,
     on_close: Callable[[], None] | None = None,
-) -> viser.GuiModalHandle:
+) -> GuiModalHandle:
     """A wide modal holding ``html`` (a figure from ``png_html``, a table), with a download
     button for ``download`` (name, bytes) and a Close button."""
     gui = client.gui

@@ -21,7 +21,7 @@ from robomach_core.choices import COMPLIANCE_FRAMES
 
 from ..scene import CellScene
 from .feedback import guarded
-from .inputs import range_number
+from .inputs import range_number, set_value
 
 # Three buttons a row: six do not fit the sidebar.
 PUSH_ROWS = (("Push +", ("+X", "+Y", "+Z")), ("Push -", ("-X", "-Y", "-Z")))
@@ -104,15 +104,15 @@ class LeadThroughPanel:
             self.jog = [server.gui.add_button_group(label, d) for label, d in JOG_ROWS]
             self.home = server.gui.add_button("Home", icon=viser.Icon.HOME)
             self.pose = server.gui.add_markdown("")
-        for box in (*self.axes.values(), self.frame):
-            box.on_update(
-                guarded(
-                    "Compliance",
-                    lambda e: self.session.robot.select(
-                        [a for a, b in self.axes.items() if b.value], self.frame.value
-                    ),
-                )
-            )
+        select = guarded(
+            "Compliance",
+            lambda e: self.session.robot.select(
+                [a for a, b in self.axes.items() if b.value], self.frame.value
+            ),
+        )
+        for box in self.axes.values():
+            box.on_update(select)
+        self.frame.on_update(select)
         for group in self.push:
             group.on_click(
                 guarded(
@@ -225,8 +225,8 @@ class LeadThroughPanel:
         """Mirror the session's compliance selection (after an API change)."""
         sel = self.session.robot.selection
         for a, box in self.axes.items():
-            box.value = a in sel.axes
-        self.frame.value = sel.frame
+            set_value(box, a in sel.axes)
+        set_value(self.frame, sel.frame)
 
     def show_pose(self, snapshot) -> None:
         self.pose.content = pose_markdown(snapshot, self.push_N)

@@ -13,18 +13,20 @@ from __future__ import annotations
 
 import logging
 import threading
+from typing import TypedDict
 
 import numpy as np
 import viser
 
 from app.session import Session
-from app.session.machining import MachiningService
+from app.session.machining import JobKind, MachiningService
 from robomach_core.limits import (
     MACHINING_DEPTH_EXPONENT,
     MACHINING_FEED_EXPONENT,
     MACHINING_FORCE_LIMIT_N,
     MACHINING_PROCESS_GAIN_N,
     MACHINING_VARIATIONS,
+    Range,
 )
 from robomach_core.machining import MACHINING_CONTROLLERS
 from robomach_core.machining.choice import OPTION_NAMES, OPTION_TEXT, RULE_TEXT
@@ -33,6 +35,7 @@ from robomach_core.stiffness import COMPENSATIONS
 
 from ..colors import deviation_colors
 from .feedback import guarded, upload_handled
+from .inputs import set_value
 from .large import open_large, png_html
 from .machining_table import SORT_KEYS, table_html
 
@@ -154,7 +157,7 @@ class MachiningPanel:
         self._shown_result: object = None
         self._shown_key: object = None
         self._result_epoch = session.robot.epoch
-        self._nodes: dict[str, object] = {}
+        self._nodes: dict[str, viser.SceneNodeHandle] = {}
         self._dirty = threading.Event()
         self._stop = threading.Event()
         self._unsubscribe = session.subscribe(self._on_event)
@@ -229,7 +232,7 @@ class MachiningPanel:
         elif source == "builtin":
             self.service.set_settings(stock_source="builtin")
 
-    def _start(self, kind: str) -> None:
+    def _start(self, kind: JobKind) -> None:
         self.job_id = self.service.start(kind)
         self._dirty.set()
 
@@ -301,19 +304,19 @@ class MachiningPanel:
     def refresh(self) -> None:
         """Mirror the settings, the job, the result and the scene."""
         s = self.service.settings_document()
-        self.controller.value = s["controller"]
-        self.compensation.value = s["compensation"]
-        self.stock.value = s["stock_source"]
+        set_value(self.controller, s["controller"])
+        set_value(self.compensation, s["compensation"])
+        set_value(self.stock, s["stock_source"])
         for name, box in self.options.items():
-            box.value = name in s["cell_options"]
-        self.variations.value = s["variations"]
+            set_value(box, name in s["cell_options"])
+        set_value(self.variations, s["variations"])
         job = self._job()
         running = job is not None and job.status in ("queued", "running")
         self.run.disabled = self.compare.disabled = running
         self.cancel.disabled = not running
         self.progress.animated = running
         if running:
-            self.progress.value = round(job.progress * 100.0, 1)
+            set_value(self.progress, round(job.progress * 100.0, 1))
             self.status.content = f"{job.kind.replace('_', ' ')}: {job.progress:.0%}"
             self._dirty.set()  # keep polling the progress while it runs
         else:
@@ -443,7 +446,13 @@ class MachiningPanel:
             )
 
 
-def _limits(rng) -> dict[str, float]:
+class _Bounds(TypedDict):
+    min: float
+    max: float
+
+
+def _limits(rng: Range) -> _Bounds:
+    """An input's ``min`` and ``max`` keywords from a ``limits`` range."""
     return {"min": float(rng.min), "max": float(rng.max)}
 
 
@@ -453,6 +462,6 @@ def _empty_force():
         viser.uplot.Series(label="path (mm)"),
         viser.uplot.Series(label="force (N)", stroke="#d62728", width=1.2),
         viser.uplot.Series(label="max (N)", stroke="#f4a261", width=0.8),
-        viser.uplot.Series(label="reference (N)", stroke="#1d3557", width=2.0, dash=[8, 4]),
-        viser.uplot.Series(label="limit (N)", stroke="#000000", width=1.5, dash=[3, 3]),
+        viser.uplot.Series(label="reference (N)", stroke="#1d3557", width=2.0, dash=(8, 4)),
+        viser.uplot.Series(label="limit (N)", stroke="#000000", width=1.5, dash=(3, 3)),
     )

@@ -6,11 +6,16 @@ import numpy as np
 import viser
 import viser.uplot
 
-from app.session import Session
+from app.session import JobInfo, Session
 from robomach_core import limits
-from robomach_core.learning.settings import WALL_SIDE_CHOICES, PathLearningSettings
+from robomach_core.learning.settings import (
+    WALL_SIDE_CHOICES,
+    PathLearningSettings,
+    WallSideSetting,
+)
 
 from .feedback import guarded
+from .inputs import set_value
 from .postprocess import OUT_OF_DATE
 
 # The core's ranges, the ones the API and CLI take: a project learned at 0.5 mm/s (through the
@@ -85,7 +90,7 @@ class PathLearningPanel:
                     viser.uplot.Series(label="t (s)"),
                     viser.uplot.Series(label="contact force (N)", stroke="#d62728", width=1.0),
                     viser.uplot.Series(
-                        label="setpoint (N)", stroke="#1d3557", width=2.5, dash=[8, 4]
+                        label="setpoint (N)", stroke="#1d3557", width=2.5, dash=(8, 4)
                     ),
                     viser.uplot.Series(label="min (N)", stroke="#f4a3a3", width=0.8),
                     viser.uplot.Series(label="max (N)", stroke="#f4a3a3", width=0.8),
@@ -110,11 +115,11 @@ class PathLearningPanel:
                 ),
             )
         )
-        self.cancel.on_click(guarded("Cancel", lambda e: self.session.jobs.cancel(self.job_id)))
+        self.cancel.on_click(guarded("Cancel", lambda e: self._cancel()))
         self.job_id: str | None = None
         self.refresh_plot()
 
-    def route_settings(self) -> tuple[str, bool]:
+    def route_settings(self) -> tuple[WallSideSetting, bool]:
         """(wall side, closed) as set in the panel: the operator check and the preview use
         them."""
         return self.wall_side.value, self.closed.value
@@ -150,7 +155,11 @@ class PathLearningPanel:
         else:
             self.scene.paths.set_stop(stop.position_m, f"stopped: {stop.cause}")
 
-    def show_job(self, job) -> None:
+    def _cancel(self) -> None:
+        if self.job_id is not None:  # none while no job runs (the button is disabled then)
+            self.session.jobs.cancel(self.job_id)
+
+    def show_job(self, job: JobInfo | None) -> None:
         """Reflect a path-learning job (running or just ended) in the buttons and the status."""
         if job is None:
             self.status.content = self._recording_summary()
@@ -159,7 +168,7 @@ class PathLearningPanel:
         self.job_id = job.id if running else None
         self.run.disabled = running
         self.cancel.disabled = not running
-        self.progress.value = round(job.progress * 100.0, 1)
+        set_value(self.progress, round(job.progress * 100.0, 1))
         self.progress.animated = running
         if running:
             self.status.content = f"Running: {job.progress:.0%}"

@@ -16,6 +16,7 @@ from app.session import Session
 from robomach_core.limits import WOBJ_POSITION_MM
 
 from .feedback import guarded
+from .inputs import set_value
 
 ANGLE_RANGE_DEG = (-180.0, 180.0)
 AXES = ("x", "y", "z")
@@ -98,7 +99,7 @@ class PlacementPanel:
         shown = tried if tried is not None else self._placed()
         for control, value in zip((*self.position, *self.angles), shown, strict=True):
             if abs(float(control.value) - value) > 1e-6:
-                control.value = value
+                set_value(control, value)
         self.place.disabled = self.back.disabled = tried is None
         x, y, z, rx, ry, rz = self._placed()
         where = (

@@ -10,11 +10,12 @@ point and normal in the work-object frame; the session's ``pointing`` does the r
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import numpy as np
 import viser
 
-from app.session import Session
+from app.session import JobInfo, Session
 from robomach_core.choices import CLICK_MODES, LABELS
 from robomach_core.errors import InvalidInputError
 from robomach_core.learning.walls import WallPick
@@ -23,6 +24,7 @@ from robomach_core.limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
 from ..colors import COMPARISON_COLORS
 from ..scene import CellScene
 from .feedback import guarded, notify_error, notify_info
+from .inputs import set_value
 
 # What a click on the part does, in the words every page uses (``choices.LABELS``).
 MODE_OF = {mode: LABELS["click_mode"][mode] for mode in CLICK_MODES}
@@ -120,18 +122,27 @@ class PointingPanel:
         self.show_learned.on_update(lambda e: self.show_comparison())
         self.show_cad_only.on_update(lambda e: self.show_comparison())
         self._rendering(server)
-        self.top.on_click(lambda e: e.client and scene.top_view(e.client, session.robot.workpiece))
-        self.part.on_click(lambda e: e.client and self._view_part(e.client))
+        self.top.on_click(lambda e: self._view_top(e.client))
+        self.part.on_click(lambda e: self._view_part(e.client))
         scene.on_part_click(self._clicked)
         self.last_click_s = float("nan")  # how long the last click took (tests read it)
         self.picked: WallPick | None = None  # the wall the last click picked
-        self.on_touch = None  # (point_wobj_m, normal, client) of a click in the touch mode
+        # (point_wobj_m, normal, client) of a click in the touch mode
+        self.on_touch: Callable[[np.ndarray, np.ndarray, viser.ClientHandle], None] | None = None
         self.refresh()
 
     # --- the user's actions ----------------------------------------------------------------
 
-    def _view_part(self, client) -> None:
-        """The whole part, from where the arm does not stand in the way."""
+    def _view_top(self, client: viser.ClientHandle | None) -> None:
+        """The whole part from straight above (in the browser that asked; none: nothing)."""
+        if client is not None:
+            self.scene.top_view(client, self.session.robot.workpiece)
+
+    def _view_part(self, client: viser.ClientHandle | None) -> None:
+        """The whole part, from where the arm does not stand in the way (in the browser that
+        asked; none: nothing)."""
+        if client is None:
+            return
         pose = self.session.robot.snapshot()
         self.scene.part_view(client, self.session.robot.workpiece, pose.joints_rad,
                              pose.T_base_tcp)  # fmt: skip
@@ -164,9 +175,11 @@ class PointingPanel:
         if index < 0:
             raise InvalidInputError("select a proposed point first (P1, P2, ...)")
         self.session.pointing.delete_proposed(index)
-        self.selected.value = NO_SELECTION
+        set_value(self.selected, NO_SELECTION)
 
-    def _clicked(self, point_wobj_m: np.ndarray, normal: np.ndarray, client) -> None:
+    def _clicked(
+        self, point_wobj_m: np.ndarray, normal: np.ndarray, client: viser.ClientHandle
+    ) -> None:
         """A click on the part, as the mode says (errors go to the user who clicked)."""
         mode = MODE_OF[self.session.pointing.click_mode]
         if mode == MODE_OFF:
@@ -199,7 +212,7 @@ class PointingPanel:
         pointing = self.session.pointing
         if mode == MODE_PROPOSE:
             proposal = pointing.propose(point, normal)
-            self.selected.value = NO_SELECTION
+            set_value(self.selected, NO_SELECTION)
             shape = "closed" if proposal.closed else "open"
             notes = "".join(f"; {note}" for note in proposal.notes)  # e.g. a changed height
             notify_info(
@@ -251,16 +264,16 @@ class PointingPanel:
         """The settings, the proposal (list, drawing, status) and the drag handle on the
         selected point."""
         pointing = self.session.pointing
-        self.mode.value = MODE_OF[pointing.click_mode]
-        self.gap.value = round(pointing.settings.gap_m * 1e3, 3)
-        self.height.value = round(pointing.settings.height_above_floor_m * 1e3, 3)
+        set_value(self.mode, MODE_OF[pointing.click_mode])
+        set_value(self.gap, round(pointing.settings.gap_m * 1e3, 3))
+        set_value(self.height, round(pointing.settings.height_above_floor_m * 1e3, 3))
         proposal = pointing.proposal()
-        options = (NO_SELECTION,)
+        options: tuple[str, ...] = (NO_SELECTION,)
         if proposal is not None:
             options += tuple(f"P{k + 1}" for k in range(len(proposal.points)))
         keep = self.selected.value if self.selected.value in options else NO_SELECTION
         self.selected.options = options
-        self.selected.value = keep
+        set_value(self.selected, keep)
         selected = self._selected_proposed()
         if proposal is None:
             self.scene.paths.set_proposal(None)
@@ -319,12 +332,12 @@ class PointingPanel:
         for control in (self.legend, self.show_learned, self.show_cad_only):
             control.visible = comparison is not None
 
-    def show_job(self, job) -> None:
+    def show_job(self, job: JobInfo | None) -> None:
         """Progress of a running accept job (None hides the bar)."""
         self.progress.visible = job is not None
         self.accept.disabled = job is not None or self.session.pointing.proposal() is None
         if job is not None:
-            self.progress.value = round(job.progress * 100.0, 1)
+            set_value(self.progress, round(job.progress * 100.0, 1))
 
 
 class _Event:

@@ -19,6 +19,7 @@ from robomach_core.scoring import true_tool_path_distance
 
 from ..scene import CellScene
 from .feedback import guarded
+from .inputs import set_value
 
 OUT_OF_DATE = "\u26a0 Out of date"
 
@@ -88,9 +89,9 @@ class PostprocessPanel:
     def refresh(self) -> None:
         """Mirror the session's settings and outcome in the sliders, the summary and the scene."""
         s = self.session.project().post_settings
-        self.force_min.value = s.force_min_N
-        self.force_max.value = s.force_max_N
-        self.tolerance.value = round(s.tolerance_m * 1e3, 3)
+        set_value(self.force_min, s.force_min_N)
+        set_value(self.force_max, s.force_max_N)
+        set_value(self.tolerance, round(s.tolerance_m * 1e3, 3))
         self.summary.content = self._summary()
         self.show_in_scene()
 

@@ -4,15 +4,19 @@ every language the arm runs, are downloaded from the Export panel."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import viser
 
 from app.session import Session
 from robomach_core.choices import TEXTS
+from robomach_core.learning.settings import WallSideSetting
 from robomach_core.project import result_extras
 from robomach_core.robots import ARM_FAMILIES
 from robomach_core.robots.custom import MAX_ROBOT_FILE_BYTES
 
 from .feedback import guarded, upload_handled
+from .inputs import set_value
 
 ROBOT_MIME_TYPES = ".urdf,.zip,application/xml,application/zip,application/octet-stream"
 FAMILY_CHOICES = ("auto", *ARM_FAMILIES)
@@ -70,7 +74,7 @@ class RobotProgramPanel:
             f"Arm **{robot.name}** ({robot.family} controller), program languages "
             f"**{offered}** (downloads in the Export panel)."
         ]
-        self.arcs.value = self.session.project().post_settings.arcs
+        set_value(self.arcs, self.session.project().post_settings.arcs)
         outcome = self.session.project().processed
         if outcome is not None:
             x = result_extras(outcome)
@@ -89,7 +93,12 @@ class RobotProgramPanel:
 class GuideRulesPanel:
     """The operator's rules as a hint, and the guide points that break them."""
 
-    def __init__(self, server: viser.ViserServer, session: Session, settings=None) -> None:
+    def __init__(
+        self,
+        server: viser.ViserServer,
+        session: Session,
+        settings: Callable[[], tuple[WallSideSetting, bool]] | None = None,
+    ) -> None:
         self.session = session
         self.settings = settings  # () -> (wall_side, closed) of the path-learning panel
         self.listeners: list = []  # called with the findings' markdown after each check
