@@ -111,10 +111,6 @@ def test_a_program_above_a_point_where_it_passes_it_misses_it_though_it_comes_do
     lifted = project.learned.recording.guide_lift_m
     r = project.cell.tool_radius_m
     k = int(rng.integers(1, len(guides) - 1))
-    # past the 1 mm along the wall the check now reads, within what the tolerance reached
-    # across it before (a program 0.25 mm off the wall, within r + 1 mm of the wall point)
-    reach_m = float(np.sqrt((r + 0.001) ** 2 - (r + 0.00025) ** 2))
-    half_m = float(rng.uniform(0.0011, 0.95 * reach_m))
     lift_m = float(rng.uniform(0.006, 0.009))
     axis = mean_tool_axis(guides)
     walls = PartWalls(demo.workpiece, axis, r)
@@ -124,7 +120,12 @@ def test_a_program_above_a_point_where_it_passes_it_misses_it_though_it_comes_do
     pos = sample_moves(targets, linear_moves(len(targets)), spacing_m=1e-4)
     across = pos - np.outer(pos @ axis, axis)
     foot = wall_point - axis * float(wall_point @ axis)
-    along = np.sqrt(np.maximum(np.linalg.norm(across - foot, axis=1) ** 2 - r**2, 0.0))
+    d = np.linalg.norm(across - foot, axis=1)
+    along = np.sqrt(np.maximum(d**2 - d.min() ** 2, 0.0))  # from the nearest approach
+    # past the 1 mm along the wall the check now reads, within what the tolerance reached
+    # across it before (program points within r + 1 mm of the wall point)
+    reach_m = float(np.sqrt((r + 0.001) ** 2 - d.min() ** 2))
+    half_m = float(rng.uniform(0.0011, 0.95 * reach_m))
     lifted_pos = pos.copy()
     lifted_pos[along < half_m] -= axis * lift_m  # the axis points into the part: up is -axis
     where = f"{replay(SEED)}: G{k + 1} lifted {lift_m * 1e3:.1f} mm over +-{half_m * 1e3:.1f} mm"
