@@ -49,9 +49,11 @@ from .run import PathLearningSettings
 from .walk import met_order
 
 
-def _point_findings(guides: Sequence[GuidePoint], settings: PathLearningSettings) -> list:
+def _point_findings(
+    guides: Sequence[GuidePoint], settings: PathLearningSettings, walls: PartWalls | None
+) -> list:
     out: list[GuideWarning] = []
-    axis, right = right_of_travel(guides, settings.closed)
+    axis, right = right_of_travel(guides, settings.closed, walls)  # as the route decides it
     limit = settings.force_limit_N
     set_sign = {"right": 1.0, "left": -1.0}.get(settings.wall_side, 0.0)
     for k, g in enumerate(guides):
@@ -194,7 +196,11 @@ def guide_point_warnings(
         except RouteRefusedError as exc:
             rule: GuideRule = "wall_side" if isinstance(exc, WallSideError) else "route"
             out.append(GuideWarning(0, rule, str(exc), "refusal"))
-    out += _point_findings(guides, settings)
+    walls = None
+    if mesh and len(guides) >= 2:
+        assert workpiece is not None and tool_radius_m is not None
+        walls = PartWalls(workpiece, mean_tool_axis(guides), tool_radius_m)
+    out += _point_findings(guides, settings, walls)
     if workpiece is not None and tool_radius_m is not None and len(guides) >= 2:
         out += _mesh_findings(route, guides, settings, workpiece, tool_radius_m)
     if supervisor is not None and route is not None:
