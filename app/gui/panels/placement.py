@@ -32,6 +32,7 @@ class PlacementPanel:
 
     def __init__(self, server: viser.ViserServer, session: Session) -> None:
         self.session = session
+        self._mirrored: tuple[float, ...] | None = None  # what refresh last wrote
         placed = self._placed()
         lo, hi = WOBJ_POSITION_MM.min, WOBJ_POSITION_MM.max
         with server.gui.add_folder("Place the part", expand_by_default=False):
@@ -94,12 +95,16 @@ class PlacementPanel:
 
     def refresh(self) -> None:
         """Mirror the placement: what is being tried (from here or the pendant), else where
-        the part is."""
+        the part is; written into the inputs only when that changed since the last mirror,
+        so a refresh for another cause (the cell after an upload, on a later tick) does not
+        overwrite a number the person is typing before it reaches the preview."""
         tried = self.session.preview.values()
         shown = tried if tried is not None else self._placed()
-        for control, value in zip((*self.position, *self.angles), shown, strict=True):
-            if abs(float(control.value) - value) > 1e-6:
-                set_value(control, value)
+        if shown != self._mirrored:
+            self._mirrored = shown
+            for control, value in zip((*self.position, *self.angles), shown, strict=True):
+                if abs(float(control.value) - value) > 1e-6:
+                    set_value(control, value)
         self.place.disabled = self.back.disabled = tried is None
         x, y, z, rx, ry, rz = self._placed()
         where = (
