@@ -650,7 +650,11 @@ def plan_route(
     offsets = [route.leg_offsets(leg) for leg in legs]
     starts = [first_wall]
     (nearest,), (dist,), (on_face,) = walls.feet(first[None])
-    if on_face and dist <= th.AT_WALL_GAP_M + tool_radius_m:
+    way = nearest - first
+    level = abs(float(way @ axis)) <= math.sqrt(1.0 - th.FOOT_ON_FACE_COS**2) * float(
+        np.linalg.norm(way)
+    )  # an edge between wall faces at its height (a tessellated corner), not a riser's top
+    if (on_face or level) and dist <= th.AT_WALL_GAP_M + tool_radius_m:
         if float(np.linalg.norm(nearest - first_wall)) > th.MIN_SPACING_M:
             # the wall it stands by is another than the one its chord's side gives (beside a
             # jog or bay the chord runs across or against the wall; or the point is nearer the
