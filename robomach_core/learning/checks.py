@@ -50,10 +50,12 @@ from .walk import met_order
 
 
 def _point_findings(
-    guides: Sequence[GuidePoint], settings: PathLearningSettings, walls: PartWalls | None
+    guides: Sequence[GuidePoint],
+    settings: PathLearningSettings,
+    axis: np.ndarray,
+    right: np.ndarray,
 ) -> list:
     out: list[GuideWarning] = []
-    axis, right = right_of_travel(guides, settings.closed, walls)  # as the route decides it
     limit = settings.force_limit_N
     set_sign = {"right": 1.0, "left": -1.0}.get(settings.wall_side, 0.0)
     for k, g in enumerate(guides):
@@ -95,14 +97,14 @@ def _mesh_findings(
     settings: PathLearningSettings,
     workpiece: Workpiece,
     tool_radius_m: float,
+    walls: PartWalls,
+    right: np.ndarray,
 ) -> list[GuideWarning]:
     from ..scoring.mesh_score import mesh_deviation
 
     out: list[GuideWarning] = []
     closed = settings.closed
-    axis = mean_tool_axis(guides)
-    walls = PartWalls(workpiece, axis, tool_radius_m)
-    right = right_of_travel(guides, closed, walls)[1]
+    axis = walls.axis
     pts = np.array([g.position_m for g in guides])
     right_gap, left_gap = walls.gaps(pts, right)
     for k in range(len(guides)):
@@ -196,13 +198,16 @@ def guide_point_warnings(
         except RouteRefusedError as exc:
             rule: GuideRule = "wall_side" if isinstance(exc, WallSideError) else "route"
             out.append(GuideWarning(0, rule, str(exc), "refusal"))
+    # Each point's side of travel as the route decides it: with the walls the points stand
+    # by when the part is known (one PartWalls for every finding here).
+    axis = mean_tool_axis(guides)
     walls = None
-    if mesh and len(guides) >= 2:
-        assert workpiece is not None and tool_radius_m is not None
-        walls = PartWalls(workpiece, mean_tool_axis(guides), tool_radius_m)
-    out += _point_findings(guides, settings, walls)
     if workpiece is not None and tool_radius_m is not None and len(guides) >= 2:
-        out += _mesh_findings(route, guides, settings, workpiece, tool_radius_m)
+        walls = PartWalls(workpiece, axis, tool_radius_m)
+    right = right_of_travel(guides, settings.closed, walls)[1]
+    out += _point_findings(guides, settings, axis, right)
+    if walls is not None and workpiece is not None and tool_radius_m is not None:
+        out += _mesh_findings(route, guides, settings, workpiece, tool_radius_m, walls, right)
     if supervisor is not None and route is not None:
         from .motion_check import motion_findings
 
