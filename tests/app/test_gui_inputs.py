@@ -5,7 +5,6 @@ generated values (a fresh seed each run; ``ROBOMACH_SEED`` replays one)."""
 
 from __future__ import annotations
 
-import socket
 from collections.abc import Iterator
 
 import numpy as np
@@ -14,20 +13,15 @@ import viser
 
 from app.gui.panels.feedback import client_of, guarded
 from app.gui.panels.inputs import set_value
+from tests.api.server_process import free_port
 from tests.envelope import replay, run_seed
 
 SEED = run_seed()
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 def server() -> Iterator[viser.ViserServer]:
-    s = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
+    s = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
     yield s
     s.stop()
 

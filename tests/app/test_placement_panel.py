@@ -7,7 +7,6 @@ real Session; fresh numbers each run (``ROBOMACH_SEED`` replays one)."""
 
 from __future__ import annotations
 
-import socket
 from collections.abc import Iterator
 
 import numpy as np
@@ -16,20 +15,15 @@ import viser
 
 from app.gui.panels.placement import PlacementPanel
 from app.session import Session
+from tests.api.server_process import free_port
 from tests.envelope import replay, run_seed
 
 SEED = run_seed()
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 def panel() -> Iterator[PlacementPanel]:
-    server = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
     session = Session(real_time=False)
     yield PlacementPanel(server, session)
     server.stop()

@@ -3,7 +3,6 @@ post-processing computed outside the session lock."""
 
 from __future__ import annotations
 
-import socket
 import threading
 import time
 from collections.abc import Iterator
@@ -15,6 +14,7 @@ import pytest
 
 import robomach_core.project as core
 from app.session import ConflictError, Session
+from tests.api.server_process import free_port
 from tests.jobs import done
 
 
@@ -50,12 +50,6 @@ def session() -> Iterator[Session]:
     s.close()
 
 
-def _free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
 def test_changing_guide_points_marks_results_out_of_date_in_the_gui(session: Session) -> None:
     import viser
 
@@ -64,7 +58,7 @@ def test_changing_guide_points_marks_results_out_of_date_in_the_gui(session: Ses
     from app.gui.panels.postprocess import OUT_OF_DATE, PostprocessPanel
     from app.gui.scene import CellScene
 
-    server = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
     try:
         scene = CellScene(server)
         post = PostprocessPanel(server, session, scene)
@@ -114,7 +108,7 @@ def test_the_export_panel_shows_what_the_program_carries(session: Session) -> No
     from app.gui.panels.export import ExportPanel
     from robomach_core.cmrr import build_scenario, cmrr_settings_for, settings_for
 
-    server = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
     try:
         export = ExportPanel(server, session, session.studies)
         # Nothing chosen: a constant feed, as the files are written (no FC SpeedChange).
