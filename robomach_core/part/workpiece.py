@@ -7,6 +7,7 @@ a learned path can be scored against the real geometry.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -181,8 +182,10 @@ def _extrude(polygon: shapely.geometry.Polygon, z0: float, height: float) -> tri
     return mesh
 
 
-def water_pump(T_base_wobj: np.ndarray | None = None) -> Workpiece:
-    """The water-pump housing: a plate with a 5 mm wide, 6 mm deep contoured groove."""
+@functools.cache
+def _water_pump_mesh() -> trimesh.Trimesh:
+    """The pump's solid mesh, built once per process: its union of extrusions took three
+    quarters of a new project's 0.15 s. Callers get a copy (``water_pump``)."""
     wall = water_pump_wall()
     sx, sy, sz = PUMP_PLATE_SIZE_M
     floor_z = sz - PUMP_GROOVE_DEPTH_M
@@ -191,7 +194,7 @@ def water_pump(T_base_wobj: np.ndarray | None = None) -> Workpiece:
     plate = shapely.geometry.box(-sx / 2, -sy / 2, sx / 2, sy / 2)
     rim = plate.difference(outer)
     # trimesh types concatenate's result as any Geometry; of meshes it is a Trimesh.
-    mesh = solid_mesh(
+    return solid_mesh(
         trimesh.util.concatenate(  # type: ignore[arg-type]
             [
                 trimesh.creation.box(
@@ -203,6 +206,14 @@ def water_pump(T_base_wobj: np.ndarray | None = None) -> Workpiece:
             ]
         )
     )
+
+
+def water_pump(T_base_wobj: np.ndarray | None = None) -> Workpiece:
+    """The water-pump housing: a plate with a 5 mm wide, 6 mm deep contoured groove."""
+    wall = water_pump_wall()
+    sz = PUMP_PLATE_SIZE_M[2]
+    floor_z = sz - PUMP_GROOVE_DEPTH_M
+    mesh = _water_pump_mesh().copy()
     return Workpiece(
         name="water_pump",
         mesh=mesh,
@@ -245,12 +256,18 @@ def block(T_base_wobj: np.ndarray | None = None) -> Workpiece:
     )
 
 
+@functools.cache
+def _s_groove_solid() -> trimesh.Trimesh:
+    """The slot plate's solid mesh, built once per process (as ``_water_pump_mesh``)."""
+    return solid_mesh(s_groove_mesh())
+
+
 def s_groove(T_base_wobj: np.ndarray | None = None) -> Workpiece:
     """A cast-iron plate with the open S-slot (``s_groove``: its geometry and taught wall)."""
     sz = S_GROOVE_PLATE_SIZE_M[2]
     return Workpiece(
         name="s_groove",
-        mesh=solid_mesh(s_groove_mesh()),
+        mesh=_s_groove_solid().copy(),
         T_base_wobj=DEFAULT_T_BASE_WOBJ.copy() if T_base_wobj is None else T_base_wobj,
         material="cast_iron",
         contact_stiffness_N_m=CONTACT_STIFFNESS_N_M["cast_iron"],
