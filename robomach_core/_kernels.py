@@ -524,7 +524,7 @@ def admittance_reference(
     T[1, 3] += lin[1] * dt
     T[2, 3] += lin[2] * dt
     if ang[0] != 0.0 or ang[1] != 0.0 or ang[2] != 0.0:
-        # A contiguous copy: numba's '@' on a slice warns (on the user's terminal) and copies anyway.
+        # A contiguous copy: numba warns (on the user's terminal) of "@" on a slice, and copies.
         T[:3, :3] = exp3(ang * dt) @ T_ref[:3, :3].copy()
     return T, v
 

@@ -81,7 +81,6 @@ def enums() -> dict[str, tuple[str, ...]]:
     from .cell import ROBOT_NAMES
     from .cmrr import CONTROLLER_NAMES, SCENARIO_NAMES
     from .export.languages import language_choices, language_names
-    from .learning.planner import PointKind, Reach
     from .learning.settings import WALL_SIDE_CHOICES
     from .machining.choice import OPTION_NAMES
     from .part import WORKPIECE_NAMES
@@ -89,6 +88,7 @@ def enums() -> dict[str, tuple[str, ...]]:
     from .robots import ARM_FAMILIES
     from .stiffness.modes import COMPENSATIONS, OFFLINE_MODELS
     from .stiffness.studies import StudyName
+    from .teaching.pointing import PointKind, Reach
 
     return {
         "cmrr_controller": tuple(CONTROLLER_NAMES),

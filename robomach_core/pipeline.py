@@ -44,11 +44,11 @@ from .project import (
 if TYPE_CHECKING:
     from .export.reachability import ReachabilityReport
     from .learning import GuideWarning
-    from .learning.planner import GuideProposal, ProposalSettings
     from .learning.run import Recording
     from .postprocess import PostprocessResult
     from .scoring import PathScore
     from .teaching import WobjFit
+    from .teaching.pointing import GuideProposal, ProposalSettings
 
 # progress(stage, fraction in [0, 1])
 Progress = Callable[[str, float], None]
@@ -138,7 +138,7 @@ class DemoResult:
         out["closed"] = learning.closed
         out["calibration"] = None if self.calibration is None else self.calibration.document()
         if self.proposal is not None:
-            from .learning.planner import proposal_summary
+            from .teaching.pointing import proposal_summary
 
             out["proposed_guide_points"] = proposal_summary(self.proposal)
         return out
@@ -325,7 +325,7 @@ def _proposed(
     """The guide points proposed along the wall through ``at_m``, and ``learning`` with the
     wall's side (on "auto") and whether it is closed."""
     from .cell import cell_supervisor
-    from .learning.planner import (
+    from .teaching.pointing import (
         ProposalSettings,
         propose_guide_points,
         refuse_unreachable,

@@ -382,17 +382,17 @@ def within_the_wall(pset: PeopleSet, part: EnvelopePart, workpiece: object, r_mm
 def proposal_set(
     part: EnvelopePart, seed: int, wall: str, *, s_mm: float | None = None
 ) -> tuple[PeopleSet, object, object, object]:
-    """Point at ``wall`` (``learning.planner.propose_guide_points``), let the scripted
+    """Point at ``wall`` (``teaching.pointing.propose_guide_points``), let the scripted
     operator lead the robot to the proposed points touching the wall (as ``robomach demo
     --propose-guide-points`` does); returns the set, the end state, the estimator and the
     proposal. The taught side is the proposal's."""
     from robomach_core.cell import cell_supervisor
-    from robomach_core.learning.planner import (
+    from robomach_core.teaching import guide_intents, scripted_leadthrough
+    from robomach_core.teaching.pointing import (
         propose_guide_points,
         refuse_unreachable,
         tool_reach,
     )
-    from robomach_core.teaching import guide_intents, scripted_leadthrough
 
     cell = part.cell(seed)
     cad = cell.workpiece.cad()

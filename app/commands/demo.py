@@ -286,9 +286,9 @@ def run(args: argparse.Namespace) -> int:
 
     from robomach_core.errors import RobomachError, SupervisionError
     from robomach_core.export.languages import default_arm
-    from robomach_core.learning.planner import ProposalSettings
     from robomach_core.learning.settings import PathLearningSettings
     from robomach_core.pipeline import run_demo, write_demo_outputs
+    from robomach_core.teaching.pointing import ProposalSettings
 
     robot = args.robot or default_arm(args.language)
     project = _project(args, robot, wobj, cmrr, compensation)

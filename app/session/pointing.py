@@ -4,7 +4,7 @@ PROBLEM   The workbench knows the part's mesh, so the user can point at the wall
           jogging to it: one click should put the tool beside the wall and record the point,
           another propose the guide points for the whole wall, shown before anything moves, to
           accept, edit or delete. Both GUIs and the REST API do it, on the same session.
-STRATEGY  The core computes (``planner.teach_point`` / ``propose_guide_points`` on the
+STRATEGY  The core computes (``teaching.pointing.teach_point`` / ``propose_guide_points`` on the
           part's CAD, ``Workpiece.cad()``); the robot moves by ``Teach.move_to`` (paced and
           supervised like a jog, stopped by the real part when it is not where its mesh is);
           accepting a proposal is a job in which the scripted operator leads the robot by
@@ -29,7 +29,11 @@ from robomach_core import project as core
 from robomach_core.cell import GuidePoint, LeadThrough, LeadThroughState
 from robomach_core.choices import CLICK_MODES, ClickMode
 from robomach_core.errors import InvalidInputError, SupervisionError, UnreachableTargetError
-from robomach_core.learning.planner import (
+from robomach_core.learning.route import WallSide
+from robomach_core.learning.walls import WallPick
+from robomach_core.part import Workpiece, mesh_query
+from robomach_core.teaching import Arrival, guide_intents, robust_intents
+from robomach_core.teaching.pointing import (
     GuideProposal,
     ProposalSettings,
     ProposedPoint,
@@ -39,10 +43,6 @@ from robomach_core.learning.planner import (
     teach_point,
     tool_reach,
 )
-from robomach_core.learning.route import WallSide
-from robomach_core.learning.walls import WallPick
-from robomach_core.part import Workpiece, mesh_query
-from robomach_core.teaching import Arrival, guide_intents, robust_intents
 
 from .jobs import JobContext
 from .records import MAX_GUIDE_POINTS, ConflictError, GuidePointEntry, NotFoundError

@@ -1,7 +1,8 @@
 """Path learning (chapter section 3.2), one model: the route planned from the guide points
 (``plan_route``: the side, the height, the walk on the mesh), the law that follows the wall by
-force (``learn_path``), the checks before and after, the guide-point planner and the scripted
-operator. docs/learning_model.md states the model and every threshold (``thresholds``)."""
+force (``learn_path``) and the checks before and after. The guide-point planner that proposes
+points on a mesh is teaching's (``teaching.pointing``); its thresholds are in the one table.
+docs/learning_model.md states the model and every threshold (``thresholds``)."""
 
 from .checks import TaughtWallCheck as TaughtWallCheck
 from .checks import guide_point_warnings as guide_point_warnings

@@ -81,7 +81,7 @@ FOOT_ON_FACE_COS = math.cos(math.radians(5.0))  # 1 | a guide point's nearest wa
 FAN_HALF_ANGLE_RAD = math.radians(60.0)  # rad | "that way" for a guide point's taught wall: its nearest wall within this of the side's direction, else the nearest met by rays within this of it | fixed: a corner's chord turns the side up to 45 deg off the wall's normal
 FAN_RAYS = 13  # 1 | ... that many rays, 10 deg apart | fixed
 
-# --- the guide-point planner: picks, floors, heights, corners, points (planner.py, walls.py) -----
+# --- the guide-point planner: picks, floors, heights, corners, points (teaching/pointing.py) ---
 MAX_PICK_DISTANCE_M = 0.002  # m | a picked point farther than this from the mesh is not on the part | fixed: a click lands on the surface, a typed point within a few tenths
 LEVEL_FLOOR_RAD = 1e-4  # rad | a floor within this of the work object's x-y plane is level, and its section the work object's (0.02 mm over 200 mm) | fixed
 AMBIGUOUS_CLICK_RADII = 1.0  # x tool radius | a point whose distances to the two walls across the free space differ by less than this is between them: refused | tool radius

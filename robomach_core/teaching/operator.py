@@ -31,11 +31,11 @@ from ..cell import (
 )
 from ..cell import TOOL_DOWN as TOOL_DOWN
 from ..errors import InvalidInputError, NotEnoughGuidePointsError, UnreachableTargetError
-from ..learning.planner import GuideProposal, ProposalSettings, WallPlacer, propose_guide_points
 from ..learning.thresholds import EXAMPLE_BELOW_TOP_M, OPEN_EDGE_ENTRY_M
 from ..learning.walls import walls_near
 from ..part import Line, Workpiece
 from ..transforms import matrix_from_quaternion, rotation_log
+from .pointing import GuideProposal, ProposalSettings, WallPlacer, propose_guide_points
 
 HAND_GAIN_N_M = 2000.0  # push per metre of distance to the goal
 HAND_MAX_N = 15.0  # a comfortable one-hand push
@@ -146,7 +146,7 @@ def guide_plan(
     robot: Robot | None = None,
 ) -> list[GuideIntent]:
     """The example operator's guide points for a built-in workpiece: the planner's proposal
-    (``planner.propose_guide_points``) for its known wall, pointed at
+    (``pointing.propose_guide_points``) for its known wall, pointed at
     ``EXAMPLE_BELOW_TOP_M`` below the wall's top in the middle of its first straight run, as
     the operator's imprecise hand places them: each off by up to ``EXAMPLE_ALONG_M`` along
     the wall and up to ``EXAMPLE_OFF_M`` farther from it (seeded by ``rng``), a push towards

@@ -18,8 +18,8 @@ from app.api.routes import ERRORS, SessionDep
 from app.api.schemas import Finite, GuidePointPublic, JobCreated, Vector3, _floats, _Request
 from app.session import GuidePointEntry
 from robomach_core.choices import ClickMode
-from robomach_core.learning.planner import GuideProposal, ProposedPoint
 from robomach_core.limits import MACHINING_HEIGHT_MM, WALL_GAP_MM, WOBJ_POSITION_MM
+from robomach_core.teaching.pointing import GuideProposal, ProposedPoint
 
 router = APIRouter(prefix="/api/guide-points", tags=["guide points"], responses=ERRORS)
 
@@ -139,7 +139,7 @@ class ProposalPublic(BaseModel):
 
     @classmethod
     def of(cls, p: GuideProposal) -> ProposalPublic:
-        from robomach_core.learning.planner import proposal_summary
+        from robomach_core.teaching.pointing import proposal_summary
 
         wall = p.wall_wobj_m()
         step = max(1, len(wall) // WALL_DRAWN_POINTS)

@@ -17,7 +17,6 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from robomach_core.cell import Cell, CellConfig, LeadThrough, Tool
-from robomach_core.learning.planner import ProposalSettings, propose_guide_points
 from robomach_core.part import PartDeviation, builtin_workpiece, mesh_query, real_workpiece
 from robomach_core.part.real_part import fixture_error
 from robomach_core.part.workpiece import block
@@ -32,6 +31,7 @@ from robomach_core.teaching import (
     scripted_touches,
     touch_at,
 )
+from robomach_core.teaching.pointing import ProposalSettings, propose_guide_points
 from robomach_core.teaching.registration import ODD_TOUCH_M, transform_from_mm_deg
 from robomach_core.transforms import make_transform, rotation_about
 from tests.envelope import replay, run_seed

@@ -17,7 +17,6 @@ from hypothesis import strategies as st
 
 from robomach_core.cell import Robot
 from robomach_core.errors import InvalidInputError
-from robomach_core.learning.planner import ProposalSettings, propose_guide_points, teach_point
 from robomach_core.learning.thresholds import (
     CONTACT_BELOW_TOP_M,
     CONTACT_BELOW_TOP_RADII,
@@ -25,6 +24,7 @@ from robomach_core.learning.thresholds import (
     MIN_SPACING_M,
 )
 from robomach_core.part import Workpiece
+from robomach_core.teaching.pointing import ProposalSettings, propose_guide_points, teach_point
 from robomach_core.transforms import make_transform
 from tests.generated_parts import DrawnPlate, drawn_plate
 
@@ -224,8 +224,8 @@ def test_a_closed_walls_count_starts_where_the_pick_says_not_where_its_loop_star
     differ by 5 mm or more, picked on a long side: a pick midway between two equal sides, or
     sides within a millimetre of each other, are a knife edge of the corners' sampling, which
     no rule of this kind settles."""
-    from robomach_core.learning.planner import _wall_extent
     from robomach_core.learning.walls import WallLoop
+    from robomach_core.teaching.pointing import _wall_extent
 
     rng = np.random.default_rng(seed)
     w = float(rng.uniform(0.03, 0.2))

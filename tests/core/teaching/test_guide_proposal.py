@@ -11,17 +11,17 @@ from shapely.geometry import Point
 
 from robomach_core.cell import Cell, CellConfig, cell_supervisor
 from robomach_core.errors import InvalidInputError
-from robomach_core.learning.planner import (
+from robomach_core.learning.walls import section_loops
+from robomach_core.part import Workpiece
+from robomach_core.part.workpiece import block, water_pump
+from robomach_core.teaching import guide_intents, guide_plan
+from robomach_core.teaching.pointing import (
     ProposalSettings,
     job_tool_rotation,
     propose_guide_points,
     refuse_unreachable,
     teach_point,
 )
-from robomach_core.learning.walls import section_loops
-from robomach_core.part import Workpiece
-from robomach_core.part.workpiece import block, water_pump
-from robomach_core.teaching import guide_intents, guide_plan
 from robomach_core.transforms import make_transform, rotation_about
 from tests.generated_parts import grooved_plate, l_block, slotted_plate
 

@@ -39,9 +39,7 @@ from scipy.spatial.transform import Rotation
 
 from ..cell import TOOL_DOWN, Robot
 from ..errors import InvalidInputError, RobomachError
-from ..limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
-from ..part import Workpiece
-from .thresholds import (
+from ..learning.thresholds import (
     CORNER_RADIUS_M,
     CORNER_TURN_MIN_DEG,
     CUTTER_FIT_M,
@@ -61,7 +59,9 @@ from .thresholds import (
     UNEVEN_FLOOR_NOTE_M,
     WALL_END_MARGIN_M,
 )
-from .walls import WallLoop, WallPick, pick_wall
+from ..learning.walls import WallLoop, WallPick, pick_wall
+from ..limits import MACHINING_HEIGHT_MM, WALL_GAP_MM
+from ..part import Workpiece
 
 TURN_WINDOW_M = 5e-4  # the wall's direction is measured over this much of it
 ROOM_STEPS = 3  # an added point may move this many windows off the worst place to find room
