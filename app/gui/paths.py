@@ -142,7 +142,10 @@ class ScenePaths:
             scene.add_label(
                 "/path/taught_wall/label",
                 text,
-                position=pts[0] + np.array([0.0, 0.0, 0.012]),
+                # Between the first two wall points, not at G1: G1's, the last point's and the
+                # live force's labels already stand there, and each later wall point has its
+                # guide point's label beside it.
+                position=pts[:2].mean(axis=0) + np.array([0.0, 0.0, 0.012]),
                 anchor="bottom-left",
                 visible=bool(text),
             )
