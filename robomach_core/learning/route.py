@@ -645,17 +645,22 @@ def plan_route(
     towards = right[0] * decision.sign
     first = guides[0].position_m - axis * lifted[0]  # at the height it is learned at
     first_wall = walls.wall_point(first, towards, 2 * th.AT_WALL_GAP_M)
-    if first_wall is None:  # the part may not be where its mesh is: the run searches by force
-        return route
-    offsets = [route.leg_offsets(leg) for leg in legs]
-    starts = [first_wall]
     (nearest,), (dist,), (on_face,) = walls.feet(first[None])
     way = nearest - first
     level = abs(float(way @ axis)) <= math.sqrt(1.0 - th.FOOT_ON_FACE_COS**2) * float(
         np.linalg.norm(way)
-    )  # an edge between wall faces at its height (a tessellated corner), not a riser's top
-    if (on_face or level) and dist <= th.AT_WALL_GAP_M + tool_radius_m:
-        if float(np.linalg.norm(nearest - first_wall)) > th.MIN_SPACING_M:
+    )  # an edge between wall faces at its height (a corner), not a riser's top
+    stands_by = (on_face or level) and dist <= th.AT_WALL_GAP_M + tool_radius_m
+    offsets = [route.leg_offsets(leg) for leg in legs]
+    if first_wall is None:
+        if not stands_by:  # the part may not be where its mesh is: the run searches by force
+            return route
+        # nothing the chord's side's way (a point off an outside corner, diagonally): the
+        # corner it stands by is its wall; searching the chord's side would leave the part
+        starts = [nearest]
+    else:
+        starts = [first_wall]
+        if stands_by and float(np.linalg.norm(nearest - first_wall)) > th.MIN_SPACING_M:
             # the wall it stands by is another than the one its chord's side gives (beside a
             # jog or bay the chord runs across or against the wall; or the point is nearer the
             # groove's other wall): both are walked
