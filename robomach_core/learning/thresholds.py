@@ -46,6 +46,7 @@ TURN_RATE_RAD_S = 0.5  # rad/s | the tool's orientation follows the route's at m
 
 # --- legs: where they end ----------------------------------------------------------------------
 LEG_END_MARGIN_M = 0.002  # m | a leg ends this far before its guide point's plane (at most a quarter of the leg) | fixed
+PLANE_END_WITHIN_M = 0.01  # m | ... where the tool is within this (+ the cutter's radius) of the point across the axis: a wall that detours round the part crosses the plane far from the point, and that is not the leg's end (a T-boss leg whose chord cuts through the stem ended on the bar's top, 44 mm from its point) | gap: twice AT_WALL_GAP_M; tool radius (added to it)
 NEAR_END_M = 0.006  # m | ... or at the nearest approach to its guide point, when that comes within this across the axis | gap: twice the farthest a point is left
 END_PASSED_M = 0.001  # m | ... and recedes by this (past the nearest approach; a tool backing off an inside corner for a moment does not end it) | fixed
 CLOSE_LOOP_M = 0.001  # m | a closed route ends at its nearest approach to where the contact first held the set force, within this beyond the cutter's radius (a contact on a corner is on the cutter's arc round it) | tool radius (added to it)

@@ -34,22 +34,23 @@ if TYPE_CHECKING:
 
 class LegEnd:
     """Where a leg ends, the same for the run and the walk: at ``LEG_END_MARGIN_M`` before its
-    guide point's plane, or at the nearest approach to its point (within ``NEAR_END_M``,
-    receding ``END_PASSED_M``); the last leg of a closed route at the nearest approach to where
-    the contact first held the set force (the force filter keeps the recording from about there,
-    so the loop's end overlaps its program's start), within the cutter's radius + ``CLOSE_LOOP_M``
-    (a contact on a corner is anywhere on the cutter's arc round it, up to a radius off the
-    faces' path), receding ``CLOSE_PASSED_M``; of an open one at the nearest approach to its
-    last point; either ``CLOSE_LOOP_OVERRUN_M`` past the plane at the latest (a loop's, once
-    it has come within ``NEAR_END_M`` of its start). The nearest approach is watched over the
-    leg's last ``NEAR_END_M`` (half of it at least), and over the whole of a leg shorter than
-    that."""
+    guide point's plane within ``PLANE_END_WITHIN_M`` + the cutter's radius of the point, or at
+    the nearest approach to its point (within ``NEAR_END_M``, receding ``END_PASSED_M``); the
+    last leg of a closed route at the nearest approach to where the contact first held the set
+    force (the force filter keeps the recording from about there, so the loop's end overlaps
+    its program's start), within the cutter's radius + ``CLOSE_LOOP_M`` (a contact on a corner
+    is anywhere on the cutter's arc round it, up to a radius off the faces' path), receding
+    ``CLOSE_PASSED_M``; of an open one at the nearest approach to its last point; either
+    ``CLOSE_LOOP_OVERRUN_M`` past the plane at the latest (a loop's, once it has come within
+    ``NEAR_END_M`` of its start). The nearest approach is watched over the leg's last
+    ``NEAR_END_M`` (half of it at least), and over the whole of a leg shorter than that."""
 
     def __init__(
         self, leg: Leg, axis: np.ndarray, *, last: bool, closed: bool, tool_radius_m: float
     ) -> None:
         self.leg, self.axis, self.last, self.closed = leg, axis, last, closed
         self.close_within_m = tool_radius_m + th.CLOSE_LOOP_M
+        self.plane_within_m = tool_radius_m + th.PLANE_END_WITHIN_M
         self.end_best = math.inf
         self.close_best = math.inf
         L = leg.length
@@ -85,7 +86,8 @@ class LegEnd:
             self.end_best = min(self.end_best, d_end)
         if self.last:
             return passed or s >= L + th.CLOSE_LOOP_OVERRUN_M
-        return passed or s >= L - min(th.LEG_END_MARGIN_M, 0.25 * L)
+        at_plane = s >= L - min(th.LEG_END_MARGIN_M, 0.25 * L)
+        return passed or (at_plane and self._across(p - self.leg.b) <= self.plane_within_m)
 
 
 # --- the walk: the ideal run on the mesh ---------------------------------------------------------

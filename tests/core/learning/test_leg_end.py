@@ -88,3 +88,37 @@ def test_a_leg_across_the_wall_ends_as_the_tool_passes_its_point():
         assert ended_at - lean <= th.NEAR_END_M, (
             f"{where}: ended {(ended_at - lean) * 1e3:.2f} mm past the point's station"
         )
+
+
+def test_a_leg_ends_at_its_point_not_where_a_detour_crosses_its_plane():
+    """A sparse leg round an outside wall (a T-boss's bar, a block's end) whose chord cuts
+    through the part: the wall crosses the end point's plane far from the point first, on the
+    far side of the part, and only later comes back past the point. The leg ends by the point
+    (within ``PLANE_END_WITHIN_M`` + the radius of it), not at the first crossing; it ended
+    there before, the next leg started on the wrong face and a good set was refused, "the wall
+    ... does not lead to G4" (issue 28). A crossing near the point still ends it."""
+    rng = np.random.default_rng(SEED + 2)
+    for case in range(200):
+        radius = float(rng.uniform(0.0005, 0.005))
+        length = float(rng.uniform(0.02, 0.2))
+        leg = _closing_leg(length)
+        end = LegEnd(leg, AXIS, last=False, closed=True, tool_radius_m=radius)
+        # the detour: along y = off past the plane, far from the point, then back down to it
+        off = radius + th.PLANE_END_WITHIN_M + float(rng.uniform(0.001, 0.05))
+        gap = radius + float(rng.uniform(0.0, th.AT_WALL_GAP_M))  # the wall by the point
+        past = length + float(rng.uniform(0.003, 0.02))
+        step = float(rng.uniform(2e-5, 2e-4))
+        path = [np.array([x, off, 0.0]) for x in np.arange(0.5 * length, past, step)]
+        path += [np.array([past, y, 0.0]) for y in np.arange(off, gap, -step)]
+        path += [np.array([x, gap, 0.0]) for x in np.arange(past, 0.5 * length, -step)]
+        ended = next((p for p in path if end.reached(p, float(p @ leg.xp), None)), None)
+        where = (
+            f"{replay(SEED)}, case {case}: detour {off * 1e3:.1f} mm off, "
+            f"wall {gap * 1e3:.1f} mm"
+        )
+        assert ended is not None, f"{where}: the leg never ended"
+        within = radius + th.PLANE_END_WITHIN_M + step
+        assert float(np.hypot(ended[0] - length, ended[1])) <= within, (
+            f"{where}: ended {float(np.hypot(ended[0] - length, ended[1])) * 1e3:.1f} mm off "
+            f"the point (at {np.round(ended * 1e3, 1)} mm)"
+        )
