@@ -113,8 +113,7 @@ def test_a_leg_ends_at_its_point_not_where_a_detour_crosses_its_plane():
         path += [np.array([x, gap, 0.0]) for x in np.arange(past, 0.5 * length, -step)]
         ended = next((p for p in path if end.reached(p, float(p @ leg.xp), None)), None)
         where = (
-            f"{replay(SEED)}, case {case}: detour {off * 1e3:.1f} mm off, "
-            f"wall {gap * 1e3:.1f} mm"
+            f"{replay(SEED)}, case {case}: detour {off * 1e3:.1f} mm off, wall {gap * 1e3:.1f} mm"
         )
         assert ended is not None, f"{where}: the leg never ended"
         within = radius + th.PLANE_END_WITHIN_M + step
