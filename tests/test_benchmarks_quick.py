@@ -79,6 +79,7 @@ EXPECTED: dict[str, list[str]] = {
     ],
     "bench_answer_times.py": [
         rf"stop during a paced push\s+1\s+{NUMBER}\s+{NUMBER}",
+        rf"a new project with the default cell\s+5\s+{NUMBER}\s+{NUMBER}",
         rf"refuse a 6 M-face OBJ \(48 MB\)\s+1\s+{NUMBER}",
         rf"refuse the 5,000-link URDF\s+1\s+{NUMBER}",
         rf"refuse a project file number out of range\s+1\s+{NUMBER}",
