@@ -67,6 +67,16 @@ class PartWalls:
             )
         return closest, dist, on_face
 
+    def inside(self, point: np.ndarray) -> bool:
+        """Whether ``point`` (base frame) is inside the part's mesh: its generalised winding
+        number (libigl's, exact) over one half, the point taken into the mesh's frame."""
+        import igl
+
+        vertices = np.asarray(self.mesh.vertices, dtype=np.float64)
+        faces = np.asarray(self.mesh.faces, dtype=np.int64)
+        local = ((np.asarray(point, dtype=float) - self.t) @ self.R)[None]
+        return bool(igl.winding_number(vertices, faces, local)[0] > 0.5)
+
     def faces_from_free_side(self, point: np.ndarray, direction: np.ndarray, reach: float) -> bool:
         """True when the first wall along ``direction`` from ``point`` is within ``reach`` and
         met from its free side: ``point`` stands in the free space beside a wall."""

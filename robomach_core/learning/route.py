@@ -601,17 +601,6 @@ def _nearest_wins(
     )
 
 
-def _inside_part(workpiece: Workpiece, point: np.ndarray) -> bool:
-    """Whether ``point`` (base frame) is inside the part's mesh: its generalised winding number
-    (libigl's, exact) over one half."""
-    import igl
-
-    mesh = workpiece.mesh_in_base()
-    vertices = np.asarray(mesh.vertices, dtype=np.float64)
-    faces = np.asarray(mesh.faces, dtype=np.int64)
-    return bool(igl.winding_number(vertices, faces, point[None].astype(np.float64))[0] > 0.5)
-
-
 def plan_route(
     guides: Sequence[GuidePoint],
     settings: PathLearningSettings,
@@ -652,7 +641,7 @@ def plan_route(
     route = LearningRoute(guides, legs, closed, axis, decision, heights, lifted)
     if walls is None:
         return route
-    assert tool_radius_m is not None and workpiece is not None  # the walls are built from both
+    assert tool_radius_m is not None  # the walls are built with the tool's radius only
     towards = right[0] * decision.sign
     first = guides[0].position_m - axis * lifted[0]  # at the height it is learned at
     first_wall = walls.wall_point(first, towards, 2 * th.AT_WALL_GAP_M)
@@ -668,7 +657,7 @@ def plan_route(
         # corner's edge), the corner is its wall: the chord's way past it is open space. Else
         # the part may not be where its mesh is (a point taught on a part shifted off its CAD
         # may stand inside the mesh): the run searches by force.
-        if not (stands_by and level and not on_face) or _inside_part(workpiece, first):
+        if not (stands_by and level and not on_face) or walls.inside(first):
             return route
         starts = [nearest]
     else:
