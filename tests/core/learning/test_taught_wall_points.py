@@ -1,11 +1,14 @@
 """Which wall a guide point was taught on (``route.taught_wall_points``), the one answer the
 taught-wall check and the run's side share: over generated grooves, level and tilted 10-20 deg
-(in the mesh with the tool vertical, by the work object with the tool normal), with the person's
+(in the mesh with the tool vertical, by the work object with the tool normal) and with a floor
+stepping across the groove, with the person's
 side given and points drawn anywhere across the groove, up to nearer the other wall than the
 taught one. Every wall point found must lie on the taught wall, never the one across: a point
 found on the other wall is a good program condemned (issue 28: on a plate tilted in its mesh, a
 ray cast straight across the tool axis at an island's corner left the groove under its floor,
-and the check took the nearer wall across).
+and the check took the nearer wall across; on a stepped floor, a riser across the groove met
+by the fan's outermost ray was taken for the wall, and a program within 0.184 mm of it was NOT
+FIT).
 
 A fresh seed each run (``ROBOMACH_SEED`` replays it); the set's own seed is printed."""
 
@@ -26,15 +29,28 @@ ACROSS_SETS = 12  # with the route planned and walked: about a second a set
 ON_WALL_MM = 0.05  # the mesh's facets against the true wall's dense polyline
 
 
+CASES = ("level", "mesh", "wobj", "stepped")
+
+
 def _part(case: str, rng: np.random.Generator):
     if case == "level":
         return part_named("grooved_plate")
+    if case == "stepped":  # 2 mm risers across the groove: walls a fan's ray may meet
+        return part_named("stepped_groove")
     return tilted_part("groove", rng, how=case)
 
 
-@pytest.mark.parametrize("case", ["level", "mesh", "wobj"])
+@pytest.mark.parametrize("case", CASES)
 def test_every_taught_wall_point_lies_on_the_wall_the_person_chose(case):
-    for set_seed in set_seeds(SEED + ["level", "mesh", "wobj"].index(case), SETS):
+    """On the stepped floor, as the check asks it after a run: at the heights the route learns
+    the points at (a point taught 1 mm over the low floor, its cutter pressed into a riser, is
+    lifted over the step) and with the walk's travel past each point."""
+    from robomach_core.errors import RouteRefusedError
+    from robomach_core.learning.route import plan_route
+    from robomach_core.learning.run import PathLearningSettings
+
+    stepped = case == "stepped"
+    for set_seed in set_seeds(SEED + CASES.index(case), ACROSS_SETS if stepped else SETS):
         rng = np.random.default_rng(set_seed)
         part = _part(case, rng)
         wall = str(rng.choice(["outer", "island"]))
@@ -51,7 +67,17 @@ def test_every_taught_wall_point_lies_on_the_wall_the_person_chose(case):
         where = f"{replay(SEED)}, set {set_seed}: {pset.description}"
         guides = pset.guides
         walls = PartWalls(cell.workpiece, mean_tool_axis(guides), cell.tool.radius_m)
-        found = taught_wall_points(guides, pset.wall_side, pset.closed, walls)
+        lifted = travel = None
+        if stepped:
+            settings = PathLearningSettings(closed=pset.closed, wall_side=pset.wall_side)
+            try:
+                route = plan_route(
+                    guides, settings, workpiece=cell.workpiece, tool_radius_m=cell.tool.radius_m
+                )
+            except RouteRefusedError:
+                continue  # refused before any motion, with the reason: not a wrong wall
+            lifted, travel = route.lifted_m, route.guide_travel
+        found = taught_wall_points(guides, pset.wall_side, pset.closed, walls, lifted, travel)
         taught, other = part.walls[wall], part.walls[part.walls[wall].other]
         on = [k for k, p in enumerate(found) if p is not None]  # None: no wall within reach
         assert on, f"{where}: no wall point found"
