@@ -110,7 +110,21 @@ class Leg:
         return out
 
 
-def route_legs(guides: Sequence[GuidePoint], closed: bool) -> list[Leg]:
+def at_one_station(d: np.ndarray, normal: np.ndarray, axis: np.ndarray) -> bool:
+    """Whether a neighbour the way ``d`` (across ``axis``) from a guide point standing by a
+    wall face of unit ``normal`` (zero: by none) stands at the point's station of that wall:
+    nearer than ``ONE_STATION_M``, the way to it more across the wall than along it (one point
+    pressed on the wall, the other a gap off it). The way between two such points is no
+    direction of travel, and the route cannot climb between them."""
+    size = float(np.linalg.norm(d))
+    if size >= th.ONE_STATION_M or not normal.any():
+        return False
+    return abs(float(d @ normal)) > abs(float(d @ np.cross(axis, normal)))
+
+
+def route_legs(
+    guides: Sequence[GuidePoint], closed: bool, normals: np.ndarray | None = None
+) -> list[Leg]:
     """The legs through ``guides`` in order (back to the first when ``closed``), each measured
     across the tool axis (its direction and length: the progress along a leg, which sets the
     route's height, must not move with the tool's own height; along a leg steeper than it is
@@ -119,9 +133,14 @@ def route_legs(guides: Sequence[GuidePoint], closed: bool) -> list[Leg]:
     second, at its height.
 
     Raises:
-        RouteRefusedError: two such points stand one above the other, more than
+        RouteRefusedError: two such points, or two at one station of their wall
+            (``at_one_station``, with the ``normals`` of the wall faces the points stand by:
+            ``station_normals``) less than ``MIN_SPACING_M`` apart along it, are more than
             ``TAUGHT_WALL_HEIGHT_BAND_M`` apart along the axis: the route holds one height at
-            one place, so one of the two heights would be dropped without a word.
+            one place, so one of the two heights would be dropped without a word (a point 1.7
+            mm off the wall 12.6 mm above its neighbour pressed on it at the same station was
+            passed half-way between the two). Farther apart along the wall the route climbs
+            between them, however steeply.
     """
     axis = mean_tool_axis(guides)
     order = list(range(len(guides))) + ([0] if closed else [])
@@ -131,14 +150,23 @@ def route_legs(guides: Sequence[GuidePoint], closed: bool) -> list[Leg]:
         d = b - a
         across = d - axis * float(d @ axis)
         length = float(np.linalg.norm(across))
+        one_place = length < th.MIN_SPACING_M or (
+            normals is not None
+            and any(
+                at_one_station(way, normals[k], axis)
+                and abs(float(way @ np.cross(axis, normals[k]))) < th.MIN_SPACING_M
+                for k, way in ((i0, across), (i1, -across))
+            )
+        )
+        rise = abs(float(d @ axis))
+        if one_place and rise > th.TAUGHT_WALL_HEIGHT_BAND_M:
+            where = "one above the other" if length < th.MIN_SPACING_M else "at one station"
+            raise RouteRefusedError(
+                f"G{i0 + 1} and G{i1 + 1} stand {where} ({length * 1e3:.1f} mm apart across "
+                f"the tool axis, {rise * 1e3:.1f} mm along it): the route holds one height at "
+                "one place; delete one of them, or move it along the wall"
+            )
         if length < th.MIN_SPACING_M:
-            rise = abs(float(d @ axis))
-            if rise > th.TAUGHT_WALL_HEIGHT_BAND_M:
-                raise RouteRefusedError(
-                    f"G{i0 + 1} and G{i1 + 1} stand one above the other ({length * 1e3:.1f} mm "
-                    f"apart across the tool axis, {rise * 1e3:.1f} mm along it): the route "
-                    "holds one height at one place; delete one of them, or move it along the wall"
-                )
             continue
         Ra = matrix_from_quaternion(guides[i0].quaternion_wxyz)
         Rb = matrix_from_quaternion(guides[i1].quaternion_wxyz)
@@ -205,21 +233,15 @@ def travel_directions(
     """(n, 3) unit direction of travel at each point, across ``axis``: the mean of the
     directions to the points before and after it, each the nearest one at least
     ``MIN_SPACING_M`` away across the axis (two points taught one above the other give no
-    direction) and not at the point's station of its wall: nearer than ``ONE_STATION_M`` with
-    the way to it more across the wall than along it (``normals``, ``station_normals``: one
-    point pressed on the wall, the other a gap off it; the way between them is across the
-    wall, and its side pointed along a slot at the other wall); one side at the ends of an
+    direction) and not at the point's station of its wall (``at_one_station``, with the
+    ``normals`` of ``station_normals``: one point pressed on the wall, the other a gap off it;
+    the way between them is across the wall, and its side pointed along a slot at the other
+    wall); one side at the ends of an
     open route; at a U-turn, the way in (the first point: the way out)."""
     pts = np.array([g.position_m for g in guides])
     pts = pts - np.outer(pts @ axis, axis)
     n = len(pts)
     out = np.zeros((n, 3))
-
-    def across_wall(k: int, d: np.ndarray, size: float) -> bool:
-        if normals is None or size >= th.ONE_STATION_M:
-            return False
-        along_wall = np.cross(axis, normals[k])
-        return abs(float(d @ normals[k])) > abs(float(d @ along_wall))
 
     def toward(k: int, step: int) -> np.ndarray | None:
         j = k
@@ -229,7 +251,9 @@ def travel_directions(
                 return None
             d = (pts[j % n] - pts[k]) * step
             size = float(np.linalg.norm(d))
-            if size >= th.MIN_SPACING_M and not across_wall(k, d, size):
+            if size >= th.MIN_SPACING_M and not (
+                normals is not None and at_one_station(d, normals[k], axis)
+            ):
                 return d / size
         return None
 
@@ -624,15 +648,15 @@ def plan_route(
         raise NotEnoughGuidePointsError(
             f"path learning needs at least 2 guide points, got {len(guides)}"
         )
-    legs = tuple(route_legs(guides, closed))
-    if not legs:
-        raise NotEnoughGuidePointsError("the guide points coincide; record distinct points")
     axis = mean_tool_axis(guides)
     walls = None
     if workpiece is not None and tool_radius_m is not None:
         walls = PartWalls(workpiece, axis, tool_radius_m)
         if walls.walls is None:
             walls = None
+    legs = tuple(route_legs(guides, closed, station_normals(guides, walls)))
+    if not legs:
+        raise NotEnoughGuidePointsError("the guide points coincide; record distinct points")
     right = right_of_travel(guides, closed, walls)[1]
     decision = resolve_wall_side(guides, settings.wall_side, closed=closed, walls=walls)
     heights, lifted = plan_heights(
