@@ -43,7 +43,9 @@ class LegEnd:
     ``CLOSE_PASSED_M``; of an open one at the nearest approach to its last point; either
     ``CLOSE_LOOP_OVERRUN_M`` past the plane at the latest (a loop's, once it has come within
     ``NEAR_END_M`` of its start). The nearest approach is watched over the leg's last
-    ``NEAR_END_M`` (half of it at least), and over the whole of a leg shorter than that."""
+    ``NEAR_END_M`` (half of it at least), and over the whole of a leg shorter than that, but
+    not where the tool has gone back along the leg by more than ``END_PASSED_M`` from where it
+    started it."""
 
     def __init__(
         self, leg: Leg, axis: np.ndarray, *, last: bool, closed: bool, tool_radius_m: float
@@ -58,6 +60,7 @@ class LegEnd:
         # shorter than NEAR_END_M from its start (its chord may run across the wall, a point
         # taught off it beside a neighbour on it, and progress along it never comes)
         self.near_from_m = max(L - th.NEAR_END_M, 0.5 * L) if L > th.NEAR_END_M else -math.inf
+        self.first_s: float | None = None  # the progress where the leg's end was first asked
         #: the progress along the leg before which ``reached`` is False (the run skips it)
         self.watch_from_m = 0.5 * L if last and closed else self.near_from_m
 
@@ -80,7 +83,13 @@ class LegEnd:
             # sparse loop has its plane well before the start where the wall bulges past it
             return s >= L + th.CLOSE_LOOP_OVERRUN_M and self.close_best < th.NEAR_END_M
         passed = False
-        if s >= self.near_from_m:
+        if self.first_s is None:
+            self.first_s = s
+        # the nearest approach counts only while the tool has not gone back along the leg: a
+        # short leg's is watched from its start, and a walk that set off the wrong way (round a
+        # slot's end from a first point by its other wall) "passed" its end within 1.5 mm
+        back = s < self.first_s - th.END_PASSED_M
+        if s >= self.near_from_m and not back:
             d_end = self._across(p - self.leg.b)
             passed = self.end_best < th.NEAR_END_M and d_end > self.end_best + th.END_PASSED_M
             self.end_best = min(self.end_best, d_end)
