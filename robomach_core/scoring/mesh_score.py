@@ -11,14 +11,11 @@ STRATEGY  The cutter is a ball of radius r centred on the TCP. The deviation of 
                                        cutter cuts into the wall),
               dev(p) = -(d(p) + r)     when p is inside it (an overcut, never a small number),
           inside from the nearest face's outward normal, or from the winding number where the
-          nearest point is on an edge (``_inside``). And a program must follow the wall the
-          guide points were taught on: the wall point each guide point faces on its side
-          (``wall_side.taught_wall_points``) must be touched by the program (within
-          ``TAUGHT_WALL_TOLERANCE_M``); a program on the island wall of a groove, or on its
-          floor, misses them.
+          nearest point is on an edge (``_inside``). Whether the program follows the wall the
+          guide points were taught on is the learning model's check
+          (``learning.checks.taught_wall_check``), not a score.
 SOLUTION  ``mesh_deviation``, ``score_mesh`` (a ``scoring.PathScore`` with the overcut and the
-          air), and ``taught_wall_check`` (a ``TaughtWallCheck``). The project's post-processing
-          stage calls them for every part.
+          air). The project's post-processing stage calls them for every part.
 """
 
 from __future__ import annotations
@@ -39,10 +36,6 @@ from .true_wall import PathScore, score_sampled_moves
 # (mm-long chords), so the coarser sampling lowers the maximum by 2 um on the water pump.
 MESH_SCORE_SPACING_M = 5e-4
 MESH_QUERY_CHUNK = 2000  # points per trimesh query (its memory grows with the points asked)
-TAUGHT_WALL_TOLERANCE_M = 0.001  # the program passes this near every taught wall point
-TAUGHT_WALL_HEIGHT_BAND_M = 0.005  # ... measured across the axis within this height of it
-# (or of the heights of the points either side of it: between points taught at different
-# heights the route's height changes at a bounded rate, and passes the point on its way)
 
 
 def _inside(
