@@ -35,6 +35,7 @@ from typing import Literal
 
 import numpy as np
 import shapely
+import shapely.ops
 from scipy.spatial.transform import Rotation
 
 from ..cell import TOOL_DOWN, Robot
@@ -65,6 +66,7 @@ from ..part import Workpiece
 
 TURN_WINDOW_M = 5e-4  # the wall's direction is measured over this much of it
 ROOM_STEPS = 3  # an added point may move this many windows off the worst place to find room
+ROOM_SAMPLES = 32  # a split that leaves a dead end: this many places tried along the leg
 SAMPLE_M = 2e-4  # the wall is looked at every this much for corners
 CHORD_SAMPLE_M = 2.5e-4  # a leg's chord is checked every this much
 WALL_SAMPLE_M = 5e-4  # the wall beside a leg is checked every this much
@@ -375,7 +377,18 @@ class WallPlacer:
                 f"the free space is {width * 1e3:.1f} mm wide here, too narrow for the "
                 f"{2 * self.radius * 1e3:g} mm cutter"
             )
-        return foot + n * offset, note
+        place = foot + n * offset
+        if not note:
+            # the gap off the nearest wall, not off the foot: round a sharp outside corner the
+            # normal turns over the wall's normal window either side of the tip, and the places
+            # there stood nearer the wall than the gap; they stand on the arc round the tip
+            tip = shapely.ops.nearest_points(self._all, shapely.Point(place))[0]
+            nearest = np.array(tip.coords[0])
+            away = place - nearest
+            size = float(np.linalg.norm(away))
+            if size > 1e-9:
+                place = nearest + away * (offset / size)
+        return place, note
 
 
 def _leg_problem(
@@ -415,6 +428,49 @@ def _leg_problem(
     return None
 
 
+def _split(
+    wall: WallLoop,
+    place: WallPlacer,
+    radius_m: float,
+    sa: float,
+    span: float,
+    pa: np.ndarray,
+    pb: np.ndarray,
+    worst: float | None,
+) -> float | None:
+    """Where a point splits the leg from ``sa`` (``span`` of wall): the worst place ``worst``
+    (None: no room there) unless a half it leaves would still need a point and is too short
+    to take one (under ``2 * MIN_SPACING_M``: a dead end); then the place of ``ROOM_SAMPLES``
+    tried along the leg, with ``MIN_SPACING_M`` of room, that leaves no dead end and keeps the
+    cutter farthest off the wall. Round a tight outside corner beside a narrow groove the worst
+    place put the point 2 mm from the corner's, and the half between them cut under the
+    cutter with no room for another point."""
+    sb = sa + span
+
+    def judged(offset: float) -> tuple[bool, float]:
+        sc = sa + offset
+        pc = place(float(wall.wrap(np.array([sc]))[0]))[0]
+        if min(float(np.linalg.norm(pc - pa)), float(np.linalg.norm(pc - pb))) < MIN_SPACING_M:
+            return False, -math.inf
+        for p0, p1, s0, s1 in ((pa, pc, sa, sc), (pc, pb, sc, sb)):
+            short = float(np.linalg.norm(p1 - p0)) < 2 * MIN_SPACING_M
+            if short and _leg_problem(wall, radius_m, p0, p1, s0, s1) is not None:
+                return False, -math.inf
+        chords = [
+            p0 + np.linspace(0.0, 1.0, 16)[:, None] * (p1 - p0) for p0, p1 in ((pa, pc), (pc, pb))
+        ]
+        return True, float(wall.signed_distance(np.vstack(chords)).min())
+
+    if worst is not None and judged(worst)[0]:
+        return worst
+    best, best_clear = worst, -math.inf
+    for offset in np.linspace(0.0, span, ROOM_SAMPLES + 2)[1:-1]:
+        ok, clear = judged(float(offset))
+        if ok and clear > best_clear:
+            best, best_clear = float(offset), clear
+    return best
+
+
 def _add_points(
     wall: WallLoop,
     closed: bool,
@@ -452,8 +508,13 @@ def _add_points(
             ):
                 break
         else:
+            shift = math.nan  # no room by the worst place
+        worst = _split(
+            wall, place, radius_m, sa, span, pa, pb, None if math.isnan(shift) else offset + shift
+        )
+        if worst is None:
             continue  # no room: ``leg_problems`` says so if the leg cuts into the wall
-        at = float(wall.wrap(np.array([sa + offset + shift]))[0]) if closed else sa + offset + shift
+        at = float(wall.wrap(np.array([sa + worst]))[0]) if closed else sa + worst
         points.insert(k + 1, (at, "added"))
         added += 1
         todo = [t + 1 if t > k else t for t in todo] + [k, k + 1]

@@ -115,6 +115,39 @@ def test_a_proposal_follows_the_picked_wall_beside_it_at_the_height_above_the_fl
     assert np.allclose(tool_axis, -wp.T_base_wobj[:3, 2], atol=1e-9)  # the job's orientation
 
 
+@given(
+    seed=seeds,
+    tilt=st.sampled_from(["level", "wobj"]),
+    wall=st.sampled_from(["outer", "island"]),
+    radius_mm=st.floats(1.5, 2.0),
+    gap_mm=st.floats(0.2, 0.35),  # the smallest gap a proposal takes, and a little more
+    along=st.floats(0.0, 1.0),
+)
+@settings(max_examples=25, deadline=None)
+def test_a_cutter_nearly_as_wide_as_the_groove_gets_every_leg_bracketed(
+    seed, tilt, wall, radius_mm, gap_mm, along
+):
+    """A groove a few tenths wider than the cutter and its two gaps, round an island whose
+    corners are sharp where the plate's are tighter than the groove is wide: every leg keeps
+    the cutter off the wall, each point its gap. Round a sharp corner the places stand on the
+    arc round its tip, and a point is added between the tip's and the straight's where the
+    chord would cut under the cutter (it had no room by the worst place, and the planner said
+    "the leg ... leaves the wall" for a groove the cutter fits)."""
+    angle = 0.0 if tilt == "level" else 10.0 + 10.0 * np.random.default_rng(seed).random()
+    r, gap = radius_mm * 1e-3, gap_mm * 1e-3
+    plate = drawn_plate(seed, "groove", angle, width_m=2 * (r + gap) + 6e-4)
+    wp = _workpiece(plate, tilt)
+    frame = _plate_frame(plate, tilt)
+    point, normal = frame.pick(wall, along, r + CUTTER_FLOOR_CLEARANCE_M + 5e-4)
+    proposal = propose_guide_points(
+        wp, None, point, normal, tool_radius_m=r, settings=ProposalSettings(gap_m=gap)
+    )
+    assert not [n for n in proposal.notes if "leg" in n], proposal.notes
+    xyz = frame.in_plate(np.array([p.position_wobj_m for p in proposal.points]))
+    d = shapely.distance(shapely.points(xyz[:, :2]), plate.walls[wall])
+    assert np.all(np.abs(d - (r + gap)) < GAP_TOL_M), np.abs(d - (r + gap)).max()
+
+
 @given(seed=seeds, tilt=tilts, offset_share=st.floats(-1.0, 1.0), width_mm=st.floats(2.6, 3.9))
 @settings(max_examples=30, deadline=None)
 def test_a_point_between_two_walls_is_refused_naming_both_and_one_off_the_middle_is_not(
