@@ -1,12 +1,12 @@
 """Two neighbouring guide points one above the other (issue 28, "the same height"): less than
 ``MIN_SPACING_M`` apart across the tool axis they give no leg, and the route holds one height at
 one place, so one of the two heights was dropped without a word (a block set whose G2 was taught
-11 mm above G3 passed 5.3 mm off it). The same at one place of the wall (``at_one_station``:
-one point on the wall, the other a gap off it, the way between them more across the wall than
-along it, and less than ``MIN_SPACING_M`` along it): a block set whose G6, 1.7 mm off the wall, was taught 12.6 mm above G7 on it was
-passed half-way between the two heights with no NOT FIT. Such a pair is refused before any
-motion, naming both; a pair within ``TAUGHT_WALL_HEIGHT_BAND_M`` of each other is not. A fresh
-seed each run (``ROBOMACH_SEED`` replays it)."""
+11 mm above G3 passed 5.3 mm off it). The same at one place of the wall (``at_one_station``: one
+point on the wall, the other a gap off it, the way between them more across the wall than along
+it, and less than ``MIN_SPACING_M`` along it): a block set whose G6, 1.7 mm off the wall, was
+taught 12.6 mm above G7 on it was passed half-way between the two heights with no NOT FIT. Such
+a pair is refused before any motion, naming both; a pair within ``TAUGHT_WALL_HEIGHT_BAND_M`` of
+each other is not. A fresh seed each run (``ROBOMACH_SEED`` replays it)."""
 
 from __future__ import annotations
 
@@ -27,9 +27,7 @@ SEED = run_seed()
 
 @pytest.mark.parametrize("place", ["above", "station"])
 @pytest.mark.parametrize("stacked", [True, False])
-def test_a_point_taught_high_over_its_neighbour_at_one_place_is_refused_naming_both(
-    stacked, place
-):
+def test_a_point_taught_high_over_its_neighbour_at_one_place_is_refused_naming_both(stacked, place):
     rng = np.random.default_rng(SEED + 2 * stacked + (place == "station"))
     part = part_named("water_pump")
     pset, _, _ = example_points("water_pump", 0)

@@ -1,14 +1,13 @@
 """Which wall a guide point was taught on (``route.taught_wall_points``), the one answer the
 taught-wall check and the run's side share: over generated grooves, level and tilted 10-20 deg
 (in the mesh with the tool vertical, by the work object with the tool normal) and with a floor
-stepping across the groove, with the person's
-side given and points drawn anywhere across the groove, up to nearer the other wall than the
-taught one. Every wall point found must lie on the taught wall, never the one across: a point
-found on the other wall is a good program condemned (issue 28: on a plate tilted in its mesh, a
-ray cast straight across the tool axis at an island's corner left the groove under its floor,
-and the check took the nearer wall across; on a stepped floor, a riser across the groove met
-by the fan's outermost ray was taken for the wall, and a program within 0.184 mm of it was NOT
-FIT).
+stepping across the groove, with the person's side given and points drawn anywhere across the
+groove, up to nearer the other wall than the taught one. Every wall point found must lie on the
+taught wall, never the one across: a point found on the other wall is a good program condemned
+(issue 28: on a plate tilted in its mesh, a ray cast straight across the tool axis at an
+island's corner left the groove under its floor, and the check took the nearer wall across; on
+a stepped floor, a riser across the groove met by the fan's outermost ray was taken for the
+wall, and a program within 0.184 mm of it was NOT FIT).
 
 A fresh seed each run (``ROBOMACH_SEED`` replays it); the set's own seed is printed."""
 
