@@ -130,11 +130,20 @@ def process(
         completed=rec.completed,
         cad_comparison=comparison,
         loop_ridge_m=(
-            loop_ridge_m(result.targets.position_m, tool_radius_m)
+            loop_ridge_m(result.targets.position_m, tool_radius_m, _mean_tool_axis(result))
             if learned.settings.closed
             else None
         ),
     )
+
+
+def _mean_tool_axis(result: PostprocessResult) -> np.ndarray | None:
+    """The targets' mean tool axis (None without targets)."""
+    if not len(result.targets):
+        return None
+    from ..transforms import matrices_from_quaternions
+
+    return matrices_from_quaternions(result.targets.quaternion_wxyz)[:, :, 2].mean(axis=0)
 
 
 def _scores(
@@ -153,7 +162,6 @@ def _scores(
     if len(result.targets) >= 2:
         from ..learning.checks import taught_wall_check
         from ..scoring import score_mesh, score_moves
-        from ..transforms import matrices_from_quaternions
 
         pos = result.targets.position_m
         if workpiece.wall is not None:
@@ -162,8 +170,7 @@ def _scores(
                 if moves is None
                 else score_moves(workpiece, tool_radius_m, pos, moves)
             )
-        axis = matrices_from_quaternions(result.targets.quaternion_wxyz)[:, :, 2].mean(axis=0)
-        mesh = score_mesh(workpiece, tool_radius_m, pos, moves, axis_base=axis)
+        mesh = score_mesh(workpiece, tool_radius_m, pos, moves, axis_base=_mean_tool_axis(result))
         if guides is not None and rec.wall_side:
             taught = taught_wall_check(
                 workpiece.cad(),  # the mesh as the controller knows it (registered, when so)

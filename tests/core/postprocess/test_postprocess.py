@@ -229,19 +229,25 @@ def test_a_gap_whose_chord_would_cut_a_corner_keeps_its_samples():
     tool_radius_m=st.floats(0.0005, 0.005),
     end_m=st.floats(-0.01, 0.01),
     targets=st.integers(8, 200),
+    drop_m=st.floats(0.0, 0.004),
 )
 def test_a_loops_ridge_is_the_scallop_between_its_end_and_its_start(
-    radius_m, tool_radius_m, end_m, targets
+    radius_m, tool_radius_m, end_m, targets, drop_m
 ):
     """A closed program round a circle whose last target stops ``-end_m`` short of its first
     (or passes it by ``end_m``): no ridge when it passes, else r - sqrt(r^2 - (g/2)^2) for the
-    chord g between them, the whole radius once the two cutters no longer overlap."""
+    chord g between them, the whole radius once the two cutters no longer overlap. The loop
+    sinks ``drop_m`` along the tool axis on its way round: measured across the axis, the
+    ridge is the same (a loop ending 1.6 mm lower where it began was NOT FIT for a ridge it
+    does not leave)."""
     from robomach_core.postprocess import loop_ridge_m
 
     L = 2 * np.pi * radius_m
     s = np.linspace(0.0, L + end_m, targets)
+    sink = -drop_m * s / L
     p = radius_m * np.column_stack([np.cos(s / radius_m), np.sin(s / radius_m), 0 * s])
-    ridge = loop_ridge_m(p, tool_radius_m)
+    p[:, 2] = sink
+    ridge = loop_ridge_m(p, tool_radius_m, axis=np.array([0.0, 0.0, -1.0]))
     if end_m >= 0:
         assert ridge == 0.0
         return
