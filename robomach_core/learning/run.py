@@ -482,9 +482,10 @@ def _start(
 
 def run_start(route: LearningRoute) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where the run starts: the first point at the route's height over the floor under the
-    whole cutter there (a step included), the direction to the wall (the mesh's wall point,
-    else the recorded push, else across the first leg on the wall's side) and the height
-    reference. Returns (the start, the wall direction, the reference)."""
+    whole cutter there and ahead of it along the wall (a step included), the direction to the
+    wall (the mesh's wall point, else the recorded push, else across the first leg on the
+    wall's side) and the height reference. Returns (the start, the wall direction, the
+    reference)."""
     legs, axis, guide = route.legs, route.axis, route.guides[0]
 
     def across(v: np.ndarray) -> np.ndarray:
@@ -497,7 +498,12 @@ def run_start(route: LearningRoute) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     elif float(np.linalg.norm(pushed)) >= th.WALL_FORCE_CLEAR_N and float(pushed @ w) > 0.0:
         w = pushed
     w /= float(np.linalg.norm(w))
-    travel = across(legs[0].xp)
+    # the way along the wall the walk passed the first point, as its height was planned
+    # (``plan_heights``): the first leg's chord may head into the part, past a step up the
+    # walk climbs (a point resting on the floor 1 mm before a riser started under the step's
+    # top, met the riser and took it for the wall)
+    walked = route.guide_travel[0] if route.walks else np.zeros(3)
+    travel = across(walked if float(np.linalg.norm(walked)) > 0.5 else legs[0].xp)
     travel /= float(np.linalg.norm(travel))
     start = legs[0].a.copy()
     ref = route.heights.at(start, travel, w)
