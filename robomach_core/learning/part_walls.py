@@ -166,8 +166,8 @@ class PartWalls:
         self, point: np.ndarray, towards: np.ndarray
     ) -> tuple[np.ndarray, float]:
         """The nearest wall point met by a fan of rays within ``FAN_HALF_ANGLE_RAD`` of
-        ``towards``, each along the floor, on a wall facing back across ``towards`` (its normal
-        within that angle of it), and its
+        ``towards``, each along the floor, on a wall facing back across ``towards``
+        (``FACING_BACK_COS``), and its
         distance [m] (inf: none). One ray straight
         that way misses the wall where the travel is a chord round a corner (an open route's
         first point: the way to the next point, round the corner, turns "that way" along the
@@ -182,12 +182,13 @@ class PartWalls:
         hits, _, tri = mesh_query.ray_hits(
             self.walls, np.repeat(((point - self.t) @ self.R)[None], len(fan), 0), fan @ self.R
         )
-        # a wall on that side faces back across it, within the fan's angle of ``towards``:
-        # the wall across the groove, met by a ray swung towards it, faces the other way; a
-        # riser across the groove (a stepped floor's), met by a ray swung along it, faces
-        # along the travel (it was taken for the taught wall 1.8 mm off a point 4.4 mm from it)
+        # a wall on that side faces back across it (``FACING_BACK_COS``): the wall across the
+        # groove, met by a ray swung towards it, faces the other way; a riser across the
+        # groove (a stepped floor's), met by a ray swung along it, faces along the travel (it
+        # was taken for the taught wall 1.8 mm off a point 4.4 mm from it), while the wall a
+        # point stands by may face 60 deg off a first chord round a corner
         normals = self._wall_normals[tri] @ self.R.T
-        hits = hits[normals @ towards < -math.cos(th.FAN_HALF_ANGLE_RAD)]
+        hits = hits[normals @ towards < -th.FACING_BACK_COS]
         if not len(hits):
             return np.full(3, np.nan), math.inf
         hits = hits @ self.R.T + self.t
