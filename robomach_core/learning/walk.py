@@ -44,8 +44,8 @@ class LegEnd:
     ``CLOSE_LOOP_OVERRUN_M`` past the plane at the latest (a loop's, once it has come within
     ``NEAR_END_M`` of its start). The nearest approach is watched over the leg's last
     ``NEAR_END_M`` (half of it at least), and over the whole of a leg shorter than that, but
-    not where the tool has gone back along the leg by more than ``END_PASSED_M`` from where it
-    started it."""
+    not where the tool has gone back along the leg by more than ``END_PASSED_M`` (and more than
+    sideways) from where it started it."""
 
     def __init__(
         self, leg: Leg, axis: np.ndarray, *, last: bool, closed: bool, tool_radius_m: float
@@ -61,6 +61,7 @@ class LegEnd:
         # taught off it beside a neighbour on it, and progress along it never comes)
         self.near_from_m = max(L - th.NEAR_END_M, 0.5 * L) if L > th.NEAR_END_M else -math.inf
         self.first_s: float | None = None  # the progress where the leg's end was first asked
+        self.first_p: np.ndarray | None = None  # ... and the tool's place there
         #: the progress along the leg before which ``reached`` is False (the run skips it)
         self.watch_from_m = 0.5 * L if last and closed else self.near_from_m
 
@@ -83,12 +84,17 @@ class LegEnd:
             # sparse loop has its plane well before the start where the wall bulges past it
             return s >= L + th.CLOSE_LOOP_OVERRUN_M and self.close_best < th.NEAR_END_M
         passed = False
-        if self.first_s is None:
-            self.first_s = s
-        # the nearest approach counts only while the tool has not gone back along the leg: a
-        # short leg's is watched from its start, and a walk that set off the wrong way (round a
-        # slot's end from a first point by its other wall) "passed" its end within 1.5 mm
-        back = s < self.first_s - th.END_PASSED_M
+        if self.first_s is None or self.first_p is None:
+            self.first_s, self.first_p = s, p.copy()
+        # the nearest approach counts only while the tool has not gone back along the leg,
+        # more back than sideways: a short leg's is watched from its start, and a walk that set
+        # off the wrong way (round a slot's end from a first point by its other wall) "passed"
+        # its end within 1.5 mm; a leg across the wall (a point a gap off it, leaning back
+        # along it) is walked sideways to it, and ends as the tool passes its point
+        back_m = self.first_s - s
+        back = back_m > th.END_PASSED_M and back_m > math.sqrt(
+            max(self._across(p - self.first_p) ** 2 - back_m * back_m, 0.0)
+        )
         if s >= self.near_from_m and not back:
             d_end = self._across(p - self.leg.b)
             passed = self.end_best < th.NEAR_END_M and d_end > self.end_best + th.END_PASSED_M
