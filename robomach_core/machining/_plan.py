@@ -190,8 +190,9 @@ def plan_cut(
     feed: FeedSource = "controller",
 ) -> CutPlan:
     """Everything ``cut_program`` computes before its loop (its docstring); ``feed``
-    ``"program"`` runs the program's own speeds with no feed control (a planned stage
-    schedule, ``machining.schedule``), ``"controller"`` the settings' controller."""
+    ``"program"`` runs the program's own speeds (a stage schedule planned offline,
+    ``machining.schedule``) with no feed control, ``"controller"`` the settings'
+    controller."""
     P = check_path(targets.position_m)
     m = len(P)
     s_t, off_t, lateral = _program_offsets(targets, stock, nominal)
@@ -240,9 +241,7 @@ def plan_cut(
     dt = CONTROL_PERIOD_S
     sensor_filter = _sensor_filter(settings.sensor_filter_cutoff_hz, dt)
     ctrl_settings, ctrl = (
-        (None, None)
-        if scheduled
-        else _feed_control(settings, d_max, v_prog, c_true, sensor_filter)
+        (None, None) if scheduled else _feed_control(settings, d_max, v_prog, c_true, sensor_filter)
     )
     if is_constant or scheduled:
         slowest = float(np.min(np.minimum(v_prog, constant_feed)))

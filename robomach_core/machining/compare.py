@@ -170,8 +170,9 @@ def format_table(rows: Sequence[dict[str, Any]], *, chosen: int | None = None) -
         lines += [
             "",
             f"{MARK_SCHEDULE}: {names} run the stage schedule their controller planned offline "
-            "(the lowest stage of its rehearsals at each station, as the program's speeds; no "
-            "online switching, no feed control needed)",
+            "for this stock (the lowest stage of its cuts of the nominal wall at each 0.1 mm, "
+            "as the program's speeds): no online switching and no feed control, so a casting "
+            "with burrs elsewhere meets them at the planned speeds (--variations shows it)",
         ]
     lacking = [row for row in rows if row.get("runnable") is False]
     if lacking:

@@ -79,12 +79,17 @@ from .compliance import (
 from .errors import MachiningSettingsError
 from .offline import densify_targets as densify_targets
 from .path import check_path, project_onto_path
-from .schedule import SCHEDULE_DRAWS, STAGED_CONTROLLERS, scheduled_program, stage_ratio_met
-from .schedule import switches
 from .program import (
     as_written,
     design_depth_m,
     machining_program,
+)
+from .schedule import (
+    SCHEDULE_DRAWS,
+    STAGED_CONTROLLERS,
+    draw_stages,
+    scheduled_program,
+    switches,
 )
 from .settings import MachiningSettings
 from .stock import Stock
@@ -261,24 +266,25 @@ def run_machining(
     if settings.controller in STAGED_CONTROLLERS:
         draws = [ideal] + [
             rehearsal_cut(
-                on_the_wall, np.zeros_like(plan.inputs.offset), cancel,
+                on_the_wall,
+                np.zeros_like(plan.inputs.offset),
+                cancel,
                 seed=rehearsal_seed(settings.seed, d),
             )  # fmt: skip
             for d in range(1, SCHEDULE_DRAWS)
         ]
         numbered = SCHEDULE_DRAWS - 1
-        if all(d.summary["completed"] for d in draws):
-            ratios = np.min(
-                [stage_ratio_met(d.trace.path_m, d.trace.speed_ratio, plan.s_st) for d in draws],
-                axis=0,
-            )
+        # A draw the controller's protection rule stopped counts up to its stop (the lowest
+        # stage there); one completed draw is needed, else the stages switch online as before.
+        if any(d.summary["completed"] for d in draws):
+            ratios = np.min([draw_stages(d, plan.s_st) for d in draws], axis=0)
             targets = scheduled_program(targets, plan.s_st, ratios)
             feed = "program"
             plan = plan_cut(robot, targets, None, stock, settings, feed=feed)
             numbered += 1
+            rigid = replace(plan.inputs, c_true=np.zeros_like(plan.inputs.c_true))
             ideal = rehearsal_cut(
-                replace(plan, inputs=replace(plan.inputs, c_true=np.zeros_like(plan.inputs.c_true))),
-                np.zeros_like(plan.inputs.offset), cancel,
+                replace(plan, inputs=rigid), np.zeros_like(plan.inputs.offset), cancel,
                 seed=rehearsal_seed(settings.seed, numbered),
             )  # fmt: skip
     first = (
@@ -316,16 +322,12 @@ def run_machining(
         # The row's feed is the schedule its controller's cuts planned (``schedule``); the
         # controller it was planned with is the row's design.
         summary["schedule_draws"] = SCHEDULE_DRAWS
+        summary["schedule_draws_completed"] = sum(bool(d.summary["completed"]) for d in draws)
         summary["schedule_switches"] = switches(ratios)
         summary["schedule_lowest_stage"] = float(np.min(ratios))
-        summary["controller_design"] = None if staged.controller is None else (
-            staged.controller.describe()
+        summary["schedule_planned_with"] = (
+            None if staged.controller is None else staged.controller.describe()
         )
-        if staged.ctrl_settings is not None:
-            from ..cmrr.settings import controller_settings_to_dict
-
-            summary["controller_settings"] = controller_settings_to_dict(staged.ctrl_settings)
-        run = replace(run, controller_settings=staged.ctrl_settings)
     wall_s = time.perf_counter() - started
     summary["wall_time_s"] = wall_s
     summary["realtime_factor"] = summary["sim_time_s"] / wall_s if wall_s > 0 else None
