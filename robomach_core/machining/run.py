@@ -328,6 +328,13 @@ def run_machining(
         summary["schedule_planned_with"] = (
             None if staged.controller is None else staged.controller.describe()
         )
+        # The controller as designed for the cut is the one that planned the schedule (the
+        # cut itself runs no controller: ``controller_design`` None).
+        if staged.ctrl_settings is not None:
+            from ..cmrr.settings import controller_settings_to_dict
+
+            summary["controller_settings"] = controller_settings_to_dict(staged.ctrl_settings)
+        run = replace(run, controller_settings=staged.ctrl_settings)
     wall_s = time.perf_counter() - started
     summary["wall_time_s"] = wall_s
     summary["realtime_factor"] = summary["sim_time_s"] / wall_s if wall_s > 0 else None
