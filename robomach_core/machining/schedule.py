@@ -21,6 +21,14 @@ STRATEGY  Take the switching out of the cell's cut. The staged controller still 
           schedule's cut is deterministic (no measured force drives it), so the offline
           compensation is planned for exactly the force that cut meets
           (``offline.offline_compensated_run`` with these speeds), as for the constant feed.
+LIMIT     The schedule is planned for the stock it was cut on. With no feed control, a
+          casting whose burrs lie elsewhere meets them at the planned speeds: the pump's
+          schedules over 16 drawn stocks peaked at up to 285 N, p95 272 N (switching online:
+          145 N), so a sweep over castings (``--variations``) does not choose them. A guard
+          dropping to the lowest stage while the force is over the limit left 216-233 N (the
+          feed and the force lag the trigger) and was not kept; one that reacts where the
+          force leaves the planned force by a margin (per station, carried per target) is the
+          next step.
 SOLUTION  ``stage_ratio_met`` (the stage each draw ran at each station), ``scheduled_program``
           (the program with the schedule as its speeds); ``run.run_machining`` composes them.
           The row's summary says ``feed: "program"`` and ``schedule_draws``; the exporters
