@@ -120,6 +120,7 @@ def scheduled_program(targets: Targets, s_st: np.ndarray, ratio: np.ndarray) -> 
     g = arc_length_m(out.position_m)
     lo = np.clip(np.searchsorted(s, g[:-1], side="right"), 0, len(s) - 1)
     hi = np.maximum(np.searchsorted(s, g[1:], side="right"), lo + 1)
+    hi[-1] = len(s)  # the stations past the last target run the last move
     move_ratio = np.array([r[a:b].min() for a, b in zip(lo, hi, strict=True)])
     v = np.asarray(out.speed_m_s, dtype=float)
     speeds = np.empty(len(out))
