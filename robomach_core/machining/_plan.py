@@ -21,7 +21,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -61,6 +61,9 @@ FORCE_SUPERVISION_FACTOR = 2.0
 
 
 CompensationModel = JointCompliance | CompensationSettings
+# Where a cut's feed comes from: the settings' controller (constant feed or CMRR, online), or
+# the program's own speeds, no feed control (a stage schedule planned offline).
+FeedSource = Literal["controller", "program"]
 
 
 def planned_speed_profile(speed_m_s: np.ndarray, ds_m: float, acceleration_m_s2: float):
@@ -114,6 +117,8 @@ class CutPlan:
         constant_feed_m_s: the constant feed (None for a CMRR controller).
         d_max: the deepest cut the program is designed for [m] (``program.design_depth_m``);
             ``model`` the identified stiffness the online compensation uses (None without).
+        feed: where the feed comes from (``FeedSource``): ``"program"`` runs the program's
+            speeds with no feed control (``controller`` None).
     """
 
     settings: MachiningSettings
@@ -126,6 +131,7 @@ class CutPlan:
     constant_feed_m_s: float | None
     d_max: float
     model: JointCompliance | None
+    feed: FeedSource = "controller"
 
 
 def _program_offsets(
@@ -181,8 +187,12 @@ def plan_cut(
     *,
     model: JointCompliance | None = None,
     nominal: Targets | None = None,
+    feed: FeedSource = "controller",
 ) -> CutPlan:
-    """Everything ``cut_program`` computes before its loop (its docstring)."""
+    """Everything ``cut_program`` computes before its loop (its docstring); ``feed``
+    ``"program"`` runs the program's own speeds (a stage schedule planned offline,
+    ``machining.schedule``) with no feed control, ``"controller"`` the settings'
+    controller."""
     P = check_path(targets.position_m)
     m = len(P)
     s_t, off_t, lateral = _program_offsets(targets, stock, nominal)
@@ -222,19 +232,21 @@ def plan_cut(
             s_t, compliance_blocks(robot, joints, model), s_st, N_st, U_st
         )
     offset = np.interp(s_st, s_t, off_t)
-    is_constant = settings.controller == "constant"
-    constant_feed = constant_feed_m_s(settings, d_max)
+    scheduled = feed == "program"
+    is_constant = settings.controller == "constant" and not scheduled
+    constant_feed = constant_feed_m_s(settings, d_max) if not scheduled else math.inf
     if is_constant:
         check_constant_feed(settings, d_max)
 
     dt = CONTROL_PERIOD_S
     sensor_filter = _sensor_filter(settings.sensor_filter_cutoff_hz, dt)
-    ctrl_settings, ctrl = _feed_control(settings, d_max, v_prog, c_true, sensor_filter)
-    slowest = (
-        float(np.min(np.minimum(v_prog, constant_feed)))
-        if is_constant
-        else settings.min_speed_ratio * float(v_prog.min())
+    ctrl_settings, ctrl = (
+        (None, None) if scheduled else _feed_control(settings, d_max, v_prog, c_true, sensor_filter)
     )
+    if is_constant or scheduled:
+        slowest = float(np.min(np.minimum(v_prog, constant_feed)))
+    else:
+        slowest = settings.min_speed_ratio * float(v_prog.min())
     n_max = _sample_budget(settings, L, slowest, dt)
 
     robot_model = _feed_model(dt)
@@ -244,7 +256,7 @@ def plan_cut(
     tau_c = 1.0 / (2.0 * math.pi * settings.online_filter_cutoff_hz)
     typical_feed = (
         float(np.mean(np.minimum(v_prog, constant_feed)))
-        if is_constant
+        if is_constant or scheduled
         else 0.5 * float(np.mean(v_prog))
     )
     inputs = LoopInputs(
@@ -288,6 +300,7 @@ def plan_cut(
         constant_feed_m_s=float(constant_feed) if is_constant else None,
         d_max=d_max,
         model=model if online else None,
+        feed=feed,
     )
 
 

@@ -136,21 +136,30 @@ class CellCapabilities:
         return ", ".join(OPTION_TEXT[o] for o in OPTION_NAMES if o in self.options)
 
 
-def requirements(controller: str, compensation: str) -> tuple[str, ...]:
-    """What a configuration needs from the cell beyond running the program."""
+def requirements(
+    controller: str, compensation: str, feed: str | None = "controller"
+) -> tuple[str, ...]:
+    """What a configuration needs from the cell beyond running the program; ``feed``
+    ``"program"`` (a stage schedule planned offline, ``machining.schedule``): its feeds are
+    the program's speeds, and it needs no feed override."""
     out = []
-    if controller != "constant":
+    if controller != "constant" and feed != "program":
         out.append("feed_override")
     if compensation == "online":
         out.append("online_correction")
     return tuple(out)
 
 
-def missing(controller: str, compensation: str, capabilities: CellCapabilities) -> tuple[str, ...]:
+def missing(
+    controller: str,
+    compensation: str,
+    capabilities: CellCapabilities,
+    feed: str | None = "controller",
+) -> tuple[str, ...]:
     """The requirements of a configuration the cell does not meet."""
     return tuple(
         r
-        for r in requirements(controller, compensation)
+        for r in requirements(controller, compensation, feed)
         if not any(o in capabilities.options for o in REQUIREMENTS[r])
     )
 
@@ -167,7 +176,7 @@ def mark_runnable(
     """The rows with ``runnable`` and ``needs`` (what the cell lacks, in words) set."""
     out = []
     for row in rows:
-        lacks = missing(row["controller"], row["compensation"], capabilities)
+        lacks = missing(row["controller"], row["compensation"], capabilities, row.get("feed"))
         out.append(
             dict(
                 row,
@@ -212,7 +221,7 @@ def choose(rows: list[dict[str, Any]], capabilities: CellCapabilities) -> Choice
     runnable = [
         i
         for i, r in enumerate(rows)
-        if not missing(r["controller"], r["compensation"], capabilities)
+        if not missing(r["controller"], r["compensation"], capabilities, r.get("feed"))
     ]
     not_here = len(rows) - len(runnable)
     done = [i for i in runnable if _figures(rows[i])[3] and _figures(rows[i])[0] is not None]

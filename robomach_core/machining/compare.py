@@ -117,6 +117,7 @@ def comparison_rows(
         )
         row["completed"] = r.summary["completed"]
         row["stop_reason"] = r.summary.get("stop_reason")
+        row["feed"] = r.summary.get("feed", "controller")
         row["refused"] = None
         rows.append(row)
     return rows
@@ -126,6 +127,8 @@ def comparison_rows(
 MARK_CHOSEN = "chosen"
 MARK_RUNNABLE = "can run"
 MARK_NOT_RUNNABLE = "cannot"
+# The line under the table naming the rows whose feed is a stage schedule planned offline.
+MARK_SCHEDULE = "schedule"
 
 
 def format_table(rows: Sequence[dict[str, Any]], *, chosen: int | None = None) -> str:
@@ -161,6 +164,16 @@ def format_table(rows: Sequence[dict[str, Any]], *, chosen: int | None = None) -
     widths = [max(len(h), *(len(c[i]) for c in body)) for i, h in enumerate(header)]
     lines = ["  ".join(h.rjust(w) for h, w in zip(header, widths, strict=True))]
     lines += ["  ".join(c.rjust(w) for c, w in zip(cells, widths, strict=True)) for cells in body]
+    planned = [row for row in rows if row.get("feed") == "program"]
+    if planned:
+        names = ", ".join(f"{row['controller']} / {row['compensation']}" for row in planned)
+        lines += [
+            "",
+            f"{MARK_SCHEDULE}: {names} run the stage schedule their controller planned offline "
+            "for this stock (the lowest stage of its cuts of the nominal wall at each 0.1 mm, "
+            "as the program's speeds): no online switching and no feed control, so a casting "
+            "with burrs elsewhere meets them at the planned speeds (--variations shows it)",
+        ]
     lacking = [row for row in rows if row.get("runnable") is False]
     if lacking:
         needs = sorted({n for row in lacking for n in row.get("needs") or ()})
@@ -231,11 +244,12 @@ def run_configuration(
     progress: ProgressCallback | None = None,
     cancel: CancelFlag | Callable[[], bool] | None = None,
     program_frame: np.ndarray | None = None,
-    corrected: tuple[Targets, Targets] | None = None,
+    corrected: tuple[Targets, Targets] | tuple[Targets, Targets, str] | None = None,
 ) -> MachiningRun:
     """One configuration of the matrix: ``settings`` with this controller and compensation
     (the settings' own controller settings only for their own controller); ``corrected``
-    (program, nominal targets) is an offline correction already planned: cut as it is."""
+    (program, nominal targets[, its feed: ``run.FeedSource``, "program" for a stage schedule
+    planned offline]) is an offline correction already planned: cut as it is."""
     own = settings.controller_settings
     run_settings = replace(
         settings,
@@ -247,10 +261,12 @@ def run_configuration(
         from .program import as_written
         from .run import cut_program
 
-        program, nominal = corrected
+        program, nominal = corrected[0], corrected[1]
+        feed = corrected[2] if len(corrected) > 2 else "controller"
         return cut_program(
             robot, as_written(program, program_frame), None, stock, run_settings,
             cancel=cancel, progress=progress, nominal=nominal,
+            feed="program" if feed == "program" else "controller",
             compensation_model_for_record=stiffness_model(
                 robot.name, run_settings, compensation_model
             ),

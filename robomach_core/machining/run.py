@@ -66,6 +66,7 @@ from ._loop import _Diverged, run_loop
 from ._plan import FORCE_SUPERVISION_FACTOR as FORCE_SUPERVISION_FACTOR
 from ._plan import CompensationModel as CompensationModel
 from ._plan import CutPlan as CutPlan
+from ._plan import FeedSource as FeedSource
 from ._plan import _resolve_model
 from ._plan import plan_cut as plan_cut
 from ._plan import planned_speed_profile as planned_speed_profile
@@ -82,6 +83,13 @@ from .program import (
     as_written,
     design_depth_m,
     machining_program,
+)
+from .schedule import (
+    SCHEDULE_DRAWS,
+    STAGED_CONTROLLERS,
+    draw_stages,
+    scheduled_program,
+    switches,
 )
 from .settings import MachiningSettings
 from .stock import Stock
@@ -247,6 +255,38 @@ def run_machining(
         on_the_wall, np.zeros_like(plan.inputs.offset), cancel,
         seed=rehearsal_seed(settings.seed, 0),
     )  # fmt: skip
+    # A staged controller's stages are planned here, not switched in the cell's cut
+    # (``schedule``): the lowest stage its cuts of the nominal wall ran at each station, on
+    # draws of their own (this one the first), becomes the program's speeds, and the cut and
+    # its rehearsals run those speeds with no feed control.
+    staged = plan
+    numbered = 0  # rehearsal numbers (noise draws) used so far
+    feed: FeedSource = "controller"
+    ratios = None
+    if settings.controller in STAGED_CONTROLLERS:
+        draws = [ideal] + [
+            rehearsal_cut(
+                on_the_wall,
+                np.zeros_like(plan.inputs.offset),
+                cancel,
+                seed=rehearsal_seed(settings.seed, d),
+            )  # fmt: skip
+            for d in range(1, SCHEDULE_DRAWS)
+        ]
+        numbered = SCHEDULE_DRAWS - 1
+        # A draw the controller's protection rule stopped counts up to its stop (the lowest
+        # stage there); one completed draw is needed, else the stages switch online as before.
+        if any(d.summary["completed"] for d in draws):
+            ratios = np.min([draw_stages(d, plan.s_st) for d in draws], axis=0)
+            targets = scheduled_program(targets, plan.s_st, ratios)
+            feed = "program"
+            plan = plan_cut(robot, targets, None, stock, settings, feed=feed)
+            numbered += 1
+            rigid = replace(plan.inputs, c_true=np.zeros_like(plan.inputs.c_true))
+            ideal = rehearsal_cut(
+                replace(plan, inputs=rigid), np.zeros_like(plan.inputs.offset), cancel,
+                seed=rehearsal_seed(settings.seed, numbered),
+            )  # fmt: skip
     first = (
         force_met_N(ideal, s_f)
         if ideal.summary["completed"]
@@ -254,12 +294,14 @@ def run_machining(
     )
 
     def rehearse(offset_st: np.ndarray, number: int) -> Rehearsal:
-        return rehearsal_cut(plan, offset_st, cancel, seed=rehearsal_seed(settings.seed, number))
+        return rehearsal_cut(
+            plan, offset_st, cancel, seed=rehearsal_seed(settings.seed, numbered + number)
+        )
 
     def cut(program: Targets, dense: Targets) -> MachiningRun:
         return cut_program(
             robot, as_written(program, program_frame), None, stock, settings, model=None,
-            cancel=cancel, compensation_model_for_record=model, nominal=dense,
+            cancel=cancel, compensation_model_for_record=model, nominal=dense, feed=feed,
         )  # fmt: skip
 
     run, program, dense, rehearsals, change = offline_compensated_run(
@@ -275,6 +317,24 @@ def run_machining(
     # arm rode over), no correction reaches the nominal wall under this controller, and the
     # offline row stops for the stock's sake, not the compensation's.
     summary["offline_nominal_wall_completed"] = bool(ideal.summary["completed"])
+    summary["schedule_draws"] = None
+    if ratios is not None:
+        # The row's feed is the schedule its controller's cuts planned (``schedule``); the
+        # controller it was planned with is the row's design.
+        summary["schedule_draws"] = SCHEDULE_DRAWS
+        summary["schedule_draws_completed"] = sum(bool(d.summary["completed"]) for d in draws)
+        summary["schedule_switches"] = switches(ratios)
+        summary["schedule_lowest_stage"] = float(np.min(ratios))
+        summary["schedule_planned_with"] = (
+            None if staged.controller is None else staged.controller.describe()
+        )
+        # The controller as designed for the cut is the one that planned the schedule (the
+        # cut itself runs no controller: ``controller_design`` None).
+        if staged.ctrl_settings is not None:
+            from ..cmrr.settings import controller_settings_to_dict
+
+            summary["controller_settings"] = controller_settings_to_dict(staged.ctrl_settings)
+        run = replace(run, controller_settings=staged.ctrl_settings)
     wall_s = time.perf_counter() - started
     summary["wall_time_s"] = wall_s
     summary["realtime_factor"] = summary["sim_time_s"] / wall_s if wall_s > 0 else None
@@ -306,10 +366,12 @@ def cut_program(
     compensation_model_for_record: JointCompliance | None = None,
     nominal: Targets | None = None,
     compiled: bool = True,
+    feed: FeedSource = "controller",
 ) -> MachiningRun:
     """One cut of ``targets`` along ``stock`` (module docstring); online compensation with
     ``model`` when ``settings.compensation == "online"``; the program's own geometry is the
-    rest of the compensation.
+    rest of the compensation. ``feed`` ``"program"`` runs the program's speeds with no feed
+    control (a stage schedule planned offline, ``schedule``; a file that carries none).
 
     ``nominal`` are the targets ``targets`` correct, one for one (an offline-compensated
     program, or one read back from its exported file): each target's offset is its shift
@@ -319,7 +381,9 @@ def cut_program(
     ``compiled`` False runs the reference loop instead of the compiled one (tests).
     """
     started = time.perf_counter()
-    plan = plan_cut(robot, targets, wall_normals_m, stock, settings, model=model, nominal=nominal)
+    plan = plan_cut(
+        robot, targets, wall_normals_m, stock, settings, model=model, nominal=nominal, feed=feed
+    )
     return cut_planned(
         plan,
         targets,
@@ -389,6 +453,7 @@ def cut_planned(
         max_depth_m=plan.stock.max_allowance_m,
     )
     summary["stop_reason"] = result.stop_reason
+    summary["feed"] = plan.feed
     ctrl = plan.controller
     summary["controller_design"] = None if ctrl is None else ctrl.describe()
     if plan.ctrl_settings is not None:
@@ -458,7 +523,7 @@ def rehearsal_cut(
             "wall_error_max_mm": float(np.max(np.abs(wall.error_m))) / MM,
         },
         wall,
-        SimpleNamespace(path_m=c["path_m"], force_N=c["force_N"]),
+        SimpleNamespace(path_m=c["path_m"], force_N=c["force_N"], speed_ratio=c["speed_ratio"]),
     )
 
 

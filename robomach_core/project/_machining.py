@@ -419,6 +419,33 @@ def cmrr_for(settings: Any, *, designed: Any = None) -> Any:
     )
 
 
+def planned_schedule(project: Project) -> bool:
+    """Whether the chosen configuration's feed is a stage schedule planned offline
+    (``machining.schedule``): offline compensation under a staged controller, chosen from a
+    current machining result whose run of it cut the program's own speeds. Its program then
+    carries the schedule as its speeds and no feed control."""
+    result = project.machining
+    if not isinstance(project.machining_settings, MachiningSetup) or not isinstance(
+        result, MachiningResult
+    ):
+        return False
+    s = machining_setup_of(project).settings
+    if s.compensation != "offline" or f"{s.controller}/offline" not in result.programs:
+        return False
+    if project.status()["machining"] != "current":
+        return False
+    return any(
+        (r["controller"], r["compensation"]) == (s.controller, "offline")
+        and r.get("feed") == "program"
+        for r in result.rows
+    )
+
+
+def chosen_feed(project: Project) -> str:
+    """The chosen configuration's feed source (``machining.run.FeedSource``)."""
+    return "program" if planned_schedule(project) else "controller"
+
+
 def with_runnable_choice(project: Project) -> tuple[Project, str]:
     """The project whose machining choice its cell can run: a part of the chosen
     configuration the cell's controller lacks (after a cell change: a UR10's force-mode feed
@@ -432,7 +459,7 @@ def with_runnable_choice(project: Project) -> tuple[Project, str]:
         return project, ""  # the neutral choice: nothing to clear
     s = machining_setup_of(project).settings
     caps = capabilities_of(project)
-    lacks = missing(s.controller, s.compensation, caps)
+    lacks = missing(s.controller, s.compensation, caps, chosen_feed(project))
     if not lacks:
         return project, ""
     controller = "constant" if "feed_override" in lacks else s.controller

@@ -171,7 +171,11 @@ def machine(
     if drawn:
         designed = replace(s, design_depth_m=stock.max_allowance_m)
         offline = {c: nominal[c, "offline"][0] for c in ctrls if (c, "offline") in nominal}
-        corrected = {c: (run.program, run.nominal) for c, run in offline.items() if run is not None}
+        corrected = {
+            c: (run.program, run.nominal, run.summary.get("feed", "controller"))
+            for c, run in offline.items()
+            if run is not None
+        }
         later = run_tasks(
             [task(st, c, designed, False, corrected.get(c)) for st in drawn for c in ctrls],
             workers=workers, cluster=cluster, progress=part(share, 1.0), cancel=cancelled,

@@ -16,7 +16,9 @@ from ._machining import (
     MachiningSetup,
     _designed_settings,
     capabilities_of,
+    chosen_feed,
     machining_setup_of,
+    planned_schedule,
 )
 from ._machining_cut import build_stock, wall_normals_for_project, with_move_speeds
 from ._stages import require_processed
@@ -62,6 +64,13 @@ def feed_note(project: Project, targets: Targets) -> str:
     """The header's line on the feeds the program commands."""
     s = machining_setup_of(project).settings
     v = np.asarray(targets.speed_m_s, dtype=float) / MM
+    if planned_schedule(project):
+        return (
+            f"feeds as simulated: {v.min():.2f}-{v.max():.2f} mm/s per move, the {s.controller} "
+            f"stage schedule planned offline (the lowest stage its cuts of the nominal wall ran "
+            f"at each 0.1 mm, times the learned speed, at most {s.command_speed_cap_m_s / MM:g} "
+            "mm/s); no online feed control: the program runs these speeds as written"
+        )
     if s.controller == "constant":
         return (
             f"feeds as simulated: constant {v.max():.2f} mm/s (the greatest that keeps the "
@@ -87,8 +96,8 @@ def ur_feed_loop(project: Project, workpiece: Workpiece, robot: Robot, targets: 
     if project.cmrr is None and not isinstance(project.machining_settings, MachiningSetup):
         return None
     s = machining_setup_of(project).settings
-    if s.controller == "constant":
-        return None
+    if s.controller == "constant" or planned_schedule(project):
+        return None  # no feed control: the constant feed, or a stage schedule as the speeds
     import copy
 
     from ..export.urscript_feed import UrFeedLoop
@@ -132,9 +141,14 @@ def chosen_program(project: Project) -> tuple[Targets, str] | None:
     if program is None:
         return None
     nominal = require_processed(project).result.targets
+    cut = (
+        f"its stage schedule's cut (planned from {s.controller} cuts of the nominal wall)"
+        if planned_schedule(project)
+        else f"the {s.controller} cut"
+    )
     return program, (
-        f"deflection compensation: offline, planned from rehearsals of the {s.controller} cut "
-        f"on the stock, {len(program)} targets from {len(nominal)}"
+        f"deflection compensation: offline, planned from rehearsals of {cut} on the stock, "
+        f"{len(program)} targets from {len(nominal)}"
     )
 
 
@@ -147,9 +161,12 @@ def machining_note(project: Project) -> str | None:
         return None
     s = machining_setup_of(project).settings
     caps = capabilities_of(project)
-    needs = requirements(s.controller, s.compensation)
-    lacks = set(missing(s.controller, s.compensation, caps))
+    feed = chosen_feed(project)
+    needs = requirements(s.controller, s.compensation, feed)
+    lacks = set(missing(s.controller, s.compensation, caps, feed))
     head = f"machining: {s.controller} / {s.compensation}"
+    if feed == "program":
+        head += " (the stage schedule planned offline as the program's speeds)"
     if not needs:
         return f"{head}; needs nothing from the cell beyond this program"
     parts = []

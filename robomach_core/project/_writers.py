@@ -56,11 +56,18 @@ def rapid_header(
         f"({processed.result.samples_filtered} kept by the force filter), tolerance "
         f"{processed.settings.tolerance_m * 1e3:g} mm",
     ]
+    from ._machining import planned_schedule
+
     if project.cmrr is not None:
         cmrr = (
             f"CMRR: {project.cmrr.controller.kind}, reference {project.cmrr.reference_force_N:g} N"
         )
-        if not cmrr_in_program:
+        if planned_schedule(project):
+            cmrr += (
+                ", planned offline: its stages are this program's speeds (no online feed "
+                "control; the cell's force supervision as for any program)"
+            )
+        elif not cmrr_in_program:
             cmrr += (
                 " is NOT in this program: it has no force-driven feed override (its feeds are "
                 "constant per move); the position-controlled RAPID or URScript program has it"
@@ -191,8 +198,11 @@ def program_context(
     targets, note = (
         program if program is not None else program_targets(project, robot, workpiece=workpiece)
     )
+    from ._machining import planned_schedule
+
     speed_change = feed_loop = None
-    if project.cmrr is not None and not force_control:
+    # A stage schedule planned offline is the program's speeds: no feed control to carry.
+    if project.cmrr is not None and not force_control and not planned_schedule(project):
         from ..cmrr import to_speed_change_settings
 
         speed_change = to_speed_change_settings(project.cmrr)

@@ -141,8 +141,11 @@ def test_offline_compensation_exports_the_corrected_program(tmp_path):
     assert summary["stock"]["source"] == "profile"
     assert summary["stock"]["allowance_max_mm"] == pytest.approx(2.5)
     program = (out / "program.mod").read_text()
-    assert "FCSpdChgAct" in program
-    assert "offline, planned from rehearsals of the fuzzy cut" in program
+    # The fuzzy controller's offline row is its stage schedule planned offline: the speeds
+    # of the program, no FC SpeedChange (issue 29, ``machining.schedule``).
+    assert "FCSpdChgAct" not in program
+    assert "planned from rehearsals of its stage schedule's cut" in program
+    assert summary["runs"][0]["feed"] == "program"
     plain = (block_demo_dir() / "program.mod").read_text()
     assert program.count("MoveL") > 5 * plain.count("MoveL")  # densified and corrected
 

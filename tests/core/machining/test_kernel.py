@@ -64,6 +64,34 @@ def test_the_compiled_loop_equals_the_reference(
     _same(fast, slow)
 
 
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    stages=st.lists(st.sampled_from([0.2, 0.25, 0.4, 0.5, 0.6, 0.8, 1.0]), min_size=1, max_size=12),
+    limit=st.floats(60.0, 400.0),
+    material=st.floats(0.6, 2.5),
+)
+@settings(max_examples=16, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+def test_the_compiled_loop_equals_the_reference_on_a_planned_schedule(
+    robot, short_program, seed, stages, limit, material
+):
+    """The loop's new input (issue 29): a stage schedule planned offline as the program's
+    speeds, cut with no feed control (``feed="program"``), the stages drawn per stretch."""
+    from robomach_core.machining.schedule import scheduled_program
+
+    print(f"seed {seed} stages {stages} limit {limit:g} material {material:g}")
+    stock = replace(builtin_stock(short_program.position_m, seed=seed), material_factor=material)
+    s = MachiningSettings(controller="two-stage", force_limit_N=limit, seed=seed)
+    s_st = plan_cut(robot, short_program, None, stock, s).s_st
+    rng = np.random.default_rng(seed)
+    cuts = np.sort(rng.integers(0, len(s_st), len(stages) - 1))
+    ratio = np.asarray(stages)[np.searchsorted(cuts, np.arange(len(s_st)), side="right")]
+    program = scheduled_program(short_program, s_st, ratio)
+    fast = cut_program(robot, program, None, stock, s, feed="program")
+    slow = cut_program(robot, program, None, stock, s, feed="program", compiled=False)
+    assert fast.summary["feed"] == "program" and fast.summary["controller_design"] is None
+    _same(fast, slow)
+
+
 def test_the_kernel_covers_every_designed_controller(robot, short_program):
     """No machining configuration falls back to the reference loop (the speed of a sweep)."""
     stock = builtin_stock(short_program.position_m, seed=0)

@@ -4,7 +4,9 @@ chosen, its program files are written as the CLI writes them, read back in each 
 the arm (targets, speeds, feed control) and cut again: cycle, peak force and finished-wall
 error within 2 % of the comparison table's. The feed control the program carries is the one
 the configuration needs (FC SpeedChange in RAPID, the feed loop in URScript, none for the
-constant feed); what a KUKA controller cannot be given is not runnable there, and says why.
+constant feed and for a staged controller's offline row, whose stage schedule planned offline
+is the program's speeds); what a KUKA controller cannot be given is not runnable there, and
+says why (the scheduled rows run there: they need nothing but the program).
 (Slow: three demos and three 18-run comparisons.)"""
 
 from __future__ import annotations
@@ -65,7 +67,10 @@ def test_every_runnable_configuration_cuts_from_its_files_what_the_table_shows(m
         run = result.run_for(c, m)
         for language in languages_for(robot):
             path = read_program(language.name, files)
-            expected = None if c == "constant" else FEED_CONTROL[language.name]
+            # A staged controller's offline row carries its stage schedule as the speeds and
+            # no feed control (``machining.schedule``); the read-back cut runs those speeds.
+            scheduled = row.get("feed") == "program"
+            expected = None if c == "constant" or scheduled else FEED_CONTROL[language.name]
             assert path.feed_control == expected, (arm, c, m, language.name)
             if expected is not None:
                 assert path.reference_N == pytest.approx(settings.reference_N)
@@ -77,6 +82,7 @@ def test_every_runnable_configuration_cuts_from_its_files_what_the_table_shows(m
                 # A corrected program's offsets are measured from the nominal place of each
                 # of its targets (the 1-D cut model's wall normal there).
                 nominal=run.nominal if m == "offline" else None,
+                feed="program" if scheduled else "controller",
             ).summary  # fmt: skip
             for key in FIGURES:
                 assert cut[key] == pytest.approx(row[key], rel=0.02), (
@@ -87,7 +93,9 @@ def test_every_runnable_configuration_cuts_from_its_files_what_the_table_shows(m
 def test_what_a_cell_cannot_run_is_marked_with_the_reason(machined):
     arm, project, _, _, result = machined
     for row in result.rows:
-        needs_feed = row["controller"] != "constant"
+        needs_feed = row["controller"] != "constant" and row["feed"] != "program"
+        if row["controller"] in ("fuzzy", "two-stage") and row["compensation"] == "offline":
+            assert row["feed"] == "program", row  # the stage schedule planned offline
         if arm == "kr270" and needs_feed:
             assert not row["runnable"]
             assert "robomach writes none for a KUKA controller" in row["needs"][0]
