@@ -119,6 +119,7 @@ def scheduled_program(targets: Targets, s_st: np.ndarray, ratio: np.ndarray) -> 
     out = targets_at(targets, grid)
     g = arc_length_m(out.position_m)
     lo = np.clip(np.searchsorted(s, g[:-1], side="right"), 0, len(s) - 1)
+    lo[0] = 0  # the first station, at the first target, runs the first move
     hi = np.maximum(np.searchsorted(s, g[1:], side="right"), lo + 1)
     hi[-1] = len(s)  # the stations past the last target run the last move
     move_ratio = np.array([r[a:b].min() for a, b in zip(lo, hi, strict=True)])
