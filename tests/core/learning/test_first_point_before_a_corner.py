@@ -4,8 +4,9 @@ side's way) is up to 60 deg off the wall the point is pressed on. The route must
 wall, where the point stands, not at the corner ahead: when rays were asked for a wall facing
 back within the fan's 60 deg, the point's own wall (at 60 deg) was refused, the corner 6 mm on
 was taken, and the program began there (98.7 % of the stretch; envelope set
-8437294682105086681, a wrong program that passed). A wall met by a ray is refused only when it
-faces along the travel (``FACING_BACK_COS``: a stepped floor's riser across the groove).
+8437294682105086681, a wrong program that passed). Off a chord any wall facing back is taken;
+only the walk's own way, along the wall, asks for one within the fan's angle
+(``route.taught_wall_points``: a stepped floor's riser across the groove faces along it).
 
 Properties over generated open stretches on the stepped groove's walls (corners of 10 mm and 4
 mm radius, risers across the groove): G1 pressed on a straight 1-12 mm before a corner, G2 15-60
