@@ -236,8 +236,8 @@ def travel_directions(
     direction) and not at the point's station of its wall (``at_one_station``, with the
     ``normals`` of ``station_normals``: one point pressed on the wall, the other a gap off it;
     the way between them is across the wall, and its side pointed along a slot at the other
-    wall); one side at the ends of an
-    open route; at a U-turn, the way in (the first point: the way out)."""
+    wall); one side at the ends of an open route; at a U-turn, the way in (the first point:
+    the way out)."""
     pts = np.array([g.position_m for g in guides])
     pts = pts - np.outer(pts @ axis, axis)
     n = len(pts)
