@@ -20,10 +20,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robomach_core.errors import RouteRefusedError
-from robomach_core.learning.route import plan_route
 from robomach_core.learning.run import PathLearningSettings
 from tests.envelope import part_named, replay, run_seed, set_seeds
+from tests.learning_outcome import planned_or_refused
 from tests.people_points import nominal_rotation, place_points
 
 SEED = run_seed()
@@ -70,13 +69,9 @@ def test_a_first_point_before_a_corner_starts_at_its_own_wall(wall_name):
             continue  # the arm could not stand there: not this property's case
         where = f"{replay(SEED)}, set {set_seed}: G1 at s={s0 % wall.length_mm:.1f} mm"
         settings = PathLearningSettings(closed=False, wall_side="right")
-        try:
-            route = plan_route(
-                guides, settings, workpiece=cell.workpiece, tool_radius_m=cell.tool.radius_m
-            )
-        except RouteRefusedError as exc:  # refused before any motion, with the reason
-            assert str(exc).strip(), f"{where}: refused without a reason"
-            continue
+        route = planned_or_refused(guides, cell, settings, where)
+        if route is None:
+            continue  # refused before any motion, with the reason
         assert route.start_towards_wall is not None, f"{where}: no start on the wall"
         p0 = guides[0].position_m
         steps = np.linspace(0.0, (gaps[0] + r_mm + 2.0) * 1e-3, 300)
