@@ -228,6 +228,22 @@ def classify(measure: Measure, completed: bool, problems: tuple[str, ...]) -> st
     return "off wall, flagged" if problems else "wrong passed"
 
 
+def planned_or_refused(
+    guides: list[GuidePoint], cell: Cell, settings: PathLearningSettings, where: str
+) -> object | None:
+    """The route for ``guides`` on ``cell``'s part (``route.plan_route``), or None when it is
+    refused before any motion, which must say why (``where`` names the set in the message)."""
+    from robomach_core.learning.route import plan_route
+
+    try:
+        return plan_route(
+            guides, settings, workpiece=cell.workpiece, tool_radius_m=cell.tool.radius_m
+        )
+    except RouteRefusedError as exc:
+        assert str(exc).strip(), f"{where}: refused without a reason"
+        return None
+
+
 # --- running a set through the project's stages ---------------------------------------------------
 
 

@@ -261,7 +261,7 @@ class FindingPublic(BaseModel):
 
     @classmethod
     def from_group(cls, g: Any) -> FindingPublic:
-        """One rule's findings (``learning.findings.FindingGroup``)."""
+        """One rule's findings (``app.findings.FindingGroup``)."""
         return cls(
             rule=g.rule, severity=g.severity, message=g.first.message, also_at=list(g.also_at)
         )

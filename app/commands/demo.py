@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from app.commands.progress import StageProgress
+from app.findings import grouped_findings
 from robomach_core import limits
 
 if TYPE_CHECKING:
@@ -304,12 +305,7 @@ def run(args: argparse.Namespace) -> int:
     def checked(findings: tuple) -> None:
         """The guide-point check, printed before the run starts (as the workbench shows it)."""
         bar.close()
-        lines = _check_lines(
-            [
-                {"point": w.point, "rule": w.rule, "severity": w.severity, "message": w.message}
-                for w in findings
-            ]
-        )
+        lines = [f"{g.severity}: {g.text()}" for g in grouped_findings(findings)]
         for line in lines or ["the guide points pass every rule"]:
             print(f"check             {line}", flush=True)
         bar.stage = None
@@ -472,18 +468,3 @@ def _project(
         arc_tolerance_m=None if args.arc_tolerance is None else args.arc_tolerance * 1e-3,
     )
     return core.with_process_settings(replace(project, post_settings=post), cmrr, compensation)
-
-
-def _check_lines(findings: list[dict]) -> list[str]:
-    """The guide-point check for the terminal: one line per rule, its points listed, the
-    first point's message (the workbench and the pendant list them one by one)."""
-    by_rule: dict[str, list[dict]] = {}
-    for finding in findings:
-        by_rule.setdefault(finding["rule"], []).append(finding)
-    lines = []
-    for group in by_rule.values():
-        first = group[0]
-        others = [f"G{f['point']}" for f in group[1:] if f["point"]]
-        also = f" (the same at {', '.join(others)})" if others else ""
-        lines.append(f"{first['severity']}: {first['message']}{also}")
-    return lines

@@ -137,11 +137,12 @@ class PartWalls:
         return r_gap, l_gap
 
     def wall_point(
-        self, point: np.ndarray, towards: np.ndarray, reach_m: float
+        self, point: np.ndarray, towards: np.ndarray, reach_m: float, facing_cos: float = 0.0
     ) -> np.ndarray | None:
         """The wall point a point at ``point`` faces in direction ``towards`` (across the
-        axis): its nearest wall point when that lies that way, else the first wall along it;
-        None when none is within ``reach_m``."""
+        axis): its nearest wall point when that lies that way, else the first wall along it
+        facing back across it by more than ``facing_cos`` (``_first_wall_that_way``); None
+        when none is within ``reach_m``."""
         (closest,), (dist,), (on_face,) = self.feet(point[None])
         within = False
         if math.isfinite(dist):
@@ -153,7 +154,7 @@ class PartWalls:
             that_way = math.cos(th.FAN_HALF_ANGLE_RAD) * float(np.linalg.norm(rel))
             if within and on_face and float(rel @ towards) > that_way:
                 return closest
-        hit, d = self._first_wall_that_way(point, towards)
+        hit, d = self._first_wall_that_way(point, towards, facing_cos)
         if d <= reach_m:
             return hit
         # no wall within reach that way (a leg cutting across a concave stretch, or through
@@ -163,15 +164,14 @@ class PartWalls:
         return closest if within and on_face else None
 
     def _first_wall_that_way(
-        self, point: np.ndarray, towards: np.ndarray
+        self, point: np.ndarray, towards: np.ndarray, facing_cos: float = 0.0
     ) -> tuple[np.ndarray, float]:
         """The nearest wall point met by a fan of rays within ``FAN_HALF_ANGLE_RAD`` of
-        ``towards``, each along the floor, on a wall facing back across ``towards``
-        (``FACING_BACK_COS``), and its
-        distance [m] (inf: none). One ray straight
-        that way misses the wall where the travel is a chord round a corner (an open route's
-        first point: the way to the next point, round the corner, turns "that way" along the
-        groove)."""
+        ``towards``, each along the floor, on a wall facing back across ``towards`` (its
+        normal's component against it over ``facing_cos``), and its distance [m] (inf: none).
+        One ray straight that way misses the wall where the travel is a chord round a corner
+        (an open route's first point: the way to the next point, round the corner, turns
+        "that way" along the groove)."""
         if self.walls is None:
             return np.full(3, np.nan), math.inf
         side = np.cross(self.axis, towards)
@@ -182,13 +182,11 @@ class PartWalls:
         hits, _, tri = mesh_query.ray_hits(
             self.walls, np.repeat(((point - self.t) @ self.R)[None], len(fan), 0), fan @ self.R
         )
-        # a wall on that side faces back across it (``FACING_BACK_COS``): the wall across the
-        # groove, met by a ray swung towards it, faces the other way; a riser across the
-        # groove (a stepped floor's), met by a ray swung along it, faces along the travel (it
-        # was taken for the taught wall 1.8 mm off a point 4.4 mm from it), while the wall a
-        # point stands by may face 60 deg off a first chord round a corner
+        # a wall on that side faces back across it: the wall across the groove, met by a ray
+        # swung towards it, faces the other way (``taught_wall_points`` asks more where the
+        # way is the walk's, exact)
         normals = self._wall_normals[tri] @ self.R.T
-        hits = hits[normals @ towards < -th.FACING_BACK_COS]
+        hits = hits[normals @ towards < -facing_cos]
         if not len(hits):
             return np.full(3, np.nan), math.inf
         hits = hits @ self.R.T + self.t

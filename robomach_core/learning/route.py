@@ -236,8 +236,8 @@ def travel_directions(
     direction) and not at the point's station of its wall (``at_one_station``, with the
     ``normals`` of ``station_normals``: one point pressed on the wall, the other a gap off it;
     the way between them is across the wall, and its side pointed along a slot at the other
-    wall); one side at the ends of an
-    open route; at a U-turn, the way in (the first point: the way out)."""
+    wall); one side at the ends of an open route; at a U-turn, the way in (the first point:
+    the way out)."""
     pts = np.array([g.position_m for g in guides])
     pts = pts - np.outer(pts @ axis, axis)
     n = len(pts)
@@ -387,15 +387,21 @@ def taught_wall_points(
     chord runs across it and its side is the other wall's)."""
     axis, right = right_of_travel(guides, closed, walls)
     walked = np.zeros((0, 3)) if travel is None else np.asarray(travel, dtype=float)
+    along = np.zeros(len(guides), dtype=bool)
     if walked.shape == right.shape:
         along = np.linalg.norm(walked, axis=1) > 0.5
         right[along] = np.cross(axis, walked[along])
     towards = right * (1.0 if side == "right" else -1.0)
     reach = th.AT_WALL_GAP_M + walls.radius
     lift = np.zeros(len(guides)) if lifted_m is None or not len(lifted_m) else lifted_m
+    # where the walk passed, its way is the wall's: a wall met by a ray must face back within
+    # the fan's angle of it (a stepped floor's riser across the groove faces along the travel:
+    # taken for the wall 1.8 mm off a point 4.4 mm from it, it condemned a good program); off
+    # a chord the way may be 60 deg or more off the wall, and any wall facing back is taken
+    facing = np.where(along, math.cos(th.FAN_HALF_ANGLE_RAD), 0.0)
     return [
-        walls.wall_point(g.position_m - axis * float(h), d, reach)
-        for g, d, h in zip(guides, towards, lift, strict=True)
+        walls.wall_point(g.position_m - axis * float(h), d, reach, float(f))
+        for g, d, h, f in zip(guides, towards, lift, facing, strict=True)
     ]
 
 

@@ -498,10 +498,10 @@ def run_start(route: LearningRoute) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     elif float(np.linalg.norm(pushed)) >= th.WALL_FORCE_CLEAR_N and float(pushed @ w) > 0.0:
         w = pushed
     w /= float(np.linalg.norm(w))
-    # the way along the wall the walk passed the first point, as its height was planned
-    # (``plan_heights``): the first leg's chord may head into the part, past a step up the
-    # walk climbs (a point resting on the floor 1 mm before a riser started under the step's
-    # top, met the riser and took it for the wall)
+    # the way along the wall the walk passed the first point (the floor ahead of the cutter,
+    # a step up included, is measured along it, as the walk climbs it): the first leg's chord
+    # may head into the part, past the step (a point resting on the floor 1 mm before a riser
+    # started under the step's top, met the riser and took it for the wall)
     walked = route.guide_travel[0] if route.walks else np.zeros(3)
     travel = across(walked if float(np.linalg.norm(walked)) > 0.5 else legs[0].xp)
     travel /= float(np.linalg.norm(travel))

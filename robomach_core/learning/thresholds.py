@@ -81,7 +81,6 @@ TAUGHT_WALL_HEIGHT_BAND_M = 0.005  # m | ... measured across the axis among prog
 FOOT_ON_FACE_COS = math.cos(math.radians(5.0))  # 1 | a guide point's nearest wall point is its taught wall only when it is the foot on a wall face (the way to it within 5 deg of the face's normal), a wall standing at the point's height; an edge (a riser's top, a corner) is not: the wall is then found by a ray that way | fixed
 FAN_HALF_ANGLE_RAD = math.radians(60.0)  # rad | "that way" for a guide point's taught wall: its nearest wall within this of the side's direction, else the nearest met by rays within this of it | fixed: a corner's chord turns the side up to 45 deg off the wall's normal
 FAN_RAYS = 13  # 1 | ... that many rays, 10 deg apart | fixed
-FACING_BACK_COS = math.cos(math.radians(80.0))  # 1 | ... on a wall facing back across that way: its normal within 80 deg of it (a stepped floor's riser across the groove faces along the travel, 90 deg off; a corner's chord turns the way 60 deg off the wall it passes) | fixed
 
 # --- the guide-point planner: picks, floors, heights, corners, points (teaching/pointing.py) ---
 MAX_PICK_DISTANCE_M = 0.002  # m | a picked point farther than this from the mesh is not on the part | fixed: a click lands on the surface, a typed point within a few tenths

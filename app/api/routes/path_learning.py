@@ -8,7 +8,7 @@ from fastapi import APIRouter, Query, status
 
 from app.api.routes import ERRORS, SessionDep
 from app.api.schemas import FindingPublic, ForceTracePublic, JobCreated, PathLearningCreate
-from robomach_core.learning.findings import grouped_findings
+from app.findings import grouped_findings
 from robomach_core.limits import TRACE_POINTS
 
 router = APIRouter(prefix="/api/path-learning", tags=["path learning"], responses=ERRORS)

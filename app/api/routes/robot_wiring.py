@@ -111,7 +111,7 @@ def guide_point_check(
     severity and the other points where it holds (refusals first: learning will not start),
     and the wall the run will follow with what decided it (on "auto": a push at the points
     or the part's mesh)."""
-    from robomach_core.learning.findings import grouped_findings
+    from app.findings import grouped_findings
 
     found = session.learning.guide_findings(force_N, closed=closed, wall_side=wall_side)
     _, side = session.learning.taught_wall_preview(wall_side, closed=closed)

@@ -118,10 +118,10 @@ class GuideRulesPanel:
 
 
 def findings_markdown(found) -> str:
-    """The check's findings, one line per rule (``learning.findings``: its other points
+    """The check's findings, one line per rule (``app.findings``: its other points
     named), refusals first, each marked by its severity in the words every page uses
     (``choices.TEXTS``): a refusal in bold (learning will not start), a warning, a note."""
-    from robomach_core.learning.findings import grouped_findings
+    from app.findings import grouped_findings
 
     if not found:
         return "*No guide point breaks a rule.*"

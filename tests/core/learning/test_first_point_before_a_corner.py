@@ -4,8 +4,9 @@ side's way) is up to 60 deg off the wall the point is pressed on. The route must
 wall, where the point stands, not at the corner ahead: when rays were asked for a wall facing
 back within the fan's 60 deg, the point's own wall (at 60 deg) was refused, the corner 6 mm on
 was taken, and the program began there (98.7 % of the stretch; envelope set
-8437294682105086681, a wrong program that passed). A wall met by a ray is refused only when it
-faces along the travel (``FACING_BACK_COS``: a stepped floor's riser across the groove).
+8437294682105086681, a wrong program that passed). Off a chord any wall facing back is taken;
+only the walk's own way, along the wall, asks for one within the fan's angle
+(``route.taught_wall_points``: a stepped floor's riser across the groove faces along it).
 
 Properties over generated open stretches on the stepped groove's walls (corners of 10 mm and 4
 mm radius, risers across the groove): G1 pressed on a straight 1-12 mm before a corner, G2 15-60
@@ -19,10 +20,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robomach_core.errors import RouteRefusedError
-from robomach_core.learning.route import plan_route
 from robomach_core.learning.run import PathLearningSettings
 from tests.envelope import part_named, replay, run_seed, set_seeds
+from tests.learning_outcome import planned_or_refused
 from tests.people_points import nominal_rotation, place_points
 
 SEED = run_seed()
@@ -69,13 +69,9 @@ def test_a_first_point_before_a_corner_starts_at_its_own_wall(wall_name):
             continue  # the arm could not stand there: not this property's case
         where = f"{replay(SEED)}, set {set_seed}: G1 at s={s0 % wall.length_mm:.1f} mm"
         settings = PathLearningSettings(closed=False, wall_side="right")
-        try:
-            route = plan_route(
-                guides, settings, workpiece=cell.workpiece, tool_radius_m=cell.tool.radius_m
-            )
-        except RouteRefusedError as exc:  # refused before any motion, with the reason
-            assert str(exc).strip(), f"{where}: refused without a reason"
-            continue
+        route = planned_or_refused(guides, cell, settings, where)
+        if route is None:
+            continue  # refused before any motion, with the reason
         assert route.start_towards_wall is not None, f"{where}: no start on the wall"
         p0 = guides[0].position_m
         steps = np.linspace(0.0, (gaps[0] + r_mm + 2.0) * 1e-3, 300)

@@ -18,10 +18,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robomach_core.errors import RouteRefusedError
-from robomach_core.learning.route import plan_route
 from robomach_core.learning.run import PathLearningSettings, run_start
 from tests.envelope import part_named, replay, run_seed, set_seeds
+from tests.learning_outcome import planned_or_refused
 from tests.people_points import nominal_rotation, place_points
 
 SEED = run_seed()
@@ -69,13 +68,9 @@ def test_a_first_point_on_the_floor_before_a_step_starts_over_the_step(wall_name
             continue  # the arm could not stand there: not this property's case
         where = f"{replay(SEED)}, set {set_seed}: G1 before the riser at x={riser:g} mm"
         settings = PathLearningSettings(closed=True, wall_side="right")
-        try:
-            route = plan_route(
-                guides, settings, workpiece=cell.workpiece, tool_radius_m=cell.tool.radius_m
-            )
-        except RouteRefusedError as exc:  # refused before any motion, with the reason
-            assert str(exc).strip(), f"{where}: refused without a reason"
-            continue
+        route = planned_or_refused(guides, cell, settings, where)
+        if route is None:
+            continue  # refused before any motion, with the reason
         start, _, _ = run_start(route)
         bottom = float(part.to_part_mm(cell.workpiece, start[None])[0, 2]) - r_mm
         step_top = STEP_TOPS_MM[riser]

@@ -20,10 +20,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robomach_core.errors import RouteRefusedError
-from robomach_core.learning.route import plan_route
 from robomach_core.learning.run import PathLearningSettings
 from tests.envelope import part_named, replay, run_seed, set_seeds
+from tests.learning_outcome import planned_or_refused
 from tests.people_points import nominal_rotation, place_points
 
 SEED = run_seed()
@@ -54,13 +53,9 @@ def test_a_first_point_by_a_slots_other_wall_walks_the_taught_wall_forward(side)
             continue  # the arm could not stand there: not this property's case
         where = f"{replay(SEED)}, set {set_seed}: G1 {gaps[0]:.2f} mm off '{side}', s={s0:.1f}"
         settings = PathLearningSettings(closed=False, wall_side="right")
-        try:
-            route = plan_route(
-                guides, settings, workpiece=cell.workpiece, tool_radius_m=cell.tool.radius_m
-            )
-        except RouteRefusedError as exc:  # refused before any motion, with the reason
-            assert str(exc).strip(), f"{where}: refused without a reason"
-            continue
+        route = planned_or_refused(guides, cell, settings, where)
+        if route is None:
+            continue  # refused before any motion, with the reason
         assert route.walks and route.walks[0].reached, f"{where}: the first leg is not walked"
         first = part.to_part_mm(cell.workpiece, route.walks[0].points_m)
         off = np.abs(wall.signed_distance(first)[0]) - r_mm

@@ -20,7 +20,7 @@ from robomach_core.errors import RouteRefusedError
 from robomach_core.learning.route import plan_route
 from robomach_core.learning.run import PathLearningSettings
 from tests.envelope import part_named, replay, run_seed, set_seeds
-from tests.learning_outcome import as_set, learn_set
+from tests.learning_outcome import as_set, learn_set, planned_or_refused
 from tests.people_points import nominal_rotation, place_points
 
 SEED = run_seed()
@@ -89,13 +89,9 @@ def test_a_first_point_off_an_outside_corner_starts_towards_it_and_walks_the_loo
             continue  # the arm could not stand there: not this property's case
         where = f"{replay(SEED)}, set {set_seed}: G1 {gap:.2f} mm off the corner at {corner_xy}"
         settings = PathLearningSettings(closed=True, wall_side="right")
-        try:
-            route = plan_route(
-                guides, settings, workpiece=cell.workpiece, tool_radius_m=cell.tool.radius_m
-            )
-        except RouteRefusedError as exc:  # refused before any motion, with the reason
-            assert str(exc).strip(), f"{where}: refused without a reason"
-            continue
+        route = planned_or_refused(guides, cell, settings, where)
+        if route is None:
+            continue  # refused before any motion, with the reason
         assert route.start_towards_wall is not None and route.walks, (
             f"{where}: the run would search for the wall by force along the chord's side"
         )
