@@ -9,6 +9,7 @@ controller the median, worst and share under 75 % of 1 - offline / off wall max 
 median offline cycle and peak.
 
     python benchmarks/bench_offline_stocks.py DEMO_DIR [--stocks 20] [--base 2026120500]
+        [--stages online|planned]
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from robomach_core.cell import Robot
 from robomach_core.export.target_joints import with_target_joints
 from robomach_core.machining import (
     MACHINING_CONTROLLERS,
+    STAGE_PLANS,
     MachiningSettings,
     builtin_stock,
     run_machining,
@@ -37,6 +39,9 @@ def main() -> None:
     parser.add_argument("--stocks", type=int, default=20)
     parser.add_argument("--base", type=int, default=2026120500, help="first stock seed")
     parser.add_argument("--json", default=None, help="write the per-stock figures here")
+    parser.add_argument(
+        "--stages", choices=STAGE_PLANS, default="online", help="MachiningSettings.stages"
+    )
     args = parser.parse_args()
     project = core.load_project_file(f"{args.demo}/project.npz")
     workpiece = core.build_workpiece(project.cell, project.mesh)
@@ -55,7 +60,8 @@ def main() -> None:
             runs = {
                 m: run_machining(
                     robot, targets, None, stock,
-                    MachiningSettings(controller=c, compensation=m), compensation_model=model,
+                    MachiningSettings(controller=c, compensation=m, stages=args.stages),
+                    compensation_model=model,
                 ).summary
                 for m in ("off", "offline")
             }  # fmt: skip
@@ -71,7 +77,10 @@ def main() -> None:
             )  # fmt: skip
             line.append(f"{c} {cut:.1f}%")
         print(" ".join(line), flush=True)
-    print(f"\n{robot.name}, {args.stocks} stocks from seed {args.base}: offline % cut")
+    print(
+        f"\n{robot.name}, {args.stocks} stocks from seed {args.base}, stages {args.stages}: "
+        "offline % cut"
+    )
     for c, rows in out.items():
         cuts = np.array([r["cut_pct"] for r in rows])
         if not cuts.size:

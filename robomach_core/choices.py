@@ -83,6 +83,7 @@ def enums() -> dict[str, tuple[str, ...]]:
     from .export.languages import language_choices, language_names
     from .learning.settings import WALL_SIDE_CHOICES
     from .machining.choice import OPTION_NAMES
+    from .machining.settings import STAGE_PLANS
     from .part import WORKPIECE_NAMES
     from .project import STOCK_SOURCES, StageStatus
     from .robots import ARM_FAMILIES
@@ -94,6 +95,7 @@ def enums() -> dict[str, tuple[str, ...]]:
         "cmrr_controller": tuple(CONTROLLER_NAMES),
         "compensation": tuple(COMPENSATIONS),
         "offline_model": tuple(OFFLINE_MODELS),
+        "machining_stages": tuple(STAGE_PLANS),
         "program_language": tuple(language_names()),
         "language_choice": tuple(language_choices()),
         "wall_side": tuple(WALL_SIDE_CHOICES),

@@ -28,6 +28,7 @@ function machiningCard(choices) {
     <div class="row">
       <label>Controller <select id="mach-controller" data-enum="cmrr_controller"></select></label>
       <label>Compensation <select id="mach-compensation" data-enum="compensation"></select></label>
+      <label title="under offline compensation, how fuzzy and two-stage pick their stage: online (switching in the cell by the force) or planned (the program's speeds, no feed control in the cell)">Stages <select id="mach-stages" data-enum="machining_stages"></select></label>
       <span class="small">stock: <span id="mach-stock">-</span></span>
     </div>
     <div class="row">
@@ -66,6 +67,7 @@ function showMachiningSettings(s) {
   $("mach-limit").value = s.force_limit_N;
   $("mach-controller").value = s.controller;
   $("mach-compensation").value = s.compensation;
+  $("mach-stages").value = s.stages;
   $("mach-stock").textContent = s.stock_source;
   $("mach-chosen").textContent = `chosen: ${s.controller} / ${s.compensation}`;
   $("mach-stale").classList.toggle("hidden", s.status !== "stale");
@@ -246,6 +248,11 @@ async function initMachining() {
   }
   $("mach-options-default").addEventListener("click", safe(async () => {
     showMachiningSettings(await api("PUT", "/machining/settings", { cell_options_default: true }));
+    await loadMachiningResult();
+  }));
+  $("mach-stages").addEventListener("change", safe(async () => {
+    showMachiningSettings(await api("PUT", "/machining/settings",
+      { stages: $("mach-stages").value }));
     await loadMachiningResult();
   }));
   $("mach-variations").addEventListener("change", safe(async () => {

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from robomach_core.machining.choice import OPTION_NAMES as CELL_OPTION_CHOICES
 from robomach_core.machining.settings import MACHINING_CONTROLLERS as CONTROLLER_CHOICES
+from robomach_core.machining.settings import STAGE_PLANS as STAGE_CHOICES
 from robomach_core.machining.settings import MachiningSettings
 from robomach_core.stiffness.modes import COMPENSATIONS as COMPENSATION_CHOICES
 
@@ -91,6 +92,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=MachiningSettings.compensation,
         choices=(*COMPENSATION_CHOICES, "all"),
         help="deflection compensation: off, offline, online, or all (default %(default)s)",
+    )
+    p.add_argument(
+        "--stages",
+        default=MachiningSettings.stages,
+        choices=STAGE_CHOICES,
+        help="under offline compensation, how fuzzy and two-stage pick their stage: online "
+        "(they switch in the cell by the force) or planned (their cuts of the nominal wall fix "
+        "the lowest stage every 0.1 mm, the program carries it as its speeds and the cell runs "
+        "no feed control: the correction meets the force it was planned for, but a casting "
+        "with burrs elsewhere meets them at the planned speeds; chosen only with --variations) "
+        "(default %(default)s)",
     )
     p.add_argument(
         "--force-limit-N",
@@ -171,7 +183,9 @@ def run(args: argparse.Namespace) -> int:
     bar = StageProgress()
     try:
         project = _project(args, bar)
-        settings = MachiningSettings(force_limit_N=args.force_limit_N, seed=args.seed)
+        settings = MachiningSettings(
+            force_limit_N=args.force_limit_N, seed=args.seed, stages=args.stages
+        )
         setup = core.MachiningSetup(
             settings, **stock_arg, cell_options=options, variations=args.variations
         )

@@ -83,6 +83,7 @@ class MachiningService:
             "reference_force_N": s.reference_N,
             "controller": s.controller,
             "compensation": s.compensation,
+            "stages": s.stages,
             "stock_source": setup.stock_source,
             "stock_profile_mm": None
             if setup.stock_profile_mm is None
@@ -186,13 +187,14 @@ class MachiningService:
         force_limit_N: float | None = None,
         controller: str | None = None,
         compensation: str | None = None,
+        stages: str | None = None,
         stock_source: str | None = None,
         cell_options: list[str] | tuple[str, ...] | None = None,
         cell_options_default: bool | None = None,
         variations: int | None = None,
     ) -> core.MachiningSetup:
-        """Change settings (None keeps one). A process, limit or variations change dates the
-        result; a controller or compensation change is a choice (``choose``) and does not, nor
+        """Change settings (None keeps one). A process, limit, stages or variations change dates
+        the result; a controller or compensation change is a choice (``choose``) and does not, nor
         do the cell's options (``cell_options``; ``cell_options_default`` back to the program
         language's): the result is re-chosen for them."""
         values = {
@@ -204,6 +206,7 @@ class MachiningService:
                 "force_limit_N": force_limit_N,
                 "controller": controller,
                 "compensation": compensation,
+                "stages": stages,
             }.items()
             if v is not None
         }

@@ -23,6 +23,7 @@ from .run import identify_stiffness as identify_stiffness
 from .run import run_machining as run_machining
 from .run import stiffness_model as stiffness_model
 from .settings import MACHINING_CONTROLLERS as MACHINING_CONTROLLERS
+from .settings import STAGE_PLANS as STAGE_PLANS
 from .settings import MachiningSettings as MachiningSettings
 from .settings import settings_to_dict as settings_to_dict
 from .stock import Burr as Burr

@@ -56,34 +56,36 @@ NOISE     Each rehearsal cuts on a sensor-noise draw of its own, never the setti
           controllers' rows showed a cut no cell meets (UR10 pump demo, seed 0: fuzzy and
           two-stage 0.005 mm, 95-96 % cut; on draws of their own 0.015 mm, 87 %, and
           0.043 mm, 60 %).
-STAGES    Under a staged controller (fuzzy, two-stage) the stages are planned too, before the
-          correction (``schedule``, issue 29): ``schedule.SCHEDULE_DRAWS`` cuts of the nominal
-          wall (rehearsal numbers 0, 1, ...: draws of their own) fix the lowest stage any of
-          them ran at each station, the program carries that schedule as its speeds (a target
-          where the stage changes), and every later rehearsal and the corrected program's cut
-          run those speeds with no online switching (``run.FeedSource`` "program"). The cut
-          is then deterministic, as the constant feed's: the plan above meets the force it
-          was made for. Where every draw stops (the controller's protection rule on the
-          nominal wall), there is no schedule and the stages switch online as before.
-LIMIT     Before the schedule, a staged controller's stage switch landed where the noise put
-          it, a sample to a millimetre from one draw to the next, and where some rehearsals
-          switched and others did not the midrange left half a stage step (two-stage on a
-          UR10 stock: ~110 N to ~40 N), ~30 % of the uncompensated error: over 100 fresh
-          stocks on each of the UR10, IRB 4400 and KR 270 demos fuzzy median 80-82 %,
-          57.6 % at worst, two-stage median 67-72 %, 42.9 % at worst. With the schedule, over
-          20 fresh stocks on each (``benchmarks/bench_offline_stocks.py``, seeds from
-          2026120500): fuzzy median 92.6-96.8 %, 91.8 % at worst; two-stage median
-          91.9-97.7 %, 91.3 % at worst; none under 75 % (switching online on the same stocks:
-          fuzzy 69.8 % at worst, 6 of 60 under 75 %; two-stage 44.5 % at worst, 40 of 60);
-          the cycle 0.2-0.3 % longer in the median (at most 2.6 %); the unstaged
-          controllers' figures are unchanged, stock for stock. What the schedule costs: it is
-          planned for the stock it was cut on. A casting with burrs elsewhere meets them at
-          the planned speeds with no feed control (the pump's program over 16 drawn stocks:
-          peak p95 272 N against the online fuzzy's 145 N; the cell's overload trip at twice
-          the limit), so a sweep over castings (``--variations``) does not choose these rows.
-          A guard that drops to the lowest stage while the force is over the limit was
-          measured and not built: the feed and the force lag, and the peaks stayed at
-          216-233 N (``schedule`` LIMIT).
+STAGES    Under a staged controller (fuzzy, two-stage) with ``MachiningSettings.stages``
+          "planned", the stages are planned too, before the correction (``schedule``, issue
+          29): ``schedule.SCHEDULE_DRAWS`` cuts of the nominal wall (rehearsal numbers 0, 1,
+          ...: draws of their own) fix the lowest stage any of them ran at each station, the
+          program carries that schedule as its speeds (a target where the stage changes), and
+          every later rehearsal and the corrected program's cut run those speeds with no
+          online switching (``run.FeedSource`` "program"). The cut is then deterministic, as
+          the constant feed's: the plan above meets the force it was made for. Where every
+          draw stops (the controller's protection rule on the nominal wall), there is no
+          schedule and the stages switch online. With "online" (the default) the stages
+          switch in the cell's cut, by its force.
+LIMIT     With the stages switched online, a staged controller's stage switch lands where the
+          noise puts it, a sample to a millimetre from one draw to the next, and where some
+          rehearsals switched and others did not the midrange leaves half a stage step
+          (two-stage on a UR10 stock: ~110 N to ~40 N), ~30 % of the uncompensated error: over
+          100 fresh stocks on each of the UR10, IRB 4400 and KR 270 demos fuzzy median
+          80-82 %, 57.6 % at worst, two-stage median 67-72 %, 42.9 % at worst (README pump:
+          83 % and 61 %). With the stages planned, over 20 fresh stocks on each
+          (``benchmarks/bench_offline_stocks.py --stages planned``, seeds from 2026120500):
+          fuzzy median 92.6-96.8 %, 91.8 % at worst; two-stage median 91.9-97.7 %, 91.3 % at
+          worst; none under 75 % (switching online on the same stocks: fuzzy 69.8 % at worst,
+          6 of 60 under 75 %; two-stage 44.5 % at worst, 40 of 60); the cycle 0.2-0.3 %
+          longer in the median (at most 2.6 %). What planning costs: the schedule is planned
+          for the stock it was cut on. A casting with burrs elsewhere meets them at the
+          planned speeds with no feed control (the pump's program over 16 drawn stocks: peak
+          p95 272 N against the online fuzzy's 145 N; the cell's overload trip at twice the
+          limit), so the rule chooses a planned row only on the evidence of ``--variations``
+          (``choice``), and "online" stays the default. A guard that drops to the lowest stage
+          while the force is over the limit was measured and not built: the feed and the
+          force lag, and the peaks stayed at 216-233 N (``schedule`` LIMIT).
 """
 
 from __future__ import annotations

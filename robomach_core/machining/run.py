@@ -255,15 +255,15 @@ def run_machining(
         on_the_wall, np.zeros_like(plan.inputs.offset), cancel,
         seed=rehearsal_seed(settings.seed, 0),
     )  # fmt: skip
-    # A staged controller's stages are planned here, not switched in the cell's cut
-    # (``schedule``): the lowest stage its cuts of the nominal wall ran at each station, on
-    # draws of their own (this one the first), becomes the program's speeds, and the cut and
-    # its rehearsals run those speeds with no feed control.
+    # With ``stages`` "planned", a staged controller's stages are planned here, not switched
+    # in the cell's cut (``schedule``): the lowest stage its cuts of the nominal wall ran at
+    # each station, on draws of their own (this one the first), becomes the program's speeds,
+    # and the cut and its rehearsals run those speeds with no feed control.
     staged = plan
     numbered = 0  # rehearsal numbers (noise draws) used so far
     feed: FeedSource = "controller"
     ratios = None
-    if settings.controller in STAGED_CONTROLLERS:
+    if settings.controller in STAGED_CONTROLLERS and settings.stages == "planned":
         draws = [ideal] + [
             rehearsal_cut(
                 on_the_wall,

@@ -30,7 +30,9 @@ LIMIT     The schedule is planned for the stock it was cut on. With no feed cont
           force leaves the planned force by a margin (per station, carried per target) is the
           next step.
 SOLUTION  ``stage_ratio_met`` (the stage each draw ran at each station), ``scheduled_program``
-          (the program with the schedule as its speeds); ``run.run_machining`` composes them.
+          (the program with the schedule as its speeds); ``run.run_machining`` composes them
+          when ``MachiningSettings.stages`` is "planned" (the default "online" keeps the
+          switching in the cell: its feed control meets any casting).
           The row's summary says ``feed: "program"`` and ``schedule_draws``; the exporters
           write the speeds and no FC SpeedChange or feed loop for it (``project``).
 """

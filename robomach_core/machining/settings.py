@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 from ..cmrr.controllers import CONTROLLER_NAMES, ControllerSettings
 from ..cmrr.process import DEFAULT_TAU_M_S, PowerLawForceModel
@@ -44,6 +44,11 @@ MAX_DESIGN_DEPTH_M = 0.02
 # The machining run's feed controls are the CMRR controllers (defined with their settings).
 MACHINING_CONTROLLERS: tuple[str, ...] = CONTROLLER_NAMES
 ControllerName = Literal[MACHINING_CONTROLLERS]  # type: ignore[valid-type]
+# How a staged controller (fuzzy, two-stage) picks its stage under offline compensation:
+# switching online in the cell by the force, or planned offline as the program's speeds
+# (``machining.schedule``).
+Stages = Literal["online", "planned"]
+STAGE_PLANS: tuple[Stages, ...] = get_args(Stages)
 
 # Each scalar setting's range, from ``limits`` (one definition for the API, the GUIs and here),
 # so an advertised value is never refused here or, through the CMRR settings the choice makes,
@@ -116,6 +121,11 @@ class MachiningSettings:
             ``"online"`` (joint reference corrected from the measured force): the one
             vocabulary of ``stiffness.modes``. The run plans an offline correction linearly
             from the force its rehearsals met (``machining.offline``).
+        stages: Under offline compensation, how a staged controller (fuzzy, two-stage) picks
+            its stage: ``"online"`` (it switches in the cell by the measured force, as without
+            compensation) or ``"planned"`` (its cuts of the nominal wall fix the lowest stage
+            per station, the program carries it as its speeds, and the cell runs no feed
+            control: ``machining.schedule``). Other controllers and modes ignore it.
         feed_force_ratio: Feed (tangential) over normal component of the process force; the
             power law gives the magnitude, the normal component pushes the tool off the wall.
         axial_engagement_m: Height of the cut along the tool axis (for the MRR only).
@@ -144,6 +154,7 @@ class MachiningSettings:
     design_depth_m: float | None = None
     min_speed_ratio: float = 0.1
     compensation: Compensation = "off"
+    stages: Stages = "online"
     feed_force_ratio: float = 0.5
     axial_engagement_m: float = 0.005
     sensor_noise_N: float = 2.0
@@ -168,6 +179,10 @@ class MachiningSettings:
             raise MachiningSettingsError(
                 f"unknown compensation {self.compensation!r}; choose one of "
                 f"{', '.join(COMPENSATIONS)}"
+            )
+        if self.stages not in STAGE_PLANS:
+            raise MachiningSettingsError(
+                f"unknown stages {self.stages!r}; choose one of {', '.join(STAGE_PLANS)}"
             )
         if self.controller_settings is not None and self.controller_settings.kind != (
             self.controller

@@ -116,6 +116,8 @@ class MachiningSetup:
         doc.pop("controller", None)
         doc.pop("compensation", None)
         doc.pop("controller_settings", None)
+        if doc.get("stages") == "online":  # the default: results saved before it keep their key
+            doc.pop("stages")
         h = hashlib.blake2b(digest_size=12)
         h.update(json.dumps(doc, sort_keys=True, default=str).encode())
         h.update(self.stock_source.encode())

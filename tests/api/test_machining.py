@@ -39,7 +39,9 @@ def test_settings_have_ranges_in_the_schema_and_refuse_bad_values(api: Api) -> N
     assert gain["minimum"] == 0.1 and gain["maximum"] == 1.0e4
     for path in ("/settings", "/run", "/compare", "/result", "/comparison", "/choice"):
         assert f"/api/machining{path}" in schema["paths"], path
-    for body in ({"force_limit_N": 0}, {"depth_exponent": 4}, {"controller": "magic"}, {"x": 1}):
+    assert settings["stages"] == "online"
+    bad = ({"force_limit_N": 0}, {"depth_exponent": 4}, {"controller": "magic"}, {"x": 1})
+    for body in (*bad, {"stages": "sometimes"}):
         r = api.put("/api/machining/settings", json=body)
         assert r.status_code == 422, (body, r.text)
     new = api.ok(
@@ -47,6 +49,9 @@ def test_settings_have_ranges_in_the_schema_and_refuse_bad_values(api: Api) -> N
     )
     assert new["process_gain_N"] == 30 and new["reference_force_N"] == pytest.approx(140.0)
     assert api.ok("GET", "/api/machining/settings")["force_limit_N"] == 200
+    assert api.ok("PUT", "/api/machining/settings", json={"stages": "planned"})["stages"] == (
+        "planned"
+    )
 
 
 def test_no_program_no_run(api: Api) -> None:

@@ -141,13 +141,30 @@ def test_offline_compensation_exports_the_corrected_program(tmp_path):
     assert summary["stock"]["source"] == "profile"
     assert summary["stock"]["allowance_max_mm"] == pytest.approx(2.5)
     program = (out / "program.mod").read_text()
-    # The fuzzy controller's offline row is its stage schedule planned offline: the speeds
-    # of the program, no FC SpeedChange (issue 29, ``machining.schedule``).
-    assert "FCSpdChgAct" not in program
-    assert "planned from rehearsals of its stage schedule's cut" in program
-    assert summary["runs"][0]["feed"] == "program"
+    assert "FCSpdChgAct" in program
+    assert "offline, planned from rehearsals of the fuzzy cut" in program
     plain = (block_demo_dir() / "program.mod").read_text()
     assert program.count("MoveL") > 5 * plain.count("MoveL")  # densified and corrected
+
+
+@pytest.mark.slow
+def test_planned_stages_export_the_schedule_as_the_feeds(tmp_path):
+    """``--stages planned``: the fuzzy controller's offline row runs its stage schedule, the
+    program carries it as its speeds with no FC SpeedChange, and the table and header say so."""
+    out = tmp_path / "o"
+    proc = robomach_here(
+        "machine", "--out", str(out), "--from", str(block_demo_dir()), "--controller", "fuzzy",
+        "--compensation", "offline", "--stages", "planned", "--no-plot",
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "machining_summary.json").read_text())
+    assert summary["runs"][0]["feed"] == "program"
+    assert "schedule: fuzzy / offline run the stage schedule" in proc.stdout
+    program = (out / "program.mod").read_text()
+    assert "FCSpdChgAct" not in program
+    assert "planned from rehearsals of its stage schedule's cut" in program
+    refused = robomach_here("machine", "--out", str(out), "--stages", "sometimes")
+    assert refused.returncode != 0 and "--stages" in refused.stderr
 
 
 @pytest.mark.parametrize(

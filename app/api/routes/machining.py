@@ -20,7 +20,7 @@ from robomach_core.limits import (
     MACHINING_PROCESS_GAIN_N,
     MACHINING_VARIATIONS,
 )
-from robomach_core.machining import MACHINING_CONTROLLERS
+from robomach_core.machining import MACHINING_CONTROLLERS, STAGE_PLANS
 from robomach_core.machining.choice import OPTION_NAMES
 from robomach_core.machining.stock import MAX_ALLOWANCE_M, MAX_PROFILE_POINTS, MAX_PROFILE_S_MM
 from robomach_core.project import STOCK_SOURCES, StageStatus
@@ -31,6 +31,7 @@ router = APIRouter(prefix="/api/machining", tags=["machining"], responses=ERRORS
 # The choices of the core (``robomach_core.choices``), never typed again here.
 Controller = Literal[MACHINING_CONTROLLERS]  # type: ignore[valid-type]
 StockSource = Literal[STOCK_SOURCES]  # type: ignore[valid-type]
+Stages = Literal[STAGE_PLANS]  # type: ignore[valid-type]
 CellOption = Literal[OPTION_NAMES]  # type: ignore[valid-type]
 UPLOAD_CHUNK_BYTES = 1024 * 1024
 
@@ -45,6 +46,11 @@ class MachiningSettingsPublic(BaseModel):
     reference_force_N: float = Field(description="Fr the CMRR controllers hold (0.7 x limit)")
     controller: Controller = Field(description="the chosen feed control")
     compensation: Compensation = Field(description="the chosen deflection compensation")
+    stages: Stages = Field(
+        description="under offline compensation, how fuzzy and two-stage pick their stage: "
+        "online (switching in the cell by the force) or planned (the program's speeds, no feed "
+        "control in the cell; docs/machining.md)"
+    )
     stock_source: StockSource
     stock_profile_mm: list[list[float]] | None = Field(description="(s_mm, allowance_mm) pairs")
     stock_mesh: str | None = Field(description="file name of the uploaded stock mesh")
@@ -76,6 +82,9 @@ class MachiningSettingsUpdate(BaseModel):
     force_limit_N: float | None = within(MACHINING_FORCE_LIMIT_N, "force limit [N]")
     controller: Controller | None = None
     compensation: Compensation | None = None
+    stages: Stages | None = Field(
+        None, description="online or planned (a change dates the result: run it again)"
+    )
     stock_source: StockSource | None = Field(
         None, description="builtin, or profile / mesh once given (PUT stock/profile, POST stock)"
     )

@@ -28,7 +28,7 @@ from robomach_core.limits import (
     MACHINING_VARIATIONS,
     Range,
 )
-from robomach_core.machining import MACHINING_CONTROLLERS
+from robomach_core.machining import MACHINING_CONTROLLERS, STAGE_PLANS
 from robomach_core.machining.choice import OPTION_NAMES, OPTION_TEXT, RULE_TEXT
 from robomach_core.project import STOCK_SOURCES
 from robomach_core.stiffness import COMPENSATIONS
@@ -93,6 +93,14 @@ class MachiningPanel:
             )
             self.compensation = server.gui.add_dropdown(
                 "Compensation", COMPENSATIONS, initial_value=s["compensation"]
+            )
+            self.stages = server.gui.add_dropdown(
+                "Stages",
+                STAGE_PLANS,
+                initial_value=s["stages"],
+                hint="under offline compensation, how fuzzy and two-stage pick their stage: "
+                "online (switching in the cell by the force) or planned (the program's speeds, "
+                "no feed control in the cell; chosen by the rule only with variations)",
             )
             with server.gui.add_folder("Cell options", expand_by_default=False):
                 self.options = {
@@ -208,6 +216,9 @@ class MachiningPanel:
         self.options_default.on_click(
             guarded("Cell options", lambda e: self.service.set_settings(cell_options_default=True))
         )
+        self.stages.on_update(
+            guarded("Machining", lambda e: self.service.set_settings(stages=self.stages.value))
+        )
         self.variations.on_update(
             guarded(
                 "Machining",
@@ -306,6 +317,7 @@ class MachiningPanel:
         s = self.service.settings_document()
         set_value(self.controller, s["controller"])
         set_value(self.compensation, s["compensation"])
+        set_value(self.stages, s["stages"])
         set_value(self.stock, s["stock_source"])
         for name, box in self.options.items():
             set_value(box, name in s["cell_options"])

@@ -53,12 +53,7 @@ def test_rows_compare_each_controller_with_the_constant_feed(matrix):
     assert pi["faster_than_constant_pct"] == pytest.approx(expected)
     assert pi["wall_error_max_mm"] > rows["adaptive-pi", "online"]["wall_error_max_mm"]
     lines = result.table_text.splitlines()
-    table = lines[: lines.index("")] if "" in lines else lines
-    assert len(table) == 1 + len(result.runs)
-    # The staged controllers' offline rows run their stage schedule, named under the table.
-    assert "schedule: two-stage / offline run the stage schedule" in (
-        result.table_text
-    )
+    assert len(lines) == 1 + len(result.runs)
     assert "cycle [s]" in lines[0] and "adaptive-pi" in result.table_text
 
 

@@ -4,13 +4,14 @@ chosen, its program files are written as the CLI writes them, read back in each 
 the arm (targets, speeds, feed control) and cut again: cycle, peak force and finished-wall
 error within 2 % of the comparison table's. The feed control the program carries is the one
 the configuration needs (FC SpeedChange in RAPID, the feed loop in URScript, none for the
-constant feed and for a staged controller's offline row, whose stage schedule planned offline
-is the program's speeds); what a KUKA controller cannot be given is not runnable there, and
-says why (the scheduled rows run there: they need nothing but the program).
+constant feed and for a staged controller's offline row with its stages planned, whose stage
+schedule is the program's speeds); what a KUKA controller cannot be given is not runnable
+there, and says why (the planned-stage rows run there: they need nothing but the program).
 (Slow: three demos and three 18-run comparisons.)"""
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 
 import numpy as np
@@ -21,8 +22,9 @@ from robomach_core.cell import Robot
 from robomach_core.errors import InvalidInputError
 from robomach_core.export.languages import languages_for
 from robomach_core.export.read_back import read_program
-from robomach_core.machining import MACHINING_CONTROLLERS, MachiningSettings
+from robomach_core.machining import MACHINING_CONTROLLERS, STAGE_PLANS, MachiningSettings
 from robomach_core.machining.run import cut_program
+from robomach_core.machining.schedule import STAGED_CONTROLLERS
 from robomach_core.project._machining import compensation_model
 from tests.demo_project import arm_demo
 
@@ -38,23 +40,44 @@ FEED_CONTROL = {"rapid": "FC SpeedChange", "urscript": "URScript feed loop", "kr
 FIGURES = ("cycle_time_s", "force_peak_N", "wall_error_max_mm")
 
 
-@pytest.fixture(scope="module", params=sorted(CELLS))
-def machined(request):
-    arm = request.param
+@functools.cache
+def _machined(arm: str, stages: str):
+    """The arm's 18-run comparison with the stages switched online (the default); with the
+    stages planned (``machining.schedule``) the staged controllers' offline rows alone."""
     project = core.load_project_file(arm_demo(arm).folder / "project.npz")
-    setup = core.MachiningSetup(MachiningSettings(seed=0), cell_options=CELLS[arm])
+    settings = MachiningSettings(seed=0, stages=stages)
+    setup = core.MachiningSetup(settings, cell_options=CELLS[arm])
     project = core.with_machining_setup(project, setup)
     workpiece = core.build_workpiece(project.cell, project.mesh)
     robot = Robot(project.cell.robot, project.tool().T_flange_tcp)
+    planned = stages == "planned"
     result = core.machine(
-        project, workpiece, robot, controllers=MACHINING_CONTROLLERS,
-        compensations=("off", "offline", "online"), workers=None,
+        project, workpiece, robot,
+        controllers=STAGED_CONTROLLERS if planned else MACHINING_CONTROLLERS,
+        compensations=("offline",) if planned else ("off", "offline", "online"), workers=None,
     )  # fmt: skip
     return arm, core.with_machining_result(project, result), workpiece, robot, result
 
 
-def test_every_runnable_configuration_cuts_from_its_files_what_the_table_shows(machined):
-    arm, project, workpiece, robot, result = machined
+@pytest.fixture(scope="module", params=sorted(CELLS))
+def machined(request):
+    return _machined(request.param, "online")
+
+
+@pytest.fixture(
+    scope="module",
+    params=[(arm, stages) for stages in STAGE_PLANS for arm in sorted(CELLS)],
+    ids=lambda p: "-".join(p),
+)
+def machined_either(request):
+    """``machined``, and the same arms with the staged controllers' stages planned."""
+    return _machined(*request.param)
+
+
+def test_every_runnable_configuration_cuts_from_its_files_what_the_table_shows(
+    machined_either,
+):
+    arm, project, workpiece, robot, result = machined_either
     model = compensation_model(project, robot.name)
     q0 = core.require_processed(project).result.targets.joints_rad[0]
     runnable = [row for row in result.rows if row["runnable"]]
@@ -90,12 +113,13 @@ def test_every_runnable_configuration_cuts_from_its_files_what_the_table_shows(m
                 )  # fmt: skip
 
 
-def test_what_a_cell_cannot_run_is_marked_with_the_reason(machined):
-    arm, project, _, _, result = machined
+def test_what_a_cell_cannot_run_is_marked_with_the_reason(machined_either):
+    arm, project, _, _, result = machined_either
     for row in result.rows:
         needs_feed = row["controller"] != "constant" and row["feed"] != "program"
-        if row["controller"] in ("fuzzy", "two-stage") and row["compensation"] == "offline":
-            assert row["feed"] == "program", row  # the stage schedule planned offline
+        if row["controller"] in STAGED_CONTROLLERS and row["compensation"] == "offline":
+            planned = core.machining_setup_of(project).settings.stages == "planned"
+            assert row["feed"] == ("program" if planned else "controller"), row
         if arm == "kr270" and needs_feed:
             assert not row["runnable"]
             assert "robomach writes none for a KUKA controller" in row["needs"][0]

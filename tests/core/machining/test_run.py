@@ -23,7 +23,6 @@ from robomach_core.machining import (
     stock_from_profile,
 )
 from robomach_core.machining.run import cut_program, finished_wall
-from robomach_core.machining.schedule import SCHEDULE_DRAWS
 
 MM = 1e-3
 
@@ -254,8 +253,7 @@ def test_each_rehearsal_cuts_a_noise_draw_of_its_own_and_the_program_the_setting
     """Offline compensation plans from rehearsals the corrected program's cut never replays:
     every rehearsal (the nominal wall's cut included) meets a sensor-noise draw of its own,
     none the settings' seed, and the corrected program (the table's row) meets the settings'
-    draw, as a cell meets one no rehearsal saw (under a staged controller its cut runs the
-    stage schedule planned offline, which no draw moves). The same seed gives the same run."""
+    draw, as a cell meets one no rehearsal saw. The same seed gives the same run."""
     import robomach_core.machining.run as run_module
 
     print(f"seed {seed}")
@@ -281,11 +279,7 @@ def test_each_rehearsal_cuts_a_noise_draw_of_its_own_and_the_program_the_setting
         finally:
             run_module.run_loop = loop
     *rehearsals, program_cut = seeds
-    # The nominal wall's cuts too: under a staged controller ``schedule_draws`` of them plan
-    # the stage schedule, and one more cuts the nominal wall at the schedule's speeds.
-    summary = runs[-1].summary
-    assert summary["schedule_draws"] == SCHEDULE_DRAWS
-    assert len(rehearsals) == summary["rehearsals"] + SCHEDULE_DRAWS + 1
+    assert len(rehearsals) == runs[-1].summary["rehearsals"] + 1  # the nominal wall's cut too
     assert program_cut == seed
     assert seed not in rehearsals and len(set(rehearsals)) == len(rehearsals)
     assert runs[0].summary["wall_error_max_mm"] == runs[1].summary["wall_error_max_mm"]

@@ -66,7 +66,9 @@ def test_offline_compensation_cuts_85_percent_under_the_staged_controllers(
             off, offline = (
                 run_machining(
                     robot, short_program, None, stock,
-                    MachiningSettings(controller=controller, compensation=mode, seed=noise),
+                    MachiningSettings(
+                        controller=controller, compensation=mode, seed=noise, stages="planned"
+                    ),
                     compensation_model=model,
                 ).summary
                 for mode in ("off", "offline")
@@ -87,7 +89,9 @@ def test_the_rows_cut_is_the_schedule_whatever_the_cells_noise(robot, short_prog
     seed = run_seed()
     print(f"{replay(seed)}")
     for stock, noise in _stocks(short_program, seed):  # the first stock with a schedule
-        s = MachiningSettings(controller="two-stage", compensation="offline", seed=noise)
+        s = MachiningSettings(
+            controller="two-stage", compensation="offline", seed=noise, stages="planned"
+        )
         run = run_machining(robot, short_program, None, stock, s, compensation_model=model)
         if run.summary["feed"] == "program":
             break
