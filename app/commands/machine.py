@@ -101,7 +101,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "(they switch in the cell by the force) or planned (their cuts of the nominal wall fix "
         "the lowest stage every 0.1 mm, the program carries it as its speeds and the cell runs "
         "no feed control: the correction meets the force it was planned for, but a casting "
-        "with burrs elsewhere meets them at the planned speeds; chosen only with --variations) "
+        "with burrs elsewhere meets them at the planned speeds: --variations shows it) "
         "(default %(default)s)",
     )
     p.add_argument(

@@ -17,11 +17,9 @@ SOLUTION  ``choose(rows, capabilities)`` -> ``Choice(index, reason)``; the rule:
           within 5 % of the fastest cycle; of these the smallest finished-wall max error; none
           when no run keeps the limit (the reason says which came closest). With variations
           the same rule reads the 95th percentiles (the nominal stock counted) and asks for
-          every stock to complete. A row whose feed is a stage schedule planned offline for
-          this stock (``machining.schedule``: the program carries its speeds, the cell runs
-          no feed control) is chosen only with variations: on castings drawn from the pump's
-          variation such programs peaked at 272 N (p95, 150 N limit), and the single stock's
-          figures cannot show it.
+          every stock to complete. A row whose feed is a stage schedule planned offline
+          (``machining.schedule``, only when the person sets ``stages`` "planned") needs no
+          feed override: it runs on any cell, as the constant feed does.
 """
 
 from __future__ import annotations
@@ -228,15 +226,6 @@ def choose(rows: list[dict[str, Any]], capabilities: CellCapabilities) -> Choice
         if not missing(r["controller"], r["compensation"], capabilities, r.get("feed"))
     ]
     not_here = len(rows) - len(runnable)
-    # a feed planned offline for this stock (``machining.schedule``: no feed control in the
-    # cell) is chosen only on the evidence of other stocks: on castings drawn from the pump's
-    # variation such programs peaked at 272 N (p95) where the stages switched online at 145 N
-    # (when they are all there is, as when the person asked for one, they are judged alone)
-    planned = [] if p95 else [i for i in runnable if rows[i].get("feed") == "program"]
-    if len(planned) < len(runnable):
-        runnable = [i for i in runnable if i not in planned]
-    else:
-        planned = []
     done = [i for i in runnable if _figures(rows[i])[3] and _figures(rows[i])[0] is not None]
     if not done:
         why = "none of the configurations this cell can run completed"
@@ -268,11 +257,6 @@ def choose(rows: list[dict[str, Any]], capabilities: CellCapabilities) -> Choice
     ]
     if not_here:
         parts.append(f"{not_here} configurations need options this cell lacks")
-    if planned:
-        parts.append(
-            f"{len(planned)} whose feed is a schedule planned for this stock were not chosen "
-            "(no feed control in the cell: run --variations to judge them on other castings)"
-        )
     return Choice(pick, "; ".join(parts) + ".")
 
 
@@ -285,6 +269,5 @@ RULE_TEXT = (
     "among the completed configurations the cell can run, those whose peak force stays within "
     "the force limit; of those within 5 % of the fastest cycle, the smallest wall max error "
     "(with variations: the 95th percentiles over the nominal stock and the drawn ones, every "
-    "stock completed); a feed schedule planned offline for this stock is chosen only with "
-    "variations"
+    "stock completed)"
 )

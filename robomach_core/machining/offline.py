@@ -82,10 +82,11 @@ LIMIT     With the stages switched online, a staged controller's stage switch la
           for the stock it was cut on. A casting with burrs elsewhere meets them at the
           planned speeds with no feed control (the pump's program over 16 drawn stocks: peak
           p95 272 N against the online fuzzy's 145 N; the cell's overload trip at twice the
-          limit), so the rule chooses a planned row only on the evidence of ``--variations``
-          (``choice``), and "online" stays the default. A guard that drops to the lowest stage
-          while the force is over the limit was measured and not built: the feed and the
-          force lag, and the peaks stayed at 216-233 N (``schedule`` LIMIT).
+          limit; a sweep over castings, ``--variations``, shows it and its rule passes them
+          over), so "online" stays the default and the person asks for planned stages. A
+          guard that drops to the lowest stage while the force is over the limit was measured
+          and not built: the feed and the force lag, and the peaks stayed at 216-233 N
+          (``schedule`` LIMIT).
 """
 
 from __future__ import annotations

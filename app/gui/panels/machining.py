@@ -100,7 +100,8 @@ class MachiningPanel:
                 initial_value=s["stages"],
                 hint="under offline compensation, how fuzzy and two-stage pick their stage: "
                 "online (switching in the cell by the force) or planned (the program's speeds, "
-                "no feed control in the cell; chosen by the rule only with variations)",
+                "no feed control in the cell: a casting with burrs elsewhere meets them at the "
+                "planned speeds; run variations to see it)",
             )
             with server.gui.add_folder("Cell options", expand_by_default=False):
                 self.options = {
