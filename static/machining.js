@@ -120,7 +120,7 @@ function sortedMachiningRows() {
   return have.concat(lack);
 }
 
-function showComparison(rows, reason) {
+function showComparison(rows, reason, notes = []) {
   machiningRows = rows;
   const varied = rows.some((r) => r.cycle_time_p95_s !== undefined);
   const cols = MACH_COLUMNS.concat(varied ? MACH_P95 : []);
@@ -140,12 +140,13 @@ function showComparison(rows, reason) {
   }).join("");
   $("mach-table").innerHTML = `<div class="mach-table-wrap"><table id="mach-comparison" class="results-table">`
     + `<thead><tr>${head}</tr></thead><tbody>${body}</tbody></table></div>`
-    + `<p id="mach-reason" class="small">${reason ? `Rule's pick: ${safeText(reason)}` : ""}</p>`;
+    + `<p id="mach-reason" class="small">${reason ? `Rule's pick: ${safeText(reason)}` : ""}</p>`
+    + notes.map((n) => `<p class="small mach-note">${safeText(n)}</p>`).join("");
   for (const th of $("mach-table").querySelectorAll("th")) {
     th.addEventListener("click", () => {
       const key = th.dataset.key || null;
       machiningSort = { key, up: machiningSort.key === key ? !machiningSort.up : true };
-      showComparison(machiningRows, reason);
+      showComparison(machiningRows, reason, notes);
     });
   }
   $("mach-pick").innerHTML = rows.map((r) => {
@@ -204,7 +205,7 @@ async function loadMachiningResult() {
     if (err.status === 409) { $("mach-table").textContent = "no machining result yet"; return; }
     throw err;
   }
-  showComparison(result.runs, result.choice_reason);
+  showComparison(result.runs, result.choice_reason, result.notes || []);
   drawMachiningPlot(result.trace);
   $("mach-stale").classList.toggle("hidden", result.status !== "stale");
 }

@@ -8,6 +8,7 @@ and compensation modes with ``compare_configurations``.
 from .compare import Comparison as Comparison
 from .compare import compare_configurations as compare_configurations
 from .compare import format_table as format_table
+from .compare import table_notes as table_notes
 from .compare import write_run_csv as write_run_csv
 from .errors import MachiningSettingsError as MachiningSettingsError
 from .errors import SampleLimitError as SampleLimitError

@@ -178,6 +178,7 @@ class MachiningResult:
 
     def summary(self) -> dict[str, Any]:
         """``machining_summary.json``: the runs, the rule's pick and why."""
+        from ..machining import table_notes
         from ..machining.choice import RULE_TEXT
 
         chosen = None if self.chosen is None else self.rows[self.chosen]
@@ -188,6 +189,7 @@ class MachiningResult:
             else {"controller": chosen["controller"], "compensation": chosen["compensation"]},
             "choice_rule": RULE_TEXT,
             "choice_reason": self.reason,
+            "notes": table_notes(self.rows),
             "cell_options": list(self.capabilities),
             "variation": self.variation,
         }

@@ -125,6 +125,7 @@ def machine(
     """
     from ..machining.compare import comparison_rows
     from ..machining.parallel import CutTask, run_tasks
+    from ..machining.schedule import STAGED_CONTROLLERS
     from ..stiffness.modes import COMPENSATIONS
 
     targets = _program_cut(project, robot)
@@ -144,10 +145,12 @@ def machine(
     drawn, variation = _drawn_stocks(stock, setup.variations, project.cell.seed)
     share = 1.0 / (1 + len(drawn))
 
-    def task(st: Any, c: str, settings: Any, keep: bool, corrected: Any = None) -> Any:
+    def task(
+        st: Any, c: str, settings: Any, keep: bool, corrected: Any = None, only: Any = None
+    ) -> Any:
         return CutTask(
-            robot.name, robot.T_flange_tcp, targets, normals, st, settings, c, modes, model,
-            keep_runs=keep, program_frame=workpiece.T_base_wobj, corrected=corrected,
+            robot.name, robot.T_flange_tcp, targets, normals, st, settings, c, only or modes,
+            model, keep_runs=keep, program_frame=workpiece.T_base_wobj, corrected=corrected,
         )  # fmt: skip
 
     def part(lo: float, hi: float) -> Callable[[float], None] | None:
@@ -157,10 +160,18 @@ def machine(
 
     # The nominal stock: its runs design the program (constant feed, controllers, offline
     # correction) every drawn stock is then cut with, as one program meets every casting.
+    # With offline compensation in the matrix, the staged controllers' offline rows are cut
+    # with the other stage plan too (``MachiningSettings.stages``): the table says what it
+    # gives on this stock.
+    other = "planned" if s.stages == "online" else "online"
+    staged = [c for c in ctrls if c in STAGED_CONTROLLERS] if len(pairs) > 1 else []
+    staged = staged if "offline" in comps else []
     first = run_tasks(
-        [task(stock, c, s, True) for c in ctrls], workers=workers, cluster=cluster,
-        progress=part(0.0, share), cancel=cancelled,
+        [task(stock, c, s, True) for c in ctrls]
+        + [task(stock, c, replace(s, stages=other), False, only=("offline",)) for c in staged],
+        workers=workers, cluster=cluster, progress=part(0.0, share), cancel=cancelled,
     )  # fmt: skip
+    first, alternatives = first[: len(ctrls)], dict(zip(staged, first[len(ctrls) :], strict=True))
     nominal = {(c, m): first[j][k] for j, c in enumerate(ctrls) for k, m in enumerate(modes)}
     runs = [nominal[p][0] for p in pairs if nominal[p][0] is not None]
     refused = {p: why for p in pairs if (why := nominal[p][2]) is not None}
@@ -168,6 +179,9 @@ def machine(
     rows = [
         _plain_row({**(nominal[p][1] or {}), **row}) for p, row in zip(pairs, rows, strict=True)
     ]
+    for p, row in zip(pairs, rows, strict=True):
+        if p[1] == "offline" and p[0] in alternatives:
+            row["other_stages"] = _other_stages(other, alternatives[p[0]][0])
     if drawn:
         designed = replace(s, design_depth_m=stock.max_allowance_m)
         offline = {c: nominal[c, "offline"][0] for c in ctrls if (c, "offline") in nominal}
@@ -191,6 +205,22 @@ def machine(
     elif progress is not None:
         progress(1.0)
     return _machining_result(project, rows, runs, stock, variation)
+
+
+def _other_stages(stages: str, cut: tuple[Any, dict[str, Any] | None, str | None]) -> dict:
+    """What an offline row cut with the other stage plan (``stages``): its cycle, peak and
+    wall, or that it stopped or was refused."""
+    _, summary, refused = cut
+    out: dict[str, Any] = {"stages": stages, "completed": False, "refused": refused}
+    if summary is not None:
+        out |= {
+            "completed": bool(summary["completed"]),
+            "feed": summary.get("feed", "controller"),
+        }
+        for key in ("cycle_time_s", "force_peak_N", "wall_error_max_mm"):
+            value = summary.get(key)
+            out[key] = None if value is None else float(value)
+    return out
 
 
 def _program_cut(project: Project, robot: Robot) -> Targets:

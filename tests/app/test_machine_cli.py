@@ -148,6 +148,34 @@ def test_offline_compensation_exports_the_corrected_program(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("stages", ["online", "planned"])
+def test_a_comparison_says_what_the_other_stage_plan_cuts(tmp_path, stages):
+    """With offline compensation in the matrix, the staged controllers' offline rows are cut
+    with the other stage plan too, and the table and the summary say what it gives."""
+    out = tmp_path / "o"
+    proc = robomach_here(
+        "machine", "--out", str(out), "--from", str(block_demo_dir()), "--controller", "all",
+        "--compensation", "offline", "--stages", stages, "--no-plot",
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    other = "planned" if stages == "online" else "online"
+    summary = json.loads((out / "machining_summary.json").read_text())
+    for row in summary["runs"]:
+        if row["controller"] in ("fuzzy", "two-stage"):
+            assert row["feed"] == ("program" if stages == "planned" else "controller")
+            assert row["other_stages"]["stages"] == other
+            assert row["other_stages"]["feed"] == (
+                "program" if other == "planned" else "controller"
+            )
+            assert row["other_stages"]["wall_error_max_mm"] >= 0.0
+        else:
+            assert "other_stages" not in row
+    note = next(n for n in summary["notes"] if n.startswith(f"stages {other}: "))
+    assert "fuzzy / offline" in note and "two-stage / offline" in note
+    assert note in proc.stdout
+
+
+@pytest.mark.slow
 def test_planned_stages_export_the_schedule_as_the_feeds(tmp_path):
     """``--stages planned``: the fuzzy controller's offline row runs its stage schedule, the
     program carries it as its speeds with no FC SpeedChange, and the table and header say so."""

@@ -54,6 +54,10 @@ def test_the_pendant_compares_and_chooses(served: Served, browser) -> None:
         expect(page.locator("#mach-status")).to_have_text("done")
         assert "constant" in rows.nth(0).inner_text()
         expect(page.locator("#mach-comparison tr.chosen")).to_have_count(1)
+        # What the other stage plan cuts, under the table (``machining.table_notes``).
+        expect(
+            page.locator(".mach-note", has_text="stages planned: fuzzy / offline")
+        ).to_be_visible()
         page.select_option("#mach-pick", "fuzzy/offline")
         with page.expect_response("**/api/machining/choice"):
             page.click("#mach-choose")
@@ -70,6 +74,11 @@ def test_the_pendant_compares_and_chooses(served: Served, browser) -> None:
         )
         _check_the_pendant_table_reads_and_sorts(page)
         _check_the_viser_table_and_its_large_view(context, served)
+        # Planning the stages is a setting: it dates the result until it is run again.
+        with page.expect_response("**/api/machining/settings"):
+            page.select_option("#mach-stages", "planned")
+        assert api.ok("GET", "/api/machining/settings")["stages"] == "planned"
+        expect(page.locator("#mach-stale")).to_be_visible()
     finally:
         context.close()
         api.cancel_all()
@@ -154,7 +163,8 @@ def _check_the_viser_table_and_its_large_view(context, served: Served) -> None:
     page.get_by_text("Machining", exact=True).first.dispatch_event("click")
     table = page.locator("table.rm-mt")
     expect(table).to_be_visible(timeout=60_000)
-    expect(page.locator(".rm-why")).to_contain_text("Rule's pick")
+    expect(page.locator(".rm-why").first).to_contain_text("Rule's pick")
+    expect(page.locator(".rm-why", has_text="stages planned: fuzzy / offline")).to_be_visible()
     expect(page.locator("table.rm-mt tr.chosen")).to_have_count(1)
     expect(page.locator("table.rm-mt tr.unrunnable")).to_have_count(6)
     table.evaluate("e => e.scrollIntoView({block: 'center'})")  # no wait for stability

@@ -143,6 +143,10 @@ class MachiningResultPublic(BaseModel):
     )
     choice_rule: str
     choice_reason: str = Field(description="why the rule picked it, in words")
+    notes: list[str] = Field(
+        description="the sentences under the table: rows whose feed is a stage schedule, what "
+        "the other stage plan cuts, what the cell lacks"
+    )
     cell_options: list[str] = Field(description="the cell options the rows were marked for")
     variation: dict[str, Any] | None = Field(description="the variation sweep, or null")
     trace: dict[str, Any] | None = Field(
@@ -251,6 +255,7 @@ def get_result(service: MachiningDep, points: int = PLOT_POINTS) -> MachiningRes
         chosen_by_rule=summary["chosen"],
         choice_rule=summary["choice_rule"],
         choice_reason=summary["choice_reason"],
+        notes=summary["notes"],
         cell_options=summary["cell_options"],
         variation=summary["variation"],
         trace=trace,

@@ -385,7 +385,9 @@ class MachiningPanel:
         # A result of a cell no longer there (another robot, part or place) is not drawn over
         # the new one: its path stood on the old cell's table.
         old_cell = result is not None and self._result_epoch != epoch
-        key = (result, old_cell, self.service.status())
+        # The plots show the chosen configuration's run: a choice redraws them.
+        s = self.service.setup().settings
+        key = (result, old_cell, self.service.status(), s.controller, s.compensation)
         if key == self._shown_key:
             return
         self._shown_result, self._shown_key = result, key

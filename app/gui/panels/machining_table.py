@@ -12,6 +12,8 @@ from __future__ import annotations
 import html
 from typing import Any
 
+from robomach_core.machining import table_notes
+
 # (key, header, format) of the sidebar's columns; the wide table adds WIDE_COLUMNS.
 COMPACT_COLUMNS: tuple[tuple[str, str, str], ...] = (
     ("cycle_time_s", "cycle s", "{:.1f}"),
@@ -143,6 +145,7 @@ def table_html(
         f'<p class="rm-why">Rule\'s pick: <b>{html.escape(pick)}</b>. {html.escape(reason)} '
         "Greyed: the cell cannot run them (hover for what they need).</p>"
     )
+    why += "".join(f'<p class="rm-why">{html.escape(note)}</p>' for note in table_notes(rows))
     wrap = "rm-mt-wrap wide" if wide else "rm-mt-wrap"
     return (
         f'{STYLE}<div class="{wrap}"><table class="rm-mt"><thead><tr><th>configuration</th>'

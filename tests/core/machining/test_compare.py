@@ -77,3 +77,28 @@ def test_csv_and_figure_are_written(matrix, tmp_path):
     assert len(rows) == len(run.trace) + 1
     png = plot_runs(result.runs[:3], tmp_path / "machining.png", title="water pump")
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_notes_say_what_the_other_stage_plan_cuts():
+    """``table_notes``: the other stage plan's figures per row, the share of the off row's
+    wall error it cuts, a stop said as a stop, and nothing when no row carries one."""
+    from robomach_core.machining import table_notes
+
+    def row(controller, compensation, wall, other=None):
+        out = {"controller": controller, "compensation": compensation}
+        out |= {"wall_error_max_mm": wall, "completed": True}
+        return out | ({"other_stages": other} if other else {})
+
+    planned = {"stages": "planned", "completed": True, "cycle_time_s": 144.4}
+    planned |= {"force_peak_N": 145.4, "wall_error_max_mm": 0.004}
+    stopped = {"stages": "planned", "completed": False, "refused": None}
+    rows = [
+        row("fuzzy", "off", 0.1),
+        row("fuzzy", "offline", 0.02, planned),
+        row("two-stage", "offline", 0.04, stopped),
+    ]
+    (note,) = table_notes(rows)
+    assert note.startswith("stages planned: fuzzy / offline 144.4 s, peak 145.4 N")
+    assert "wall max 0.004 mm (96 % less than off)" in note
+    assert "two-stage / offline stopped" in note and "--stages planned" in note
+    assert table_notes(rows[:1]) == []
