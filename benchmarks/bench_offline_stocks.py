@@ -10,6 +10,8 @@ median offline cycle and peak.
 
     python benchmarks/bench_offline_stocks.py DEMO_DIR [--stocks 20] [--base 2026120500]
         [--stages online|planned]
+    python benchmarks/bench_offline_stocks.py --quick   (a short program along the pump's
+        true wall, one stock, three controllers: that the script runs, not a measurement)
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import json
 import numpy as np
 
 from robomach_core import project as core
-from robomach_core.cell import Robot
+from robomach_core.cell import Robot, Tool
 from robomach_core.export.target_joints import with_target_joints
 from robomach_core.machining import (
     MACHINING_CONTROLLERS,
@@ -29,13 +31,17 @@ from robomach_core.machining import (
     builtin_stock,
     run_machining,
     stiffness_model,
+    targets_along_wall,
+    wall_normals_for_workpiece,
 )
+from robomach_core.part import builtin_workpiece
 from robomach_core.project._machining_cut import build_stock, wall_normals_for_project
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("demo", help="a `robomach demo` output folder (its project.npz)")
+    parser.add_argument("demo", nargs="?", help="a `robomach demo` output folder (its project.npz)")
+    parser.add_argument("--quick", action="store_true", help="see the module docstring")
     parser.add_argument("--stocks", type=int, default=20)
     parser.add_argument("--base", type=int, default=2026120500, help="first stock seed")
     parser.add_argument("--json", default=None, help="write the per-stock figures here")
@@ -43,20 +49,21 @@ def main() -> None:
         "--stages", choices=STAGE_PLANS, default="online", help="MachiningSettings.stages"
     )
     args = parser.parse_args()
-    project = core.load_project_file(f"{args.demo}/project.npz")
-    workpiece = core.build_workpiece(project.cell, project.mesh)
-    robot = Robot(project.cell.robot, project.tool().T_flange_tcp)
-    processed = core.require_processed(project).result.targets
-    targets = with_target_joints(robot, processed)
-    normals = wall_normals_for_project(project, workpiece, processed)
-    nominal = build_stock(project, workpiece, processed, normals)
+    if args.quick:
+        robot, targets, nominal, controllers = _quick()
+        args.stocks = 1
+    elif args.demo is None:
+        parser.error("give a `robomach demo` output folder, or --quick")
+    else:
+        robot, targets, nominal = _demo(args.demo)
+        controllers = MACHINING_CONTROLLERS
     model = stiffness_model(robot.name, MachiningSettings())
-    out: dict[str, list] = {c: [] for c in MACHINING_CONTROLLERS}
+    out: dict[str, list] = {c: [] for c in controllers}
     for k in range(args.stocks):
         seed = args.base + k
         stock = builtin_stock(nominal.path_points_m, seed, wall_normals_m=nominal.wall_normals_m)
         line = [f"{robot.name} stock {seed}:"]
-        for c in MACHINING_CONTROLLERS:
+        for c in controllers:
             runs = {
                 m: run_machining(
                     robot, targets, None, stock,
@@ -95,6 +102,32 @@ def main() -> None:
     if args.json:
         with open(args.json, "w") as f:
             json.dump(out, f, indent=1)
+
+
+def _demo(folder: str):
+    """The arm, the demo's program (its targets' joints the arm's IK) and its nominal stock."""
+    project = core.load_project_file(f"{folder}/project.npz")
+    workpiece = core.build_workpiece(project.cell, project.mesh)
+    robot = Robot(project.cell.robot, project.tool().T_flange_tcp)
+    processed = core.require_processed(project).result.targets
+    normals = wall_normals_for_project(project, workpiece, processed)
+    return (
+        robot,
+        with_target_joints(robot, processed),
+        build_stock(project, workpiece, processed, normals),
+    )
+
+
+def _quick():
+    """The UR10, 61 targets along the pump's true wall, its stock; constant and the staged."""
+    tool = Tool()
+    robot = Robot("ur10", tool.T_flange_tcp)
+    pump = builtin_workpiece("water_pump")
+    targets = targets_along_wall(robot, pump, tool_radius_m=tool.radius_m)
+    targets = type(targets)(**{k: getattr(targets, k)[:61] for k in targets.__dataclass_fields__})
+    normals = wall_normals_for_workpiece(pump, targets.position_m)
+    stock = builtin_stock(targets.position_m, seed=0, wall_normals_m=normals)
+    return robot, targets, stock, ("constant", "fuzzy", "two-stage")
 
 
 if __name__ == "__main__":

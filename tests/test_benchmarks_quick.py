@@ -70,6 +70,13 @@ EXPECTED: dict[str, list[str]] = {
         rf"variations: \d+ stocks x 18 runs: 1 worker {NUMBER} s, \d+ workers {NUMBER} s: "
         rf"x{NUMBER} faster \(same figures: yes\)",
     ],
+    "bench_offline_stocks.py": [
+        rf"ur10 stock \d+: constant {NUMBER}% fuzzy {NUMBER}% two-stage {NUMBER}%",
+        *(
+            rf"{c}\s+median\s+{NUMBER} %\s+worst\s+{NUMBER} %\s+under 75 %: \d+/\d+"
+            for c in ("constant", "fuzzy", "two-stage")
+        ),
+    ],
     "bench_reads_during_postprocess.py": [rf"worst read p99 during post-processing {NUMBER} ms"],
     "bench_events.py": [
         rf"no listener, robot still\s+\d+\s+{NUMBER}\s+{NUMBER}",

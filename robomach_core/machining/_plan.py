@@ -178,6 +178,44 @@ def _normals_at(stock: Stock, s_m: np.ndarray) -> np.ndarray:
     return n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
+def _feed_plan(
+    settings: MachiningSettings,
+    d_max: float,
+    v_prog: np.ndarray,
+    c_true: np.ndarray,
+    sensor_filter: Any,
+    feed: FeedSource,
+) -> tuple[bool, float, Any, Any, float]:
+    """Where the cut's feed comes from: (the constant feed is run, that feed (inf when the
+    programmed speeds run: a CMRR controller or a schedule planned offline), the controller's
+    settings and the controller (None, None without one), a typical feed [m/s] for the
+    recording's first size)."""
+    scheduled = feed == "program"
+    is_constant = settings.controller == "constant" and not scheduled
+    constant_feed = constant_feed_m_s(settings, d_max) if not scheduled else math.inf
+    if is_constant:
+        check_constant_feed(settings, d_max)
+    ctrl_settings, ctrl = (
+        (None, None) if scheduled else _feed_control(settings, d_max, v_prog, c_true, sensor_filter)
+    )
+    typical = (
+        float(np.mean(np.minimum(v_prog, constant_feed)))
+        if ctrl is None
+        else 0.5 * float(np.mean(v_prog))
+    )
+    return is_constant, constant_feed, ctrl_settings, ctrl, typical
+
+
+def _slowest(
+    settings: MachiningSettings, v_prog: np.ndarray, constant_feed: float, ctrl: Any
+) -> float:
+    """The slowest feed the cut may run [m/s]: the program's (or the constant feed) without a
+    controller, the least speed ratio of the slowest move with one."""
+    if ctrl is None:
+        return float(np.min(np.minimum(v_prog, constant_feed)))
+    return settings.min_speed_ratio * float(v_prog.min())
+
+
 def plan_cut(
     robot: Robot,
     targets: Targets,
@@ -232,33 +270,18 @@ def plan_cut(
             s_t, compliance_blocks(robot, joints, model), s_st, N_st, U_st
         )
     offset = np.interp(s_st, s_t, off_t)
-    scheduled = feed == "program"
-    is_constant = settings.controller == "constant" and not scheduled
-    constant_feed = constant_feed_m_s(settings, d_max) if not scheduled else math.inf
-    if is_constant:
-        check_constant_feed(settings, d_max)
-
     dt = CONTROL_PERIOD_S
     sensor_filter = _sensor_filter(settings.sensor_filter_cutoff_hz, dt)
-    ctrl_settings, ctrl = (
-        (None, None) if scheduled else _feed_control(settings, d_max, v_prog, c_true, sensor_filter)
+    is_constant, constant_feed, ctrl_settings, ctrl, typical_feed = _feed_plan(
+        settings, d_max, v_prog, c_true, sensor_filter, feed
     )
-    if is_constant or scheduled:
-        slowest = float(np.min(np.minimum(v_prog, constant_feed)))
-    else:
-        slowest = settings.min_speed_ratio * float(v_prog.min())
-    n_max = _sample_budget(settings, L, slowest, dt)
+    n_max = _sample_budget(settings, L, _slowest(settings, v_prog, constant_feed, ctrl), dt)
 
     robot_model = _feed_model(dt)
     if robot_model.a.shape != (4, 4) or len(sensor_filter.sos) != 1:
         raise MachiningSettingsError("the machining loop expects eq. (1) and a 2nd-order filter")
     tau = process.time_constant_s
     tau_c = 1.0 / (2.0 * math.pi * settings.online_filter_cutoff_hz)
-    typical_feed = (
-        float(np.mean(np.minimum(v_prog, constant_feed)))
-        if is_constant or scheduled
-        else 0.5 * float(np.mean(v_prog))
-    )
     inputs = LoopInputs(
         allowance=allowance,
         v_prog=v_prog,

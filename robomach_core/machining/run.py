@@ -230,15 +230,7 @@ def run_machining(
         )  # fmt: skip
     started = time.perf_counter()
     assert model is not None
-    P = check_path(targets.position_m)
-    s_t, _, _ = project_onto_path(P, stock.path_points_m, stock.wall_normals_m)
-    s_f = np.arange(0.0, float(s_t[-1]), settings.station_spacing_m)
-    n_f, u_f = path_directions(
-        stock.path_points_m, stock.wall_normals_m, s_f, settings.feed_force_ratio
-    )
-    c_hat = normal_compliance_along(
-        s_t, compliance_blocks(robot, targets.joints_rad, model), s_f, n_f, u_f
-    )
+    s_f, n_f, u_f, c_hat = _stations(robot, targets, stock, settings, model)
     # Every rehearsal cuts the nominal program's plan with the planned correction's offsets;
     # the last cut is the corrected program itself (what the export carries). The first plan
     # is the force of the cut a working compensation meets: the tool on the nominal wall, the
@@ -256,37 +248,12 @@ def run_machining(
         seed=rehearsal_seed(settings.seed, 0),
     )  # fmt: skip
     # With ``stages`` "planned", a staged controller's stages are planned here, not switched
-    # in the cell's cut (``schedule``): the lowest stage its cuts of the nominal wall ran at
-    # each station, on draws of their own (this one the first), becomes the program's speeds,
-    # and the cut and its rehearsals run those speeds with no feed control.
-    staged = plan
-    numbered = 0  # rehearsal numbers (noise draws) used so far
+    # in the cell's cut (``schedule``); its program, plan and nominal wall's cut replace these.
+    # ``numbered``: the rehearsal numbers (noise draws) past 0 that planning used.
+    stages, numbered = _planned_stages(robot, targets, stock, settings, on_the_wall, ideal, cancel)
     feed: FeedSource = "controller"
-    ratios = None
-    if settings.controller in STAGED_CONTROLLERS and settings.stages == "planned":
-        draws = [ideal] + [
-            rehearsal_cut(
-                on_the_wall,
-                np.zeros_like(plan.inputs.offset),
-                cancel,
-                seed=rehearsal_seed(settings.seed, d),
-            )  # fmt: skip
-            for d in range(1, SCHEDULE_DRAWS)
-        ]
-        numbered = SCHEDULE_DRAWS - 1
-        # A draw the controller's protection rule stopped counts up to its stop (the lowest
-        # stage there); one completed draw is needed, else the stages switch online as before.
-        if any(d.summary["completed"] for d in draws):
-            ratios = np.min([draw_stages(d, plan.s_st) for d in draws], axis=0)
-            targets = scheduled_program(targets, plan.s_st, ratios)
-            feed = "program"
-            plan = plan_cut(robot, targets, None, stock, settings, feed=feed)
-            numbered += 1
-            rigid = replace(plan.inputs, c_true=np.zeros_like(plan.inputs.c_true))
-            ideal = rehearsal_cut(
-                replace(plan, inputs=rigid), np.zeros_like(plan.inputs.offset), cancel,
-                seed=rehearsal_seed(settings.seed, numbered),
-            )  # fmt: skip
+    if stages is not None:
+        targets, plan, ideal, feed = stages.targets, stages.plan, stages.ideal, "program"
     first = (
         force_met_N(ideal, s_f)
         if ideal.summary["completed"]
@@ -318,27 +285,96 @@ def run_machining(
     # offline row stops for the stock's sake, not the compensation's.
     summary["offline_nominal_wall_completed"] = bool(ideal.summary["completed"])
     summary["schedule_draws"] = None
-    if ratios is not None:
-        # The row's feed is the schedule its controller's cuts planned (``schedule``); the
-        # controller it was planned with is the row's design.
-        summary["schedule_draws"] = SCHEDULE_DRAWS
-        summary["schedule_draws_completed"] = sum(bool(d.summary["completed"]) for d in draws)
-        summary["schedule_switches"] = switches(ratios)
-        summary["schedule_lowest_stage"] = float(np.min(ratios))
-        summary["schedule_planned_with"] = (
-            None if staged.controller is None else staged.controller.describe()
-        )
-        # The controller as designed for the cut is the one that planned the schedule (the
-        # cut itself runs no controller: ``controller_design`` None).
-        if staged.ctrl_settings is not None:
-            from ..cmrr.settings import controller_settings_to_dict
-
-            summary["controller_settings"] = controller_settings_to_dict(staged.ctrl_settings)
-        run = replace(run, controller_settings=staged.ctrl_settings)
+    if stages is not None:
+        run = _with_schedule(run, summary, stages, on_the_wall)
     wall_s = time.perf_counter() - started
     summary["wall_time_s"] = wall_s
     summary["realtime_factor"] = summary["sim_time_s"] / wall_s if wall_s > 0 else None
     return replace(run, program=program, nominal=dense, summary=summary)
+
+
+def _stations(
+    robot: Robot, targets: Targets, stock: Stock, settings: MachiningSettings, model: Any
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Where offline compensation plans: stations every ``station_spacing_m`` along the
+    program's path (s_f), the process force's normal and feed directions there (n_f, u_f)
+    and the identified compliance along the wall normal (c_hat)."""
+    P = check_path(targets.position_m)
+    s_t, _, _ = project_onto_path(P, stock.path_points_m, stock.wall_normals_m)
+    s_f = np.arange(0.0, float(s_t[-1]), settings.station_spacing_m)
+    n_f, u_f = path_directions(
+        stock.path_points_m, stock.wall_normals_m, s_f, settings.feed_force_ratio
+    )
+    c_hat = normal_compliance_along(
+        s_t, compliance_blocks(robot, targets.joints_rad, model), s_f, n_f, u_f
+    )
+    return s_f, n_f, u_f, c_hat
+
+
+@dataclass(frozen=True, eq=False)
+class _PlannedStages:
+    """A staged controller's stages planned offline (``schedule``): the lowest stage its cuts
+    of the nominal wall (``draws``) ran at each station (``ratios``), the program carrying it
+    as its speeds (``targets``), that program's plan (no feed control) and its cut of the
+    nominal wall (``ideal``)."""
+
+    ratios: np.ndarray
+    draws: tuple[Rehearsal, ...]
+    targets: Targets
+    plan: CutPlan
+    ideal: Rehearsal
+
+
+def _planned_stages(
+    robot: Robot,
+    targets: Targets,
+    stock: Stock,
+    settings: MachiningSettings,
+    on_the_wall: CutPlan,
+    ideal: Rehearsal,
+    cancel: CancelFlag | Callable[[], bool] | None,
+) -> tuple[_PlannedStages | None, int]:
+    """The stages planned for a staged controller with ``stages`` "planned": ``ideal`` (the
+    nominal wall's cut, draw 0) and ``SCHEDULE_DRAWS`` - 1 more on draws of their own; a draw
+    the protection rule stopped counts up to its stop (the lowest stage there). None for any
+    other configuration, or when no draw completes (the stages then switch online); with the
+    rehearsal numbers past 0 it used, so later rehearsals draw noise of their own."""
+    if settings.controller not in STAGED_CONTROLLERS or settings.stages != "planned":
+        return None, 0
+    zero = np.zeros_like(on_the_wall.inputs.offset)
+    draws = (ideal,) + tuple(
+        rehearsal_cut(on_the_wall, zero, cancel, seed=rehearsal_seed(settings.seed, d))
+        for d in range(1, SCHEDULE_DRAWS)
+    )
+    if not any(d.summary["completed"] for d in draws):
+        return None, SCHEDULE_DRAWS - 1
+    ratios = np.min([draw_stages(d, on_the_wall.s_st) for d in draws], axis=0)
+    program = scheduled_program(targets, on_the_wall.s_st, ratios)
+    plan = plan_cut(robot, program, None, stock, settings, feed="program")
+    rigid = replace(plan, inputs=replace(plan.inputs, c_true=np.zeros_like(plan.inputs.c_true)))
+    nominal_wall = rehearsal_cut(
+        rigid, np.zeros_like(plan.inputs.offset), cancel,
+        seed=rehearsal_seed(settings.seed, SCHEDULE_DRAWS),
+    )  # fmt: skip
+    return _PlannedStages(ratios, draws, program, plan, nominal_wall), SCHEDULE_DRAWS
+
+
+def _with_schedule(
+    run: MachiningRun, summary: dict, stages: _PlannedStages, planned_with: CutPlan
+) -> MachiningRun:
+    """The row's record of its stage schedule (``summary``, in place) and the run with the
+    controller design it was planned with (the cut itself runs no controller)."""
+    summary["schedule_draws"] = SCHEDULE_DRAWS
+    summary["schedule_draws_completed"] = sum(bool(d.summary["completed"]) for d in stages.draws)
+    summary["schedule_switches"] = switches(stages.ratios)
+    summary["schedule_lowest_stage"] = float(np.min(stages.ratios))
+    controller = planned_with.controller
+    summary["schedule_planned_with"] = None if controller is None else controller.describe()
+    if planned_with.ctrl_settings is not None:
+        from ..cmrr.settings import controller_settings_to_dict
+
+        summary["controller_settings"] = controller_settings_to_dict(planned_with.ctrl_settings)
+    return replace(run, controller_settings=planned_with.ctrl_settings)
 
 
 def _first_plan(
