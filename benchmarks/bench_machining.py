@@ -44,6 +44,7 @@ from robomach_core.machining import (  # noqa: E402
 )
 from robomach_core.machining.parallel import default_workers  # noqa: E402
 from robomach_core.machining.run import cut_program  # noqa: E402
+from robomach_core.machining.schedule import STAGED_CONTROLLERS  # noqa: E402
 from robomach_core.part import builtin_workpiece  # noqa: E402
 from robomach_core.stiffness import COMPENSATIONS  # noqa: E402
 
@@ -81,16 +82,23 @@ def main() -> None:
     stock = builtin_stock(targets.position_m, seed=0, wall_normals_m=normals)
     model = identify_stiffness(robot.name, seed=0).model
     print(f"water pump, {source}: {len(targets)} targets, {stock.path_length_m * 1e3:.0f} mm")
-    configs = [(c, m) for c in MACHINING_CONTROLLERS for m in COMPENSATIONS]
+    configs = [(c, m, "online") for c in MACHINING_CONTROLLERS for m in COMPENSATIONS]
+    # ... and the staged controllers' offline rows with their stages planned (``--stages``).
+    configs += [(c, "offline", "planned") for c in STAGED_CONTROLLERS]
     if args.quick:
-        configs = [("adaptive-pi", "off"), ("constant", "off"), ("adaptive-lq", "offline")]
+        configs = [
+            ("adaptive-pi", "off", "online"),
+            ("constant", "off", "online"),
+            ("adaptive-lq", "offline", "online"),
+            ("two-stage", "offline", "planned"),
+        ]
     print(
         f"{'controller':<12} {'comp.':<8} {'sim [s]':>8} {'wall [ms]':>10} "
         f"{'x real time':>12} {'reference loop':>15} {'compiled / ref':>15}  (median of {repeats})"
     )
     worst = None
-    for controller, mode in configs:
-        settings = MachiningSettings(controller=controller, compensation=mode)
+    for controller, mode, stages in configs:
+        settings = MachiningSettings(controller=controller, compensation=mode, stages=stages)
         run_machining(robot, targets, normals, stock, settings, compensation_model=model)
         factors, walls = [], []
         for _ in range(repeats):
@@ -106,6 +114,8 @@ def main() -> None:
             slow = cut_program(robot, targets, normals, stock, settings, compiled=False)
             ref = slow.summary["sim_time_s"] / (time.perf_counter() - t0)
             reference, ratio = f"x{ref:.0f}", f"{median / ref:.1f}"
+        if run.summary.get("feed") == "program":
+            mode = "planned"  # offline, its stages planned (``machining.schedule``)
         print(
             f"{controller:<12} {mode:<8} {run.summary['sim_time_s']:8.1f} "
             f"{1e3 * statistics.median(walls):10.0f} {median:12.0f} {reference:>15} {ratio:>15}"
@@ -125,7 +135,12 @@ def main() -> None:
         )  # fmt: skip
         wall = time.perf_counter() - t0
         runs = len(result.rows) * (1 + (p.machining_settings.variations or 0))
-        print(f"{label}: {runs} runs on {default_workers()} workers in {wall:.1f} s wall")
+        # the staged controllers' offline rows cut with the other stage plan too
+        other = sum(1 for r in result.rows if r.get("other_stages"))
+        print(
+            f"{label}: {runs} runs (+ {other} with the other stage plan) on "
+            f"{default_workers()} workers in {wall:.1f} s wall"
+        )
         return result
 
     machine(project, "comparison, first (starts the worker processes)")
