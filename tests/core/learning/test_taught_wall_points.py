@@ -20,6 +20,7 @@ from robomach_core.learning import thresholds as th
 from robomach_core.learning.part_walls import PartWalls
 from robomach_core.learning.route import mean_tool_axis, taught_wall_points
 from tests.envelope import part_named, replay, run_seed, set_seeds, tilted_part
+from tests.learning_outcome import planned_or_refused
 from tests.people_points import people_points
 
 SEED = run_seed()
@@ -44,8 +45,6 @@ def test_every_taught_wall_point_lies_on_the_wall_the_person_chose(case):
     """On the stepped floor, as the check asks it after a run: at the heights the route learns
     the points at (a point taught 1 mm over the low floor, its cutter pressed into a riser, is
     lifted over the step) and with the walk's travel past each point."""
-    from robomach_core.errors import RouteRefusedError
-    from robomach_core.learning.route import plan_route
     from robomach_core.learning.run import PathLearningSettings
 
     stepped = case == "stepped"
@@ -69,11 +68,8 @@ def test_every_taught_wall_point_lies_on_the_wall_the_person_chose(case):
         lifted = travel = None
         if stepped:
             settings = PathLearningSettings(closed=pset.closed, wall_side=pset.wall_side)
-            try:
-                route = plan_route(
-                    guides, settings, workpiece=cell.workpiece, tool_radius_m=cell.tool.radius_m
-                )
-            except RouteRefusedError:
+            route = planned_or_refused(guides, cell, settings, where)
+            if route is None:
                 continue  # refused before any motion, with the reason: not a wrong wall
             lifted, travel = route.lifted_m, route.guide_travel
         found = taught_wall_points(guides, pset.wall_side, pset.closed, walls, lifted, travel)
@@ -143,8 +139,6 @@ def test_a_point_where_the_wall_runs_across_its_chord_keeps_the_taught_wall(part
     good program on the pump's outer wall was condemned for "the other wall" at such a point, 1
     set in 1,500). The first point is neither moved nor judged: the walk starts from the wall
     its chord gives (a known limit, docs/learning_model.md)."""
-    from robomach_core.errors import RouteRefusedError
-    from robomach_core.learning.route import plan_route
     from robomach_core.learning.run import PathLearningSettings
     from tests.people_points import nominal_rotation, place_points
 
@@ -172,11 +166,8 @@ def test_a_point_where_the_wall_runs_across_its_chord_keeps_the_taught_wall(part
         if k not in kept or len(guides) < 4:
             continue
         settings = PathLearningSettings(closed=True, wall_side="right")
-        try:
-            route = plan_route(
-                guides, settings, workpiece=cell.workpiece, tool_radius_m=cell.tool.radius_m
-            )
-        except RouteRefusedError:
+        route = planned_or_refused(guides, cell, settings, f"{replay(SEED)}, set {set_seed}")
+        if route is None:
             continue  # refused before any motion, with the reason: not a wrong wall
         exercised += 1
         walls = PartWalls(cell.workpiece, route.axis, cell.tool.radius_m)
