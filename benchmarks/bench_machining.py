@@ -65,10 +65,7 @@ def main() -> None:
     pump = builtin_workpiece("water_pump")
     project = None
     if args.quick:
-        targets = targets_along_wall(robot, pump, tool_radius_m=tool.radius_m)
-        targets = type(targets)(
-            **{k: getattr(targets, k)[:61] for k in targets.__dataclass_fields__}
-        )
+        targets = quick_program(robot, tool, pump)
         source = "program along the true wall (--quick)"
     else:
         from robomach_core.pipeline import run_demo
@@ -149,6 +146,13 @@ def main() -> None:
     machine(core.with_machining_setup(project, setup), f"sweep of {variations} + 1 stocks")
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"load average {load:.1f} at the end")
+
+
+def quick_program(robot, tool, pump):
+    """The ``--quick`` program: the first 61 targets along the pump's true wall (no learning;
+    bench_offline_stocks.py's ``--quick`` cuts it too)."""
+    targets = targets_along_wall(robot, pump, tool_radius_m=tool.radius_m)
+    return type(targets)(**{k: getattr(targets, k)[:61] for k in targets.__dataclass_fields__})
 
 
 def _same_figures_on_every_core(robot, targets, normals, stock, model, count: int) -> None:

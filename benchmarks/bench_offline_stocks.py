@@ -20,6 +20,7 @@ import argparse
 import json
 
 import numpy as np
+from bench_machining import quick_program  # the same --quick program (this folder)
 
 from robomach_core import project as core
 from robomach_core.cell import Robot, Tool
@@ -31,7 +32,6 @@ from robomach_core.machining import (
     builtin_stock,
     run_machining,
     stiffness_model,
-    targets_along_wall,
     wall_normals_for_workpiece,
 )
 from robomach_core.part import builtin_workpiece
@@ -123,8 +123,7 @@ def _quick():
     tool = Tool()
     robot = Robot("ur10", tool.T_flange_tcp)
     pump = builtin_workpiece("water_pump")
-    targets = targets_along_wall(robot, pump, tool_radius_m=tool.radius_m)
-    targets = type(targets)(**{k: getattr(targets, k)[:61] for k in targets.__dataclass_fields__})
+    targets = quick_program(robot, tool, pump)
     normals = wall_normals_for_workpiece(pump, targets.position_m)
     stock = builtin_stock(targets.position_m, seed=0, wall_normals_m=normals)
     return robot, targets, stock, ("constant", "fuzzy", "two-stage")

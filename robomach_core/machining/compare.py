@@ -23,6 +23,7 @@ from ..stiffness.modes import COMPENSATIONS, Compensation
 from .run import (
     CancelFlag,
     CompensationModel,
+    FeedSource,
     MachiningRun,
     ProgressCallback,
     run_machining,
@@ -290,12 +291,12 @@ def run_configuration(
     progress: ProgressCallback | None = None,
     cancel: CancelFlag | Callable[[], bool] | None = None,
     program_frame: np.ndarray | None = None,
-    corrected: tuple[Targets, Targets] | tuple[Targets, Targets, str] | None = None,
+    corrected: tuple[Targets, Targets, FeedSource] | None = None,
 ) -> MachiningRun:
     """One configuration of the matrix: ``settings`` with this controller and compensation
     (the settings' own controller settings only for their own controller); ``corrected``
-    (program, nominal targets[, its feed: ``run.FeedSource``, "program" for a stage schedule
-    planned offline]) is an offline correction already planned: cut as it is."""
+    (program, nominal targets, its feed: ``run.FeedSource``, "program" for a stage schedule
+    planned offline) is an offline correction already planned: cut as it is."""
     own = settings.controller_settings
     run_settings = replace(
         settings,
@@ -307,12 +308,11 @@ def run_configuration(
         from .program import as_written
         from .run import cut_program
 
-        program, nominal = corrected[0], corrected[1]
-        feed = corrected[2] if len(corrected) > 2 else "controller"
+        program, nominal, feed = corrected
         return cut_program(
             robot, as_written(program, program_frame), None, stock, run_settings,
             cancel=cancel, progress=progress, nominal=nominal,
-            feed="program" if feed == "program" else "controller",
+            feed=feed,
             compensation_model_for_record=stiffness_model(
                 robot.name, run_settings, compensation_model
             ),

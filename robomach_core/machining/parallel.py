@@ -57,8 +57,9 @@ class CutTask:
         model: The identified stiffness (``JointCompliance``) or None.
         keep_runs: Return the ``MachiningRun`` values (traces) too, not only the summaries.
         program_frame: The work object the program files write positions in (``run_machining``).
-        corrected: (program, its nominal targets) of an offline correction planned on another
-            stock: the offline mode cuts it instead of rehearsing (a sweep over castings).
+        corrected: (program, its nominal targets, its feed ``run.FeedSource``) of an offline
+            correction planned on another stock: the offline mode cuts it instead of
+            rehearsing (a sweep over castings).
     """
 
     robot_name: str

@@ -434,7 +434,9 @@ def planned_schedule(project: Project) -> bool:
     ):
         return False
     s = machining_setup_of(project).settings
-    if s.compensation != "offline" or f"{s.controller}/offline" not in result.programs:
+    if s.stages != "planned" or s.compensation != "offline":
+        return False  # the default: the stages switch in the cell
+    if f"{s.controller}/offline" not in result.programs:
         return False
     if project.status()["machining"] != "current":
         return False
