@@ -25,6 +25,7 @@ from urllib.parse import urlsplit
 
 from fastapi import FastAPI
 
+from app.memory import freeze_imports
 from app.session import Session
 from app.settings import ServerSettings, is_loopback_name
 from app.store import DB_FILENAME, Store
@@ -324,6 +325,9 @@ def serve(settings: ServerSettings) -> int:
     if settings.viser_port is not None:
         check_port_free(viser_host(settings), settings.viser_port)
     data_dir = writable_folder(settings.data_dir.resolve(), "--data")
+    if settings.viser_port is not None:
+        import viser  # noqa: F401 - imported before the freeze, as the workbench will
+    freeze_imports()
     with data_dir_lock(data_dir):
         try:
             session = open_session(settings, data_dir)
