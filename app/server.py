@@ -10,6 +10,7 @@ is served beyond it (``viser_host``), and refuses websockets from other origins.
 from __future__ import annotations
 
 import functools
+import importlib
 import io
 import logging
 import os
@@ -20,16 +21,18 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from types import ModuleType
-from typing import IO
+from typing import IO, TYPE_CHECKING
 from urllib.parse import urlsplit
 
-from fastapi import FastAPI
-
 from app.memory import freeze_imports
-from app.session import Session
 from app.settings import ServerSettings, is_loopback_name
 from app.store import DB_FILENAME, Store
 from robomach_core.errors import InvalidInputError
+
+if TYPE_CHECKING:  # imported when a server is built: a refused start answers before them
+    from fastapi import FastAPI
+
+    from app.session import Session
 
 log = logging.getLogger("robomach.server")
 
@@ -305,6 +308,8 @@ def build_app(settings: ServerSettings, session: Session) -> FastAPI:
 def open_session(settings: ServerSettings, data_dir: Path) -> Session:
     """The session ``serve`` runs: the store of ``data_dir`` (SQLite), its last project, and the
     settings' upload limits and pacing. The in-process API tests build theirs here too."""
+    from app.session import Session
+
     return Session(
         Store.in_data_dir(data_dir),
         data_dir=data_dir,
@@ -315,9 +320,9 @@ def open_session(settings: ServerSettings, data_dir: Path) -> Session:
 
 
 def serve(settings: ServerSettings) -> int:
-    """Run until Ctrl-C or SIGTERM; returns the exit code."""
-    import uvicorn
-
+    """Run until Ctrl-C or SIGTERM; returns the exit code. The settings, ports and data
+    folder are checked before the server's libraries are imported (a refusal answers in a
+    fraction of a second instead of after two)."""
     from app.cli import writable_folder
 
     settings.check()
@@ -325,9 +330,12 @@ def serve(settings: ServerSettings) -> int:
     if settings.viser_port is not None:
         check_port_free(viser_host(settings), settings.viser_port)
     data_dir = writable_folder(settings.data_dir.resolve(), "--data")
-    if settings.viser_port is not None:
-        import viser  # noqa: F401 - imported before the freeze, as the workbench will
-    freeze_imports()
+    server_modules = ("uvicorn", "app.api.app", "app.session")
+    for name in (*server_modules, *(("viser",) if settings.viser_port is not None else ())):
+        importlib.import_module(name)
+    freeze_imports()  # what the imports made, before the session opens
+    import uvicorn
+
     with data_dir_lock(data_dir):
         try:
             session = open_session(settings, data_dir)
