@@ -138,8 +138,6 @@ def read_viser_icons_once() -> bool:
     ``svg_from_icon`` for one that reads the same files from the archive read once (checked:
     when the internals are missing it returns False and viser reads as before).
     """
-    import importlib
-
     try:
         icons = importlib.import_module("viser._icons")
         users = [importlib.import_module(f"viser.{name}") for name in ("_gui_api", "_gui_handles")]
@@ -321,8 +319,8 @@ def open_session(settings: ServerSettings, data_dir: Path) -> Session:
 
 def serve(settings: ServerSettings) -> int:
     """Run until Ctrl-C or SIGTERM; returns the exit code. The settings, ports and data
-    folder are checked before the server's libraries are imported (a refusal answers in a
-    fraction of a second instead of after two)."""
+    folder are checked before the server's libraries (fastapi, uvicorn, viser, the session)
+    are imported: a refused start does not wait for them."""
     from app.cli import writable_folder
 
     settings.check()
