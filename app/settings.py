@@ -18,7 +18,7 @@ from pydantic import Field, ValidationError
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from robomach_core.errors import InvalidInputError
-from robomach_core.part import MAX_MESH_BYTES, MAX_MESH_TRIANGLES
+from robomach_core.limits import MAX_MESH_BYTES, MAX_MESH_TRIANGLES
 
 DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8000

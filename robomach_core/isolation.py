@@ -71,29 +71,23 @@ def _task_mesh(payload: dict[str, Any]) -> dict[str, Any]:
     one distance query, as ``supervision.Supervisor`` and ``contact`` build them."""
     import coal
     import numpy as np
-    import trimesh
 
-    from .part.bvh import bvh_from_mesh
+    from .part.bvh import bvh_from_mesh, convex_hull_of
 
     vertices = np.asarray(payload["vertices"], dtype=float)
     faces = np.asarray(payload["faces"], dtype=np.int64)
-    mesh = trimesh.Trimesh(vertices, faces, process=False)
-    hull_mesh = mesh.convex_hull
-    points = coal.StdVec_Vec3s()
-    for p in np.asarray(hull_mesh.vertices, dtype=float):
-        points.append(p)
-    hull = coal.Convex.convexHull(points, False, None)
+    hull = convex_hull_of(vertices)
     bvh = bvh_from_mesh(vertices, faces)
     request, result = coal.DistanceRequest(), coal.DistanceResult()
     request.enable_signed_distance = True
-    centre = np.asarray(mesh.bounds[1], dtype=float) + 0.01
+    centre = vertices.max(axis=0) + 0.01
     T_sphere = coal.Transform3s(np.eye(3), centre)
     distance = coal.distance(bvh, coal.Transform3s(), coal.Sphere(0.001), T_sphere, request, result)
     hull_distance = coal.distance(hull, coal.Transform3s(), coal.Sphere(0.001), T_sphere, request,
                                   coal.DistanceResult())  # fmt: skip
     return {
         "hull_vertices": int(hull.num_points),
-        "hull_volume_m3": float(hull_mesh.volume),
+        "hull_volume_m3": float(hull.computeVolume()),
         "distance_m": float(distance),
         "hull_distance_m": float(hull_distance),
     }

@@ -110,6 +110,9 @@ HANDLE_SPRING_N_MM = Range("handle spring", 0.1, 5.0, "N/mm")
 # learning, ~260 MB of arrays; the papers' runs are minutes).
 GUIDE_POINTS_MAX = 200
 RECORDING_SAMPLES_MAX = 1_000_000
+# A mesh file a user gives (an upload, ``--workpiece F``, a project's part): bytes, triangles.
+MAX_MESH_BYTES = 50 * 1024 * 1024
+MAX_MESH_TRIANGLES = 500_000
 # Points of a force trace sent for a plot (decimated by stride).
 TRACE_POINTS = Range("trace points", 2, 100_000, integer=True)
 

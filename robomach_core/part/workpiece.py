@@ -15,6 +15,8 @@ import shapely.geometry
 import trimesh
 
 from ..errors import InvalidInputError, MeshFileError, UnknownNameError
+from ..limits import MAX_MESH_BYTES as MAX_MESH_BYTES
+from ..limits import MAX_MESH_TRIANGLES as MAX_MESH_TRIANGLES
 from ..robots import registry
 from ..transforms import make_transform
 from .contour import Contour, filleted_polygon
@@ -23,8 +25,6 @@ from .s_groove import S_GROOVE_DEPTH_M, S_GROOVE_PLATE_SIZE_M, s_groove_mesh, s_
 
 WORKPIECE_NAMES = ("water_pump", "block", "s_groove")
 MESH_SUFFIXES = (".stl", ".obj", ".ply")
-MAX_MESH_BYTES = 50 * 1024 * 1024
-MAX_MESH_TRIANGLES = 500_000
 # Reading a mesh file (``parse_mesh_file``, in an isolated process): memory it may take above
 # the helper's own, and time (a good 500k-triangle part reads in about 8 s).
 PARSE_MEMORY_BYTES = 2 << 30

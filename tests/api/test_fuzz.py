@@ -26,7 +26,7 @@ from schemathesis.checks import not_a_server_error  # noqa: E402
 from schemathesis.core.failures import FailureGroup  # noqa: E402
 from schemathesis.specs.openapi.checks import response_schema_conformance  # noqa: E402
 
-from tests.api.server_process import ServerProcess, start_server  # noqa: E402
+from tests.api.server_process import POLL_S, ServerProcess, start_server  # noqa: E402
 
 pytestmark = pytest.mark.slow
 
@@ -60,7 +60,7 @@ def cancel_started_job(http: requests.Session, base_url: str, response: requests
         job = http.get(f"{base_url}/api/jobs/{job_id}", timeout=REQUEST_TIMEOUT_S).json()
         if job.get("status") not in ("queued", "running"):
             return
-        time.sleep(0.05)
+        time.sleep(POLL_S)
 
 
 def check_event_stream(base_url: str, http: requests.Session) -> int:

@@ -14,13 +14,13 @@ import re
 import struct
 import zipfile
 
-import numpy as np
 import pytest
 import trimesh
 
 from robomach_core.project import CellSettings, Project, project_file_bytes
 from robomach_core.robots import abb
 from tests.api.server_process import Api, ServerProcess, peak_rss_bytes, reset_peak_rss, rss_bytes
+from tests.api.zip_bombs import renamed, zeros_member, zip_with
 
 MEMORY_GROWTH_BOUND_BYTES = 200 << 20
 # The issue's 184-byte STL: two coplanar triangles, a 100 mm square at z = 0.
@@ -96,31 +96,6 @@ def test_r2_the_5000_link_urdf_is_refused_and_the_server_lives(server: ServerPro
     alive(server, api)
 
 
-def _streamed_zip(members: dict[str, bytes | int]) -> bytes:
-    """A zip; an int member is that many zero bytes, streamed (deflate level 6: ~1000:1)."""
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED, compresslevel=6) as z:
-        for name, content in members.items():
-            if isinstance(content, int):
-                with z.open(name, "w", force_zip64=True) as f:
-                    if name.endswith(".npy"):
-                        f.write(_npy_header(content))
-                    block = bytes(1 << 20)
-                    for _ in range(content >> 20):
-                        f.write(block)
-            else:
-                z.writestr(name, content)
-    return buf.getvalue()
-
-
-def _npy_header(nbytes: int) -> bytes:
-    header = io.BytesIO()
-    np.lib.format.write_array_header_1_0(
-        header, {"descr": "<f8", "fortran_order": False, "shape": (nbytes // 8,)}
-    )
-    return header.getvalue()  # the magic string and the header
-
-
 @pytest.fixture(scope="module")
 def robot_bomb() -> bytes:
     text = (
@@ -132,7 +107,8 @@ def robot_bomb() -> bytes:
             "</geometry></visual></link>",
         )
     )
-    return _streamed_zip({"arm/robot.urdf": text.encode(), "arm/meshes/tool.stl": BOMB_BYTES})
+    mesh = renamed(zeros_member(BOMB_BYTES), "arm/meshes/tool.stl")
+    return zip_with({"arm/robot.urdf": text.encode()}, {"mesh": mesh})
 
 
 @pytest.fixture(scope="module")
@@ -140,7 +116,8 @@ def project_bomb() -> bytes:
     good = project_file_bytes(Project())
     with zipfile.ZipFile(io.BytesIO(good)) as z:
         document = z.read("document.npy")
-    return _streamed_zip({"document.npy": document, "rec_time_s.npy": BOMB_BYTES})
+    array = renamed(zeros_member(BOMB_BYTES, npy=True), "rec_time_s.npy")
+    return zip_with({"document.npy": document}, {"array": array})
 
 
 def _memory_bounded(server: ServerProcess, request) -> None:

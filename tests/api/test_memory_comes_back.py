@@ -12,6 +12,7 @@ curve.
 
 from __future__ import annotations
 
+import functools
 import io
 from collections.abc import Iterator
 from pathlib import Path
@@ -36,9 +37,14 @@ def fresh_server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[ServerPro
     assert "Traceback" not in server.log(), server.log()
 
 
+@functools.cache
+def _sphere() -> trimesh.Trimesh:
+    return trimesh.creation.icosphere(subdivisions=6, radius=40.0)
+
+
 def part_stl(i: int) -> bytes:
     """A different 80k-triangle part each time (a 4 MB STL)."""
-    mesh = trimesh.creation.icosphere(subdivisions=6, radius=40.0)
+    mesh = _sphere().copy()
     mesh.apply_translation([0.0, 0.0, 40.0 + 0.01 * i])
     buf = io.BytesIO()
     mesh.export(buf, file_type="stl")

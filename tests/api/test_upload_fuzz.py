@@ -20,7 +20,6 @@ import io
 import json
 import struct
 import zipfile
-import zlib
 from collections import Counter
 from collections.abc import Iterator
 from pathlib import Path
@@ -40,6 +39,7 @@ from tests.api.server_process import (
     reset_peak_rss,
     start_server,
 )
+from tests.api.zip_bombs import renamed, zeros_member, zip_with
 
 PEAK_MEMORY_BYTES = 2 << 30
 QUICK = {"mesh": 60, "urdf": 25, "archive": 25}
@@ -66,68 +66,7 @@ def fuzzed(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[ServerPro
 @pytest.fixture(scope="module")
 def bombs() -> dict[str, bytes]:
     """Deflate bombs made once: 1 GiB of zeros as a referenced robot mesh, a project array."""
-    return {"mesh": _zeros_member(BOMB_BYTES), "npy": _zeros_member(BOMB_BYTES, npy=True)}
-
-
-def _zeros_member(nbytes: int, *, npy: bool = False) -> bytes:
-    """A zip with one member of ``nbytes`` zeros (``payload``, after an .npy header when
-    ``npy``), ~1000:1.
-
-    Deflated once per MiB, not streamed through ``zipfile`` (6 s for two bombs): after a full
-    flush the compressor starts afresh, so every further MiB of zeros compresses to the same
-    bytes, which are repeated.
-    """
-    prefix = b""
-    if npy:
-        header = io.BytesIO()
-        np.lib.format.write_array_header_1_0(
-            header, {"descr": "<f8", "fortran_order": False, "shape": (nbytes // 8,)}
-        )
-        prefix = header.getvalue()
-    block, blocks = bytes(1 << 20), nbytes >> 20
-    deflate = zlib.compressobj(6, zlib.DEFLATED, -15)
-    head = deflate.compress(prefix) + deflate.flush(zlib.Z_FULL_FLUSH)
-    one = deflate.compress(block) + deflate.flush(zlib.Z_FULL_FLUSH)
-    assert deflate.compress(block) + deflate.flush(zlib.Z_FULL_FLUSH) == one
-    compressed = head + one * blocks + deflate.flush()
-    crc = zlib.crc32(prefix)
-    for _ in range(blocks):
-        crc = zlib.crc32(block, crc)
-    info = zipfile.ZipInfo("payload", date_time=(2026, 1, 1, 0, 0, 0))
-    info.compress_type, info.CRC = zipfile.ZIP_DEFLATED, crc
-    info.compress_size, info.file_size = len(compressed), len(prefix) + (blocks << 20)
-    return _zip_with({}, {"payload": (info, compressed)})
-
-
-def _renamed(bomb: bytes, name: str) -> tuple[zipfile.ZipInfo, bytes]:
-    """The bomb's member header and compressed bytes, to copy into another zip as ``name``."""
-    with zipfile.ZipFile(io.BytesIO(bomb)) as z:
-        info = z.getinfo("payload")
-    name_len, extra_len = struct.unpack(
-        "<HH", bomb[info.header_offset + 26 : info.header_offset + 30]
-    )
-    start = info.header_offset + 30 + name_len + extra_len  # the local header's own lengths
-    raw = bomb[start : start + info.compress_size]
-    copy = zipfile.ZipInfo(name, date_time=info.date_time)
-    copy.compress_type, copy.CRC = info.compress_type, info.CRC
-    copy.compress_size, copy.file_size = info.compress_size, info.file_size
-    return copy, raw
-
-
-def _zip_with(members: dict[str, bytes], raw: dict[str, tuple[zipfile.ZipInfo, bytes]]) -> bytes:
-    """A zip of ``members`` plus already-compressed members (bombs) written as they are."""
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
-        for name, content in members.items():
-            z.writestr(name, content)
-        for info, compressed in raw.values():
-            info.header_offset = buf.tell()
-            z.fp.write(info.FileHeader(zip64=True))
-            z.fp.write(compressed)
-            z.filelist.append(info)
-            z.NameToInfo[info.filename] = info
-            z.start_dir = buf.tell()
-    return buf.getvalue()
+    return {"mesh": zeros_member(BOMB_BYTES), "npy": zeros_member(BOMB_BYTES, npy=True)}
 
 
 def _answer_ok(server: ServerProcess, r, family: str) -> None:
@@ -318,8 +257,8 @@ def archives(draw, bombs: dict[str, bytes]) -> tuple[str, str, bytes]:
     family = draw(st.sampled_from(["robot-bomb", "robot-many", "robot-lying", "robot-odd", "npz"]))
     if family == "robot-bomb":
         name = draw(st.sampled_from(["arm/meshes/tool.stl", "arm/junk.bin", "../../x.stl"]))
-        data = _zip_with(
-            {"arm/robot.urdf": IRB_WITH_MESH.encode()}, {"b": _renamed(bombs["mesh"], name)}
+        data = zip_with(
+            {"arm/robot.urdf": IRB_WITH_MESH.encode()}, {"b": renamed(bombs["mesh"], name)}
         )
         return "/api/cell/robot", "arm.zip", data
     if family == "robot-many":
@@ -332,7 +271,7 @@ def archives(draw, bombs: dict[str, bytes]) -> tuple[str, str, bytes]:
         return "/api/cell/robot", "arm.zip", buf.getvalue()
     if family == "robot-lying":  # a member that declares 10 bytes and holds more, or less
         stl = trimesh.creation.box(extents=(0.1, 0.1, 0.1)).export(file_type="stl")
-        data = bytearray(_zip_with({"arm/robot.urdf": IRB_WITH_MESH.encode(),
+        data = bytearray(zip_with({"arm/robot.urdf": IRB_WITH_MESH.encode(),
                                     "arm/meshes/tool.stl": stl}, {}))  # fmt: skip
         at = data.rfind(b"PK\x01\x02")  # the last central entry: the mesh
         declared = draw(st.sampled_from([0, 10, 2**31, 2**32 - 1]))
@@ -346,7 +285,7 @@ def archives(draw, bombs: dict[str, bytes]) -> tuple[str, str, bytes]:
                 max_size=4,
             )
         )
-        return "/api/cell/robot", "arm.zip", _zip_with(members, {})
+        return "/api/cell/robot", "arm.zip", zip_with(members, {})
     # project files: bombs, wrong dtypes and shapes, documents of any JSON
     arrays: dict[str, np.ndarray] = {}
     doc = {"format": "robomach-project", "version": 1, "cell": {}, "guide_times_s": [],
@@ -375,7 +314,7 @@ def archives(draw, bombs: dict[str, bytes]) -> tuple[str, str, bytes]:
         with zipfile.ZipFile(io.BytesIO(data)) as z:
             members = {n: z.read(n) for n in z.namelist()}
         name = draw(st.sampled_from(["rec_time_s.npy", "guide_force_N.npy", "other.npy"]))
-        data = _zip_with(members, {"b": _renamed(bombs["npy"], name)})
+        data = zip_with(members, {"b": renamed(bombs["npy"], name)})
     return "/api/projects/import", "project.npz", data
 
 

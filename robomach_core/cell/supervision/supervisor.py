@@ -44,6 +44,7 @@ import pinocchio as pin
 
 from ...errors import InvalidInputError, SupervisionError
 from ...part import Workpiece
+from ...part.bvh import convex_hull_of
 from ...robots.registry import DEFAULT_LINK_RADIUS_M
 from ..clock import CONTROL_PERIOD_S
 from ..robot import IK_STEP_DAMPING, Robot
@@ -300,21 +301,20 @@ class Supervisor:
             shape = coal.Cylinder if body.flat else coal.Capsule
             self._shapes.append(shape(body.radius, max(length, 1e-6)))
             self._body_frames.append((_frame_of(axis), 0.5 * (body.a + body.b)))
-        mesh = workpiece.mesh_in_base() if workpiece is not None else None
-        if table_z_m is None:  # the part sits on the table
-            table_z_m = float(mesh.bounds[0, 2]) if mesh is not None else 0.0
-        self._table_z = float(table_z_m)
+        vertices = None  # the part's vertices in the base frame: its hull is an obstacle
+        if workpiece is not None:
+            T_base_wobj = np.asarray(workpiece.T_base_wobj, dtype=float)
+            vertices = workpiece.mesh.vertices @ T_base_wobj[:3, :3].T + T_base_wobj[:3, 3]
+            if table_z_m is None:  # the part sits on the table
+                table_z_m = float(vertices[workpiece.mesh.referenced_vertices, 2].min())
+        self._table_z = float(table_z_m or 0.0)
         self._obstacles: list[tuple[str, Any, coal.Transform3s, np.ndarray]] = []
         self._corners: list[np.ndarray] = []  # per obstacle (N_o, 3): it is their convex hull
-        if mesh is not None:
-            hull_mesh = mesh.convex_hull
-            points = coal.StdVec_Vec3s()
-            for p in np.asarray(hull_mesh.vertices, dtype=float):
-                points.append(p)
-            hull = coal.Convex.convexHull(points, False, None)
-            box = np.concatenate(hull_mesh.bounds)
+        if vertices is not None:
+            hull = convex_hull_of(vertices)
+            corners = np.array(hull.points(), dtype=float)
+            box = np.concatenate([corners.min(axis=0), corners.max(axis=0)])
             self._obstacles.append(("workpiece", hull, coal.Transform3s(), box))
-            corners = np.asarray(hull_mesh.vertices, dtype=float)
             # GJK's support point walks every corner; past a few hundred coal's is quicker.
             self._corners.append(corners if len(corners) <= GJK_MAX_CORNERS else corners[:0])
         for fixture_box in self.fixture:
