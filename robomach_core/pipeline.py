@@ -6,7 +6,7 @@ filter -> deviation-height reduction -> targets -> program, scored against the t
 is a ``project.Project`` (its settings are the project's own: ``CellSettings``, the
 post-processing, CMRR and compensation settings), and every stage is the project's, in the
 order the workbench applies them: the cell of ``project.build_cell``, ``with_guide_points``,
-``guide_findings``, ``learn`` and ``with_learned`` (the force filter's band rule),
+``guide_check``, ``learn`` and ``with_learned`` (the force filter's band rule),
 ``process`` and ``with_processed``, ``program_export``.
 """
 
@@ -29,7 +29,7 @@ from .part import MAX_MESH_BYTES, MESH_SUFFIXES, Workpiece
 from .project import (
     Project,
     build_cell,
-    guide_findings,
+    guide_check,
     learn,
     process,
     program_export,
@@ -215,7 +215,7 @@ def run_demo(
     )
     state, guides = _teach(lt, state, intents, project.cell.seed, report)
     project = with_guide_points(project, guides)
-    findings = guide_findings(project, cell, learning)
+    findings, route = guide_check(project, cell, learning)
     if checked is not None:
         checked(findings)
     t_learn = time.perf_counter()
@@ -226,6 +226,7 @@ def run_demo(
         learning,
         lt.estimator,
         progress=lambda f: report("path learning", f),
+        route=route,  # the route checked (None when refused: ``learn`` plans it and says why)
     )
     learning_wall = time.perf_counter() - t_learn
     report("post-processing", 0.0)

@@ -32,7 +32,7 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from robomach_core.cell import Cell, CellConfig
-from robomach_core.part import Workpiece, default_T_base_wobj
+from robomach_core.part import Workpiece, default_T_base_wobj, mesh_from_bytes
 from robomach_core.project import CellSettings
 from robomach_core.project._stages import build_cell_workpiece
 
@@ -183,9 +183,19 @@ class EnvelopePart:
         mesh.apply_transform(self.T_wobj_part)
         return mesh.export(file_type="stl")
 
+    @cached_property
+    def _parsed(self) -> Workpiece | None:
+        """The uploaded mesh read once (``mesh_from_bytes``: a process of its own per read);
+        each cell places it, as the workbench places an upload it has read (``parsed``)."""
+        if self.mesh_mm is None:
+            return None
+        return mesh_from_bytes(self._stl, ".stl", name=self.name)
+
     def workpiece(self, seed: int = 0, robot: str = "ur10") -> Workpiece:
         """The part the cell's contact meets, built the project's way."""
-        return build_cell_workpiece(self.cell_settings(seed, robot), self.mesh_file())
+        return build_cell_workpiece(
+            self.cell_settings(seed, robot), self.mesh_file(), parsed=self._parsed
+        )
 
     def cell(self, seed: int, robot: str = "ur10") -> Cell:
         return Cell(CellConfig(robot=robot, workpiece=self.workpiece(seed, robot), seed=seed))

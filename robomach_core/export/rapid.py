@@ -33,7 +33,7 @@ import numpy as np
 from robomach_core.errors import InvalidInputError
 from robomach_core.postprocess import Move, linear_moves, validate_moves
 from robomach_core.robots import ABB_ARMS, ArmSpec
-from robomach_core.transforms import quaternion_from_matrix
+from robomach_core.transforms import quaternions_from_matrices
 
 MAX_IDENTIFIER_LEN = 32
 # mm: 0.1 um, so a corrected program's offsets are the simulated ones (a controller's
@@ -313,11 +313,20 @@ def rapid_quaternion(R: np.ndarray) -> np.ndarray:
     Returns:
         Shape (4,), q1..q4 with q1 = w.
     """
-    quat = quaternion_from_matrix(R)
-    for value in np.round(quat, QUATERNION_DECIMALS):
-        if value != 0.0:
-            return -quat if value < 0.0 else quat
-    return quat  # unreachable for a unit quaternion
+    return rapid_quaternions(np.asarray(R, dtype=float)[None])[0]
+
+
+def rapid_quaternions(Rs: np.ndarray) -> np.ndarray:
+    """``rapid_quaternion`` of each of (n, 3, 3) rotations, in one conversion: shape (n, 4)."""
+    quats = quaternions_from_matrices(Rs)
+    rounded = np.round(quats, QUATERNION_DECIMALS)
+    for k, row in enumerate(rounded):
+        for value in row:
+            if value != 0.0:
+                if value < 0.0:
+                    quats[k] = -quats[k]
+                break
+    return quats
 
 
 def confdata_from_joints(
@@ -419,15 +428,17 @@ def _short(x: float, decimals: int = 6) -> str:
     return "0" if text in ("-0", "") else text
 
 
-def _pose_literal(T: np.ndarray) -> str:
-    """``[[x,y,z],[q1,q2,q3,q4]]`` of a transform [m] in mm."""
+def _pose_literal(T: np.ndarray, q: np.ndarray | None = None) -> str:
+    """``[[x,y,z],[q1,q2,q3,q4]]`` of a transform [m] in mm; ``q`` its ``rapid_quaternion``
+    when already converted (a module's robtargets are converted together)."""
     pos = ",".join(_fixed(v * 1000.0, POSITION_DECIMALS) for v in T[:3, 3])
-    quat = ",".join(_fixed(v, QUATERNION_DECIMALS) for v in rapid_quaternion(T[:3, :3]))
+    q = rapid_quaternion(T[:3, :3]) if q is None else q
+    quat = ",".join(_fixed(v, QUATERNION_DECIMALS) for v in q)
     return f"[[{pos}],[{quat}]]"
 
 
-def _robtarget_literal(T: np.ndarray, conf: tuple[int, ...]) -> str:
-    return f"[{_pose_literal(T)[1:-1]},[{','.join(str(c) for c in conf)}],{UNUSED_EXTAX}]"
+def _robtarget_literal(T: np.ndarray, conf: tuple[int, ...], q: np.ndarray | None = None) -> str:
+    return f"[{_pose_literal(T, q)[1:-1]},[{','.join(str(c) for c in conf)}],{UNUSED_EXTAX}]"
 
 
 def _loaddata_literal(tool: RapidTool) -> str:
@@ -590,9 +601,10 @@ def _data_lines(
     named = [(APPROACH_NAME, _backed_off(first.T_wobj_target, offset), first)]
     named += [(f"p{i + 1}", t.T_wobj_target, t) for i, t in enumerate(targets)]
     named.append((RETRACT_NAME, _backed_off(last.T_wobj_target, offset), last))
-    for name, T, target in named:
+    quats = rapid_quaternions(np.array([T[:3, :3] for _, T, _ in named]))
+    for (name, T, target), q in zip(named, quats, strict=True):
         conf = confdata_from_joints(target.joints_rad, cfx=target.cfx, arm=program.arm)
-        lines.append(f"  CONST robtarget {name} := {_robtarget_literal(T, conf)};")
+        lines.append(f"  CONST robtarget {name} := {_robtarget_literal(T, conf, q)};")
     return lines
 
 

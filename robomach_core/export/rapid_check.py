@@ -259,6 +259,8 @@ _BINARY_LEVELS = (
     ("+", "-"),
     ("*", "/", "DIV", "MOD"),
 )
+# Tokens that end an operand, none of them a binary operator (``_Parser._lone_number``).
+_ENDS_OPERAND = frozenset((",", "]", ")", "}", ";"))
 
 
 @dataclass
@@ -552,6 +554,10 @@ class _Parser:
 
     # -- expressions
     def expr(self, level: int = 0) -> tuple:
+        if level == 0:
+            lone = self._lone_number()
+            if lone is not None:
+                return lone
         if level == len(_BINARY_LEVELS):
             return self.unary()
         left = self.expr(level + 1)
@@ -560,6 +566,24 @@ class _Parser:
             op = self.advance()
             left = ("bin", op.line, op.text.upper(), left, self.expr(level + 1))
         return left
+
+    def _lone_number(self) -> tuple | None:
+        """The node ``expr`` builds for a number or a signed number that is a whole operand
+        (the next token ends it: ``_ENDS_OPERAND``), without climbing the operator levels: a
+        module's robtargets are thousands of them. None for anything else."""
+        toks, i = self.toks, self.i
+        tok = toks[i]
+        if tok.kind == "op" and tok.text in ("-", "+"):
+            num, end = toks[i + 1], toks[i + 2] if toks[i + 1].kind == "num" else None
+            if end is not None and end.kind == "op" and end.text in _ENDS_OPERAND:
+                self.i = i + 2
+                return ("un", tok.line, tok.text, ("num", num.line, float(num.text)))
+            return None
+        end = toks[i + 1] if tok.kind == "num" else None
+        if end is not None and end.kind == "op" and end.text in _ENDS_OPERAND:
+            self.i = i + 1
+            return ("num", tok.line, float(tok.text))
+        return None
 
     def unary(self) -> tuple:
         if self.at_op("-", "+") or self.at_kw("NOT"):

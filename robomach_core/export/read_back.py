@@ -23,7 +23,12 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..postprocess import Targets
-from ..transforms import make_transform, matrix_from_quaternion, quaternions_from_matrices
+from ..transforms import (
+    make_transform,
+    matrices_from_quaternions,
+    matrix_from_quaternion,
+    quaternions_from_matrices,
+)
 
 MM = 1e-3
 _RAPID_MOVE = re.compile(
@@ -125,7 +130,7 @@ def _read_rapid(text: str) -> ProgramPath:
     info = check_rapid_module(text)
     T_base_wobj = _wobj_frame(text)
     speeds = {name.upper(): float(v) * MM for name, v in _RAPID_SPEED.findall(text)}
-    positions, rotations, v = [], [], []
+    names, v = [], []
     for line in text.splitlines():
         found = _RAPID_MOVE.match(line)
         if not found:
@@ -136,12 +141,18 @@ def _read_rapid(text: str) -> ProgramPath:
         if not all(_RAPID_TARGET.match(p) for p in points):
             continue  # the approach or the retract
         speed = speeds[args[len(points)].upper()]
-        for name in points:
-            pos_mm, quat, _conf = info.robtargets[name]
-            T = T_base_wobj @ make_transform(matrix_from_quaternion(quat), pos_mm * MM)
-            positions.append(T[:3, 3])
-            rotations.append(T[:3, :3])
-            v.append(speed)
+        names += points
+        v += [speed] * len(points)
+    # The quaternions turned into rotations together (one conversion, not one per target).
+    quats = np.array([info.robtargets[name][1] for name in names], dtype=float).reshape(-1, 4)
+    norms = np.linalg.norm(quats, axis=1)
+    for q in quats[~(np.isfinite(norms) & (norms >= 1e-9))]:
+        matrix_from_quaternion(q)  # raises, saying which has no direction
+    positions, rotations = [], []
+    for name, R in zip(names, matrices_from_quaternions(quats) if names else [], strict=True):
+        T = T_base_wobj @ make_transform(R, info.robtargets[name][0] * MM)
+        positions.append(T[:3, 3])
+        rotations.append(T[:3, :3])
     reference = re.search(r"^\s*FCSpdChgAct\s+([-+\d.eE]+)\s*;", text, flags=re.M)
     return _path(
         positions, rotations, v,

@@ -167,7 +167,29 @@ def guide_point_warnings(
     tolerance_m: float | None = None,
 ) -> tuple[GuideWarning, ...]:
     """What the operator should know before learning (module docstring): the route's refusal,
-    if any, first.
+    if any, first. The arguments are ``guide_check``'s."""
+    return guide_check(
+        guides,
+        settings,
+        workpiece=workpiece,
+        tool_radius_m=tool_radius_m,
+        supervisor=supervisor,
+        tolerance_m=tolerance_m,
+    )[0]
+
+
+def guide_check(
+    guides: Sequence[GuidePoint],
+    settings: PathLearningSettings,
+    *,
+    workpiece: Workpiece | None = None,
+    tool_radius_m: float | None = None,
+    supervisor: Supervisor | None = None,
+    tolerance_m: float | None = None,
+) -> tuple[tuple[GuideWarning, ...], LearningRoute | None]:
+    """``guide_point_warnings`` and the route they read (None: refused, or fewer than two
+    points). The findings only read the route, so a run that follows the check can learn on
+    it (``project.learn``'s ``route``) instead of planning it again.
 
     Args:
         guides: The guide points in order.
@@ -183,7 +205,7 @@ def guide_point_warnings(
             wall).
     """
     if not guides:
-        return ()
+        return (), None
     out: list[GuideWarning] = []
     mesh = workpiece is not None and tool_radius_m is not None
     route = None
@@ -219,7 +241,7 @@ def guide_point_warnings(
             f"{th.TAUGHT_WALL_TOLERANCE_M * 1e3:g} mm a program may stray from the taught wall; "
             "lower it (0.2 mm by default) unless that is meant"
         )))  # fmt: skip
-    return tuple(out)
+    return tuple(out), route
 
 
 # --- after the run -------------------------------------------------------------------------------

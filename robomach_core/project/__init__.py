@@ -49,6 +49,7 @@ from ._machining_documents import (
 from ._machining_program import machining_note as machining_note
 from ._stages import build_cell as build_cell
 from ._stages import build_workpiece as build_workpiece
+from ._stages import guide_check as guide_check
 from ._stages import guide_findings as guide_findings
 from ._stages import learn as learn
 from ._stages import process as process

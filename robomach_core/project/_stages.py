@@ -50,7 +50,8 @@ def learn(
 
     ``cell`` is the project's cell (possibly seen through a proxy that taps each step); returns
     the learned path and the cell state at the end. ``route``: the route already planned
-    (``route_of``), so that what was checked before the job is what runs.
+    (``route_of``, or the one ``guide_check`` read), so that what was checked before the job
+    is what runs.
 
     Raises:
         RouteRefusedError: the points cannot be learned as taught (``WallSideError`` when the
@@ -238,11 +239,20 @@ def guide_findings(
     against the mesh the user sees, the arm's reach and the cell's supervision, at the
     project's tolerance): what the workbench shows and ``robomach demo`` prints; a refusal
     raises."""
+    return guide_check(project, cell, settings)[0]
+
+
+def guide_check(
+    project: Project, cell: Cell, settings: PathLearningSettings
+) -> tuple[tuple[GuideWarning, ...], LearningRoute | None]:
+    """``guide_findings`` and the route they read, the one ``route_of`` plans (None when it is
+    refused): ``learn`` takes it as its ``route``, so a run right after its check plans the
+    route once (the walk on the mesh is the most of the check's time)."""
     from ..cell import cell_supervisor
-    from ..learning.checks import guide_point_warnings
+    from ..learning.checks import guide_check as check_guides
 
     with mesh_query.LOCK:  # the mesh's nearest-point tree answers one thread at a time
-        return guide_point_warnings(
+        return check_guides(
             project.guide_points,
             settings,
             workpiece=cell.workpiece.cad(),

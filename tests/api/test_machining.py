@@ -4,13 +4,12 @@ staleness, and the same program bytes as ``robomach machine`` for the same proje
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 import time
 
 import pytest
 
 from tests.api.server_process import Api
+from tests.cli import robomach_here
 from tests.demo_project import block_demo_dir
 
 STATUS = "/api/projects/current/status"
@@ -131,17 +130,16 @@ def test_stock_profile_and_a_bad_stock_mesh(api: Api) -> None:
     assert api.ok("GET", "/api/machining/settings")["stock_source"] == "profile"
 
 
-@pytest.mark.slow  # the shared block demo run and a `robomach machine` process
+@pytest.mark.slow  # the shared block demo run and a `robomach machine`
 def test_cli_and_rest_write_the_same_program_for_the_same_project(api: Api, tmp_path) -> None:
     demo = block_demo_dir()
     out = tmp_path / "cli"
-    proc = subprocess.run(
-        [sys.executable, "-m", "app.cli", "machine", "--out", str(out), "--from", str(demo)]
-        + ["--controller", "adaptive-pi", "--compensation", "offline", "--no-plot"],
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+    # ``robomach machine``'s main in this process (tests/cli.py): the files it writes are
+    # what is compared; a process of its own would add only its imports.
+    proc = robomach_here(
+        "machine", "--out", str(out), "--from", str(demo),
+        "--controller", "adaptive-pi", "--compensation", "offline", "--no-plot",
+    )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
 
     files = {"file": ("project.npz", (demo / "project.npz").read_bytes())}

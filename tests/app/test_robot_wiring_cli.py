@@ -22,7 +22,7 @@ from robomach_core.part import builtin_workpiece
 from robomach_core.teaching import guide_plan
 from robomach_core.transforms import make_transform
 from tests.cli import robomach_here
-from tests.demo_project import pump_demo
+from tests.demo_project import arm_demo, pump_demo
 from tests.rapid_grammar import rapidchecker_errors
 
 
@@ -43,10 +43,11 @@ def joints_of(row: dict) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def irb4400(tmp_path_factory):
-    out = tmp_path_factory.mktemp("irb4400")
-    summary, _ = demo(out, "--robot", "irb4400")
-    return out, summary
+def irb4400():
+    """The pump demo on the IRB 4400 (``robomach demo --robot irb4400``), shared with
+    tests/core/machining/test_read_back.py: read, never written."""
+    run = arm_demo("irb4400")
+    return run.folder, run.summary
 
 
 @pytest.fixture(scope="module")

@@ -20,6 +20,7 @@ from robomach_core.export.rapid import confdata_from_joints
 from robomach_core.robots import KR270
 from robomach_core.robots.kuka import status_bits, turn_bits
 from tests.cli import robomach_here
+from tests.demo_project import arm_demo
 from tests.rapid_grammar import rapidchecker_errors
 
 pytestmark = pytest.mark.slow
@@ -41,9 +42,11 @@ def target_joints(out: Path) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def kr270(tmp_path_factory) -> tuple[Path, dict]:
-    out = tmp_path_factory.mktemp("kr270")
-    return out, demo(out, "--robot", "kr270")
+def kr270() -> tuple[Path, dict]:
+    """The pump demo on the KR 270 (``robomach demo --robot kr270``), shared with
+    tests/core/machining/test_read_back.py: read, never written."""
+    run = arm_demo("kr270")
+    return run.folder, run.summary
 
 
 @pytest.fixture(scope="module")

@@ -23,10 +23,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from robomach_core import project as core
-from robomach_core.cell import Robot
 from robomach_core.machining import MACHINING_CONTROLLERS, MachiningSettings, run_machining
 from robomach_core.machining.schedule import STAGED_CONTROLLERS
-from tests.demo_project import pump_demo
+from tests.shared_machining import machined
 
 pytestmark = pytest.mark.slow
 MM = 1e-3
@@ -57,18 +56,10 @@ ONLINE_SHARE = {"two-stage": 0.20}
 @pytest.fixture(scope="module")
 def pump():
     # The README's demo (tests/demo_project.py), run once for the whole test run and reopened
-    # from its project.npz, as ``robomach machine --from`` reopens it.
-    project = core.load_project_file(pump_demo().folder / "project.npz")
-    setup = core.MachiningSetup(MachiningSettings(seed=0), cell_options=UR_OPTIONS)
-    project = core.with_machining_setup(project, setup)
-    workpiece = core.build_workpiece(project.cell, project.mesh)
-    robot = Robot(project.cell.robot, project.tool().T_flange_tcp)
-    result = core.machine(
-        project, workpiece, robot,
-        controllers=MACHINING_CONTROLLERS, compensations=("off", "offline", "online"),
-        workers=None,
-    )  # fmt: skip
-    return project, workpiece, robot, result
+    # from its project.npz, as ``robomach machine --from`` reopens it; its 18-run comparison is
+    # the one tests/core/machining/test_read_back.py reads back (tests/shared_machining.py).
+    m = machined("ur10", UR_OPTIONS, MACHINING_CONTROLLERS, ("off", "offline", "online"))
+    return m.project, m.workpiece, m.robot, m.result
 
 
 def _row(result, controller, compensation):

@@ -18,15 +18,14 @@ import numpy as np
 import pytest
 
 from robomach_core import project as core
-from robomach_core.cell import Robot
 from robomach_core.errors import InvalidInputError
 from robomach_core.export.languages import languages_for
 from robomach_core.export.read_back import read_program
-from robomach_core.machining import MACHINING_CONTROLLERS, STAGE_PLANS, MachiningSettings
+from robomach_core.machining import MACHINING_CONTROLLERS, STAGE_PLANS
 from robomach_core.machining.run import cut_program
 from robomach_core.machining.schedule import STAGED_CONTROLLERS
 from robomach_core.project._machining import compensation_model
-from tests.demo_project import arm_demo
+from tests.shared_machining import machined as shared_machined
 
 pytestmark = pytest.mark.slow
 MM = 1e-3
@@ -42,21 +41,16 @@ FIGURES = ("cycle_time_s", "force_peak_N", "wall_error_max_mm")
 
 @functools.cache
 def _machined(arm: str, stages: str):
-    """The arm's 18-run comparison with the stages switched online (the default); with the
+    """The arm's 18-run comparison with the stages switched online (the default; the UR10's
+    is tests/core/machining/test_acceptance.py's too: tests/shared_machining.py); with the
     stages planned (``machining.schedule``) the staged controllers' offline rows alone."""
-    project = core.load_project_file(arm_demo(arm).folder / "project.npz")
-    settings = MachiningSettings(seed=0, stages=stages)
-    setup = core.MachiningSetup(settings, cell_options=CELLS[arm])
-    project = core.with_machining_setup(project, setup)
-    workpiece = core.build_workpiece(project.cell, project.mesh)
-    robot = Robot(project.cell.robot, project.tool().T_flange_tcp)
     planned = stages == "planned"
-    result = core.machine(
-        project, workpiece, robot,
-        controllers=STAGED_CONTROLLERS if planned else MACHINING_CONTROLLERS,
-        compensations=("offline",) if planned else ("off", "offline", "online"), workers=None,
+    m = shared_machined(
+        arm, CELLS[arm],
+        STAGED_CONTROLLERS if planned else MACHINING_CONTROLLERS,
+        ("offline",) if planned else ("off", "offline", "online"), stages,
     )  # fmt: skip
-    return arm, core.with_machining_result(project, result), workpiece, robot, result
+    return arm, core.with_machining_result(m.project, m.result), m.workpiece, m.robot, m.result
 
 
 @pytest.fixture(scope="module", params=sorted(CELLS))
