@@ -165,6 +165,7 @@ def guide_point_warnings(
     tool_radius_m: float | None = None,
     supervisor: Supervisor | None = None,
     tolerance_m: float | None = None,
+    route: LearningRoute | None = None,
 ) -> tuple[GuideWarning, ...]:
     """What the operator should know before learning (module docstring): the route's refusal,
     if any, first.
@@ -181,13 +182,14 @@ def guide_point_warnings(
             ``TAUGHT_WALL_TOLERANCE_M`` the program's moves may cut across the wall by that much,
             said before the run (issue 31: a 4 mm tolerance was accepted, then blamed on the
             wall).
+        route: The route ``plan_route`` planned for these points, settings, workpiece and
+            radius, when the caller has it (the findings only read it); planned here when None.
     """
     if not guides:
         return ()
     out: list[GuideWarning] = []
     mesh = workpiece is not None and tool_radius_m is not None
-    route = None
-    if len(guides) >= 2:
+    if len(guides) >= 2 and route is None:
         try:
             route = plan_route(
                 guides,

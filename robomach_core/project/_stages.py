@@ -232,12 +232,17 @@ def require_processed(project: Project) -> ProcessedPath:
 
 
 def guide_findings(
-    project: Project, cell: Cell, settings: PathLearningSettings
+    project: Project,
+    cell: Cell,
+    settings: PathLearningSettings,
+    *,
+    route: LearningRoute | None = None,
 ) -> tuple[GuideWarning, ...]:
     """The check of the project's guide points before a run (``learning.guide_point_warnings``
     against the mesh the user sees, the arm's reach and the cell's supervision, at the
     project's tolerance): what the workbench shows and ``robomach demo`` prints; a refusal
-    raises."""
+    raises. ``route``: the route ``route_of`` planned for them with ``settings``, when the
+    caller has it (planned here when None)."""
     from ..cell import cell_supervisor
     from ..learning.checks import guide_point_warnings
 
@@ -249,6 +254,7 @@ def guide_findings(
             tool_radius_m=project.cell.tool_radius_m,
             supervisor=cell_supervisor(cell),
             tolerance_m=project.post_settings.tolerance_m,
+            route=route,
         )
 
 
