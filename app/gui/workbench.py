@@ -210,8 +210,8 @@ class Workbench:
             self.cell.refresh()
             framed = self._part_key()
             if framed != self._framed:  # not a calibration: the person's view stays
-                self._framed = framed
                 self._frame_part()
+                self._framed = framed  # now: ``part_framed`` says the cameras were sent
             note = self.session.cell_note()
             for client in self.server.get_clients().values() if note else ():
                 client.add_notification(

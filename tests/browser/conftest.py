@@ -84,6 +84,20 @@ def new_context(browser, **options):
     return context
 
 
+def frames_drawn(page, frames: int = 2) -> None:
+    """Wait until ``page`` has drawn ``frames`` more animation frames. viser draws the scene
+    messages it has received in its next frame, and the workbench sends a panel's scene before
+    its text: once the text shows, this waits for its scene to be drawn (for a screenshot),
+    instead of a fixed time."""
+    page.evaluate(
+        """(n) => new Promise((done) => {
+             const next = (k) => (k > 0 ? requestAnimationFrame(() => next(k - 1)) : done());
+             next(n);
+           })""",
+        frames,
+    )
+
+
 START_TIMEOUT_S = 90.0
 VIEWPORT = {"width": 1400, "height": 900}
 
