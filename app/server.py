@@ -9,14 +9,11 @@ is served beyond it (``viser_host``), and refuses websockets from other origins.
 
 from __future__ import annotations
 
-import functools
 import importlib
-import io
 import logging
 import os
 import socket
 import sqlite3
-import zipfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -96,7 +93,6 @@ def viser_workbench(
             settings.viser_port,
             settings.viser_port,
         )
-    read_viser_icons_once()
     server = viser.ViserServer(host=host, port=settings.viser_port, verbose=False)
     refuse_foreign_websockets(server)
     port = server.get_port()
@@ -128,40 +124,6 @@ def viser_workbench(
             except Exception:
                 log.exception("closing the workbench failed")
         server.stop()
-
-
-def read_viser_icons_once() -> bool:
-    """Make viser read its icons from one open copy of its icon archive.
-
-    viser 1.1 opens its 4,285-entry ``tabler-icons.zip`` again for every new icon it draws
-    (25-60 ms each: the workbench's 19 icons took 0.5-1.1 s of every start). This swaps its
-    ``svg_from_icon`` for one that reads the same files from the archive read once (checked:
-    when the internals are missing it returns False and viser reads as before).
-    """
-    try:
-        icons = importlib.import_module("viser._icons")
-        users = [importlib.import_module(f"viser.{name}") for name in ("_gui_api", "_gui_handles")]
-    except ImportError:
-        return False
-    archive = getattr(icons, "ICONS_DIR", None)
-    if archive is None or not all(hasattr(m, "svg_from_icon") for m in users):
-        return False
-    if getattr(users[0].svg_from_icon, "reads_one_archive", False):
-        return True
-    zip_path = Path(archive) / "tabler-icons.zip"
-
-    @functools.cache
-    def opened() -> zipfile.ZipFile:
-        return zipfile.ZipFile(io.BytesIO(zip_path.read_bytes()))
-
-    @functools.cache
-    def svg_from_icon(icon_name: str) -> str:
-        return opened().read(f"{icon_name}.svg").decode("utf-8")
-
-    svg_from_icon.reads_one_archive = True  # type: ignore[attr-defined]
-    for module in users:
-        module.svg_from_icon = svg_from_icon  # type: ignore[attr-defined]
-    return True
 
 
 def refuse_foreign_websockets(server: object) -> bool:

@@ -13,17 +13,20 @@ The browser's websocket frames are decoded (viser's wire format: zstd-compressed
 frame that moves ``/robot/tcp`` counts as one pose update seen. The page's own draw rate
 (requestAnimationFrame, software WebGL here) is printed for information. ``--quick`` measures
 each mode for 1 s after a short settling, on a page drawing two frames a second as the browser
-tests' pages do (a smoke test, not a measurement).
+tests' pages do, the rest mode's server started while the handle mode runs (a smoke test, not a
+measurement).
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import sys
 import tempfile
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import msgspec
@@ -33,7 +36,7 @@ import zstandard
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.api.server_process import free_port, start_server  # noqa: E402
+from tests.api.server_process import ServerProcess, free_port, start_server  # noqa: E402
 from tests.browser.conftest import CHROMIUM_ARGS, START_TIMEOUT_S, new_context  # noqa: E402
 
 TCP_NODE = "/robot/tcp"
@@ -88,9 +91,8 @@ SETTLE_S = {"scene": 3.0, "pushing": 1.0}
 THROTTLED = {"frames": False}  # --quick: the pages draw two frames a second (the tests' pace)
 
 
-def open_viewer(playwright, url: str):
-    """A headless chromium page on the viser URL; returns (browser, page, counter)."""
-    browser = playwright.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)
+def open_viewer(browser, url: str):
+    """A page of the headless ``browser`` on the viser URL; returns (page, counter)."""
     viewport = {"width": 960, "height": 640}
     if THROTTLED["frames"]:
         page = new_context(browser, viewport=viewport).new_page()
@@ -106,7 +108,7 @@ def open_viewer(playwright, url: str):
     page.get_by_text("Connected").wait_for(timeout=LOAD_TIMEOUT_S * 1e3)
     page.get_by_text("Lead-through").first.wait_for(timeout=LOAD_TIMEOUT_S * 1e3)
     page.wait_for_timeout(SETTLE_S["scene"] * 1e3)  # the initial scene arrives and is parsed
-    return browser, page, counter
+    return page, counter
 
 
 def measure(page, counter: PoseCounter, seconds: float, mode: str) -> dict:
@@ -123,7 +125,7 @@ def measure(page, counter: PoseCounter, seconds: float, mode: str) -> dict:
     return {"mode": mode, "updates": n, "rate_hz": hz, "median_ms": median_ms, "p95_ms": p95_ms}
 
 
-def bench_handle(playwright, seconds: float) -> dict:
+def bench_handle(browser, seconds: float) -> dict:
     import viser
 
     from app.gui import Workbench
@@ -146,12 +148,12 @@ def bench_handle(playwright, seconds: float) -> dict:
             stop.wait(0.02)
 
     try:
-        browser, page, counter = open_viewer(playwright, f"http://127.0.0.1:{server.get_port()}/")
+        page, counter = open_viewer(browser, f"http://127.0.0.1:{server.get_port()}/")
         mover = threading.Thread(target=circle, daemon=True)
         mover.start()
         page.wait_for_timeout(SETTLE_S["pushing"] * 1e3)
         result = measure(page, counter, seconds, "handle")
-        browser.close()
+        page.context.close()
     finally:
         stop.set()
         wb.close()
@@ -160,34 +162,33 @@ def bench_handle(playwright, seconds: float) -> dict:
     return result
 
 
-def bench_rest(playwright, seconds: float) -> dict:
+def bench_rest(browser, seconds: float, served: ServerProcess) -> dict:
+    """The ``rest`` mode on ``served`` (a real ``robomach serve``); stops it at the end."""
     import httpx
 
-    with tempfile.TemporaryDirectory() as tmp:
-        served = start_server(Path(tmp) / "data", start_timeout_s=START_TIMEOUT_S)
-        stop = threading.Event()
+    stop = threading.Event()
 
-        def hold_push() -> None:
-            with httpx.Client(base_url=served.base_url, timeout=30.0) as client:
-                t_next, direction, flipped = time.monotonic(), 1.0, time.monotonic()
-                while not stop.is_set():
-                    if time.monotonic() - flipped > 2.0:  # back and forth, 2 s each way
-                        direction, flipped = -direction, time.monotonic()
-                    body = {"force_N": [10.0 * direction, 0, 0], "duration_s": REST_PUSH_S}
-                    client.post("/api/leadthrough/push", json=body)
-                    t_next += REST_PUSH_S
-                    stop.wait(max(0.0, t_next - time.monotonic()))
+    def hold_push() -> None:
+        with httpx.Client(base_url=served.base_url, timeout=30.0) as client:
+            t_next, direction, flipped = time.monotonic(), 1.0, time.monotonic()
+            while not stop.is_set():
+                if time.monotonic() - flipped > 2.0:  # back and forth, 2 s each way
+                    direction, flipped = -direction, time.monotonic()
+                body = {"force_N": [10.0 * direction, 0, 0], "duration_s": REST_PUSH_S}
+                client.post("/api/leadthrough/push", json=body)
+                t_next += REST_PUSH_S
+                stop.wait(max(0.0, t_next - time.monotonic()))
 
-        try:
-            browser, page, counter = open_viewer(playwright, served.viser_url)
-            pusher = threading.Thread(target=hold_push, daemon=True)
-            pusher.start()
-            page.wait_for_timeout(SETTLE_S["pushing"] * 1e3)
-            result = measure(page, counter, seconds, "rest")
-            browser.close()
-        finally:
-            stop.set()
-            served.stop()
+    try:
+        page, counter = open_viewer(browser, served.viser_url)
+        pusher = threading.Thread(target=hold_push, daemon=True)
+        pusher.start()
+        page.wait_for_timeout(SETTLE_S["pushing"] * 1e3)
+        result = measure(page, counter, seconds, "rest")
+        page.context.close()
+    finally:
+        stop.set()
+        served.stop()
     return result
 
 
@@ -203,11 +204,23 @@ def main() -> int:
         THROTTLED["frames"] = True
     from playwright.sync_api import sync_playwright
 
-    with sync_playwright() as p:
-        if args.mode in ("handle", "both"):
-            bench_handle(p, args.seconds)
-        if args.mode in ("rest", "both"):
-            bench_rest(p, args.seconds)
+    with tempfile.TemporaryDirectory() as tmp, ThreadPoolExecutor(max_workers=1) as starter:
+        start = functools.partial(start_server, Path(tmp) / "data", start_timeout_s=START_TIMEOUT_S)
+        # --quick (a smoke test): the rest mode's server starts while the handle mode runs; a
+        # measurement keeps them apart
+        early = starter.submit(start) if args.quick and args.mode == "both" else None
+        try:
+            with sync_playwright() as p:  # one chromium; each mode a page of its own
+                browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM_ARGS)
+                if args.mode in ("handle", "both"):
+                    bench_handle(browser, args.seconds)
+                if args.mode in ("rest", "both"):
+                    served, early = (start() if early is None else early.result()), None
+                    bench_rest(browser, args.seconds, served)
+                browser.close()
+        finally:
+            if early is not None:  # the handle mode failed: stop the server started for rest
+                early.result().stop(kill_on_timeout=True)
     return 0
 
 

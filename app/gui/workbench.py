@@ -23,6 +23,7 @@ import viser
 from app.session import JobInfo, Session
 from robomach_core.errors import RobomachError
 
+from .icons import icons_from_one_zip
 from .panels import (
     CellPanel,
     ExportPanel,
@@ -90,26 +91,27 @@ class Workbench:
         server.initial_camera.position = (1.16, -0.26, 0.46)
         server.initial_camera.look_at = (0.78, 0.15, 0.05)
         server.initial_camera.up = (0.0, 0.0, 1.0)
-        self.scene = CellScene(server)
-        self._show_cell()
-        self.cell = CellPanel(server, session)
-        self.placement = PlacementPanel(server, session)
-        self.calibration = CalibrationPanel(server, session, self.scene)
-        self.leadthrough = LeadThroughPanel(server, session, self.scene)
-        self.teach = TeachPanel(server, session)
-        self.guide_points = GuidePointsPanel(server, session, self.scene)
-        self.pointing = PointingPanel(server, session, self.scene, self.guide_points)
-        self.pointing.on_touch = self.calibration.touch_face
-        self.path_learning = PathLearningPanel(server, session, self.scene)
-        self.postprocess = PostprocessPanel(server, session, self.scene)
-        self.export = ExportPanel(server, session, self.study_service)
-        self.robot_program = RobotProgramPanel(server, session)
-        self.guide_rules = GuideRulesPanel(server, session, self.path_learning.route_settings)
-        self.guide_rules.listeners.append(self.path_learning.show_check)
-        self.path_learning.show_check(self.guide_rules.warnings.content)
-        self.path_learning.on_route_change(lambda: self._on_change("guide_points"))
-        self.studies = self._study_panels(server, session)
-        self.studies += self._machining_panel(server, session)
+        with icons_from_one_zip():  # viser reads its icons' zip once, not per icon
+            self.scene = CellScene(server)
+            self._show_cell()
+            self.cell = CellPanel(server, session)
+            self.placement = PlacementPanel(server, session)
+            self.calibration = CalibrationPanel(server, session, self.scene)
+            self.leadthrough = LeadThroughPanel(server, session, self.scene)
+            self.teach = TeachPanel(server, session)
+            self.guide_points = GuidePointsPanel(server, session, self.scene)
+            self.pointing = PointingPanel(server, session, self.scene, self.guide_points)
+            self.pointing.on_touch = self.calibration.touch_face
+            self.path_learning = PathLearningPanel(server, session, self.scene)
+            self.postprocess = PostprocessPanel(server, session, self.scene)
+            self.export = ExportPanel(server, session, self.study_service)
+            self.robot_program = RobotProgramPanel(server, session)
+            self.guide_rules = GuideRulesPanel(server, session, self.path_learning.route_settings)
+            self.guide_rules.listeners.append(self.path_learning.show_check)
+            self.path_learning.show_check(self.guide_rules.warnings.content)
+            self.path_learning.on_route_change(lambda: self._on_change("guide_points"))
+            self.studies = self._study_panels(server, session)
+            self.studies += self._machining_panel(server, session)
         self._framed = self._part_key()  # the cell the cameras were last framed on
         self._dirty: set[str] = {"job"}
         self._dirty_lock = threading.Lock()
@@ -208,8 +210,8 @@ class Workbench:
             self.cell.refresh()
             framed = self._part_key()
             if framed != self._framed:  # not a calibration: the person's view stays
-                self._framed = framed
                 self._frame_part()
+                self._framed = framed  # now: ``part_framed`` says the cameras were sent
             note = self.session.cell_note()
             for client in self.server.get_clients().values() if note else ():
                 client.add_notification(

@@ -16,6 +16,7 @@ SOLUTION  ``Learning(session)``, the session's ``learning``: ``start_example()``
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -37,13 +38,14 @@ from robomach_core.errors import (
     NotEnoughGuidePointsError,
     SupervisionError,
 )
+from robomach_core.learning.route import LearningRoute
 from robomach_core.learning.settings import PathLearningSettings, WallSideSetting
 from robomach_core.part import Workpiece, mesh_query
 from robomach_core.project import ProcessedPath, Project
 
 from .jobs import JobContext
 from .records import ForceTrace, RobotSnapshot, Topic
-from .robot import build_live_cell
+from .robot import View, build_live_cell
 
 if TYPE_CHECKING:
     from .session import Session
@@ -102,11 +104,19 @@ def released(lt: LeadThrough, end: CellState, above_N: float) -> CellState:
     return state.cell
 
 
+def _same_inputs(a: tuple, b: tuple) -> bool:
+    """Whether two ``Learning._checked_route`` inputs are the same: the guide points and the
+    part the same objects (a project's values are never changed in place), the rest equal."""
+    return a[0] is b[0] and a[1] is b[1] and a[2:] == b[2:]
+
+
 class Learning:
     """The robot jobs and stages of one session (module docstring)."""
 
     def __init__(self, session: Session) -> None:
         self._session = session
+        self._route_lock = threading.Lock()
+        self._checked: tuple[tuple, LearningRoute] | None = None  # (inputs, route)
 
     def start_example(self) -> str:
         """Job: the scripted operator leads the robot by pushes to the example guide points of
@@ -316,9 +326,35 @@ class Learning:
         wall_side: WallSideSetting = "auto",
     ) -> tuple:
         """What the operator check finds in the guide points (``project.guide_findings``)."""
+        from robomach_core.errors import RouteRefusedError
+
         view = self._session.view()
         settings = PathLearningSettings(force_N=force_N, closed=closed, wall_side=wall_side)
-        return core.guide_findings(view.project, view.cell, settings)
+        route = None
+        try:
+            if len(view.project.guide_points) >= 2:  # fewer: no route, as the check has it
+                route = self._checked_route(view, settings)
+        except RouteRefusedError:
+            pass  # the check plans it again and says why, as its first finding
+        return core.guide_findings(view.project, view.cell, settings, route=route)
+
+    def _checked_route(self, view: View, settings: PathLearningSettings) -> LearningRoute:
+        """``core.route_of`` for the checks and the wall preview, planned once for the same
+        guide points, part and route settings: the workbench's rules panel and wall preview,
+        and GET /api/path-learning/check, each planned it after every change
+        (0.4-0.6 s each for 14 points). They only read it; a run plans its own (its height
+        reference changes as the run goes). Raises ``RouteRefusedError`` as ``route_of``."""
+        cad = view.cell.workpiece.cad()
+        inputs = (view.project.guide_points, cad, view.project.cell.tool_radius_m,
+                  settings.closed, settings.wall_side, settings.floor_clearance_m)  # fmt: skip
+        with self._route_lock:
+            checked = self._checked
+        if checked is not None and _same_inputs(checked[0], inputs):
+            return checked[1]
+        route = core.route_of(view.project, settings, cad)
+        with self._route_lock:
+            self._checked = (inputs, route)
+        return route
 
     def guide_warnings(
         self, force_N: float, *, closed: bool = True, wall_side: WallSideSetting = "auto"
@@ -345,7 +381,7 @@ class Learning:
             wall_side = self._session.pointing.learning_side() or "auto"
         settings = PathLearningSettings(closed=closed, wall_side=wall_side)
         try:
-            route = core.route_of(view.project, settings, workpiece)
+            route = self._checked_route(view, settings)
             with mesh_query.LOCK:
                 walls = PartWalls(workpiece, route.axis, radius)
                 points = taught_wall_points(

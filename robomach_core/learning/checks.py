@@ -165,6 +165,7 @@ def guide_point_warnings(
     tool_radius_m: float | None = None,
     supervisor: Supervisor | None = None,
     tolerance_m: float | None = None,
+    route: LearningRoute | None = None,
 ) -> tuple[GuideWarning, ...]:
     """What the operator should know before learning (module docstring): the route's refusal,
     if any, first. The arguments are ``guide_check``'s."""
@@ -175,6 +176,7 @@ def guide_point_warnings(
         tool_radius_m=tool_radius_m,
         supervisor=supervisor,
         tolerance_m=tolerance_m,
+        route=route,
     )[0]
 
 
@@ -186,6 +188,7 @@ def guide_check(
     tool_radius_m: float | None = None,
     supervisor: Supervisor | None = None,
     tolerance_m: float | None = None,
+    route: LearningRoute | None = None,
 ) -> tuple[tuple[GuideWarning, ...], LearningRoute | None]:
     """``guide_point_warnings`` and the route they read (None: refused, or fewer than two
     points). The findings only read the route, so a run that follows the check can learn on
@@ -203,13 +206,14 @@ def guide_check(
             ``TAUGHT_WALL_TOLERANCE_M`` the program's moves may cut across the wall by that much,
             said before the run (issue 31: a 4 mm tolerance was accepted, then blamed on the
             wall).
+        route: The route ``plan_route`` planned for these points, settings, workpiece and
+            radius, when the caller has it (the findings only read it); planned here when None.
     """
     if not guides:
         return (), None
     out: list[GuideWarning] = []
     mesh = workpiece is not None and tool_radius_m is not None
-    route = None
-    if len(guides) >= 2:
+    if len(guides) >= 2 and route is None:
         try:
             route = plan_route(
                 guides,

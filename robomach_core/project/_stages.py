@@ -233,21 +233,31 @@ def require_processed(project: Project) -> ProcessedPath:
 
 
 def guide_findings(
-    project: Project, cell: Cell, settings: PathLearningSettings
+    project: Project,
+    cell: Cell,
+    settings: PathLearningSettings,
+    *,
+    route: LearningRoute | None = None,
 ) -> tuple[GuideWarning, ...]:
     """The check of the project's guide points before a run (``learning.guide_point_warnings``
     against the mesh the user sees, the arm's reach and the cell's supervision, at the
     project's tolerance): what the workbench shows and ``robomach demo`` prints; a refusal
-    raises."""
-    return guide_check(project, cell, settings)[0]
+    raises. ``route``: the route ``route_of`` planned for them with ``settings``, when the
+    caller has it (planned here when None)."""
+    return guide_check(project, cell, settings, route=route)[0]
 
 
 def guide_check(
-    project: Project, cell: Cell, settings: PathLearningSettings
+    project: Project,
+    cell: Cell,
+    settings: PathLearningSettings,
+    *,
+    route: LearningRoute | None = None,
 ) -> tuple[tuple[GuideWarning, ...], LearningRoute | None]:
     """``guide_findings`` and the route they read, the one ``route_of`` plans (None when it is
-    refused): ``learn`` takes it as its ``route``, so a run right after its check plans the
-    route once (the walk on the mesh is the most of the check's time)."""
+    refused; ``route`` itself when given): ``learn`` takes it as its ``route``, so a run right
+    after its check plans the route once (the walk on the mesh is the most of the check's
+    time)."""
     from ..cell import cell_supervisor
     from ..learning.checks import guide_check as check_guides
 
@@ -259,6 +269,7 @@ def guide_check(
             tool_radius_m=project.cell.tool_radius_m,
             supervisor=cell_supervisor(cell),
             tolerance_m=project.post_settings.tolerance_m,
+            route=route,
         )
 
 

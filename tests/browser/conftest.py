@@ -37,6 +37,12 @@ CHROMIUM_ARGS = [
     "--disable-sync",
     "--no-first-run",
 ]
+# The tests' chromium draws WebGL without multisampling: SwiftShader's 4x MSAA cost a third of
+# chromium's CPU in the pointing tests (27 -> 18 s in the click-to-teach test), for edges a
+# pixel smoother in the screenshots. Clicks pick through the scene graph, not the pixels, and
+# the pixel checks (test_viser_scene) compare far above an edge's share. The docs' screenshots
+# (docs_screenshots.py) and the benchmarks keep CHROMIUM_ARGS as a person's browser draws.
+TEST_CHROMIUM_ARGS = [*CHROMIUM_ARGS, "--webgl-antialiasing-mode=none"]
 # A 3D page redraws its scene in software (SwiftShader) as fast as the machine allows: about
 # six frames a second here, 0.25 s of CPU each, so an open viser page took over a core while
 # the robot moved and chromium was a fifth of the suite's CPU. The tests need each change drawn,
@@ -76,6 +82,20 @@ def new_context(browser, **options):
     context = browser.new_context(**options)
     context.add_init_script(_THROTTLED_FRAMES_JS)
     return context
+
+
+def frames_drawn(page, frames: int = 2) -> None:
+    """Wait until ``page`` has drawn ``frames`` more animation frames. viser draws the scene
+    messages it has received in its next frame, and the workbench sends a panel's scene before
+    its text: once the text shows, this waits for its scene to be drawn (for a screenshot),
+    instead of a fixed time."""
+    page.evaluate(
+        """(n) => new Promise((done) => {
+             const next = (k) => (k > 0 ? requestAnimationFrame(() => next(k - 1)) : done());
+             next(n);
+           })""",
+        frames,
+    )
 
 
 START_TIMEOUT_S = 90.0
@@ -128,7 +148,7 @@ def browser():
 
     with sync_playwright() as p:
         executable = str(CHROMIUM) if CHROMIUM.exists() else shutil.which("chromium")
-        b = p.chromium.launch(executable_path=executable, args=CHROMIUM_ARGS)
+        b = p.chromium.launch(executable_path=executable, args=TEST_CHROMIUM_ARGS)
         yield b
         b.close()
 

@@ -12,7 +12,7 @@ import httpx
 import pytest
 from playwright.sync_api import expect
 
-from tests.browser.conftest import CHROMIUM, CHROMIUM_ARGS, Served, new_context, wait_for
+from tests.browser.conftest import CHROMIUM, TEST_CHROMIUM_ARGS, Served, new_context, wait_for
 
 pytestmark = pytest.mark.slow
 
@@ -25,7 +25,7 @@ def rebinding_browser(browser) -> Iterator:
     127.0.0.1."""
     b = browser.browser_type.launch(
         executable_path=str(CHROMIUM),
-        args=[*CHROMIUM_ARGS, f"--host-resolver-rules=MAP {REBOUND} 127.0.0.1"],
+        args=[*TEST_CHROMIUM_ARGS, f"--host-resolver-rules=MAP {REBOUND} 127.0.0.1"],
     )
     yield b
     b.close()

@@ -192,9 +192,9 @@ def test_the_cmrr_figure_opens_window_wide(served: Served, browser) -> None:
         page.goto(served.viser_url)
         expect(page.get_by_text("Connected")).to_be_visible(timeout=60_000)
         page.get_by_text("CMRR study", exact=True).first.dispatch_event("click")
-        button = page.get_by_text("Open the figure large")
+        button = page.get_by_role("button", name="Open the figure large")
         expect(button).to_be_visible(timeout=60_000)
-        page.wait_for_timeout(1000)  # the button is enabled when the study is shown
+        expect(button).to_be_enabled(timeout=60_000)  # once the study is shown
         button.dispatch_event("click")
         figure = page.locator("img[alt='CMRR study figure']").last
         expect(figure).to_be_visible(timeout=30_000)

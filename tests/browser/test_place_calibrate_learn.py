@@ -32,7 +32,7 @@ from robomach_core.export.read_back import read_program
 from robomach_core.learning.walls import section_loops
 from robomach_core.part import PartDeviation
 from robomach_core.part.real_part import fixture_error
-from tests.browser.conftest import new_context, wait_for, workbench_on
+from tests.browser.conftest import frames_drawn, new_context, wait_for, workbench_on
 from tests.browser.test_pointing import _click_at
 from tests.generated_parts import cam_plate
 
@@ -238,7 +238,7 @@ def test_place_calibrate_propose_learn_export_within_a_third_of_a_mm_in_twenty_a
         proposal = session.pointing.proposal()
         assert proposal.closed
         expect(page.get_by_text(f"{len(proposal.points)} proposed points")).to_be_visible()
-        page.wait_for_timeout(3000)
+        frames_drawn(page)  # the proposed points, sent before their text
         _shot(page, "4_proposal")
         page.get_by_role("button", name="Accept proposal").click()
         act("Accept proposal")
@@ -264,7 +264,8 @@ def test_place_calibrate_propose_learn_export_within_a_third_of_a_mm_in_twenty_a
         act("Run post-processing")
         wait_for(lambda: session.project().status()["postprocess"] == "current", TIMEOUT_S)
         wait_for(lambda: "What learning buys" in wb.pointing.compare.content, 60)
-        page.wait_for_timeout(3000)
+        expect(page.get_by_text("What learning buys", exact=True)).to_be_visible()
+        frames_drawn(page)  # both programs, drawn before the comparison's table
         _shot(page, "5_learned_vs_cad_only")
         _open_folder(page, "Export")
         act("open Export")

@@ -18,7 +18,7 @@ import pytest
 from playwright.sync_api import Page, expect
 
 from robomach_core.transforms import matrix_from_quaternion
-from tests.browser.conftest import new_context, wait_for, workbench_on
+from tests.browser.conftest import frames_drawn, new_context, wait_for, workbench_on
 from tests.generated_parts import grooved_plate
 from tests.jobs import done
 
@@ -69,10 +69,10 @@ def _open(browser, workbench) -> tuple[Page, object]:
     expect(page.get_by_text("Teach by pointing")).to_be_visible()
     wait_for(lambda: len(workbench.server.get_clients()) > 0)
     client = next(iter(workbench.server.get_clients().values()))
-    # The push handle's gizmo sits on the tool and takes the clicks near it: hidden, once.
-    page.get_by_label("Show push handle").uncheck()
-    wait_for(lambda: not workbench.leadthrough.show_handle.value, timeout_s=10)
-    page.wait_for_timeout(2000)  # the scene's first frames (software WebGL)
+    # The push handle's gizmo sits on the tool and takes the clicks near it: hidden (the
+    # default). The scene came with the page; the first orbit waits for the browser to draw.
+    expect(page.get_by_label("Show push handle")).not_to_be_checked()
+    assert not workbench.leadthrough.show_handle.value
     return page, client
 
 
@@ -185,6 +185,7 @@ def _propose_accept_learn(page: Page, client, workbench, xy, normal, z_mm) -> fl
     print(f"proposal in {time.monotonic() - started:.1f} s")
     proposal = session.pointing.proposal()
     expect(page.get_by_text(f"{len(proposal.points)} proposed points")).to_be_visible()
+    frames_drawn(page)  # the proposal's points, sent before its text
     page.screenshot(path=str(_shot("proposal")))
     page.get_by_role("button", name="Accept proposal").click()
     wait_for(
@@ -215,9 +216,9 @@ def test_one_click_proposes_an_uploaded_mesh_then_learns_within_a_third_of_a_mm(
     chooser.value.set_files(str(stl))
     wait_for(lambda: workbench.session.robot.workpiece.cad().name == "grooved_plate", timeout_s=60)
     # the workbench frames the new part on its next tick: an orbit before that is undone (the
-    # camera was found at the part's view, not the orbit's, in two full runs)
+    # camera was found at the part's view, not the orbit's, in two full runs). Once framed,
+    # the framing was sent before the orbit, which the browser then reports back.
     wait_for(lambda: workbench.part_framed, timeout_s=60)
-    page.wait_for_timeout(1500)
     x, y, z = part.picks["island"]
     deviation = _propose_accept_learn(page, client, workbench, (x, y), (0, -1), 17.0)
     print(f"proposed on an uploaded mesh: learned within {deviation:.3f} mm")

@@ -1,0 +1,35 @@
+"""viser's icons read from one open zip while the workbench is built (``app.gui.icons``): the
+buttons get the same svg as viser's own reader gives, inside the build and after it."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+import viser
+import viser._gui_api as gui_api
+import viser._icons as viser_icons
+
+from app.gui.icons import icons_from_one_zip
+from tests.api.server_process import free_port
+
+NAMES = ("hand-stop", "player-play", "download", "trash", "arrow-back-up")
+
+
+@pytest.fixture(scope="module")
+def server() -> Iterator[viser.ViserServer]:
+    s = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    yield s
+    s.stop()
+
+
+def test_the_icons_read_from_one_zip_are_viser_own(server) -> None:
+    with icons_from_one_zip():
+        buttons = [server.gui.add_button(name, icon=name) for name in NAMES]
+        inside = [gui_api.svg_from_icon(name) for name in NAMES]
+    assert inside == [viser_icons.svg_from_icon(name) for name in NAMES]
+    assert [b._icon_html for b in buttons] == inside
+    # After the build an icon not read yet comes from viser's own reader.
+    assert gui_api.svg_from_icon("robot") == viser_icons.svg_from_icon("robot")
+    with icons_from_one_zip():  # a second build keeps the same reader
+        assert gui_api.svg_from_icon("download") == inside[2]
