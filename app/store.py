@@ -29,6 +29,7 @@ import numpy as np
 
 DB_FILENAME = "robomach.sqlite"
 SCHEMA_VERSION = 1
+LOCK_WAIT_MS = 5000  # how long a save waits for another program's lock on the file
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (
@@ -157,7 +158,7 @@ class Store:
                 self._conn.execute("PRAGMA journal_mode=WAL")
             self._conn.execute("PRAGMA synchronous=FULL")
             self._conn.execute("PRAGMA foreign_keys=ON")
-            self._conn.execute("PRAGMA busy_timeout=5000")
+            self._conn.execute(f"PRAGMA busy_timeout={LOCK_WAIT_MS}")
             with self._transaction() as c:
                 for statement in _SCHEMA.split(";"):
                     if statement.strip():
@@ -180,6 +181,16 @@ class Store:
             except sqlite3.Error:
                 pass
             self._conn.close()
+
+    def wait_for_lock(self, ms: int) -> int:
+        """Wait up to ``ms`` (0-60000) for another program's lock on the file before a save is
+        refused (``LOCK_WAIT_MS`` from the start); returns the wait this replaces."""
+        if not 0 <= ms <= 60_000:
+            raise ValueError(f"a lock wait of {ms} ms is outside 0-60000 ms")
+        with self._lock:
+            before = int(self._conn.execute("PRAGMA busy_timeout").fetchone()[0])
+            self._conn.execute(f"PRAGMA busy_timeout={int(ms)}")
+            return before
 
     @contextmanager
     def _transaction(self) -> Iterator[_Tx]:

@@ -32,22 +32,14 @@ def database_locked(data_dir: Path, store: Store) -> Iterator[None]:
     other = sqlite3.connect(data_dir / DB_FILENAME, isolation_level=None, timeout=0.1)
     try:
         other.execute("BEGIN EXCLUSIVE")
-        usual_ms = _set_busy_timeout(store, LOCKED_BUSY_TIMEOUT_MS)
+        usual_ms = store.wait_for_lock(LOCKED_BUSY_TIMEOUT_MS)
         try:
             yield
         finally:
-            _set_busy_timeout(store, usual_ms)
+            store.wait_for_lock(usual_ms)
         other.execute("ROLLBACK")
     finally:
         other.close()
-
-
-def _set_busy_timeout(store: Store, ms: int) -> int:
-    """Make ``store`` wait ``ms`` for a lock; returns what it waited before."""
-    with store._lock:
-        before = store._conn.execute("PRAGMA busy_timeout").fetchone()[0]
-        store._conn.execute(f"PRAGMA busy_timeout={int(ms)}")
-        return before
 
 
 def _stored_guide_points(data_dir: Path, project_id: int) -> int:
