@@ -11,10 +11,7 @@ STRATEGY  After such a release: collect the cycles, then ask glibc to return the
           every arena (``malloc_trim``); both take milliseconds to a few tenths of a second,
           next to the seconds a cell change or a comparison takes. Elsewhere (not glibc) the
           collection alone runs.
-          A full collection walks every object the collector tracks, and a server's imports
-          alone make 165k of them (0.1-0.16 s per collection): ``serve`` freezes them once
-          started (``freeze_imports``), so a collection walks only what came after.
-SOLUTION  ``give_back()``; ``freeze_imports()`` once, before the session is opened.
+SOLUTION  ``give_back()``.
 """
 
 from __future__ import annotations
@@ -46,13 +43,3 @@ def give_back() -> None:
     trim = _malloc_trim()
     if trim is not None:
         trim(0)
-
-
-def freeze_imports() -> None:
-    """Move every object alive now (the imported modules, their classes and functions) out of
-    the collector's sight (``gc.freeze``): they live as long as the process, and each full
-    collection of ``give_back`` walked them all. Call it once, after the imports and before
-    the session opens, so that no cell or project of the session is frozen (what is frozen is
-    never collected)."""
-    gc.collect()  # the imports' own garbage goes first
-    gc.freeze()

@@ -9,7 +9,6 @@ is served beyond it (``viser_host``), and refuses websockets from other origins.
 
 from __future__ import annotations
 
-import importlib
 import logging
 import os
 import socket
@@ -21,7 +20,6 @@ from types import ModuleType
 from typing import IO, TYPE_CHECKING
 from urllib.parse import urlsplit
 
-from app.memory import freeze_imports
 from app.settings import ServerSettings, is_loopback_name
 from app.store import DB_FILENAME, Store
 from robomach_core.errors import InvalidInputError
@@ -290,10 +288,6 @@ def serve(settings: ServerSettings) -> int:
     if settings.viser_port is not None:
         check_port_free(viser_host(settings), settings.viser_port)
     data_dir = writable_folder(settings.data_dir.resolve(), "--data")
-    server_modules = ("uvicorn", "app.api.app", "app.session")
-    for name in (*server_modules, *(("viser",) if settings.viser_port is not None else ())):
-        importlib.import_module(name)
-    freeze_imports()  # what the imports made, before the session opens
     import uvicorn
 
     with data_dir_lock(data_dir):

@@ -168,31 +168,7 @@ def guide_point_warnings(
     route: LearningRoute | None = None,
 ) -> tuple[GuideWarning, ...]:
     """What the operator should know before learning (module docstring): the route's refusal,
-    if any, first. The arguments are ``guide_check``'s."""
-    return guide_check(
-        guides,
-        settings,
-        workpiece=workpiece,
-        tool_radius_m=tool_radius_m,
-        supervisor=supervisor,
-        tolerance_m=tolerance_m,
-        route=route,
-    )[0]
-
-
-def guide_check(
-    guides: Sequence[GuidePoint],
-    settings: PathLearningSettings,
-    *,
-    workpiece: Workpiece | None = None,
-    tool_radius_m: float | None = None,
-    supervisor: Supervisor | None = None,
-    tolerance_m: float | None = None,
-    route: LearningRoute | None = None,
-) -> tuple[tuple[GuideWarning, ...], LearningRoute | None]:
-    """``guide_point_warnings`` and the route they read (None: refused, or fewer than two
-    points). The findings only read the route, so a run that follows the check can learn on
-    it (``project.learn``'s ``route``) instead of planning it again.
+    if any, first.
 
     Args:
         guides: The guide points in order.
@@ -210,7 +186,7 @@ def guide_check(
             radius, when the caller has it (the findings only read it); planned here when None.
     """
     if not guides:
-        return (), None
+        return ()
     out: list[GuideWarning] = []
     mesh = workpiece is not None and tool_radius_m is not None
     if len(guides) >= 2 and route is None:
@@ -245,7 +221,7 @@ def guide_check(
             f"{th.TAUGHT_WALL_TOLERANCE_M * 1e3:g} mm a program may stray from the taught wall; "
             "lower it (0.2 mm by default) unless that is meant"
         )))  # fmt: skip
-    return tuple(out), route
+    return tuple(out)
 
 
 # --- after the run -------------------------------------------------------------------------------

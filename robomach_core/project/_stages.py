@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..cell import Cell, CellState, ForceEstimator, GuidePoint
-from ..errors import InvalidInputError
+from ..errors import InvalidInputError, RouteRefusedError
 from ..learning.route import LearningRoute, plan_route
 from ..learning.run import learn_path
 from ..learning.settings import PathLearningSettings
@@ -259,18 +259,25 @@ def guide_check(
     after its check plans the route once (the walk on the mesh is the most of the check's
     time)."""
     from ..cell import cell_supervisor
-    from ..learning.checks import guide_check as check_guides
+    from ..learning.checks import guide_point_warnings
 
+    cad = cell.workpiece.cad()
+    if route is None and len(project.guide_points) >= 2:  # fewer: no route, as the check has it
+        try:
+            route = route_of(project, settings, cad)
+        except RouteRefusedError:
+            pass  # the check plans it again and says why, as its first finding
     with mesh_query.LOCK:  # the mesh's nearest-point tree answers one thread at a time
-        return check_guides(
+        findings = guide_point_warnings(
             project.guide_points,
             settings,
-            workpiece=cell.workpiece.cad(),
+            workpiece=cad,
             tool_radius_m=project.cell.tool_radius_m,
             supervisor=cell_supervisor(cell),
             tolerance_m=project.post_settings.tolerance_m,
             route=route,
         )
+    return findings, route
 
 
 # --- the cell and workpiece of a project -----------------------------------------------------
