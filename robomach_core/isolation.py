@@ -76,7 +76,7 @@ def _task_mesh(payload: dict[str, Any]) -> dict[str, Any]:
 
     vertices = np.asarray(payload["vertices"], dtype=float)
     faces = np.asarray(payload["faces"], dtype=np.int64)
-    hull = convex_hull_of(vertices)
+    hull, _, hull_volume_m3 = convex_hull_of(vertices)
     bvh = bvh_from_mesh(vertices, faces)
     request, result = coal.DistanceRequest(), coal.DistanceResult()
     request.enable_signed_distance = True
@@ -87,7 +87,7 @@ def _task_mesh(payload: dict[str, Any]) -> dict[str, Any]:
                                   coal.DistanceResult())  # fmt: skip
     return {
         "hull_vertices": int(hull.num_points),
-        "hull_volume_m3": float(hull.computeVolume()),
+        "hull_volume_m3": hull_volume_m3,
         "distance_m": float(distance),
         "hull_distance_m": float(hull_distance),
     }

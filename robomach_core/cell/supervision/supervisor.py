@@ -311,8 +311,7 @@ class Supervisor:
         self._obstacles: list[tuple[str, Any, coal.Transform3s, np.ndarray]] = []
         self._corners: list[np.ndarray] = []  # per obstacle (N_o, 3): it is their convex hull
         if vertices is not None:
-            hull = convex_hull_of(vertices)
-            corners = np.array(hull.points(), dtype=float)
+            hull, corners, _ = convex_hull_of(vertices)
             box = np.concatenate([corners.min(axis=0), corners.max(axis=0)])
             self._obstacles.append(("workpiece", hull, coal.Transform3s(), box))
             # GJK's support point walks every corner; past a few hundred coal's is quicker.
