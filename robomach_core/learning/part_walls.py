@@ -93,6 +93,29 @@ class PartWalls:
         along = float(n @ (corner - point)) / float(n @ direction)
         return float(n @ direction) < 0.0 and 0.0 <= along <= reach
 
+    def risers(self, points: np.ndarray, towards: np.ndarray) -> np.ndarray:
+        """Whether the wall at each of ``points`` (k, 3), on walls met looking ``towards``, is
+        a step in the floor the route climbs rather than a wall it follows: a floor stands on
+        it within the cutter's reach above the point (``floor``, a radius past the face), and
+        from just over that floor a wall still stands ``towards`` within ``AT_WALL_GAP_M`` of
+        the cutter. The height reference's rule for a floor above the cutter
+        (``HeightReference.at``), so a riser beside a guide point is never taken for its
+        taught wall (a riser along the groove, met by a ray of the fan before the wall 4 mm
+        across, was learned and passed as the taught wall)."""
+        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        out = np.zeros(len(points), dtype=bool)
+        if self.walls is None or not len(points):
+            return out
+        _, _, normals = self._closest(points)
+        beyond = points - normals * self.radius
+        height, _ = self.floor(beyond)
+        a = self.axis
+        reach = self.radius + th.AT_WALL_GAP_M
+        for k in np.flatnonzero(np.isfinite(height) & (height < points @ a)):
+            above = beyond[k] + a * (height[k] - float(beyond[k] @ a) - th.FLOOR_ABOVE_M)
+            out[k] = self.faces_from_free_side(above, towards, reach)
+        return out
+
     def along_floor(self, point: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """``directions`` (3,) or (k, 3), across the axis, turned into the plane of the floor
         under ``point`` (one floor for all): the way the cutter moves there. On a tilted floor a
@@ -152,6 +175,8 @@ class PartWalls:
             # the nearest wall when it lies that way (within the fan's angle); else the first
             # wall that way
             that_way = math.cos(th.FAN_HALF_ANGLE_RAD) * float(np.linalg.norm(rel))
+            if within and on_face and self.risers(closest[None], towards)[0]:
+                within = False  # a step the route climbs, not a wall it follows
             if within and on_face and float(rel @ towards) > that_way:
                 return closest
         hit, d = self._first_wall_that_way(point, towards, facing_cos)
@@ -186,10 +211,10 @@ class PartWalls:
         # swung towards it, faces the other way (``taught_wall_points`` asks more where the
         # way is the walk's, exact)
         normals = self._wall_normals[tri] @ self.R.T
-        hits = hits[normals @ towards < -facing_cos]
+        hits = hits[normals @ towards < -facing_cos] @ self.R.T + self.t
+        hits = hits[~self.risers(hits, towards)]
         if not len(hits):
             return np.full(3, np.nan), math.inf
-        hits = hits @ self.R.T + self.t
         d = np.linalg.norm(hits - point, axis=1)
         k = int(np.argmin(d))
         return hits[k], float(d[k])
