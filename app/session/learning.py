@@ -209,13 +209,11 @@ class Learning:
         """
 
         s, robot = self._session, self._session.robot
-        if wall_side == "auto":
-            wall_side = s.pointing.learning_side() or "auto"
         settings = PathLearningSettings(
             force_N=float(force_N),
             speed_m_s=float(speed_m_s),
             closed=bool(closed),
-            wall_side=wall_side,
+            wall_side=self._side(wall_side),
             **({} if floor_clearance_m is None else {"floor_clearance_m": floor_clearance_m}),
         )
         project, pose = s.idle_start()
@@ -318,6 +316,15 @@ class Learning:
 
     # --- checks of the guide points before a run ---------------------------------------------
 
+    def _side(self, wall_side: WallSideSetting) -> WallSideSetting:
+        """The side a run, its checks and its wall preview all use: the setting, and on "auto"
+        the side of guide points taught by pointing at the wall while they are still those
+        (``pointing.learning_side``). The check used to decide "auto" afresh while the
+        preview and the run took the proposal's side."""
+        if wall_side != "auto":
+            return wall_side
+        return self._session.pointing.learning_side() or "auto"
+
     def guide_findings(
         self,
         force_N: float = PathLearningSettings.force_N,
@@ -329,7 +336,8 @@ class Learning:
         from robomach_core.errors import RouteRefusedError
 
         view = self._session.view()
-        settings = PathLearningSettings(force_N=force_N, closed=closed, wall_side=wall_side)
+        side = self._side(wall_side)
+        settings = PathLearningSettings(force_N=force_N, closed=closed, wall_side=side)
         route = None
         try:
             if len(view.project.guide_points) >= 2:  # fewer: no route, as the check has it
@@ -377,9 +385,7 @@ class Learning:
         guides, radius = view.project.guide_points, view.project.cell.tool_radius_m
         if len(guides) < 2:
             return [], ""
-        if wall_side == "auto":  # as start_path_learning decides it
-            wall_side = self._session.pointing.learning_side() or "auto"
-        settings = PathLearningSettings(closed=closed, wall_side=wall_side)
+        settings = PathLearningSettings(closed=closed, wall_side=self._side(wall_side))
         try:
             route = self._checked_route(view, settings)
             with mesh_query.LOCK:

@@ -98,6 +98,9 @@ def test_a_proposal_is_shown_edited_and_accepted_then_learned_within_the_wall(fa
     recorded = np.array([g.position_m for g in guides])
     assert np.all(np.linalg.norm(recorded - planned, axis=1) < 3e-3)  # touched the wall
     assert fast.pointing.learning_side() == "right"
+    # The check before the run reads the side the run will take, as the wall preview does.
+    assert fast.learning.guide_findings() == fast.learning.guide_findings(wall_side="right")
+    assert fast.learning.taught_wall_preview()[1].startswith("follows the wall on the right")
     info = finished(fast, fast.learning.start_path_learning(10.0, 0.005))
     assert info.status == "done", info.error
     assert (fast.project().learned and fast.project().learned.settings).wall_side == "right"
