@@ -37,7 +37,7 @@ STEP_TOPS_MM = {-25.0: 14.0, 25.0: 16.0}  # each riser's x and the floor past it
 ON_WALL_MM = 0.05  # the mesh's facets against the true wall's dense polyline
 TOL_MM = 0.05  # the floor's facets and the lift's float arithmetic
 GROOVE_MM = 6.0  # the stepped groove's width
-LEARNED = 2  # per wall, of the leaving sets planned: learned and judged (about 3 s each)
+LEARNED = 2  # per wall, of the leaving sets planned: learned and judged (about 1.5 s each)
 
 
 def _by_a_riser(
@@ -117,6 +117,7 @@ def test_a_first_point_on_the_floor_before_a_step_starts_over_the_step(wall_name
     assert started >= SETS // 3, f"{replay(SEED)}: only {started} of {SETS} sets planned"
 
 
+@pytest.mark.slow  # over 4 s: ten routes planned and one set learned per wall
 @pytest.mark.parametrize("wall_name", ["island", "outer"])
 def test_a_first_point_leaving_a_step_behind_starts_on_the_taught_wall(wall_name):
     """The walk starts on the taught wall (its ball a radius off it), every taught wall point
