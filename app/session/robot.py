@@ -36,6 +36,7 @@ from robomach_core.cell import (
     GuidePoint,
     LeadThrough,
     LeadThroughState,
+    forget_supervisor,
 )
 from robomach_core.errors import ConflictError, RobomachError
 from robomach_core.learning.run import Recording
@@ -201,9 +202,13 @@ class LiveRobot:
 
     def _put(self, built: Built) -> None:
         """The robot is now ``built`` (lock held). The kept snapshot follows at once, so a
-        reader that finds the lock held never sees the robot from before this change."""
-        self._built = built
+        reader that finds the lock held never sees the robot from before this change. A
+        robot replaced lets go of its supervisor (``forget_supervisor``): the two hold each
+        other, and a server's frozen startup heap kept the first cell's for good."""
+        old, self._built = self._built, built
         self._take_snapshot()
+        if old is not None and old[0].robot is not built[0].robot:
+            forget_supervisor(old[0].robot)
 
     def force_trace(self, recording: Recording | None, max_points: int = 2000) -> ForceTrace:
         """Force vs time, at most ``max_points`` (>= 2): live during a job, else ``recording``'s."""

@@ -46,6 +46,7 @@ from .supervision import SHANK_RADIUS_FRACTION as SHANK_RADIUS_FRACTION
 from .supervision import SPINDLE_RADIUS_M as SPINDLE_RADIUS_M
 from .supervision import Supervisor as Supervisor
 from .supervision import cell_supervisor as cell_supervisor
+from .supervision import forget_supervisor as forget_supervisor
 from .tool import TOOL_DOWN as TOOL_DOWN
 from .tool import TOOL_RADIUS_RANGE_M as TOOL_RADIUS_RANGE_M
 from .tool import Tool as Tool
@@ -77,6 +78,7 @@ __all__ = [
     "Tool",
     "ToolGravity",
     "cell_supervisor",
+    "forget_supervisor",
     "compensate_gravity",
     "contact_reading",
     "gravity_reading",

@@ -13,4 +13,5 @@ from .supervisor import SupervisionLimits as SupervisionLimits
 from .supervisor import SupervisionStop as SupervisionStop
 from .supervisor import Supervisor as Supervisor
 from .supervisor import cell_supervisor as cell_supervisor
+from .supervisor import forget_supervisor as forget_supervisor
 from .supervisor import interpolate_pose as interpolate_pose

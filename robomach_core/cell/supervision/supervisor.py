@@ -734,6 +734,17 @@ def cell_supervisor(cell: Any) -> Supervisor:
         return supervisor
 
 
+def forget_supervisor(robot: Any) -> None:
+    """Drop the supervisor ``cell_supervisor`` kept on ``robot``, when its cell is replaced
+    by one with another robot. The supervisor holds the robot, so the two (and the part's
+    mesh and trees) form a cycle that only a full collection frees, and a server freezes its
+    startup heap out of those (``gc.freeze``): the first cell's robot, supervisor and part
+    stayed for the life of the server."""
+    with _SUPERVISORS_LOCK:
+        if hasattr(robot, _KEPT_ON_ROBOT):
+            delattr(robot, _KEPT_ON_ROBOT)
+
+
 def interpolate_pose(T0: np.ndarray, T1: np.ndarray, fraction: float) -> np.ndarray:
     """The pose ``fraction`` of the way from T0 to T1: p0 + f (p1 - p0), R0 exp(f log(R0^T R1))."""
     T = np.eye(4)
