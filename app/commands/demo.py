@@ -9,7 +9,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from app.commands.progress import StageProgress
-from app.findings import grouped_findings
 from robomach_core import limits
 
 if TYPE_CHECKING:
@@ -29,7 +28,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         ),
     )
     p.add_argument("--out", required=True, type=Path, help="output folder (created if missing)")
-    from robomach_core.cell import ROBOT_NAMES
+    from robomach_core.robots.registry import BUILTIN_NAMES as ROBOT_NAMES  # not the cell's
 
     p.add_argument(
         "--robot",
@@ -304,6 +303,8 @@ def run(args: argparse.Namespace) -> int:
 
     def checked(findings: tuple) -> None:
         """The guide-point check, printed before the run starts (as the workbench shows it)."""
+        from app.findings import grouped_findings
+
         bar.close()
         lines = [f"{g.severity}: {g.text()}" for g in grouped_findings(findings)]
         for line in lines or ["the guide points pass every rule"]:
