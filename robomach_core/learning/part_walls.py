@@ -100,8 +100,8 @@ class PartWalls:
         from just over that floor a wall still stands ``towards`` within ``AT_WALL_GAP_M`` of
         the cutter. The height reference's rule for a floor above the cutter
         (``HeightReference.at``), so a riser beside a guide point is never taken for its
-        taught wall (a riser along the groove, met by a ray of the fan before the wall 4 mm
-        across, was learned and passed as the taught wall)."""
+        taught wall (a riser across the groove 1 mm behind a first point, met by a ray of the
+        fan before the wall 4 mm across, was learned and passed as the taught wall)."""
         points = np.asarray(points, dtype=float).reshape(-1, 3)
         out = np.zeros(len(points), dtype=bool)
         if self.walls is None or not len(points):
