@@ -19,7 +19,9 @@ from ..limits import MAX_MESH_BYTES as MAX_MESH_BYTES
 from ..limits import MAX_MESH_TRIANGLES as MAX_MESH_TRIANGLES
 from ..robots import registry
 from ..transforms import make_transform
+from .bvh import hull_corner_indices, remember_hull_corners
 from .contour import Contour, filleted_polygon
+from .memo import Memo, digest
 from .mesh_check import check_mesh, check_mesh_bytes
 from .s_groove import S_GROOVE_DEPTH_M, S_GROOVE_PLATE_SIZE_M, s_groove_mesh, s_groove_wall
 
@@ -29,6 +31,10 @@ MESH_SUFFIXES = (".stl", ".obj", ".ply")
 # the helper's own, and time (a good 500k-triangle part reads in about 8 s).
 PARSE_MEMORY_BYTES = 2 << 30
 PARSE_TIMEOUT_S = 60.0
+# What the last files read came to (``mesh_from_bytes``): a cell change rebuilds the cell from
+# the project's mesh bytes, which were read already (1.1 s for 80k triangles). Two files: the
+# part and a stock; 64 MiB holds two answers of 500k triangles (18 MB each).
+PARSED_MEMO = Memo(max_entries=2, max_bytes=64 << 20)
 # Contact stiffness measured in the papers (Cibatool 85 N/mm, aluminium 143 N/mm).
 CONTACT_STIFFNESS_N_M = {"cast_iron": 100e3, "aluminium": 143e3, "cibatool": 85e3}
 # The water-pump plate sits on the table in front of a UR10 (metres, base frame).
@@ -408,7 +414,10 @@ def mesh_from_bytes(
     bytes, before it is parsed (``count_mesh_triangles``, ``mesh_check.check_mesh_bytes``);
     it is then read in an isolated process within ``PARSE_MEMORY_BYTES`` and
     ``PARSE_TIMEOUT_S`` (``parse_mesh_file``: a degenerate file that costs minutes or
-    gigabytes there is refused, the caller unharmed; issue 32)."""
+    gigabytes there is refused, the caller unharmed; issue 32). The answer for the same
+    bytes and options is kept (``PARSED_MEMO``; a refusal is not): a cell change that keeps
+    the part reads it once. The hull corners the isolated check found are remembered for the
+    supervisor (``bvh.placed_convex_hull``)."""
     from ..isolation import IsolatedError, run_isolated
 
     kind = suffix.lower().lstrip(".")
@@ -421,22 +430,31 @@ def mesh_from_bytes(
             f"limit of {max_triangles} (simplify the mesh)"
         )
     check_mesh_bytes(data, kind, name, max_triangles=max_triangles)
-    payload = {"data": bytes(data), "kind": kind, "name": name, "scale": float(scale),
-               "max_triangles": int(max_triangles)}  # fmt: skip
-    try:
-        answer = run_isolated(
-            parse_mesh_file,
-            payload,
-            memory_bytes=PARSE_MEMORY_BYTES,
-            timeout_s=PARSE_TIMEOUT_S,
-            name="mesh reading",
-        )
-    except IsolatedError as exc:
-        if exc.error_type == MeshFileError.__name__:
-            raise MeshFileError(exc.detail) from None
-        raise MeshFileError(f"{name}: this mesh cannot be read ({exc}); simplify it") from None
+    key = digest("parsed mesh", data, kind, name, float(scale), int(max_triangles))
+    answer = PARSED_MEMO.get(key)
+    if answer is None:
+        payload = {"data": bytes(data), "kind": kind, "name": name, "scale": float(scale),
+                   "max_triangles": int(max_triangles)}  # fmt: skip
+        try:
+            answer = run_isolated(
+                parse_mesh_file,
+                payload,
+                memory_bytes=PARSE_MEMORY_BYTES,
+                timeout_s=PARSE_TIMEOUT_S,
+                name="mesh reading",
+            )
+        except IsolatedError as exc:
+            if exc.error_type == MeshFileError.__name__:
+                raise MeshFileError(exc.detail) from None
+            raise MeshFileError(f"{name}: this mesh cannot be read ({exc}); simplify it") from None
+        for array in answer["arrays"].values():
+            array.flags.writeable = False  # kept: every caller gets copies
+        PARSED_MEMO.put(key, answer, sum(a.nbytes for a in answer["arrays"].values()))
     arrays = answer["arrays"]
-    mesh = trimesh.Trimesh(arrays["vertices"], arrays["faces"], process=False)
+    vertices = arrays["vertices"].copy()
+    mesh = trimesh.Trimesh(vertices, arrays["faces"].copy(), process=False)
+    if "hull_corner_indices" in arrays:  # the isolated check's qhull: not run again
+        remember_hull_corners(vertices, arrays["hull_corner_indices"])
     z_top = float(answer["z_top_m"])
     return Workpiece(
         name=name,
@@ -451,7 +469,9 @@ def parse_mesh_file(payload: dict) -> dict:
     """The isolated half of ``mesh_from_bytes`` (run by ``isolation.run_isolated``): parse
     the file, check it (``mesh_check.check_mesh``: duplicate faces dropped, too many bodies
     refused before any split, the native steps run here) and make it one solid. Returns
-    ``z_top_m``, ``z_low_m`` and ``arrays`` (``vertices`` (n, 3) m, ``faces`` (m, 3))."""
+    ``z_top_m``, ``z_low_m`` and ``arrays`` (``vertices`` (n, 3) m, ``faces`` (m, 3), and
+    ``hull_corner_indices`` (k,): the rows of ``vertices`` the check's qhull found as the
+    hull's corners, when the solid is the mesh checked)."""
     import io
 
     data, kind, name = payload["data"], payload["kind"], payload["name"]
@@ -474,11 +494,11 @@ def parse_mesh_file(payload: dict) -> dict:
     check_mesh(loaded, name, native="here")  # size, thickness, bodies, the native steps
     z_top = float(loaded.bounds[1, 2])
     loaded = solid_mesh(loaded)
-    return {
-        "z_top_m": z_top,
-        "z_low_m": float(loaded.bounds[0, 2]),
-        "arrays": {
-            "vertices": np.asarray(loaded.vertices, dtype=np.float64),
-            "faces": np.asarray(loaded.faces, dtype=np.int64),
-        },
+    arrays = {
+        "vertices": np.asarray(loaded.vertices, dtype=np.float64),
+        "faces": np.asarray(loaded.faces, dtype=np.int64),
     }
+    corners = hull_corner_indices(arrays["vertices"])  # the check's, unless solid_mesh joined
+    if corners is not None:
+        arrays["hull_corner_indices"] = corners
+    return {"z_top_m": z_top, "z_low_m": float(loaded.bounds[0, 2]), "arrays": arrays}

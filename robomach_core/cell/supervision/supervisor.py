@@ -44,7 +44,7 @@ import pinocchio as pin
 
 from ...errors import InvalidInputError, SupervisionError
 from ...part import Workpiece
-from ...part.bvh import convex_hull_of
+from ...part.bvh import placed_convex_hull
 from ...robots.registry import DEFAULT_LINK_RADIUS_M
 from ..clock import CONTROL_PERIOD_S
 from ..robot import IK_STEP_DAMPING, Robot
@@ -310,8 +310,9 @@ class Supervisor:
         self._table_z = float(table_z_m or 0.0)
         self._obstacles: list[tuple[str, Any, coal.Transform3s, np.ndarray]] = []
         self._corners: list[np.ndarray] = []  # per obstacle (N_o, 3): it is their convex hull
-        if vertices is not None:
-            hull, corners, _ = convex_hull_of(vertices)
+        if workpiece is not None and vertices is not None:
+            # qhull's corners as the isolated mesh check found them on the part's own vertices
+            hull, corners = placed_convex_hull(workpiece.mesh.vertices, vertices)
             box = np.concatenate([corners.min(axis=0), corners.max(axis=0)])
             self._obstacles.append(("workpiece", hull, coal.Transform3s(), box))
             # GJK's support point walks every corner; past a few hundred coal's is quicker.
