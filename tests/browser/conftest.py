@@ -98,6 +98,16 @@ def frames_drawn(page, frames: int = 2) -> None:
     )
 
 
+def box_of(locator) -> dict[str, float]:
+    """``locator``'s box on the page (x, y, width, height in CSS pixels), as ``bounding_box()``
+    gives it, read by the page itself: ``bounding_box()`` took 0.3-1 s on a 3D page (a click on
+    the part spent most of its time there), ``getBoundingClientRect`` 0.03 s."""
+    return locator.evaluate(
+        "(e) => { const r = e.getBoundingClientRect();"
+        " return {x: r.x, y: r.y, width: r.width, height: r.height}; }"
+    )
+
+
 START_TIMEOUT_S = 90.0
 VIEWPORT = {"width": 1400, "height": 900}
 
