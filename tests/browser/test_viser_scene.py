@@ -13,7 +13,14 @@ import pytest
 from PIL import Image
 from playwright.sync_api import Page, expect
 
-from tests.browser.conftest import Served, box_of, new_context, wait_for, workbench_on
+from tests.browser.conftest import (
+    Served,
+    box_of,
+    frames_drawn,
+    new_context,
+    wait_for,
+    workbench_on,
+)
 from tests.jobs import done
 
 pytestmark = pytest.mark.slow
@@ -66,7 +73,7 @@ def test_viser_page_draws_the_robot(served: Served, api: httpx.Client, browser) 
     moved = 0.0
     deadline = time.monotonic() + SETTLE_TIMEOUT_S
     while moved <= 0.005 and time.monotonic() < deadline:
-        page.wait_for_timeout(1000)  # software WebGL draws about one frame a second here
+        frames_drawn(page, 1)  # the page's next frame (two a second: conftest)
         moved = max(moved, changed_fraction(before, canvas_pixels(page)))
     assert moved > 0.005, f"the robot did not move on screen ({moved:.2%} of the pixels changed)"
     context.close()
