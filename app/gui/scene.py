@@ -86,6 +86,7 @@ class CellScene:
         self.paths = ScenePaths(server)
         self._lock = threading.Lock()
         self._urdf: ViserUrdf | None = None
+        self._urdf_model = None  # its yourdfpy URDF (the arm's meshes), read by ``arm_mesh``
         self._pose: RobotPose | None = None
         self._robot_name = ""
         self._last_joints = np.full(6, np.nan)
@@ -120,6 +121,7 @@ class CellScene:
             if self._urdf is not None:
                 self._urdf.remove()
             self._urdf = ViserUrdf(self.server, urdf, root_node_name="/robot")
+            self._urdf_model = urdf
             self._pose = RobotPose(self._urdf, urdf)
             self._robot_name = robot
             self._last_joints = np.full(6, np.nan)
@@ -393,12 +395,19 @@ class CellScene:
 
     def arm_mesh(self, joints_rad: np.ndarray, T_base_tcp: np.ndarray | None) -> trimesh.Trimesh:
         """The arm as drawn at ``joints_rad`` (its visual meshes) with the spindle on its TCP,
-        base frame: what may stand between the camera and the part."""
-        if getattr(self, "_arm_robot", None) != self._robot_name:
-            self._arm_model = load_urdf(self._robot_name)  # its own: the scene's is drawn
-            self._arm_robot = self._robot_name
-        self._arm_model.update_cfg(np.asarray(joints_rad, dtype=float))
-        parts = [self._arm_model.scene.to_mesh()]
+        base frame: what may stand between the camera and the part.
+
+        Posed on the drawn arm's own URDF, under the scene's lock: the drawing turns its
+        frames without that URDF's configuration (``RobotPose``), and sets it whole where it
+        does use it, so posing it here draws nothing. A URDF of its own cost a second load of
+        the arm's meshes at each change of arm (0.3 s of the cell change)."""
+        q = np.asarray(joints_rad, dtype=float)
+        with self._lock:
+            urdf = self._urdf_model
+            if urdf is None:
+                raise RuntimeError("no arm drawn yet (set_robot)")
+            urdf.update_cfg(q)
+            parts = [urdf.scene.to_mesh()]
         body = getattr(self, "_tool_body", None)
         if body is not None and T_base_tcp is not None:
             parts.append(body.copy().apply_transform(np.asarray(T_base_tcp, dtype=float)))

@@ -64,9 +64,12 @@ def start_server(
     args: tuple[str, ...] = (),
     log_name: str = "server.log",
     start_timeout_s: float = START_TIMEOUT_S,
+    port: int | None = None,
+    viser_port: int | None = None,
 ) -> ServerProcess:
-    """``robomach serve`` on free ports with ``data_dir``; returns once /api/health answers."""
-    port, viser_port = free_port(), free_port()
+    """``robomach serve`` with ``data_dir`` on the given ports (free ones by default: a restart
+    gives the first start's); returns once /api/health answers."""
+    port, viser_port = port or free_port(), viser_port or free_port()
     log_path = data_dir.parent / f"{data_dir.name}-{log_name}"
     full_env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
     if "ROBOMACH_TOKEN" not in (env or {}):

@@ -84,17 +84,43 @@ def new_context(browser, **options):
     return context
 
 
-def frames_drawn(page, frames: int = 2) -> None:
+def frames_drawn(page, frames: int = 3) -> None:
     """Wait until ``page`` has drawn ``frames`` more animation frames. viser draws the scene
     messages it has received in its next frame, and the workbench sends a panel's scene before
     its text: once the text shows, this waits for its scene to be drawn (for a screenshot),
-    instead of a fixed time."""
+    instead of a fixed time. Its labels (the points' names) take three frames: after a guide
+    point recorded, screenshots after one, two and three frames differed from the settled
+    page in 928, 105 and 0 pixels."""
     page.evaluate(
         """(n) => new Promise((done) => {
              const next = (k) => (k > 0 ? requestAnimationFrame(() => next(k - 1)) : done());
              next(n);
            })""",
         frames,
+    )
+
+
+def drawn_whole(page, timeout_s: float = 30.0) -> None:
+    """Wait until ``page`` draws no change from one frame to the next (for a screenshot).
+    viser rasterises its labels' new glyphs 5 ms a frame: a label with new letters (the first
+    "P1", "P2", ...) streams in over frames, as many as the machine's load makes it take."""
+    deadline = time.monotonic() + timeout_s
+    last = page.screenshot()
+    while time.monotonic() < deadline:
+        frames_drawn(page, 1)
+        now = page.screenshot()
+        if now == last:
+            return
+        last = now
+
+
+def box_of(locator) -> dict[str, float]:
+    """``locator``'s box on the page (x, y, width, height in CSS pixels), as ``bounding_box()``
+    gives it, read by the page itself: ``bounding_box()`` took 0.3-1 s on a 3D page (a click on
+    the part spent most of its time there), ``getBoundingClientRect`` 0.03 s."""
+    return locator.evaluate(
+        "(e) => { const r = e.getBoundingClientRect();"
+        " return {x: r.x, y: r.y, width: r.width, height: r.height}; }"
     )
 
 

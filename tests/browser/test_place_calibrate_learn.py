@@ -32,7 +32,13 @@ from robomach_core.export.read_back import read_program
 from robomach_core.learning.walls import section_loops
 from robomach_core.part import PartDeviation
 from robomach_core.part.real_part import fixture_error
-from tests.browser.conftest import frames_drawn, new_context, wait_for, workbench_on
+from tests.browser.conftest import (
+    drawn_whole,
+    frames_drawn,
+    new_context,
+    wait_for,
+    workbench_on,
+)
 from tests.browser.test_pointing import _click_at
 from tests.generated_parts import cam_plate
 
@@ -239,6 +245,7 @@ def test_place_calibrate_propose_learn_export_within_a_third_of_a_mm_in_twenty_a
         assert proposal.closed
         expect(page.get_by_text(f"{len(proposal.points)} proposed points")).to_be_visible()
         frames_drawn(page)  # the proposed points, sent before their text
+        drawn_whole(page)  # and their labels
         _shot(page, "4_proposal")
         page.get_by_role("button", name="Accept proposal").click()
         act("Accept proposal")

@@ -18,7 +18,14 @@ import pytest
 from playwright.sync_api import Page, expect
 
 from robomach_core.transforms import matrix_from_quaternion
-from tests.browser.conftest import frames_drawn, new_context, wait_for, workbench_on
+from tests.browser.conftest import (
+    box_of,
+    drawn_whole,
+    frames_drawn,
+    new_context,
+    wait_for,
+    workbench_on,
+)
 from tests.generated_parts import grooved_plate
 from tests.jobs import done
 
@@ -109,7 +116,7 @@ def _click_at(page: Page, client, p_base: np.ndarray) -> None:
     pc = R.T @ (np.asarray(p_base) - np.asarray(cam.position))
     W, H = cam.image_width, cam.image_height
     f = 0.5 * H / np.tan(0.5 * cam.fov)
-    box = page.locator("canvas").first.bounding_box()
+    box = box_of(page.locator("canvas").first)
     u = (W / 2 + f * pc[0] / pc[2]) * box["width"] / W
     v = (H / 2 + f * pc[1] / pc[2]) * box["height"] / H
     page.mouse.click(box["x"] + u, box["y"] + v)
@@ -168,6 +175,9 @@ def test_click_to_teach_the_pump_then_learn_within_a_third_of_a_mm(browser, work
         expected = np.array(xy) + 2.0 * np.array(normal)  # radius + gap off the wall
         assert np.linalg.norm(wobj[:2] - expected) < 0.6, (wobj, expected)
     assert session.pointing.learning_side() is None  # path learning decides it, once
+    # Each point redraws the guide points and their labels: drawn whole before the screenshot
+    # (it was taken mid-redraw once the clicks no longer waited a frame).
+    frames_drawn(page)
     page.screenshot(path=str(_shot("click_to_teach")))
     deviation = _learn_and_postprocess(page, workbench)
     assert session.project().recording.wall_side == "right"  # from the mesh: beside the wall
@@ -186,6 +196,7 @@ def _propose_accept_learn(page: Page, client, workbench, xy, normal, z_mm) -> fl
     proposal = session.pointing.proposal()
     expect(page.get_by_text(f"{len(proposal.points)} proposed points")).to_be_visible()
     frames_drawn(page)  # the proposal's points, sent before its text
+    drawn_whole(page)  # and their labels
     page.screenshot(path=str(_shot("proposal")))
     page.get_by_role("button", name="Accept proposal").click()
     wait_for(

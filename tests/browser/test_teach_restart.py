@@ -3,9 +3,6 @@ themselves (no reload of the page), and changes reach the page again."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -13,43 +10,19 @@ import httpx
 import pytest
 from playwright.sync_api import expect
 
-from tests.api.server_process import ROOT, ServerProcess, free_port
-from tests.browser.conftest import new_context
+from tests.api.server_process import free_port, start_server
+from tests.browser.conftest import START_TIMEOUT_S, new_context
 
 pytestmark = pytest.mark.slow
-
-
-def serve(data: Path, port: int, viser_port: int, log_name: str) -> ServerProcess:
-    """``robomach serve`` on the given ports (a restart must come back where it was)."""
-    log_path = data.parent / log_name
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    env.pop("ROBOMACH_TOKEN", None)
-    with open(log_path, "ab") as log:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "app.cli", "serve", "--port", str(port), "--viser-port",
-             str(viser_port), "--data", str(data)],
-            cwd=ROOT, env=env, stdout=log, stderr=subprocess.STDOUT,
-        )  # fmt: skip
-    server = ServerProcess(
-        proc, f"http://127.0.0.1:{port}", data, log_path, f"http://127.0.0.1:{viser_port}/"
-    )
-    deadline = time.monotonic() + 90.0
-    while time.monotonic() < deadline:
-        assert proc.poll() is None, server.log()
-        try:
-            if httpx.get(server.base_url + "/api/health", timeout=1.0).status_code == 200:
-                return server
-        except httpx.TransportError:
-            pass
-        time.sleep(0.2)
-    server.kill()
-    raise AssertionError(f"the server did not start:\n{server.log()}")
 
 
 def test_the_pendant_reconnects_after_a_restart(tmp_path: Path, browser) -> None:
     data = tmp_path / "data"
     port, viser_port = free_port(), free_port()
-    server = serve(data, port, viser_port, "first.log")
+    server = start_server(
+        data, port=port, viser_port=viser_port, log_name="first.log",
+        start_timeout_s=START_TIMEOUT_S,
+    )  # fmt: skip
     context = new_context(browser, viewport={"width": 1400, "height": 900})
     page = context.new_page()
     try:
@@ -64,7 +37,11 @@ def test_the_pendant_reconnects_after_a_restart(tmp_path: Path, browser) -> None
         assert "Traceback" not in server.log(), server.log()
         expect(page.locator("#connection")).to_have_text("offline", timeout=10_000)
 
-        server = serve(data, port, viser_port, "second.log")
+        # Its own ports again (the page reconnects there), polled every 0.02 s by one client.
+        server = start_server(
+            data, port=port, viser_port=viser_port, log_name="second.log",
+            start_timeout_s=START_TIMEOUT_S,
+        )  # fmt: skip
         page.wait_for_function(
             "() => window.robomachEvents.readyState === 1 && window.sceneReloads >= 1",
             polling=200,  # not per animation frame: the scene's WebGL starves those under load

@@ -13,7 +13,14 @@ import pytest
 from PIL import Image
 from playwright.sync_api import Page, expect
 
-from tests.browser.conftest import Served, new_context, wait_for, workbench_on
+from tests.browser.conftest import (
+    Served,
+    box_of,
+    frames_drawn,
+    new_context,
+    wait_for,
+    workbench_on,
+)
 from tests.jobs import done
 
 pytestmark = pytest.mark.slow
@@ -25,8 +32,8 @@ SCENE_VIEWPORT = {"width": 1200, "height": 720}  # software rendering: fewer pix
 def canvas_pixels(page: Page) -> np.ndarray:
     """(h, w, 3) int pixels of the 3D canvas (a page screenshot clipped to it: an element
     screenshot waits for the always-animating canvas to be "stable")."""
-    box = page.locator("canvas").first.bounding_box()
-    assert box is not None, "no canvas on the page"
+    box = box_of(page.locator("canvas").first)
+    assert box["width"] > 0 and box["height"] > 0, "no canvas on the page"
     png = page.screenshot(clip=box)
     return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), dtype=int)
 
@@ -66,7 +73,7 @@ def test_viser_page_draws_the_robot(served: Served, api: httpx.Client, browser) 
     moved = 0.0
     deadline = time.monotonic() + SETTLE_TIMEOUT_S
     while moved <= 0.005 and time.monotonic() < deadline:
-        page.wait_for_timeout(1000)  # software WebGL draws about one frame a second here
+        frames_drawn(page, 1)  # the page's next frame (two a second: conftest)
         moved = max(moved, changed_fraction(before, canvas_pixels(page)))
     assert moved > 0.005, f"the robot did not move on screen ({moved:.2%} of the pixels changed)"
     context.close()
