@@ -26,6 +26,12 @@ from tests.people_points import people_points
 SEED = run_seed()
 SETS = 30  # per case; geometry only (no run): about two seconds a case
 ACROSS_SETS = 12  # with the route planned and walked: about a second a set
+# Draws for the across-the-chord property: a station 60 deg or more off its chord is drawn in
+# one set of two on the pump, but on the rounded plate only 2 of 12 drew one in one run in
+# about 15, and the property then failed for having exercised too few, not for a wrong wall.
+ACROSS_DRAWS = 4 * ACROSS_SETS
+ACROSS_EXERCISED = 3 * ACROSS_SETS // 4  # sets drawn until this many exercise it (about as many
+# as 12 draws gave on average before)
 ON_WALL_MM = 0.05  # the mesh's facets against the true wall's dense polyline
 
 
@@ -144,7 +150,9 @@ def test_a_point_where_the_wall_runs_across_its_chord_keeps_the_taught_wall(part
 
     part = part_named(part_name)
     exercised = 0
-    for set_seed in set_seeds(SEED + 4 + (part_name == "grooved_plate"), ACROSS_SETS):
+    for set_seed in set_seeds(SEED + 4 + (part_name == "grooved_plate"), ACROSS_DRAWS):
+        if exercised == ACROSS_EXERCISED:
+            break  # drawn until this many sets exercised the property
         rng = np.random.default_rng(set_seed)
         name = str(rng.choice(["outer", "island"])) if part_name == "grooved_plate" else "outer"
         wall = part.walls[name]
