@@ -36,6 +36,7 @@ from robomach_core.errors import (
     ConflictError,
     InvalidInputError,
     NotEnoughGuidePointsError,
+    RouteRefusedError,
     SupervisionError,
 )
 from robomach_core.learning.route import LearningRoute
@@ -116,7 +117,7 @@ class Learning:
     def __init__(self, session: Session) -> None:
         self._session = session
         self._route_lock = threading.Lock()
-        self._checked: tuple[tuple, LearningRoute] | None = None  # (inputs, route)
+        self._checked: tuple[tuple, LearningRoute | RouteRefusedError] | None = None
 
     def start_example(self) -> str:
         """Job: the scripted operator leads the robot by pushes to the example guide points of
@@ -333,25 +334,23 @@ class Learning:
         wall_side: WallSideSetting = "auto",
     ) -> tuple:
         """What the operator check finds in the guide points (``project.guide_findings``)."""
-        from robomach_core.errors import RouteRefusedError
-
         view = self._session.view()
         side = self._side(wall_side)
         settings = PathLearningSettings(force_N=force_N, closed=closed, wall_side=side)
         route = None
-        try:
-            if len(view.project.guide_points) >= 2:  # fewer: no route, as the check has it
-                route = self._checked_route(view, settings)
-        except RouteRefusedError:
-            pass  # the check plans it again and says why, as its first finding
+        if len(view.project.guide_points) >= 2:  # fewer: no route, as the check has it
+            route = self._checked_route(view, settings)
         return core.guide_findings(view.project, view.cell, settings, route=route)
 
-    def _checked_route(self, view: View, settings: PathLearningSettings) -> LearningRoute:
-        """``core.route_of`` for the checks and the wall preview, planned once for the same
-        guide points, part and route settings: the workbench's rules panel and wall preview,
-        and GET /api/path-learning/check, each planned it after every change
-        (0.4-0.6 s each for 14 points). They only read it; a run plans its own (its height
-        reference changes as the run goes). Raises ``RouteRefusedError`` as ``route_of``."""
+    def _checked_route(
+        self, view: View, settings: PathLearningSettings
+    ) -> LearningRoute | RouteRefusedError:
+        """``core.route_of`` for the checks and the wall preview, or its refusal, planned once
+        for the same guide points, part and route settings: the workbench's rules panel and
+        wall preview, and GET /api/path-learning/check, each planned it after every change
+        (0.4-0.6 s each for 14 points), and a refused route up to three times for one check.
+        They only read it; a run plans its own (its height reference changes as the run
+        goes)."""
         cad = view.cell.workpiece.cad()
         inputs = (view.project.guide_points, cad, view.project.cell.tool_radius_m,
                   settings.closed, settings.wall_side, settings.floor_clearance_m)  # fmt: skip
@@ -359,7 +358,11 @@ class Learning:
             checked = self._checked
         if checked is not None and _same_inputs(checked[0], inputs):
             return checked[1]
-        route = core.route_of(view.project, settings, cad)
+        route: LearningRoute | RouteRefusedError
+        try:
+            route = core.route_of(view.project, settings, cad)
+        except RouteRefusedError as exc:
+            route = exc.with_traceback(None)  # kept without the planner's frames (the part)
         with self._route_lock:
             self._checked = (inputs, route)
         return route
@@ -376,7 +379,6 @@ class Learning:
     ) -> tuple[list, str]:
         """The wall the next run would follow: its point at each guide point (base frame, None
         where none is near) and one line saying which side and why, or why it cannot tell."""
-        from robomach_core.errors import RouteRefusedError
         from robomach_core.learning.part_walls import PartWalls
         from robomach_core.learning.route import taught_wall_points
 
@@ -386,14 +388,13 @@ class Learning:
         if len(guides) < 2:
             return [], ""
         settings = PathLearningSettings(closed=closed, wall_side=self._side(wall_side))
-        try:
-            route = self._checked_route(view, settings)
-            with mesh_query.LOCK:
-                walls = PartWalls(workpiece, route.axis, radius)
-                points = taught_wall_points(
-                    guides, route.wall_side.side, closed, walls, travel=route.guide_travel
-                )
-        except RouteRefusedError as exc:
-            return [], f"wall side: {exc}"
+        route = self._checked_route(view, settings)
+        if isinstance(route, RouteRefusedError):
+            return [], f"wall side: {route}"
+        with mesh_query.LOCK:
+            walls = PartWalls(workpiece, route.axis, radius)
+            points = taught_wall_points(
+                guides, route.wall_side.side, closed, walls, travel=route.guide_travel
+            )
         decision = route.wall_side
         return points, f"follows the wall on the {decision.side}: {decision.detail}"

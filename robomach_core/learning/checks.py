@@ -165,7 +165,7 @@ def guide_point_warnings(
     tool_radius_m: float | None = None,
     supervisor: Supervisor | None = None,
     tolerance_m: float | None = None,
-    route: LearningRoute | None = None,
+    route: LearningRoute | RouteRefusedError | None = None,
 ) -> tuple[GuideWarning, ...]:
     """What the operator should know before learning (module docstring): the route's refusal,
     if any, first.
@@ -183,23 +183,28 @@ def guide_point_warnings(
             said before the run (issue 31: a 4 mm tolerance was accepted, then blamed on the
             wall).
         route: The route ``plan_route`` planned for these points, settings, workpiece and
-            radius, when the caller has it (the findings only read it); planned here when None.
+            radius, or its refusal, when the caller has it (the findings only read it);
+            planned here when None.
     """
     if not guides:
         return ()
     out: list[GuideWarning] = []
     mesh = workpiece is not None and tool_radius_m is not None
+    refusal = route if isinstance(route, RouteRefusedError) else None
+    planned = route if isinstance(route, LearningRoute) else None
     if len(guides) >= 2 and route is None:
         try:
-            route = plan_route(
+            planned = plan_route(
                 guides,
                 settings,
                 workpiece=workpiece if mesh else None,
                 tool_radius_m=tool_radius_m,
             )
         except RouteRefusedError as exc:
-            rule: GuideRule = "wall_side" if isinstance(exc, WallSideError) else "route"
-            out.append(GuideWarning(0, rule, str(exc), "refusal"))
+            refusal = exc
+    if refusal is not None:
+        rule: GuideRule = "wall_side" if isinstance(refusal, WallSideError) else "route"
+        out.append(GuideWarning(0, rule, str(refusal), "refusal"))
     # Each point's side of travel as the route decides it: with the walls the points stand
     # by when the part is known (one PartWalls for every finding here).
     axis = mean_tool_axis(guides)
@@ -209,11 +214,11 @@ def guide_point_warnings(
     right = right_of_travel(guides, settings.closed, walls)[1]
     out += _point_findings(guides, settings, axis, right)
     if walls is not None and workpiece is not None and tool_radius_m is not None:
-        out += _mesh_findings(route, guides, settings, workpiece, tool_radius_m, walls, right)
-    if supervisor is not None and route is not None:
+        out += _mesh_findings(planned, guides, settings, workpiece, tool_radius_m, walls, right)
+    if supervisor is not None and planned is not None:
         from .motion_check import motion_findings
 
-        out += motion_findings(route, supervisor)
+        out += motion_findings(planned, supervisor)
     if tolerance_m is not None and tolerance_m > th.TAUGHT_WALL_TOLERANCE_M:
         out.append(GuideWarning(0, "tolerance", (
             f"the deviation-height tolerance is {tolerance_m * 1e3:g} mm: the program's straight "

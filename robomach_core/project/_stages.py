@@ -237,13 +237,13 @@ def guide_findings(
     cell: Cell,
     settings: PathLearningSettings,
     *,
-    route: LearningRoute | None = None,
+    route: LearningRoute | RouteRefusedError | None = None,
 ) -> tuple[GuideWarning, ...]:
     """The check of the project's guide points before a run (``learning.guide_point_warnings``
     against the mesh the user sees, the arm's reach and the cell's supervision, at the
     project's tolerance): what the workbench shows and ``robomach demo`` prints; a refusal
-    raises. ``route``: the route ``route_of`` planned for them with ``settings``, when the
-    caller has it (planned here when None)."""
+    raises. ``route``: the route ``route_of`` planned for them with ``settings``, or its
+    refusal, when the caller has it (planned here when None)."""
     return guide_check(project, cell, settings, route=route)[0]
 
 
@@ -252,12 +252,12 @@ def guide_check(
     cell: Cell,
     settings: PathLearningSettings,
     *,
-    route: LearningRoute | None = None,
+    route: LearningRoute | RouteRefusedError | None = None,
 ) -> tuple[tuple[GuideWarning, ...], LearningRoute | None]:
     """``guide_findings`` and the route they read, the one ``route_of`` plans (None when it is
     refused; ``route`` itself when given): ``learn`` takes it as its ``route``, so a run right
     after its check plans the route once (the walk on the mesh is the most of the check's
-    time)."""
+    time). A refusal is planned once too: the check says it as its first finding."""
     from ..cell import cell_supervisor
     from ..learning.checks import guide_point_warnings
 
@@ -265,8 +265,8 @@ def guide_check(
     if route is None and len(project.guide_points) >= 2:  # fewer: no route, as the check has it
         try:
             route = route_of(project, settings, cad)
-        except RouteRefusedError:
-            pass  # the check plans it again and says why, as its first finding
+        except RouteRefusedError as exc:
+            route = exc
     with mesh_query.LOCK:  # the mesh's nearest-point tree answers one thread at a time
         findings = guide_point_warnings(
             project.guide_points,
@@ -277,7 +277,7 @@ def guide_check(
             tolerance_m=project.post_settings.tolerance_m,
             route=route,
         )
-    return findings, route
+    return findings, route if isinstance(route, LearningRoute) else None
 
 
 # --- the cell and workpiece of a project -----------------------------------------------------
