@@ -38,11 +38,7 @@ def convex_hull_of(vertices: np.ndarray) -> tuple[coal.Convex, np.ndarray, float
     its triangles. (coal's own hull of every vertex with its triangles kept refuses a
     casting's: "Too many neighbors", a corner with over 255 neighbours.) Which vertices the
     corners are is remembered (``hull_corner_indices``)."""
-    v = np.asarray(vertices, dtype=float)
-    corners, volume_m3 = _qhull_corners(v)
-    indices = _row_indices(corners, v)
-    if indices is not None:
-        remember_hull_corners(v, indices)
+    corners, volume_m3, _ = _qhull_corners(np.asarray(vertices, dtype=float))
     return _coal_hull(corners), corners, volume_m3
 
 
@@ -60,12 +56,10 @@ def placed_convex_hull(vertices: np.ndarray, placed: np.ndarray) -> tuple[coal.C
         raise ValueError(f"placed vertices {p.shape} do not match the vertices {v.shape}")
     indices = hull_corner_indices(v)
     if indices is None:
-        corners, _ = _qhull_corners(v)
-        indices = _row_indices(corners, v)
+        indices = _qhull_corners(v)[2]
         if indices is None:  # trimesh gave other points than the input's: take its own hull
             hull, placed_corners, _ = convex_hull_of(p)
             return hull, placed_corners
-        remember_hull_corners(v, indices)
     corners = p[indices]
     return _coal_hull(corners), corners
 
@@ -96,13 +90,17 @@ def _vertices_key(vertices: np.ndarray) -> bytes:
     return digest("hull corners", np.asarray(vertices, dtype=float))
 
 
-def _qhull_corners(vertices: np.ndarray) -> tuple[np.ndarray, float]:
-    """qhull's corners (m, 3) of ``vertices`` (trimesh's ``convex_hull``) and the hull's
-    volume."""
+def _qhull_corners(vertices: np.ndarray) -> tuple[np.ndarray, float, np.ndarray | None]:
+    """qhull's corners (m, 3) of ``vertices`` (trimesh's ``convex_hull``), the hull's volume
+    and which rows of ``vertices`` the corners are (remembered; None when one is not)."""
     import trimesh
 
-    hull_mesh = trimesh.convex.convex_hull(np.asarray(vertices, dtype=float))
-    return np.asarray(hull_mesh.vertices, dtype=float), float(hull_mesh.volume)
+    hull_mesh = trimesh.convex.convex_hull(vertices)
+    corners = np.asarray(hull_mesh.vertices, dtype=float)
+    indices = _row_indices(corners, vertices)
+    if indices is not None:
+        remember_hull_corners(vertices, indices)
+    return corners, float(hull_mesh.volume), indices
 
 
 def _coal_hull(corners: np.ndarray) -> coal.Convex:
