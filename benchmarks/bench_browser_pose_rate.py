@@ -125,6 +125,21 @@ def measure(page, counter: PoseCounter, seconds: float, mode: str) -> dict:
     return {"mode": mode, "updates": n, "rate_hz": hz, "median_ms": median_ms, "p95_ms": p95_ms}
 
 
+def measure_while(browser, url: str, drive, seconds: float, mode: str) -> dict:
+    """``measure`` the viewer at ``url`` while ``drive(stop)`` moves the robot in a thread
+    (after the pushing settles); the thread is told to stop at the end."""
+    stop = threading.Event()
+    try:
+        page, counter = open_viewer(browser, url)
+        threading.Thread(target=drive, args=(stop,), daemon=True).start()
+        page.wait_for_timeout(SETTLE_S["pushing"] * 1e3)
+        result = measure(page, counter, seconds, mode)
+        page.context.close()
+    finally:
+        stop.set()
+    return result
+
+
 def bench_handle(browser, seconds: float) -> dict:
     import viser
 
@@ -134,9 +149,8 @@ def bench_handle(browser, seconds: float) -> dict:
     session = Session()
     server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
     wb = Workbench(server, session)
-    stop = threading.Event()
 
-    def circle() -> None:
+    def circle(stop: threading.Event) -> None:
         centre = session.robot.snapshot().position_m.copy()
         wb.leadthrough.spring.value = 1.0
         t0 = time.monotonic()
@@ -148,27 +162,19 @@ def bench_handle(browser, seconds: float) -> dict:
             stop.wait(0.02)
 
     try:
-        page, counter = open_viewer(browser, f"http://127.0.0.1:{server.get_port()}/")
-        mover = threading.Thread(target=circle, daemon=True)
-        mover.start()
-        page.wait_for_timeout(SETTLE_S["pushing"] * 1e3)
-        result = measure(page, counter, seconds, "handle")
-        page.context.close()
+        url = f"http://127.0.0.1:{server.get_port()}/"
+        return measure_while(browser, url, circle, seconds, "handle")
     finally:
-        stop.set()
         wb.close()
         server.stop()
         session.close()
-    return result
 
 
 def bench_rest(browser, seconds: float, served: ServerProcess) -> dict:
     """The ``rest`` mode on ``served`` (a real ``robomach serve``); stops it at the end."""
     import httpx
 
-    stop = threading.Event()
-
-    def hold_push() -> None:
+    def hold_push(stop: threading.Event) -> None:
         with httpx.Client(base_url=served.base_url, timeout=30.0) as client:
             t_next, direction, flipped = time.monotonic(), 1.0, time.monotonic()
             while not stop.is_set():
@@ -180,16 +186,9 @@ def bench_rest(browser, seconds: float, served: ServerProcess) -> dict:
                 stop.wait(max(0.0, t_next - time.monotonic()))
 
     try:
-        page, counter = open_viewer(browser, served.viser_url)
-        pusher = threading.Thread(target=hold_push, daemon=True)
-        pusher.start()
-        page.wait_for_timeout(SETTLE_S["pushing"] * 1e3)
-        result = measure(page, counter, seconds, "rest")
-        page.context.close()
+        return measure_while(browser, served.viser_url, hold_push, seconds, "rest")
     finally:
-        stop.set()
         served.stop()
-    return result
 
 
 def main() -> int:
