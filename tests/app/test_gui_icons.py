@@ -3,24 +3,12 @@ buttons get the same svg as viser's own reader gives, inside the build and after
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
-import pytest
-import viser
 import viser._gui_api as gui_api
 import viser._icons as viser_icons
 
 from app.gui.icons import icons_from_one_zip
-from tests.api.server_process import free_port
 
 NAMES = ("hand-stop", "player-play", "download", "trash", "arrow-back-up")
-
-
-@pytest.fixture(scope="module")
-def server() -> Iterator[viser.ViserServer]:
-    s = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
-    yield s
-    s.stop()
 
 
 def test_the_icons_read_from_one_zip_are_viser_own(server) -> None:

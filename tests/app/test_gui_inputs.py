@@ -5,25 +5,15 @@ generated values (a fresh seed each run; ``ROBOMACH_SEED`` replays one)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-
 import numpy as np
 import pytest
 import viser
 
 from app.gui.panels.feedback import client_of, guarded
 from app.gui.panels.inputs import set_value
-from tests.api.server_process import free_port
 from tests.envelope import replay, run_seed
 
 SEED = run_seed()
-
-
-@pytest.fixture(scope="module")
-def server() -> Iterator[viser.ViserServer]:
-    s = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
-    yield s
-    s.stop()
 
 
 def test_set_value_writes_each_kind_of_input_and_calls_its_listeners(server) -> None:
