@@ -256,10 +256,6 @@ class FindingPublic(BaseModel):
     )
 
     @classmethod
-    def from_finding(cls, w: Any) -> FindingPublic:
-        return cls(rule=w.rule, severity=w.severity, message=w.message)
-
-    @classmethod
     def from_group(cls, g: Any) -> FindingPublic:
         """One rule's findings (``app.findings.FindingGroup``)."""
         return cls(

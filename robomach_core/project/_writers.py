@@ -368,16 +368,6 @@ def rapid_text(
     return next(iter(texts.values()))
 
 
-def urscript_text(
-    project: Project, workpiece: Workpiece, robot: Robot, *, force_control: bool = False
-) -> str:
-    """The project's program as URScript (``export.urscript``): ``movel``/``movec`` to the
-    same targets as the RAPID module; ``force_control`` presses along tool y at the learning
-    force (``force_mode``)."""
-    texts = program_texts(project, workpiece, robot, "urscript", force_control=force_control)
-    return next(iter(texts.values()))
-
-
 def program_languages(robot: Robot, language: str = "auto") -> tuple[str, ...]:
     """The program languages to write (``export.languages.resolve_languages``): ``auto``,
     every language the arm's controller is offered (UR: RAPID and URScript; ABB: RAPID; KUKA:

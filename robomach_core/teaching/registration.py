@@ -270,12 +270,6 @@ class WobjFit:
         """4x4 motion of the CAD in its former work-object frame: T_after = T_before @ this."""
         return inverse_transform(self.T_base_wobj_before) @ self.T_base_wobj
 
-    def moved_at_m(self, points_base: np.ndarray) -> np.ndarray:
-        """(k,) how far the registration moved the CAD's points at ``points_base`` (k, 3)."""
-        p = np.asarray(points_base, dtype=float).reshape(-1, 3)
-        M = self.T_base_wobj @ inverse_transform(self.T_base_wobj_before)
-        return np.linalg.norm(p @ M[:3, :3].T + M[:3, 3] - p, axis=1)
-
     @property
     def rotation_rad(self) -> float:
         """How far it turned the CAD."""
