@@ -31,11 +31,15 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..part import Workpiece, mesh_query
-from .calibration import OTHER_SIDE_TOUCHES, SIDE_TOUCHES, TOP_TOUCHES
+from .calibration import EXPECTED_ERROR_M, OTHER_SIDE_TOUCHES, SIDE_TOUCHES, TOP_TOUCHES
 
 CANDIDATES = 400  # points drawn on the face to choose its touches from
-FLAT_MARGIN_M = 0.006  # ... each on the face over this much around it (the part's error:
-# a few mm of shift and 1-2 deg of turn at the touch)
+# ... each on the face over this much around it: the error the part may stand off its CAD at
+# a touch, the example operator's plan's (``calibration.EXPECTED_ERROR_M``). At 6 mm, one
+# click-touch in 14 on a realistic part (2-4 mm and 1-2 deg off, 10 mm at a 170 mm end of a
+# 300 mm plate) ran past the face's end and met its corner, and the fit put the CAD 11-17 mm
+# off (1885297732, test_workbench_cell's three-click calibration).
+FLAT_MARGIN_M = EXPECTED_ERROR_M
 PLANE_COS = math.cos(math.radians(3.0))  # a face of the same plane: normal within 3 deg ...
 PLANE_M = 5e-5  # ... and within 0.05 mm of the plane
 ON_FACE_M = 5e-4  # a candidate this near the mesh lies on it
