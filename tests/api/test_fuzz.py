@@ -4,7 +4,9 @@ A real ``robomach serve`` on a fresh data folder gets requests generated from
 ``/openapi.json``, valid ones (positive) and invalid ones (negative: wrong types, values out of
 range, missing fields), for every operation. Each response is checked for a server error (any
 status >= 500) and against the response schema the route declares. Jobs that a request starts
-are cancelled at once, so the run stays short and the next request finds the robot free.
+are cancelled at once, so the run stays short and the next request finds the robot free. The
+requests are drawn from a fresh seed each run, named on a failure (``ROBOMACH_SEED`` replays
+it).
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import pytest
 schemathesis = pytest.importorskip("schemathesis")  # in the "test" extra
 requests = pytest.importorskip("requests")  # a dependency of schemathesis
 
-from hypothesis import HealthCheck, Phase, Verbosity, given, settings  # noqa: E402
+from hypothesis import HealthCheck, Phase, Verbosity, given, seed, settings  # noqa: E402
 from hypothesis.errors import Unsatisfiable  # noqa: E402
 from schemathesis import GenerationMode  # noqa: E402
 from schemathesis.checks import not_a_server_error  # noqa: E402
@@ -27,6 +29,7 @@ from schemathesis.core.failures import FailureGroup  # noqa: E402
 from schemathesis.specs.openapi.checks import response_schema_conformance  # noqa: E402
 
 from tests.api.server_process import POLL_S, ServerProcess, start_server  # noqa: E402
+from tests.envelope import replay, run_seed  # noqa: E402
 
 pytestmark = pytest.mark.slow
 
@@ -35,6 +38,7 @@ EXAMPLES_PER_MODE = 15  # an operation with parameters gets up to this many of e
 REQUEST_TIMEOUT_S = 30.0
 CHECKS = [not_a_server_error, response_schema_conformance]
 EVENT_STREAM = "/api/events"
+SEED = run_seed()
 
 
 @pytest.fixture(scope="module")
@@ -87,12 +91,12 @@ def fuzz_operation(
     @settings(
         max_examples=EXAMPLES_PER_MODE,
         deadline=None,
-        derandomize=True,
         database=None,
         phases=[Phase.explicit, Phase.generate],
         suppress_health_check=list(HealthCheck),
         verbosity=Verbosity.quiet,
     )
+    @seed(SEED)
     @given(case=operation.as_strategy(generation_mode=mode))
     def call(case) -> None:
         response = case.call(base_url=base_url, session=http, timeout=REQUEST_TIMEOUT_S)
@@ -126,7 +130,10 @@ def test_generated_requests_get_no_server_error_and_match_the_schema(server):
             failures += failed
 
     total = sum(statuses.values())
-    summary = f"{total} requests over {len(operations)} operations, statuses {dict(statuses)}"
+    summary = (
+        f"{replay(SEED)}: {total} requests over {len(operations)} operations, "
+        f"statuses {dict(statuses)}"
+    )
     print(summary)
     assert total >= MIN_REQUESTS, summary
     assert not failures, f"{len(failures)} failures ({summary}):\n" + "\n\n".join(failures[:10])

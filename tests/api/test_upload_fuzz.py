@@ -11,7 +11,7 @@ that sum: each runs under ``RLIMIT_AS`` = the helper's address space + 1 GiB
 Counts: ``test_upload_fuzz`` sends ``QUICK`` examples of each family (a minute or two),
 ``test_upload_fuzz_full`` sends ``FULL`` (>= 500 meshes, >= 200 URDFs and archives); both are
 slow (a server of their own), the quick one alone: ``-k "upload_fuzz and not full"``.
-Hypothesis is derandomised: a run is repeatable.
+The inputs are drawn from a fresh seed each run, printed (``ROBOMACH_SEED`` replays it).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, given, seed, settings
 from hypothesis import strategies as st
 
 from robomach_core.robots import abb
@@ -40,6 +40,7 @@ from tests.api.server_process import (
     start_server,
 )
 from tests.api.zip_bombs import renamed, zeros_member, zip_with
+from tests.envelope import replay, run_seed
 
 PEAK_MEMORY_BYTES = 2 << 30
 QUICK = {"mesh": 60, "urdf": 25, "archive": 25}
@@ -141,16 +142,19 @@ def meshes(draw) -> tuple[str, bytes]:
     return ".obj", "\n".join(lines).encode()
 
 
-def fuzz_settings(examples: int) -> settings:
-    """Every upload fuzzer's settings: ``examples`` inputs, the same ones every run (derandomized,
-    no example database), no deadline or health check (each input is an HTTP upload)."""
-    return settings(
+SEED = run_seed()
+
+
+def fuzz_settings(examples: int):
+    """Every upload fuzzer's settings: ``examples`` inputs drawn from the run's ``SEED`` (no
+    example database), no deadline or health check (each input is an HTTP upload)."""
+    chosen = settings(
         max_examples=examples,
         deadline=None,
-        derandomize=True,
         database=None,
         suppress_health_check=list(HealthCheck),
     )
+    return lambda test: seed(SEED)(chosen(test))
 
 
 def _fuzz_meshes(fuzzed, examples: int) -> None:
@@ -343,6 +347,7 @@ def _memory_ok(server: ServerProcess) -> int:
 
 
 def _run(fuzzed, bombs, counts: dict[str, int]) -> None:
+    print(f"upload fuzz inputs: {replay(SEED)}")  # shown with a failure
     COUNTS.clear()
     STATUSES.clear()
     _fuzz_meshes(fuzzed, counts["mesh"])
