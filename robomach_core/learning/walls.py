@@ -437,8 +437,10 @@ def pick_wall(
         n = np.asarray(mesh.face_normals[int(triangle[0])], dtype=float)
     else:
         n = np.asarray(normal, dtype=float).reshape(3)
-        if not (np.all(np.isfinite(n)) and np.linalg.norm(n) > 1e-9):
+        largest = float(np.max(np.abs(n))) if np.all(np.isfinite(n)) else math.nan
+        if not largest > 0.0:
             raise InvalidInputError("the surface normal must be 3 finite numbers, not all zero")
+        n = n / largest  # any length: 1e285 squared overflowed the norm, and the unit was 0
         n = n / np.linalg.norm(n)
     on = np.asarray(closest[0], dtype=float)
     T = floor_frame(mesh, on, n, tool_radius_m + gap_m)

@@ -126,3 +126,27 @@ def test_a_wall_too_low_for_the_cutter_is_refused():
     step.apply_translation([0, 0, 0.00075])
     with pytest.raises(InvalidInputError, match="too low"):
         pick_wall(step, [0.0, -0.05, 0.001], **PICK)
+
+
+def test_a_normal_of_any_finite_length_picks_as_its_unit_does():
+    """The normal a click sends may have any length (the API says so): scaled by 1e-300 to
+    1e300 as a whole or component by component (a fresh draw each run), it picks the same wall
+    at the same height as its unit; zero is refused. A normal of 1e285 overflowed the norm, its
+    unit came out zero and the server answered 503 (an assertion inside)."""
+    import random
+
+    seed = random.randrange(2**32)
+    rng = random.Random(seed)
+    mesh = water_pump().mesh
+    point, unit = [0.0, -0.065, 0.019], np.array([0.0, 1.0, 0.0])  # the groove's outer wall
+    want = pick_wall(mesh, point, unit, **PICK)
+    for _ in range(8):
+        scaled = unit * 10.0 ** rng.uniform(-300, 300)
+        tiny = [10.0 ** rng.uniform(-300, -200) * rng.choice((-1, 1)), 0.0, 0.0]
+        lopsided = unit + np.array(tiny) if rng.random() < 0.5 else scaled
+        for normal in (scaled, lopsided):
+            got = pick_wall(mesh, point, normal, **PICK)
+            where = f"seed {seed}: normal {normal}"
+            assert got.z_m == want.z_m and got.loop.length_m == want.loop.length_m, where
+    with pytest.raises(InvalidInputError, match="not all zero"):
+        pick_wall(mesh, point, np.zeros(3), **PICK)
