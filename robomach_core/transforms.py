@@ -24,6 +24,26 @@ def arc_length_m(points_m: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
 
 
+def unit_vector(v: np.ndarray | list[float], what: str = "a direction") -> np.ndarray:
+    """(3,) ``v`` of any finite, non-zero length made unit: scaled by its largest component
+    first, so 1e285 does not overflow the norm (its unit came out zero) nor 1e-200 underflow it.
+
+    Raises:
+        InvalidInputError: not 3 finite numbers, or all zero (``what`` names it).
+    """
+    a = np.asarray(v, dtype=float)
+    if a.shape != (3,) or not np.all(np.isfinite(a)):
+        raise InvalidInputError(f"{what} must be 3 finite numbers")
+    norm = float(np.linalg.norm(a))
+    if 1e-150 < norm < 1e150:  # no overflow nor underflow in the squares
+        return a / norm
+    largest = float(np.max(np.abs(a)))
+    if largest == 0.0:
+        raise InvalidInputError(f"{what} must not be zero")
+    a = a / largest
+    return a / float(np.linalg.norm(a))
+
+
 def make_transform(rotation: np.ndarray, translation: np.ndarray) -> np.ndarray:
     """Build a 4x4 transform from a 3x3 rotation and a (3,) translation."""
     T = np.eye(4)

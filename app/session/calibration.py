@@ -52,6 +52,7 @@ from robomach_core.teaching import (
     scripted_touches,
     touch_at,
 )
+from robomach_core.transforms import unit_vector
 
 from .jobs import JobContext
 from .records import ConflictError, NotFoundError
@@ -354,10 +355,7 @@ class Calibration:
 
 def _in_base(direction: np.ndarray, frame: str, pose: Pose, cad: Workpiece) -> np.ndarray:
     """A direction given in ``frame`` ("base", "wobj", "tool") in the base frame."""
-    if direction.shape != (3,) or not np.all(np.isfinite(direction)):
-        raise InvalidInputError("a touch direction is 3 finite numbers")
-    if np.linalg.norm(direction) < 1e-9:
-        raise InvalidInputError("a touch direction must not be zero")
+    direction = unit_vector(direction, "a touch direction")  # any length, 1e-200 to 1e300
     if frame == "base":
         return direction
     if frame == "wobj":

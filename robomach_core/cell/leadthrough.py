@@ -38,7 +38,7 @@ from ..limits import (
     TOUCH_OFF_FORCE_N,
     TOUCH_OFF_TRAVEL_MM,
 )
-from ..transforms import quaternion_from_matrix, rotation_about
+from ..transforms import quaternion_from_matrix, rotation_about, unit_vector
 from .clock import CONTROL_PERIOD_S
 from .sensor import ForceEstimator
 from .simulator import Cell, CellState
@@ -398,12 +398,8 @@ class LeadThrough:
             NoContactError: nothing touched within ``max_travel_m`` (``error.state``: there).
             SupervisionError: a limit or an obstacle on the way (``error.state``: before it).
         """
-        d = np.asarray(direction, dtype=float)
-        norm = float(np.linalg.norm(d)) if d.shape == (3,) else 0.0
-        if not (math.isfinite(norm) and norm > 1e-9):
-            raise InvalidInputError("a touch-off direction is 3 finite numbers, not all zero")
+        u = unit_vector(np.asarray(direction, dtype=float).reshape(-1), "a touch-off direction")
         self._check_touch(force_N, max_travel_m)
-        u = d / norm
         helper = np.array([0.0, 0.0, 1.0]) if abs(u[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
         y = np.cross(helper, u)
         y /= np.linalg.norm(y)

@@ -31,6 +31,7 @@ import trimesh
 
 from ..errors import InvalidInputError
 from ..part.mesh_query import closest_point, ray_hits, transformed
+from ..transforms import unit_vector
 from .thresholds import (
     AMBIGUOUS_CLICK_RADII,
     CONTACT_BELOW_TOP_M,
@@ -436,12 +437,7 @@ def pick_wall(
     if normal is None:
         n = np.asarray(mesh.face_normals[int(triangle[0])], dtype=float)
     else:
-        n = np.asarray(normal, dtype=float).reshape(3)
-        largest = float(np.max(np.abs(n))) if np.all(np.isfinite(n)) else math.nan
-        if not largest > 0.0:
-            raise InvalidInputError("the surface normal must be 3 finite numbers, not all zero")
-        n = n / largest  # any length: 1e285 squared overflowed the norm, and the unit was 0
-        n = n / np.linalg.norm(n)
+        n = unit_vector(np.asarray(normal, dtype=float).reshape(-1), "the surface normal")
     on = np.asarray(closest[0], dtype=float)
     T = floor_frame(mesh, on, n, tool_radius_m + gap_m)
     R = T[:3, :3]

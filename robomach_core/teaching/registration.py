@@ -42,7 +42,7 @@ from scipy.spatial.transform import Rotation
 
 from ..errors import InvalidInputError
 from ..part import Workpiece, mesh_query
-from ..transforms import inverse_transform, make_transform
+from ..transforms import inverse_transform, make_transform, unit_vector
 
 FACING_COS = 0.5  # a touch meets faces whose normal is within 60 deg of against its direction
 MIN_TOUCHES = 6  # a rigid frame has six unknowns
@@ -97,11 +97,8 @@ class Touch:
     def __post_init__(self) -> None:
         object.__setattr__(self, "tcp_m", _vector(self.tcp_m, "a touch's position"))
         d = np.asarray(_vector(self.direction, "a touch's direction"))
-        norm = float(np.linalg.norm(d))
-        if norm < 1e-9:
-            raise InvalidInputError("a touch's direction must not be zero")
-        if abs(norm - 1.0) > 1e-12:  # a unit vector stays as it is (a saved touch reads back)
-            d = d / norm
+        if abs(float(np.linalg.norm(d)) - 1.0) > 1e-12:  # a unit one stays (a saved touch)
+            d = unit_vector(d, "a touch's direction")
         object.__setattr__(self, "direction", _vector(d, "direction"))
         if not (math.isfinite(self.force_N) and 0.0 <= self.force_N <= 1000.0):
             raise InvalidInputError("a touch's force must be within 0-1000 N")

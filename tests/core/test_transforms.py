@@ -71,3 +71,27 @@ def test_slerp_of_many_pairs_is_scipys_slerp_between_two_keys(seed):
         want = Slerp([0.0, 1.0], keys)([f[k]]).as_matrix()[0]
         np.testing.assert_allclose(matrix_from_quaternion(got[k]), want, atol=1e-12)
         np.testing.assert_allclose(slerp(q0[k], q1[k], f[k]), got[k], atol=1e-15)
+
+
+def test_a_vector_of_any_finite_length_has_the_unit_of_its_direction():
+    """1e-300 to 1e300, as a whole or one component far off the others (a fresh draw): the unit
+    is its direction's; zero and non-finite vectors are refused."""
+    import random
+
+    import pytest
+
+    from robomach_core.errors import InvalidInputError
+    from robomach_core.transforms import unit_vector
+
+    seed = random.randrange(2**32)
+    rng = np.random.default_rng(seed)
+    for _ in range(50):
+        d = rng.normal(size=3)
+        d /= np.linalg.norm(d)
+        scale = 10.0 ** rng.uniform(-300, 300)
+        np.testing.assert_allclose(unit_vector(d * scale), d, atol=1e-15, err_msg=f"seed {seed}")
+        lopsided = np.array([10.0 ** rng.uniform(250, 300), 10.0 ** rng.uniform(-300, -250), 1.0])
+        np.testing.assert_allclose(unit_vector(lopsided), [1.0, 0.0, 0.0], atol=1e-15)
+    for bad in ([0.0, 0.0, 0.0], [np.inf, 0.0, 0.0], [np.nan, 1.0, 0.0], [1.0, 2.0]):
+        with pytest.raises(InvalidInputError):
+            unit_vector(bad)

@@ -148,5 +148,5 @@ def test_a_normal_of_any_finite_length_picks_as_its_unit_does():
             got = pick_wall(mesh, point, normal, **PICK)
             where = f"seed {seed}: normal {normal}"
             assert got.z_m == want.z_m and got.loop.length_m == want.loop.length_m, where
-    with pytest.raises(InvalidInputError, match="not all zero"):
+    with pytest.raises(InvalidInputError, match="must not be zero"):
         pick_wall(mesh, point, np.zeros(3), **PICK)
