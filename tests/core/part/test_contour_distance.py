@@ -20,7 +20,7 @@ def every_piece(contour: Contour, points: np.ndarray) -> np.ndarray:
     return d
 
 
-@settings(max_examples=40, deadline=None, derandomize=True)
+@settings(max_examples=40, deadline=None)
 @given(
     offset_mm=st.floats(-2.0, 2.5),
     spacing_mm=st.sampled_from([0.02, 0.1, 1.0]),
@@ -38,7 +38,7 @@ def test_distance_along_a_path_equals_the_distance_to_every_piece(
     np.testing.assert_allclose(WALL.distance(pts), every_piece(WALL, pts), rtol=0, atol=1e-15)
 
 
-@settings(max_examples=20, deadline=None, derandomize=True)
+@settings(max_examples=20, deadline=None)
 @given(scale_m=st.floats(0.001, 10.0), count=st.integers(0, 2000), seed=st.integers(0, 2**16))
 def test_distance_of_scattered_points_equals_the_distance_to_every_piece(scale_m, count, seed):
     pts = np.random.default_rng(seed).uniform(-scale_m, scale_m, (count, 2))

@@ -85,7 +85,7 @@ def test_obj_polygons_count_as_fans_of_k_minus_2_triangles():
     assert trimesh_faces(text, "obj") == 6
 
 
-@settings(max_examples=40, deadline=None, derandomize=True)
+@settings(max_examples=40, deadline=None)
 @given(st.lists(st.integers(3, 9), min_size=1, max_size=60))
 def test_obj_count_matches_trimesh_on_random_polygons(sizes):
     rng = np.random.default_rng(len(sizes))
