@@ -285,7 +285,7 @@ class Learning:
             settings,
             view.cell.workpiece,
             project.cell.tool_radius_m,
-            guides=project.guide_points,
+            guides=project.learned_guides(),
         )
 
         def change(p: Project) -> Project:

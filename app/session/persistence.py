@@ -126,7 +126,11 @@ def project_from_data(data: ProjectData, workpiece: Workpiece) -> Project:
         try:
             applied = PostprocessSettings(**(post.get("applied_settings") or post["settings"]))
             processed = core.process(
-                project.learned, applied, workpiece, cell.tool_radius_m, guides=project.guide_points
+                project.learned,
+                applied,
+                workpiece,
+                cell.tool_radius_m,
+                guides=project.learned_guides(),
             )
         except (RobomachError, TypeError, ValueError, KeyError) as exc:
             log.warning("project %s: stored post-processing no longer applies: %s", pid, exc)

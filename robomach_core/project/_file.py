@@ -228,7 +228,7 @@ def _project(doc: dict[str, Any], arrays: dict[str, np.ndarray]) -> Project:
         applied = PostprocessSettings(**(doc.get("applied_settings") or doc["post_settings"]))
         workpiece = build_cell_workpiece(cell, mesh)
         processed = process(
-            learned, applied, workpiece, cell.tool_radius_m, guides=project.guide_points
+            learned, applied, workpiece, cell.tool_radius_m, guides=project.learned_guides()
         )
         project = replace(project, processed=processed)
     return project

@@ -249,6 +249,16 @@ class Project:
         """The cell's tool."""
         return Tool(radius_m=self.cell.tool_radius_m)
 
+    def learned_guides(self) -> tuple[GuidePoint, ...] | None:
+        """The guide points the recording was learned from: the project's while the recording
+        is current; None once they or the cell changed (a stale recording is judged against no
+        guide points rather than others: a point recorded after learning failed
+        post-processing with a 503, and a moved one would judge the program by a wall it was
+        never taught)."""
+        if self.learned is None or self.learned.inputs != recording_inputs_key(self):
+            return None
+        return self.guide_points
+
     def status(self) -> dict[str, StageStatus]:
         """Per stage (``STAGE_NAMES``): ``"none"``, ``"current"`` or ``"stale"``."""
         out: dict[str, StageStatus] = {
