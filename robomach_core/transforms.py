@@ -25,8 +25,9 @@ def arc_length_m(points_m: np.ndarray) -> np.ndarray:
 
 
 def unit_vector(v: np.ndarray | list[float], what: str = "a direction") -> np.ndarray:
-    """(3,) ``v`` of any finite, non-zero length made unit: scaled by its largest component
-    first, so 1e285 does not overflow the norm (its unit came out zero) nor 1e-200 underflow it.
+    """(3,) ``v`` of any finite, non-zero length made unit. Outside 1e-150..1e150 it is scaled
+    by its largest component first, so 1e285 does not overflow the norm (its unit came out
+    zero) nor 1e-200 underflow it; inside, ``v / |v|`` as before, to the bit.
 
     Raises:
         InvalidInputError: not 3 finite numbers, or all zero (``what`` names it).
