@@ -467,7 +467,10 @@ class PostprocessPublic(BaseModel):
         None, description="farthest the program's cutter stays off the part's walls [mm]"
     )
     follows_taught_wall: bool | None = Field(
-        None, description="the program follows the wall the guide points were taught on"
+        None,
+        description="the program follows the wall the guide points were taught on; null "
+        "when the recording is out of date (the points or the cell changed after learning: "
+        "it is judged by no other points)",
     )
     taught_wall: str | None = Field(None, description="the taught-wall check in words")
     problems: list[str] = Field(
