@@ -55,6 +55,7 @@ from robomach_core.errors import (
 )
 from robomach_core.part import mesh_query
 from robomach_core.teaching import Arrival, go_to_point
+from robomach_core.transforms import unit_vector
 
 from .live import tapped_cell
 from .records import LIVE_NOTIFY_S, BusyError, ConflictError, RobotSnapshot
@@ -279,8 +280,7 @@ class Teach:
         from robomach_core.teaching import move_by
 
         d = np.asarray(direction, dtype=float)
-        if d.shape != (3,) or not np.all(np.isfinite(d)) or np.linalg.norm(d) < 1e-9:
-            raise InvalidInputError("a touch direction is 3 finite numbers, not all zero")
+        unit_vector(d, "a touch direction")  # refused here as the touch-off would, before it
         limits.TOUCH_OFF_FORCE_N.check(force_N, "touch force [N]")
         if not (np.isfinite(max_travel_m) and max_travel_m * 1e3 in limits.TOUCH_OFF_TRAVEL_MM
                 and max_travel_m > 0):  # fmt: skip
