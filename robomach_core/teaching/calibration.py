@@ -30,11 +30,16 @@ import shapely
 from ..cell import TOOL_DOWN, LeadThrough, LeadThroughState
 from ..errors import InvalidInputError, NoContactError, RobomachError
 from ..limits import TOUCH_OFF_FORCE_N
-from ..part import Workpiece, mesh_query
+from ..part import PartDeviation, Workpiece, mesh_query
 from .motion import go_to_point, move_by
 from .registration import CalibrationError, Touch
 
 EXPECTED_ERROR_M = 0.01  # the part may stand this far off its CAD at a touch (a few mm and 2 deg)
+# ... as a shift and a turn about the work object's z: the realistic preset's largest fixture
+# error (``PartDeviation``), which ``edge_margin_m`` spreads over a face
+_PRESET = PartDeviation()
+EXPECTED_SHIFT_M = _PRESET.fixture_shift_mm * 1e-3
+EXPECTED_TURN_RAD = math.radians(_PRESET.fixture_rotation_deg)
 TOP_STANDOFF_M = 0.008  # a touch down starts this far above the face
 SIDE_STANDOFF_M = EXPECTED_ERROR_M + 0.003  # a touch across starts this far off the face
 TOUCH_DEPTH_M = 0.008  # a side is touched this far below its top edge (the spindle stays above)
@@ -240,6 +245,17 @@ def _axis_words(normal_base: np.ndarray, T_base_wobj: np.ndarray) -> str:
     if abs(n[i]) > math.cos(math.radians(10.0)):
         return f"{'+' if n[i] > 0 else '-'}{'xyz'[i]}"
     return "({:+.2f}, {:+.2f}, {:+.2f})".format(*n)
+
+
+def edge_margin_m(points_wobj: np.ndarray) -> np.ndarray:
+    """(k,) how far from a face's edge a touch at each point (work-object frame) must stay to
+    meet that face on a part standing off its CAD by ``EXPECTED_SHIFT_M`` and turned
+    ``EXPECTED_TURN_RAD`` about the work object's z: the edge moves by up to the shift plus the
+    turn times its distance from the z axis (the point's and the margin's, hence the
+    1 / (1 - turn)); ``EXPECTED_ERROR_M`` at least."""
+    rho = np.linalg.norm(np.asarray(points_wobj, dtype=float).reshape(-1, 3)[:, :2], axis=1)
+    moved = (EXPECTED_SHIFT_M + EXPECTED_TURN_RAD * rho) / (1.0 - EXPECTED_TURN_RAD)
+    return np.maximum(moved, EXPECTED_ERROR_M)
 
 
 def plan_touches(

@@ -30,22 +30,24 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from ..errors import InvalidInputError
-from ..part import PartDeviation, Workpiece, mesh_query
-from .calibration import EXPECTED_ERROR_M, OTHER_SIDE_TOUCHES, SIDE_TOUCHES, TOP_TOUCHES
+from ..part import Workpiece, mesh_query
+from .calibration import (
+    EXPECTED_ERROR_M,
+    OTHER_SIDE_TOUCHES,
+    SIDE_TOUCHES,
+    TOP_TOUCHES,
+    edge_margin_m,
+)
 
 CANDIDATES = 400  # points drawn on the face to choose its touches from
-# ... each on the face over ``edge_margin_m`` around it: at least the error the example
-# operator's plan keeps off an edge (``calibration.EXPECTED_ERROR_M``), more where the part's
-# turn about its work object's z carries the face's end further (a 400 mm block's end). At a
-# fixed 6 mm, one click-touch in 14 on a realistic part (2-4 mm and 1-2 deg off: 10 mm at
-# the end of a 300 mm plate) ran past the face's end and met its corner, and the fit put the
-# CAD 11-17 mm off (seed 1885297732 of test_workbench_cell's three-click calibration).
+# ... each on the face over ``calibration.edge_margin_m`` around it: at least the error the
+# example operator's plan keeps off an edge (``EXPECTED_ERROR_M``; also the least spacing of
+# two touches), more where the part's turn about its work object's z carries the face's end
+# further (a 400 mm block's end). At a fixed 6 mm, one click-touch in 14 on a realistic part
+# (2-4 mm and 1-2 deg off: 10 mm at the end of a 300 mm plate) ran past the face's end and met
+# its corner, and the fit put the CAD 11-17 mm off (seed 1885297732 of test_workbench_cell's
+# three-click calibration).
 FLAT_MARGIN_M = EXPECTED_ERROR_M
-# The part's error the margin covers: the realistic preset's largest fixture error
-# (``PartDeviation``), a shift and a turn about the work object's z.
-_PRESET = PartDeviation()
-EXPECTED_SHIFT_M = _PRESET.fixture_shift_mm * 1e-3
-EXPECTED_TURN_RAD = math.radians(_PRESET.fixture_rotation_deg)
 PLANE_COS = math.cos(math.radians(3.0))  # a face of the same plane: normal within 3 deg ...
 PLANE_M = 5e-5  # ... and within 0.05 mm of the plane
 ON_FACE_M = 5e-4  # a candidate this near the mesh lies on it
@@ -159,17 +161,6 @@ def _candidates(mesh, pick: np.ndarray, n: np.ndarray, offset: float, up: bool) 
     if not up:  # a side: at the pick's height, below the face's top edge
         points[:, 2] = pick[2]
     return points
-
-
-def edge_margin_m(points_wobj: np.ndarray) -> np.ndarray:
-    """(k,) how far from a face's edge a touch at each point (work-object frame) must stay to
-    meet that face on a part standing off its CAD by ``EXPECTED_SHIFT_M`` and turned
-    ``EXPECTED_TURN_RAD`` about the work object's z: the edge moves by up to the shift plus the
-    turn times its distance from the z axis (the point's and the margin's, hence the
-    1 / (1 - turn)); ``FLAT_MARGIN_M`` at least."""
-    rho = np.linalg.norm(np.asarray(points_wobj, dtype=float).reshape(-1, 3)[:, :2], axis=1)
-    moved = (EXPECTED_SHIFT_M + EXPECTED_TURN_RAD * rho) / (1.0 - EXPECTED_TURN_RAD)
-    return np.maximum(moved, FLAT_MARGIN_M)
 
 
 def _on_plane(
