@@ -50,7 +50,8 @@ class Walk:
         return r
 
     def job(self, r) -> None:
-        """Wait for the job ``r`` started, or cancel it at a random moment (a third of them)."""
+        """Wait for the job ``r`` started (``Api.wait_job``), or cancel it at a random moment (a
+        third of them)."""
         if r.status_code != 202:
             return
         job = r.json()["job_id"]
@@ -58,12 +59,7 @@ class Walk:
             time.sleep(self.rng.uniform(0.0, 0.5))
             self.call("POST", f"/api/jobs/{job}/cancel")
             return
-        deadline = time.monotonic() + JOB_WAIT_S
-        while time.monotonic() < deadline:
-            got = self.call("GET", f"/api/jobs/{job}")
-            if got.status_code != 200 or got.json()["status"] in ("done", "failed", "cancelled"):
-                return
-            time.sleep(0.1)
+        self.api.wait_job(job, JOB_WAIT_S)  # any end; a job that never ends fails the walk
 
     def some_project(self) -> str | None:
         listed = self.call("GET", "/api/projects").json()
