@@ -20,10 +20,22 @@ START_TIMEOUT_S = 60.0
 POLL_S = 0.02  # how often a start or a job is looked at
 
 
+_HANDED_OUT: set[int] = set()
+
+
 def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+    """A free port on 127.0.0.1 that this process has not handed out before.
+
+    The kernel may give a port just closed again, so two calls in a row (a server's REST and
+    viser ports) could answer the same one, and the server refuses to start (CI run, 2026-12-05).
+    """
+    while True:
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            port = s.getsockname()[1]
+        if port not in _HANDED_OUT:
+            _HANDED_OUT.add(port)
+            return port
 
 
 @dataclass
