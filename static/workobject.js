@@ -4,7 +4,7 @@
 //    typed the 3D scene draws the part there (PUT /api/cell/placement-preview: nothing applied),
 //    "Place the part here" applies them (PUT /api/cell {"wobj_mm_deg"}: a cell change).
 //  - Calibrate by touch: "Touch faces" makes a click on the part in the 3D scene touch the face
-//    clicked (3, 3 and 2 touches on the top and two sides), or the example operator touches the
+//    clicked (4, 3 and 2 touches on the top and two sides), or the example operator touches the
 //    planned features; the touches with their residuals, the fit, Accept, Undo, Clear, Back.
 "use strict";
 
@@ -33,7 +33,7 @@ function workObjectCard() {
     <div class="caption">Calibrate by touch</div>
     <p class="small">The part may stand a few mm and a degree or two off its CAD. <b>Touch
       faces</b>, then click three faces of the part in the 3D scene: the top, a side and a side
-      across it. The robot touches each where the frame needs it (3, 3 and 2 touches).</p>
+      across it. The robot touches each where the frame needs it (4, 3 and 2 touches).</p>
     <div class="row">
       <label>Force <input id="calib-force" type="number" data-range="TOUCH_OFF_FORCE_N" step="0.5"> N</label>
       <button id="calib-mode">Touch faces</button>

@@ -234,7 +234,7 @@ class Calibration:
         self._set(self._session.project(), (), force)
 
     def start_auto(self, force_N: float | None = None) -> str:
-        """Job: the example operator touches the features of ``plan()`` (three on the top face,
+        """Job: the example operator touches the features of ``plan()`` (four on the top face,
         three and two on two sides); the touches replace the ones made so far. Returns the job
         id; the robot is busy until it ends."""
         from .robot import ROBOT_JOB_KINDS

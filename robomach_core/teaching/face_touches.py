@@ -13,10 +13,12 @@ STRATEGY  The face at the pick is the plane of the mesh's face there (normal and
           it, lies on the same plane (flat over the error the part may have). The kept point
           nearest the pick comes first (the pick itself unless it is near the face's edge),
           then the kept candidate farthest from it, a third farthest from the line through
-          those two (the tilt across a long face), and more farthest from the points chosen.
-          How many: what the example operator's plan takes from a face of that kind (three on
-          the top, three and two on two sides: three-two-one and two to spare,
-          ``touches_for_face``).
+          those two (the tilt across a long face), a fourth farthest from the lines through
+          two of those three (so the others check each), and more farthest from the points
+          chosen.
+          How many: what the example operator's plan takes from a face of that kind (four on
+          the top, three and two on two sides: three-two-one and a touch to spare on each
+          face, ``touches_for_face``).
 SOLUTION  ``touches_for_face(up, directions)`` and ``face_touch_points(cad, point, count)``
           -> (k, 3) points of the face (work-object frame) to touch with
           ``Calibration.touch(at_wobj_m=...)``.
@@ -37,6 +39,7 @@ from .calibration import (
     SIDE_TOUCHES,
     TOP_TOUCHES,
     edge_margin_m,
+    off_lines_m,
 )
 
 CANDIDATES = 400  # points drawn on the face to choose its touches from
@@ -58,7 +61,8 @@ PICK_DISTANCE_M = 0.002  # a pick farther than this from the mesh is not on the 
 def touches_for_face(up: bool, directions: Sequence[Sequence[float]], up_axis=(0, 0, 1)) -> int:
     """How many touches a face should take given the touches made so far (their unit
     ``directions``; ``up_axis`` the part's up, same frame): as the example operator's plan
-    (``calibration.plan_touches``), three-two-one with two to spare for the residual: a top
+    (``calibration.plan_touches``), three-two-one with a touch to spare on each face, so that
+    the others check each touch: a top
     face (``up``) up to ``TOP_TOUCHES``, the first side ``SIDE_TOUCHES``, another side
     ``OTHER_SIDE_TOUCHES``, and one at least."""
     u = np.asarray(up_axis, dtype=float)
@@ -121,12 +125,15 @@ def _spread_from(points: np.ndarray, chosen: np.ndarray, *, across: bool) -> np.
     """(k,) how far each point stands from those chosen: from the one point, then (on a face
     spread ``across``, a top) from the line through the first two (a third touch of a long
     face off that line fixes its tilt across it: farthest from both ends picked one at the
-    end of a bar), then from the nearest chosen point."""
+    end of a bar) and from the lines through two of the three (``off_lines_m``: the fourth),
+    then from the nearest chosen point."""
     if across and len(chosen) == 2:
         axis = chosen[1] - chosen[0]
         axis /= max(float(np.linalg.norm(axis)), 1e-12)
         rel = points - chosen[0]
         return np.linalg.norm(rel - np.outer(rel @ axis, axis), axis=1)
+    if across and len(chosen) == 3:
+        return off_lines_m(points, chosen)
     return np.min(np.linalg.norm(points[:, None] - chosen[None], axis=2), axis=1)
 
 

@@ -323,12 +323,17 @@ class WobjFit:
 
     def odd_touches(self) -> list[int]:
         """When a touch stands more than ``ODD_TOUCH_M`` from where the others put its face:
-        the touches whose leaving out makes the rest agree (one: that one; several on one
-        face: it is one of them, and the touches cannot tell which); else []."""
+        the touches of the faces such touches met whose leaving out makes the rest agree (one:
+        that one; several on one face: it is one of them, and the touches cannot tell which);
+        else []. A chip under one of a face's touches moves every touch of that face off where
+        the others put it, but hardly those of the other faces (which, with every face touched
+        once more than it needs, agree without any one touch: named, they said nothing)."""
         d, agree = self.disagreement_m, self.consistent_without
-        if d is None or agree is None or not np.any(np.abs(np.nan_to_num(d)) > ODD_TOUCH_M):
+        if d is None or agree is None:
             return []
-        return [int(k) for k in np.flatnonzero(agree)]
+        beyond = np.abs(np.nan_to_num(d)) > ODD_TOUCH_M
+        faces = {self.faces[k] for k in np.flatnonzero(beyond)}
+        return [int(k) for k in np.flatnonzero(agree) if self.faces[k] in faces]
 
     def document(self) -> dict[str, Any]:
         """The fit at the boundary (mm, deg), for the API and summary.json."""

@@ -78,18 +78,18 @@ def test_a_realistic_part_is_calibrated_over_http_and_proposals_then_stand_on_it
     api = http_api
     api.ok("PUT", "/api/cell", json={"realistic": True, "wobj_mm_deg": [790, 150, 0, 25]})
     plan = api.ok("GET", f"{CAL}/plan")
-    assert len(plan["touches"]) == 8
+    assert len(plan["touches"]) == 9
     job = api.ok("POST", f"{CAL}/auto", 202, json={})
     assert api.wait_job(job["job_id"], timeout_s=300)["status"] == "done"
     state = api.ok("GET", CAL)
     fit = state["fit"]
     assert fit is not None, state["fit_error"]
-    assert fit["method"].startswith("point-to-plane") and fit["redundancy"] == 2
+    assert fit["method"].startswith("point-to-plane") and fit["redundancy"] == 3
     assert 1.0 < fit["turned_deg"] < 2.1 and fit["rms_mm"] < 0.5  # the preset's 1-2 deg
     assert all(t["residual_mm"] is not None for t in state["touches"])
     cell = api.ok("POST", f"{CAL}/accept")
     reg = cell["registration"]
-    assert reg["touches"] == 8 and reg["wobj_mm_deg"] == pytest.approx(fit["wobj_mm_deg"], abs=1e-3)
+    assert reg["touches"] == 9 and reg["wobj_mm_deg"] == pytest.approx(fit["wobj_mm_deg"], abs=1e-3)
     assert cell["wobj_mm_deg"] == [790, 150, 0, 25]  # the placement stays as set
     # Proposals now stand on the registered CAD (tests/core/teaching/test_registration.py
     # measures them against the real wall): the whole groove is proposed and every point is reached.
@@ -99,7 +99,7 @@ def test_a_realistic_part_is_calibrated_over_http_and_proposals_then_stand_on_it
     assert len(proposal["points"]) >= 4 and {p["reach"] for p in proposal["points"]} == {"ok"}
     undone = api.ok("DELETE", CAL)
     assert undone["registration"] is None
-    assert len(api.ok("GET", CAL)["touches"]) == 8
+    assert len(api.ok("GET", CAL)["touches"]) == 9
     np.testing.assert_allclose(
         [undone["wobj"][k] for k in ("x_mm", "y_mm", "rz_deg")], [790, 150, 25], atol=1e-6
     )

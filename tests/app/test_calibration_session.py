@@ -43,15 +43,15 @@ def test_the_example_operator_calibrates_and_the_accepted_fit_survives_a_restart
         before = _errors_m(session, deviation)
         assert before > 2e-3, replay(SEED)  # the CAD as placed: millimetres off
         plan = session.calibration.plan()
-        assert [t.feature for t in plan.touches].count("top") == 3 and len(plan.touches) == 8
+        assert [t.feature for t in plan.touches].count("top") == 4 and len(plan.touches) == 9
         info = finished(session, session.calibration.start_auto(force_N=12.0))
         assert info.status == "done", info.error
         state = session.calibration.state()
-        assert len(state.touches) == 8 and state.fit is not None, state.fit_error
+        assert len(state.touches) == 9 and state.fit is not None, state.fit_error
         assert state.force_N == 12.0 and state.registration is None
         joints = session.robot.snapshot().joints_rad
         cell = session.calibration.accept()
-        assert cell.registration is not None and len(cell.registration.touches) == 8
+        assert cell.registration is not None and len(cell.registration.touches) == 9
         np.testing.assert_allclose(session.robot.snapshot().joints_rad, joints, atol=1e-9)
         after = _errors_m(session, deviation)
         said = f"{replay(SEED)}: {after * 1e3:.3f} mm after, {state.fit.describe()}"
@@ -63,11 +63,11 @@ def test_the_example_operator_calibrates_and_the_accepted_fit_survives_a_restart
     try:
         assert reopened.project().cell.registration == cell.registration
         assert _errors_m(reopened, deviation) == pytest.approx(after, abs=1e-9)
-        assert len(reopened.calibration.state().touches) == 8  # kept with the robot
+        assert len(reopened.calibration.state().touches) == 9  # kept with the robot
         reopened.calibration.remove()
         assert reopened.project().cell.registration is None
         assert _errors_m(reopened, deviation) == pytest.approx(before, abs=1e-9)
-        assert len(reopened.calibration.state().touches) == 8  # the touches stay
+        assert len(reopened.calibration.state().touches) == 9  # the touches stay
     finally:
         reopened.close()
 
@@ -119,7 +119,7 @@ def test_another_part_or_placement_drops_the_touches_and_the_calibration_a_tool_
         assert session.project().cell.registration is not None
         session.set_cell(tool_radius_m=0.002)  # the same part, where it is: both stay
         assert session.project().cell.registration is not None
-        assert len(session.calibration.state().touches) == 8
+        assert len(session.calibration.state().touches) == 9
         session.set_cell(wobj_mm_deg=(780.0, 150.0, 0.0, 10.0))  # the part moved
         assert session.project().cell.registration is None
         assert session.calibration.state().touches == ()

@@ -120,7 +120,7 @@ def cam_plate_shots(browser, folder: Path) -> None:
         page.get_by_role("button", name="Touch faces").click()
         wait_for(lambda: session.pointing.click_mode == "touch", 60)
         _orbit(client, session, **CORNER_VIEW)
-        for (point, _normal), touches in zip((TOP, SIDE_Y, SIDE_X), (3, 6, 8), strict=True):
+        for (point, _normal), touches in zip((TOP, SIDE_Y, SIDE_X), (4, 7, 9), strict=True):
             _click_at(page, client, _base(session, point))
             wait_for(lambda n=touches: len(session.calibration.state().touches) == n, TIMEOUT_S)
         wait_for(lambda: "**Fit**" in wb.calibration.fit.content, 60)

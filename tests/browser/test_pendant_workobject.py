@@ -52,7 +52,7 @@ def test_the_pendant_places_the_part_and_calibrates_it_by_touch(
     page.locator("#calib-mode").click()
     wait_for(lambda: api.get("/api/guide-points/pointing").json()["click_mode"] == "touch")
     page.locator("#calib-auto").click()
-    expect(page.locator("#calib-list tr")).to_have_count(8, timeout=300_000)
+    expect(page.locator("#calib-list tr")).to_have_count(9, timeout=300_000)
     expect(page.locator("#calib-fit")).to_contain_text("Fit:")
     expect(page.locator("#calib-accept")).to_be_enabled()
     page.locator("#calib-accept").click()

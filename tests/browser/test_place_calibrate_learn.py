@@ -213,7 +213,7 @@ def test_place_calibrate_propose_learn_export_within_a_third_of_a_mm_in_twenty_a
         _orbit(client, session, **CORNER_VIEW)
         act("orbit to the corner")
         _shot(page, "2_corner")
-        for (point, _normal), touches in zip((TOP, SIDE_Y, SIDE_X), (3, 6, 8), strict=True):
+        for (point, _normal), touches in zip((TOP, SIDE_Y, SIDE_X), (4, 7, 9), strict=True):
             _click_at(page, client, _base(session, point))
             act(f"click the face at {point}")
             wait_for(

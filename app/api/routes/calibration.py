@@ -186,7 +186,7 @@ def get_calibration(session: SessionDep) -> CalibrationPublic:
 
 @router.get("/plan")
 def get_plan(session: SessionDep) -> TouchPlanPublic:
-    """The features to touch on this part (what the example operator touches: three on the top
+    """The features to touch on this part (what the example operator touches: four on the top
     face, three and two on two sides facing across each other), for a GUI to show."""
     plan = session.calibration.plan()
     T = session.robot.workpiece.cad().T_base_wobj

@@ -5,7 +5,7 @@ A real part stands a few millimetres and a degree or two off its CAD (the realis
 fixture); as on a pendant (ABB's 3-point user frame, KUKA's base measurement) its work object
 is measured by touching it. With *Click on the part* set to "touch the face (calibration)", a
 click on a face makes the robot touch it, as many times as the three-two-one still needs from
-a face of that kind (``teaching.face_touches``: three on the top, three and two on two sides),
+a face of that kind (``teaching.face_touches``: four on the top, three and two on two sides),
 each a guarded move at the touch force from off the face. The session's ``calibration`` (the
 same the REST API and the pendant use) keeps the touches and fits the CAD to them
 (``registration.fit_wobj``, point-to-plane least squares); the scene shows the touches and,
@@ -30,7 +30,7 @@ INTRO = (
     "The part in the cell may stand a few mm and a degree or two off its CAD. Set *Click on "
     "the part* to **touch the face (calibration)** (or press *Touch faces*), then click three "
     "faces: the top, a side and a side across it. The robot touches each where the frame "
-    "needs it (3, 3 and 2 touches), the CAD is fitted to the touches (green: where it really "
+    "needs it (4, 3 and 2 touches), the CAD is fitted to the touches (green: where it really "
     "is) and you accept it."
 )
 

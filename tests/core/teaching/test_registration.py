@@ -233,7 +233,7 @@ def _calibrated(cell, cad, force):
 @pytest.mark.slow
 @pytest.mark.parametrize("k", range(3))
 def test_the_fit_recovers_the_fixture_error_within_a_tenth_of_a_mm(k):
-    """A part that differs from its CAD by its fixture only: the touches (8: three on the top,
+    """A part that differs from its CAD by its fixture only: the touches (9: four on the top,
     three and two on two sides) place it within 0.1 mm at every point, residual nearly 0."""
     cell, cad, deviation, force, what = _cell(k, casting=False)
     fit = _calibrated(cell, cad, force)
@@ -241,9 +241,22 @@ def test_the_fit_recovers_the_fixture_error_within_a_tenth_of_a_mm(k):
     worst = _errors_m(cad, fit.T_base_wobj, truth).max()
     assert worst <= UNMODELLED_M, f"{what}: off by {worst * 1e3:.3f} mm; {fit.describe()}"
     assert fit.max_m <= 0.02e-3, f"{what}: {fit.describe()}"
-    assert len(fit.touches) == 8 and len(set(fit.faces)) == 3
+    assert len(fit.touches) == 9 and len(set(fit.faces)) == 3
     moved = _errors_m(cad, cad.T_base_wobj, truth).max()
     assert fit.moved_max_m == pytest.approx(moved, abs=UNMODELLED_M), what
+    # The others check every touch: one that met a chip is named, whichever it is (with three
+    # on the top, a chip under one of them tilted the CAD millimetres off and nothing said so).
+    assert np.all(np.isfinite(fit.disagreement_m)), f"{what}: {fit.disagreement_m}"
+    assert fit.odd_touches() == [], f"{what}: {fit.describe()}"
+    rng = _rng("chip", k)
+    j = int(rng.integers(len(fit.touches)))
+    chip = float(rng.uniform(ODD_TOUCH_M * 1.1, 3e-3))
+    touches = list(fit.touches)
+    t = touches[j]
+    touches[j] = Touch(tuple(np.array(t.tcp_m) - np.array(t.direction) * chip), t.direction,
+                       t.force_N, t.tool_radius_m)  # fmt: skip
+    chipped = fit_wobj(cad, touches)
+    assert j in chipped.odd_touches(), f"{what}: a {chip * 1e3:.2f} mm chip under touch {j + 1}"
 
 
 @pytest.mark.slow
@@ -273,7 +286,11 @@ def test_on_a_casting_the_fit_is_as_good_as_its_walls_and_proposals_stand_beside
     settings = ProposalSettings(gap_m=gap)
     real_mesh = real.scoring_mesh()
     T_real = real.T_base_wobj
-    for part, tolerance in ((registered, casting + 0.3e-3), (real.cad(), None)):
+    # The real wall stands within the casting of the CAD's, the registered CAD within ``worst``
+    # of where the real part is (a fixed 0.3 mm for the fit failed a block whose fit was
+    # 0.43 mm off, within its own bound above: ROBOMACH_SEED=3165964100)
+    near = casting + worst + UNMODELLED_M
+    for part, tolerance in ((registered, near), (real.cad(), None)):
         proposal = propose_guide_points(
             part, None, np.array([*xy, z]), tool_radius_m=cell.tool.radius_m, settings=settings
         )
