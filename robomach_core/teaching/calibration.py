@@ -23,6 +23,7 @@ SOLUTION  ``plan_touches(cad, tool_radius_m, robot=) -> TouchPlan`` (the scripte
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -229,9 +230,7 @@ def _pick_top(points: np.ndarray, starts: np.ndarray, robot) -> list[int]:
     b = first_reached(np.argsort(-np.linalg.norm(xy - xy[a], axis=1)))
     if b is None or b == a:
         return [a]
-    ab = xy[b] - xy[a]
-    off = np.abs(ab[0] * (xy[:, 1] - xy[a, 1]) - ab[1] * (xy[:, 0] - xy[a, 0]))
-    c = first_reached(np.argsort(-off))
+    c = first_reached(np.argsort(-off_lines_m(xy, xy[[a, b]])))
     if c is None or c in (a, b):
         return [a, b]
     d = first_reached(np.argsort(-off_lines_m(xy, xy[[a, b, c]])))
@@ -239,12 +238,13 @@ def _pick_top(points: np.ndarray, starts: np.ndarray, robot) -> list[int]:
 
 
 def off_lines_m(points: np.ndarray, chosen: np.ndarray) -> np.ndarray:
-    """(k,) each point's distance from the nearest line through two of ``chosen`` (3 points):
-    a fourth touch far from every such line leaves any three of the four off a row, so the
-    others check each touch of a face's plane (farthest from the points alone picked the
-    middle of a long top, in a row with two of them)."""
+    """(k,) each point's distance from the nearest line through two of ``chosen`` (2 or 3
+    points, any dimension): a third touch far off the line through two fixes the tilt across
+    it, and a fourth far from every line through two of three leaves any three of the four
+    off a row, so the others check each touch of a face's plane (farthest from the points
+    alone picked the middle of a long top, in a row with two of them)."""
     out = np.full(len(points), np.inf)
-    for i, j in ((0, 1), (0, 2), (1, 2)):
+    for i, j in itertools.combinations(range(len(chosen)), 2):
         axis = chosen[j] - chosen[i]
         axis = axis / max(float(np.linalg.norm(axis)), 1e-12)
         rel = points - chosen[i]

@@ -127,12 +127,7 @@ def _spread_from(points: np.ndarray, chosen: np.ndarray, *, across: bool) -> np.
     face off that line fixes its tilt across it: farthest from both ends picked one at the
     end of a bar) and from the lines through two of the three (``off_lines_m``: the fourth),
     then from the nearest chosen point."""
-    if across and len(chosen) == 2:
-        axis = chosen[1] - chosen[0]
-        axis /= max(float(np.linalg.norm(axis)), 1e-12)
-        rel = points - chosen[0]
-        return np.linalg.norm(rel - np.outer(rel @ axis, axis), axis=1)
-    if across and len(chosen) == 3:
+    if across and len(chosen) in (2, 3):
         return off_lines_m(points, chosen)
     return np.min(np.linalg.norm(points[:, None] - chosen[None], axis=2), axis=1)
 
