@@ -329,7 +329,8 @@ def plan_touches(
     if top is None:
         raise CalibrationError(
             f"{cad.name}: no top face of the part is flat over +-{margin * 1e3:.0f} mm where "
-            "the tool can touch it from above: touch three points of a top face by hand"
+            "the tool can touch it from above: touch four points of a top face by hand (three "
+            "at least)"
         )
     plane, pts, starts = top
     for k in range(len(pts)):
