@@ -255,9 +255,11 @@ class Project:
         guide points rather than others: a point recorded after learning failed
         post-processing with a 503, and a moved one would judge the program by a wall it was
         never taught)."""
-        if self.learned is None or self.learned.inputs != recording_inputs_key(self):
-            return None
-        return self.guide_points
+        return self.guide_points if self._recording_current() else None
+
+    def _recording_current(self) -> bool:
+        """A recording learned from the project's guide points and cell as they are."""
+        return self.learned is not None and self.learned.inputs == recording_inputs_key(self)
 
     def status(self) -> dict[str, StageStatus]:
         """Per stage (``STAGE_NAMES``): ``"none"``, ``"current"`` or ``"stale"``."""
@@ -269,7 +271,7 @@ class Project:
         }
         upstream_ok = True
         if self.learned is not None:
-            upstream_ok = self.learned.inputs == recording_inputs_key(self)
+            upstream_ok = self._recording_current()
             out["recording"] = "current" if upstream_ok else "stale"
         if self.processed is not None:
             ok = (
